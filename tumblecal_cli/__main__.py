@@ -1,0 +1,5 @@
+"""``python -m tumblecal_cli`` runs the same CLI as the ``tumblecal`` console script."""
+
+from tumblecal_cli.cli import main
+
+raise SystemExit(main())

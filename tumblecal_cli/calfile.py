@@ -1,0 +1,189 @@
+"""Calibration files, format version 1 (DESIGN.md section 4): build, write, read and validate.
+
+JSON by default, YAML when the path ends in ``.yaml``/``.yml`` (read with ``yaml.safe_load``
+only: a ``!!python/object`` tag is an error, never run).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from typing import Any
+
+import numpy as np
+
+from tumblecal_cli import __version__
+from tumblecal_cli.core import FloatArray, Solution
+from tumblecal_cli.errors import InputError
+from tumblecal_cli.files import atomic_output
+
+FORMAT = "tumblecal-calibration"
+VERSION = 1
+SENSORS = ("accelerometer", "magnetometer", "gyroscope")
+REQUIRED = ("format", "version", "sensor", "method", "reference", "columns", "offset", "matrix", "gain")
+
+
+def build(
+    solution: Solution,
+    *,
+    sensor: str,
+    reference: float,
+    units: str | None,
+    input_units: str | None,
+    columns: list[str],
+    poses: list[dict[str, Any]],
+) -> dict[str, Any]:
+    """The calibration document, fields in the order of DESIGN.md section 4."""
+    if units is None and sensor == "accelerometer" and reference == 1.0:
+        units = "g"
+    return {
+        "format": FORMAT,
+        "version": VERSION,
+        "sensor": sensor,
+        "method": solution.method,
+        "reference": reference,
+        "units": units,
+        "input_units": input_units,
+        "columns": columns,
+        "offset": _floats(solution.offset),
+        "matrix": [_floats(row) for row in solution.matrix],
+        "gain": _floats(solution.gain),
+        "uncertainty": {"offset": _floats(solution.offset_se), "gain": _floats(solution.gain_se)},
+        "poses": poses,
+        "created": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "tool": f"tumblecal {__version__}",
+    }
+
+
+def dumps(doc: dict[str, Any], path: str) -> str:
+    """Text of ``doc`` in the format the path's suffix asks for."""
+    if is_yaml(path):
+        import yaml
+
+        return str(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=100))
+    return _json(doc, 0) + "\n"
+
+
+def write(doc: dict[str, Any], path: str) -> None:
+    """Write atomically ('-': stdout)."""
+    text = dumps(doc, path).encode()
+    with atomic_output(path) as out:
+        out.write(text)
+
+
+@dataclass(frozen=True)
+class Loaded:
+    """A validated calibration file: what apply needs, plus the whole document."""
+
+    path: str
+    offset: FloatArray
+    matrix: FloatArray
+    columns: list[str]
+    sensor: str
+    doc: dict[str, Any]
+
+
+def load(path: str) -> Loaded:
+    """Read and validate a calibration file; every problem names the file and the field."""
+    try:
+        with open(path, "rb") as f:
+            raw = f.read()
+    except FileNotFoundError:
+        raise InputError("no such calibration file", file=path) from None
+    except OSError as err:
+        raise InputError(f"cannot read: {err.strerror}", file=path) from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise InputError("not a calibration file: not UTF-8 text", file=path) from None
+    if not text.strip():
+        raise InputError("empty calibration file", file=path)
+    doc = _parse(text, path)
+    if not isinstance(doc, dict):
+        raise InputError("not a calibration file: expected a JSON/YAML object at the top", file=path)
+    if doc.get("format") != FORMAT:
+        what = f"unknown format {doc['format']!r}" if "format" in doc else "missing field 'format'"
+        raise InputError(f"not a tumblecal calibration: {what} (expected {FORMAT!r})", file=path)
+    if doc.get("version") != VERSION:
+        raise InputError(
+            f"unsupported calibration version {doc.get('version')!r} (this tumblecal reads version {VERSION})",
+            file=path,
+            hint="upgrade tumblecal to read newer calibration files",
+        )
+    for name in REQUIRED:
+        if name not in doc:
+            raise InputError(f"missing field {name!r}", file=path)
+    if doc["sensor"] not in SENSORS:
+        raise InputError(f"field 'sensor' must be one of {', '.join(SENSORS)}", file=path)
+    columns = doc["columns"]
+    if not (isinstance(columns, list) and len(columns) == 3 and all(isinstance(c, str) for c in columns)):
+        raise InputError("field 'columns' must be a list of three column names", file=path)
+    _number(doc["reference"], "reference", path)
+    return Loaded(
+        path=path,
+        offset=_vector(doc["offset"], "offset", path),
+        matrix=_matrix(doc["matrix"], "matrix", path),
+        columns=columns,
+        sensor=doc["sensor"],
+        doc=doc,
+    )
+
+
+def is_yaml(path: str) -> bool:
+    return path.lower().endswith((".yaml", ".yml"))
+
+
+def _parse(text: str, path: str) -> Any:
+    if is_yaml(path) or (path == "-" and not text.lstrip().startswith("{")):
+        import yaml
+
+        try:
+            return yaml.safe_load(text)
+        except yaml.YAMLError as err:
+            mark = getattr(err, "problem_mark", None)
+            problem = getattr(err, "problem", None) or str(err).splitlines()[0]
+            raise InputError(
+                f"not valid YAML: {problem}",
+                file=path,
+                line=mark.line + 1 if mark else None,
+                column=mark.column + 1 if mark else None,
+            ) from None
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as err:
+        raise InputError(f"not valid JSON: {err.msg}", file=path, line=err.lineno, column=err.colno) from None
+
+
+def _number(value: Any, name: str, path: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise InputError(f"field {name!r} must be a finite number", file=path)
+    return float(value)
+
+
+def _vector(value: Any, name: str, path: str) -> FloatArray:
+    if not (isinstance(value, list) and len(value) == 3):
+        raise InputError(f"field {name!r} must be a list of 3 numbers", file=path)
+    return np.array([_number(v, name, path) for v in value])
+
+
+def _matrix(value: Any, name: str, path: str) -> FloatArray:
+    if not (isinstance(value, list) and len(value) == 3 and all(isinstance(r, list) and len(r) == 3 for r in value)):
+        raise InputError(f"field {name!r} must be a 3x3 list of numbers", file=path)
+    return np.array([[_number(v, name, path) for v in row] for row in value])
+
+
+def _floats(values: FloatArray) -> list[float]:
+    return [float(v) for v in values]
+
+
+def _json(value: Any, depth: int) -> str:
+    """JSON with two-space indent, lists of numbers kept on one line (vectors, matrix rows)."""
+    pad, inner = "  " * depth, "  " * (depth + 1)
+    if isinstance(value, dict) and value:
+        items = [f"{inner}{json.dumps(k)}: {_json(v, depth + 1)}" for k, v in value.items()]
+        return "{\n" + ",\n".join(items) + f"\n{pad}}}"
+    if isinstance(value, list) and value and not all(isinstance(v, int | float) for v in value):
+        return "[\n" + ",\n".join(inner + _json(v, depth + 1) for v in value) + f"\n{pad}]"
+    return json.dumps(value, ensure_ascii=False, separators=(", ", ": "))

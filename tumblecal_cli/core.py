@@ -1,0 +1,193 @@
+"""The numeric core: pose statistics, the tumble solvers, and apply. numpy only.
+
+Measurement model (DESIGN.md section 2)::
+
+    raw = A @ v + b + noise        v: true stimulus in the sensor frame, |v| = reference
+    corrected = M @ (raw - b)      M = inv(A)
+
+``b`` (offset) is in raw units; ``A`` has the gains on its diagonal. Every formula cites its
+source: seed ``000_8435ca53169b1f1c.txt`` is ST's design tip "1-point / 3-point tumble sensor
+calibration" (A. Vitali, 2018), called "seed 000" below.
+
+Nothing here reads files or talks to a terminal; errors carry no file name unless the caller
+passes one in ``names``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tumblecal_cli.errors import CaptureRejected, InputError
+
+FloatArray = NDArray[np.float64]
+
+#: Face name -> unit vector of gravity's reaction in the sensor frame ("+x": x points up).
+FACES: dict[str, tuple[float, float, float]] = {
+    "+x": (1.0, 0.0, 0.0),
+    "-x": (-1.0, 0.0, 0.0),
+    "+y": (0.0, 1.0, 0.0),
+    "-y": (0.0, -1.0, 0.0),
+    "+z": (0.0, 0.0, 1.0),
+    "-z": (0.0, 0.0, -1.0),
+}
+#: Script-friendly aliases (DESIGN.md section 2): xp = +x, xn = -x, ...
+FACE_ALIASES = {f"{axis}{s}": f"{sign}{axis}" for axis in "xyz" for s, sign in (("p", "+"), ("n", "-"))}
+
+#: A 1-pose magnitude further than this fraction from ``reference`` is a units mistake.
+UNITS_TOLERANCE = 0.25
+
+
+def parse_face(text: str) -> str:
+    """Canonical face name (``+x`` ... ``-z``) for a face or alias; ValueError otherwise."""
+    key = text.strip().lower()
+    key = FACE_ALIASES.get(key, key)
+    if key not in FACES:
+        raise ValueError(f"unknown face {text!r}: use one of +x -x +y -y +z -z (or xp xn yp yn zp zn)")
+    return key
+
+
+@dataclass(frozen=True)
+class PoseStats:
+    """One static pose averaged to a triplet."""
+
+    mean: FloatArray  # (3,) raw units
+    std: FloatArray  # (3,) sample standard deviation (ddof=1); 0.0 when samples == 1
+    samples: int
+
+    @property
+    def stderr(self) -> FloatArray:
+        """Standard error of each mean, std / sqrt(n)."""
+        return self.std / math.sqrt(self.samples)
+
+
+def pose_stats(samples: FloatArray) -> PoseStats:
+    """Mean, standard deviation and count of an (n, 3) block of readings (n >= 1)."""
+    n = int(samples.shape[0])
+    if n == 0:
+        raise InputError("no samples in this pose")
+    std = samples.std(axis=0, ddof=1) if n > 1 else np.zeros(3)
+    return PoseStats(mean=samples.mean(axis=0), std=std, samples=n)
+
+
+@dataclass(frozen=True)
+class Solution:
+    """What a solver estimates: the offset, the correction matrix, and their 1-sigma errors."""
+
+    method: str
+    offset: FloatArray  # (3,) raw units, b
+    matrix: FloatArray  # (3, 3) M = inv(A): corrected = M @ (raw - offset)
+    offset_se: FloatArray  # (3,) standard error of offset from sample noise
+    gain_se: FloatArray  # (3,) standard error of gain (zeros when the method fixes the gains)
+
+    @property
+    def gain(self) -> FloatArray:
+        """Diagonal of A = inv(M), raw units per output unit."""
+        return np.diag(np.linalg.inv(self.matrix)).copy()
+
+
+def solve_one_pose(pose: PoseStats, up: str, reference: float) -> Solution:
+    """1-pose tumble: offsets only, gains fixed at 1 (seed 000, "1 姿勢タンブル較正").
+
+    With true stimulus ``v = reference * FACES[up]``, seed 000 eqs. 1-3 (``AccX = 0 + Xofs`` ...
+    ``AccZ = 1 + Zofs``) give ``offset = mean - v``. The data must already be in the units of
+    ``reference``: there is no gain to absorb a unit change.
+    """
+    v = reference * np.asarray(FACES[up])
+    offset = pose.mean - v  # seed 000 eqs. 1-3
+    return Solution(
+        method="one-pose",
+        offset=offset,
+        matrix=np.eye(3),
+        offset_se=pose.stderr,  # offset is one mean shifted by a constant
+        gain_se=np.zeros(3),
+    )
+
+
+def solve_three_pose(
+    poses: Sequence[PoseStats], reference: float, names: Sequence[str] = ("+x", "+y", "+z")
+) -> Solution:
+    """3-pose tumble: per-axis offset and gain from the +x, +y, +z poses (seed 000, "3 姿勢").
+
+    With ``m[k]`` the mean of pose k (k = 0, 1, 2 for +x, +y, +z), seed 000 averages, for each
+    axis, the two poses where that axis is horizontal::
+
+        Xofs = (AccX2 + AccX3) / 2, Yofs = (AccY1 + AccY3) / 2, Zofs = (AccZ1 + AccZ2) / 2
+        Xgain = AccX1 - Xofs, ...      (per 1 g; here divided by ``reference``)
+
+    and corrects by subtracting the offset and dividing by the gain, so ``M = diag(1 / gain)``.
+    The offsets come from horizontal readings, so they shift to first order with fixture tilt
+    (seed 000, notes; DESIGN.md section 2).
+    """
+    if reference <= 0:
+        raise InputError("the 3-pose solver needs a positive --reference (the stimulus magnitude)")
+    means = np.array([p.mean for p in poses])  # means[k, i]: pose k, axis i
+    se = np.array([p.stderr for p in poses])
+    offset = np.empty(3)
+    offset_se = np.empty(3)
+    gain = np.empty(3)
+    gain_se = np.empty(3)
+    for axis in range(3):
+        horizontal = [k for k in range(3) if k != axis]
+        # seed 000: Xofs = (AccX2 + AccX3) / 2, and cyclically for y and z
+        offset[axis] = means[horizontal, axis].mean()
+        offset_se[axis] = 0.5 * math.hypot(*se[horizontal, axis])
+        # seed 000: Xgain = AccX1 - Xofs, scaled to raw units per output unit
+        gain[axis] = (means[axis, axis] - offset[axis]) / reference
+        gain_se[axis] = math.sqrt(se[axis, axis] ** 2 + offset_se[axis] ** 2) / reference
+    for axis, g in enumerate(gain):
+        if g <= 0:
+            ax = "xyz"[axis]
+            raise CaptureRejected(
+                f"the +{ax} pose gives a {ax} gain of {g:.4g} (mean {_fmt(means[axis])}): "
+                f"its +{ax} axis was not pointing up",
+                file=names[axis],
+                hint="give the files in the order +x +y +z, each with that axis pointing up",
+            )
+    return Solution(
+        method="three-pose",
+        offset=offset,
+        matrix=np.diag(1.0 / gain),  # seed 000: subtract the offset, multiply by 1 / gain
+        offset_se=offset_se,
+        gain_se=gain_se,
+    )
+
+
+def units_mistake(mean: FloatArray, reference: float) -> float | None:
+    """The reference the data suggests when |mean| is far from ``reference``, else None.
+
+    Only meaningful for solvers without gains (1-pose), where the output keeps the raw units
+    (DESIGN.md section 2). Offsets are a few percent of full scale, so a magnitude more than
+    ``UNITS_TOLERANCE`` away from ``reference`` means the data is in other units.
+    """
+    magnitude = float(np.linalg.norm(mean))
+    if reference <= 0 or abs(magnitude - reference) <= UNITS_TOLERANCE * reference:
+        return None  # a zero reference (gyroscope at rest) has no magnitude to compare
+    return suggest_reference(magnitude)
+
+
+def suggest_reference(magnitude: float) -> float:
+    """A conventional reference near ``magnitude``: 1 (g), 9.80665 (m/s^2), 1000 (mg) or 2^k counts."""
+    candidates = [1.0, 9.80665, 1000.0] + [float(2**k) for k in range(4, 17)]
+    best = min(candidates, key=lambda c: abs(math.log(c / magnitude)) if magnitude > 0 else math.inf)
+    if magnitude > 0 and abs(best - magnitude) <= 0.1 * best:
+        return best
+    return float(f"{magnitude:.3g}")
+
+
+def apply(raw: FloatArray, offset: FloatArray, matrix: FloatArray) -> FloatArray:
+    """Correct (n, 3) raw readings: ``corrected = M @ (raw - offset)`` for each row.
+
+    Written as three broadcast products, not ``@``: a (n, 3) @ (3, 3) product goes to
+    OpenBLAS, whose spinning threads made ``tumblecal apply`` 1.5x slower on 2 cores.
+    """
+    d = raw - offset
+    return d[:, 0:1] * matrix[:, 0] + d[:, 1:2] * matrix[:, 1] + d[:, 2:3] * matrix[:, 2]
+
+
+def _fmt(v: FloatArray) -> str:
+    return ", ".join(f"{x:.4g}" for x in v)

@@ -1,0 +1,50 @@
+"""The one exception family. Each error knows its exit status (DESIGN.md section 5)."""
+
+from __future__ import annotations
+
+
+class TumblecalError(Exception):
+    """Base of every error tumblecal reports to a user.
+
+    ``str(err)`` is the whole one-line message after ``error: ``; ``hint`` is an optional
+    second line saying what to do about it.
+    """
+
+    exit_code = 2
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        file: str | None = None,
+        line: int | None = None,
+        column: int | str | None = None,
+        hint: str | None = None,
+    ) -> None:
+        self.message = message
+        self.file = file
+        self.line = line
+        self.column = column
+        self.hint = hint
+        super().__init__(self.render())
+
+    def render(self) -> str:
+        where = []
+        if self.line is not None:
+            where.append(f"line {self.line}")
+        if self.column is not None:
+            where.append(f"column {self.column}")
+        text = f"{self.file}: {self.message}" if self.file else self.message
+        return f"{text} ({', '.join(where)})" if where else text
+
+
+class InputError(TumblecalError):
+    """Usage or input error: bad file, bad option, a units mistake (exit 2)."""
+
+    exit_code = 2
+
+
+class CaptureRejected(TumblecalError):
+    """The data cannot be trusted or cannot determine the parameters (exit 3)."""
+
+    exit_code = 3

@@ -1,0 +1,52 @@
+"""Outputs: atomic writes, '-' for stdout, and the rule that no command writes onto an input."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+import tempfile
+from collections.abc import Iterable, Iterator
+from typing import IO
+
+from tumblecal_cli.errors import InputError
+
+
+def check_not_input(output: str, inputs: Iterable[str]) -> None:
+    """Refuse an output path that names one of the inputs (same file, any spelling)."""
+    if output == "-" or not os.path.exists(output):
+        return
+    for path in inputs:
+        if path != "-" and os.path.exists(path) and os.path.samefile(output, path):
+            raise InputError(f"-o would overwrite the input {path}", file=output, hint="write the output to a new file")
+
+
+@contextlib.contextmanager
+def atomic_output(path: str) -> Iterator[IO[bytes]]:
+    """A binary stream for ``path`` ('-': stdout). A file appears (or is replaced) only when
+    the block finishes without an error; on an error the old file is left as it was."""
+    if path == "-":
+        yield sys.stdout.buffer
+        sys.stdout.buffer.flush()
+        return
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise InputError("the output folder does not exist", file=path)
+    try:
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{os.path.basename(path)}.", suffix=".tmp")
+    except OSError as err:
+        raise InputError(f"cannot write: {err.strerror}", file=path) from None
+    try:
+        with os.fdopen(fd, "wb") as f:
+            yield f
+        if os.path.exists(path):
+            os.chmod(tmp, os.stat(path).st_mode & 0o777)
+        else:
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
