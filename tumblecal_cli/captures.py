@@ -193,7 +193,7 @@ class Capture:
             empty[:, j] = is_empty.to_numpy(zero_copy_only=False)
             nulled = pc.if_else(is_empty, pa.scalar(None, pa.string()), text)
             values[:, j] = pc.cast(nulled, pa.float64()).to_numpy(zero_copy_only=False)
-        all_empty: BoolArray = empty.all(axis=1)
+        all_empty: BoolArray = empty[:, 0] & empty[:, 1] & empty[:, 2]
         partial = empty.any(axis=1) & ~all_empty
         if partial.any():
             i = int(np.argmax(partial))
