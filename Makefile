@@ -3,7 +3,6 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 TC := $(BIN)/tumblecal
-DEMO := $(VENV)/demo
 
 .PHONY: demo test lint bench clean
 
@@ -16,18 +15,17 @@ $(VENV)/.installed: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	touch $@
 
+# The README's "Quick start" transcript is this target's output (tests/test_readme.py checks it).
+DEMO_COMMANDS := \
+	"tumblecal solve --poses sample_data/x.csv sample_data/y.csv sample_data/z.csv -o demo/cal.json" \
+	"tumblecal apply --cal demo/cal.json sample_data/capture.csv -o demo/corrected.csv" \
+	"head -3 demo/corrected.csv" \
+	"tumblecal solve --poses sample_data/imucal/xp.csv sample_data/imucal/yp.csv sample_data/imucal/zp.csv --reference 9.81 --units m/s^2 --input-units counts -o demo/imucal.yaml"
+
 demo: $(VENV)/.installed
-	@mkdir -p $(DEMO)
-	@echo '$$ tumblecal solve --poses sample_data/x.csv sample_data/y.csv sample_data/z.csv -o $(DEMO)/cal.json'
-	@$(TC) solve --poses sample_data/x.csv sample_data/y.csv sample_data/z.csv -o $(DEMO)/cal.json
-	@echo '$$ tumblecal apply --cal $(DEMO)/cal.json sample_data/capture.csv -o $(DEMO)/corrected.csv'
-	@$(TC) apply --cal $(DEMO)/cal.json sample_data/capture.csv -o $(DEMO)/corrected.csv
-	@echo '$$ head -3 $(DEMO)/corrected.csv'
-	@head -3 $(DEMO)/corrected.csv
-	@echo '$$ tumblecal solve --poses sample_data/z.csv'
-	@$(TC) solve --poses sample_data/z.csv > $(DEMO)/one-pose.json
-	@echo '$$ tumblecal solve --poses sample_data/imucal/xp.csv sample_data/imucal/yp.csv sample_data/imucal/zp.csv --reference 9.81 --input-units counts --units m/s^2 -o $(DEMO)/imucal.yaml'
-	@$(TC) solve --poses sample_data/imucal/xp.csv sample_data/imucal/yp.csv sample_data/imucal/zp.csv --reference 9.81 --input-units counts --units m/s^2 -o $(DEMO)/imucal.yaml
+	@mkdir -p demo
+	@export PATH="$(CURDIR)/$(BIN):$$PATH" COLUMNS=80; for cmd in $(DEMO_COMMANDS); do \
+		echo "\$$ $$cmd"; $$cmd 2>&1 || exit 1; done
 
 test: $(VENV)/.installed
 	$(BIN)/ruff check .
@@ -39,4 +37,4 @@ bench: $(VENV)/.installed
 	$(BIN)/python tests/bench.py
 
 clean:
-	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) demo .pytest_cache .mypy_cache .ruff_cache

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from typing import Any
@@ -88,8 +89,11 @@ class Loaded:
 def load(path: str) -> Loaded:
     """Read and validate a calibration file; every problem names the file and the field."""
     try:
-        with open(path, "rb") as f:
-            raw = f.read()
+        if path == "-":  # DESIGN.md section 5: '-' means stdin wherever a path is taken
+            raw = sys.stdin.buffer.read()
+        else:
+            with open(path, "rb") as f:
+                raw = f.read()
     except FileNotFoundError:
         raise InputError("no such calibration file", file=path) from None
     except OSError as err:
@@ -106,9 +110,11 @@ def load(path: str) -> Loaded:
     if doc.get("format") != FORMAT:
         what = f"unknown format {doc['format']!r}" if "format" in doc else "missing field 'format'"
         raise InputError(f"not a tumblecal calibration: {what} (expected {FORMAT!r})", file=path)
-    if doc.get("version") != VERSION:
+    if "version" not in doc:
+        raise InputError("missing field 'version'", file=path)
+    if isinstance(doc["version"], bool) or doc["version"] != VERSION:  # True == 1 in Python
         raise InputError(
-            f"unsupported calibration version {doc.get('version')!r} (this tumblecal reads version {VERSION})",
+            f"unsupported calibration version {doc['version']!r} (this tumblecal reads version {VERSION})",
             file=path,
             hint="upgrade tumblecal to read newer calibration files",
         )
@@ -121,6 +127,7 @@ def load(path: str) -> Loaded:
     if not (isinstance(columns, list) and len(columns) == 3 and all(isinstance(c, str) for c in columns)):
         raise InputError("field 'columns' must be a list of three column names", file=path)
     _number(doc["reference"], "reference", path)
+    _vector(doc["gain"], "gain", path)  # required by the contract, so validated like offset
     return Loaded(
         path=path,
         offset=_vector(doc["offset"], "offset", path),
@@ -179,11 +186,11 @@ def _floats(values: FloatArray) -> list[float]:
 
 
 def _json(value: Any, depth: int) -> str:
-    """JSON with two-space indent, lists of numbers kept on one line (vectors, matrix rows)."""
+    """JSON with two-space indent, lists of plain values on one line (vectors, matrix rows)."""
     pad, inner = "  " * depth, "  " * (depth + 1)
     if isinstance(value, dict) and value:
         items = [f"{inner}{json.dumps(k)}: {_json(v, depth + 1)}" for k, v in value.items()]
         return "{\n" + ",\n".join(items) + f"\n{pad}}}"
-    if isinstance(value, list) and value and not all(isinstance(v, int | float) for v in value):
+    if isinstance(value, list) and value and not all(isinstance(v, int | float | str | None) for v in value):
         return "[\n" + ",\n".join(inner + _json(v, depth + 1) for v in value) + f"\n{pad}]"
     return json.dumps(value, ensure_ascii=False, separators=(", ", ": "))

@@ -37,13 +37,18 @@ import pyarrow.csv as pcsv
 from tumblecal_cli.errors import InputError
 
 HEAD_BYTES = 1 << 20  # the sniffer looks at this much of the file
-BLOCK_BYTES = 4 << 20  # pyarrow block size when streaming
+BLOCK_BYTES = 1 << 20  # pyarrow block size when streaming: bigger blocks raise peak memory
 TIME_NAMES = ("t", "time", "timestamp", "time_s", "ts")
 FAMILIES = {  # --sensor -> words in a column stem that name it; a single letter only as a prefix
     "accelerometer": (("acc",), "a"),
     "gyroscope": (("gyr",), "g"),
     "magnetometer": (("mag",), "m"),
 }
+#: Words in a triplet's stem that name a filter's output (an estimate, gravity removed or
+#: already compensated), not the sensor's own reading: when a family has several triplets,
+#: these lose to the raw one (MicroStrain logs: scaledAccel* beside estCompensatedAccel*,
+#: estLinearAccel*). A velocity increment (deltaVel*) is in no family at all.
+DERIVED = ("est", "filt", "compensated", "linear", "gravity", "fused")
 _NUMBER = r"(?i)^[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:e[+-]?\d+)?|nan|inf|infinity)$"
 _WS_RUN = re.compile(rb"[ \t]+")
 _WS_EDGE = re.compile(rb"^ | (?=\r?$)", re.MULTILINE)
@@ -142,6 +147,7 @@ class Capture:
         keys = [str(i) for i in range(len(lay.names))]
         wanted = list(lay.sensor) + ([lay.time] if lay.time is not None else [])
         include = [keys[i] for i in wanted] if only_sensor else keys
+        read = include if keys[0] in include else [keys[0], *include]  # column 0 tells comments
         bad_rows: list[str] = []
 
         def invalid(row: Any) -> str:
@@ -154,22 +160,26 @@ class Capture:
         try:
             reader = pcsv.open_csv(
                 self._stream,
-                read_options=pcsv.ReadOptions(column_names=keys, block_size=BLOCK_BYTES),
+                read_options=pcsv.ReadOptions(column_names=keys, block_size=BLOCK_BYTES, use_threads=False),
                 parse_options=pcsv.ParseOptions(
                     delimiter=lay.delimiter or " ", quote_char=False, invalid_row_handler=invalid
                 ),
                 convert_options=pcsv.ConvertOptions(
                     column_types={k: pa.string() for k in keys},
-                    include_columns=include,
+                    include_columns=read,
                     strings_can_be_null=False,
                 ),
             )
             row = 0
             for batch in reader:
+                # a "# ..." line with as many delimiters as the header is parsed as a row: drop it
+                # (a cheap substring test first; the anchored regex only when a '#' is there)
+                if pc.any(pc.match_substring(batch.column(keys[0]), "#")).as_py():
+                    batch = batch.filter(pc.invert(pc.match_substring_regex(batch.column(keys[0]), r"^\s*#")))
                 yield row, [batch.column(k) for k in include]
                 row += batch.num_rows
         except (pa.ArrowInvalid, UnicodeDecodeError) as err:
-            raise self._diagnose(str(err)) from None
+            raise self._diagnose(str(err), bad_rows[-1] if bad_rows else None) from None
 
     def sensor_values(self, columns: Sequence[pa.Array], first_row: int) -> tuple[FloatArray, BoolArray]:
         """The three sensor columns as an (n, 3) float array, and a mask of rows whose sensor
@@ -230,7 +240,7 @@ class Capture:
                 return line
         return None
 
-    def _diagnose(self, engine_message: str) -> InputError:
+    def _diagnose(self, engine_message: str, bad_row: str | None = None) -> InputError:
         lay = self.layout
         if self._path is not None:
             for line, text in self._data_lines():
@@ -241,6 +251,12 @@ class Capture:
                         file=lay.name,
                         line=line,
                     )
+        if bad_row is not None:  # stdin: no second pass, so no line number
+            return InputError(
+                f"row has {len(_split(bad_row, lay.delimiter))} fields, the header has {len(lay.names)}: "
+                f"{bad_row[:80]!r}",
+                file=lay.name,
+            )
         if "decode" in engine_message or "UTF8" in engine_message or "UTF-8" in engine_message:
             return InputError("not UTF-8 text (is it a binary file?)", file=lay.name)
         first = engine_message.splitlines()[0] if engine_message else "unreadable"
@@ -350,13 +366,18 @@ def _sniff(name: str, first: bytes, *, at_eof: bool, no_header: bool) -> tuple[L
 
 
 def _detect_delimiter(lines: Sequence[str]) -> str | None:
-    """The delimiter with the same non-zero count on the sample lines, else whitespace (None)."""
-    best: tuple[int, str] | None = None
+    """The delimiter found on every sample line, most often with the first line's count (a
+    ragged row must not turn a CSV into one whitespace column: it is reported by line
+    later), then the most columns; else whitespace (None)."""
+    best: tuple[int, int, str] | None = None
     for cand in (",", "\t", ";"):
-        counts = {ln.count(cand) for ln in lines}
-        if len(counts) == 1 and (n := counts.pop()) > 0 and (best is None or n > best[0]):
-            best = (n, cand)
-    return best[1] if best else None
+        counts = [ln.count(cand) for ln in lines]
+        if min(counts) == 0:
+            continue
+        key = (sum(c == counts[0] for c in counts), counts[0], cand)
+        if best is None or key[:2] > best[:2]:
+            best = key
+    return best[2] if best else None
 
 
 def _split(line: str, delimiter: str | None) -> list[str]:
@@ -398,6 +419,8 @@ def _pick_columns(
     triplets = _triplets(lower)
     if len(triplets) > 1:  # the --sensor family, else the unlabelled ones (x,y,z; x_g ...)
         triplets = [t for t in triplets if _family(t[0]) == sensor] or [t for t in triplets if _family(t[0]) is None]
+    if len(triplets) > 1:  # the sensor's own reading, not a filter's estimate of it
+        triplets = [t for t in triplets if not _derived(t[0])] or triplets
     if len(triplets) == 1:
         return triplets[0][1], time
     listing = ", ".join(names)
@@ -421,6 +444,11 @@ def _family(stem: str) -> str | None:
         if any(w in stem for w in words) or stem == letter + "|":
             return sensor
     return None
+
+
+def _derived(stem: str) -> bool:
+    """Whether a triplet's stem names a derived quantity (``estlinearaccel|``), see DERIVED."""
+    return any(word in stem for word in DERIVED)
 
 
 def _triplets(lower: Sequence[str]) -> list[tuple[str, tuple[int, int, int]]]:
@@ -509,7 +537,7 @@ def correct_stream(
     sensor cells are all empty stay empty. Returns the number of data rows written.
     """
     lay = cap.layout
-    out.write(lay.head)
+    head = [lay.head]  # written with the first block: an error in it leaves `out` (stdout too) untouched
     options = pcsv.WriteOptions(include_header=False, delimiter=lay.delimiter or " ", quoting_style="none", eol=lay.eol)
     names = [str(i) for i in range(len(lay.names))]
 
@@ -520,6 +548,11 @@ def correct_stream(
             cols[i] = pc.cast(pa.array(fixed[:, j], mask=empty), pa.string())
         return pa.RecordBatch.from_arrays(cols, names=names)
 
+    def write(batch: pa.RecordBatch) -> int:
+        if head:
+            out.write(head.pop())
+        return _write_batch(batch, out, options, lay)
+
     # A pipeline: this thread parses block k+1 and writes block k-1 while the pool converts
     # block k (pyarrow releases the GIL). At most `ahead` blocks are in memory at once.
     rows = 0
@@ -529,9 +562,11 @@ def correct_stream(
         for first_row, cols in cap.batches():
             pending.append(pool.submit(convert, first_row, cols))
             while len(pending) >= ahead or (pending and pending[0].done()):
-                rows += _write_batch(pending.popleft().result(), out, options, lay)
+                rows += write(pending.popleft().result())
         while pending:
-            rows += _write_batch(pending.popleft().result(), out, options, lay)
+            rows += write(pending.popleft().result())
+        if head:
+            out.write(head.pop())
         if progress is not None:
             progress(rows)
     return rows

@@ -47,7 +47,7 @@ class ManyValuesCommand(TyperCommand):
     (up to the next option) is given its own ``--poses``. ``-`` (stdin) is a value.
     """
 
-    many = ("--poses",)
+    many = ("--poses", "-p")
 
     def parse_args(self, ctx: Any, args: list[str]) -> list[str]:
         out: list[str] = []
@@ -113,7 +113,11 @@ Sensor = Annotated[
 ]
 Columns = Annotated[
     str | None,
-    typer.Option("--columns", help="The sensor columns, X,Y,Z: header names or 0-based indices. Default: detected."),
+    typer.Option(
+        "--columns",
+        metavar="X,Y,Z",
+        help="The sensor columns, X,Y,Z: header names or 0-based indices. Default: detected.",
+    ),
 ]
 NoHeader = Annotated[
     bool,
@@ -136,12 +140,16 @@ def solve(
         ),
     ],
     output: Annotated[
-        str, typer.Option("--output", "-o", help="Calibration file: .json, or .yaml/.yml for YAML; '-' is stdout.")
+        str,
+        typer.Option(
+            "--output", "-o", metavar="FILE", help="Calibration file: .json, or .yaml/.yml for YAML; '-' is stdout."
+        ),
     ] = "-",
     up: Annotated[
         str,
         typer.Option(
             "--up",
+            metavar="FACE",
             help="1-pose: the sensor axis pointing up, which reads +reference: +x -x +y -y +z -z "
             "(or xp xn yp yn zp zn). A sensor that reads -1 g on the axis pointing up is the opposite face.",
         ),
@@ -150,6 +158,7 @@ def solve(
         float | None,
         typer.Option(
             "--reference",
+            metavar="NUMBER",
             help="The stimulus magnitude in the units the corrected data should have: 1 (g), "
             "9.80665 (m/s^2), 16384 (LSB at +-2 g), the local field for a magnetometer. "
             "The 1-pose solver has no gains, so there it must be in the file's units. "
@@ -158,19 +167,24 @@ def solve(
     ] = None,
     sensor: Sensor = SensorKind.accelerometer,
     units: Annotated[
-        str | None, typer.Option("--units", help="Label of the corrected units (default 'g' for reference 1).")
+        str | None,
+        typer.Option("--units", metavar="TEXT", help="Label of the corrected units (default 'g' for reference 1)."),
     ] = None,
     input_units: Annotated[
-        str | None, typer.Option("--input-units", help="Label of the raw units, e.g. counts.")
+        str | None, typer.Option("--input-units", metavar="TEXT", help="Label of the raw units, e.g. counts.")
     ] = None,
     columns: Columns = None,
     no_header: NoHeader = False,
     time_column: Annotated[
-        str | None, typer.Option("--time-column", help="The time column (default: t, time, timestamp, time_s or ts).")
+        str | None,
+        typer.Option(
+            "--time-column", metavar="NAME", help="The time column (default: t, time, timestamp, time_s or ts)."
+        ),
     ] = None,
     time_unit: Annotated[TimeUnit, typer.Option("--time-unit", help="Unit of the time column.")] = TimeUnit.s,
     rate: Annotated[
-        float | None, typer.Option("--rate", help="Sample rate in Hz, for durations when there is no time column.")
+        float | None,
+        typer.Option("--rate", metavar="HZ", help="Sample rate in Hz, for durations when there is no time column."),
     ] = None,
     quiet: Quiet = False,
 ) -> None:
@@ -261,10 +275,14 @@ def _pose_record(face: str, s: Samples, st: PoseStats) -> dict[str, Any]:
 
 @app.command(epilog=EXIT_CODES)
 def apply(
-    capture: Annotated[str, typer.Argument(help="The capture to correct; '-' (the default) reads stdin.")] = "-",
-    cal: Annotated[str, typer.Option("--cal", "-c", help="Calibration file from 'tumblecal solve'.")] = ...,  # type: ignore[assignment]
+    capture: Annotated[
+        str, typer.Argument(metavar="CAPTURE", help="The capture to correct; '-' (the default) reads stdin.")
+    ] = "-",
+    cal: Annotated[
+        str, typer.Option("--cal", "-c", metavar="FILE", help="Calibration file from 'tumblecal solve'.")
+    ] = ...,  # type: ignore[assignment]
     output: Annotated[
-        str, typer.Option("--output", "-o", help="Corrected capture; '-' (the default) is stdout.")
+        str, typer.Option("--output", "-o", metavar="FILE", help="Corrected capture; '-' (the default) is stdout.")
     ] = "-",
     columns: Columns = None,
     no_header: NoHeader = False,
@@ -297,7 +315,7 @@ def apply(
             rows = captures.correct_stream(cap, out, lambda raw: core.apply(raw, c.offset, c.matrix))
     if not quiet:
         target = "stdout" if output == "-" else output
-        _console().print(f"corrected {rows} rows of {cap.layout.name} ({', '.join(used)}) -> {target}")
+        _console().print(f"corrected {rows} rows of {cap.layout.name} ({', '.join(used)}) -> {target}", soft_wrap=True)
 
 
 # -- people's output, on stderr ----------------------------------------------------------
@@ -312,35 +330,31 @@ def _console() -> Console:
 def _print_solution(
     solution: Solution, faces: list[str], samples: list[Samples], stats: list[PoseStats], output: str
 ) -> None:
+    from rich import box
     from rich.table import Table
 
     def g(v: float) -> str:
         return f"{v:.6g}"
 
-    axes = Table(title=f"{solution.method} calibration", title_justify="left")
+    axes = Table(title=f"{solution.method} calibration", title_justify="left", box=box.SIMPLE_HEAD)
     for name in ("axis", "column", "offset", "± 1σ", "gain", "± 1σ"):
         axes.add_column(name, justify="left" if name in ("axis", "column") else "right")
     columns = samples[0].layout.sensor_names
     for i, axis in enumerate("xyz"):
         gain_se = solution.gain_se[i]
-        axes.add_row(
-            axis,
-            columns[i],
-            g(solution.offset[i]),
-            g(solution.offset_se[i]),
-            g(solution.gain[i]),
-            g(gain_se) if gain_se else "fixed",
-        )
-    pose_table = Table(title="poses", title_justify="left")
-    for name in ("pose", "file", "n", "mean x, y, z", "std x, y, z"):
-        pose_table.add_column(name, justify="right" if name == "n" else "left")
+        fixed = "fixed" if not gain_se else g(gain_se)
+        axes.add_row(axis, columns[i], g(solution.offset[i]), g(solution.offset_se[i]), g(solution.gain[i]), fixed)
+    poses = Table(title="poses", title_justify="left", box=box.SIMPLE_HEAD)
+    for name in ("pose", "file", "n", "", "x", "y", "z"):
+        poses.add_column(name, justify="right" if name in ("n", "x", "y", "z") else "left", overflow="fold")
     for face, s, st in zip(faces, samples, stats, strict=True):
-        pose_table.add_row(face, s.layout.name, str(st.samples), ", ".join(map(g, st.mean)), ", ".join(map(g, st.std)))
+        poses.add_row(face, os.path.basename(s.layout.name), str(st.samples), "mean", *map(g, st.mean))
+        poses.add_row("", "", "", "std", *(f"{v:.3g}" for v in st.std), end_section=True)
     console = _console()
     console.print(axes)
-    console.print(pose_table)
+    console.print(poses)
     if output != "-":
-        console.print(f"wrote {output}")
+        console.print(f"wrote {output}", soft_wrap=True)
 
 
 # -- the one error boundary --------------------------------------------------------------

@@ -143,7 +143,7 @@ def solve_three_pose(
         if g <= 0:
             ax = "xyz"[axis]
             raise CaptureRejected(
-                f"the +{ax} pose gives a {ax} gain of {g:.4g} (mean {_fmt(means[axis])}): "
+                f"the +{ax} pose gives gain {g:.4g} on {ax} (mean {_fmt(means[axis])}): "
                 f"its +{ax} axis was not pointing up",
                 file=names[axis],
                 hint="give the files in the order +x +y +z, each with that axis pointing up",

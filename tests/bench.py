@@ -1,0 +1,89 @@
+"""`make bench`: tumblecal's speed as ratios against baselines measured in the same run.
+
+Not a test (pytest does not collect it): timings depend on the machine. Each figure is the best
+of a few runs of a fresh process, wall clock, and peak memory (max RSS) of that process.
+
+    apply, 1M rows      vs  python -c "import pandas; pandas.read_csv(f)"  (target <= 2x)
+    apply, 4M rows      vs  the same on the 4M-row file
+    apply peak memory   4M rows / 1M rows   (streaming: ~1, not ~4)
+    solve, 3 poses      vs  python -c "import pandas, numpy"               (start-up)
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from datetime import date
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+TUMBLECAL = [sys.executable, "-m", "tumblecal_cli"]
+
+
+def run(argv: list[str], repeat: int = 3) -> tuple[float, float]:
+    """Best wall time (s) and the peak RSS (MiB) of that run, each a fresh process."""
+    best = (float("inf"), 0.0)
+    for _ in range(repeat):
+        start = time.perf_counter()
+        proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - start
+        if status != 0:
+            raise SystemExit(f"bench: {' '.join(argv)} failed: {proc.stderr.read().decode() if proc.stderr else ''}")
+        if wall < best[0]:
+            best = (wall, usage.ru_maxrss / 1024)
+    return best
+
+
+def write_log(path: Path, rows: int) -> None:
+    """A t,x,y,z capture at 1 kHz in g, 6 decimals, like a logger writes."""
+    rng = np.random.default_rng(1)
+    with path.open("w") as f:
+        f.write("t,x,y,z\n")
+        for start in range(0, rows, 500_000):
+            n = min(500_000, rows - start)
+            t = np.arange(start, start + n) / 1000.0
+            xyz = rng.normal([0.01, -0.02, 1.01], 0.01, size=(n, 3))
+            np.savetxt(f, np.column_stack([t, xyz]), fmt=["%.3f", "%.6f", "%.6f", "%.6f"], delimiter=",")
+
+
+def main() -> None:
+    rows: list[tuple[str, float, float, str]] = []
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        cal = folder / "cal.json"
+        poses = [str(ROOT / "sample_data" / f"{a}.csv") for a in "xyz"]
+        subprocess.run([*TUMBLECAL, "solve", "-q", "--poses", *poses, "-o", str(cal)], check=True)
+        memory = {}
+        for millions in (1, 4):
+            log = folder / f"log{millions}M.csv"
+            write_log(log, millions * 1_000_000)
+            size = log.stat().st_size / 1e6
+            base, _ = run([sys.executable, "-c", f"import pandas; pandas.read_csv({str(log)!r})"])
+            ours, rss = run([*TUMBLECAL, "apply", "-q", "--cal", str(cal), str(log), "-o", str(folder / "out.csv")])
+            memory[millions] = rss
+            rows.append(
+                (f"apply {millions}M rows ({size:.0f} MB)", ours, base, f"{size / ours:.0f} MB/s, peak {rss:.0f} MiB")
+            )
+        solve_argv = [*TUMBLECAL, "solve", "-q", "--poses", *poses, "-o", str(folder / "c.json")]
+        ours, _ = run(solve_argv, repeat=5)
+        base, _ = run([sys.executable, "-c", "import pandas, numpy"], repeat=5)
+        rows.append(("solve 3 poses (start-up)", ours, base, "vs import pandas, numpy"))
+    machine = f"{platform.node()} ({os.cpu_count()} cores, Python {platform.python_version()})"
+    print(f"tumblecal bench, {date.today()}, {machine}")
+    print(f"{'what':<28} {'tumblecal':>10} {'baseline':>10} {'ratio':>7}  notes")
+    for what, ours, base, note in rows:
+        print(f"{what:<28} {ours:>9.2f}s {base:>9.2f}s {ours / base:>6.2f}x  {note}")
+    print(f"{'apply peak memory 4M / 1M':<28} {memory[4]:>8.0f}Mi {memory[1]:>8.0f}Mi {memory[4] / memory[1]:>6.2f}x")
+    print("baselines: apply vs python -c 'import pandas; pandas.read_csv(f)'")
+    print("           solve vs python -c 'import pandas, numpy'")
+
+
+if __name__ == "__main__":
+    main()
