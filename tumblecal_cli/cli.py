@@ -301,6 +301,8 @@ def apply(
     from tumblecal_cli import calfile, captures, core
     from tumblecal_cli.files import atomic_output, check_not_input
 
+    if cal == "-" and capture == "-":
+        raise InputError("--cal - and the capture cannot both be read from stdin", hint="give the capture as a file")
     check_not_input(output, [capture, cal])
     c = calfile.load(cal)
     picked = columns.split(",") if columns else None
