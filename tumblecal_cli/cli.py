@@ -311,7 +311,8 @@ def apply(
         if not quiet and [u.lower() for u in used] != [x.lower() for x in c.columns]:
             _console().print(
                 f"note: {cap.layout.name}: correcting columns {', '.join(used)} "
-                f"(the calibration was made from {', '.join(c.columns)})"
+                f"(the calibration was made from {', '.join(c.columns)})",
+                soft_wrap=True,
             )
         with atomic_output(output) as out:
             rows = captures.correct_stream(cap, out, lambda raw: core.apply(raw, c.offset, c.matrix))
@@ -326,7 +327,7 @@ def apply(
 def _console() -> Console:
     from rich.console import Console
 
-    return Console(stderr=True, highlight=False)
+    return Console(stderr=True, highlight=False, markup=False)  # paths and column names are not markup
 
 
 def _print_solution(

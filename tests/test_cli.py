@@ -1,0 +1,954 @@
+"""CLI tests: exit status, stdout and stderr checked separately (DESIGN.md section 5).
+
+Most tests call ``tumblecal_cli.cli.main`` in-process (fast); a few run the installed
+``tumblecal`` script and ``python -m tumblecal_cli`` as subprocesses, for stdin piping and the
+entry points. Bad inputs live in ``tests/data/bad/``, one file per defect.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import shutil
+import subprocess
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+from numpy.typing import NDArray
+
+from tumblecal_cli import __version__
+from tumblecal_cli.cli import main
+from tumblecal_cli.errors import InputError
+
+FloatArray = NDArray[np.float64]
+
+ROOT = Path(__file__).resolve().parent.parent
+SAMPLE = ROOT / "sample_data"
+IMUCAL = SAMPLE / "imucal"
+BAD = Path(__file__).resolve().parent / "data" / "bad"
+POSES_3 = [str(SAMPLE / "x.csv"), str(SAMPLE / "y.csv"), str(SAMPLE / "z.csv")]
+
+#: the sample set's truth (sample_data/README.md); the 3-pose result must be this within 3e-4
+TRUE_OFFSET = [0.021, -0.034, 0.047]
+TRUE_GAIN = [1.012, 0.987, 1.005]
+
+#: a calibration with cross-axis terms, so apply is checked against the full M (raw - offset)
+OFFSET = np.array([0.021, -0.034, 0.047])
+MATRIX = np.array(
+    [
+        [0.9881, 0.0123, -0.0045],
+        [-0.0071, 1.0132, 0.0089],
+        [0.0052, -0.0033, 0.9950],
+    ]
+)
+PRECIOUS = b"an existing output that a failed run must leave alone\n"
+
+
+# -- helpers -------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Result:
+    code: int
+    out: str
+    err: str
+
+
+def run(capsys: pytest.CaptureFixture[str], *args: str | Path) -> Result:
+    """``tumblecal ARGS`` in-process."""
+    code = main([str(a) for a in args])
+    captured = capsys.readouterr()
+    return Result(code, captured.out, captured.err)
+
+
+def tumblecal_exe() -> str:
+    """The console script of the interpreter running the tests."""
+    beside = Path(sys.executable).parent / "tumblecal"
+    found = str(beside) if beside.exists() else shutil.which("tumblecal")
+    assert found, "the tumblecal console script is not installed"
+    return found
+
+
+def run_exe(
+    args: Sequence[str | Path], stdin: bytes = b"", cwd: Path | None = None
+) -> subprocess.CompletedProcess[bytes]:
+    env = {**os.environ, "NO_COLOR": "1"}
+    return subprocess.run(
+        [tumblecal_exe(), *map(str, args)], input=stdin, capture_output=True, cwd=cwd, env=env, timeout=60, check=False
+    )
+
+
+def feed_stdin(monkeypatch: pytest.MonkeyPatch, data: bytes) -> None:
+    monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(data)))
+
+
+def assert_one_error(result: Result, expected: str, *, code: int = 2, hint: str | None = None) -> None:
+    """Exit ``code``, nothing on stdout, and on stderr exactly ``error: <expected>`` (plus a hint)."""
+    assert result.code == code, result.err
+    assert result.out == ""
+    assert "Traceback" not in result.err
+    lines = result.err.splitlines()
+    assert [ln for ln in lines if ln.startswith("error:")] == [f"error: {expected}"]
+    other = [ln for ln in lines if not ln.startswith(("error:", "hint:"))]
+    assert other == [], "only the error line and its hint go to stderr"
+    hints = [ln for ln in lines if ln.startswith("hint:")]
+    if hint is not None:
+        assert len(hints) == 1
+        assert hint in hints[0]
+
+
+def precious(path: Path) -> Path:
+    path.write_bytes(PRECIOUS)
+    return path
+
+
+def assert_untouched(path: Path) -> None:
+    assert path.read_bytes() == PRECIOUS
+    leftovers = [p.name for p in path.parent.iterdir() if p.name.startswith(f".{path.name}.")]
+    assert leftovers == [], "no temporary file is left behind"
+
+
+def write_pose(
+    path: Path,
+    mean: Sequence[float] | FloatArray,
+    *,
+    n: int = 200,
+    noise: float = 0.002,
+    seed: int = 0,
+    fmt: str = "%.6f",
+    header: str = "t,ax,ay,az",
+) -> FloatArray:
+    """A static pose capture ``t,ax,ay,az``; returns the (n, 3) values as written (re-read)."""
+    rng = np.random.default_rng(seed)
+    values = np.asarray(mean, dtype=np.float64) + noise * rng.standard_normal((n, 3))
+    data = np.column_stack([np.arange(n) / 100.0, values])
+    np.savetxt(path, data, delimiter=",", header=header, comments="", fmt=["%.2f", fmt, fmt, fmt])
+    written: FloatArray = np.loadtxt(path, delimiter=",", skiprows=1)[:, 1:]
+    return written
+
+
+def write_cal(path: Path, columns: Sequence[str] = ("ax", "ay", "az")) -> Path:
+    doc: dict[str, Any] = {
+        "format": "tumblecal-calibration",
+        "version": 1,
+        "sensor": "accelerometer",
+        "method": "three-pose",
+        "reference": 1.0,
+        "units": "g",
+        "input_units": None,
+        "columns": list(columns),
+        "offset": OFFSET.tolist(),
+        "matrix": MATRIX.tolist(),
+        "gain": np.diag(np.linalg.inv(MATRIX)).tolist(),
+    }
+    path.write_text(json.dumps(doc, indent=2) + "\n")
+    return path
+
+
+def corrected(raw: FloatArray) -> FloatArray:
+    """M (raw - offset), computed the way core.apply does (broadcast products), so bit-equal."""
+    d = raw - OFFSET
+    out: FloatArray = d[:, 0:1] * MATRIX[:, 0] + d[:, 1:2] * MATRIX[:, 1] + d[:, 2:3] * MATRIX[:, 2]
+    return out
+
+
+def cells(line: str, delimiter: str | None = ",") -> list[str]:
+    return line.split() if delimiter is None else line.split(delimiter)
+
+
+@pytest.fixture
+def cal(tmp_path: Path) -> Path:
+    return write_cal(tmp_path / "cal.json")
+
+
+# -- solve: the 3-pose sample set --------------------------------------------------------
+
+
+def test_solve_three_pose_json_to_stdout_table_to_stderr(capsys: pytest.CaptureFixture[str]) -> None:
+    r = run(capsys, "solve", "--poses", *POSES_3)
+    assert r.code == 0, r.err
+    doc = json.loads(r.out)  # stdout is the calibration and nothing else
+    assert doc["format"] == "tumblecal-calibration"
+    assert doc["version"] == 1
+    assert doc["method"] == "three-pose"
+    assert doc["columns"] == ["ax", "ay", "az"]
+    assert doc["units"] == "g"
+    np.testing.assert_allclose(doc["offset"], TRUE_OFFSET, atol=3e-4)
+    np.testing.assert_allclose(doc["gain"], TRUE_GAIN, atol=3e-4)
+    np.testing.assert_allclose(doc["matrix"], np.diag(1 / np.array(doc["gain"])), rtol=1e-12)
+    assert [p["pose"] for p in doc["poses"]] == ["+x", "+y", "+z"]
+    assert [p["file"] for p in doc["poses"]] == POSES_3
+    assert [p["samples"] for p in doc["poses"]] == [1000, 1000, 1000]
+    # people's table on stderr: the method, each axis's column, offset and gain
+    assert "three-pose" in r.err
+    for word in ("offset", "gain", "ax", "ay", "az", "+x", "+y", "+z"):
+        assert word in r.err
+    assert "error" not in r.err
+    assert "\x1b[" not in r.err, "no colour when stderr is not a terminal"
+
+
+def test_solve_output_json_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "cal.json"
+    r = run(capsys, "solve", "--poses", *POSES_3, "-o", out)
+    assert r.code == 0, r.err
+    assert r.out == ""
+    assert str(out) in r.err
+    doc = json.loads(out.read_text())
+    assert doc["method"] == "three-pose"
+    np.testing.assert_allclose(doc["offset"], TRUE_OFFSET, atol=3e-4)
+
+
+def test_solve_output_yaml_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "cal.yaml"
+    r = run(capsys, "solve", "--poses", *POSES_3, "-o", out)
+    assert r.code == 0, r.err
+    assert r.out == ""
+    text = out.read_text()
+    assert text.startswith("format: tumblecal-calibration\n")  # YAML, not JSON
+    doc = yaml.safe_load(text)
+    assert doc["method"] == "three-pose"
+    np.testing.assert_allclose(doc["gain"], TRUE_GAIN, atol=3e-4)
+
+
+def test_solve_quiet_prints_nothing_on_stderr(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    r = run(capsys, "solve", "--quiet", "--poses", *POSES_3, "-o", tmp_path / "cal.json")
+    assert (r.code, r.out, r.err) == (0, "", "")
+
+
+def test_solve_output_replaces_an_existing_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = precious(tmp_path / "cal.json")
+    assert run(capsys, "solve", "-q", "--poses", *POSES_3, "-o", out).code == 0
+    assert json.loads(out.read_text())["method"] == "three-pose"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cal.json"]
+
+
+# -- solve: --poses parsing --------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        pytest.param(["--poses", *POSES_3, "-o", "OUT"], id="poses-then-options"),
+        pytest.param(["-o", "OUT", "--poses", *POSES_3], id="options-then-poses"),
+        pytest.param(["-o", "OUT", "--poses", *POSES_3, "--reference", "1", "-q"], id="options-around"),
+        pytest.param([f"--poses={POSES_3[0]}", *POSES_3[1:], "-o", "OUT"], id="poses-equals"),
+        pytest.param(["-p", *POSES_3, "-o", "OUT"], id="short-p"),
+        pytest.param(["--sensor", "accelerometer", "--poses", *POSES_3, "--output=OUT"], id="sensor-first"),
+    ],
+)
+def test_solve_poses_take_every_file_after_one_flag(
+    args: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "cal.json"
+    r = run(capsys, "solve", *[a.replace("OUT", str(out)) for a in args])
+    assert r.code == 0, r.err
+    assert r.out == ""
+    doc = json.loads(out.read_text())
+    assert doc["method"] == "three-pose"
+    assert [p["file"] for p in doc["poses"]] == POSES_3
+
+
+@pytest.mark.parametrize("up", [["--up", "-x"], ["--up=-x"], ["--up", "xn"]])
+def test_solve_one_pose_up_minus_x(up: list[str], capsys: pytest.CaptureFixture[str]) -> None:
+    r = run(capsys, "solve", "--poses", SAMPLE / "xn.csv", *up, "-q")
+    assert r.code == 0, r.err
+    doc = json.loads(r.out)
+    assert doc["method"] == "one-pose"
+    assert doc["poses"][0]["pose"] == "-x"
+    # xn reads x = -gain + offset = -1.012 + 0.021; the 1-pose offset is that + 1
+    np.testing.assert_allclose(doc["offset"], [-1.012 + 0.021 + 1, -0.034, 0.047], atol=5e-4)
+
+
+@pytest.mark.parametrize("files", [POSES_3[:2], [*POSES_3, str(SAMPLE / "zn.csv")]], ids=["2-files", "4-files"])
+def test_solve_wrong_number_of_pose_files(files: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = precious(tmp_path / "cal.json")
+    r = run(capsys, "solve", "--poses", *files, "-o", out)
+    assert_one_error(r, f"--poses takes 1 file (1-pose) or 3 files (+x +y +z), got {len(files)}")
+    assert_untouched(out)
+
+
+def test_solve_without_poses_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
+    r = run(capsys, "solve")
+    assert r.code == 2
+    assert r.out == ""
+    assert "--poses" in r.err
+    assert "Traceback" not in r.err
+
+
+def test_solve_poses_flag_without_files_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
+    r = run(capsys, "solve", "--poses")
+    assert r.code == 2
+    assert r.out == ""
+    assert "--poses" in r.err
+
+
+def test_solve_unknown_face(capsys: pytest.CaptureFixture[str]) -> None:
+    r = run(capsys, "solve", "--poses", SAMPLE / "z.csv", "--up", "up")
+    assert_one_error(r, "--up: unknown face 'up': use one of +x -x +y -y +z -z (or xp xn yp yn zp zn)")
+
+
+# -- solve: the 1-pose solver on every face, and its units check --------------------------
+
+FACE_VECTORS = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0), "+z": (0, 0, 1), "-z": (0, 0, -1)}
+
+
+@pytest.mark.parametrize(
+    ("up", "face"),
+    [("+x", "+x"), ("-x", "-x"), ("+y", "+y"), ("-y", "-y"), ("+z", "+z"), ("-z", "-z"), ("xp", "+x"), ("zn", "-z")],
+)
+def test_solve_one_pose_each_face(up: str, face: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    v = np.array(FACE_VECTORS[face], dtype=np.float64)
+    values = write_pose(tmp_path / "pose.csv", v + TRUE_OFFSET, seed=sum(map(ord, face)))
+    r = run(capsys, "solve", "--poses", tmp_path / "pose.csv", f"--up={up}")
+    assert r.code == 0, r.err
+    doc = json.loads(r.out)
+    assert doc["method"] == "one-pose"
+    assert doc["poses"][0]["pose"] == face
+    assert doc["gain"] == [1.0, 1.0, 1.0]
+    assert doc["matrix"] == [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+    np.testing.assert_allclose(doc["offset"], values.mean(axis=0) - v, rtol=0, atol=1e-12)  # offset = mean - v
+    np.testing.assert_allclose(doc["offset"], TRUE_OFFSET, atol=1e-3)  # 1e-3 ~ 7 standard errors
+    np.testing.assert_allclose(doc["uncertainty"]["offset"], values.std(axis=0, ddof=1) / np.sqrt(200), rtol=1e-9)
+    assert "one-pose" in r.err
+
+
+def test_solve_units_mistake_ms2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    pose = BAD / "units_ms2_pose_z.csv"
+    out = precious(tmp_path / "cal.json")
+    r = run(capsys, "solve", "--poses", pose, "-o", out)
+    assert_one_error(
+        r,
+        f"{pose}: the pose reads 9.858 in magnitude but --reference is 1: a units mistake?",
+        hint="--reference 9.80665",
+    )
+    assert_untouched(out)
+
+
+def test_solve_units_mistake_counts(capsys: pytest.CaptureFixture[str]) -> None:
+    pose = BAD / "units_counts16384_pose_z.csv"
+    r = run(capsys, "solve", "--poses", pose)
+    assert_one_error(
+        r,
+        f"{pose}: the pose reads 1.717e+04 in magnitude but --reference is 1: a units mistake?",
+        hint="--reference 16384",
+    )
+
+
+def test_solve_counts_with_their_reference(capsys: pytest.CaptureFixture[str]) -> None:
+    pose = BAD / "units_counts16384_pose_z.csv"
+    r = run(capsys, "solve", "--poses", pose, "--reference", "16384", "--input-units", "counts", "-q")
+    assert r.code == 0, r.err
+    doc = json.loads(r.out)
+    assert doc["reference"] == 16384.0
+    assert doc["input_units"] == "counts"
+    assert doc["units"] is None
+    np.testing.assert_allclose(doc["offset"], [344, -557, 770], atol=1.0)
+
+
+def test_solve_units_mistake_on_the_opposite_face(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # m/s^2 data with -y up: the magnitude is the same, the hint too
+    write_pose(tmp_path / "yn.csv", [0.2, -9.81, 0.4], noise=0.02)
+    r = run(capsys, "solve", "--poses", tmp_path / "yn.csv", "--up", "-y")
+    assert r.code == 2
+    assert "--reference 9.80665" in r.err
+    r = run(capsys, "solve", "--poses", tmp_path / "yn.csv", "--up", "-y", "--reference", "9.80665", "-q")
+    assert r.code == 0, r.err
+    np.testing.assert_allclose(json.loads(r.out)["offset"], [0.2, -9.81 + 9.80665, 0.4], atol=0.01)
+
+
+# -- solve: the real imucal capture (accelerometer and gyroscope columns) -----------------
+
+
+def test_solve_real_data_picks_accelerometer_columns(capsys: pytest.CaptureFixture[str]) -> None:
+    files = [IMUCAL / "xp.csv", IMUCAL / "yp.csv", IMUCAL / "zp.csv"]
+    r = run(capsys, "solve", "--poses", *files, "--reference", "9.81")
+    assert r.code == 0, r.err
+    doc = json.loads(r.out)
+    assert doc["sensor"] == "accelerometer"
+    assert doc["columns"] == ["acc_x", "acc_y", "acc_z"]
+    assert doc["reference"] == 9.81
+    # about 2040-2110 counts per g: the gains are counts per m/s^2
+    assert all(200 < g < 220 for g in doc["gain"])
+    assert "acc_x" in r.err
+    assert "gyr_x" not in r.err
+
+
+def test_solve_real_data_gyroscope_columns(capsys: pytest.CaptureFixture[str]) -> None:
+    r = run(capsys, "solve", "--poses", IMUCAL / "xp.csv", "--sensor", "gyroscope", "-q")
+    assert r.code == 0, r.err
+    doc = json.loads(r.out)
+    assert doc["sensor"] == "gyroscope"
+    assert doc["columns"] == ["gyr_x", "gyr_y", "gyr_z"]
+    assert doc["reference"] == 0.0  # zero rate at rest: the offset is the mean
+    np.testing.assert_allclose(doc["offset"], doc["poses"][0]["mean"], rtol=0, atol=0)
+
+
+def test_solve_real_data_no_magnetometer(capsys: pytest.CaptureFixture[str]) -> None:
+    pose = IMUCAL / "zp.csv"
+    r = run(capsys, "solve", "--poses", pose, "--sensor", "magnetometer")
+    assert_one_error(
+        r,
+        f"{pose}: no magnetometer x,y,z columns found "
+        "(columns: part, samples, acc_x, acc_y, acc_z, gyr_x, gyr_y, gyr_z)",
+        hint="--columns",
+    )
+
+
+def test_solve_columns_option_overrides(capsys: pytest.CaptureFixture[str]) -> None:
+    r = run(capsys, "solve", "--poses", IMUCAL / "zp.csv", "--columns", "acc_y,acc_x,acc_z", "--reference", "2048")
+    assert r.code == 0, r.err
+    assert json.loads(r.out)["columns"] == ["acc_y", "acc_x", "acc_z"]
+
+
+def test_solve_upside_down_pose_is_rejected(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    pose = BAD / "upside_down_x.csv"
+    out = precious(tmp_path / "cal.json")
+    r = run(capsys, "solve", "--poses", pose, *POSES_3[1:], "-o", out)
+    assert r.code == 3, r.err
+    assert r.out == ""
+    errors = [ln for ln in r.err.splitlines() if ln.startswith("error:")]
+    assert len(errors) == 1
+    assert errors[0].startswith(f"error: {pose}: ")
+    assert "+x" in errors[0]
+    assert "not pointing up" in errors[0]
+    assert "Traceback" not in r.err
+    assert_untouched(out)
+
+
+# -- apply: what it keeps, what it changes ------------------------------------------------
+
+
+def _interleaved_capture(path: Path, n: int = 300) -> tuple[bytes, FloatArray, list[bool]]:
+    """A capture with a CRLF '#' preamble, a zero-padded integer time, a text column and
+    interleaved rows whose sensor cells are all empty. Returns the bytes, the raw values
+    (NaN on empty rows) and which rows are empty."""
+    rng = np.random.default_rng(7)
+    head = b"# station: line 3, bay 7\r\n#   operator: A. N. Other\r\n\r\ntime,ax,ay,az,label\r\n"
+    raw = rng.normal(0, 1, (n, 3)) + np.array([0.1, -0.2, 1.0])
+    labels = ["at rest", "  two  spaces ", "", "x=1; y=2", "ünïcödé ✓", "say 'hi'", "tab\there"]
+    empty = [i % 5 == 3 for i in range(n)]
+    rows = []
+    for i in range(n):
+        t = f"{1000 + 10 * i:08d}"
+        label = labels[i % len(labels)]
+        if empty[i]:
+            rows.append(f"{t},,,,gps fix {i}")
+            raw[i] = np.nan
+            continue
+        styles = [f"{v:.6f}" for v in raw[i]]
+        if i % 7 == 1:  # integers and exponents are numbers too
+            styles = [str(round(v * 1000)) for v in raw[i]]
+            raw[i] = [float(s) for s in styles]
+        elif i % 7 == 2:
+            styles = [f"{v:.3e}" for v in raw[i]]
+        raw[i] = [float(s) for s in styles]
+        rows.append(f"{t},{','.join(styles)},{label}")
+    data = head + "\r\n".join(rows).encode() + b"\r\n"
+    path.write_bytes(data)
+    return data, raw, empty
+
+
+def test_apply_keeps_every_other_byte(cal: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    src = tmp_path / "capture.csv"
+    data, raw, empty = _interleaved_capture(src)
+    out = tmp_path / "corrected.csv"
+    r = run(capsys, "apply", "--cal", cal, src, "-o", out)
+    assert r.code == 0, r.err
+    assert r.out == ""
+    assert f"corrected 300 rows of {src}" in r.err
+    result = out.read_bytes()
+    head_len = data.index(b"time,ax")
+    head_len = data.index(b"\r\n", head_len) + 2
+    assert result[:head_len] == data[:head_len], "preamble and header are copied verbatim"
+    assert result.endswith(b"\r\n")
+    assert b"\n" not in result.replace(b"\r\n", b""), "CRLF is kept on every line"
+    src_rows = data[head_len:].decode().split("\r\n")[:-1]
+    out_rows = result[head_len:].decode().split("\r\n")[:-1]
+    assert len(out_rows) == len(src_rows) == 300
+    values = np.full((300, 3), np.nan)
+    for i, (before, after) in enumerate(zip(src_rows, out_rows, strict=True)):
+        b, a = before.split(","), after.split(",")
+        assert len(a) == len(b) == 5
+        assert a[0] == b[0]  # 00001000 stays 00001000
+        assert a[4] == b[4]  # the text column, byte for byte
+        if empty[i]:
+            assert a[1:4] == ["", "", ""]
+        else:
+            values[i] = [float(c) for c in a[1:4]]
+    keep = ~np.array(empty)
+    expected = corrected(raw[keep])
+    # bit for bit: the text written parses back to exactly the float64 apply computed
+    np.testing.assert_array_equal(values[keep], expected)
+    np.testing.assert_allclose(values[keep], (raw[keep] - OFFSET) @ MATRIX.T, rtol=0, atol=1e-12)
+
+
+def test_apply_stdout_equals_file_output(cal: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    src = tmp_path / "capture.csv"
+    _interleaved_capture(src, n=40)
+    out = tmp_path / "corrected.csv"
+    assert run(capsys, "apply", "--cal", cal, src, "-o", out, "-q").code == 0
+    capsys.readouterr()
+    r = run(capsys, "apply", "--cal", cal, src)
+    assert r.code == 0, r.err
+    assert r.out.encode() == out.read_bytes()
+    assert "-> stdout" in r.err
+
+
+def test_apply_sample_capture_reads_one_g(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "-q", "--poses", *POSES_3, "-o", cal).code == 0
+    out = tmp_path / "corrected.csv"
+    assert run(capsys, "apply", "--cal", cal, SAMPLE / "capture.csv", "-o", out).code == 0
+    fixed = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert fixed.shape == (3000, 4)
+    np.testing.assert_array_equal(fixed[:, 0], np.loadtxt(SAMPLE / "capture.csv", delimiter=",", skiprows=1)[:, 0])
+    segments = np.linalg.norm(fixed[:, 1:], axis=1).reshape(6, 500).mean(axis=1)
+    np.testing.assert_allclose(segments, 1.0, atol=5e-4)
+
+
+def test_apply_stdin_to_stdout_subprocess(cal: Path, tmp_path: Path) -> None:
+    src = tmp_path / "capture.csv"
+    data, _, _ = _interleaved_capture(src, n=50)
+    via_file = run_exe(["apply", "--cal", cal, src, "-q"])
+    assert via_file.returncode == 0, via_file.stderr
+    piped = run_exe(["apply", "--cal", cal], stdin=data)  # cat capture.csv | tumblecal apply --cal cal.json
+    assert piped.returncode == 0, piped.stderr
+    assert piped.stdout == via_file.stdout
+    assert b"corrected 50 rows of <stdin>" in piped.stderr
+    assert b"Traceback" not in piped.stderr
+    dash = run_exe(["apply", "--cal", cal, "-", "-o", "-", "-q"], stdin=data)
+    assert (dash.returncode, dash.stdout, dash.stderr) == (0, via_file.stdout, b"")
+
+
+def test_apply_real_pipe_from_cat(cal: Path, tmp_path: Path) -> None:
+    src = tmp_path / "capture.csv"
+    _interleaved_capture(src, n=30)
+    cat = shutil.which("cat")
+    if cat is None:
+        pytest.skip("no cat")
+    expected = run_exe(["apply", "--cal", cal, src, "-q"]).stdout
+    with subprocess.Popen([cat, str(src)], stdout=subprocess.PIPE) as producer:
+        consumer = subprocess.run(
+            [tumblecal_exe(), "apply", "--cal", str(cal), "-q"],
+            stdin=producer.stdout,
+            capture_output=True,
+            timeout=60,
+            check=False,
+        )
+    assert consumer.returncode == 0, consumer.stderr
+    assert consumer.stdout == expected
+
+
+def test_apply_dash_reads_stdin_in_process(
+    cal: Path, monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    data = b"t,ax,ay,az\n0.00,0.5,-0.25,1.0\n0.01,0.0,0.0,0.0\n"
+    feed_stdin(monkeypatch, data)
+    out = tmp_path / "out.csv"
+    r = run(capsys, "apply", "--cal", cal, "-", "-o", out)
+    assert r.code == 0, r.err
+    lines = out.read_text().splitlines()
+    assert lines[0] == "t,ax,ay,az"
+    raw = np.array([[0.5, -0.25, 1.0], [0.0, 0.0, 0.0]])
+    got = np.array([[float(c) for c in ln.split(",")[1:]] for ln in lines[1:]])
+    np.testing.assert_array_equal(got, corrected(raw))
+    assert [ln.split(",")[0] for ln in lines[1:]] == ["0.00", "0.01"]
+
+
+RAW = np.array([[0.1, -0.2, 0.98], [1, 2, 3], [-0.5, 0.25, 33108]])
+
+
+@pytest.mark.parametrize(
+    ("name", "text", "delimiter"),
+    [
+        pytest.param("semicolon", "t;ax;ay;az\n0;0.1;-0.2;0.98\n1;1;2;3\n2;-0.5;0.25;33108\n", ";", id="semicolon"),
+        pytest.param("tab", "t\tax\tay\taz\n0\t0.1\t-0.2\t0.98\n1\t1\t2\t3\n2\t-0.5\t0.25\t33108\n", "\t", id="tab"),
+        pytest.param(
+            "bom", "\ufefft,ax,ay,az\r\n0,0.1,-0.2,0.98\r\n1,1,2,3\r\n2,-0.5,0.25,33108\r\n", ",", id="bom-crlf"
+        ),
+        pytest.param("headerless", "0.1,-0.2,0.98\n1,2,3\n-0.5,0.25,33108\n", ",", id="headerless-3"),
+        pytest.param("headerless4", "0,0.1,-0.2,0.98\n1,1,2,3\n2,-0.5,0.25,33108\n", ",", id="headerless-4"),
+    ],
+)
+def test_apply_delimiters_bom_headerless(
+    name: str, text: str, delimiter: str, cal: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    src = tmp_path / f"{name}.csv"
+    src.write_bytes(text.encode())
+    out = tmp_path / "out.csv"
+    r = run(capsys, "apply", "--cal", cal, src, "-o", out)
+    assert r.code == 0, r.err
+    result = out.read_bytes().decode()
+    src_lines = text.splitlines(keepends=True)
+    out_lines = result.splitlines(keepends=True)
+    assert len(out_lines) == len(src_lines)
+    has_header = not name.startswith("headerless")
+    if has_header:
+        assert out_lines[0] == src_lines[0]  # BOM and all
+        src_lines, out_lines = src_lines[1:], out_lines[1:]
+    else:
+        assert "note:" in r.err  # the calibration's columns (ax, ay, az) are not there: detected
+    first = 1 if len(cells(src_lines[0].rstrip("\r\n"), delimiter)) == 4 else 0
+    got = np.array([[float(c) for c in cells(ln.rstrip("\r\n"), delimiter)[first:]] for ln in out_lines])
+    np.testing.assert_array_equal(got, corrected(RAW))
+    for before, after in zip(src_lines, out_lines, strict=True):
+        assert after.endswith("\r\n") == before.endswith("\r\n")
+        if first:
+            assert cells(after, delimiter)[0] == cells(before, delimiter)[0]
+
+
+def test_apply_whitespace_aligned(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cal = write_cal(tmp_path / "cal.json", columns=("x", "y", "z"))
+    lines = [
+        "   2.9840000e-02   3.3108000e+04   3.3329000e+04   3.6429000e+04",
+        "   3.9857000e-02   3.3096000e+04   3.3336000e+04   3.6437000e+04",
+        "\t4.9840000e-02 \t 3.3104000e+04   3.3333000e+04\t3.6429000e+04  ",
+    ]
+    src = tmp_path / "xsens.txt"
+    src.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "out.txt"
+    r = run(capsys, "apply", "--cal", cal, src, "-o", out)
+    assert r.code == 0, r.err
+    assert "note:" not in r.err  # 4 headerless columns are t,x,y,z: the calibration's own
+    result = out.read_text().splitlines()
+    assert len(result) == 3
+    raw = np.array([[float(c) for c in ln.split()[1:]] for ln in lines])
+    got = np.array([[float(c) for c in ln.split(" ")[1:]] for ln in result])  # single spaces
+    np.testing.assert_array_equal(got, corrected(raw))
+    assert [ln.split(" ")[0] for ln in result] == ["2.9840000e-02", "3.9857000e-02", "4.9840000e-02"]
+
+
+def test_apply_uses_the_calibrations_columns_first(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # two accelerometer triplets: detection alone is ambiguous, the calibration names one
+    src = tmp_path / "two.csv"
+    src.write_text("t,acc_x,acc_y,acc_z,acc2_x,acc2_y,acc2_z\n0,1,2,3,4,5,6\n")
+    raw = np.array([[4.0, 5.0, 6.0]])
+    cal = write_cal(tmp_path / "cal.json", columns=("ACC2_X", "acc2_y", "acc2_z"))  # case-insensitive
+    r = run(capsys, "apply", "--cal", cal, src)
+    assert r.code == 0, r.err
+    assert "note:" not in r.err
+    row = r.out.splitlines()[1].split(",")
+    assert row[:4] == ["0", "1", "2", "3"]
+    np.testing.assert_array_equal([float(c) for c in row[4:]], corrected(raw)[0])
+
+
+def test_apply_columns_option_overrides_the_calibration(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    src = tmp_path / "two.csv"
+    src.write_text("t,acc_x,acc_y,acc_z,acc2_x,acc2_y,acc2_z\n0,1,2,3,4,5,6\n")
+    cal = write_cal(tmp_path / "cal.json", columns=("acc2_x", "acc2_y", "acc2_z"))
+    for columns in ("acc_x,acc_y,acc_z", "1,2,3"):
+        r = run(capsys, "apply", "--cal", cal, src, "--columns", columns)
+        assert r.code == 0, r.err
+        assert "note:" in r.err  # told that other columns than the calibration's are corrected
+        row = r.out.splitlines()[1].split(",")
+        assert row[0] == "0"
+        assert row[4:] == ["4", "5", "6"]
+        np.testing.assert_array_equal([float(c) for c in row[1:4]], corrected(np.array([[1.0, 2.0, 3.0]]))[0])
+
+
+def test_apply_ambiguous_triplets_without_calibration_columns(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    src = tmp_path / "two.csv"
+    src.write_text("t,acc_x,acc_y,acc_z,acc2_x,acc2_y,acc2_z\n0,1,2,3,4,5,6\n")
+    cal = write_cal(tmp_path / "cal.json", columns=("ax", "ay", "az"))
+    r = run(capsys, "apply", "--cal", cal, src)
+    assert_one_error(
+        r,
+        f"{src}: several accelerometer triplets could be meant: acc_x,acc_y,acc_z; acc2_x,acc2_y,acc2_z",
+        hint="--columns",
+    )
+
+
+def test_names_with_brackets_are_not_markup(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """File and column names reach stderr as they are (Rich would eat '[bold]' as markup)."""
+    src = tmp_path / "cap[bold].csv"
+    src.write_text("t,a[x],a[y],a[z]\n0,1,2,3\n")
+    cal = write_cal(tmp_path / "cal.json")
+    out = tmp_path / "out[red].csv"
+    r = run(capsys, "apply", "--cal", cal, src, "-o", out)
+    assert r.code == 0, r.err
+    assert f"note: {src}: correcting columns a[x], a[y], a[z] (the calibration was made from ax, ay, az)\n" in r.err
+    assert f"corrected 1 rows of {src} (a[x], a[y], a[z]) -> {out}\n" in r.err
+
+
+# -- help and version ------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("args", [["--help"], ["-h"], ["solve", "--help"], ["apply", "--help"]])
+def test_help_mentions_exit_statuses(args: list[str], capsys: pytest.CaptureFixture[str]) -> None:
+    r = run(capsys, *args)
+    assert r.code == 0
+    assert r.out.startswith("Usage: tumblecal")
+    text = " ".join(r.out.split())
+    assert "Exit status: 0 ok; 2 usage or input error" in text
+    assert "3 capture rejected" in text
+
+
+def test_solve_help_explains_poses_and_sign(capsys: pytest.CaptureFixture[str]) -> None:
+    text = " ".join(run(capsys, "solve", "--help").out.split())
+    for words in ("--poses", "--up", "--reference", "9.80665", "16384", "reads -1 g", "--sensor"):
+        assert words in text
+
+
+def test_version(capsys: pytest.CaptureFixture[str]) -> None:
+    r = run(capsys, "--version")
+    assert (r.code, r.out, r.err) == (0, f"tumblecal {__version__}\n", "")
+    assert __version__ == "0.1.0"
+
+
+def test_python_dash_m_version() -> None:
+    done = subprocess.run(
+        [sys.executable, "-m", "tumblecal_cli", "--version"], capture_output=True, timeout=60, check=False
+    )
+    assert (done.returncode, done.stdout, done.stderr) == (0, b"tumblecal 0.1.0\n", b"")
+
+
+def test_console_script_version() -> None:
+    done = run_exe(["--version"])
+    assert (done.returncode, done.stdout, done.stderr) == (0, b"tumblecal 0.1.0\n", b"")
+
+
+def test_unknown_option_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
+    r = run(capsys, "solve", "--poses", POSES_3[0], "--frobnicate")
+    assert r.code == 2
+    assert r.out == ""
+    assert "--frobnicate" in r.err
+
+
+# -- bad input: exit 2, one error line naming the file, nothing written --------------------
+
+CAPTURE_ERRORS = [
+    pytest.param("empty.csv", "empty file", id="empty"),
+    pytest.param("header_only.csv", "a header but no data rows", id="header-only"),
+    pytest.param("comments_only.csv", "no data: the file holds only blank or # comment lines", id="comments-only"),
+    pytest.param("non_numeric_cell.csv", "not a number: 'oops' (line 3, column ay)", id="non-numeric"),
+    pytest.param(
+        "partly_empty_sensor_row.csv",
+        "empty sensor cell in a row whose other sensor cells are filled (line 4, column ay)",
+        id="partly-empty-row",
+    ),
+    pytest.param(
+        "no_sensor_columns.csv", "no accelerometer x,y,z columns found (columns: a, b, c, d)", id="no-sensor-columns"
+    ),
+    pytest.param("ragged_row.csv", "row has 3 fields, the header has 4 (line 3)", id="ragged-row"),
+    pytest.param("binary_garbage.bin", "binary data, not a CSV text file", id="binary-garbage"),
+    pytest.param("not_utf8.csv", "not UTF-8 text (byte 36)", id="not-utf8"),
+    pytest.param("does_not_exist.csv", "no such file", id="missing-file"),
+]
+
+
+@pytest.mark.parametrize(("name", "message"), CAPTURE_ERRORS)
+def test_solve_bad_capture(name: str, message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    pose = BAD / name
+    out = precious(tmp_path / "cal.json")
+    r = run(capsys, "solve", "--poses", pose, "-o", out)
+    assert_one_error(r, f"{pose}: {message}")
+    assert_untouched(out)
+
+
+@pytest.mark.parametrize(("name", "message"), CAPTURE_ERRORS)
+def test_apply_bad_capture_to_file(
+    name: str, message: str, cal: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    src = BAD / name
+    out = precious(tmp_path / "corrected.csv")
+    r = run(capsys, "apply", "--cal", cal, src, "-o", out)
+    assert_one_error(r, f"{src}: {message}")
+    assert_untouched(out)
+
+
+@pytest.mark.parametrize(("name", "message"), CAPTURE_ERRORS)
+def test_apply_bad_capture_to_stdout(name: str, message: str, cal: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    src = BAD / name
+    r = run(capsys, "apply", "--cal", cal, src)
+    assert_one_error(r, f"{src}: {message}")  # not even the header reaches stdout
+
+
+@pytest.mark.parametrize(
+    ("name", "message"),
+    [
+        pytest.param("non_numeric_cell.csv", "not a number: 'oops' in column 'ay' (data row 2)", id="non-numeric"),
+        pytest.param(
+            "partly_empty_sensor_row.csv",
+            "empty sensor cell in a row whose other sensor cells are filled in column 'ay' (data row 3)",
+            id="partly-empty-row",
+        ),
+        pytest.param("ragged_row.csv", "row has 3 fields, the header has 4: '0.01,0.01,-0.02'", id="ragged-row"),
+        pytest.param("header_only.csv", "a header but no data rows", id="header-only"),
+        pytest.param("empty.csv", "empty file", id="empty"),
+        pytest.param("binary_garbage.bin", "binary data, not a CSV text file", id="binary-garbage"),
+    ],
+)
+def test_apply_bad_capture_on_stdin(
+    name: str,
+    message: str,
+    cal: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    feed_stdin(monkeypatch, (BAD / name).read_bytes())
+    out = precious(tmp_path / "corrected.csv")
+    r = run(capsys, "apply", "--cal", cal, "-o", out)
+    assert_one_error(r, f"<stdin>: {message}")  # no line numbers without a second pass: the data row
+    assert_untouched(out)
+
+
+def test_solve_bad_capture_on_stdin(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    feed_stdin(monkeypatch, (BAD / "non_numeric_cell.csv").read_bytes())
+    r = run(capsys, "solve", "--poses", "-")
+    assert_one_error(r, "<stdin>: not a number: 'oops' in column 'ay' (data row 2)")
+
+
+def test_solve_one_bad_pose_among_three(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    pose = BAD / "partly_empty_sensor_row.csv"
+    out = precious(tmp_path / "cal.json")
+    r = run(capsys, "solve", "--poses", POSES_3[0], pose, POSES_3[2], "-o", out)
+    assert_one_error(r, f"{pose}: empty sensor cell in a row whose other sensor cells are filled (line 4, column ay)")
+    assert_untouched(out)
+
+
+def test_apply_capture_without_the_sensor_columns(
+    cal: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    src = tmp_path / "gyro_only.csv"
+    src.write_text("t,gyr_x,gyr_y,gyr_z\n0,1,2,3\n")
+    out = precious(tmp_path / "out.csv")
+    r = run(capsys, "apply", "--cal", cal, src, "-o", out)
+    assert_one_error(r, f"{src}: no accelerometer x,y,z columns found (columns: t, gyr_x, gyr_y, gyr_z)")
+    assert_untouched(out)
+
+
+def test_apply_columns_option_names_a_missing_column(
+    cal: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    src = SAMPLE / "capture.csv"
+    r = run(capsys, "apply", "--cal", cal, src, "--columns", "ax,ay,nope")
+    assert_one_error(r, f"{src}: column 'nope' not found (columns: t, ax, ay, az)", hint="0-based index")
+
+
+CAL_ERRORS = [
+    pytest.param("cal_empty.json", "empty calibration file", id="empty"),
+    pytest.param(
+        "cal_empty_object.json",
+        "not a tumblecal calibration: missing field 'format' (expected 'tumblecal-calibration')",
+        id="empty-object",
+    ),
+    pytest.param(
+        "cal_not_an_object.json", "not a calibration file: expected a JSON/YAML object at the top", id="not-an-object"
+    ),
+    pytest.param("cal_truncated.json", "not valid JSON: Expecting value (line 17, column 5)", id="truncated"),
+    pytest.param(
+        "cal_unknown_format.json",
+        "not a tumblecal calibration: unknown format 'imucal-calibration' (expected 'tumblecal-calibration')",
+        id="unknown-format",
+    ),
+    pytest.param(
+        "cal_unknown_version.json",
+        "unsupported calibration version 2 (this tumblecal reads version 1)",
+        id="unknown-version",
+    ),
+    pytest.param("cal_missing_matrix.json", "missing field 'matrix'", id="missing-field"),
+    pytest.param("cal_offset_not_numbers.json", "field 'offset' must be a finite number", id="offset-not-numbers"),
+    pytest.param("does_not_exist.json", "no such calibration file", id="missing-file"),
+]
+
+
+@pytest.mark.parametrize(("name", "message"), CAL_ERRORS)
+def test_apply_bad_calibration(name: str, message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bad = BAD / name
+    out = precious(tmp_path / "corrected.csv")
+    r = run(capsys, "apply", "--cal", bad, SAMPLE / "capture.csv", "-o", out)
+    assert_one_error(r, f"{bad}: {message}")
+    assert_untouched(out)
+
+
+def test_apply_yaml_python_tag_is_refused_not_run(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.chdir(tmp_path)  # where `echo PWNED > pwned.txt` would land if it ran
+    bad = BAD / "cal_python_tag.yaml"
+    r = run(capsys, "apply", "--cal", bad, SAMPLE / "capture.csv")
+    assert_one_error(
+        r,
+        f"{bad}: not valid YAML: could not determine a constructor for the tag "
+        "'tag:yaml.org,2002:python/object/apply:os.system' (line 3, column 9)",
+    )
+    assert not (tmp_path / "pwned.txt").exists()
+    assert list(tmp_path.iterdir()) == []
+
+
+# -- no command writes onto one of its inputs ---------------------------------------------
+
+
+def _copy_poses(tmp_path: Path) -> list[Path]:
+    copies = []
+    for name in ("x.csv", "y.csv", "z.csv"):
+        shutil.copy(SAMPLE / name, tmp_path / name)
+        copies.append(tmp_path / name)
+    return copies
+
+
+@pytest.mark.parametrize("spelling", ["same", "dot-slash", "dot-dot", "absolute"])
+def test_solve_output_onto_an_input(
+    spelling: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "sub").mkdir()
+    _copy_poses(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    before = (tmp_path / "y.csv").read_bytes()
+    out = {"same": "y.csv", "dot-slash": "./y.csv", "dot-dot": "sub/../y.csv", "absolute": str(tmp_path / "y.csv")}
+    r = run(capsys, "solve", "--poses", "x.csv", "y.csv", "z.csv", "-o", out[spelling])
+    assert_one_error(r, f"{out[spelling]}: -o would overwrite the input y.csv", hint="write the output to a new file")
+    assert (tmp_path / "y.csv").read_bytes() == before
+
+
+@pytest.mark.parametrize("target", ["capture", "calibration"])
+def test_apply_output_onto_an_input(
+    target: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    shutil.copy(SAMPLE / "capture.csv", tmp_path / "capture.csv")
+    write_cal(tmp_path / "cal.json")
+    monkeypatch.chdir(tmp_path)
+    before = {p: (tmp_path / p).read_bytes() for p in ("capture.csv", "cal.json")}
+    victim = "capture.csv" if target == "capture" else "cal.json"
+    r = run(capsys, "apply", "--cal", "cal.json", "capture.csv", "-o", f"./{victim}")
+    assert_one_error(r, f"./{victim}: -o would overwrite the input {victim}", hint="write the output to a new file")
+    assert {p: (tmp_path / p).read_bytes() for p in before} == before
+
+
+def test_apply_output_folder_missing(cal: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "no" / "such" / "out.csv"
+    r = run(capsys, "apply", "--cal", cal, SAMPLE / "capture.csv", "-o", out)
+    assert_one_error(r, f"{out}: the output folder does not exist")
+
+
+# -- --debug -------------------------------------------------------------------------------
+
+
+def test_debug_raises_the_error_in_process(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(InputError, match="no such file"):
+        main(["--debug", "solve", "--poses", str(BAD / "does_not_exist.csv")])
+    capsys.readouterr()
+    r = run(capsys, "solve", "--poses", BAD / "does_not_exist.csv")  # --debug does not stick
+    assert r.code == 2
+    assert "Traceback" not in r.err
+
+
+def test_debug_shows_a_traceback_subprocess() -> None:
+    done = run_exe(["--debug", "solve", "--poses", BAD / "empty.csv"])
+    assert done.returncode != 0
+    assert b"Traceback" in done.stderr
+    assert b"empty file" in done.stderr
+    plain = run_exe(["solve", "--poses", BAD / "empty.csv"])
+    assert plain.returncode == 2
+    assert plain.stdout == b""
+    assert plain.stderr == f"error: {BAD / 'empty.csv'}: empty file\nhint: the capture has no bytes at all\n".encode()
