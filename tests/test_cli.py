@@ -952,3 +952,12 @@ def test_debug_shows_a_traceback_subprocess() -> None:
     assert plain.returncode == 2
     assert plain.stdout == b""
     assert plain.stderr == f"error: {BAD / 'empty.csv'}: empty file\nhint: the capture has no bytes at all\n".encode()
+
+
+def test_solve_rejects_a_non_finite_reading(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """nan/inf would poison the pose mean; apply passes them through, solve names the cell."""
+    pose = BAD / "nan_in_pose.csv"
+    out = precious(tmp_path / "cal.json")
+    r = run(capsys, "solve", "--poses", pose, "-o", out)
+    assert_one_error(r, f"{pose}: not a finite number: 'nan' (line 3, column ay)")
+    assert_untouched(out)

@@ -505,6 +505,10 @@ def read_samples(
         blocks, keep, times = [], [], []
         for first_row, cols in cap.batches(only_sensor=True):
             values, empty = cap.sensor_values(cols, first_row)
+            bad = ~np.isfinite(values) & ~empty[:, None]
+            if bad.any():  # nan/inf would poison the pose mean (apply passes them through)
+                i, j = (int(k[0]) for k in np.nonzero(bad))
+                raise cap._locate(first_row + i, j, f"not a finite number: {cols[j][i].as_py()!r}")
             blocks.append(values)
             keep.append(~empty)
             if cap.layout.time is not None:
