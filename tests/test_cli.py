@@ -961,3 +961,44 @@ def test_solve_rejects_a_non_finite_reading(tmp_path: Path, capsys: pytest.Captu
     r = run(capsys, "solve", "--poses", pose, "-o", out)
     assert_one_error(r, f"{pose}: not a finite number: 'nan' (line 3, column ay)")
     assert_untouched(out)
+
+
+# -- the parser's usage errors and a closed pipe ----------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("args", "expected", "hint"),
+    [
+        (
+            ["solve", "--poses", "z.csv", "--reference", "abc"],
+            "Invalid value for '--reference': Input should be a valid number, unable to parse string as a number",
+            "see 'tumblecal solve --help'",
+        ),
+        (["frobnicate"], "No such command 'frobnicate'.", "see 'tumblecal --help'"),
+        (["apply", "--cal"], "Option '--cal' requires an argument.", "see 'tumblecal --help'"),
+    ],
+)
+def test_usage_errors_are_one_line(
+    args: list[str], expected: str, hint: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert_one_error(run(capsys, *args), expected, hint=hint)
+
+
+def test_closed_stdout_stops_quietly_with_141(tmp_path: Path) -> None:
+    """`tumblecal apply ... | head -1`: the reader goes away; no traceback, status 141."""
+    cal = tmp_path / "cal.json"
+    assert (
+        run_exe(["solve", "--poses", SAMPLE / "x.csv", SAMPLE / "y.csv", SAMPLE / "z.csv", "-o", cal]).returncode == 0
+    )
+    big = tmp_path / "big.csv"
+    rows = "\n".join(f"{i},0.01,0.02,1.0" for i in range(300_000))
+    big.write_text(f"t,ax,ay,az\n{rows}\n")
+    with subprocess.Popen(
+        [tumblecal_exe(), "apply", "-q", "--cal", str(cal), str(big)], stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    ) as proc:
+        assert proc.stdout is not None
+        assert proc.stderr is not None
+        assert proc.stdout.readline() == b"t,ax,ay,az\n"
+        proc.stdout.close()
+        assert proc.wait(timeout=60) == 141
+        assert proc.stderr.read() == b""

@@ -15,7 +15,7 @@ import typer
 from typer.core import TyperCommand
 
 from tumblecal_cli import __version__
-from tumblecal_cli.errors import InputError, TumblecalError
+from tumblecal_cli.errors import InputError, PipeClosed, TumblecalError
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -367,6 +367,9 @@ def main(argv: list[str] | None = None) -> int:
     """Run the CLI; return the exit status. Every error is reported here and only here."""
     try:
         result = app(args=argv, prog_name="tumblecal", standalone_mode=False)
+    except PipeClosed:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no flush error at exit
+        return PipeClosed.exit_code
     except TumblecalError as err:
         if _state["debug"]:
             raise
@@ -374,20 +377,17 @@ def main(argv: list[str] | None = None) -> int:
         return err.exit_code
     except typer.Exit as err:
         return err.exit_code
-    except typer.TyperException as err:  # usage errors from the parser: print them as it would
-        show = getattr(err, "show", None)
-        if show is not None:
-            show()
-        else:
-            _report(err.message, None)
+    except typer.TyperException as err:  # the parser's usage errors: one line, like ours
+        if type(err).__name__ == "NoArgsIsHelpError":  # bare `tumblecal`: the help, on stderr
+            getattr(err, "show", print)()
+            return 2
+        ctx = getattr(err, "ctx", None)
+        command = ctx.command_path if ctx is not None else "tumblecal"
+        _report(err.format_message(), f"see '{command} --help'")
         return 2
     except (typer.Abort, KeyboardInterrupt):
         _report("interrupted", None)
         return 130
-    except BrokenPipeError:
-        # the reader of stdout went away (e.g. `| head`): stop quietly, like a Unix filter
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 141
     except Exception as err:  # a bug: one line unless --debug
         if _state["debug"]:
             raise

@@ -48,3 +48,9 @@ class CaptureRejected(TumblecalError):
     """The data cannot be trusted or cannot determine the parameters (exit 3)."""
 
     exit_code = 3
+
+
+class PipeClosed(TumblecalError):
+    """Whoever reads stdout went away (``| head``): stop quietly, as a Unix filter does."""
+
+    exit_code = 141

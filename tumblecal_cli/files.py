@@ -9,7 +9,7 @@ import tempfile
 from collections.abc import Iterable, Iterator
 from typing import IO
 
-from tumblecal_cli.errors import InputError
+from tumblecal_cli.errors import InputError, PipeClosed
 
 
 def check_not_input(output: str, inputs: Iterable[str]) -> None:
@@ -26,8 +26,11 @@ def atomic_output(path: str) -> Iterator[IO[bytes]]:
     """A binary stream for ``path`` ('-': stdout). A file appears (or is replaced) only when
     the block finishes without an error; on an error the old file is left as it was."""
     if path == "-":
-        yield sys.stdout.buffer
-        sys.stdout.buffer.flush()
+        try:
+            yield sys.stdout.buffer
+            sys.stdout.buffer.flush()
+        except BrokenPipeError:
+            raise PipeClosed("stdout was closed") from None
         return
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
