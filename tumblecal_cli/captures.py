@@ -157,8 +157,7 @@ class Capture:
         bad_rows: list[str] = []
 
         def invalid(row: Any) -> str:
-            text = row.text.strip()
-            if not text or text.startswith("#"):
+            if _skipped(row.text):
                 return "skip"
             bad_rows.append(row.text)
             return "error"
@@ -234,7 +233,7 @@ class Capture:
             f.seek(len(lay.head))
             for offset, raw in enumerate(f):
                 text = raw.decode("utf-8", errors="replace").rstrip("\r\n")
-                if text.strip() and not text.lstrip().startswith("#"):
+                if not _skipped(text):
                     yield lay.data_line + offset, text
 
     def _line_of_row(self, row: int) -> int | None:
@@ -327,12 +326,12 @@ def _sniff(name: str, first: bytes, *, at_eof: bool, no_header: bool) -> tuple[L
     lines = text.splitlines(keepends=True)
     offset = bom  # bytes consumed so far
     k = 0
-    while k < len(lines) and (not lines[k].strip() or lines[k].lstrip().startswith("#")):
+    while k < len(lines) and _skipped(lines[k]):
         offset += len(lines[k].encode())
         k += 1
     if k == len(lines):
         raise InputError("no data: the file holds only blank or # comment lines", file=name)
-    content = [ln.rstrip("\r\n") for ln in lines[k : k + 50] if ln.strip() and not ln.lstrip().startswith("#")]
+    content = [ln.rstrip("\r\n") for ln in lines[k : k + 50] if not _skipped(ln)]
     delimiter = _detect_delimiter(content)
     cells = [c.strip().strip('"').strip() for c in _split(content[0], delimiter)]
     eol = "\r\n" if lines[k].endswith("\r\n") else "\n"
@@ -341,7 +340,7 @@ def _sniff(name: str, first: bytes, *, at_eof: bool, no_header: bool) -> tuple[L
         names = cells
         offset += len(lines[k].encode())
         k += 1
-        if all(not ln.strip() or ln.lstrip().startswith("#") for ln in lines[k:]) and at_eof:
+        if all(_skipped(ln) for ln in lines[k:]) and at_eof:
             raise InputError("a header but no data rows", file=name)
     elif len(cells) == 3:
         names = ["x", "y", "z"]
@@ -383,6 +382,12 @@ def _detect_delimiter(lines: Sequence[str]) -> str | None:
         if best is None or key[:2] > best[:2]:
             best = key
     return best[2] if best else None
+
+
+def _skipped(line: str) -> bool:
+    """Blank and ``#`` comment lines are not data, wherever they are (DESIGN.md section 5a)."""
+    text = line.strip()
+    return not text or text.startswith("#")
 
 
 def _split(line: str, delimiter: str | None) -> list[str]:
