@@ -350,8 +350,7 @@ def _sniff(name: str, first: bytes, *, at_eof: bool, no_header: bool) -> tuple[L
         names = [str(i) for i in range(len(cells))]
     if len(names) < 3:
         raise InputError(
-            f"{len(names)} column{'s' if len(names) != 1 else ''}, a capture needs at least 3 "
-            f"(delimiter {delimiter!r})"
+            f"{len(names)} column{'s' if len(names) != 1 else ''}, a capture needs at least 3 (delimiter {delimiter!r})"
             if delimiter
             else "only one column: no delimiter found",
             file=name,
