@@ -115,6 +115,8 @@ FIELDS = [
     "gain",
     "uncertainty",
     "poses",
+    "unit",
+    "verdict",
     "created",
     "tool",
 ]

@@ -414,10 +414,8 @@ def test_solve_upside_down_pose_is_rejected(tmp_path: Path, capsys: pytest.Captu
     assert r.code == 3, r.err
     assert r.out == ""
     errors = [ln for ln in r.err.splitlines() if ln.startswith("error:")]
-    assert len(errors) == 1
-    assert errors[0].startswith(f"error: {pose}: ")
-    assert "+x" in errors[0]
-    assert "not pointing up" in errors[0]
+    assert errors == [f"error: {pose}: declared +x but reads like -x (mean -0.979, -0.034, 0.047): upside down"]
+    assert "hint: turn the unit over so that its x axis points up" in r.err
     assert "Traceback" not in r.err
     assert_untouched(out)
 
@@ -673,7 +671,7 @@ def test_names_with_brackets_are_not_markup(tmp_path: Path, capsys: pytest.Captu
     src.write_text("t,a[x],a[y],a[z]\n0,1,2,3\n")
     cal = write_cal(tmp_path / "cal.json")
     out = tmp_path / "out[red].csv"
-    r = run(capsys, "apply", "--cal", cal, src, "-o", out)
+    r = run(capsys, "apply", "--cal", cal, src, "-o", out, "--columns", "a[x],a[y],a[z]")
     assert r.code == 0, r.err
     assert f"note: {src}: correcting columns a[x], a[y], a[z] (the calibration was made from ax, ay, az)\n" in r.err
     assert f"corrected 1 rows of {src} (a[x], a[y], a[z]) -> {out}\n" in r.err
@@ -688,8 +686,9 @@ def test_help_mentions_exit_statuses(args: list[str], capsys: pytest.CaptureFixt
     assert r.code == 0
     assert r.out.startswith("Usage: tumblecal")
     text = " ".join(r.out.split())
-    assert "Exit status: 0 ok; 2 usage or input error" in text
-    assert "3 capture rejected" in text
+    assert "Exit status, the first that applies: 2 usage or input error" in text
+    assert "3 capture rejected by a quality check" in text
+    assert "1 calibrated but outside its limits; 0 pass" in text
 
 
 def test_solve_help_explains_poses_and_sign(capsys: pytest.CaptureFixture[str]) -> None:

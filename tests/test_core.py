@@ -215,19 +215,25 @@ NAMES = ("caps/unit7-x.csv", "caps/unit7-y.csv", "caps/unit7-z.csv")
     ],
     ids=["x-down", "y-down", "z-down", "x-y-swapped"],
 )
-def test_three_pose_rejects_a_negative_gain_naming_the_file_and_axis(faces: tuple[str, ...], index: int) -> None:
+def test_three_pose_solves_a_negative_gain_for_the_gate_to_judge(faces: tuple[str, ...], index: int) -> None:
+    """The solver reports what the data says; rejecting it (pose.upside_down) is the gate's job."""
     poses = capture(np.random.default_rng(7), UNIT_SYSTEMS["g"], faces, 100)
-    ax = "xyz"[index]
+    solution = core.solve_three_pose(poses, 1.0, names=NAMES)
+    assert solution.gain[index] < 0
+    assert np.isfinite(solution.matrix).all()
+
+
+def test_three_pose_cannot_determine_a_zero_gain() -> None:
+    """A +y pose that reads exactly what the horizontal poses read on y leaves no gain to invert:
+    exit 3 even with --no-checks, naming the file."""
+    level = core.PoseStats(mean=np.array([0.0, 0.0, 1.0]), std=np.zeros(3), samples=10)
+    x = core.PoseStats(mean=np.array([1.0, 0.0, 0.0]), std=np.zeros(3), samples=10)
     with pytest.raises(CaptureRejected) as caught:
-        core.solve_three_pose(poses, 1.0, names=NAMES)
-    assert re.fullmatch(
-        rf"{re.escape(NAMES[index])}: the \+{ax} pose gives gain -[0-9.e+-]+ on {ax} \(mean [^)]*\): "
-        rf"its \+{ax} axis was not pointing up",
-        str(caught.value),
-    ), str(caught.value)
-    assert caught.value.file == NAMES[index]
+        core.solve_three_pose([x, level, level], 1.0, names=NAMES)
+    assert caught.value.file == NAMES[1]
+    assert caught.value.code == "pose.upside_down"
     assert caught.value.exit_code == 3
-    assert caught.value.hint == "give the files in the order +x +y +z, each with that axis pointing up"
+    assert "its gain on y cannot be determined" in str(caught.value)
 
 
 # --- units mistakes -----------------------------------------------------------------------------

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -16,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from tumblecal_cli import __version__
-from tumblecal_cli.core import FloatArray, Solution
+from tumblecal_cli.core import FACES, FloatArray, Solution
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.files import atomic_output
 
@@ -35,11 +36,15 @@ def build(
     input_units: str | None,
     columns: list[str],
     poses: list[dict[str, Any]],
+    tilt: tuple[FloatArray, FloatArray] | None = None,
+    tolerance_deg: float = 1.0,
+    unit: dict[str, Any] | None = None,
+    verdict: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The calibration document, fields in the order of DESIGN.md section 4."""
     if units is None and sensor == "accelerometer" and reference == 1.0:
         units = "g"
-    return {
+    doc = {
         "format": FORMAT,
         "version": VERSION,
         "sensor": sensor,
@@ -52,10 +57,25 @@ def build(
         "matrix": [_floats(row) for row in solution.matrix],
         "gain": _floats(solution.gain),
         "uncertainty": {"offset": _floats(solution.offset_se), "gain": _floats(solution.gain_se)},
+        "tilt_sensitivity": None,
         "poses": poses,
-        "created": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "unit": unit or {"serial": None, "station": None, "operator": None, "meta": {}},
+        "verdict": verdict or {"pass": True, "failures": [], "limits": {}},
+        "created": created(),
         "tool": f"tumblecal {__version__}",
     }
+    if tilt is None:
+        del doc["tilt_sensitivity"]
+    else:
+        doc["tilt_sensitivity"] = {"offset": _floats(tilt[0]), "gain": _floats(tilt[1]), "tolerance_deg": tolerance_deg}
+    return doc
+
+
+def created() -> str:
+    """Now in UTC, or ``SOURCE_DATE_EPOCH`` when set (reproducible files)."""
+    epoch = os.environ.get("SOURCE_DATE_EPOCH", "").strip()
+    when = datetime.fromtimestamp(int(epoch), UTC) if epoch.isdigit() else datetime.now(UTC)
+    return when.strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
 def dumps(doc: dict[str, Any], path: str) -> str:
@@ -83,30 +103,19 @@ class Loaded:
     matrix: FloatArray
     columns: list[str]
     sensor: str
+    reference: float
     doc: dict[str, Any]
+
+    @property
+    def failed(self) -> bool:
+        """Whether the file carries a failing verdict."""
+        verdict = self.doc.get("verdict")
+        return isinstance(verdict, dict) and verdict.get("pass") is False
 
 
 def load(path: str) -> Loaded:
     """Read and validate a calibration file; every problem names the file and the field."""
-    try:
-        if path == "-":  # DESIGN.md section 5: '-' means stdin wherever a path is taken
-            raw = sys.stdin.buffer.read()
-        else:
-            with open(path, "rb") as f:
-                raw = f.read()
-    except FileNotFoundError:
-        raise InputError("no such calibration file", file=path) from None
-    except OSError as err:
-        raise InputError(f"cannot read: {err.strerror}", file=path) from None
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise InputError("not a calibration file: not UTF-8 text", file=path) from None
-    if not text.strip():
-        raise InputError("empty calibration file", file=path)
-    doc = _parse(text, path)
-    if not isinstance(doc, dict):
-        raise InputError("not a calibration file: expected a JSON/YAML object at the top", file=path)
+    doc = _read_object(path, "calibration file")
     if doc.get("format") != FORMAT:
         what = f"unknown format {doc['format']!r}" if "format" in doc else "missing field 'format'"
         raise InputError(f"not a tumblecal calibration: {what} (expected {FORMAT!r})", file=path)
@@ -126,16 +135,119 @@ def load(path: str) -> Loaded:
     columns = doc["columns"]
     if not (isinstance(columns, list) and len(columns) == 3 and all(isinstance(c, str) for c in columns)):
         raise InputError("field 'columns' must be a list of three column names", file=path)
-    _number(doc["reference"], "reference", path)
     _vector(doc["gain"], "gain", path)  # required by the contract, so validated like offset
+    verdict = doc.get("verdict")
+    if verdict is not None and not (
+        isinstance(verdict, dict)
+        and isinstance(verdict.get("pass"), bool)
+        and isinstance(verdict.get("failures"), list)
+    ):
+        raise InputError(
+            "field 'verdict' must be an object with 'pass' (true/false) and 'failures' (a list)", file=path
+        )
     return Loaded(
         path=path,
         offset=_vector(doc["offset"], "offset", path),
         matrix=_matrix(doc["matrix"], "matrix", path),
         columns=columns,
         sensor=doc["sensor"],
+        reference=_number(doc["reference"], "reference", path),
         doc=doc,
     )
+
+
+@dataclass(frozen=True)
+class PoseRecord:
+    """The part of a pose entry that judging a calibration again needs."""
+
+    face: str
+    file: str
+    mean: FloatArray
+    std: FloatArray
+    samples: int
+
+
+def pose_records(cal: Loaded) -> list[PoseRecord]:
+    """The poses a calibration was solved from, validated (for judging it again)."""
+    value, path = cal.doc.get("poses"), cal.path
+    if not isinstance(value, list) or not value:
+        raise InputError("field 'poses' must be a non-empty list of the poses solved from", file=path)
+    out = []
+    for k, pose in enumerate(value):
+        name = f"poses[{k}]"
+        if not (isinstance(pose, dict) and all(key in pose for key in ("pose", "mean", "std", "samples"))):
+            raise InputError(f"field {name!r} must be an object with pose, mean, std and samples", file=path)
+        face, samples = pose["pose"], pose["samples"]
+        if not isinstance(face, str) or face not in FACES:
+            raise InputError(f"field '{name}.pose' must be a face (+x -x +y -y +z -z)", file=path)
+        if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
+            raise InputError(f"field '{name}.samples' must be a positive integer", file=path)
+        mean, std = _vector(pose["mean"], f"{name}.mean", path), _vector(pose["std"], f"{name}.std", path)
+        out.append(PoseRecord(face, str(pose.get("file", "")), mean, std, samples))
+    return out
+
+
+def _read_object(path: str, what: str) -> dict[str, Any]:
+    """The JSON/YAML object in ``path`` ('-': stdin)."""
+    try:
+        if path == "-":  # DESIGN.md section 5: '-' means stdin wherever a path is taken
+            raw = sys.stdin.buffer.read()
+        else:
+            with open(path, "rb") as f:
+                raw = f.read()
+    except FileNotFoundError:
+        raise InputError(f"no such {what}", file=path) from None
+    except IsADirectoryError:
+        raise InputError(f"is a directory, not a {what}", file=path) from None
+    except OSError as err:
+        raise InputError(f"cannot read: {err.strerror}", file=path) from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise InputError(f"not a {what}: not UTF-8 text", file=path) from None
+    if not text.strip():
+        raise InputError(f"empty {what}", file=path)
+    doc = _parse(text, path)
+    if not isinstance(doc, dict):
+        raise InputError(f"not a {what}: expected a JSON/YAML object at the top", file=path)
+    return doc
+
+
+#: Keys of a limits file (README "Limits"); a number, or [x, y, z] where marked per axis.
+LIMIT_KEYS = {
+    "offset": "per axis",
+    "gain_error": "per axis",
+    "nominal_gain": "per axis",
+    "cross_axis": "one",
+    "noise": "one",
+    "residual": "one",
+}
+
+
+def load_limits(path: str) -> dict[str, Any]:
+    """The bounds in a limits file, validated: ``{key: float or (3,) array}``."""
+    doc = _read_object(path, "limits file")
+    out: dict[str, Any] = {}
+    for key, value in doc.items():
+        if key == "version":
+            if value != 1:
+                raise InputError(f"unsupported limits version {value!r} (this tumblecal reads version 1)", file=path)
+            continue
+        if key not in LIMIT_KEYS:
+            raise InputError(f"unknown limit {key!r} (known: {', '.join(LIMIT_KEYS)})", file=path)
+        out[key] = limit_value(value, key, path, per_axis=LIMIT_KEYS[key] == "per axis")
+    return out
+
+
+def limit_value(value: Any, name: str, path: str | None, *, per_axis: bool) -> Any:
+    """A positive bound: a number, or for ``per_axis`` also a list [x, y, z] (made (3,))."""
+    if per_axis and isinstance(value, list):
+        array = _vector(value, name, path)
+    else:
+        array = np.full(3, _number(value, name, path))
+    if (array <= 0).any():
+        raise InputError(f"{'limit' if path else 'option'} {name!r} must be positive, got {value!r}", file=path)
+    return array if per_axis else float(array[0])
 
 
 def is_yaml(path: str) -> bool:
@@ -163,13 +275,13 @@ def _parse(text: str, path: str) -> Any:
         raise InputError(f"not valid JSON: {err.msg}", file=path, line=err.lineno, column=err.colno) from None
 
 
-def _number(value: Any, name: str, path: str) -> float:
+def _number(value: Any, name: str, path: str | None) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
         raise InputError(f"field {name!r} must be a finite number", file=path)
     return float(value)
 
 
-def _vector(value: Any, name: str, path: str) -> FloatArray:
+def _vector(value: Any, name: str, path: str | None) -> FloatArray:
     if not (isinstance(value, list) and len(value) == 3):
         raise InputError(f"field {name!r} must be a list of 3 numbers", file=path)
     return np.array([_number(v, name, path) for v in value])

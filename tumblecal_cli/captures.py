@@ -39,6 +39,8 @@ from tumblecal_cli.errors import InputError
 HEAD_BYTES = 1 << 20  # the sniffer looks at this much of the file
 BLOCK_BYTES = 1 << 20  # pyarrow block size when streaming: bigger blocks raise peak memory
 TIME_NAMES = ("t", "time", "timestamp", "time_s", "ts")
+#: A temperature column, averaged per pose into the calibration file (traceability).
+TEMPERATURE_NAMES = ("temp", "temperature", "temp_c", "temperature_c", "temp_degc", "t_degc", "die_temp")
 FAMILIES = {  # --sensor -> words in a column stem that name it; a single letter only as a prefix
     "accelerometer": (("acc",), "a"),
     "gyroscope": (("gyr",), "g"),
@@ -71,6 +73,7 @@ class Layout:
     eol: str
     sensor: tuple[int, int, int] = (0, 1, 2)
     time: int | None = None
+    temperature: int | None = None
     notes: list[str] = field(default_factory=list)  # things a person should be told
 
     @property
@@ -147,11 +150,11 @@ class Capture:
         self.close()
 
     def batches(self, *, only_sensor: bool = False) -> Iterator[tuple[int, list[pa.Array]]]:
-        """(first data row, columns as text) per block; ``only_sensor`` reads the sensor
-        and time columns alone."""
+        """(first data row, columns as text) per block; ``only_sensor`` reads the sensor,
+        time and temperature columns alone (in that order, each if present)."""
         lay = self.layout
         keys = [str(i) for i in range(len(lay.names))]
-        wanted = list(lay.sensor) + ([lay.time] if lay.time is not None else [])
+        wanted = list(lay.sensor) + [i for i in (lay.time, lay.temperature) if i is not None]
         include = [keys[i] for i in wanted] if only_sensor else keys
         read = include if keys[0] in include else [keys[0], *include]  # column 0 tells comments
         bad_rows: list[str] = []
@@ -296,6 +299,8 @@ def open_capture(
     try:
         layout, consumed = _sniff(name, first, at_eof=len(first) < HEAD_BYTES, no_header=no_header)
         layout.sensor, layout.time = _pick_columns(layout, sensor, columns, prefer, time_column)
+        lower = [n.lower() for n in layout.names]
+        layout.temperature = next((i for i, n in enumerate(lower) if n in TEMPERATURE_NAMES), None)
     except InputError:
         if f is not sys.stdin.buffer:
             f.close()
@@ -492,6 +497,7 @@ class Samples:
     rows: tuple[int, int]  # first and last data row used (0-based, inclusive)
     sha256: str
     duration: float | None  # seconds spanned by the time column (or --rate), if known
+    temperature: float | None = None  # mean of the temperature column, if there is one
 
 
 def read_samples(
@@ -506,7 +512,7 @@ def read_samples(
 ) -> Samples:
     """Read the sensor columns of a small capture (a pose file) into memory."""
     with open_capture(path, sensor=sensor, columns=columns, no_header=no_header, time_column=time_column) as cap:
-        blocks, keep, times = [], [], []
+        blocks, keep, times, temps = [], [], [], []
         for first_row, cols in cap.batches(only_sensor=True):
             values, empty = cap.sensor_values(cols, first_row)
             bad = ~np.isfinite(values) & ~empty[:, None]
@@ -517,6 +523,8 @@ def read_samples(
             keep.append(~empty)
             if cap.layout.time is not None:
                 times.append(cols[3])
+            if cap.layout.temperature is not None:
+                temps.append(cols[-1])
         layout = cap.layout
         digest = cap.sha256()
     values = np.concatenate(blocks) if blocks else np.empty((0, 3))
@@ -535,7 +543,14 @@ def read_samples(
         duration = float(t[-1] - t[0]) * _TIME_SCALE[time_unit] if t.size and np.isfinite(t[[0, -1]]).all() else None
     elif rate:
         duration = (used[-1] - used[0] + 1) / rate
-    return Samples(layout, values[mask], (int(used[0]), int(used[-1])), digest, duration)
+    temperature = None
+    if temps:
+        try:
+            temp = np.concatenate([_floats(pc.cast(c, pa.float64(), safe=False)) for c in temps])[mask]
+            temperature = float(temp.mean()) if np.isfinite(temp).all() else None
+        except pa.ArrowInvalid:  # a cell that is not a number: the temperature is unknown
+            pass
+    return Samples(layout, values[mask], (int(used[0]), int(used[-1])), digest, duration, temperature)
 
 
 # -- apply: stream a capture through a correction ------------------------------------------

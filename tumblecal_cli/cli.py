@@ -15,18 +15,20 @@ import typer
 from typer.core import TyperCommand
 
 from tumblecal_cli import __version__
-from tumblecal_cli.errors import InputError, PipeClosed, TumblecalError
+from tumblecal_cli.errors import CaptureRejected, InputError, PipeClosed, TumblecalError
 
 if TYPE_CHECKING:
     from rich.console import Console
 
     from tumblecal_cli.captures import Samples
-    from tumblecal_cli.core import PoseStats, Solution
+    from tumblecal_cli.core import PoseStats
+    from tumblecal_cli.gate import Corrected, Finding, PoseCheck
 
 EXIT_CODES = """\
-Exit status: 0 ok; 2 usage or input error (bad file, bad option, wrong number of files,
-a units mistake); 3 capture rejected (a pose that cannot be right, e.g. upside down).
-Nothing is written on 2 or 3."""
+Exit status, the first that applies: 2 usage or input error (bad file, bad option, wrong
+number of files, a units mistake); 3 capture rejected by a quality check (moved, not the
+pose it claims, saturated, too short, upside down); 1 calibrated but outside its limits;
+0 pass. The calibration is written on 0 and 1, nothing on 2 or 3."""
 
 app = typer.Typer(
     name="tumblecal",
@@ -126,6 +128,65 @@ NoHeader = Annotated[
 Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing on stderr unless there is an error.")]
 
 
+class CheckName(StrEnum):
+    moved = "moved"
+    orientation = "orientation"
+    saturated = "saturated"
+    short = "short"
+    upside_down = "upside-down"
+
+
+JsonSummary = Annotated[
+    bool,
+    typer.Option(
+        "--json",
+        help="Print a machine-readable summary on stdout: status, verdict or rejections with their codes, "
+        "parameters, uncertainties, per-pose diagnostics.",
+    ),
+]
+LimitsFile = Annotated[
+    str | None,
+    typer.Option(
+        "--limits",
+        metavar="FILE",
+        help="Limits file (YAML/JSON: offset, gain_error, nominal_gain, cross_axis, noise, residual; see README).",
+        rich_help_panel="Limits (exit 1)",
+    ),
+]
+MaxOffset = Annotated[
+    str | None,
+    typer.Option(
+        "--max-offset",
+        metavar="V|X,Y,Z",
+        help="limit.offset.*: bound on |offset| per axis, raw units (overrides the limits file).",
+        rich_help_panel="Limits (exit 1)",
+    ),
+]
+MaxGainError = Annotated[
+    str | None,
+    typer.Option(
+        "--max-gain-error",
+        metavar="F|X,Y,Z",
+        help="limit.gain.*: bound on |gain / nominal - 1|, e.g. 0.03 for 3% (overrides the limits file).",
+        rich_help_panel="Limits (exit 1)",
+    ),
+]
+NominalGain = Annotated[
+    str | None,
+    typer.Option(
+        "--nominal-gain",
+        metavar="G|X,Y,Z",
+        help="The gain a perfect unit has, raw units per output unit: 1, or 2048 for counts at 2048 LSB/g.",
+        rich_help_panel="Limits (exit 1)",
+    ),
+]
+
+
+CHECKS_PANEL = "Quality checks (exit 3)"
+LIMITS_PANEL = "Limits (exit 1)"
+UNIT_PANEL = "Traceability"
+
+
 @app.command(cls=ManyValuesCommand, epilog=EXIT_CODES)
 def solve(
     poses: Annotated[
@@ -186,28 +247,143 @@ def solve(
         float | None,
         typer.Option("--rate", metavar="HZ", help="Sample rate in Hz, for durations when there is no time column."),
     ] = None,
+    json_summary: JsonSummary = False,
     quiet: Quiet = False,
+    # -- quality checks (exit 3) --
+    max_noise: Annotated[
+        float | None,
+        typer.Option(
+            "--max-noise",
+            metavar="FRACTION",
+            min=0,
+            help="pose.moved: reject a pose whose standard deviation, or drift between its first and last "
+            "third, is above FRACTION x reference in corrected units. For a gyroscope it is in its units, "
+            "and the check runs only when given. [default: 0.02]",
+            rich_help_panel=CHECKS_PANEL,
+        ),
+    ] = None,
+    max_tilt: Annotated[
+        float,
+        typer.Option(
+            "--max-tilt",
+            metavar="DEGREES",
+            min=0,
+            help="pose.orientation: reject a pose further than this from the face it is declared as.",
+            rich_help_panel=CHECKS_PANEL,
+        ),
+    ] = 25.0,
+    nominal_offset: Annotated[
+        str,
+        typer.Option(
+            "--nominal-offset",
+            metavar="V|X,Y,Z",
+            help="Raw value at zero stimulus, removed before judging a pose's direction "
+            "(raw counts from an unsigned ADC sit near 32768).",
+            rich_help_panel=CHECKS_PANEL,
+        ),
+    ] = "0",
+    full_scale: Annotated[
+        float | None,
+        typer.Option(
+            "--full-scale",
+            metavar="V",
+            min=0,
+            help="pose.saturated: reject a pose with any |sample| >= 0.98 V (raw units). Without it, "
+            "integer data at the limits of a 16-bit type is clipped.",
+            rich_help_panel=CHECKS_PANEL,
+        ),
+    ] = None,
+    min_samples: Annotated[
+        int,
+        typer.Option(
+            "--min-samples",
+            metavar="N",
+            min=1,
+            help="pose.short: reject a pose with fewer rows (1 suits loggers that store one averaged row).",
+            rich_help_panel=CHECKS_PANEL,
+        ),
+    ] = 10,
+    fixture_tolerance: Annotated[
+        float,
+        typer.Option(
+            "--fixture-tolerance",
+            metavar="DEGREES",
+            min=0,
+            help="How far the fixture may be off level; sets tilt_sensitivity, the worst-case parameter shift.",
+            rich_help_panel=CHECKS_PANEL,
+        ),
+    ] = 1.0,
+    no_checks: Annotated[
+        bool, typer.Option("--no-checks", help="Turn every quality check off.", rich_help_panel=CHECKS_PANEL)
+    ] = False,
+    skip: Annotated[
+        list[CheckName] | None,
+        typer.Option(
+            "--no-check",
+            metavar="CHECK",
+            help="Turn one check off: moved, orientation, saturated, short or upside-down (repeatable).",
+            rich_help_panel=CHECKS_PANEL,
+        ),
+    ] = None,
+    # -- limits (exit 1) --
+    limits_file: LimitsFile = None,
+    max_offset: MaxOffset = None,
+    max_gain_error: MaxGainError = None,
+    nominal_gain: NominalGain = None,
+    # -- traceability --
+    serial: Annotated[
+        str | None, typer.Option("--serial", help="The unit's serial number.", rich_help_panel=UNIT_PANEL)
+    ] = None,
+    station: Annotated[
+        str | None, typer.Option("--station", help="The test station.", rich_help_panel=UNIT_PANEL)
+    ] = None,
+    operator: Annotated[
+        str | None, typer.Option("--operator", help="Who ran the test.", rich_help_panel=UNIT_PANEL)
+    ] = None,
+    meta: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--meta", metavar="KEY=VALUE", help="More about the unit (repeatable).", rich_help_panel=UNIT_PANEL
+        ),
+    ] = None,
 ) -> None:
-    """Average each pose file and solve for the offsets (and gains); write a calibration file.
+    """Average each pose file, check it, solve for the offsets (and gains), judge the unit.
+
+    Writes the calibration on exit 0 (pass) and 1 (outside its limits), nothing on 2 or 3.
 
     \b
       tumblecal solve --poses x.csv y.csv z.csv -o cal.json     # 3-pose
       tumblecal solve --poses z.csv -o cal.yaml                 # 1-pose, +z up
       tumblecal solve --poses z.csv --up=-x --reference 16384   # counts, -x up
+      tumblecal solve -p x.csv y.csv z.csv -o cal.json --limits limits.yaml --serial A17 --json
     """
-    from tumblecal_cli import calfile, captures, core
+    from tumblecal_cli import calfile, captures, core, gate
     from tumblecal_cli.files import check_not_input
 
     if len(poses) not in (1, 3):
         raise InputError(f"--poses takes 1 file (1-pose) or 3 files (+x +y +z), got {len(poses)}")
     if sum(p == "-" for p in poses) > 1:
         raise InputError("only one pose can be read from stdin ('-')")
-    try:
-        face = core.parse_face(up)
-    except ValueError as err:
-        raise InputError(f"--up: {err}") from None
-    check_not_input(output, poses)
+    face = _face(up, "--up")
+    for option, value in (("--max-noise", max_noise), ("--max-tilt", max_tilt), ("--full-scale", full_scale)):
+        if value is not None and not value > 0:
+            raise InputError(f"{option} must be positive, got {value:g}")
+    if json_summary and output == "-":
+        raise InputError("--json prints the summary on stdout, so the calibration needs -o FILE")
+    check_not_input(output, [*poses, *([limits_file] if limits_file else [])])
     ref = reference if reference is not None else (0.0 if sensor is SensorKind.gyroscope else 1.0)
+    gyro = sensor is SensorKind.gyroscope
+    noise = max_noise if max_noise is not None else (None if gyro else 0.02)
+    options = gate.Options(
+        noise_bound=None if noise is None else (noise if gyro or ref <= 0 else noise * ref),
+        max_tilt_deg=max_tilt,
+        nominal_offset=_triplet_option(nominal_offset, "--nominal-offset"),
+        full_scale=full_scale,
+        min_samples=min_samples,
+        skip=frozenset(gate.CHECKS if no_checks else [c.name for c in skip or []]),
+    )
+    limits = _limits(limits_file, max_offset, max_gain_error, nominal_gain)
+    unit = _unit_block(serial, station, operator, meta or [])
     picked = columns.split(",") if columns else None
     samples = [
         captures.read_samples(
@@ -222,12 +398,34 @@ def solve(
         for f in poses
     ]
     stats = [core.pose_stats(s.values) for s in samples]
+    names = [s.layout.name for s in samples]
     if len(poses) == 1:
-        _check_units(samples[0].layout.name, stats[0], ref)
+        _check_units(names[0], stats[0], ref)
         solution, faces = core.solve_one_pose(stats[0], face, ref), [face]
     else:
-        solution = core.solve_three_pose(stats, ref, names=[s.layout.name for s in samples])
         faces = ["+x", "+y", "+z"]
+        try:
+            solution = core.solve_three_pose(stats, ref, names=names)
+        except CaptureRejected as err:
+            if json_summary:
+                _print_json({"status": "rejected", "exit_status": 3, "rejections": [_error_dict(err)]})
+            raise
+    measured = gate.orient(
+        [gate.measure(n, f, s.values, st, options) for n, f, s, st in zip(names, faces, samples, stats, strict=True)],
+        options.nominal_offset,
+    )
+    rejected, warned = gate.check(measured, solution, options, orientation=ref > 0)
+    fixed = [
+        gate.corrected(st.mean, st.std, f, solution.offset, solution.matrix, ref)
+        for st, f in zip(stats, faces, strict=True)
+    ]
+    failures = (
+        []
+        if rejected
+        else gate.verdict(
+            solution.method, solution.offset, solution.matrix, list(zip(names, faces, fixed, strict=True)), limits
+        )
+    )
     doc = calfile.build(
         solution,
         sensor=sensor.value,
@@ -235,11 +433,95 @@ def solve(
         units=units,
         input_units=input_units,
         columns=samples[0].layout.sensor_names,
-        poses=[_pose_record(f, s, st) for f, s, st in zip(faces, samples, stats, strict=True)],
+        poses=[_pose_record(s, m, c) for s, m, c in zip(samples, measured, fixed, strict=True)],
+        tilt=core.tilt_sensitivity(solution.method, solution.gain, ref, faces, fixture_tolerance),
+        tolerance_deg=fixture_tolerance,
+        unit=unit,
+        verdict={"pass": not failures, "failures": [f.as_dict() for f in failures], "limits": limits.as_dict()},
     )
+    notes = _tilt_notes(doc)
+    if rejected:
+        if not quiet:
+            _print_summary(doc, _console(), warned, notes, judged=False)
+        if json_summary:
+            _print_json(_summary(doc, 3, None, rejected, warned, notes))
+        first = rejected[0]
+        raise CaptureRejected(
+            first.render(),
+            hint=first.hint or REJECTION_HINTS[first.code],
+            more=tuple(f.render() for f in rejected[1:]),
+            code=first.code,
+        )
     calfile.write(doc, output)
+    status = 1 if failures else 0
     if not quiet:
-        _print_solution(solution, faces, samples, stats, output)
+        _print_summary(doc, _console(), warned, notes, judged=True)
+        if output != "-":
+            _console().print(f"wrote {output}", soft_wrap=True)
+    if json_summary:
+        _print_json(_summary(doc, status, output, [], warned, notes))
+    if status:
+        raise typer.Exit(status)
+
+
+REJECTION_HINTS = {
+    "pose.short": "log the pose for longer, or lower --min-samples (1 for loggers that store one averaged row)",
+    "pose.saturated": "the pose reaches the sensor's limits: use a wider range, or give the real one with --full-scale",
+    "pose.orientation": "capture the pose again on its declared face, or raise --max-tilt for a tilted fixture",
+    "pose.moved": "hold the unit still and capture the pose again, or raise --max-noise",
+    "pose.upside_down": "give the files in the order +x +y +z, each with that axis pointing up",
+}
+
+
+def _face(text: str, option: str) -> str:
+    from tumblecal_cli import core
+
+    try:
+        return core.parse_face(text)
+    except ValueError as err:
+        raise InputError(f"{option}: {err}") from None
+
+
+def _triplet_option(text: str, option: str) -> Any:
+    """A number or X,Y,Z from the command line, as a (3,) array."""
+    import numpy as np
+
+    parts = text.split(",")
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = []
+    if len(values) not in (1, 3) or not all(np.isfinite(values)):
+        raise InputError(f"{option} takes one number or three (X,Y,Z), got {text!r}")
+    return np.array(values * 3 if len(values) == 1 else values)
+
+
+def _limits(path: str | None, max_offset: str | None, max_gain_error: str | None, nominal_gain: str | None) -> Any:
+    """The limits of --limits FILE, with the flags taking precedence."""
+    from tumblecal_cli import calfile, gate
+
+    bounds: dict[str, Any] = calfile.load_limits(path) if path else {}
+    for key, text, option in (
+        ("offset", max_offset, "--max-offset"),
+        ("gain_error", max_gain_error, "--max-gain-error"),
+        ("nominal_gain", nominal_gain, "--nominal-gain"),
+    ):
+        if text is not None:
+            value = _triplet_option(text, option)
+            if (value <= 0).any():
+                raise InputError(f"{option} must be positive, got {text!r}")
+            bounds[key] = value
+    return gate.Limits(**bounds)
+
+
+def _unit_block(serial: str | None, station: str | None, operator: str | None, meta: list[str]) -> dict[str, Any]:
+    pairs: dict[str, str] = {}
+    for item in meta:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise InputError(f"--meta takes KEY=VALUE, got {item!r}")
+        pairs[key.strip()] = value
+    return {"serial": serial, "station": station, "operator": operator, "meta": pairs}
 
 
 def _check_units(name: str, pose: PoseStats, reference: float) -> None:
@@ -258,19 +540,76 @@ def _check_units(name: str, pose: PoseStats, reference: float) -> None:
     )
 
 
-def _pose_record(face: str, s: Samples, st: PoseStats) -> dict[str, Any]:
+def _pose_record(s: Samples, m: PoseCheck, c: Corrected) -> dict[str, Any]:
+    """A pose's entry in the calibration file: what it was, what it measured, how it corrects."""
     record: dict[str, Any] = {
-        "pose": face,
+        "pose": m.face,
         "file": s.layout.name,
         "sha256": s.sha256,
         "rows": list(s.rows),
-        "samples": st.samples,
-        "mean": [float(v) for v in st.mean],
-        "std": [float(v) for v in st.std],
+        "samples": m.stats.samples,
+        "mean": [float(v) for v in m.stats.mean],
+        "std": [float(v) for v in m.stats.std],
     }
     if s.duration is not None:
         record["duration_s"] = s.duration
+    if s.temperature is not None:
+        record["temperature"] = s.temperature
+    record["angle_deg"] = m.angle_deg
+    record["clipped"] = m.clipped
+    record["drift"] = [float(v) for v in m.drift]
+    record["norm_error"] = c.norm_error
+    record["vector_error"] = c.vector_error
     return record
+
+
+def _tilt_notes(doc: dict[str, Any]) -> list[str]:
+    """A note when fixture tilt, not noise, bounds how well the parameters are known."""
+    tilt, se = doc["tilt_sensitivity"], doc["uncertainty"]
+    dominated = [n for n in ("offset", "gain") if any(t > 3 * u for t, u in zip(tilt[n], se[n], strict=True))]
+    if not dominated:
+        return []
+    worst = " and ".join(f"the {n}s by up to {max(tilt[n]):.2g} (noise: {max(se[n]):.2g})" for n in dominated)
+    return [
+        f"fixture tilt, not noise, limits this calibration: {tilt['tolerance_deg']:g}° off level moves {worst}; "
+        "level the fixture better and state how well with --fixture-tolerance"
+    ]
+
+
+def _summary(
+    doc: dict[str, Any],
+    status: int,
+    output: str | None,
+    rejected: list[Finding],
+    warned: list[Finding],
+    notes: list[str],
+) -> dict[str, Any]:
+    """The --json summary: the outcome, then the calibration's parameters and diagnostics."""
+    head: dict[str, Any] = {
+        "status": {0: "pass", 1: "fail", 3: "rejected"}[status],
+        "exit_status": status,
+        "file": output,
+        "rejections": [f.as_dict() for f in rejected],
+        "verdict": None if rejected else doc["verdict"],
+        "warnings": [f.as_dict() for f in warned],
+        "notes": notes,
+    }
+    keys = ("sensor", "method", "reference", "units", "columns", "offset", "matrix", "gain", "uncertainty")
+    return head | {k: doc[k] for k in (*keys, "tilt_sensitivity", "poses", "unit")}
+
+
+def _error_dict(err: TumblecalError) -> dict[str, Any]:
+    return {"code": err.code, "file": err.file, "message": err.message}
+
+
+def _print_json(doc: dict[str, Any]) -> None:
+    import json
+
+    try:
+        sys.stdout.write(json.dumps(doc, indent=2, ensure_ascii=False) + "\n")
+        sys.stdout.flush()
+    except BrokenPipeError:
+        raise PipeClosed("stdout closed") from None
 
 
 @app.command(epilog=EXIT_CODES)
@@ -286,13 +625,19 @@ def apply(
     ] = "-",
     columns: Columns = None,
     no_header: NoHeader = False,
+    force: Annotated[
+        bool,
+        typer.Option("--force", help="Apply a calibration whose verdict failed (refused otherwise)."),
+    ] = False,
     quiet: Quiet = False,
 ) -> None:
     """Correct a capture: each sensor reading becomes M (raw - offset).
 
     Everything else is copied as it was: the header, the rows and their order, the text of
     every other column and the line endings. The sensor columns are the calibration's own
-    (else found by the same rules as solve), written with every digit needed to round-trip.
+    (a capture without them is refused unless --columns names them), written with every
+    digit needed to round-trip. A calibration whose unit failed its limits is refused
+    unless --force.
 
     \b
       tumblecal apply --cal cal.json capture.csv -o corrected.csv
@@ -305,14 +650,30 @@ def apply(
         raise InputError("--cal - and the capture cannot both be read from stdin", hint="give the capture as a file")
     check_not_input(output, [capture, cal])
     c = calfile.load(cal)
+    if c.failed and not force:
+        codes = ", ".join(str(f.get("code")) for f in c.doc["verdict"]["failures"] if isinstance(f, dict))
+        raise InputError(
+            f"this unit failed its limits ({codes or 'verdict: fail'}): refusing to correct with it",
+            file=cal,
+            hint="pass --force to apply it anyway",
+        )
     picked = columns.split(",") if columns else None
     with captures.open_capture(capture, sensor=c.sensor, columns=picked, prefer=c.columns, no_header=no_header) as cap:
         used = cap.layout.sensor_names
-        if not quiet and [u.lower() for u in used] != [x.lower() for x in c.columns]:
-            _console().print(
-                f"note: {cap.layout.name}: correcting columns {', '.join(used)} "
-                f"(the calibration was made from {', '.join(c.columns)})",
-                soft_wrap=True,
+        differ = [u.lower() for u in used] != [x.lower() for x in c.columns]
+        if differ and (picked or not cap.layout.has_header):  # the user named them, or nothing is named
+            if not quiet:
+                _console().print(
+                    f"note: {cap.layout.name}: correcting columns {', '.join(used)} "
+                    f"(the calibration was made from {', '.join(c.columns)})",
+                    soft_wrap=True,
+                )
+        elif differ:
+            raise InputError(
+                f"the capture's {c.sensor} columns are {', '.join(used)}, "
+                f"but {cal} calibrates {c.sensor} columns {', '.join(c.columns)}",
+                file=cap.layout.name,
+                hint=f"if they are the same sensor, name them: --columns {','.join(used)}",
             )
         with atomic_output(output) as out:
             rows = captures.correct_stream(cap, out, lambda raw: core.apply(raw, c.offset, c.matrix))
@@ -321,43 +682,159 @@ def apply(
         _console().print(f"corrected {rows} rows of {cap.layout.name} ({', '.join(used)}) -> {target}", soft_wrap=True)
 
 
+@app.command(epilog="Exit status: 0 a valid calibration file; 2 an invalid one (the error names the field).")
+def show(
+    cal: Annotated[str, typer.Argument(metavar="CAL", help="Calibration file; '-' reads stdin.")],
+    json_out: Annotated[bool, typer.Option("--json", help="Print the validated file as JSON instead.")] = False,
+) -> None:
+    """Validate a calibration file and print it for people.
+
+    \b
+      tumblecal show cal.json
+      tumblecal show cal.yaml --json | jq .offset
+    """
+    from tumblecal_cli import calfile
+
+    c = calfile.load(cal)
+    if json_out:
+        _print_json(c.doc)
+        return
+    console = _console(stderr=False)
+    doc, unit = c.doc, c.doc.get("unit") or {}
+    facts = [
+        ("file", cal),
+        (
+            "sensor",
+            f"{doc['sensor']}, {doc['method']}, reference {doc['reference']:g} {doc.get('units') or ''}".rstrip(),
+        ),
+        ("input units", doc.get("input_units")),
+        ("unit", ", ".join(f"{k} {unit[k]}" for k in ("serial", "station", "operator") if unit.get(k))),
+        ("meta", ", ".join(f"{k}={v}" for k, v in (unit.get("meta") or {}).items())),
+        ("created", f"{doc.get('created', '')} by {doc.get('tool', '?')}"),
+    ]
+    for key, value in facts:
+        if value:
+            console.print(f"{key + ':':<12} {value}", soft_wrap=True)
+    if any(doc["matrix"][i][j] for i in range(3) for j in range(3) if i != j):
+        console.print("matrix M (corrected = M (raw - offset)):")
+        for row in doc["matrix"]:
+            console.print("  " + "  ".join(f"{v:>14.6g}" for v in row))
+    _print_summary(doc, console, [], _tilt_notes(doc) if "tilt_sensitivity" in doc else [], judged=True)
+
+
+@app.command(epilog="Exit status: 0 within the limits; 1 outside them; 2 usage or input error.")
+def check(
+    cal: Annotated[str, typer.Argument(metavar="CAL", help="Calibration file; '-' reads stdin.")],
+    limits_file: LimitsFile = None,
+    max_offset: MaxOffset = None,
+    max_gain_error: MaxGainError = None,
+    nominal_gain: NominalGain = None,
+    json_summary: JsonSummary = False,
+    quiet: Quiet = False,
+) -> None:
+    """Judge an existing calibration against limits again (the file is not changed).
+
+    \b
+      tumblecal check cal.json --limits limits.yaml
+      tumblecal check cal.json --max-offset 0.05 --max-gain-error 0.02 --json
+    """
+    from tumblecal_cli import calfile, gate
+
+    limits = _limits(limits_file, max_offset, max_gain_error, nominal_gain)
+    if not limits.as_dict():
+        raise InputError("no limits to judge against", hint="give --limits FILE, --max-offset or --max-gain-error")
+    c = calfile.load(cal)
+    poses = [
+        (p.file, p.face, gate.corrected(p.mean, p.std, p.face, c.offset, c.matrix, c.reference))
+        for p in calfile.pose_records(c)
+    ]
+    failures = gate.verdict(str(c.doc["method"]), c.offset, c.matrix, poses, limits)
+    verdict = {"pass": not failures, "failures": [f.as_dict() for f in failures], "limits": limits.as_dict()}
+    if json_summary:
+        _print_json(
+            {
+                "status": "fail" if failures else "pass",
+                "exit_status": int(bool(failures)),
+                "file": cal,
+                "verdict": verdict,
+            }
+        )
+    if not quiet:
+        _print_summary(c.doc | {"verdict": verdict}, _console(), [], [], judged=True)
+    if failures:
+        raise typer.Exit(1)
+
+
 # -- people's output, on stderr ----------------------------------------------------------
 
 
-def _console() -> Console:
+def _console(stderr: bool = True) -> Console:
     from rich.console import Console
 
-    return Console(stderr=True, highlight=False, markup=False)  # paths and column names are not markup
+    return Console(stderr=stderr, highlight=False, markup=False)  # paths and column names are not markup
 
 
-def _print_solution(
-    solution: Solution, faces: list[str], samples: list[Samples], stats: list[PoseStats], output: str
+def _print_summary(
+    doc: dict[str, Any], console: Console, warned: list[Finding], notes: list[str], *, judged: bool
 ) -> None:
+    """The calibration for people: per axis offset and gain with their uncertainty and tilt
+    sensitivity, per pose its statistics, then warnings, notes and the verdict."""
     from rich import box
     from rich.table import Table
 
-    def g(v: float) -> str:
-        return f"{v:.6g}"
+    def g(v: float | None, digits: int = 6) -> str:
+        return "" if v is None else f"{v:.{digits}g}"
 
-    axes = Table(title=f"{solution.method} calibration", title_justify="left", box=box.SIMPLE_HEAD)
-    for name in ("axis", "column", "offset", "± 1σ", "gain", "± 1σ"):
+    se = doc.get("uncertainty") or {}
+    tilt = doc.get("tilt_sensitivity") or {}
+    from tumblecal_cli.gate import FIXED_GAINS
+
+    fixed = doc["method"] in FIXED_GAINS
+    axes = Table(title=f"{doc['method']} calibration", title_justify="left", box=box.SIMPLE_HEAD)
+    for name in ("axis", "column", "offset", "± 1σ", "± tilt", "gain", "± 1σ", "± tilt"):
         axes.add_column(name, justify="left" if name in ("axis", "column") else "right")
-    columns = samples[0].layout.sensor_names
     for i, axis in enumerate("xyz"):
-        gain_se = solution.gain_se[i]
-        fixed = "fixed" if not gain_se else g(gain_se)
-        axes.add_row(axis, columns[i], g(solution.offset[i]), g(solution.offset_se[i]), g(solution.gain[i]), fixed)
+        cells = [axis, doc["columns"][i]]
+        for name in ("offset", "gain"):
+            if name == "gain" and fixed:
+                cells += [g(doc["gain"][i]), "fixed", ""]
+            else:
+                cells += [g(doc[name][i]), g(_at(se, name, i), 2), g(_at(tilt, name, i), 2)]
+        axes.add_row(*cells)
     poses = Table(title="poses", title_justify="left", box=box.SIMPLE_HEAD)
-    for name in ("pose", "file", "n", "", "x", "y", "z"):
-        poses.add_column(name, justify="right" if name in ("n", "x", "y", "z") else "left", overflow="fold")
-    for face, s, st in zip(faces, samples, stats, strict=True):
-        poses.add_row(face, os.path.basename(s.layout.name), str(st.samples), "mean", *map(g, st.mean))
-        poses.add_row("", "", "", "std", *(f"{v:.3g}" for v in st.std), end_section=True)
-    console = _console()
+    for name in ("pose", "file", "n", "angle", "", "x", "y", "z"):
+        poses.add_column(name, justify="left" if name in ("pose", "file", "") else "right", overflow="fold")
+    for p in doc.get("poses", []):
+        angle = p.get("angle_deg")
+        name = os.path.basename(str(p.get("file", "")))
+        poses.add_row(
+            p["pose"], name, str(p["samples"]), "" if angle is None else f"{angle:.1f}°", "mean", *map(g, p["mean"])
+        )
+        poses.add_row("", "", "", "", "std", *(f"{v:.3g}" for v in p["std"]), end_section=True)
     console.print(axes)
     console.print(poses)
-    if output != "-":
-        console.print(f"wrote {output}", soft_wrap=True)
+    if tilt.get("tolerance_deg") is not None:
+        console.print(f"± tilt: worst-case shift if each pose is {tilt['tolerance_deg']:g}° off level", soft_wrap=True)
+    for w in warned:
+        console.print(f"warning: {w.render()} (narrow pass: {w.code})", style="yellow", soft_wrap=True)
+    for note in notes:
+        console.print(f"note: {note}", soft_wrap=True)
+    verdict = doc.get("verdict")
+    if judged and isinstance(verdict, dict):
+        judged_by = ", ".join(k for k in verdict.get("limits") or {} if k != "nominal_gain")
+        limits = f"limits: {judged_by}" if judged_by else "no limits given"
+        if verdict["pass"]:
+            console.print(f"verdict: PASS ({limits})", style="bold green", soft_wrap=True)
+        else:
+            console.print(f"verdict: FAIL ({limits})", style="bold red", soft_wrap=True)
+            for f in verdict["failures"]:
+                where = f"{f['file']}: " if f.get("file") else ""
+                console.print(f"  {f['code']}: {where}{f.get('message', '')}", style="red", soft_wrap=True)
+
+
+def _at(block: dict[str, Any], name: str, i: int) -> float | None:
+    values = block.get(name)
+    return float(values[i]) if isinstance(values, list) and len(values) == 3 else None
 
 
 # -- the one error boundary --------------------------------------------------------------
@@ -373,7 +850,7 @@ def main(argv: list[str] | None = None) -> int:
     except TumblecalError as err:
         if _state["debug"]:
             raise
-        _report(str(err), err.hint)
+        _report(str(err), err.hint, err.more)
         return err.exit_code
     except typer.Exit as err:
         return err.exit_code
@@ -398,8 +875,9 @@ def main(argv: list[str] | None = None) -> int:
     return result if isinstance(result, int) else 0
 
 
-def _report(message: str, hint: str | None) -> None:
-    print(f"error: {message}", file=sys.stderr)
+def _report(message: str, hint: str | None, more: tuple[str, ...] = ()) -> None:
+    for line in (message, *more):
+        print(f"error: {line}", file=sys.stderr)
     if hint:
         print(f"hint: {hint}", file=sys.stderr)
 

@@ -140,13 +140,14 @@ def solve_three_pose(
         gain[axis] = (means[axis, axis] - offset[axis]) / reference
         gain_se[axis] = math.sqrt(se[axis, axis] ** 2 + offset_se[axis] ** 2) / reference
     for axis, g in enumerate(gain):
-        if g <= 0:
+        if not g:  # a negative gain is judged by the gate (pose.upside_down); zero has no inverse
             ax = "xyz"[axis]
             raise CaptureRejected(
-                f"the +{ax} pose gives gain {g:.4g} on {ax} (mean {_fmt(means[axis])}): "
-                f"its +{ax} axis was not pointing up",
+                f"the +{ax} pose reads the same on {ax} as the poses where {ax} is horizontal "
+                f"(mean {_fmt(means[axis])}): its gain on {ax} cannot be determined",
                 file=names[axis],
                 hint="give the files in the order +x +y +z, each with that axis pointing up",
+                code="pose.upside_down",
             )
     return Solution(
         method="three-pose",
@@ -155,6 +156,33 @@ def solve_three_pose(
         offset_se=offset_se,
         gain_se=gain_se,
     )
+
+
+def tilt_sensitivity(
+    method: str, gain: FloatArray, reference: float, faces: Sequence[str], tolerance_deg: float
+) -> tuple[FloatArray, FloatArray]:
+    """Worst-case shift of (offset, gain) if every pose is off its face by ``tolerance_deg``.
+
+    Seed 000 (notes on 1-/3-point tumble) and seed 004 (CN102313822, the vertical axis's gravity
+    term is a cosine): tilting a pose by θ moves a
+    reading on a horizontal axis by ``gain·reference·sin θ`` (first order: 1° -> 17 mg) and the
+    vertical one by ``gain·reference·(1 - cos θ)`` (second order: 1° -> 0.15 mg).
+
+    - one-pose: ``offset = mean - v`` (gains fixed at 1, raw units = reference units), so each
+      horizontal offset moves by ``reference·sin θ``, the vertical one by ``reference·(1 - cos θ)``.
+    - three-pose: each offset is the mean of two horizontal readings, so it moves by up to
+      ``|g|·reference·sin θ`` (both poses tilted the same way); each gain is a vertical reading
+      minus that offset, over ``reference``: ``|g|·(sin θ + 1 - cos θ)``.
+    """
+    theta = math.radians(tolerance_deg)
+    horizontal, vertical = math.sin(theta), 1.0 - math.cos(theta)
+    g = np.abs(gain)
+    if method == "one-pose":
+        up = np.abs(np.asarray(FACES[faces[0]]))
+        return reference * np.where(up > 0, vertical, horizontal), np.zeros(3)
+    if method == "three-pose":
+        return g * reference * horizontal, g * (horizontal + vertical)
+    raise ValueError(f"no tilt model for method {method!r}")
 
 
 def units_mistake(mean: FloatArray, reference: float) -> float | None:

@@ -7,10 +7,12 @@ class TumblecalError(Exception):
     """Base of every error tumblecal reports to a user.
 
     ``str(err)`` is the whole one-line message after ``error: ``; ``hint`` is an optional
-    second line saying what to do about it.
+    line saying what to do about it. ``more`` are further ``error:`` lines when several things
+    are wrong at once (three rejected poses); ``code`` is the stable code of a rejection.
     """
 
     exit_code = 2
+    code: str | None = None
 
     def __init__(
         self,
@@ -20,8 +22,13 @@ class TumblecalError(Exception):
         line: int | None = None,
         column: int | str | None = None,
         hint: str | None = None,
+        more: tuple[str, ...] = (),
+        code: str | None = None,
     ) -> None:
         self.message = message
+        self.more = more
+        if code is not None:
+            self.code = code
         self.file = file
         self.line = line
         self.column = column
@@ -48,6 +55,7 @@ class CaptureRejected(TumblecalError):
     """The data cannot be trusted or cannot determine the parameters (exit 3)."""
 
     exit_code = 3
+    code = "capture.rejected"
 
 
 class PipeClosed(TumblecalError):

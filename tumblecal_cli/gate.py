@@ -1,0 +1,382 @@
+"""The production-test gate: quality checks on each pose, limits, and the verdict. numpy only.
+
+Part of the core layer (DESIGN.md section 3): pure functions on numbers, no files, no terminal.
+
+- A **rejection** (exit 3) says the capture cannot be trusted: a pose moved, is not the pose it
+  claims, clipped, is too short, or solves to a gain that is not positive.
+- A **failure** (exit 1) says the calibration was computed and the unit is outside its limits.
+
+Each has a stable ``code`` scripts can branch on (``pose.moved``, ``limit.offset.x`` ...). A check
+whose value comes within ``1 - NARROW`` of its bound without crossing it passes with a warning.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from tumblecal_cli.core import FACES, FloatArray, PoseStats, Solution
+
+#: The quality checks, by the last part of their code (``pose.<check>``).
+CHECKS = ("short", "saturated", "orientation", "moved", "upside_down")
+#: A value past this fraction of its bound (still inside it) is a narrow pass: a warning.
+NARROW = 0.8
+#: With ``--full-scale V``, a sample at or above this fraction of V counts as clipped.
+CLIP_FRACTION = 0.98
+#: Methods whose gains are fixed at 1 (no gain limit applies).
+FIXED_GAINS = ("one-pose",)
+AXES = "xyz"
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One rejection, failure or warning: a stable code, the measured value and its bound."""
+
+    code: str  # "pose.moved", "limit.offset.x", ...
+    message: str  # one line for people (without the file name)
+    value: float
+    bound: float
+    file: str | None = None  # the pose file it is about, if any
+    pose: str | None = None  # that pose's face
+    hint: str | None = None  # what to do, when it differs from the check's usual advice
+
+    def render(self) -> str:
+        return f"{self.file}: {self.message}" if self.file else self.message
+
+    def as_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"code": self.code, "value": _num(self.value), "bound": _num(self.bound)}
+        if self.file is not None:
+            out["pose"] = self.pose
+            out["file"] = self.file
+        out["message"] = self.message
+        return out
+
+
+@dataclass(frozen=True)
+class PoseCheck:
+    """What the gate measured on one pose, before and after calibration."""
+
+    file: str
+    face: str
+    stats: PoseStats
+    angle_deg: float | None  # between the centred mean and the declared face; None: no direction
+    looks_like: str | None  # the nearest face to the centred mean
+    clipped: int  # samples at the clip level on any axis
+    peak_fraction: float | None  # largest |sample| over the clip level (None: no known level)
+    drift: FloatArray  # (3,) raw units: mean of the last third minus mean of the first third
+    direction: FloatArray  # (3,) centred mean, normalised (zeros when undefined)
+
+
+@dataclass(frozen=True)
+class Options:
+    """The checks' settings (the solve options of the same names)."""
+
+    noise_bound: float | None = None  # output units; None: the moved check is off
+    max_tilt_deg: float = 25.0
+    nominal_offset: FloatArray = field(default_factory=lambda: np.zeros(3))  # raw units
+    full_scale: float | None = None  # raw units; None: integer-type limits
+    min_samples: int = 10
+    skip: frozenset[str] = frozenset()  # names from CHECKS
+
+
+def measure(file: str, face: str, values: FloatArray, stats: PoseStats, options: Options) -> PoseCheck:
+    """The per-pose measurements the checks need (the direction is centred later, see centre())."""
+    n = values.shape[0]
+    third = n // 3
+    drift = values[-third:].mean(axis=0) - values[:third].mean(axis=0) if third else np.zeros(3)
+    clipped, peak = _clipping(values, options.full_scale)
+    return PoseCheck(file, face, stats, None, None, clipped, peak, drift, np.zeros(3))
+
+
+def orient(poses: Sequence[PoseCheck], nominal_offset: FloatArray) -> list[PoseCheck]:
+    """Give each pose its direction, angle from its face and nearest face.
+
+    The centre removed from each mean is ``nominal_offset``, except on an axis where both of its
+    faces were captured: there the midpoint of the two (DESIGN.md section 2: opposite faces
+    cancel the offset).
+    """
+    centre = np.array(nominal_offset, dtype=np.float64)
+    faces = {p.face: p for p in poses}
+    for i, axis in enumerate(AXES):
+        if f"+{axis}" in faces and f"-{axis}" in faces:
+            centre[i] = 0.5 * (faces[f"+{axis}"].stats.mean[i] + faces[f"-{axis}"].stats.mean[i])
+    out = []
+    for p in poses:
+        d = p.stats.mean - centre
+        norm = float(np.linalg.norm(d))
+        if norm == 0.0 or not math.isfinite(norm):
+            out.append(p)
+            continue
+        unit = d / norm
+        angle = math.degrees(math.acos(min(1.0, max(-1.0, float(unit @ np.asarray(FACES[p.face]))))))
+        nearest = max(FACES, key=lambda f: float(unit @ np.asarray(FACES[f])))
+        out.append(PoseCheck(p.file, p.face, p.stats, angle, nearest, p.clipped, p.peak_fraction, p.drift, unit))
+    return out
+
+
+def check(
+    poses: Sequence[PoseCheck], solution: Solution, options: Options, *, orientation: bool = True
+) -> tuple[list[Finding], list[Finding]]:
+    """(rejections, warnings) of the quality checks on every pose, in the order of CHECKS.
+
+    ``orientation`` is False where a pose has no direction to judge (a gyroscope at rest).
+    """
+    rejected: list[Finding] = []
+    warned: list[Finding] = []
+
+    def judge(finding: Finding, fails: bool, narrow: bool) -> None:
+        if fails:
+            rejected.append(finding)
+        elif narrow:
+            warned.append(finding)
+
+    declared = [p.face for p in poses]
+    m = np.abs(solution.matrix)
+    for check_name in CHECKS:
+        if check_name in options.skip:
+            continue
+        for p in poses:
+            where = {"file": p.file, "pose": p.face}
+            if check_name == "short":
+                n, least = p.stats.samples, options.min_samples
+                judge(
+                    Finding("pose.short", f"{n} samples, fewer than --min-samples {least}", n, least, **where),
+                    n < least,
+                    n < least / NARROW,
+                )
+            elif check_name == "saturated" and p.peak_fraction is not None:
+                level = "the full scale" if options.full_scale else "the limit of its integer type"
+                judge(
+                    Finding(
+                        "pose.saturated",
+                        f"{p.clipped} samples clipped at {level} (peak {p.peak_fraction:.0%} of it)",
+                        p.clipped,
+                        0,
+                        **where,
+                    ),
+                    p.clipped > 0,
+                    p.peak_fraction > NARROW,
+                )
+            elif check_name == "orientation" and orientation and p.angle_deg is not None:
+                judge(
+                    _orientation(p, declared, options.max_tilt_deg),
+                    p.angle_deg > options.max_tilt_deg,
+                    p.angle_deg > NARROW * options.max_tilt_deg,
+                )
+            elif check_name == "moved" and options.noise_bound is not None:
+                # standard deviation and drift in output units, through the solved matrix
+                std = np.sqrt((m**2) @ p.stats.std**2)
+                drift = m @ np.abs(p.drift)
+                worst_std, worst_drift = int(np.argmax(std)), int(np.argmax(drift))
+                bound = options.noise_bound
+                if drift[worst_drift] > std[worst_std]:
+                    what = f"drifts by {drift[worst_drift]:.3g} on {AXES[worst_drift]} (first vs last third)"
+                    value = float(drift[worst_drift])
+                else:
+                    what = f"standard deviation {std[worst_std]:.3g} on {AXES[worst_std]}"
+                    value = float(std[worst_std])
+                judge(
+                    Finding(
+                        "pose.moved", f"{what}, above --max-noise ({bound:.3g}): the unit moved", value, bound, **where
+                    ),
+                    value > bound,
+                    value > NARROW * bound,
+                )
+            elif check_name == "upside_down" and solution.method not in FIXED_GAINS:
+                axis = "xyz".index(p.face[1])
+                misread = any(r.code == "pose.orientation" and r.file == p.file for r in rejected)
+                if p.face[0] == "+" and solution.gain[axis] <= 0 and not misread:  # one reason per pose
+                    rejected.append(
+                        Finding(
+                            "pose.upside_down",
+                            f"gain {solution.gain[axis]:.4g} on {p.face[1]} (mean {_vec(p.stats.mean)}): "
+                            f"its {p.face[1]} axis was pointing down, not up",
+                            float(solution.gain[axis]),
+                            0.0,
+                            **where,
+                        )
+                    )
+    return rejected, warned
+
+
+def _orientation(p: PoseCheck, declared: Sequence[str], max_tilt: float) -> Finding:
+    where = {"file": p.file, "pose": p.face}
+    assert p.angle_deg is not None
+    mean = _vec(p.stats.mean)
+    if p.looks_like != p.face:
+        text = f"declared {p.face} but reads like {p.looks_like} (mean {mean})"
+        if p.looks_like in declared:
+            order = " ".join(f[1] if f[0] == "+" else f for f in declared)
+            text += f"; were the files given in the order {order}?"
+            hint = f"give the pose files in the order {' '.join(declared)}"
+            return Finding("pose.orientation", text, p.angle_deg, max_tilt, hint=hint, **where)
+        elif p.looks_like == ("-" if p.face[0] == "+" else "+") + p.face[1]:
+            text += ": upside down"
+            hint = (
+                f"turn the unit over so that its {p.face[1]} axis points up (a sensor that reads -1 g "
+                "on the axis pointing up is declared as the opposite face)"
+            )
+            return Finding("pose.orientation", text, p.angle_deg, max_tilt, hint=hint, **where)
+        elif float(np.min(np.abs(p.direction))) > 0.3:  # no axis near zero: a common offset
+            text += "; raw counts around a common centre need --nominal-offset (e.g. 32768)"
+    else:
+        text = f"declared {p.face} but is {p.angle_deg:.1f}° from it (mean {mean}), more than --max-tilt {max_tilt:g}°"
+    return Finding("pose.orientation", text, p.angle_deg, max_tilt, **where)
+
+
+def _clipping(values: FloatArray, full_scale: float | None) -> tuple[int, float | None]:
+    """(samples at the clip level, peak |value| as a fraction of that level).
+
+    With a full scale V, the level is ``CLIP_FRACTION·V``. Without, integer data is judged
+    against the limits of a 16-bit type: signed (-32768, 32767) unless some value needs the
+    unsigned range (0, 65535). Other data has no known limit.
+    """
+    if values.size == 0:
+        return 0, None
+    if full_scale:
+        level = CLIP_FRACTION * full_scale
+        peak = np.abs(values).max(axis=1)
+        return int((peak >= level).sum()), float(peak.max() / level)
+    lo, hi = float(values.min()), float(values.max())
+    if not np.array_equal(values, np.round(values)) or lo < -32768 or hi > 65535:
+        return 0, None
+    if hi > 32767:  # unsigned: 0 and 65535 are the rails, the middle is 32768
+        low_rail, high_rail, mid = 0.0, 65535.0, 32768.0
+    else:
+        low_rail, high_rail, mid = -32768.0, 32767.0, 0.0
+    at_rail = ((values <= low_rail) | (values >= high_rail)).any(axis=1)
+    peak = float(np.abs(values - mid).max() / (high_rail - mid))
+    return int(at_rail.sum()), peak
+
+
+# -- limits and the verdict ----------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Bounds a good unit stays within (each None: not judged)."""
+
+    offset: FloatArray | None = None  # (3,) bound on |offset|, raw units
+    gain_error: FloatArray | None = None  # (3,) bound on |gain / nominal_gain - 1|
+    nominal_gain: FloatArray = field(default_factory=lambda: np.ones(3))
+    cross_axis: float | None = None  # bound on |A[i, j] / A[i, i]|, i != j
+    noise: float | None = None  # bound on each pose's standard deviation, output units
+    residual: float | None = None  # bound on each pose's | |M (mean - offset)| - reference |
+
+    def as_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        if self.offset is not None:
+            out["offset"] = [float(v) for v in self.offset]
+        if self.gain_error is not None:
+            out["gain_error"] = [float(v) for v in self.gain_error]
+            out["nominal_gain"] = [float(v) for v in self.nominal_gain]
+        for name in ("cross_axis", "noise", "residual"):
+            if getattr(self, name) is not None:
+                out[name] = float(getattr(self, name))
+        return out
+
+
+@dataclass(frozen=True)
+class Corrected:
+    """A pose after calibration, in output units."""
+
+    norm_error: float  # |M (mean - offset)| - reference
+    vector_error: float  # |M (mean - offset) - reference * face|
+    std: FloatArray  # (3,) the pose's standard deviation through M
+
+
+def corrected(
+    mean: FloatArray, std: FloatArray, face: str, offset: FloatArray, matrix: FloatArray, reference: float
+) -> Corrected:
+    """How a pose (its mean and standard deviation) reads once corrected, against the reference."""
+    c = matrix @ (mean - offset)  # DESIGN.md section 2: corrected = M (raw - b)
+    return Corrected(
+        norm_error=float(np.linalg.norm(c) - reference),
+        vector_error=float(np.linalg.norm(c - reference * np.asarray(FACES[face]))),
+        std=np.sqrt((matrix**2) @ std**2),
+    )
+
+
+def verdict(
+    method: str,
+    offset: FloatArray,
+    matrix: FloatArray,
+    poses: Sequence[tuple[str, str, Corrected]],
+    limits: Limits,
+) -> list[Finding]:
+    """Every limit the unit is outside of (empty: pass). ``poses`` are (file, face, corrected)."""
+    failures: list[Finding] = []
+    a = np.linalg.inv(matrix)
+    gain = np.diag(a)
+    for i, axis in enumerate(AXES):
+        if limits.offset is not None and abs(offset[i]) > limits.offset[i]:
+            failures.append(
+                Finding(
+                    f"limit.offset.{axis}",
+                    f"offset {offset[i]:.6g} on {axis} is outside ±{limits.offset[i]:g}",
+                    float(offset[i]),
+                    float(limits.offset[i]),
+                )
+            )
+    if limits.gain_error is not None and method not in FIXED_GAINS:
+        for i, axis in enumerate(AXES):
+            error = gain[i] / limits.nominal_gain[i] - 1.0
+            if abs(error) > limits.gain_error[i]:
+                failures.append(
+                    Finding(
+                        f"limit.gain.{axis}",
+                        f"gain {gain[i]:.6g} on {axis} is {error:+.3%} from nominal {limits.nominal_gain[i]:g}, "
+                        f"outside ±{limits.gain_error[i]:.3%}",
+                        float(error),
+                        float(limits.gain_error[i]),
+                    )
+                )
+    if limits.cross_axis is not None and np.count_nonzero(matrix - np.diag(np.diag(matrix))):
+        for i in range(3):
+            for j in range(3):
+                ratio = a[i, j] / a[i, i]
+                if i != j and abs(ratio) > limits.cross_axis:
+                    failures.append(
+                        Finding(
+                            f"limit.cross.{AXES[i]}{AXES[j]}",
+                            f"cross-axis term {AXES[i]}{AXES[j]} is {ratio:+.3%}, outside ±{limits.cross_axis:.3%}",
+                            float(ratio),
+                            limits.cross_axis,
+                        )
+                    )
+    for file, face, c in poses:
+        where = {"file": file, "pose": face}
+        worst = int(np.argmax(c.std))
+        if limits.noise is not None and c.std[worst] > limits.noise:
+            failures.append(
+                Finding(
+                    "limit.noise",
+                    f"noise {c.std[worst]:.3g} on {AXES[worst]} is above {limits.noise:g}",
+                    float(c.std[worst]),
+                    limits.noise,
+                    **where,
+                )
+            )
+        if limits.residual is not None and abs(c.norm_error) > limits.residual:
+            failures.append(
+                Finding(
+                    "limit.residual",
+                    f"reads {c.norm_error:+.3g} from the reference after calibration, outside ±{limits.residual:g}",
+                    c.norm_error,
+                    limits.residual,
+                    **where,
+                )
+            )
+    return failures
+
+
+def _vec(v: FloatArray) -> str:
+    return ", ".join(f"{x:.3g}" for x in v)
+
+
+def _num(value: float) -> float | int:
+    return int(value) if float(value).is_integer() and abs(value) < 2**53 else float(value)
