@@ -8,6 +8,7 @@ import contextlib
 import io
 import os
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -51,6 +52,8 @@ def test_readme_has_sessions() -> None:
 
 @pytest.mark.parametrize(("command", "expected"), sessions(), ids=[c for c, _ in sessions()])
 def test_readme_console(workdir: Path, command: str, expected: list[str]) -> None:
+    if ("jq" in command or "station.sh" in command) and shutil.which("jq") is None:
+        pytest.skip("jq is not installed (the station script and the --json example use it)")
     env = dict(os.environ, COLUMNS="80", PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
     env.pop("NO_COLOR", None)
     result = subprocess.run(
@@ -75,3 +78,9 @@ def test_readme_python_example(monkeypatch: pytest.MonkeyPatch, workdir: Path) -
     with contextlib.redirect_stdout(printed):
         exec(compile(code, "README.md", "exec"), {})
     assert printed.getvalue().splitlines() == expected
+
+
+def test_readme_station_script_is_the_shipped_one() -> None:
+    """The production-test section shows sample_data/station.sh as it is."""
+    (script,) = blocks("sh")
+    assert script == (ROOT / "sample_data" / "station.sh").read_text()

@@ -42,7 +42,22 @@ app = typer.Typer(
 _state = {"debug": False}
 
 
-class ManyValuesCommand(TyperCommand):
+class Command(TyperCommand):
+    """Plain help, with the options grouped under the ``rich_help_panel`` each one names."""
+
+    def format_options(self, ctx: Any, formatter: Any) -> None:
+        sections: dict[str, list[tuple[str, str]]] = {}
+        for param in self.get_params(ctx):
+            record = param.get_help_record(ctx)
+            if record is not None:
+                kind = "Arguments" if param.param_type_name == "argument" else "Options"
+                sections.setdefault(getattr(param, "rich_help_panel", None) or kind, []).append(record)
+        for title, records in sorted(sections.items(), key=lambda kv: kv[0] != "Arguments"):
+            with formatter.section(title):
+                formatter.write_dl(records)
+
+
+class ManyValuesCommand(Command):
     """Lets ``--poses a.csv b.csv c.csv`` take every file after one flag.
 
     Click options have a fixed arity, so before parsing, each value that follows ``--poses``
@@ -332,13 +347,14 @@ def solve(
     nominal_gain: NominalGain = None,
     # -- traceability --
     serial: Annotated[
-        str | None, typer.Option("--serial", help="The unit's serial number.", rich_help_panel=UNIT_PANEL)
+        str | None,
+        typer.Option("--serial", metavar="TEXT", help="The unit's serial number.", rich_help_panel=UNIT_PANEL),
     ] = None,
     station: Annotated[
-        str | None, typer.Option("--station", help="The test station.", rich_help_panel=UNIT_PANEL)
+        str | None, typer.Option("--station", metavar="TEXT", help="The test station.", rich_help_panel=UNIT_PANEL)
     ] = None,
     operator: Annotated[
-        str | None, typer.Option("--operator", help="Who ran the test.", rich_help_panel=UNIT_PANEL)
+        str | None, typer.Option("--operator", metavar="TEXT", help="Who ran the test.", rich_help_panel=UNIT_PANEL)
     ] = None,
     meta: Annotated[
         list[str] | None,
@@ -612,7 +628,7 @@ def _print_json(doc: dict[str, Any]) -> None:
         raise PipeClosed("stdout closed") from None
 
 
-@app.command(epilog=EXIT_CODES)
+@app.command(cls=Command, epilog=EXIT_CODES)
 def apply(
     capture: Annotated[
         str, typer.Argument(metavar="CAPTURE", help="The capture to correct; '-' (the default) reads stdin.")
@@ -682,7 +698,9 @@ def apply(
         _console().print(f"corrected {rows} rows of {cap.layout.name} ({', '.join(used)}) -> {target}", soft_wrap=True)
 
 
-@app.command(epilog="Exit status: 0 a valid calibration file; 2 an invalid one (the error names the field).")
+@app.command(
+    cls=Command, epilog="Exit status: 0 a valid calibration file; 2 an invalid one (the error names the field)."
+)
 def show(
     cal: Annotated[str, typer.Argument(metavar="CAL", help="Calibration file; '-' reads stdin.")],
     json_out: Annotated[bool, typer.Option("--json", help="Print the validated file as JSON instead.")] = False,
@@ -722,7 +740,7 @@ def show(
     _print_summary(doc, console, [], _tilt_notes(doc) if "tilt_sensitivity" in doc else [], judged=True)
 
 
-@app.command(epilog="Exit status: 0 within the limits; 1 outside them; 2 usage or input error.")
+@app.command(cls=Command, epilog="Exit status: 0 within the limits; 1 outside them; 2 usage or input error.")
 def check(
     cal: Annotated[str, typer.Argument(metavar="CAL", help="Calibration file; '-' reads stdin.")],
     limits_file: LimitsFile = None,
@@ -790,9 +808,11 @@ def _print_summary(
     from tumblecal_cli.gate import FIXED_GAINS
 
     fixed = doc["method"] in FIXED_GAINS
-    axes = Table(title=f"{doc['method']} calibration", title_justify="left", box=box.SIMPLE_HEAD)
+    # numbers never wrap or shrink; a long column or file name is what gives way on a narrow terminal
+    axes = Table(title=f"{doc['method']} calibration", title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
     for name in ("axis", "column", "offset", "± 1σ", "± tilt", "gain", "± 1σ", "± tilt"):
-        axes.add_column(name, justify="left" if name in ("axis", "column") else "right")
+        text = name in ("axis", "column")
+        axes.add_column(name, justify="left" if text else "right", no_wrap=not text, min_width=4 if text else None)
     for i, axis in enumerate("xyz"):
         cells = [axis, doc["columns"][i]]
         for name in ("offset", "gain"):
@@ -801,9 +821,15 @@ def _print_summary(
             else:
                 cells += [g(doc[name][i]), g(_at(se, name, i), 2), g(_at(tilt, name, i), 2)]
         axes.add_row(*cells)
-    poses = Table(title="poses", title_justify="left", box=box.SIMPLE_HEAD)
+    poses = Table(title="poses", title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
     for name in ("pose", "file", "n", "angle", "", "x", "y", "z"):
-        poses.add_column(name, justify="left" if name in ("pose", "file", "") else "right", overflow="fold")
+        text = name == "file"
+        poses.add_column(
+            name,
+            justify="left" if name in ("pose", "file", "") else "right",
+            no_wrap=not text,
+            min_width=4 if text else None,
+        )
     for p in doc.get("poses", []):
         angle = p.get("angle_deg")
         name = os.path.basename(str(p.get("file", "")))
