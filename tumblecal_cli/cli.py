@@ -159,46 +159,46 @@ JsonSummary = Annotated[
         "parameters, uncertainties, per-pose diagnostics.",
     ),
 ]
+LIMITS_PANEL = "Limits (exit 1)"
+
+
+def _limit_option(flag: str, metavar: str, help: str) -> Any:
+    return typer.Option(flag, metavar=metavar, help=help, rich_help_panel=LIMITS_PANEL)
+
+
 LimitsFile = Annotated[
     str | None,
-    typer.Option(
+    _limit_option(
         "--limits",
-        metavar="FILE",
-        help="Limits file (YAML/JSON: offset, gain_error, nominal_gain, cross_axis, noise, residual; see README).",
-        rich_help_panel="Limits (exit 1)",
+        "FILE",
+        "Limits file (YAML/JSON: offset, gain_error, nominal_gain, cross_axis, noise, residual; see README).",
     ),
 ]
 MaxOffset = Annotated[
     str | None,
-    typer.Option(
-        "--max-offset",
-        metavar="V|X,Y,Z",
-        help="limit.offset.*: bound on |offset| per axis, raw units (overrides the limits file).",
-        rich_help_panel="Limits (exit 1)",
+    _limit_option(
+        "--max-offset", "V|X,Y,Z", "limit.offset.*: bound on |offset| per axis, raw units (overrides the limits file)."
     ),
 ]
 MaxGainError = Annotated[
     str | None,
-    typer.Option(
+    _limit_option(
         "--max-gain-error",
-        metavar="F|X,Y,Z",
-        help="limit.gain.*: bound on |gain / nominal - 1|, e.g. 0.03 for 3% (overrides the limits file).",
-        rich_help_panel="Limits (exit 1)",
+        "F|X,Y,Z",
+        "limit.gain.*: bound on |gain / nominal - 1|, e.g. 0.03 for 3% (overrides the limits file).",
     ),
 ]
 NominalGain = Annotated[
     str | None,
-    typer.Option(
+    _limit_option(
         "--nominal-gain",
-        metavar="G|X,Y,Z",
-        help="The gain a perfect unit has, raw units per output unit: 1, or 2048 for counts at 2048 LSB/g.",
-        rich_help_panel="Limits (exit 1)",
+        "G|X,Y,Z",
+        "The gain a perfect unit has, raw units per output unit: 1, or 2048 for counts at 2048 LSB/g.",
     ),
 ]
 
 
 CHECKS_PANEL = "Quality checks (exit 3)"
-LIMITS_PANEL = "Limits (exit 1)"
 UNIT_PANEL = "Traceability"
 
 
