@@ -30,7 +30,8 @@ def test_real_three_pose_capture_passes_every_check(tmp_path: Path, capsys: pyte
     )
     assert code == 0, doc
     assert doc["status"] == "pass"
-    assert doc["rejections"] == [] and doc["warnings"] == []
+    assert doc["rejections"] == []
+    assert doc["warnings"] == []
     poses = doc["poses"]
     assert isinstance(poses, list)
     for pose in poses:
@@ -72,7 +73,8 @@ def test_real_factory_calibrated_pose_at_rest_passes(tmp_path: Path, capsys: pyt
     """A MicroStrain at rest on +x (g, factory calibrated): 1-pose, every check passes, offsets tiny."""
     code, doc = summary(capsys, tmp_path, "-p", NCSU_HEAD, "--up", "+x")
     assert code == 0, doc
-    assert doc["rejections"] == [] and doc["warnings"] == []
+    assert doc["rejections"] == []
+    assert doc["warnings"] == []
     offset = doc["offset"]
     assert isinstance(offset, list)
     assert max(abs(v) for v in offset) < 0.05  # g

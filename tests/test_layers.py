@@ -41,6 +41,10 @@ def test_core_imports_numpy_only() -> None:
     assert imported("import tumblecal_cli.core", ("pandas", "pyarrow", "typer", "click", "rich", "yaml")) == []
 
 
+def test_gate_imports_numpy_only() -> None:
+    assert imported("import tumblecal_cli.gate", ("pandas", "pyarrow", "typer", "click", "rich", "yaml")) == []
+
+
 @pytest.mark.parametrize(
     "body",
     [

@@ -181,7 +181,11 @@ def tilt_sensitivity(
         up = np.abs(np.asarray(FACES[faces[0]]))
         return reference * np.where(up > 0, vertical, horizontal), np.zeros(3)
     if method == "three-pose":
-        return g * reference * horizontal, g * (horizontal + vertical)
+        # the solved gain is itself off by up to (sin θ + 1 - cos θ) of the true one: bound the true
+        # gain from it so that the shift stays a bound in the worst case
+        shift = horizontal + vertical
+        g = g / (1.0 - shift)
+        return g * reference * horizontal, g * shift
     raise ValueError(f"no tilt model for method {method!r}")
 
 
