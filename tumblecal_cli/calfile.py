@@ -74,7 +74,10 @@ def build(
 def created() -> str:
     """Now in UTC, or ``SOURCE_DATE_EPOCH`` when set (reproducible files)."""
     epoch = os.environ.get("SOURCE_DATE_EPOCH", "").strip()
-    when = datetime.fromtimestamp(int(epoch), UTC) if epoch.isdigit() else datetime.now(UTC)
+    try:
+        when = datetime.fromtimestamp(int(epoch), UTC) if epoch.isdigit() else datetime.now(UTC)
+    except (ValueError, OverflowError, OSError):  # a year past 9999: no ISO 8601 time for it
+        raise InputError(f"SOURCE_DATE_EPOCH={epoch} is out of range for a date") from None
     return when.strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
@@ -145,6 +148,7 @@ def load(path: str) -> Loaded:
         raise InputError(
             "field 'verdict' must be an object with 'pass' (true/false) and 'failures' (a list)", file=path
         )
+    _optional_fields(doc, path)
     return Loaded(
         path=path,
         offset=_vector(doc["offset"], "offset", path),
@@ -177,14 +181,60 @@ def pose_records(cal: Loaded) -> list[PoseRecord]:
         name = f"poses[{k}]"
         if not (isinstance(pose, dict) and all(key in pose for key in ("pose", "mean", "std", "samples"))):
             raise InputError(f"field {name!r} must be an object with pose, mean, std and samples", file=path)
-        face, samples = pose["pose"], pose["samples"]
-        if not isinstance(face, str) or face not in FACES:
-            raise InputError(f"field '{name}.pose' must be a face (+x -x +y -y +z -z)", file=path)
-        if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
-            raise InputError(f"field '{name}.samples' must be a positive integer", file=path)
+        _pose_entry(pose, name, path)
         mean, std = _vector(pose["mean"], f"{name}.mean", path), _vector(pose["std"], f"{name}.std", path)
-        out.append(PoseRecord(face, str(pose.get("file", "")), mean, std, samples))
+        out.append(PoseRecord(pose["pose"], str(pose.get("file", "")), mean, std, pose["samples"]))
     return out
+
+
+def _pose_entry(pose: dict[str, Any], name: str, path: str) -> None:
+    """The fields of one pose entry that are there, validated (``name``: ``poses[k]``)."""
+    if "pose" in pose and not (isinstance(pose["pose"], str) and pose["pose"] in FACES):
+        raise InputError(f"field '{name}.pose' must be a face (+x -x +y -y +z -z)", file=path)
+    samples = pose.get("samples", 1)
+    if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
+        raise InputError(f"field '{name}.samples' must be a positive integer", file=path)
+    for key in ("mean", "std"):
+        if key in pose:
+            _vector(pose[key], f"{name}.{key}", path)
+    if pose.get("angle_deg") is not None:
+        _number(pose["angle_deg"], f"{name}.angle_deg", path)
+
+
+def _optional_fields(doc: dict[str, Any], path: str) -> None:
+    """Fields beyond REQUIRED that ``show`` and ``check`` read, validated where present (null: absent)."""
+    if not isinstance(doc["method"], str):
+        raise InputError("field 'method' must be a string", file=path)
+    for block in ("uncertainty", "tilt_sensitivity"):
+        value = doc.get(block)
+        if value is None:
+            continue
+        if not (isinstance(value, dict) and "offset" in value and "gain" in value):
+            raise InputError(f"field {block!r} must be an object with 'offset' and 'gain'", file=path)
+        _vector(value["offset"], f"{block}.offset", path)
+        _vector(value["gain"], f"{block}.gain", path)
+        if value.get("tolerance_deg") is not None:
+            _number(value["tolerance_deg"], f"{block}.tolerance_deg", path)
+    unit = doc.get("unit")
+    if unit is not None and not isinstance(unit, dict):
+        raise InputError("field 'unit' must be an object (serial, station, operator, meta)", file=path)
+    if not isinstance((unit or {}).get("meta") or {}, dict):
+        raise InputError("field 'unit.meta' must be an object (KEY: VALUE)", file=path)
+    poses = doc.get("poses")
+    if poses is not None:
+        if not isinstance(poses, list):
+            raise InputError("field 'poses' must be a list of pose objects", file=path)
+        for k, pose in enumerate(poses):
+            if not (isinstance(pose, dict) and all(key in pose for key in ("pose", "mean", "samples"))):
+                raise InputError(f"field 'poses[{k}]' must be an object with pose, mean and samples", file=path)
+            _pose_entry(pose, f"poses[{k}]", path)
+    verdict = doc.get("verdict")
+    if isinstance(verdict, dict):
+        for k, failure in enumerate(verdict["failures"]):
+            if not (isinstance(failure, dict) and isinstance(failure.get("code"), str)):
+                raise InputError(f"field 'verdict.failures[{k}]' must be an object with a 'code'", file=path)
+        if not isinstance(verdict.get("limits") or {}, dict):
+            raise InputError("field 'verdict.limits' must be an object", file=path)
 
 
 def _read_object(path: str, what: str) -> dict[str, Any]:
@@ -230,7 +280,7 @@ def load_limits(path: str) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for key, value in doc.items():
         if key == "version":
-            if value != 1:
+            if isinstance(value, bool) or value != 1:  # True == 1 in Python
                 raise InputError(f"unsupported limits version {value!r} (this tumblecal reads version 1)", file=path)
             continue
         if key not in LIMIT_KEYS:

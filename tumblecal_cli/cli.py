@@ -387,6 +387,7 @@ def solve(
     if json_summary and output == "-":
         raise InputError("--json prints the summary on stdout, so the calibration needs -o FILE")
     check_not_input(output, [*poses, *([limits_file] if limits_file else [])])
+    _check_output(output)
     ref = reference if reference is not None else (0.0 if sensor is SensorKind.gyroscope else 1.0)
     gyro = sensor is SensorKind.gyroscope
     noise = max_noise if max_noise is not None else (None if gyro else 0.02)
@@ -424,7 +425,9 @@ def solve(
             solution = core.solve_three_pose(stats, ref, names=names)
         except CaptureRejected as err:
             if json_summary:
-                _print_json({"status": "rejected", "exit_status": 3, "rejections": [_error_dict(err)]})
+                # the head of every summary (see _summary); there are no parameters to follow it
+                head = {"status": "rejected", "exit_status": 3, "file": None, "rejections": [_error_dict(err)]}
+                _print_json(head | {"verdict": None, "warnings": [], "notes": []})
             raise
     measured = gate.orient(
         [gate.measure(n, f, s.values, st, options) for n, f, s, st in zip(names, faces, samples, stats, strict=True)],
@@ -487,6 +490,17 @@ REJECTION_HINTS = {
     "pose.moved": "hold the unit still and capture the pose again, or raise --max-noise",
     "pose.upside_down": "give the files in the order +x +y +z, each with that axis pointing up",
 }
+
+
+def _check_output(output: str) -> None:
+    """Refuse an -o that cannot be written before any work: a usage error (2) comes before a
+    rejection (3) or a failed limit (1), and a folder is not replaced by a file."""
+    if output == "-":
+        return
+    if os.path.isdir(output):
+        raise InputError("is a folder: -o takes a file name", file=output)
+    if not os.path.isdir(os.path.dirname(os.path.abspath(output))):
+        raise InputError("the output folder does not exist", file=output)
 
 
 def _face(text: str, option: str) -> str:
@@ -665,6 +679,7 @@ def apply(
     if cal == "-" and capture == "-":
         raise InputError("--cal - and the capture cannot both be read from stdin", hint="give the capture as a file")
     check_not_input(output, [capture, cal])
+    _check_output(output)
     c = calfile.load(cal)
     if c.failed and not force:
         codes = ", ".join(str(f.get("code")) for f in c.doc["verdict"]["failures"] if isinstance(f, dict))
@@ -737,7 +752,8 @@ def show(
         console.print("matrix M (corrected = M (raw - offset)):")
         for row in doc["matrix"]:
             console.print("  " + "  ".join(f"{v:>14.6g}" for v in row))
-    _print_summary(doc, console, [], _tilt_notes(doc) if "tilt_sensitivity" in doc else [], judged=True)
+    notes = _tilt_notes(doc) if doc.get("tilt_sensitivity") and doc.get("uncertainty") else []
+    _print_summary(doc, console, [], notes, judged=True)
 
 
 @app.command(cls=Command, epilog="Exit status: 0 within the limits; 1 outside them; 2 usage or input error.")
@@ -836,13 +852,14 @@ def _print_summary(
         poses.add_row(
             p["pose"], name, str(p["samples"]), "" if angle is None else f"{angle:.1f}°", "mean", *map(g, p["mean"])
         )
-        poses.add_row("", "", "", "", "std", *(f"{v:.3g}" for v in p["std"]), end_section=True)
+        if "std" in p:  # a field of every file tumblecal writes; other writers may leave it out
+            poses.add_row("", "", "", "", "std", *(f"{v:.3g}" for v in p["std"]), end_section=True)
     console.print(axes)
     console.print(poses)
     if tilt.get("tolerance_deg") is not None:
         console.print(f"± tilt: worst-case shift if each pose is {tilt['tolerance_deg']:g}° off level", soft_wrap=True)
     for w in warned:
-        console.print(f"warning: {w.render()} (narrow pass: {w.code})", style="yellow", soft_wrap=True)
+        console.print(f"warning: {w.render()} ({w.code})", style="yellow", soft_wrap=True)
     for note in notes:
         console.print(f"note: {note}", soft_wrap=True)
     verdict = doc.get("verdict")
