@@ -328,7 +328,7 @@ def test_one_row_poses_are_short_unless_min_samples_1(tmp_path: Path, capsys: py
     poses = three_poses(tmp_path, n=1)
     out = precious(tmp_path / "cal.json")
     r = solve(capsys, "-p", *poses, "-o", out)
-    assert_rejected(r, [f"{p}: 1 samples, fewer than --min-samples 10" for p in poses], HINT["pose.short"])
+    assert_rejected(r, [f"{p}: 1 sample, fewer than --min-samples 10" for p in poses], HINT["pose.short"])
     assert_untouched(out)
     r = solve(capsys, "-q", "-p", *poses, "-o", out, "--min-samples", "1")
     assert (r.code, r.err) == (0, "")
@@ -363,7 +363,10 @@ def test_upside_down_pose_then_negative_gain(tmp_path: Path, capsys: pytest.Capt
     assert gain_x < 0
     assert_rejected(
         r,
-        [f"{pose}: gain {gain_x:.4g} on x (mean {vec(means[0])}): its x axis was pointing down, not up"],
+        [
+            f"{pose}: gain {gain_x:.4g} on x (mean {vec(means[0])}): "
+            "its x axis was not pointing up (upside down, or the files out of order)"
+        ],
         HINT["pose.upside_down"],
         json_out=True,
     )
@@ -1007,6 +1010,18 @@ def test_source_date_epoch_out_of_range(
     assert_untouched(out)
 
 
+@pytest.mark.parametrize("epoch", ["abc", "-5", "1.5e9"])
+def test_source_date_epoch_malformed(
+    epoch: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """reproducible-builds.org: a SOURCE_DATE_EPOCH that is not a whole number is an error, not ignored."""
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", epoch)
+    out = precious(tmp_path / "cal.json")
+    r = solve(capsys, "-p", *POSES_3, "-o", out)
+    assert_one_error(r, f"SOURCE_DATE_EPOCH={epoch!r} is not a whole number of seconds since 1970")
+    assert_untouched(out)
+
+
 # -- show ----------------------------------------------------------------------------------
 
 
@@ -1248,6 +1263,7 @@ def test_apply_refuses_a_failed_unit_unless_forced(tmp_path: Path, capsys: pytes
     assert_untouched(out)
     r = run(capsys, "apply", "--cal", cal, SAMPLE / "capture.csv", "-o", out, "--force")
     assert r.code == 0, r.err
+    assert f"note: {cal}: this unit failed its limits; correcting with it as --force asks\n" in r.err
     assert out.read_text().startswith("t,ax,ay,az\n")
     assert len(out.read_text().splitlines()) == 3001
 

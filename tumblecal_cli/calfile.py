@@ -74,8 +74,10 @@ def build(
 def created() -> str:
     """Now in UTC, or ``SOURCE_DATE_EPOCH`` when set (reproducible files)."""
     epoch = os.environ.get("SOURCE_DATE_EPOCH", "").strip()
+    if epoch and not epoch.isdigit():  # reproducible-builds.org: a malformed value is an error
+        raise InputError(f"SOURCE_DATE_EPOCH={epoch!r} is not a whole number of seconds since 1970")
     try:
-        when = datetime.fromtimestamp(int(epoch), UTC) if epoch.isdigit() else datetime.now(UTC)
+        when = datetime.fromtimestamp(int(epoch), UTC) if epoch else datetime.now(UTC)
     except (ValueError, OverflowError, OSError):  # a year past 9999: no ISO 8601 time for it
         raise InputError(f"SOURCE_DATE_EPOCH={epoch} is out of range for a date") from None
     return when.strftime("%Y-%m-%dT%H:%M:%SZ")

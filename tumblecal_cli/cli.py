@@ -270,7 +270,6 @@ def solve(
         typer.Option(
             "--max-noise",
             metavar="FRACTION",
-            min=0,
             help="pose.moved: reject a pose whose standard deviation, or drift between its first and last "
             "third, is above FRACTION x reference in corrected units. For a gyroscope it is in its units, "
             "and the check runs only when given. [default: 0.02]",
@@ -282,7 +281,6 @@ def solve(
         typer.Option(
             "--max-tilt",
             metavar="DEGREES",
-            min=0,
             help="pose.orientation: reject a pose further than this from the face it is declared as.",
             rich_help_panel=CHECKS_PANEL,
         ),
@@ -302,7 +300,6 @@ def solve(
         typer.Option(
             "--full-scale",
             metavar="V",
-            min=0,
             help="pose.saturated: reject a pose with any |sample| >= 0.98 V (raw units). Without it, "
             "integer data at the limits of a 16-bit type is clipped.",
             rich_help_panel=CHECKS_PANEL,
@@ -374,7 +371,7 @@ def solve(
       tumblecal solve -p x.csv y.csv z.csv -o cal.json --limits limits.yaml --serial A17 --json
     """
     from tumblecal_cli import calfile, captures, core, gate
-    from tumblecal_cli.files import check_not_input
+    from tumblecal_cli.files import check_not_input, check_writable
 
     if len(poses) not in (1, 3):
         raise InputError(f"--poses takes 1 file (1-pose) or 3 files (+x +y +z), got {len(poses)}")
@@ -387,7 +384,7 @@ def solve(
     if json_summary and output == "-":
         raise InputError("--json prints the summary on stdout, so the calibration needs -o FILE")
     check_not_input(output, [*poses, *([limits_file] if limits_file else [])])
-    _check_output(output)
+    check_writable(output)
     ref = reference if reference is not None else (0.0 if sensor is SensorKind.gyroscope else 1.0)
     gyro = sensor is SensorKind.gyroscope
     noise = max_noise if max_noise is not None else (None if gyro else 0.02)
@@ -490,17 +487,6 @@ REJECTION_HINTS = {
     "pose.moved": "hold the unit still and capture the pose again, or raise --max-noise",
     "pose.upside_down": "give the files in the order +x +y +z, each with that axis pointing up",
 }
-
-
-def _check_output(output: str) -> None:
-    """Refuse an -o that cannot be written before any work: a usage error (2) comes before a
-    rejection (3) or a failed limit (1), and a folder is not replaced by a file."""
-    if output == "-":
-        return
-    if os.path.isdir(output):
-        raise InputError("is a folder: -o takes a file name", file=output)
-    if not os.path.isdir(os.path.dirname(os.path.abspath(output))):
-        raise InputError("the output folder does not exist", file=output)
 
 
 def _face(text: str, option: str) -> str:
@@ -674,12 +660,12 @@ def apply(
       cat capture.csv | tumblecal apply --cal cal.json > corrected.csv
     """
     from tumblecal_cli import calfile, captures, core
-    from tumblecal_cli.files import atomic_output, check_not_input
+    from tumblecal_cli.files import atomic_output, check_not_input, check_writable
 
     if cal == "-" and capture == "-":
         raise InputError("--cal - and the capture cannot both be read from stdin", hint="give the capture as a file")
     check_not_input(output, [capture, cal])
-    _check_output(output)
+    check_writable(output)
     c = calfile.load(cal)
     if c.failed and not force:
         codes = ", ".join(str(f.get("code")) for f in c.doc["verdict"]["failures"] if isinstance(f, dict))
@@ -687,6 +673,10 @@ def apply(
             f"this unit failed its limits ({codes or 'verdict: fail'}): refusing to correct with it",
             file=cal,
             hint="pass --force to apply it anyway",
+        )
+    if c.failed and not quiet:
+        _console().print(
+            f"note: {cal}: this unit failed its limits; correcting with it as --force asks", soft_wrap=True
         )
     picked = columns.split(",") if columns else None
     with captures.open_capture(capture, sensor=c.sensor, columns=picked, prefer=c.columns, no_header=no_header) as cap:

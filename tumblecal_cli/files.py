@@ -21,6 +21,17 @@ def check_not_input(output: str, inputs: Iterable[str]) -> None:
             raise InputError(f"-o would overwrite the input {path}", file=output, hint="write the output to a new file")
 
 
+def check_writable(output: str) -> None:
+    """Refuse an output that cannot be written, before any work: a usage error (exit 2) comes
+    before a rejection (3) or a failed limit (1), and a folder is never replaced by a file."""
+    if output == "-":
+        return
+    if os.path.isdir(output):
+        raise InputError("is a folder: -o takes a file name", file=output)
+    if not os.path.isdir(os.path.dirname(os.path.abspath(output))):
+        raise InputError("the output folder does not exist", file=output)
+
+
 @contextlib.contextmanager
 def atomic_output(path: str) -> Iterator[IO[bytes]]:
     """A binary stream for ``path`` ('-': stdout). A file appears (or is replaced) only when

@@ -141,14 +141,16 @@ def check(
         if check_name in options.skip:
             continue
         for p in poses:
+            if any(r.file == p.file for r in rejected):
+                continue  # one reason per pose: the first, in the order of CHECKS
             where = {"file": p.file, "pose": p.face}
             if check_name == "short":
                 n, least = p.stats.samples, options.min_samples
                 judge(
-                    Finding("pose.short", f"{n} samples, fewer than --min-samples {least}", n, least, **where),
+                    Finding("pose.short", f"{_samples(n)}, fewer than --min-samples {least}", n, least, **where),
                     n < least,
                     least > 1 and n < least / NARROW,
-                    f"only {n} samples, close to --min-samples {least}",
+                    f"only {_samples(n)}, close to --min-samples {least}",
                 )
             elif check_name == "saturated" and p.peak_fraction is not None:
                 level = "the full scale" if options.full_scale else "the limit of its integer type"
@@ -193,13 +195,12 @@ def check(
                 )
             elif check_name == "upside_down" and solution.method not in FIXED_GAINS:
                 axis = "xyz".index(p.face[1])
-                misread = any(r.code == "pose.orientation" and r.file == p.file for r in rejected)
-                if p.face[0] == "+" and solution.gain[axis] <= 0 and not misread:  # one reason per pose
+                if p.face[0] == "+" and solution.gain[axis] <= 0:
                     rejected.append(
                         Finding(
                             "pose.upside_down",
                             f"gain {solution.gain[axis]:.4g} on {p.face[1]} (mean {_vec(p.stats.mean)}): "
-                            f"its {p.face[1]} axis was pointing down, not up",
+                            f"its {p.face[1]} axis was not pointing up (upside down, or the files out of order)",
                             float(solution.gain[axis]),
                             0.0,
                             **where,
@@ -232,6 +233,8 @@ def _orientation(p: PoseCheck, declared: Sequence[str], max_tilt: float) -> Find
     # declared face (+x reads 49352, 32618, 33018: 43° off), so this is said in either case.
     if float(np.min(np.abs(p.direction))) > 0.3:
         text += "; raw counts around a common centre need --nominal-offset (e.g. 32768)"
+        hint = "give the raw reading at zero stimulus with --nominal-offset (unsigned 16-bit counts: 32768)"
+        return Finding("pose.orientation", text, p.angle_deg, max_tilt, hint=hint, **where)
     return Finding("pose.orientation", text, p.angle_deg, max_tilt, **where)
 
 
@@ -379,6 +382,10 @@ def verdict(
                 )
             )
     return failures
+
+
+def _samples(n: int) -> str:
+    return "1 sample" if n == 1 else f"{n} samples"
 
 
 def _vec(v: FloatArray) -> str:
