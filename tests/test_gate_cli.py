@@ -177,7 +177,7 @@ def test_good_poses_pass_and_write_the_calibration(tmp_path: Path, capsys: pytes
     assert r.code == 0, r.err
     assert r.out == ""
     assert lines(r, "error:") == lines(r, "warning:") == lines(r, "hint:") == []
-    assert "verdict: PASS (no limits given)\n" in r.err
+    assert "verdict: PASS (no limits judged)\n" in r.err
     assert r.err.endswith(f"wrote {out}\n")
     doc = json.loads(out.read_text())
     assert doc["verdict"] == {"pass": True, "failures": [], "limits": {}}
@@ -1048,7 +1048,7 @@ def test_show_prints_for_people_on_stdout(unit_cal: Path, capsys: pytest.Capture
     assert "three-pose calibration" in r.out
     for word in ("ax", "ay", "az", "+x", "+y", "+z", "x.csv"):
         assert word in r.out
-    assert out[-1] == "verdict: PASS (no limits given)"
+    assert out[-1] == "verdict: PASS (no limits judged)"
     assert "\x1b[" not in r.out
 
 
@@ -1402,3 +1402,12 @@ def test_no_colour_with_no_color_on_a_terminal(
     assert r.code == 1
     assert "verdict: FAIL" in r.err
     assert colour_codes(r.err) == []
+
+
+def test_one_pose_gain_limit_does_not_apply(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The 1-pose solver fixes its gains at 1: a gain limit is not judged, nor recorded as judged."""
+    out = tmp_path / "cal.json"
+    r = run(capsys, "solve", "-p", SAMPLE / "z.csv", "--max-gain-error", "0.001", "-o", out)
+    assert r.code == 0, r.err
+    assert "verdict: PASS (no limits judged)\n" in r.err
+    assert json.loads(out.read_text())["verdict"] == {"pass": True, "failures": [], "limits": {}}

@@ -426,6 +426,7 @@ def solve(
                 head = {"status": "rejected", "exit_status": 3, "file": None, "rejections": [_error_dict(err)]}
                 _print_json(head | {"verdict": None, "warnings": [], "notes": []})
             raise
+    limits = limits.for_method(solution.method)
     measured = gate.orient(
         [gate.measure(n, f, s.values, st, options) for n, f, s, st in zip(names, faces, samples, stats, strict=True)],
         options.nominal_offset,
@@ -772,6 +773,7 @@ def check(
         (p.file, p.face, gate.corrected(p.mean, p.std, p.face, c.offset, c.matrix, c.reference))
         for p in calfile.pose_records(c)
     ]
+    limits = limits.for_method(str(c.doc["method"]))
     failures = gate.verdict(str(c.doc["method"]), c.offset, c.matrix, poses, limits)
     verdict = {"pass": not failures, "failures": [f.as_dict() for f in failures], "limits": limits.as_dict()}
     if json_summary:
@@ -855,7 +857,7 @@ def _print_summary(
     verdict = doc.get("verdict")
     if judged and isinstance(verdict, dict):
         judged_by = ", ".join(k for k in verdict.get("limits") or {} if k != "nominal_gain")
-        limits = f"limits: {judged_by}" if judged_by else "no limits given"
+        limits = f"limits: {judged_by}" if judged_by else "no limits judged"
         if verdict["pass"]:
             console.print(f"verdict: PASS ({limits})", style="bold green", soft_wrap=True)
         else:

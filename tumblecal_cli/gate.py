@@ -277,6 +277,10 @@ class Limits:
     noise: float | None = None  # bound on each pose's standard deviation, output units
     residual: float | None = None  # bound on each pose's | |M (mean - offset)| - reference |
 
+    def for_method(self, method: str) -> Limits:
+        """The limits that apply to a method: no gain limit where the gains are fixed."""
+        return replace(self, gain_error=None) if method in FIXED_GAINS else self
+
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {}
         if self.offset is not None:
