@@ -284,7 +284,7 @@ def test_a_pose_past_the_full_scale_is_rejected(tmp_path: Path, capsys: pytest.C
     assert 0 < clipped < 200
     assert_rejected(
         r,
-        [f"{z}: {clipped} samples clipped at the full scale (peak {peaks.max() / level:.0%} of it)"],
+        [f"{z}: {clipped} samples clipped at 98% of --full-scale 1.07 (peak {peaks.max() / level:.0%} of that)"],
         HINT["pose.saturated"],
     )
     assert_untouched(out)
@@ -306,7 +306,7 @@ def test_integer_counts_at_the_int16_rail_are_clipped(tmp_path: Path, capsys: py
     out = precious(tmp_path / "cal.json")
     r = solve(capsys, "-p", cx, cy, cz, "-o", out)
     assert_rejected(
-        r, [f"{cz}: 200 samples clipped at the limit of its integer type (peak 100% of it)"], HINT["pose.saturated"]
+        r, [f"{cz}: 200 samples clipped at the limit of its integer type (peak 100% of that)"], HINT["pose.saturated"]
     )
     assert_untouched(out)
     # a sensor whose real full scale is wider than the data: not clipped
@@ -1411,3 +1411,87 @@ def test_one_pose_gain_limit_does_not_apply(tmp_path: Path, capsys: pytest.Captu
     assert r.code == 0, r.err
     assert "verdict: PASS (no limits judged)\n" in r.err
     assert json.loads(out.read_text())["verdict"] == {"pass": True, "failures": [], "limits": {}}
+
+
+# -- found in review: nothing meaningless passes --------------------------------------------
+
+
+@pytest.mark.parametrize("reference", ["nan", "inf", "0", "-1"])
+def test_reference_must_be_a_positive_number(
+    reference: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = precious(tmp_path / "cal.json")
+    r = solve(capsys, "-p", *POSES_3, f"--reference={reference}", "-o", out)
+    assert_one_error(r, f"--reference must be a positive number, got {float(reference):g}", hint="--sensor gyroscope")
+    assert_untouched(out)
+
+
+def test_gyroscope_at_rest_has_reference_zero_and_no_angle(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "cal.json"
+    r = solve(capsys, "-q", "-p", SAMPLE / "z.csv", "--sensor", "gyroscope", "--columns", "ax,ay,az", "-o", out)
+    assert r.code == 0, r.err
+    doc = json.loads(out.read_text())
+    assert doc["reference"] == 0.0
+    assert doc["poses"][0]["angle_deg"] is None  # orientation is not judged, so not recorded
+
+
+def test_one_pose_unsigned_counts_with_their_nominal_offset(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Unsigned 16-bit counts at 16384 LSB/g sit around 32768: --nominal-offset makes --reference 16384 right."""
+    counts = np.round(32768 + 16384 * pose_values("+z", offset=(0.01, -0.02, 0.03), gain=(1, 1, 1)))
+    pose = write_capture(tmp_path / "z.csv", counts, fmt="%d")
+    out = tmp_path / "cal.json"
+    r = solve(capsys, "-q", "-p", pose, "--reference", "16384", "--nominal-offset", "32768", "-o", out)
+    assert r.code == 0, r.err
+    offset = json.loads(out.read_text())["offset"]
+    np.testing.assert_allclose(offset, [32768 + 164, 32768 - 328, 32768 + 492], atol=10)
+
+
+def test_a_dead_sensor_is_not_a_units_mistake(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    pose = write_capture(tmp_path / "z.csv", np.zeros((50, 3)), fmt="%d")
+    r = solve(capsys, "-p", pose, "-o", tmp_path / "cal.json")
+    assert_one_error(
+        r,
+        f"{pose}: the pose reads 0 in magnitude but --reference is 1",
+        hint="a pose at rest reads the reference: is the sensor working, and are these its columns?",
+    )
+
+
+def test_a_duplicated_pose_blames_only_that_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """y.csv is a copy of x.csv: the solved matrix is nonsense, so x.csv and z.csv are not judged through it."""
+    x, y, z = three_poses(tmp_path)
+    y.write_bytes(x.read_bytes())
+    r = solve(capsys, "-p", x, y, z, "-o", tmp_path / "cal.json")
+    assert r.code == 3
+    assert [ln.split(":")[1].strip() for ln in lines(r, "error:")] == [str(y)]
+    assert "declared +y but reads like +x" in lines(r, "error:")[0]
+
+
+def test_one_row_poses_say_their_noise_is_unknown(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    poses = [write_capture(tmp_path / f"{f[1]}.csv", pose_values(f, n=1)) for f in ("+x", "+y", "+z")]
+    r = solve(capsys, "-p", *poses, "--min-samples", "1", "-o", tmp_path / "cal.json")
+    assert r.code == 0, r.err
+    assert "note: x.csv has 1 sample: its noise is unknown, so its uncertainty reads 0" in r.err
+
+
+def test_fixture_tolerance_beyond_the_tilt_model_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    r = solve(capsys, "-p", *POSES_3, "--fixture-tolerance", "45", "-o", tmp_path / "cal.json")
+    assert r.code == 2
+    assert "--fixture-tolerance" in r.err
+    assert not (tmp_path / "cal.json").exists()
+
+
+def test_check_refuses_a_singular_matrix(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cal = tmp_path / "cal.json"
+    doc = solved(capsys, cal)
+    doc["matrix"] = [[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+    cal.write_text(json.dumps(doc))
+    commands: list[list[str | Path]] = [["check", cal, "--max-offset", "1"], ["show", cal]]
+    for command in commands:
+        assert_one_error(run(capsys, *command), f"{cal}: field 'matrix' is singular (it has no inverse)")
+
+
+def test_a_calibration_given_as_limits(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cal = tmp_path / "cal.json"
+    solved(capsys, cal)
+    r = solve(capsys, "-p", *POSES_3, "--limits", cal, "-o", tmp_path / "other.json")
+    assert_one_error(r, f"{cal}: a tumblecal-calibration file, not a limits file", hint="Limits and the verdict")

@@ -154,7 +154,7 @@ def load(path: str) -> Loaded:
     return Loaded(
         path=path,
         offset=_vector(doc["offset"], "offset", path),
-        matrix=_matrix(doc["matrix"], "matrix", path),
+        matrix=_invertible(_matrix(doc["matrix"], "matrix", path), path),
         columns=columns,
         sensor=doc["sensor"],
         reference=_number(doc["reference"], "reference", path),
@@ -285,6 +285,8 @@ def load_limits(path: str) -> dict[str, Any]:
             if isinstance(value, bool) or value != 1:  # True == 1 in Python
                 raise InputError(f"unsupported limits version {value!r} (this tumblecal reads version 1)", file=path)
             continue
+        if key == "format":
+            raise InputError(f"a {value} file, not a limits file", file=path, hint="see README: Limits and the verdict")
         if key not in LIMIT_KEYS:
             raise InputError(f"unknown limit {key!r} (known: {', '.join(LIMIT_KEYS)})", file=path)
         out[key] = limit_value(value, key, path, per_axis=LIMIT_KEYS[key] == "per axis")
@@ -337,6 +339,13 @@ def _vector(value: Any, name: str, path: str | None) -> FloatArray:
     if not (isinstance(value, list) and len(value) == 3):
         raise InputError(f"field {name!r} must be a list of 3 numbers", file=path)
     return np.array([_number(v, name, path) for v in value])
+
+
+def _invertible(matrix: FloatArray, path: str) -> FloatArray:
+    """M must have an inverse (A, whose diagonal is the gain): a singular one corrects nothing."""
+    if not np.isfinite(np.linalg.cond(matrix)) or np.linalg.cond(matrix) > 1e12:
+        raise InputError("field 'matrix' is singular (it has no inverse)", file=path)
+    return matrix
 
 
 def _matrix(value: Any, name: str, path: str) -> FloatArray:

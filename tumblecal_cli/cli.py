@@ -6,6 +6,7 @@ and ``--version`` pay only for Typer. Errors become exit codes in exactly one pl
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 from enum import StrEnum
@@ -281,6 +282,7 @@ def solve(
         typer.Option(
             "--max-tilt",
             metavar="DEGREES",
+            max=180,
             help="pose.orientation: reject a pose further than this from the face it is declared as.",
             rich_help_panel=CHECKS_PANEL,
         ),
@@ -321,6 +323,7 @@ def solve(
             "--fixture-tolerance",
             metavar="DEGREES",
             min=0,
+            max=30,
             help="How far the fixture may be off level; sets tilt_sensitivity, the worst-case parameter shift.",
             rich_help_panel=CHECKS_PANEL,
         ),
@@ -387,6 +390,11 @@ def solve(
     check_writable(output)
     ref = reference if reference is not None else (0.0 if sensor is SensorKind.gyroscope else 1.0)
     gyro = sensor is SensorKind.gyroscope
+    if not math.isfinite(ref) or ref < 0 or (ref == 0 and not gyro):
+        raise InputError(
+            f"--reference must be a positive number, got {ref:g}",
+            hint="the stimulus magnitude: 1 (g), 9.80665 (m/s^2), 16384 (counts); 0 only for --sensor gyroscope",
+        )
     noise = max_noise if max_noise is not None else (None if gyro else 0.02)
     options = gate.Options(
         noise_bound=None if noise is None else (noise if gyro or ref <= 0 else noise * ref),
@@ -396,7 +404,7 @@ def solve(
         min_samples=min_samples,
         skip=frozenset(gate.CHECKS if no_checks else [c.name for c in skip or []]),
     )
-    limits = _limits(limits_file, max_offset, max_gain_error, nominal_gain)
+    limits_given = _limits(limits_file, max_offset, max_gain_error, nominal_gain)
     unit = _unit_block(serial, station, operator, meta or [])
     picked = columns.split(",") if columns else None
     samples = [
@@ -414,7 +422,7 @@ def solve(
     stats = [core.pose_stats(s.values) for s in samples]
     names = [s.layout.name for s in samples]
     if len(poses) == 1:
-        _check_units(names[0], stats[0], ref)
+        _check_units(names[0], stats[0].mean - options.nominal_offset, ref)
         solution, faces = core.solve_one_pose(stats[0], face, ref), [face]
     else:
         faces = ["+x", "+y", "+z"]
@@ -426,11 +434,12 @@ def solve(
                 head = {"status": "rejected", "exit_status": 3, "file": None, "rejections": [_error_dict(err)]}
                 _print_json(head | {"verdict": None, "warnings": [], "notes": []})
             raise
-    limits = limits.for_method(solution.method)
-    measured = gate.orient(
-        [gate.measure(n, f, s.values, st, options) for n, f, s, st in zip(names, faces, samples, stats, strict=True)],
-        options.nominal_offset,
-    )
+    limits = limits_given.for_method(solution.method)
+    measured = [
+        gate.measure(n, f, s.values, st, options) for n, f, s, st in zip(names, faces, samples, stats, strict=True)
+    ]
+    if ref > 0:  # a gyroscope at rest has no direction to judge
+        measured = gate.orient(measured, options.nominal_offset)
     rejected, warned = gate.check(measured, solution, options, orientation=ref > 0)
     fixed = [
         gate.corrected(st.mean, st.std, f, solution.offset, solution.matrix, ref)
@@ -456,7 +465,7 @@ def solve(
         unit=unit,
         verdict={"pass": not failures, "failures": [f.as_dict() for f in failures], "limits": limits.as_dict()},
     )
-    notes = _tilt_notes(doc)
+    notes = _tilt_notes(doc) + _solve_notes(stats, names, limits_given=limits_given, method=solution.method)
     if rejected:
         if not quiet:
             _print_summary(doc, _console(), warned, notes, judged=False)
@@ -541,13 +550,20 @@ def _unit_block(serial: str | None, station: str | None, operator: str | None, m
     return {"serial": serial, "station": station, "operator": operator, "meta": pairs}
 
 
-def _check_units(name: str, pose: PoseStats, reference: float) -> None:
+def _check_units(name: str, centred: Any, reference: float) -> None:
+    """A 1-pose mean (less --nominal-offset) far from --reference in magnitude: exit 2."""
     from tumblecal_cli import core
 
-    suggested = core.units_mistake(pose.mean, reference)
+    suggested = core.units_mistake(centred, reference)
     if suggested is None:
         return
-    magnitude = float((pose.mean**2).sum() ** 0.5)
+    magnitude = float((centred**2).sum() ** 0.5)
+    if suggested == 0:
+        raise InputError(
+            f"the pose reads {magnitude:.4g} in magnitude but --reference is {reference:g}",
+            file=name,
+            hint="a pose at rest reads the reference: is the sensor working, and are these its columns?",
+        )
     units = {1.0: "g", 9.80665: "m/s^2", 1000.0: "mg"}.get(suggested, "raw counts")
     raise InputError(
         f"the pose reads {magnitude:.4g} in magnitude but --reference is {reference:g}: a units mistake?",
@@ -591,6 +607,19 @@ def _tilt_notes(doc: dict[str, Any]) -> list[str]:
         f"fixture tilt, not noise, limits this calibration: {tilt['tolerance_deg']:g}° off level moves {worst}; "
         "level the fixture better and state how well with --fixture-tolerance"
     ]
+
+
+def _solve_notes(stats: list[PoseStats], names: list[str], *, limits_given: Any, method: str) -> list[str]:
+    """What a person should know about how far the result can be trusted."""
+    notes = [
+        f"{os.path.basename(name)} has {st.samples} sample{'s' if st.samples > 1 else ''}: its noise is unknown, "
+        "so its uncertainty reads 0 and the moved check cannot judge it"
+        for name, st in zip(names, stats, strict=True)
+        if st.samples < 3
+    ]
+    if limits_given.gain_error is not None and limits_given.for_method(method).gain_error is None:
+        notes.append(f"the {method} solver fixes the gains at 1, so the gain limit does not apply")
+    return notes
 
 
 def _summary(
@@ -765,15 +794,21 @@ def check(
     """
     from tumblecal_cli import calfile, gate
 
-    limits = _limits(limits_file, max_offset, max_gain_error, nominal_gain)
-    if not limits.as_dict():
+    given = _limits(limits_file, max_offset, max_gain_error, nominal_gain)
+    if not given.as_dict():
         raise InputError("no limits to judge against", hint="give --limits FILE, --max-offset or --max-gain-error")
     c = calfile.load(cal)
+    limits = given.for_method(str(c.doc["method"]))
+    if not limits.as_dict():
+        raise InputError(
+            f"no limits to judge against: the {c.doc['method']} solver fixes the gains, "
+            "so the gain limit does not apply",
+            file=cal,
+        )
     poses = [
         (p.file, p.face, gate.corrected(p.mean, p.std, p.face, c.offset, c.matrix, c.reference))
         for p in calfile.pose_records(c)
     ]
-    limits = limits.for_method(str(c.doc["method"]))
     failures = gate.verdict(str(c.doc["method"]), c.offset, c.matrix, poses, limits)
     verdict = {"pass": not failures, "failures": [f.as_dict() for f in failures], "limits": limits.as_dict()}
     if json_summary:

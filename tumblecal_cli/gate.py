@@ -153,11 +153,15 @@ def check(
                     f"only {_samples(n)}, close to --min-samples {least}",
                 )
             elif check_name == "saturated" and p.peak_fraction is not None:
-                level = "the full scale" if options.full_scale else "the limit of its integer type"
+                level = (
+                    f"{CLIP_FRACTION:.0%} of --full-scale {options.full_scale:g}"
+                    if options.full_scale
+                    else "the limit of its integer type"
+                )
                 judge(
                     Finding(
                         "pose.saturated",
-                        f"{p.clipped} samples clipped at {level} (peak {p.peak_fraction:.0%} of it)",
+                        f"{_samples(p.clipped)} clipped at {level} (peak {p.peak_fraction:.0%} of that)",
                         p.clipped,
                         0,
                         **where,
@@ -173,6 +177,8 @@ def check(
                     p.angle_deg > NARROW * options.max_tilt_deg,
                     f"{p.angle_deg:.1f}° from {p.face}, close to --max-tilt {options.max_tilt_deg:g}°",
                 )
+            elif check_name in ("moved", "upside_down") and any(r.code == "pose.orientation" for r in rejected):
+                continue  # a pose that is not what it claims spoils the solution these judge through
             elif check_name == "moved" and options.noise_bound is not None:
                 # standard deviation and drift in output units, through the solved matrix
                 std = np.sqrt((m**2) @ p.stats.std**2)
@@ -189,7 +195,7 @@ def check(
                     Finding(
                         "pose.moved", f"{what}, above --max-noise ({bound:.3g}): the unit moved", value, bound, **where
                     ),
-                    value > bound,
+                    not value <= bound,  # NaN fails
                     value > NARROW * bound,
                     f"{what}, close to --max-noise ({bound:.3g})",
                 )
@@ -327,7 +333,7 @@ def verdict(
     a = np.linalg.inv(matrix)
     gain = np.diag(a)
     for i, axis in enumerate(AXES):
-        if limits.offset is not None and abs(offset[i]) > limits.offset[i]:
+        if limits.offset is not None and not abs(offset[i]) <= limits.offset[i]:  # NaN fails
             failures.append(
                 Finding(
                     f"limit.offset.{axis}",
@@ -339,7 +345,7 @@ def verdict(
     if limits.gain_error is not None and method not in FIXED_GAINS:
         for i, axis in enumerate(AXES):
             error = gain[i] / limits.nominal_gain[i] - 1.0
-            if abs(error) > limits.gain_error[i]:
+            if not abs(error) <= limits.gain_error[i]:
                 failures.append(
                     Finding(
                         f"limit.gain.{axis}",
