@@ -9,11 +9,22 @@ compare with the truth that made it.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Truth:
+    """What a synthetic capture is made of: raw = diag(gain) · v + offset + noise, |v| = reference."""
+
+    reference: float
+    offset: tuple[float, float, float]  # raw units
+    gain: tuple[float, float, float]  # raw units per reference unit
+    noise: float  # raw units, 1 sigma per sample
 
 
 def stimulus(face_vector: ArrayLike, reference: float, tilt_deg: float = 0.0) -> FloatArray:

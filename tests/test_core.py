@@ -10,7 +10,6 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -18,22 +17,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.typing import ArrayLike
 
-from tests.synth import FloatArray, pose_samples
+from tests.synth import FloatArray, Truth, pose_samples
 from tumblecal_cli import core
 from tumblecal_cli.errors import CaptureRejected, InputError
 
 G = 9.80665  # m/s^2 per g
 THREE = ("+x", "+y", "+z")
-
-
-@dataclass(frozen=True)
-class Truth:
-    """What a synthetic capture is made of (DESIGN.md section 2): raw = diag(gain) · v + offset."""
-
-    reference: float
-    offset: tuple[float, float, float]  # raw units
-    gain: tuple[float, float, float]  # raw units per reference unit
-    noise: float  # raw units, 1 sigma per sample
 
 
 # One unit, described in four unit systems (ids say raw units -> corrected units).

@@ -10,27 +10,17 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from numpy.typing import ArrayLike
 
-from tests.synth import FloatArray, pose_samples
+from tests.synth import FloatArray, Truth, pose_samples
 from tumblecal_cli import core, gate
 
 THREE = ("+x", "+y", "+z")
 NAMES = ("caps/unit7-x.csv", "caps/unit7-y.csv", "caps/unit7-z.csv")
-
-
-@dataclass(frozen=True)
-class Truth:
-    """raw = diag(gain) · v + offset + noise, |v| = reference (DESIGN.md section 2)."""
-
-    reference: float
-    offset: tuple[float, float, float]  # raw units
-    gain: tuple[float, float, float]  # raw units per reference unit
-    noise: float  # raw units, 1 sigma per sample
 
 
 # in g; a +x pose reads (1.03, -0.034, 0.047)
