@@ -141,15 +141,6 @@ def load(path: str) -> Loaded:
     if not (isinstance(columns, list) and len(columns) == 3 and all(isinstance(c, str) for c in columns)):
         raise InputError("field 'columns' must be a list of three column names", file=path)
     _vector(doc["gain"], "gain", path)  # required by the contract, so validated like offset
-    verdict = doc.get("verdict")
-    if verdict is not None and not (
-        isinstance(verdict, dict)
-        and isinstance(verdict.get("pass"), bool)
-        and isinstance(verdict.get("failures"), list)
-    ):
-        raise InputError(
-            "field 'verdict' must be an object with 'pass' (true/false) and 'failures' (a list)", file=path
-        )
     _optional_fields(doc, path)
     return Loaded(
         path=path,
@@ -174,17 +165,16 @@ class PoseRecord:
 
 
 def pose_records(cal: Loaded) -> list[PoseRecord]:
-    """The poses a calibration was solved from, validated (for judging it again)."""
+    """The poses a calibration was solved from (for judging it again). ``load`` has validated
+    every entry that is there; judging also needs them to exist and to carry ``std``."""
     value, path = cal.doc.get("poses"), cal.path
     if not isinstance(value, list) or not value:
         raise InputError("field 'poses' must be a non-empty list of the poses solved from", file=path)
     out = []
     for k, pose in enumerate(value):
-        name = f"poses[{k}]"
-        if not (isinstance(pose, dict) and all(key in pose for key in ("pose", "mean", "std", "samples"))):
-            raise InputError(f"field {name!r} must be an object with pose, mean, std and samples", file=path)
-        _pose_entry(pose, name, path)
-        mean, std = _vector(pose["mean"], f"{name}.mean", path), _vector(pose["std"], f"{name}.std", path)
+        if "std" not in pose:
+            raise InputError(f"field 'poses[{k}]' must be an object with pose, mean, std and samples", file=path)
+        mean, std = np.array(pose["mean"], dtype=np.float64), np.array(pose["std"], dtype=np.float64)
         out.append(PoseRecord(pose["pose"], str(pose.get("file", "")), mean, std, pose["samples"]))
     return out
 
@@ -231,7 +221,15 @@ def _optional_fields(doc: dict[str, Any], path: str) -> None:
                 raise InputError(f"field 'poses[{k}]' must be an object with pose, mean and samples", file=path)
             _pose_entry(pose, f"poses[{k}]", path)
     verdict = doc.get("verdict")
-    if isinstance(verdict, dict):
+    if verdict is not None and not (
+        isinstance(verdict, dict)
+        and isinstance(verdict.get("pass"), bool)
+        and isinstance(verdict.get("failures"), list)
+    ):
+        raise InputError(
+            "field 'verdict' must be an object with 'pass' (true/false) and 'failures' (a list)", file=path
+        )
+    if verdict is not None:
         for k, failure in enumerate(verdict["failures"]):
             if not (isinstance(failure, dict) and isinstance(failure.get("code"), str)):
                 raise InputError(f"field 'verdict.failures[{k}]' must be an object with a 'code'", file=path)

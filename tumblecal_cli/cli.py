@@ -397,7 +397,7 @@ def solve(
         )
     noise = max_noise if max_noise is not None else (None if gyro else 0.02)
     options = gate.Options(
-        noise_bound=None if noise is None else (noise if gyro or ref <= 0 else noise * ref),
+        noise_bound=None if noise is None else (noise if gyro else noise * ref),  # a gyroscope: in its units
         max_tilt_deg=max_tilt,
         nominal_offset=_triplet_option(nominal_offset, "--nominal-offset"),
         full_scale=full_scale,
@@ -440,7 +440,7 @@ def solve(
     ]
     if ref > 0:  # a gyroscope at rest has no direction to judge
         measured = gate.orient(measured, options.nominal_offset)
-    rejected, warned = gate.check(measured, solution, options, orientation=ref > 0)
+    rejected, warned = gate.check(measured, solution, options)
     fixed = [
         gate.corrected(st.mean, st.std, f, solution.offset, solution.matrix, ref)
         for st, f in zip(stats, faces, strict=True)

@@ -84,7 +84,7 @@ class Options:
 
 
 def measure(file: str, face: str, values: FloatArray, stats: PoseStats, options: Options) -> PoseCheck:
-    """The per-pose measurements the checks need (the direction is centred later, see centre())."""
+    """The per-pose measurements the checks need (the direction comes later, from orient())."""
     n = values.shape[0]
     third = n // 3
     drift = values[-third:].mean(axis=0) - values[:third].mean(axis=0) if third else np.zeros(3)
@@ -114,16 +114,14 @@ def orient(poses: Sequence[PoseCheck], nominal_offset: FloatArray) -> list[PoseC
         unit = d / norm
         angle = math.degrees(math.acos(min(1.0, max(-1.0, float(unit @ np.asarray(FACES[p.face]))))))
         nearest = max(FACES, key=lambda f: float(unit @ np.asarray(FACES[f])))
-        out.append(PoseCheck(p.file, p.face, p.stats, angle, nearest, p.clipped, p.peak_fraction, p.drift, unit))
+        out.append(replace(p, angle_deg=angle, looks_like=nearest, direction=unit))
     return out
 
 
-def check(
-    poses: Sequence[PoseCheck], solution: Solution, options: Options, *, orientation: bool = True
-) -> tuple[list[Finding], list[Finding]]:
+def check(poses: Sequence[PoseCheck], solution: Solution, options: Options) -> tuple[list[Finding], list[Finding]]:
     """(rejections, warnings) of the quality checks on every pose, in the order of CHECKS.
 
-    ``orientation`` is False where a pose has no direction to judge (a gyroscope at rest).
+    A pose without a direction (not oriented: a gyroscope at rest) is not judged on orientation.
     """
     rejected: list[Finding] = []
     warned: list[Finding] = []
@@ -136,7 +134,6 @@ def check(
             warned.append(replace(finding, message=close, hint=None))
 
     declared = [p.face for p in poses]
-    m = np.abs(solution.matrix)
     for check_name in CHECKS:
         if check_name in options.skip:
             continue
@@ -170,7 +167,7 @@ def check(
                     p.peak_fraction > NARROW,
                     f"peaks at {p.peak_fraction:.0%} of {level}, close to clipping",
                 )
-            elif check_name == "orientation" and orientation and p.angle_deg is not None:
+            elif check_name == "orientation" and p.angle_deg is not None:
                 judge(
                     _orientation(p, declared, options.max_tilt_deg),
                     p.angle_deg > options.max_tilt_deg,
@@ -181,8 +178,8 @@ def check(
                 continue  # a pose that is not what it claims spoils the solution these judge through
             elif check_name == "moved" and options.noise_bound is not None:
                 # standard deviation and drift in output units, through the solved matrix
-                std = np.sqrt((m**2) @ p.stats.std**2)
-                drift = m @ np.abs(p.drift)
+                std = output_std(solution.matrix, p.stats.std)
+                drift = np.abs(solution.matrix) @ np.abs(p.drift)
                 worst_std, worst_drift = int(np.argmax(std)), int(np.argmax(drift))
                 bound = options.noise_bound
                 if drift[worst_drift] > std[worst_std]:
@@ -317,8 +314,14 @@ def corrected(
     return Corrected(
         norm_error=float(np.linalg.norm(c) - reference),
         vector_error=float(np.linalg.norm(c - reference * np.asarray(FACES[face]))),
-        std=np.sqrt((matrix**2) @ std**2),
+        std=output_std(matrix, std),
     )
+
+
+def output_std(matrix: FloatArray, std: FloatArray) -> FloatArray:
+    """(3,) per-axis standard deviation in output units, through M (axes' noise independent)."""
+    result: FloatArray = np.sqrt((matrix**2) @ std**2)
+    return result
 
 
 def verdict(
