@@ -51,6 +51,35 @@ def parse_face(text: str) -> str:
     return key
 
 
+def parse_label(text: str) -> str:
+    """Canonical pose label: a face (``+x`` ... ``-z``, or an alias), or an expected direction
+    written as three comma-separated numbers, normalised to unit length (``0.707,0,0.707`` ->
+    ``0.707107,0,0.707107``). ValueError otherwise."""
+    if "," not in text:
+        return parse_face(text)
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    norm = math.sqrt(sum(v * v for v in values)) if len(values) == 3 else 0.0
+    if len(values) != 3 or not math.isfinite(norm) or norm == 0.0:
+        raise ValueError(f"pose label {text!r} is neither a face nor a direction X,Y,Z (three numbers, not all 0)")
+    unit = [v / norm for v in values]
+    for face, vec in FACES.items():  # 0,0,1 is the +z face
+        if all(abs(u - f) < 1e-12 for u, f in zip(unit, vec, strict=True)):
+            return face
+    return ",".join(f"{u:.6g}" for u in unit)
+
+
+def direction(label: str) -> FloatArray:
+    """Unit vector of a canonical pose label (see :func:`parse_label`)."""
+    if label in FACES:
+        return np.asarray(FACES[label], dtype=np.float64)
+    v = np.array([float(x) for x in label.split(",")])
+    result: FloatArray = v / np.linalg.norm(v)
+    return result
+
+
 @dataclass(frozen=True)
 class PoseStats:
     """One static pose averaged to a triplet."""

@@ -1,0 +1,687 @@
+"""The solvers beyond 1- and 3-pose: six-pose (with and without cross-axis terms), N-pose least
+squares, the orientation-free sphere fit, tilt-compensated 1-pose, magnetometer min/max and
+ellipsoid, gyroscope bias. numpy only (the core layer, DESIGN.md section 3).
+
+Every solver works in the model of DESIGN.md section 2, ``raw = A v + b``, ``corrected =
+M (raw - b)``, ``M = inv(A)``, and returns a :class:`~tumblecal_cli.core.Solution`. The
+solvers fitted to pose means share one propagation (:func:`_propagate`): the parameters
+``(b, A)`` are functions of the means, so their covariance is ``J diag(se^2) J^T`` with ``J``
+the Jacobian by central differences (exact for the linear solvers), and their worst-case shift
+under fixture tilt comes from the same ``J`` (seed 000 notes, seed 004: a horizontal reading
+moves by ``gain·reference·sin θ``, the vertical one by ``gain·reference·(1 - cos θ)``).
+
+Sources cited below: seed 000 (ST design tip on tumble calibration, pointing to DT0053 for the
+6-point and N-point forms), seed 001 (the ``T·S·(a + o)`` model, judged by the norm of many
+static poses), seed 002 (magnetometer hard iron by min/max), seed 004 (CN102313822, bias with an
+assumed attitude); Ferraris et al. 1995 (the 6-position form imucal implements); ST AN4508 (the
+12-parameter linear fit); Tedaldi et al., ICRA 2014 (orientation-free fit).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from tumblecal_cli.core import (
+    FACES,
+    FloatArray,
+    PoseStats,
+    Solution,
+    direction,
+    solve_one_pose,
+    solve_three_pose,
+    tilt_sensitivity,
+)
+from tumblecal_cli.errors import CaptureRejected, InputError
+
+SIX_FACES = ("+x", "-x", "+y", "-y", "+z", "-z")
+#: The sphere fit needs this many poses: 9 parameters, and some residual to judge the fit by.
+SPHERE_MIN_POSES = 12
+LEAST_SQUARES_MIN_POSES = 5
+#: A face with no sample within this angle leaves the orientation-free fits undetermined.
+FACE_COVERAGE_DEG = 60.0
+#: Coverage: the share of these 26 directions (a cube's faces, edges, corners) with a sample
+#: within COVERAGE_CAP_DEG.
+_CUBE = np.array([(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1) if (i, j, k) != (0, 0, 0)])
+CUBE_DIRECTIONS = _CUBE / np.linalg.norm(_CUBE, axis=1)[:, None]
+COVERAGE_CAP_DEG = 45.0
+
+Params = tuple[FloatArray, FloatArray]  # (b, A)
+
+
+@dataclass(frozen=True)
+class Fit:
+    """What every solver reports beyond :class:`Solution`: per-pose residuals, coverage, notes."""
+
+    solution: Solution
+    residuals: FloatArray | None = None  # per pose (or sample), |M (raw - b)| - reference, output units
+    coverage: float | None = None  # 0-1, the share of directions the samples span
+    covariance: FloatArray | None = None  # (12, 12) of (b, A row by row)
+    cross_se: FloatArray | None = None  # (3, 3) 1-sigma of A's off-diagonal terms (0 on the diagonal)
+    tilt: tuple[FloatArray, FloatArray, FloatArray] | None = None  # offset, gain, cross-axis shifts
+    notes: tuple[str, ...] = ()
+
+
+# -- six-pose -------------------------------------------------------------------------------
+
+
+def _six_pose(means: FloatArray, reference: float) -> Params:
+    """Ferraris et al. 1995 (the form imucal implements), 6-point tumble of seed 000 / DT0053.
+
+    ``means`` are the +x -x +y -y +z -z poses. Each offset is the mean of the two *vertical*
+    readings of its axis (opposite faces: the stimulus cancels, and a vertical reading moves only
+    to second order with fixture tilt); each column ``j`` of ``A`` is the difference of the two
+    poses of axis ``j`` over twice the reference (the stimulus is ``±reference·e_j``)::
+
+        b_i = (m[+i]_i + m[-i]_i) / 2        A[:, j] = (m[+j] - m[-j]) / (2 reference)
+    """
+    plus, minus = means[0::2], means[1::2]  # rows: axis x, y, z
+    b = 0.5 * (np.diag(plus) + np.diag(minus))
+    a = ((plus - minus) / (2.0 * reference)).T  # column j from the pair of axis j
+    return b, a
+
+
+def _six_pose_diagonal(means: FloatArray, reference: float) -> Params:
+    """The per-axis part of :func:`_six_pose`: offsets and gains from the vertical readings only
+    (no cross-axis terms, so a tilted, hand-placed pose does not leak into them)."""
+    b, a = _six_pose(means, reference)
+    return b, np.diag(np.diag(a))
+
+
+# -- least squares ---------------------------------------------------------------------------
+
+
+def _least_squares(means: FloatArray, directions: FloatArray, reference: float) -> Params:
+    """ST AN4508: the 12-parameter linear fit ``[v 1]·W = raw`` over N >= 5 poses.
+
+    AN4508 writes the fit in the correcting direction (true = W·[raw 1]); here it is written in
+    the measuring one, ``raw_k = A v_k + b`` with ``v_k = reference·u_k``, so that the least
+    squares runs over the noisy quantity (the raw means) and is the maximum-likelihood fit for
+    white noise. Each column of ``W`` (one raw axis) is an ordinary least-squares problem.
+    """
+    design = np.column_stack([reference * directions, np.ones(len(directions))])
+    w = np.asarray(np.linalg.lstsq(design, means, rcond=None)[0], dtype=np.float64)  # (4, 3): A^T, then b
+    return w[3].copy(), w[:3].T.copy()
+
+
+def design_rank(directions: FloatArray) -> int:
+    """Rank of ``[u 1]``: 4 when the directions determine an offset and a full matrix."""
+    design = np.column_stack([directions, np.ones(len(directions))])
+    return int(np.linalg.matrix_rank(design, tol=1e-6))
+
+
+# -- propagation of noise and tilt -------------------------------------------------------------
+
+
+def _pack(params: Params) -> FloatArray:
+    return np.concatenate([params[0], params[1].ravel()])
+
+
+def _jacobian(fn: Callable[[FloatArray], Params], means: FloatArray) -> FloatArray:
+    """d(b, A)/d(means), (12, 3N), by central differences (exact for linear solvers)."""
+    flat = means.ravel()
+    jac = np.empty((12, flat.size))
+    for k in range(flat.size):
+        h = 1e-6 * max(1.0, abs(flat[k]))
+        up, down = flat.copy(), flat.copy()
+        up[k] += h
+        down[k] -= h
+        jac[:, k] = (_pack(fn(up.reshape(means.shape))) - _pack(fn(down.reshape(means.shape)))) / (2 * h)
+    return jac
+
+
+def _propagate(
+    method: str,
+    fn: Callable[[FloatArray], Params],
+    poses: Sequence[PoseStats],
+    directions: FloatArray,
+    reference: float,
+    tolerance_deg: float,
+) -> Fit:
+    """Solve, then the 1-sigma noise errors and the worst-case tilt shifts of every parameter."""
+    means = np.array([p.mean for p in poses])
+    b, a = fn(means)
+    jac = _jacobian(fn, means)
+    se2 = np.concatenate([p.stderr**2 for p in poses])
+    cov = (jac * se2) @ jac.T  # J diag(se^2) J^T
+    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    a_sd = sd[3:].reshape(3, 3)
+    tilt = _tilt(jac, a, directions, reference, tolerance_deg)
+    solution = Solution(
+        method=method,
+        offset=b,
+        matrix=_inverse(a, poses),
+        offset_se=sd[:3],
+        gain_se=np.diag(a_sd).copy(),
+    )
+    return Fit(
+        solution=solution,
+        residuals=_norm_residuals(means, b, solution.matrix, reference),
+        covariance=cov,
+        cross_se=a_sd - np.diag(np.diag(a_sd)),
+        tilt=tilt,
+    )
+
+
+def _tilt(
+    jac: FloatArray, a: FloatArray, directions: FloatArray, reference: float, tolerance_deg: float
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Worst-case shift of each parameter when every pose is off its direction by the tolerance.
+
+    Tilting pose k by θ about a horizontal axis ``w`` moves its mean by
+    ``A·reference·(sin θ·w - (1 - cos θ)·u_k)`` (seed 000 notes; seed 004, the vertical term is a
+    cosine). Through ``c = d(param)/d(mean_k)`` that is at worst
+    ``|(c·A)_perp|·reference·sin θ + |c·A·u_k|·reference·(1 - cos θ)``; poses tilt independently,
+    so the worst cases add. ``A`` is the solved one, itself off by up to the gain's relative
+    shift, so the bound is scaled up by ``1 / (1 - shift)`` to stay a bound for the true ``A``.
+    """
+    theta = math.radians(tolerance_deg)
+    s, v = math.sin(theta), 1.0 - math.cos(theta)
+    shift = np.zeros(12)
+    for k, u in enumerate(directions):
+        ca = jac[:, 3 * k : 3 * k + 3] @ a  # (12, 3): each parameter's sensitivity to the stimulus
+        along = ca @ u
+        perp = np.linalg.norm(ca - np.outer(along, u), axis=1)
+        shift += reference * (perp * s + np.abs(along) * v)
+    shift /= 1.0 - (s + v)
+    cross = shift[3:].reshape(3, 3)
+    return shift[:3], np.diag(cross).copy(), cross - np.diag(np.diag(cross))
+
+
+def _inverse(a: FloatArray, poses: Sequence[PoseStats]) -> FloatArray:
+    if not np.all(np.isfinite(a)) or np.linalg.cond(a) > 1e12:
+        raise CaptureRejected(
+            "the poses do not determine the calibration matrix (it has no inverse)",
+            hint="check that the poses are labelled with the faces they were captured on",
+            code="poses.undetermined",
+        )
+    inverse = np.asarray(np.linalg.inv(a), dtype=np.float64)
+    return inverse
+
+
+def _norm_residuals(raw: FloatArray, b: FloatArray, matrix: FloatArray, reference: float) -> FloatArray:
+    """Seed 001's test of a model: ``|M (raw - b)| - reference`` for each pose (or sample)."""
+    result: FloatArray = np.linalg.norm((raw - b) @ matrix.T, axis=1) - reference
+    return result
+
+
+# -- public entry points, one per method --------------------------------------------------------
+
+
+def six_pose(poses: Sequence[PoseStats], reference: float, tolerance_deg: float, diagonal: bool = False) -> Fit:
+    """Six faces in the order +x -x +y -y +z -z; see :func:`_six_pose`."""
+    directions = np.array([FACES[f] for f in SIX_FACES])
+
+    def fn(m: FloatArray) -> Params:
+        return _six_pose_diagonal(m, reference) if diagonal else _six_pose(m, reference)
+
+    fit = _propagate("six-pose-diagonal" if diagonal else "six-pose", fn, poses, directions, reference, tolerance_deg)
+    return replace(fit, cross_se=None) if diagonal else fit
+
+
+def least_squares(
+    poses: Sequence[PoseStats], directions: FloatArray, reference: float, tolerance_deg: float, names: Sequence[str]
+) -> Fit:
+    """N >= 5 poses with known directions (unit vectors); see :func:`_least_squares`."""
+    if design_rank(directions) < 4:
+        raise CaptureRejected(
+            f"the {len(directions)} pose directions do not determine an offset and a full matrix "
+            "([direction 1] has rank " + f"{design_rank(directions)}, needs 4)",
+            hint="add poses so that every axis is seen pointing up and down (the six faces do)",
+            code="poses.undetermined",
+        )
+
+    def fn(m: FloatArray) -> Params:
+        return _least_squares(m, directions, reference)
+
+    fit = _propagate("least-squares", fn, poses, directions, reference, tolerance_deg)
+    raw_residuals = np.array([p.mean for p in poses]) - (
+        reference * directions @ np.linalg.inv(fit.solution.matrix).T + fit.solution.offset
+    )
+    worst = int(np.argmax(np.linalg.norm(raw_residuals, axis=1)))
+    size = float(np.linalg.norm(raw_residuals[worst]))
+    note = f"largest residual: {names[worst]}, {size:.3g} raw units from its fitted reading"
+    return replace(fit, notes=(note,))
+
+
+# -- orientation-free: the sphere fit (Tedaldi et al. 2014; seed 001's model) ----------------------
+
+
+def _ellipsoid_start(points: FloatArray, reference: float) -> Params | None:
+    """Linear ellipsoid fit: ``p^T Q p + 2 l^T p = 1`` by least squares, as the start of the
+    non-linear fit. Returns (b, M) with ``M`` upper triangular, or None when the points do not
+    lie on an ellipsoid (Q not positive definite)."""
+    centre0 = points.mean(axis=0)
+    scale = float(np.abs(points - centre0).max()) or 1.0
+    p = (points - centre0) / scale
+    x, y, z = p.T
+    design = np.column_stack([x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z, 2 * x, 2 * y, 2 * z])
+    coef, *_ = np.linalg.lstsq(design, np.ones(len(p)), rcond=None)
+    qa, qb, qc, qd, qe, qf, lx, ly, lz = coef
+    q = np.array([[qa, qd, qe], [qd, qb, qf], [qe, qf, qc]])
+    try:
+        centre = -np.linalg.solve(q, np.array([lx, ly, lz]))
+        q = q / (1.0 + centre @ q @ centre)
+        lower = np.linalg.cholesky(q * reference**2)  # M^T M = reference^2 Q, M = L^T
+    except np.linalg.LinAlgError:
+        return None
+    return centre0 + scale * centre, lower.T / scale
+
+
+def _upper(theta: FloatArray) -> FloatArray:
+    m = np.zeros((3, 3))
+    m[np.triu_indices(3)] = theta[3:]
+    return m
+
+
+def _sphere_residuals(theta: FloatArray, points: FloatArray, reference: float) -> tuple[FloatArray, FloatArray]:
+    """Residuals ``|M (p - b)| - reference`` and their Jacobian over (b, upper M)."""
+    b, m = theta[:3], _upper(theta)
+    d = points - b
+    c = d @ m.T
+    norm = np.linalg.norm(c, axis=1)
+    u = c / norm[:, None]
+    rows, cols = np.triu_indices(3)
+    jac = np.column_stack([-(u @ m), u[:, rows] * d[:, cols]])  # d/db = -M^T u; d/dM_ij = u_i d_j
+    return norm - reference, jac
+
+
+def _fit_sphere(points: FloatArray, reference: float) -> tuple[FloatArray, FloatArray] | None:
+    """Levenberg-Marquardt on ``sum (|M (p - b)| - reference)^2``, M upper triangular (Tedaldi
+    et al. 2014, eq. 10, with seed 001's offset-first model). Returns (theta, Jacobian) or None."""
+    start = _ellipsoid_start(points, reference)
+    if start is None:
+        return None
+    theta = np.concatenate([start[0], start[1][np.triu_indices(3)]])
+    r, jac = _sphere_residuals(theta, points, reference)
+    cost, lam = float(r @ r), 1e-3
+    for _ in range(200):
+        jtj, grad = jac.T @ jac, jac.T @ r
+        step = np.linalg.lstsq(jtj + lam * np.diag(np.diag(jtj)), -grad, rcond=None)[0]
+        trial = theta + step
+        r_new, jac_new = _sphere_residuals(trial, points, reference)
+        new_cost = float(r_new @ r_new)
+        if np.isfinite(new_cost) and new_cost <= cost:
+            converged = np.linalg.norm(step) <= 1e-12 * (1.0 + np.linalg.norm(theta)) or cost - new_cost <= 1e-15 * (
+                1.0 + cost
+            )
+            theta, r, jac, cost, lam = trial, r_new, jac_new, new_cost, max(lam / 10, 1e-12)
+            if converged:
+                break
+        else:
+            lam *= 10
+            if lam > 1e12:
+                break
+    if np.diag(_upper(theta)).min() <= 0:  # a reflected solution: flip the sign of each row
+        signs = np.sign(np.diag(_upper(theta)))
+        m = _upper(theta) * signs[:, None]
+        theta = np.concatenate([theta[:3], m[np.triu_indices(3)]])
+        r, jac = _sphere_residuals(theta, points, reference)
+    return theta, jac
+
+
+def missing_faces(directions: FloatArray, within_deg: float = FACE_COVERAGE_DEG) -> list[tuple[str, float]]:
+    """Faces with no direction within ``within_deg``: (face, angle to the nearest direction)."""
+    out = []
+    for face, vec in FACES.items():
+        nearest = math.degrees(math.acos(min(1.0, float((directions @ np.asarray(vec)).max()))))
+        if nearest > within_deg:
+            out.append((face, nearest))
+    return out
+
+
+def coverage(directions: FloatArray) -> float:
+    """The share of 26 cube directions (faces, edges, corners) with a sample within 45°."""
+    cos = math.cos(math.radians(COVERAGE_CAP_DEG))
+    return float((cos - 1e-12 <= CUBE_DIRECTIONS @ directions.T).any(axis=1).mean())
+
+
+def _refuse_poor_coverage(directions: FloatArray, what: str) -> None:
+    missing = missing_faces(directions)
+    if missing:
+        face, angle = missing[0]
+        others = "".join(f", {f} ({a:.0f}°)" for f, a in missing[1:])
+        raise CaptureRejected(
+            f"the {what} do not cover enough directions to determine the parameters: nothing within "
+            f"{FACE_COVERAGE_DEG:.0f}° of {face} (nearest {angle:.0f}°){' or of ' + others[2:] if others else ''}",
+            hint=f"add captures with {face} pointing {'up' if what == 'poses' else 'along the field'}",
+            code="poses.coverage",
+        )
+
+
+def sphere(points: FloatArray, stderr: FloatArray | None, reference: float, *, what: str = "poses") -> Fit:
+    """Orientation-free fit of N >= 12 static poses (or, ``ellipsoid``, of every sample of a
+    magnetometer rotated through many orientations): minimise ``sum (|M (raw - b)| - reference)^2``.
+    ``points`` are the pose means (or samples), ``stderr`` their (N, 3) standard errors (None for
+    samples: the ellipsoid fit, whose ``M`` is made symmetric).
+
+    The 1-sigma covariance is the sandwich ``(J^T J)^-1 J^T S J (J^T J)^-1`` with ``S`` the
+    variance of each residual from its pose's sample noise (``se`` through ``M^T u``); for a
+    magnetometer's samples, whose noise is not known per point, ``S`` is the residual variance.
+    """
+    ellipsoid = stderr is None
+    if reference <= 0:
+        raise InputError(f"the {'ellipsoid' if ellipsoid else 'sphere'} fit needs a positive --reference")
+    rough = points - 0.5 * (points.max(axis=0) + points.min(axis=0))
+    norms = np.linalg.norm(rough, axis=1)
+    _refuse_poor_coverage(rough[norms > 0] / norms[norms > 0, None], what)
+    fitted = _fit_sphere(points, reference)
+    if fitted is None:
+        raise CaptureRejected(
+            f"the {what} do not lie on an ellipsoid: the orientation-free fit has no solution",
+            hint="check that every capture is static and of the same sensor",
+            code="poses.undetermined",
+        )
+    theta, jac = fitted
+    b, m = theta[:3], _upper(theta)
+    directions = (points - b) @ m.T
+    directions /= np.linalg.norm(directions, axis=1)[:, None]
+    _refuse_poor_coverage(directions, what)
+    residuals = _norm_residuals(points, b, m, reference)
+    dof = len(points) - 9
+    if stderr is None:
+        noise = np.full(len(points), float(residuals @ residuals) / max(dof, 1))
+    else:
+        gradient = directions @ m  # d r_k / d mean_k = M^T u_k
+        noise = ((gradient**2) * stderr**2).sum(axis=1)
+    jtj_inv = np.linalg.pinv(jac.T @ jac)
+    cov_theta = jtj_inv @ (jac.T * noise) @ jac @ jtj_inv
+    if ellipsoid:  # soft iron is symmetric (it does not rotate the field): M = sqrt(M^T M)
+        w, v = np.linalg.eigh(m.T @ m)
+        m = (v * np.sqrt(w)) @ v.T
+    cov = _theta_to_params(theta, cov_theta, symmetric=ellipsoid)
+    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    a_sd = sd[3:].reshape(3, 3)
+    solution = Solution(
+        method="ellipsoid" if ellipsoid else "sphere",
+        offset=b,
+        matrix=m,
+        offset_se=sd[:3],
+        gain_se=np.diag(a_sd).copy(),
+    )
+    rms = float(np.sqrt(np.mean(residuals**2)))
+    return Fit(
+        solution=solution,
+        residuals=residuals,
+        coverage=coverage(directions),
+        covariance=cov,
+        cross_se=a_sd - np.diag(np.diag(a_sd)),
+        notes=(f"residual RMS {rms:.3g} over {len(points)} {what} ({dof} degrees of freedom)",),
+    )
+
+
+def _theta_to_params(theta: FloatArray, cov_theta: FloatArray, *, symmetric: bool) -> FloatArray:
+    """Covariance of (b, A) from that of (b, upper M), through A = inv(M) (or of its symmetric
+    square root), by central differences."""
+
+    def params(t: FloatArray) -> FloatArray:
+        m = _upper(t)
+        if symmetric:
+            w, v = np.linalg.eigh(m.T @ m)
+            m = (v * np.sqrt(w)) @ v.T
+        return np.concatenate([t[:3], np.linalg.inv(m).ravel()])
+
+    g = np.empty((12, theta.size))
+    for k in range(theta.size):
+        h = 1e-7 * max(1.0, abs(theta[k]))
+        up, down = theta.copy(), theta.copy()
+        up[k] += h
+        down[k] -= h
+        g[:, k] = (params(up) - params(down)) / (2 * h)
+    result: FloatArray = g @ cov_theta @ g.T
+    return result
+
+
+# -- one pose, tilt-compensated (seed 004) -----------------------------------------------------------
+
+
+def one_pose_tilt(pose: PoseStats, up: str, reference: float, tolerance_deg: float, bias_spread: float) -> Fit:
+    """1-pose offsets with the attitude computed from the readings (seed 004, CN102313822).
+
+    Seed 004, eqs. (2)-(3): with the bias assumed zero, the readings give the attitude, and the
+    axis pointing up reads ``reference·cos θ`` of it. So its offset is the up reading minus
+    ``reference·cos θ``, with ``cos θ = |up reading| / |mean|``: the fixture's tilt, to any order,
+    no longer enters it. What remains is the assumed-zero bias of the horizontal axes, whose
+    spread σ (``bias_spread``, seed 004's error variance) tilts the assumed attitude by up to
+    ``δ = √2·σ / reference`` (eqs. (4)-(5)): the up offset is then off by at most
+    ``reference·(cos θ - cos(θ + δ))``. The horizontal offsets are the plain 1-pose ones, with
+    their first-order tilt bound ``reference·sin(tolerance)``.
+    """
+    axis = "xyz".index(up[1])
+    sign = 1.0 if up[0] == "+" else -1.0
+
+    def offsets(mean: FloatArray) -> FloatArray:
+        magnitude = float(np.linalg.norm(mean))
+        cos_t = min(1.0, abs(mean[axis]) / magnitude) if magnitude > 0 else 1.0
+        out = mean.copy()
+        out[axis] = mean[axis] - sign * reference * cos_t  # seed 004 eq. (2): f_z = g cos θ + b_z
+        return out
+
+    offset = offsets(pose.mean)
+    magnitude = float(np.linalg.norm(pose.mean))
+    theta = math.acos(min(1.0, abs(pose.mean[axis]) / magnitude)) if magnitude > 0 else 0.0
+    delta = math.sqrt(2.0) * bias_spread / reference if reference > 0 else 0.0
+    vertical = reference * abs(math.cos(theta) - math.cos(min(math.pi, theta + delta)))
+    tilt_offset = np.full(3, reference * math.sin(math.radians(tolerance_deg)))
+    tilt_offset[axis] = vertical
+    grad = np.empty((3, 3))  # d offset / d mean, by central differences
+    for k in range(3):
+        h = 1e-6 * max(1.0, abs(pose.mean[k]))
+        step = np.zeros(3)
+        step[k] = h
+        grad[:, k] = (offsets(pose.mean + step) - offsets(pose.mean - step)) / (2 * h)
+    offset_se = np.sqrt((grad**2) @ pose.stderr**2)
+    solution = Solution("one-pose-tilt", offset, np.eye(3), offset_se, np.zeros(3))
+    note = (
+        f"attitude from the readings: {math.degrees(theta):.2f}° off {up}; the {up[1]} offset "
+        f"is bounded by --bias-spread {bias_spread:g} to ±{vertical:.2g}"
+    )
+    return Fit(solution=solution, tilt=(tilt_offset, np.zeros(3), np.zeros((3, 3))), notes=(note,))
+
+
+# -- magnetometer: min/max (seed 002) ------------------------------------------------------------------
+
+
+def minmax(samples: FloatArray, plane: str | None = None) -> Fit:
+    """Hard iron from the extremes (seed 002): ``offset = (max + min) / 2`` per axis.
+
+    In 2-D mode (``plane`` "xy", "xz" or "yz": the unit turned about the third axis) only the two
+    axes in the plane are determined; the third keeps offset 0. The 1-sigma of each offset is
+    that of a midpoint of two samples, ``σ/√2``, with ``σ`` the sample noise estimated from
+    successive differences (``std(diff)/√2``), which a slow rotation leaves nearly untouched.
+    """
+    lo, hi = samples.min(axis=0), samples.max(axis=0)
+    offset = 0.5 * (lo + hi)  # seed 002: (max + min) / 2
+    noise = np.diff(samples, axis=0).std(axis=0) / math.sqrt(2.0) if len(samples) > 2 else np.zeros(3)
+    offset_se = noise / math.sqrt(2.0)
+    axes = [i for i in range(3) if plane is None or "xyz"[i] in plane]
+    centred = samples - offset
+    if plane is None:
+        norms = np.linalg.norm(centred, axis=1)
+        keep = norms > 0
+        directions = centred[keep] / norms[keep, None]
+        _refuse_poor_coverage(directions, "samples")
+        cover = coverage(directions)
+    else:
+        i, j = axes
+        angles = np.arctan2(centred[:, j], centred[:, i])
+        bins = np.unique(np.floor((angles + math.pi) / (2 * math.pi) * 12).astype(int) % 12)
+        cover = len(bins) / 12
+        gap = _largest_gap_deg(angles)
+        if gap > 90.0:
+            raise CaptureRejected(
+                f"the samples do not go round the {plane} plane: a gap of {gap:.0f}° with no sample "
+                "(min/max needs each in-plane axis seen pointing both ways)",
+                hint=f"turn the unit a full circle in the {plane} plane",
+                code="poses.coverage",
+            )
+    for k in range(3):
+        if k not in axes:
+            offset[k], offset_se[k] = 0.0, 0.0
+    solution = Solution("minmax", offset, np.eye(3), offset_se, np.zeros(3))
+    notes = (
+        ()
+        if plane is None
+        else (f"2-D min/max in the {plane} plane: the {'xyz'[3 - sum(axes)]} offset is not determined (0)",)
+    )
+    return Fit(solution=solution, coverage=cover, notes=notes)
+
+
+def _largest_gap_deg(angles: FloatArray) -> float:
+    a = np.sort(angles)
+    gaps = np.diff(np.concatenate([a, [a[0] + 2 * math.pi]]))
+    return math.degrees(float(gaps.max()))
+
+
+# -- gyroscope --------------------------------------------------------------------------------------
+
+
+def gyro_bias(poses: Sequence[PoseStats]) -> Fit:
+    """Zero-rate bias: the sample-weighted mean of still captures (at rest the true rate is 0,
+    so the mean is the bias), 1-sigma ``std / √n`` pooled."""
+    n = np.array([p.samples for p in poses], dtype=np.float64)
+    means = np.array([p.mean for p in poses])
+    offset = (n[:, None] * means).sum(axis=0) / n.sum()
+    var = sum((p.samples**2) * p.stderr**2 for p in poses) / n.sum() ** 2
+    solution = Solution("gyro-bias", offset, np.eye(3), np.sqrt(var), np.zeros(3))
+    return Fit(solution=solution)
+
+
+# -- choosing a solver from what was given ------------------------------------------------------------
+
+METHODS = (
+    "one-pose",
+    "one-pose-tilt",
+    "three-pose",
+    "six-pose",
+    "six-pose-diagonal",
+    "least-squares",
+    "sphere",
+    "minmax",
+    "ellipsoid",
+    "gyro-bias",
+)
+#: Methods fitted to captures rotated through many orientations (not static poses).
+ROTATION = ("minmax", "ellipsoid")
+#: Methods that do not use the pose labels (the orientation is unknown or irrelevant).
+ORIENTATION_FREE = ("sphere", "minmax", "ellipsoid", "gyro-bias")
+THREE_FACES = ("+x", "+y", "+z")
+
+
+def default_labels(count: int, up: str) -> list[str | None]:
+    """Labels of unlabelled pose files: 1 -> ``up``, 3 -> +x +y +z, 6 -> +x -x +y -y +z -z, in
+    that order; any other count has none (for the orientation-free solvers)."""
+    if count == 1:
+        return [up]
+    if count == 3:
+        return list(THREE_FACES)
+    if count == 6:
+        return list(SIX_FACES)
+    return [None] * count
+
+
+def pick(method: str, labels: Sequence[str | None], sensor: str) -> tuple[str, list[int]]:
+    """The method to run (``auto`` resolved) and the order of the poses it takes them in.
+
+    Too few files, or labels a method cannot use, is a usage error (exit 2); the data's own
+    shortcomings (directions that do not span) are judged by the solver (exit 3).
+    """
+    n = len(labels)
+    order = list(range(n))
+    if method == "auto":
+        method = _auto(labels, sensor)
+    if method in ("one-pose", "one-pose-tilt"):
+        if n != 1 or labels[0] is None or labels[0] not in FACES:
+            raise InputError(f"{method} takes 1 pose file labelled with the face up, got {n} files")
+    elif method in ("three-pose", "six-pose", "six-pose-diagonal"):
+        wanted = THREE_FACES if method == "three-pose" else SIX_FACES
+        if sorted(str(x) for x in labels) != sorted(wanted):
+            given = " ".join(str(x) for x in labels) if any(labels) else f"{n} unlabelled files"
+            raise InputError(
+                f"{method} takes {len(wanted)} pose files, one per face {' '.join(wanted)}; got {given}",
+                hint="label each file with its face, e.g. --poses +x=xp.csv -x=xn.csv ... (see --help)",
+            )
+        order = [list(labels).index(f) for f in wanted]
+    elif method == "least-squares":
+        if n < LEAST_SQUARES_MIN_POSES or any(x is None for x in labels):
+            raise InputError(
+                f"least-squares takes {LEAST_SQUARES_MIN_POSES} or more labelled pose files "
+                f"(a face or a direction X,Y,Z each), got {n}" + ("" if all(labels) else " without labels"),
+                hint="label each file: --poses +x=a.csv 0.707,0,0.707=b.csv ...",
+            )
+    elif method == "sphere" and n < SPHERE_MIN_POSES:
+        raise InputError(
+            f"sphere takes {SPHERE_MIN_POSES} or more static pose files (9 parameters, and a residual "
+            f"to judge the fit by), got {n}",
+            hint="capture more orientations, or label the poses for the face solvers",
+        )
+    return method, order
+
+
+def _auto(labels: Sequence[str | None], sensor: str) -> str:
+    if sensor == "gyroscope":
+        return "gyro-bias"
+    if sensor == "magnetometer":
+        return "ellipsoid"
+    n = len(labels)
+    faces = sorted(str(x) for x in labels)
+    if n == 1:
+        return "one-pose"
+    if faces == sorted(THREE_FACES):
+        return "three-pose"
+    if faces == sorted(SIX_FACES):
+        return "six-pose"
+    if all(labels) and n >= LEAST_SQUARES_MIN_POSES:
+        return "least-squares"
+    if not any(labels) and n >= SPHERE_MIN_POSES:
+        return "sphere"
+    raise InputError(
+        f"no solver takes these {n} pose files: give 1 (one-pose), 3 (+x +y +z), 6 (the six faces), "
+        f"{LEAST_SQUARES_MIN_POSES} or more labelled (least-squares) or {SPHERE_MIN_POSES} or more "
+        "unlabelled (sphere)",
+        hint="label a file with its face or direction: --poses +x=a.csv -x=b.csv 0.707,0,0.707=c.csv",
+    )
+
+
+def run(
+    method: str,
+    stats: Sequence[PoseStats],
+    values: Sequence[FloatArray],
+    labels: Sequence[str | None],
+    *,
+    reference: float,
+    tolerance_deg: float,
+    bias_spread: float,
+    plane: str | None,
+    names: Sequence[str],
+) -> Fit:
+    """Run ``method`` (resolved by :func:`pick`, poses in its order) on the poses."""
+    if method == "one-pose":
+        face = str(labels[0])
+        one = solve_one_pose(stats[0], face, reference)
+        offset_tilt, gain_tilt = tilt_sensitivity(method, one.gain, reference, [face], tolerance_deg)
+        return Fit(solution=one, tilt=(offset_tilt, gain_tilt, np.zeros((3, 3))))
+    if method == "one-pose-tilt":
+        return one_pose_tilt(stats[0], str(labels[0]), reference, tolerance_deg, bias_spread)
+    if method == "three-pose":
+        three = solve_three_pose(stats, reference, names=names)
+        offset_tilt, gain_tilt = tilt_sensitivity(method, three.gain, reference, THREE_FACES, tolerance_deg)
+        residuals = _norm_residuals(np.array([p.mean for p in stats]), three.offset, three.matrix, reference)
+        return Fit(solution=three, residuals=residuals, tilt=(offset_tilt, gain_tilt, np.zeros((3, 3))))
+    if method in ("six-pose", "six-pose-diagonal"):
+        return six_pose(stats, reference, tolerance_deg, diagonal=method == "six-pose-diagonal")
+    if method == "least-squares":
+        directions = np.array([direction(str(x)) for x in labels])
+        return least_squares(stats, directions, reference, tolerance_deg, names)
+    if method == "sphere":
+        return sphere(np.array([p.mean for p in stats]), np.array([p.stderr for p in stats]), reference)
+    if method == "ellipsoid":
+        return sphere(np.concatenate(list(values)), None, reference, what="samples")
+    if method == "minmax":
+        return minmax(np.concatenate(list(values)), plane)
+    if method == "gyro-bias":
+        return gyro_bias(stats)
+    raise ValueError(f"unknown method {method!r}")
