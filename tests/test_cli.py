@@ -270,7 +270,12 @@ def test_solve_one_pose_up_minus_x(up: list[str], capsys: pytest.CaptureFixture[
 def test_solve_wrong_number_of_pose_files(files: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = precious(tmp_path / "cal.json")
     r = run(capsys, "solve", "--poses", *files, "-o", out)
-    assert_one_error(r, f"--poses takes 1 file (1-pose) or 3 files (+x +y +z), got {len(files)}")
+    assert_one_error(
+        r,
+        f"--poses: no solver takes {len(files)} unlabelled files: give 1 (one-pose), 3 (+x +y +z), "
+        "6 (+x -x +y -y +z -z), 12+ unlabelled (sphere) or 5+ labelled (least-squares)",
+        hint="label a file with its face or direction: --poses +x=a.csv -x=b.csv 0.707,0,0.707=c.csv",
+    )
     assert_untouched(out)
 
 

@@ -17,9 +17,10 @@ from typing import Any
 import numpy as np
 
 from tumblecal_cli import __version__
-from tumblecal_cli.core import FACES, FloatArray, Solution
+from tumblecal_cli.core import FloatArray, Solution, parse_label
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.files import atomic_output
+from tumblecal_cli.solvers import Fit
 
 FORMAT = "tumblecal-calibration"
 VERSION = 1
@@ -36,12 +37,13 @@ def build(
     input_units: str | None,
     columns: list[str],
     poses: list[dict[str, Any]],
-    tilt: tuple[FloatArray, FloatArray] | None = None,
+    fit: Fit | None = None,
     tolerance_deg: float = 1.0,
     unit: dict[str, Any] | None = None,
     verdict: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """The calibration document, fields in the order of DESIGN.md section 4."""
+    """The calibration document, fields in the order of DESIGN.md section 4; ``fit`` adds what
+    the solver measured beyond the parameters (tilt sensitivity, covariance, coverage, residuals)."""
     if units is None and sensor == "accelerometer" and reference == 1.0:
         units = "g"
     doc = {
@@ -64,11 +66,46 @@ def build(
         "created": created(),
         "tool": f"tumblecal {__version__}",
     }
-    if tilt is None:
+    if fit is None or fit.tilt is None:
         del doc["tilt_sensitivity"]
     else:
-        doc["tilt_sensitivity"] = {"offset": _floats(tilt[0]), "gain": _floats(tilt[1]), "tolerance_deg": tolerance_deg}
+        offset, gain, cross = fit.tilt
+        tilt: dict[str, Any] = {"offset": _floats(offset), "gain": _floats(gain)}
+        if fit.cross_se is not None:
+            tilt["cross_axis"] = [_floats(row) for row in cross]
+        doc["tilt_sensitivity"] = tilt | {"tolerance_deg": tolerance_deg}
+    if fit is not None:
+        if fit.cross_se is not None:
+            doc["uncertainty"] = {
+                "offset": _floats(solution.offset_se),
+                "gain": _floats(solution.gain_se),
+                "cross_axis": [_floats(row) for row in fit.cross_se],
+            }
+        extra: dict[str, Any] = {}
+        if fit.covariance is not None:
+            extra["covariance"] = {"parameters": COVARIANCE_PARAMETERS, "matrix": [_floats(r) for r in fit.covariance]}
+        if fit.coverage is not None:
+            extra["coverage"] = fit.coverage
+        if fit.residuals is not None and len(fit.residuals):
+            r = fit.residuals
+            extra["residuals"] = {"rms": float(np.sqrt(np.mean(r**2))), "max": float(np.abs(r).max()), "count": len(r)}
+        doc = _insert_after(doc, "poses" if "tilt_sensitivity" not in doc else "tilt_sensitivity", extra)
     return doc
+
+
+#: The order of the covariance's rows: the offset, then A = inv(M) row by row.
+COVARIANCE_PARAMETERS = ["offset.x", "offset.y", "offset.z"] + [f"A.{i}{j}" for i in "xyz" for j in "xyz"]
+
+
+def _insert_after(doc: dict[str, Any], key: str, extra: dict[str, Any]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in doc.items():
+        if k == key:
+            out[k] = v
+            out.update(extra)
+        else:
+            out[k] = v
+    return out
 
 
 def created() -> str:
@@ -157,7 +194,7 @@ def load(path: str) -> Loaded:
 class PoseRecord:
     """The part of a pose entry that judging a calibration again needs."""
 
-    face: str
+    face: str | None
     file: str
     mean: FloatArray
     std: FloatArray
@@ -181,8 +218,10 @@ def pose_records(cal: Loaded) -> list[PoseRecord]:
 
 def _pose_entry(pose: dict[str, Any], name: str, path: str) -> None:
     """The fields of one pose entry that are there, validated (``name``: ``poses[k]``)."""
-    if "pose" in pose and not (isinstance(pose["pose"], str) and pose["pose"] in FACES):
-        raise InputError(f"field '{name}.pose' must be a face (+x -x +y -y +z -z)", file=path)
+    if pose.get("pose") is not None and not (isinstance(pose["pose"], str) and _is_label(pose["pose"])):
+        raise InputError(
+            f"field '{name}.pose' must be a face (+x -x +y -y +z -z), a direction X,Y,Z or null", file=path
+        )
     samples = pose.get("samples", 1)
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
         raise InputError(f"field '{name}.samples' must be a positive integer", file=path)
@@ -191,6 +230,13 @@ def _pose_entry(pose: dict[str, Any], name: str, path: str) -> None:
             _vector(pose[key], f"{name}.{key}", path)
     if pose.get("angle_deg") is not None:
         _number(pose["angle_deg"], f"{name}.angle_deg", path)
+
+
+def _is_label(text: str) -> bool:
+    try:
+        return parse_label(text) == text
+    except ValueError:
+        return False
 
 
 def _optional_fields(doc: dict[str, Any], path: str) -> None:

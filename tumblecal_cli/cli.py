@@ -62,7 +62,8 @@ class ManyValuesCommand(Command):
     """Lets ``--poses a.csv b.csv c.csv`` take every file after one flag.
 
     Click options have a fixed arity, so before parsing, each value that follows ``--poses``
-    (up to the next option) is given its own ``--poses``. ``-`` (stdin) is a value.
+    (up to the next option) becomes its own ``--poses=VALUE``. ``-`` (stdin) is a value, and so
+    is a labelled item whose label starts with '-' (``-x=xn.csv``).
     """
 
     many = ("--poses", "-p")
@@ -82,15 +83,27 @@ class ManyValuesCommand(Command):
                 if arg == name:
                     out.append(arg)
                     continue
-            elif flag and (arg == "-" or not arg.startswith("-")):
-                if out[-1] != flag:
-                    out.append(flag)
-                out.append(arg)
+            elif flag and (arg == "-" or not arg.startswith("-") or _is_labelled(arg)):
+                if out[-1] == flag:  # the flag's own value: keep the flag, give it the value with '='
+                    out.pop()
+                out.append(f"--poses={arg}")  # '=' so that '-x=xn.csv' is a value, not an option
                 continue
             else:
                 flag = None
             out.append(arg)
         return super().parse_args(ctx, out)
+
+
+def _is_labelled(arg: str) -> bool:
+    """Whether ``arg`` is a pose item ``LABEL=FILE`` whose label starts with '-' (``-x=xn.csv``,
+    ``-0.5,0,0.87=a.csv``), not an option."""
+    from tumblecal_cli.core import parse_label
+
+    label, sep, _ = arg.partition("=")
+    try:
+        return bool(sep) and bool(parse_label(label))
+    except ValueError:
+        return False
 
 
 def _version(value: bool) -> None:
@@ -142,6 +155,26 @@ NoHeader = Annotated[
     typer.Option("--no-header", help="The first line is data. 3 columns are x,y,z; 4 are t,x,y,z."),
 ]
 Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing on stderr unless there is an error.")]
+
+
+class MethodName(StrEnum):
+    auto = "auto"
+    one_pose = "one-pose"
+    one_pose_tilt = "one-pose-tilt"
+    three_pose = "three-pose"
+    six_pose = "six-pose"
+    six_pose_diagonal = "six-pose-diagonal"
+    least_squares = "least-squares"
+    sphere = "sphere"
+    minmax = "minmax"
+    ellipsoid = "ellipsoid"
+    gyro_bias = "gyro-bias"
+
+
+class PlaneName(StrEnum):
+    xy = "xy"
+    xz = "xz"
+    yz = "yz"
 
 
 class CheckName(StrEnum):
@@ -211,9 +244,10 @@ def solve(
             "--poses",
             "-p",
             metavar="FILE...",
-            help="1 file: the 1-pose solver (offsets; the face up is --up). "
-            "3 files: the 3-pose solver (offsets and gains), the +x, +y, +z poses in that order. "
-            "All files follow one --poses; '-' reads stdin.",
+            help="Pose files, all after one --poses; each FILE or LABEL=FILE, LABEL a face (+x -x +y -y +z -z, "
+            "xp ... zn) or a direction X,Y,Z (0.707,0,0.707=a.csv). Unlabelled: 1 file is the --up face, "
+            "3 are +x +y +z, 6 are +x -x +y -y +z -z, in that order; 12 or more, orientation unknown "
+            "(sphere). '-' reads stdin.",
         ),
     ],
     output: Annotated[
@@ -242,7 +276,38 @@ def solve(
             "[default: 1, or 0 for a gyroscope]",
         ),
     ] = None,
+    method: Annotated[
+        MethodName,
+        typer.Option(
+            "--method",
+            "-m",
+            help="The solver (README: Choosing a solver). auto: one-pose for 1 file, three-pose for +x +y +z, "
+            "six-pose for the six faces, least-squares for 5+ labelled, sphere for 12+ unlabelled; "
+            "ellipsoid for a magnetometer, gyro-bias for a gyroscope.",
+        ),
+    ] = MethodName.auto,
     sensor: Sensor = SensorKind.accelerometer,
+    tilt_compensate: Annotated[
+        bool,
+        typer.Option(
+            "--tilt-compensate",
+            help="1-pose: take the attitude from the readings, so fixture tilt leaves the up offset alone "
+            "(method one-pose-tilt).",
+        ),
+    ] = False,
+    bias_spread: Annotated[
+        float | None,
+        typer.Option(
+            "--bias-spread",
+            metavar="V",
+            help="one-pose-tilt: the spread (1σ) of the horizontal offsets, in the file's units; it bounds "
+            "the up offset's error. [default: 0.01 x reference]",
+        ),
+    ] = None,
+    plane: Annotated[
+        PlaneName | None,
+        typer.Option("--plane", help="minmax: the capture turned in one plane only (2-D); that plane's axes."),
+    ] = None,
     units: Annotated[
         str | None,
         typer.Option("--units", metavar="TEXT", help="Label of the corrected units (default 'g' for reference 1)."),
@@ -373,24 +438,30 @@ def solve(
       tumblecal solve --poses z.csv --up=-x --reference 16384   # counts, -x up
       tumblecal solve -p x.csv y.csv z.csv -o cal.json --limits limits.yaml --serial A17 --json
     """
-    from tumblecal_cli import calfile, captures, core, gate
+    from tumblecal_cli import calfile, captures, core, gate, solvers
     from tumblecal_cli.files import check_not_input, check_writable
 
-    if len(poses) not in (1, 3):
-        raise InputError(f"--poses takes 1 file (1-pose) or 3 files (+x +y +z), got {len(poses)}")
-    if sum(p == "-" for p in poses) > 1:
+    items = _pose_items(poses, _face(up, "--up"))
+    files = [f for _, f in items]
+    if sum(f == "-" for f in files) > 1:
         raise InputError("only one pose can be read from stdin ('-')")
-    face = _face(up, "--up")
+    chosen = MethodName.one_pose_tilt if tilt_compensate and method is MethodName.auto else method
+    if tilt_compensate and chosen is not MethodName.one_pose_tilt:
+        raise InputError(f"--tilt-compensate is the one-pose-tilt method, not {chosen.value}")
+    name, order = solvers.pick(chosen.value, [label for label, _ in items], sensor.value)
+    items = [items[k] for k in order]
+    labels: list[str | None] = [None if name in solvers.ORIENTATION_FREE else label for label, _ in items]
+    files = [f for _, f in items]
     for option, value in (("--max-noise", max_noise), ("--max-tilt", max_tilt), ("--full-scale", full_scale)):
         if value is not None and not value > 0:
             raise InputError(f"{option} must be positive, got {value:g}")
     if json_summary and output == "-":
         raise InputError("--json prints the summary on stdout, so the calibration needs -o FILE")
-    check_not_input(output, [*poses, *([limits_file] if limits_file else [])])
+    check_not_input(output, [*files, *([limits_file] if limits_file else [])])
     check_writable(output)
     ref = reference if reference is not None else (0.0 if sensor is SensorKind.gyroscope else 1.0)
     gyro = sensor is SensorKind.gyroscope
-    if not math.isfinite(ref) or ref < 0 or (ref == 0 and not gyro):
+    if not math.isfinite(ref) or ref < 0 or (ref == 0 and not (gyro or name == "gyro-bias")):
         raise InputError(
             f"--reference must be a positive number, got {ref:g}",
             hint="the stimulus magnitude: 1 (g), 9.80665 (m/s^2), 16384 (counts); 0 only for --sensor gyroscope",
@@ -417,39 +488,47 @@ def solve(
             time_unit=time_unit.value,
             rate=rate,
         )
-        for f in poses
+        for f in files
     ]
     stats = [core.pose_stats(s.values) for s in samples]
     names = [s.layout.name for s in samples]
-    if len(poses) == 1:
+    if name in ("one-pose", "one-pose-tilt"):
         _check_units(names[0], stats[0].mean - options.nominal_offset, ref)
-        solution, faces = core.solve_one_pose(stats[0], face, ref), [face]
-    else:
-        faces = ["+x", "+y", "+z"]
-        try:
-            solution = core.solve_three_pose(stats, ref, names=names)
-        except CaptureRejected as err:
-            if json_summary:
-                # the head of every summary (see _summary); there are no parameters to follow it
-                head = {"status": "rejected", "exit_status": 3, "file": None, "rejections": [_error_dict(err)]}
-                _print_json(head | {"verdict": None, "warnings": [], "notes": []})
-            raise
+    try:
+        fit = solvers.run(
+            name,
+            stats,
+            [s.values for s in samples],
+            labels,
+            reference=ref,
+            tolerance_deg=fixture_tolerance,
+            bias_spread=bias_spread if bias_spread is not None else 0.01 * ref,
+            plane=plane.value if plane else None,
+            names=names,
+        )
+    except CaptureRejected as err:
+        if json_summary:
+            # the head of every summary (see _summary); there are no parameters to follow it
+            head = {"status": "rejected", "exit_status": 3, "file": None, "rejections": [_error_dict(err)]}
+            _print_json(head | {"verdict": None, "warnings": [], "notes": []})
+        raise
+    solution = fit.solution
     limits = limits_given.for_method(solution.method)
     measured = [
-        gate.measure(n, f, s.values, st, options) for n, f, s, st in zip(names, faces, samples, stats, strict=True)
+        gate.measure(n, f, s.values, st, options) for n, f, s, st in zip(names, labels, samples, stats, strict=True)
     ]
     if ref > 0:  # a gyroscope at rest has no direction to judge
         measured = gate.orient(measured, options.nominal_offset)
     rejected, warned = gate.check(measured, solution, options)
     fixed = [
         gate.corrected(st.mean, st.std, f, solution.offset, solution.matrix, ref)
-        for st, f in zip(stats, faces, strict=True)
+        for st, f in zip(stats, labels, strict=True)
     ]
     failures = (
         []
         if rejected
         else gate.verdict(
-            solution.method, solution.offset, solution.matrix, list(zip(names, faces, fixed, strict=True)), limits
+            solution.method, solution.offset, solution.matrix, list(zip(names, labels, fixed, strict=True)), limits
         )
     )
     doc = calfile.build(
@@ -460,12 +539,16 @@ def solve(
         input_units=input_units,
         columns=samples[0].layout.sensor_names,
         poses=[_pose_record(s, m, c) for s, m, c in zip(samples, measured, fixed, strict=True)],
-        tilt=core.tilt_sensitivity(solution.method, solution.gain, ref, faces, fixture_tolerance),
+        fit=fit,
         tolerance_deg=fixture_tolerance,
         unit=unit,
         verdict={"pass": not failures, "failures": [f.as_dict() for f in failures], "limits": limits.as_dict()},
     )
-    notes = _tilt_notes(doc) + _solve_notes(stats, names, limits_given=limits_given, method=solution.method)
+    notes = (
+        _tilt_notes(doc)
+        + list(fit.notes)
+        + _solve_notes(stats, names, limits_given=limits_given, method=solution.method)
+    )
     if rejected:
         if not quiet:
             _print_summary(doc, _console(), warned, notes, judged=False)
@@ -488,6 +571,30 @@ def solve(
         _print_json(_summary(doc, status, output, [], warned, notes))
     if status:
         raise typer.Exit(status)
+
+
+def _pose_items(items: list[str], up: str) -> list[tuple[str | None, str]]:
+    """(label, file) of each --poses item, ``FILE`` or ``LABEL=FILE``; unlabelled files get the
+    labels of their count (solvers.default_labels). Labels are for every file or for none."""
+    from tumblecal_cli import core, solvers
+
+    out: list[tuple[str | None, str]] = []
+    for item in items:
+        label, sep, rest = item.partition("=")
+        try:
+            out.append((core.parse_label(label), rest) if sep and label else (None, item))
+        except ValueError as err:
+            if "," in label:  # meant as a direction: say what is wrong with it
+                raise InputError(f"--poses {item}: {err}") from None
+            out.append((None, item))  # a file name with '=' in it
+    if any(label is None for label, _ in out) and any(label is not None for label, _ in out):
+        raise InputError(
+            "label every pose file or none (LABEL=FILE, e.g. +x=xp.csv)",
+            hint="unlabelled files are taken as 1: --up, 3: +x +y +z, 6: +x -x +y -y +z -z",
+        )
+    if out and out[0][0] is None:
+        out = list(zip(solvers.default_labels(len(out), up), items, strict=True))
+    return out
 
 
 REJECTION_HINTS = {
@@ -598,7 +705,9 @@ def _pose_record(s: Samples, m: PoseCheck, c: Corrected) -> dict[str, Any]:
 
 def _tilt_notes(doc: dict[str, Any]) -> list[str]:
     """A note when fixture tilt, not noise, bounds how well the parameters are known."""
-    tilt, se = doc["tilt_sensitivity"], doc["uncertainty"]
+    tilt, se = doc.get("tilt_sensitivity"), doc["uncertainty"]
+    if not tilt:
+        return []
     dominated = [n for n in ("offset", "gain") if any(t > 3 * u for t, u in zip(tilt[n], se[n], strict=True))]
     if not dominated:
         return []

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from tumblecal_cli.core import FACES, FloatArray, PoseStats, Solution
+from tumblecal_cli.core import FACES, FloatArray, PoseStats, Solution, direction
 
 #: The quality checks, by the last part of their code (``pose.<check>``).
 CHECKS = ("short", "saturated", "orientation", "moved", "upside_down")
@@ -28,7 +28,9 @@ NARROW = 0.8
 #: With ``--full-scale V``, a sample at or above this fraction of V counts as clipped.
 CLIP_FRACTION = 0.98
 #: Methods whose gains are fixed at 1 (no gain limit applies).
-FIXED_GAINS = ("one-pose",)
+FIXED_GAINS = ("one-pose", "one-pose-tilt", "minmax", "gyro-bias")
+#: Methods fitted to captures turned through many orientations: a pose is meant to move.
+ROTATION = ("minmax", "ellipsoid")
 AXES = "xyz"
 
 
@@ -61,7 +63,7 @@ class PoseCheck:
     """What the gate measured on one pose, before and after calibration."""
 
     file: str
-    face: str
+    face: str | None  # the pose's label: a face, a direction "x,y,z", or None (orientation unknown)
     stats: PoseStats
     angle_deg: float | None  # between the centred mean and the declared face; None: no direction
     looks_like: str | None  # the nearest face to the centred mean
@@ -83,7 +85,7 @@ class Options:
     skip: frozenset[str] = frozenset()  # names from CHECKS
 
 
-def measure(file: str, face: str, values: FloatArray, stats: PoseStats, options: Options) -> PoseCheck:
+def measure(file: str, face: str | None, values: FloatArray, stats: PoseStats, options: Options) -> PoseCheck:
     """The per-pose measurements the checks need (the direction comes later, from orient())."""
     n = values.shape[0]
     third = n // 3
@@ -108,11 +110,11 @@ def orient(poses: Sequence[PoseCheck], nominal_offset: FloatArray) -> list[PoseC
     for p in poses:
         d = p.stats.mean - centre
         norm = float(np.linalg.norm(d))
-        if norm == 0.0 or not math.isfinite(norm):
+        if p.face is None or norm == 0.0 or not math.isfinite(norm):
             out.append(p)
             continue
         unit = d / norm
-        angle = math.degrees(math.acos(min(1.0, max(-1.0, float(unit @ np.asarray(FACES[p.face]))))))
+        angle = math.degrees(math.acos(min(1.0, max(-1.0, float(unit @ direction(p.face))))))
         nearest = max(FACES, key=lambda f: float(unit @ np.asarray(FACES[f])))
         out.append(replace(p, angle_deg=angle, looks_like=nearest, direction=unit))
     return out
@@ -176,7 +178,7 @@ def check(poses: Sequence[PoseCheck], solution: Solution, options: Options) -> t
                 )
             elif check_name in ("moved", "upside_down") and any(r.code == "pose.orientation" for r in rejected):
                 continue  # a pose that is not what it claims spoils the solution these judge through
-            elif check_name == "moved" and options.noise_bound is not None:
+            elif check_name == "moved" and options.noise_bound is not None and solution.method not in ROTATION:
                 # standard deviation and drift in output units, through the solved matrix
                 std = output_std(solution.matrix, p.stats.std)
                 drift = np.abs(solution.matrix) @ np.abs(p.drift)
@@ -196,7 +198,8 @@ def check(poses: Sequence[PoseCheck], solution: Solution, options: Options) -> t
                     value > NARROW * bound,
                     f"{what}, close to --max-noise ({bound:.3g})",
                 )
-            elif check_name == "upside_down" and solution.method not in FIXED_GAINS:
+            elif check_name == "upside_down" and solution.method not in FIXED_GAINS and p.face in FACES:
+                assert p.face is not None
                 axis = "xyz".index(p.face[1])
                 if p.face[0] == "+" and solution.gain[axis] <= 0:
                     rejected.append(
@@ -212,16 +215,17 @@ def check(poses: Sequence[PoseCheck], solution: Solution, options: Options) -> t
     return rejected, warned
 
 
-def _orientation(p: PoseCheck, declared: Sequence[str], max_tilt: float) -> Finding:
+def _orientation(p: PoseCheck, declared: Sequence[str | None], max_tilt: float) -> Finding:
     where = {"file": p.file, "pose": p.face}
     assert p.angle_deg is not None
+    assert p.face is not None
     mean = _vec(p.stats.mean)
-    if p.looks_like != p.face:
+    if p.face in FACES and p.looks_like != p.face:
         text = f"declared {p.face} but reads like {p.looks_like} (mean {mean})"
         if p.looks_like in declared:
-            order = " ".join(f[1] if f[0] == "+" else f for f in declared)
+            order = " ".join(f[1] if f[0] == "+" else f for f in map(str, declared))
             text += f"; were the files given in the order {order}?"
-            hint = f"give the pose files in the order {' '.join(declared)}"
+            hint = f"give the pose files in the order {' '.join(map(str, declared))}"
             return Finding("pose.orientation", text, p.angle_deg, max_tilt, hint=hint, **where)
         elif p.looks_like == ("-" if p.face[0] == "+" else "+") + p.face[1]:
             text += ": upside down"
@@ -302,18 +306,18 @@ class Corrected:
     """A pose after calibration, in output units."""
 
     norm_error: float  # |M (mean - offset)| - reference
-    vector_error: float  # |M (mean - offset) - reference * face|
+    vector_error: float | None  # |M (mean - offset) - reference * direction|; None: orientation unknown
     std: FloatArray  # (3,) the pose's standard deviation through M
 
 
 def corrected(
-    mean: FloatArray, std: FloatArray, face: str, offset: FloatArray, matrix: FloatArray, reference: float
+    mean: FloatArray, std: FloatArray, face: str | None, offset: FloatArray, matrix: FloatArray, reference: float
 ) -> Corrected:
     """How a pose (its mean and standard deviation) reads once corrected, against the reference."""
     c = matrix @ (mean - offset)  # DESIGN.md section 2: corrected = M (raw - b)
     return Corrected(
         norm_error=float(np.linalg.norm(c) - reference),
-        vector_error=float(np.linalg.norm(c - reference * np.asarray(FACES[face]))),
+        vector_error=None if face is None else float(np.linalg.norm(c - reference * direction(face))),
         std=output_std(matrix, std),
     )
 
@@ -328,7 +332,7 @@ def verdict(
     method: str,
     offset: FloatArray,
     matrix: FloatArray,
-    poses: Sequence[tuple[str, str, Corrected]],
+    poses: Sequence[tuple[str, str | None, Corrected]],
     limits: Limits,
 ) -> list[Finding]:
     """Every limit the unit is outside of (empty: pass). ``poses`` are (file, face, corrected)."""

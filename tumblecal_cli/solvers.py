@@ -638,10 +638,10 @@ def _auto(labels: Sequence[str | None], sensor: str) -> str:
         return "least-squares"
     if not any(labels) and n >= SPHERE_MIN_POSES:
         return "sphere"
+    what = "labelled" if all(labels) else "unlabelled"
     raise InputError(
-        f"no solver takes these {n} pose files: give 1 (one-pose), 3 (+x +y +z), 6 (the six faces), "
-        f"{LEAST_SQUARES_MIN_POSES} or more labelled (least-squares) or {SPHERE_MIN_POSES} or more "
-        "unlabelled (sphere)",
+        f"--poses: no solver takes {n} {what} files: give 1 (one-pose), 3 (+x +y +z), 6 (+x -x +y -y +z -z), "
+        f"{SPHERE_MIN_POSES}+ unlabelled (sphere) or {LEAST_SQUARES_MIN_POSES}+ labelled (least-squares)",
         hint="label a file with its face or direction: --poses +x=a.csv -x=b.csv 0.707,0,0.707=c.csv",
     )
 
