@@ -189,10 +189,13 @@ class Capture:
         except (pa.ArrowInvalid, UnicodeDecodeError) as err:
             raise self._diagnose(str(err), bad_rows[-1] if bad_rows else None) from None
 
-    def sensor_values(self, columns: Sequence[pa.Array], first_row: int) -> tuple[FloatArray, BoolArray]:
+    def sensor_values(
+        self, columns: Sequence[pa.Array], first_row: int, triplet: tuple[int, int, int] | None = None
+    ) -> tuple[FloatArray, BoolArray]:
         """The three sensor columns as an (n, 3) float array, and a mask of rows whose sensor
         cells are all empty (NaN in the array). A partly empty row or a cell that is not a
-        number is an error naming its line and column."""
+        number is an error naming its line and column. ``triplet``: the columns' indices in
+        the file, when not the layout's sensor (for error messages)."""
         n = len(columns[0])
         values = np.empty((n, 3))
         empty = np.zeros((n, 3), dtype=bool)
@@ -207,7 +210,7 @@ class Capture:
             bad = pc.and_(pc.invert(is_empty), pc.invert(pc.match_substring_regex(text, _NUMBER)))
             if pc.any(bad).as_py():
                 i = int(pc.index(bad, True).as_py())
-                raise self._locate(first_row + i, j, f"not a number: {text[i].as_py()!r}")
+                raise self._locate(first_row + i, j, f"not a number: {text[i].as_py()!r}", triplet)
             empty[:, j] = _bools(is_empty)
             values[:, j] = _floats(pc.cast(pc.replace_substring_regex(text, "^$", "nan"), pa.float64()))
         all_empty: BoolArray = empty[:, 0] & empty[:, 1] & empty[:, 2]
@@ -215,14 +218,16 @@ class Capture:
         if partial.any():
             i = int(np.argmax(partial))
             j = int(np.argmax(empty[i]))
-            raise self._locate(first_row + i, j, "empty sensor cell in a row whose other sensor cells are filled")
+            raise self._locate(
+                first_row + i, j, "empty sensor cell in a row whose other sensor cells are filled", triplet
+            )
         return values, all_empty
 
     # -- error paths: find the line and column with the same rules, one line at a time --
 
-    def _locate(self, row: int, sensor_j: int, what: str) -> InputError:
+    def _locate(self, row: int, sensor_j: int, what: str, triplet: tuple[int, int, int] | None = None) -> InputError:
         lay = self.layout
-        column = lay.names[lay.sensor[sensor_j]]
+        column = lay.names[(triplet or lay.sensor)[sensor_j]]
         line = self._line_of_row(row)
         if line is None:
             return InputError(f"{what} in column {column!r} (data row {row + 1})", file=lay.name)
@@ -509,9 +514,13 @@ def read_samples(
     time_column: str | None = None,
     time_unit: str = "s",
     rate: float | None = None,
+    prefer: Sequence[str] | None = None,
 ) -> Samples:
-    """Read the sensor columns of a small capture (a pose file) into memory."""
-    with open_capture(path, sensor=sensor, columns=columns, no_header=no_header, time_column=time_column) as cap:
+    """Read the sensor columns of a small capture (a pose file) into memory (``prefer``: a
+    calibration's recorded columns, used when the file has them)."""
+    with open_capture(
+        path, sensor=sensor, columns=columns, prefer=prefer, no_header=no_header, time_column=time_column
+    ) as cap:
         blocks, keep, times, temps = [], [], [], []
         for first_row, cols in cap.batches(only_sensor=True):
             values, empty = cap.sensor_values(cols, first_row)
@@ -556,13 +565,21 @@ def read_samples(
 # -- apply: stream a capture through a correction ------------------------------------------
 
 
+def sensor_columns(layout: Layout, sensor: str, prefer: Sequence[str]) -> tuple[int, int, int]:
+    """The indices of a calibration's recorded columns in a capture (found by the rules of
+    ``--sensor`` when the names differ)."""
+    return _pick_columns(layout, sensor, None, prefer, None)[0]
+
+
 def correct_stream(
     cap: Capture,
     out: IO[bytes],
     correct: Callable[[FloatArray], FloatArray],
     progress: Callable[[int], None] | None = None,
+    more: Sequence[tuple[tuple[int, int, int], Callable[[FloatArray], FloatArray]]] = (),
 ) -> int:
-    """Write ``cap`` to ``out`` with its sensor columns replaced by ``correct(values)``.
+    """Write ``cap`` to ``out`` with its sensor columns replaced by ``correct(values)`` (and
+    each triplet of ``more`` by its own correction: one pass for a whole IMU).
 
     Every other byte is copied: the preamble and header verbatim, other cells as their text,
     the line ending; a whitespace-separated file is written with single spaces. Rows whose
@@ -574,10 +591,11 @@ def correct_stream(
     names = [str(i) for i in range(len(lay.names))]
 
     def convert(first_row: int, cols: list[pa.Array]) -> pa.RecordBatch:
-        values, empty = cap.sensor_values([cols[i] for i in lay.sensor], first_row)
-        fixed = correct(values)
-        for j, i in enumerate(lay.sensor):  # the float -> shortest round-trip text: the costliest step
-            cols[i] = pc.cast(_arrow_floats(fixed[:, j], empty), pa.string())
+        for triplet, fn in [(lay.sensor, correct), *more]:
+            values, empty = cap.sensor_values([cols[i] for i in triplet], first_row, triplet)
+            fixed = fn(values)
+            for j, i in enumerate(triplet):  # the float -> shortest round-trip text: the costliest step
+                cols[i] = pc.cast(_arrow_floats(fixed[:, j], empty), pa.string())
         return pa.RecordBatch.from_arrays(cols, names=names)
 
     def write(batch: pa.RecordBatch) -> int:

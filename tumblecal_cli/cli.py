@@ -720,12 +720,16 @@ def _tilt_notes(doc: dict[str, Any]) -> list[str]:
 
 def _solve_notes(stats: list[PoseStats], names: list[str], *, limits_given: Any, method: str) -> list[str]:
     """What a person should know about how far the result can be trusted."""
+    few = [(os.path.basename(name), st.samples) for name, st in zip(names, stats, strict=True) if st.samples < 3]
     notes = [
-        f"{os.path.basename(name)} has {st.samples} sample{'s' if st.samples > 1 else ''}: its noise is unknown, "
+        f"{name} has {n} sample{'s' if n > 1 else ''}: its noise is unknown, "
         "so its uncertainty reads 0 and the moved check cannot judge it"
-        for name, st in zip(names, stats, strict=True)
-        if st.samples < 3
+        for name, n in few[:3]
     ]
+    if len(few) > 3:
+        notes[2:] = [
+            f"{len(few) - 2} more poses have fewer than 3 samples (noise unknown): {few[2][0]} ... {few[-1][0]}"
+        ]
     if limits_given.gain_error is not None and limits_given.for_method(method).gain_error is None:
         notes.append(f"the {method} solver fixes the gains at 1, so the gain limit does not apply")
     return notes
@@ -773,7 +777,14 @@ def apply(
         str, typer.Argument(metavar="CAPTURE", help="The capture to correct; '-' (the default) reads stdin.")
     ] = "-",
     cal: Annotated[
-        str, typer.Option("--cal", "-c", metavar="FILE", help="Calibration file from 'tumblecal solve'.")
+        list[str],
+        typer.Option(
+            "--cal",
+            "-c",
+            metavar="FILE",
+            help="Calibration file from 'tumblecal solve'. Repeat it to correct several sensors of one "
+            "capture in one pass (accelerometer, gyroscope, magnetometer), each its own columns.",
+        ),
     ] = ...,  # type: ignore[assignment]
     output: Annotated[
         str, typer.Option("--output", "-o", metavar="FILE", help="Corrected capture; '-' (the default) is stdout.")
@@ -798,26 +809,35 @@ def apply(
       tumblecal apply --cal cal.json capture.csv -o corrected.csv
       cat capture.csv | tumblecal apply --cal cal.json > corrected.csv
     """
+    from functools import partial
+
     from tumblecal_cli import calfile, captures, core
     from tumblecal_cli.files import atomic_output, check_not_input, check_writable
 
-    if cal == "-" and capture == "-":
+    if "-" in cal and capture == "-":
         raise InputError("--cal - and the capture cannot both be read from stdin", hint="give the capture as a file")
-    check_not_input(output, [capture, cal])
+    if cal.count("-") > 1:
+        raise InputError("only one --cal can be read from stdin ('-')")
+    check_not_input(output, [capture, *cal])
     check_writable(output)
-    c = calfile.load(cal)
-    if c.failed and not force:
-        codes = ", ".join(str(f.get("code")) for f in c.doc["verdict"]["failures"] if isinstance(f, dict))
-        raise InputError(
-            f"this unit failed its limits ({codes or 'verdict: fail'}): refusing to correct with it",
-            file=cal,
-            hint="pass --force to apply it anyway",
-        )
-    if c.failed and not quiet:
-        _console().print(
-            f"note: {cal}: this unit failed its limits; correcting with it as --force asks", soft_wrap=True
-        )
+    cals = [calfile.load(path) for path in cal]
+    _claims_once(cals)
+    for c in cals:
+        if c.failed and not force:
+            codes = ", ".join(str(f.get("code")) for f in c.doc["verdict"]["failures"] if isinstance(f, dict))
+            raise InputError(
+                f"this unit failed its limits ({codes or 'verdict: fail'}): refusing to correct with it",
+                file=c.path,
+                hint="pass --force to apply it anyway",
+            )
+        if c.failed and not quiet:
+            _console().print(
+                f"note: {c.path}: this unit failed its limits; correcting with it as --force asks", soft_wrap=True
+            )
+    if columns and len(cals) > 1:
+        raise InputError("--columns names the columns of one calibration; with several --cal each uses its own")
     picked = columns.split(",") if columns else None
+    c = cals[0]
     with captures.open_capture(capture, sensor=c.sensor, columns=picked, prefer=c.columns, no_header=no_header) as cap:
         used = cap.layout.sensor_names
         differ = [u.lower() for u in used] != [x.lower() for x in c.columns]
@@ -831,15 +851,61 @@ def apply(
         elif differ:
             raise InputError(
                 f"the capture's {c.sensor} columns are {', '.join(used)}, "
-                f"but {cal} calibrates {c.sensor} columns {', '.join(c.columns)}",
+                f"but {c.path} calibrates {c.sensor} columns {', '.join(c.columns)}",
                 file=cap.layout.name,
                 hint=f"if they are the same sensor, name them: --columns {','.join(used)}",
             )
+        taken = set(cap.layout.sensor)
+        more = [(_columns_of(cap.layout, other, taken), other) for other in cals[1:]]
         with atomic_output(output) as out:
-            rows = captures.correct_stream(cap, out, lambda raw: core.apply(raw, c.offset, c.matrix))
+            rows = captures.correct_stream(
+                cap,
+                out,
+                lambda raw: core.apply(raw, c.offset, c.matrix),
+                more=[(t, partial(_correct, o)) for t, o in more],
+            )
+        used = [n for t in [cap.layout.sensor, *(t for t, _ in more)] for n in (cap.layout.names[i] for i in t)]
     if not quiet:
         target = "stdout" if output == "-" else output
         _console().print(f"corrected {rows} rows of {cap.layout.name} ({', '.join(used)}) -> {target}", soft_wrap=True)
+
+
+def _claims_once(cals: list[Any]) -> None:
+    """Two calibrations for one column is a usage error: which correction would win?"""
+    for k, a in enumerate(cals):
+        for b in cals[k + 1 :]:
+            shared = [n for n in a.columns if n.lower() in {m.lower() for m in b.columns}]
+            if shared:
+                raise InputError(
+                    f"{a.path} and {b.path} both calibrate column{'s' if len(shared) > 1 else ''} {', '.join(shared)}",
+                    hint="give one calibration per sensor",
+                )
+
+
+def _columns_of(layout: Any, cal: Any, taken: set[int]) -> tuple[int, int, int]:
+    """Where a second calibration's recorded columns are in the capture (by name only)."""
+    from tumblecal_cli import captures
+
+    lower = [n.lower() for n in layout.names]
+    missing = [n for n in cal.columns if n.lower() not in lower]
+    if missing:
+        raise InputError(
+            f"the capture has no column{'s' if len(missing) > 1 else ''} {', '.join(missing)}, "
+            f"which {cal.path} calibrates",
+            file=layout.name,
+            hint="with several --cal, each calibration's recorded columns must be in the capture's header",
+        )
+    triplet = captures.sensor_columns(layout, cal.sensor, cal.columns)
+    if taken & set(triplet):
+        raise InputError(f"{cal.path} calibrates columns another --cal already corrects", file=layout.name)
+    taken.update(triplet)
+    return triplet
+
+
+def _correct(cal: Any, raw: Any) -> Any:
+    from tumblecal_cli import core
+
+    return core.apply(raw, cal.offset, cal.matrix)
 
 
 @app.command(
@@ -933,6 +999,167 @@ def check(
         _print_summary(c.doc | {"verdict": verdict}, _console(), [], [], judged=True)
     if failures:
         raise typer.Exit(1)
+
+
+@app.command(
+    cls=Command,
+    epilog="Exit status: 0 every capture within --max-norm-error (or none given); 1 some capture outside it; "
+    "2 usage or input error; 3 a capture that is not static (above --max-noise).",
+)
+def verify(
+    captures_: Annotated[
+        list[str],
+        typer.Argument(
+            metavar="CAPTURE...", help="Static captures the calibration was not fitted on; '-' reads stdin."
+        ),
+    ],
+    cal: Annotated[
+        str, typer.Option("--cal", "-c", metavar="FILE", help="Calibration file from 'tumblecal solve'.")
+    ] = ...,  # type: ignore[assignment]
+    reference: Annotated[
+        float | None,
+        typer.Option(
+            "--reference", metavar="NUMBER", help="The magnitude each capture should read. [default: the calibration's]"
+        ),
+    ] = None,
+    max_norm_error: Annotated[
+        float | None,
+        typer.Option(
+            "--max-norm-error",
+            metavar="V",
+            help="Exit 1 when a capture's corrected norm is further than V from the reference (output units).",
+        ),
+    ] = None,
+    max_noise: Annotated[
+        float,
+        typer.Option(
+            "--max-noise",
+            metavar="FRACTION",
+            help="Reject (exit 3) a capture whose corrected standard deviation is above FRACTION x reference: "
+            "it is not static. 0 turns the check off.",
+        ),
+    ] = 0.02,
+    columns: Columns = None,
+    no_header: NoHeader = False,
+    json_summary: Annotated[
+        bool, typer.Option("--json", help="Print the per-capture and overall figures on stdout as JSON.")
+    ] = False,
+    quiet: Quiet = False,
+) -> None:
+    """Check a calibration on static captures it was not fitted on: the norm of each mean, before
+    and after correction, against the reference (seed 001's test of a calibration model).
+
+    \b
+      tumblecal verify --cal cal.json check1.csv check2.csv check3.csv
+      tumblecal verify --cal cal.json tilted/*.csv --max-norm-error 0.005 --json
+    """
+    from tumblecal_cli import calfile, captures, core, gate
+
+    if sum(f == "-" for f in captures_) + (cal == "-") > 1:
+        raise InputError("only one file can be read from stdin ('-')")
+    c = calfile.load(cal)
+    ref = c.reference if reference is None else reference
+    if not math.isfinite(ref) or ref < 0:
+        raise InputError(f"--reference must be a positive number, got {ref:g}")
+    if max_norm_error is not None and not max_norm_error > 0:
+        raise InputError(f"--max-norm-error must be positive, got {max_norm_error:g}")
+    picked = columns.split(",") if columns else None
+    same_units = c.doc.get("method") in gate.FIXED_GAINS  # raw and corrected share units: "before" means something
+    rows: list[dict[str, Any]] = []
+    rejected: list[str] = []
+    failed: list[str] = []
+    for path in captures_:
+        s = captures.read_samples(path, sensor=c.sensor, columns=picked, prefer=c.columns, no_header=no_header)
+        st = core.pose_stats(s.values)
+        after = core.apply(st.mean[None, :], c.offset, c.matrix)[0]
+        std = gate.output_std(c.matrix, st.std)
+        row: dict[str, Any] = {
+            "file": s.layout.name,
+            "samples": st.samples,
+            "norm_before": float((st.mean**2).sum() ** 0.5),
+            "error_before": float((st.mean**2).sum() ** 0.5 - ref) if same_units else None,
+            "norm_after": float((after**2).sum() ** 0.5),
+            "error_after": float((after**2).sum() ** 0.5 - ref),
+            "std": [float(v) for v in std],
+        }
+        rows.append(row)
+        if max_noise > 0 and ref > 0 and float(std.max()) > max_noise * ref:
+            rejected.append(
+                f"{s.layout.name}: standard deviation {float(std.max()):.3g} is above --max-noise "
+                f"({max_noise * ref:.3g}): not a static capture"
+            )
+        elif max_norm_error is not None and not abs(row["error_after"]) <= max_norm_error:
+            failed.append(row["file"])
+    errors = [r["error_after"] for r in rows]
+    overall = {
+        "rms_error": float((sum(e * e for e in errors) / len(errors)) ** 0.5),
+        "max_error": float(max(abs(e) for e in errors)),
+    }
+    status = 3 if rejected else (1 if failed else 0)
+    if json_summary:
+        _print_json(
+            {
+                "status": {0: "pass", 1: "fail", 3: "rejected"}[status],
+                "exit_status": status,
+                "cal": cal,
+                "reference": ref,
+                "max_norm_error": max_norm_error,
+                "captures": rows,
+                **overall,
+                "rejections": rejected,
+                "failed": failed,
+            }
+        )
+    if not quiet:
+        _print_verify(c.doc, rows, overall, ref, max_norm_error, failed)
+    if rejected:
+        raise CaptureRejected(rejected[0], more=tuple(rejected[1:]), hint="capture it again holding the unit still")
+    if failed:
+        raise typer.Exit(1)
+
+
+def _print_verify(
+    doc: dict[str, Any],
+    rows: list[dict[str, Any]],
+    overall: dict[str, float],
+    ref: float,
+    bound: float | None,
+    failed: list[str],
+) -> None:
+    from rich import box
+    from rich.table import Table
+
+    console = _console()
+    units = f" {doc['units']}" if doc.get("units") else ""
+    table = Table(
+        title=f"{doc['method']} calibration on {len(rows)} capture{'s' if len(rows) > 1 else ''}, "
+        f"reference {ref:g}{units}",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+    )
+    for name in ("file", "n", "|mean| raw", "error", "|corrected|", "error", ""):
+        table.add_column(name, justify="left" if name in ("file", "") else "right", no_wrap=name != "file")
+    for r in rows:
+        before = "" if r["error_before"] is None else f"{r['error_before']:+.4g}"
+        mark = "FAIL" if r["file"] in failed else ""
+        table.add_row(
+            os.path.basename(r["file"]),
+            str(r["samples"]),
+            f"{r['norm_before']:.6g}",
+            before,
+            f"{r['norm_after']:.6g}",
+            f"{r['error_after']:+.4g}",
+            mark,
+        )
+    console.print(table)
+    judged = f", limit ±{bound:g}" if bound is not None else ""
+    verdict = "FAIL" if failed else "PASS" if bound is not None else "not judged"
+    console.print(
+        f"norm error after calibration: RMS {overall['rms_error']:.3g}, max {overall['max_error']:.3g}{judged}: "
+        f"{verdict}",
+        soft_wrap=True,
+    )
 
 
 # -- people's output, on stderr ----------------------------------------------------------

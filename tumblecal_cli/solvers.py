@@ -382,7 +382,7 @@ def sphere(points: FloatArray, stderr: FloatArray | None, reference: float, *, w
     _refuse_poor_coverage(directions, what)
     residuals = _norm_residuals(points, b, m, reference)
     dof = len(points) - 9
-    if stderr is None:
+    if stderr is None or not (stderr > 0).all():  # noise unknown (samples, one-row poses): the fit's own
         noise = np.full(len(points), float(residuals @ residuals) / max(dof, 1))
     else:
         gradient = directions @ m  # d r_k / d mean_k = M^T u_k
