@@ -712,9 +712,12 @@ def _tilt_notes(doc: dict[str, Any]) -> list[str]:
     if not dominated:
         return []
     worst = " and ".join(f"the {n}s by up to {max(tilt[n]):.2g} (noise: {max(se[n]):.2g})" for n in dominated)
+    advice = "level the fixture better and state how well with --fixture-tolerance"
+    if doc["method"] in ("one-pose", "three-pose"):
+        advice += ", or capture the six faces (six-pose takes offsets and gains from vertical readings only)"
     return [
         f"fixture tilt, not noise, limits this calibration: {tilt['tolerance_deg']:g}° off level moves {worst}; "
-        "level the fixture better and state how well with --fixture-tolerance"
+        + advice
     ]
 
 
@@ -1213,12 +1216,28 @@ def _print_summary(
         angle = p.get("angle_deg")
         name = os.path.basename(str(p.get("file", "")))
         poses.add_row(
-            p["pose"], name, str(p["samples"]), "" if angle is None else f"{angle:.1f}°", "mean", *map(g, p["mean"])
+            p["pose"] or "?",
+            name,
+            str(p["samples"]),
+            "" if angle is None else f"{angle:.1f}°",
+            "mean",
+            *map(g, p["mean"]),
         )
         if "std" in p:  # a field of every file tumblecal writes; other writers may leave it out
             poses.add_row("", "", "", "", "std", *(f"{v:.3g}" for v in p["std"]), end_section=True)
     console.print(axes)
     console.print(poses)
+    matrix = doc["matrix"]
+    if any(matrix[i][j] for i in range(3) for j in range(3) if i != j):
+        import numpy as np
+
+        a = np.linalg.inv(np.array(matrix, dtype=float))
+        terms = ", ".join(
+            f"{'xyz'[i]}{'xyz'[j]} {a[i, j] / a[i, i]:+.3%}" for i in range(3) for j in range(3) if i != j
+        )
+        console.print(f"cross-axis terms (A = M⁻¹, each over its row's gain): {terms}", soft_wrap=True)
+    if doc.get("coverage") is not None:
+        console.print(f"coverage: {doc['coverage']:.0%} of the sphere's directions", soft_wrap=True)
     if tilt.get("tolerance_deg") is not None:
         console.print(f"± tilt: worst-case shift if each pose is {tilt['tolerance_deg']:g}° off level", soft_wrap=True)
     for w in warned:
