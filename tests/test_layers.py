@@ -41,8 +41,9 @@ def test_core_imports_numpy_only() -> None:
     assert imported("import tumblecal_cli.core", ("pandas", "pyarrow", "typer", "click", "rich", "yaml")) == []
 
 
-def test_gate_imports_numpy_only() -> None:
-    assert imported("import tumblecal_cli.gate", ("pandas", "pyarrow", "typer", "click", "rich", "yaml")) == []
+@pytest.mark.parametrize("module", ["gate", "solvers"])
+def test_core_layer_imports_numpy_only(module: str) -> None:
+    assert imported(f"import tumblecal_cli.{module}", ("pandas", "pyarrow", "typer", "click", "rich", "yaml")) == []
 
 
 @pytest.mark.parametrize(
@@ -56,6 +57,8 @@ def test_gate_imports_numpy_only() -> None:
             "    assert main(['--help']) == 0\n"
             "    assert main(['solve', '--help']) == 0\n"
             "    assert main(['apply', '--help']) == 0\n"
+            "    assert main(['verify', '--help']) == 0\n"
+            "    assert main(['solve', '--poses', 'a.csv', '-x=b.csv', '--help']) == 0\n"
             "    assert main(['--version']) == 0",
             id="help-and-version",
         ),

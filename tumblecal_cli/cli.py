@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import sys
 from enum import StrEnum
 from typing import TYPE_CHECKING, Annotated, Any
@@ -95,15 +96,12 @@ class ManyValuesCommand(Command):
 
 
 def _is_labelled(arg: str) -> bool:
-    """Whether ``arg`` is a pose item ``LABEL=FILE`` whose label starts with '-' (``-x=xn.csv``,
-    ``-0.5,0,0.87=a.csv``), not an option."""
-    from tumblecal_cli.core import parse_label
-
+    """Whether ``arg`` looks like a pose item ``LABEL=FILE`` whose label starts with '-'
+    (``-x=xn.csv``, ``-0.5,0,0.87=a.csv``), not an option. (A pattern, not core.parse_label:
+    parsing the command line must not import numpy.) The label is validated later."""
     label, sep, _ = arg.partition("=")
-    try:
-        return bool(sep) and bool(parse_label(label))
-    except ValueError:
-        return False
+    number = r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?"
+    return bool(sep) and re.fullmatch(rf"[-+][xyz]|{number},{number},{number}", label.lower()) is not None
 
 
 def _version(value: bool) -> None:
