@@ -20,7 +20,7 @@ DEMO_COMMANDS := \
 	"tumblecal solve --poses sample_data/x.csv sample_data/y.csv sample_data/z.csv --limits sample_data/limits.yaml --serial demo-0001 -o demo/cal.json" \
 	"tumblecal apply --cal demo/cal.json sample_data/capture.csv -o demo/corrected.csv" \
 	"head -3 demo/corrected.csv" \
-	"tumblecal solve --poses sample_data/imucal/xp.csv sample_data/imucal/yp.csv sample_data/imucal/zp.csv --reference 9.81 --units m/s^2 --input-units counts -o demo/imucal.yaml"
+	"tumblecal solve --poses sample_data/imucal/xp.csv sample_data/imucal/xn.csv sample_data/imucal/yp.csv sample_data/imucal/yn.csv sample_data/imucal/zp.csv sample_data/imucal/zn.csv --reference 9.81 --units m/s^2 --input-units counts -o demo/imucal.yaml"
 
 demo: $(VENV)/.installed
 	@mkdir -p demo
