@@ -140,8 +140,12 @@ def _propagate(
     directions: FloatArray,
     reference: float,
     tolerance_deg: float,
+    stimulus_matrix: FloatArray | None = None,
 ) -> Fit:
-    """Solve, then the 1-sigma noise errors and the worst-case tilt shifts of every parameter."""
+    """Solve, then the 1-sigma noise errors and the worst-case tilt shifts of every parameter.
+
+    ``stimulus_matrix``: the ``A`` through which a tilted stimulus reaches the readings, when
+    the solver's own leaves terms out (six-pose-diagonal: the cross-axis terms still leak tilt)."""
     means = np.array([p.mean for p in poses])
     b, a = fn(means)
     jac = _jacobian(fn, means)
@@ -149,7 +153,7 @@ def _propagate(
     cov = (jac * se2) @ jac.T  # J diag(se^2) J^T
     sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     a_sd = sd[3:].reshape(3, 3)
-    tilt = _tilt(jac, a, directions, reference, tolerance_deg)
+    tilt = _tilt(jac, a if stimulus_matrix is None else stimulus_matrix, directions, reference, tolerance_deg)
     solution = Solution(
         method=method,
         offset=b,
@@ -218,8 +222,11 @@ def six_pose(poses: Sequence[PoseStats], reference: float, tolerance_deg: float,
     def fn(m: FloatArray) -> Params:
         return _six_pose_diagonal(m, reference) if diagonal else _six_pose(m, reference)
 
-    fit = _propagate("six-pose-diagonal" if diagonal else "six-pose", fn, poses, directions, reference, tolerance_deg)
-    return replace(fit, cross_se=None) if diagonal else fit
+    if not diagonal:
+        return _propagate("six-pose", fn, poses, directions, reference, tolerance_deg)
+    full = _six_pose(np.array([p.mean for p in poses]), reference)[1]
+    fit = _propagate("six-pose-diagonal", fn, poses, directions, reference, tolerance_deg, stimulus_matrix=full)
+    return replace(fit, cross_se=None)
 
 
 def least_squares(
@@ -387,7 +394,10 @@ def sphere(points: FloatArray, stderr: FloatArray | None, reference: float, *, w
     else:
         gradient = directions @ m  # d r_k / d mean_k = M^T u_k
         noise = ((gradient**2) * stderr**2).sum(axis=1)
-    jtj_inv = np.linalg.pinv(jac.T @ jac)
+    scale = np.sqrt((jac**2).sum(axis=0))  # columns differ by the raw-to-output unit change (1e9 for counts)
+    scale[scale == 0] = 1.0
+    js = jac / scale
+    jtj_inv = np.linalg.pinv(js.T @ js) / np.outer(scale, scale)
     cov_theta = jtj_inv @ (jac.T * noise) @ jac @ jtj_inv
     if ellipsoid:  # soft iron is symmetric (it does not rotate the field): M = sqrt(M^T M)
         w, v = np.linalg.eigh(m.T @ m)
