@@ -415,8 +415,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(table(rows))
     print()
     print(
-        f"RMS/CRB: mean over the group; expected: the ratio an efficient estimator of that model reaches; "
-        f"the RMS from {args.trials} trials is good to ±{1 / math.sqrt(2 * args.trials):.1%} (1 sigma)"
+        f"RMS/CRB: mean over the group (the RMS from {args.trials} trials is good to "
+        f"±{1 / math.sqrt(2 * args.trials):.1%}, 1 sigma); expected: 1 for an efficient estimator, "
+        f"√3 = {math.sqrt(3):.3f} for the six-pose offsets against the rigid bound (each from 2 of the 6 poses)"
     )
     print("se/RMS: the solver's own reported 1-sigma (mean over trials) over the RMS error")
     for note in identifiability_notes():
