@@ -685,7 +685,7 @@ def test_names_with_brackets_are_not_markup(tmp_path: Path, capsys: pytest.Captu
 # -- help and version ------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("args", [["--help"], ["-h"], ["solve", "--help"], ["apply", "--help"]])
+@pytest.mark.parametrize("args", [["--help"], ["-h"], ["solve", "--help"]])
 def test_help_mentions_exit_statuses(args: list[str], capsys: pytest.CaptureFixture[str]) -> None:
     r = run(capsys, *args)
     assert r.code == 0
@@ -694,6 +694,12 @@ def test_help_mentions_exit_statuses(args: list[str], capsys: pytest.CaptureFixt
     assert "Exit status, the first that applies: 2 usage or input error" in text
     assert "3 capture rejected by a quality check" in text
     assert "1 calibrated but outside its limits; 0 pass" in text
+
+
+def test_apply_help_lists_only_its_own_exit_statuses(capsys: pytest.CaptureFixture[str]) -> None:
+    text = " ".join(run(capsys, "apply", "--help").out.split())
+    assert "Exit status: 0 corrected; 2 usage or input error (nothing written" in text
+    assert "capture rejected" not in text  # apply never exits 3 or 1
 
 
 def test_solve_help_explains_poses_and_sign(capsys: pytest.CaptureFixture[str]) -> None:

@@ -288,7 +288,7 @@ def test_orient_centres_each_axis_on_its_two_opposite_faces() -> None:
 
     oriented = gate.orient(list(checks.values()), np.zeros(3))  # nominal_offset 0: overridden on every axis
     for p in oriented:
-        d = means[p.face] - midpoint
+        d = means[str(p.face)] - midpoint
         np.testing.assert_allclose(p.direction, d / np.linalg.norm(d), rtol=0, atol=1e-12)
         assert p.looks_like == p.face
         assert p.angle_deg is not None

@@ -1113,7 +1113,11 @@ INVALID_FIELDS = [
         "-poses.1.samples", "field 'poses[1]' must be an object with pose, mean and samples", id="pose-samples-missing"
     ),
     pytest.param("poses.2.samples=0", "field 'poses[2].samples' must be a positive integer", id="pose-samples"),
-    pytest.param('poses.0.pose="up"', "field 'poses[0].pose' must be a face (+x -x +y -y +z -z), a direction X,Y,Z or null", id="pose-face"),
+    pytest.param(
+        'poses.0.pose="up"',
+        "field 'poses[0].pose' must be a face (+x -x +y -y +z -z), a direction X,Y,Z or null",
+        id="pose-face",
+    ),
     pytest.param("poses.0.mean=[1]", "field 'poses[0].mean' must be a list of 3 numbers", id="pose-mean"),
     pytest.param('poses.0.angle_deg="3°"', "field 'poses[0].angle_deg' must be a finite number", id="pose-angle"),
     pytest.param(

@@ -245,7 +245,7 @@ def solve(
             help="Pose files, all after one --poses; each FILE or LABEL=FILE, LABEL a face (+x -x +y -y +z -z, "
             "xp ... zn) or a direction X,Y,Z (0.707,0,0.707=a.csv). Unlabelled: 1 file is the --up face, "
             "3 are +x +y +z, 6 are +x -x +y -y +z -z, in that order; 12 or more, orientation unknown "
-            "(sphere). '-' reads stdin.",
+            "(sphere). A magnetometer's: one or more captures turned through many orientations. '-' reads stdin.",
         ),
     ],
     output: Annotated[
@@ -336,7 +336,8 @@ def solve(
             metavar="FRACTION",
             help="pose.moved: reject a pose whose standard deviation, or drift between its first and last "
             "third, is above FRACTION x reference in corrected units. For a gyroscope it is in its units, "
-            "and the check runs only when given. [default: 0.02]",
+            "and the check runs only when given; the turning captures of minmax and ellipsoid are not "
+            "judged. [default: 0.02]",
             rich_help_panel=CHECKS_PANEL,
         ),
     ] = None,
@@ -459,11 +460,19 @@ def solve(
     check_writable(output)
     ref = reference if reference is not None else (0.0 if sensor is SensorKind.gyroscope else 1.0)
     gyro = sensor is SensorKind.gyroscope
-    if not math.isfinite(ref) or ref < 0 or (ref == 0 and not (gyro or name == "gyro-bias")):
+    if not math.isfinite(ref) or ref < 0 or (ref == 0 and not gyro):
         raise InputError(
             f"--reference must be a positive number, got {ref:g}",
             hint="the stimulus magnitude: 1 (g), 9.80665 (m/s^2), 16384 (counts); 0 only for --sensor gyroscope",
         )
+    if ref == 0 and name not in ("one-pose", "minmax", "gyro-bias"):
+        raise InputError(
+            f"--reference 0 (a gyroscope at rest) gives {name} no stimulus to fit gains or directions to",
+            hint="use --method gyro-bias for the zero-rate bias, or give the turning rate with --reference",
+        )
+    for flag, given, wanted in (("--plane", plane, "minmax"), ("--bias-spread", bias_spread, "one-pose-tilt")):
+        if given is not None and name != wanted:
+            raise InputError(f"{flag} is for the {wanted} method, not {name}")
     noise = max_noise if max_noise is not None else (None if gyro else 0.02)
     options = gate.Options(
         noise_bound=None if noise is None else (noise if gyro else noise * ref),  # a gyroscope: in its units
@@ -755,7 +764,7 @@ def _summary(
         "notes": notes,
     }
     keys = ("sensor", "method", "reference", "units", "columns", "offset", "matrix", "gain", "uncertainty")
-    return head | {k: doc[k] for k in (*keys, "tilt_sensitivity", "poses", "unit")}
+    return head | {k: doc.get(k) for k in (*keys, "tilt_sensitivity", "poses", "unit")}
 
 
 def _error_dict(err: TumblecalError) -> dict[str, Any]:
@@ -772,7 +781,10 @@ def _print_json(doc: dict[str, Any]) -> None:
         raise PipeClosed("stdout closed") from None
 
 
-@app.command(cls=Command, epilog=EXIT_CODES)
+@app.command(
+    cls=Command,
+    epilog="Exit status: 0 corrected; 2 usage or input error (nothing written, an existing output left as it was).",
+)
 def apply(
     capture: Annotated[
         str, typer.Argument(metavar="CAPTURE", help="The capture to correct; '-' (the default) reads stdin.")
@@ -784,7 +796,8 @@ def apply(
             "-c",
             metavar="FILE",
             help="Calibration file from 'tumblecal solve'. Repeat it to correct several sensors of one "
-            "capture in one pass (accelerometer, gyroscope, magnetometer), each its own columns.",
+            "capture in one pass (accelerometer, gyroscope, magnetometer), each its own recorded columns "
+            "(then --columns is refused).",
         ),
     ] = ...,  # type: ignore[assignment]
     output: Annotated[
@@ -1011,7 +1024,7 @@ def verify(
     captures_: Annotated[
         list[str],
         typer.Argument(
-            metavar="CAPTURE...", help="Static captures the calibration was not fitted on; '-' reads stdin."
+            metavar="CAPTURE", help="Static captures the calibration was not fitted on, one or more; '-' reads stdin."
         ),
     ],
     cal: Annotated[

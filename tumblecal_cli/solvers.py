@@ -510,9 +510,13 @@ def minmax(samples: FloatArray, plane: str | None = None) -> Fit:
     axes = [i for i in range(3) if plane is None or "xyz"[i] in plane]
     centred = samples - offset
     if plane is None:
-        norms = np.linalg.norm(centred, axis=1)
+        # judged around the ellipsoid's centre: around the min/max one, a capture that misses a
+        # cap of the sphere looks whole (the midpoint moves into the gap: the magcal failure)
+        start = _ellipsoid_start(samples, 1.0)
+        around = samples - (start[0] if start is not None else offset)
+        norms = np.linalg.norm(around, axis=1)
         keep = norms > 0
-        directions = centred[keep] / norms[keep, None]
+        directions = around[keep] / norms[keep, None]
         _refuse_poor_coverage(directions, "samples")
         cover = coverage(directions)
     else:
@@ -604,8 +608,15 @@ def pick(method: str, labels: Sequence[str | None], sensor: str) -> tuple[str, l
     if method == "auto":
         method = _auto(labels, sensor)
     if method in ("one-pose", "one-pose-tilt"):
-        if n != 1 or labels[0] is None or labels[0] not in FACES:
-            raise InputError(f"{method} takes 1 pose file labelled with the face up, got {n} files")
+        if n != 1:
+            raise InputError(f"{method} takes 1 pose file, got {n}")
+        if labels[0] is None:
+            raise InputError(f"{method} needs the face pointing up: label the file (+z=z.csv) or give --up")
+        if labels[0] not in FACES:
+            raise InputError(
+                f"{method} takes a pose on a face (the axis up), not the direction {labels[0]}",
+                hint="label it with a face (+z=z.csv) or give the face with --up",
+            )
     elif method in ("three-pose", "six-pose", "six-pose-diagonal"):
         wanted = THREE_FACES if method == "three-pose" else SIX_FACES
         if sorted(str(x) for x in labels) != sorted(wanted):
@@ -619,7 +630,7 @@ def pick(method: str, labels: Sequence[str | None], sensor: str) -> tuple[str, l
         if n < LEAST_SQUARES_MIN_POSES or any(x is None for x in labels):
             raise InputError(
                 f"least-squares takes {LEAST_SQUARES_MIN_POSES} or more labelled pose files "
-                f"(a face or a direction X,Y,Z each), got {n}" + ("" if all(labels) else " without labels"),
+                + (f"(a face or a direction X,Y,Z each), got {n}" if all(labels) else f"got {n} unlabelled"),
                 hint="label each file: --poses +x=a.csv 0.707,0,0.707=b.csv ...",
             )
     elif method == "sphere" and n < SPHERE_MIN_POSES:
@@ -648,9 +659,9 @@ def _auto(labels: Sequence[str | None], sensor: str) -> str:
         return "least-squares"
     if not any(labels) and n >= SPHERE_MIN_POSES:
         return "sphere"
-    what = "labelled" if all(labels) else "unlabelled"
+    what = f"the labels {' '.join(str(x) for x in labels)}" if all(labels) else f"{n} unlabelled files"
     raise InputError(
-        f"--poses: no solver takes {n} {what} files: give 1 (one-pose), 3 (+x +y +z), 6 (+x -x +y -y +z -z), "
+        f"--poses: no solver takes {what}: give 1 (one-pose), 3 (+x +y +z), 6 (+x -x +y -y +z -z), "
         f"{SPHERE_MIN_POSES}+ unlabelled (sphere) or {LEAST_SQUARES_MIN_POSES}+ labelled (least-squares)",
         hint="label a file with its face or direction: --poses +x=a.csv -x=b.csv 0.707,0,0.707=c.csv",
     )
