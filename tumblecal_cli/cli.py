@@ -32,6 +32,11 @@ number of files, a units mistake); 3 capture rejected by a quality check (moved,
 pose it claims, saturated, too short, upside down); 1 calibrated but outside its limits;
 0 pass. The calibration is written on 0 and 1, nothing on 2 or 3."""
 
+# The solvers' matrices are 3x3 to 12x12: BLAS threads only cost start-up and spin (see core.apply).
+# Set before numpy is first imported (lazily, inside the commands); a user's own setting wins.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
 app = typer.Typer(
     name="tumblecal",
     help="Calibrate 3-axis sensors from static tumble poses, and correct captures with the result.",
@@ -731,9 +736,12 @@ def _tilt_notes(doc: dict[str, Any]) -> list[str]:
 def _solve_notes(stats: list[PoseStats], names: list[str], *, limits_given: Any, method: str) -> list[str]:
     """What a person should know about how far the result can be trusted."""
     few = [(os.path.basename(name), st.samples) for name, st in zip(names, stats, strict=True) if st.samples < 3]
+    effect = (
+        "the uncertainty comes from the fit's residuals instead" if method == "sphere" else "its uncertainty reads 0"
+    )
     notes = [
         f"{name} has {n} sample{'s' if n > 1 else ''}: its noise is unknown, "
-        "so its uncertainty reads 0 and the moved check cannot judge it"
+        f"so {effect} and the moved check cannot judge it"
         for name, n in few[:3]
     ]
     if len(few) > 3:
