@@ -120,17 +120,23 @@ def _pack(params: Params) -> FloatArray:
     return np.concatenate([params[0], params[1].ravel()])
 
 
-def _jacobian(fn: Callable[[FloatArray], Params], means: FloatArray) -> FloatArray:
-    """d(b, A)/d(means), (12, 3N), by central differences (exact for linear solvers)."""
-    flat = means.ravel()
-    jac = np.empty((12, flat.size))
+def _central_differences(fn: Callable[[FloatArray], FloatArray], x: FloatArray, relative: float) -> FloatArray:
+    """d fn / d x, (len(fn(x)), x.size), by central differences with steps ``relative·max(1, |x_k|)``
+    (exact for linear functions). ``x`` is flattened; ``fn`` takes it in its own shape."""
+    flat = x.ravel()
+    columns = []
     for k in range(flat.size):
-        h = 1e-6 * max(1.0, abs(flat[k]))
+        h = relative * max(1.0, abs(flat[k]))
         up, down = flat.copy(), flat.copy()
         up[k] += h
         down[k] -= h
-        jac[:, k] = (_pack(fn(up.reshape(means.shape))) - _pack(fn(down.reshape(means.shape)))) / (2 * h)
-    return jac
+        columns.append((fn(up.reshape(x.shape)) - fn(down.reshape(x.shape))) / (2 * h))
+    return np.column_stack(columns)
+
+
+def _jacobian(fn: Callable[[FloatArray], Params], means: FloatArray) -> FloatArray:
+    """d(b, A)/d(means), (12, 3N) (exact for linear solvers)."""
+    return _central_differences(lambda m: _pack(fn(m)), means, 1e-6)
 
 
 def _propagate(
@@ -434,13 +440,7 @@ def _theta_to_params(theta: FloatArray, cov_theta: FloatArray, *, symmetric: boo
             m = (v * np.sqrt(w)) @ v.T
         return np.concatenate([t[:3], np.linalg.inv(m).ravel()])
 
-    g = np.empty((12, theta.size))
-    for k in range(theta.size):
-        h = 1e-7 * max(1.0, abs(theta[k]))
-        up, down = theta.copy(), theta.copy()
-        up[k] += h
-        down[k] -= h
-        g[:, k] = (params(up) - params(down)) / (2 * h)
+    g = _central_differences(params, theta, 1e-7)
     result: FloatArray = g @ cov_theta @ g.T
     return result
 
@@ -477,12 +477,7 @@ def one_pose_tilt(pose: PoseStats, up: str, reference: float, tolerance_deg: flo
     vertical = reference * abs(math.cos(theta) - math.cos(min(math.pi, theta + delta)))
     tilt_offset = np.full(3, reference * math.sin(math.radians(tolerance_deg)))
     tilt_offset[axis] = vertical
-    grad = np.empty((3, 3))  # d offset / d mean, by central differences
-    for k in range(3):
-        h = 1e-6 * max(1.0, abs(pose.mean[k]))
-        step = np.zeros(3)
-        step[k] = h
-        grad[:, k] = (offsets(pose.mean + step) - offsets(pose.mean - step)) / (2 * h)
+    grad = _central_differences(offsets, pose.mean, 1e-6)  # d offset / d mean
     offset_se = np.sqrt((grad**2) @ pose.stderr**2)
     solution = Solution("one-pose-tilt", offset, np.eye(3), offset_se, np.zeros(3))
     note = (
