@@ -355,6 +355,10 @@ def _args_tilt(tmp_path: Path) -> list[str | Path]:
     return [*_args_one(tmp_path), "--tilt-compensate"]
 
 
+#: solve with min/max on a magnetometer capture in a 50-unit field; the capture follows
+MINMAX = ("solve", "--sensor", "magnetometer", "--method", "minmax", "--reference", "50", "--poses")
+
+
 def _args_mag(tmp_path: Path) -> list[str | Path]:
     rng = np.random.default_rng(7)
     path = write_mag(tmp_path / "turn.csv", magnetometer(rng, sphere_directions(rng, 3000)))
@@ -628,17 +632,7 @@ def test_minmax_recovers_the_hard_iron_roughly(tmp_path: Path, capsys: pytest.Ca
     rng = np.random.default_rng(12)
     path = write_mag(tmp_path / "turn.csv", magnetometer(rng, sphere_directions(rng, 3000)))
     out = tmp_path / "mag.json"
-    args: list[str | Path] = [
-        "solve",
-        "--sensor",
-        "magnetometer",
-        "--method",
-        "minmax",
-        "--reference",
-        "50",
-        "--poses",
-        path,
-    ]
+    args: list[str | Path] = [*MINMAX, path]
     doc = solved(run(capsys, *args, "-o", out), out)
     assert doc["method"] == "minmax"
     np.testing.assert_allclose(doc["offset"], HARD_IRON, atol=1.0)
@@ -685,17 +679,7 @@ def test_minmax_half_sphere_is_rejected(tmp_path: Path, capsys: pytest.CaptureFi
     rng = np.random.default_rng(14)
     path = write_mag(tmp_path / "half.csv", magnetometer(rng, sphere_directions(rng, 3000, z_min=0.0)))
     out = precious(tmp_path / "mag.json")
-    args: list[str | Path] = [
-        "solve",
-        "--sensor",
-        "magnetometer",
-        "--method",
-        "minmax",
-        "--reference",
-        "50",
-        "--poses",
-        path,
-    ]
+    args: list[str | Path] = [*MINMAX, path]
     r = run(capsys, *args, "-o", out)
     assert_rejected(r, "-z")
     assert_untouched(out)
@@ -707,17 +691,7 @@ def test_minmax_on_a_little_more_than_half_sphere_is_rejected(
     rng = np.random.default_rng(15)
     path = write_mag(tmp_path / "cap.csv", magnetometer(rng, sphere_directions(rng, 3000, z_min=-0.1)))
     out = tmp_path / "mag.json"
-    args: list[str | Path] = [
-        "solve",
-        "--sensor",
-        "magnetometer",
-        "--method",
-        "minmax",
-        "--reference",
-        "50",
-        "--poses",
-        path,
-    ]
+    args: list[str | Path] = [*MINMAX, path]
     r = run(capsys, *args, "-o", out)
     if r.code == 0:  # accepted: then the offset must be right
         doc = json.loads(out.read_text())
