@@ -446,8 +446,7 @@ def solve(
     from tumblecal_cli.files import check_not_input, check_writable
 
     items = _pose_items(poses, _face(up, "--up"))
-    files = [f for _, f in items]
-    if sum(f == "-" for f in files) > 1:
+    if sum(f == "-" for _, f in items) > 1:
         raise InputError("only one pose can be read from stdin ('-')")
     chosen = MethodName.one_pose_tilt if tilt_compensate and method is MethodName.auto else method
     if tilt_compensate and chosen is not MethodName.one_pose_tilt:
@@ -833,7 +832,7 @@ def apply(
     """
     from functools import partial
 
-    from tumblecal_cli import calfile, captures, core
+    from tumblecal_cli import calfile, captures
     from tumblecal_cli.files import atomic_output, check_not_input, check_writable
 
     if "-" in cal and capture == "-":
@@ -881,10 +880,7 @@ def apply(
         more = [(_columns_of(cap.layout, other, taken), other) for other in cals[1:]]
         with atomic_output(output) as out:
             rows = captures.correct_stream(
-                cap,
-                out,
-                lambda raw: core.apply(raw, c.offset, c.matrix),
-                more=[(t, partial(_correct, o)) for t, o in more],
+                cap, out, partial(_correct, c), more=[(t, partial(_correct, o)) for t, o in more]
             )
         used = [n for t in [cap.layout.sensor, *(t for t, _ in more)] for n in (cap.layout.names[i] for i in t)]
     if not quiet:
@@ -1093,15 +1089,16 @@ def verify(
     for path in captures_:
         s = captures.read_samples(path, sensor=c.sensor, columns=picked, prefer=c.columns, no_header=no_header)
         st = core.pose_stats(s.values)
-        after = core.apply(st.mean[None, :], c.offset, c.matrix)[0]
-        std = gate.output_std(c.matrix, st.std)
+        before = float((st.mean**2).sum() ** 0.5)
+        fixed = gate.corrected(st.mean, st.std, None, c.offset, c.matrix, ref)  # the norm error, as solve's
+        std = fixed.std
         row: dict[str, Any] = {
             "file": s.layout.name,
             "samples": st.samples,
-            "norm_before": float((st.mean**2).sum() ** 0.5),
-            "error_before": float((st.mean**2).sum() ** 0.5 - ref) if same_units else None,
-            "norm_after": float((after**2).sum() ** 0.5),
-            "error_after": float((after**2).sum() ** 0.5 - ref),
+            "norm_before": before,
+            "error_before": before - ref if same_units else None,
+            "norm_after": fixed.norm_error + ref,
+            "error_after": fixed.norm_error,
             "std": [float(v) for v in std],
         }
         rows.append(row)
