@@ -18,6 +18,7 @@ writes floats as their shortest round-trip text; README "Dependencies" has the m
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import io
 import os
@@ -74,6 +75,7 @@ class Layout:
     sensor: tuple[int, int, int] = (0, 1, 2)
     time: int | None = None
     temperature: int | None = None
+    extra: int | None = None  # one more column read as text (a log's label column)
     notes: list[str] = field(default_factory=list)  # things a person should be told
 
     @property
@@ -151,10 +153,10 @@ class Capture:
 
     def batches(self, *, only_sensor: bool = False) -> Iterator[tuple[int, list[pa.Array]]]:
         """(first data row, columns as text) per block; ``only_sensor`` reads the sensor,
-        time and temperature columns alone (in that order, each if present)."""
+        time, temperature and extra columns alone (in that order, each if present)."""
         lay = self.layout
         keys = [str(i) for i in range(len(lay.names))]
-        wanted = list(lay.sensor) + [i for i in (lay.time, lay.temperature) if i is not None]
+        wanted = list(lay.sensor) + [i for i in (lay.time, lay.temperature, lay.extra) if i is not None]
         include = [keys[i] for i in wanted] if only_sensor else keys
         read = include if keys[0] in include else [keys[0], *include]  # column 0 tells comments
         bad_rows: list[str] = []
@@ -283,13 +285,16 @@ def open_capture(
     prefer: Sequence[str] | None = None,
     no_header: bool = False,
     time_column: str | None = None,
+    name: str | None = None,
+    extra: str | None = None,
 ) -> Capture:
     """Open ``path`` ('-' for stdin), sniff its layout and find its sensor and time columns.
 
     ``columns`` (from ``--columns``) overrides detection; ``prefer`` (a calibration's
-    recorded columns) is used when all three are present.
+    recorded columns) is used when all three are present; ``extra`` names one more column to
+    read (as text); ``name`` is how messages name the file (default: the path).
     """
-    name = "<stdin>" if path == "-" else path
+    name = name or ("<stdin>" if path == "-" else path)
     try:
         f: IO[bytes] = sys.stdin.buffer if path == "-" else open(path, "rb")  # noqa: SIM115
     except FileNotFoundError:
@@ -306,6 +311,8 @@ def open_capture(
         layout.sensor, layout.time = _pick_columns(layout, sensor, columns, prefer, time_column)
         lower = [n.lower() for n in layout.names]
         layout.temperature = next((i for i, n in enumerate(lower) if n in TEMPERATURE_NAMES), None)
+        if extra is not None:
+            layout.extra = _column(layout, extra, "column")
     except InputError:
         if f is not sys.stdin.buffer:
             f.close()
@@ -414,15 +421,7 @@ def _pick_columns(
     lower = [n.lower() for n in names]
 
     def index_of(ref: str, what: str) -> int:
-        if ref.lower() in lower:
-            return lower.index(ref.lower())
-        if ref.isdigit() and int(ref) < len(names):
-            return int(ref)
-        raise InputError(
-            f"{what} {ref!r} not found (columns: {', '.join(names)})",
-            file=layout.name,
-            hint="name a column by its header or its 0-based index",
-        )
+        return _column(layout, ref, what)
 
     time = index_of(time_column, "time column") if time_column else None
     if time is None:
@@ -455,6 +454,20 @@ def _pick_columns(
         f"several {sensor} triplets could be meant: {found}",
         file=layout.name,
         hint="pick one with --columns X,Y,Z or --sensor",
+    )
+
+
+def _column(layout: Layout, ref: str, what: str) -> int:
+    """The index of the column ``ref`` names (a header name, any case, or a 0-based index)."""
+    lower = [n.lower() for n in layout.names]
+    if ref.lower() in lower:
+        return lower.index(ref.lower())
+    if ref.isdigit() and int(ref) < len(layout.names):
+        return int(ref)
+    raise InputError(
+        f"{what} {ref!r} not found (columns: {', '.join(layout.names)})",
+        file=layout.name,
+        hint="name a column by its header or its 0-based index",
     )
 
 
@@ -495,7 +508,7 @@ def _triplets(lower: Sequence[str]) -> list[tuple[str, tuple[int, int, int]]]:
 
 @dataclass(frozen=True)
 class Samples:
-    """The sensor readings of one capture, empty rows dropped."""
+    """The sensor readings of one capture (or of one block of a log), empty rows dropped."""
 
     layout: Layout
     values: FloatArray  # (n, 3) raw units
@@ -503,6 +516,48 @@ class Samples:
     sha256: str
     duration: float | None  # seconds spanned by the time column (or --rate), if known
     temperature: float | None = None  # mean of the temperature column, if there is one
+    block: int | None = None  # the block's number, for a pose cut from a log
+    times: tuple[float, float] | None = None  # a block's first and last time, when the log has them
+
+    @property
+    def name(self) -> str:
+        """How messages name this pose: its file, and its block when cut from a log."""
+        return self.layout.name if self.block is None else f"{self.layout.name} block {self.block}"
+
+
+@dataclass(frozen=True)
+class Log:
+    """A whole log in memory: the sensor readings of every non-empty row, with their data row,
+    time (``clock``: the time column in its own unit, ``scale`` seconds each) and label."""
+
+    layout: Layout
+    values: FloatArray  # (n, 3)
+    rows: np.ndarray[Any, np.dtype[np.int64]]  # data row (0-based) of each reading
+    clock: FloatArray | None
+    labels: list[str] | None
+    sha256: str
+    temperature: FloatArray | None = None
+    scale: float = 1.0
+
+    def seconds(self) -> FloatArray | None:
+        """Seconds since the first reading (differences first: epoch nanoseconds keep their digits)."""
+        return None if self.clock is None else (self.clock - self.clock[0]) * self.scale
+
+    def block(self, number: int, first: int, last: int) -> Samples:
+        """Readings ``first``..``last`` (inclusive) as a pose."""
+        clock = self.clock
+        times = None if clock is None else (float(clock[first]), float(clock[last]))
+        temp = self.temperature
+        return Samples(
+            self.layout,
+            self.values[first : last + 1],
+            (int(self.rows[first]), int(self.rows[last])),
+            self.sha256,
+            None if clock is None else float(clock[last] - clock[first]) * self.scale,
+            None if temp is None else float(temp[first : last + 1].mean()),
+            block=number,
+            times=times,
+        )
 
 
 def read_samples(
@@ -518,10 +573,71 @@ def read_samples(
 ) -> Samples:
     """Read the sensor columns of a small capture (a pose file) into memory (``prefer``: a
     calibration's recorded columns, used when the file has them)."""
+    log = _read(path, sensor, columns, no_header, time_column, time_unit, prefer, label_column=None, strict_time=False)
+    t, used = log.clock, log.rows
+    duration = None
+    if t is not None:
+        duration = float(t[-1] - t[0]) * log.scale if np.isfinite(t[[0, -1]]).all() else None
+    elif rate:
+        duration = (used[-1] - used[0] + 1) / rate
+    temp = log.temperature
+    temperature = float(temp.mean()) if temp is not None and np.isfinite(temp).all() else None
+    return Samples(log.layout, log.values, (int(used[0]), int(used[-1])), log.sha256, duration, temperature)
+
+
+def read_log(
+    path: str,
+    *,
+    sensor: str = "accelerometer",
+    columns: Sequence[str] | None = None,
+    no_header: bool = False,
+    time_column: str | None = None,
+    time_unit: str = "s",
+    label_column: str | None = None,
+    use_time: bool = True,
+    name: str | None = None,
+) -> Log:
+    """Read a whole log into memory for segmentation. Its time column (unless ``use_time`` is
+    off) must hold numbers that never go backwards; ``label_column`` is read as text."""
+    return _read(
+        path,
+        sensor,
+        columns,
+        no_header,
+        time_column,
+        time_unit,
+        None,
+        label_column=label_column,
+        strict_time=use_time,
+        name=name,
+    )
+
+
+def _read(
+    path: str,
+    sensor: str,
+    columns: Sequence[str] | None,
+    no_header: bool,
+    time_column: str | None,
+    time_unit: str,
+    prefer: Sequence[str] | None,
+    *,
+    label_column: str | None,
+    strict_time: bool,
+    name: str | None = None,
+) -> Log:
     with open_capture(
-        path, sensor=sensor, columns=columns, prefer=prefer, no_header=no_header, time_column=time_column
+        path,
+        sensor=sensor,
+        columns=columns,
+        prefer=prefer,
+        no_header=no_header,
+        time_column=time_column,
+        name=name,
+        extra=label_column,
     ) as cap:
-        blocks, keep, times, temps = [], [], [], []
+        lay = cap.layout
+        blocks, keep, times, temps, labels = [], [], [], [], []
         for first_row, cols in cap.batches(only_sensor=True):
             values, empty = cap.sensor_values(cols, first_row)
             bad = ~np.isfinite(values) & ~empty[:, None]
@@ -530,36 +646,103 @@ def read_samples(
                 raise cap._locate(first_row + i, j, f"not a finite number: {cols[j][i].as_py()!r}")
             blocks.append(values)
             keep.append(~empty)
-            if cap.layout.time is not None:
-                times.append(cols[3])
-            if cap.layout.temperature is not None:
-                temps.append(cols[-1])
-        layout = cap.layout
+            k = 3
+            if lay.time is not None:
+                times.append((first_row, cols[k]))
+                k += 1
+            if lay.temperature is not None:
+                temps.append(cols[k])
+                k += 1
+            if lay.extra is not None:
+                labels.extend(cols[k].to_pylist())
+        values = np.concatenate(blocks) if blocks else np.empty((0, 3))
+        mask = np.concatenate(keep) if keep else np.zeros(0, dtype=bool)
+        used = np.flatnonzero(mask).astype(np.int64)
+        if used.size == 0:
+            raise InputError(
+                "no rows with sensor values", file=lay.name, hint=f"columns read: {', '.join(lay.sensor_names)}"
+            )
+        t = None
+        if times and strict_time:
+            t = _times(cap, times)[mask]
+        elif times:
+            try:
+                t = np.concatenate([_floats(pc.cast(c, pa.float64(), safe=False)) for _, c in times])[mask]
+            except pa.ArrowInvalid:  # a time cell that is not a number: the duration is unknown
+                t = None
+        temperature = None
+        if temps:
+            with contextlib.suppress(pa.ArrowInvalid):  # a cell that is not a number: the temperature is unknown
+                temperature = np.concatenate([_floats(pc.cast(c, pa.float64(), safe=False)) for c in temps])[mask]
+        text = None if lay.extra is None else [str(labels[i] or "").strip() for i in used]
         digest = cap.sha256()
-    values = np.concatenate(blocks) if blocks else np.empty((0, 3))
-    mask = np.concatenate(keep) if keep else np.zeros(0, dtype=bool)
-    used = np.flatnonzero(mask)
-    if used.size == 0:
+    return Log(lay, values[mask], used, t, text, digest, temperature, _TIME_SCALE[time_unit])
+
+
+def _times(cap: Capture, times: list[tuple[int, pa.Array]]) -> FloatArray:
+    """A log's time column: numbers that never go backwards, else an error naming the line."""
+    lay = cap.layout
+    assert lay.time is not None
+    parts = []
+    for first_row, text in times:
+        try:
+            parts.append(_floats(pc.cast(text, pa.float64())))
+        except pa.ArrowInvalid:
+            ok = pc.match_substring_regex(pc.utf8_trim_whitespace(text), _NUMBER)
+            i = int(pc.index(ok, False).as_py())
+            line = cap._line_of_row(first_row + i)
+            raise InputError(
+                f"time is not a number: {text[i].as_py()!r}",
+                file=lay.name,
+                line=line,
+                column=lay.names[lay.time],
+                hint="give the sample rate with --rate HZ instead of the time column (--time-column to pick another)",
+            ) from None
+    t = np.concatenate(parts)
+    back = np.flatnonzero(np.diff(t) < 0)
+    if back.size:
+        i = int(back[0]) + 1
+        line = cap._line_of_row(i)
         raise InputError(
-            "no rows with sensor values", file=layout.name, hint=f"columns read: {', '.join(layout.sensor_names)}"
+            f"time goes backwards: {t[i]:.10g} after {t[i - 1]:.10g}",
+            file=lay.name,
+            line=line,
+            column=lay.names[lay.time],
+            hint="sort the log by time, or split it where the logger restarted",
         )
-    duration = None
-    if times:
-        try:
-            t = np.concatenate([_floats(pc.cast(c, pa.float64(), safe=False)) for c in times])[mask]
-        except pa.ArrowInvalid:  # a time cell that is not a number: the duration is unknown
-            t = np.empty(0)
-        duration = float(t[-1] - t[0]) * _TIME_SCALE[time_unit] if t.size and np.isfinite(t[[0, -1]]).all() else None
-    elif rate:
-        duration = (used[-1] - used[0] + 1) / rate
-    temperature = None
-    if temps:
-        try:
-            temp = np.concatenate([_floats(pc.cast(c, pa.float64(), safe=False)) for c in temps])[mask]
-            temperature = float(temp.mean()) if np.isfinite(temp).all() else None
-        except pa.ArrowInvalid:  # a cell that is not a number: the temperature is unknown
-            pass
-    return Samples(layout, values[mask], (int(used[0]), int(used[-1])), digest, duration, temperature)
+    return t
+
+
+def copy_rows(path: str, layout: Layout, spans: Sequence[tuple[int, int]], outputs: Sequence[str]) -> None:
+    """Write data rows ``first``..``last`` of each span to its output file, byte for byte, after
+    the file's own preamble and header: each block a capture on its own. Atomic per file."""
+    from tumblecal_cli.files import atomic_output
+
+    data = np.fromfile(path, dtype=np.uint8)
+    starts, ends = row_offsets(data, len(layout.head))
+    for (first, last), output in zip(spans, outputs, strict=True):
+        with atomic_output(output) as out:
+            out.write(layout.head)
+            out.write(data[starts[first] : ends[last]].tobytes())
+
+
+def row_offsets(data: np.ndarray[Any, np.dtype[np.uint8]], head: int) -> tuple[Any, Any]:
+    """Byte offsets (start, end) of each data row of a file's bytes whose preamble and header
+    take ``head`` bytes: every line that is not blank or a # comment (the reader's rules)."""
+    newline = np.flatnonzero(data[head:] == 10) + head
+    starts = np.concatenate([[head], newline + 1])
+    ends = np.concatenate([newline + 1, [data.size]])
+    if starts[-1] >= data.size:  # the file ends with a newline: no line after it
+        starts, ends = starts[:-1], ends[:-1]
+    first = starts.copy()  # the first byte that is not a space or tab, line by line
+    todo = np.flatnonzero((first < ends) & np.isin(data[np.minimum(first, data.size - 1)], (32, 9)))
+    while todo.size:
+        first[todo] += 1
+        todo = todo[(first[todo] < ends[todo]) & np.isin(data[np.minimum(first[todo], data.size - 1)], (32, 9))]
+    lead = data[np.minimum(first, data.size - 1)]
+    blank = (first >= ends) | (lead == 10) | (lead == 13)
+    row = ~(blank | (lead == ord("#")))
+    return starts[row], ends[row]
 
 
 # -- apply: stream a capture through a correction ------------------------------------------

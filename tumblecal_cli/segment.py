@@ -1,0 +1,347 @@
+"""Finding the static poses in one continuous log: a pure-numpy core module (no I/O).
+
+A sample is *still* when the readings in the window centred on it vary less than a threshold:
+the rolling standard deviation (the root of the three axes' variances, from cumulative sums,
+so one vectorised pass whatever the length) is below ``threshold``. Unless given, the
+threshold is ``FLOOR_FACTOR`` times the data's own noise floor, the ``FLOOR_PERCENTILE``-th
+percentile of the rolling standard deviation: in a tumble session the unit rests most of the
+time, so the quietest tenth of the windows is sensor noise and nothing else (imu_tk instead
+asks for a long still start to measure it, the source of its "not enough intervals").
+
+A run of still samples is a *block*, never across a gap in time. Each block is then judged as
+the quality checks judge a pose file (DESIGN.md section 5, gate.py): too short, too noisy or
+drifting relative to its own magnitude drops it. Its label is the face nearest its direction
+after removing a rough centre (the nominal offset, else the per-axis midpoint of the block
+means: an unsigned ADC's counts sit near 32768), when that face is within ``max_tilt_deg``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from tumblecal_cli.core import FACES, pose_stats
+
+FloatArray = np.ndarray[Any, np.dtype[np.float64]]
+IntArray = np.ndarray[Any, np.dtype[np.int64]]
+
+WINDOW = (0.5, 25)  # default rolling window: seconds when the time is known, else samples
+MIN_DURATION = (1.0, 50)  # default shortest block kept, the same way
+FLOOR_PERCENTILE = 10.0
+FLOOR_FACTOR = 3.0
+GAP_FACTOR = 3.0  # a time step this many times the typical one is a gap
+SHORT, NOISY, DRIFTING, UNMAPPED = "too short", "too noisy", "drifting", "not a pose label"
+
+
+@dataclass(frozen=True)
+class Settings:
+    """The detector's knobs, as the command line gives them (None: the default)."""
+
+    window: float | None = None  # seconds when the time is known, else samples
+    threshold: float | None = None  # raw units; None: FLOOR_FACTOR x the noise floor
+    min_duration: float | None = None  # seconds when the time is known, else samples
+    trim: float | None = None  # cut from each end of a still period; None: half the window
+    max_noise: float = 0.02  # a block's std or drift above this fraction of its magnitude drops it
+    max_tilt_deg: float = 25.0
+    nominal_offset: FloatArray | None = None  # the rough centre; None: midpoint of the block means
+
+
+@dataclass(frozen=True)
+class Block:
+    """One still period: ``first``..``last`` index the log's samples (inclusive)."""
+
+    number: int  # 1-based, in time order
+    first: int
+    last: int
+    mean: FloatArray
+    std: FloatArray
+    drift: FloatArray  # mean of the last third minus mean of the first third
+    duration: float | None  # seconds, when the time is known
+    nearest: str  # the face nearest the block's direction
+    angle_deg: float  # from that face
+    face: str | None  # ``nearest`` when within max_tilt_deg (or the label column's face)
+    dropped: str | None = None  # why it is not used: SHORT, NOISY, DRIFTING, UNMAPPED
+    label: str | None = None  # the label column's text, for labelled logs
+
+    @property
+    def samples(self) -> int:
+        return self.last - self.first + 1
+
+    @property
+    def kept(self) -> bool:
+        return self.dropped is None
+
+
+@dataclass
+class Segmentation:
+    """What the detector found, and how (for the table, the index and the calibration file)."""
+
+    blocks: list[Block]
+    window: int  # samples
+    period: float | None  # seconds per sample, when known
+    threshold: float | None  # None for a labelled log
+    noise_floor: float | None  # None when the threshold was given
+    min_samples: int
+    trim: int  # samples
+    centre: FloatArray
+    max_tilt_deg: float = 25.0
+    gaps: list[int] = field(default_factory=list)  # sample index after each gap in time
+
+    @property
+    def kept(self) -> list[Block]:
+        return [b for b in self.blocks if b.kept]
+
+    def best(self) -> dict[str, Block]:
+        """The best kept block of each face found: the longest, ties to the quieter."""
+        out: dict[str, Block] = {}
+        for b in self.kept:
+            if b.face is None or b.face not in FACES:
+                continue
+            other = out.get(b.face)
+            if other is None or (b.samples, -float(b.std.max())) > (other.samples, -float(other.std.max())):
+                out[b.face] = b
+        return {f: out[f] for f in FACES if f in out}
+
+    def as_dict(self) -> dict[str, Any]:
+        """How the blocks were found, for the calibration file."""
+        doc: dict[str, Any] = {
+            "source": "detector" if self.threshold is not None else "label column",
+            "window_samples": self.window,
+            "sample_period_s": self.period,
+            "threshold": self.threshold,
+            "noise_floor": self.noise_floor,
+            "min_samples": self.min_samples,
+            "trim_samples": self.trim,
+            "centre": [float(v) for v in self.centre],
+            "blocks_found": len(self.blocks),
+            "blocks_kept": len(self.kept),
+            "gaps": len(self.gaps),
+        }
+        if self.threshold is None:
+            for key in ("window_samples", "threshold", "noise_floor", "trim_samples"):
+                del doc[key]
+        return doc
+
+
+def sample_period(times: FloatArray | None, rate: float | None) -> float | None:
+    """Seconds per sample: the median time step, else 1/rate, else unknown."""
+    if times is not None and times.size > 1:
+        return float(np.median(np.diff(times)))
+    return 1.0 / rate if rate else None
+
+
+def gaps(times: FloatArray | None, period: float | None) -> IntArray:
+    """The index of each sample that follows a gap in time (a step over GAP_FACTOR periods)."""
+    if times is None or period is None or times.size < 2:
+        return np.zeros(0, dtype=np.int64)
+    return np.flatnonzero(np.diff(times) > GAP_FACTOR * period).astype(np.int64) + 1
+
+
+def rolling_std(values: FloatArray, window: int) -> FloatArray:
+    """The standard deviation of the window of ``window`` samples centred on each sample
+    (shorter at the ends), as sqrt(var_x + var_y + var_z): cumulative sums, no loop."""
+    n = values.shape[0]
+    centred = values - np.median(values, axis=0)  # small numbers: the sums keep their precision
+    zero = np.zeros((1, values.shape[1]))
+    s1 = np.concatenate([zero, np.cumsum(centred, axis=0)])
+    s2 = np.concatenate([zero, np.cumsum(centred * centred, axis=0)])
+    lo = np.clip(np.arange(n) - window // 2, 0, n)
+    hi = np.clip(lo + window, 0, n)
+    count = (hi - lo)[:, None]
+    mean = (s1[hi] - s1[lo]) / count
+    var = (s2[hi] - s2[lo]) / count - mean * mean
+    out: FloatArray = np.sqrt(np.maximum(var, 0.0).sum(axis=1))
+    return out
+
+
+def _runs(mask: np.ndarray[Any, np.dtype[np.bool_]], breaks: IntArray) -> tuple[IntArray, IntArray]:
+    """First and last index of each run of True in ``mask``, split before each of ``breaks``."""
+    edge = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    starts, ends = np.flatnonzero(edge == 1), np.flatnonzero(edge == -1) - 1
+    if breaks.size:  # a run that spans a break becomes two
+        cut = breaks[mask[breaks] & mask[breaks - 1]]
+        starts = np.sort(np.concatenate([starts, cut]))
+        ends = np.sort(np.concatenate([ends, cut - 1]))
+    return starts.astype(np.int64), ends.astype(np.int64)
+
+
+def _in_samples(value: float | None, default: tuple[float, int], period: float | None, floor: int) -> int:
+    if value is None:
+        value = default[0] if period else default[1]
+    return max(floor, round(value / period) if period else round(value))
+
+
+def detect(
+    values: FloatArray, times: FloatArray | None = None, rate: float | None = None, settings: Settings = Settings()
+) -> Segmentation:
+    """Find, judge and label the still blocks of an (n, 3) log (``times`` in seconds)."""
+    period = sample_period(times, rate)
+    window = _in_samples(settings.window, WINDOW, period, 2)
+    min_samples = _in_samples(settings.min_duration, MIN_DURATION, period, 1)
+    trim = window // 2 if settings.trim is None else _in_samples(settings.trim, (0.0, 0), period, 0)
+    spread = rolling_std(values, window)
+    floor = None
+    threshold = settings.threshold
+    if threshold is None:
+        floor = float(np.percentile(spread, FLOOR_PERCENTILE))
+        scale = float(np.ptp(values, axis=0).max()) or 1.0
+        # quantised readings of a quiet sensor can have no spread at all: still is then "exactly level"
+        threshold = FLOOR_FACTOR * floor if floor > 1e-9 * scale else 1e-6 * scale
+    breaks = gaps(times, period)
+    starts, ends = _runs(spread < threshold, breaks)
+    # the still period reaches half a window past the still centres, less the trim at each end
+    reach = window // 2
+    starts = np.maximum(starts - reach + trim, 0)
+    ends = np.minimum(ends + (window - reach - 1) - trim, values.shape[0] - 1)
+    spans = [(int(a), int(b)) for a, b in zip(starts, ends, strict=True) if b >= a]
+    seg = Segmentation(
+        [],
+        window,
+        period,
+        threshold,
+        floor,
+        min_samples,
+        trim,
+        np.zeros(3),
+        settings.max_tilt_deg,
+        [int(g) for g in breaks],
+    )
+    return _judge(seg, values, spans, settings)
+
+
+def from_labels(
+    values: FloatArray,
+    labels: Sequence[str],
+    mapping: Mapping[str, str],
+    times: FloatArray | None = None,
+    rate: float | None = None,
+    settings: Settings = Settings(),
+) -> Segmentation:
+    """Blocks from a label column: each run of one label is a block, its face the label's
+    entry in ``mapping`` (labels with none, such as a rotation's, are dropped)."""
+    text = np.asarray(labels, dtype=object)
+    if text.size == 0:
+        spans: list[tuple[int, int]] = []
+    else:
+        change = np.flatnonzero(text[1:] != text[:-1]) + 1
+        firsts = np.concatenate([[0], change])
+        lasts = np.concatenate([change - 1, [text.size - 1]])
+        spans = [(int(a), int(b)) for a, b in zip(firsts, lasts, strict=True) if str(text[a]).strip()]
+    period = sample_period(times, rate)
+    seg = Segmentation(
+        [],
+        0,
+        period,
+        None,
+        None,
+        _in_samples(settings.min_duration, (0.0, 1), period, 1),
+        0,
+        np.zeros(3),
+        settings.max_tilt_deg,
+    )
+    names = {a: str(text[a]).strip() for a, _ in spans}
+    return _judge(seg, values, spans, settings, {a: mapping.get(names[a]) for a, _ in spans}, names)
+
+
+def _judge(
+    seg: Segmentation,
+    values: FloatArray,
+    spans: list[tuple[int, int]],
+    settings: Settings,
+    faces: Mapping[int, str | None] | None = None,
+    names: Mapping[int, str] | None = None,
+) -> Segmentation:
+    """Measure each block, find the rough centre, then label and keep or drop each one."""
+    stats = [pose_stats(values[a : b + 1]) for a, b in spans]
+    long_enough = [st.mean for (a, b), st in zip(spans, stats, strict=True) if b - a + 1 >= seg.min_samples]
+    means = np.array(long_enough or [st.mean for st in stats] or [np.zeros(3)])
+    if settings.nominal_offset is not None:
+        seg.centre = np.asarray(settings.nominal_offset, dtype=float)
+    else:
+        seg.centre = (means.max(axis=0) + means.min(axis=0)) / 2
+    for number, ((a, b), st) in enumerate(zip(spans, stats, strict=True), start=1):
+        third = max(1, (b - a + 1) // 3)
+        drift = values[b + 1 - third : b + 1].mean(axis=0) - values[a : a + third].mean(axis=0)
+        nearest, angle, magnitude = _nearest_face(st.mean - seg.centre)
+        face = nearest if angle <= settings.max_tilt_deg else None
+        dropped = None
+        if faces is not None:  # a labelled log: the label says the face
+            face = faces[a]
+            dropped = UNMAPPED if face is None else None
+        if dropped is None and b - a + 1 < seg.min_samples:
+            dropped = SHORT
+        elif dropped is None and faces is None and float(st.std.max()) > settings.max_noise * magnitude:
+            dropped = NOISY
+        elif dropped is None and faces is None and float(np.abs(drift).max()) > settings.max_noise * magnitude:
+            dropped = DRIFTING
+        seg.blocks.append(
+            Block(
+                number=number,
+                first=a,
+                last=b,
+                mean=st.mean,
+                std=st.std,
+                drift=drift,
+                duration=None if seg.period is None else (b - a + 1) * seg.period,
+                nearest=nearest,
+                angle_deg=angle,
+                face=face,
+                dropped=dropped,
+                label=None if names is None else names[a],
+            )
+        )
+    return seg
+
+
+def _nearest_face(v: FloatArray) -> tuple[str, float, float]:
+    """The face nearest the direction of ``v``, the angle to it in degrees, and |v|."""
+    norm = float(np.linalg.norm(v))
+    if norm == 0.0:
+        return "+z", 90.0, 0.0
+    axis = int(np.argmax(np.abs(v)))
+    face = ("+" if v[axis] > 0 else "-") + "xyz"[axis]
+    return face, math.degrees(math.acos(min(1.0, abs(float(v[axis])) / norm))), norm
+
+
+def missing(seg: Segmentation, faces: Sequence[str]) -> list[str]:
+    """Why each face of ``faces`` has no kept block: one hint per face, naming what to change."""
+    have = seg.best()
+    hints = []
+    for face in faces:
+        if face in have:
+            continue
+        if seg.threshold is None:  # a labelled log
+            hints.append(f"no {face} block: no label names {face} (map one with --pose-map LABEL={face})")
+            continue
+        near = [b for b in seg.blocks if b.nearest == face]
+        facing = [b for b in near if b.angle_deg <= seg.max_tilt_deg]
+        if facing:
+            block = max(facing, key=lambda b: b.samples)
+            if block.dropped == SHORT:
+                length, limit = _length(block.samples, seg.period), _length(seg.min_samples, seg.period)
+                hints.append(
+                    f"no {face} block: the longest still period facing {face} was {length}, "
+                    f"below --min-duration {limit}"
+                )
+            else:
+                hints.append(
+                    f"no {face} block: the longest still period facing {face} (block {block.number}) was "
+                    f"{block.dropped} (see --max-noise)"
+                )
+        elif near:
+            block = min(near, key=lambda b: b.angle_deg)
+            hints.append(
+                f"no {face} block: the closest still period (block {block.number}) is {block.angle_deg:.0f}° "
+                f"from {face}, beyond --max-tilt {seg.max_tilt_deg:g}°"
+            )
+        else:
+            hints.append(f"no {face} block: no still period faces {face}; rest the unit on that face and hold it still")
+    return hints
+
+
+def _length(samples: int, period: float | None) -> str:
+    return f"{samples * period:.2g} s" if period else f"{samples} samples"
