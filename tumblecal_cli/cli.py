@@ -6,6 +6,7 @@ and ``--version`` pay only for Typer. Errors become exit codes in exactly one pl
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import re
@@ -237,6 +238,64 @@ NominalGain = Annotated[
 
 CHECKS_PANEL = "Quality checks (exit 3)"
 UNIT_PANEL = "Traceability"
+LOG_PANEL = "Finding the still blocks of a log (segment, solve --log)"
+
+
+def _log_option(flag: str, metavar: str, help: str, panel: str | None = LOG_PANEL) -> Any:
+    return typer.Option(flag, metavar=metavar, help=help, rich_help_panel=panel)
+
+
+Window = Annotated[
+    float | None,
+    _log_option(
+        "--window",
+        "S|N",
+        "Rolling window of the stillness detector: seconds when the log has a time column or --rate, "
+        "else samples. [default: 0.5 s, or 25 samples]",
+    ),
+]
+Threshold = Annotated[
+    float | None,
+    _log_option(
+        "--threshold",
+        "V",
+        "A sample is still when the rolling standard deviation (root of the three axes' variances, raw "
+        "units) is below V. [default: 3 x the log's noise floor, its 10th percentile; printed]",
+    ),
+]
+MinDuration = Annotated[
+    float | None,
+    _log_option(
+        "--min-duration",
+        "S|N",
+        "Drop still blocks shorter than this (seconds, else samples). [default: 1 s, or 50 samples]",
+    ),
+]
+Trim = Annotated[
+    float | None,
+    _log_option(
+        "--trim",
+        "S|N",
+        "Cut this much off each end of a still period (seconds, else samples). [default: half the window]",
+    ),
+]
+PoseColumn = Annotated[
+    str | None,
+    _log_option(
+        "--pose-column",
+        "NAME",
+        "Take the blocks from a label column instead of the detector: each run of one label is a block.",
+    ),
+]
+PoseMap = Annotated[
+    str | None,
+    _log_option(
+        "--pose-map",
+        "LABEL=FACE,...",
+        "The face of each label of --pose-column, e.g. x_p=+x,x_a=-x,y_p=+y,y_a=-y,z_p=+z,z_a=-z "
+        "(labels that are faces need none; unmapped labels, such as rotations, are dropped).",
+    ),
+]
 
 
 @app.command(cls=ManyValuesCommand, epilog=EXIT_CODES)
@@ -606,6 +665,291 @@ def _pose_items(items: list[str], up: str) -> list[tuple[str | None, str]]:
     if out and out[0][0] is None:
         out = list(zip(solvers.default_labels(len(out), up), items, strict=True))
     return out
+
+
+# -- continuous logs: segment and solve --log ------------------------------------------------
+
+
+def _pose_map(text: str | None) -> dict[str, str]:
+    """--pose-map ``x_p=+x,x_a=-x,...`` as {label: face}."""
+    from tumblecal_cli import core
+
+    out: dict[str, str] = {}
+    for item in (text or "").split(","):
+        if not item.strip():
+            continue
+        label, sep, face = item.partition("=")
+        if not sep or not label.strip():
+            raise InputError(f"--pose-map {item!r}: write LABEL=FACE pairs, e.g. x_p=+x,x_a=-x")
+        try:
+            out[label.strip()] = core.parse_face(face)
+        except ValueError as err:
+            raise InputError(f"--pose-map {item}: {err}") from None
+    return out
+
+
+def _segment_log(
+    path: str,
+    *,
+    name: str | None,
+    sensor: str,
+    columns: str | None,
+    no_header: bool,
+    time_column: str | None,
+    time_unit: str,
+    rate: float | None,
+    pose_column: str | None,
+    pose_map: str | None,
+    settings: Any,
+) -> tuple[Any, Any]:
+    """Read a log and find its blocks: (captures.Log, segment.Segmentation)."""
+    from tumblecal_cli import captures, core, segment
+
+    if sensor != "accelerometer":
+        raise InputError(
+            f"--log finds the still poses by the direction of gravity: it is for the accelerometer, not the {sensor}",
+            hint="cut the log with `tumblecal segment` (each block keeps every column), then solve the "
+            f"{sensor}'s blocks with --poses and --sensor {sensor}",
+        )
+    if pose_map and not pose_column:
+        raise InputError("--pose-map names the faces of a --pose-column's labels: give the column too")
+    for option, value in (("--window", settings.window), ("--min-duration", settings.min_duration)):
+        if value is not None and not value > 0:
+            raise InputError(f"{option} must be positive, got {value:g}")
+    for option, value in (("--threshold", settings.threshold), ("--trim", settings.trim)):
+        if value is not None and not value >= 0:
+            raise InputError(f"{option} must not be negative, got {value:g}")
+    if rate is not None and not rate > 0:
+        raise InputError(f"--rate must be positive, got {rate:g}")
+    log = captures.read_log(
+        path,
+        sensor=sensor,
+        columns=columns.split(",") if columns else None,
+        no_header=no_header,
+        time_column=time_column,
+        time_unit=time_unit,
+        label_column=pose_column,
+        use_time=rate is None,
+        name=name,
+    )
+    seconds = None if rate else log.seconds()
+    if pose_column is None:
+        return log, segment.detect(log.values, seconds, rate, settings)
+    mapping = _pose_map(pose_map)
+    labels = sorted(set(log.labels or []) - {""})
+    for label in labels:
+        if label not in mapping:
+            # a rotation, or a label --pose-map leaves out: its blocks are dropped
+            with contextlib.suppress(ValueError):
+                mapping[label] = core.parse_face(label)
+    if not any(label in mapping for label in labels):
+        shown = ", ".join(labels[:12]) + (" ..." if len(labels) > 12 else "")
+        raise InputError(
+            f"no label in column {pose_column!r} names a face (labels: {shown or 'none'})",
+            file=log.layout.name,
+            hint="say which is which with --pose-map, e.g. x_p=+x,x_a=-x,y_p=+y,y_a=-y,z_p=+z,z_a=-z",
+        )
+    return log, segment.from_labels(log.values, log.labels or [], mapping, seconds, rate, settings)
+
+
+def _enough_blocks(log: Any, seg: Any, need: int) -> None:
+    """A log with fewer kept blocks than ``need`` has nothing to calibrate from (exit 3)."""
+    from tumblecal_cli import segment
+
+    kept = seg.kept
+    if len(kept) >= need:
+        return
+    dropped = [b.dropped for b in seg.blocks if b.dropped]
+    why = ", ".join(f"{dropped.count(r)} {r}" for r in (segment.SHORT, segment.NOISY, segment.DRIFTING) if r in dropped)
+    found = f"{len(seg.blocks)} found" + (f", dropped: {why}" if why else "")
+    if seg.threshold is None:
+        hint = "label the static parts of the log in --pose-column (and map them with --pose-map)"
+    elif not seg.blocks:
+        hint = f"hold the unit still on each face, or raise --threshold (it was {seg.threshold:.4g})"
+    else:
+        hint = "hold each pose longer, or lower --min-duration; `tumblecal segment` lists every block"
+    raise CaptureRejected(
+        f"nothing to calibrate from: {len(kept)} still block{'' if len(kept) == 1 else 's'} kept ({found})",
+        file=log.layout.name,
+        hint=hint,
+        code="log.blocks",
+    )
+
+
+def _log_poses(log: Any, seg: Any, method: str, up: str, sensor: str) -> tuple[str, list[str | None], list[Samples]]:
+    """The method and the poses a log gives it: the best block of each face a face solver
+    needs, or every kept block for an orientation-free one."""
+    from tumblecal_cli import segment, solvers
+
+    _enough_blocks(log, seg, 1 if method in ("one-pose", "one-pose-tilt") else 2)
+    best, kept = seg.best(), seg.kept
+    labels: list[str | None]
+    if method in solvers.ORIENTATION_FREE or (
+        method == "auto" and len(best) < 5 and len(kept) >= solvers.SPHERE_MIN_POSES
+    ):
+        chosen, labels = kept, [None] * len(kept)
+        method = "sphere" if method == "auto" else method
+    else:
+        wanted: list[str] = {
+            "one-pose": [up],
+            "one-pose-tilt": [up],
+            "three-pose": list(solvers.THREE_FACES),
+            "six-pose": list(solvers.SIX_FACES),
+            "six-pose-diagonal": list(solvers.SIX_FACES),
+        }.get(method, list(best))
+        if method == "auto" and len(best) < 5:
+            wanted = list(solvers.THREE_FACES)
+        absent = [f for f in wanted if f not in best]
+        if absent or len(wanted) < (solvers.LEAST_SQUARES_MIN_POSES if method == "least-squares" else 1):
+            faces = " ".join(best) or "none"
+            need = {
+                "auto": "+x +y +z, five faces or all six (or 12 blocks for the sphere fit)",
+                "least-squares": "five faces or more",
+            }.get(method, " ".join(wanted))
+            raise CaptureRejected(
+                f"not the faces {method} needs ({need}); faces found: {faces}",
+                file=log.layout.name,
+                hint="rest the unit on each missing face for --min-duration; `tumblecal segment` lists every block",
+                more=tuple(segment.missing(seg, absent or [f for f in solvers.SIX_FACES if f not in best])),
+                code="log.faces",
+            )
+        chosen, labels = [best[f] for f in wanted], list(wanted)
+    name, order = solvers.pick(method, labels, sensor)
+    samples = [log.block(b.number, b.first, b.last) for b in chosen]
+    return name, [labels[k] for k in order], [samples[k] for k in order]
+
+
+def _block_files(seg: Any) -> dict[int, str]:
+    """The file each kept block is written to: xp.csv ... for the best of each face, blockNN.csv else."""
+    from tumblecal_cli import core
+
+    alias = {face: name for name, face in core.FACE_ALIASES.items()}
+    best = {b.number: alias[face] for face, b in seg.best().items()}
+    width = max(2, len(str(len(seg.blocks))))
+    return {
+        b.number: f"{best[b.number]}.csv" if b.number in best else f"block{b.number:0{width}d}.csv" for b in seg.kept
+    }
+
+
+INDEX_COLUMNS = [
+    "block",
+    "file",
+    "status",
+    "reason",
+    "first_row",
+    "last_row",
+    "start_time",
+    "end_time",
+    "samples",
+    "duration_s",
+    "mean_x",
+    "mean_y",
+    "mean_z",
+    "std_x",
+    "std_y",
+    "std_z",
+    "face",
+    "nearest_face",
+    "angle_deg",
+    "label",
+]
+
+
+def _index_rows(log: Any, seg: Any, files: dict[int, str]) -> list[list[str]]:
+    """segments.csv: one row per block found, kept or dropped."""
+    rows = []
+    for b in seg.blocks:
+        times = ["", ""] if log.clock is None else [repr(float(log.clock[b.first])), repr(float(log.clock[b.last]))]
+        rows.append(
+            [
+                str(b.number),
+                files.get(b.number, ""),
+                "kept" if b.kept else "dropped",
+                b.dropped or "",
+                str(int(log.rows[b.first])),
+                str(int(log.rows[b.last])),
+                *times,
+                str(b.samples),
+                "" if b.duration is None else f"{b.duration:.6g}",
+                *(repr(float(v)) for v in b.mean),
+                *(f"{v:.6g}" for v in b.std),
+                b.face or "",
+                b.nearest,
+                f"{b.angle_deg:.2f}",
+                b.label or "",
+            ]
+        )
+    return rows
+
+
+def _print_blocks(log: Any, seg: Any, console: Console, *, used: dict[int, str], everything: bool) -> None:
+    """The blocks for people (the kept ones; ``everything``: the dropped too), how they were
+    found, and a hint for each face without a block."""
+    from rich import box
+    from rich.table import Table
+
+    from tumblecal_cli import core, segment
+
+    name = log.layout.name
+    shown = seg.blocks if everything else seg.kept
+    table = Table(title=f"still blocks of {name}", title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
+    for col in ("block", "rows", "time", "n", "face", "angle", "std", "status"):
+        table.add_column(col, justify="left" if col in ("face", "status", "rows") else "right", no_wrap=True)
+    for b in shown:
+        start = "" if log.clock is None else f"{float(log.clock[b.first]):.6g}"
+        table.add_row(
+            str(b.number),
+            f"{int(log.rows[b.first])}-{int(log.rows[b.last])}",
+            start,
+            str(b.samples),
+            b.face or (f"({b.nearest})" if b.label is None else f"({b.label})"),
+            f"{b.angle_deg:.1f}°",
+            f"{float(b.std.max()):.3g}",
+            used.get(b.number, "kept") if b.kept else f"dropped: {b.dropped}",
+        )
+    if shown:
+        console.print(table)
+    dropped = [b.dropped for b in seg.blocks if b.dropped]
+    if dropped and not everything:
+        why = ", ".join(f"{dropped.count(r)} {r}" for r in sorted(set(dropped)))
+        console.print(f"{len(dropped)} more dropped ({why}); -v lists them", soft_wrap=True)
+    if seg.threshold is not None:
+        how = (
+            f"{segment.FLOOR_FACTOR:g} x the noise floor {seg.noise_floor:.4g}"
+            if seg.noise_floor is not None
+            else "given"
+        )
+        window = f"{seg.window * seg.period:.3g} s" if seg.period else f"{seg.window} samples"
+        console.print(
+            f"threshold {seg.threshold:.4g} ({how}; rolling std over {window}); "
+            f"{len(seg.blocks)} blocks found, {len(seg.kept)} kept",
+            soft_wrap=True,
+        )
+    if seg.gaps:
+        console.print(
+            f"warning: {name}: {len(seg.gaps)} gap{'s' if len(seg.gaps) > 1 else ''} in time (the first after data "
+            f"row {int(log.rows[seg.gaps[0] - 1])}); no block spans a gap",
+            style="yellow",
+            soft_wrap=True,
+        )
+    best = seg.best()
+    console.print(f"faces: {' '.join(f for f in core.FACES if f in best) or 'none'}", soft_wrap=True)
+    for hint in segment.missing(seg, list(core.FACES)):
+        console.print(f"hint: {hint}", soft_wrap=True)
+
+
+def _spool_stdin() -> str:
+    """stdin copied to a temporary file (a log is read twice: to find the blocks, then to copy them)."""
+    import shutil
+    import tempfile
+
+    with tempfile.NamedTemporaryFile(prefix="tumblecal-", suffix=".csv", delete=False) as tmp:
+        try:
+            shutil.copyfileobj(sys.stdin.buffer, tmp)
+        except BaseException:
+            os.unlink(tmp.name)
+            raise
+    return tmp.name
 
 
 REJECTION_HINTS = {
