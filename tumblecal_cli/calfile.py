@@ -41,9 +41,11 @@ def build(
     tolerance_deg: float = 1.0,
     unit: dict[str, Any] | None = None,
     verdict: dict[str, Any] | None = None,
+    segmentation: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The calibration document, fields in the order of DESIGN.md section 4; ``fit`` adds what
-    the solver measured beyond the parameters (tilt sensitivity, covariance, coverage, residuals)."""
+    the solver measured beyond the parameters (tilt sensitivity, covariance, coverage, residuals);
+    ``segmentation`` how the poses were found in a continuous log (after ``poses``)."""
     if units is None and sensor == "accelerometer" and reference == 1.0:
         units = "g"
     doc = {
@@ -66,6 +68,8 @@ def build(
         "created": created(),
         "tool": f"tumblecal {__version__}",
     }
+    if segmentation is not None:
+        doc = _insert_after(doc, "poses", {"segmentation": segmentation})
     if fit is None or fit.tilt is None:
         del doc["tilt_sensitivity"]
     else:

@@ -301,7 +301,7 @@ PoseMap = Annotated[
 @app.command(cls=ManyValuesCommand, epilog=EXIT_CODES)
 def solve(
     poses: Annotated[
-        list[str],
+        list[str] | None,
         typer.Option(
             "--poses",
             "-p",
@@ -311,7 +311,24 @@ def solve(
             "3 are +x +y +z, 6 are +x -x +y -y +z -z, in that order; 12 or more, orientation unknown "
             "(sphere). A magnetometer's: one or more captures turned through many orientations. '-' reads stdin.",
         ),
-    ],
+    ] = None,
+    log: Annotated[
+        str | None,
+        typer.Option(
+            "--log",
+            metavar="FILE",
+            help="Instead of --poses: one continuous log, cut into still blocks as `tumblecal segment` does. "
+            "Face solvers take the best block of each face (the longest within --max-tilt, ties to the "
+            "quieter); sphere takes every kept block. auto: six-pose for six faces, least-squares for five, "
+            "else sphere for 12+ blocks, else three-pose. '-' reads stdin.",
+        ),
+    ] = None,
+    window: Window = None,
+    threshold: Threshold = None,
+    min_duration: MinDuration = None,
+    trim: Trim = None,
+    pose_column: PoseColumn = None,
+    pose_map: PoseMap = None,
     output: Annotated[
         str,
         typer.Option(
@@ -416,15 +433,16 @@ def solve(
         ),
     ] = 25.0,
     nominal_offset: Annotated[
-        str,
+        str | None,
         typer.Option(
             "--nominal-offset",
             metavar="V|X,Y,Z",
             help="Raw value at zero stimulus, removed before judging a pose's direction "
-            "(raw counts from an unsigned ADC sit near 32768).",
+            "(raw counts from an unsigned ADC sit near 32768). [default: 0; with --log, the per-axis "
+            "midpoint of the block means]",
             rich_help_panel=CHECKS_PANEL,
         ),
-    ] = "0",
+    ] = None,
     full_scale: Annotated[
         float | None,
         typer.Option(
@@ -500,20 +518,47 @@ def solve(
       tumblecal solve --poses z.csv -o cal.yaml                 # 1-pose, +z up
       tumblecal solve --poses z.csv --up=-x --reference 16384   # counts, -x up
       tumblecal solve -p x.csv y.csv z.csv -o cal.json --limits limits.yaml --serial A17 --json
+      tumblecal solve --log session.csv --rate 102.4 --reference 9.81 -o cal.json   # one continuous log
     """
     from tumblecal_cli import calfile, captures, core, gate, solvers
+    from tumblecal_cli import segment as seg_core
     from tumblecal_cli.files import check_not_input, check_writable
 
-    items = _pose_items(poses, _face(up, "--up"))
-    if sum(f == "-" for _, f in items) > 1:
-        raise InputError("only one pose can be read from stdin ('-')")
+    if bool(poses) == (log is not None):
+        raise InputError(
+            "give the pose files with --poses, or one continuous log with --log" + (", not both" if poses else ""),
+            hint="see 'tumblecal solve --help'",
+        )
     chosen = MethodName.one_pose_tilt if tilt_compensate and method is MethodName.auto else method
     if tilt_compensate and chosen is not MethodName.one_pose_tilt:
         raise InputError(f"--tilt-compensate is the one-pose-tilt method, not {chosen.value}")
-    name, order = solvers.pick(chosen.value, [label for label, _ in items], sensor.value)
-    items = [items[k] for k in order]
-    labels: list[str | None] = [None if name in solvers.ORIENTATION_FREE else label for label, _ in items]
-    files = [f for _, f in items]
+    up_face = _face(up, "--up")
+    name = chosen.value
+    labels: list[str | None] = []
+    files: list[str] = [] if log is None else [log]
+    if poses:
+        items = _pose_items(poses, up_face)
+        if sum(f == "-" for _, f in items) > 1:
+            raise InputError("only one pose can be read from stdin ('-')")
+        name, order = solvers.pick(chosen.value, [label for label, _ in items], sensor.value)
+        items = [items[k] for k in order]
+        labels = [None if name in solvers.ORIENTATION_FREE else label for label, _ in items]
+        files = [f for _, f in items]
+    else:
+        given = [
+            flag
+            for flag, value in (
+                ("--window", window),
+                ("--threshold", threshold),
+                ("--min-duration", min_duration),
+                ("--trim", trim),
+                ("--pose-column", pose_column),
+                ("--pose-map", pose_map),
+            )
+            if value is not None
+        ]
+        if given:
+            raise InputError(f"{given[0]} is for a continuous log (--log), not --poses files")
     for option, value in (("--max-noise", max_noise), ("--max-tilt", max_tilt), ("--full-scale", full_scale)):
         if value is not None and not value > 0:
             raise InputError(f"{option} must be positive, got {value:g}")
@@ -528,40 +573,83 @@ def solve(
             f"--reference must be a positive number, got {ref:g}",
             hint="the stimulus magnitude: 1 (g), 9.80665 (m/s^2), 16384 (counts); 0 only for --sensor gyroscope",
         )
-    if ref == 0 and name not in ("one-pose", "minmax", "gyro-bias"):
-        raise InputError(
-            f"--reference 0 (a gyroscope at rest) gives {name} no stimulus to fit gains or directions to",
-            hint="use --method gyro-bias for the zero-rate bias, or give the turning rate with --reference",
+    centre = None if nominal_offset is None else _triplet_option(nominal_offset, "--nominal-offset")
+    limits_given = _limits(limits_file, max_offset, max_gain_error, nominal_gain)
+    unit = _unit_block(serial, station, operator, meta or [])
+    segmentation = None
+    if log is None:
+        _method_options(name, ref, plane, bias_spread)
+        picked = columns.split(",") if columns else None
+        samples = [
+            captures.read_samples(
+                f,
+                sensor=sensor.value,
+                columns=picked,
+                no_header=no_header,
+                time_column=time_column,
+                time_unit=time_unit.value,
+                rate=rate,
+            )
+            for f in files
+        ]
+    else:
+        if name != "auto":
+            _method_options(name, ref, plane, bias_spread)
+        settings = seg_core.Settings(
+            window=window,
+            threshold=threshold,
+            min_duration=min_duration,
+            trim=trim,
+            max_noise=max_noise if max_noise is not None else 0.02,
+            max_tilt_deg=max_tilt,
+            nominal_offset=centre,
         )
-    for flag, given, wanted in (("--plane", plane, "minmax"), ("--bias-spread", bias_spread, "one-pose-tilt")):
-        if given is not None and name != wanted:
-            raise InputError(f"{flag} is for the {wanted} method, not {name}")
+        path = _spool_stdin() if log == "-" else log
+        try:
+            data, seg = _segment_log(
+                path,
+                name="<stdin>" if log == "-" else None,
+                sensor=sensor.value,
+                columns=columns,
+                no_header=no_header,
+                time_column=time_column,
+                time_unit=time_unit.value,
+                rate=rate,
+                pose_column=pose_column,
+                pose_map=pose_map,
+                settings=settings,
+            )
+        finally:
+            if log == "-":
+                os.unlink(path)
+        centre = seg.centre
+        try:
+            name, labels, samples = _log_poses(data, seg, name, up_face, sensor.value)
+        except CaptureRejected as err:
+            if not quiet:
+                _print_blocks(data, seg, _console(), used={}, everything=False)
+            if json_summary:
+                _print_json(_rejected_head(err))
+            raise
+        if not quiet:
+            used = {
+                int(s.block or 0): f"used: {label}" if label else "used"
+                for s, label in zip(samples, labels, strict=True)
+            }
+            _print_blocks(data, seg, _console(), used=used, everything=False)
+        _method_options(name, ref, plane, bias_spread)
+        segmentation = {"log": data.layout.name, "sha256": data.sha256} | seg.as_dict()
     noise = max_noise if max_noise is not None else (None if gyro else 0.02)
     options = gate.Options(
         noise_bound=None if noise is None else (noise if gyro else noise * ref),  # a gyroscope: in its units
         max_tilt_deg=max_tilt,
-        nominal_offset=_triplet_option(nominal_offset, "--nominal-offset"),
+        nominal_offset=_triplet_option("0", "--nominal-offset") if centre is None else centre,
         full_scale=full_scale,
         min_samples=min_samples,
         skip=frozenset(gate.CHECKS if no_checks else [c.name for c in skip or []]),
     )
-    limits_given = _limits(limits_file, max_offset, max_gain_error, nominal_gain)
-    unit = _unit_block(serial, station, operator, meta or [])
-    picked = columns.split(",") if columns else None
-    samples = [
-        captures.read_samples(
-            f,
-            sensor=sensor.value,
-            columns=picked,
-            no_header=no_header,
-            time_column=time_column,
-            time_unit=time_unit.value,
-            rate=rate,
-        )
-        for f in files
-    ]
     stats = [core.pose_stats(s.values) for s in samples]
-    names = [s.layout.name for s in samples]
+    names = [s.name for s in samples]
     if name in ("one-pose", "one-pose-tilt"):
         _check_units(names[0], stats[0].mean - options.nominal_offset, ref)
     try:
@@ -578,9 +666,7 @@ def solve(
         )
     except CaptureRejected as err:
         if json_summary:
-            # the head of every summary (see _summary); there are no parameters to follow it
-            head = {"status": "rejected", "exit_status": 3, "file": None, "rejections": [_error_dict(err)]}
-            _print_json(head | {"verdict": None, "warnings": [], "notes": []})
+            _print_json(_rejected_head(err))
         raise
     solution = fit.solution
     limits = limits_given.for_method(solution.method)
@@ -613,6 +699,7 @@ def solve(
         tolerance_deg=fixture_tolerance,
         unit=unit,
         verdict={"pass": not failures, "failures": [f.as_dict() for f in failures], "limits": limits.as_dict()},
+        segmentation=segmentation,
     )
     notes = (
         _tilt_notes(doc)
@@ -641,6 +728,18 @@ def solve(
         _print_json(_summary(doc, status, output, [], warned, notes))
     if status:
         raise typer.Exit(status)
+
+
+def _method_options(name: str, ref: float, plane: Any, bias_spread: float | None) -> None:
+    """The options that only some methods take, once the method is known."""
+    if ref == 0 and name not in ("one-pose", "minmax", "gyro-bias"):
+        raise InputError(
+            f"--reference 0 (a gyroscope at rest) gives {name} no stimulus to fit gains or directions to",
+            hint="use --method gyro-bias for the zero-rate bias, or give the turning rate with --reference",
+        )
+    for flag, given, wanted in (("--plane", plane, "minmax"), ("--bias-spread", bias_spread, "one-pose-tilt")):
+        if given is not None and name != wanted:
+            raise InputError(f"{flag} is for the {wanted} method, not {name}")
 
 
 def _pose_items(items: list[str], up: str) -> list[tuple[str | None, str]]:
@@ -892,16 +991,20 @@ def _print_blocks(log: Any, seg: Any, console: Console, *, used: dict[int, str],
 
     name = log.layout.name
     shown = seg.blocks if everything else seg.kept
-    table = Table(title=f"still blocks of {name}", title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
-    for col in ("block", "rows", "time", "n", "face", "angle", "std", "status"):
+    title = f"still blocks of {os.path.basename(name)}"
+    table = Table(title=title, title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
+    for col in ("block", "rows", "start", "length", "face", "angle", "std", "status"):
         table.add_column(col, justify="left" if col in ("face", "status", "rows") else "right", no_wrap=True)
     for b in shown:
-        start = "" if log.clock is None else f"{float(log.clock[b.first]):.6g}"
+        if log.clock is not None:
+            start = f"{float(log.clock[b.first]):.6g}"
+        else:
+            start = "" if seg.period is None else f"{b.first * seg.period:.4g} s"
         table.add_row(
             str(b.number),
             f"{int(log.rows[b.first])}-{int(log.rows[b.last])}",
             start,
-            str(b.samples),
+            f"{b.duration:.3g} s" if b.duration is not None else str(b.samples),
             b.face or (f"({b.nearest})" if b.label is None else f"({b.label})"),
             f"{b.angle_deg:.1f}°",
             f"{float(b.std.max()):.3g}",
@@ -1042,6 +1145,8 @@ def _pose_record(s: Samples, m: PoseCheck, c: Corrected) -> dict[str, Any]:
         "file": s.layout.name,
         "sha256": s.sha256,
         "rows": list(s.rows),
+        **({} if s.block is None else {"block": s.block}),
+        **({} if s.times is None else {"times": list(s.times)}),
         "samples": m.stats.samples,
         "mean": [float(v) for v in m.stats.mean],
         "std": [float(v) for v in m.stats.std],
@@ -1116,6 +1221,12 @@ def _summary(
     }
     keys = ("sensor", "method", "reference", "units", "columns", "offset", "matrix", "gain", "uncertainty")
     return head | {k: doc.get(k) for k in (*keys, "tilt_sensitivity", "poses", "unit")}
+
+
+def _rejected_head(err: TumblecalError) -> dict[str, Any]:
+    """The head of every summary (see _summary) for a rejection with no parameters to follow it."""
+    head = {"status": "rejected", "exit_status": 3, "file": None, "rejections": [_error_dict(err)]}
+    return head | {"verdict": None, "warnings": [], "notes": []}
 
 
 def _error_dict(err: TumblecalError) -> dict[str, Any]:
@@ -1481,6 +1592,149 @@ def verify(
         raise typer.Exit(1)
 
 
+SEGMENT_EXIT = """\
+Exit status: 0 blocks found and written; 2 usage or input error (bad file or option, a time
+column that goes backwards); 3 nothing to calibrate from (fewer than two still blocks kept).
+Nothing is written on 2 or 3."""
+
+
+@app.command(cls=Command, epilog=SEGMENT_EXIT)
+def segment(
+    log: Annotated[str, typer.Argument(metavar="LOG", help="The continuous log, one CSV ('-' reads stdin).")],
+    out_dir: Annotated[
+        str | None,
+        typer.Option(
+            "--out-dir",
+            "-d",
+            metavar="DIR",
+            help="Write each kept block as a CSV of its own (the log's header and rows, unchanged): xp.csv xn.csv "
+            "yp.csv yn.csv zp.csv zn.csv for the best block of each face, blockNN.csv for the others; and "
+            "segments.csv, the index. DIR is created if needed. Without it the index goes to stdout.",
+        ),
+    ] = None,
+    sensor: Sensor = SensorKind.accelerometer,
+    columns: Columns = None,
+    no_header: NoHeader = False,
+    time_column: Annotated[
+        str | None,
+        typer.Option(
+            "--time-column", metavar="NAME", help="The time column (default: t, time, timestamp, time_s or ts)."
+        ),
+    ] = None,
+    time_unit: Annotated[TimeUnit, typer.Option("--time-unit", help="Unit of the time column.")] = TimeUnit.s,
+    rate: Annotated[
+        float | None,
+        typer.Option("--rate", metavar="HZ", help="Sample rate in Hz; used instead of a time column."),
+    ] = None,
+    window: Window = None,
+    threshold: Threshold = None,
+    min_duration: MinDuration = None,
+    trim: Trim = None,
+    pose_column: PoseColumn = None,
+    pose_map: PoseMap = None,
+    max_noise: Annotated[
+        float,
+        _log_option(
+            "--max-noise",
+            "FRACTION",
+            "Drop a block whose standard deviation, or drift between its first and last third, is above "
+            "FRACTION x its magnitude (as solve's moved check).",
+        ),
+    ] = 0.02,
+    max_tilt: Annotated[
+        float,
+        _log_option("--max-tilt", "DEGREES", "Label a block with its nearest face only when within this angle."),
+    ] = 25.0,
+    nominal_offset: Annotated[
+        str | None,
+        _log_option(
+            "--nominal-offset",
+            "V|X,Y,Z",
+            "The raw value at zero stimulus, removed before judging a block's direction. "
+            "[default: the per-axis midpoint of the block means]",
+        ),
+    ] = None,
+    verbose: Annotated[bool, typer.Option("--verbose", "-v", help="List the dropped blocks too.")] = False,
+    quiet: Quiet = False,
+) -> None:
+    """Find the static poses in one continuous log and cut it into one CSV per pose.
+
+    A sample is still when the rolling standard deviation around it is below the threshold;
+    each still run is a block, labelled with the face it rests on. The blocks go to
+    `solve --poses`, or let `solve --log` do all of it in one step.
+
+    \b
+      tumblecal segment session.csv --out-dir poses/
+      tumblecal solve --poses poses/xp.csv poses/xn.csv poses/yp.csv poses/yn.csv poses/zp.csv poses/zn.csv
+      tumblecal segment session.csv --rate 102.4 > segments.csv       # the index only
+      tumblecal segment annotated.csv --pose-column part --pose-map x_p=+x,x_a=-x,y_p=+y,y_a=-y,z_p=+z,z_a=-z -d poses/
+    """
+    import csv
+    import io
+
+    from tumblecal_cli import captures
+    from tumblecal_cli import segment as seg_core
+    from tumblecal_cli.files import atomic_output
+
+    for option, value in (("--max-noise", max_noise), ("--max-tilt", max_tilt)):
+        if not value > 0:
+            raise InputError(f"{option} must be positive, got {value:g}")
+    if out_dir is not None and os.path.exists(out_dir) and not os.path.isdir(out_dir):
+        raise InputError("is a file, not a folder: --out-dir takes a folder", file=out_dir)
+    settings = seg_core.Settings(
+        window=window,
+        threshold=threshold,
+        min_duration=min_duration,
+        trim=trim,
+        max_noise=max_noise,
+        max_tilt_deg=max_tilt,
+        nominal_offset=None if nominal_offset is None else _triplet_option(nominal_offset, "--nominal-offset"),
+    )
+    path = _spool_stdin() if log == "-" else log
+    try:
+        data, seg = _segment_log(
+            path,
+            name="<stdin>" if log == "-" else None,
+            sensor=sensor.value,
+            columns=columns,
+            no_header=no_header,
+            time_column=time_column,
+            time_unit=time_unit.value,
+            rate=rate,
+            pose_column=pose_column,
+            pose_map=pose_map,
+            settings=settings,
+        )
+        files = _block_files(seg)
+        if not quiet:
+            _print_blocks(data, seg, _console(), used={n: f"-> {f}" for n, f in files.items()}, everything=verbose)
+        _enough_blocks(data, seg, 2)
+        text = io.StringIO()
+        writer = csv.writer(text, lineterminator="\n")
+        writer.writerow(INDEX_COLUMNS)
+        writer.writerows(_index_rows(data, seg, files))
+        if out_dir is None:
+            with atomic_output("-") as out:
+                out.write(text.getvalue().encode())
+            return
+        if log != "-":
+            for f in [*files.values(), "segments.csv"]:
+                check_path = os.path.join(out_dir, f)
+                if os.path.exists(check_path) and os.path.samefile(check_path, log):
+                    raise InputError(f"--out-dir would overwrite the input with {f}", file=log)
+        os.makedirs(out_dir, exist_ok=True)
+        kept = seg.kept
+        spans = [(int(data.rows[b.first]), int(data.rows[b.last])) for b in kept]
+        captures.copy_rows(path, data.layout, spans, [os.path.join(out_dir, files[b.number]) for b in kept])
+        with atomic_output(os.path.join(out_dir, "segments.csv")) as out:
+            out.write(text.getvalue().encode())
+    finally:
+        if log == "-":
+            os.unlink(path)
+    if not quiet:
+        _console().print(f"wrote {len(kept)} block files and segments.csv to {out_dir}", soft_wrap=True)
+
+
 def _print_verify(
     doc: dict[str, Any],
     rows: list[dict[str, Any]],
@@ -1574,7 +1828,7 @@ def _print_summary(
         )
     for p in doc.get("poses", []):
         angle = p.get("angle_deg")
-        name = os.path.basename(str(p.get("file", "")))
+        name = os.path.basename(str(p.get("file", ""))) + (f" #{p['block']}" if "block" in p else "")
         poses.add_row(
             p["pose"] or "?",
             name,
