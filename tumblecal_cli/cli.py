@@ -544,7 +544,6 @@ def solve(
         items = [items[k] for k in order]
         labels = [None if name in solvers.ORIENTATION_FREE else label for label, _ in items]
         files = [f for _, f in items]
-    else:
         given = [
             flag
             for flag, value in (
@@ -1236,8 +1235,13 @@ def _error_dict(err: TumblecalError) -> dict[str, Any]:
 def _print_json(doc: dict[str, Any]) -> None:
     import json
 
+    _print_text(json.dumps(doc, indent=2, ensure_ascii=False) + "\n")
+
+
+def _print_text(text: str) -> None:
+    """Data on stdout; a reader that went away (``| head``) is exit 141, not a traceback."""
     try:
-        sys.stdout.write(json.dumps(doc, indent=2, ensure_ascii=False) + "\n")
+        sys.stdout.write(text)
         sys.stdout.flush()
     except BrokenPipeError:
         raise PipeClosed("stdout closed") from None
@@ -1714,8 +1718,7 @@ def segment(
         writer.writerow(INDEX_COLUMNS)
         writer.writerows(_index_rows(data, seg, files))
         if out_dir is None:
-            with atomic_output("-") as out:
-                out.write(text.getvalue().encode())
+            _print_text(text.getvalue())
             return
         if log != "-":
             for f in [*files.values(), "segments.csv"]:
