@@ -7,6 +7,7 @@ of a few runs of a fresh process, wall clock, and peak memory (max RSS) of that 
     apply, 4M rows      vs  the same on the 4M-row file
     apply peak memory   4M rows / 1M rows   (streaming: ~1, not ~4)
     solve, 3 poses      vs  python -c "import pandas, numpy"               (start-up)
+    segment, 600k rows  vs  python -c "import pandas; pandas.read_csv(f)"  (target <= 1.5x)
 """
 
 from __future__ import annotations
@@ -53,6 +54,22 @@ def write_log(path: Path, rows: int) -> None:
             np.savetxt(f, np.column_stack([t, xyz]), fmt=["%.3f", "%.6f", "%.6f", "%.6f"], delimiter=",")
 
 
+def write_tumble(path: Path, rows: int) -> None:
+    """A 1 kHz t,x,y,z session turned from face to face: 15 s still, 5 s moving, repeated."""
+    rng = np.random.default_rng(2)
+    faces = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float)
+    t = np.arange(rows) / 1000.0
+    phase = t % 20.0
+    k = (t // 20.0).astype(int)
+    here, there = faces[k % 6], faces[(k + 1) % 6]
+    w = np.clip((phase - 15.0) / 5.0, 0, 1)[:, None]  # 0 while still, 0 -> 1 while turning
+    g = (1 - w) * here + w * there + np.sin(np.pi * w) * 0.3 * rng.normal(size=(rows, 3))
+    xyz = g + [0.01, -0.02, 0.015] + rng.normal(0, 0.002, size=(rows, 3))
+    with path.open("w") as f:
+        f.write("t,x,y,z\n")
+        np.savetxt(f, np.column_stack([t, xyz]), fmt=["%.3f", "%.6f", "%.6f", "%.6f"], delimiter=",")
+
+
 def main() -> None:
     rows: list[tuple[str, float, float, str]] = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -75,6 +92,12 @@ def main() -> None:
         ours, _ = run(solve_argv, repeat=5)
         base, _ = run([sys.executable, "-c", "import pandas, numpy"], repeat=5)
         rows.append(("solve 3 poses (start-up)", ours, base, "vs import pandas, numpy"))
+        session = folder / "session.csv"
+        write_tumble(session, 600_000)
+        base, _ = run([sys.executable, "-c", f"import pandas; pandas.read_csv({str(session)!r})"])
+        ours, _ = run([*TUMBLECAL, "segment", "-q", str(session), "-d", str(folder / "poses")])
+        blocks = len(list((folder / "poses").glob("*.csv"))) - 1
+        rows.append(("segment 600k rows (10 min)", ours, base, f"{blocks} blocks written"))
     machine = f"{platform.node()} ({os.cpu_count()} cores, Python {platform.python_version()})"
     print(f"tumblecal bench, {date.today()}, {machine}")
     print(f"{'what':<28} {'tumblecal':>10} {'baseline':>10} {'ratio':>7}  notes")
@@ -83,6 +106,7 @@ def main() -> None:
     print(f"{'apply peak memory 4M / 1M':<28} {memory[4]:>8.0f}Mi {memory[1]:>8.0f}Mi {memory[4] / memory[1]:>6.2f}x")
     print("baselines: apply vs python -c 'import pandas; pandas.read_csv(f)'")
     print("           solve vs python -c 'import pandas, numpy'")
+    print("           segment vs python -c 'import pandas; pandas.read_csv(f)'")
 
 
 if __name__ == "__main__":

@@ -596,9 +596,11 @@ def read_log(
     label_column: str | None = None,
     use_time: bool = True,
     name: str | None = None,
+    digest: bool = True,
 ) -> Log:
     """Read a whole log into memory for segmentation. Its time column (unless ``use_time`` is
-    off) must hold numbers that never go backwards; ``label_column`` is read as text."""
+    off) must hold numbers that never go backwards; ``label_column`` is read as text;
+    ``digest`` off leaves ``sha256`` empty (a second pass over the file saved)."""
     return _read(
         path,
         sensor,
@@ -610,6 +612,7 @@ def read_log(
         label_column=label_column,
         strict_time=use_time,
         name=name,
+        digest=digest,
     )
 
 
@@ -625,6 +628,7 @@ def _read(
     label_column: str | None,
     strict_time: bool,
     name: str | None = None,
+    digest: bool = True,
 ) -> Log:
     with open_capture(
         path,
@@ -675,8 +679,8 @@ def _read(
             with contextlib.suppress(pa.ArrowInvalid):  # a cell that is not a number: the temperature is unknown
                 temperature = np.concatenate([_floats(pc.cast(c, pa.float64(), safe=False)) for c in temps])[mask]
         text = None if lay.extra is None else [str(labels[i] or "").strip() for i in used]
-        digest = cap.sha256()
-    return Log(lay, values[mask], used, t, text, digest, temperature, _TIME_SCALE[time_unit])
+        sha256 = cap.sha256() if digest else ""
+    return Log(lay, values[mask], used, t, text, sha256, temperature, _TIME_SCALE[time_unit])
 
 
 def _times(cap: Capture, times: list[tuple[int, pa.Array]]) -> FloatArray:

@@ -799,6 +799,7 @@ def _segment_log(
     pose_column: str | None,
     pose_map: str | None,
     settings: Any,
+    digest: bool = True,
 ) -> tuple[Any, Any]:
     """Read a log and find its blocks: (captures.Log, segment.Segmentation)."""
     from tumblecal_cli import captures, core, segment
@@ -829,6 +830,7 @@ def _segment_log(
         label_column=pose_column,
         use_time=rate is None,
         name=name,
+        digest=digest,
     )
     seconds = None if rate else log.seconds()
     if pose_column is None:
@@ -1708,6 +1710,7 @@ def segment(
             pose_column=pose_column,
             pose_map=pose_map,
             settings=settings,
+            digest=False,  # the block files are copies; nothing records the log's hash
         )
         files = _block_files(seg)
         if not quiet:

@@ -142,19 +142,23 @@ def gaps(times: FloatArray | None, period: float | None) -> IntArray:
 
 
 def rolling_std(values: FloatArray, window: int) -> FloatArray:
-    """The standard deviation of the window of ``window`` samples centred on each sample
-    (shorter at the ends), as sqrt(var_x + var_y + var_z): cumulative sums, no loop."""
+    """The standard deviation of the window of ``window`` samples centred on each sample (at
+    the ends, the first or last whole window), as sqrt(var_x + var_y + var_z): from cumulative
+    sums, so one pass whatever the window."""
     n = values.shape[0]
-    centred = values - np.median(values, axis=0)  # small numbers: the sums keep their precision
-    zero = np.zeros((1, values.shape[1]))
-    s1 = np.concatenate([zero, np.cumsum(centred, axis=0)])
-    s2 = np.concatenate([zero, np.cumsum(centred * centred, axis=0)])
-    lo = np.clip(np.arange(n) - window // 2, 0, n)
-    hi = np.clip(lo + window, 0, n)
-    count = (hi - lo)[:, None]
-    mean = (s1[hi] - s1[lo]) / count
-    var = (s2[hi] - s2[lo]) / count - mean * mean
-    out: FloatArray = np.sqrt(np.maximum(var, 0.0).sum(axis=1))
+    w = min(window, n)
+    centred = values - values.mean(axis=0)  # small numbers: the sums keep their precision
+    s1 = np.empty((n + 1, values.shape[1]))
+    s1[0] = 0.0
+    np.cumsum(centred, axis=0, out=s1[1:])
+    s2 = np.empty(n + 1)
+    s2[0] = 0.0
+    np.cumsum(np.einsum("ij,ij->i", centred, centred), out=s2[1:])
+    d1 = s1[w:] - s1[:-w]  # the sums over each whole window, by its first sample
+    var = (s2[w:] - s2[:-w]) / w - np.einsum("ij,ij->i", d1, d1) / (w * w)
+    spread = np.sqrt(np.maximum(var, 0.0))
+    head = w // 2  # the window centred on sample i starts at i - head
+    out: FloatArray = np.concatenate([np.full(head, spread[0]), spread, np.full(n - head - spread.size, spread[-1])])
     return out
 
 
@@ -188,7 +192,7 @@ def detect(
     threshold = settings.threshold
     if threshold is None:
         floor = float(np.percentile(spread, FLOOR_PERCENTILE))
-        scale = float(np.ptp(values, axis=0).max()) or 1.0
+        scale = float(np.ptp(values[::16], axis=0).max()) or 1.0  # every 16th: a scale, not an exact range
         # quantised readings of a quiet sensor can have no spread at all: still is then "exactly level"
         threshold = FLOOR_FACTOR * floor if floor > 1e-9 * scale else 1e-6 * scale
     breaks = gaps(times, period)
