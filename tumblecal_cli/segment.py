@@ -199,8 +199,11 @@ def detect(
     starts, ends = _runs(spread < threshold, breaks)
     # the still period reaches half a window past the still centres, less the trim at each end
     reach = window // 2
-    starts = np.maximum(starts - reach + trim, 0)
-    ends = np.minimum(ends + (window - reach - 1) - trim, values.shape[0] - 1)
+    # ... and never across a gap: the first and last sample of the stretch between gaps bound it
+    edges = np.concatenate([[0], breaks, [values.shape[0]]])
+    stretch = np.searchsorted(breaks, starts, side="right")
+    starts = np.maximum(starts - reach + trim, edges[stretch])
+    ends = np.minimum(ends + (window - reach - 1) - trim, edges[stretch + 1] - 1)
     spans = [(int(a), int(b)) for a, b in zip(starts, ends, strict=True) if b >= a]
     seg = Segmentation(
         [],
@@ -266,7 +269,7 @@ def _judge(
     if settings.nominal_offset is not None:
         seg.centre = np.asarray(settings.nominal_offset, dtype=float)
     else:
-        seg.centre = (means.max(axis=0) + means.min(axis=0)) / 2
+        seg.centre = rough_centre(means, settings.max_tilt_deg)
     for number, ((a, b), st) in enumerate(zip(spans, stats, strict=True), start=1):
         third = max(1, (b - a + 1) // 3)
         drift = values[b + 1 - third : b + 1].mean(axis=0) - values[a : a + third].mean(axis=0)
@@ -299,6 +302,25 @@ def _judge(
             )
         )
     return seg
+
+
+def rough_centre(means: FloatArray, max_tilt_deg: float) -> FloatArray:
+    """The reading at zero stimulus, roughly, from the block means alone: of the per-axis
+    midpoint (right when opposite faces are there, and for turns through all orientations), the
+    per-axis median (right when only some faces are: +x +y +z) and zero (a single block of data
+    already in g), the one that puts the most blocks within ``max_tilt_deg`` of a face, then
+    the one under which the blocks' magnitudes agree best (gravity is the same in every pose)."""
+    candidates = [(means.max(axis=0) + means.min(axis=0)) / 2, np.median(means, axis=0), np.zeros(means.shape[1])]
+    best: tuple[tuple[float, float], FloatArray] | None = None
+    for centre in candidates:
+        norms = np.linalg.norm(means - centre, axis=1)
+        if not norms.size or float(norms.min()) <= 0.1 * float(np.median(norms)) or float(norms.min()) == 0.0:
+            continue  # a block at the centre itself: no direction to judge
+        labelled = sum(_nearest_face(m - centre)[1] <= max_tilt_deg for m in means)
+        key = (-float(labelled), float(norms.std() / norms.mean()))
+        if best is None or key < best[0]:
+            best = (key, centre)
+    return candidates[0] if best is None else best[1]
 
 
 def _nearest_face(v: FloatArray) -> tuple[str, float, float]:
