@@ -308,18 +308,16 @@ def rough_centre(means: FloatArray, max_tilt_deg: float) -> FloatArray:
     """The reading at zero stimulus, roughly, from the block means alone: of the per-axis
     midpoint (right when opposite faces are there, and for turns through all orientations), the
     per-axis median (right when only some faces are: +x +y +z) and zero (a single block of data
-    already in g), the one that puts the most blocks within ``max_tilt_deg`` of a face, then
-    the one under which the blocks' magnitudes agree best (gravity is the same in every pose)."""
+    already in g), the first that puts the most blocks within ``max_tilt_deg`` of a face."""
     candidates = [(means.max(axis=0) + means.min(axis=0)) / 2, np.median(means, axis=0), np.zeros(means.shape[1])]
-    best: tuple[tuple[float, float], FloatArray] | None = None
+    best: tuple[int, FloatArray] | None = None
     for centre in candidates:
         norms = np.linalg.norm(means - centre, axis=1)
         if not norms.size or float(norms.min()) <= 0.1 * float(np.median(norms)) or float(norms.min()) == 0.0:
             continue  # a block at the centre itself: no direction to judge
         labelled = sum(_nearest_face(m - centre)[1] <= max_tilt_deg for m in means)
-        key = (-float(labelled), float(norms.std() / norms.mean()))
-        if best is None or key < best[0]:
-            best = (key, centre)
+        if best is None or labelled > best[0]:
+            best = (labelled, centre)
     return candidates[0] if best is None else best[1]
 
 
