@@ -659,8 +659,9 @@ def _read(
                 k += 1
             if lay.extra is not None:
                 labels.extend(cols[k].to_pylist())
-        values = np.concatenate(blocks) if blocks else np.empty((0, 3))
+        values = np.concatenate(blocks) if len(blocks) > 1 else blocks[0] if blocks else np.empty((0, 3))
         mask = np.concatenate(keep) if keep else np.zeros(0, dtype=bool)
+        every = bool(mask.all())  # no empty rows (the usual case): no copies to drop them
         used = np.flatnonzero(mask).astype(np.int64)
         if used.size == 0:
             raise InputError(
@@ -668,7 +669,8 @@ def _read(
             )
         t = None
         if times and strict_time:
-            t = _times(cap, times)[mask]
+            t = _times(cap, times)
+            t = t if every else t[mask]
         elif times:
             try:
                 t = np.concatenate([_floats(pc.cast(c, pa.float64(), safe=False)) for _, c in times])[mask]
@@ -680,7 +682,7 @@ def _read(
                 temperature = np.concatenate([_floats(pc.cast(c, pa.float64(), safe=False)) for c in temps])[mask]
         text = None if lay.extra is None else [str(labels[i] or "").strip() for i in used]
         sha256 = cap.sha256() if digest else ""
-    return Log(lay, values[mask], used, t, text, sha256, temperature, _TIME_SCALE[time_unit])
+    return Log(lay, values if every else values[mask], used, t, text, sha256, temperature, _TIME_SCALE[time_unit])
 
 
 def _times(cap: Capture, times: list[tuple[int, pa.Array]]) -> FloatArray:
@@ -727,7 +729,7 @@ def copy_rows(path: str, layout: Layout, spans: Sequence[tuple[int, int]], outpu
     for (first, last), output in zip(spans, outputs, strict=True):
         with atomic_output(output) as out:
             out.write(layout.head)
-            out.write(data[starts[first] : ends[last]].tobytes())
+            out.write(data[starts[first] : ends[last]].data)  # the bytes themselves, no copy
 
 
 def row_offsets(data: np.ndarray[Any, np.dtype[np.uint8]], head: int) -> tuple[Any, Any]:
@@ -739,11 +741,12 @@ def row_offsets(data: np.ndarray[Any, np.dtype[np.uint8]], head: int) -> tuple[A
     if starts[-1] >= data.size:  # the file ends with a newline: no line after it
         starts, ends = starts[:-1], ends[:-1]
     first = starts.copy()  # the first byte that is not a space or tab, line by line
-    todo = np.flatnonzero((first < ends) & np.isin(data[np.minimum(first, data.size - 1)], (32, 9)))
-    while todo.size:
-        first[todo] += 1
-        todo = todo[(first[todo] < ends[todo]) & np.isin(data[np.minimum(first[todo], data.size - 1)], (32, 9))]
     lead = data[np.minimum(first, data.size - 1)]
+    todo = np.flatnonzero(((lead == 32) | (lead == 9)) & (first < ends))
+    while todo.size:  # only lines that start with blanks, one blank a round
+        first[todo] += 1
+        lead[todo] = data[np.minimum(first[todo], data.size - 1)]
+        todo = todo[((lead[todo] == 32) | (lead[todo] == 9)) & (first[todo] < ends[todo])]
     blank = (first >= ends) | (lead == 10) | (lead == 13)
     row = ~(blank | (lead == ord("#")))
     return starts[row], ends[row]
