@@ -43,10 +43,11 @@ def run(argv: list[str], repeat: int = 3) -> tuple[float, float]:
 
 
 def write_log(path: Path, rows: int) -> None:
-    """A t,x,y,z capture at 1 kHz in g, 6 decimals, like a logger writes."""
+    """A t,ax,ay,az capture at 1 kHz in g, 6 decimals, like a logger writes (the columns of
+    sample_data, which the calibration records)."""
     rng = np.random.default_rng(1)
     with path.open("w") as f:
-        f.write("t,x,y,z\n")
+        f.write("t,ax,ay,az\n")
         for start in range(0, rows, 500_000):
             n = min(500_000, rows - start)
             t = np.arange(start, start + n) / 1000.0

@@ -806,7 +806,7 @@ def _segment_log(
 
     if sensor != "accelerometer":
         raise InputError(
-            f"--log finds the still poses by the direction of gravity: it is for the accelerometer, not the {sensor}",
+            f"the still poses of a log are found and labelled by gravity: the accelerometer's, not the {sensor}'s",
             hint="cut the log with `tumblecal segment` (each block keeps every column), then solve the "
             f"{sensor}'s blocks with --poses and --sensor {sensor}",
         )
