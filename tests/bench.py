@@ -65,7 +65,7 @@ def write_tumble(path: Path, rows: int) -> None:
     here, there = faces[k % 6], faces[(k + 1) % 6]
     w = np.clip((phase - 15.0) / 5.0, 0, 1)[:, None]  # 0 while still, 0 -> 1 while turning
     g = (1 - w) * here + w * there + np.sin(np.pi * w) * 0.3 * rng.normal(size=(rows, 3))
-    xyz = g + [0.01, -0.02, 0.015] + rng.normal(0, 0.002, size=(rows, 3))
+    xyz = g + np.array([0.01, -0.02, 0.015]) + rng.normal(0, 0.002, size=(rows, 3))
     with path.open("w") as f:
         f.write("t,x,y,z\n")
         np.savetxt(f, np.column_stack([t, xyz]), fmt=["%.3f", "%.6f", "%.6f", "%.6f"], delimiter=",")
