@@ -41,7 +41,7 @@ def test_core_imports_numpy_only() -> None:
     assert imported("import tumblecal_cli.core", ("pandas", "pyarrow", "typer", "click", "rich", "yaml")) == []
 
 
-@pytest.mark.parametrize("module", ["gate", "solvers"])
+@pytest.mark.parametrize("module", ["gate", "solvers", "segment"])
 def test_core_layer_imports_numpy_only(module: str) -> None:
     assert imported(f"import tumblecal_cli.{module}", ("pandas", "pyarrow", "typer", "click", "rich", "yaml")) == []
 
@@ -58,6 +58,7 @@ def test_core_layer_imports_numpy_only(module: str) -> None:
             "    assert main(['solve', '--help']) == 0\n"
             "    assert main(['apply', '--help']) == 0\n"
             "    assert main(['verify', '--help']) == 0\n"
+            "    assert main(['segment', '--help']) == 0\n"
             "    assert main(['solve', '--poses', 'a.csv', '-x=b.csv', '--help']) == 0\n"
             "    assert main(['--version']) == 0",
             id="help-and-version",
