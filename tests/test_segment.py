@@ -734,7 +734,9 @@ def usage_files(six_level_csv: Path, tmp_path: Path) -> dict[str, str]:
             ["solve", "--poses", "POSE", "--window", "0.5", "-o", "OUT"], ["--window", "--log"], id="window-without-log"
         ),
         pytest.param(
-            ["solve", "--log", "LOG", "--sensor", "gyroscope", "-o", "OUT"], ["--log", "gyroscope"], id="gyroscope-log"
+            ["solve", "--log", "LOG", "--sensor", "gyroscope", "-o", "OUT"],
+            ["accelerometer", "gyroscope"],
+            id="gyroscope-log",
         ),
     ],
 )
