@@ -573,7 +573,16 @@ def read_samples(
 ) -> Samples:
     """Read the sensor columns of a small capture (a pose file) into memory (``prefer``: a
     calibration's recorded columns, used when the file has them)."""
-    log = _read(path, sensor, columns, no_header, time_column, time_unit, prefer, label_column=None, strict_time=False)
+    log = read_log(
+        path,
+        sensor=sensor,
+        columns=columns,
+        no_header=no_header,
+        time_column=time_column,
+        time_unit=time_unit,
+        use_time=False,
+        prefer=prefer,
+    )
     t, used = log.clock, log.rows
     duration = None
     if t is not None:
@@ -597,39 +606,12 @@ def read_log(
     use_time: bool = True,
     name: str | None = None,
     digest: bool = True,
+    prefer: Sequence[str] | None = None,
 ) -> Log:
-    """Read a whole log into memory for segmentation. Its time column (unless ``use_time`` is
-    off) must hold numbers that never go backwards; ``label_column`` is read as text;
-    ``digest`` off leaves ``sha256`` empty (a second pass over the file saved)."""
-    return _read(
-        path,
-        sensor,
-        columns,
-        no_header,
-        time_column,
-        time_unit,
-        None,
-        label_column=label_column,
-        strict_time=use_time,
-        name=name,
-        digest=digest,
-    )
-
-
-def _read(
-    path: str,
-    sensor: str,
-    columns: Sequence[str] | None,
-    no_header: bool,
-    time_column: str | None,
-    time_unit: str,
-    prefer: Sequence[str] | None,
-    *,
-    label_column: str | None,
-    strict_time: bool,
-    name: str | None = None,
-    digest: bool = True,
-) -> Log:
+    """Read a whole capture into memory (a log to segment, or a pose file). With ``use_time``
+    its time column must hold numbers that never go backwards (else a time cell that is not a
+    number leaves ``clock`` unknown); ``label_column`` is read as text; ``digest`` off leaves
+    ``sha256`` empty (a second pass over the file saved)."""
     with open_capture(
         path,
         sensor=sensor,
@@ -668,7 +650,7 @@ def _read(
                 "no rows with sensor values", file=lay.name, hint=f"columns read: {', '.join(lay.sensor_names)}"
             )
         t = None
-        if times and strict_time:
+        if times and use_time:
             t = _times(cap, times)
             t = t if every else t[mask]
         elif times:

@@ -21,6 +21,8 @@ from tumblecal_cli import __version__
 from tumblecal_cli.errors import CaptureRejected, InputError, PipeClosed, TumblecalError
 
 if TYPE_CHECKING:
+    from collections.abc import Iterator
+
     from rich.console import Console
 
     from tumblecal_cli.captures import Samples
@@ -157,6 +159,19 @@ Columns = Annotated[
 NoHeader = Annotated[
     bool,
     typer.Option("--no-header", help="The first line is data. 3 columns are x,y,z; 4 are t,x,y,z."),
+]
+TimeColumn = Annotated[
+    str | None,
+    typer.Option("--time-column", metavar="NAME", help="The time column (default: t, time, timestamp, time_s or ts)."),
+]
+TimeUnitOption = Annotated[TimeUnit, typer.Option("--time-unit", help="Unit of the time column.")]
+Rate = Annotated[
+    float | None,
+    typer.Option(
+        "--rate",
+        metavar="HZ",
+        help="Sample rate in Hz: durations when there is no time column; a log's time, instead of its time column.",
+    ),
 ]
 Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing on stderr unless there is an error.")]
 
@@ -396,17 +411,9 @@ def solve(
     ] = None,
     columns: Columns = None,
     no_header: NoHeader = False,
-    time_column: Annotated[
-        str | None,
-        typer.Option(
-            "--time-column", metavar="NAME", help="The time column (default: t, time, timestamp, time_s or ts)."
-        ),
-    ] = None,
-    time_unit: Annotated[TimeUnit, typer.Option("--time-unit", help="Unit of the time column.")] = TimeUnit.s,
-    rate: Annotated[
-        float | None,
-        typer.Option("--rate", metavar="HZ", help="Sample rate in Hz, for durations when there is no time column."),
-    ] = None,
+    time_column: TimeColumn = None,
+    time_unit: TimeUnitOption = TimeUnit.s,
+    rate: Rate = None,
     json_summary: JsonSummary = False,
     quiet: Quiet = False,
     # -- quality checks (exit 3) --
@@ -603,24 +610,19 @@ def solve(
             max_tilt_deg=max_tilt,
             nominal_offset=centre,
         )
-        path = _spool_stdin() if log == "-" else log
-        try:
-            data, seg = _segment_log(
-                path,
-                name="<stdin>" if log == "-" else None,
-                sensor=sensor.value,
-                columns=columns,
-                no_header=no_header,
-                time_column=time_column,
-                time_unit=time_unit.value,
-                rate=rate,
-                pose_column=pose_column,
-                pose_map=pose_map,
-                settings=settings,
-            )
-        finally:
-            if log == "-":
-                os.unlink(path)
+        with _segmented(
+            log,
+            sensor=sensor.value,
+            columns=columns,
+            no_header=no_header,
+            time_column=time_column,
+            time_unit=time_unit.value,
+            rate=rate,
+            pose_column=pose_column,
+            pose_map=pose_map,
+            settings=settings,
+        ) as (_, data, seg):
+            pass  # every block is in memory: the log is not read again
         centre = seg.centre
         try:
             name, labels, samples = _log_poses(data, seg, name, up_face, sensor.value)
@@ -786,10 +788,10 @@ def _pose_map(text: str | None) -> dict[str, str]:
     return out
 
 
-def _segment_log(
-    path: str,
+@contextlib.contextmanager
+def _segmented(
+    log: str,
     *,
-    name: str | None,
     sensor: str,
     columns: str | None,
     no_header: bool,
@@ -800,9 +802,10 @@ def _segment_log(
     pose_map: str | None,
     settings: Any,
     digest: bool = True,
-) -> tuple[Any, Any]:
-    """Read a log and find its blocks: (captures.Log, segment.Segmentation)."""
-    from tumblecal_cli import captures, core, segment
+) -> Iterator[tuple[str, Any, Any]]:
+    """Read a log ('-': stdin, kept in a temporary file until the block ends, for a second
+    read) and find its blocks: (the path to read it again, captures.Log, segment.Segmentation)."""
+    from tumblecal_cli import captures
 
     if sensor != "accelerometer":
         raise InputError(
@@ -820,21 +823,33 @@ def _segment_log(
             raise InputError(f"{option} must not be negative, got {value:g}")
     if rate is not None and not rate > 0:
         raise InputError(f"--rate must be positive, got {rate:g}")
-    log = captures.read_log(
-        path,
-        sensor=sensor,
-        columns=columns.split(",") if columns else None,
-        no_header=no_header,
-        time_column=time_column,
-        time_unit=time_unit,
-        label_column=pose_column,
-        use_time=rate is None,
-        name=name,
-        digest=digest,
-    )
+    path = _spool_stdin() if log == "-" else log
+    try:
+        data = captures.read_log(
+            path,
+            sensor=sensor,
+            columns=columns.split(",") if columns else None,
+            no_header=no_header,
+            time_column=time_column,
+            time_unit=time_unit,
+            label_column=pose_column,
+            use_time=rate is None,
+            name="<stdin>" if log == "-" else None,
+            digest=digest,
+        )
+        yield path, data, _find_blocks(data, rate, pose_column, pose_map, settings)
+    finally:
+        if log == "-":
+            os.unlink(path)
+
+
+def _find_blocks(log: Any, rate: float | None, pose_column: str | None, pose_map: str | None, settings: Any) -> Any:
+    """The blocks of a log read in: by the detector, or by its label column."""
+    from tumblecal_cli import core, segment
+
     seconds = None if rate else log.seconds()
     if pose_column is None:
-        return log, segment.detect(log.values, seconds, rate, settings)
+        return segment.detect(log.values, seconds, rate, settings)
     mapping = _pose_map(pose_map)
     labels = sorted(set(log.labels or []) - {""})
     for label in labels:
@@ -849,18 +864,16 @@ def _segment_log(
             file=log.layout.name,
             hint="say which is which with --pose-map, e.g. x_p=+x,x_a=-x,y_p=+y,y_a=-y,z_p=+z,z_a=-z",
         )
-    return log, segment.from_labels(log.values, log.labels or [], mapping, seconds, rate, settings)
+    return segment.from_labels(log.values, log.labels or [], mapping, seconds, rate, settings)
 
 
 def _enough_blocks(log: Any, seg: Any, need: int) -> None:
     """A log with fewer kept blocks than ``need`` has nothing to calibrate from (exit 3)."""
-    from tumblecal_cli import segment
 
     kept = seg.kept
     if len(kept) >= need:
         return
-    dropped = [b.dropped for b in seg.blocks if b.dropped]
-    why = ", ".join(f"{dropped.count(r)} {r}" for r in (segment.SHORT, segment.NOISY, segment.DRIFTING) if r in dropped)
+    why = seg.dropped_counts()
     found = f"{len(seg.blocks)} found" + (f", dropped: {why}" if why else "")
     if seg.threshold is None:
         hint = "label the static parts of the log in --pose-column (and map them with --pose-map)"
@@ -1013,10 +1026,9 @@ def _print_blocks(log: Any, seg: Any, console: Console, *, used: dict[int, str],
         )
     if shown:
         console.print(table)
-    dropped = [b.dropped for b in seg.blocks if b.dropped]
+    dropped = len(seg.blocks) - len(seg.kept)
     if dropped and not everything:
-        why = ", ".join(f"{dropped.count(r)} {r}" for r in sorted(set(dropped)))
-        console.print(f"{len(dropped)} more dropped ({why}); -v lists them", soft_wrap=True)
+        console.print(f"{dropped} more dropped ({seg.dropped_counts()}); -v lists them", soft_wrap=True)
     if seg.threshold is not None:
         how = (
             f"{segment.FLOOR_FACTOR:g} x the noise floor {seg.noise_floor:.4g}"
@@ -1621,17 +1633,9 @@ def segment(
     sensor: Sensor = SensorKind.accelerometer,
     columns: Columns = None,
     no_header: NoHeader = False,
-    time_column: Annotated[
-        str | None,
-        typer.Option(
-            "--time-column", metavar="NAME", help="The time column (default: t, time, timestamp, time_s or ts)."
-        ),
-    ] = None,
-    time_unit: Annotated[TimeUnit, typer.Option("--time-unit", help="Unit of the time column.")] = TimeUnit.s,
-    rate: Annotated[
-        float | None,
-        typer.Option("--rate", metavar="HZ", help="Sample rate in Hz; used instead of a time column."),
-    ] = None,
+    time_column: TimeColumn = None,
+    time_unit: TimeUnitOption = TimeUnit.s,
+    rate: Rate = None,
     window: Window = None,
     threshold: Threshold = None,
     min_duration: MinDuration = None,
@@ -1696,22 +1700,19 @@ def segment(
         max_tilt_deg=max_tilt,
         nominal_offset=None if nominal_offset is None else _triplet_option(nominal_offset, "--nominal-offset"),
     )
-    path = _spool_stdin() if log == "-" else log
-    try:
-        data, seg = _segment_log(
-            path,
-            name="<stdin>" if log == "-" else None,
-            sensor=sensor.value,
-            columns=columns,
-            no_header=no_header,
-            time_column=time_column,
-            time_unit=time_unit.value,
-            rate=rate,
-            pose_column=pose_column,
-            pose_map=pose_map,
-            settings=settings,
-            digest=False,  # the block files are copies; nothing records the log's hash
-        )
+    with _segmented(
+        log,
+        sensor=sensor.value,
+        columns=columns,
+        no_header=no_header,
+        time_column=time_column,
+        time_unit=time_unit.value,
+        rate=rate,
+        pose_column=pose_column,
+        pose_map=pose_map,
+        settings=settings,
+        digest=False,  # the block files are copies; nothing records the log's hash
+    ) as (path, data, seg):
         files = _block_files(seg)
         if not quiet:
             _print_blocks(data, seg, _console(), used={n: f"-> {f}" for n, f in files.items()}, everything=verbose)
@@ -1734,9 +1735,6 @@ def segment(
         captures.copy_rows(path, data.layout, spans, [os.path.join(out_dir, files[b.number]) for b in kept])
         with atomic_output(os.path.join(out_dir, "segments.csv")) as out:
             out.write(text.getvalue().encode())
-    finally:
-        if log == "-":
-            os.unlink(path)
     if not quiet:
         _console().print(f"wrote {len(kept)} block files and segments.csv to {out_dir}", soft_wrap=True)
 

@@ -95,6 +95,11 @@ class Segmentation:
     def kept(self) -> list[Block]:
         return [b for b in self.blocks if b.kept]
 
+    def dropped_counts(self) -> str:
+        """How many blocks were dropped for each reason: ``3 too short, 1 drifting``."""
+        reasons = [b.dropped for b in self.blocks]
+        return ", ".join(f"{reasons.count(r)} {r}" for r in (SHORT, NOISY, DRIFTING, UNMAPPED) if r in reasons)
+
     def best(self) -> dict[str, Block]:
         """The best kept block of each face found: the longest, ties to the quieter."""
         out: dict[str, Block] = {}
