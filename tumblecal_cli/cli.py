@@ -1030,15 +1030,16 @@ def _print_blocks(log: Any, seg: Any, console: Console, *, used: dict[int, str],
     if dropped and not everything:
         console.print(f"{dropped} more dropped ({seg.dropped_counts()}); -v lists them", soft_wrap=True)
     if seg.threshold is not None:
-        how = (
-            f"{segment.FLOOR_FACTOR:g} x the noise floor {seg.noise_floor:.4g}"
-            if seg.noise_floor is not None
-            else "given"
-        )
+        if seg.noise_floor is None:
+            how = "given"
+        elif seg.threshold == segment.FLOOR_FACTOR * seg.noise_floor:
+            how = f"{segment.FLOOR_FACTOR:g} x the noise floor {seg.noise_floor:.4g}"
+        else:  # readings that do not vary at all when still (segment.detect)
+            how = f"the noise floor is {seg.noise_floor:.4g}: still means no spread at all"
         window = f"{seg.window * seg.period:.3g} s" if seg.period else f"{seg.window} samples"
         console.print(
             f"threshold {seg.threshold:.4g} ({how}; rolling std over {window}); "
-            f"{len(seg.blocks)} blocks found, {len(seg.kept)} kept",
+            f"{len(seg.blocks)} block{'' if len(seg.blocks) == 1 else 's'} found, {len(seg.kept)} kept",
             soft_wrap=True,
         )
     if seg.gaps:
