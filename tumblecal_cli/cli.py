@@ -536,9 +536,21 @@ def solve(
             "give the pose files with --poses, or one continuous log with --log" + (", not both" if poses else ""),
             hint="see 'tumblecal solve --help'",
         )
-    chosen = MethodName.one_pose_tilt if tilt_compensate and method is MethodName.auto else method
-    if tilt_compensate and chosen is not MethodName.one_pose_tilt:
-        raise InputError(f"--tilt-compensate is the one-pose-tilt method, not {chosen.value}")
+    chosen, ref, centre, limits_given = _solve_settings(
+        method=method,
+        tilt_compensate=tilt_compensate,
+        up=up,
+        sensor=sensor,
+        reference=reference,
+        max_noise=max_noise,
+        max_tilt=max_tilt,
+        full_scale=full_scale,
+        nominal_offset=nominal_offset,
+        limits_file=limits_file,
+        max_offset=max_offset,
+        max_gain_error=max_gain_error,
+        nominal_gain=nominal_gain,
+    )
     up_face = _face(up, "--up")
     name = chosen.value
     labels: list[str | None] = []
@@ -565,22 +577,11 @@ def solve(
         ]
         if given:
             raise InputError(f"{given[0]} is for a continuous log (--log), not --poses files")
-    for option, value in (("--max-noise", max_noise), ("--max-tilt", max_tilt), ("--full-scale", full_scale)):
-        if value is not None and not value > 0:
-            raise InputError(f"{option} must be positive, got {value:g}")
     if json_summary and output == "-":
         raise InputError("--json prints the summary on stdout, so the calibration needs -o FILE")
     check_not_input(output, [*files, *([limits_file] if limits_file else [])])
     check_writable(output)
-    ref = reference if reference is not None else (0.0 if sensor is SensorKind.gyroscope else 1.0)
     gyro = sensor is SensorKind.gyroscope
-    if not math.isfinite(ref) or ref < 0 or (ref == 0 and not gyro):
-        raise InputError(
-            f"--reference must be a positive number, got {ref:g}",
-            hint="the stimulus magnitude: 1 (g), 9.80665 (m/s^2), 16384 (counts); 0 only for --sensor gyroscope",
-        )
-    centre = None if nominal_offset is None else _triplet_option(nominal_offset, "--nominal-offset")
-    limits_given = _limits(limits_file, max_offset, max_gain_error, nominal_gain)
     unit = _unit_block(serial, station, operator, meta or [])
     segmentation = None
     if log is None:
@@ -729,6 +730,41 @@ def solve(
         _print_json(_summary(doc, status, output, [], warned, notes))
     if status:
         raise typer.Exit(status)
+
+
+def _solve_settings(
+    *,
+    method: MethodName,
+    tilt_compensate: bool,
+    up: str,
+    sensor: SensorKind,
+    reference: float | None,
+    max_noise: float | None,
+    max_tilt: float,
+    full_scale: float | None,
+    nominal_offset: str | None,
+    limits_file: str | None,
+    max_offset: str | None,
+    max_gain_error: str | None,
+    nominal_gain: str | None,
+) -> tuple[MethodName, float, Any, Any]:
+    """The checks of solve's options that no pose file is needed for (batch runs them once, before
+    any unit): the method, the reference, the nominal offset and the limits."""
+    chosen = MethodName.one_pose_tilt if tilt_compensate and method is MethodName.auto else method
+    if tilt_compensate and chosen is not MethodName.one_pose_tilt:
+        raise InputError(f"--tilt-compensate is the one-pose-tilt method, not {chosen.value}")
+    _face(up, "--up")
+    for option, value in (("--max-noise", max_noise), ("--max-tilt", max_tilt), ("--full-scale", full_scale)):
+        if value is not None and not value > 0:
+            raise InputError(f"{option} must be positive, got {value:g}")
+    ref = reference if reference is not None else (0.0 if sensor is SensorKind.gyroscope else 1.0)
+    if not math.isfinite(ref) or ref < 0 or (ref == 0 and sensor is not SensorKind.gyroscope):
+        raise InputError(
+            f"--reference must be a positive number, got {ref:g}",
+            hint="the stimulus magnitude: 1 (g), 9.80665 (m/s^2), 16384 (counts); 0 only for --sensor gyroscope",
+        )
+    centre = None if nominal_offset is None else _triplet_option(nominal_offset, "--nominal-offset")
+    return chosen, ref, centre, _limits(limits_file, max_offset, max_gain_error, nominal_gain)
 
 
 def _method_options(name: str, ref: float, plane: Any, bias_spread: float | None) -> None:
