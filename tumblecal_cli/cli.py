@@ -719,6 +719,7 @@ def solve(
             hint=first.hint or REJECTION_HINTS[first.code],
             more=tuple(f.render() for f in rejected[1:]),
             code=first.code,
+            codes=tuple(f.code for f in rejected),
         )
     calfile.write(doc, output)
     status = 1 if failures else 0
@@ -1774,6 +1775,209 @@ def segment(
             out.write(text.getvalue().encode())
     if not quiet:
         _console().print(f"wrote {len(kept)} block files and segments.csv to {out_dir}", soft_wrap=True)
+
+
+BATCH_PANEL = "Batch"
+BATCH_EXIT = """\
+Exit status, the first that any unit has: 2 an input or usage error; 3 a capture rejected;
+1 a unit outside its limits; 0 every unit passed. A unit that fails never stops the batch:
+its row in summary.csv says why. Nothing but the calibrations and summary.csv is written."""
+#: solve's options that are each unit's own, not the batch's.
+PER_UNIT = ("poses", "log", "output", "json_summary", "quiet", "serial")
+
+
+def _batch_options(
+    source: Annotated[
+        str,
+        typer.Argument(
+            metavar="UNITS",
+            help="A folder with one folder of pose files per unit, UNITS/<serial>/x.csv y.csv z.csv (files named "
+            "x y z, xp xn yp yn zp zn or +x ... are labelled so; others are unlabelled, in name order); with --log, "
+            "one log per unit, UNITS/<serial>.csv or UNITS/<serial>/<log>.csv. Or a manifest CSV: the header "
+            "'serial,...', then a serial and its files per row (relative to the manifest; a column headed x, "
+            "+x, xp ... labels its files; a cell may be LABEL=FILE).",
+        ),
+    ],
+    out_dir: Annotated[
+        str,
+        typer.Option(
+            "--out-dir",
+            "-d",
+            metavar="DIR",
+            help="Where each unit's calibration goes, as <serial>_<UTC time>.json (never replacing a file: "
+            "a unit's history stays), with summary.csv, one row per unit. Created if needed.",
+            rich_help_panel=BATCH_PANEL,
+        ),
+    ],
+    log: Annotated[
+        bool,
+        typer.Option(
+            "--log",
+            help="Each unit is one continuous log, cut into still blocks as 'solve --log' does.",
+            rich_help_panel=BATCH_PANEL,
+        ),
+    ] = False,
+    jobs: Annotated[
+        int,
+        typer.Option(
+            "--jobs",
+            "-j",
+            metavar="N",
+            min=1,
+            help="Solve N units at a time, in N processes.",
+            rich_help_panel=BATCH_PANEL,
+        ),
+    ] = 1,
+    resume: Annotated[
+        bool,
+        typer.Option(
+            "--resume",
+            help="Continue a batch: skip the units already in DIR/summary.csv (whatever their status; delete a "
+            "row to redo that unit). Without it an existing summary.csv is an error.",
+            rich_help_panel=BATCH_PANEL,
+        ),
+    ] = False,
+    dask_scheduler: Annotated[
+        str | None,
+        typer.Option(
+            "--dask-scheduler",
+            metavar="ADDRESS",
+            help="Run the units on a Dask distributed cluster, tcp://host:8786 (README: Dask). Needs "
+            "'tumblecal[dask]' here and on the workers, and UNITS and DIR at the same paths on every worker.",
+            rich_help_panel=BATCH_PANEL,
+        ),
+    ] = None,
+    json_summary: Annotated[
+        bool,
+        typer.Option(
+            "--json",
+            help="Print the summary on stdout as JSON: the batch's status, counts, and each unit's row.",
+            rich_help_panel=BATCH_PANEL,
+        ),
+    ] = False,
+    quiet: Annotated[
+        bool,
+        typer.Option(
+            "--quiet", "-q", help="Print nothing on stderr unless there is an error.", rich_help_panel=BATCH_PANEL
+        ),
+    ] = False,
+) -> None:
+    """batch's own options; the rest are solve's (see _batch_signature)."""
+
+
+def _batch_signature() -> Any:
+    """batch takes its own options and every option of solve that is not a unit's own."""
+    import inspect
+
+    own = list(inspect.signature(_batch_options, eval_str=True).parameters.values())
+    shared = [p for n, p in inspect.signature(solve, eval_str=True).parameters.items() if n not in PER_UNIT]
+    return inspect.Signature(own + shared)
+
+
+def batch(**given: Any) -> None:
+    """Calibrate many units in one run: one calibration file per unit, and a summary.
+
+    Each unit is solved as 'tumblecal solve' would (every solve option below applies to all of
+    them), its calibration written to DIR/<serial>_<UTC time>.json, and its outcome added to
+    DIR/summary.csv: serial, status, verdict, codes, file, method, offset, gain, their 1-sigma
+    uncertainties, inputs, and the message of a unit that failed.
+
+    \b
+      tumblecal batch units/ --out-dir cals/ --limits limits.yaml --jobs 2
+      tumblecal batch manifest.csv --out-dir cals/ --reference 9.81
+      tumblecal batch logs/ --log --rate 100 --out-dir cals/ --resume
+      tumblecal batch units/ --out-dir /shared/cals --dask-scheduler tcp://scheduler:8786
+    """
+    from tumblecal_cli import batch as batches
+
+    own = {name: given.pop(name) for name in list(given) if name in _BATCH_OWN}
+    source, out_dir, log, quiet = own["source"], own["out_dir"], own["log"], own["quiet"]
+    _solve_settings(**{k: given[k] for k in _SETTINGS})  # a bad option is one error, not one per unit
+    run = batches.engine(own["jobs"], own["dask_scheduler"])
+    units, notes = batches.find_units(source, log=log)
+    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
+        raise InputError("is a file, not a folder: --out-dir takes a folder", file=out_dir)
+    summary_path = os.path.join(out_dir, batches.SUMMARY)
+    rows: list[dict[str, Any]] = []
+    if os.path.exists(summary_path):
+        if not own["resume"]:
+            raise InputError(
+                "a batch summary is already here",
+                file=summary_path,
+                hint="--resume continues it; or use another --out-dir",
+            )
+        rows = batches.read_summary(summary_path)
+    done = {str(r["serial"]) for r in rows}
+    todo = [u for u in units if u.serial not in done]
+    os.makedirs(out_dir, exist_ok=True)
+    console = _console()
+    if not quiet:
+        for note in notes:
+            console.print(f"note: {note}", soft_wrap=True, markup=False)
+        if done:
+            console.print(f"resuming: {len(units) - len(todo)} of {len(units)} units already done", soft_wrap=True)
+    summary = batches.Summary(out_dir, rows)
+    try:
+        with _batch_progress(console, len(todo), enabled=not quiet) as (show, tick):
+            for row in run(batches.run_unit, [(u, given, out_dir, log) for u in todo]):
+                summary.add(row)
+                if row["status"] or not show:
+                    _print_unit(row, out_dir, console, quiet=quiet)
+                tick()
+    finally:
+        summary.close()
+    status = batches.status(summary.rows)
+    counts = {v: sum(r["verdict"] == v for r in summary.rows) for v in batches.VERDICTS.values()}
+    if not quiet:
+        said = ", ".join(f"{n} {v}" for v, n in counts.items() if n)
+        console.print(f"{len(summary.rows)} units: {said} -> {summary_path}", soft_wrap=True, markup=False)
+    if own["json_summary"]:
+        _print_json({"status": status, "counts": counts, "summary": summary_path, "units": summary.rows})
+    if status:
+        raise typer.Exit(status)
+
+
+_BATCH_OWN = ("source", "out_dir", "log", "jobs", "resume", "dask_scheduler", "json_summary", "quiet")
+_SETTINGS = (
+    "method",
+    "tilt_compensate",
+    "up",
+    "sensor",
+    "reference",
+    "max_noise",
+    "max_tilt",
+    "full_scale",
+    "nominal_offset",
+    "limits_file",
+    "max_offset",
+    "max_gain_error",
+    "nominal_gain",
+)
+batch.__signature__ = _batch_signature()  # type: ignore[attr-defined]
+app.command(cls=Command, epilog=BATCH_EXIT)(batch)
+
+
+@contextlib.contextmanager
+def _batch_progress(console: Console, total: int, *, enabled: bool) -> Iterator[tuple[bool, Any]]:
+    """A progress bar on stderr when it is a terminal: (shown, advance by one unit)."""
+    if not (enabled and console.is_terminal and total):
+        yield False, lambda: None
+        return
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    columns = (TextColumn("batch"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
+    with Progress(*columns, console=console, transient=True) as progress:
+        task = progress.add_task("units", total=total)
+        yield True, lambda: progress.advance(task)
+
+
+def _print_unit(row: dict[str, Any], out_dir: str, console: Console, *, quiet: bool) -> None:
+    """One line per unit: its verdict and file, or why it failed."""
+    if quiet:
+        return
+    what = os.path.join(out_dir, row["file"]) if row.get("file") else row.get("message") or ""
+    codes = f" ({', '.join(row['codes'])})" if row.get("codes") else ""
+    console.print(f"{row['serial']}: {row['verdict']}{codes}: {what}", soft_wrap=True, markup=False, highlight=False)
 
 
 def _print_verify(

@@ -8,7 +8,8 @@ class TumblecalError(Exception):
 
     ``str(err)`` is the whole one-line message after ``error: ``; ``hint`` is an optional
     line saying what to do about it. ``more`` are further ``error:`` lines when several things
-    are wrong at once (three rejected poses); ``code`` is the stable code of a rejection.
+    are wrong at once (three rejected poses); ``code`` is the stable code of a rejection and
+    ``codes`` those of all of them (batch's summary lists them).
     """
 
     exit_code = 2
@@ -24,11 +25,13 @@ class TumblecalError(Exception):
         hint: str | None = None,
         more: tuple[str, ...] = (),
         code: str | None = None,
+        codes: tuple[str, ...] = (),
     ) -> None:
         self.message = message
         self.more = more
         if code is not None:
             self.code = code
+        self.codes = codes or ((self.code,) if self.code else ())
         self.file = file
         self.line = line
         self.column = column

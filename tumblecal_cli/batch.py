@@ -1,0 +1,455 @@
+"""``tumblecal batch`` and ``apply`` over many files: the units, the summary, and where they run.
+
+A unit is a serial number and its inputs (pose files, or one log). Each unit is solved by the
+``solve`` command's own code, in this process, in ``--jobs`` worker processes, or on a Dask
+cluster; its calibration is published as ``<serial>_<UTC time>.json`` next to the others (never
+replacing a file, so a unit's history stays), and it becomes one row of ``summary.csv``. A unit
+that fails becomes a row with its exit status and message; it never stops the batch.
+
+This module is the command line's (it calls the ``solve`` and ``apply`` commands); it imports
+neither numpy nor Typer at import time, so a worker pays for them once, on its first unit.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import glob
+import io
+import itertools
+import json
+import os
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
+from typing import Any
+
+from tumblecal_cli.errors import InputError, TumblecalError
+
+#: Files a unit folder's poses (or log) may be in; anything else there is left alone.
+DATA_SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
+SUMMARY = "summary.csv"
+#: The columns of summary.csv, in order (README: batch).
+SUMMARY_COLUMNS = [
+    "serial",
+    "status",
+    "verdict",
+    "codes",
+    "file",
+    "method",
+    "offset_x",
+    "offset_y",
+    "offset_z",
+    "gain_x",
+    "gain_y",
+    "gain_z",
+    "offset_se_x",
+    "offset_se_y",
+    "offset_se_z",
+    "gain_se_x",
+    "gain_se_y",
+    "gain_se_z",
+    "created",
+    "inputs",
+    "message",
+]
+NUMBERS = {c for c in SUMMARY_COLUMNS if c[-2:] in ("_x", "_y", "_z")}
+VERDICTS = {0: "pass", 1: "fail", 2: "error", 3: "rejected"}
+#: Units submitted to a Dask cluster at a time (a million-unit lot is not a million futures).
+IN_FLIGHT = 1000
+#: Exit status of the whole batch: the first of these any unit has (DESIGN.md section 5).
+PRECEDENCE = (2, 3, 1)
+
+
+@dataclass(frozen=True)
+class Unit:
+    """One unit: its serial and its inputs, each ``FILE`` or ``LABEL=FILE`` as ``--poses`` takes."""
+
+    serial: str
+    inputs: tuple[str, ...]
+
+
+# -- finding the units -------------------------------------------------------------------------
+
+
+def find_units(source: str, *, log: bool) -> tuple[list[Unit], list[str]]:
+    """The units of a folder (one folder per unit, or with ``log`` one log per unit) or of a
+    manifest CSV, sorted by serial; and notes for people about what was left out."""
+    if os.path.isdir(source):
+        units, notes = _folder_units(source, log=log)
+    elif os.path.isfile(source):
+        units, notes = _manifest_units(source, log=log)
+    else:
+        raise InputError("no such folder or manifest file", file=source)
+    if not units:
+        layout = "one log per unit (<serial>.csv or <serial>/log.csv)" if log else "one folder of pose files per unit"
+        raise InputError(f"no units found: expected {layout}", file=source, hint="see 'tumblecal batch --help'")
+    return sorted(units, key=lambda u: u.serial), notes
+
+
+def _data_files(folder: str) -> list[str]:
+    names = sorted(
+        n for n in os.listdir(folder) if not n.startswith(".") and os.path.splitext(n)[1].lower() in DATA_SUFFIXES
+    )
+    return [os.path.join(folder, n) for n in names if os.path.isfile(os.path.join(folder, n))]
+
+
+def _face_of(path: str) -> str | None:
+    """The face a pose file's name gives (x.csv, xp.csv, +x.csv, xn.csv ...), or None."""
+    stem = os.path.basename(path).split(".", 1)[0].lower()
+    if stem in ("x", "y", "z"):
+        return "+" + stem
+    if len(stem) == 2 and stem[0] in "+-" and stem[1] in "xyz":
+        return stem
+    if len(stem) == 2 and stem[0] in "xyz" and stem[1] in "pn":
+        return ("+" if stem[1] == "p" else "-") + stem[0]
+    return None
+
+
+def _folder_units(folder: str, *, log: bool) -> tuple[list[Unit], list[str]]:
+    units: list[Unit] = []
+    notes: list[str] = []
+    loose = _data_files(folder)
+    for name in sorted(os.listdir(folder)):
+        path = os.path.join(folder, name)
+        if name.startswith(".") or not os.path.isdir(path):
+            continue
+        files = _data_files(path)
+        if not files:
+            notes.append(f"{path}: no data files ({', '.join(DATA_SUFFIXES)}); skipped")
+            continue
+        if log:
+            units.append(Unit(name, tuple(files)))  # more than one: the unit's error, not the batch's
+            continue
+        faces = [_face_of(f) for f in files]
+        if all(faces):
+            units.append(Unit(name, tuple(f"{face}={f}" for face, f in zip(faces, files, strict=True))))
+        else:  # unlabelled (in name order), or a mixture, which solve refuses for this unit
+            units.append(Unit(name, tuple(files)))
+    if log:
+        units += [Unit(os.path.basename(f).split(".", 1)[0], (f,)) for f in loose]
+        seen: dict[str, int] = {}
+        for u in units:
+            seen[u.serial] = seen.get(u.serial, 0) + 1
+        twice = sorted(s for s, n in seen.items() if n > 1)
+        if twice:
+            raise InputError(f"serial {twice[0]} is both a folder and a log file", file=folder)
+    elif loose:
+        notes.append(f"{folder}: {len(loose)} files beside the unit folders ignored (each unit is a folder)")
+    return units, notes
+
+
+def _manifest_units(path: str, *, log: bool) -> tuple[list[Unit], list[str]]:
+    """A manifest: a header ``serial,...``, then a serial and its files per row. A file is
+    relative to the manifest's folder; a column headed by a face (x, +x, xp ...) labels its files."""
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            rows = list(csv.reader(f))
+    except (OSError, UnicodeDecodeError, csv.Error) as err:
+        raise InputError(f"cannot read the manifest: {err}", file=path) from None
+    lines = [(n, row) for n, row in enumerate(rows, 1) if any(c.strip() for c in row) and not row[0].startswith("#")]
+    if not lines or lines[0][1][0].strip().lower() != "serial":
+        raise InputError(
+            "a manifest starts with a header whose first column is 'serial'",
+            file=path,
+            line=lines[0][0] if lines else 1,
+            hint="serial,x,y,z  then one row per unit: A17,A17/x.csv,A17/y.csv,A17/z.csv",
+        )
+    header = [_face_of(h.strip() + ".csv") if h.strip() else None for h in lines[0][1]]
+    base = os.path.dirname(path)
+    units: list[Unit] = []
+    where: dict[str, int] = {}
+    for n, row in lines[1:]:
+        serial = row[0].strip()
+        if not serial or "/" in serial or "\\" in serial or serial.startswith("."):
+            raise InputError(f"serial {serial!r} cannot name a file", file=path, line=n, column=1)
+        if serial in where:
+            raise InputError(f"serial {serial} is also on line {where[serial]}", file=path, line=n, column=1)
+        where[serial] = n
+        items: list[str] = []
+        for k, cell in enumerate(row[1:], 1):
+            cell = cell.strip()
+            if not cell:
+                continue
+            label, sep, rest = cell.partition("=")
+            if sep and label and _looks_like_label(label):
+                items.append(f"{label}={_resolve(base, rest)}")
+            else:
+                face = header[k] if k < len(header) and not log else None
+                items.append(f"{face}={_resolve(base, cell)}" if face else _resolve(base, cell))
+        if not items:
+            raise InputError(f"unit {serial} has no files", file=path, line=n)
+        units.append(Unit(serial, tuple(items)))
+    return units, []
+
+
+def _looks_like_label(text: str) -> bool:
+    return _face_of(text + ".csv") is not None or text.count(",") == 2
+
+
+def _resolve(base: str, name: str) -> str:
+    return name if os.path.isabs(name) else os.path.join(base, name)
+
+
+# -- one unit ----------------------------------------------------------------------------------
+
+
+def run_unit(unit: Unit, options: dict[str, Any], out_dir: str, log: bool) -> dict[str, Any]:
+    """Solve one unit as ``tumblecal solve`` does and publish its calibration; its summary row.
+    Never raises for the unit's own errors: they are its row's status and message."""
+    import typer
+
+    from tumblecal_cli import cli
+
+    staging = os.path.join(out_dir, f".{unit.serial}.{os.getpid()}.partial.json")
+    args = dict(options, serial=unit.serial, output=staging, quiet=True, json_summary=False)
+    row: dict[str, Any] = {"serial": unit.serial, "inputs": " ".join(unit.inputs)}
+    if log and len(unit.inputs) != 1:
+        return row | _failed(InputError(f"--log takes one log per unit; {unit.serial} has {len(unit.inputs)} files"))
+    args["log" if log else "poses"] = unit.inputs[0] if log else list(unit.inputs)
+    status = 0
+    try:
+        cli.solve(**args)
+    except typer.Exit as done:
+        status = done.exit_code
+    except TumblecalError as err:
+        return row | _failed(err)
+    except Exception as err:  # a bug: this unit's error, with what to report
+        return row | _failed(InputError(f"internal error: {type(err).__name__}: {err}"))
+    try:
+        with open(staging, encoding="utf-8") as f:
+            doc = json.load(f)
+        name = publish(staging, out_dir, unit.serial, str(doc.get("created", "")))
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(staging)
+    codes = [str(f.get("code")) for f in doc.get("verdict", {}).get("failures", []) if isinstance(f, dict)]
+    return row | {"status": status, "verdict": VERDICTS[status], "codes": codes, "file": name} | _parameters(doc)
+
+
+def _failed(err: TumblecalError) -> dict[str, Any]:
+    return {
+        "status": err.exit_code,
+        "verdict": VERDICTS.get(err.exit_code, "error"),
+        "codes": list(err.codes),
+        "message": "; ".join([str(err), *err.more]),
+    }
+
+
+def _parameters(doc: dict[str, Any]) -> dict[str, Any]:
+    """The key parameters of a calibration: method, offset and gain, and their 1-sigma errors."""
+    out: dict[str, Any] = {"method": doc.get("method"), "created": doc.get("created")}
+    unc = doc.get("uncertainty") or {}
+    for key, values in (
+        ("offset", doc.get("offset")),
+        ("gain", doc.get("gain")),
+        ("offset_se", unc.get("offset")),
+        ("gain_se", unc.get("gain")),
+    ):
+        for axis, value in zip("xyz", values or [None] * 3, strict=True):
+            out[f"{key}_{axis}"] = value
+    return out
+
+
+def publish(staging: str, out_dir: str, serial: str, created: str) -> str:
+    """Give a finished calibration its name, ``<serial>_<UTC>.json``, never replacing a file
+    (``_2``, ``_3`` ... when that name is taken); the name."""
+    stamp = created.replace("-", "").replace(":", "") or "undated"
+    for k in range(1, 10_000):
+        name = f"{serial}_{stamp}{'' if k == 1 else f'_{k}'}.json"
+        path = os.path.join(out_dir, name)
+        try:
+            os.link(staging, path)  # atomic, and fails if the name exists
+            return name
+        except FileExistsError:
+            continue
+        except OSError:  # a file system without hard links: reserve the name, then move onto it
+            try:
+                os.close(os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666))
+            except FileExistsError:
+                continue
+            os.replace(staging, path)
+            return name
+    raise InputError(f"too many calibrations of {serial} at {created}", file=out_dir)
+
+
+# -- the summary -------------------------------------------------------------------------------
+
+
+def cell(row: dict[str, Any], column: str) -> str:
+    value = row.get(column)
+    if value is None:
+        return ""
+    if isinstance(value, list):
+        return " ".join(str(v) for v in value)
+    return repr(value) if isinstance(value, float) else str(value)
+
+
+def read_summary(path: str) -> list[dict[str, Any]]:
+    """The rows of an existing summary.csv (for --resume), typed as run_unit makes them."""
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            reader = csv.DictReader(f)
+            if reader.fieldnames != SUMMARY_COLUMNS:
+                raise InputError(
+                    "not a tumblecal batch summary (its header differs)",
+                    file=path,
+                    line=1,
+                    hint="use another --out-dir",
+                )
+            rows = list(reader)
+    except (OSError, UnicodeDecodeError, csv.Error) as err:
+        raise InputError(f"cannot read the summary: {err}", file=path) from None
+    out = []
+    for n, raw in enumerate(rows, 2):
+        try:
+            row: dict[str, Any] = {c: raw[c] or None for c in SUMMARY_COLUMNS}
+            row["status"] = int(raw["status"])
+            row["codes"] = raw["codes"].split()
+            for c in NUMBERS:
+                row[c] = float(raw[c]) if raw[c] else None
+        except (TypeError, ValueError, KeyError):
+            raise InputError("a row this version did not write", file=path, line=n) from None
+        out.append(row)
+    return out
+
+
+class Summary:
+    """summary.csv, appended to as each unit finishes (a crash keeps what was done, for
+    --resume), and rewritten sorted by serial at the end."""
+
+    def __init__(self, out_dir: str, rows: list[dict[str, Any]]) -> None:
+        self.path = os.path.join(out_dir, SUMMARY)
+        self.rows = rows
+        self._file = open(self.path, "a", newline="", encoding="utf-8")  # noqa: SIM115 (closed in close)
+        self._writer = csv.writer(self._file, lineterminator="\n")
+        if not rows:
+            self._writer.writerow(SUMMARY_COLUMNS)
+            self._file.flush()
+
+    def add(self, row: dict[str, Any]) -> None:
+        self.rows.append(row)
+        self._writer.writerow([cell(row, c) for c in SUMMARY_COLUMNS])
+        self._file.flush()
+
+    def close(self) -> None:
+        from tumblecal_cli.files import atomic_output
+
+        self._file.close()
+        self.rows.sort(key=lambda r: str(r["serial"]))
+        with atomic_output(self.path) as out:
+            out.write(text(self.rows).encode())
+
+
+def text(rows: Iterable[dict[str, Any]]) -> str:
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(SUMMARY_COLUMNS)
+    writer.writerows([cell(r, c) for c in SUMMARY_COLUMNS] for r in rows)
+    return buffer.getvalue()
+
+
+def status(rows: Iterable[dict[str, Any]]) -> int:
+    """The batch's exit status: 2, 3, 1 or 0, the first that any unit has."""
+    seen = {int(r["status"]) for r in rows}
+    return next((s for s in PRECEDENCE if s in seen), 0)
+
+
+# -- where the work runs -----------------------------------------------------------------------
+
+
+def engine(jobs: int, scheduler: str | None) -> Callable[[Callable[..., Any], list[tuple[Any, ...]]], Iterator[Any]]:
+    """A function that runs ``fn(*args)`` for each args and yields the results as they finish:
+    here (jobs 1), in ``jobs`` processes, or on the Dask cluster at ``scheduler``."""
+    if scheduler is not None:
+        return _dask(scheduler)
+    if jobs > 1:
+        return _processes(jobs)
+    return lambda fn, work: (fn(*args) for args in work)
+
+
+def _processes(jobs: int) -> Callable[[Callable[..., Any], list[tuple[Any, ...]]], Iterator[Any]]:
+    def run(fn: Callable[..., Any], work: list[tuple[Any, ...]]) -> Iterator[Any]:
+        import multiprocessing
+        from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+        context = multiprocessing.get_context("forkserver")  # safe beside the progress bar's thread
+        context.set_forkserver_preload(["tumblecal_cli.cli", "tumblecal_cli.captures", "tumblecal_cli.solvers"])
+        pending: set[Any] = set()
+        todo = iter(work)
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
+            try:
+                for args in todo:  # keep a few units in flight per worker, not the whole lot in memory
+                    pending.add(pool.submit(fn, *args))
+                    if len(pending) >= 4 * jobs:
+                        done, pending = wait(pending, return_when=FIRST_COMPLETED)
+                        yield from (f.result() for f in done)
+                while pending:
+                    done, pending = wait(pending, return_when=FIRST_COMPLETED)
+                    yield from (f.result() for f in done)
+            except BaseException:
+                pool.shutdown(wait=False, cancel_futures=True)
+                raise
+
+    return run
+
+
+def _dask(address: str) -> Callable[[Callable[..., Any], list[tuple[Any, ...]]], Iterator[Any]]:
+    try:
+        import distributed
+    except ImportError:
+        raise InputError(
+            "--dask-scheduler needs Dask's distributed scheduler, which is not installed",
+            hint="pip install 'tumblecal[dask]'",
+        ) from None
+
+    def run(fn: Callable[..., Any], work: list[tuple[Any, ...]]) -> Iterator[Any]:
+        try:
+            client = distributed.Client(address, timeout="10s")
+        except (OSError, TimeoutError) as err:
+            raise InputError(
+                f"cannot reach the Dask scheduler at {address}: {err}",
+                hint="start one with 'dask scheduler', or check the address (tcp://host:8786)",
+            ) from None
+        with client:
+            todo = iter(work)  # a bounded number in flight: the scheduler spreads them over the workers
+            running = distributed.as_completed(
+                [client.submit(fn, *a, pure=False) for a in itertools.islice(todo, IN_FLIGHT)]
+            )
+            for future in running:
+                yield future.result()
+                future.release()
+                for args in itertools.islice(todo, 1):
+                    running.add(client.submit(fn, *args, pure=False))
+
+    return run
+
+
+# -- apply over many files ---------------------------------------------------------------------
+
+
+def expand(patterns: list[str]) -> list[str]:
+    """The captures named: each a file, '-', or a glob pattern (``'logs/*.csv'``, ``**`` too) that
+    is expanded here, so a pattern also works quoted or on a remote cluster's shared storage."""
+    out: list[str] = []
+    for pattern in patterns:
+        if pattern == "-" or os.path.exists(pattern) or not glob.has_magic(pattern):
+            out.append(pattern)
+            continue
+        found = sorted(glob.glob(pattern, recursive=True))
+        if not found:
+            raise InputError(f"no file matches {pattern}")
+        out += found
+    return out
+
+
+def apply_one(options: dict[str, Any], capture: str, output: str) -> tuple[str, int, str]:
+    """Correct one capture as ``tumblecal apply`` does: (capture, exit status, message)."""
+    from tumblecal_cli import cli
+
+    try:
+        cli.apply(**dict(options, capture=[capture], output=output, out_dir=None, quiet=True, dask_scheduler=None))
+    except TumblecalError as err:
+        return capture, err.exit_code, "; ".join([str(err), *err.more])
+    except Exception as err:  # a bug: this file's error
+        return capture, 2, f"internal error: {type(err).__name__}: {err}"
+    return capture, 0, ""
