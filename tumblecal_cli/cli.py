@@ -1305,8 +1305,13 @@ def _print_text(text: str) -> None:
 )
 def apply(
     capture: Annotated[
-        str, typer.Argument(metavar="CAPTURE", help="The capture to correct; '-' (the default) reads stdin.")
-    ] = "-",
+        list[str] | None,
+        typer.Argument(
+            metavar="CAPTURE...",
+            help="The capture to correct; '-' (the default) reads stdin. Several captures, or a quoted glob "
+            "('logs/*.csv', '**' too), need --out-dir.",
+        ),
+    ] = None,
     cal: Annotated[
         list[str],
         typer.Option(
@@ -1327,6 +1332,25 @@ def apply(
         bool,
         typer.Option("--force", help="Apply a calibration whose verdict failed (refused otherwise)."),
     ] = False,
+    out_dir: Annotated[
+        str | None,
+        typer.Option(
+            "--out-dir",
+            "-d",
+            metavar="DIR",
+            help="Correct each capture into DIR under its own name (created if needed). A capture that fails "
+            "is reported and the others go on.",
+        ),
+    ] = None,
+    dask_scheduler: Annotated[
+        str | None,
+        typer.Option(
+            "--dask-scheduler",
+            metavar="ADDRESS",
+            help="With --out-dir: correct the captures on a Dask distributed cluster, tcp://host:8786 "
+            "(README: Dask). The captures, --cal and DIR must be at the same paths on every worker.",
+        ),
+    ] = None,
     quiet: Quiet = False,
 ) -> None:
     """Correct a capture: each sensor reading becomes M (raw - offset).
@@ -1340,17 +1364,25 @@ def apply(
     \b
       tumblecal apply --cal cal.json capture.csv -o corrected.csv
       cat capture.csv | tumblecal apply --cal cal.json > corrected.csv
+      tumblecal apply --cal cal.json 'logs/*.csv' --out-dir corrected/
     """
     from functools import partial
 
+    from tumblecal_cli import batch as batches
     from tumblecal_cli import calfile, captures
     from tumblecal_cli.files import atomic_output, check_not_input, check_writable
 
-    if "-" in cal and capture == "-":
+    inputs = batches.expand(capture or ["-"])
+    if out_dir is not None or dask_scheduler is not None or len(inputs) > 1:
+        options = {"cal": cal, "columns": columns, "no_header": no_header, "force": force}
+        _apply_many(inputs, options, out_dir, dask_scheduler, quiet=quiet)
+        return
+    one = inputs[0]
+    if "-" in cal and one == "-":
         raise InputError("--cal - and the capture cannot both be read from stdin", hint="give the capture as a file")
     if cal.count("-") > 1:
         raise InputError("only one --cal can be read from stdin ('-')")
-    check_not_input(output, [capture, *cal])
+    check_not_input(output, [one, *cal])
     check_writable(output)
     cals = [calfile.load(path) for path in cal]
     _claims_once(cals)
@@ -1370,7 +1402,7 @@ def apply(
         raise InputError("--columns names the columns of one calibration; with several --cal each uses its own")
     picked = columns.split(",") if columns else None
     c = cals[0]
-    with captures.open_capture(capture, sensor=c.sensor, columns=picked, prefer=c.columns, no_header=no_header) as cap:
+    with captures.open_capture(one, sensor=c.sensor, columns=picked, prefer=c.columns, no_header=no_header) as cap:
         used = cap.layout.sensor_names
         differ = [u.lower() for u in used] != [x.lower() for x in c.columns]
         if differ and (picked or not cap.layout.has_header):  # the user named them, or nothing is named
@@ -1397,6 +1429,60 @@ def apply(
     if not quiet:
         target = "stdout" if output == "-" else output
         _console().print(f"corrected {rows} rows of {cap.layout.name} ({', '.join(used)}) -> {target}", soft_wrap=True)
+
+
+def _apply_many(
+    inputs: list[str], options: dict[str, Any], out_dir: str | None, scheduler: str | None, *, quiet: bool
+) -> None:
+    """apply over several captures, each into --out-dir under its own name, here or on Dask."""
+    from tumblecal_cli import batch as batches
+    from tumblecal_cli import calfile
+
+    if out_dir is None:
+        raise InputError(
+            f"{len(inputs)} captures need --out-dir DIR (each is corrected into DIR under its own name)"
+            if len(inputs) > 1
+            else "--dask-scheduler corrects captures into --out-dir DIR"
+        )
+    if "-" in inputs:
+        raise InputError("stdin ('-') is one capture: with --out-dir give the captures as files")
+    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
+        raise InputError("is a file, not a folder: --out-dir takes a folder", file=out_dir)
+    outputs = [os.path.join(out_dir, os.path.basename(c)) for c in inputs]
+    names: dict[str, str] = {}
+    for c, o in zip(inputs, outputs, strict=True):
+        if o in names:
+            raise InputError(
+                f"{names[o]} and {c} would both be written to {o}", hint="correct them into separate folders"
+            )
+        names[o] = c
+        if os.path.exists(o) and os.path.samefile(o, c):
+            raise InputError(f"--out-dir would overwrite the input {c}", file=o, hint="write into another folder")
+    for path in options["cal"]:  # a bad calibration is one error, before any capture
+        if path == "-":
+            raise InputError("--cal - is read once: with several captures give the calibration as a file")
+        calfile.load(path)
+    run = batches.engine(1, scheduler)
+    os.makedirs(out_dir, exist_ok=True)
+    failed = 0
+    console = _console()
+    for name, status, message in run(
+        batches.apply_one, [(options, c, o) for c, o in zip(inputs, outputs, strict=True)]
+    ):
+        if status:
+            failed += 1
+            _report(message, None)
+        elif not quiet:
+            console.print(
+                f"corrected {name} -> {os.path.join(out_dir, os.path.basename(name))}",
+                soft_wrap=True,
+                markup=False,
+                highlight=False,
+            )
+    if failed:
+        raise InputError(f"{failed} of {len(inputs)} captures failed (above); the others are in {out_dir}")
+    if not quiet:
+        console.print(f"corrected {len(inputs)} captures into {out_dir}", soft_wrap=True, markup=False)
 
 
 def _claims_once(cals: list[Any]) -> None:
