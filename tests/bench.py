@@ -8,6 +8,7 @@ of a few runs of a fresh process, wall clock, and peak memory (max RSS) of that 
     apply peak memory   4M rows / 1M rows   (streaming: ~1, not ~4)
     solve, 3 poses      vs  python -c "import pandas, numpy"               (start-up)
     segment, 600k rows  vs  python -c "import pandas; pandas.read_csv(f)"  (target <= 1.5x)
+    batch, 200 units    vs  a shell loop calling `tumblecal solve` per unit (target: 20x the units/s)
 """
 
 from __future__ import annotations
@@ -71,6 +72,37 @@ def write_tumble(path: Path, rows: int) -> None:
         np.savetxt(f, np.column_stack([t, xyz]), fmt=["%.3f", "%.6f", "%.6f", "%.6f"], delimiter=",")
 
 
+def write_units(folder: Path, units: int) -> None:
+    """``units`` folders of x.csv y.csv z.csv, 1000 samples each at 100 Hz, each unit with its own
+    offsets and gains (in g), like a production lot."""
+    rng = np.random.default_rng(3)
+    t = np.arange(1000) / 100.0
+    for k in range(units):
+        offset = rng.normal(0, 0.02, 3)
+        gain = 1 + rng.normal(0, 0.01, 3)
+        unit = folder / f"SN{k:05d}"
+        unit.mkdir(parents=True)
+        for axis, name in enumerate("xyz"):
+            mean = offset + gain * np.eye(3)[axis]
+            xyz = rng.normal(mean, 0.003, size=(1000, 3))
+            with (unit / f"{name}.csv").open("w") as f:
+                f.write("t,ax,ay,az\n")
+                np.savetxt(f, np.column_stack([t, xyz]), fmt=["%.2f", "%.6f", "%.6f", "%.6f"], delimiter=",")
+
+
+def timed(argv: list[str], repeat: int, fresh: Path) -> float:
+    """Best wall time of ``argv`` run ``repeat`` times, ``fresh`` removed before each run."""
+    import shutil
+
+    best = float("inf")
+    for _ in range(repeat):
+        shutil.rmtree(fresh, ignore_errors=True)
+        start = time.perf_counter()
+        subprocess.run(argv, check=True, stdout=subprocess.DEVNULL)
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
 def main() -> None:
     rows: list[tuple[str, float, float, str]] = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -99,6 +131,18 @@ def main() -> None:
         ours, _ = run([*TUMBLECAL, "segment", "-q", str(session), "-d", str(folder / "poses")])
         blocks = len(list((folder / "poses").glob("*.csv"))) - 1
         rows.append(("segment 600k rows (10 min)", ours, base, f"{blocks} blocks written"))
+        units = folder / "units"
+        write_units(units, 200)
+        loop = (  # what a station script does today: one process per unit
+            'mkdir -p "$2"; for d in "$1"/*/; do u=$(basename "$d"); '
+            '"$3" solve -q --poses "$d/x.csv" "$d/y.csv" "$d/z.csv" --serial "$u" -o "$2/$u.json"; done'
+        )
+        script = str(Path(sys.executable).parent / "tumblecal")
+        base = timed(["bash", "-c", loop, "loop", str(units), str(folder / "loop"), script], 1, folder / "loop")
+        for jobs in (1, 2):
+            argv = [*TUMBLECAL, "batch", "-q", str(units), "-d", str(folder / "cals"), "--jobs", str(jobs)]
+            ours = timed(argv, 3, folder / "cals")
+            rows.append((f"batch 200 units, --jobs {jobs}", ours, base, f"{base / ours:.0f}x the units/s of the loop"))
     machine = f"{platform.node()} ({os.cpu_count()} cores, Python {platform.python_version()})"
     print(f"tumblecal bench, {date.today()}, {machine}")
     print(f"{'what':<28} {'tumblecal':>10} {'baseline':>10} {'ratio':>7}  notes")
@@ -108,6 +152,7 @@ def main() -> None:
     print("baselines: apply vs python -c 'import pandas; pandas.read_csv(f)'")
     print("           solve vs python -c 'import pandas, numpy'")
     print("           segment vs python -c 'import pandas; pandas.read_csv(f)'")
+    print("           batch vs a bash loop of 'tumblecal solve' per unit (200 units x 3 poses x 1000 samples)")
 
 
 if __name__ == "__main__":
