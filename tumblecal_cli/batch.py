@@ -53,7 +53,7 @@ SUMMARY_COLUMNS = [
     "message",
 ]
 NUMBERS = {c for c in SUMMARY_COLUMNS if c[-2:] in ("_x", "_y", "_z")}
-VERDICTS = {0: "pass", 1: "fail", 2: "error", 3: "rejected"}
+VERDICTS = {0: "pass", 1: "fail", 3: "rejected", 2: "error"}
 #: Units submitted to a Dask cluster at a time (a million-unit lot is not a million futures).
 IN_FLIGHT = 1000
 #: Exit status of the whole batch: the first of these any unit has (DESIGN.md section 5).
@@ -222,7 +222,8 @@ def run_unit(unit: Unit, options: dict[str, Any], out_dir: str, log: bool) -> di
     finally:
         with contextlib.suppress(OSError):
             os.unlink(staging)
-    codes = [str(f.get("code")) for f in doc.get("verdict", {}).get("failures", []) if isinstance(f, dict)]
+    failures = doc.get("verdict", {}).get("failures", [])
+    codes = list(dict.fromkeys(str(f.get("code")) for f in failures if isinstance(f, dict)))
     return row | {"status": status, "verdict": VERDICTS[status], "codes": codes, "file": name} | _parameters(doc)
 
 
@@ -230,7 +231,7 @@ def _failed(err: TumblecalError) -> dict[str, Any]:
     return {
         "status": err.exit_code,
         "verdict": VERDICTS.get(err.exit_code, "error"),
-        "codes": list(err.codes),
+        "codes": list(dict.fromkeys(err.codes)),  # each once, in the order found
         "message": "; ".join([str(err), *err.more]),
     }
 
