@@ -233,6 +233,7 @@ def _failed(err: TumblecalError) -> dict[str, Any]:
         "verdict": VERDICTS.get(err.exit_code, "error"),
         "codes": list(dict.fromkeys(err.codes)),  # each once, in the order found
         "message": "; ".join([str(err), *err.more]),
+        "messages": [str(err), *err.more],  # for people, one per line (not a summary column)
     }
 
 

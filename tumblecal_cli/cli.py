@@ -2018,7 +2018,8 @@ def batch(**given: Any) -> None:
         said = ", ".join(f"{n} {v}" for v, n in counts.items() if n)
         console.print(f"{len(summary.rows)} units: {said} -> {summary_path}", soft_wrap=True, markup=False)
     if own["json_summary"]:
-        _print_json({"status": status, "counts": counts, "summary": summary_path, "units": summary.rows})
+        table = [{c: r.get(c) for c in batches.SUMMARY_COLUMNS} for r in summary.rows]
+        _print_json({"status": status, "counts": counts, "summary": summary_path, "units": table})
     if status:
         raise typer.Exit(status)
 
@@ -2061,9 +2062,15 @@ def _print_unit(row: dict[str, Any], out_dir: str, console: Console, *, quiet: b
     """One line per unit: its verdict and file, or why it failed."""
     if quiet:
         return
-    what = os.path.join(out_dir, row["file"]) if row.get("file") else row.get("message") or ""
     codes = f" ({', '.join(row['codes'])})" if row.get("codes") else ""
-    console.print(f"{row['serial']}: {row['verdict']}{codes}: {what}", soft_wrap=True, markup=False, highlight=False)
+    head = f"{row['serial']}: {row['verdict']}{codes}"
+    if row.get("file"):
+        head += f" -> {os.path.join(out_dir, row['file'])}"
+    messages = row.get("messages") or [row.get("message") or ""]
+    if len(messages) == 1 and not row.get("file"):
+        head, messages = f"{head}: {messages[0]}", []
+    for line in [head, *(f"  {m}" for m in messages if not row.get("file"))]:
+        console.print(line, soft_wrap=True, markup=False, highlight=False)
 
 
 def _print_verify(
