@@ -53,12 +53,13 @@ def test_core_layer_imports_numpy_only(module: str) -> None:
         pytest.param(
             "from tumblecal_cli.cli import main\n"
             "import contextlib, io\n"
+            "from tumblecal_cli.cli import app\n"
+            "commands = [c.name or c.callback.__name__ for c in app.registered_commands if c.callback]\n"
+            "assert {'solve', 'apply', 'batch', 'segment', 'verify', 'show', 'check'} <= set(commands)\n"
             "with contextlib.redirect_stdout(io.StringIO()):\n"
             "    assert main(['--help']) == 0\n"
-            "    assert main(['solve', '--help']) == 0\n"
-            "    assert main(['apply', '--help']) == 0\n"
-            "    assert main(['verify', '--help']) == 0\n"
-            "    assert main(['segment', '--help']) == 0\n"
+            "    for name in commands:\n"
+            "        assert main([name, '--help']) == 0, name\n"
             "    assert main(['solve', '--poses', 'a.csv', '-x=b.csv', '--help']) == 0\n"
             "    assert main(['--version']) == 0",
             id="help-and-version",
@@ -66,7 +67,12 @@ def test_core_layer_imports_numpy_only(module: str) -> None:
     ],
 )
 def test_cli_help_does_not_import_the_numeric_stack(body: str) -> None:
-    assert imported(body, ("numpy", "pyarrow", "pandas", "yaml")) == []
+    assert imported(body, ("numpy", "pyarrow", "pandas", "yaml", "distributed", "dask")) == []
+
+
+def test_batch_module_is_light() -> None:
+    """A batch worker pays for numpy and Typer on its first unit, not on import; Dask only when asked."""
+    assert imported("import tumblecal_cli.batch", ("numpy", "pyarrow", "pandas", "typer", "rich", "distributed")) == []
 
 
 def test_package_root_is_light() -> None:
