@@ -71,11 +71,12 @@ class Unit:
 # -- finding the units -------------------------------------------------------------------------
 
 
-def find_units(source: str, *, log: bool) -> tuple[list[Unit], list[str]]:
+def find_units(source: str, *, log: bool, out_dir: str | None = None) -> tuple[list[Unit], list[str]]:
     """The units of a folder (one folder per unit, or with ``log`` one log per unit) or of a
-    manifest CSV, sorted by serial; and notes for people about what was left out."""
+    manifest CSV, sorted by serial; and notes for people about what was left out. ``out_dir``,
+    when it is one of the folder's folders, is not a unit."""
     if os.path.isdir(source):
-        units, notes = _folder_units(source, log=log)
+        units, notes = _folder_units(source, log=log, skip=out_dir)
     elif os.path.isfile(source):
         units, notes = _manifest_units(source, log=log)
     else:
@@ -105,7 +106,7 @@ def _face_of(path: str) -> str | None:
     return None
 
 
-def _folder_units(folder: str, *, log: bool) -> tuple[list[Unit], list[str]]:
+def _folder_units(folder: str, *, log: bool, skip: str | None) -> tuple[list[Unit], list[str]]:
     units: list[Unit] = []
     notes: list[str] = []
     loose = _data_files(folder)
@@ -113,6 +114,8 @@ def _folder_units(folder: str, *, log: bool) -> tuple[list[Unit], list[str]]:
         path = os.path.join(folder, name)
         if name.startswith(".") or not os.path.isdir(path):
             continue
+        if skip is not None and os.path.exists(skip) and os.path.samefile(path, skip):
+            continue  # the batch's own output folder
         files = _data_files(path)
         if not files:
             notes.append(f"{path}: no data files ({', '.join(DATA_SUFFIXES)}); skipped")

@@ -1980,7 +1980,7 @@ def batch(**given: Any) -> None:
     source, out_dir, log, quiet = own["source"], own["out_dir"], own["log"], own["quiet"]
     _solve_settings(**{k: given[k] for k in _SETTINGS})  # a bad option is one error, not one per unit
     run = batches.engine(own["jobs"], own["dask_scheduler"])
-    units, notes = batches.find_units(source, log=log)
+    units, notes = batches.find_units(source, log=log, out_dir=out_dir)
     if os.path.exists(out_dir) and not os.path.isdir(out_dir):
         raise InputError("is a file, not a folder: --out-dir takes a folder", file=out_dir)
     summary_path = os.path.join(out_dir, batches.SUMMARY)
