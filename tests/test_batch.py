@@ -517,11 +517,6 @@ def test_batch_resume_of_a_foreign_summary_is_exit_2(tmp_path: Path, capsys: pyt
     assert snapshot(out) == before
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="BUG: resuming a summary that holds only its header (a batch killed during its first unit) "
-    "appends a second header line; if that run is killed too, summary.csv cannot be resumed any more",
-)
 def test_batch_resume_twice_killed_during_the_first_unit(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -550,11 +545,6 @@ def test_batch_resume_twice_killed_during_the_first_unit(
     assert r.code == 0, r.err
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="BUG: --resume with a summary row cut short (a kill while it was written, or a hand edit) "
-    "is 'internal error: AttributeError' instead of an input error naming the line",
-)
 def test_batch_resume_of_a_cut_row_is_a_clean_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     src = units(tmp_path / "units", {"A": "good", "B": "good"})
     full = tmp_path / "full"
@@ -1019,3 +1009,31 @@ def test_apply_dask_without_out_dir_is_exit_2(
     r = run(capsys, "apply", "--cal", calibration, paths[0], "--dask-scheduler", "tcp://127.0.0.1:8786")
     assert r.code == 2
     assert r.err.splitlines()[0] == "error: --dask-scheduler corrects captures into --out-dir DIR"
+
+
+def test_batch_folder_of_labelled_and_unlabelled_names_is_that_units_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """x.csv b.csv z.csv: two names are faces and one is not; solve's rule (label every pose or
+    none) makes it that unit's input error, not a guess at the order."""
+    src = units(tmp_path / "units", {"A": "good"})
+    mixed = src / "M"
+    mixed.mkdir()
+    for name, face in (("x", "x"), ("b", "y"), ("z", "z")):
+        shutil.copy(SAMPLE / f"{face}.csv", mixed / f"{name}.csv")
+    r = run(capsys, "batch", src, "--out-dir", tmp_path / "out")
+    assert r.code == 2
+    row = {row["serial"]: row for row in read_rows(tmp_path / "out" / "summary.csv")}["M"]
+    assert (row["status"], row["verdict"]) == ("2", "error")
+    assert "label every pose file or none" in row["message"]
+
+
+def test_batch_bad_source_date_epoch_is_one_error_before_any_unit(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    src = units(tmp_path / "units", {"A": "good", "B": "good"})
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "abc")
+    r = run(capsys, "batch", src, "--out-dir", tmp_path / "out")
+    assert r.code == 2
+    assert r.err.splitlines()[0] == "error: SOURCE_DATE_EPOCH='abc' is not a whole number of seconds since 1970"
+    assert not (tmp_path / "out").exists()

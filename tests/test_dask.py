@@ -150,22 +150,21 @@ def test_batch_on_dask_json_and_resume(tmp_path: Path, scheduler: str) -> None:
     assert snapshot(out) == snapshot(tmp_path / "local")
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="BUG: with --dask-scheduler, relative UNITS/--out-dir/--cal/capture paths are sent to the workers "
-    "as they are and resolved in the workers' working folder, not the client's; the client could make them "
-    "absolute (the README asks for the same paths on every worker, which absolute paths are)",
-)
 @pytest.mark.parametrize("what", ["batch", "apply"])
 def test_dask_relative_paths_are_the_clients(what: str, tmp_path: Path, scheduler: str, calibration: Path) -> None:
+    """Relative paths are this process's: the client makes them absolute before sending them to
+    workers that run in another folder. Calibrations then name their pose files by absolute
+    path, as a local run given absolute paths does."""
     if what == "batch":
         make_units(tmp_path / "units")
         args: list[str | Path] = ["batch", "units", "--limits", LIMITS]
+        absolute: list[str | Path] = ["batch", tmp_path / "units", "--limits", LIMITS]
     else:
         make_captures(tmp_path / "caps")
         shutil.copy(calibration, tmp_path / "cal.json")
         args = ["apply", "--cal", "cal.json", "caps/*.csv"]
-    local = run_exe([*args, "--out-dir", "local"], cwd=tmp_path)
+        absolute = ["apply", "--cal", tmp_path / "cal.json", f"{tmp_path}/caps/*.csv"]
+    local = run_exe([*absolute, "--out-dir", "local"], cwd=tmp_path)
     dask = run_exe([*args, "--out-dir", "dask", "--dask-scheduler", scheduler], cwd=tmp_path)
     assert dask.returncode == local.returncode, dask.stderr
     assert snapshot(tmp_path / "dask") == snapshot(tmp_path / "local")
@@ -250,11 +249,5 @@ def test_unreachable_scheduler_is_exit_2(what: str, unreachable: dict[str, tuple
     assert seconds < 30, f"{seconds:.1f} s to give up on the scheduler"
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="BUG: batch connects to the scheduler only after creating --out-dir and writing summary.csv's "
-    "header, so an unreachable scheduler leaves a summary behind and the same command then refuses "
-    "('a batch summary is already here') unless --resume",
-)
 def test_unreachable_scheduler_leaves_no_summary(unreachable: dict[str, tuple[int, str, float, Path]]) -> None:
     assert not (unreachable["batch"][3] / "summary.csv").exists()

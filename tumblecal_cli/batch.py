@@ -123,11 +123,8 @@ def _folder_units(folder: str, *, log: bool, skip: str | None) -> tuple[list[Uni
         if log:
             units.append(Unit(name, tuple(files)))  # more than one: the unit's error, not the batch's
             continue
-        faces = [_face_of(f) for f in files]
-        if all(faces):
-            units.append(Unit(name, tuple(f"{face}={f}" for face, f in zip(faces, files, strict=True))))
-        else:  # unlabelled (in name order), or a mixture, which solve refuses for this unit
-            units.append(Unit(name, tuple(files)))
+        faces = [_face_of(f) for f in files]  # all None: unlabelled, in name order; a mixture: solve refuses it
+        units.append(Unit(name, tuple(f"{face}={f}" if face else f for face, f in zip(faces, files, strict=True))))
     if log:
         units += [Unit(os.path.basename(f).split(".", 1)[0], (f,)) for f in loose]
         seen: dict[str, int] = {}
@@ -183,6 +180,15 @@ def _manifest_units(path: str, *, log: bool) -> tuple[list[Unit], list[str]]:
             raise InputError(f"unit {serial} has no files", file=path, line=n)
         units.append(Unit(serial, tuple(items)))
     return units, []
+
+
+def absolute(item: str) -> str:
+    """A pose item (``FILE`` or ``LABEL=FILE``) with its file as an absolute path: what is sent
+    to a cluster, whose workers do not share this process's working folder."""
+    label, sep, rest = item.partition("=")
+    if sep and label and _looks_like_label(label):
+        return f"{label}={os.path.abspath(rest)}"
+    return item if item == "-" else os.path.abspath(item)
 
 
 def _looks_like_label(text: str) -> bool:
@@ -306,6 +312,13 @@ def read_summary(path: str) -> list[dict[str, Any]]:
         raise InputError(f"cannot read the summary: {err}", file=path) from None
     out = []
     for n, raw in enumerate(rows, 2):
+        if None in raw.values() or None in raw:  # fewer or more cells than the header
+            raise InputError(
+                "a row with the wrong number of cells (a batch killed while writing it?)",
+                file=path,
+                line=n,
+                hint="delete that line and --resume again: that unit is redone",
+            )
         try:
             row: dict[str, Any] = {c: raw[c] or None for c in SUMMARY_COLUMNS}
             row["status"] = int(raw["status"])
@@ -327,7 +340,7 @@ class Summary:
         self.rows = rows
         self._file = open(self.path, "a", newline="", encoding="utf-8")  # noqa: SIM115 (closed in close)
         self._writer = csv.writer(self._file, lineterminator="\n")
-        if not rows:
+        if self._file.tell() == 0:  # a new file (a resumed one has its header, rows or not)
             self._writer.writerow(SUMMARY_COLUMNS)
             self._file.flush()
 
@@ -407,14 +420,15 @@ def _dask(address: str) -> Callable[[Callable[..., Any], list[tuple[Any, ...]]],
             hint="pip install 'tumblecal[dask]'",
         ) from None
 
+    try:  # at once: an unreachable cluster is an error before anything is written
+        client = distributed.Client(address, timeout="10s")
+    except (OSError, TimeoutError, ValueError) as err:
+        raise InputError(
+            f"cannot reach the Dask scheduler at {address}: {err}",
+            hint="start one with 'dask scheduler', or check the address (tcp://host:8786)",
+        ) from None
+
     def run(fn: Callable[..., Any], work: list[tuple[Any, ...]]) -> Iterator[Any]:
-        try:
-            client = distributed.Client(address, timeout="10s")
-        except (OSError, TimeoutError) as err:
-            raise InputError(
-                f"cannot reach the Dask scheduler at {address}: {err}",
-                hint="start one with 'dask scheduler', or check the address (tcp://host:8786)",
-            ) from None
         with client:
             todo = iter(work)  # a bounded number in flight: the scheduler spreads them over the workers
             running = distributed.as_completed(

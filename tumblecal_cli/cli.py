@@ -1462,6 +1462,9 @@ def _apply_many(
         if path == "-":
             raise InputError("--cal - is read once: with several captures give the calibration as a file")
         calfile.load(path)
+    if scheduler is not None:  # the workers do not share this working folder
+        inputs, outputs = [os.path.abspath(c) for c in inputs], [os.path.abspath(o) for o in outputs]
+        options = dict(options, cal=[os.path.abspath(c) for c in options["cal"]])
     run = batches.engine(1, scheduler)
     os.makedirs(out_dir, exist_ok=True)
     failed = 0
@@ -1482,7 +1485,8 @@ def _apply_many(
     if failed:
         raise InputError(f"{failed} of {len(inputs)} captures failed (above); the others are in {out_dir}")
     if not quiet:
-        console.print(f"corrected {len(inputs)} captures into {out_dir}", soft_wrap=True, markup=False)
+        many = "s" if len(inputs) != 1 else ""
+        console.print(f"corrected {len(inputs)} capture{many} into {out_dir}", soft_wrap=True, markup=False)
 
 
 def _claims_once(cals: list[Any]) -> None:
@@ -1975,12 +1979,18 @@ def batch(**given: Any) -> None:
       tumblecal batch units/ --out-dir /shared/cals --dask-scheduler tcp://scheduler:8786
     """
     from tumblecal_cli import batch as batches
+    from tumblecal_cli import calfile
 
     own = {name: given.pop(name) for name in list(given) if name in _BATCH_OWN}
     source, out_dir, log, quiet = own["source"], own["out_dir"], own["log"], own["quiet"]
     _solve_settings(**{k: given[k] for k in _SETTINGS})  # a bad option is one error, not one per unit
-    run = batches.engine(own["jobs"], own["dask_scheduler"])
+    calfile.created()  # so is a bad SOURCE_DATE_EPOCH
     units, notes = batches.find_units(source, log=log, out_dir=out_dir)
+    if own["dask_scheduler"] is not None:  # the workers do not share this working folder
+        units = [batches.Unit(u.serial, tuple(batches.absolute(i) for i in u.inputs)) for u in units]
+        out_dir = os.path.abspath(out_dir)
+        if given["limits_file"]:
+            given["limits_file"] = os.path.abspath(given["limits_file"])
     if os.path.exists(out_dir) and not os.path.isdir(out_dir):
         raise InputError("is a file, not a folder: --out-dir takes a folder", file=out_dir)
     summary_path = os.path.join(out_dir, batches.SUMMARY)
@@ -1995,13 +2005,14 @@ def batch(**given: Any) -> None:
         rows = batches.read_summary(summary_path)
     done = {str(r["serial"]) for r in rows}
     todo = [u for u in units if u.serial not in done]
-    os.makedirs(out_dir, exist_ok=True)
     console = _console()
     if not quiet:
         for note in notes:
             console.print(f"note: {note}", soft_wrap=True, markup=False)
         if done:
             console.print(f"resuming: {len(units) - len(todo)} of {len(units)} units already done", soft_wrap=True)
+    run = batches.engine(own["jobs"], own["dask_scheduler"])  # connects to a cluster: before writing anything
+    os.makedirs(out_dir, exist_ok=True)
     summary = batches.Summary(out_dir, rows)
     try:
         with _batch_progress(console, len(todo), enabled=not quiet) as (show, tick):
