@@ -981,7 +981,7 @@ def test_solve_rejects_a_non_finite_reading(tmp_path: Path, capsys: pytest.Captu
     [
         (
             ["solve", "--poses", "z.csv", "--reference", "abc"],
-            "Invalid value for '--reference': Input should be a valid number, unable to parse string as a number",
+            "Invalid value for '--reference': 'abc' is not a valid float.",
             "see 'tumblecal solve --help'",
         ),
         (["frobnicate"], "No such command 'frobnicate'.", "see 'tumblecal --help'"),

@@ -457,7 +457,7 @@ def test_no_check_needs_a_known_check(tmp_path: Path, capsys: pytest.CaptureFixt
     r = solve(capsys, "-p", *POSES_3, "-o", out, "--no-check", "noise")
     assert_one_error(
         r,
-        "Invalid value for '--no-check': Value error, 'noise' is not one of 'moved', 'orientation', 'saturated', "
+        "Invalid value for '--no-check': 'noise' is not one of 'moved', 'orientation', 'saturated', "
         "'short', 'upside-down'.",
         hint="see 'tumblecal solve --help'",
     )
