@@ -1037,3 +1037,30 @@ def test_batch_bad_source_date_epoch_is_one_error_before_any_unit(
     assert r.code == 2
     assert r.err.splitlines()[0] == "error: SOURCE_DATE_EPOCH='abc' is not a whole number of seconds since 1970"
     assert not (tmp_path / "out").exists()
+
+
+def test_batch_progress_bar_on_a_terminal(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """On a terminal: a progress bar (units done / total), the failing units printed above it,
+    the passing ones not listed; in a log (not a terminal) one line per unit and no bar."""
+    import io
+
+    from rich.console import Console
+
+    from tumblecal_cli import cli
+
+    screen = io.StringIO()
+    monkeypatch.setattr(cli, "_console", lambda stderr=True: Console(file=screen, force_terminal=True, width=100))
+    src = units(tmp_path / "units", {"A": "good", "B": "rejected", "C": "good"})
+    assert run(capsys, "batch", src, "--out-dir", tmp_path / "tty").code == 3
+    text = screen.getvalue()
+    assert "3/3" in text
+    assert "B: rejected (pose.orientation)" in text
+    assert "A: pass" not in text
+    assert "3 units: 2 pass, 1 rejected" in text
+
+    monkeypatch.undo()
+    r = run(capsys, "batch", src, "--out-dir", tmp_path / "log")
+    assert "3/3" not in r.err
+    assert [line.split(":")[0] for line in r.err.splitlines() if line[:1] in "ABC"] == ["A", "B", "C"]

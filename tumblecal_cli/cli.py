@@ -2027,7 +2027,9 @@ def batch(**given: Any) -> None:
     counts = {v: sum(r["verdict"] == v for r in summary.rows) for v in batches.VERDICTS.values()}
     if not quiet:
         said = ", ".join(f"{n} {v}" for v, n in counts.items() if n)
-        console.print(f"{len(summary.rows)} units: {said} -> {summary_path}", soft_wrap=True, markup=False)
+        console.print(
+            f"{len(summary.rows)} units: {said} -> {summary_path}", soft_wrap=True, markup=False, highlight=False
+        )
     if own["json_summary"]:
         table = [{c: r.get(c) for c in batches.SUMMARY_COLUMNS} for r in summary.rows]
         _print_json({"status": status, "counts": counts, "summary": summary_path, "units": table})
