@@ -537,6 +537,14 @@ def solve(
             hint="see 'tumblecal solve --help'",
         )
     chosen, ref, centre, limits_given = _solve_settings(
+        log_given=log is not None,
+        window=window,
+        threshold=threshold,
+        min_duration=min_duration,
+        trim=trim,
+        pose_column=pose_column,
+        pose_map=pose_map,
+        meta=meta,
         method=method,
         tilt_compensate=tilt_compensate,
         up=up,
@@ -563,20 +571,6 @@ def solve(
         items = [items[k] for k in order]
         labels = [None if name in solvers.ORIENTATION_FREE else label for label, _ in items]
         files = [f for _, f in items]
-        given = [
-            flag
-            for flag, value in (
-                ("--window", window),
-                ("--threshold", threshold),
-                ("--min-duration", min_duration),
-                ("--trim", trim),
-                ("--pose-column", pose_column),
-                ("--pose-map", pose_map),
-            )
-            if value is not None
-        ]
-        if given:
-            raise InputError(f"{given[0]} is for a continuous log (--log), not --poses files")
     if json_summary and output == "-":
         raise InputError("--json prints the summary on stdout, so the calibration needs -o FILE")
     check_not_input(output, [*files, *([limits_file] if limits_file else [])])
@@ -735,6 +729,14 @@ def solve(
 
 def _solve_settings(
     *,
+    log_given: bool,
+    window: float | None,
+    threshold: float | None,
+    min_duration: float | None,
+    trim: float | None,
+    pose_column: str | None,
+    pose_map: str | None,
+    meta: list[str] | None,
     method: MethodName,
     tilt_compensate: bool,
     up: str,
@@ -750,7 +752,21 @@ def _solve_settings(
     nominal_gain: str | None,
 ) -> tuple[MethodName, float, Any, Any]:
     """The checks of solve's options that no pose file is needed for (batch runs them once, before
-    any unit): the method, the reference, the nominal offset and the limits."""
+    any unit): the log's options, --meta, the method, the reference, the nominal offset and the limits."""
+    if not log_given:
+        log_only = (
+            ("--window", window),
+            ("--threshold", threshold),
+            ("--min-duration", min_duration),
+            ("--trim", trim),
+            ("--pose-column", pose_column),
+            ("--pose-map", pose_map),
+        )
+        given = [flag for flag, value in log_only if value is not None]
+        if given:
+            raise InputError(f"{given[0]} is for a continuous log (--log), not --poses files")
+    _pose_map(pose_map)
+    _unit_block(None, None, None, meta or [])
     chosen = MethodName.one_pose_tilt if tilt_compensate and method is MethodName.auto else method
     if tilt_compensate and chosen is not MethodName.one_pose_tilt:
         raise InputError(f"--tilt-compensate is the one-pose-tilt method, not {chosen.value}")
@@ -1983,7 +1999,7 @@ def batch(**given: Any) -> None:
 
     own = {name: given.pop(name) for name in list(given) if name in _BATCH_OWN}
     source, out_dir, log, quiet = own["source"], own["out_dir"], own["log"], own["quiet"]
-    _solve_settings(**{k: given[k] for k in _SETTINGS})  # a bad option is one error, not one per unit
+    _solve_settings(log_given=log, **{k: given[k] for k in _SETTINGS})  # a bad option: one error, not one per unit
     calfile.created()  # so is a bad SOURCE_DATE_EPOCH
     units, notes = batches.find_units(source, log=log, out_dir=out_dir)
     if own["dask_scheduler"] is not None:  # the workers do not share this working folder
@@ -2039,6 +2055,13 @@ def batch(**given: Any) -> None:
 
 _BATCH_OWN = ("source", "out_dir", "log", "jobs", "resume", "dask_scheduler", "json_summary", "quiet")
 _SETTINGS = (
+    "window",
+    "threshold",
+    "min_duration",
+    "trim",
+    "pose_column",
+    "pose_map",
+    "meta",
     "method",
     "tilt_compensate",
     "up",
