@@ -153,7 +153,7 @@ def test_batch_mixed_units_one_row_each(tmp_path: Path, capsys: pytest.CaptureFi
         assert float(a1[f"gain_{axis}"]) == pytest.approx(gain, abs=3e-4)
         assert 0 < float(a1[f"offset_se_{axis}"]) < 1e-3
         assert 0 < float(a1[f"gain_se_{axis}"]) < 1e-3
-    assert a1["inputs"].split() == [f"+{n}={src / 'A1' / f'{n}.csv'}" for n in "xyz"]
+    assert a1["inputs"].split(";") == [f"+{n}={src / 'A1' / f'{n}.csv'}" for n in "xyz"]
 
     b2 = got["B2"]
     assert (b2["status"], b2["verdict"], b2["codes"], b2["file"]) == ("3", "rejected", "pose.orientation", "")
@@ -168,9 +168,9 @@ def test_batch_mixed_units_one_row_each(tmp_path: Path, capsys: pytest.CaptureFi
 
     d4 = got["D4"]  # the six faces, labelled by their names, in counts: outside every limit in g
     assert (d4["status"], d4["verdict"], d4["file"], d4["method"]) == ("1", "fail", cal_name("D4"), "six-pose")
-    codes = d4["codes"].split()
+    codes = d4["codes"].split(";")
     assert {"limit.offset.x", "limit.offset.y", "limit.offset.z", "limit.gain.x"} <= set(codes)
-    assert sorted(d4["inputs"].split()) == sorted(
+    assert sorted(d4["inputs"].split(";")) == sorted(
         f"{face}={src / 'D4' / f'{name}.csv'}"
         for face, name in zip(["+x", "-x", "+y", "-y", "+z", "-z"], SIX_FACES, strict=True)
     )
@@ -225,7 +225,7 @@ def test_batch_limits_failure_still_writes_the_calibration(tmp_path: Path, capsy
     assert (r.code, r.out, r.err) == (1, "", "")
     row = by_serial(tmp_path / "out" / "summary.csv")["U1"]
     assert (row["status"], row["verdict"], row["file"]) == ("1", "fail", cal_name("U1"))
-    assert row["codes"].split() == ["limit.offset.x", "limit.offset.y", "limit.offset.z"]
+    assert row["codes"].split(";") == ["limit.offset.x", "limit.offset.y", "limit.offset.z"]
     doc = json.loads((tmp_path / "out" / cal_name("U1")).read_text())
     assert doc["verdict"]["pass"] is False
     assert doc["unit"]["serial"] == "U1"
@@ -281,8 +281,8 @@ def test_batch_folder_layout_labels_and_notes(tmp_path: Path, capsys: pytest.Cap
     assert r.code == 0, r.err
     rows = by_serial(out / "summary.csv")
     assert sorted(rows) == ["PLAIN", "PLUS", "SIX"]
-    assert rows["PLUS"]["inputs"].split() == [f"+{n}={plus / f'+{n}.csv'}" for n in "xyz"]
-    assert rows["PLAIN"]["inputs"].split() == [str(plain / n) for n in ["a.csv", "b.csv", "c.csv"]]
+    assert rows["PLUS"]["inputs"].split(";") == [f"+{n}={plus / f'+{n}.csv'}" for n in "xyz"]
+    assert rows["PLAIN"]["inputs"].split(";") == [str(plain / n) for n in ["a.csv", "b.csv", "c.csv"]]
     assert rows["SIX"]["method"] == "six-pose"
     assert {row["verdict"] for row in rows.values()} == {"pass"}
     notes = [line for line in r.err.splitlines() if line.startswith("note:")]
@@ -637,9 +637,9 @@ def test_batch_manifest_labels_and_relative_paths(
     assert r.code == 2, r.err
     rows = by_serial(elsewhere / "cals" / "summary.csv")
     assert sorted(rows) == ["M1", "M2", "M3", "M4"]
-    assert rows["M1"]["inputs"].split() == [f"+{n}={os.path.join('../lot', 'data', f'{n}.csv')}" for n in "zyx"]
-    assert rows["M2"]["inputs"].split() == [f"+{n}={os.path.join('../lot', 'data', f'{n}.csv')}" for n in "yxz"]
-    assert rows["M3"]["inputs"].split()[0] == f"-z={data / 'zn.csv'}"  # an absolute path stays as it is
+    assert rows["M1"]["inputs"].split(";") == [f"+{n}={os.path.join('../lot', 'data', f'{n}.csv')}" for n in "zyx"]
+    assert rows["M2"]["inputs"].split(";") == [f"+{n}={os.path.join('../lot', 'data', f'{n}.csv')}" for n in "yxz"]
+    assert rows["M3"]["inputs"].split(";")[0] == f"-z={data / 'zn.csv'}"  # an absolute path stays as it is
     assert [rows[s]["verdict"] for s in ["M1", "M2", "M3", "M4"]] == ["pass", "pass", "pass", "error"]
     assert rows["M3"]["method"] == "six-pose"
     assert "missing.csv" in rows["M4"]["message"]
@@ -661,7 +661,7 @@ def test_batch_manifest_unlabelled_columns(tmp_path: Path, capsys: pytest.Captur
     r = run(capsys, "batch", manifest, "--out-dir", tmp_path / "out", "-q")
     assert r.code == 3, r.err
     rows = by_serial(tmp_path / "out" / "summary.csv")
-    assert rows["OK"]["inputs"].split() == [str(lot / "data" / f"{n}.csv") for n in "xyz"]
+    assert rows["OK"]["inputs"].split(";") == [str(lot / "data" / f"{n}.csv") for n in "xyz"]
     assert (rows["OK"]["verdict"], rows["BAD"]["verdict"]) == ("pass", "rejected")
 
 
@@ -971,19 +971,31 @@ def test_apply_one_bad_capture_among_good_ones(
         assert (out / p.name).read_bytes() == one_by_one(capsys, calibration, p, tmp_path / f"one_{p.name}")
 
 
-def test_apply_many_leaves_existing_outputs_of_failed_captures(
+def test_apply_many_never_replaces_a_file_in_the_out_dir(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], calibration: Path
+) -> None:
+    """A file of that name already in --out-dir (an earlier output, or a raw capture) is one
+    error before any capture is corrected: nothing is replaced, nothing written."""
+    paths = captures(tmp_path / "caps")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "c2.csv").write_text("a raw capture of someone else's\n")
+    r = run(capsys, "apply", "--cal", calibration, *paths, "--out-dir", out)
+    assert r.code == 2
+    assert r.err.splitlines()[0] == f"error: {out / 'c2.csv'}: already exists: --out-dir never replaces a file"
+    assert (out / "c2.csv").read_text() == "a raw capture of someone else's\n"
+    assert sorted(os.listdir(out)) == ["c2.csv"]
+
+
+def test_apply_many_refuses_o_with_out_dir(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], calibration: Path
 ) -> None:
     paths = captures(tmp_path / "caps")
-    bad = tmp_path / "caps" / "bad.csv"
-    bad.write_text("t,ax,ay,az\n0,1,2\n")
-    out = tmp_path / "out"
-    out.mkdir()
-    (out / "bad.csv").write_text("an earlier output\n")
-    r = run(capsys, "apply", "--cal", calibration, paths[0], bad, "--out-dir", out)
+    r = run(capsys, "apply", "--cal", calibration, *paths, "--out-dir", tmp_path / "out", "-o", tmp_path / "x.csv")
     assert r.code == 2
-    assert (out / "bad.csv").read_text() == "an earlier output\n"
-    assert sorted(os.listdir(out)) == ["bad.csv", "c1.csv"]
+    assert "-o names one output" in r.err
+    assert not (tmp_path / "out").exists()
+    assert not (tmp_path / "x.csv").exists()
 
 
 def test_apply_dask_without_distributed_is_exit_2(

@@ -28,6 +28,9 @@ from tumblecal_cli.errors import InputError, TumblecalError
 #: Files a unit folder's poses (or log) may be in; anything else there is left alone.
 DATA_SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
 SUMMARY = "summary.csv"
+STAGING = ".partial.json"
+#: Lists in a summary cell (a unit's codes, its input files) are joined with this.
+SEPARATOR = ";"
 #: The columns of summary.csv, in order (README: batch).
 SUMMARY_COLUMNS = [
     "serial",
@@ -88,8 +91,13 @@ def find_units(source: str, *, log: bool, out_dir: str | None = None) -> tuple[l
 
 
 def _data_files(folder: str) -> list[str]:
+    """The data files of a folder, but not a batch summary."""
+    try:
+        listed = os.listdir(folder)
+    except OSError as err:
+        raise InputError(f"cannot list the folder: {err.strerror}", file=folder) from None
     names = sorted(
-        n for n in os.listdir(folder) if not n.startswith(".") and os.path.splitext(n)[1].lower() in DATA_SUFFIXES
+        n for n in listed if not n.startswith(".") and os.path.splitext(n)[1].lower() in DATA_SUFFIXES and n != SUMMARY
     )
     return [os.path.join(folder, n) for n in names if os.path.isfile(os.path.join(folder, n))]
 
@@ -116,6 +124,9 @@ def _folder_units(folder: str, *, log: bool, skip: str | None) -> tuple[list[Uni
             continue
         if skip is not None and os.path.exists(skip) and os.path.samefile(path, skip):
             continue  # the batch's own output folder
+        if os.path.exists(os.path.join(path, SUMMARY)):
+            notes.append(f"{path}: a batch's output folder (it has a {SUMMARY}); skipped")
+            continue
         files = _data_files(path)
         if not files:
             notes.append(f"{path}: no data files ({', '.join(DATA_SUFFIXES)}); skipped")
@@ -126,13 +137,13 @@ def _folder_units(folder: str, *, log: bool, skip: str | None) -> tuple[list[Uni
         faces = [_face_of(f) for f in files]  # all None: unlabelled, in name order; a mixture: solve refuses it
         units.append(Unit(name, tuple(f"{face}={f}" if face else f for face, f in zip(faces, files, strict=True))))
     if log:
-        units += [Unit(os.path.basename(f).split(".", 1)[0], (f,)) for f in loose]
+        units += [Unit(os.path.splitext(os.path.basename(f))[0], (f,)) for f in loose]
         seen: dict[str, int] = {}
         for u in units:
             seen[u.serial] = seen.get(u.serial, 0) + 1
         twice = sorted(s for s, n in seen.items() if n > 1)
         if twice:
-            raise InputError(f"serial {twice[0]} is both a folder and a log file", file=folder)
+            raise InputError(f"serial {twice[0]} is both a folder and a log file of that name", file=folder)
     elif loose:
         notes.append(f"{folder}: {len(loose)} files beside the unit folders ignored (each unit is a folder)")
     return units, notes
@@ -142,8 +153,12 @@ def _manifest_units(path: str, *, log: bool) -> tuple[list[Unit], list[str]]:
     """A manifest: a header ``serial,...``, then a serial and its files per row. A file is
     relative to the manifest's folder; a column headed by a face (x, +x, xp ...) labels its files."""
     try:
-        with open(path, newline="", encoding="utf-8") as f:
-            rows = list(csv.reader(f))
+        with open(path, newline="", encoding="utf-8-sig") as f:  # a spreadsheet's byte-order mark
+            first = f.readline()
+            f.seek(0)
+            f.read(0)
+            delimiter = ";" if ";" in first and "," not in first else ","  # a spreadsheet in a comma-decimal locale
+            rows = list(csv.reader(f, delimiter=delimiter))
     except (OSError, UnicodeDecodeError, csv.Error) as err:
         raise InputError(f"cannot read the manifest: {err}", file=path) from None
     lines = [(n, row) for n, row in enumerate(rows, 1) if any(c.strip() for c in row) and not row[0].startswith("#")]
@@ -172,7 +187,7 @@ def _manifest_units(path: str, *, log: bool) -> tuple[list[Unit], list[str]]:
                 continue
             label, sep, rest = cell.partition("=")
             if sep and label and _looks_like_label(label):
-                items.append(f"{label}={_resolve(base, rest)}")
+                items.append(f"{_face_of(label + '.csv') or label}={_resolve(base, rest)}")
             else:
                 face = header[k] if k < len(header) and not log else None
                 items.append(f"{face}={_resolve(base, cell)}" if face else _resolve(base, cell))
@@ -202,16 +217,18 @@ def _resolve(base: str, name: str) -> str:
 # -- one unit ----------------------------------------------------------------------------------
 
 
-def run_unit(unit: Unit, options: dict[str, Any], out_dir: str, log: bool) -> dict[str, Any]:
-    """Solve one unit as ``tumblecal solve`` does and publish its calibration; its summary row.
-    Never raises for the unit's own errors: they are its row's status and message."""
+def run_unit(unit: Unit, options: dict[str, Any], out_dir: str, log: bool, token: str) -> dict[str, Any]:
+    """Solve one unit as ``tumblecal solve`` does, into a hidden staging file of this batch
+    (``token``); its summary row. The parent publishes the file (:func:`finish`) as it records
+    the row, so an interrupted batch leaves no calibration without a row. Never raises for the
+    unit's own errors: they are its row's status and message."""
     import typer
 
     from tumblecal_cli import cli
 
-    staging = os.path.join(out_dir, f".{unit.serial}.{os.getpid()}.partial.json")
+    staging = os.path.join(out_dir, f".{unit.serial}.{token}{STAGING}")
     args = dict(options, serial=unit.serial, output=staging, quiet=True, json_summary=False)
-    row: dict[str, Any] = {"serial": unit.serial, "inputs": " ".join(unit.inputs)}
+    row: dict[str, Any] = {"serial": unit.serial, "inputs": list(unit.inputs)}
     if log and len(unit.inputs) != 1:
         return row | _failed(InputError(f"--log takes one log per unit; {unit.serial} has {len(unit.inputs)} files"))
     args["log" if log else "poses"] = unit.inputs[0] if log else list(unit.inputs)
@@ -224,16 +241,38 @@ def run_unit(unit: Unit, options: dict[str, Any], out_dir: str, log: bool) -> di
         return row | _failed(err)
     except Exception as err:  # a bug: this unit's error, with what to report
         return row | _failed(InputError(f"internal error: {type(err).__name__}: {err}"))
-    try:
-        with open(staging, encoding="utf-8") as f:
-            doc = json.load(f)
-        name = publish(staging, out_dir, unit.serial, str(doc.get("created", "")))
-    finally:
-        with contextlib.suppress(OSError):
-            os.unlink(staging)
+    with open(staging, encoding="utf-8") as f:
+        doc = json.load(f)
     failures = doc.get("verdict", {}).get("failures", [])
     codes = list(dict.fromkeys(str(f.get("code")) for f in failures if isinstance(f, dict)))
-    return row | {"status": status, "verdict": VERDICTS[status], "codes": codes, "file": name} | _parameters(doc)
+    return row | {"status": status, "verdict": VERDICTS[status], "codes": codes, "staging": staging} | _parameters(doc)
+
+
+def finish(row: dict[str, Any], out_dir: str) -> dict[str, Any]:
+    """Publish a row's staged calibration under its name; the row with ``file`` set."""
+    staging = row.pop("staging", None)
+    if staging is not None:
+        try:
+            row["file"] = publish(staging, out_dir, str(row["serial"]), str(row.get("created") or ""))
+        finally:
+            with contextlib.suppress(OSError):
+                os.unlink(staging)
+    return row
+
+
+def failed_row(unit: Unit, err: BaseException) -> dict[str, Any]:
+    """The row of a unit whose worker failed (a Dask worker lost, tumblecal missing there)."""
+    message = f"the worker running it failed: {type(err).__name__}: {err}"
+    return {"serial": unit.serial, "inputs": list(unit.inputs)} | _failed(InputError(message))
+
+
+def clean_staging(out_dir: str, token: str) -> None:
+    """Remove this batch's staging files that no row published (an interrupted batch)."""
+    with contextlib.suppress(OSError):
+        for name in os.listdir(out_dir):
+            if name.startswith(".") and name.endswith(f".{token}{STAGING}"):
+                with contextlib.suppress(OSError):
+                    os.unlink(os.path.join(out_dir, name))
 
 
 def _failed(err: TumblecalError) -> dict[str, Any]:
@@ -291,7 +330,7 @@ def cell(row: dict[str, Any], column: str) -> str:
     if value is None:
         return ""
     if isinstance(value, list):
-        return " ".join(str(v) for v in value)
+        return SEPARATOR.join(str(v) for v in value)
     return repr(value) if isinstance(value, float) else str(value)
 
 
@@ -322,7 +361,8 @@ def read_summary(path: str) -> list[dict[str, Any]]:
         try:
             row: dict[str, Any] = {c: raw[c] or None for c in SUMMARY_COLUMNS}
             row["status"] = int(raw["status"])
-            row["codes"] = raw["codes"].split()
+            row["codes"] = [c for c in raw["codes"].split(SEPARATOR) if c]
+            row["inputs"] = [c for c in raw["inputs"].split(SEPARATOR) if c]
             for c in NUMBERS:
                 row[c] = float(raw[c]) if raw[c] else None
         except (TypeError, ValueError, KeyError):
@@ -375,35 +415,39 @@ def status(rows: Iterable[dict[str, Any]]) -> int:
 # -- where the work runs -----------------------------------------------------------------------
 
 
-def engine(jobs: int, scheduler: str | None) -> Callable[[Callable[..., Any], list[tuple[Any, ...]]], Iterator[Any]]:
-    """A function that runs ``fn(*args)`` for each args and yields the results as they finish:
-    here (jobs 1), in ``jobs`` processes, or on the Dask cluster at ``scheduler``."""
+#: Runs ``fn(*args)`` for each args; yields (args, result) as they finish (on a cluster the
+#: result may be the exception that lost the task).
+Engine = Callable[[Callable[..., Any], list[tuple[Any, ...]]], Iterator[tuple[tuple[Any, ...], Any]]]
+
+
+def engine(jobs: int, scheduler: str | None) -> Engine:
+    """Where the work runs: here (jobs 1), in ``jobs`` processes, or on the Dask cluster at
+    ``scheduler`` (connected to at once)."""
     if scheduler is not None:
         return _dask(scheduler)
     if jobs > 1:
         return _processes(jobs)
-    return lambda fn, work: (fn(*args) for args in work)
+    return lambda fn, work: ((args, fn(*args)) for args in work)
 
 
-def _processes(jobs: int) -> Callable[[Callable[..., Any], list[tuple[Any, ...]]], Iterator[Any]]:
-    def run(fn: Callable[..., Any], work: list[tuple[Any, ...]]) -> Iterator[Any]:
+def _processes(jobs: int) -> Engine:
+    def run(fn: Callable[..., Any], work: list[tuple[Any, ...]]) -> Iterator[tuple[tuple[Any, ...], Any]]:
         import multiprocessing
-        from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+        from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 
         context = multiprocessing.get_context("forkserver")  # safe beside the progress bar's thread
         context.set_forkserver_preload(["tumblecal_cli.cli", "tumblecal_cli.captures", "tumblecal_cli.solvers"])
-        pending: set[Any] = set()
-        todo = iter(work)
+        sent: dict[Future[Any], tuple[Any, ...]] = {}
         with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
             try:
-                for args in todo:  # keep a few units in flight per worker, not the whole lot in memory
-                    pending.add(pool.submit(fn, *args))
-                    if len(pending) >= 4 * jobs:
-                        done, pending = wait(pending, return_when=FIRST_COMPLETED)
-                        yield from (f.result() for f in done)
-                while pending:
-                    done, pending = wait(pending, return_when=FIRST_COMPLETED)
-                    yield from (f.result() for f in done)
+                for args in work:  # keep a few units in flight per worker, not the whole lot
+                    sent[pool.submit(fn, *args)] = args
+                    if len(sent) >= 4 * jobs:
+                        done, _ = wait(sent, return_when=FIRST_COMPLETED)
+                        yield from ((sent.pop(f), f.result()) for f in done)
+                while sent:
+                    done, _ = wait(sent, return_when=FIRST_COMPLETED)
+                    yield from ((sent.pop(f), f.result()) for f in done)
             except BaseException:
                 pool.shutdown(wait=False, cancel_futures=True)
                 raise
@@ -411,7 +455,7 @@ def _processes(jobs: int) -> Callable[[Callable[..., Any], list[tuple[Any, ...]]
     return run
 
 
-def _dask(address: str) -> Callable[[Callable[..., Any], list[tuple[Any, ...]]], Iterator[Any]]:
+def _dask(address: str) -> Engine:
     try:
         import distributed
     except ImportError:
@@ -428,17 +472,24 @@ def _dask(address: str) -> Callable[[Callable[..., Any], list[tuple[Any, ...]]],
             hint="start one with 'dask scheduler', or check the address (tcp://host:8786)",
         ) from None
 
-    def run(fn: Callable[..., Any], work: list[tuple[Any, ...]]) -> Iterator[Any]:
+    def run(fn: Callable[..., Any], work: list[tuple[Any, ...]]) -> Iterator[tuple[tuple[Any, ...], Any]]:
         with client:
             todo = iter(work)  # a bounded number in flight: the scheduler spreads them over the workers
-            running = distributed.as_completed(
-                [client.submit(fn, *a, pure=False) for a in itertools.islice(todo, IN_FLIGHT)]
-            )
+            sent = {}
+            for args in itertools.islice(todo, IN_FLIGHT):
+                sent[client.submit(fn, *args, pure=False)] = args
+            running = distributed.as_completed(list(sent))
             for future in running:
-                yield future.result()
+                args = sent.pop(future)
+                try:  # a lost worker (KilledWorker), tumblecal missing there: that unit's error
+                    yield args, future.result()
+                except Exception as err:
+                    yield args, err
                 future.release()
-                for args in itertools.islice(todo, 1):
-                    running.add(client.submit(fn, *args, pure=False))
+                for more in itertools.islice(todo, 1):
+                    new = client.submit(fn, *more, pure=False)
+                    sent[new] = more
+                    running.add(new)
 
     return run
 

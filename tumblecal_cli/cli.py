@@ -11,6 +11,7 @@ import math
 import os
 import re
 import sys
+import time
 from enum import StrEnum
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -1390,6 +1391,8 @@ def apply(
 
     inputs = batches.expand(capture or ["-"])
     if out_dir is not None or dask_scheduler is not None or len(inputs) > 1:
+        if output != "-" and out_dir is not None:
+            raise InputError("-o names one output; with --out-dir each capture is written into DIR under its own name")
         options = {"cal": cal, "columns": columns, "no_header": no_header, "force": force}
         _apply_many(inputs, options, out_dir, dask_scheduler, quiet=quiet)
         return
@@ -1464,6 +1467,7 @@ def _apply_many(
         raise InputError("stdin ('-') is one capture: with --out-dir give the captures as files")
     if os.path.exists(out_dir) and not os.path.isdir(out_dir):
         raise InputError("is a file, not a folder: --out-dir takes a folder", file=out_dir)
+    inputs = list(dict.fromkeys(inputs))  # a file named twice is corrected once
     outputs = [os.path.join(out_dir, os.path.basename(c)) for c in inputs]
     names: dict[str, str] = {}
     for c, o in zip(inputs, outputs, strict=True):
@@ -1472,8 +1476,10 @@ def _apply_many(
                 f"{names[o]} and {c} would both be written to {o}", hint="correct them into separate folders"
             )
         names[o] = c
-        if os.path.exists(o) and os.path.samefile(o, c):
-            raise InputError(f"--out-dir would overwrite the input {c}", file=o, hint="write into another folder")
+        if os.path.exists(o):  # an input, or a file of someone else's: never replaced
+            raise InputError(
+                "already exists: --out-dir never replaces a file", file=o, hint="correct into a new or empty folder"
+            )
     for path in options["cal"]:  # a bad calibration is one error, before any capture
         if path == "-":
             raise InputError("--cal - is read once: with several captures give the calibration as a file")
@@ -1485,9 +1491,12 @@ def _apply_many(
     os.makedirs(out_dir, exist_ok=True)
     failed = 0
     console = _console()
-    for name, status, message in run(
+    for (_, name, _), outcome in run(
         batches.apply_one, [(options, c, o) for c, o in zip(inputs, outputs, strict=True)]
     ):
+        if isinstance(outcome, BaseException):  # a worker lost on the cluster
+            outcome = (name, 2, f"{name}: the worker correcting it failed: {type(outcome).__name__}: {outcome}")
+        _, status, message = outcome
         if status:
             failed += 1
             _report(message, None)
@@ -2029,22 +2038,39 @@ def batch(**given: Any) -> None:
             console.print(f"resuming: {len(units) - len(todo)} of {len(units)} units already done", soft_wrap=True)
     run = batches.engine(own["jobs"], own["dask_scheduler"])  # connects to a cluster: before writing anything
     os.makedirs(out_dir, exist_ok=True)
+    from concurrent.futures.process import BrokenProcessPool
+
+    token = f"{os.getpid()}-{time.time_ns()}"  # names this batch's staging files
     summary = batches.Summary(out_dir, rows)
     try:
-        with _batch_progress(console, len(todo), enabled=not quiet) as (show, tick):
-            for row in run(batches.run_unit, [(u, given, out_dir, log) for u in todo]):
+        with _batch_progress(console, len(todo), enabled=not quiet) as (show, tick), _term_as_interrupt():
+            for (unit, *_), outcome in run(batches.run_unit, [(u, given, out_dir, log, token) for u in todo]):
+                if isinstance(outcome, BaseException):
+                    row = batches.failed_row(unit, outcome)
+                else:
+                    row = batches.finish(outcome, out_dir)  # published as it is recorded
                 summary.add(row)
                 if row["status"] or not show:
                     _print_unit(row, out_dir, console, quiet=quiet)
                 tick()
+    except BrokenProcessPool:
+        raise InputError(
+            f"a worker process died (killed, or out of memory) after {len(summary.rows) - len(done)} of "
+            f"{len(todo)} units",
+            hint="the summary keeps the units done: run the same command with --resume",
+        ) from None
     finally:
         summary.close()
+        batches.clean_staging(out_dir, token)
     status = batches.status(summary.rows)
     counts = {v: sum(r["verdict"] == v for r in summary.rows) for v in batches.VERDICTS.values()}
     if not quiet:
         said = ", ".join(f"{n} {v}" for v, n in counts.items() if n)
         console.print(
-            f"{len(summary.rows)} units: {said} -> {summary_path}", soft_wrap=True, markup=False, highlight=False
+            f"{len(summary.rows)} unit{'s' if len(summary.rows) != 1 else ''}: {said} -> {summary_path}",
+            soft_wrap=True,
+            markup=False,
+            highlight=False,
         )
     if own["json_summary"]:
         table = [{c: r.get(c) for c in batches.SUMMARY_COLUMNS} for r in summary.rows]
@@ -2078,6 +2104,26 @@ _SETTINGS = (
 )
 batch.__signature__ = _batch_signature()  # type: ignore[attr-defined]
 app.command(cls=Command, epilog=BATCH_EXIT)(batch)
+
+
+@contextlib.contextmanager
+def _term_as_interrupt() -> Iterator[None]:
+    """SIGTERM (a scheduler's or a station's kill) stops a batch as Ctrl-C does: the summary
+    is written and the worker processes are shut down."""
+    import signal
+
+    def interrupt(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    try:
+        previous = signal.signal(signal.SIGTERM, interrupt)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 @contextlib.contextmanager
