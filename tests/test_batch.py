@@ -1076,3 +1076,61 @@ def test_batch_progress_bar_on_a_terminal(
     r = run(capsys, "batch", src, "--out-dir", tmp_path / "log")
     assert "3/3" not in r.err
     assert [line.split(":")[0] for line in r.err.splitlines() if line[:1] in "ABC"] == ["A", "B", "C"]
+
+
+def test_batch_log_serial_keeps_its_dots_and_earlier_outputs_are_not_units(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    session = SAMPLE / "imucal" / "session_every4th.csv"
+    shutil.copy(session, logs / "SN-1.0042.csv")
+    args = ["--log", "--rate", "25.6", "--reference", "9.81", "-q"]
+    assert run(capsys, "batch", logs, "--out-dir", logs / "first", *args).code == 0
+    assert [r["serial"] for r in read_rows(logs / "first" / "summary.csv")] == ["SN-1.0042"]
+    # a second batch over the same folder: the first one's output folder (it has a summary) is not a unit
+    r = run(capsys, "batch", logs, "--out-dir", logs / "second", "--log", "--rate", "25.6", "--reference", "9.81")
+    assert r.code == 0, r.err
+    assert [r["serial"] for r in read_rows(logs / "second" / "summary.csv")] == ["SN-1.0042"]
+    assert "a batch's output folder" in r.err
+
+
+def test_batch_manifest_from_a_spreadsheet(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A byte-order mark, CRLF line ends and ';' separators; 'x=' labels as '+x='."""
+    for name in ("x", "y", "z"):
+        shutil.copy(SAMPLE / f"{name}.csv", tmp_path / f"{name}.csv")
+    manifest = tmp_path / "lot.csv"
+    manifest.write_bytes(b"\xef\xbb\xbfserial;a;b;c\r\nM1;z=z.csv;x=x.csv;y=y.csv\r\n")
+    r = run(capsys, "batch", manifest, "--out-dir", tmp_path / "out", "-q")
+    assert r.code == 0, r.err
+    (row,) = read_rows(tmp_path / "out" / "summary.csv")
+    assert (row["serial"], row["verdict"]) == ("M1", "pass")
+    assert row["inputs"].split(";") == [f"+{n}={tmp_path / f'{n}.csv'}" for n in "zxy"]
+
+
+def test_batch_stopped_by_sigterm_leaves_no_calibration_without_a_row(tmp_path: Path) -> None:
+    """SIGTERM mid-batch (--jobs 2): every calibration written has its row, no staging file is
+    left, and --resume finishes the lot with exactly one calibration per unit."""
+    import signal
+    import time
+
+    src = units(tmp_path / "units", {f"U{k:03d}": "good" for k in range(80)})
+    out = tmp_path / "out"
+    env = {**os.environ, "NO_COLOR": "1"}
+    argv = [tumblecal_exe(), "batch", str(src), "--out-dir", str(out), "--jobs", "2", "-q"]
+    proc = subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    summary = out / "summary.csv"
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and (not summary.exists() or summary.read_text().count("\n") < 6):
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode in (130, 0), err  # 0 if it finished first
+    rows = read_rows(summary)
+    files = sorted(p.name for p in out.iterdir() if p.name != "summary.csv")
+    assert files == sorted(row["file"] for row in rows)  # no calibration without its row, no staging file
+    r = subprocess.run([*argv, "--resume"], env=env, capture_output=True, text=True, timeout=60, check=False)
+    assert r.returncode == 0, r.stderr
+    rows = read_rows(summary)
+    assert sorted(row["serial"] for row in rows) == sorted(f"U{k:03d}" for k in range(80))
+    assert len([p for p in out.iterdir() if p.suffix == ".json"]) == 80

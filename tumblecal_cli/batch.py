@@ -448,8 +448,8 @@ def _processes(jobs: int) -> Engine:
                 while sent:
                     done, _ = wait(sent, return_when=FIRST_COMPLETED)
                     yield from ((sent.pop(f), f.result()) for f in done)
-            except BaseException:
-                pool.shutdown(wait=False, cancel_futures=True)
+            except BaseException:  # the units running finish (milliseconds), the others are dropped
+                pool.shutdown(wait=True, cancel_futures=True)
                 raise
 
     return run
