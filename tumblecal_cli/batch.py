@@ -104,7 +104,12 @@ def _data_files(folder: str) -> list[str]:
 
 def _face_of(path: str) -> str | None:
     """The face a pose file's name gives (x.csv, xp.csv, +x.csv, xn.csv ...), or None."""
-    stem = os.path.basename(path).split(".", 1)[0].lower()
+    return _face(os.path.basename(path).split(".", 1)[0])
+
+
+def _face(text: str) -> str | None:
+    """The face a label names (x, xp, +x, xn ...), or None."""
+    stem = text.lower()
     if stem in ("x", "y", "z"):
         return "+" + stem
     if len(stem) == 2 and stem[0] in "+-" and stem[1] in "xyz":
@@ -156,7 +161,6 @@ def _manifest_units(path: str, *, log: bool) -> tuple[list[Unit], list[str]]:
         with open(path, newline="", encoding="utf-8-sig") as f:  # a spreadsheet's byte-order mark
             first = f.readline()
             f.seek(0)
-            f.read(0)
             delimiter = ";" if ";" in first and "," not in first else ","  # a spreadsheet in a comma-decimal locale
             rows = list(csv.reader(f, delimiter=delimiter))
     except (OSError, UnicodeDecodeError, csv.Error) as err:
@@ -169,7 +173,7 @@ def _manifest_units(path: str, *, log: bool) -> tuple[list[Unit], list[str]]:
             line=lines[0][0] if lines else 1,
             hint="serial,x,y,z  then one row per unit: A17,A17/x.csv,A17/y.csv,A17/z.csv",
         )
-    header = [_face_of(h.strip() + ".csv") if h.strip() else None for h in lines[0][1]]
+    header = [_face(h.strip()) for h in lines[0][1]]
     base = os.path.dirname(path)
     units: list[Unit] = []
     where: dict[str, int] = {}
@@ -187,7 +191,7 @@ def _manifest_units(path: str, *, log: bool) -> tuple[list[Unit], list[str]]:
                 continue
             label, sep, rest = cell.partition("=")
             if sep and label and _looks_like_label(label):
-                items.append(f"{_face_of(label + '.csv') or label}={_resolve(base, rest)}")
+                items.append(f"{_face(label) or label}={_resolve(base, rest)}")
             else:
                 face = header[k] if k < len(header) and not log else None
                 items.append(f"{face}={_resolve(base, cell)}" if face else _resolve(base, cell))
@@ -207,7 +211,7 @@ def absolute(item: str) -> str:
 
 
 def _looks_like_label(text: str) -> bool:
-    return _face_of(text + ".csv") is not None or text.count(",") == 2
+    return _face(text) is not None or text.count(",") == 2
 
 
 def _resolve(base: str, name: str) -> str:

@@ -7,6 +7,7 @@ and ``--version`` pay only for Typer. Errors become exit codes in exactly one pl
 from __future__ import annotations
 
 import contextlib
+import inspect  # Typer imports it anyway
 import math
 import os
 import re
@@ -537,7 +538,7 @@ def solve(
             "give the pose files with --poses, or one continuous log with --log" + (", not both" if poses else ""),
             hint="see 'tumblecal solve --help'",
         )
-    chosen, ref, centre, limits_given = _solve_settings(
+    chosen, up_face, ref, centre, limits_given = _solve_settings(
         log_given=log is not None,
         window=window,
         threshold=threshold,
@@ -560,7 +561,6 @@ def solve(
         max_gain_error=max_gain_error,
         nominal_gain=nominal_gain,
     )
-    up_face = _face(up, "--up")
     name = chosen.value
     labels: list[str | None] = []
     files: list[str] = [] if log is None else [log]
@@ -751,9 +751,9 @@ def _solve_settings(
     max_offset: str | None,
     max_gain_error: str | None,
     nominal_gain: str | None,
-) -> tuple[MethodName, float, Any, Any]:
+) -> tuple[MethodName, str, float, Any, Any]:
     """The checks of solve's options that no pose file is needed for (batch runs them once, before
-    any unit): the log's options, --meta, the method, the reference, the nominal offset and the limits."""
+    any unit): the log's options, --meta, the method, --up, the reference, the nominal offset and the limits."""
     if not log_given:
         log_only = (
             ("--window", window),
@@ -771,7 +771,7 @@ def _solve_settings(
     chosen = MethodName.one_pose_tilt if tilt_compensate and method is MethodName.auto else method
     if tilt_compensate and chosen is not MethodName.one_pose_tilt:
         raise InputError(f"--tilt-compensate is the one-pose-tilt method, not {chosen.value}")
-    _face(up, "--up")
+    up_face = _face(up, "--up")
     for option, value in (("--max-noise", max_noise), ("--max-tilt", max_tilt), ("--full-scale", full_scale)):
         if value is not None and not value > 0:
             raise InputError(f"{option} must be positive, got {value:g}")
@@ -782,7 +782,7 @@ def _solve_settings(
             hint="the stimulus magnitude: 1 (g), 9.80665 (m/s^2), 16384 (counts); 0 only for --sensor gyroscope",
         )
     centre = None if nominal_offset is None else _triplet_option(nominal_offset, "--nominal-offset")
-    return chosen, ref, centre, _limits(limits_file, max_offset, max_gain_error, nominal_gain)
+    return chosen, up_face, ref, centre, _limits(limits_file, max_offset, max_gain_error, nominal_gain)
 
 
 def _method_options(name: str, ref: float, plane: Any, bias_spread: float | None) -> None:
@@ -1982,8 +1982,6 @@ def _batch_options(
 
 def _batch_signature() -> Any:
     """batch takes its own options and every option of solve that is not a unit's own."""
-    import inspect
-
     own = list(inspect.signature(_batch_options, eval_str=True).parameters.values())
     shared = [p for n, p in inspect.signature(solve, eval_str=True).parameters.items() if n not in PER_UNIT]
     return inspect.Signature(own + shared)
@@ -2079,7 +2077,7 @@ def batch(**given: Any) -> None:
         raise typer.Exit(status)
 
 
-_BATCH_OWN = ("source", "out_dir", "log", "jobs", "resume", "dask_scheduler", "json_summary", "quiet")
+_BATCH_OWN = tuple(inspect.signature(_batch_options).parameters)  # the rest of batch's options are solve's
 _SETTINGS = (
     "window",
     "threshold",
