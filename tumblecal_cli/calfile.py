@@ -289,18 +289,26 @@ def _optional_fields(doc: dict[str, Any], path: str) -> None:
 
 def _read_object(path: str, what: str) -> dict[str, Any]:
     """The JSON/YAML object in ``path`` ('-': stdin)."""
+    return parse_object(read_bytes(path, what), path, what)
+
+
+def read_bytes(path: str, what: str) -> bytes:
+    """The bytes of ``path`` ('-': stdin); a missing or unreadable file is one error naming it."""
     try:
         if path == "-":  # DESIGN.md section 5: '-' means stdin wherever a path is taken
-            raw = sys.stdin.buffer.read()
-        else:
-            with open(path, "rb") as f:
-                raw = f.read()
+            return sys.stdin.buffer.read()
+        with open(path, "rb") as f:
+            return f.read()
     except FileNotFoundError:
         raise InputError(f"no such {what}", file=path) from None
     except IsADirectoryError:
         raise InputError(f"is a directory, not a {what}", file=path) from None
     except OSError as err:
         raise InputError(f"cannot read: {err.strerror}", file=path) from None
+
+
+def parse_object(raw: bytes, path: str, what: str) -> dict[str, Any]:
+    """The JSON/YAML object in ``raw`` (YAML when ``path`` ends in .yaml/.yml)."""
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError:

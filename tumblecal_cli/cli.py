@@ -1645,6 +1645,242 @@ def check(
         raise typer.Exit(1)
 
 
+class ExportFormat(StrEnum):
+    c_header = "c-header"
+    registers = "registers"
+    imucal_json = "imucal-json"
+    ros_yaml = "ros-yaml"
+    matlab = "matlab"
+
+
+class ImportFormat(StrEnum):
+    imucal_json = "imucal-json"
+    ros_yaml = "ros-yaml"
+
+
+class RegisterSign(StrEnum):
+    subtract = "subtract"
+    add = "add"
+
+
+REGISTERS_PANEL = "Registers (--format registers)"
+
+
+@app.command(cls=Command, epilog="Exit status: 0 written; 2 usage or input error (a value that does not fit is one).")
+def export(
+    cal: Annotated[str, typer.Argument(metavar="CAL", help="Calibration file; '-' reads stdin.")],
+    fmt: Annotated[
+        ExportFormat,
+        typer.Option(
+            "--format",
+            "-f",
+            help="c-header: C99/C++ header for firmware; registers: offset (and gain trim) register counts, CSV; "
+            "imucal-json, ros-yaml, matlab: the peer tools' own files (README: export).",
+        ),
+    ],
+    output: Annotated[
+        str, typer.Option("--output", "-o", metavar="FILE", help="Where to write; '-' (the default) is stdout.")
+    ] = "-",
+    prefix: Annotated[
+        str | None,
+        typer.Option(
+            "--prefix",
+            metavar="NAME",
+            help="c-header: the names' prefix, NAME_OFFSET, NAME_MATRIX, name_apply(). [default: tumblecal_accel, "
+            "tumblecal_mag or tumblecal_gyro]",
+        ),
+    ] = None,
+    lsb: Annotated[
+        float | None,
+        typer.Option(
+            "--lsb", metavar="V", help="Raw units of one register count (> 0).", rich_help_panel=REGISTERS_PANEL
+        ),
+    ] = None,
+    bits: Annotated[
+        int,
+        typer.Option("--bits", min=2, max=64, help="Register width in bits, signed.", rich_help_panel=REGISTERS_PANEL),
+    ] = 16,
+    register_sign: Annotated[
+        RegisterSign,
+        typer.Option(
+            "--register-sign",
+            help="What the part does with the offset register: subtract (output = raw - count x lsb, so "
+            "count = round(offset / lsb)) or add (count = round(-offset / lsb)).",
+            rich_help_panel=REGISTERS_PANEL,
+        ),
+    ] = RegisterSign.subtract,
+    gain_step: Annotated[
+        float | None,
+        typer.Option(
+            "--gain-step",
+            metavar="F",
+            help="The part has gain trim: one count multiplies the axis by (1 + F). Adds gain_x..z rows.",
+            rich_help_panel=REGISTERS_PANEL,
+        ),
+    ] = None,
+    nominal_gain: Annotated[
+        str | None,
+        typer.Option(
+            "--nominal-gain",
+            metavar="G|X,Y,Z",
+            help="The gain the trim aims at, raw units per output unit. [default: the calibration's "
+            "limits.nominal_gain, else 1]",
+            rich_help_panel=REGISTERS_PANEL,
+        ),
+    ] = None,
+) -> None:
+    """Write a calibration for firmware or for another tool.
+
+    \b
+      tumblecal export cal.json --format c-header -o imu_cal.h
+      tumblecal export cal.json --format registers --lsb 0.98 --bits 16
+      tumblecal export cal.json --format imucal-json -o imucal_cal.json
+    """
+    from tumblecal_cli import calfile, formats
+    from tumblecal_cli.files import atomic_output, check_not_input, check_writable
+
+    given = {"--lsb": lsb, "--gain-step": gain_step, "--nominal-gain": nominal_gain}
+    if fmt is not ExportFormat.registers:
+        if extra := [flag for flag, value in given.items() if value is not None]:
+            raise InputError(f"{', '.join(extra)} {'is' if len(extra) == 1 else 'are'} for --format registers")
+        if bits != 16 or register_sign is not RegisterSign.subtract:
+            raise InputError("--bits and --register-sign are for --format registers")
+    elif lsb is None:
+        raise InputError("--format registers needs --lsb, the raw units of one register count")
+    if fmt is not ExportFormat.c_header and prefix is not None:
+        raise InputError("--prefix is for --format c-header")
+    check_not_input(output, [cal])
+    check_writable(output)
+    c = calfile.load(cal)
+    if fmt is ExportFormat.registers:
+        if not (lsb is not None and math.isfinite(lsb) and lsb > 0):
+            raise InputError(f"--lsb must be a positive number, got {lsb}")
+        if gain_step is not None and not (math.isfinite(gain_step) and gain_step > 0):
+            raise InputError(f"--gain-step must be a positive number, got {gain_step}")
+        from tumblecal_cli.gate import FIXED_GAINS
+
+        if gain_step is not None and c.doc["method"] in FIXED_GAINS:
+            raise InputError(f"the {c.doc['method']} solver fixes the gains: there is no gain to trim", file=cal)
+        recorded = ((c.doc.get("verdict") or {}).get("limits") or {}).get("nominal_gain")
+        nominal = _triplet_option(nominal_gain or ",".join(map(str, recorded or [1, 1, 1])), "--nominal-gain")
+        rows = formats.registers(
+            c, lsb=lsb, bits=bits, sign=register_sign.value, gain_step=gain_step, nominal_gain=nominal
+        )
+        text = formats.registers_csv(rows)
+    else:
+        text = {
+            ExportFormat.c_header: lambda: formats.c_header(c, prefix=prefix),
+            ExportFormat.imucal_json: lambda: formats.imucal_json(c),
+            ExportFormat.ros_yaml: lambda: formats.ros_yaml(c),
+            ExportFormat.matlab: lambda: formats.matlab(c),
+        }[fmt]()
+    with atomic_output(output) as out:
+        out.write(text.encode())
+
+
+@app.command("import", cls=Command, epilog="Exit status: 0 written; 2 usage or input error.")
+def import_(
+    peer_file: Annotated[
+        str, typer.Argument(metavar="FILE", help="An imucal JSON or ROS imu_calib YAML file; '-' reads stdin.")
+    ],
+    fmt: Annotated[
+        ImportFormat | None,
+        typer.Option("--from", help="The file's format. [default: recognised by its keys]"),
+    ] = None,
+    output: Annotated[
+        str,
+        typer.Option(
+            "--output", "-o", metavar="FILE", help="Calibration file: .json, or .yaml/.yml for YAML; '-' is stdout."
+        ),
+    ] = "-",
+    sensor: Annotated[
+        SensorKind,
+        typer.Option("--sensor", help="Which sensor to take (an imucal file holds an accelerometer and a gyroscope)."),
+    ] = SensorKind.accelerometer,
+    reference: Annotated[
+        float | None,
+        typer.Option(
+            "--reference",
+            metavar="V",
+            help="The stimulus magnitude in the output units. [default: what a tumblecal export recorded; else 1 "
+            "for g, 9.81 for imucal's m/s^2, 9.80665 for ROS, 0 for a gyroscope]",
+        ),
+    ] = None,
+    columns: Columns = None,
+    serial: Annotated[str | None, typer.Option("--serial", metavar="TEXT", help="The unit's serial number.")] = None,
+    quiet: Quiet = False,
+) -> None:
+    """Read another tool's calibration into a tumblecal calibration file, for apply, check and export.
+
+    \b
+      tumblecal import imucal_cal.json -o cal.json
+      tumblecal import imu_calib.yaml --from ros-yaml -o cal.yaml
+    """
+    from tumblecal_cli import calfile, formats
+    from tumblecal_cli.files import check_not_input, check_writable
+
+    check_not_input(output, [peer_file])
+    check_writable(output)
+    raw = calfile.read_bytes(peer_file, "calibration file")
+    doc = calfile.parse_object(raw, peer_file, "calibration file")
+    found = formats.detect(doc)
+    name = fmt.value if fmt is not None else found
+    if name is None or (found is not None and found != name):
+        what = "neither an imucal JSON (cal_type, K_a …) nor a ROS imu_calib YAML (SM, bias)"
+        raise InputError(
+            f"{what} file" if found is None else f"a {found} file, not {name}",
+            file=peer_file,
+            hint="tumblecal import reads --from imucal-json or ros-yaml",
+        )
+    peer = formats.read_peer(doc, name, peer_file, sensor.value, raw.decode("utf-8-sig", "replace"))
+    ref = reference if reference is not None else _peer_reference(peer, sensor.value, peer_file)
+    if columns:
+        picked = [c.strip() for c in columns.split(",")]
+        if len(picked) != 3 or not all(picked):
+            raise InputError(f"--columns takes three names X,Y,Z, got {columns!r}")
+    else:
+        picked = [f"{'acc' if sensor is SensorKind.accelerometer else 'gyr'}_{a}" for a in "xyz"]
+        if name == "ros-yaml":
+            picked = list("xyz")
+    cal = formats.imported(
+        peer,
+        path=peer_file,
+        raw=raw,
+        sensor=sensor.value,
+        reference=ref,
+        columns=picked,
+        unit=_unit_block(serial, None, None, []),
+    )
+    calfile.write(cal, output)
+    if not quiet:
+        console = _console()
+        for note in peer.notes:
+            console.print(f"note: {note}", soft_wrap=True)
+        console.print(
+            f"imported {name} {sensor.value} calibration, reference {ref:g}"
+            + (f": wrote {output}" if output != "-" else ""),
+            soft_wrap=True,
+        )
+
+
+def _peer_reference(peer: Any, sensor: str, path: str) -> float:
+    """The reference a peer file implies (README: import)."""
+    if peer.reference is not None:
+        return float(peer.reference)
+    if sensor == "gyroscope":
+        return 0.0
+    if peer.format == "ros-yaml":
+        return 9.80665  # imu_calib's do_calib: reference_acceleration defaults to 9.80665
+    by_units = {"g": 1.0, "m/s^2": 9.81, "m/s2": 9.81}  # imucal's Ferraris default expected gravity 9.81
+    if peer.units in by_units:
+        return by_units[peer.units]
+    raise InputError(
+        f"cannot tell the reference of output units {peer.units!r}",
+        file=path,
+        hint="give --reference, the stimulus magnitude in the output units",
+    )
+
+
 @app.command(
     cls=Command,
     epilog="Exit status: 0 every capture within --max-norm-error (or none given); 1 some capture outside it; "
@@ -2258,7 +2494,8 @@ def _print_summary(
         if "std" in p:  # a field of every file tumblecal writes; other writers may leave it out
             poses.add_row("", "", "", "", "std", *(f"{v:.3g}" for v in p["std"]), end_section=True)
     console.print(axes)
-    console.print(poses)
+    if doc.get("poses"):  # an imported calibration has none
+        console.print(poses)
     matrix = doc["matrix"]
     if any(matrix[i][j] for i in range(3) for j in range(3) if i != j):
         import numpy as np

@@ -1,0 +1,400 @@
+"""A calibration in other tools' terms: firmware (C header, offset registers), imucal, ROS
+imu_calib and MATLAB (``tumblecal export``), and imucal/ROS files read back (``tumblecal import``).
+
+Every mapping starts from tumblecal's model (DESIGN.md section 2): ``corrected = M (raw - b)``,
+``A = M^-1``. Each peer's own equation is quoted where it is used; README "export" writes them out.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import re
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from tumblecal_cli import __version__
+from tumblecal_cli.calfile import FORMAT, VERSION, Loaded, created
+from tumblecal_cli.core import FloatArray
+from tumblecal_cli.errors import InputError
+
+EXPORTS = ("c-header", "registers", "imucal-json", "ros-yaml", "matlab")
+IMPORTS = ("imucal-json", "ros-yaml")
+#: imucal's calibration file format (imucal/calibration_info.py, _CAL_FORMAT_VERSION); its
+#: loader also reads files without the key as the legacy 1.0 layout, which has the same fields.
+IMUCAL_FORMAT_VERSION = "2.0.0"
+IMUCAL_VERSIONS = (None, "1.0.0", IMUCAL_FORMAT_VERSION)
+FLOAT32_MAX = 3.4028234663852886e38
+SHORT = {"accelerometer": "accel", "magnetometer": "mag", "gyroscope": "gyro"}
+
+
+def a_matrix(cal: Loaded) -> FloatArray:
+    """A = M^-1: raw = A v + b (DESIGN.md section 2)."""
+    return np.asarray(np.linalg.inv(cal.matrix), dtype=np.float64)
+
+
+def scale_and_rotation(matrix: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """imucal's K (diagonal scale) and R (rows of unit length) with K R = A = M^-1.
+
+    imucal (FerrarisCalibrationInfo.calibrate_acc) computes ``R^-1 K^-1 (raw - b)``, so
+    ``M = R^-1 K^-1`` and ``K R = M^-1``: K_ii is the length of row i of A (Ferraris et al. 1995
+    eq. 2, where each row of R is the unit sensitive direction of one axis).
+    """
+    a = np.linalg.inv(matrix)
+    k = np.linalg.norm(a, axis=1)
+    return np.diag(k), a / k[:, None]
+
+
+# -- firmware ---------------------------------------------------------------------------
+
+
+def c_header(cal: Loaded, *, prefix: str | None = None) -> str:
+    """A self-contained C99/C++ header: offset and M as ``static const float``, and an inline
+    function that applies them, with the model and the unit's record in a comment."""
+    name = (prefix or f"tumblecal_{SHORT[cal.sensor]}").lower()
+    if not re.fullmatch(r"[a-z_][a-z0-9_]*", name):
+        raise InputError(f"--prefix {prefix!r} is not a C identifier (letters, digits and '_')")
+    upper, doc = name.upper(), cal.doc
+    offset = ", ".join(_c_float(v, f"offset[{i}]", cal.path) for i, v in enumerate(cal.offset))
+    rows = ",\n    ".join(
+        "{" + ", ".join(_c_float(v, f"matrix[{i}][{j}]", cal.path) for j, v in enumerate(row)) + "}"
+        for i, row in enumerate(cal.matrix)
+    )
+    lines = [
+        f"/* {_comment(doc['sensor'])} calibration, written by tumblecal {__version__} from {_comment(cal.path)}",
+        " *",
+        *[f" * {line}" for line in _provenance(cal)],
+        " *",
+        " * Model: corrected = M * (raw - offset), axes in the order x, y, z:",
+        " *   corrected[i] = M[i][0]*(raw[0] - offset[0]) + M[i][1]*(raw[1] - offset[1])",
+        " *                + M[i][2]*(raw[2] - offset[2])",
+        f" * {upper}_OFFSET is offset (raw units), {upper}_MATRIX is M (row i gives corrected[i]).",
+        " * Values are rounded to float (24-bit mantissa): about 6e-8 relative.",
+        " */",
+        f"#ifndef {upper}_H",
+        f"#define {upper}_H",
+        "",
+        "#ifndef TUMBLECAL_UNUSED",
+        "#if defined(__GNUC__) || defined(__clang__)",
+        "#define TUMBLECAL_UNUSED __attribute__((unused))",
+        "#else",
+        "#define TUMBLECAL_UNUSED",
+        "#endif",
+        "#endif",
+        "",
+        f"static const float {upper}_OFFSET[3] TUMBLECAL_UNUSED = {{{offset}}};",
+        "",
+        f"static const float {upper}_MATRIX[3][3] TUMBLECAL_UNUSED = {{",
+        f"    {rows}",
+        "};",
+        "",
+        f"/* out = {upper}_MATRIX * (raw - {upper}_OFFSET); out may be raw itself. */",
+        f"static inline void {name}_apply(const float raw[3], float out[3])",
+        "{",
+        f"    const float d0 = raw[0] - {upper}_OFFSET[0];",
+        f"    const float d1 = raw[1] - {upper}_OFFSET[1];",
+        f"    const float d2 = raw[2] - {upper}_OFFSET[2];",
+        "    int i;",
+        "    for (i = 0; i < 3; i++) {",
+        f"        out[i] = {upper}_MATRIX[i][0] * d0 + {upper}_MATRIX[i][1] * d1 + {upper}_MATRIX[i][2] * d2;",
+        "    }",
+        "}",
+        "",
+        f"#endif /* {upper}_H */",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+@dataclass(frozen=True)
+class Register:
+    """One register value: ``count`` to write, what it does, and what was wanted."""
+
+    name: str
+    count: int
+    hex: str
+    value: float  # what the part does with ``count``: the offset it removes, or its gain factor
+    target: float  # what the calibration asks for
+    error: float  # target - value: what rounding to whole counts leaves
+
+
+def registers(
+    cal: Loaded,
+    *,
+    lsb: float,
+    bits: int,
+    sign: str = "subtract",
+    gain_step: float | None = None,
+    nominal_gain: FloatArray | None = None,
+) -> list[Register]:
+    """Offsets (and gain trims with ``gain_step``) in register counts, checked against the
+    signed ``bits``-wide range (seed 002 writes hard-iron offsets into int16 registers).
+
+    ``sign`` says what the part does with an offset register: ``subtract`` (output = raw -
+    count * lsb, so count = round(b / lsb)) or ``add`` (output = raw + count * lsb). A gain trim
+    multiplies the axis by ``1 + count * gain_step``; the wanted factor takes the axis's gain to
+    ``nominal_gain`` (raw units per output unit), so count = round((nominal / gain - 1) / step).
+    """
+    low, high = -(2 ** (bits - 1)), 2 ** (bits - 1) - 1
+    factor = 1.0 if sign == "subtract" else -1.0
+    out = []
+    for axis, b in zip("xyz", cal.offset, strict=True):
+        count = _fit(f"offset_{axis}", b / lsb * factor, low, high, bits, f"offset {b:.6g} / --lsb {lsb:g}", cal)
+        removed = factor * count * lsb
+        out.append(Register(f"offset_{axis}", count, _hex(count, bits), removed, float(b), float(b - removed)))
+    if gain_step is not None:
+        nominal = np.ones(3) if nominal_gain is None else nominal_gain
+        gain = np.diag(a_matrix(cal))
+        for axis, g, n in zip("xyz", gain, nominal, strict=True):
+            want = float(n / g)
+            count = _fit(f"gain_{axis}", (want - 1) / gain_step, low, high, bits, f"factor {want:.6g}", cal)
+            value = 1 + count * gain_step
+            out.append(Register(f"gain_{axis}", count, _hex(count, bits), value, want, want - value))
+    return out
+
+
+def registers_csv(rows: list[Register]) -> str:
+    lines = ["register,count,hex,value,target,error"]
+    lines += [f"{r.name},{r.count},{r.hex},{r.value:.12g},{r.target!r},{r.error:.12g}" for r in rows]
+    return "\n".join(lines) + "\n"
+
+
+def _fit(name: str, exact: float, low: int, high: int, bits: int, why: str, cal: Loaded) -> int:
+    count = round(exact) if math.isfinite(exact) else None
+    if count is None or not low <= count <= high:
+        shown = "an infinite number of" if count is None else f"{count}"
+        raise InputError(
+            f"{name} needs {shown} register counts ({why}), outside the signed {bits}-bit range {low}..{high}",
+            file=cal.path,
+            hint="check --lsb (raw units per register count) against the calibration's raw units, or --bits",
+        )
+    return int(count)
+
+
+def _hex(count: int, bits: int) -> str:
+    """Two's complement in ``bits`` bits, as a register map shows it."""
+    return f"0x{count & ((1 << bits) - 1):0{(bits + 3) // 4}X}"
+
+
+# -- peer tools ---------------------------------------------------------------------------
+
+
+def imucal_json(cal: Loaded) -> str:
+    """imucal's FerrarisCalibrationInfo as its ``to_json`` writes it (format 2.0.0).
+
+    imucal corrects ``acc = R_a^-1 K_a^-1 (raw - b_a)`` and ``gyr = R_g^-1 K_g^-1 (raw - K_ga acc
+    - b_g)``: the calibrated sensor goes in its slot, the other slot is the identity (K = R = I,
+    b = K_ga = 0), so imucal passes that sensor's data through unchanged.
+    """
+    if cal.sensor == "magnetometer":
+        raise InputError(
+            "imucal's format holds accelerometer and gyroscope calibrations only, not a magnetometer",
+            file=cal.path,
+            hint="use --format ros-yaml, matlab or c-header",
+        )
+    k, r = scale_and_rotation(cal.matrix)
+    eye, zero = np.eye(3), np.zeros(3)
+    ours = {"K": k, "R": r, "b": cal.offset}
+    none: dict[str, FloatArray] = {"K": eye, "R": eye, "b": zero}
+    acc, gyr = (ours, none) if cal.sensor == "accelerometer" else (none, ours)
+    units, raw_units = cal.doc.get("units") or "a.u.", cal.doc.get("input_units") or "a.u."
+    doc = {
+        "acc_unit": units if acc is ours else "a.u.",
+        "gyr_unit": units if gyr is ours else "a.u.",
+        "from_acc_unit": raw_units if acc is ours else "a.u.",
+        "from_gyr_unit": raw_units if gyr is ours else "a.u.",
+        "comment": "; ".join(_provenance(cal)),
+        "K_a": acc["K"].tolist(),
+        "R_a": acc["R"].tolist(),
+        "b_a": acc["b"].tolist(),
+        "K_g": gyr["K"].tolist(),
+        "R_g": gyr["R"].tolist(),
+        "K_ga": np.zeros((3, 3)).tolist(),
+        "b_g": gyr["b"].tolist(),
+        "cal_type": "Ferraris",
+        "_format_version": IMUCAL_FORMAT_VERSION,
+    }
+    return json.dumps(doc, indent=4) + "\n"
+
+
+def ros_yaml(cal: Loaded) -> str:
+    """ROS imu_calib's calibration file: ``SM`` (9 values, row-major) and ``bias`` (3).
+
+    imu_calib (src/accel_calib/accel_calib.cpp, applyCalib) computes ``SM raw - bias``; equal to
+    ``M (raw - b)`` when SM = M and bias = M b.
+    """
+    bias = cal.matrix @ cal.offset
+    lines = [
+        "# ROS imu_calib calibration (apply_calib computes SM * raw - bias), written by tumblecal",
+        *[f"# {line}" for line in _provenance(cal)],
+        f"SM: [{', '.join(repr(float(v)) for v in cal.matrix.ravel())}]",
+        f"bias: [{', '.join(repr(float(v)) for v in bias)}]",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def matlab(cal: Loaded) -> str:
+    """A MATLAB/Octave script defining ``A`` and ``b`` in ``accelcal``'s convention.
+
+    MATLAB's accelcal corrects row vectors, ``C = U*A + b``: with ``c = M (u - offset)`` for a
+    column u, ``c' = u' M' - (M offset)'``, so A = M' and b = -(M offset)'.
+    """
+    a, b = cal.matrix.T, -(cal.matrix @ cal.offset)
+    lines = [
+        "% tumblecal calibration for MATLAB/Octave, in accelcal's convention:",
+        "%   C = U*A + b   (U: N-by-3 raw readings, one sample per row; C: corrected)",
+        *[f"% {line}" for line in _provenance(cal)],
+        "A = [" + ";\n     ".join(" ".join(f"{float(v)!r}" for v in row) for row in a) + "];",
+        "b = [" + " ".join(f"{float(v)!r}" for v in b) + "];",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+# -- import -------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Peer:
+    """A calibration read from another tool's file, in tumblecal's terms."""
+
+    format: str
+    offset: FloatArray
+    matrix: FloatArray
+    units: str | None
+    input_units: str | None
+    reference: float | None  # when the file says (a tumblecal export does, in its comment)
+    notes: tuple[str, ...]
+
+
+def detect(doc: dict[str, Any]) -> str | None:
+    """Which peer format a parsed file is, from its keys."""
+    if "cal_type" in doc and "K_a" in doc:
+        return "imucal-json"
+    if "SM" in doc and "bias" in doc:
+        return "ros-yaml"
+    return None
+
+
+def read_peer(doc: dict[str, Any], fmt: str, path: str, sensor: str, text: str = "") -> Peer:
+    """The calibration in a parsed imucal or ROS imu_calib file (``text``: the file, whose
+    comments a tumblecal export fills with the reference)."""
+    if fmt == "ros-yaml":
+        sm = _array(doc.get("SM"), "SM", 9, path).reshape(3, 3)
+        bias = _array(doc.get("bias"), "bias", 3, path)
+        _invertible(sm, "SM", path)
+        # SM raw - bias = SM (raw - SM^-1 bias): offset = SM^-1 bias
+        if sensor != "accelerometer":
+            raise InputError("a ROS imu_calib file holds an accelerometer calibration", file=path)
+        found = re.search(r"^#.*\breference ([-+0-9.eE]+)", text, re.MULTILINE)
+        reference = float(found.group(1)) if found else None
+        offset = np.asarray(np.linalg.solve(sm, bias), dtype=np.float64)
+        return Peer(fmt, offset, sm, "m/s^2", None, reference, ())
+    if doc.get("cal_type") not in ("Ferraris", "TurntableFerraris"):
+        raise InputError(
+            f"imucal calibration type {doc.get('cal_type')!r} is not one tumblecal reads (Ferraris, TurntableFerraris)",
+            file=path,
+        )
+    version = doc.get("_format_version")
+    if version not in IMUCAL_VERSIONS:
+        raise InputError(f"imucal format version {version!r} is not one tumblecal reads (1.0.0, 2.0.0)", file=path)
+    if sensor == "magnetometer":
+        raise InputError("an imucal file holds an accelerometer and a gyroscope, not a magnetometer", file=path)
+    slot = "a" if sensor == "accelerometer" else "g"
+    k = _array(doc.get(f"K_{slot}"), f"K_{slot}", 9, path).reshape(3, 3)
+    r = _array(doc.get(f"R_{slot}"), f"R_{slot}", 9, path).reshape(3, 3)
+    b = _array(doc.get(f"b_{slot}"), f"b_{slot}", 3, path)
+    _invertible(k, f"K_{slot}", path)
+    _invertible(r, f"R_{slot}", path)
+    notes: tuple[str, ...] = ()
+    if slot == "g" and np.any(_array(doc.get("K_ga"), "K_ga", 9, path)):
+        notes = ("K_ga (the gyroscope's sensitivity to acceleration) has no place in tumblecal's model: left out",)
+    units = doc.get(f"{'acc' if slot == 'a' else 'gyr'}_unit")
+    raw_units = doc.get(f"from_{'acc' if slot == 'a' else 'gyr'}_unit")
+    comment = doc.get("comment")
+    found = re.search(r"\breference ([-+0-9.eE]+)", comment) if isinstance(comment, str) else None
+    reference = float(found.group(1)) if found else None
+    matrix = np.linalg.inv(r) @ np.linalg.inv(k)  # imucal: R^-1 K^-1 (raw - b)
+    return Peer(fmt, b, matrix, _text(units), None if raw_units == "a.u." else _text(raw_units), reference, notes)
+
+
+def imported(
+    peer: Peer,
+    *,
+    path: str,
+    raw: bytes,
+    sensor: str,
+    reference: float,
+    columns: list[str],
+    unit: dict[str, Any],
+) -> dict[str, Any]:
+    """A format-1 calibration document for ``peer`` (method ``imported``; no uncertainty: the
+    peer's file does not carry one)."""
+    gain = np.diag(np.linalg.inv(peer.matrix))
+    return {
+        "format": FORMAT,
+        "version": VERSION,
+        "sensor": sensor,
+        "method": "imported",
+        "reference": reference,
+        "units": peer.units,
+        "input_units": peer.input_units,
+        "columns": columns,
+        "offset": [float(v) for v in peer.offset],
+        "matrix": [[float(v) for v in row] for row in peer.matrix],
+        "gain": [float(v) for v in gain],
+        "uncertainty": None,
+        "poses": [],
+        "imported": {"format": peer.format, "file": path, "sha256": hashlib.sha256(raw).hexdigest()},
+        "unit": unit,
+        "created": created(),
+        "tool": f"tumblecal {__version__}",
+    }
+
+
+def _provenance(cal: Loaded) -> list[str]:
+    """Who, when and how, for a comment in an exported file (one fact per line)."""
+    doc, unit = cal.doc, cal.doc.get("unit") or {}
+    who = ", ".join(f"{k} {unit[k]}" for k in ("serial", "station", "operator") if unit.get(k)) or "serial unknown"
+    verdict = doc.get("verdict")
+    judged = "" if not isinstance(verdict, dict) else f", verdict {'PASS' if verdict['pass'] else 'FAIL'}"
+    units = f"{doc.get('input_units') or 'raw units'} in, {doc.get('units') or 'reference units'} out"
+    return [
+        _comment(f"tumblecal {doc['sensor']} calibration: {who}"),
+        _comment(f"created {doc.get('created', 'unknown')}, method {doc['method']}{judged}"),
+        _comment(f"{units}, reference {float(doc['reference'])!r}; columns {', '.join(cal.columns)}"),
+    ]
+
+
+def _comment(text: object) -> str:
+    """Text safe inside a C, YAML or MATLAB comment: one line, no comment terminator."""
+    return re.sub(r"[\x00-\x1f\x7f]", " ", str(text)).replace("*/", "* /")
+
+
+def _c_float(value: float, name: str, path: str) -> str:
+    if not abs(value) <= FLOAT32_MAX:
+        raise InputError(f"{name} = {value!r} does not fit in a C float", file=path)
+    text = f"{float(np.float32(value)):.9g}"
+    return (text if any(c in text for c in ".e") else text + ".0") + "f"
+
+
+def _array(value: Any, name: str, size: int, path: str) -> FloatArray:
+    flat = np.array(value, dtype=object).ravel() if isinstance(value, list) else None
+    if flat is None or flat.size != size or not all(_finite(v) for v in flat):
+        shape = {3: "3 numbers", 9: "3x3 numbers"}[size]
+        raise InputError(f"field {name!r} must be {shape}", file=path)
+    return flat.astype(np.float64)
+
+
+def _finite(v: Any) -> bool:
+    return not isinstance(v, bool) and isinstance(v, int | float) and math.isfinite(v)
+
+
+def _invertible(matrix: FloatArray, name: str, path: str) -> None:
+    if not np.linalg.cond(matrix) < 1e12:
+        raise InputError(f"field {name!r} is singular (it has no inverse)", file=path)
+
+
+def _text(value: Any) -> str | None:
+    return value if isinstance(value, str) else None
