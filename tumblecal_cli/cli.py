@@ -1828,7 +1828,7 @@ def import_(
     if name is None or (found is not None and found != name):
         what = "neither an imucal JSON (cal_type, K_a …) nor a ROS imu_calib YAML (SM, bias)"
         raise InputError(
-            f"{what} file" if found is None else f"a {found} file, not {name}",
+            f"{what} file" if found is None else f"the file is {found}, not {name}",
             file=peer_file,
             hint="tumblecal import reads --from imucal-json or ros-yaml",
         )

@@ -375,7 +375,7 @@ def _comment(text: object) -> str:
 def _c_float(value: float, name: str, path: str) -> str:
     if not abs(value) <= FLOAT32_MAX:
         raise InputError(f"{name} = {value!r} does not fit in a C float", file=path)
-    text = f"{float(np.float32(value)):.9g}"
+    text = str(np.float32(value))  # the shortest text that reads back as the same float
     return (text if any(c in text for c in ".e") else text + ".0") + "f"
 
 
