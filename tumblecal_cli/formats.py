@@ -358,7 +358,9 @@ def _provenance(cal: Loaded) -> list[str]:
     doc, unit = cal.doc, cal.doc.get("unit") or {}
     who = ", ".join(f"{k} {unit[k]}" for k in ("serial", "station", "operator") if unit.get(k)) or "serial unknown"
     verdict = doc.get("verdict")
-    judged = "" if not isinstance(verdict, dict) else f", verdict {'PASS' if verdict['pass'] else 'FAIL'}"
+    judged = ""
+    if isinstance(verdict, dict) and (verdict.get("limits") or not verdict["pass"]):
+        judged = f", verdict {'PASS' if verdict['pass'] else 'FAIL'}"
     units = f"{doc.get('input_units') or 'raw units'} in, {doc.get('units') or 'reference units'} out"
     return [
         _comment(f"tumblecal {doc['sensor']} calibration: {who}"),
