@@ -1881,6 +1881,180 @@ def _peer_reference(peer: Any, sensor: str, path: str) -> float:
     )
 
 
+REPORT_EXIT = """\
+Exit status: 0 the lot is in order; 1 it needs attention (an outlier, a drift beyond
+--max-drift, or a Cpk below --min-cpk); 2 usage or input error (an unreadable file among
+the rest: the report is still printed)."""
+
+
+@app.command(cls=Command, epilog=REPORT_EXIT)
+def report(
+    paths: Annotated[
+        list[str],
+        typer.Argument(
+            metavar="CALS...",
+            help="Calibration files, or folders searched for *.json and *.yaml (hidden ones skipped).",
+        ),
+    ],
+    limits_file: Annotated[
+        str | None,
+        typer.Option(
+            "--limits",
+            metavar="FILE",
+            help="Limits file (as for solve): offset, gain_error with nominal_gain, and cross_axis give the "
+            "specification limits Cpk is computed against.",
+        ),
+    ] = None,
+    max_drift: Annotated[
+        str | None,
+        typer.Option(
+            "--max-drift",
+            metavar="KEY=V,...",
+            help="Flag a unit whose latest calibration moved further than this from its previous one: "
+            "offset=V (raw units), gain=F (fraction of the previous gain), cross=F (e.g. offset=0.01,gain=0.002).",
+        ),
+    ] = None,
+    min_cpk: Annotated[
+        float | None,
+        typer.Option("--min-cpk", metavar="C", help="Flag a parameter whose Cpk is below C (1.33 is usual)."),
+    ] = None,
+    json_out: Annotated[
+        bool, typer.Option("--json", help="Print the whole report as JSON on stdout instead of the CSV table.")
+    ] = False,
+    plot: Annotated[
+        str | None,
+        typer.Option(
+            "--plot", metavar="PNG", help="Also draw a histogram per parameter, with its limits (needs [plot])."
+        ),
+    ] = None,
+    quiet: Quiet = False,
+) -> None:
+    """Statistics of a production lot: per parameter count, mean, std, min/max, Cpk, outliers, drift.
+
+    The lot is the latest calibration of each serial (unit.serial; files without one count
+    once each); a serial calibrated more than once also gets the change since its previous
+    calibration (by created). Outliers: |robust z| > 4 (median absolute deviation).
+    CSV (or --json) on stdout, tables on stderr.
+
+    \b
+      tumblecal report cals/ --limits limits.yaml
+      tumblecal report lot1/ lot2/ --max-drift offset=0.01,gain=0.002 --json
+      tumblecal report cals/ --limits limits.yaml --plot lot.png
+    """
+    from tumblecal_cli import calfile, lot
+    from tumblecal_cli.files import atomic_output, check_not_input, check_writable
+
+    if min_cpk is not None and not (math.isfinite(min_cpk) and min_cpk > 0):
+        raise InputError(f"--min-cpk must be a positive number, got {min_cpk}")
+    drift_limits = lot.parse_max_drift(max_drift)
+    limits = calfile.load_limits(limits_file) if limits_file else {}
+    found = lot.find(paths)
+    if plot is not None:
+        from tumblecal_cli import plots
+
+        plots.require()
+        check_not_input(plot, [*found, *([limits_file] if limits_file else [])])
+        check_writable(plot)
+    entries, unreadable = lot.load_all(found)
+    result = lot.summarise(entries, unreadable, limits, max_drift=drift_limits, min_cpk=min_cpk)
+    if json_out:
+        _print_json(result.as_dict())
+    else:
+        header, rows = result.csv_rows()
+        with atomic_output("-") as out:
+            out.write(("\n".join(",".join(row) for row in [header, *rows]) + "\n").encode())
+    if plot is not None:
+        import numpy as np
+
+        members = lot.lot(entries)
+        histograms = [
+            plots.Histogram(
+                f"{row.parameter}" if len({r.sensor for r in result.rows}) == 1 else f"{row.sensor} {row.parameter}",
+                np.array(
+                    [e.values[row.parameter] for e in members if e.sensor == row.sensor and row.parameter in e.values]
+                ),
+                row.lower,
+                row.upper,
+            )
+            for row in result.rows
+        ]
+        plots.lot_figure(plot, histograms, title=f"{result.units} units, {result.files} files")
+    if not quiet:
+        _print_lot(result, _console(), plot)
+    if unreadable:
+        raise InputError(
+            f"{len(unreadable)} of {result.files} files could not be read (listed above); the report leaves them out"
+        )
+    if result.needs_attention:
+        raise typer.Exit(1)
+
+
+def _print_lot(result: Any, console: Console, plot: str | None) -> None:
+    """The lot report for people: the parameter table, outliers, drift, unreadable files."""
+    from rich import box
+    from rich.table import Table
+
+    def g(v: float | None, digits: int = 4) -> str:  # compact: 80 columns hold the table
+        return "" if v is None else re.sub(r"e([-+])0*(\d)", r"e\1\2", f"{v:.{digits}g}").replace("e+", "e")
+
+    def span(r: Any) -> str:
+        if r.lower is None and r.upper is None:
+            return ""
+        if r.lower is not None and r.upper is not None and r.lower == -r.upper:
+            return f"±{g(r.upper)}"
+        return f"{g(r.lower)}..{g(r.upper)}"
+
+    several = len({r.sensor for r in result.rows}) > 1
+    table = Table(
+        title=f"lot of {result.units} units ({result.files} files)",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+        collapse_padding=True,
+    )
+    for name in ("parameter", "n", "mean", "std", "min", "max", "limits", "Cpk"):
+        table.add_column(name, justify="left" if name == "parameter" else "right", no_wrap=True)
+    for r in result.rows:
+        low_cpk = result.min_cpk is not None and r.cpk is not None and r.cpk < result.min_cpk
+        table.add_row(
+            f"{r.sensor[:3]}. {r.parameter}" if several else r.parameter,
+            str(r.count),
+            g(r.mean),
+            g(r.std, 2),
+            g(r.min),
+            g(r.max),
+            span(r),
+            ("" if r.cpk is None else f"{r.cpk:.2f}" if r.cpk < 100 else ">100") + (" <" if low_cpk else ""),
+        )
+    console.print(table)
+    for r in result.rows:
+        for unit, value, z in r.outliers:
+            console.print(f"outlier: {unit}: {r.parameter} {g(value)} (robust z {z:+.1f})", style="red", soft_wrap=True)
+    changed = {d.serial for d in result.drift}
+    flagged = [d for d in result.drift if d.flagged]
+    if changed:
+        line = f"drift: {len(changed)} unit{'s' if len(changed) > 1 else ''} calibrated more than once"
+        line += (
+            f"; {len(flagged)} change{'s' if len(flagged) != 1 else ''} beyond --max-drift"
+            if any(d.limit is not None for d in result.drift)
+            else " (give --max-drift to flag changes)"
+        )
+        console.print(line, soft_wrap=True)
+    for d in flagged:
+        size = f"{d.relative:+.3%}" if d.relative is not None else f"{d.change:+.5g}"
+        console.print(
+            f"  {d.serial}: {d.parameter} changed {size} since {d.previous_created or os.path.basename(d.previous)}",
+            style="red",
+            soft_wrap=True,
+        )
+    for path, message in result.unreadable:
+        console.print(f"warning: {path}: {message}", style="yellow", soft_wrap=True)
+    if plot is not None:
+        console.print(f"wrote {plot}", soft_wrap=True)
+    verdict = "needs attention" if result.needs_attention else "in order"
+    console.print(f"lot: {verdict}", style="bold red" if result.needs_attention else "bold green", soft_wrap=True)
+
+
 @app.command(
     cls=Command,
     epilog="Exit status: 0 every capture within --max-norm-error (or none given); 1 some capture outside it; "

@@ -1,0 +1,532 @@
+"""Statistics over a production lot of calibration files (``tumblecal report cals/ --limits ...``).
+
+Numbers in, numbers out: which files make the lot, one row of statistics per sensor and
+parameter (count, mean, spread, capability against the limits, outliers), and how each
+re-calibrated unit moved since its previous calibration. numpy and the calibration-file reader
+only; the command line formats what :func:`summarise` returns.
+
+**Which calibrations make the lot statistics.** Stations keep every calibration a unit ever got
+(batch publishes ``<serial>_<UTC time>.json`` and never replaces one), so a unit re-calibrated
+three times has three files. The lot statistics take only the LATEST calibration of each
+(sensor, serial), latest by ``created`` (ties broken by path), so that unit counts once, with
+its newest result. A file without a serial cannot be matched with any other and counts on its
+own. The earlier calibrations are not lost: the one before the latest is the baseline of the
+unit's drift.
+
+The parameters, from the model ``corrected = M·(raw − offset)`` with ``A = M⁻¹``:
+
+- ``offset.x offset.y offset.z``: the offset, raw units;
+- ``gain.x gain.y gain.z``: ``diag(A)``, except for methods whose gains are fixed
+  (``gate.FIXED_GAINS``: one-pose, minmax, ...), which have none;
+- ``cross.xy cross.xz cross.yx cross.yz cross.zx cross.zy``: ``A[i, j] / A[i, i]``, only when M
+  has a non-zero off-diagonal term (as ``gate.verdict`` judges them).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from datetime import UTC, date, datetime
+from typing import Any
+
+import numpy as np
+
+from tumblecal_cli import calfile, gate
+from tumblecal_cli.core import FloatArray
+from tumblecal_cli.errors import InputError, TumblecalError
+
+#: Suffixes of calibration files a folder is searched for (case-insensitive, as calfile.is_yaml).
+SUFFIXES = (".json", ".yaml", ".yml")
+AXES = "xyz"
+OFFSETS = tuple(f"offset.{k}" for k in AXES)
+GAINS = tuple(f"gain.{k}" for k in AXES)
+CROSS = tuple(f"cross.{i}{j}" for i in AXES for j in AXES if i != j)
+#: Every parameter, in the order of the report's rows.
+PARAMETERS = OFFSETS + GAINS + CROSS
+#: |modified z| above this marks an outlier. Iglewicz & Hoaglin (1993) suggest 3.5; a lot report
+#: is read by people who act on every flag, so it takes the more conservative 4.
+OUTLIER_Z = 4.0
+#: Families of parameters a drift limit is given for (``--max-drift offset=...,gain=...,cross=...``).
+DRIFT_KEYS = ("offset", "gain", "cross")
+DRIFT_ALIASES = {"cross_axis": "cross"}
+DRIFT_HINT = "--max-drift offset=0.01,gain=0.002 (offset in raw units; gain and cross as fractions)"
+#: Columns of ``Report.csv_rows``.
+CSV_HEADER = [
+    "sensor",
+    "parameter",
+    "count",
+    "mean",
+    "std",
+    "min",
+    "max",
+    "lower",
+    "upper",
+    "cpk",
+    "outliers",
+    "drift_flagged",
+]
+
+
+# --- which files --------------------------------------------------------------------------------
+
+
+def find(paths: list[str]) -> list[str]:
+    """The calibration files named: each path a file (taken as it is, whatever its name) or a
+    folder searched recursively for ``*.json``, ``*.yaml``, ``*.yml``. Inside a folder, hidden
+    files and folders (a name starting with '.', such as batch's staging files
+    ``.SN1.abc.partial.json``) are skipped. Sorted, each file once."""
+    found: set[str] = set()
+    for path in paths:
+        if not os.path.exists(path):
+            raise InputError("no such file or folder", file=path)
+        if not os.path.isdir(path):
+            found.add(os.path.normpath(path))
+            continue
+        for folder, dirs, names in os.walk(path):
+            dirs[:] = [d for d in dirs if not d.startswith(".")]  # os.walk descends only into what is left
+            for name in names:
+                if not name.startswith(".") and name.lower().endswith(SUFFIXES):
+                    found.add(os.path.normpath(os.path.join(folder, name)))
+    if not found:
+        raise InputError(f"no calibration files (*.json, *.yaml) in {', '.join(paths)}")
+    return sorted(found)
+
+
+# --- one calibration ----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One calibration file's parameters (see the module docstring for their names)."""
+
+    path: str
+    serial: str | None
+    created: str
+    sensor: str
+    method: str
+    values: dict[str, float]
+
+
+def entry(cal: calfile.Loaded) -> Entry:
+    """The parameters of one loaded calibration."""
+    doc = cal.doc
+    values = {name: float(v) for name, v in zip(OFFSETS, cal.offset, strict=True)}
+    a = np.linalg.inv(cal.matrix)  # load() has refused a singular M
+    method = str(doc["method"])
+    if method not in gate.FIXED_GAINS:
+        values.update({name: float(g) for name, g in zip(GAINS, np.diag(a), strict=True)})
+    if np.count_nonzero(cal.matrix - np.diag(np.diag(cal.matrix))):  # as gate.verdict: M has cross terms
+        for i, row in enumerate(AXES):
+            for j, col in enumerate(AXES):
+                if i != j:
+                    values[f"cross.{row}{col}"] = float(a[i, j] / a[i, i])
+    unit = doc.get("unit") or {}
+    serial = unit.get("serial")
+    return Entry(
+        path=cal.path,
+        serial=None if serial is None or str(serial).strip() == "" else str(serial),
+        created=_created_text(doc.get("created")),
+        sensor=cal.sensor,
+        method=method,
+        values=values,
+    )
+
+
+def _created_text(value: Any) -> str:
+    """``created`` as text: a hand-written YAML file's unquoted timestamp is read as a datetime."""
+    if value is None:
+        return ""
+    if isinstance(value, datetime):
+        when = value if value.tzinfo is not None else value.replace(tzinfo=UTC)
+        return when.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+    if isinstance(value, date):
+        return value.isoformat()
+    return str(value)
+
+
+def _when(e: Entry) -> tuple[int, float, str, str]:
+    """Sort key, oldest first: ``created`` as a time (ISO 8601; no zone read as UTC), ties by path.
+    A file without a readable ``created`` sorts before every dated one."""
+    try:
+        when = datetime.fromisoformat(e.created)
+    except ValueError:
+        return (0, 0.0, e.created, e.path)
+    if when.tzinfo is None:
+        when = when.replace(tzinfo=UTC)
+    return (1, when.timestamp(), e.created, e.path)
+
+
+def load_all(paths: list[str]) -> tuple[list[Entry], list[tuple[str, str]]]:
+    """Every calibration file ``find`` finds, loaded. A file that cannot be read, or is not a
+    tumblecal calibration (another tool's JSON in the folder), does not stop the others: it is
+    returned as ``(path, message)`` (the message without the path) for the caller to warn about."""
+    entries: list[Entry] = []
+    unreadable: list[tuple[str, str]] = []
+    for path in find(paths):
+        try:
+            entries.append(entry(calfile.load(path)))
+        except TumblecalError as err:
+            unreadable.append((path, _message(err)))
+    return entries, unreadable
+
+
+def _message(err: TumblecalError) -> str:
+    where = [f"line {err.line}"] if err.line is not None else []
+    if err.column is not None:
+        where.append(f"column {err.column}")
+    return f"{err.message} ({', '.join(where)})" if where else err.message
+
+
+def lot(entries: Iterable[Entry]) -> list[Entry]:
+    """The entries that make the lot statistics: the latest of each (sensor, serial), and every
+    entry without a serial (see the module docstring). In the order of their paths."""
+    latest: dict[tuple[str, str], Entry] = {}
+    alone: list[Entry] = []
+    for e in entries:
+        if e.serial is None:
+            alone.append(e)
+            continue
+        key = (e.sensor, e.serial)
+        if key not in latest or _when(e) > _when(latest[key]):
+            latest[key] = e
+    return sorted([*latest.values(), *alone], key=lambda e: e.path)
+
+
+# --- statistics ---------------------------------------------------------------------------------
+
+
+def bounds(parameter: str, limits: dict[str, Any]) -> tuple[float | None, float | None]:
+    """(lower, upper) specification limits of a parameter from a ``calfile.load_limits`` dict,
+    as ``gate.verdict`` judges a single unit: |offset| ≤ L, |gain / nominal − 1| ≤ e, |cross| ≤ L.
+    (None, None) when the limits do not bound it."""
+    family, _, name = parameter.partition(".")
+    if family == "offset" and limits.get("offset") is not None:
+        bound = _axis(limits["offset"], name)
+        return (-bound, bound)
+    if family == "gain" and limits.get("gain_error") is not None:
+        error = _axis(limits["gain_error"], name)
+        nominal = _axis(limits["nominal_gain"], name) if limits.get("nominal_gain") is not None else 1.0
+        return (nominal * (1.0 - error), nominal * (1.0 + error))
+    if family == "cross" and limits.get("cross_axis") is not None:
+        bound = float(limits["cross_axis"])
+        return (-bound, bound)
+    return (None, None)
+
+
+def _axis(value: Any, axis: str) -> float:
+    """One axis of a per-axis limit: a number, or an [x, y, z] list or (3,) array."""
+    array = np.broadcast_to(np.asarray(value, dtype=np.float64), (3,))
+    return float(array[AXES.index(axis)])
+
+
+def cpk(values: Sequence[float] | FloatArray, lower: float | None, upper: float | None) -> float | None:
+    """Process capability index Cpk = min(USL − μ, μ − LSL) / 3σ, with σ the sample standard
+    deviation (ddof=1); with one specification limit, the one-sided index (CPU or CPL). None when
+    there are fewer than 2 values, σ is 0, or there is no limit."""
+    # Source: AIAG, Statistical Process Control (SPC) reference manual, 2nd ed. (2005), ch. IV
+    # (CPU = (USL − X̄)/3σ, CPL = (X̄ − LSL)/3σ, Cpk = min); Montgomery, Introduction to Statistical
+    # Quality Control, ch. 8 (process capability; one-sided Cpu / Cpl). A lot of calibrations has no
+    # rational subgroups, so σ is the overall sample σ (ddof=1): what AIAG calls Ppk; the report
+    # names it Cpk, the term stations use.
+    x = np.asarray(values, dtype=np.float64)
+    if len(x) < 2 or (lower is None and upper is None):
+        return None
+    sigma = float(np.std(x, ddof=1))
+    if not sigma > 0:
+        return None
+    mu = float(np.mean(x))
+    sides = []
+    if upper is not None:
+        sides.append((upper - mu) / (3.0 * sigma))  # CPU
+    if lower is not None:
+        sides.append((mu - lower) / (3.0 * sigma))  # CPL
+    return min(sides)
+
+
+def robust_z(values: Sequence[float] | FloatArray) -> FloatArray:
+    """Modified z-score of each value: 0.6745·(x − median) / MAD. When MAD is 0 (more than half
+    the values equal), (x − median) / (1.253314·MeanAD) with MeanAD the mean absolute deviation
+    from the median; when that is 0 too (all equal), zeros."""
+    # Source: Iglewicz & Hoaglin, "How to Detect and Handle Outliers", ASQC Basic References in
+    # Quality Control vol. 16 (1993): M_i = 0.6745·(x_i − x̃)/MAD (0.6745: the 0.75 normal quantile,
+    # so M_i ~ z for normal data). The MAD = 0 fallback with MeanAD·1.253314 (√(π/2): E|X − μ| = σ·√(2/π)
+    # for normal data) is the one IBM documents for its modified z score (Cognos Analytics / SPSS).
+    x = np.asarray(values, dtype=np.float64)
+    if len(x) == 0:
+        return np.zeros(0)
+    deviation = x - np.median(x)
+    mad = float(np.median(np.abs(deviation)))
+    if mad > 0:
+        z: FloatArray = 0.6745 * deviation / mad
+        return z
+    mean_ad = float(np.mean(np.abs(deviation)))
+    if mean_ad > 0:
+        fallback: FloatArray = deviation / (1.253314 * mean_ad)
+        return fallback
+    return np.zeros(len(x))
+
+
+@dataclass(frozen=True)
+class ParameterRow:
+    """Statistics of one parameter of one sensor over the lot. ``outliers``: (serial, or the file's
+    name when it has none; value; modified z) with |z| > OUTLIER_Z, largest |z| first."""
+
+    sensor: str
+    parameter: str
+    count: int
+    mean: float
+    std: float | None
+    min: float
+    max: float
+    lower: float | None
+    upper: float | None
+    cpk: float | None
+    outliers: list[tuple[str, float, float]]
+
+
+@dataclass(frozen=True)
+class Drift:
+    """How one parameter of a re-calibrated unit moved: latest minus the calibration before it.
+    ``limit`` is from ``--max-drift``; for a gain it bounds the relative change
+    (``relative`` = change / previous gain), for offsets and cross terms the change itself."""
+
+    sensor: str
+    serial: str
+    previous: str
+    latest: str
+    previous_created: str
+    latest_created: str
+    parameter: str
+    change: float
+    limit: float | None
+    flagged: bool
+    relative: float | None = None
+
+
+def parse_max_drift(text: str | None) -> dict[str, float]:
+    """``offset=0.01,gain=0.002,cross=0.001`` (any subset; ``cross_axis`` is ``cross``) as a dict.
+    None: no drift limits."""
+    if text is None:
+        return {}
+    out: dict[str, float] = {}
+    items = [item.strip() for item in text.split(",")]
+    if not any(items):
+        raise InputError("--max-drift is empty", hint=DRIFT_HINT)
+    for item in items:
+        key, equals, value = (part.strip() for part in item.partition("="))
+        if not equals:
+            raise InputError(f"--max-drift {item!r} is not KEY=VALUE", hint=DRIFT_HINT)
+        key = DRIFT_ALIASES.get(key, key)
+        if key not in DRIFT_KEYS:
+            raise InputError(f"--max-drift: unknown key {key!r} (known: {', '.join(DRIFT_KEYS)})", hint=DRIFT_HINT)
+        if key in out:
+            raise InputError(f"--max-drift: {key!r} is given twice", hint=DRIFT_HINT)
+        try:
+            number = float(value)
+        except ValueError:
+            raise InputError(f"--max-drift: {key}={value!r} is not a number", hint=DRIFT_HINT) from None
+        if not (math.isfinite(number) and number > 0):
+            raise InputError(f"--max-drift: {key} must be a positive number, got {value!r}", hint=DRIFT_HINT)
+        out[key] = number
+    return out
+
+
+def drift(entries: Iterable[Entry], max_drift: dict[str, float]) -> list[Drift]:
+    """For every (sensor, serial) calibrated at least twice: each parameter both of its last two
+    calibrations have, latest minus previous (by ``created``, ties by path). Sorted by serial,
+    sensor, then parameter in the report's order."""
+    history: dict[tuple[str, str], list[Entry]] = {}
+    for e in entries:
+        if e.serial is not None:
+            history.setdefault((e.sensor, e.serial), []).append(e)
+    out: list[Drift] = []
+    for (sensor, serial), cals in history.items():
+        if len(cals) < 2:
+            continue
+        previous, latest = sorted(cals, key=_when)[-2:]
+        for parameter in PARAMETERS:
+            if parameter not in previous.values or parameter not in latest.values:
+                continue  # e.g. a one-pose calibration (no gains) after a three-pose one
+            before, after = previous.values[parameter], latest.values[parameter]
+            change = after - before
+            family = parameter.partition(".")[0]
+            limit = max_drift.get(family)
+            relative = change / before if family == "gain" and before != 0 else None
+            measured = abs(relative) if family == "gain" and relative is not None else abs(change)
+            out.append(
+                Drift(
+                    sensor=sensor,
+                    serial=serial,
+                    previous=previous.path,
+                    latest=latest.path,
+                    previous_created=previous.created,
+                    latest_created=latest.created,
+                    parameter=parameter,
+                    change=change,
+                    limit=limit,
+                    flagged=limit is not None and measured > limit,
+                    relative=relative,
+                )
+            )
+    order = {sensor: k for k, sensor in enumerate(calfile.SENSORS)}
+    out.sort(key=lambda d: (d.serial, order.get(d.sensor, len(order)), d.sensor, PARAMETERS.index(d.parameter)))
+    return out
+
+
+# --- the report ---------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Report:
+    """What ``tumblecal report`` shows. ``files``: calibration files found (read or not);
+    ``units``: entries in the lot statistics (the latest per unit)."""
+
+    files: int
+    units: int
+    rows: list[ParameterRow]
+    drift: list[Drift]
+    unreadable: list[tuple[str, str]]
+    min_cpk: float | None = None
+
+    @property
+    def needs_attention(self) -> bool:
+        """Any outlier, any flagged drift, or (with ``min_cpk``) any Cpk below it."""
+        if any(row.outliers for row in self.rows) or any(d.flagged for d in self.drift):
+            return True
+        threshold = self.min_cpk
+        return threshold is not None and any(row.cpk is not None and row.cpk < threshold for row in self.rows)
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready: plain floats, ints, strings and None (NaN and infinities are None)."""
+        return {
+            "files": self.files,
+            "units": self.units,
+            "min_cpk": _plain(self.min_cpk),
+            "needs_attention": self.needs_attention,
+            "parameters": [
+                {
+                    "sensor": row.sensor,
+                    "parameter": row.parameter,
+                    "count": row.count,
+                    "mean": _plain(row.mean),
+                    "std": _plain(row.std),
+                    "min": _plain(row.min),
+                    "max": _plain(row.max),
+                    "lower": _plain(row.lower),
+                    "upper": _plain(row.upper),
+                    "cpk": _plain(row.cpk),
+                    "outliers": [{"unit": u, "value": _plain(v), "z": _plain(z)} for u, v, z in row.outliers],
+                }
+                for row in self.rows
+            ],
+            "drift": [
+                {
+                    "sensor": d.sensor,
+                    "serial": d.serial,
+                    "parameter": d.parameter,
+                    "previous": d.previous,
+                    "latest": d.latest,
+                    "previous_created": d.previous_created,
+                    "latest_created": d.latest_created,
+                    "change": _plain(d.change),
+                    "relative": _plain(d.relative),
+                    "limit": _plain(d.limit),
+                    "flagged": d.flagged,
+                }
+                for d in self.drift
+            ],
+            "unreadable": [{"file": path, "error": message} for path, message in self.unreadable],
+        }
+
+    def csv_rows(self) -> tuple[list[str], list[list[str]]]:
+        """(header, rows) of the report as CSV text cells: one row per sensor and parameter;
+        numbers at full precision (``repr``), an empty cell for none; ``outliers`` as
+        ``SN1=5.2;SN7=-4.4`` (unit=modified z), ``drift_flagged`` the serials whose drift of that
+        parameter is flagged."""
+        flagged: dict[tuple[str, str], list[str]] = {}
+        for d in self.drift:
+            if d.flagged:
+                flagged.setdefault((d.sensor, d.parameter), []).append(d.serial)
+        rows = []
+        for row in self.rows:
+            rows.append(
+                [
+                    row.sensor,
+                    row.parameter,
+                    str(row.count),
+                    *(_cell(v) for v in (row.mean, row.std, row.min, row.max, row.lower, row.upper, row.cpk)),
+                    ";".join(f"{unit}={z:.1f}" for unit, _, z in row.outliers),
+                    ";".join(flagged.get((row.sensor, row.parameter), [])),
+                ]
+            )
+        return list(CSV_HEADER), rows
+
+
+def _plain(value: float | None) -> float | None:
+    if value is None:
+        return None
+    number = float(value)
+    return number if math.isfinite(number) else None
+
+
+def _cell(value: float | None) -> str:
+    plain = _plain(value)
+    return "" if plain is None else repr(plain)
+
+
+def summarise(
+    entries: Sequence[Entry],
+    unreadable: Sequence[tuple[str, str]],
+    limits: dict[str, Any],
+    *,
+    max_drift: dict[str, float],
+    min_cpk: float | None = None,
+) -> Report:
+    """The lot report: statistics over the latest calibration of each unit (module docstring),
+    bounded by ``limits`` (a ``calfile.load_limits`` dict, possibly empty), and the drift of every
+    re-calibrated unit against ``max_drift`` (``parse_max_drift``)."""
+    members = lot(entries)
+    order = {sensor: k for k, sensor in enumerate(calfile.SENSORS)}
+    sensors = sorted({e.sensor for e in members}, key=lambda s: (order.get(s, len(order)), s))
+    rows = []
+    for sensor in sensors:
+        group = [e for e in members if e.sensor == sensor]
+        for parameter in PARAMETERS:
+            having = [e for e in group if parameter in e.values]
+            if having:
+                rows.append(_row(sensor, parameter, having, limits))
+    return Report(
+        files=len(entries) + len(unreadable),
+        units=len(members),
+        rows=rows,
+        drift=drift(entries, max_drift),
+        unreadable=list(unreadable),
+        min_cpk=min_cpk,
+    )
+
+
+def _row(sensor: str, parameter: str, having: list[Entry], limits: dict[str, Any]) -> ParameterRow:
+    x = np.array([e.values[parameter] for e in having])
+    lower, upper = bounds(parameter, limits)
+    z = robust_z(x)
+    outliers = [
+        (e.serial if e.serial is not None else os.path.basename(e.path), float(v), float(zi))
+        for e, v, zi in zip(having, x, z, strict=True)
+        if abs(zi) > OUTLIER_Z
+    ]
+    outliers.sort(key=lambda o: (-abs(o[2]), o[0]))
+    return ParameterRow(
+        sensor=sensor,
+        parameter=parameter,
+        count=len(x),
+        mean=float(np.mean(x)),
+        std=float(np.std(x, ddof=1)) if len(x) >= 2 else None,
+        min=float(np.min(x)),
+        max=float(np.max(x)),
+        lower=lower,
+        upper=upper,
+        cpk=cpk(x, lower, upper),
+        outliers=outliers,
+    )
