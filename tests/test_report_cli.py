@@ -1,0 +1,112 @@
+"""tumblecal report from the command line, on sample_data/lot (tests/make_sample_lot.py: 30 units with
+known truth, SN0013's x offset 0.07 g, SN0007 re-calibrated with its y offset moved 0.015 g)."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from tumblecal_cli.cli import main
+
+ROOT = Path(__file__).resolve().parent.parent
+LOT = ROOT / "sample_data" / "lot"
+LIMITS = ROOT / "sample_data" / "limits.yaml"
+
+
+def run(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    code = main(args)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def rows(out: str) -> dict[str, dict[str, str]]:
+    return {r["parameter"]: r for r in csv.DictReader(io.StringIO(out))}
+
+
+def test_report_csv_on_stdout_table_on_stderr(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = run(["report", str(LOT), "--limits", str(LIMITS)], capsys)
+    table = rows(out)
+    assert code == 1, err  # SN0013 is an outlier
+    assert list(table) == ["offset.x", "offset.y", "offset.z", "gain.x", "gain.y", "gain.z"]
+    x = table["offset.x"]
+    assert x["count"] == "30"  # 31 files, SN0007 counted once
+    assert float(x["max"]) == pytest.approx(0.07, abs=3e-4)
+    assert (x["lower"], x["upper"]) == ("-0.05", "0.05")
+    assert x["outliers"].startswith("SN0013=")
+    assert float(table["gain.y"]["mean"]) == pytest.approx(1.0, abs=0.003)  # truth: N(1, 0.004)
+    assert "lot of 30 units (31 files)" in err
+    assert "outlier: SN0013: offset.x" in err
+    assert "give --max-drift to flag changes" in err
+
+
+def test_report_drift_is_flagged_with_max_drift(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = run(["report", str(LOT), "--max-drift", "offset=0.01,gain=0.002", "--json"], capsys)
+    doc = json.loads(out)
+    assert code == 1
+    flagged = [d for d in doc["drift"] if d["flagged"]]
+    assert [(d["serial"], d["parameter"]) for d in flagged] == [("SN0007", "offset.y")]
+    assert flagged[0]["change"] == pytest.approx(0.015, abs=3e-4)  # truth 0.015, noise 0.002/sqrt(200)
+    assert "SN0007: offset.y changed +0.015" in err
+    assert doc["units"] == 30
+    assert doc["files"] == 31
+
+
+def test_report_in_order_exits_0(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Without the outlier and with a drift limit the re-calibration stays within, the lot is in order."""
+    lot = tmp_path / "lot"
+    shutil.copytree(LOT, lot)
+    for path in lot.glob("SN0013_*.json"):
+        path.unlink()
+    code, _, err = run(["report", str(lot), "--max-drift", "offset=0.02", "--min-cpk", "1.0"], capsys)
+    assert code == 0, err
+    assert "lot: in order" in err
+
+
+def test_report_min_cpk(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(["report", str(LOT), "--limits", str(LIMITS), "--min-cpk", "1.33", "--json"], capsys)
+    doc = json.loads(out)
+    assert code == 1
+    low = [p["parameter"] for p in doc["parameters"] if p["cpk"] is not None and p["cpk"] < 1.33]
+    assert "offset.x" in low  # the outlier widens it
+
+
+def test_report_unreadable_file_is_exit_2_after_the_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    lot = tmp_path / "lot"
+    shutil.copytree(LOT, lot)
+    (lot / "broken.json").write_text('{"format": "tumblecal-calibration",')
+    (lot / ".SN0099.abc.partial.json").write_text("staging: ignored")
+    code, out, err = run(["report", str(lot)], capsys)
+    assert code == 2
+    assert rows(out)["offset.x"]["count"] == "30"  # the report is still printed
+    assert "broken.json: not valid JSON" in err
+    assert "1 of 32 files could not be read" in err
+    assert "partial" not in err
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--max-drift", "0.01"], "--max-drift offset=0.01,gain=0.002"),
+        (["--max-drift", "speed=1"], "--max-drift"),
+        (["--min-cpk", "0"], "--min-cpk must be a positive number"),
+        (["--limits", "missing.yaml"], "missing.yaml"),
+    ],
+)
+def test_report_usage_errors(capsys: pytest.CaptureFixture[str], args: list[str], message: str) -> None:
+    code, out, err = run(["report", str(LOT), *args], capsys)
+    assert (code, out) == (2, "")
+    assert message in err
+
+
+def test_report_no_files(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = run(["report", str(tmp_path)], capsys)
+    assert (code, out) == (2, "")
+    assert "no calibration files" in err
+    code, _, err = run(["report", str(tmp_path / "nope")], capsys)
+    assert code == 2
+    assert "nope" in err
