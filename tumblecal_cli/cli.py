@@ -418,6 +418,15 @@ def solve(
     rate: Rate = None,
     json_summary: JsonSummary = False,
     quiet: Quiet = False,
+    plot: Annotated[
+        str | None,
+        typer.Option(
+            "--plot",
+            metavar="PNG",
+            help="Also draw the poses' norms before and after calibration against the reference, with residual "
+            "bars (a magnetometer: its samples in three planes with the fitted ellipse); needs tumblecal[plot].",
+        ),
+    ] = None,
     # -- quality checks (exit 3) --
     max_noise: Annotated[
         float | None,
@@ -576,6 +585,8 @@ def solve(
         raise InputError("--json prints the summary on stdout, so the calibration needs -o FILE")
     check_not_input(output, [*files, *([limits_file] if limits_file else [])])
     check_writable(output)
+    if plot is not None:
+        _plot_target(plot, output, json_summary, [*files, *([limits_file] if limits_file else [])])
     gyro = sensor is SensorKind.gyroscope
     unit = _unit_block(serial, station, operator, meta or [])
     segmentation = None
@@ -716,6 +727,8 @@ def solve(
             code=first.code,
             codes=tuple(f.code for f in rejected),
         )
+    if plot is not None:  # drawn before the calibration is written: a failure leaves nothing behind
+        _plot_solve(plot, doc, [s.values for s in samples], solution, limits_given)
     calfile.write(doc, output)
     status = 1 if failures else 0
     if not quiet:
@@ -726,6 +739,60 @@ def solve(
         _print_json(_summary(doc, status, output, [], warned, notes))
     if status:
         raise typer.Exit(status)
+
+
+def _plot_target(plot: str, output: str, json_summary: bool, inputs: list[str]) -> None:
+    """Refuse a --plot path that cannot work, before any work (matplotlib missing is one)."""
+    from tumblecal_cli import plots
+    from tumblecal_cli.files import check_not_input, check_writable
+
+    plots.require()
+    if plot == "-" and (output == "-" or json_summary):
+        raise InputError("--plot - would share stdout with the calibration or --json", hint="give --plot FILE.png")
+    if plot != "-" and output != "-" and os.path.abspath(plot) == os.path.abspath(output):
+        raise InputError("--plot and -o name the same file", file=plot)
+    check_not_input(plot, inputs)
+    check_writable(plot)
+
+
+def _plot_solve(plot: str, doc: dict[str, Any], raw: list[Any], solution: Any, limits: Any) -> None:
+    """solve --plot: the poses' norms (seed 001's figure), or a magnetometer's rotation capture."""
+    import numpy as np
+
+    from tumblecal_cli import plots, solvers
+    from tumblecal_cli.gate import FIXED_GAINS
+
+    serial = (doc.get("unit") or {}).get("serial")
+    title = f"{doc['sensor']}, {solution.method}" + (f", {serial}" if serial else "")
+    units = doc.get("units")
+    if solution.method in solvers.ROTATION:
+        plots.rotation_figure(
+            plot, np.concatenate(raw), solution.offset, solution.matrix, doc["reference"], units=units, title=title
+        )
+        return
+    if np.any(limits.nominal_gain != 1.0):  # given (--nominal-gain or the limits file)
+        nominal = float(np.mean(limits.nominal_gain))
+    else:  # else "before" is scaled by the mean solved gain: its shape, not its units
+        nominal = 1.0 if solution.method in FIXED_GAINS else float(np.mean(solution.gain))
+    names = [
+        (p["pose"] or "?")
+        + " "
+        + os.path.basename(str(p.get("file", "")))
+        + (f" #{p['block']}" if "block" in p else "")
+        for p in doc["poses"]
+    ]
+    means = np.array([p["mean"] for p in doc["poses"]], dtype=np.float64)
+    plots.poses_figure(
+        plot,
+        names,
+        means,
+        solution.offset,
+        solution.matrix,
+        doc["reference"],
+        nominal_gain=nominal,
+        units=units,
+        title=title,
+    )
 
 
 def _solve_settings(
@@ -2308,7 +2375,7 @@ Exit status, the first that any unit has: 2 an input or usage error; 3 a capture
 1 a unit outside its limits; 0 every unit passed. A unit that fails never stops the batch:
 its row in summary.csv says why. Nothing but the calibrations and summary.csv is written."""
 #: solve's options that are each unit's own, not the batch's.
-PER_UNIT = ("poses", "log", "output", "json_summary", "quiet", "serial")
+PER_UNIT = ("poses", "log", "output", "json_summary", "quiet", "serial", "plot")
 
 
 def _batch_options(

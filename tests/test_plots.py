@@ -1,0 +1,399 @@
+"""The PNG figures of ``solve --plot`` and ``report --plot`` (tumblecal_cli/plots.py).
+
+Synthetic data with a known offset and matrix: the figures must be valid PNGs of the size asked
+for, show the numbers they claim to show, be written atomically, and refuse bad input with an
+InputError before any file is touched.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.util
+import math
+import struct
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import IO
+
+import numpy as np
+import pytest
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from matplotlib.image import imread
+from matplotlib.lines import Line2D
+from matplotlib.patches import Rectangle
+from numpy.typing import NDArray
+
+from tests.test_layers import imported
+from tumblecal_cli import plots
+from tumblecal_cli.errors import InputError
+from tumblecal_cli.files import atomic_output
+
+FloatArray = NDArray[np.float64]
+
+OFFSET = np.array([0.02, -0.03, 0.05])
+A = np.array([[1.01, 0.004, -0.006], [0.003, 0.98, 0.005], [-0.004, 0.002, 1.02]])  # gains 1.01/0.98/1.02
+M = np.linalg.inv(A)
+NOISE = 0.002
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def directions(n: int, seed: int = 0) -> FloatArray:
+    """``n`` unit vectors spread over the sphere."""
+    v = np.random.default_rng(seed).normal(size=(n, 3))
+    unit: FloatArray = v / np.linalg.norm(v, axis=1, keepdims=True)
+    return unit
+
+
+def pose_means(n: int, reference: float = 1.0) -> FloatArray:
+    """Mean raw readings of ``n`` static poses: raw = A·(reference·u) + offset + noise."""
+    noise = np.random.default_rng(1).normal(0.0, NOISE, size=(n, 3))
+    means: FloatArray = (reference * directions(n)) @ A.T + OFFSET + noise
+    return means
+
+
+def turning(n: int, reference: float, *, plane: bool = False) -> FloatArray:
+    """A magnetometer turned through all orientations (or in the xy plane only), noise-free."""
+    if plane:
+        theta = np.linspace(0.0, 6 * math.pi, n)
+        u = np.stack([np.cos(theta), np.sin(theta), np.zeros(n)], axis=1)
+    else:
+        u = directions(n, seed=2)
+    raw: FloatArray = (reference * u) @ A.T + OFFSET
+    return raw
+
+
+def png_size(data: bytes) -> tuple[int, int]:
+    """(width, height) from a PNG's IHDR chunk, after checking the signature."""
+    assert data[:8] == PNG_SIGNATURE
+    length, kind = struct.unpack(">I4s", data[8:16])
+    assert (length, kind) == (13, b"IHDR")
+    width, height = struct.unpack(">II", data[16:24])
+    return int(width), int(height)
+
+
+def check_png(path: Path, width: int, height: int) -> None:
+    """A valid PNG of ``width``×``height`` pixels that matplotlib decodes to that size."""
+    assert png_size(path.read_bytes()) == (width, height)
+    pixels = imread(path)
+    assert pixels.shape[:2] == (height, width)
+    assert pixels.std() > 0.05  # something was drawn, not a blank page
+
+
+def xdata(line: Line2D) -> FloatArray:
+    return np.asarray(line.get_xdata(), dtype=np.float64)
+
+
+def ydata(line: Line2D) -> FloatArray:
+    return np.asarray(line.get_ydata(), dtype=np.float64)
+
+
+def heights(ax: Axes) -> list[float]:
+    """The heights of an axes' bars, in drawing order."""
+    return [patch.get_height() for patch in ax.patches if isinstance(patch, Rectangle)]
+
+
+def distance_to_polyline(points: FloatArray, curve: FloatArray) -> FloatArray:
+    """Each point's distance to the nearest segment of a polyline."""
+    start, step = curve[:-1], np.diff(curve, axis=0)
+    t = np.einsum("psk,sk->ps", points[:, None, :] - start[None], step) / np.einsum("sk,sk->s", step, step)
+    foot = start[None] + np.clip(t, 0.0, 1.0)[..., None] * step[None]
+    distance: FloatArray = np.linalg.norm(points[:, None, :] - foot, axis=2).min(axis=1)
+    return distance
+
+
+@pytest.fixture
+def figures(monkeypatch: pytest.MonkeyPatch) -> list[Figure]:
+    """The figures the plot functions would write, kept instead of rendered (fast, inspectable)."""
+    kept: list[Figure] = []
+    monkeypatch.setattr(plots, "_write", lambda fig, path: kept.append(fig))
+    return kept
+
+
+# --- PNG output -------------------------------------------------------------------------------
+
+
+def test_poses_figure_is_a_png_of_the_right_size(tmp_path: Path) -> None:
+    path = tmp_path / "poses.png"
+    names = ["+x", "-x", "+y", "-y", "+z", "-z"]
+    plots.poses_figure(str(path), names, pose_means(6), OFFSET, M, 1.0, units="g", title="six poses")
+    check_png(path, 700, 640)
+
+
+def test_rotation_figure_is_a_png_of_the_right_size(tmp_path: Path) -> None:
+    path = tmp_path / "rotation.png"
+    plots.rotation_figure(str(path), turning(1500, 50.0), OFFSET, M, 50.0, units="uT", title="magnetometer")
+    check_png(path, 1200, 800)
+
+
+def test_lot_figure_is_a_png_of_the_right_size(tmp_path: Path) -> None:
+    rng = np.random.default_rng(3)
+    histograms = [plots.Histogram(f"offset.{a}", rng.normal(0.02, 0.01, 40), -0.05, 0.05, "g") for a in "xyz"]
+    histograms += [plots.Histogram(f"gain.{a}", rng.normal(1.0, 0.01, 40), 0.97, None) for a in "xyz"]
+    histograms += [
+        plots.Histogram("one unit", np.array([0.3]), None, None),
+        plots.Histogram("identical", np.full(10, 2.5), 2.0, 3.0, "counts"),
+        plots.Histogram("identical, no limits", np.zeros(5), None, None),
+    ]
+    path = tmp_path / "lot.png"
+    plots.lot_figure(str(path), histograms, title="lot 42")
+    check_png(path, 1420, 860)  # 9 panels: 4 columns, 3 rows
+
+
+def test_same_call_same_bytes(tmp_path: Path) -> None:
+    first, second = tmp_path / "a.png", tmp_path / "b.png"
+    for path in (first, second):
+        plots.poses_figure(str(path), ["a", "b", "c"], pose_means(3), OFFSET, M, 1.0)
+    assert first.read_bytes() == second.read_bytes()
+    assert b"Software" not in first.read_bytes()
+
+
+def test_dash_writes_the_png_to_stdout(capsysbinary: pytest.CaptureFixture[bytes]) -> None:
+    plots.poses_figure("-", ["a", "b", "c"], pose_means(3), OFFSET, M, 1.0)
+    out = capsysbinary.readouterr().out
+    assert png_size(out) == (700, 640)
+
+
+# --- what the figures show ---------------------------------------------------------------------
+
+
+def test_poses_figure_shows_norms_before_and_after(figures: list[Figure]) -> None:
+    gain = 16384.0  # raw counts, corrected in g
+    means = pose_means(60) * gain
+    names = [f"session_2026_11_21_pose_{i:02d}.csv" for i in range(60)]
+    plots.poses_figure("unused.png", names, means, OFFSET * gain, M / gain, 1.0, nominal_gain=gain, units="g")
+    (fig,) = figures
+    top, bottom = fig.axes
+    reference, before, after = top.get_lines()
+    assert ydata(reference).tolist() == [1.0, 1.0]
+    np.testing.assert_allclose(ydata(before), np.linalg.norm(means, axis=1) / gain)
+    corrected = np.linalg.norm((means - OFFSET * gain) @ (M / gain).T, axis=1)
+    np.testing.assert_allclose(ydata(after), corrected)
+    assert np.all(np.abs(corrected - 1.0) < 6 * NOISE)  # the calibration fits, the raw norms do not
+    assert np.max(np.abs(ydata(before) - 1.0)) > 0.02
+    bars = heights(bottom)
+    assert len(bars) == 120
+    np.testing.assert_allclose(bars[60:], corrected - 1.0)
+    assert top.get_ylabel() == "norm (g)"
+    assert bottom.get_ylabel() == "norm − reference (g)"
+    labels = bottom.get_xticklabels()
+    assert len(labels) == 60
+    assert all(label.get_rotation() == 90 for label in labels)
+    assert labels[7].get_text().endswith("pose_07.csv")
+
+
+def test_rotation_figure_ellipse_lies_on_a_plane_capture(figures: list[Figure]) -> None:
+    raw = turning(20000, 50.0, plane=True)
+    plots.rotation_figure("unused.png", raw, OFFSET, M, 50.0, units="uT")
+    (fig,) = figures
+    assert len(fig.axes) == 6
+    assert all(ax.get_aspect() == 1.0 for ax in fig.axes)
+    xy_raw, xy_corrected = fig.axes[0], fig.axes[1]
+    samples, _outline, ellipse, _offset = xy_raw.get_lines()
+    shown = np.column_stack([xdata(samples), ydata(samples)])
+    assert len(shown) == plots.MAX_POINTS  # subsampled
+    curve = np.column_stack([xdata(ellipse), ydata(ellipse)])
+    assert distance_to_polyline(shown[::5], curve).max() < 0.01  # noise-free, radius 50: on the curve
+    dots, circle, _origin = xy_corrected.get_lines()
+    np.testing.assert_allclose(np.hypot(xdata(dots), ydata(dots)), 50.0, rtol=1e-9)
+    np.testing.assert_allclose(np.hypot(xdata(circle), ydata(circle)), 50.0)
+
+
+def test_rotation_figure_outline_bounds_a_sphere_capture(figures: list[Figure]) -> None:
+    plots.rotation_figure("unused.png", turning(3000, 1.0), OFFSET, M, 1.0)
+    (fig,) = figures
+    for ax in fig.axes[0::2]:  # top row: raw
+        samples, outline, _ellipse, _offset = ax.get_lines()
+        points = np.column_stack([xdata(samples), ydata(samples)])
+        rim = np.column_stack([xdata(outline), ydata(outline)])
+        centre = rim.mean(axis=0)
+        reach = np.max(np.linalg.norm(points - centre, axis=1))
+        assert reach <= np.max(np.linalg.norm(rim - centre, axis=1)) + 1e-9
+        assert reach > 0.99 * np.min(np.linalg.norm(rim - centre, axis=1))
+
+
+def test_lot_figure_draws_limits_mean_and_counts(figures: list[Figure]) -> None:
+    values = np.array([0.96, 0.99, 1.0, 1.01, 1.05])
+    plots.lot_figure(
+        "unused.png",
+        [plots.Histogram("gain.x", values, 0.97, 1.03, "raw/g"), plots.Histogram("single", np.array([7.0]), None, 8.0)],
+    )
+    (fig,) = figures
+    gain, single = fig.axes
+    assert gain.get_title() == "gain.x (n=5, 2 outside)"
+    assert single.get_title() == "single (n=1)"
+    mean, lower, upper = gain.get_lines()
+    assert xdata(mean)[0] == pytest.approx(values.mean())
+    assert (xdata(lower)[0], xdata(upper)[0]) == (0.97, 1.03)
+    assert lower.get_linestyle() == "--"
+    assert gain.get_xlabel() == "raw/g"
+    left, right = single.get_xlim()
+    assert left < 7.0
+    assert right > 8.0  # widened to show the limit
+    assert sum(heights(single)) == 1
+
+
+def test_lot_figure_twenty_parameters_in_four_columns(figures: list[Figure]) -> None:
+    rng = np.random.default_rng(4)
+    plots.lot_figure("unused.png", [plots.Histogram(f"p{i}", rng.normal(i, 1, 50), i - 3, i + 3) for i in range(20)])
+    (fig,) = figures
+    assert len(fig.axes) == 20
+    assert fig.get_size_inches()[0] == pytest.approx(3.4 * 4 + 0.6)
+
+
+# --- bad input, atomic writes -------------------------------------------------------------------
+
+BAD_INPUTS: list[tuple[str, Callable[[str], None], str]] = [
+    (
+        "poses-nan",
+        lambda p: plots.poses_figure(p, ["a", "b"], np.full((2, 3), np.nan), OFFSET, M, 1.0),
+        "raw_means has 6 of 6 values that are not finite",
+    ),
+    (
+        "poses-shape",
+        lambda p: plots.poses_figure(p, ["a", "b"], np.ones((2, 2)), OFFSET, M, 1.0),
+        "raw_means has shape 2×2, expected n×3",
+    ),
+    (
+        "poses-names",
+        lambda p: plots.poses_figure(p, ["a"], pose_means(2), OFFSET, M, 1.0),
+        "1 pose names for 2 pose means",
+    ),
+    ("poses-none", lambda p: plots.poses_figure(p, [], np.empty((0, 3)), OFFSET, M, 1.0), "no poses to plot"),
+    (
+        "poses-matrix",
+        lambda p: plots.poses_figure(p, ["a"], pose_means(1), OFFSET, np.eye(2), 1.0),
+        "matrix has shape 2×2, expected 3×3",
+    ),
+    (
+        "poses-gain",
+        lambda p: plots.poses_figure(p, ["a"], pose_means(1), OFFSET, M, 1.0, nominal_gain=0.0),
+        "nominal_gain must be positive",
+    ),
+    (
+        "rotation-nan",
+        lambda p: plots.rotation_figure(p, np.full((10, 3), np.nan), OFFSET, M, 1.0),
+        "raw samples has 30 of 30 values that are not finite",
+    ),
+    (
+        "rotation-singular",
+        lambda p: plots.rotation_figure(p, turning(10, 1.0), OFFSET, np.zeros((3, 3)), 1.0),
+        "the calibration matrix is singular",
+    ),
+    (
+        "rotation-reference",
+        lambda p: plots.rotation_figure(p, turning(10, 1.0), OFFSET, M, 0.0),
+        "reference must be positive",
+    ),
+    ("rotation-empty", lambda p: plots.rotation_figure(p, np.empty((0, 3)), OFFSET, M, 1.0), "no samples to plot"),
+    ("lot-empty", lambda p: plots.lot_figure(p, []), "no parameters to plot"),
+    (
+        "lot-nan",
+        lambda p: plots.lot_figure(p, [plots.Histogram("noise", np.array([np.nan, np.nan]), None, None)]),
+        "values of noise has 2 of 2 values that are not finite",
+    ),
+    (
+        "lot-shape",
+        lambda p: plots.lot_figure(p, [plots.Histogram("gain", np.ones((2, 3)), None, None)]),
+        "values of gain has shape 2×3, expected n",
+    ),
+    (
+        "lot-no-values",
+        lambda p: plots.lot_figure(p, [plots.Histogram("gain", np.array([]), None, None)]),
+        "no values of gain to plot",
+    ),
+    (
+        "lot-limits",
+        lambda p: plots.lot_figure(p, [plots.Histogram("gain", np.ones(3), 1.1, 0.9)]),
+        "gain: lower limit 1.1 is above upper limit 0.9",
+    ),
+    (
+        "lot-inf-limit",
+        lambda p: plots.lot_figure(p, [plots.Histogram("gain", np.ones(3), None, math.inf)]),
+        "gain limit is not finite",
+    ),
+]
+
+
+@pytest.fixture(scope="module")
+def good_png(tmp_path_factory: pytest.TempPathFactory) -> bytes:
+    """A good figure, rendered once for the module."""
+    path = tmp_path_factory.mktemp("good") / "figure.png"
+    plots.poses_figure(str(path), ["a", "b", "c"], pose_means(3), OFFSET, M, 1.0)
+    return path.read_bytes()
+
+
+@pytest.fixture
+def good_file(tmp_path: Path, good_png: bytes) -> Path:
+    """A folder holding one good figure, to be left alone by every failed write."""
+    path = tmp_path / "figure.png"
+    path.write_bytes(good_png)
+    return path
+
+
+@pytest.mark.parametrize(("call", "message"), [(c, m) for _, c, m in BAD_INPUTS], ids=[i for i, _, _ in BAD_INPUTS])
+def test_bad_input_is_an_input_error_and_leaves_the_old_file(
+    good_file: Path, call: Callable[[str], None], message: str
+) -> None:
+    before = good_file.read_bytes()
+    with pytest.raises(InputError, match=message):
+        call(str(good_file))
+    assert good_file.read_bytes() == before
+    assert [p.name for p in good_file.parent.iterdir()] == [good_file.name]
+
+
+def test_failed_render_leaves_the_old_file(good_file: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    def broken(*args: object, **kwargs: object) -> None:
+        raise RuntimeError("renderer failed")
+
+    before = good_file.read_bytes()
+    monkeypatch.setattr(Figure, "savefig", broken)
+    with pytest.raises(RuntimeError, match="renderer failed"):
+        plots.poses_figure(str(good_file), ["a"], pose_means(1), OFFSET, M, 1.0)
+    assert good_file.read_bytes() == before
+    assert [p.name for p in good_file.parent.iterdir()] == [good_file.name]
+
+
+def test_failed_write_leaves_the_old_file(good_file: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The disk fills half-way through the PNG: the temporary file goes, the old figure stays."""
+
+    class HalfWay:
+        def __init__(self, stream: IO[bytes]) -> None:
+            self.stream = stream
+
+        def write(self, data: bytes) -> int:
+            self.stream.write(data[: len(data) // 2])
+            raise OSError(28, "No space left on device")
+
+    @contextlib.contextmanager
+    def failing(path: str) -> Iterator[HalfWay]:
+        with atomic_output(path) as stream:
+            yield HalfWay(stream)
+
+    before = good_file.read_bytes()
+    monkeypatch.setattr(plots, "atomic_output", failing)
+    with pytest.raises(OSError, match="No space left"):
+        plots.poses_figure(str(good_file), ["a", "b"], pose_means(2), OFFSET, M, 2.0)
+    assert good_file.read_bytes() == before
+    assert [p.name for p in good_file.parent.iterdir()] == [good_file.name]
+
+
+def test_missing_output_folder_is_an_input_error(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match="the output folder does not exist"):
+        plots.poses_figure(str(tmp_path / "nowhere" / "f.png"), ["a"], pose_means(1), OFFSET, M, 1.0)
+
+
+# --- the optional extra -------------------------------------------------------------------------
+
+
+def test_require_names_the_extra_when_matplotlib_is_missing(monkeypatch: pytest.MonkeyPatch) -> None:
+    plots.require()  # installed in the dev venv
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, package=None: None)
+    with pytest.raises(InputError, match="--plot needs matplotlib, which is not installed") as err:
+        plots.require()
+    assert err.value.hint == "pip install 'tumblecal[plot]'"
+
+
+def test_importing_plots_imports_neither_matplotlib_nor_numpy() -> None:
+    body = "import tumblecal_cli.plots\ntumblecal_cli.plots.require()"
+    assert imported(body, ("matplotlib", "numpy", "PIL")) == []

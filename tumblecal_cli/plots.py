@@ -1,0 +1,331 @@
+"""PNG figures for ``solve --plot`` and ``report --plot`` (the optional extra ``tumblecal[plot]``).
+
+matplotlib and numpy are imported inside the functions, so importing this module costs nothing.
+Figures are drawn on a bare ``matplotlib.figure.Figure`` (no pyplot, no global backend state),
+rendered to memory, and only then written with :func:`tumblecal_cli.files.atomic_output`: bad
+input raises :class:`InputError` before any file is touched. The same call gives the same bytes.
+
+Model (README "Calibration file"): ``corrected = M·(raw − offset)``, ``A = M⁻¹``.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import io
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from tumblecal_cli.errors import InputError
+from tumblecal_cli.files import atomic_output
+
+if TYPE_CHECKING:
+    import numpy as np
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+    from numpy.typing import NDArray
+
+    FloatArray = NDArray[np.float64]
+
+#: Rotation captures are drawn from at most this many samples (evenly spaced, so deterministic).
+MAX_POINTS = 5000
+DPI = 100
+_BEFORE = "#9a9a9a"  # grey: raw, before calibration
+_BEFORE_BAR = "#cfcfcf"  # light grey bars
+_AFTER = "tab:blue"
+_FIT = "tab:red"
+_OUTLINE = "tab:orange"
+
+
+def require() -> None:
+    """Raise :class:`InputError` when matplotlib is not installed (without importing it)."""
+    if importlib.util.find_spec("matplotlib") is None:
+        raise InputError("--plot needs matplotlib, which is not installed", hint="pip install 'tumblecal[plot]'")
+
+
+@dataclass(frozen=True)
+class Histogram:
+    """One parameter over a lot: its values, and the limits it is judged against (None: none)."""
+
+    name: str
+    values: FloatArray  # (n,)
+    lower: float | None
+    upper: float | None
+    label: str = ""  # x-axis label, e.g. the units
+
+
+def poses_figure(
+    path: str,
+    names: list[str],
+    raw_means: FloatArray,
+    offset: FloatArray,
+    matrix: FloatArray,
+    reference: float,
+    *,
+    nominal_gain: float = 1.0,
+    units: str | None = None,
+    title: str = "",
+) -> None:
+    """Each pose's norm before (``|raw mean| / nominal_gain``) and after (``|M·(mean − offset)|``)
+    calibration against ``reference``, and the residuals ``norm − reference`` as bars (seed 001)."""
+    import numpy as np
+
+    means = _array(raw_means, "raw_means", (-1, 3))
+    b = _array(offset, "offset", (3,))
+    m = _array(matrix, "matrix", (3, 3))
+    ref = _number(reference, "reference")
+    gain = _number(nominal_gain, "nominal_gain")
+    if gain <= 0:
+        raise InputError(f"nominal_gain must be positive, not {nominal_gain}")
+    n = means.shape[0]
+    if n == 0:
+        raise InputError("no poses to plot")
+    if len(names) != n:
+        raise InputError(f"{len(names)} pose names for {n} pose means")
+
+    before = np.linalg.norm(means, axis=1) / gain
+    after = np.linalg.norm((means - b) @ m.T, axis=1)
+    rms_before = float(np.sqrt(np.mean((before - ref) ** 2)))
+    rms_after = float(np.sqrt(np.mean((after - ref) ** 2)))
+    x = np.arange(n, dtype=np.float64)
+    suffix = f" ({units})" if units else ""
+
+    fig = _figure(width=min(16.0, max(7.0, 3.0 + 0.22 * n)), height=6.4, title=title)
+    grid = fig.add_gridspec(2, 1, height_ratios=[3, 2])
+    top = fig.add_subplot(grid[0])
+    bottom = fig.add_subplot(grid[1], sharex=top)
+
+    top.axhline(ref, color="black", linestyle="--", linewidth=1, label=f"reference {ref:g}{_unit(units)}")
+    top.plot(x, before, "o", color=_BEFORE, markersize=5, label="before")
+    top.plot(x, after, "o", color=_AFTER, markersize=5, label="after")
+    top.set_ylabel(f"norm{suffix}")
+    top.tick_params(labelbottom=False)
+    top.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
+    top.grid(axis="y", alpha=0.3)
+
+    bottom.axhline(0.0, color="black", linewidth=0.8)
+    bottom.bar(x - 0.2, before - ref, width=0.4, color=_BEFORE_BAR, label=f"before\nRMS {rms_before:.3g}{_unit(units)}")
+    bottom.bar(x + 0.2, after - ref, width=0.4, color=_AFTER, label=f"after\nRMS {rms_after:.3g}{_unit(units)}")
+    bottom.set_ylabel(f"norm − reference{suffix}")
+    bottom.set_xlabel("pose")
+    bottom.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
+    bottom.grid(axis="y", alpha=0.3)
+    bottom.set_xlim(-0.6, n - 0.4)
+    bottom.set_xticks(x, [_short(name) for name in names])
+    longest = max(len(_short(name)) for name in names)
+    if n > 30:
+        bottom.tick_params(axis="x", labelrotation=90, labelsize=7)
+    elif n > 8 or longest > 4:
+        for label in bottom.get_xticklabels():
+            label.set_rotation(45)
+            label.set_horizontalalignment("right")
+            label.set_rotation_mode("anchor")
+    _write(fig, path)
+
+
+def rotation_figure(
+    path: str,
+    raw: FloatArray,
+    offset: FloatArray,
+    matrix: FloatArray,
+    reference: float,
+    *,
+    units: str | None = None,
+    title: str = "",
+) -> None:
+    """A turning capture in the xy, xz and yz planes: the raw samples with the fitted ellipse
+    (top), the corrected samples with the circle of radius ``reference`` (bottom).
+
+    The ellipse in a plane is the image of that plane's great circle, ``offset + A·(reference·u)``,
+    projected onto the plane: where a capture turned in that plane lies. A capture turned through
+    all orientations fills the fitted ellipsoid's shadow instead, drawn dashed; the two coincide
+    when ``A`` has no cross terms to the third axis.
+    """
+    import numpy as np
+    from matplotlib.lines import Line2D
+
+    samples = _array(raw, "raw samples", (-1, 3))
+    count = samples.shape[0]
+    b = _array(offset, "offset", (3,))
+    m = _array(matrix, "matrix", (3, 3))
+    ref = _number(reference, "reference")
+    if ref <= 0:
+        raise InputError(f"reference must be positive for a rotation figure, not {reference}")
+    if count == 0:
+        raise InputError("no samples to plot")
+    try:
+        a = np.linalg.inv(m)
+    except np.linalg.LinAlgError:
+        raise InputError("the calibration matrix is singular") from None
+    if count > MAX_POINTS:
+        samples = samples[np.linspace(0, count - 1, MAX_POINTS).round().astype(np.intp)]
+    corrected = (samples - b) @ m.T
+    theta = np.linspace(0.0, 2.0 * math.pi, 361)
+    suffix = f" ({units})" if units else ""
+
+    fig = _figure(width=12.0, height=8.0, title=title)
+    grid = fig.add_gridspec(2, 3)
+    for col, (i, j) in enumerate(((0, 1), (0, 2), (1, 2))):
+        plane = "xyz"[i] + "xyz"[j]
+        u = np.zeros((theta.size, 3))
+        u[:, i] = np.cos(theta)
+        u[:, j] = np.sin(theta)
+        ellipse = b + (ref * u) @ a.T
+        rows = a[[i, j]]  # the ellipsoid's shadow on the plane: b + reference·L·(cos θ, sin θ), L·Lᵀ = rows·rowsᵀ
+        outline = (
+            b[[i, j]] + ref * np.stack([np.cos(theta), np.sin(theta)], axis=1) @ np.linalg.cholesky(rows @ rows.T).T
+        )
+
+        ax = fig.add_subplot(grid[0, col])
+        ax.plot(samples[:, i], samples[:, j], ".", color=_BEFORE, markersize=2, alpha=0.5)
+        ax.plot(outline[:, 0], outline[:, 1], color=_OUTLINE, linewidth=1.2, linestyle=(0, (4, 3)))
+        ax.plot(ellipse[:, i], ellipse[:, j], color=_FIT, linewidth=1.5)
+        ax.plot(b[i], b[j], "+", color=_FIT, markersize=10)
+        _plane_axes(ax, f"raw, {plane} plane", f"raw {'xyz'[i]}", f"raw {'xyz'[j]}")
+
+        ax = fig.add_subplot(grid[1, col])
+        ax.plot(corrected[:, i], corrected[:, j], ".", color=_AFTER, markersize=2, alpha=0.5)
+        ax.plot(ref * np.cos(theta), ref * np.sin(theta), color="black", linewidth=1.5)
+        ax.plot(0.0, 0.0, "+", color="black", markersize=10)
+        _plane_axes(ax, f"corrected, {plane} plane", f"{'xyz'[i]}{suffix}", f"{'xyz'[j]}{suffix}")
+    shown = f", {samples.shape[0]} of {count}" if samples.shape[0] < count else f", {count}"
+    handles = [  # the legend fills columns first: raw and its curves on the first row
+        Line2D([], [], linestyle="", marker=".", markersize=8, color=_BEFORE, label=f"raw samples{shown}"),
+        Line2D([], [], linestyle="", marker=".", markersize=8, color=_AFTER, label="corrected M·(raw − offset)"),
+        Line2D([], [], color=_FIT, linewidth=1.5, label="fitted ellipse: offset + A·(reference·u), u in the plane"),
+        Line2D([], [], color="black", linewidth=1.5, label=f"circle of radius {ref:g}{_unit(units)}"),
+        Line2D([], [], color=_OUTLINE, linewidth=1.2, linestyle=(0, (4, 3)), label="fitted ellipsoid's outline"),
+        Line2D([], [], linestyle="", marker="+", markersize=10, color=_FIT, label="offset"),
+    ]
+    fig.legend(handles=handles, loc="outside lower center", ncols=3, fontsize="small", frameon=False)
+    _write(fig, path)
+
+
+def lot_figure(path: str, histograms: list[Histogram], *, title: str = "") -> None:
+    """One histogram per parameter (≤ 4 columns): the mean as a solid line, the limits as red
+    dashed lines, the x range widened to show them."""
+    import numpy as np
+    from matplotlib.lines import Line2D
+    from matplotlib.ticker import MaxNLocator
+
+    if not histograms:
+        raise InputError("no parameters to plot")
+    checked = []
+    for h in histograms:
+        values = _array(h.values, f"values of {h.name}", (-1,))
+        if values.size == 0:
+            raise InputError(f"no values of {h.name} to plot")
+        limits = [_number(v, f"{h.name} limit") for v in (h.lower, h.upper) if v is not None]
+        if h.lower is not None and h.upper is not None and h.lower > h.upper:
+            raise InputError(f"{h.name}: lower limit {h.lower:g} is above upper limit {h.upper:g}")
+        checked.append((h, values, limits))
+
+    ncols = min(4, len(checked))
+    nrows = math.ceil(len(checked) / ncols)
+    fig = _figure(width=3.4 * ncols + 0.6, height=2.6 * nrows + 0.8, title=title)
+    grid = fig.add_gridspec(nrows, ncols)
+    for k, (h, values, limits) in enumerate(checked):
+        ax = fig.add_subplot(grid[k // ncols, k % ncols])
+        lo, hi = float(values.min()), float(values.max())
+        edges = np.linspace(lo, hi, _bins(values) + 1)
+        shown = [lo, hi, *limits]
+        if hi == lo:  # all values equal: a thin bar in the middle of a span set by the limits or the value
+            span = (max(shown) - min(shown)) or 0.1 * abs(lo) or 1.0
+            edges = np.array([lo - span / 40, lo + span / 40])
+            if not limits:
+                shown += [lo - span / 2, lo + span / 2]
+        ax.hist(values, bins=[float(e) for e in edges], color=_AFTER, alpha=0.75)
+        ax.axvline(float(values.mean()), color="black", linewidth=1.5)
+        for limit in limits:
+            ax.axvline(limit, color=_FIT, linestyle="--", linewidth=1.5)
+        left, right = min([float(edges[0]), *shown]), max([float(edges[-1]), *shown])
+        pad = 0.05 * (right - left)
+        ax.set_xlim(left - pad, right + pad)
+        outside = int(np.sum(values < h.lower)) if h.lower is not None else 0
+        outside += int(np.sum(values > h.upper)) if h.upper is not None else 0
+        count = f"n={values.size}" + (f", {outside} outside" if outside else "")
+        ax.set_title(f"{h.name} ({count})", fontsize="medium")
+        if h.label:
+            ax.set_xlabel(h.label)
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=4))
+        ax.yaxis.set_major_locator(MaxNLocator(integer=True, nbins=4))
+        ax.tick_params(labelsize="small")
+    handles = [
+        Line2D([], [], color="black", linewidth=1.5, label="mean"),
+        Line2D([], [], color=_FIT, linestyle="--", linewidth=1.5, label="limit"),
+    ]
+    fig.legend(handles=handles, loc="outside lower center", ncols=2, fontsize="small", frameon=False)
+    _write(fig, path)
+
+
+def _bins(values: FloatArray) -> int:
+    """numpy's "auto" rule (the finer of Freedman–Diaconis and Sturges), at most 50 bins."""
+    import numpy as np
+
+    sturges = math.ceil(math.log2(values.size)) + 1
+    q1, q3 = np.percentile(values, [25.0, 75.0])
+    width = 2.0 * float(q3 - q1) / values.size ** (1 / 3)
+    span = float(values.max() - values.min())
+    fd = math.ceil(span / width) if width > 0 else 0
+    return max(1, min(50, max(sturges, fd)))
+
+
+def _figure(*, width: float, height: float, title: str) -> Figure:
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, height), dpi=DPI, layout="constrained")
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
+def _plane_axes(ax: Axes, title: str, xlabel: str, ylabel: str) -> None:
+    ax.set_title(title, fontsize="medium")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(alpha=0.3)
+
+
+def _write(fig: Figure, path: str) -> None:
+    """Render to memory first, so a failure leaves ``path`` as it was; then write it atomically."""
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=DPI, metadata={"Software": None})
+    with atomic_output(path) as out:
+        out.write(buffer.getvalue())
+
+
+def _array(value: Any, what: str, shape: tuple[int, ...]) -> FloatArray:
+    """``value`` as a finite float array of ``shape`` (-1: any length); InputError otherwise."""
+    import numpy as np
+
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(f"{what} is not an array of numbers") from None
+    if array.ndim != len(shape) or any(want not in (-1, got) for want, got in zip(shape, array.shape, strict=True)):
+        want = "×".join("n" if s == -1 else str(s) for s in shape)
+        raise InputError(f"{what} has shape {'×'.join(map(str, array.shape)) or 'scalar'}, expected {want}")
+    bad = int(np.count_nonzero(~np.isfinite(array)))
+    if bad:
+        raise InputError(f"{what} has {bad} of {array.size} values that are not finite (NaN or infinity)")
+    return array
+
+
+def _number(value: float, what: str) -> float:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{what} is not a number: {value!r}") from None
+    if not math.isfinite(number):
+        raise InputError(f"{what} is not finite: {value}")
+    return number
+
+
+def _unit(units: str | None) -> str:
+    return f" {units}" if units else ""
+
+
+def _short(name: str, keep: int = 24) -> str:
+    """A long tick label shortened in the middle, so the file name's end stays readable."""
+    return name if len(name) <= keep else f"{name[: keep // 2 - 1]}…{name[-(keep // 2) :]}"
