@@ -83,8 +83,8 @@ def test_report_unreadable_file_is_exit_2_after_the_report(tmp_path: Path, capsy
     code, out, err = run(["report", str(lot)], capsys)
     assert code == 2
     assert rows(out)["offset.x"]["count"] == "30"  # the report is still printed
-    assert "broken.json: not valid JSON" in err
-    assert "1 of 32 files could not be read" in err
+    assert f"error: {lot / 'broken.json'}: not valid JSON" in err
+    assert "the report leaves out the 1 of 32 files that could not be read" in err
     assert "partial" not in err
 
 

@@ -2048,9 +2048,13 @@ def report(
         plots.lot_figure(plot, histograms, title=f"{result.units} units, {result.files} files")
     if not quiet:
         _print_lot(result, _console(), plot)
-    if unreadable:
+    if unreadable:  # an error line per file, after the report of the rest
+        (first, why), rest = unreadable[0], unreadable[1:]
         raise InputError(
-            f"{len(unreadable)} of {result.files} files could not be read (listed above); the report leaves them out"
+            why,
+            file=first,
+            more=tuple(f"{path}: {message}" for path, message in rest),
+            hint=f"the report leaves out the {len(unreadable)} of {result.files} files that could not be read",
         )
     if result.needs_attention:
         raise typer.Exit(1)
@@ -2114,8 +2118,6 @@ def _print_lot(result: Any, console: Console, plot: str | None) -> None:
             style="red",
             soft_wrap=True,
         )
-    for path, message in result.unreadable:
-        console.print(f"warning: {path}: {message}", style="yellow", soft_wrap=True)
     if plot is not None:
         console.print(f"wrote {plot}", soft_wrap=True)
     verdict = "needs attention" if result.needs_attention else "in order"
