@@ -481,3 +481,15 @@ def test_imported_calibration_applies_and_exports(tmp_path: Path, capsys: pytest
     z = [float(v) for v in out.splitlines()[1].split(",")]
     np.testing.assert_allclose(z, IMUCAL_M @ np.array([0.0, 0.0, 2016.0 - IMUCAL_B[2]]), rtol=1e-9)
     assert run(["export", str(cal), "-f", "imucal-json"], capsys)[0] == 0
+
+
+def test_check_judges_an_imported_calibration(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """It has no poses: its parameters are judged, noise and residual limits cannot be."""
+    cal = tmp_path / "cal.json"
+    assert run(["import", str(IMUCAL_CAL), "-o", str(cal)], capsys)[0] == 0
+    ok = ["check", str(cal), "--max-offset", "50", "--max-gain-error", "0.05", "--nominal-gain", "209", "-q"]
+    assert run(ok, capsys)[0] == 0
+    assert run([*ok[:3], "40", *ok[4:]], capsys)[0] == 1  # offset y is -48.3
+    code, _, err = run(["check", str(cal), "--limits", str(ROOT / "sample_data" / "limits.yaml")], capsys)
+    assert code == 2
+    assert "has no poses to judge the noise and residual limits by" in err
