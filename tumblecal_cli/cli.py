@@ -774,11 +774,8 @@ def _plot_solve(plot: str, doc: dict[str, Any], raw: list[Any], solution: Any, l
         nominal = float(np.mean(limits.nominal_gain))
     else:  # else "before" is scaled by the mean solved gain: its shape, not its units
         nominal = 1.0 if solution.method in FIXED_GAINS else float(np.mean(solution.gain))
-    names = [
-        (p["pose"] or "?")
-        + " "
-        + os.path.basename(str(p.get("file", "")))
-        + (f" #{p['block']}" if "block" in p else "")
+    names = [  # a log's blocks by number (they share the file), pose files by name
+        f"{p['pose'] or '?'} " + (f"block {p['block']}" if "block" in p else os.path.basename(str(p.get("file", ""))))
         for p in doc["poses"]
     ]
     means = np.array([p["mean"] for p in doc["poses"]], dtype=np.float64)
