@@ -493,3 +493,36 @@ def test_check_judges_an_imported_calibration(tmp_path: Path, capsys: pytest.Cap
     code, _, err = run(["check", str(cal), "--limits", str(ROOT / "sample_data" / "limits.yaml")], capsys)
     assert code == 2
     assert "has no poses to judge the noise and residual limits by" in err
+
+
+def test_export_refuses_a_failed_calibration_unless_forced(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Firmware must not get a unit that failed its limits by accident (as apply refuses it)."""
+    cal = tmp_path / "fail.json"
+    three = [str(ROOT / "sample_data" / f"{f}.csv") for f in ("x", "y", "z")]
+    assert run(["solve", "-q", "-p", *three, "--max-offset", "0.01", "-o", str(cal)], capsys)[0] == 1
+    code, out, err = run(["export", str(cal), "-f", "c-header"], capsys)
+    assert (code, out) == (2, "")
+    assert "failed its limits (limit.offset" in err
+    assert "--force" in err
+    code, out, _ = run(["export", str(cal), "-f", "c-header", "--force"], capsys)
+    assert code == 0
+    assert "verdict FAIL" in out
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--gain-step", "0.0001", "--nominal-gain", "1"], "gain_x: the trim would scale the axis by 0.004796"),
+        (["--gain-step", "0.001", "--nominal-gain", "0"], "--nominal-gain must be positive"),
+        (["--gain-step", "0.001", "--nominal-gain", "208,209,-210"], "--nominal-gain must be positive"),
+        (["--nominal-gain", "208"], "it needs --gain-step"),
+    ],
+)
+def test_gain_trim_refuses_units_mistakes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], message: str
+) -> None:
+    """Counts at ~208 per m/s^2 with a nominal gain of 1: a trim to 0.5 % is a units mistake."""
+    cal = write_cal(tmp_path / "cal.json", [0, 0, 0], np.diag(1 / np.array([208.5, 208.0, 214.8])))
+    code, out, err = run(["export", str(cal), "-f", "registers", "--lsb", "1", *args], capsys)
+    assert (code, out) == (2, ""), err
+    assert message in err

@@ -380,7 +380,9 @@ def test_the_report_finds_the_outlier_and_its_csv_cells(tmp_path: Path) -> None:
     assert z == pytest.approx(0.6745 * (0.06 - 0.01) / 0.001)
     assert report.needs_attention
     header, rows = report.csv_rows()
-    assert ",".join(header) == "sensor,parameter,count,mean,std,min,max,lower,upper,cpk,outliers,drift_flagged"
+    assert ",".join(header) == (
+        "sensor,parameter,count,mean,std,min,max,lower,upper,cpk,outliers,drift_flagged,outside"
+    )
     assert len(rows) == len(report.rows) == 6
     cells = dict(zip(header, rows[0], strict=True))
     assert cells["count"] == "12"
@@ -390,6 +392,7 @@ def test_the_report_finds_the_outlier_and_its_csv_cells(tmp_path: Path) -> None:
     assert cells["cpk"] == repr(row.cpk)
     assert cells["outliers"] == f"SN7={z:.1f}" == "SN7=33.7"
     assert cells["drift_flagged"] == "SN3"  # -0.02 → 0.009: moved 0.029 > 0.01
+    assert cells["outside"] == "SN7"  # 0.06 > 0.05
     y = dict(zip(header, rows[1], strict=True))
     assert (y["std"], y["cpk"], y["outliers"], y["drift_flagged"]) == ("0.0", "", "", "")  # σ = 0: no Cpk
 

@@ -62,7 +62,8 @@ def test_report_in_order_exits_0(tmp_path: Path, capsys: pytest.CaptureFixture[s
     shutil.copytree(LOT, lot)
     for path in lot.glob("SN0013_*.json"):
         path.unlink()
-    code, _, err = run(["report", str(lot), "--max-drift", "offset=0.02", "--min-cpk", "1.0"], capsys)
+    args = ["report", str(lot), "--limits", str(LIMITS), "--max-drift", "offset=0.02", "--min-cpk", "1.0"]
+    code, _, err = run(args, capsys)
     assert code == 0, err
     assert "lot: in order" in err
 
@@ -94,6 +95,9 @@ def test_report_unreadable_file_is_exit_2_after_the_report(tmp_path: Path, capsy
         (["--max-drift", "0.01"], "--max-drift offset=0.01,gain=0.002"),
         (["--max-drift", "speed=1"], "--max-drift"),
         (["--min-cpk", "0"], "--min-cpk must be a positive number"),
+        (["--min-cpk", "1.33"], "--min-cpk needs --limits"),
+        (["--plot", "-"], "--plot - would share stdout"),
+        (["--plot", "lot.svg"], "give a file name ending in .png"),
         (["--limits", "missing.yaml"], "missing.yaml"),
     ],
 )
@@ -110,3 +114,32 @@ def test_report_no_files(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
     code, _, err = run(["report", str(tmp_path / "nope")], capsys)
     assert code == 2
     assert "nope" in err
+
+
+def test_report_flags_units_outside_the_limits(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """No outlier and no drift, but limits tighter than the lot: the units beyond them are named."""
+    lot = tmp_path / "lot"
+    shutil.copytree(LOT, lot)
+    for path in lot.glob("SN0013_*.json"):
+        path.unlink()
+    tight = tmp_path / "tight.yaml"
+    tight.write_text("offset: 0.02\n")
+    code, out, err = run(["report", str(lot), "--limits", str(tight)], capsys)
+    table = rows(out)
+    assert code == 1
+    outside = table["offset.x"]["outside"].split(";")
+    assert outside
+    assert all(s.startswith("SN") for s in outside)
+    assert "outside the limits: offset.x:" in err
+
+
+def test_report_csv_quotes_odd_serials(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    lot = tmp_path / "lot"
+    shutil.copytree(LOT, lot)
+    odd = lot / "SN0013_20261121T090000Z.json"
+    odd.write_text(odd.read_text().replace('"SN0013"', '"SN,13 \\"x\\""'))
+    code, out, _ = run(["report", str(lot)], capsys)
+    assert code == 1
+    parsed = list(csv.reader(io.StringIO(out)))
+    assert {len(r) for r in parsed} == {13}
+    assert rows(out)["offset.x"]["outliers"].startswith('SN,13 "x"=')

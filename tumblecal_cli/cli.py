@@ -748,11 +748,13 @@ def _plot_target(plot: str, output: str, json_summary: bool, inputs: list[str]) 
 
     plots.require()
     if plot == "-" and (output == "-" or json_summary):
-        raise InputError("--plot - would share stdout with the calibration or --json", hint="give --plot FILE.png")
+        raise InputError("--plot - would share stdout with the data", hint="give --plot FILE.png")
+    if plot != "-" and not plot.lower().endswith(".png"):
+        raise InputError("--plot writes a PNG image: give a file name ending in .png", file=plot)
     if plot != "-" and output != "-" and os.path.abspath(plot) == os.path.abspath(output):
         raise InputError("--plot and -o name the same file", file=plot)
-    check_not_input(plot, inputs)
-    check_writable(plot)
+    check_not_input(plot, inputs, "--plot")
+    check_writable(plot, "--plot")
 
 
 def _plot_solve(plot: str, doc: dict[str, Any], raw: list[Any], solution: Any, limits: Any) -> None:
@@ -1785,7 +1787,7 @@ def export(
         typer.Option(
             "--gain-step",
             metavar="F",
-            help="The part has gain trim: one count multiplies the axis by (1 + F). Adds gain_x..z rows.",
+            help="The part has gain trim: the axis is multiplied by (1 + count x F). Adds gain_x..z rows.",
             rich_help_panel=REGISTERS_PANEL,
         ),
     ] = None,
@@ -1799,6 +1801,9 @@ def export(
             rich_help_panel=REGISTERS_PANEL,
         ),
     ] = None,
+    force: Annotated[
+        bool, typer.Option("--force", help="Export a calibration whose verdict failed (refused otherwise).")
+    ] = False,
 ) -> None:
     """Write a calibration for firmware or for another tool.
 
@@ -1820,9 +1825,18 @@ def export(
         raise InputError("--format registers needs --lsb, the raw units of one register count")
     if fmt is not ExportFormat.c_header and prefix is not None:
         raise InputError("--prefix is for --format c-header")
+    if nominal_gain is not None and gain_step is None:
+        raise InputError("--nominal-gain is the gain trim's aim: it needs --gain-step")
     check_not_input(output, [cal])
     check_writable(output)
     c = calfile.load(cal)
+    if c.failed and not force:
+        codes = ", ".join(str(f.get("code")) for f in c.doc["verdict"]["failures"] if isinstance(f, dict))
+        raise InputError(
+            f"this unit failed its limits ({codes or 'verdict: fail'}): refusing to export it",
+            file=cal,
+            hint="pass --force to export it anyway",
+        )
     if fmt is ExportFormat.registers:
         if not (lsb is not None and math.isfinite(lsb) and lsb > 0):
             raise InputError(f"--lsb must be a positive number, got {lsb}")
@@ -1834,6 +1848,8 @@ def export(
             raise InputError(f"the {c.doc['method']} solver fixes the gains: there is no gain to trim", file=cal)
         recorded = ((c.doc.get("verdict") or {}).get("limits") or {}).get("nominal_gain")
         nominal = _triplet_option(nominal_gain or ",".join(map(str, recorded or [1, 1, 1])), "--nominal-gain")
+        if not (nominal > 0).all():
+            raise InputError(f"--nominal-gain must be positive, got {nominal_gain}")
         rows = formats.registers(
             c, lsb=lsb, bits=bits, sign=register_sign.value, gain_step=gain_step, nominal_gain=nominal
         )
@@ -1953,8 +1969,8 @@ def _peer_reference(peer: Any, sensor: str, path: str) -> float:
 
 
 REPORT_EXIT = """\
-Exit status: 0 the lot is in order; 1 it needs attention (an outlier, a drift beyond
---max-drift, or a Cpk below --min-cpk); 2 usage or input error (an unreadable file among
+Exit status: 0 the lot is in order; 1 it needs attention (a unit outside --limits, an
+outlier, a drift beyond --max-drift, or a Cpk below --min-cpk); 2 usage or input error (an unreadable file among
 the rest: the report is still printed)."""
 
 
@@ -2013,28 +2029,33 @@ def report(
       tumblecal report cals/ --limits limits.yaml --plot lot.png
     """
     from tumblecal_cli import calfile, lot
-    from tumblecal_cli.files import atomic_output, check_not_input, check_writable
+    from tumblecal_cli.files import atomic_output
 
     if min_cpk is not None and not (math.isfinite(min_cpk) and min_cpk > 0):
         raise InputError(f"--min-cpk must be a positive number, got {min_cpk}")
+    if min_cpk is not None and limits_file is None:
+        raise InputError("--min-cpk needs --limits: Cpk is measured against the limits")
     drift_limits = lot.parse_max_drift(max_drift)
     limits = calfile.load_limits(limits_file) if limits_file else {}
     found = lot.find(paths)
     if plot is not None:
         from tumblecal_cli import plots
 
-        plots.require()
-        check_not_input(plot, [*found, *([limits_file] if limits_file else [])])
-        check_writable(plot)
+        _plot_target(plot, "-", False, [*found, *([limits_file] if limits_file else [])])
     entries, unreadable = lot.load_all(found)
     result = lot.summarise(entries, unreadable, limits, max_drift=drift_limits, min_cpk=min_cpk)
     if json_out:
         _print_json(result.as_dict())
     else:
+        import csv
+        import io
+
         header, rows = result.csv_rows()
+        text = io.StringIO()
+        csv.writer(text, lineterminator="\n").writerows([header, *rows])  # quotes a serial with a comma
         with atomic_output("-") as out:
-            out.write(("\n".join(",".join(row) for row in [header, *rows]) + "\n").encode())
-    if plot is not None:
+            out.write(text.getvalue().encode())
+    if plot is not None and not unreadable:  # exit 2 writes no file
         import numpy as np
 
         members = lot.lot(entries)
@@ -2051,7 +2072,7 @@ def report(
         ]
         plots.lot_figure(plot, histograms, title=f"{result.units} units, {result.files} files")
     if not quiet:
-        _print_lot(result, _console(), plot)
+        _print_lot(result, _console(), plot, drift_given=bool(drift_limits))
     if unreadable:  # an error line per file, after the report of the rest
         (first, why), rest = unreadable[0], unreadable[1:]
         raise InputError(
@@ -2064,7 +2085,11 @@ def report(
         raise typer.Exit(1)
 
 
-def _print_lot(result: Any, console: Console, plot: str | None) -> None:
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
+def _print_lot(result: Any, console: Console, plot: str | None, *, drift_given: bool) -> None:
     """The lot report for people: the parameter table, outliers, drift, unreadable files."""
     from rich import box
     from rich.table import Table
@@ -2081,7 +2106,7 @@ def _print_lot(result: Any, console: Console, plot: str | None) -> None:
 
     several = len({r.sensor for r in result.rows}) > 1
     table = Table(
-        title=f"lot of {result.units} units ({result.files} files)",
+        title=f"lot of {_count(result.units, 'unit')} ({_count(result.files, 'file')})",
         title_justify="left",
         box=box.SIMPLE_HEAD,
         pad_edge=False,
@@ -2103,6 +2128,8 @@ def _print_lot(result: Any, console: Console, plot: str | None) -> None:
         )
     console.print(table)
     for r in result.rows:
+        if r.outside:
+            console.print(f"outside the limits: {r.parameter}: {', '.join(r.outside)}", style="red", soft_wrap=True)
         for unit, value, z in r.outliers:
             console.print(f"outlier: {unit}: {r.parameter} {g(value)} (robust z {z:+.1f})", style="red", soft_wrap=True)
     changed = {d.serial for d in result.drift}
@@ -2111,7 +2138,7 @@ def _print_lot(result: Any, console: Console, plot: str | None) -> None:
         line = f"drift: {len(changed)} unit{'s' if len(changed) > 1 else ''} calibrated more than once"
         line += (
             f"; {len(flagged)} change{'s' if len(flagged) != 1 else ''} beyond --max-drift"
-            if any(d.limit is not None for d in result.drift)
+            if drift_given
             else " (give --max-drift to flag changes)"
         )
         console.print(line, soft_wrap=True)
@@ -2122,7 +2149,7 @@ def _print_lot(result: Any, console: Console, plot: str | None) -> None:
             style="red",
             soft_wrap=True,
         )
-    if plot is not None:
+    if plot is not None and not result.unreadable:
         console.print(f"wrote {plot}", soft_wrap=True)
     verdict = "needs attention" if result.needs_attention else "in order"
     console.print(f"lot: {verdict}", style="bold red" if result.needs_attention else "bold green", soft_wrap=True)

@@ -12,22 +12,24 @@ from typing import IO
 from tumblecal_cli.errors import InputError, PipeClosed
 
 
-def check_not_input(output: str, inputs: Iterable[str]) -> None:
+def check_not_input(output: str, inputs: Iterable[str], flag: str = "-o") -> None:
     """Refuse an output path that names one of the inputs (same file, any spelling)."""
     if output == "-" or not os.path.exists(output):
         return
     for path in inputs:
         if path != "-" and os.path.exists(path) and os.path.samefile(output, path):
-            raise InputError(f"-o would overwrite the input {path}", file=output, hint="write the output to a new file")
+            raise InputError(
+                f"{flag} would overwrite the input {path}", file=output, hint="write the output to a new file"
+            )
 
 
-def check_writable(output: str) -> None:
+def check_writable(output: str, flag: str = "-o") -> None:
     """Refuse an output that cannot be written, before any work: a usage error (exit 2) comes
     before a rejection (3) or a failed limit (1), and a folder is never replaced by a file."""
     if output == "-":
         return
     if os.path.isdir(output):
-        raise InputError("is a folder: -o takes a file name", file=output)
+        raise InputError(f"is a folder: {flag} takes a file name", file=output)
     if not os.path.isdir(os.path.dirname(os.path.abspath(output))):
         raise InputError("the output folder does not exist", file=output)
 

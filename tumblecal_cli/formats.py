@@ -149,6 +149,12 @@ def registers(
         gain = np.diag(a_matrix(cal))
         for axis, g, n in zip("xyz", gain, nominal, strict=True):
             want = float(n / g)
+            if not 0.5 <= want <= 2:  # a trim corrects a few percent: anything else is a units mistake
+                raise InputError(
+                    f"gain_{axis}: the trim would scale the axis by {want:.4g} (nominal {n:.6g} / gain {g:.6g})",
+                    file=cal.path,
+                    hint="--nominal-gain is in the calibration's raw units per output unit, like its gain",
+                )
             count = _fit(f"gain_{axis}", (want - 1) / gain_step, low, high, bits, f"factor {want:.6g}", cal)
             value = 1 + count * gain_step
             out.append(Register(f"gain_{axis}", count, _hex(count, bits), value, want, want - value))
@@ -164,7 +170,7 @@ def registers_csv(rows: list[Register]) -> str:
 def _fit(name: str, exact: float, low: int, high: int, bits: int, why: str, cal: Loaded) -> int:
     count = round(exact) if math.isfinite(exact) else None
     if count is None or not low <= count <= high:
-        shown = "an infinite number of" if count is None else f"{count}"
+        shown = "an infinite number of" if count is None else f"{count:.6g}" if abs(count) > 1e12 else f"{count}"
         raise InputError(
             f"{name} needs {shown} register counts ({why}), outside the signed {bits}-bit range {low}..{high}",
             file=cal.path,
@@ -376,7 +382,7 @@ def _comment(text: object) -> str:
 
 def _c_float(value: float, name: str, path: str) -> str:
     if not abs(value) <= FLOAT32_MAX:
-        raise InputError(f"{name} = {value!r} does not fit in a C float", file=path)
+        raise InputError(f"{name} = {float(value):g} does not fit in a C float", file=path)
     text = str(np.float32(value))  # the shortest text that reads back as the same float
     return (text if any(c in text for c in ".e") else text + ".0") + "f"
 

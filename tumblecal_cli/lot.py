@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import UTC, date, datetime
 from typing import Any
 
@@ -66,6 +66,7 @@ CSV_HEADER = [
     "cpk",
     "outliers",
     "drift_flagged",
+    "outside",
 ]
 
 
@@ -284,6 +285,7 @@ class ParameterRow:
     upper: float | None
     cpk: float | None
     outliers: list[tuple[str, float, float]]
+    outside: list[str] = field(default_factory=list)  # units whose value is beyond a limit
 
 
 @dataclass(frozen=True)
@@ -392,8 +394,8 @@ class Report:
 
     @property
     def needs_attention(self) -> bool:
-        """Any outlier, any flagged drift, or (with ``min_cpk``) any Cpk below it."""
-        if any(row.outliers for row in self.rows) or any(d.flagged for d in self.drift):
+        """Any unit outside a limit, any outlier, any flagged drift, or (with ``min_cpk``) any Cpk below it."""
+        if any(row.outliers or row.outside for row in self.rows) or any(d.flagged for d in self.drift):
             return True
         threshold = self.min_cpk
         return threshold is not None and any(row.cpk is not None and row.cpk < threshold for row in self.rows)
@@ -418,6 +420,7 @@ class Report:
                     "upper": _plain(row.upper),
                     "cpk": _plain(row.cpk),
                     "outliers": [{"unit": u, "value": _plain(v), "z": _plain(z)} for u, v, z in row.outliers],
+                    "outside": list(row.outside),
                 }
                 for row in self.rows
             ],
@@ -459,6 +462,7 @@ class Report:
                     *(_cell(v) for v in (row.mean, row.std, row.min, row.max, row.lower, row.upper, row.cpk)),
                     ";".join(f"{unit}={z:.1f}" for unit, _, z in row.outliers),
                     ";".join(flagged.get((row.sensor, row.parameter), [])),
+                    ";".join(row.outside),
                 ]
             )
         return list(CSV_HEADER), rows
@@ -517,6 +521,11 @@ def _row(sensor: str, parameter: str, having: list[Entry], limits: dict[str, Any
         if abs(zi) > OUTLIER_Z
     ]
     outliers.sort(key=lambda o: (-abs(o[2]), o[0]))
+    outside = sorted(
+        e.serial if e.serial is not None else os.path.basename(e.path)
+        for e, v in zip(having, x, strict=True)
+        if (lower is not None and v < lower) or (upper is not None and v > upper)
+    )
     return ParameterRow(
         sensor=sensor,
         parameter=parameter,
@@ -529,4 +538,5 @@ def _row(sensor: str, parameter: str, having: list[Entry], limits: dict[str, Any
         upper=upper,
         cpk=cpk(x, lower, upper),
         outliers=outliers,
+        outside=outside,
     )
