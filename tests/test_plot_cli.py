@@ -85,8 +85,9 @@ def test_solve_plot_not_written_when_rejected(tmp_path: Path, capsys: pytest.Cap
     ("extra", "message"),
     [
         (["--plot", "-"], "--plot - would share stdout"),
-        (["--plot", "SAME", "-o", "SAME"], "--plot and -o name the same file"),
-        (["--plot", THREE[0], "-o", "cal.json"], "would overwrite the input"),
+        (["--plot", "SAME.png", "-o", "SAME.png"], "--plot and -o name the same file"),
+        (["--plot", THREE[0], "-o", "cal.json"], "--plot writes a PNG image: give a file name ending in .png"),
+        (["--plot", ".", "-o", "cal.json"], "--plot writes a PNG image"),
         (["--plot", "no/such/folder/p.png", "-o", "cal.json"], "the output folder does not exist"),
     ],
 )
