@@ -526,3 +526,52 @@ def test_gain_trim_refuses_units_mistakes(
     code, out, err = run(["export", str(cal), "-f", "registers", "--lsb", "1", *args], capsys)
     assert (code, out) == (2, ""), err
     assert message in err
+
+
+@pytest.mark.parametrize(
+    ("fmt", "sensor", "method"),
+    [
+        ("imucal-json", "accelerometer", "six-pose"),
+        ("ros-yaml", "magnetometer", "ellipsoid"),
+        ("ros-yaml", "gyroscope", "gyro-bias"),
+    ],
+)
+def test_round_trip_keeps_what_the_export_recorded(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], fmt: str, sensor: str, method: str
+) -> None:
+    """Sensor, serial, units, reference and columns travel in the export's comment and come back,
+    so apply on the original capture works with the imported calibration."""
+    reference = {"accelerometer": 1.0, "magnetometer": 48.0, "gyroscope": 0.0}[sensor]
+    cal = write_cal(
+        tmp_path / "cal.json", [0.1, 0.2, 0.3], np.eye(3) * 0.5, method=method, sensor=sensor, reference=reference
+    )
+    peer = tmp_path / "peer.txt"  # any name: --from says what it is
+    assert run(["export", str(cal), "-f", fmt, "-o", str(peer)], capsys)[0] == 0
+    code, out, err = run(["import", str(peer), "--from", fmt], capsys)
+    assert code == 0, err
+    back, original = json.loads(out), calfile.load(str(cal)).doc
+    for key in ("sensor", "reference", "units", "input_units", "columns"):
+        assert back[key] == original[key], key
+    assert back["unit"]["serial"] == "SN-7"
+    capture = tmp_path / "c.csv"
+    capture.write_text("t,ax,ay,az\n0,1.1,2.2,3.3\n")
+    back_file = tmp_path / "back.json"
+    back_file.write_text(out)
+    code, applied, err = run(["apply", "--cal", str(back_file), str(capture)], capsys)
+    assert code == 0, err
+    np.testing.assert_allclose([float(v) for v in applied.splitlines()[1].split(",")[1:]], [0.5, 1.0, 1.5], rtol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--reference", "nan"], "--reference must be a positive number"),
+        (["--reference", "-1"], "--reference must be a positive number"),
+        (["--columns", "a,a,b"], "--columns takes three different names"),
+        (["--columns", "a,b"], "--columns takes three different names"),
+    ],
+)
+def test_import_option_errors(capsys: pytest.CaptureFixture[str], args: list[str], message: str) -> None:
+    code, out, err = run(["import", str(IMUCAL_CAL), *args], capsys)
+    assert (code, out) == (2, "")
+    assert message in err

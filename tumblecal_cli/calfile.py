@@ -307,15 +307,15 @@ def read_bytes(path: str, what: str) -> bytes:
         raise InputError(f"cannot read: {err.strerror}", file=path) from None
 
 
-def parse_object(raw: bytes, path: str, what: str) -> dict[str, Any]:
-    """The JSON/YAML object in ``raw`` (YAML when ``path`` ends in .yaml/.yml)."""
+def parse_object(raw: bytes, path: str, what: str, *, as_yaml: bool | None = None) -> dict[str, Any]:
+    """The JSON/YAML object in ``raw`` (YAML when ``path`` ends in .yaml/.yml, or ``as_yaml``)."""
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError:
         raise InputError(f"not a {what}: not UTF-8 text", file=path) from None
     if not text.strip():
         raise InputError(f"empty {what}", file=path)
-    doc = _parse(text, path)
+    doc = _parse(text, path, as_yaml=as_yaml)
     if not isinstance(doc, dict):
         raise InputError(f"not a {what}: expected a JSON/YAML object at the top", file=path)
     return doc
@@ -364,8 +364,10 @@ def is_yaml(path: str) -> bool:
     return path.lower().endswith((".yaml", ".yml"))
 
 
-def _parse(text: str, path: str) -> Any:
-    if is_yaml(path) or (path == "-" and not text.lstrip().startswith("{")):
+def _parse(text: str, path: str, *, as_yaml: bool | None = None) -> Any:
+    if as_yaml is None:
+        as_yaml = is_yaml(path) or (path == "-" and not text.lstrip().startswith("{"))
+    if as_yaml:
         import yaml
 
         try:

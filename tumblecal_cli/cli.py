@@ -1881,20 +1881,35 @@ def import_(
         ),
     ] = "-",
     sensor: Annotated[
-        SensorKind,
-        typer.Option("--sensor", help="Which sensor to take (an imucal file holds an accelerometer and a gyroscope)."),
-    ] = SensorKind.accelerometer,
+        SensorKind | None,
+        typer.Option(
+            "--sensor",
+            help="Which sensor (an imucal file holds an accelerometer and a gyroscope). [default: what a tumblecal "
+            "export recorded, else accelerometer]",
+        ),
+    ] = None,
     reference: Annotated[
         float | None,
         typer.Option(
             "--reference",
             metavar="V",
-            help="The stimulus magnitude in the output units. [default: what a tumblecal export recorded; else 1 "
+            help="The stimulus magnitude in the output units. [default: what a tumblecal export recorded, else 1 "
             "for g, 9.81 for imucal's m/s^2, 9.80665 for ROS, 0 for a gyroscope]",
         ),
     ] = None,
-    columns: Columns = None,
-    serial: Annotated[str | None, typer.Option("--serial", metavar="TEXT", help="The unit's serial number.")] = None,
+    columns: Annotated[
+        str | None,
+        typer.Option(
+            "--columns",
+            metavar="X,Y,Z",
+            help="The sensor columns apply will correct. [default: what a tumblecal export recorded, else "
+            "imucal's acc_x,acc_y,acc_z (gyr_x...) or x,y,z for ROS]",
+        ),
+    ] = None,
+    serial: Annotated[
+        str | None,
+        typer.Option("--serial", metavar="TEXT", help="The unit's serial number. [default: what an export recorded]"),
+    ] = None,
     quiet: Quiet = False,
 ) -> None:
     """Read another tool's calibration into a tumblecal calibration file, for apply, check and export.
@@ -1909,7 +1924,8 @@ def import_(
     check_not_input(output, [peer_file])
     check_writable(output)
     raw = calfile.read_bytes(peer_file, "calibration file")
-    doc = calfile.parse_object(raw, peer_file, "calibration file")
+    as_yaml = not peer_file.lower().endswith(".json") and raw.lstrip()[:1] != b"{"  # ROS files are YAML, any name
+    doc = calfile.parse_object(raw, peer_file, "calibration file", as_yaml=as_yaml)
     found = formats.detect(doc)
     name = fmt.value if fmt is not None else found
     if name is None or (found is not None and found != name):
@@ -1919,24 +1935,29 @@ def import_(
             file=peer_file,
             hint="tumblecal import reads --from imucal-json or ros-yaml",
         )
-    peer = formats.read_peer(doc, name, peer_file, sensor.value, raw.decode("utf-8-sig", "replace"))
-    ref = reference if reference is not None else _peer_reference(peer, sensor.value, peer_file)
+    text = raw.decode("utf-8-sig", "replace")
+    peer = formats.read_peer(doc, name, peer_file, sensor.value if sensor else None, text)
+    ref = reference if reference is not None else _peer_reference(peer, peer_file)
+    if not (math.isfinite(ref) and (ref > 0 or (ref == 0 and peer.sensor == "gyroscope"))):
+        raise InputError(f"--reference must be a positive number (0 for a gyroscope), got {ref}")
     if columns:
         picked = [c.strip() for c in columns.split(",")]
-        if len(picked) != 3 or not all(picked):
-            raise InputError(f"--columns takes three names X,Y,Z, got {columns!r}")
+        if len(picked) != 3 or not all(picked) or len({c.lower() for c in picked}) != 3:
+            raise InputError(f"--columns takes three different names X,Y,Z, got {columns!r}")
+    elif peer.columns:
+        picked = peer.columns
+    elif name == "ros-yaml":
+        picked = list("xyz")
     else:
-        picked = [f"{'acc' if sensor is SensorKind.accelerometer else 'gyr'}_{a}" for a in "xyz"]
-        if name == "ros-yaml":
-            picked = list("xyz")
+        picked = [f"{'gyr' if peer.sensor == 'gyroscope' else 'acc'}_{a}" for a in "xyz"]
     cal = formats.imported(
         peer,
         path=peer_file,
         raw=raw,
-        sensor=sensor.value,
+        sensor=peer.sensor,
         reference=ref,
         columns=picked,
-        unit=_unit_block(serial, None, None, []),
+        unit=_unit_block(serial if serial is not None else peer.serial, None, None, []),
     )
     calfile.write(cal, output)
     if not quiet:
@@ -1944,17 +1965,17 @@ def import_(
         for note in peer.notes:
             console.print(f"note: {note}", soft_wrap=True)
         console.print(
-            f"imported {name} {sensor.value} calibration, reference {ref:g}"
+            f"imported {name} {peer.sensor} calibration, reference {ref:g}"
             + (f": wrote {output}" if output != "-" else ""),
             soft_wrap=True,
         )
 
 
-def _peer_reference(peer: Any, sensor: str, path: str) -> float:
+def _peer_reference(peer: Any, path: str) -> float:
     """The reference a peer file implies (README: import)."""
     if peer.reference is not None:
         return float(peer.reference)
-    if sensor == "gyroscope":
+    if peer.sensor == "gyroscope":
         return 0.0
     if peer.format == "ros-yaml":
         return 9.80665  # imu_calib's do_calib: reference_acceleration defaults to 9.80665

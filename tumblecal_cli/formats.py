@@ -263,14 +263,18 @@ def matlab(cal: Loaded) -> str:
 
 @dataclass(frozen=True)
 class Peer:
-    """A calibration read from another tool's file, in tumblecal's terms."""
+    """A calibration read from another tool's file, in tumblecal's terms; what a tumblecal export
+    recorded in its comment (sensor, serial, units, reference, columns) where there is one."""
 
     format: str
+    sensor: str
     offset: FloatArray
     matrix: FloatArray
     units: str | None
     input_units: str | None
-    reference: float | None  # when the file says (a tumblecal export does, in its comment)
+    reference: float | None
+    columns: list[str] | None
+    serial: str | None
     notes: tuple[str, ...]
 
 
@@ -283,20 +287,36 @@ def detect(doc: dict[str, Any]) -> str | None:
     return None
 
 
-def read_peer(doc: dict[str, Any], fmt: str, path: str, sensor: str, text: str = "") -> Peer:
+def recorded(text: str) -> dict[str, Any]:
+    """What ``_provenance`` wrote into an export's comment (empty for another tool's file)."""
+    out: dict[str, Any] = {}
+    if found := re.search(r"tumblecal (accelerometer|magnetometer|gyroscope) calibration: (.*?)(?:;|$)", text, re.M):
+        out["sensor"] = found.group(1)
+        serial = re.match(r"serial (.*?)(?:, station |, operator |$)", found.group(2))
+        out["serial"] = serial.group(1) if serial else None
+    units = r"(?:^|; )([^;\n]*?) in, ([^;\n]*?) out, reference ([-+0-9.eE]+)(?:; columns ([^;\n]+))?"
+    if found := re.search(units, text, re.M):
+        raw, cooked, reference, columns = found.groups()
+        out["input_units"] = None if raw == "raw units" else raw
+        out["units"] = None if cooked == "reference units" else cooked
+        out["reference"] = float(reference)
+        if columns and len(names := [c.strip() for c in columns.split(", ")]) == 3:
+            out["columns"] = names
+    return out
+
+
+def read_peer(doc: dict[str, Any], fmt: str, path: str, sensor: str | None, text: str = "") -> Peer:
     """The calibration in a parsed imucal or ROS imu_calib file (``text``: the file, whose
-    comments a tumblecal export fills with the reference)."""
+    comments a tumblecal export fills with its record). ``sensor`` None: the recorded one,
+    else an accelerometer."""
     if fmt == "ros-yaml":
         sm = _array(doc.get("SM"), "SM", 9, path).reshape(3, 3)
         bias = _array(doc.get("bias"), "bias", 3, path)
         _invertible(sm, "SM", path)
+        was = recorded("\n".join(line[1:].strip() for line in text.splitlines() if line.startswith("#")))
         # SM raw - bias = SM (raw - SM^-1 bias): offset = SM^-1 bias
-        if sensor != "accelerometer":
-            raise InputError("a ROS imu_calib file holds an accelerometer calibration", file=path)
-        found = re.search(r"^#.*\breference ([-+0-9.eE]+)", text, re.MULTILINE)
-        reference = float(found.group(1)) if found else None
         offset = np.asarray(np.linalg.solve(sm, bias), dtype=np.float64)
-        return Peer(fmt, offset, sm, "m/s^2", None, reference, ())
+        return _peer(fmt, sensor, was, offset, sm, "m/s^2", None, ())  # imu_calib works in sensor_msgs/Imu's m/s^2
     if doc.get("cal_type") not in ("Ferraris", "TurntableFerraris"):
         raise InputError(
             f"imucal calibration type {doc.get('cal_type')!r} is not one tumblecal reads (Ferraris, TurntableFerraris)",
@@ -305,6 +325,9 @@ def read_peer(doc: dict[str, Any], fmt: str, path: str, sensor: str, text: str =
     version = doc.get("_format_version")
     if version not in IMUCAL_VERSIONS:
         raise InputError(f"imucal format version {version!r} is not one tumblecal reads (1.0.0, 2.0.0)", file=path)
+    comment = doc.get("comment")
+    was = recorded(comment) if isinstance(comment, str) else {}
+    sensor = sensor or was.get("sensor") or "accelerometer"
     if sensor == "magnetometer":
         raise InputError("an imucal file holds an accelerometer and a gyroscope, not a magnetometer", file=path)
     slot = "a" if sensor == "accelerometer" else "g"
@@ -318,11 +341,35 @@ def read_peer(doc: dict[str, Any], fmt: str, path: str, sensor: str, text: str =
         notes = ("K_ga (the gyroscope's sensitivity to acceleration) has no place in tumblecal's model: left out",)
     units = doc.get(f"{'acc' if slot == 'a' else 'gyr'}_unit")
     raw_units = doc.get(f"from_{'acc' if slot == 'a' else 'gyr'}_unit")
-    comment = doc.get("comment")
-    found = re.search(r"\breference ([-+0-9.eE]+)", comment) if isinstance(comment, str) else None
-    reference = float(found.group(1)) if found else None
     matrix = np.linalg.inv(r) @ np.linalg.inv(k)  # imucal: R^-1 K^-1 (raw - b)
-    return Peer(fmt, b, matrix, _text(units), None if raw_units == "a.u." else _text(raw_units), reference, notes)
+    if was.get("sensor") != sensor:  # the record describes the other slot
+        was = {}
+    raw_units = None if raw_units == "a.u." else _text(raw_units)
+    return _peer(fmt, sensor, was, b, matrix, _text(units), raw_units, notes)
+
+
+def _peer(
+    fmt: str,
+    sensor: str | None,
+    was: dict[str, Any],
+    offset: FloatArray,
+    matrix: FloatArray,
+    units: str | None,
+    input_units: str | None,
+    notes: tuple[str, ...],
+) -> Peer:
+    return Peer(
+        format=fmt,
+        sensor=sensor or was.get("sensor") or "accelerometer",
+        offset=offset,
+        matrix=matrix,
+        units=was.get("units", units),
+        input_units=was.get("input_units", input_units),
+        reference=was.get("reference"),
+        columns=was.get("columns"),
+        serial=was.get("serial"),
+        notes=notes,
+    )
 
 
 def imported(
@@ -362,7 +409,7 @@ def imported(
 def _provenance(cal: Loaded) -> list[str]:
     """Who, when and how, for a comment in an exported file (one fact per line)."""
     doc, unit = cal.doc, cal.doc.get("unit") or {}
-    who = ", ".join(f"{k} {unit[k]}" for k in ("serial", "station", "operator") if unit.get(k)) or "serial unknown"
+    who = ", ".join(f"{k} {unit[k]}" for k in ("serial", "station", "operator") if unit.get(k)) or "no serial"
     verdict = doc.get("verdict")
     judged = ""
     if isinstance(verdict, dict) and (verdict.get("limits") or not verdict["pass"]):
