@@ -489,3 +489,13 @@ def test_correct_stream_round_trips(tmp_path: Path) -> None:
     back = np.loadtxt(io.BytesIO(out.getvalue()), delimiter=",", skiprows=1)[:, 1:]
     np.testing.assert_array_equal(back, raw)
     assert out.getvalue() == text.encode()  # repr is the shortest round-trip text: same bytes
+
+
+def test_columns_naming_one_column_twice(tmp_path: Path) -> None:
+    """--columns ax,ax,az is a usage error naming the file, not a crash in the CSV engine."""
+    path = tmp_path / "p.csv"
+    path.write_text("ax,ay,az\n1,2,3\n")
+    with pytest.raises(InputError, match="--columns names the same column twice: ax,ax,az") as err:
+        read_samples(str(path), columns=["ax", "ax", "az"])
+    assert err.value.exit_code == 2
+    assert str(path) in str(err.value)

@@ -430,6 +430,8 @@ def _pick_columns(
         if len(columns) != 3:
             raise InputError(f"--columns needs three columns (x,y,z), got {len(columns)}")
         picked = [index_of(c, "column") for c in columns]
+        if len(set(picked)) != 3:
+            raise InputError(f"--columns names the same column twice: {','.join(columns)}", file=layout.name)
         return (picked[0], picked[1], picked[2]), time
     if prefer and all(p.lower() in lower for p in prefer):
         picked = [lower.index(p.lower()) for p in prefer]

@@ -777,7 +777,12 @@ def _plot_solve(plot: str, doc: dict[str, Any], raw: list[Any], solution: Any, l
     else:  # else "before" is scaled by the mean solved gain: its shape, not its units
         nominal = 1.0 if solution.method in FIXED_GAINS else float(np.mean(solution.gain))
     names = [  # a log's blocks by number (they share the file), pose files by name
-        f"{p['pose'] or '?'} " + (f"block {p['block']}" if "block" in p else os.path.basename(str(p.get("file", ""))))
+        " ".join(
+            [
+                *([p["pose"]] if p["pose"] else []),
+                f"block {p['block']}" if "block" in p else os.path.basename(str(p["file"])),
+            ]
+        )
         for p in doc["poses"]
     ]
     means = np.array([p["mean"] for p in doc["poses"]], dtype=np.float64)
