@@ -1247,8 +1247,10 @@ def test_check_without_limits(unit_cal: Path, capsys: pytest.CaptureFixture[str]
 
 def test_check_needs_the_poses(unit_cal: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     bad = mutate(unit_cal, "-poses", tmp_path / "bad.json")
-    r = run(capsys, "check", bad, "--limits", LIMITS)
-    assert_one_error(r, f"{bad}: field 'poses' must be a non-empty list of the poses solved from")
+    r = run(capsys, "check", bad, "--limits", LIMITS)  # noise and residual limits: judged on the poses
+    assert_one_error(r, f"{bad}: has no poses to judge the noise and residual limits by")
+    r = run(capsys, "check", bad, "--max-offset", "0.05")  # the parameters alone can still be judged
+    assert r.code == 0, r.err
 
 
 # -- apply and the verdict, apply and the columns --------------------------------------------
