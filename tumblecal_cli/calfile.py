@@ -186,7 +186,7 @@ def load(path: str) -> Loaded:
     return Loaded(
         path=path,
         offset=_vector(doc["offset"], "offset", path),
-        matrix=_invertible(_matrix(doc["matrix"], "matrix", path), path),
+        matrix=invertible(_matrix(doc["matrix"], "matrix", path), path),
         columns=columns,
         sensor=doc["sensor"],
         reference=_number(doc["reference"], "reference", path),
@@ -387,8 +387,13 @@ def _parse(text: str, path: str, *, as_yaml: bool | None = None) -> Any:
         raise InputError(f"not valid JSON: {err.msg}", file=path, line=err.lineno, column=err.colno) from None
 
 
+def is_number(value: Any) -> bool:
+    """A finite JSON/YAML number (not a boolean, which Python counts as an int)."""
+    return not isinstance(value, bool) and isinstance(value, int | float) and math.isfinite(value)
+
+
 def _number(value: Any, name: str, path: str | None) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+    if not is_number(value):
         raise InputError(f"field {name!r} must be a finite number", file=path)
     return float(value)
 
@@ -399,10 +404,10 @@ def _vector(value: Any, name: str, path: str | None) -> FloatArray:
     return np.array([_number(v, name, path) for v in value])
 
 
-def _invertible(matrix: FloatArray, path: str) -> FloatArray:
+def invertible(matrix: FloatArray, path: str, name: str = "matrix") -> FloatArray:
     """M must have an inverse (A, whose diagonal is the gain): a singular one corrects nothing."""
     if not np.isfinite(np.linalg.cond(matrix)) or np.linalg.cond(matrix) > 1e12:
-        raise InputError("field 'matrix' is singular (it has no inverse)", file=path)
+        raise InputError(f"field {name!r} is singular (it has no inverse)", file=path)
     return matrix
 
 

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from tumblecal_cli import __version__
-from tumblecal_cli.calfile import FORMAT, VERSION, Loaded, created
+from tumblecal_cli.calfile import FORMAT, VERSION, Loaded, created, invertible, is_number
 from tumblecal_cli.core import FloatArray
 from tumblecal_cli.errors import InputError
 
@@ -312,7 +312,7 @@ def read_peer(doc: dict[str, Any], fmt: str, path: str, sensor: str | None, text
     if fmt == "ros-yaml":
         sm = _array(doc.get("SM"), "SM", 9, path).reshape(3, 3)
         bias = _array(doc.get("bias"), "bias", 3, path)
-        _invertible(sm, "SM", path)
+        invertible(sm, path, "SM")
         was = recorded("\n".join(line[1:].strip() for line in text.splitlines() if line.startswith("#")))
         # SM raw - bias = SM (raw - SM^-1 bias): offset = SM^-1 bias
         offset = np.asarray(np.linalg.solve(sm, bias), dtype=np.float64)
@@ -334,8 +334,8 @@ def read_peer(doc: dict[str, Any], fmt: str, path: str, sensor: str | None, text
     k = _array(doc.get(f"K_{slot}"), f"K_{slot}", 9, path).reshape(3, 3)
     r = _array(doc.get(f"R_{slot}"), f"R_{slot}", 9, path).reshape(3, 3)
     b = _array(doc.get(f"b_{slot}"), f"b_{slot}", 3, path)
-    _invertible(k, f"K_{slot}", path)
-    _invertible(r, f"R_{slot}", path)
+    invertible(k, path, f"K_{slot}")
+    invertible(r, path, f"R_{slot}")
     notes: tuple[str, ...] = ()
     if slot == "g" and np.any(_array(doc.get("K_ga"), "K_ga", 9, path)):
         notes = ("K_ga (the gyroscope's sensitivity to acceleration) has no place in tumblecal's model: left out",)
@@ -436,19 +436,10 @@ def _c_float(value: float, name: str, path: str) -> str:
 
 def _array(value: Any, name: str, size: int, path: str) -> FloatArray:
     flat = np.array(value, dtype=object).ravel() if isinstance(value, list) else None
-    if flat is None or flat.size != size or not all(_finite(v) for v in flat):
+    if flat is None or flat.size != size or not all(is_number(v) for v in flat):
         shape = {3: "3 numbers", 9: "3x3 numbers"}[size]
         raise InputError(f"field {name!r} must be {shape}", file=path)
     return flat.astype(np.float64)
-
-
-def _finite(v: Any) -> bool:
-    return not isinstance(v, bool) and isinstance(v, int | float) and math.isfinite(v)
-
-
-def _invertible(matrix: FloatArray, name: str, path: str) -> None:
-    if not np.linalg.cond(matrix) < 1e12:
-        raise InputError(f"field {name!r} is singular (it has no inverse)", file=path)
 
 
 def _text(value: Any) -> str | None:
