@@ -1478,12 +1478,7 @@ def apply(
     _claims_once(cals)
     for c in cals:
         if c.failed and not force:
-            codes = ", ".join(str(f.get("code")) for f in c.doc["verdict"]["failures"] if isinstance(f, dict))
-            raise InputError(
-                f"this unit failed its limits ({codes or 'verdict: fail'}): refusing to correct with it",
-                file=c.path,
-                hint="pass --force to apply it anyway",
-            )
+            _refuse_failed(c, "correct with it", "apply")
         if c.failed and not quiet:
             _console().print(
                 f"note: {c.path}: this unit failed its limits; correcting with it as --force asks", soft_wrap=True
@@ -1595,6 +1590,17 @@ def _claims_once(cals: list[Any]) -> None:
                     f"{a.path} and {b.path} both calibrate column{'s' if len(shared) > 1 else ''} {', '.join(shared)}",
                     hint="give one calibration per sensor",
                 )
+
+
+def _refuse_failed(cal: Any, doing: str, command: str) -> None:
+    """A calibration whose verdict failed goes nowhere without --force (apply, export)."""
+    failures = cal.doc["verdict"]["failures"]
+    codes = ", ".join(str(f.get("code")) for f in failures if isinstance(f, dict))
+    raise InputError(
+        f"this unit failed its limits ({codes or 'verdict: fail'}): refusing to {doing}",
+        file=cal.path,
+        hint=f"pass --force to {command} it anyway",
+    )
 
 
 def _columns_of(layout: Any, cal: Any, taken: set[int]) -> tuple[int, int, int]:
@@ -1836,12 +1842,7 @@ def export(
     check_writable(output)
     c = calfile.load(cal)
     if c.failed and not force:
-        codes = ", ".join(str(f.get("code")) for f in c.doc["verdict"]["failures"] if isinstance(f, dict))
-        raise InputError(
-            f"this unit failed its limits ({codes or 'verdict: fail'}): refusing to export it",
-            file=cal,
-            hint="pass --force to export it anyway",
-        )
+        _refuse_failed(c, "export it", "export")
     if fmt is ExportFormat.registers:
         if not (lsb is not None and math.isfinite(lsb) and lsb > 0):
             raise InputError(f"--lsb must be a positive number, got {lsb}")
