@@ -4,15 +4,15 @@ run fails, matplotlib imported only when a plot is asked for."""
 from __future__ import annotations
 
 import importlib.util
-import struct
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from tests.test_formats import run
 from tests.test_layers import imported
+from tests.test_plots import png_size as png_header
 from tests.test_solvers_cli import FIELD, magnetometer, sphere_directions, write_mag
-from tumblecal_cli.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent
 SIX = [str(ROOT / "sample_data" / "imucal" / f"{f}.csv") for f in ("xp", "xn", "yp", "yn", "zp", "zn")]
@@ -20,18 +20,9 @@ THREE = [str(ROOT / "sample_data" / f"{f}.csv") for f in ("x", "y", "z")]
 LOT = ROOT / "sample_data" / "lot"
 
 
-def run(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    code = main(args)
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
 def png_size(path: Path) -> tuple[int, int]:
     """Width and height of a valid PNG (signature, then the IHDR chunk); decodes it as well."""
-    data = path.read_bytes()
-    assert data[:8] == b"\x89PNG\r\n\x1a\n"
-    assert data[12:16] == b"IHDR"
-    width, height = struct.unpack(">II", data[16:24])
+    width, height = png_header(path.read_bytes())
     from matplotlib.image import imread
 
     pixels = imread(str(path))

@@ -11,17 +11,11 @@ from pathlib import Path
 
 import pytest
 
-from tumblecal_cli.cli import main
+from tests.test_formats import run
 
 ROOT = Path(__file__).resolve().parent.parent
 LOT = ROOT / "sample_data" / "lot"
 LIMITS = ROOT / "sample_data" / "limits.yaml"
-
-
-def run(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    code = main(args)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def rows(out: str) -> dict[str, dict[str, str]]:
