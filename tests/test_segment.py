@@ -707,6 +707,35 @@ def test_time_going_backwards_names_the_file_and_line(
     assert not out.exists()
 
 
+def test_time_of_rows_without_sensor_values_is_not_judged(
+    six_level: SynthLog, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An interleaved logger stamps its other sensor's rows with their own clock: only the rows
+    tumblecal reads must go forward in time (seen on the NCSU MicroStrain logs)."""
+    lines = log_text(six_level).splitlines()
+    other = [f"{float(line.split(',')[0]) - 0.5:.2f},,," for line in lines[1::50]]
+    mixed = [lines[0]] + [
+        row for k, line in enumerate(lines[1:]) for row in ([line, other[k // 50]] if k % 50 == 0 else [line])
+    ]
+    src = tmp_path / "interleaved.csv"
+    src.write_text("\n".join(mixed) + "\n")
+    r = run(capsys, "segment", src, "-q")
+    assert r.code == 0, r.err
+    assert len(index_of(r.out)) >= 6
+    times = six_level.times.copy()
+    times[1000] = times[998]
+    bad = log_text(six_level, times=times).splitlines()
+    src.write_text("\n".join([bad[0], "0.00,,,", *bad[1:]]) + "\n")  # the backwards row is now line 1003
+    r = run(capsys, "segment", src, "-q")
+    assert_usage_error(
+        r,
+        str(src),
+        "time goes backwards",
+        "line 1003",
+        f"{float(f'{times[1000]:.2f}')!r} after {float(f'{times[999]:.2f}')!r}",
+    )
+
+
 @pytest.fixture
 def usage_files(six_level_csv: Path, tmp_path: Path) -> dict[str, str]:
     pose = tmp_path / "pose.csv"

@@ -653,8 +653,7 @@ def read_log(
             )
         t = None
         if times and use_time:
-            t = _times(cap, times)
-            t = t if every else t[mask]
+            t = _times(cap, times, None if every else mask)
         elif times:
             try:
                 t = np.concatenate([_floats(pc.cast(c, pa.float64(), safe=False)) for _, c in times])[mask]
@@ -669,8 +668,10 @@ def read_log(
     return Log(lay, values if every else values[mask], used, t, text, sha256, temperature, _TIME_SCALE[time_unit])
 
 
-def _times(cap: Capture, times: list[tuple[int, pa.Array]]) -> FloatArray:
-    """A log's time column: numbers that never go backwards, else an error naming the line."""
+def _times(cap: Capture, times: list[tuple[int, pa.Array]], mask: BoolArray | None) -> FloatArray:
+    """A log's time column on the rows ``mask`` keeps (all when None): numbers that never go
+    backwards, else an error naming the line. Rows without sensor values are not judged: an
+    interleaved logger stamps each sensor's rows with its own clock."""
     lay = cap.layout
     assert lay.time is not None
     parts = []
@@ -689,12 +690,14 @@ def _times(cap: Capture, times: list[tuple[int, pa.Array]]) -> FloatArray:
                 hint="give the sample rate with --rate HZ instead of the time column (--time-column to pick another)",
             ) from None
     t = np.concatenate(parts)
+    rows = np.arange(t.size) if mask is None else np.flatnonzero(mask)
+    t = t if mask is None else t[mask]
     back = np.flatnonzero(np.diff(t) < 0)
     if back.size:
-        i = int(back[0]) + 1
-        line = cap._line_of_row(i)
+        k = int(back[0]) + 1
+        line = cap._line_of_row(int(rows[k]))
         raise InputError(
-            f"time goes backwards: {t[i]:.10g} after {t[i - 1]:.10g}",
+            f"time goes backwards: {float(t[k])!r} after {float(t[k - 1])!r}",
             file=lay.name,
             line=line,
             column=lay.names[lay.time],
