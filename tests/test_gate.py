@@ -311,7 +311,8 @@ def test_orient_centres_each_axis_on_its_two_opposite_faces() -> None:
 def saturation(values: FloatArray, full_scale: float | None) -> tuple[list[gate.Finding], list[gate.Finding]]:
     """The saturation check alone on one +z pose (1-pose)."""
     solution = core.solve_one_pose(core.pose_stats(values), "+z", float(np.median(values[:, 2])))
-    options = gate.Options(full_scale=full_scale, skip=frozenset(gate.CHECKS) - {"saturated"})
+    rails = gate.integer_rails([values])  # as `tumblecal solve` does, here over its one pose
+    options = gate.Options(full_scale=full_scale, skip=frozenset(gate.CHECKS) - {"saturated"}, rails=rails)
     return run_gate([values], solution, options, faces=["+z"], names=["z.csv"])
 
 
@@ -372,6 +373,26 @@ def test_saturated_uint16_rails(rail: float) -> None:
     assert finding.code == "pose.saturated"
     assert finding.value == 2
     assert finding.message.startswith("2 samples clipped at the limit of its integer type")
+
+
+def test_the_integer_type_is_judged_over_the_whole_unit() -> None:
+    """An unsigned ADC centred a few counts under 32768: its -x pose reads below 32768 on every
+    axis and may touch 32767; the unit's other poses (above 32767) show the type is unsigned, so
+    32767 is the middle, not a rail (seen on a real raw-count log)."""
+    rng = np.random.default_rng(35)
+    below = np.round(np.array([32760.0 - 4700.0, 32760.0, 32760.0]) + rng.normal(0.0, 1.5, (200, 3)))
+    below = np.minimum(below, 32766.0)
+    below[5, 1] = 32767.0
+    above = int_counts(np.random.default_rng(36), offset=32768.0)
+    assert float(below.max()) <= 32767 < float(above.max())
+    assert gate.integer_rails([below]) == (-32768.0, 32767.0, 0.0)  # alone, it reads as signed
+    assert gate.integer_rails([below, above]) == (0.0, 65535.0, 32768.0)
+    check = gate.measure("zn.csv", "-z", below, core.pose_stats(below), gate.Options(rails=(0.0, 65535.0, 32768.0)))
+    assert check.clipped == 0
+    assert check.peak_fraction is not None
+    assert check.peak_fraction < 0.6
+    assert gate.integer_rails([below + 0.5, above]) is None  # not whole numbers: no known type
+    assert gate.integer_rails([below - 40000.0, above]) is None  # no 16-bit type holds both
 
 
 def test_saturated_float_data_without_a_full_scale_is_not_judged() -> None:

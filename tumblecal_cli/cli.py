@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from rich.console import Console
 
     from tumblecal_cli.captures import Samples
-    from tumblecal_cli.core import PoseStats
+    from tumblecal_cli.core import FloatArray, PoseStats
     from tumblecal_cli.gate import Corrected, Finding, PoseCheck
 
 EXIT_CODES = """\
@@ -590,6 +590,7 @@ def solve(
     gyro = sensor is SensorKind.gyroscope
     unit = _unit_block(serial, station, operator, meta or [])
     segmentation = None
+    whole: list[FloatArray] = []  # every reading of the unit: its integer type's rails
     if log is None:
         _method_options(name, ref, plane, bias_spread)
         picked = columns.split(",") if columns else None
@@ -630,6 +631,7 @@ def solve(
             settings=settings,
         ) as (_, data, seg):
             pass  # every block is in memory: the log is not read again
+        whole = [data.values]
         centre = seg.centre
         try:
             name, labels, samples = _log_poses(data, seg, name, up_face, sensor.value)
@@ -655,6 +657,7 @@ def solve(
         full_scale=full_scale,
         min_samples=min_samples,
         skip=frozenset(gate.CHECKS if no_checks else [c.name for c in skip or []]),
+        rails=gate.integer_rails(whole or [s.values for s in samples]),
     )
     stats = [core.pose_stats(s.values) for s in samples]
     names = [s.name for s in samples]

@@ -73,6 +73,9 @@ class PoseCheck:
     direction: FloatArray  # (3,) centred mean, normalised (zeros when undefined)
 
 
+Rails = tuple[float, float, float]  # (low rail, high rail, middle) of an integer type
+
+
 @dataclass(frozen=True)
 class Options:
     """The checks' settings (the solve options of the same names)."""
@@ -83,6 +86,7 @@ class Options:
     full_scale: float | None = None  # raw units; None: integer-type limits
     min_samples: int = 10
     skip: frozenset[str] = frozenset()  # names from CHECKS
+    rails: Rails | None = None  # the integer type's limits (integer_rails); None: no known limit
 
 
 def measure(file: str, face: str | None, values: FloatArray, stats: PoseStats, options: Options) -> PoseCheck:
@@ -90,7 +94,7 @@ def measure(file: str, face: str | None, values: FloatArray, stats: PoseStats, o
     n = values.shape[0]
     third = n // 3
     drift = values[-third:].mean(axis=0) - values[:third].mean(axis=0) if third else np.zeros(3)
-    clipped, peak = _clipping(values, options.full_scale)
+    clipped, peak = _clipping(values, options.full_scale, options.rails)
     return PoseCheck(file, face, stats, None, None, clipped, peak, drift, np.zeros(3))
 
 
@@ -245,12 +249,31 @@ def _orientation(p: PoseCheck, declared: Sequence[str | None], max_tilt: float) 
     return Finding("pose.orientation", text, p.angle_deg, max_tilt, **where)
 
 
-def _clipping(values: FloatArray, full_scale: float | None) -> tuple[int, float | None]:
+def integer_rails(captures: Sequence[FloatArray]) -> Rails | None:
+    """The limits of the 16-bit integer type that holds every sample of a unit's captures:
+    signed (-32768, 32767) unless some value needs the unsigned range (0, 65535). Judged over
+    all the captures together, so a pose of an unsigned ADC whose values all happen to sit
+    below 32768 is not taken for a signed one at its rail. None: not integers, or no 16-bit
+    type holds them all (no known limit)."""
+    captures = [c for c in captures if c.size]
+    if not captures:
+        return None
+    lo = min(float(c.min()) for c in captures)
+    hi = max(float(c.max()) for c in captures)
+    if lo < -32768 or hi > 65535 or (lo < 0 and hi > 32767):
+        return None
+    if not all(np.array_equal(c, np.round(c)) for c in captures):
+        return None
+    if hi > 32767:  # unsigned: 0 and 65535 are the rails, the middle is 32768
+        return 0.0, 65535.0, 32768.0
+    return -32768.0, 32767.0, 0.0
+
+
+def _clipping(values: FloatArray, full_scale: float | None, rails: Rails | None) -> tuple[int, float | None]:
     """(samples at the clip level, peak |value| as a fraction of that level).
 
-    With a full scale V, the level is ``CLIP_FRACTION·V``. Without, integer data is judged
-    against the limits of a 16-bit type: signed (-32768, 32767) unless some value needs the
-    unsigned range (0, 65535). Other data has no known limit.
+    With a full scale V, the level is ``CLIP_FRACTION·V``; without, the rails of the integer
+    type (integer_rails). Other data has no known limit.
     """
     if values.size == 0:
         return 0, None
@@ -258,13 +281,9 @@ def _clipping(values: FloatArray, full_scale: float | None) -> tuple[int, float 
         level = CLIP_FRACTION * full_scale
         peak = np.abs(values).max(axis=1)
         return int((peak >= level).sum()), float(peak.max() / level)
-    lo, hi = float(values.min()), float(values.max())
-    if not np.array_equal(values, np.round(values)) or lo < -32768 or hi > 65535 or (lo < 0 and hi > 32767):
-        return 0, None  # not integers, or no 16-bit type holds them all
-    if hi > 32767:  # unsigned: 0 and 65535 are the rails, the middle is 32768
-        low_rail, high_rail, mid = 0.0, 65535.0, 32768.0
-    else:
-        low_rail, high_rail, mid = -32768.0, 32767.0, 0.0
+    if rails is None:
+        return 0, None
+    low_rail, high_rail, mid = rails
     at_rail = ((values <= low_rail) | (values >= high_rail)).any(axis=1)
     peak = float(np.abs(values - mid).max() / (high_rail - mid))
     return int(at_rail.sum()), peak
