@@ -1134,9 +1134,9 @@ def _print_blocks(log: Any, seg: Any, console: Console, *, used: dict[int, str],
     name = log.layout.name
     shown = seg.blocks if everything else seg.kept
     title = f"still blocks of {os.path.basename(name)}"
-    table = Table(title=title, title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
-    for col in ("block", "rows", "start", "length", "face", "angle", "std", "status"):
-        table.add_column(col, justify="left" if col in ("face", "status", "rows") else "right", no_wrap=True)
+    table = Table(title=title, title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False, collapse_padding=True)
+    for col in ("block", "rows", "start", "length", "face", "angle", "std", "status"):  # fits 80 columns
+        table.add_column(col, justify="left" if col in ("face", "status", "rows") else "right", no_wrap=col != "status")
     for b in shown:
         if log.clock is not None:
             start = f"{float(log.clock[b.first]):.6g}"
