@@ -217,8 +217,9 @@ def test_orientation_tilted_pose(tilt: float, rejected_codes: list[str], warned_
 
 
 def test_orientation_upside_down_pose() -> None:
-    """The +x file captured with x pointing down: the orientation check says so, and the negative
-    gain it solves to is not reported a second time."""
+    """The +x file captured with x pointing down: the orientation check finds it on the opposite
+    face and says so with the upside-down code, and the negative gain it solves to is not
+    reported a second time."""
     rng = np.random.default_rng(22)
     values = [samples(rng, G_UNIT, "-x"), samples(rng, G_UNIT, "+y"), samples(rng, G_UNIT, "+z")]
     solution = three_pose(values)
@@ -226,7 +227,7 @@ def test_orientation_upside_down_pose() -> None:
     rejected, _ = run_gate(values, solution, gate.Options())
 
     [finding] = rejected
-    assert (finding.code, finding.file, finding.pose) == ("pose.orientation", NAMES[0], "+x")
+    assert (finding.code, finding.file, finding.pose) == ("pose.upside_down", NAMES[0], "+x")
     assert finding.message.startswith("declared +x but reads like -x (mean -0.99, ")
     assert finding.message.endswith(": upside down")
     assert finding.hint is not None
@@ -303,6 +304,29 @@ def test_orient_centres_each_axis_on_its_two_opposite_faces() -> None:
     assert wrong["+x"].angle_deg > 40.0  # centred on (mid x, mid y, 0): (16548, ~0, 33018), 63° off
     d = means["+x"] - np.array([midpoint[0], midpoint[1], 0.0])
     np.testing.assert_allclose(wrong["+x"].direction, d / np.linalg.norm(d), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("given", "wrong"),
+    [
+        pytest.param(["+x", "-x", "+y", "-y", "+z", "+z"], {"-z": "+z"}, id="a +z capture given for -z"),
+        pytest.param(["+x", "-x", "+z", "-y", "+y", "-z"], {"+y": "+z", "+z": "+y"}, id="+y and +z swapped"),
+    ],
+)
+def test_six_faces_one_wrong_file_is_the_only_one_rejected(given: list[str], wrong: dict[str, str]) -> None:
+    """A pair of opposite faces whose difference does not point along its axis (one of them is
+    some other pose) gives no centre: the other poses still read right, and each wrong file is
+    named with what it really is (not every pose, as a centre from the bad pair would)."""
+    rng = np.random.default_rng(26)
+    values = [samples(rng, G_UNIT, face) for face in given]
+    faces = list(core.FACES)
+    names = [f"{face}.csv" for face in faces]
+    solution = core.solve_one_pose(core.pose_stats(values[4]), "+z", 1.0)  # the checks here need no gains
+    options = gate.Options(skip=frozenset({"moved", "upside_down"}))
+    rejected, _ = run_gate(values, solution, options, faces=faces, names=names)
+    assert {f.pose: f.message.split(" (mean")[0] for f in rejected} == {
+        face: f"declared {face} but reads like {looks}" for face, looks in wrong.items()
+    }
 
 
 # --- pose.saturated --------------------------------------------------------------------------------
@@ -469,9 +493,13 @@ def test_upside_down_negative_gain_names_the_file() -> None:
     assert finding.message.endswith("its y axis was not pointing up (upside down, or the files out of order)")
     assert warned == []
 
-    # both checks on: the orientation check gives the reason, once
+    # both checks on: the orientation check gives the reason, once, with the upside-down code
     rejected, _ = run_gate(values, solution, gate.Options())
-    assert [(f.code, f.file) for f in rejected] == [("pose.orientation", NAMES[1])]
+    assert [(f.code, f.file) for f in rejected] == [("pose.upside_down", NAMES[1])]
+    assert rejected[0].message.startswith("declared +y but reads like -y (mean ")
+    # the orientation check alone off or the upside-down check alone off: still rejected
+    only = gate.Options(skip=frozenset({"upside_down"}))
+    assert [f.code for f in run_gate(values, solution, only)[0]] == ["pose.upside_down"]
     # both off: nothing left to say
     skip_both = gate.Options(skip=frozenset({"orientation", "upside_down"}))
     assert run_gate(values, solution, skip_both) == ([], [])

@@ -50,7 +50,7 @@ def test_real_pose_on_the_opposite_face_is_rejected(tmp_path: Path, capsys: pyte
     rejections = doc["rejections"]
     assert isinstance(rejections, list)
     assert [(r["code"], r["pose"], r["file"]) for r in rejections] == [
-        ("pose.orientation", "+x", str(IMUCAL / "xn.csv"))
+        ("pose.upside_down", "+x", str(IMUCAL / "xn.csv"))
     ]
     assert rejections[0]["message"].startswith("declared +x but reads like -x (mean ")
     assert rejections[0]["message"].endswith(": upside down")

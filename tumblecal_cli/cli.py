@@ -685,7 +685,7 @@ def solve(
         gate.measure(n, f, s.values, st, options) for n, f, s, st in zip(names, labels, samples, stats, strict=True)
     ]
     if ref > 0:  # a gyroscope at rest has no direction to judge
-        measured = gate.orient(measured, options.nominal_offset)
+        measured = gate.orient(measured, options.nominal_offset, options.max_tilt_deg)
     rejected, warned = gate.check(measured, solution, options)
     fixed = [
         gate.corrected(st.mean, st.std, f, solution.offset, solution.matrix, ref)

@@ -98,18 +98,25 @@ def measure(file: str, face: str | None, values: FloatArray, stats: PoseStats, o
     return PoseCheck(file, face, stats, None, None, clipped, peak, drift, np.zeros(3))
 
 
-def orient(poses: Sequence[PoseCheck], nominal_offset: FloatArray) -> list[PoseCheck]:
+def orient(poses: Sequence[PoseCheck], nominal_offset: FloatArray, max_tilt_deg: float = 25.0) -> list[PoseCheck]:
     """Give each pose its direction, angle from its face and nearest face.
 
     The centre removed from each mean is ``nominal_offset``, except on an axis where both of its
-    faces were captured: there the midpoint of the two (DESIGN.md section 2: opposite faces
-    cancel the offset).
+    faces were captured and agree: there the midpoint of the two (DESIGN.md section 2: opposite
+    faces cancel the offset). They agree when their difference points along that axis within
+    ``max_tilt_deg``; a pair that does not (one of them is some other pose) would move the
+    centre and make every pose read wrong, so that axis keeps the nominal offset and only the
+    wrong pose is judged so.
     """
     centre = np.array(nominal_offset, dtype=np.float64)
     faces = {p.face: p for p in poses}
     for i, axis in enumerate(AXES):
         if f"+{axis}" in faces and f"-{axis}" in faces:
-            centre[i] = 0.5 * (faces[f"+{axis}"].stats.mean[i] + faces[f"-{axis}"].stats.mean[i])
+            plus, minus = faces[f"+{axis}"].stats.mean, faces[f"-{axis}"].stats.mean
+            span = plus - minus
+            length = float(np.linalg.norm(span))
+            if length > 0 and span[i] / length >= math.cos(math.radians(max_tilt_deg)):
+                centre[i] = 0.5 * (plus[i] + minus[i])
     out = []
     for p in poses:
         d = p.stats.mean - centre
@@ -140,8 +147,10 @@ def check(poses: Sequence[PoseCheck], solution: Solution, options: Options) -> t
             warned.append(replace(finding, message=close, hint=None))
 
     declared = [p.face for p in poses]
+    misread = False  # a pose is not what it claims: it spoils the solution moved and upside_down judge through
     for check_name in CHECKS:
-        if check_name in options.skip:
+        misread = misread or any(r.code in ("pose.orientation", "pose.upside_down") for r in rejected)
+        if check_name in options.skip or (misread and check_name in ("moved", "upside_down")):
             continue
         for p in poses:
             if any(r.file == p.file for r in rejected):
@@ -180,8 +189,6 @@ def check(poses: Sequence[PoseCheck], solution: Solution, options: Options) -> t
                     p.angle_deg > NARROW * options.max_tilt_deg,
                     f"{p.angle_deg:.1f}° from {p.face}, close to --max-tilt {options.max_tilt_deg:g}°",
                 )
-            elif check_name in ("moved", "upside_down") and any(r.code == "pose.orientation" for r in rejected):
-                continue  # a pose that is not what it claims spoils the solution these judge through
             elif check_name == "moved" and options.noise_bound is not None and solution.method not in ROTATION:
                 # standard deviation and drift in output units, through the solved matrix
                 std = output_std(solution.matrix, p.stats.std)
@@ -237,7 +244,7 @@ def _orientation(p: PoseCheck, declared: Sequence[str | None], max_tilt: float) 
                 f"turn the unit over so that its {p.face[1]} axis points up (a sensor that reads -1 g "
                 "on the axis pointing up is declared as the opposite face)"
             )
-            return Finding("pose.orientation", text, p.angle_deg, max_tilt, hint=hint, **where)
+            return Finding("pose.upside_down", text, p.angle_deg, max_tilt, hint=hint, **where)
     else:
         text = f"declared {p.face} but is {p.angle_deg:.1f}° from it (mean {mean}), more than --max-tilt {max_tilt:g}°"
     # No axis near zero: a common offset. Uncentred unsigned counts often still lean towards the
