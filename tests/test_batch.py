@@ -272,21 +272,27 @@ def test_batch_folder_layout_labels_and_notes(tmp_path: Path, capsys: pytest.Cap
     unit(src, "SIX", "six")
     (src / ".hidden").mkdir()
     shutil.copy(SAMPLE / "x.csv", src / ".hidden" / "x.csv")
-    (src / "notes").mkdir()
-    (src / "notes" / "readme.md").write_text("no data here\n")
+    (src / "NODATA").mkdir()
+    (src / "NODATA" / "x.bin").write_text("not a capture\n")
     shutil.copy(SAMPLE / "x.csv", src / "loose.csv")
+    (plus / "notes.txt").write_text("operator: J. Doe\n")  # beside face-named files: not a pose
 
     out = tmp_path / "out"
-    r = run(capsys, "batch", src, "--out-dir", out)
-    assert r.code == 0, r.err
+    r = run(capsys, "batch", src, "--out-dir", out, "-q")
+    assert r.code == 2, r.err  # a unit folder without captures is that unit's error, never a silent gap
     rows = by_serial(out / "summary.csv")
-    assert sorted(rows) == ["PLAIN", "PLUS", "SIX"]
+    assert sorted(rows) == ["NODATA", "PLAIN", "PLUS", "SIX"]
+    nodata = rows.pop("NODATA")
+    assert (nodata["status"], nodata["verdict"]) == ("2", "error")
+    assert nodata["message"] == "no pose files (.csv, .tsv, .txt, .dat) in its folder"
+    assert r.err.splitlines() == [f"NODATA: error: {nodata['message']}"]  # -q still prints a unit's error
     assert rows["PLUS"]["inputs"].split(";") == [f"+{n}={plus / f'+{n}.csv'}" for n in "xyz"]
     assert rows["PLAIN"]["inputs"].split(";") == [str(plain / n) for n in ["a.csv", "b.csv", "c.csv"]]
     assert rows["SIX"]["method"] == "six-pose"
     assert {row["verdict"] for row in rows.values()} == {"pass"}
+    r = run(capsys, "batch", src, "--out-dir", tmp_path / "again")
     notes = [line for line in r.err.splitlines() if line.startswith("note:")]
-    assert any(str(src / "notes") in n and "skipped" in n for n in notes), notes
+    assert f"note: {plus}: notes.txt ignored (not named by a face like the unit's other files)" in notes
     assert any("beside the unit folders" in n for n in notes), notes
 
 
@@ -758,8 +764,10 @@ def test_batch_jobs_2_is_byte_identical_to_jobs_1(tmp_path: Path) -> None:
     units(tmp_path / "units", {"A": "good", "B": "six", "C": "rejected", "D": "error", "E": "good", "F": "six"})
     one = run_exe(["batch", "units", "--out-dir", "one", "--limits", LIMITS, "-q"], cwd=tmp_path)
     two = run_exe(["batch", "units", "--out-dir", "two", "--limits", LIMITS, "-q", "--jobs", "2"], cwd=tmp_path)
-    assert (one.returncode, one.stdout, one.stderr) == (2, "", "")
-    assert (two.returncode, two.stdout, two.stderr) == (2, "", "")
+    assert (one.returncode, one.stdout, two.returncode, two.stdout) == (2, "", 2, "")
+    # -q: only the units with an error or a rejected capture, one line each
+    assert [line.split(":")[0] for line in one.stderr.splitlines()] == ["C", "D"]
+    assert sorted(two.stderr.splitlines()) == sorted(one.stderr.splitlines())
     first, second = snapshot(tmp_path / "one"), snapshot(tmp_path / "two")
     assert sorted(first) == sorted([*(cal_name(s) for s in "ABEF"), "summary.csv"])
     assert second == first
@@ -1026,8 +1034,9 @@ def test_apply_dask_without_out_dir_is_exit_2(
 def test_batch_folder_of_labelled_and_unlabelled_names_is_that_units_error(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """x.csv b.csv z.csv: two names are faces and one is not; solve's rule (label every pose or
-    none) makes it that unit's input error, not a guess at the order."""
+    """x.csv b.csv z.csv: two names are faces and one is not; the poses are the face-named
+    files (b.csv is ignored with a note), and two faces are that unit's input error, not a
+    guess at the order."""
     src = units(tmp_path / "units", {"A": "good"})
     mixed = src / "M"
     mixed.mkdir()
@@ -1037,7 +1046,8 @@ def test_batch_folder_of_labelled_and_unlabelled_names_is_that_units_error(
     assert r.code == 2
     row = {row["serial"]: row for row in read_rows(tmp_path / "out" / "summary.csv")}["M"]
     assert (row["status"], row["verdict"]) == ("2", "error")
-    assert "label every pose file or none" in row["message"]
+    assert row["message"].startswith("--poses: no solver takes the labels +x +z")  # b.csv is not a pose
+    assert f"note: {mixed}: b.csv ignored (not named by a face like the unit's other files)" in r.err
 
 
 def test_batch_bad_source_date_epoch_is_one_error_before_any_unit(

@@ -133,13 +133,17 @@ def _folder_units(folder: str, *, log: bool, skip: str | None) -> tuple[list[Uni
             notes.append(f"{path}: a batch's output folder (it has a {SUMMARY}); skipped")
             continue
         files = _data_files(path)
-        if not files:
-            notes.append(f"{path}: no data files ({', '.join(DATA_SUFFIXES)}); skipped")
+        if not files:  # the unit's error (run_unit), not a silent gap in the lot
+            units.append(Unit(name, ()))
             continue
         if log:
             units.append(Unit(name, tuple(files)))  # more than one: the unit's error, not the batch's
             continue
-        faces = [_face_of(f) for f in files]  # all None: unlabelled, in name order; a mixture: solve refuses it
+        faces = [_face_of(f) for f in files]  # all None: unlabelled, in name order
+        if any(faces) and not all(faces):  # x.csv y.csv z.csv notes.txt: the poses are the named ones
+            stray = [os.path.basename(f) for f, face in zip(files, faces, strict=True) if face is None]
+            notes.append(f"{path}: {', '.join(stray)} ignored (not named by a face like the unit's other files)")
+            files, faces = [f for f, face in zip(files, faces, strict=True) if face], [f for f in faces if f]
         units.append(Unit(name, tuple(f"{face}={f}" if face else f for face, f in zip(faces, files, strict=True))))
     if log:
         units += [Unit(os.path.splitext(os.path.basename(f))[0], (f,)) for f in loose]
@@ -233,6 +237,9 @@ def run_unit(unit: Unit, options: dict[str, Any], out_dir: str, log: bool, token
     staging = os.path.join(out_dir, f".{unit.serial}.{token}{STAGING}")
     args = dict(options, serial=unit.serial, output=staging, quiet=True, json_summary=False)
     row: dict[str, Any] = {"serial": unit.serial, "inputs": list(unit.inputs)}
+    if not unit.inputs:
+        what = "log" if log else "pose"
+        return row | _failed(InputError(f"no {what} files ({', '.join(DATA_SUFFIXES)}) in its folder"))
     if log and len(unit.inputs) != 1:
         return row | _failed(InputError(f"--log takes one log per unit; {unit.serial} has {len(unit.inputs)} files"))
     args["log" if log else "poses"] = unit.inputs[0] if log else list(unit.inputs)

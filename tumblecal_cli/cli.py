@@ -2679,8 +2679,9 @@ def _batch_progress(console: Console, total: int, *, enabled: bool) -> Iterator[
 
 
 def _print_unit(row: dict[str, Any], out_dir: str, console: Console, *, quiet: bool) -> None:
-    """One line per unit: its verdict and file, or why it failed."""
-    if quiet:
+    """One line per unit: its verdict and file, or why it failed (``quiet``: only a unit with
+    an error or a rejected capture, as ``solve -q`` still prints those)."""
+    if quiet and row["status"] not in (2, 3):
         return
     codes = f" ({', '.join(row['codes'])})" if row.get("codes") else ""
     head = f"{row['serial']}: {row['verdict']}{codes}"
