@@ -1,9 +1,9 @@
 """``batch`` and ``apply`` with ``--dask-scheduler``: the same files as running here, on a LocalCluster.
 
-One LocalCluster (two worker processes) serves the module. ``SOURCE_DATE_EPOCH`` is in the
-environment when it starts, so the workers, which write the calibrations and hence their
-``created`` time and names, inherit it; the workers' working folder is an empty folder of their
-own, so a relative path cannot be found there by chance. The CLI runs as the installed
+One LocalCluster (two worker processes) serves the module. ``SOURCE_DATE_EPOCH`` is set for the
+CLI only, never in the workers' environment: the workers write the calibrations, and their
+``created`` time and names must follow the caller's setting. The workers' working folder is an
+empty folder of their own, so a relative path cannot be found there by chance. The CLI runs as the installed
 ``tumblecal`` script (a subprocess: the client's connect and close stay out of pytest's process).
 """
 
@@ -89,7 +89,7 @@ def make_captures(folder: Path) -> list[Path]:
 def scheduler(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     home = tmp_path_factory.mktemp("dask_workers")
     with pytest.MonkeyPatch.context() as env:
-        env.setenv("SOURCE_DATE_EPOCH", EPOCH)  # before the workers start: they inherit it
+        env.delenv("SOURCE_DATE_EPOCH", raising=False)  # the workers' clock is theirs; the caller's setting wins
         with pytest.MonkeyPatch.context() as cwd:
             cwd.chdir(home)  # the workers' working folder
             cluster = distributed.LocalCluster(

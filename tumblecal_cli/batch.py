@@ -225,11 +225,24 @@ def _resolve(base: str, name: str) -> str:
 # -- one unit ----------------------------------------------------------------------------------
 
 
-def run_unit(unit: Unit, options: dict[str, Any], out_dir: str, log: bool, token: str) -> dict[str, Any]:
+def run_unit(
+    unit: Unit, options: dict[str, Any], out_dir: str, log: bool, token: str, epoch: str | None = None
+) -> dict[str, Any]:
     """Solve one unit as ``tumblecal solve`` does, into a hidden staging file of this batch
     (``token``); its summary row. The parent publishes the file (:func:`finish`) as it records
     the row, so an interrupted batch leaves no calibration without a row. Never raises for the
-    unit's own errors: they are its row's status and message."""
+    unit's own errors: they are its row's status and message. ``epoch``: the caller's
+    ``SOURCE_DATE_EPOCH`` ("" when unset), which a Dask worker's own environment does not hold."""
+    from tumblecal_cli import calfile
+
+    reset = calfile.CALLER_EPOCH.set(epoch)
+    try:
+        return _run_unit(unit, options, out_dir, log, token)
+    finally:
+        calfile.CALLER_EPOCH.reset(reset)
+
+
+def _run_unit(unit: Unit, options: dict[str, Any], out_dir: str, log: bool, token: str) -> dict[str, Any]:
     import typer
 
     from tumblecal_cli import cli

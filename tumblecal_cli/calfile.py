@@ -10,6 +10,7 @@ import json
 import math
 import os
 import sys
+from contextvars import ContextVar
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from typing import Any
@@ -112,9 +113,15 @@ def _insert_after(doc: dict[str, Any], key: str, extra: dict[str, Any]) -> dict[
     return out
 
 
+#: ``SOURCE_DATE_EPOCH`` as the caller set it ("": not set), for work done on its behalf
+#: elsewhere (a batch's unit on a Dask worker, whose environment is not the caller's).
+CALLER_EPOCH: ContextVar[str | None] = ContextVar("CALLER_EPOCH", default=None)
+
+
 def created() -> str:
     """Now in UTC, or ``SOURCE_DATE_EPOCH`` when set (reproducible files)."""
-    epoch = os.environ.get("SOURCE_DATE_EPOCH", "").strip()
+    epoch = CALLER_EPOCH.get()
+    epoch = (os.environ.get("SOURCE_DATE_EPOCH", "") if epoch is None else epoch).strip()
     if epoch and not epoch.isdigit():  # reproducible-builds.org: a malformed value is an error
         raise InputError(f"SOURCE_DATE_EPOCH={epoch!r} is not a whole number of seconds since 1970")
     try:

@@ -2582,7 +2582,9 @@ def batch(**given: Any) -> None:
     summary = batches.Summary(out_dir, rows)
     try:
         with _batch_progress(console, len(todo), enabled=not quiet) as (show, tick), _term_as_interrupt():
-            for (unit, *_), outcome in run(batches.run_unit, [(u, given, out_dir, log, token) for u in todo]):
+            epoch = os.environ.get("SOURCE_DATE_EPOCH", "")  # the caller's, wherever the units run
+            work = [(u, given, out_dir, log, token, epoch) for u in todo]
+            for (unit, *_), outcome in run(batches.run_unit, work):
                 if isinstance(outcome, BaseException):
                     row = batches.failed_row(unit, outcome)
                 else:
