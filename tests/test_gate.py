@@ -784,6 +784,18 @@ def test_verdict_cross_axis_limit(term: float, fails: bool) -> None:
         assert failures == []
 
 
+@pytest.mark.parametrize("method", ["one-pose", "three-pose", "six-pose-diagonal", "minmax", "gyro-bias"])
+def test_limits_a_method_cannot_be_judged_by_are_dropped_with_the_reason(method: str) -> None:
+    limits = gate.Limits(gain_error=np.full(3, 0.01), cross_axis=0.005, noise=0.01, residual=0.01)
+    dropped = limits.not_applying(method)
+    assert "cross_axis" in dropped
+    assert dropped["cross_axis"] == "estimates no cross-axis terms"
+    kept = limits.for_method(method)
+    for name in ("gain_error", "cross_axis", "noise", "residual"):
+        assert (getattr(kept, name) is None) == (name in dropped), name
+    assert limits.for_method("six-pose") == limits  # every one applies
+
+
 def test_verdict_cross_axis_is_not_judged_on_a_diagonal_matrix() -> None:
     _, solution = g_capture()
     assert np.count_nonzero(solution.matrix - np.diag(np.diag(solution.matrix))) == 0

@@ -628,6 +628,36 @@ def test_ellipsoid_recovers_the_hard_iron(tmp_path: Path, capsys: pytest.Capture
     assert abs(np.linalg.norm(corrected, axis=1).mean() - FIELD) < 0.05
 
 
+def test_magnetometer_limits_judge_the_fit_not_the_turning(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A turning capture's spread is the turning and its mean is no pose: the noise limit does
+    not apply (a note says so) and the residual limit judges the fit's largest residual over the
+    samples (about 4 noise sigmas here), not the norm of the capture's mean."""
+    rng = np.random.default_rng(13)
+    path = write_mag(tmp_path / "turn.csv", magnetometer(rng, sphere_directions(rng, 3000)))
+    limits = tmp_path / "limits.yaml"
+    out = tmp_path / "mag.json"
+    base: list[str | Path] = ["solve", "--sensor", "magnetometer", "--reference", "50", "-p", path, "-o", out]
+    limits.write_text("noise: 1\nresidual: 2\n")
+    r = run(capsys, *base, "--limits", limits)
+    assert r.code == 0, r.err
+    doc = json.loads(out.read_text())
+    assert doc["verdict"] == {"pass": True, "failures": [], "limits": {"residual": 2.0}}
+    assert 0.8 < doc["residuals"]["max"] < 2.0
+    assert (
+        "note: the ellipsoid solver fits a capture turned through many orientations (its spread is the turning), "
+        "so the noise limit does not apply"
+    ) in r.err.splitlines()
+    limits.write_text("residual: 0.5\n")
+    r = run(capsys, *base, "--limits", limits)
+    assert r.code == 1, r.err
+    [failure] = json.loads(out.read_text())["verdict"]["failures"]
+    assert (failure["code"], failure["bound"]) == ("limit.residual", 0.5)
+    assert failure["value"] == doc["residuals"]["max"]
+    r = run(capsys, "check", out, "--limits", limits)  # check judges it the same way
+    assert r.code == 1, r.err
+    assert "limit.residual: the fit's largest residual over the samples is" in r.err
+
+
 def test_minmax_recovers_the_hard_iron_roughly(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     rng = np.random.default_rng(12)
     path = write_mag(tmp_path / "turn.csv", magnetometer(rng, sphere_directions(rng, 3000)))

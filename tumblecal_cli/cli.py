@@ -695,7 +695,12 @@ def solve(
         []
         if rejected
         else gate.verdict(
-            solution.method, solution.offset, solution.matrix, list(zip(names, labels, fixed, strict=True)), limits
+            solution.method,
+            solution.offset,
+            solution.matrix,
+            list(zip(names, labels, fixed, strict=True)),
+            limits,
+            None if fit.residuals is None or not len(fit.residuals) else float(abs(fit.residuals).max()),
         )
     )
     doc = calfile.build(
@@ -1338,9 +1343,16 @@ def _solve_notes(stats: list[PoseStats], names: list[str], *, limits_given: Any,
         notes[2:] = [
             f"{len(few) - 2} more poses have fewer than 3 samples (noise unknown): {few[2][0]} ... {few[-1][0]}"
         ]
-    if limits_given.gain_error is not None and limits_given.for_method(method).gain_error is None:
-        notes.append(f"the {method} solver fixes the gains at 1, so the gain limit does not apply")
+    notes += _limits_not_applying(limits_given, method)
     return notes
+
+
+def _limits_not_applying(limits: Any, method: str) -> list[str]:
+    """Notes for the limits given that do not apply to a method (gate.NOT_APPLYING)."""
+    return [
+        f"the {method} solver {why}, so the {name.replace('_', '-')} limit does not apply"
+        for name, why in limits.not_applying(method).items()
+    ]
 
 
 def _summary(
@@ -1697,13 +1709,10 @@ def check(
     if not given.as_dict():
         raise InputError("no limits to judge against", hint="give --limits FILE, --max-offset or --max-gain-error")
     c = calfile.load(cal)
-    limits = given.for_method(str(c.doc["method"]))
+    method = str(c.doc["method"])
+    limits = given.for_method(method)
     if not limits.as_dict():
-        raise InputError(
-            f"no limits to judge against: the {c.doc['method']} solver fixes the gains, "
-            "so the gain limit does not apply",
-            file=cal,
-        )
+        raise InputError(f"no limits to judge against: {'; '.join(_limits_not_applying(given, method))}", file=cal)
     if not c.doc.get("poses"):  # an imported calibration: its parameters can be judged, it has no poses
         if limits.noise is not None or limits.residual is not None:
             raise InputError(
@@ -1715,7 +1724,8 @@ def check(
     else:
         records = calfile.pose_records(c)
     poses = [(p.file, p.face, gate.corrected(p.mean, p.std, p.face, c.offset, c.matrix, c.reference)) for p in records]
-    failures = gate.verdict(str(c.doc["method"]), c.offset, c.matrix, poses, limits)
+    residual = (c.doc.get("residuals") or {}).get("max")
+    failures = gate.verdict(method, c.offset, c.matrix, poses, limits, residual)
     verdict = {"pass": not failures, "failures": [f.as_dict() for f in failures], "limits": limits.as_dict()}
     if json_summary:
         _print_json(

@@ -31,6 +31,13 @@ CLIP_FRACTION = 0.98
 FIXED_GAINS = ("one-pose", "one-pose-tilt", "minmax", "gyro-bias")
 #: Methods fitted to captures turned through many orientations: a pose is meant to move.
 ROTATION = ("minmax", "ellipsoid")
+#: Why a limit does not apply to a method: {limit: (methods, the reason)}.
+NOT_APPLYING = {
+    "gain_error": (FIXED_GAINS, "fixes the gains at 1"),
+    "cross_axis": ((*FIXED_GAINS, "three-pose", "six-pose-diagonal"), "estimates no cross-axis terms"),
+    "noise": (ROTATION, "fits a capture turned through many orientations (its spread is the turning)"),
+    "residual": (("minmax",), "has no fitted model to measure residuals against"),
+}
 AXES = "xyz"
 
 
@@ -311,8 +318,18 @@ class Limits:
     residual: float | None = None  # bound on each pose's | |M (mean - offset)| - reference |
 
     def for_method(self, method: str) -> Limits:
-        """The limits that apply to a method: no gain limit where the gains are fixed."""
-        return replace(self, gain_error=None) if method in FIXED_GAINS else self
+        """The limits that apply to a method (NOT_APPLYING: no gain limit where the gains are
+        fixed, no cross-axis limit where there are no cross-axis terms ...)."""
+        dropped: dict[str, Any] = dict.fromkeys(self.not_applying(method))
+        return replace(self, **dropped)
+
+    def not_applying(self, method: str) -> dict[str, str]:
+        """The limits given that do not apply to ``method``, each with the reason."""
+        return {
+            name: why
+            for name, (methods, why) in NOT_APPLYING.items()
+            if method in methods and getattr(self, name) is not None
+        }
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {}
@@ -360,8 +377,13 @@ def verdict(
     matrix: FloatArray,
     poses: Sequence[tuple[str, str | None, Corrected]],
     limits: Limits,
+    fit_residual: float | None = None,
 ) -> list[Finding]:
-    """Every limit the unit is outside of (empty: pass). ``poses`` are (file, face, corrected)."""
+    """Every limit the unit is outside of (empty: pass). ``poses`` are (file, face, corrected).
+
+    A capture turned through many orientations (ROTATION) has no pose to read against the
+    reference: its residual limit judges ``fit_residual``, the fit's largest residual over
+    the samples, instead."""
     failures: list[Finding] = []
     a = np.linalg.inv(matrix)
     gain = np.diag(a)
@@ -401,6 +423,17 @@ def verdict(
                             limits.cross_axis,
                         )
                     )
+    if method in ROTATION:
+        if limits.residual is not None and fit_residual is not None and not abs(fit_residual) <= limits.residual:
+            failures.append(
+                Finding(
+                    "limit.residual",
+                    f"the fit's largest residual over the samples is {fit_residual:.3g}, outside ±{limits.residual:g}",
+                    fit_residual,
+                    limits.residual,
+                )
+            )
+        return failures
     for file, face, c in poses:
         where = {"file": file, "pose": face}
         worst = int(np.argmax(c.std))
