@@ -994,6 +994,26 @@ def test_usage_errors_are_one_line(
     assert_one_error(run(capsys, *args), expected, hint=hint)
 
 
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["show", SAMPLE / "lot" / "SN0001_20261121T090000Z.json"],
+        ["export", SAMPLE / "lot" / "SN0001_20261121T090000Z.json", "-f", "c-header"],
+    ],
+)
+def test_output_to_a_reader_already_gone_is_141(command: list[str | Path]) -> None:
+    """`tumblecal show cal.json | head -0`: every write fails; quietly 141 (Rich's own handler exits 1)."""
+    read, write = os.pipe()
+    os.close(read)
+    try:
+        proc = subprocess.run(
+            [tumblecal_exe(), *map(str, command)], stdout=write, stderr=subprocess.PIPE, timeout=60, check=False
+        )
+    finally:
+        os.close(write)
+    assert (proc.returncode, proc.stderr) == (141, b"")
+
+
 def test_closed_stdout_stops_quietly_with_141(tmp_path: Path) -> None:
     """`tumblecal apply ... | head -1`: the reader goes away; no traceback, status 141."""
     cal = tmp_path / "cal.json"

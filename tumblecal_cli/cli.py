@@ -2756,7 +2756,11 @@ def _print_verify(
 def _console(stderr: bool = True) -> Console:
     from rich.console import Console
 
-    return Console(stderr=stderr, highlight=False, markup=False)  # paths and column names are not markup
+    class Quiet(Console):
+        def on_broken_pipe(self) -> None:  # Rich's own exits 1; a closed reader is exit 141 here (main)
+            raise PipeClosed("output closed")
+
+    return Quiet(stderr=stderr, highlight=False, markup=False)  # paths and column names are not markup
 
 
 def _print_summary(
@@ -2855,7 +2859,8 @@ def main(argv: list[str] | None = None) -> int:
     """Run the CLI; return the exit status. Every error is reported here and only here."""
     try:
         result = app(args=argv, prog_name="tumblecal", standalone_mode=False)
-    except PipeClosed:
+        sys.stdout.flush()  # a reader that stopped early (`| head`) is found here, not at exit
+    except (PipeClosed, BrokenPipeError):
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no flush error at exit
         return PipeClosed.exit_code
     except TumblecalError as err:
