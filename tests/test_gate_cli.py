@@ -1135,6 +1135,16 @@ INVALID_FIELDS = [
         id="verdict-failure",
     ),
     pytest.param("verdict.limits=[0.05]", "field 'verdict.limits' must be an object", id="verdict-limits"),
+    pytest.param(
+        'verdict={"pass": true, "failures": [{"code": "limit.offset.x", "value": 1, "bound": 0.1}]}',
+        "field 'verdict' passes with 1 failures: the file was altered",
+        id="verdict-pass-with-failures",
+    ),
+    pytest.param(
+        'verdict={"pass": false, "failures": []}',
+        "field 'verdict' fails with 0 failures: the file was altered",
+        id="verdict-fail-without-failures",
+    ),
 ]
 
 

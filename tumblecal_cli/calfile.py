@@ -292,6 +292,13 @@ def _optional_fields(doc: dict[str, Any], path: str) -> None:
                 raise InputError(f"field 'verdict.failures[{k}]' must be an object with a 'code'", file=path)
         if not isinstance(verdict.get("limits") or {}, dict):
             raise InputError("field 'verdict.limits' must be an object", file=path)
+        if verdict["pass"] == bool(verdict["failures"]):  # edited by hand: which one is true?
+            said = "passes" if verdict["pass"] else "fails"
+            raise InputError(
+                f"field 'verdict' {said} with {len(verdict['failures'])} failures: the file was altered",
+                file=path,
+                hint="solve again, or judge it afresh with `tumblecal check` and your limits",
+            )
 
 
 def _read_object(path: str, what: str) -> dict[str, Any]:
