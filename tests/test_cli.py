@@ -771,7 +771,7 @@ def test_apply_bad_capture_to_file(
     src = BAD / name
     out = precious(tmp_path / "corrected.csv")
     r = run(capsys, "apply", "--cal", cal, src, "-o", out)
-    assert_one_error(r, f"{src}: {message}")
+    assert_one_error(r, f"{src}: {message}{apply_names_the_calibration(name, cal)}")
     assert_untouched(out)
 
 
@@ -779,7 +779,14 @@ def test_apply_bad_capture_to_file(
 def test_apply_bad_capture_to_stdout(name: str, message: str, cal: Path, capsys: pytest.CaptureFixture[str]) -> None:
     src = BAD / name
     r = run(capsys, "apply", "--cal", cal, src)
-    assert_one_error(r, f"{src}: {message}")  # not even the header reaches stdout
+    assert_one_error(
+        r, f"{src}: {message}{apply_names_the_calibration(name, cal)}"
+    )  # not even the header reaches stdout
+
+
+def apply_names_the_calibration(name: str, cal: Path) -> str:
+    """What apply adds to a capture without the sensor's columns: the calibration's side."""
+    return f", but {cal} calibrates accelerometer columns ax, ay, az" if name == "no_sensor_columns.csv" else ""
 
 
 @pytest.mark.parametrize(
@@ -833,7 +840,11 @@ def test_apply_capture_without_the_sensor_columns(
     src.write_text("t,gyr_x,gyr_y,gyr_z\n0,1,2,3\n")
     out = precious(tmp_path / "out.csv")
     r = run(capsys, "apply", "--cal", cal, src, "-o", out)
-    assert_one_error(r, f"{src}: no accelerometer x,y,z columns found (columns: t, gyr_x, gyr_y, gyr_z)")
+    assert_one_error(
+        r,
+        f"{src}: no accelerometer x,y,z columns found (columns: t, gyr_x, gyr_y, gyr_z), "
+        f"but {cal} calibrates accelerometer columns ax, ay, az",
+    )
     assert_untouched(out)
 
 

@@ -1502,7 +1502,7 @@ def apply(
         raise InputError("--columns names the columns of one calibration; with several --cal each uses its own")
     picked = columns.split(",") if columns else None
     c = cals[0]
-    with captures.open_capture(one, sensor=c.sensor, columns=picked, prefer=c.columns, no_header=no_header) as cap:
+    with _capture_for(c, one, picked, no_header) as cap:
         used = cap.layout.sensor_names
         differ = [u.lower() for u in used] != [x.lower() for x in c.columns]
         if differ and (picked or not cap.layout.has_header):  # the user named them, or nothing is named
@@ -1616,6 +1616,28 @@ def _refuse_failed(cal: Any, doing: str, command: str) -> None:
         file=cal.path,
         hint=f"pass --force to {command} it anyway",
     )
+
+
+@contextlib.contextmanager
+def _capture_for(cal: Any, path: str, picked: list[str] | None, no_header: bool) -> Iterator[Any]:
+    """A capture opened to be corrected by ``cal``: one without that sensor's columns is an
+    error naming both the capture and the calibration."""
+    from tumblecal_cli import captures
+
+    with contextlib.ExitStack() as stack:
+        try:
+            cap = stack.enter_context(
+                captures.open_capture(path, sensor=cal.sensor, columns=picked, prefer=cal.columns, no_header=no_header)
+            )
+        except InputError as err:
+            if not err.message.startswith(f"no {cal.sensor} x,y,z columns found"):
+                raise
+            raise InputError(
+                f"{err.message}, but {cal.path} calibrates {cal.sensor} columns {', '.join(cal.columns)}",
+                file=err.file,
+                hint="correct a capture of the sensor the calibration was made for, or name its columns with --columns",
+            ) from None
+        yield cap
 
 
 def _columns_of(layout: Any, cal: Any, taken: set[int]) -> tuple[int, int, int]:
