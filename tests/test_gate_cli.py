@@ -1209,10 +1209,20 @@ def test_check_pass_and_fail_leave_the_file_alone(unit_cal: Path, capsys: pytest
 def test_check_json(unit_cal: Path, capsys: pytest.CaptureFixture[str]) -> None:
     r = run(capsys, "check", "-q", unit_cal, "--max-offset", "0.04", "--json")
     assert (r.code, r.err) == (1, "")
-    assert json.loads(r.out) == {
+    summary = json.loads(r.out)
+    doc = json.loads(unit_cal.read_text())
+    # the same summary as solve --json: parameters, uncertainties and per-pose diagnostics too
+    for key in ("sensor", "method", "reference", "units", "columns", "offset", "matrix", "gain", "uncertainty"):
+        assert summary.pop(key) == doc[key], key
+    for key in ("tilt_sensitivity", "poses", "unit"):
+        assert summary.pop(key) == doc[key], key
+    assert summary == {
         "status": "fail",
         "exit_status": 1,
         "file": str(unit_cal),
+        "rejections": [],
+        "warnings": [],
+        "notes": [],
         "verdict": {
             "pass": False,
             "failures": [

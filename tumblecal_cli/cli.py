@@ -1749,17 +1749,11 @@ def check(
     residual = (c.doc.get("residuals") or {}).get("max")
     failures = gate.verdict(method, c.offset, c.matrix, poses, limits, residual)
     verdict = {"pass": not failures, "failures": [f.as_dict() for f in failures], "limits": limits.as_dict()}
-    if json_summary:
-        _print_json(
-            {
-                "status": "fail" if failures else "pass",
-                "exit_status": int(bool(failures)),
-                "file": cal,
-                "verdict": verdict,
-            }
-        )
+    notes = _limits_not_applying(given, method)
+    if json_summary:  # the same summary as solve --json, judged afresh
+        _print_json(_summary(c.doc | {"verdict": verdict}, int(bool(failures)), cal, [], [], notes))
     if not quiet:
-        _print_summary(c.doc | {"verdict": verdict}, _console(), [], [], judged=True)
+        _print_summary(c.doc | {"verdict": verdict}, _console(), [], notes, judged=True)
     if failures:
         raise typer.Exit(1)
 
