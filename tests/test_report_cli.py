@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.test_cli import feed_stdin
 from tests.test_formats import run
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -137,3 +138,31 @@ def test_report_csv_quotes_odd_serials(tmp_path: Path, capsys: pytest.CaptureFix
     parsed = list(csv.reader(io.StringIO(out)))
     assert {len(r) for r in parsed} == {13}
     assert rows(out)["offset.x"]["outliers"].startswith('SN,13 "x"=')
+
+
+def test_report_skips_the_limits_file_kept_beside_the_calibrations(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    lot = tmp_path / "lot"
+    lot.mkdir()
+    for path in sorted(LOT.glob("SN000[1-6]_*.json")):
+        shutil.copy(path, lot)
+    shutil.copy(LIMITS, lot / "limits.yaml")
+    code, out, err = run(["report", str(lot), "--limits", str(lot / "limits.yaml")], capsys)
+    assert code == 0, err
+    assert "lot of 6 units (6 files)" in err
+    assert rows(out)["offset.x"]["count"] == "6"
+    code, _, err = run(["report", str(lot)], capsys)  # not the limits file: another tool's file in the folder
+    assert code == 2
+    assert f"{lot / 'limits.yaml'}: " in err
+
+
+def test_report_reads_a_calibration_from_stdin(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    one = LOT / "SN0001_20261121T090000Z.json"
+    feed_stdin(monkeypatch, one.read_bytes())
+    code, out, err = run(["report", "-"], capsys)
+    assert code == 0, err
+    assert rows(out)["offset.x"]["count"] == "1"
+    assert float(rows(out)["offset.x"]["mean"]) == pytest.approx(json.loads(one.read_text())["offset"][0], rel=1e-6)

@@ -2093,7 +2093,7 @@ def report(
         raise InputError("--min-cpk needs --limits: Cpk is measured against the limits")
     drift_limits = lot.parse_max_drift(max_drift)
     limits = calfile.load_limits(limits_file) if limits_file else {}
-    found = lot.find(paths)
+    found = lot.find(paths, skip=limits_file)
     if plot is not None:
         from tumblecal_cli import plots
 

@@ -73,13 +73,17 @@ CSV_HEADER = [
 # --- which files --------------------------------------------------------------------------------
 
 
-def find(paths: list[str]) -> list[str]:
-    """The calibration files named: each path a file (taken as it is, whatever its name) or a
-    folder searched recursively for ``*.json``, ``*.yaml``, ``*.yml``. Inside a folder, hidden
-    files and folders (a name starting with '.', such as batch's staging files
-    ``.SN1.abc.partial.json``) are skipped. Sorted, each file once."""
+def find(paths: list[str], skip: str | None = None) -> list[str]:
+    """The calibration files named: each path a file (taken as it is, whatever its name; '-'
+    stdin) or a folder searched recursively for ``*.json``, ``*.yaml``, ``*.yml``. Inside a
+    folder, hidden files and folders (a name starting with '.', such as batch's staging files
+    ``.SN1.abc.partial.json``) are skipped, and so is ``skip`` (the limits file, kept beside the
+    calibrations). Sorted, each file once."""
     found: set[str] = set()
     for path in paths:
+        if path == "-":  # DESIGN.md section 5: '-' means stdin wherever a path is taken
+            found.add(path)
+            continue
         if not os.path.exists(path):
             raise InputError("no such file or folder", file=path)
         if not os.path.isdir(path):
@@ -88,8 +92,12 @@ def find(paths: list[str]) -> list[str]:
         for folder, dirs, names in os.walk(path):
             dirs[:] = [d for d in dirs if not d.startswith(".")]  # os.walk descends only into what is left
             for name in names:
-                if not name.startswith(".") and name.lower().endswith(SUFFIXES):
-                    found.add(os.path.normpath(os.path.join(folder, name)))
+                file = os.path.join(folder, name)
+                if name.startswith(".") or not name.lower().endswith(SUFFIXES):
+                    continue
+                if skip is not None and os.path.exists(skip) and os.path.samefile(file, skip):
+                    continue
+                found.add(os.path.normpath(file))
     if not found:
         raise InputError(f"no calibration files (*.json, *.yaml) in {', '.join(paths)}")
     return sorted(found)
