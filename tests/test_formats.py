@@ -16,7 +16,7 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tumblecal_cli import calfile, core, formats
+from tumblecal_cli import calfile, core, formats, lot
 from tumblecal_cli.cli import main
 from tumblecal_cli.core import FloatArray, Solution
 from tumblecal_cli.errors import InputError
@@ -469,6 +469,26 @@ def test_import_unknown_units_needs_reference(tmp_path: Path, capsys: pytest.Cap
     assert back["unit"]["serial"] == "U1"
 
 
+def test_import_ros_file_of_another_sensor_has_no_acceleration_units(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """imu_calib's files are accelerometers in m/s^2; read as a gyroscope or a magnetometer (a
+    file not from tumblecal), the units are unknown and a magnetometer's field must be given."""
+    peer = tmp_path / "plain.yaml"
+    peer.write_text("SM: [1, 0, 0, 0, 1, 0, 0, 0, 1]\nbias: [0.1, 0.2, 0.3]\n")
+    code, out, err = run(["import", str(peer), "--sensor", "gyroscope", "-q"], capsys)
+    assert code == 0, err
+    assert (json.loads(out)["units"], json.loads(out)["reference"]) == (None, 0.0)
+    code, out, err = run(["import", str(peer), "--sensor", "magnetometer", "-q"], capsys)
+    assert code == 2
+    assert "give --reference" in err
+    code, out, err = run(["import", str(peer), "--sensor", "magnetometer", "--reference", "48", "-q"], capsys)
+    assert code == 0, err
+    assert (json.loads(out)["units"], json.loads(out)["reference"]) == (None, 48.0)
+    code, out, _ = run(["import", str(peer), "-q"], capsys)
+    assert (json.loads(out)["units"], json.loads(out)["reference"]) == ("m/s^2", 9.80665)
+
+
 def test_imported_calibration_applies_and_exports(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """An imported file is a calibration like any other: show, apply and export read it."""
     cal = tmp_path / "cal.json"
@@ -539,12 +559,17 @@ def test_gain_trim_refuses_units_mistakes(
 def test_round_trip_keeps_what_the_export_recorded(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], fmt: str, sensor: str, method: str
 ) -> None:
-    """Sensor, serial, units, reference and columns travel in the export's comment and come back,
-    so apply on the original capture works with the imported calibration."""
+    """Sensor, serial, station, operator, date, method, units, reference and columns travel in
+    the export's comment and come back, so apply on the original capture works with the imported
+    calibration and report dates it from when it was made."""
     reference = {"accelerometer": 1.0, "magnetometer": 48.0, "gyroscope": 0.0}[sensor]
     cal = write_cal(
         tmp_path / "cal.json", [0.1, 0.2, 0.3], np.eye(3) * 0.5, method=method, sensor=sensor, reference=reference
     )
+    doc = json.loads(cal.read_text())
+    doc["unit"] |= {"station": "line 3", "operator": "Kim Lee"}
+    doc["created"] = "2026-03-04T05:06:07Z"
+    cal.write_text(json.dumps(doc))
     peer = tmp_path / "peer.txt"  # any name: --from says what it is
     assert run(["export", str(cal), "-f", fmt, "-o", str(peer)], capsys)[0] == 0
     code, out, err = run(["import", str(peer), "--from", fmt], capsys)
@@ -552,11 +577,14 @@ def test_round_trip_keeps_what_the_export_recorded(
     back, original = json.loads(out), calfile.load(str(cal)).doc
     for key in ("sensor", "reference", "units", "input_units", "columns"):
         assert back[key] == original[key], key
-    assert back["unit"]["serial"] == "SN-7"
+    assert back["unit"] | {"meta": {}} == {"serial": "SN-7", "station": "line 3", "operator": "Kim Lee", "meta": {}}
+    assert back["method"] == "imported"
+    assert (back["imported"]["created"], back["imported"]["method"]) == ("2026-03-04T05:06:07Z", method)
     capture = tmp_path / "c.csv"
     capture.write_text("t,ax,ay,az\n0,1.1,2.2,3.3\n")
     back_file = tmp_path / "back.json"
     back_file.write_text(out)
+    assert lot.entry(calfile.load(str(back_file))).created == "2026-03-04T05:06:07Z"  # report's date for it
     code, applied, err = run(["apply", "--cal", str(back_file), str(capture)], capsys)
     assert code == 0, err
     np.testing.assert_allclose([float(v) for v in applied.splitlines()[1].split(",")[1:]], [0.5, 1.0, 1.5], rtol=1e-12)

@@ -1992,7 +1992,9 @@ def import_(
         sensor=peer.sensor,
         reference=ref,
         columns=picked,
-        unit=_unit_block(serial if serial is not None else peer.serial, None, None, []),
+        unit=_unit_block(
+            serial if serial is not None else peer.serial, peer.was.get("station"), peer.was.get("operator"), []
+        ),
     )
     calfile.write(cal, output)
     if not quiet:
@@ -2012,7 +2014,7 @@ def _peer_reference(peer: Any, path: str) -> float:
         return float(peer.reference)
     if peer.sensor == "gyroscope":
         return 0.0
-    if peer.format == "ros-yaml":
+    if peer.format == "ros-yaml" and peer.sensor == "accelerometer":
         return 9.80665  # imu_calib's do_calib: reference_acceleration defaults to 9.80665
     by_units = {"g": 1.0, "m/s^2": 9.81, "m/s2": 9.81}  # imucal's Ferraris default expected gravity 9.81
     if peer.units in by_units:

@@ -11,7 +11,7 @@ import hashlib
 import json
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -276,6 +276,7 @@ class Peer:
     columns: list[str] | None
     serial: str | None
     notes: tuple[str, ...]
+    was: dict[str, Any] = field(default_factory=dict)  # what a tumblecal export recorded (see recorded())
 
 
 def detect(doc: dict[str, Any]) -> str | None:
@@ -292,8 +293,12 @@ def recorded(text: str) -> dict[str, Any]:
     out: dict[str, Any] = {}
     if found := re.search(r"tumblecal (accelerometer|magnetometer|gyroscope) calibration: (.*?)(?:;|$)", text, re.M):
         out["sensor"] = found.group(1)
-        serial = re.match(r"serial (.*?)(?:, station |, operator |$)", found.group(2))
-        out["serial"] = serial.group(1) if serial else None
+        who = found.group(2)
+        for key in ("serial", "station", "operator"):  # "serial A17, station S3, operator Kim"
+            value = re.search(rf"(?:^|, ){key} (.*?)(?=, station |, operator |$)", who)
+            out[key] = value.group(1) if value else None
+    if found := re.search(r"(?:^|; )created (\S+), method ([\w-]+)", text, re.M):
+        out["created"], out["method"] = found.group(1), found.group(2)
     units = r"(?:^|; )([^;\n]*?) in, ([^;\n]*?) out, reference ([-+0-9.eE]+)(?:; columns ([^;\n]+))?"
     if found := re.search(units, text, re.M):
         raw, cooked, reference, columns = found.groups()
@@ -316,7 +321,9 @@ def read_peer(doc: dict[str, Any], fmt: str, path: str, sensor: str | None, text
         was = recorded("\n".join(line[1:].strip() for line in text.splitlines() if line.startswith("#")))
         # SM raw - bias = SM (raw - SM^-1 bias): offset = SM^-1 bias
         offset = np.asarray(np.linalg.solve(sm, bias), dtype=np.float64)
-        return _peer(fmt, sensor, was, offset, sm, "m/s^2", None, ())  # imu_calib works in sensor_msgs/Imu's m/s^2
+        # imu_calib calibrates accelerometers, in sensor_msgs/Imu's m/s^2; other sensors' units are unknown
+        accel = (sensor or was.get("sensor") or "accelerometer") == "accelerometer"
+        return _peer(fmt, sensor, was, offset, sm, "m/s^2" if accel else None, None, ())
     if doc.get("cal_type") not in ("Ferraris", "TurntableFerraris"):
         raise InputError(
             f"imucal calibration type {doc.get('cal_type')!r} is not one tumblecal reads (Ferraris, TurntableFerraris)",
@@ -369,6 +376,7 @@ def _peer(
         columns=was.get("columns"),
         serial=was.get("serial"),
         notes=notes,
+        was=was,
     )
 
 
@@ -399,7 +407,8 @@ def imported(
         "gain": [float(v) for v in gain],
         "uncertainty": None,
         "poses": [],
-        "imported": {"format": peer.format, "file": path, "sha256": hashlib.sha256(raw).hexdigest()},
+        "imported": {"format": peer.format, "file": path, "sha256": hashlib.sha256(raw).hexdigest()}
+        | {k: peer.was[k] for k in ("created", "method") if peer.was.get(k)},  # the original's, when recorded
         "unit": unit,
         "created": created(),
         "tool": f"tumblecal {__version__}",

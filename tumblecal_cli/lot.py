@@ -136,7 +136,8 @@ def entry(cal: calfile.Loaded) -> Entry:
     return Entry(
         path=cal.path,
         serial=None if serial is None or str(serial).strip() == "" else str(serial),
-        created=_created_text(doc.get("created")),
+        # an imported calibration dates from when it was made, as its export recorded
+        created=_created_text((doc.get("imported") or {}).get("created") or doc.get("created")),
         sensor=cal.sensor,
         method=method,
         values=values,
