@@ -702,6 +702,26 @@ def test_minmax_in_one_plane(tmp_path: Path, capsys: pytest.CaptureFixture[str])
     r = run(capsys, "solve", "--sensor", "magnetometer", "--method", "minmax", "--poses", path, "-o", rejected)
     assert r.code == 3, r.err
     assert_untouched(rejected)
+    # ... and so is the wrong plane: z's noise alone would go round the xz "circle"
+    for plane in ("xz", "yz"):
+        r = run(capsys, *args[:6], plane, "--poses", path, "--reference", "50", "-o", rejected, "--json")
+        assert r.code == 3, r.err
+        [rejection] = json.loads(r.out)["rejections"]
+        assert rejection["code"] == "poses.coverage"
+        assert rejection["message"].startswith(f"the samples did not turn in the {plane} plane: z spans ")
+        assert rejection["message"].endswith("it looks like the xy plane")
+        assert_untouched(rejected)
+
+
+@pytest.mark.parametrize("spread", ["-1", "nan", "inf"])
+def test_bias_spread_must_be_a_finite_non_negative_number(
+    spread: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = precious(tmp_path / "cal.json")
+    r = run(capsys, "solve", *_args_one(tmp_path), "--tilt-compensate", "--bias-spread", spread, "-o", out)
+    assert r.code == 2
+    assert f"--bias-spread must be a number of 0 or more (the bias's 1-sigma spread), got {float(spread)}" in r.err
+    assert_untouched(out)
 
 
 def test_minmax_half_sphere_is_rejected(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -874,6 +874,8 @@ def _method_options(name: str, ref: float, plane: Any, bias_spread: float | None
     for flag, given, wanted in (("--plane", plane, "minmax"), ("--bias-spread", bias_spread, "one-pose-tilt")):
         if given is not None and name != wanted:
             raise InputError(f"{flag} is for the {wanted} method, not {name}")
+    if bias_spread is not None and not (math.isfinite(bias_spread) and bias_spread >= 0):
+        raise InputError(f"--bias-spread must be a number of 0 or more (the bias's 1-sigma spread), got {bias_spread}")
 
 
 def _pose_items(items: list[str], up: str) -> list[tuple[str | None, str]]:

@@ -490,6 +490,10 @@ def one_pose_tilt(pose: PoseStats, up: str, reference: float, tolerance_deg: flo
 # -- magnetometer: min/max (seed 002) ------------------------------------------------------------------
 
 
+#: In 2-D min/max, each in-plane axis spans at least this fraction of the other's range.
+PLANE_SPAN = 0.5
+
+
 def minmax(samples: FloatArray, plane: str | None = None) -> Fit:
     """Hard iron from the extremes (seed 002): ``offset = (max + min) / 2`` per axis.
 
@@ -516,6 +520,19 @@ def minmax(samples: FloatArray, plane: str | None = None) -> Fit:
         cover = coverage(directions)
     else:
         i, j = axes
+        span = hi - lo
+        if not span[i] >= PLANE_SPAN * span[j] or not span[j] >= PLANE_SPAN * span[i]:
+            # a circle in the plane spans both of its axes alike (soft iron rarely 2:1); an axis
+            # that hardly moved was not in the plane, and its noise would pass the gap test
+            flat = "xyz"[i] if span[i] < span[j] else "xyz"[j]
+            turned = "".join(sorted("xyz"[k] for k in np.argsort(span)[-2:]))
+            raise CaptureRejected(
+                f"the samples did not turn in the {plane} plane: {flat} spans {min(span[i], span[j]):.3g} "
+                f"against {max(span[i], span[j]):.3g} (spans x {span[0]:.3g}, y {span[1]:.3g}, z {span[2]:.3g}); "
+                f"it looks like the {turned} plane",
+                hint=f"give --plane {turned}, or turn the unit a full circle in the {plane} plane",
+                code="poses.coverage",
+            )
         angles = np.arctan2(centred[:, j], centred[:, i])
         bins = np.unique(np.floor((angles + math.pi) / (2 * math.pi) * 12).astype(int) % 12)
         cover = len(bins) / 12
