@@ -1,5 +1,5 @@
 """``python -m tumblecal_cli`` runs the same CLI as the ``tumblecal`` console script."""
 
-from tumblecal_cli.cli import main
+from tumblecal_cli.cli import main_exit
 
-raise SystemExit(main())
+main_exit()
