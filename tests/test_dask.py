@@ -96,7 +96,7 @@ def scheduler(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
                 n_workers=2,
                 threads_per_worker=1,
                 processes=True,
-                dashboard_address=None,
+                dashboard_address=":0",  # a free port: None still takes 8787 (distributed 2026.8)
                 local_directory=str(home / "scratch"),
             )
         try:
