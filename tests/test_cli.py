@@ -1025,6 +1025,23 @@ def test_output_to_a_reader_already_gone_is_141(command: list[str | Path]) -> No
     assert (proc.returncode, proc.stderr) == (141, b"")
 
 
+@pytest.mark.parametrize("command", ["apply", "solve"])
+def test_output_onto_the_file_on_stdin_is_refused(command: str, cal: Path, tmp_path: Path) -> None:
+    """`tumblecal apply --cal cal.json -o c.csv < c.csv`: the input arrives by stdin, not by name."""
+    capture = tmp_path / "c.csv"
+    shutil.copy(SAMPLE / "z.csv", capture)
+    before = capture.read_bytes()
+    args = ["apply", "--cal", str(cal)] if command == "apply" else ["solve", "--poses", "-"]
+    with capture.open("rb") as stdin:
+        proc = subprocess.run(
+            [tumblecal_exe(), *args, "-o", str(capture)], stdin=stdin, capture_output=True, timeout=60, check=False
+        )
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.decode().splitlines()[0] == f"error: {capture}: -o would overwrite the input standard input"
+    assert capture.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
+
+
 def test_closed_stdout_stops_quietly_with_141(tmp_path: Path) -> None:
     """`tumblecal apply ... | head -1`: the reader goes away; no traceback, status 141."""
     cal = tmp_path / "cal.json"

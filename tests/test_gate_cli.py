@@ -1136,6 +1136,11 @@ INVALID_FIELDS = [
     ),
     pytest.param("verdict.limits=[0.05]", "field 'verdict.limits' must be an object", id="verdict-limits"),
     pytest.param(
+        'columns=["ax", "AX", "az"]',
+        "field 'columns' must name three different columns, got ax, AX, az",
+        id="columns-repeated",
+    ),
+    pytest.param(
         'verdict={"pass": true, "failures": [{"code": "limit.offset.x", "value": 1, "bound": 0.1}]}',
         "field 'verdict' passes with 1 failures: the file was altered",
         id="verdict-pass-with-failures",

@@ -188,6 +188,8 @@ def load(path: str) -> Loaded:
     columns = doc["columns"]
     if not (isinstance(columns, list) and len(columns) == 3 and all(isinstance(c, str) for c in columns)):
         raise InputError("field 'columns' must be a list of three column names", file=path)
+    if len({c.strip().lower() for c in columns}) != 3:  # one column corrected twice, another not at all
+        raise InputError(f"field 'columns' must name three different columns, got {', '.join(columns)}", file=path)
     _vector(doc["gain"], "gain", path)  # required by the contract, so validated like offset
     _optional_fields(doc, path)
     return Loaded(

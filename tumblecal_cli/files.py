@@ -17,10 +17,23 @@ def check_not_input(output: str, inputs: Iterable[str], flag: str = "-o") -> Non
     if output == "-" or not os.path.exists(output):
         return
     for path in inputs:
-        if path != "-" and os.path.exists(path) and os.path.samefile(output, path):
+        if path == "-":  # `... -o c.csv < c.csv`: stdin is that very file
+            same = _is_stdin(output)
+        else:
+            same = os.path.exists(path) and os.path.samefile(output, path)
+        if same:
+            what = "standard input" if path == "-" else path
             raise InputError(
-                f"{flag} would overwrite the input {path}", file=output, hint="write the output to a new file"
+                f"{flag} would overwrite the input {what}", file=output, hint="write the output to a new file"
             )
+
+
+def _is_stdin(path: str) -> bool:
+    try:
+        there, here = os.fstat(sys.stdin.fileno()), os.stat(path)
+    except (OSError, ValueError, AttributeError):  # no stdin, or one without a file descriptor
+        return False
+    return (there.st_dev, there.st_ino) == (here.st_dev, here.st_ino)
 
 
 def check_writable(output: str, flag: str = "-o") -> None:
