@@ -11,8 +11,10 @@ import io
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -1040,6 +1042,42 @@ def test_output_onto_the_file_on_stdin_is_refused(command: str, cal: Path, tmp_p
     assert proc.stderr.decode().splitlines()[0] == f"error: {capture}: -o would overwrite the input standard input"
     assert capture.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
+
+
+def test_sigterm_mid_apply_leaves_no_temporary_file(cal: Path, tmp_path: Path) -> None:
+    """A station's kill (SIGTERM) is handled as Ctrl-C: exit 130, the old output as it was, no
+    hidden temporary file beside it."""
+    big = tmp_path / "big.csv"
+    rows = "\n".join(f"{i},0.01,0.02,1.0" for i in range(2_000_000))
+    big.write_text(f"t,ax,ay,az\n{rows}\n")
+    out = tmp_path / "out"
+    out.mkdir()
+    target = precious(out / "corrected.csv")
+    with subprocess.Popen(
+        [tumblecal_exe(), "apply", "-q", "--cal", str(cal), str(big), "-o", str(target)], stderr=subprocess.PIPE
+    ) as proc:
+        deadline = time.monotonic() + 30
+        while not any(p.name.endswith(".tmp") for p in out.iterdir()) and time.monotonic() < deadline:
+            time.sleep(0.01)  # until it has started writing
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=60) == 130
+        assert proc.stderr is not None
+        assert proc.stderr.read().decode().splitlines() == ["error: interrupted (SIGTERM)"]
+    assert_untouched(target)
+    assert sorted(p.name for p in out.iterdir()) == ["corrected.csv"]
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full")
+def test_a_full_disk_is_an_error_not_a_bug() -> None:
+    with open("/dev/full", "wb") as full:
+        proc = subprocess.run(
+            [tumblecal_exe(), "solve", "--poses", str(SAMPLE / "z.csv")],
+            stdout=full,
+            stderr=subprocess.PIPE,
+            check=False,
+        )
+    assert proc.returncode == 2
+    assert proc.stderr.decode().splitlines() == ["error: <stdout>: cannot write: No space left on device"]
 
 
 def test_closed_stdout_stops_quietly_with_141(tmp_path: Path) -> None:

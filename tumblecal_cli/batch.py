@@ -23,7 +23,7 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from tumblecal_cli.errors import InputError, TumblecalError
+from tumblecal_cli.errors import InputError, Interrupted, TumblecalError
 
 #: Files a unit folder's poses (or log) may be in; anything else there is left alone.
 DATA_SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
@@ -261,6 +261,8 @@ def _run_unit(unit: Unit, options: dict[str, Any], out_dir: str, log: bool, toke
         cli.solve(**args)
     except typer.Exit as done:
         status = done.exit_code
+    except Interrupted:  # the batch is being stopped, not this unit failing
+        raise
     except TumblecalError as err:
         return row | _failed(err)
     except Exception as err:  # a bug: this unit's error, with what to report

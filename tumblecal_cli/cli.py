@@ -20,7 +20,7 @@ import typer
 from typer.core import TyperCommand
 
 from tumblecal_cli import __version__
-from tumblecal_cli.errors import CaptureRejected, InputError, PipeClosed, TumblecalError
+from tumblecal_cli.errors import CaptureRejected, InputError, Interrupted, PipeClosed, TumblecalError
 
 if TYPE_CHECKING:
     from collections.abc import Iterator
@@ -2611,7 +2611,7 @@ def batch(**given: Any) -> None:
     token = f"{os.getpid()}-{time.time_ns()}"  # names this batch's staging files
     summary = batches.Summary(out_dir, rows)
     try:
-        with _batch_progress(console, len(todo), enabled=not quiet) as (show, tick), _term_as_interrupt():
+        with _batch_progress(console, len(todo), enabled=not quiet) as (show, tick):
             epoch = os.environ.get("SOURCE_DATE_EPOCH", "")  # the caller's, wherever the units run
             work = [(u, given, out_dir, log, token, epoch) for u in todo]
             for (unit, *_), outcome in run(batches.run_unit, work):
@@ -2678,12 +2678,12 @@ app.command(cls=Command, epilog=BATCH_EXIT)(batch)
 
 @contextlib.contextmanager
 def _term_as_interrupt() -> Iterator[None]:
-    """SIGTERM (a scheduler's or a station's kill) stops a batch as Ctrl-C does: the summary
-    is written and the worker processes are shut down."""
+    """SIGTERM (a scheduler's or a station's kill) stops a command as Ctrl-C does: partial
+    outputs removed, a batch's summary written and its worker processes shut down; exit 130."""
     import signal
 
     def interrupt(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt
+        raise Interrupted("interrupted (SIGTERM)")
 
     try:
         previous = signal.signal(signal.SIGTERM, interrupt)
@@ -2878,7 +2878,8 @@ def _at(block: dict[str, Any], name: str, i: int) -> float | None:
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; return the exit status. Every error is reported here and only here."""
     try:
-        result = app(args=argv, prog_name="tumblecal", standalone_mode=False)
+        with _term_as_interrupt():  # a station's or scheduler's kill: outputs cleaned up as for Ctrl-C
+            result = app(args=argv, prog_name="tumblecal", standalone_mode=False)
         sys.stdout.flush()  # a reader that stopped early (`| head`) is found here, not at exit
     except (PipeClosed, BrokenPipeError):
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no flush error at exit
@@ -2901,6 +2902,12 @@ def main(argv: list[str] | None = None) -> int:
     except (typer.Abort, KeyboardInterrupt):
         _report("interrupted", None)
         return 130
+    except OSError as err:  # the system refused a write (a full disk, stdout on /dev/full): not a bug
+        if _state["debug"]:
+            raise
+        where = err.filename if err.filename is not None else "<stdout>"
+        _report(f"{where}: cannot write: {err.strerror or err}", None)
+        return 2
     except Exception as err:  # a bug: one line unless --debug
         if _state["debug"]:
             raise

@@ -65,3 +65,10 @@ class PipeClosed(TumblecalError):
     """Whoever reads stdout went away (``| head``): stop quietly, as a Unix filter does."""
 
     exit_code = 141
+
+
+class Interrupted(TumblecalError):
+    """Stopped by SIGTERM (a station's or a scheduler's kill): outputs are cleaned up as for
+    an error, and the status is Ctrl-C's."""
+
+    exit_code = 130

@@ -17,10 +17,8 @@ def check_not_input(output: str, inputs: Iterable[str], flag: str = "-o") -> Non
     if output == "-" or not os.path.exists(output):
         return
     for path in inputs:
-        if path == "-":  # `... -o c.csv < c.csv`: stdin is that very file
-            same = _is_stdin(output)
-        else:
-            same = os.path.exists(path) and os.path.samefile(output, path)
+        # `... -o c.csv < c.csv`: the input on stdin is that very file
+        same = _is_stdin(output) if path == "-" else os.path.exists(path) and os.path.samefile(output, path)
         if same:
             what = "standard input" if path == "-" else path
             raise InputError(
