@@ -25,7 +25,7 @@ import pytest
 import yaml
 from numpy.typing import NDArray
 
-from tumblecal_cli import __version__
+from tumblecal_cli import __version__, core
 from tumblecal_cli.cli import main
 from tumblecal_cli.errors import InputError
 
@@ -984,6 +984,30 @@ def test_solve_rejects_a_non_finite_reading(tmp_path: Path, capsys: pytest.Captu
     r = run(capsys, "solve", "--poses", pose, "-o", out)
     assert_one_error(r, f"{pose}: not a finite number: 'nan' (line 3, column ay)")
     assert_untouched(out)
+
+
+def test_apply_passes_non_finite_readings_through_quietly(
+    cal: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A logger's inf or nan stays inf or nan on the axes M mixes it into, and only there (inf x 0
+    is not a nan on the other axes), with no numpy warning (the suite turns warnings into errors)."""
+    doc = json.loads(cal.read_text())
+    diagonal = np.diag([1.01, 0.99, 1.0])
+    doc |= {"matrix": diagonal.tolist(), "gain": np.diag(np.linalg.inv(diagonal)).tolist()}
+    cal.write_text(json.dumps(doc))
+    src = tmp_path / "c.csv"
+    src.write_text("t,ax,ay,az\n1,0.1,0.2,1.0\n2,inf,0.2,1.0\n3,nan,nan,nan\n")
+    r = run(capsys, "apply", "-q", "--cal", cal, src)
+    assert (r.code, r.err) == (0, "")
+    rows = [line.split(",") for line in r.out.splitlines()[1:]]
+    assert [row[0] for row in rows] == ["1", "2", "3"]
+    good = core.apply(np.array([[0.1, 0.2, 1.0]]), np.array(doc["offset"]), diagonal)[0]
+    assert rows[1][1:] == ["inf", repr(float(good[1])), repr(float(good[2]))]
+    assert rows[2][1:] == ["nan", "nan", "nan"]
+    mixed = np.asarray(MATRIX)  # with cross-axis terms, inf reaches the axes that mix x in
+    assert np.isinf(core.apply(np.array([[np.inf, 0.2, 1.0]]), OFFSET, mixed)[0]).tolist() == [
+        bool(v) for v in mixed[:, 0] != 0
+    ]
 
 
 # -- the parser's usage errors and a closed pipe ----------------------------------------

@@ -247,7 +247,16 @@ def apply(raw: FloatArray, offset: FloatArray, matrix: FloatArray) -> FloatArray
     OpenBLAS, whose spinning threads made ``tumblecal apply`` 1.5x slower on 2 cores.
     """
     d = raw - offset
-    return d[:, 0:1] * matrix[:, 0] + d[:, 1:2] * matrix[:, 1] + d[:, 2:3] * matrix[:, 2]
+    with np.errstate(invalid="ignore", over="ignore"):  # nan and inf readings pass through, quietly
+        out: FloatArray = d[:, 0:1] * matrix[:, 0] + d[:, 1:2] * matrix[:, 1] + d[:, 2:3] * matrix[:, 2]
+        odd = ~np.isfinite(d).all(axis=1)
+        if odd.any():  # inf x 0 is nan: an axis M does not mix in must not spoil the others
+            rows = d[odd]
+            fixed = np.zeros_like(rows)
+            for i, j in zip(*np.nonzero(matrix), strict=True):
+                fixed[:, i] += rows[:, j] * matrix[i, j]
+            out[odd] = fixed
+    return out
 
 
 def _fmt(v: FloatArray) -> str:
