@@ -1010,6 +1010,18 @@ def test_apply_passes_non_finite_readings_through_quietly(
     ]
 
 
+def test_up_with_several_pose_files_is_a_usage_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """--up names the face of one file; with three it would be silently ignored."""
+    out = precious(tmp_path / "cal.json")
+    r = run(capsys, "solve", "--poses", *POSES_3, "--up", "-x", "-o", out)
+    assert_one_error(
+        r,
+        "--up names the face of a single pose file, not of 3",
+        hint="label each file instead (+x=xp.csv -x=xn.csv ...), or give them in the order +x +y +z",
+    )
+    assert_untouched(out)
+
+
 # -- the parser's usage errors and a closed pipe ----------------------------------------
 
 

@@ -353,14 +353,16 @@ def solve(
         ),
     ] = "-",
     up: Annotated[
-        str,
+        str | None,
         typer.Option(
             "--up",
             metavar="FACE",
             help="1-pose: the sensor axis pointing up, which reads +reference: +x -x +y -y +z -z "
-            "(or xp xn yp yn zp zn). A sensor that reads -1 g on the axis pointing up is the opposite face.",
+            "(or xp xn yp yn zp zn). A sensor that reads -1 g on the axis pointing up is the opposite face. "
+            "[default: +z]",
+            show_default=False,
         ),
-    ] = "+z",
+    ] = None,
     reference: Annotated[
         float | None,
         typer.Option(
@@ -574,6 +576,11 @@ def solve(
     labels: list[str | None] = []
     files: list[str] = [] if log is None else [log]
     if poses:
+        if up is not None and len(poses) != 1:
+            raise InputError(
+                f"--up names the face of a single pose file, not of {len(poses)}",
+                hint="label each file instead (+x=xp.csv -x=xn.csv ...), or give them in the order +x +y +z",
+            )
         items = _pose_items(poses, up_face)
         if sum(f == "-" for _, f in items) > 1:
             raise InputError("only one pose can be read from stdin ('-')")
@@ -819,7 +826,7 @@ def _solve_settings(
     meta: list[str] | None,
     method: MethodName,
     tilt_compensate: bool,
-    up: str,
+    up: str | None,
     sensor: SensorKind,
     reference: float | None,
     max_noise: float | None,
@@ -850,7 +857,7 @@ def _solve_settings(
     chosen = MethodName.one_pose_tilt if tilt_compensate and method is MethodName.auto else method
     if tilt_compensate and chosen is not MethodName.one_pose_tilt:
         raise InputError(f"--tilt-compensate is the one-pose-tilt method, not {chosen.value}")
-    up_face = _face(up, "--up")
+    up_face = _face(up or "+z", "--up")
     for option, value in (("--max-noise", max_noise), ("--max-tilt", max_tilt), ("--full-scale", full_scale)):
         if value is not None and not value > 0:
             raise InputError(f"{option} must be positive, got {value:g}")
