@@ -459,6 +459,31 @@ def test_segment_writes_other_kept_blocks_as_blockNN(tmp_path: Path, capsys: pyt
     assert first_block == rows[int(index[0]["first_row"]) : int(index[0]["last_row"]) + 1]
 
 
+def test_segment_again_into_the_same_folder_replaces_the_earlier_blocks(
+    six_level_csv: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Re-running (a new --threshold, another log) must not leave the first run's block files
+    beside the new ones for `solve --poses out/*.csv` to pick up; other files stay."""
+    poses = [Pose("+x", hold=250), Pose("-x"), Pose("+x", hold=450), *six_poses()[2:]]
+    first = write_log(tmp_path / "first.csv", synth_log(poses, seed=5))
+    out = tmp_path / "poses"
+    assert run(capsys, "segment", first, "-d", out, "-q").code == 0
+    assert (out / "block01.csv").exists()
+    (out / "notes.csv").write_text("operator notes\n")
+    r = run(capsys, "segment", six_level_csv, "-d", out)
+    assert r.code == 0, r.err
+    assert (
+        r.err.splitlines()[-1]
+        == f"wrote 6 block files and segments.csv to {out}; removed 1 block files of the earlier segmentation"
+    )
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        ["notes.csv", "segments.csv", "xp.csv", "xn.csv", "yp.csv", "yn.csv", "zp.csv", "zn.csv"]
+    )
+    assert [row["file"] for row in index_of((out / "segments.csv").read_text())] == [
+        "xp.csv", "xn.csv", "yp.csv", "yn.csv", "zp.csv", "zn.csv"
+    ]  # fmt: skip
+
+
 def test_segment_without_out_dir_prints_the_index(
     six_level_csv: Path,
     six_level: SynthLog,

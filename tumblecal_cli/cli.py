@@ -2459,14 +2459,33 @@ def segment(
                 check_path = os.path.join(out_dir, f)
                 if os.path.exists(check_path) and os.path.samefile(check_path, log):
                     raise InputError(f"--out-dir would overwrite the input with {f}", file=log)
+        earlier = _earlier_blocks(out_dir) - set(files.values())
         os.makedirs(out_dir, exist_ok=True)
         kept = seg.kept
         spans = [(int(data.rows[b.first]), int(data.rows[b.last])) for b in kept]
         captures.copy_rows(path, data.layout, spans, [os.path.join(out_dir, files[b.number]) for b in kept])
         with atomic_output(os.path.join(out_dir, "segments.csv")) as out:
             out.write(text.getvalue().encode())
+        for name in sorted(earlier):  # a re-run replaces the earlier segmentation, never mixes with it
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(os.path.join(out_dir, name))
     if not quiet:
-        _console().print(f"wrote {len(kept)} block files and segments.csv to {out_dir}", soft_wrap=True)
+        gone = f"; removed {len(earlier)} block files of the earlier segmentation" if earlier else ""
+        _console().print(f"wrote {len(kept)} block files and segments.csv to {out_dir}{gone}", soft_wrap=True)
+
+
+def _earlier_blocks(out_dir: str) -> set[str]:
+    """The block files an earlier ``segment`` wrote into ``out_dir``, by its segments.csv: only
+    names this command gives (xp.csv ... block07.csv), never another file of the folder."""
+    import csv
+
+    index = os.path.join(out_dir, "segments.csv")
+    try:
+        with open(index, newline="", encoding="utf-8") as f:
+            names = {row.get("file") or "" for row in csv.DictReader(f)}
+    except (OSError, UnicodeDecodeError, csv.Error):
+        return set()
+    return {n for n in names if re.fullmatch(r"(?:[xyz][pn]|block\d{2,})\.csv", n)}
 
 
 BATCH_PANEL = "Batch"
