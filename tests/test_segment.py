@@ -559,6 +559,29 @@ def test_segment_pose_column(six_tilted: SynthLog, tmp_path: Path, capsys: pytes
         assert data_lines(out / row["file"]) == (head, rows[int(row["first_row"]) : int(row["last_row"]) + 1])
 
 
+def test_a_pose_map_that_contradicts_the_data_is_caught(
+    six_tilted: SynthLog, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """x_p and x_a mapped the wrong way round: each block's angle is from its label's face (not
+    the nearest one), so both are dropped as mislabelled and the hint says to check the map."""
+    src = write_log(tmp_path / "annotated.csv", six_tilted, with_labels=True)
+    swapped = POSE_MAP.replace("x_p=+x", "x_p=TMP").replace("x_a=-x", "x_a=+x").replace("x_p=TMP", "x_p=-x")
+    r = run(capsys, "segment", src, "--pose-column", "part", "--pose-map", swapped)
+    assert r.code == 0, r.err
+    rows = {row["label"]: row for row in index_of(r.out) if row["label"] in ("x_p", "x_a")}
+    for label, face in (("x_p", "-x"), ("x_a", "+x")):
+        row = rows[label]
+        assert (row["status"], row["reason"], row["face"]) == ("dropped", segment.MISLABELLED, face)
+        assert float(row["angle_deg"]) > 150.0  # from the label's face, not the nearest one's few degrees
+    hint = (
+        "hint: no +x block: label 'x_a' is mapped to +x but its block 4 reads like -x (180° from +x); check --pose-map"
+    )
+    assert hint in r.err.splitlines(), r.err
+    r = run(capsys, "solve", "--log", src, "--pose-column", "part", "--pose-map", swapped, "-o", tmp_path / "c.json")
+    assert r.code == 3
+    assert "hint: map each face's label with --pose-map" in r.err
+
+
 # -- tumblecal solve --log -------------------------------------------------------------------
 
 

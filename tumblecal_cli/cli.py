@@ -1064,7 +1064,11 @@ def _log_poses(log: Any, seg: Any, method: str, up: str, sensor: str) -> tuple[s
             raise CaptureRejected(
                 f"not the faces {method} needs ({need}); faces found: {faces}",
                 file=log.layout.name,
-                hint="rest the unit on each missing face for --min-duration; `tumblecal segment` lists every block",
+                hint=(
+                    "map each face's label with --pose-map; `tumblecal segment -v` lists every block"
+                    if seg.threshold is None  # a labelled log
+                    else "rest the unit on each missing face for --min-duration; `tumblecal segment` lists every block"
+                ),
                 more=tuple(segment.missing(seg, absent or [f for f in solvers.SIX_FACES if f not in best])),
                 code="log.faces",
             )

@@ -35,6 +35,7 @@ FLOOR_PERCENTILE = 10.0
 FLOOR_FACTOR = 3.0
 GAP_FACTOR = 3.0  # a time step this many times the typical one is a gap
 SHORT, NOISY, DRIFTING, UNMAPPED = "too short", "too noisy", "drifting", "not a pose label"
+MISLABELLED = "not its label's face"  # a labelled block whose data points elsewhere (a wrong --pose-map)
 
 
 @dataclass(frozen=True)
@@ -98,7 +99,9 @@ class Segmentation:
     def dropped_counts(self) -> str:
         """How many blocks were dropped for each reason: ``3 too short, 1 drifting``."""
         reasons = [b.dropped for b in self.blocks]
-        return ", ".join(f"{reasons.count(r)} {r}" for r in (SHORT, NOISY, DRIFTING, UNMAPPED) if r in reasons)
+        return ", ".join(
+            f"{reasons.count(r)} {r}" for r in (SHORT, NOISY, DRIFTING, UNMAPPED, MISLABELLED) if r in reasons
+        )
 
     def best(self) -> dict[str, Block]:
         """The best kept block of each face found: the longest, ties to the quieter."""
@@ -289,9 +292,13 @@ def _judge(
         nearest, angle, magnitude = _nearest_face(st.mean - seg.centre)
         face = nearest if angle <= settings.max_tilt_deg else None
         dropped = None
-        if faces is not None:  # a labelled log: the label says the face
+        if faces is not None:  # a labelled log: the label says the face, and the angle is from it
             face = faces[a]
             dropped = UNMAPPED if face is None else None
+            if face in FACES and magnitude > 0:
+                cosine = float((st.mean - seg.centre) @ np.asarray(FACES[face])) / magnitude
+                angle = math.degrees(math.acos(min(1.0, max(-1.0, cosine))))
+                dropped = MISLABELLED if angle > settings.max_tilt_deg else None
         if dropped is None and b - a + 1 < seg.min_samples:
             dropped = SHORT
         elif dropped is None and faces is None and float(st.std.max()) > settings.max_noise * magnitude:
@@ -354,7 +361,15 @@ def missing(seg: Segmentation, faces: Sequence[str]) -> list[str]:
         if face in have:
             continue
         if seg.threshold is None:  # a labelled log
-            hints.append(f"no {face} block: no label names {face} (map one with --pose-map LABEL={face})")
+            wrong = [b for b in seg.blocks if b.face == face and b.dropped == MISLABELLED]
+            if wrong:
+                b = wrong[0]
+                hints.append(
+                    f"no {face} block: label {b.label!r} is mapped to {face} but its block {b.number} reads like "
+                    f"{b.nearest} ({b.angle_deg:.0f}° from {face}); check --pose-map"
+                )
+            else:
+                hints.append(f"no {face} block: no label names {face} (map one with --pose-map LABEL={face})")
             continue
         near = [b for b in seg.blocks if b.nearest == face]
         facing = [b for b in near if b.angle_deg <= seg.max_tilt_deg]
