@@ -784,6 +784,25 @@ def test_time_of_rows_without_sensor_values_is_not_judged(
     )
 
 
+def test_how_the_time_was_read_is_said_when_it_looks_wrong(
+    six_level: SynthLog, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A time column in milliseconds read as seconds (100 Hz looks like 0.1 Hz), --rate over a
+    time column (its gaps and order go unchecked), and --window with no time at all."""
+    src = write_log(tmp_path / "ms.csv", six_level, times=six_level.times * 1000.0)
+    r = run(capsys, "segment", src)
+    assert len(index_of(r.out)) > 100  # read as seconds: a 1-sample window and minimum, blocks of noise
+    assert f"warning: {src}: the time column advances 10 s per sample (0.1 Hz); if it is not in seconds, " in r.err
+    r = run(capsys, "segment", src, "--time-unit", "ms")
+    assert (r.code, "advances" in r.err) == (0, False), r.err
+    r = run(capsys, "segment", src, "--rate", "100")
+    assert r.code == 0, r.err
+    assert f"warning: {src}: --rate 100 is used, not the time column t (no gap or order check)" in r.err.splitlines()
+    plain = write_log(tmp_path / "plain.csv", six_level, with_time=False)
+    r = run(capsys, "segment", plain, "--window", "40")
+    assert f"warning: {plain}: no time column and no --rate: --window and --min-duration are in samples" in r.err
+
+
 @pytest.fixture
 def usage_files(six_level_csv: Path, tmp_path: Path) -> dict[str, str]:
     pose = tmp_path / "pose.csv"

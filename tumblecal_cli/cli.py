@@ -987,9 +987,28 @@ def _segmented(
 
 def _find_blocks(log: Any, rate: float | None, pose_column: str | None, pose_map: str | None, settings: Any) -> Any:
     """The blocks of a log read in: by the detector, or by its label column."""
-    from tumblecal_cli import core, segment
 
     seconds = None if rate else log.seconds()
+    seg = _blocks_of(log, seconds, rate, pose_column, pose_map, settings)
+    name = log.layout.name
+    if rate and log.clock is not None:
+        column = log.layout.names[log.layout.time]
+        seg.warnings.append(f"{name}: --rate {rate:g} is used, not the time column {column} (no gap or order check)")
+    if seg.period is not None and seg.period >= 1.0 and seconds is not None:  # slower than 1 Hz: not an IMU's clock
+        seg.warnings.append(
+            f"{name}: the time column advances {seg.period:.3g} s per sample ({1 / seg.period:.3g} Hz); "
+            "if it is not in seconds, give --time-unit ms, us or ns"
+        )
+    if seg.period is None and (settings.window is not None or settings.min_duration is not None) and not rate:
+        seg.warnings.append(f"{name}: no time column and no --rate: --window and --min-duration are in samples")
+    return seg
+
+
+def _blocks_of(
+    log: Any, seconds: Any, rate: float | None, pose_column: str | None, pose_map: str | None, settings: Any
+) -> Any:
+    from tumblecal_cli import core, segment
+
     if pose_column is None:
         return segment.detect(log.values, seconds, rate, settings)
     mapping = _pose_map(pose_map)
@@ -1188,6 +1207,8 @@ def _print_blocks(log: Any, seg: Any, console: Console, *, used: dict[int, str],
             f"{len(seg.blocks)} block{'' if len(seg.blocks) == 1 else 's'} found, {len(seg.kept)} kept",
             soft_wrap=True,
         )
+    for warning in seg.warnings:
+        console.print(f"warning: {warning}", style="yellow", soft_wrap=True)
     if seg.gaps:
         console.print(
             f"warning: {name}: {len(seg.gaps)} gap{'s' if len(seg.gaps) > 1 else ''} in time (the first after data "

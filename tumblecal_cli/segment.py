@@ -91,6 +91,7 @@ class Segmentation:
     centre: FloatArray
     max_tilt_deg: float = 25.0
     gaps: list[int] = field(default_factory=list)  # sample index after each gap in time
+    warnings: list[str] = field(default_factory=list)  # for people: how the log's time was read
 
     @property
     def kept(self) -> list[Block]:
@@ -398,4 +399,4 @@ def missing(seg: Segmentation, faces: Sequence[str]) -> list[str]:
 
 
 def _length(samples: int, period: float | None) -> str:
-    return f"{samples * period:.2g} s" if period else f"{samples} samples"
+    return f"{samples * period:.3g} s" if period else f"{samples} samples"
