@@ -24,6 +24,8 @@ as the README's table.
 from __future__ import annotations
 
 import contextlib
+import csv
+import gzip
 import io
 import json
 import math
@@ -472,6 +474,71 @@ def test_session_six_pose_holds_on_the_unlabelled_still_blocks(
     assert h.rms_after < h.rms_before / 50  # measured 90x (six-pose), 100x (diagonal)
 
 
+# -- 5. continuous logs: segmented, the sphere fitted on every other still block -----------------------
+
+
+LOGS = DATA / "logs"
+
+
+@dataclass(frozen=True)
+class Log:
+    """A continuous public log and how to calibrate it."""
+
+    dataset: str
+    file: str  # in tests/data/logs (.gz: compressed)
+    reference: float
+    units: str
+    raw_in_output_units: bool
+
+
+XSENS_LOG = Log("imu_tk Xsens log (raw counts)", "xsens_acc.txt.gz", 1.0, "g", False)
+CKEXPLORER_LOG = Log("CK-Explorer log (g)", "ckexplorer_acc_log.csv", 1.0, "g", True)
+HASSAN_LOG = Log("Hassan & Bao phone log (m/s²)", "hassan_mobile_30orient.csv", 9.81, "m/s²", True)
+
+
+def log_sphere(workdir: Path, log: Log) -> Heldout:
+    """``tumblecal segment`` the log, fit ``sphere`` on the odd-numbered kept blocks (1st, 3rd
+    ...) and verify on the even ones: orientations it did not see, from the same session."""
+    source = LOGS / log.file
+    path = workdir / log.file.removesuffix(".gz")
+    if log.file.endswith(".gz"):
+        path.write_bytes(gzip.decompress(source.read_bytes()))
+    else:
+        path = source
+    blocks = workdir / f"{path.stem}_blocks"
+    r = tumblecal("segment", path, "-d", blocks, "-q")
+    assert r.code == 0, r.err
+    with (blocks / "segments.csv").open(newline="") as f:
+        kept = [row for row in csv.DictReader(f) if row["status"] == "kept"]
+    files = [blocks / row["file"] for row in sorted(kept, key=lambda row: int(row["block"]))]
+    fit, held = files[0::2], files[1::2]
+    cal = workdir / f"{path.stem}_sphere.json"
+    doc = solve(cal, fit, "--method", "sphere", "--reference", f"{log.reference}")
+    assert doc["method"] == "sphere"
+    names, after, before = figures(verify(cal, held), log.reference, raw_in_output_units=log.raw_in_output_units)
+    return Heldout(
+        log.dataset, "sphere", f"{len(fit)} still blocks (every other)", f"the other {len(held)}", log.units,
+        names, after, before,
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("log", "rms_after", "max_after"),
+    [(XSENS_LOG, 3e-4, 1e-3), (CKEXPLORER_LOG, 2e-3, 5e-3), (HASSAN_LOG, 0.12, 0.4)],  # measured x2-3
+    ids=["xsens", "ckexplorer", "hassan"],
+)
+def test_continuous_log_sphere_holds_on_its_other_still_blocks(
+    tmp_path: Path, log: Log, rms_after: float, max_after: float
+) -> None:
+    """Segmented with defaults, fitted on half the still blocks, read on the other half."""
+    h = log_sphere(tmp_path, log)
+    assert len(h.captures) >= 12
+    assert h.rms_after < rms_after
+    assert h.max_after < max_after
+    if h.rms_before is not None:
+        assert h.rms_after < h.rms_before / 5
+
+
 def all_figures(workdir: Path) -> list[Heldout]:
     """Every case, in the README's order (``tests/realdata_figures.py``)."""
     return [
@@ -485,4 +552,7 @@ def all_figures(workdir: Path) -> list[Heldout]:
         all_six_faces(workdir, NCSU_FACES, "six-pose-diagonal"),
         session_six_pose(workdir, "six-pose"),
         session_six_pose(workdir, "six-pose-diagonal"),
+        log_sphere(workdir, XSENS_LOG),
+        log_sphere(workdir, CKEXPLORER_LOG),
+        log_sphere(workdir, HASSAN_LOG),
     ]
