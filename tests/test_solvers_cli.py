@@ -916,6 +916,23 @@ def test_verify_json_per_capture_figures(acc_cal: Path, tmp_path: Path, capsys: 
     errors = np.array([row["error_after"] for row in doc["captures"]])
     assert doc["max_error"] == pytest.approx(np.abs(errors).max(), rel=1e-12)
     assert doc["rms_error"] == pytest.approx(np.sqrt(np.mean(errors**2)), rel=1e-12)
+    # the raw data is in g already (gains near 1): the error before is given too, and overall
+    raw = np.array([row["error_before"] for row in doc["captures"]])
+    np.testing.assert_allclose(raw, [row["norm_before"] - 1.0 for row in doc["captures"]], rtol=0, atol=1e-12)
+    assert doc["rms_error_before"] == pytest.approx(np.sqrt(np.mean(raw**2)), rel=1e-12)
+    assert doc["max_error_before"] > 10 * doc["max_error"]
+    assert doc["notes"] == []
+
+
+def test_verify_on_a_fitted_capture_says_it_is_a_self_check(
+    acc_cal: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    fitted = json.loads(acc_cal.read_text())["poses"][0]["file"]
+    r = run(capsys, "verify", "--cal", acc_cal, fitted, *checks(tmp_path), "--json")
+    assert r.code == 0, r.err
+    [note] = json.loads(r.out)["notes"]
+    assert note.startswith(f"{fitted}: the calibration was fitted on this capture ({fitted}): ")
+    assert f"note: {note}" in r.err.splitlines()
 
 
 def test_verify_max_norm_error(acc_cal: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -2310,12 +2310,26 @@ def verify(
     if max_norm_error is not None and not max_norm_error > 0:
         raise InputError(f"--max-norm-error must be positive, got {max_norm_error:g}")
     picked = columns.split(",") if columns else None
-    same_units = c.doc.get("method") in gate.FIXED_GAINS  # raw and corrected share units: "before" means something
+    # raw and corrected share units, so "before" means something: fixed gains, the same unit
+    # labels, or gains within 20 % of 1 (data already in g, m/s^2 ...: counts are far from it)
+    gains = [float(g) for g in c.doc.get("gain") or []]
+    same_units = (
+        c.doc.get("method") in gate.FIXED_GAINS
+        or (c.doc.get("input_units") is not None and c.doc.get("input_units") == c.doc.get("units"))
+        or (len(gains) == 3 and all(abs(g - 1.0) < 0.2 for g in gains))
+    )
+    fitted = {str(p.get("sha256")): str(p.get("file")) for p in c.doc.get("poses") or [] if p.get("sha256")}
+    notes: list[str] = []
     rows: list[dict[str, Any]] = []
     rejected: list[str] = []
     failed: list[str] = []
     for path in captures_:
         s = captures.read_samples(path, sensor=c.sensor, columns=picked, prefer=c.columns, no_header=no_header)
+        if s.sha256 in fitted:
+            notes.append(
+                f"{s.layout.name}: the calibration was fitted on this capture ({fitted[s.sha256]}): "
+                "it reads the reference by construction, a self-check rather than a verification"
+            )
         st = core.pose_stats(s.values)
         before = float((st.mean**2).sum() ** 0.5)
         fixed = gate.corrected(st.mean, st.std, None, c.offset, c.matrix, ref)  # the norm error, as solve's
@@ -2342,6 +2356,10 @@ def verify(
         "rms_error": float((sum(e * e for e in errors) / len(errors)) ** 0.5),
         "max_error": float(max(abs(e) for e in errors)),
     }
+    if same_units:
+        raw_errors = [r["error_before"] for r in rows]
+        overall["rms_error_before"] = float((sum(e * e for e in raw_errors) / len(raw_errors)) ** 0.5)
+        overall["max_error_before"] = float(max(abs(e) for e in raw_errors))
     status = 3 if rejected else (1 if failed else 0)
     if json_summary:
         _print_json(
@@ -2355,10 +2373,13 @@ def verify(
                 **overall,
                 "rejections": rejected,
                 "failed": failed,
+                "notes": notes,
             }
         )
     if not quiet:
         _print_verify(c.doc, rows, overall, ref, max_norm_error, failed)
+        for note in notes:
+            _console().print(f"note: {note}", soft_wrap=True, markup=False)
     if rejected:
         raise CaptureRejected(rejected[0], more=tuple(rejected[1:]), hint="capture it again holding the unit still")
     if failed:
@@ -2814,6 +2835,12 @@ def _print_verify(
     console.print(table)
     judged = f", limit ±{bound:g}" if bound is not None else ""
     verdict = "FAIL" if failed else "PASS" if bound is not None else "not judged"
+    if "rms_error_before" in overall:
+        console.print(
+            f"norm error before calibration: RMS {overall['rms_error_before']:.3g}, "
+            f"max {overall['max_error_before']:.3g}",
+            soft_wrap=True,
+        )
     console.print(
         f"norm error after calibration: RMS {overall['rms_error']:.3g}, max {overall['max_error']:.3g}{judged}: "
         f"{verdict}",
