@@ -363,6 +363,32 @@ def test_registers_refuse_what_does_not_fit(
     assert out.read_text() == "old\n"
 
 
+def test_registers_name_every_misfit_with_its_own_arithmetic_and_hint(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    cal = write_cal(tmp_path / "cal.json", [-6.0189, -48.2879, 29.4], np.eye(3))
+    code, _, err = run(["export", str(cal), "-f", "registers", "--lsb", "1", "--bits", "2"], capsys)
+    assert code == 2
+    errors = [line for line in err.splitlines() if line.startswith("error:")]
+    assert [e.split(": ")[2].split(" needs")[0] for e in errors] == ["offset_x", "offset_y", "offset_z"]
+    assert "hint: check --lsb" in err
+    code, _, err = run(
+        ["export", str(cal), "-f", "registers", "--lsb", "1", "--bits", "6", "--register-sign", "add"], capsys
+    )
+    assert code == 2
+    assert "offset_y needs 48 register counts (-(offset -48.2879) / --lsb 1), outside the signed 6-bit range" in err
+    gains = write_cal(tmp_path / "gains.json", [0, 0, 0], np.diag(1 / np.array([2088.0, 2048.0, 2000.0])))
+    args = ["export", str(gains), "-f", "registers", "--lsb", "1", "--bits", "4", "--gain-step", "0.001"]
+    code, _, err = run([*args, "--nominal-gain", "2048"], capsys)
+    assert code == 2
+    assert "gain_x needs -19 register counts" in err
+    assert "hint: check --gain-step (what one count adds to the factor) and --nominal-gain, or --bits" in err
+    zero = write_cal(tmp_path / "zero.json", [0.0, 0.0, 0.0], np.eye(3))
+    code, out, _ = run(["export", str(zero), "-f", "registers", "--lsb", "1", "--register-sign", "add"], capsys)
+    assert code == 0
+    assert {row[2] for row in registers(out).values()} == {"0"}  # never "-0"
+
+
 @given(offset=st.floats(-1e4, 1e4), lsb=st.floats(0.01, 100), bits=st.integers(4, 24))
 @settings(max_examples=200, deadline=None)
 def test_register_counts_round_to_nearest_and_fit(offset: float, lsb: float, bits: int) -> None:

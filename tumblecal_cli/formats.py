@@ -140,9 +140,15 @@ def registers(
     low, high = -(2 ** (bits - 1)), 2 ** (bits - 1) - 1
     factor = 1.0 if sign == "subtract" else -1.0
     out = []
+    misfits: list[InputError] = []  # every register that does not fit is named, not just the first
     for axis, b in zip("xyz", cal.offset, strict=True):
-        count = _fit(f"offset_{axis}", b / lsb * factor, low, high, bits, f"offset {b:.6g} / --lsb {lsb:g}", cal)
-        removed = factor * count * lsb
+        why = f"offset {b:.6g} / --lsb {lsb:g}" if sign == "subtract" else f"-(offset {b:.6g}) / --lsb {lsb:g}"
+        try:
+            count = _fit(f"offset_{axis}", b / lsb * factor, low, high, bits, why, cal, OFFSET_HINT)
+        except InputError as err:
+            misfits.append(err)
+            continue
+        removed = factor * count * lsb + 0.0  # + 0.0: no "-0" for a zero count
         out.append(Register(f"offset_{axis}", count, _hex(count, bits), removed, float(b), float(b - removed)))
     if gain_step is not None:
         nominal = np.ones(3) if nominal_gain is None else nominal_gain
@@ -155,10 +161,23 @@ def registers(
                     file=cal.path,
                     hint="--nominal-gain is in the calibration's raw units per output unit, like its gain",
                 )
-            count = _fit(f"gain_{axis}", (want - 1) / gain_step, low, high, bits, f"factor {want:.6g}", cal)
+            try:
+                count = _fit(
+                    f"gain_{axis}", (want - 1) / gain_step, low, high, bits, f"factor {want:.6g}", cal, GAIN_HINT
+                )
+            except InputError as err:
+                misfits.append(err)
+                continue
             value = 1 + count * gain_step
             out.append(Register(f"gain_{axis}", count, _hex(count, bits), value, want, want - value))
+    if misfits:
+        first = misfits[0]
+        raise InputError(first.message, file=first.file, hint=first.hint, more=tuple(str(e) for e in misfits[1:]))
     return out
+
+
+OFFSET_HINT = "check --lsb (raw units per register count) against the calibration's raw units, or --bits"
+GAIN_HINT = "check --gain-step (what one count adds to the factor) and --nominal-gain, or --bits"
 
 
 def registers_csv(rows: list[Register]) -> str:
@@ -167,14 +186,14 @@ def registers_csv(rows: list[Register]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _fit(name: str, exact: float, low: int, high: int, bits: int, why: str, cal: Loaded) -> int:
+def _fit(name: str, exact: float, low: int, high: int, bits: int, why: str, cal: Loaded, hint: str) -> int:
     count = round(exact) if math.isfinite(exact) else None
     if count is None or not low <= count <= high:
         shown = "an infinite number of" if count is None else f"{count:.6g}" if abs(count) > 1e12 else f"{count}"
         raise InputError(
             f"{name} needs {shown} register counts ({why}), outside the signed {bits}-bit range {low}..{high}",
             file=cal.path,
-            hint="check --lsb (raw units per register count) against the calibration's raw units, or --bits",
+            hint=hint,
         )
     return int(count)
 
