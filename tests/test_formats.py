@@ -363,6 +363,25 @@ def test_registers_refuse_what_does_not_fit(
     assert out.read_text() == "old\n"
 
 
+def test_a_nominal_gain_given_to_solve_alone_is_recorded_for_the_gain_trim(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`solve --nominal-gain 208` with no limit: the file keeps it, and export's trim uses it."""
+    imucal = ROOT / "sample_data" / "imucal"
+    poses = [str(imucal / f"{face}.csv") for face in ("xp", "xn", "yp", "yn", "zp", "zn")]
+    cal = tmp_path / "ng.json"
+    code, _, err = run(
+        ["solve", "-q", "-p", *poses, "--reference", "9.81", "--nominal-gain", "208", "-o", str(cal)], capsys
+    )
+    assert code == 0, err
+    doc = json.loads(cal.read_text())
+    assert doc["verdict"] == {"pass": True, "failures": [], "limits": {"nominal_gain": [208.0, 208.0, 208.0]}}
+    code, out, err = run(["export", str(cal), "-f", "registers", "--lsb", "1", "--gain-step", "0.001"], capsys)
+    assert code == 0, err
+    gain_x = float(np.linalg.inv(doc["matrix"])[0, 0])
+    assert float(registers(out)["gain_x"][3]) == pytest.approx(208.0 / gain_x, rel=1e-12)
+
+
 def test_registers_name_every_misfit_with_its_own_arithmetic_and_hint(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -1762,12 +1762,12 @@ def check(
     from tumblecal_cli import calfile, gate
 
     given = _limits(limits_file, max_offset, max_gain_error, nominal_gain)
-    if not given.as_dict():
+    if not given.judges():
         raise InputError("no limits to judge against", hint="give --limits FILE, --max-offset or --max-gain-error")
     c = calfile.load(cal)
     method = str(c.doc["method"])
     limits = given.for_method(method)
-    if not limits.as_dict():
+    if not limits.judges():
         raise InputError(f"no limits to judge against: {'; '.join(_limits_not_applying(given, method))}", file=cal)
     if not c.doc.get("poses"):  # an imported calibration: its parameters can be judged, it has no poses
         if limits.noise is not None or limits.residual is not None:

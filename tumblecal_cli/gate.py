@@ -331,12 +331,17 @@ class Limits:
             if method in methods and getattr(self, name) is not None
         }
 
+    def judges(self) -> bool:
+        """Whether any bound is set (a nominal gain alone judges nothing)."""
+        return any(getattr(self, name) is not None for name in ("offset", "gain_error", *NOT_APPLYING))
+
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {}
         if self.offset is not None:
             out["offset"] = [float(v) for v in self.offset]
         if self.gain_error is not None:
             out["gain_error"] = [float(v) for v in self.gain_error]
+        if self.gain_error is not None or np.any(self.nominal_gain != 1.0):  # given: export's gain trim reads it
             out["nominal_gain"] = [float(v) for v in self.nominal_gain]
         for name in ("cross_axis", "noise", "residual"):
             if getattr(self, name) is not None:
