@@ -199,6 +199,24 @@ def test_rotation_figure_ellipse_lies_on_a_plane_capture(figures: list[Figure]) 
     np.testing.assert_allclose(np.hypot(xdata(circle), ydata(circle)), 50.0)
 
 
+def test_rotation_figure_of_a_one_plane_capture_draws_that_plane_at_its_own_radius(figures: list[Figure]) -> None:
+    """2-D min/max: turned about z with a 60° dip, the xy part of a 50 uT field is 25 uT; the
+    figure shows the xy plane only, against a 25 uT circle (not the whole field's 50)."""
+    n = 4000
+    heading = np.linspace(0.0, 4 * math.pi, n)
+    field = 50.0 * np.stack([0.5 * np.cos(heading), 0.5 * np.sin(heading), np.full(n, math.sqrt(0.75))], axis=1)
+    offset = np.array([12.0, -7.0, 0.0])
+    plots.rotation_figure("unused.png", field + offset, offset, np.eye(3), 50.0, units="uT", plane="xy")
+    (fig,) = figures
+    assert len(fig.axes) == 2
+    raw_axes, corrected_axes = fig.axes
+    assert "xy plane" in raw_axes.get_title()
+    _dots, circle, _origin = corrected_axes.get_lines()
+    np.testing.assert_allclose(np.hypot(xdata(circle), ydata(circle)), 25.0, rtol=1e-9)
+    labels = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert "circle of radius 25 uT (the field's part in the xy plane)" in labels
+
+
 def test_rotation_figure_outline_bounds_a_sphere_capture(figures: list[Figure]) -> None:
     plots.rotation_figure("unused.png", turning(3000, 1.0), OFFSET, M, 1.0)
     (fig,) = figures
@@ -210,6 +228,12 @@ def test_rotation_figure_outline_bounds_a_sphere_capture(figures: list[Figure]) 
         reach = np.max(np.linalg.norm(points - centre, axis=1))
         assert reach <= np.max(np.linalg.norm(rim - centre, axis=1)) + 1e-9
         assert reach > 0.99 * np.min(np.linalg.norm(rim - centre, axis=1))
+
+
+def test_lot_figure_without_limits_has_no_limit_legend(figures: list[Figure]) -> None:
+    plots.lot_figure("unused.png", [plots.Histogram("offset.x", np.array([0.01, 0.02, 0.015]), None, None)])
+    (fig,) = figures
+    assert [t.get_text() for t in fig.legends[0].get_texts()] == ["mean"]
 
 
 def test_lot_figure_draws_limits_mean_and_counts(figures: list[Figure]) -> None:

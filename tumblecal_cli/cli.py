@@ -743,7 +743,7 @@ def solve(
             codes=tuple(f.code for f in rejected),
         )
     if plot is not None:  # drawn before the calibration is written: a failure leaves nothing behind
-        _plot_solve(plot, doc, [s.values for s in samples], solution, limits_given)
+        _plot_solve(plot, doc, [s.values for s in samples], solution, limits_given, plane.value if plane else None)
     calfile.write(doc, output)
     status = 1 if failures else 0
     if not quiet:
@@ -772,7 +772,9 @@ def _plot_target(plot: str, output: str, json_summary: bool, inputs: list[str]) 
     check_writable(plot, "--plot")
 
 
-def _plot_solve(plot: str, doc: dict[str, Any], raw: list[Any], solution: Any, limits: Any) -> None:
+def _plot_solve(
+    plot: str, doc: dict[str, Any], raw: list[Any], solution: Any, limits: Any, plane: str | None = None
+) -> None:
     """solve --plot: the poses' norms (seed 001's figure), or a magnetometer's rotation capture."""
     import numpy as np
 
@@ -784,7 +786,14 @@ def _plot_solve(plot: str, doc: dict[str, Any], raw: list[Any], solution: Any, l
     units = doc.get("units")
     if solution.method in solvers.ROTATION:
         plots.rotation_figure(
-            plot, np.concatenate(raw), solution.offset, solution.matrix, doc["reference"], units=units, title=title
+            plot,
+            np.concatenate(raw),
+            solution.offset,
+            solution.matrix,
+            doc["reference"],
+            units=units,
+            title=title,
+            plane=plane,
         )
         return
     if np.any(limits.nominal_gain != 1.0):  # given (--nominal-gain or the limits file)

@@ -132,9 +132,14 @@ def rotation_figure(
     *,
     units: str | None = None,
     title: str = "",
+    plane: str | None = None,
 ) -> None:
     """A turning capture in the xy, xz and yz planes: the raw samples with the fitted ellipse
     (top), the corrected samples with the circle of radius ``reference`` (bottom).
+
+    ``plane`` ("xy" ...): a capture turned in that plane only (2-D min/max) is drawn in that
+    plane alone, against the circle of its in-plane radius (the field's part in the plane: the
+    median of the corrected samples' in-plane norms), not the whole field's.
 
     The ellipse in a plane is the image of that plane's great circle, ``offset + A·(reference·u)``,
     projected onto the plane: where a capture turned in that plane lies. A capture turned through
@@ -163,10 +168,16 @@ def rotation_figure(
     theta = np.linspace(0.0, 2.0 * math.pi, 361)
     suffix = f" ({units})" if units else ""
 
-    fig = _figure(width=12.0, height=8.0, title=title)
-    grid = fig.add_gridspec(2, 3)
-    for col, (i, j) in enumerate(((0, 1), (0, 2), (1, 2))):
-        plane = "xyz"[i] + "xyz"[j]
+    pairs = [(0, 1), (0, 2), (1, 2)]
+    if plane is not None:
+        if plane not in ("xy", "xz", "yz"):
+            raise InputError(f"plane must be xy, xz or yz, not {plane!r}")
+        pairs = [("xyz".index(plane[0]), "xyz".index(plane[1]))]
+        ref = float(np.median(np.linalg.norm(corrected[:, list(pairs[0])], axis=1)))
+    fig = _figure(width=9.0 if plane else 12.0, height=9.0 if plane else 8.0, title=title)
+    grid = fig.add_gridspec(2, len(pairs))
+    for col, (i, j) in enumerate(pairs):
+        name = "xyz"[i] + "xyz"[j]
         u = np.zeros((theta.size, 3))
         u[:, i] = np.cos(theta)
         u[:, j] = np.sin(theta)
@@ -181,23 +192,37 @@ def rotation_figure(
         ax.plot(outline[:, 0], outline[:, 1], color=_OUTLINE, linewidth=1.2, linestyle=(0, (4, 3)))
         ax.plot(ellipse[:, i], ellipse[:, j], color=_FIT, linewidth=1.5)
         ax.plot(b[i], b[j], "+", color=_FIT, markersize=10)
-        _plane_axes(ax, f"raw, {plane} plane", f"raw {'xyz'[i]}", f"raw {'xyz'[j]}")
+        _plane_axes(ax, f"raw, {name} plane", f"raw {'xyz'[i]}", f"raw {'xyz'[j]}")
 
         ax = fig.add_subplot(grid[1, col])
         ax.plot(corrected[:, i], corrected[:, j], ".", color=_AFTER, markersize=2, alpha=0.5)
         ax.plot(ref * np.cos(theta), ref * np.sin(theta), color="black", linewidth=1.5)
         ax.plot(0.0, 0.0, "+", color="black", markersize=10)
-        _plane_axes(ax, f"corrected, {plane} plane", f"{'xyz'[i]}{suffix}", f"{'xyz'[j]}{suffix}")
+        _plane_axes(ax, f"corrected, {name} plane", f"{'xyz'[i]}{suffix}", f"{'xyz'[j]}{suffix}")
     shown = f", {samples.shape[0]} of {count}" if samples.shape[0] < count else f", {count}"
     handles = [  # the legend fills columns first: raw and its curves on the first row
         Line2D([], [], linestyle="", marker=".", markersize=8, color=_BEFORE, label=f"raw samples{shown}"),
         Line2D([], [], linestyle="", marker=".", markersize=8, color=_AFTER, label="corrected M·(raw − offset)"),
         Line2D([], [], color=_FIT, linewidth=1.5, label="fitted ellipse: offset + A·(reference·u), u in the plane"),
-        Line2D([], [], color="black", linewidth=1.5, label=f"circle of radius {ref:g}{_unit(units)}"),
-        Line2D([], [], color=_OUTLINE, linewidth=1.2, linestyle=(0, (4, 3)), label="fitted ellipsoid's outline"),
+        Line2D(
+            [],
+            [],
+            color="black",
+            linewidth=1.5,
+            label=f"circle of radius {ref:.4g}{_unit(units)}"
+            + (f" (the field's part in the {plane} plane)" if plane else ""),
+        ),
+        Line2D(
+            [],
+            [],
+            color=_OUTLINE,
+            linewidth=1.2,
+            linestyle=(0, (4, 3)),
+            label="fitted ellipsoid's outline (under the ellipse when A has no cross terms)",
+        ),
         Line2D([], [], linestyle="", marker="+", markersize=10, color=_FIT, label="offset"),
     ]
-    fig.legend(handles=handles, loc="outside lower center", ncols=3, fontsize="small", frameon=False)
+    fig.legend(handles=handles, loc="outside lower center", ncols=2 if plane else 3, fontsize="small", frameon=False)
     _write(fig, path)
 
 
@@ -250,10 +275,9 @@ def lot_figure(path: str, histograms: list[Histogram], *, title: str = "") -> No
         ax.xaxis.set_major_locator(MaxNLocator(nbins=4))
         ax.yaxis.set_major_locator(MaxNLocator(integer=True, nbins=4))
         ax.tick_params(labelsize="small")
-    handles = [
-        Line2D([], [], color="black", linewidth=1.5, label="mean"),
-        Line2D([], [], color=_FIT, linestyle="--", linewidth=1.5, label="limit"),
-    ]
+    handles = [Line2D([], [], color="black", linewidth=1.5, label="mean")]
+    if any(limits for _, _, limits in checked):  # no "limit" entry for a figure without any
+        handles.append(Line2D([], [], color=_FIT, linestyle="--", linewidth=1.5, label="limit"))
     fig.legend(handles=handles, loc="outside lower center", ncols=2, fontsize="small", frameon=False)
     _write(fig, path)
 
