@@ -1144,3 +1144,46 @@ def test_batch_stopped_by_sigterm_leaves_no_calibration_without_a_row(tmp_path: 
     rows = read_rows(summary)
     assert sorted(row["serial"] for row in rows) == sorted(f"U{k:03d}" for k in range(80))
     assert len([p for p in out.iterdir() if p.suffix == ".json"]) == 80
+
+
+def test_batch_reads_a_manifest_from_stdin(tmp_path: Path) -> None:
+    """`tumblecal batch - < manifest.csv`: its files are relative to the working folder."""
+    manifest = (SAMPLE / "lot.csv").read_text()
+    out = tmp_path / "out"
+    env = {**os.environ, "NO_COLOR": "1", "SOURCE_DATE_EPOCH": "1795251600"}
+    piped = subprocess.run(
+        [tumblecal_exe(), "batch", "-", "--out-dir", str(out), "-q"],
+        input=manifest, capture_output=True, text=True, cwd=SAMPLE, env=env, timeout=60, check=False,
+    )  # fmt: skip
+    named = subprocess.run(
+        [tumblecal_exe(), "batch", str(SAMPLE / "lot.csv"), "--out-dir", str(tmp_path / "named"), "-q"],
+        capture_output=True, text=True, env=env, timeout=60, check=False,
+    )  # fmt: skip
+    assert piped.returncode == named.returncode == 2  # lot.csv holds a unit with a missing file
+    rows = {r["serial"]: r for r in read_rows(out / "summary.csv")}
+    named_rows = {r["serial"]: r for r in read_rows(tmp_path / "named" / "summary.csv")}
+    assert {s: r["status"] for s, r in rows.items()} == {s: r["status"] for s, r in named_rows.items()}
+    assert rows["SN0001"]["offset_x"] == named_rows["SN0001"]["offset_x"]
+
+
+@pytest.mark.parametrize(
+    ("args", "stdin", "message"),
+    [
+        (["-", "--out-dir", "OUT"], "serial,x,y,z\n", "error: -: the manifest lists no units, only its header"),
+        (
+            ["MANIFEST", "--out-dir", "-"],
+            "",
+            "error: --out-dir takes a folder: the calibrations are files, not a stream",
+        ),
+    ],
+    ids=["empty-manifest-on-stdin", "out-dir-stdout"],
+)
+def test_batch_stdin_and_stdout_usage_errors(tmp_path: Path, args: list[str], stdin: str, message: str) -> None:
+    argv = [str(SAMPLE / "lot.csv") if a == "MANIFEST" else str(tmp_path / "out") if a == "OUT" else a for a in args]
+    r = subprocess.run(
+        [tumblecal_exe(), "batch", *argv], input=stdin, capture_output=True, text=True, cwd=tmp_path, timeout=60,
+        check=False,
+    )  # fmt: skip
+    assert r.returncode == 2
+    assert r.stderr.splitlines()[0].startswith(message)
+    assert sorted(p.name for p in tmp_path.iterdir()) == []

@@ -19,6 +19,7 @@ import io
 import itertools
 import json
 import os
+import sys
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any
@@ -78,10 +79,12 @@ def find_units(source: str, *, log: bool, out_dir: str | None = None) -> tuple[l
     """The units of a folder (one folder per unit, or with ``log`` one log per unit) or of a
     manifest CSV, sorted by serial; and notes for people about what was left out. ``out_dir``,
     when it is one of the folder's folders, is not a unit."""
-    if os.path.isdir(source):
-        units, notes = _folder_units(source, log=log, skip=out_dir)
-    elif os.path.isfile(source):
+    if source == "-" or os.path.isfile(source):  # '-': a manifest on stdin, its files relative to here
         units, notes = _manifest_units(source, log=log)
+        if not units:
+            raise InputError("the manifest lists no units, only its header", file=source)
+    elif os.path.isdir(source):
+        units, notes = _folder_units(source, log=log, skip=out_dir)
     else:
         raise InputError("no such folder or manifest file", file=source)
     if not units:
@@ -162,11 +165,14 @@ def _manifest_units(path: str, *, log: bool) -> tuple[list[Unit], list[str]]:
     """A manifest: a header ``serial,...``, then a serial and its files per row. A file is
     relative to the manifest's folder; a column headed by a face (x, +x, xp ...) labels its files."""
     try:
-        with open(path, newline="", encoding="utf-8-sig") as f:  # a spreadsheet's byte-order mark
-            first = f.readline()
-            f.seek(0)
-            delimiter = ";" if ";" in first and "," not in first else ","  # a spreadsheet in a comma-decimal locale
-            rows = list(csv.reader(f, delimiter=delimiter))
+        if path == "-":
+            text = sys.stdin.buffer.read().decode("utf-8-sig")
+        else:
+            with open(path, encoding="utf-8-sig", newline="") as f:  # a spreadsheet's byte-order mark
+                text = f.read()
+        first = text.split("\n", 1)[0]
+        delimiter = ";" if ";" in first and "," not in first else ","  # a spreadsheet in a comma-decimal locale
+        rows = list(csv.reader(io.StringIO(text, newline=""), delimiter=delimiter))
     except (OSError, UnicodeDecodeError, csv.Error) as err:
         raise InputError(f"cannot read the manifest: {err}", file=path) from None
     lines = [(n, row) for n, row in enumerate(rows, 1) if any(c.strip() for c in row) and not row[0].startswith("#")]
@@ -178,7 +184,7 @@ def _manifest_units(path: str, *, log: bool) -> tuple[list[Unit], list[str]]:
             hint="serial,x,y,z  then one row per unit: A17,A17/x.csv,A17/y.csv,A17/z.csv",
         )
     header = [_face(h.strip()) for h in lines[0][1]]
-    base = os.path.dirname(path)
+    base = "" if path == "-" else os.path.dirname(path)
     units: list[Unit] = []
     where: dict[str, int] = {}
     for n, row in lines[1:]:

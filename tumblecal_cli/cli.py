@@ -2657,6 +2657,8 @@ def batch(**given: Any) -> None:
 
     own = {name: given.pop(name) for name in list(given) if name in _BATCH_OWN}
     source, out_dir, log, quiet = own["source"], own["out_dir"], own["log"], own["quiet"]
+    if out_dir == "-":
+        raise InputError("--out-dir takes a folder: the calibrations are files, not a stream on stdout")
     _solve_settings(log_given=log, **{k: given[k] for k in _SETTINGS})  # a bad option: one error, not one per unit
     calfile.created()  # so is a bad SOURCE_DATE_EPOCH
     units, notes = batches.find_units(source, log=log, out_dir=out_dir)
