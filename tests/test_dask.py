@@ -252,3 +252,21 @@ def test_unreachable_scheduler_is_exit_2(what: str, unreachable: dict[str, tuple
 
 def test_unreachable_scheduler_leaves_no_summary(unreachable: dict[str, tuple[int, str, float, Path]]) -> None:
     assert not (unreachable["batch"][3] / "summary.csv").exists()
+
+
+def test_a_scheduler_without_workers_is_exit_2_not_a_hang(tmp_path: Path) -> None:
+    """The scheduler would accept the units and never run them: after 10 s with no worker,
+    a clear error, and nothing written."""
+    cluster = distributed.LocalCluster(n_workers=0, processes=True, dashboard_address=":0")
+    try:
+        src = make_units(tmp_path / "units")
+        started = time.monotonic()
+        r = run_exe(["batch", src, "--out-dir", tmp_path / "out", "--dask-scheduler", cluster.scheduler_address])
+        assert r.returncode == 2, r.stderr
+        assert r.stderr.splitlines()[0].startswith(
+            f"error: the Dask scheduler at {cluster.scheduler_address} has no workers"
+        )
+        assert time.monotonic() - started < 60
+        assert not (tmp_path / "out").exists()
+    finally:
+        cluster.close()

@@ -60,6 +60,8 @@ NUMBERS = {c for c in SUMMARY_COLUMNS if c[-2:] in ("_x", "_y", "_z")}
 VERDICTS = {0: "pass", 1: "fail", 3: "rejected", 2: "error"}
 #: Units submitted to a Dask cluster at a time (a million-unit lot is not a million futures).
 IN_FLIGHT = 1000
+#: Seconds to wait for a Dask worker, at the start and whenever no unit finishes.
+WORKERS_TIMEOUT = 10.0
 #: Exit status of the whole batch: the first of these any unit has (DESIGN.md section 5).
 PRECEDENCE = (2, 3, 1)
 
@@ -504,24 +506,41 @@ def _dask(address: str) -> Engine:
             hint="start one with 'dask scheduler', or check the address (tcp://host:8786)",
         ) from None
 
+    try:  # a scheduler without workers would take the units and never run them
+        client.wait_for_workers(1, timeout=WORKERS_TIMEOUT)
+    except (OSError, TimeoutError) as err:
+        client.close()
+        raise InputError(
+            f"the Dask scheduler at {address} has no workers ({err})",
+            hint="start some: dask worker ADDRESS --nworkers N --nthreads 1 (with tumblecal installed there)",
+        ) from None
+
     def run(fn: Callable[..., Any], work: list[tuple[Any, ...]]) -> Iterator[tuple[tuple[Any, ...], Any]]:
         with client:
             todo = iter(work)  # a bounded number in flight: the scheduler spreads them over the workers
             sent = {}
             for args in itertools.islice(todo, IN_FLIGHT):
                 sent[client.submit(fn, *args, pure=False)] = args
-            running = distributed.as_completed(list(sent))
-            for future in running:
-                args = sent.pop(future)
-                try:  # a lost worker (KilledWorker), tumblecal missing there: that unit's error
-                    yield args, future.result()
-                except Exception as err:
-                    yield args, err
-                future.release()
-                for more in itertools.islice(todo, 1):
-                    new = client.submit(fn, *more, pure=False)
-                    sent[new] = more
-                    running.add(new)
+            while sent:
+                try:
+                    done, _ = distributed.wait(list(sent), timeout=WORKERS_TIMEOUT, return_when="FIRST_COMPLETED")
+                except TimeoutError:
+                    if not client.nthreads():  # every worker gone (one that cannot import tumblecal exits)
+                        raise InputError(
+                            f"every Dask worker at {address} is gone, with {len(sent)} units unfinished",
+                            hint="check the workers' logs (tumblecal installed there?); "
+                            "--resume continues the lot once workers are back",
+                        ) from None
+                    continue  # long units: still running
+                for future in done:
+                    args = sent.pop(future)
+                    try:  # a lost worker (KilledWorker), tumblecal missing there: that unit's error
+                        yield args, future.result()
+                    except Exception as err:
+                        yield args, err
+                    future.release()
+                    for more in itertools.islice(todo, 1):
+                        sent[client.submit(fn, *more, pure=False)] = more
 
     return run
 
