@@ -256,6 +256,12 @@ def _optional_fields(doc: dict[str, Any], path: str) -> None:
     """Fields beyond REQUIRED that ``show`` and ``check`` read, validated where present (null: absent)."""
     if not isinstance(doc["method"], str):
         raise InputError("field 'method' must be a string", file=path)
+    reference = _number(doc["reference"], "reference", path)
+    if reference < 0 or (reference == 0 and doc["sensor"] != "gyroscope"):
+        raise InputError(f"field 'reference' must be positive (0 only for a gyroscope), got {reference:g}", file=path)
+    for name in ("units", "input_units"):
+        if doc.get(name) is not None and not isinstance(doc[name], str):
+            raise InputError(f"field {name!r} must be a string or null", file=path)
     for block in ("uncertainty", "tilt_sensitivity"):
         value = doc.get(block)
         if value is None:
