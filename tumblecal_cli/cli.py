@@ -2892,7 +2892,13 @@ def _print_summary(
     axes = Table(title=f"{doc['method']} calibration", title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
     for name in ("axis", "column", "offset", "± 1σ", "± tilt", "gain", "± 1σ", "± tilt"):
         text = name in ("axis", "column")
-        axes.add_column(name, justify="left" if text else "right", no_wrap=not text, min_width=4 if text else None)
+        axes.add_column(
+            name,
+            justify="left" if text else "right",
+            no_wrap=not text,
+            min_width=4 if text else None,
+            overflow="fold",  # a long column name folds onto a second line rather than losing its end
+        )
     for i, axis in enumerate("xyz"):
         cells = [axis, doc["columns"][i]]
         for name in ("offset", "gain"):
@@ -2908,7 +2914,8 @@ def _print_summary(
             name,
             justify="left" if name in ("pose", "file", "") else "right",
             no_wrap=not text,
-            min_width=4 if text else None,
+            min_width=6 if text else None,
+            overflow="fold",
         )
     for p in doc.get("poses", []):
         angle = p.get("angle_deg")
