@@ -1187,3 +1187,16 @@ def test_batch_stdin_and_stdout_usage_errors(tmp_path: Path, args: list[str], st
     assert r.returncode == 2
     assert r.stderr.splitlines()[0].startswith(message)
     assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_sigterm_while_applying_stops_the_run(monkeypatch: pytest.MonkeyPatch) -> None:
+    """apply over many captures: an interrupted file is not a failed one, the run stops."""
+    from tumblecal_cli import cli
+    from tumblecal_cli.errors import Interrupted
+
+    def interrupted(**_: Any) -> None:
+        raise Interrupted("interrupted (SIGTERM)")
+
+    monkeypatch.setattr(cli, "apply", interrupted)
+    with pytest.raises(Interrupted):
+        batch.apply_one({}, "c.csv", "out/c.csv")

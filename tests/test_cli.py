@@ -1116,6 +1116,16 @@ def test_a_full_disk_is_an_error_not_a_bug() -> None:
     assert proc.stderr.decode().splitlines() == ["error: <stdout>: cannot write: No space left on device"]
 
 
+def test_a_file_too_large_names_the_output(cal: Path, tmp_path: Path) -> None:
+    """A refused write to a file names that file (the OS error carries no name of its own)."""
+    out = tmp_path / "corrected.csv"
+    script = f"ulimit -f 2; exec {tumblecal_exe()} apply -q --cal {cal} {SAMPLE / 'capture.csv'} -o {out}"
+    proc = subprocess.run(["bash", "-c", script], capture_output=True, text=True, timeout=60, check=False)
+    assert proc.returncode == 2
+    assert proc.stderr.splitlines() == [f"error: {out}: cannot write: File too large"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cal.json"]
+
+
 def test_closed_stdout_stops_quietly_with_141(tmp_path: Path) -> None:
     """`tumblecal apply ... | head -1`: the reader goes away; no traceback, status 141."""
     cal = tmp_path / "cal.json"

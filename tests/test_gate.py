@@ -329,6 +329,23 @@ def test_six_faces_one_wrong_file_is_the_only_one_rejected(given: list[str], wro
     }
 
 
+def test_a_swapped_pair_keeps_its_midpoint_as_the_centre() -> None:
+    """The +x and -x files exchanged, in unsigned counts: the pair's midpoint is the centre all
+    the same, so the other four poses still read right and only the two swapped are named."""
+    rng = np.random.default_rng(27)
+    given = ["-x", "+x", "+y", "-y", "+z", "-z"]
+    values = [samples(rng, UNSIGNED, face) for face in given]
+    faces = list(core.FACES)
+    names = [f"{face}.csv" for face in faces]
+    solution = core.solve_one_pose(core.pose_stats(values[4]), "+z", 1.0)
+    options = gate.Options(skip=frozenset({"moved", "upside_down"}))
+    rejected, _ = run_gate(values, solution, options, faces=faces, names=names)
+    assert sorted((f.pose, f.message.split(" (mean")[0]) for f in rejected) == [
+        ("+x", "declared +x but reads like -x"),
+        ("-x", "declared -x but reads like +x"),
+    ]
+
+
 # --- pose.saturated --------------------------------------------------------------------------------
 
 

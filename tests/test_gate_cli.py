@@ -1137,6 +1137,7 @@ INVALID_FIELDS = [
     pytest.param("verdict.limits=[0.05]", "field 'verdict.limits' must be an object", id="verdict-limits"),
     pytest.param("reference=-1", "field 'reference' must be positive (0 only for a gyroscope), got -1", id="reference"),
     pytest.param("units=5", "field 'units' must be a string or null", id="units"),
+    pytest.param("residuals=[0.1]", "field 'residuals' must be an object with rms, max and count", id="residuals"),
     pytest.param(
         'columns=["ax", "AX", "az"]',
         "field 'columns' must name three different columns, got ax, AX, az",

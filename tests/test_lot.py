@@ -434,3 +434,17 @@ def test_as_dict_is_plain_json(tmp_path: Path) -> None:
     assert back["unreadable"] == [{"file": unreadable[0][0], "error": "not valid JSON"}]
     assert all(isinstance(v, float | int | str | bool | type(None)) for v in back["drift"][0].values())
     assert not math.isnan(back["parameters"][1]["mean"])
+
+
+def test_sigterm_while_loading_stops_the_report(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """An interrupted load is not an unreadable file: the report stops (exit 130 in main)."""
+    from tumblecal_cli.errors import Interrupted
+
+    (tmp_path / "a.json").write_text("{}")
+
+    def interrupted(path: str) -> None:
+        raise Interrupted("interrupted (SIGTERM)")
+
+    monkeypatch.setattr(calfile, "load", interrupted)
+    with pytest.raises(Interrupted):
+        lot.load_all([str(tmp_path)])

@@ -396,7 +396,7 @@ def test_failed_write_leaves_the_old_file(good_file: Path, monkeypatch: pytest.M
 
     before = good_file.read_bytes()
     monkeypatch.setattr(plots, "atomic_output", failing)
-    with pytest.raises(OSError, match="No space left"):
+    with pytest.raises(InputError, match=f"{good_file}: cannot write: No space left on device"):
         plots.poses_figure(str(good_file), ["a", "b"], pose_means(2), OFFSET, M, 2.0)
     assert good_file.read_bytes() == before
     assert [p.name for p in good_file.parent.iterdir()] == [good_file.name]

@@ -15,6 +15,7 @@ import io
 import itertools
 import json
 import math
+import shutil
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -484,6 +485,23 @@ def test_segment_again_into_the_same_folder_replaces_the_earlier_blocks(
     ]  # fmt: skip
 
 
+def test_segment_again_never_removes_its_own_input(
+    six_level_csv: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The log of the new run is one of the earlier run's block files: it stays."""
+    poses = [Pose("+x", hold=250), Pose("-x"), Pose("+x", hold=450), *six_poses()[2:]]
+    out = tmp_path / "poses"
+    assert (
+        run(capsys, "segment", write_log(tmp_path / "first.csv", synth_log(poses, seed=5)), "-d", out, "-q").code == 0
+    )
+    again = out / "block01.csv"
+    shutil.copy(six_level_csv, again)  # the user re-segments a file that sits in the folder
+    before = again.read_bytes()
+    r = run(capsys, "segment", again, "-d", out, "-q")
+    assert r.code == 0, r.err
+    assert again.read_bytes() == before
+
+
 def test_segment_without_out_dir_prints_the_index(
     six_level_csv: Path,
     six_level: SynthLog,
@@ -580,6 +598,33 @@ def test_a_pose_map_that_contradicts_the_data_is_caught(
     r = run(capsys, "solve", "--log", src, "--pose-column", "part", "--pose-map", swapped, "-o", tmp_path / "c.json")
     assert r.code == 3
     assert "hint: map each face's label with --pose-map" in r.err
+
+
+def test_a_labelled_log_centre_ignores_its_rotations(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Unsigned counts with a full turn after each face, labelled *_rot (unmapped): a turn
+    averages to the centre itself, and counted with the faces it pulled the centre to zero,
+    so every face read as 'not its label's face'. The centre comes from the faces alone."""
+    rng = np.random.default_rng(8)
+    centre, g = 32768.0, 16384.0
+    lines = ["part,ax,ay,az"]
+    for face, label in LABEL.items():
+        lines += [
+            f"{label},{x:.0f},{y:.0f},{z:.0f}"
+            for x, y, z in centre + g * np.asarray(FACES[face]) + rng.normal(0, 20, (300, 3))
+        ]
+        axis = "xyz".index(face[1])
+        turn = np.zeros((300, 3))
+        others = [k for k in range(3) if k != axis]
+        angle = np.linspace(0, 2 * math.pi, 300, endpoint=False)
+        turn[:, others[0]], turn[:, others[1]] = np.cos(angle), np.sin(angle)
+        lines += [f"{face[1]}_rot,{x:.0f},{y:.0f},{z:.0f}" for x, y, z in centre + g * turn]
+    src = tmp_path / "lab.csv"
+    src.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "cal.json"
+    r = run(capsys, "solve", "--log", src, "--pose-column", "part", "--pose-map", POSE_MAP, "--rate", "100", "-o", out)
+    assert r.code == 0, r.err
+    doc = json.loads(out.read_text())
+    np.testing.assert_allclose(doc["offset"], [centre] * 3, atol=5.0)
 
 
 # -- tumblecal solve --log -------------------------------------------------------------------

@@ -656,6 +656,12 @@ def test_magnetometer_limits_judge_the_fit_not_the_turning(tmp_path: Path, capsy
     r = run(capsys, "check", out, "--limits", limits)  # check judges it the same way
     assert r.code == 1, r.err
     assert "limit.residual: the fit's largest residual over the samples is" in r.err
+    stripped = json.loads(out.read_text())
+    del stripped["residuals"]
+    out.write_text(json.dumps(stripped))
+    r = run(capsys, "check", out, "--limits", limits)  # nothing to judge the residual limit by
+    assert r.code == 2
+    assert r.err.splitlines()[0] == f"error: {out}: has no fit residuals to judge the residual limit by"
 
 
 def test_minmax_recovers_the_hard_iron_roughly(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -535,9 +535,12 @@ def _dask(address: str) -> Engine:
                 for future in done:
                     args = sent.pop(future)
                     try:  # a lost worker (KilledWorker), tumblecal missing there: that unit's error
-                        yield args, future.result()
+                        result = future.result()
+                    except Interrupted:  # SIGTERM here: the batch stops, the unit did not fail
+                        raise
                     except Exception as err:
-                        yield args, err
+                        result = err
+                    yield args, result
                     future.release()
                     for more in itertools.islice(todo, 1):
                         sent[client.submit(fn, *more, pure=False)] = more
@@ -569,6 +572,8 @@ def apply_one(options: dict[str, Any], capture: str, output: str) -> tuple[str, 
 
     try:
         cli.apply(**dict(options, capture=[capture], output=output, out_dir=None, quiet=True, dask_scheduler=None))
+    except Interrupted:  # the run is being stopped, not this file failing
+        raise
     except TumblecalError as err:
         return capture, err.exit_code, "; ".join([str(err), *err.more])
     except Exception as err:  # a bug: this file's error

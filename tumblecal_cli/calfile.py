@@ -272,6 +272,13 @@ def _optional_fields(doc: dict[str, Any], path: str) -> None:
         _vector(value["gain"], f"{block}.gain", path)
         if value.get("tolerance_deg") is not None:
             _number(value["tolerance_deg"], f"{block}.tolerance_deg", path)
+    residuals = doc.get("residuals")
+    if residuals is not None:
+        if not (isinstance(residuals, dict) and "max" in residuals):
+            raise InputError("field 'residuals' must be an object with rms, max and count", file=path)
+        for key in ("rms", "max"):
+            if key in residuals:
+                _number(residuals[key], f"residuals.{key}", path)
     unit = doc.get("unit")
     if unit is not None and not isinstance(unit, dict):
         raise InputError("field 'unit' must be an object (serial, station, operator, meta)", file=path)

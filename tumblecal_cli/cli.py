@@ -1790,6 +1790,12 @@ def check(
         records = calfile.pose_records(c)
     poses = [(p.file, p.face, gate.corrected(p.mean, p.std, p.face, c.offset, c.matrix, c.reference)) for p in records]
     residual = (c.doc.get("residuals") or {}).get("max")
+    if method in gate.ROTATION and limits.residual is not None and residual is None:
+        raise InputError(
+            "has no fit residuals to judge the residual limit by",
+            file=cal,
+            hint="judge it without the residual limit, or solve the capture again",
+        )
     failures = gate.verdict(method, c.offset, c.matrix, poses, limits, residual)
     verdict = {"pass": not failures, "failures": [f.as_dict() for f in failures], "limits": limits.as_dict()}
     notes = _limits_not_applying(given, method)
@@ -2514,7 +2520,11 @@ def segment(
                 check_path = os.path.join(out_dir, f)
                 if os.path.exists(check_path) and os.path.samefile(check_path, log):
                     raise InputError(f"--out-dir would overwrite the input with {f}", file=log)
-        earlier = _earlier_blocks(out_dir) - set(files.values())
+        earlier = {
+            name
+            for name in _earlier_blocks(out_dir) - set(files.values())
+            if log == "-" or not os.path.samefile(os.path.join(out_dir, name), log)  # never the log itself
+        }
         os.makedirs(out_dir, exist_ok=True)
         kept = seg.kept
         spans = [(int(data.rows[b.first]), int(data.rows[b.last])) for b in kept]
@@ -2998,11 +3008,10 @@ def main(argv: list[str] | None = None) -> int:
     except (typer.Abort, KeyboardInterrupt):
         _report("interrupted", None)
         return 130
-    except OSError as err:  # the system refused a write (a full disk, stdout on /dev/full): not a bug
+    except OSError as err:  # the system refused (a full disk, stdout on /dev/full): not a bug
         if _state["debug"]:
             raise
-        where = err.filename if err.filename is not None else "<stdout>"
-        _report(f"{where}: cannot write: {err.strerror or err}", None)
+        _report(f"{err.filename}: {err.strerror or err}" if err.filename else f"{err.strerror or err}", None)
         return 2
     except Exception as err:  # a bug: one line unless --debug
         if _state["debug"]:

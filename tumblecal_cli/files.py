@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import sys
 import tempfile
@@ -10,6 +11,9 @@ from collections.abc import Iterable, Iterator
 from typing import IO
 
 from tumblecal_cli.errors import InputError, PipeClosed
+
+#: What a failed write of an output says (disk full, file too large, quota exceeded).
+WRITE_ERRORS = (errno.ENOSPC, errno.EFBIG, errno.EDQUOT)
 
 
 def check_not_input(output: str, inputs: Iterable[str], flag: str = "-o") -> None:
@@ -55,6 +59,10 @@ def atomic_output(path: str) -> Iterator[IO[bytes]]:
             sys.stdout.buffer.flush()
         except BrokenPipeError:
             raise PipeClosed("stdout was closed") from None
+        except OSError as err:
+            if err.errno not in WRITE_ERRORS:
+                raise
+            raise InputError(f"cannot write: {err.strerror}", file="<stdout>") from None
         return
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
@@ -64,8 +72,13 @@ def atomic_output(path: str) -> Iterator[IO[bytes]]:
     except OSError as err:
         raise InputError(f"cannot write: {err.strerror}", file=path) from None
     try:
-        with os.fdopen(fd, "wb") as f:
-            yield f
+        try:
+            with os.fdopen(fd, "wb") as f:
+                yield f
+        except OSError as err:  # a write that failed has no file name of its own: give the output's
+            if err.errno not in WRITE_ERRORS:
+                raise
+            raise InputError(f"cannot write: {err.strerror}", file=path) from None
         if os.path.exists(path):
             os.chmod(tmp, os.stat(path).st_mode & 0o777)
         else:

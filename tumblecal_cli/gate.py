@@ -110,8 +110,9 @@ def orient(poses: Sequence[PoseCheck], nominal_offset: FloatArray, max_tilt_deg:
 
     The centre removed from each mean is ``nominal_offset``, except on an axis where both of its
     faces were captured and agree: there the midpoint of the two (DESIGN.md section 2: opposite
-    faces cancel the offset). They agree when their difference points along that axis within
-    ``max_tilt_deg``; a pair that does not (one of them is some other pose) would move the
+    faces cancel the offset). They agree when their difference points along that axis (either
+    way: a swapped pair has the same midpoint) within ``max_tilt_deg``; a pair that does not
+    (one of them is some other pose) would move the
     centre and make every pose read wrong, so that axis keeps the nominal offset and only the
     wrong pose is judged so.
     """
@@ -122,7 +123,7 @@ def orient(poses: Sequence[PoseCheck], nominal_offset: FloatArray, max_tilt_deg:
             plus, minus = faces[f"+{axis}"].stats.mean, faces[f"-{axis}"].stats.mean
             span = plus - minus
             length = float(np.linalg.norm(span))
-            if length > 0 and span[i] / length >= math.cos(math.radians(max_tilt_deg)):
+            if length > 0 and abs(span[i]) / length >= math.cos(math.radians(max_tilt_deg)):  # swapped: same midpoint
                 centre[i] = 0.5 * (plus[i] + minus[i])
     out = []
     for p in poses:

@@ -281,7 +281,12 @@ def _judge(
     """Measure each block, find the rough centre, then label and keep or drop each one."""
     axes = np.ascontiguousarray(values.T)  # (3, n): each block's axes contiguous, 3x faster sums
     stats = [pose_stats(axes[:, a : b + 1].T) for a, b in spans]
-    long_enough = [st.mean for (a, b), st in zip(spans, stats, strict=True) if b - a + 1 >= seg.min_samples]
+    # the centre from the blocks that are poses: a labelled log's rotations (unmapped) average
+    # to the centre itself and would pull the estimate there
+    posed = [faces is None or faces[a] is not None for a, _ in spans]
+    long_enough = [
+        st.mean for (a, b), st, pose in zip(spans, stats, posed, strict=True) if b - a + 1 >= seg.min_samples and pose
+    ]
     means = np.array(long_enough or [st.mean for st in stats] or [np.zeros(3)])
     if settings.nominal_offset is not None:
         seg.centre = np.asarray(settings.nominal_offset, dtype=float)
