@@ -695,7 +695,6 @@ def test_batch_manifest_unlabelled_columns(tmp_path: Path, capsys: pytest.Captur
             "a manifest starts with a header whose first column is 'serial' (line 1)",
             id="wrong-header",
         ),
-        pytest.param("serial,x,y,z\nA\n", "unit A has no files (line 2)", id="no-files"),
         pytest.param(
             "serial,x,y,z\n../A,data/x.csv\n", "serial '../A' cannot name a file (line 2, column 1)", id="bad-serial"
         ),
@@ -713,6 +712,21 @@ def test_batch_bad_manifest_is_exit_2_before_any_unit(
     assert r.out == ""
     assert r.err.splitlines()[0] == f"error: {manifest}: {message}"
     assert not (tmp_path / "out").exists()
+
+
+def test_batch_manifest_row_without_files_is_that_units_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A row with a serial and no files does not stop the lot: it is that unit's row, status 2."""
+    src = units(tmp_path / "units", {"A": "good"})
+    manifest = tmp_path / "m.csv"
+    files = ",".join(str(src / "A" / f"{n}.csv") for n in "xyz")
+    manifest.write_text(f"serial,x,y,z\nA,{files}\nB\n")
+    r = run(capsys, "batch", manifest, "--out-dir", tmp_path / "out")
+    assert r.code == 2
+    rows = by_serial(tmp_path / "out" / "summary.csv")
+    assert (rows["A"]["status"], rows["B"]["status"]) == ("0", "2")
+    assert rows["B"]["message"] == "no files on its row of the manifest (line 3)"
 
 
 # -- --log: one log per unit -----------------------------------------------------------------------

@@ -72,6 +72,7 @@ class Unit:
 
     serial: str
     inputs: tuple[str, ...]
+    problem: str | None = None  # why it cannot be solved as found (no files): its row's error
 
 
 # -- finding the units -------------------------------------------------------------------------
@@ -139,7 +140,8 @@ def _folder_units(folder: str, *, log: bool, skip: str | None) -> tuple[list[Uni
             continue
         files = _data_files(path)
         if not files:  # the unit's error (run_unit), not a silent gap in the lot
-            units.append(Unit(name, ()))
+            what = "log" if log else "pose"
+            units.append(Unit(name, (), f"no {what} files ({', '.join(DATA_SUFFIXES)}) in its folder"))
             continue
         if log:
             units.append(Unit(name, tuple(files)))  # more than one: the unit's error, not the batch's
@@ -207,9 +209,8 @@ def _manifest_units(path: str, *, log: bool) -> tuple[list[Unit], list[str]]:
             else:
                 face = header[k] if k < len(header) and not log else None
                 items.append(f"{face}={_resolve(base, cell)}" if face else _resolve(base, cell))
-        if not items:
-            raise InputError(f"unit {serial} has no files", file=path, line=n)
-        units.append(Unit(serial, tuple(items)))
+        problem = None if items else f"no files on its row of the manifest (line {n})"  # that unit's error
+        units.append(Unit(serial, tuple(items), problem))
     return units, []
 
 
@@ -258,9 +259,8 @@ def _run_unit(unit: Unit, options: dict[str, Any], out_dir: str, log: bool, toke
     staging = os.path.join(out_dir, f".{unit.serial}.{token}{STAGING}")
     args = dict(options, serial=unit.serial, output=staging, quiet=True, json_summary=False)
     row: dict[str, Any] = {"serial": unit.serial, "inputs": list(unit.inputs)}
-    if not unit.inputs:
-        what = "log" if log else "pose"
-        return row | _failed(InputError(f"no {what} files ({', '.join(DATA_SUFFIXES)}) in its folder"))
+    if unit.problem is not None:
+        return row | _failed(InputError(unit.problem))
     if log and len(unit.inputs) != 1:
         return row | _failed(InputError(f"--log takes one log per unit; {unit.serial} has {len(unit.inputs)} files"))
     args["log" if log else "poses"] = unit.inputs[0] if log else list(unit.inputs)

@@ -2673,7 +2673,7 @@ def batch(**given: Any) -> None:
     calfile.created()  # so is a bad SOURCE_DATE_EPOCH
     units, notes = batches.find_units(source, log=log, out_dir=out_dir)
     if own["dask_scheduler"] is not None:  # the workers do not share this working folder
-        units = [batches.Unit(u.serial, tuple(batches.absolute(i) for i in u.inputs)) for u in units]
+        units = [batches.Unit(u.serial, tuple(batches.absolute(i) for i in u.inputs), u.problem) for u in units]
         out_dir = os.path.abspath(out_dir)
         if given["limits_file"]:
             given["limits_file"] = os.path.abspath(given["limits_file"])
