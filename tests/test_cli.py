@@ -12,8 +12,10 @@ import json
 import os
 import shutil
 import signal
+import stat
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -1114,6 +1116,39 @@ def test_a_full_disk_is_an_error_not_a_bug() -> None:
         )
     assert proc.returncode == 2
     assert proc.stderr.decode().splitlines() == ["error: <stdout>: cannot write: No space left on device"]
+
+
+def test_output_to_a_named_pipe_writes_into_it_and_keeps_it(tmp_path: Path) -> None:
+    """`-o /dev/null`, `-o /dev/stdout`, a FIFO: written into, never replaced by a file (an
+    atomic replace there would put a regular file where the device was). Tested on a FIFO."""
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    received: list[bytes] = []
+    reader = threading.Thread(target=lambda: received.append(fifo.read_bytes()))
+    reader.start()
+    proc = subprocess.run(
+        [tumblecal_exe(), "solve", "-q", "--poses", str(SAMPLE / "z.csv"), "-o", str(fifo)],
+        capture_output=True, timeout=60, check=False,
+    )  # fmt: skip
+    reader.join(timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
+    assert json.loads(received[0])["method"] == "one-pose"
+
+
+def test_output_through_a_symbolic_link_replaces_its_target(tmp_path: Path) -> None:
+    target = tmp_path / "cal_2026.json"
+    target.write_text("old")
+    link = tmp_path / "latest.json"
+    link.symlink_to(target.name)
+    proc = subprocess.run(
+        [tumblecal_exe(), "solve", "-q", "--poses", str(SAMPLE / "z.csv"), "-o", str(link)],
+        capture_output=True, timeout=60, check=False,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    assert link.is_symlink()
+    assert json.loads(target.read_text())["method"] == "one-pose"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cal_2026.json", "latest.json"]
 
 
 def test_a_file_too_large_names_the_output(cal: Path, tmp_path: Path) -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
+import stat
 import sys
 import tempfile
 from collections.abc import Iterable, Iterator
@@ -52,18 +53,25 @@ def check_writable(output: str, flag: str = "-o") -> None:
 @contextlib.contextmanager
 def atomic_output(path: str) -> Iterator[IO[bytes]]:
     """A binary stream for ``path`` ('-': stdout). A file appears (or is replaced) only when
-    the block finishes without an error; on an error the old file is left as it was."""
+    the block finishes without an error; on an error the old file is left as it was.
+
+    A path that is not a regular file (``/dev/null``, ``/dev/stdout``, a named pipe) is written
+    into as it is: replacing it would put a file where a device was. A symbolic link to a file
+    keeps its link: the file it points to is what is replaced."""
     if path == "-":
-        try:
+        with _stream_errors("<stdout>"):
             yield sys.stdout.buffer
             sys.stdout.buffer.flush()
-        except BrokenPipeError:
-            raise PipeClosed("stdout was closed") from None
-        except OSError as err:
-            if err.errno not in WRITE_ERRORS:
-                raise
-            raise InputError(f"cannot write: {err.strerror}", file="<stdout>") from None
         return
+    try:
+        special = not stat.S_ISREG(os.stat(path).st_mode)
+    except OSError:  # not there (or a dangling link): a new file
+        special = False
+    if special:
+        with _stream_errors(path), open(path, "wb") as stream:
+            yield stream
+        return
+    path = os.path.realpath(path) if os.path.islink(path) else path
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
         raise InputError("the output folder does not exist", file=path)
@@ -90,3 +98,16 @@ def atomic_output(path: str) -> Iterator[IO[bytes]]:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
+
+
+@contextlib.contextmanager
+def _stream_errors(name: str) -> Iterator[None]:
+    """A stream's write errors as tumblecal's: a closed reader, a full disk naming ``name``."""
+    try:
+        yield
+    except BrokenPipeError:
+        raise PipeClosed(f"{name} was closed") from None
+    except OSError as err:
+        if err.errno not in WRITE_ERRORS:
+            raise
+        raise InputError(f"cannot write: {err.strerror}", file=name) from None
