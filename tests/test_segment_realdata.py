@@ -165,6 +165,20 @@ def test_xsens_log_orientation_free_fit_converges(tmp_path: Path) -> None:
     assert doc["residuals"]["rms"] < 0.01  # g; measured 0.0021
 
 
+def test_xsens_log_auto_fits_the_sphere_to_its_hand_placed_blocks(tmp_path: Path) -> None:
+    """Its +x block is 15.9° off the face: six-pose would take that for cross-axis terms (±11 %)
+    and read other orientations worse than raw, so auto fits the sphere to all the blocks."""
+    log = unpacked(tmp_path, "xsens_acc.txt.gz")
+    cal = tmp_path / "cal.json"
+    r = tumblecal("solve", "--log", log, "-o", cal)
+    assert r.code == 0, r.err
+    assert json.loads(cal.read_text())["method"] == "sphere"
+    assert "note: auto fits the sphere to all 38 still blocks: the +x block (17) is 15.9° off its face" in r.err
+    r = tumblecal("solve", "--log", log, "--method", "six-pose", "-o", cal)  # asked for: fitted, with the note
+    assert r.code == 0, r.err
+    assert "note: the +x block (17) is 15.9° off its face: a face solver takes each block as exactly" in r.err
+
+
 # -- Hassan & Bao's phone log: no time column ------------------------------------------------------
 
 

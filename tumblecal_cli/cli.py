@@ -597,6 +597,7 @@ def solve(
     gyro = sensor is SensorKind.gyroscope
     unit = _unit_block(serial, station, operator, meta or [])
     segmentation = None
+    log_notes: list[str] = []  # how the blocks of a log were chosen
     whole: list[FloatArray] = []  # every reading of the unit: its integer type's rails
     if log is None:
         _method_options(name, ref, plane, bias_spread)
@@ -641,7 +642,7 @@ def solve(
         whole = [data.values]
         centre = seg.centre
         try:
-            name, labels, samples = _log_poses(data, seg, name, up_face, sensor.value)
+            name, labels, samples, log_notes = _log_poses(data, seg, name, up_face, sensor.value)
         except CaptureRejected as err:
             if not quiet:
                 _print_blocks(data, seg, _console(), used={}, everything=False)
@@ -683,6 +684,8 @@ def solve(
             names=names,
         )
     except CaptureRejected as err:
+        if log_notes and name == "sphere" and err.hint is None:  # auto's choice: say why, and the way back
+            err.hint = f"{log_notes[0]}"
         if json_summary:
             _print_json(_rejected_head(err))
         raise
@@ -725,7 +728,8 @@ def solve(
         segmentation=segmentation,
     )
     notes = (
-        _tilt_notes(doc)
+        log_notes
+        + _tilt_notes(doc)
         + list(fit.notes)
         + _solve_notes(stats, names, limits_given=limits_given, method=solution.method)
     )
@@ -1059,14 +1063,26 @@ def _enough_blocks(log: Any, seg: Any, need: int) -> None:
     )
 
 
-def _log_poses(log: Any, seg: Any, method: str, up: str, sensor: str) -> tuple[str, list[str | None], list[Samples]]:
+#: A face block further than this from its face is not what a face solver assumes (exactly on
+#: the face): with enough blocks, auto fits the sphere instead.
+AUTO_FACE_TILT_DEG = 5.0
+
+
+def _log_poses(
+    log: Any, seg: Any, method: str, up: str, sensor: str
+) -> tuple[str, list[str | None], list[Samples], list[str]]:
     """The method and the poses a log gives it: the best block of each face a face solver
-    needs, or every kept block for an orientation-free one."""
+    needs, or every kept block for an orientation-free one; and notes on that choice.
+
+    ``auto`` with a hand-placed log (a face's block more than AUTO_FACE_TILT_DEG off its face)
+    and 12 or more kept blocks fits the sphere: a face solver would take the tilt for cross-axis
+    terms and correct other orientations worse than no calibration (seen on real logs)."""
     from tumblecal_cli import segment, solvers
 
     _enough_blocks(log, seg, 1 if method in ("one-pose", "one-pose-tilt") else 2)
     best, kept = seg.best(), seg.kept
     labels: list[str | None]
+    notes: list[str] = []
     if method in solvers.ORIENTATION_FREE or (
         method == "auto" and len(best) < 5 and len(kept) >= solvers.SPHERE_MIN_POSES
     ):
@@ -1101,9 +1117,23 @@ def _log_poses(log: Any, seg: Any, method: str, up: str, sensor: str) -> tuple[s
                 code="log.faces",
             )
         chosen, labels = [best[f] for f in wanted], list(wanted)
+        worst = max(chosen, key=lambda b: b.angle_deg)
+        if worst.angle_deg > AUTO_FACE_TILT_DEG and method != "one-pose-tilt":
+            tilted = f"the {worst.face} block ({worst.number}) is {worst.angle_deg:.1f}° off its face"
+            if method == "auto" and len(kept) >= solvers.SPHERE_MIN_POSES:
+                notes.append(
+                    f"auto fits the sphere to all {len(kept)} still blocks: {tilted}, and a face solver takes "
+                    "each block as exactly on its face (--method six-pose fits them anyway)"
+                )
+                chosen, labels, method = kept, [None] * len(kept), "sphere"
+            else:
+                notes.append(
+                    f"{tilted}: a face solver takes each block as exactly on its face, so the tilt goes into "
+                    "the cross-axis terms (or the gains); --method sphere fits tilted blocks as they are"
+                )
     name, order = solvers.pick(method, labels, sensor)
     samples = [log.block(b.number, b.first, b.last) for b in chosen]
-    return name, [labels[k] for k in order], [samples[k] for k in order]
+    return name, [labels[k] for k in order], [samples[k] for k in order], notes
 
 
 def _block_files(seg: Any) -> dict[int, str]:
