@@ -702,7 +702,7 @@ def test_one_pose_gains_are_not_judged(tmp_path: Path, capsys: pytest.CaptureFix
 BAD_LIMITS = [
     pytest.param(
         "limits_unknown_key.yaml",
-        "unknown limit 'gain' (known: offset, gain_error, nominal_gain, cross_axis, noise, residual)",
+        "unknown limit 'gain' (known: offset, gain_error, nominal_gain, cross_axis, noise, residual, nominal_offset)",
         id="unknown-key",
     ),
     pytest.param("limits_negative_offset.yaml", "limit 'offset' must be positive, got -0.05", id="negative"),
@@ -1482,6 +1482,31 @@ def test_one_pose_unsigned_counts_with_their_nominal_offset(tmp_path: Path, caps
     assert r.code == 0, r.err
     offset = json.loads(out.read_text())["offset"]
     np.testing.assert_allclose(offset, [32768 + 164, 32768 - 328, 32768 + 492], atol=10)
+
+
+def test_the_offset_limit_of_unsigned_counts_is_around_their_nominal_offset(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """|offset| <= 1000 can never hold for counts around 32768: the limit is judged from
+    --nominal-offset (or the limits file's nominal_offset), and the file records the centre."""
+    counts = np.round(32768 + 16384 * pose_values("+z", offset=(0.01, -0.02, 0.03), gain=(1, 1, 1)))
+    pose = write_capture(tmp_path / "z.csv", counts, fmt="%d")
+    out = tmp_path / "cal.json"
+    base: list[str | Path] = ["-q", "-p", pose, "--reference", "16384", "-o", out]
+    r = solve(capsys, *base, "--nominal-offset", "32768", "--max-offset", "1000")
+    assert r.code == 0, r.err
+    assert json.loads(out.read_text())["verdict"]["limits"] == {"offset": [1000.0] * 3, "nominal_offset": [32768.0] * 3}
+    r = solve(capsys, *base, "--nominal-offset", "32768", "--max-offset", "400")  # z is 492 off 32768
+    assert r.code == 1, r.err
+    [failure] = json.loads(out.read_text())["verdict"]["failures"]
+    assert failure["code"] == "limit.offset.z"
+    assert failure["message"].endswith("on z is outside 32768 ±400")
+    limits = tmp_path / "limits.yaml"
+    limits.write_text("offset: 1000\nnominal_offset: 32768\n")
+    r = solve(capsys, *base, "--nominal-offset", "32768", "--limits", limits)
+    assert r.code == 0, r.err
+    r = run(capsys, "check", out, "--limits", limits)
+    assert r.code == 0, r.err
 
 
 def test_a_dead_sensor_is_not_a_units_mistake(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

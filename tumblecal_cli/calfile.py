@@ -358,6 +358,7 @@ LIMIT_KEYS = {
     "cross_axis": "one",
     "noise": "one",
     "residual": "one",
+    "nominal_offset": "per axis",  # the offset a good unit has (unsigned counts: 32768); any number
 }
 
 
@@ -374,6 +375,9 @@ def load_limits(path: str) -> dict[str, Any]:
             raise InputError(f"a {value} file, not a limits file", file=path, hint="see README: Limits and the verdict")
         if key not in LIMIT_KEYS:
             raise InputError(f"unknown limit {key!r} (known: {', '.join(LIMIT_KEYS)})", file=path)
+        if key == "nominal_offset":  # not a bound: a centre, which may be 0 or negative
+            out[key] = _vector(value, key, path) if isinstance(value, list) else np.full(3, _number(value, key, path))
+            continue
         out[key] = limit_value(value, key, path, per_axis=LIMIT_KEYS[key] == "per axis")
     return out
 

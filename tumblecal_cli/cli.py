@@ -881,7 +881,8 @@ def _solve_settings(
             hint="the stimulus magnitude: 1 (g), 9.80665 (m/s^2), 16384 (counts); 0 only for --sensor gyroscope",
         )
     centre = None if nominal_offset is None else _triplet_option(nominal_offset, "--nominal-offset")
-    return chosen, up_face, ref, centre, _limits(limits_file, max_offset, max_gain_error, nominal_gain)
+    limits = _limits(limits_file, max_offset, max_gain_error, nominal_gain, nominal_offset=centre)
+    return chosen, up_face, ref, centre, limits
 
 
 def _method_options(name: str, ref: float, plane: Any, bias_spread: float | None) -> None:
@@ -1307,11 +1308,21 @@ def _triplet_option(text: str, option: str) -> Any:
     return np.array(values * 3 if len(values) == 1 else values)
 
 
-def _limits(path: str | None, max_offset: str | None, max_gain_error: str | None, nominal_gain: str | None) -> Any:
-    """The limits of --limits FILE, with the flags taking precedence."""
+def _limits(
+    path: str | None,
+    max_offset: str | None,
+    max_gain_error: str | None,
+    nominal_gain: str | None,
+    *,
+    nominal_offset: Any = None,
+) -> Any:
+    """The limits of --limits FILE, with the flags taking precedence (``nominal_offset``, solve's
+    --nominal-offset: the centre of the offset limit unless the file names one)."""
     from tumblecal_cli import calfile, gate
 
     bounds: dict[str, Any] = calfile.load_limits(path) if path else {}
+    if nominal_offset is not None:
+        bounds.setdefault("nominal_offset", nominal_offset)
     for key, text, option in (
         ("offset", max_offset, "--max-offset"),
         ("gain_error", max_gain_error, "--max-gain-error"),

@@ -311,7 +311,8 @@ def _clipping(values: FloatArray, full_scale: float | None, rails: Rails | None)
 class Limits:
     """Bounds a good unit stays within (each None: not judged)."""
 
-    offset: FloatArray | None = None  # (3,) bound on |offset|, raw units
+    offset: FloatArray | None = None  # (3,) bound on |offset - nominal_offset|, raw units
+    nominal_offset: FloatArray = field(default_factory=lambda: np.zeros(3))  # unsigned counts: 32768
     gain_error: FloatArray | None = None  # (3,) bound on |gain / nominal_gain - 1|
     nominal_gain: FloatArray = field(default_factory=lambda: np.ones(3))
     cross_axis: float | None = None  # bound on |A[i, j] / A[i, i]|, i != j
@@ -340,6 +341,8 @@ class Limits:
         out: dict[str, Any] = {}
         if self.offset is not None:
             out["offset"] = [float(v) for v in self.offset]
+            if np.any(self.nominal_offset != 0.0):
+                out["nominal_offset"] = [float(v) for v in self.nominal_offset]
         if self.gain_error is not None:
             out["gain_error"] = [float(v) for v in self.gain_error]
         if self.gain_error is not None or np.any(self.nominal_gain != 1.0):  # given: export's gain trim reads it
@@ -394,11 +397,13 @@ def verdict(
     a = np.linalg.inv(matrix)
     gain = np.diag(a)
     for i, axis in enumerate(AXES):
-        if limits.offset is not None and not abs(offset[i]) <= limits.offset[i]:  # NaN fails
+        away = offset[i] - limits.nominal_offset[i]
+        if limits.offset is not None and not abs(away) <= limits.offset[i]:  # NaN fails
+            centre = f"{limits.nominal_offset[i]:g} " if limits.nominal_offset[i] else ""
             failures.append(
                 Finding(
                     f"limit.offset.{axis}",
-                    f"offset {offset[i]:.6g} on {axis} is outside ±{limits.offset[i]:g}",
+                    f"offset {offset[i]:.6g} on {axis} is outside {centre}±{limits.offset[i]:g}",
                     float(offset[i]),
                     float(limits.offset[i]),
                 )

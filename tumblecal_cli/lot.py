@@ -211,12 +211,13 @@ def lot(entries: Iterable[Entry]) -> list[Entry]:
 
 def bounds(parameter: str, limits: dict[str, Any]) -> tuple[float | None, float | None]:
     """(lower, upper) specification limits of a parameter from a ``calfile.load_limits`` dict,
-    as ``gate.verdict`` judges a single unit: |offset| ≤ L, |gain / nominal − 1| ≤ e, |cross| ≤ L.
+    as ``gate.verdict`` judges a single unit: |offset − nominal| ≤ L, |gain / nominal − 1| ≤ e, |cross| ≤ L.
     (None, None) when the limits do not bound it."""
     family, _, name = parameter.partition(".")
     if family == "offset" and limits.get("offset") is not None:
         bound = _axis(limits["offset"], name)
-        return (-bound, bound)
+        centre = _axis(limits["nominal_offset"], name) if limits.get("nominal_offset") is not None else 0.0
+        return (centre - bound, centre + bound)
     if family == "gain" and limits.get("gain_error") is not None:
         error = _axis(limits["gain_error"], name)
         nominal = _axis(limits["nominal_gain"], name) if limits.get("nominal_gain") is not None else 1.0
