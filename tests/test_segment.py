@@ -600,6 +600,18 @@ def test_a_pose_map_that_contradicts_the_data_is_caught(
     assert "hint: map each face's label with --pose-map" in r.err
 
 
+def test_a_pose_map_label_not_in_the_column_is_a_usage_error(
+    six_tilted: SynthLog, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`xp=+x` where the column says x_p: that face's blocks would be dropped without a word."""
+    src = write_log(tmp_path / "annotated.csv", six_tilted, with_labels=True)
+    typo = POSE_MAP.replace("x_p=+x", "xp=+x")
+    for command in (["segment", src], ["solve", "--log", src, "-o", tmp_path / "c.json"]):
+        r = run(capsys, *command, "--pose-column", "part", "--pose-map", typo)
+        assert_usage_error(r, str(src), "--pose-map names 'xp', not a label of column 'part' (labels: ")
+    assert not (tmp_path / "c.json").exists()
+
+
 def test_a_labelled_log_centre_ignores_its_rotations(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """Unsigned counts with a full turn after each face, labelled *_rot (unmapped): a turn
     averages to the centre itself, and counted with the faces it pulled the centre to zero,

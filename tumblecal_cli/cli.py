@@ -1027,6 +1027,14 @@ def _blocks_of(
         return segment.detect(log.values, seconds, rate, settings)
     mapping = _pose_map(pose_map)
     labels = sorted(set(log.labels or []) - {""})
+    unknown = [label for label in mapping if label not in labels]
+    if unknown:  # a typo would drop that face's blocks without a word
+        shown = ", ".join(labels[:12]) + (" ..." if len(labels) > 12 else "")
+        raise InputError(
+            f"--pose-map names {', '.join(map(repr, unknown))}, not a label of column {pose_column!r} "
+            f"(labels: {shown or 'none'})",
+            file=log.layout.name,
+        )
     for label in labels:
         if label not in mapping:
             # a rotation, or a label --pose-map leaves out: its blocks are dropped
