@@ -502,6 +502,18 @@ def test_segment_again_never_removes_its_own_input(
     assert again.read_bytes() == before
 
 
+def test_segment_never_replaces_a_file_it_did_not_write(
+    six_level_csv: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "poses"
+    out.mkdir()
+    (out / "xp.csv").write_text("my own +x capture\n")
+    r = run(capsys, "segment", six_level_csv, "-d", out)
+    assert_usage_error(r, str(out), "--out-dir already holds xp.csv, which no earlier `tumblecal segment` wrote there")
+    assert sorted(p.name for p in out.iterdir()) == ["xp.csv"]
+    assert (out / "xp.csv").read_text() == "my own +x capture\n"
+
+
 def test_segment_without_out_dir_prints_the_index(
     six_level_csv: Path,
     six_level: SynthLog,
@@ -606,7 +618,8 @@ def test_a_pose_map_label_not_in_the_column_is_a_usage_error(
     """`xp=+x` where the column says x_p: that face's blocks would be dropped without a word."""
     src = write_log(tmp_path / "annotated.csv", six_tilted, with_labels=True)
     typo = POSE_MAP.replace("x_p=+x", "xp=+x")
-    for command in (["segment", src], ["solve", "--log", src, "-o", tmp_path / "c.json"]):
+    commands: list[list[str | Path]] = [["segment", src], ["solve", "--log", src, "-o", tmp_path / "c.json"]]
+    for command in commands:
         r = run(capsys, *command, "--pose-column", "part", "--pose-map", typo)
         assert_usage_error(r, str(src), "--pose-map names 'xp', not a label of column 'part' (labels: ")
     assert not (tmp_path / "c.json").exists()

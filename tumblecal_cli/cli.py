@@ -2569,9 +2569,21 @@ def segment(
                 check_path = os.path.join(out_dir, f)
                 if os.path.exists(check_path) and os.path.samefile(check_path, log):
                     raise InputError(f"--out-dir would overwrite the input with {f}", file=log)
+        ours, listed = _earlier_run(out_dir)
+        foreign = [
+            f
+            for f in [*files.values(), "segments.csv"]
+            if os.path.lexists(os.path.join(out_dir, f)) and f not in listed and not (f == "segments.csv" and ours)
+        ]
+        if foreign:  # a file of the user's, not one an earlier segment wrote: never replaced
+            raise InputError(
+                f"--out-dir already holds {', '.join(foreign)}, which no earlier `tumblecal segment` wrote there",
+                file=out_dir,
+                hint="give an empty or new --out-dir, or move those files",
+            )
         earlier = {
             name
-            for name in _earlier_blocks(out_dir) - set(files.values())
+            for name in listed - set(files.values())
             if log == "-" or not os.path.samefile(os.path.join(out_dir, name), log)  # never the log itself
         }
         os.makedirs(out_dir, exist_ok=True)
@@ -2588,18 +2600,24 @@ def segment(
         _console().print(f"wrote {len(kept)} block files and segments.csv to {out_dir}{gone}", soft_wrap=True)
 
 
-def _earlier_blocks(out_dir: str) -> set[str]:
-    """The block files an earlier ``segment`` wrote into ``out_dir``, by its segments.csv: only
-    names this command gives (xp.csv ... block07.csv), never another file of the folder."""
+def _earlier_run(out_dir: str) -> tuple[bool, set[str]]:
+    """Whether ``out_dir`` holds an earlier ``segment``'s index (segments.csv with its header),
+    and the block files it lists that are still there: only names this command gives (xp.csv
+    ... block07.csv), never another file of the folder."""
     import csv
 
     index = os.path.join(out_dir, "segments.csv")
     try:
         with open(index, newline="", encoding="utf-8") as f:
-            names = {row.get("file") or "" for row in csv.DictReader(f)}
+            reader = csv.DictReader(f)
+            names = {row.get("file") or "" for row in reader}
+            ours = reader.fieldnames == INDEX_COLUMNS
     except (OSError, UnicodeDecodeError, csv.Error):
-        return set()
-    return {n for n in names if re.fullmatch(r"(?:[xyz][pn]|block\d{2,})\.csv", n)}
+        return False, set()
+    if not ours:
+        return False, set()
+    pattern = r"(?:[xyz][pn]|block\d{2,})\.csv"
+    return True, {n for n in names if re.fullmatch(pattern, n) and os.path.exists(os.path.join(out_dir, n))}
 
 
 BATCH_PANEL = "Batch"
