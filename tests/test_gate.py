@@ -117,7 +117,7 @@ def test_moved_noisy_pose_is_rejected() -> None:
     assert 1.3 * NOISE_BOUND < finding.value < 1.7 * NOISE_BOUND
     assert finding.bound == NOISE_BOUND
     assert finding.message == (
-        f"standard deviation {output_std[worst]:.3g} on {'xyz'[worst]}, above --max-noise (0.02): the unit moved"
+        f"standard deviation {output_std[worst]:.3g} on {'xyz'[worst]}, above 0.02 (--max-noise): the unit moved"
     )
     assert warned == []
 
@@ -138,7 +138,7 @@ def test_moved_drifting_pose_is_rejected_for_its_drift() -> None:
     assert finding.value == pytest.approx(drift, rel=1e-9)
     assert finding.value == pytest.approx(2 / 3 * 0.045, rel=0.05)
     assert "drifts" in finding.message
-    assert finding.message.startswith(f"drifts by {drift:.3g} on z (first vs last third), above --max-noise")
+    assert finding.message.startswith(f"drifts by {drift:.3g} on z (first vs last third), above 0.02 (--max-noise)")
 
 
 def test_moved_just_under_the_bound_is_a_narrow_pass() -> None:
@@ -150,7 +150,7 @@ def test_moved_just_under_the_bound_is_a_narrow_pass() -> None:
     [finding] = warned
     assert (finding.code, finding.file) == ("pose.moved", NAMES[1])
     assert gate.NARROW * NOISE_BOUND < finding.value < NOISE_BOUND
-    assert finding.message.endswith(f", close to --max-noise ({NOISE_BOUND:.3g})")
+    assert finding.message.endswith(f", close to {NOISE_BOUND:.3g} (--max-noise)")
     assert "above" not in finding.message
 
 

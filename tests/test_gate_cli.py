@@ -48,6 +48,7 @@ SAMPLE_LIMITS = {
 # sample_data/limits.yaml as a three-pose unit is judged by it: no cross-axis terms to judge
 THREE_POSE_LIMITS = {k: v for k, v in SAMPLE_LIMITS.items() if k != "cross_axis"}
 SAMPLE_JUDGED = "limits: offset, gain_error, noise, residual"
+RULE = "--max-noise 0.02 × reference 1"  # how the moved check's bound was made, as its messages say
 CROSS_AXIS_NOTE = "note: the three-pose solver estimates no cross-axis terms, so the cross-axis limit does not apply"
 HINT = {
     "pose.moved": "hold the unit still and capture the pose again, or raise --max-noise",
@@ -209,7 +210,7 @@ def test_a_pose_that_drifts_is_rejected(tmp_path: Path, capsys: pytest.CaptureFi
     assert moved["value"] == pytest.approx(third_drift(moving)[1] / summary["gain"][1], rel=0.02)
     assert_rejected(
         r,
-        [f"{y}: drifts by {moved['value']:.3g} on y (first vs last third), above --max-noise (0.02): the unit moved"],
+        [f"{y}: drifts by {moved['value']:.3g} on y (first vs last third), above 0.02 ({RULE}): the unit moved"],
         HINT["pose.moved"],
         json_out=True,
     )
@@ -235,7 +236,7 @@ def test_a_noisy_pose_is_rejected_for_its_standard_deviation(
     axis = "xyz"[int(np.argmax(std))]
     assert_rejected(
         r,
-        [f"{y}: standard deviation {moved['value']:.3g} on {axis}, above --max-noise (0.02): the unit moved"],
+        [f"{y}: standard deviation {moved['value']:.3g} on {axis}, above 0.02 ({RULE}): the unit moved"],
         HINT["pose.moved"],
         json_out=True,
     )
@@ -254,7 +255,7 @@ def test_a_narrow_pass_warns_and_exits_0(tmp_path: Path, capsys: pytest.CaptureF
     [close] = summary["warnings"]
     assert (close["code"], close["bound"], close["file"]) == ("pose.moved", 0.02, str(y))
     assert 0.8 * 0.02 < close["value"] <= 0.02
-    message = f"standard deviation {close['value']:.3g} on y, close to --max-noise (0.02)"
+    message = f"standard deviation {close['value']:.3g} on y, close to 0.02 ({RULE})"
     assert close["message"] == message  # not "above ...: the unit moved": it passed
     assert lines(r, "warning:") == [f"warning: {y}: {message} (pose.moved)"]
     assert json.loads(out.read_text())["verdict"]["pass"] is True
@@ -496,7 +497,7 @@ def test_gyroscope_noise_is_judged_only_with_max_noise(tmp_path: Path, capsys: p
     assert r.code == 3
     [error] = lines(r, "error:")
     assert error.startswith(f"error: {pose}: standard deviation ")
-    assert error.endswith("above --max-noise (0.5): the unit moved")  # in deg/s, not x reference
+    assert error.endswith("above 0.5 (--max-noise 0.5): the unit moved")  # in deg/s, not x reference
 
 
 # -- exit status order: 2 > 3 > 1 > 0 ------------------------------------------------------

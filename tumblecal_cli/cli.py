@@ -660,6 +660,7 @@ def solve(
     noise = max_noise if max_noise is not None else (None if gyro else 0.02)
     options = gate.Options(
         noise_bound=None if noise is None else (noise if gyro else noise * ref),  # a gyroscope: in its units
+        noise_rule="" if noise is None else (f"{noise:g}" if gyro else f"{noise:g} × reference {ref:g}"),
         max_tilt_deg=max_tilt,
         nominal_offset=_triplet_option("0", "--nominal-offset") if centre is None else centre,
         full_scale=full_scale,

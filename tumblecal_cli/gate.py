@@ -88,6 +88,7 @@ class Options:
     """The checks' settings (the solve options of the same names)."""
 
     noise_bound: float | None = None  # output units; None: the moved check is off
+    noise_rule: str = ""  # how --max-noise made the bound, for the message: "0.02 × reference 9.81"
     max_tilt_deg: float = 25.0
     nominal_offset: FloatArray = field(default_factory=lambda: np.zeros(3))  # raw units
     full_scale: float | None = None  # raw units; None: integer-type limits
@@ -203,6 +204,7 @@ def check(poses: Sequence[PoseCheck], solution: Solution, options: Options) -> t
                 drift = np.abs(solution.matrix) @ np.abs(p.drift)
                 worst_std, worst_drift = int(np.argmax(std)), int(np.argmax(drift))
                 bound = options.noise_bound
+                rule = f" (--max-noise {options.noise_rule})" if options.noise_rule else " (--max-noise)"
                 if drift[worst_drift] > std[worst_std]:
                     what = f"drifts by {drift[worst_drift]:.3g} on {AXES[worst_drift]} (first vs last third)"
                     value = float(drift[worst_drift])
@@ -210,12 +212,10 @@ def check(poses: Sequence[PoseCheck], solution: Solution, options: Options) -> t
                     what = f"standard deviation {std[worst_std]:.3g} on {AXES[worst_std]}"
                     value = float(std[worst_std])
                 judge(
-                    Finding(
-                        "pose.moved", f"{what}, above --max-noise ({bound:.3g}): the unit moved", value, bound, **where
-                    ),
+                    Finding("pose.moved", f"{what}, above {bound:.3g}{rule}: the unit moved", value, bound, **where),
                     not value <= bound,  # NaN fails
                     value > NARROW * bound,
-                    f"{what}, close to --max-noise ({bound:.3g})",
+                    f"{what}, close to {bound:.3g}{rule}",
                 )
             elif check_name == "upside_down" and solution.method not in FIXED_GAINS and p.face in FACES:
                 assert p.face is not None
