@@ -166,3 +166,24 @@ def test_report_reads_a_calibration_from_stdin(
     assert code == 0, err
     assert rows(out)["offset.x"]["count"] == "1"
     assert float(rows(out)["offset.x"]["mean"]) == pytest.approx(json.loads(one.read_text())["offset"][0], rel=1e-6)
+
+
+def test_report_keeps_calibrations_in_other_units_apart(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A lot of g calibrations beside one made in m/s²: not one population of gains."""
+    lot = tmp_path / "lot"
+    shutil.copytree(LOT, lot)
+    other = json.loads((LOT / "SN0001_20261121T090000Z.json").read_text())
+    other["unit"]["serial"] = "SN9001"
+    other["units"] = "m/s^2"
+    other["reference"] = 9.81
+    other["matrix"] = [[v * 9.81 for v in row] for row in other["matrix"]]
+    other["gain"] = [g / 9.81 for g in other["gain"]]
+    (lot / "SN9001_ms2.json").write_text(json.dumps(other))
+    _, out, err = run(["report", str(lot)], capsys)
+    assert "acc. (m/s^2) gain.x" in err
+    table = list(csv.DictReader(io.StringIO(out)))
+    sensors = {row["sensor"] for row in table}
+    assert len(sensors) == 2
+    g_rows = [row for row in table if row["parameter"] == "gain.x" and row["count"] == "30"]
+    assert len(g_rows) == 1  # the g lot's statistics are its own
+    assert float(g_rows[0]["mean"]) == pytest.approx(1.0, abs=0.01)

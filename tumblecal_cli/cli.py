@@ -2246,6 +2246,12 @@ def _count(n: int, noun: str) -> str:
     return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
+def _short_sensor(sensor: str) -> str:
+    """ "accelerometer" as "acc.", and "accelerometer (raw -> g)" as "acc. (raw -> g)"."""
+    name, _, units = sensor.partition(" (")
+    return f"{name[:3]}." + (f" ({units}" if units else "")
+
+
 def _print_lot(result: Any, console: Console, plot: str | None, *, drift_given: bool) -> None:
     """The lot report for people: the parameter table, outliers, drift, unreadable files."""
     from rich import box
@@ -2274,7 +2280,7 @@ def _print_lot(result: Any, console: Console, plot: str | None, *, drift_given: 
     for r in result.rows:
         low_cpk = result.min_cpk is not None and r.cpk is not None and r.cpk < result.min_cpk
         table.add_row(
-            f"{r.sensor[:3]}. {r.parameter}" if several else r.parameter,
+            f"{_short_sensor(r.sensor)} {r.parameter}" if several else r.parameter,
             str(r.count),
             g(r.mean),
             g(r.std, 2),

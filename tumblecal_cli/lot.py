@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import UTC, date, datetime
 from typing import Any
 
@@ -116,6 +116,7 @@ class Entry:
     sensor: str
     method: str
     values: dict[str, float]
+    units: str = ""  # "[input units -> ]output units", to keep calibrations of other units apart
 
 
 def entry(cal: calfile.Loaded) -> Entry:
@@ -141,6 +142,7 @@ def entry(cal: calfile.Loaded) -> Entry:
         sensor=cal.sensor,
         method=method,
         values=values,
+        units=(f"{doc['input_units']} -> " if doc.get("input_units") else "") + str(doc.get("units") or "no units"),
     )
 
 
@@ -487,6 +489,14 @@ def _plain(value: float | None) -> float | None:
     return number if math.isfinite(number) else None
 
 
+def split_by_units(entries: Sequence[Entry]) -> list[Entry]:
+    """The entries, a sensor calibrated in more than one kind of units named with its units."""
+    kinds: dict[str, set[str]] = {}
+    for e in entries:
+        kinds.setdefault(e.sensor, set()).add(e.units)
+    return [replace(e, sensor=f"{e.sensor} ({e.units})") if len(kinds[e.sensor]) > 1 else e for e in entries]
+
+
 def _cell(value: float | None) -> str:
     plain = _plain(value)
     return "" if plain is None else repr(plain)
@@ -502,7 +512,11 @@ def summarise(
 ) -> Report:
     """The lot report: statistics over the latest calibration of each unit (module docstring),
     bounded by ``limits`` (a ``calfile.load_limits`` dict, possibly empty), and the drift of every
-    re-calibrated unit against ``max_drift`` (``parse_max_drift``)."""
+    re-calibrated unit against ``max_drift`` (``parse_max_drift``).
+
+    Calibrations of one sensor in different units (counts to g beside m/s² to m/s²) are not
+    one population: each kind is reported apart, as "accelerometer (m/s^2)"."""
+    entries = split_by_units(entries)
     members = lot(entries)
     order = {sensor: k for k, sensor in enumerate(calfile.SENSORS)}
     sensors = sorted({e.sensor for e in members}, key=lambda s: (order.get(s, len(order)), s))
