@@ -1151,6 +1151,23 @@ def test_output_through_a_symbolic_link_replaces_its_target(tmp_path: Path) -> N
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cal_2026.json", "latest.json"]
 
 
+def test_a_narrow_terminal_never_crops_the_numbers(tmp_path: Path) -> None:
+    """At 50 columns the summary's numbers are printed whole (the lines run long) rather than
+    cut to digits that look valid and are not."""
+    env = {**os.environ, "COLUMNS": "50", "NO_COLOR": "1"}
+    proc = subprocess.run(
+        [tumblecal_exe(), "solve", "--poses", *map(str, POSES_3), "-o", str(tmp_path / "cal.json")],
+        capture_output=True, text=True, env=env, timeout=60, check=False,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads((tmp_path / "cal.json").read_text())
+    lines = proc.stderr.splitlines()
+    assert any(line.split()[:2] == ["axis", "column"] and line.rstrip().endswith("± tilt") for line in lines)
+    x_row = next(line.split() for line in lines if line.startswith(" x "))
+    assert x_row[2] == f"{doc['offset'][0]:.6g}"
+    assert x_row[3] == f"{doc['uncertainty']['offset'][0]:.2g}"
+
+
 def test_a_file_too_large_names_the_output(cal: Path, tmp_path: Path) -> None:
     """A refused write to a file names that file (the OS error carries no name of its own)."""
     out = tmp_path / "corrected.csv"

@@ -2980,7 +2980,7 @@ def _print_summary(
             name,
             justify="left" if text else "right",
             no_wrap=not text,
-            min_width=4 if text else None,
+            min_width=len(name) if text else None,  # the heading whole
             overflow="fold",  # a long column name folds onto a second line rather than losing its end
         )
     for i, axis in enumerate("xyz"):
@@ -3014,9 +3014,9 @@ def _print_summary(
         )
         if "std" in p:  # a field of every file tumblecal writes; other writers may leave it out
             poses.add_row("", "", "", "", "std", *(f"{v:.3g}" for v in p["std"]), end_section=True)
-    console.print(axes)
+    _print_whole(console, axes)
     if doc.get("poses"):  # an imported calibration has none
-        console.print(poses)
+        _print_whole(console, poses)
     matrix = doc["matrix"]
     if any(matrix[i][j] for i in range(3) for j in range(3) if i != j):
         import numpy as np
@@ -3045,6 +3045,20 @@ def _print_summary(
             for f in verdict["failures"]:
                 where = f"{f['file']}: " if f.get("file") else ""
                 console.print(f"  {f['code']}: {where}{f.get('message', '')}", style="red", soft_wrap=True)
+
+
+def _print_whole(console: Console, table: Any) -> None:
+    """A table of numbers that never shrinks them: on a terminal too narrow for its numbers, it
+    is printed wider (the terminal wraps its lines) rather than cropping digits unmarked."""
+    from rich.measure import Measurement
+
+    needed = Measurement.get(console, console.options.update_width(1000), table).minimum  # unclamped
+    width = console.width
+    console.width = max(width, needed + 2)  # print() clamps its own width= to the console's; + the edges
+    try:
+        console.print(table)
+    finally:
+        console.width = width
 
 
 def _at(block: dict[str, Any], name: str, i: int) -> float | None:
