@@ -1012,6 +1012,14 @@ def test_apply_passes_non_finite_readings_through_quietly(
     ]
 
 
+def test_gyro_bias_of_an_accelerometer_is_a_usage_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Not "the unit moved" (exit 3) on the accelerometer's columns: the command line is wrong."""
+    out = precious(tmp_path / "cal.json")
+    r = run(capsys, "solve", "--method", "gyro-bias", "--poses", SAMPLE / "z.csv", "-o", out)
+    assert_one_error(r, "gyro-bias is a gyroscope's zero-rate bias: give --sensor gyroscope (not accelerometer)")
+    assert_untouched(out)
+
+
 def test_up_with_several_pose_files_is_a_usage_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """--up names the face of one file; with three it would be silently ignored."""
     out = precious(tmp_path / "cal.json")

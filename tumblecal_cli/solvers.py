@@ -619,6 +619,8 @@ def pick(method: str, labels: Sequence[str | None], sensor: str) -> tuple[str, l
     order = list(range(n))
     if method == "auto":
         method = _auto(labels, sensor)
+    if method == "gyro-bias" and sensor != "gyroscope":  # else the accelerometer's columns "moved"
+        raise InputError(f"gyro-bias is a gyroscope's zero-rate bias: give --sensor gyroscope (not {sensor})")
     if method in ("one-pose", "one-pose-tilt"):
         if n != 1:
             raise InputError(f"{method} takes 1 pose file, got {n}")
