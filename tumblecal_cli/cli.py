@@ -2562,7 +2562,9 @@ def segment(
     ) as (path, data, seg):
         files = _block_files(seg)
         if not quiet:
-            _print_blocks(data, seg, _console(), used={n: f"-> {f}" for n, f in files.items()}, everything=verbose)
+            # "-> xp.csv" only where it is written; the index alone names the file each block would go to
+            shown = {n: f"-> {f}" if out_dir is not None else f"kept ({f})" for n, f in files.items()}
+            _print_blocks(data, seg, _console(), used=shown, everything=verbose)
         _enough_blocks(data, seg, 2)
         text = io.StringIO()
         writer = csv.writer(text, lineterminator="\n")
