@@ -284,7 +284,7 @@ def test_batch_folder_layout_labels_and_notes(tmp_path: Path, capsys: pytest.Cap
     assert sorted(rows) == ["NODATA", "PLAIN", "PLUS", "SIX"]
     nodata = rows.pop("NODATA")
     assert (nodata["status"], nodata["verdict"]) == ("2", "error")
-    assert nodata["message"] == "no pose files (.csv, .tsv, .txt, .dat) in its folder"
+    assert nodata["message"] == f"no pose files (.csv, .tsv, .txt, .dat) in {src / 'NODATA'}"
     assert r.err.splitlines() == [f"NODATA: error: {nodata['message']}"]  # -q still prints a unit's error
     assert rows["PLUS"]["inputs"].split(";") == [f"+{n}={plus / f'+{n}.csv'}" for n in "xyz"]
     assert rows["PLAIN"]["inputs"].split(";") == [str(plain / n) for n in ["a.csv", "b.csv", "c.csv"]]
@@ -589,6 +589,9 @@ def test_batch_json_matches_summary_csv(tmp_path: Path, capsys: pytest.CaptureFi
         for c in batch.NUMBERS:  # numbers as numbers, equal to the CSV's text read back
             assert u[c] is None if row[c] == "" else u[c] == float(row[c])
     assert doc["counts"] == {v: sum(row["verdict"] == v for row in rows) for v in doc["counts"]}
+    [failed] = [row for row in rows if row["verdict"] == "fail"]  # why: its limit failures, in its message
+    assert failed["message"].startswith(failed["codes"].split(";")[0] + ": ")
+    assert all(row["message"] == "" for row in rows if row["verdict"] == "pass")
 
     # a resumed batch (every unit done) prints the same units, read back from summary.csv
     r = run(capsys, "batch", src, "--out-dir", out, "--limits", LIMITS, "--json", "--resume", "-q")

@@ -141,7 +141,7 @@ def _folder_units(folder: str, *, log: bool, skip: str | None) -> tuple[list[Uni
         files = _data_files(path)
         if not files:  # the unit's error (run_unit), not a silent gap in the lot
             what = "log" if log else "pose"
-            units.append(Unit(name, (), f"no {what} files ({', '.join(DATA_SUFFIXES)}) in its folder"))
+            units.append(Unit(name, (), f"no {what} files ({', '.join(DATA_SUFFIXES)}) in {path}"))
             continue
         if log:
             units.append(Unit(name, tuple(files)))  # more than one: the unit's error, not the batch's
@@ -279,7 +279,10 @@ def _run_unit(unit: Unit, options: dict[str, Any], out_dir: str, log: bool, toke
         doc = json.load(f)
     failures = doc.get("verdict", {}).get("failures", [])
     codes = list(dict.fromkeys(str(f.get("code")) for f in failures if isinstance(f, dict)))
-    return row | {"status": status, "verdict": VERDICTS[status], "codes": codes, "staging": staging} | _parameters(doc)
+    # why a unit failed its limits, as its row's message (the file holds the whole verdict)
+    messages = [f"{f.get('code')}: {f.get('message', '')}" for f in failures if isinstance(f, dict)]
+    outcome = {"status": status, "verdict": VERDICTS[status], "codes": codes, "staging": staging}
+    return row | outcome | ({"message": "; ".join(messages)} if messages else {}) | _parameters(doc)
 
 
 def finish(row: dict[str, Any], out_dir: str) -> dict[str, Any]:
