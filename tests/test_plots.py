@@ -182,6 +182,21 @@ def test_poses_figure_shows_norms_before_and_after(figures: list[Figure]) -> Non
     assert labels[7].get_text().endswith("pose_07.csv")
 
 
+def test_poses_figure_before_is_centred_on_the_nominal_offset(figures: list[Figure]) -> None:
+    """Unsigned counts sit around 32768: "before" is |mean − nominal offset| / nominal gain, not
+    a norm of 14 g that hides the residual bars."""
+    gain, zero = 16384.0, np.full(3, 32768.0)
+    means = pose_means(12) * gain + zero
+    plots.poses_figure(
+        "unused.png", [f"p{i}" for i in range(12)], means, OFFSET * gain + zero, M / gain, 1.0,
+        nominal_gain=gain, nominal_offset=zero,
+    )  # fmt: skip
+    (fig,) = figures
+    _reference, before, _after = fig.axes[0].get_lines()
+    np.testing.assert_allclose(ydata(before), np.linalg.norm(means - zero, axis=1) / gain)
+    assert np.all(np.abs(ydata(before) - 1.0) < 0.2)
+
+
 def test_rotation_figure_ellipse_lies_on_a_plane_capture(figures: list[Figure]) -> None:
     raw = turning(20000, 50.0, plane=True)
     plots.rotation_figure("unused.png", raw, OFFSET, M, 50.0, units="uT")

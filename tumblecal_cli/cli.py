@@ -823,6 +823,7 @@ def _plot_solve(
         solution.matrix,
         doc["reference"],
         nominal_gain=nominal,
+        nominal_offset=limits.nominal_offset,  # --nominal-offset: unsigned counts' zero
         units=units,
         title=title,
     )

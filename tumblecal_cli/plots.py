@@ -63,11 +63,13 @@ def poses_figure(
     reference: float,
     *,
     nominal_gain: float = 1.0,
+    nominal_offset: FloatArray | None = None,
     units: str | None = None,
     title: str = "",
 ) -> None:
-    """Each pose's norm before (``|raw mean| / nominal_gain``) and after (``|M·(mean − offset)|``)
-    calibration against ``reference``, and the residuals ``norm − reference`` as bars (seed 001)."""
+    """Each pose's norm before (``|raw mean − nominal_offset| / nominal_gain``: unsigned counts
+    sit around 32768) and after (``|M·(mean − offset)|``) calibration against ``reference``, and
+    the residuals ``norm − reference`` as bars (seed 001)."""
     import numpy as np
 
     means = _array(raw_means, "raw_means", (-1, 3))
@@ -83,7 +85,8 @@ def poses_figure(
     if len(names) != n:
         raise InputError(f"{len(names)} pose names for {n} pose means")
 
-    before = np.linalg.norm(means, axis=1) / gain
+    centre = np.zeros(3) if nominal_offset is None else _array(nominal_offset, "nominal_offset", (3,))
+    before = np.linalg.norm(means - centre, axis=1) / gain
     after = np.linalg.norm((means - b) @ m.T, axis=1)
     rms_before = float(np.sqrt(np.mean((before - ref) ** 2)))
     rms_after = float(np.sqrt(np.mean((after - ref) ** 2)))
