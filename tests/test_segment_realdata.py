@@ -176,7 +176,7 @@ def test_xsens_log_auto_fits_the_sphere_to_its_hand_placed_blocks(tmp_path: Path
     assert "note: auto fits the sphere to all 38 still blocks: the +x block (17) is 15.9° off its face" in r.err
     r = tumblecal("solve", "--log", log, "--method", "six-pose", "-o", cal)  # asked for: fitted, with the note
     assert r.code == 0, r.err
-    assert "note: the +x block (17) is 15.9° off its face: a face solver takes each block as exactly" in r.err
+    assert "note: the +x block (17) is 15.9° off its face: six-pose takes each block as exactly" in r.err
 
 
 # -- Hassan & Bao's phone log: no time column ------------------------------------------------------

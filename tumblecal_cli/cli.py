@@ -685,8 +685,8 @@ def solve(
             names=names,
         )
     except CaptureRejected as err:
-        if log_notes and name == "sphere" and err.hint is None:  # auto's choice: say why, and the way back
-            err.hint = f"{log_notes[0]}"
+        if log_notes and name == "sphere":  # auto's choice: say why, and the way back
+            err.hint = f"{err.hint + '; ' if err.hint else ''}{log_notes[0]}"
         if json_summary:
             _print_json(_rejected_head(err))
         raise
@@ -873,6 +873,8 @@ def _solve_settings(
     if tilt_compensate and chosen is not MethodName.one_pose_tilt:
         raise InputError(f"--tilt-compensate is the one-pose-tilt method, not {chosen.value}")
     up_face = _face(up or "+z", "--up")
+    if method is MethodName.gyro_bias and sensor is not SensorKind.gyroscope:  # one error, not one per unit
+        raise InputError(f"gyro-bias is a gyroscope's zero-rate bias: give --sensor gyroscope (not {sensor.value})")
     for option, value in (("--max-noise", max_noise), ("--max-tilt", max_tilt), ("--full-scale", full_scale)):
         if value is not None and not value > 0:
             raise InputError(f"{option} must be positive, got {value:g}")
@@ -1030,26 +1032,28 @@ def _blocks_of(
     mapping = _pose_map(pose_map)
     labels = sorted(set(log.labels or []) - {""})
     unknown = [label for label in mapping if label not in labels]
-    if unknown:  # a typo would drop that face's blocks without a word
-        shown = ", ".join(labels[:12]) + (" ..." if len(labels) > 12 else "")
-        raise InputError(
-            f"--pose-map names {', '.join(map(repr, unknown))}, not a label of column {pose_column!r} "
-            f"(labels: {shown or 'none'})",
-            file=log.layout.name,
-        )
+    shown = ", ".join(labels[:12]) + (" ..." if len(labels) > 12 else "")
+    absent = (  # a typo, or a face this log lacks (the capture's problem, judged as missing faces)
+        f"{log.layout.name}: --pose-map names {', '.join(map(repr, unknown))}, not a label of column "
+        f"{pose_column!r} (labels: {shown or 'none'})"
+        if unknown
+        else None
+    )
     for label in labels:
         if label not in mapping:
             # a rotation, or a label --pose-map leaves out: its blocks are dropped
             with contextlib.suppress(ValueError):
                 mapping[label] = core.parse_face(label)
     if not any(label in mapping for label in labels):
-        shown = ", ".join(labels[:12]) + (" ..." if len(labels) > 12 else "")
         raise InputError(
             f"no label in column {pose_column!r} names a face (labels: {shown or 'none'})",
             file=log.layout.name,
             hint="say which is which with --pose-map, e.g. x_p=+x,x_a=-x,y_p=+y,y_a=-y,z_p=+z,z_a=-z",
         )
-    return segment.from_labels(log.values, log.labels or [], mapping, seconds, rate, settings)
+    seg = segment.from_labels(log.values, log.labels or [], mapping, seconds, rate, settings)
+    if absent:
+        seg.warnings.append(absent)
+    return seg
 
 
 def _enough_blocks(log: Any, seg: Any, need: int) -> None:
@@ -1128,23 +1132,46 @@ def _log_poses(
                 code="log.faces",
             )
         chosen, labels = [best[f] for f in wanted], list(wanted)
-        worst = max(chosen, key=lambda b: b.angle_deg)
-        if worst.angle_deg > AUTO_FACE_TILT_DEG and method != "one-pose-tilt":
-            tilted = f"the {worst.face} block ({worst.number}) is {worst.angle_deg:.1f}° off its face"
-            if method == "auto" and len(kept) >= solvers.SPHERE_MIN_POSES:
-                notes.append(
-                    f"auto fits the sphere to all {len(kept)} still blocks: {tilted}, and a face solver takes "
-                    "each block as exactly on its face (--method six-pose fits them anyway)"
-                )
-                chosen, labels, method = kept, [None] * len(kept), "sphere"
-            else:
-                notes.append(
-                    f"{tilted}: a face solver takes each block as exactly on its face, so the tilt goes into "
-                    "the cross-axis terms (or the gains); --method sphere fits tilted blocks as they are"
-                )
+        if set(best) >= set(solvers.SIX_FACES) and method in ("auto", "six-pose", "six-pose-diagonal"):
+            face, angle, number = _worst_face_tilt(best)
+            if angle > AUTO_FACE_TILT_DEG:
+                tilted = f"the {face} block ({number}) is {angle:.1f}° off its face"
+                if method == "auto" and len(kept) >= solvers.SPHERE_MIN_POSES:
+                    notes.append(
+                        f"auto fits the sphere to all {len(kept)} still blocks: {tilted}, and six-pose takes "
+                        "each block as exactly on its face (--method six-pose fits them anyway)"
+                    )
+                    chosen, labels, method = kept, [None] * len(kept), "sphere"
+                elif method != "auto":
+                    sphere = "; --method sphere fits tilted blocks" if len(kept) >= solvers.SPHERE_MIN_POSES else ""
+                    notes.append(
+                        f"{tilted}: {method} takes each block as exactly on its face, so the tilt goes into "
+                        f"its parameters{sphere}"
+                    )
     name, order = solvers.pick(method, labels, sensor)
     samples = [log.block(b.number, b.first, b.last) for b in chosen]
     return name, [labels[k] for k in order], [samples[k] for k in order], notes
+
+
+def _worst_face_tilt(best: dict[str, Any]) -> tuple[str, float, int]:
+    """The face block furthest from its face, as (face, degrees, block number), each direction
+    taken about the midpoint of opposite faces' means (the offset cancels there, so a unit's
+    own offset does not read as tilt)."""
+    import numpy as np
+
+    from tumblecal_cli import core
+
+    centre = np.array([0.5 * (best[f"+{a}"].mean[i] + best[f"-{a}"].mean[i]) for i, a in enumerate("xyz")])
+    worst = ("+x", 0.0, 0)
+    for face, block in best.items():
+        d = block.mean - centre
+        norm = float(np.linalg.norm(d))
+        if norm == 0.0 or face not in core.FACES:
+            continue
+        angle = math.degrees(math.acos(min(1.0, max(-1.0, float(d @ np.asarray(core.FACES[face])) / norm))))
+        if angle > worst[1]:
+            worst = (face, angle, int(block.number))
+    return worst
 
 
 def _block_files(seg: Any) -> dict[int, str]:
@@ -3039,7 +3066,7 @@ def _print_summary(
         console.print(f"note: {note}", soft_wrap=True)
     verdict = doc.get("verdict")
     if judged and isinstance(verdict, dict):
-        judged_by = ", ".join(k for k in verdict.get("limits") or {} if k != "nominal_gain")
+        judged_by = ", ".join(k for k in verdict.get("limits") or {} if k not in ("nominal_gain", "nominal_offset"))
         limits = f"limits: {judged_by}" if judged_by else "no limits judged"
         if verdict["pass"]:
             console.print(f"verdict: PASS ({limits})", style="bold green", soft_wrap=True)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
+import re
 import stat
 import sys
 import tempfile
@@ -58,10 +59,14 @@ def atomic_output(path: str) -> Iterator[IO[bytes]]:
     A path that is not a regular file (``/dev/null``, ``/dev/stdout``, a named pipe) is written
     into as it is: replacing it would put a file where a device was. A symbolic link to a file
     keeps its link: the file it points to is what is replaced."""
-    if path == "-":
+    if path == "-" or path in ("/dev/stdout", "/dev/fd/1", "/proc/self/fd/1"):  # the same stream
         with _stream_errors("<stdout>"):
             yield sys.stdout.buffer
             sys.stdout.buffer.flush()
+        return
+    if re.fullmatch(r"/dev/(?:stderr|fd/\d+)|/proc/self/fd/\d+", path):  # another open stream: append
+        with _stream_errors(path), open(path, "ab") as stream:  # ("wb" would truncate a file behind it)
+            yield stream
         return
     try:
         special = not stat.S_ISREG(os.stat(path).st_mode)

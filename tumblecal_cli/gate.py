@@ -404,7 +404,7 @@ def verdict(
                 Finding(
                     f"limit.offset.{axis}",
                     f"offset {offset[i]:.6g} on {axis} is outside {centre}±{limits.offset[i]:g}",
-                    float(offset[i]),
+                    float(away),  # what is judged against ±bound (the offset itself when the centre is 0)
                     float(limits.offset[i]),
                 )
             )

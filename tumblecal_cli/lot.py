@@ -516,8 +516,7 @@ def summarise(
 
     Calibrations of one sensor in different units (counts to g beside m/s² to m/s²) are not
     one population: each kind is reported apart, as "accelerometer (m/s^2)"."""
-    entries = split_by_units(entries)
-    members = lot(entries)
+    members = split_by_units(lot(entries))  # the latest of each unit first: a unit counts once
     order = {sensor: k for k, sensor in enumerate(calfile.SENSORS)}
     sensors = sorted({e.sensor for e in members}, key=lambda s: (order.get(s, len(order)), s))
     rows = []
