@@ -1144,6 +1144,19 @@ def test_output_to_a_named_pipe_writes_into_it_and_keeps_it(tmp_path: Path) -> N
     assert json.loads(received[0])["method"] == "one-pose"
 
 
+def test_output_to_dev_stdout_is_the_stream_not_the_file_behind_it(tmp_path: Path) -> None:
+    """`{ echo head; tumblecal ... -o /dev/stdout; } >> log`: written to the stream, the lines
+    before it kept (a rename onto /proc/self/fd/1's file would lose them)."""
+    log = tmp_path / "log.txt"
+    log.write_text("head\n")
+    script = f"{tumblecal_exe()} solve -q --poses {SAMPLE / 'z.csv'} -o /dev/stdout >> {log}"
+    proc = subprocess.run(["bash", "-c", script], capture_output=True, text=True, timeout=60, check=False)
+    assert proc.returncode == 0, proc.stderr
+    head, rest = log.read_text().split("\n", 1)
+    assert head == "head"
+    assert json.loads(rest)["method"] == "one-pose"
+
+
 def test_output_through_a_symbolic_link_replaces_its_target(tmp_path: Path) -> None:
     target = tmp_path / "cal_2026.json"
     target.write_text("old")

@@ -1508,6 +1508,8 @@ def test_the_offset_limit_of_unsigned_counts_is_around_their_nominal_offset(
     assert r.code == 0, r.err
     r = run(capsys, "check", out, "--limits", limits)
     assert r.code == 0, r.err
+    r = run(capsys, "check", out, "--max-offset", "1000")  # the centre solve recorded is used
+    assert r.code == 0, r.err
 
 
 def test_a_dead_sensor_is_not_a_units_mistake(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -1853,6 +1853,13 @@ def check(
         raise InputError("no limits to judge against", hint="give --limits FILE, --max-offset or --max-gain-error")
     c = calfile.load(cal)
     method = str(c.doc["method"])
+    recorded = ((c.doc.get("verdict") or {}).get("limits") or {}).get("nominal_offset")
+    if recorded is not None and not any(given.nominal_offset):  # the centre solve judged it from
+        import dataclasses
+
+        import numpy as np
+
+        given = dataclasses.replace(given, nominal_offset=np.array(recorded, dtype=float))
     limits = given.for_method(method)
     if not limits.judges():
         raise InputError(f"no limits to judge against: {'; '.join(_limits_not_applying(given, method))}", file=cal)
@@ -2626,9 +2633,11 @@ def segment(
         os.makedirs(out_dir, exist_ok=True)
         kept = seg.kept
         spans = [(int(data.rows[b.first]), int(data.rows[b.last])) for b in kept]
-        captures.copy_rows(path, data.layout, spans, [os.path.join(out_dir, files[b.number]) for b in kept])
+        # the index first: a run stopped part-way leaves its blocks listed, so the next run
+        # into this folder knows them for its own and replaces them
         with atomic_output(os.path.join(out_dir, "segments.csv")) as out:
             out.write(text.getvalue().encode())
+        captures.copy_rows(path, data.layout, spans, [os.path.join(out_dir, files[b.number]) for b in kept])
         for name in sorted(earlier):  # a re-run replaces the earlier segmentation, never mixes with it
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(os.path.join(out_dir, name))
@@ -3011,6 +3020,7 @@ def _print_summary(
             justify="left" if text else "right",
             no_wrap=not text,
             min_width=len(name) if text else None,  # the heading whole
+            max_width=14 if text else None,  # ... and a long name folds within it, not widening the table
             overflow="fold",  # a long column name folds onto a second line rather than losing its end
         )
     for i, axis in enumerate("xyz"):
@@ -3029,6 +3039,7 @@ def _print_summary(
             justify="left" if name in ("pose", "file", "") else "right",
             no_wrap=not text,
             min_width=6 if text else None,
+            max_width=14 if text else None,  # a long file name folds, the numbers stay whole
             overflow="fold",
         )
     for p in doc.get("poses", []):
