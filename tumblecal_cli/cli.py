@@ -1165,10 +1165,9 @@ def _worst_face_tilt(best: dict[str, Any]) -> tuple[str, float, int]:
     worst = ("+x", 0.0, 0)
     for face, block in best.items():
         d = block.mean - centre
-        norm = float(np.linalg.norm(d))
-        if norm == 0.0 or face not in core.FACES:
+        if not np.any(d) or face not in core.FACES:
             continue
-        angle = math.degrees(math.acos(min(1.0, max(-1.0, float(d @ np.asarray(core.FACES[face])) / norm))))
+        angle = core.angle_deg(d, face)
         if angle > worst[1]:
             worst = (face, angle, int(block.number))
     return worst

@@ -80,6 +80,13 @@ def direction(label: str) -> FloatArray:
     return result
 
 
+def angle_deg(vector: FloatArray, label: str) -> float:
+    """Degrees between a (non-zero) ``vector`` and a pose label's direction: how far a pose's
+    centred mean is from its face."""
+    unit = vector / float(np.linalg.norm(vector))
+    return math.degrees(math.acos(min(1.0, max(-1.0, float(unit @ direction(label))))))
+
+
 @dataclass(frozen=True)
 class PoseStats:
     """One static pose averaged to a triplet."""

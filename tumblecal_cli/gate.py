@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from tumblecal_cli.core import FACES, FloatArray, PoseStats, Solution, direction
+from tumblecal_cli.core import FACES, FloatArray, PoseStats, Solution, angle_deg, direction
 
 #: The quality checks, by the last part of their code (``pose.<check>``).
 CHECKS = ("short", "saturated", "orientation", "moved", "upside_down")
@@ -134,7 +134,7 @@ def orient(poses: Sequence[PoseCheck], nominal_offset: FloatArray, max_tilt_deg:
             out.append(p)
             continue
         unit = d / norm
-        angle = math.degrees(math.acos(min(1.0, max(-1.0, float(unit @ direction(p.face))))))
+        angle = angle_deg(d, p.face)
         nearest = max(FACES, key=lambda f: float(unit @ np.asarray(FACES[f])))
         out.append(replace(p, angle_deg=angle, looks_like=nearest, direction=unit))
     return out

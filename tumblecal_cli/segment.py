@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from tumblecal_cli.core import FACES, pose_stats
+from tumblecal_cli.core import FACES, angle_deg, pose_stats
 
 FloatArray = np.ndarray[Any, np.dtype[np.float64]]
 IntArray = np.ndarray[Any, np.dtype[np.int64]]
@@ -302,8 +302,7 @@ def _judge(
             face = faces[a]
             dropped = UNMAPPED if face is None else None
             if face in FACES and magnitude > 0:
-                cosine = float((st.mean - seg.centre) @ np.asarray(FACES[face])) / magnitude
-                angle = math.degrees(math.acos(min(1.0, max(-1.0, cosine))))
+                angle = angle_deg(st.mean - seg.centre, face)
                 dropped = MISLABELLED if angle > settings.max_tilt_deg else None
         if dropped is None and b - a + 1 < seg.min_samples:
             dropped = SHORT
