@@ -24,7 +24,7 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from tumblecal_cli.errors import InputError, Interrupted, TumblecalError
+from tumblecal_cli.errors import InputError, TumblecalError
 
 #: Files a unit folder's poses (or log) may be in; anything else there is left alone.
 DATA_SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
@@ -269,8 +269,6 @@ def _run_unit(unit: Unit, options: dict[str, Any], out_dir: str, log: bool, toke
         cli.solve(**args)
     except typer.Exit as done:
         status = done.exit_code
-    except Interrupted:  # the batch is being stopped, not this unit failing
-        raise
     except TumblecalError as err:
         return row | _failed(err)
     except Exception as err:  # a bug: this unit's error, with what to report
@@ -539,8 +537,6 @@ def _dask(address: str) -> Engine:
                     args = sent.pop(future)
                     try:  # a lost worker (KilledWorker), tumblecal missing there: that unit's error
                         result = future.result()
-                    except Interrupted:  # SIGTERM here: the batch stops, the unit did not fail
-                        raise
                     except Exception as err:
                         result = err
                     yield args, result
@@ -575,8 +571,6 @@ def apply_one(options: dict[str, Any], capture: str, output: str) -> tuple[str, 
 
     try:
         cli.apply(**dict(options, capture=[capture], output=output, out_dir=None, quiet=True, dask_scheduler=None))
-    except Interrupted:  # the run is being stopped, not this file failing
-        raise
     except TumblecalError as err:
         return capture, err.exit_code, "; ".join([str(err), *err.more])
     except Exception as err:  # a bug: this file's error

@@ -3136,6 +3136,9 @@ def main(argv: list[str] | None = None) -> int:
     except (typer.Abort, KeyboardInterrupt):
         _report("interrupted", None)
         return 130
+    except Interrupted as err:  # SIGTERM (_term_as_interrupt)
+        _report(str(err), None)
+        return Interrupted.exit_code
     except OSError as err:  # the system refused (a full disk, stdout on /dev/full): not a bug
         if _state["debug"]:
             raise

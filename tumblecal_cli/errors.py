@@ -67,8 +67,9 @@ class PipeClosed(TumblecalError):
     exit_code = 141
 
 
-class Interrupted(TumblecalError):
+class Interrupted(BaseException):
     """Stopped by SIGTERM (a station's or a scheduler's kill): outputs are cleaned up as for
-    an error, and the status is Ctrl-C's."""
+    an error, and the status is Ctrl-C's. Like KeyboardInterrupt, not an Exception: no handler
+    of a unit's or a file's errors takes it for one of theirs; the CLI's boundary reports it."""
 
     exit_code = 130

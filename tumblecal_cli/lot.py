@@ -35,7 +35,7 @@ import numpy as np
 
 from tumblecal_cli import calfile, gate
 from tumblecal_cli.core import FloatArray
-from tumblecal_cli.errors import InputError, Interrupted, TumblecalError
+from tumblecal_cli.errors import InputError, TumblecalError
 
 #: Suffixes of calibration files a folder is searched for (case-insensitive, as calfile.is_yaml).
 SUFFIXES = (".json", ".yaml", ".yml")
@@ -179,8 +179,6 @@ def load_all(paths: list[str]) -> tuple[list[Entry], list[tuple[str, str]]]:
     for path in find(paths):
         try:
             entries.append(entry(calfile.load(path)))
-        except Interrupted:  # SIGTERM: the report stops, the file is not unreadable
-            raise
         except TumblecalError as err:
             unreadable.append((path, _message(err)))
     return entries, unreadable
