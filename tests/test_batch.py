@@ -17,14 +17,13 @@ import shutil
 import subprocess
 import sys
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import pytest
 
+from tests.test_cli import run, tumblecal_exe
 from tumblecal_cli import batch
-from tumblecal_cli.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLE = ROOT / "sample_data"
@@ -41,28 +40,6 @@ SIX_FACES = ("xp", "xn", "yp", "yn", "zp", "zn")
 
 
 # -- helpers -------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Result:
-    code: int
-    out: str
-    err: str
-
-
-def run(capsys: pytest.CaptureFixture[str], *args: str | Path) -> Result:
-    """``tumblecal ARGS`` in-process."""
-    code = main([str(a) for a in args])
-    captured = capsys.readouterr()
-    return Result(code, captured.out, captured.err)
-
-
-def tumblecal_exe() -> str:
-    """The console script of the interpreter running the tests."""
-    beside = Path(sys.executable).parent / "tumblecal"
-    found = str(beside) if beside.exists() else shutil.which("tumblecal")
-    assert found, "the tumblecal console script is not installed"
-    return found
 
 
 def run_exe(args: Sequence[str | Path], cwd: Path | None = None) -> subprocess.CompletedProcess[str]:

@@ -12,29 +12,23 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
-import sys
 import time
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import pytest
 
+from tests.test_batch import unit
+from tests.test_cli import tumblecal_exe
+
 distributed = pytest.importorskip("distributed")
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLE = ROOT / "sample_data"
-IMUCAL = SAMPLE / "imucal"
 LIMITS = SAMPLE / "limits.yaml"
 EPOCH = "1700000000"
 STAMP = "20231114T221320Z"
 UNREACHABLE = "tcp://127.0.0.1:1"
-
-
-def tumblecal_exe() -> str:
-    beside = Path(sys.executable).parent / "tumblecal"
-    found = str(beside) if beside.exists() else shutil.which("tumblecal")
-    assert found, "the tumblecal console script is not installed"
-    return found
 
 
 def command(args: Sequence[str | Path]) -> list[str]:
@@ -58,18 +52,7 @@ def snapshot(folder: Path) -> dict[str, bytes]:
 def make_units(root: Path) -> Path:
     """Six units: pass (two), fail (limits), rejected, error; more units than workers."""
     for serial, kind in [("A", "good"), ("B", "six"), ("C", "rejected"), ("D", "error"), ("E", "good"), ("F", "six")]:
-        folder = root / serial
-        folder.mkdir(parents=True)
-        if kind == "six":
-            for face in ("xp", "xn", "yp", "yn", "zp", "zn"):
-                shutil.copy(IMUCAL / f"{face}.csv", folder / f"{face}.csv")
-            continue
-        for name in "xyz":
-            shutil.copy(SAMPLE / f"{name}.csv", folder / f"{name}.csv")
-        if kind == "rejected":
-            shutil.copy(SAMPLE / "x.csv", folder / "y.csv")
-        elif kind == "error":
-            (folder / "z.csv").write_text("t,ax,ay,az\n")
+        unit(root, serial, kind)
     return root
 
 
