@@ -1,7 +1,88 @@
 """tumblecal: calibrate 3-axis sensors from static tumble poses and correct captures.
 
-Layers (imports flow one way): ``cli`` -> ``captures``/``calfile`` (io) -> ``core`` (numpy only).
-Nothing here imports numpy or pyarrow, so ``tumblecal --help`` stays fast.
+The Python API (README "Using tumblecal from Python")::
+
+    import tumblecal_cli as tumblecal
+
+    solved = tumblecal.solve(["x.csv", "y.csv", "z.csv"], reference=1.0, limits="limits.yaml", serial="A17")
+    solved.status                      # 0 pass, 1 outside its limits, 3 rejected
+    solved.calibration.save("cal.json")
+    cal = tumblecal.load("cal.json")
+    corrected = cal.apply(df)          # a DataFrame, or (n, 3) readings
+
+Layers, imports flowing one way: ``cli`` (Typer, Rich) -> ``pipeline`` (what a user does) ->
+``io`` (files) -> ``core`` (numpy only). The names below are loaded when first used, so
+``import tumblecal_cli`` (and ``tumblecal --help``) imports no numpy.
 """
 
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
+
+from tumblecal_cli.errors import CaptureRejected, InputError, TumblecalError
+
+if TYPE_CHECKING:
+    from tumblecal_cli.io.calfile import Calibration, load
+    from tumblecal_cli.pipeline.batch import run_batch
+    from tumblecal_cli.pipeline.calfiles import check, export, import_peer
+    from tumblecal_cli.pipeline.correct import correct
+    from tumblecal_cli.pipeline.frames import read_capture
+    from tumblecal_cli.pipeline.logs import segment
+    from tumblecal_cli.pipeline.options import SolveOptions
+    from tumblecal_cli.pipeline.report import report
+    from tumblecal_cli.pipeline.solve import Solved, solve, solve_log
+    from tumblecal_cli.pipeline.verify import verify
+
 __version__ = "0.1.0"
+
+#: Each public name and the module that holds it.
+_HOMES = {
+    "Calibration": "tumblecal_cli.io.calfile",
+    "load": "tumblecal_cli.io.calfile",
+    "solve": "tumblecal_cli.pipeline.solve",
+    "solve_log": "tumblecal_cli.pipeline.solve",
+    "Solved": "tumblecal_cli.pipeline.solve",
+    "SolveOptions": "tumblecal_cli.pipeline.options",
+    "read_capture": "tumblecal_cli.pipeline.frames",
+    "correct": "tumblecal_cli.pipeline.correct",
+    "segment": "tumblecal_cli.pipeline.logs",
+    "verify": "tumblecal_cli.pipeline.verify",
+    "report": "tumblecal_cli.pipeline.report",
+    "check": "tumblecal_cli.pipeline.calfiles",
+    "export": "tumblecal_cli.pipeline.calfiles",
+    "import_peer": "tumblecal_cli.pipeline.calfiles",
+    "run_batch": "tumblecal_cli.pipeline.batch",
+}
+
+__all__ = [
+    "Calibration",
+    "CaptureRejected",
+    "InputError",
+    "SolveOptions",
+    "Solved",
+    "TumblecalError",
+    "__version__",
+    "check",
+    "correct",
+    "export",
+    "import_peer",
+    "load",
+    "read_capture",
+    "report",
+    "run_batch",
+    "segment",
+    "solve",
+    "solve_log",
+    "verify",
+]
+
+
+def __getattr__(name: str) -> object:
+    """The public names, imported on first use (PEP 562)."""
+    home = _HOMES.get(name)
+    if home is None:
+        raise AttributeError(f"module 'tumblecal_cli' has no attribute {name!r}")
+    value = getattr(importlib.import_module(home), name)
+    globals()[name] = value
+    return value

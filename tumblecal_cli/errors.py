@@ -1,4 +1,4 @@
-"""The one exception family. Each error knows its exit status (DESIGN.md section 5)."""
+"""The one exception family. Each error knows its exit status (README "Exit status")."""
 
 from __future__ import annotations
 

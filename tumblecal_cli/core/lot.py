@@ -2,8 +2,9 @@
 
 Numbers in, numbers out: which files make the lot, one row of statistics per sensor and
 parameter (count, mean, spread, capability against the limits, outliers), and how each
-re-calibrated unit moved since its previous calibration. numpy and the calibration-file reader
-only; the command line formats what :func:`summarise` returns.
+re-calibrated unit moved since its previous calibration. numpy only: the pipeline
+(``tumblecal_cli.pipeline.report``) finds and reads the files, the command line formats what
+:func:`summarise` returns.
 
 **Which calibrations make the lot statistics.** Stations keep every calibration a unit ever got
 (batch publishes ``<serial>_<UTC time>.json`` and never replaces one), so a unit re-calibrated
@@ -28,17 +29,14 @@ import math
 import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
-from datetime import UTC, date, datetime
+from datetime import UTC, datetime
 from typing import Any
 
 import numpy as np
 
-from tumblecal_cli import calfile, gate
-from tumblecal_cli.core import FloatArray
-from tumblecal_cli.errors import InputError, TumblecalError
+from tumblecal_cli.core.model import SENSORS, FloatArray
+from tumblecal_cli.errors import InputError
 
-#: Suffixes of calibration files a folder is searched for (case-insensitive, as calfile.is_yaml).
-SUFFIXES = (".json", ".yaml", ".yml")
 AXES = "xyz"
 OFFSETS = tuple(f"offset.{k}" for k in AXES)
 GAINS = tuple(f"gain.{k}" for k in AXES)
@@ -70,39 +68,6 @@ CSV_HEADER = [
 ]
 
 
-# --- which files --------------------------------------------------------------------------------
-
-
-def find(paths: list[str], skip: str | None = None) -> list[str]:
-    """The calibration files named: each path a file (taken as it is, whatever its name; '-'
-    stdin) or a folder searched recursively for ``*.json``, ``*.yaml``, ``*.yml``. Inside a
-    folder, hidden files and folders (a name starting with '.', such as batch's staging files
-    ``.SN1.abc.partial.json``) are skipped, and so is ``skip`` (the limits file, kept beside the
-    calibrations). Sorted, each file once."""
-    found: set[str] = set()
-    for path in paths:
-        if path == "-":  # DESIGN.md section 5: '-' means stdin wherever a path is taken
-            found.add(path)
-            continue
-        if not os.path.exists(path):
-            raise InputError("no such file or folder", file=path)
-        if not os.path.isdir(path):
-            found.add(os.path.normpath(path))
-            continue
-        for folder, dirs, names in os.walk(path):
-            dirs[:] = [d for d in dirs if not d.startswith(".")]  # os.walk descends only into what is left
-            for name in names:
-                file = os.path.join(folder, name)
-                if name.startswith(".") or not name.lower().endswith(SUFFIXES):
-                    continue
-                if skip is not None and os.path.exists(skip) and os.path.samefile(file, skip):
-                    continue
-                found.add(os.path.normpath(file))
-    if not found:
-        raise InputError(f"no calibration files (*.json, *.yaml) in {', '.join(paths)}")
-    return sorted(found)
-
-
 # --- one calibration ----------------------------------------------------------------------------
 
 
@@ -119,45 +84,6 @@ class Entry:
     units: str = ""  # "[input units -> ]output units", to keep calibrations of other units apart
 
 
-def entry(cal: calfile.Loaded) -> Entry:
-    """The parameters of one loaded calibration."""
-    doc = cal.doc
-    values = {name: float(v) for name, v in zip(OFFSETS, cal.offset, strict=True)}
-    a = np.linalg.inv(cal.matrix)  # load() has refused a singular M
-    method = str(doc["method"])
-    if method not in gate.FIXED_GAINS:
-        values.update({name: float(g) for name, g in zip(GAINS, np.diag(a), strict=True)})
-    if np.count_nonzero(cal.matrix - np.diag(np.diag(cal.matrix))):  # as gate.verdict: M has cross terms
-        for i, row in enumerate(AXES):
-            for j, col in enumerate(AXES):
-                if i != j:
-                    values[f"cross.{row}{col}"] = float(a[i, j] / a[i, i])
-    unit = doc.get("unit") or {}
-    serial = unit.get("serial")
-    return Entry(
-        path=cal.path,
-        serial=None if serial is None or str(serial).strip() == "" else str(serial),
-        # an imported calibration dates from when it was made, as its export recorded
-        created=_created_text((doc.get("imported") or {}).get("created") or doc.get("created")),
-        sensor=cal.sensor,
-        method=method,
-        values=values,
-        units=(f"{doc['input_units']} -> " if doc.get("input_units") else "") + str(doc.get("units") or "no units"),
-    )
-
-
-def _created_text(value: Any) -> str:
-    """``created`` as text: a hand-written YAML file's unquoted timestamp is read as a datetime."""
-    if value is None:
-        return ""
-    if isinstance(value, datetime):
-        when = value if value.tzinfo is not None else value.replace(tzinfo=UTC)
-        return when.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
-    if isinstance(value, date):
-        return value.isoformat()
-    return str(value)
-
-
 def _when(e: Entry) -> tuple[int, float, str, str]:
     """Sort key, oldest first: ``created`` as a time (ISO 8601; no zone read as UTC), ties by path.
     A file without a readable ``created`` sorts before every dated one."""
@@ -168,27 +94,6 @@ def _when(e: Entry) -> tuple[int, float, str, str]:
     if when.tzinfo is None:
         when = when.replace(tzinfo=UTC)
     return (1, when.timestamp(), e.created, e.path)
-
-
-def load_all(paths: list[str]) -> tuple[list[Entry], list[tuple[str, str]]]:
-    """Every calibration file ``find`` finds, loaded. A file that cannot be read, or is not a
-    tumblecal calibration (another tool's JSON in the folder), does not stop the others: it is
-    returned as ``(path, message)`` (the message without the path) for the caller to warn about."""
-    entries: list[Entry] = []
-    unreadable: list[tuple[str, str]] = []
-    for path in find(paths):
-        try:
-            entries.append(entry(calfile.load(path)))
-        except TumblecalError as err:
-            unreadable.append((path, _message(err)))
-    return entries, unreadable
-
-
-def _message(err: TumblecalError) -> str:
-    where = [f"line {err.line}"] if err.line is not None else []
-    if err.column is not None:
-        where.append(f"column {err.column}")
-    return f"{err.message} ({', '.join(where)})" if where else err.message
 
 
 def lot(entries: Iterable[Entry]) -> list[Entry]:
@@ -384,7 +289,7 @@ def drift(entries: Iterable[Entry], max_drift: dict[str, float]) -> list[Drift]:
                     relative=relative,
                 )
             )
-    order = {sensor: k for k, sensor in enumerate(calfile.SENSORS)}
+    order = {sensor: k for k, sensor in enumerate(SENSORS)}
     out.sort(key=lambda d: (d.serial, order.get(d.sensor, len(order)), d.sensor, PARAMETERS.index(d.parameter)))
     return out
 
@@ -515,7 +420,7 @@ def summarise(
     Calibrations of one sensor in different units (counts to g beside m/s² to m/s²) are not
     one population: each kind is reported apart, as "accelerometer (m/s^2)"."""
     members = split_by_units(lot(entries))  # the latest of each unit first: a unit counts once
-    order = {sensor: k for k, sensor in enumerate(calfile.SENSORS)}
+    order = {sensor: k for k, sensor in enumerate(SENSORS)}
     sensors = sorted({e.sensor for e in members}, key=lambda s: (order.get(s, len(order)), s))
     rows = []
     for sensor in sensors:

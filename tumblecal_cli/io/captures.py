@@ -1,4 +1,4 @@
-"""Captures (CSV sample logs) in and out: one set of rules (DESIGN.md section 5a), one engine.
+"""Captures (CSV sample logs) in and out: one set of rules (README "CSV captures"), one engine.
 
 How a capture is read:
 
@@ -401,7 +401,7 @@ def _detect_delimiter(lines: Sequence[str]) -> str | None:
 
 
 def _skipped(line: str) -> bool:
-    """Blank and ``#`` comment lines are not data, wherever they are (DESIGN.md section 5a)."""
+    """Blank and ``#`` comment lines are not data, wherever they are (README "CSV captures")."""
     text = line.strip()
     return not text or text.startswith("#")
 
@@ -709,7 +709,7 @@ def _times(cap: Capture, times: list[tuple[int, pa.Array]], mask: BoolArray | No
 def copy_rows(path: str, layout: Layout, spans: Sequence[tuple[int, int]], outputs: Sequence[str]) -> None:
     """Write data rows ``first``..``last`` of each span to its output file, byte for byte, after
     the file's own preamble and header: each block a capture on its own. Atomic per file."""
-    from tumblecal_cli.files import atomic_output
+    from tumblecal_cli.io.outputs import atomic_output
 
     data = np.fromfile(path, dtype=np.uint8)
     starts, ends = row_offsets(data, len(layout.head))
@@ -842,3 +842,37 @@ def _write_batch(batch: pa.RecordBatch, out: IO[bytes], options: Any, lay: Layou
 def _write_plain(batch: pa.RecordBatch, out: IO[bytes], delimiter: str, eol: str) -> None:
     columns = [[("" if v is None else v) for v in c.to_pylist()] for c in batch.columns]
     out.write("".join(delimiter.join(row) + eol for row in zip(*columns, strict=True)).encode())
+
+
+def sensor_triplet(
+    names: Sequence[str], *, sensor: str, columns: Sequence[str] | None, name: str, prefer: Sequence[str] | None = None
+) -> tuple[int, int, int]:
+    """The sensor columns among ``names`` by the rules a file's header is read by (data in
+    memory: a DataFrame's columns); ``name`` says what messages call it."""
+    layout = Layout(name, ",", [str(n) for n in names], True, b"", 1, "\n")
+    return _pick_columns(layout, sensor, columns, prefer, None)[0]
+
+
+def read_table(path: str, *, no_header: bool = False) -> tuple[Layout, list[str], list[pa.Array]]:
+    """Every column of a capture, by the rules solve and apply read it by: (layout, names,
+    columns, each int64, float64 or text). The sensor columns are checked as apply checks them
+    (a cell that is not a number is an error naming its line and column)."""
+    with open_capture(path, no_header=no_header) as cap:
+        parts: list[list[pa.Array]] = [[] for _ in cap.layout.names]
+        for first, cols in cap.batches():
+            cap.sensor_values([cols[i] for i in cap.layout.sensor], first)
+            for k, col in enumerate(cols):
+                parts[k].append(col)
+    out: list[pa.Array] = []
+    for chunks in parts:
+        text = pa.chunked_array(chunks, type=pa.string()).combine_chunks() if chunks else pa.array([], pa.string())
+        trimmed = pc.utf8_trim_whitespace(text)
+        for kind in (pa.int64(), pa.float64()):
+            try:
+                out.append(pc.cast(pc.if_else(pc.equal(trimmed, ""), None, trimmed), kind))
+                break
+            except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
+                continue
+        else:
+            out.append(text)
+    return cap.layout, list(cap.layout.names), out

@@ -2,7 +2,7 @@
 
 matplotlib and numpy are imported inside the functions, so importing this module costs nothing.
 Figures are drawn on a bare ``matplotlib.figure.Figure`` (no pyplot, no global backend state),
-rendered to memory, and only then written with :func:`tumblecal_cli.files.atomic_output`: bad
+rendered to memory, and only then written with :func:`tumblecal_cli.io.outputs.atomic_output`: bad
 input raises :class:`InputError` before any file is touched. The same call gives the same bytes.
 
 Model (README "Calibration file"): ``corrected = M·(raw − offset)``, ``A = M⁻¹``.
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.files import atomic_output
+from tumblecal_cli.io.outputs import atomic_output
 
 if TYPE_CHECKING:
     import numpy as np

@@ -1,6 +1,6 @@
 """The numeric core: pose statistics, the tumble solvers, and apply. numpy only.
 
-Measurement model (DESIGN.md section 2)::
+Measurement model (README "Poses, signs and --reference")::
 
     raw = A @ v + b + noise        v: true stimulus in the sensor frame, |v| = reference
     corrected = M @ (raw - b)      M = inv(A)
@@ -35,8 +35,11 @@ FACES: dict[str, tuple[float, float, float]] = {
     "+z": (0.0, 0.0, 1.0),
     "-z": (0.0, 0.0, -1.0),
 }
-#: Script-friendly aliases (DESIGN.md section 2): xp = +x, xn = -x, ...
+#: Script-friendly aliases (README "Poses, signs and --reference"): xp = +x, xn = -x, ...
 FACE_ALIASES = {f"{axis}{s}": f"{sign}{axis}" for axis in "xyz" for s, sign in (("p", "+"), ("n", "-"))}
+
+#: The sensors tumblecal calibrates, in the order reports list them.
+SENSORS = ("accelerometer", "magnetometer", "gyroscope")
 
 #: A 1-pose magnitude further than this fraction from ``reference`` is a units mistake.
 UNITS_TOLERANCE = 0.25
@@ -157,7 +160,7 @@ def solve_three_pose(
 
     and corrects by subtracting the offset and dividing by the gain, so ``M = diag(1 / gain)``.
     The offsets come from horizontal readings, so they shift to first order with fixture tilt
-    (seed 000, notes; DESIGN.md section 2).
+    (seed 000, notes; README "Poses, signs and --reference").
     """
     if reference <= 0:
         raise InputError("the 3-pose solver needs a positive --reference (the stimulus magnitude)")
@@ -229,7 +232,7 @@ def units_mistake(mean: FloatArray, reference: float) -> float | None:
     """The reference the data suggests when |mean| is far from ``reference``, else None.
 
     Only meaningful for solvers without gains (1-pose), where the output keeps the raw units
-    (DESIGN.md section 2). Offsets are a few percent of full scale, so a magnitude more than
+    (README "Poses, signs and --reference"). Offsets are a few percent of full scale, so a magnitude more than
     ``UNITS_TOLERANCE`` away from ``reference`` means the data is in other units.
     """
     magnitude = float(np.linalg.norm(mean))

@@ -1,9 +1,9 @@
 """The solvers beyond 1- and 3-pose: six-pose (with and without cross-axis terms), N-pose least
 squares, the orientation-free sphere fit, tilt-compensated 1-pose, magnetometer min/max and
-ellipsoid, gyroscope bias. numpy only (the core layer, DESIGN.md section 3).
+ellipsoid, gyroscope bias. numpy only (the core layer, README "Development").
 
-Every solver works in the model of DESIGN.md section 2, ``raw = A v + b``, ``corrected =
-M (raw - b)``, ``M = inv(A)``, and returns a :class:`~tumblecal_cli.core.Solution`. The
+Every solver works in the model of README "Poses, signs and --reference", ``raw = A v + b``, ``corrected =
+M (raw - b)``, ``M = inv(A)``, and returns a :class:`~tumblecal_cli.core.model.Solution`. The
 solvers fitted to pose means share one propagation (:func:`_propagate`): the parameters
 ``(b, A)`` are functions of the means, so their covariance is ``J diag(se^2) J^T`` with ``J``
 the Jacobian by central differences (exact for the linear solvers), and their worst-case shift
@@ -25,7 +25,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from tumblecal_cli.core import (
+from tumblecal_cli.core.model import (
     FACES,
     FloatArray,
     PoseStats,

@@ -1,13 +1,13 @@
 """``tumblecal batch`` and ``apply`` over many files: the units, the summary, and where they run.
 
 A unit is a serial number and its inputs (pose files, or one log). Each unit is solved by the
-``solve`` command's own code, in this process, in ``--jobs`` worker processes, or on a Dask
+pipeline's ``solve.run``, in this process, in ``--jobs`` worker processes, or on a Dask
 cluster; its calibration is published as ``<serial>_<UTC time>.json`` next to the others (never
 replacing a file, so a unit's history stays), and it becomes one row of ``summary.csv``. A unit
 that fails becomes a row with its exit status and message; it never stops the batch.
 
-This module is the command line's (it calls the ``solve`` and ``apply`` commands); it imports
-neither numpy nor Typer at import time, so a worker pays for them once, on its first unit.
+It imports neither numpy nor Typer at import time, so a worker pays for numpy once, on its
+first unit, and never for the command line.
 """
 
 from __future__ import annotations
@@ -17,14 +17,17 @@ import csv
 import glob
 import io
 import itertools
-import json
 import os
 import sys
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from tumblecal_cli.errors import InputError, TumblecalError
+
+if TYPE_CHECKING:
+    from tumblecal_cli.io.calfile import Calibration
+    from tumblecal_cli.pipeline.options import SolveOptions
 
 #: Files a unit folder's poses (or log) may be in; anything else there is left alone.
 DATA_SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
@@ -62,7 +65,7 @@ VERDICTS = {0: "pass", 1: "fail", 3: "rejected", 2: "error"}
 IN_FLIGHT = 1000
 #: Seconds to wait for a Dask worker, at the start and whenever no unit finishes.
 WORKERS_TIMEOUT = 10.0
-#: Exit status of the whole batch: the first of these any unit has (DESIGN.md section 5).
+#: Exit status of the whole batch: the first of these any unit has (README "Exit status").
 PRECEDENCE = (2, 3, 1)
 
 
@@ -235,14 +238,14 @@ def _resolve(base: str, name: str) -> str:
 
 
 def run_unit(
-    unit: Unit, options: dict[str, Any], out_dir: str, log: bool, token: str, epoch: str | None = None
+    unit: Unit, options: SolveOptions, out_dir: str, log: bool, token: str, epoch: str | None = None
 ) -> dict[str, Any]:
     """Solve one unit as ``tumblecal solve`` does, into a hidden staging file of this batch
     (``token``); its summary row. The parent publishes the file (:func:`finish`) as it records
     the row, so an interrupted batch leaves no calibration without a row. Never raises for the
     unit's own errors: they are its row's status and message. ``epoch``: the caller's
     ``SOURCE_DATE_EPOCH`` ("" when unset), which a Dask worker's own environment does not hold."""
-    from tumblecal_cli import calfile
+    from tumblecal_cli.io import calfile
 
     reset = calfile.CALLER_EPOCH.set(epoch)
     try:
@@ -251,36 +254,33 @@ def run_unit(
         calfile.CALLER_EPOCH.reset(reset)
 
 
-def _run_unit(unit: Unit, options: dict[str, Any], out_dir: str, log: bool, token: str) -> dict[str, Any]:
-    import typer
-
-    from tumblecal_cli import cli
+def _run_unit(unit: Unit, options: SolveOptions, out_dir: str, log: bool, token: str) -> dict[str, Any]:
+    from tumblecal_cli.pipeline import solve
 
     staging = os.path.join(out_dir, f".{unit.serial}.{token}{STAGING}")
-    args = dict(options, serial=unit.serial, output=staging, quiet=True, json_summary=False)
     row: dict[str, Any] = {"serial": unit.serial, "inputs": list(unit.inputs)}
     if unit.problem is not None:
         return row | _failed(InputError(unit.problem))
     if log and len(unit.inputs) != 1:
         return row | _failed(InputError(f"--log takes one log per unit; {unit.serial} has {len(unit.inputs)} files"))
-    args["log" if log else "poses"] = unit.inputs[0] if log else list(unit.inputs)
-    status = 0
     try:
-        cli.solve(**args)
-    except typer.Exit as done:
-        status = done.exit_code
+        mine = options.replace(serial=unit.serial)
+        solved = solve.run(mine, log=unit.inputs[0]) if log else solve.run(mine, poses=list(unit.inputs))
+        if solved.error is not None:
+            raise solved.error
+        assert solved.calibration is not None
+        solved.calibration.save(staging)
     except TumblecalError as err:
         return row | _failed(err)
     except Exception as err:  # a bug: this unit's error, with what to report
         return row | _failed(InputError(f"internal error: {type(err).__name__}: {err}"))
-    with open(staging, encoding="utf-8") as f:
-        doc = json.load(f)
-    failures = doc.get("verdict", {}).get("failures", [])
-    codes = list(dict.fromkeys(str(f.get("code")) for f in failures if isinstance(f, dict)))
+    cal, status = solved.calibration, solved.status
+    failures = cal.verdict.failures if cal.verdict is not None else ()
+    codes = list(dict.fromkeys(str(f.get("code")) for f in failures))
     # why a unit failed its limits, as its row's message (the file holds the whole verdict)
-    messages = [f"{f.get('code')}: {f.get('message', '')}" for f in failures if isinstance(f, dict)]
+    messages = [f"{f.get('code')}: {f.get('message', '')}" for f in failures]
     outcome = {"status": status, "verdict": VERDICTS[status], "codes": codes, "staging": staging}
-    return row | outcome | ({"message": "; ".join(messages)} if messages else {}) | _parameters(doc)
+    return row | outcome | ({"message": "; ".join(messages)} if messages else {}) | _parameters(cal)
 
 
 def finish(row: dict[str, Any], out_dir: str) -> dict[str, Any]:
@@ -320,17 +320,17 @@ def _failed(err: TumblecalError) -> dict[str, Any]:
     }
 
 
-def _parameters(doc: dict[str, Any]) -> dict[str, Any]:
+def _parameters(cal: Calibration) -> dict[str, Any]:
     """The key parameters of a calibration: method, offset and gain, and their 1-sigma errors."""
-    out: dict[str, Any] = {"method": doc.get("method"), "created": doc.get("created")}
-    unc = doc.get("uncertainty") or {}
+    out: dict[str, Any] = {"method": cal.method, "created": cal.created}
+    unc = cal.uncertainty
     for key, values in (
-        ("offset", doc.get("offset")),
-        ("gain", doc.get("gain")),
+        ("offset", cal.offset),
+        ("gain", cal.gain),
         ("offset_se", unc.get("offset")),
         ("gain_se", unc.get("gain")),
     ):
-        for axis, value in zip("xyz", values or [None] * 3, strict=True):
+        for axis, value in zip("xyz", [None] * 3 if values is None else [float(v) for v in values], strict=True):
             out[f"{key}_{axis}"] = value
     return out
 
@@ -425,7 +425,7 @@ class Summary:
         self._file.flush()
 
     def close(self) -> None:
-        from tumblecal_cli.files import atomic_output
+        from tumblecal_cli.io.outputs import atomic_output
 
         self._file.close()
         self.rows.sort(key=lambda r: str(r["serial"]))
@@ -471,7 +471,9 @@ def _processes(jobs: int) -> Engine:
         from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 
         context = multiprocessing.get_context("forkserver")  # safe beside the progress bar's thread
-        context.set_forkserver_preload(["tumblecal_cli.cli", "tumblecal_cli.captures", "tumblecal_cli.solvers"])
+        context.set_forkserver_preload(
+            ["tumblecal_cli.pipeline.solve", "tumblecal_cli.io.captures", "tumblecal_cli.core.solvers"]
+        )
         sent: dict[Future[Any], tuple[Any, ...]] = {}
         with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
             try:
@@ -565,14 +567,102 @@ def expand(patterns: list[str]) -> list[str]:
     return out
 
 
-def apply_one(options: dict[str, Any], capture: str, output: str) -> tuple[str, int, str]:
-    """Correct one capture as ``tumblecal apply`` does: (capture, exit status, message)."""
-    from tumblecal_cli import cli
+@dataclass
+class Plan:
+    """What a batch is about to do: its units, those done already (``--resume``), and notes."""
 
+    units: list[Unit]
+    todo: list[Unit]
+    notes: list[str]
+    summary: str
+
+
+@dataclass
+class Batched:
+    """A batch's outcome: its exit status, the summary's rows, and the count of each verdict."""
+
+    status: int
+    rows: list[dict[str, Any]]
+    counts: dict[str, int]
+    summary: str
+
+    def table(self) -> object:
+        """summary.csv as a pandas DataFrame."""
+        import pandas as pd
+
+        return pd.read_csv(self.summary)
+
+
+def run_batch(
+    source: str,
+    out_dir: str,
+    options: SolveOptions | None = None,
+    *,
+    log: bool = False,
+    jobs: int = 1,
+    resume: bool = False,
+    scheduler: str | None = None,
+    on_start: Callable[[Plan], None] | None = None,
+    on_unit: Callable[[dict[str, Any]], None] | None = None,
+) -> Batched:
+    """Calibrate every unit of ``source`` (a folder of units or a manifest CSV) as solve would
+    with ``options``: each unit's calibration into ``out_dir`` as ``<serial>_<UTC time>.json``
+    and its row into ``out_dir/summary.csv``. ``on_start`` sees the plan before any unit,
+    ``on_unit`` each unit's row as it is recorded."""
+    import time
+    from concurrent.futures.process import BrokenProcessPool
+
+    from tumblecal_cli.io import calfile
+    from tumblecal_cli.pipeline.options import SolveOptions, settings
+
+    options = options or SolveOptions()
+    if out_dir == "-":
+        raise InputError("--out-dir takes a folder: the calibrations are files, not a stream on stdout")
+    settings(options, log=log)  # a bad option: one error, not one per unit
+    calfile.created()  # so is a bad SOURCE_DATE_EPOCH
+    units, notes = find_units(source, log=log, out_dir=out_dir)
+    if scheduler is not None:  # the workers do not share this working folder
+        units = [Unit(u.serial, tuple(absolute(i) for i in u.inputs), u.problem) for u in units]
+        out_dir = os.path.abspath(out_dir)
+        if options.limits:
+            options = options.replace(limits=os.path.abspath(options.limits))
+    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
+        raise InputError("is a file, not a folder: --out-dir takes a folder", file=out_dir)
+    summary_path = os.path.join(out_dir, SUMMARY)
+    rows: list[dict[str, Any]] = []
+    if os.path.exists(summary_path):
+        if not resume:
+            raise InputError(
+                "a batch summary is already here",
+                file=summary_path,
+                hint="--resume continues it; or use another --out-dir",
+            )
+        rows = read_summary(summary_path)
+    done = {str(r["serial"]) for r in rows}
+    todo = [u for u in units if u.serial not in done]
+    if on_start is not None:
+        on_start(Plan(units, todo, notes, summary_path))
+    run = engine(jobs, scheduler)  # connects to a cluster: before writing anything
+    os.makedirs(out_dir, exist_ok=True)
+    token = f"{os.getpid()}-{time.time_ns()}"  # names this batch's staging files
+    summary = Summary(out_dir, rows)
     try:
-        cli.apply(**dict(options, capture=[capture], output=output, out_dir=None, quiet=True, dask_scheduler=None))
-    except TumblecalError as err:
-        return capture, err.exit_code, "; ".join([str(err), *err.more])
-    except Exception as err:  # a bug: this file's error
-        return capture, 2, f"internal error: {type(err).__name__}: {err}"
-    return capture, 0, ""
+        epoch = os.environ.get("SOURCE_DATE_EPOCH", "")  # the caller's, wherever the units run
+        work = [(u, options, out_dir, log, token, epoch) for u in todo]
+        for (unit, *_), outcome in run(run_unit, work):
+            # a row is published as it is recorded
+            row = failed_row(unit, outcome) if isinstance(outcome, BaseException) else finish(outcome, out_dir)
+            summary.add(row)
+            if on_unit is not None:
+                on_unit(row)
+    except BrokenProcessPool:
+        raise InputError(
+            f"a worker process died (killed, or out of memory) after {len(summary.rows) - len(done)} of "
+            f"{len(todo)} units",
+            hint="the summary keeps the units done: run the same command with --resume",
+        ) from None
+    finally:
+        summary.close()
+        clean_staging(out_dir, token)
+    counts = {v: sum(r["verdict"] == v for r in summary.rows) for v in VERDICTS.values()}
+    return Batched(status(summary.rows), summary.rows, counts, summary_path)

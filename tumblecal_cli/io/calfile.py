@@ -1,4 +1,5 @@
-"""Calibration files, format version 1 (DESIGN.md section 4): build, write, read and validate.
+"""Calibration files, format version 1 (README "Calibration file"): the typed
+:class:`Calibration`, and its JSON/YAML form, the only place it is a ``dict``.
 
 JSON by default, YAML when the path ends in ``.yaml``/``.yml`` (read with ``yaml.safe_load``
 only: a ``!!python/object`` tag is an error, never run).
@@ -10,23 +11,230 @@ import json
 import math
 import os
 import sys
+from collections.abc import Mapping, Sequence
 from contextvars import ContextVar
-from dataclasses import dataclass
-from datetime import UTC, datetime
-from typing import Any
+from dataclasses import dataclass, field, replace
+from datetime import UTC, date, datetime
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from tumblecal_cli import __version__
-from tumblecal_cli.core import FloatArray, Solution, parse_label
+from tumblecal_cli.core.model import SENSORS, FloatArray, Solution, parse_label
+from tumblecal_cli.core.model import apply as apply_model
+from tumblecal_cli.core.solvers import Fit
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.files import atomic_output
-from tumblecal_cli.solvers import Fit
+from tumblecal_cli.io.outputs import atomic_output
+
+if TYPE_CHECKING:
+    pass
 
 FORMAT = "tumblecal-calibration"
 VERSION = 1
-SENSORS = ("accelerometer", "magnetometer", "gyroscope")
 REQUIRED = ("format", "version", "sensor", "method", "reference", "columns", "offset", "matrix", "gain")
+#: The fields of the contract, in the file's order (README "Calibration file").
+ORDER = (
+    "format",
+    "version",
+    "sensor",
+    "method",
+    "reference",
+    "units",
+    "input_units",
+    "columns",
+    "offset",
+    "matrix",
+    "gain",
+    "uncertainty",
+    "tilt_sensitivity",
+    "poses",
+    "unit",
+    "verdict",
+    "created",
+    "tool",
+)
+
+
+@dataclass(frozen=True)
+class Unit:
+    """Who and what was calibrated (``--serial``, ``--station``, ``--operator``, ``--meta``)."""
+
+    serial: str | None = None
+    station: str | None = None
+    operator: str | None = None
+    meta: Mapping[str, str] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, object]:
+        return {"serial": self.serial, "station": self.station, "operator": self.operator, "meta": dict(self.meta)}
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The judgement against limits: ``passed``, each failure as written (code, message, ...),
+    and the limits judged by."""
+
+    passed: bool = True
+    failures: tuple[Mapping[str, object], ...] = ()
+    limits: Mapping[str, object] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, object]:
+        return {"pass": self.passed, "failures": [dict(f) for f in self.failures], "limits": dict(self.limits)}
+
+
+@dataclass(frozen=True, eq=False)
+class Calibration:
+    """A sensor's calibration: ``corrected = matrix @ (raw - offset)``.
+
+    ``offset`` (3,) is in raw units, ``matrix`` (3, 3) is M = inv(A), ``gain`` (3,) the diagonal
+    of A; ``uncertainty`` holds the 1-sigma of ``offset`` and ``gain`` (and ``cross_axis`` where
+    solved). ``poses`` are the file's pose entries as written; ``fields`` every other field of
+    the file (covariance, coverage, residuals, segmentation, fields of other writers), kept in
+    its place when the file is written again.
+    """
+
+    sensor: str
+    method: str
+    reference: float
+    columns: list[str]  # the sensor columns x, y, z as named in the captures
+    offset: FloatArray
+    matrix: FloatArray
+    gain: FloatArray
+    units: str | None = None
+    input_units: str | None = None
+    uncertainty: Mapping[str, FloatArray] = field(default_factory=dict)
+    tilt_sensitivity: Mapping[str, object] | None = None
+    poses: tuple[Mapping[str, Any], ...] = ()
+    unit: Unit | None = None
+    verdict: Verdict | None = None
+    created: str | None = None
+    tool: str | None = None
+    fields: Mapping[str, object] = field(default_factory=dict)
+    order: tuple[str, ...] = ORDER  # the file's own order of its fields
+    path: str | None = None  # the file it was read from
+
+    @property
+    def failed(self) -> bool:
+        """Whether the calibration carries a failing verdict."""
+        return self.verdict is not None and not self.verdict.passed
+
+    @property
+    def serial(self) -> str | None:
+        return None if self.unit is None else self.unit.serial
+
+    def apply(self, data: Any) -> Any:
+        """Correct readings: an (n, 3) array gives an (n, 3) array; a pandas DataFrame gives a copy
+        with the calibration's ``columns`` corrected (matched case-insensitively; other columns,
+        the index and their dtypes untouched)."""
+        if hasattr(data, "columns") and hasattr(data, "loc"):  # a DataFrame, without importing pandas
+            names = _frame_columns(data, self.columns, self.path)
+            out = data.copy()
+            raw = np.asarray(data[names].to_numpy(dtype=np.float64, na_value=np.nan))
+            fixed = apply_model(raw, self.offset, self.matrix)
+            for k, name in enumerate(names):
+                out[name] = fixed[:, k]
+            return out
+        values = np.asarray(data, dtype=np.float64)
+        if values.ndim != 2 or values.shape[1] != 3:
+            raise InputError(f"apply takes (n, 3) readings or a DataFrame, got an array of shape {values.shape}")
+        return apply_model(values, self.offset, self.matrix)
+
+    def save(self, path: str) -> None:
+        """Write atomically: JSON, or YAML when ``path`` ends in .yaml/.yml; '-' is stdout."""
+        write(self, path)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The file's document (the JSON/YAML boundary)."""
+        typed: dict[str, Any] = {
+            "format": FORMAT,
+            "version": VERSION,
+            "sensor": self.sensor,
+            "method": self.method,
+            "reference": self.reference,
+            "units": self.units,
+            "input_units": self.input_units,
+            "columns": list(self.columns),
+            "offset": _floats(self.offset),
+            "matrix": [_floats(row) for row in self.matrix],
+            "gain": _floats(self.gain),
+            "uncertainty": {k: _nested(v) for k, v in self.uncertainty.items()} if self.uncertainty else None,
+            "tilt_sensitivity": None if self.tilt_sensitivity is None else dict(self.tilt_sensitivity),
+            "poses": [dict(p) for p in self.poses],
+            "unit": None if self.unit is None else self.unit.as_dict(),
+            "verdict": None if self.verdict is None else self.verdict.as_dict(),
+            "created": self.created,
+            "tool": self.tool,
+        }
+        doc: dict[str, Any] = {}
+        for key in self.order:
+            if key in self.fields:
+                doc[key] = self.fields[key]
+            elif key in typed:
+                doc[key] = typed[key]
+        for key in ("unit", "verdict"):  # given since the file was read (a verdict judged afresh)
+            if key not in doc and typed[key] is not None:
+                doc[key] = typed[key]
+        return doc
+
+    def with_verdict(self, verdict: Verdict) -> Calibration:
+        return replace(self, verdict=verdict)
+
+    def __repr__(self) -> str:
+        serial = f", serial={self.serial!r}" if self.serial else ""
+        return (
+            f"Calibration({self.sensor}, {self.method}, reference={self.reference:g}{serial}, "
+            f"offset={_floats(self.offset)}, gain={_floats(self.gain)})"
+        )
+
+
+def _frame_columns(frame: Any, wanted: Sequence[str], path: str | None) -> list[str]:
+    """The DataFrame's own names of ``wanted`` (case-insensitive), or an error naming those missing."""
+    lower = {str(c).lower(): c for c in frame.columns}
+    missing = [w for w in wanted if w.lower() not in lower]
+    if missing:
+        raise InputError(
+            f"the DataFrame has no column{'s' if len(missing) > 1 else ''} {', '.join(missing)}, "
+            f"which the calibration corrects (columns: {', '.join(map(str, frame.columns))})",
+            file=path,
+        )
+    return [lower[w.lower()] for w in wanted]
+
+
+def _nested(value: Any) -> Any:
+    array = np.asarray(value, dtype=np.float64)
+    return _floats(array) if array.ndim == 1 else [_floats(row) for row in array]
+
+
+def from_dict(doc: Mapping[str, Any], path: str | None = None) -> Calibration:
+    """A Calibration from a document that :func:`validate` has accepted."""
+    typed = set(ORDER)
+    unit = doc.get("unit")
+    verdict = doc.get("verdict")
+    uncertainty = doc.get("uncertainty") or {}
+    return Calibration(
+        sensor=str(doc["sensor"]),
+        method=str(doc["method"]),
+        reference=float(doc["reference"]),
+        columns=[str(c) for c in doc["columns"]],
+        offset=np.array(doc["offset"], dtype=np.float64),
+        matrix=np.array(doc["matrix"], dtype=np.float64),
+        gain=np.array(doc["gain"], dtype=np.float64),
+        units=doc.get("units"),
+        input_units=doc.get("input_units"),
+        uncertainty={k: np.array(v, dtype=np.float64) for k, v in uncertainty.items() if v is not None},
+        tilt_sensitivity=doc.get("tilt_sensitivity"),
+        poses=tuple(doc.get("poses") or ()),
+        unit=None
+        if unit is None
+        else Unit(unit.get("serial"), unit.get("station"), unit.get("operator"), dict(unit.get("meta") or {})),
+        verdict=None
+        if verdict is None
+        else Verdict(bool(verdict["pass"]), tuple(verdict["failures"]), dict(verdict.get("limits") or {})),
+        created=created_text(doc.get("created")),
+        tool=doc.get("tool"),
+        fields={k: v for k, v in doc.items() if k not in typed},
+        order=tuple(doc),
+        path=path,
+    )
 
 
 def build(
@@ -40,11 +248,11 @@ def build(
     poses: list[dict[str, Any]],
     fit: Fit | None = None,
     tolerance_deg: float = 1.0,
-    unit: dict[str, Any] | None = None,
-    verdict: dict[str, Any] | None = None,
+    unit: Unit | Mapping[str, Any] | None = None,
+    verdict: Verdict | None = None,
     segmentation: dict[str, Any] | None = None,
-) -> dict[str, Any]:
-    """The calibration document, fields in the order of DESIGN.md section 4; ``fit`` adds what
+) -> Calibration:
+    """The calibration document, fields in the order of README "Calibration file (format version 1)"; ``fit`` adds what
     the solver measured beyond the parameters (tilt sensitivity, covariance, coverage, residuals);
     ``segmentation`` how the poses were found in a continuous log (after ``poses``)."""
     if units is None and sensor == "accelerometer" and reference == 1.0:
@@ -64,8 +272,8 @@ def build(
         "uncertainty": {"offset": _floats(solution.offset_se), "gain": _floats(solution.gain_se)},
         "tilt_sensitivity": None,
         "poses": poses,
-        "unit": unit or {"serial": None, "station": None, "operator": None, "meta": {}},
-        "verdict": verdict or {"pass": True, "failures": [], "limits": {}},
+        "unit": dict(unit) if isinstance(unit, Mapping) else (unit or Unit()).as_dict(),
+        "verdict": (verdict or Verdict()).as_dict(),
         "created": created(),
         "tool": f"tumblecal {__version__}",
     }
@@ -95,7 +303,7 @@ def build(
             r = fit.residuals
             extra["residuals"] = {"rms": float(np.sqrt(np.mean(r**2))), "max": float(np.abs(r).max()), "count": len(r)}
         doc = _insert_after(doc, "poses" if "tilt_sensitivity" not in doc else "tilt_sensitivity", extra)
-    return doc
+    return from_dict(doc)
 
 
 #: The order of the covariance's rows: the offset, then A = inv(M) row by row.
@@ -118,6 +326,18 @@ def _insert_after(doc: dict[str, Any], key: str, extra: dict[str, Any]) -> dict[
 CALLER_EPOCH: ContextVar[str | None] = ContextVar("CALLER_EPOCH", default=None)
 
 
+def created_text(value: object) -> str | None:
+    """``created`` as text: a hand-written YAML file's unquoted timestamp is read as a datetime."""
+    if value is None:
+        return None
+    if isinstance(value, datetime):
+        when = value if value.tzinfo is not None else value.replace(tzinfo=UTC)
+        return when.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+    if isinstance(value, date):
+        return value.isoformat()
+    return str(value)
+
+
 def created() -> str:
     """Now in UTC, or ``SOURCE_DATE_EPOCH`` when set (reproducible files)."""
     epoch = CALLER_EPOCH.get()
@@ -131,8 +351,9 @@ def created() -> str:
     return when.strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
-def dumps(doc: dict[str, Any], path: str) -> str:
-    """Text of ``doc`` in the format the path's suffix asks for."""
+def dumps(cal: Calibration | Mapping[str, Any], path: str) -> str:
+    """Text of a calibration (or a document) in the format the path's suffix asks for."""
+    doc = cal.to_dict() if isinstance(cal, Calibration) else dict(cal)
     if is_yaml(path):
         import yaml
 
@@ -140,35 +361,20 @@ def dumps(doc: dict[str, Any], path: str) -> str:
     return _json(doc, 0) + "\n"
 
 
-def write(doc: dict[str, Any], path: str) -> None:
-    """Write atomically ('-': stdout)."""
-    text = dumps(doc, path).encode()
+def write(cal: Calibration | Mapping[str, Any], path: str) -> None:
+    """Write a calibration (or its document) atomically ('-': stdout)."""
+    text = dumps(cal, path).encode()
     with atomic_output(path) as out:
         out.write(text)
 
 
-@dataclass(frozen=True)
-class Loaded:
-    """A validated calibration file: what apply needs, plus the whole document."""
-
-    path: str
-    offset: FloatArray
-    matrix: FloatArray
-    columns: list[str]
-    sensor: str
-    reference: float
-    doc: dict[str, Any]
-
-    @property
-    def failed(self) -> bool:
-        """Whether the file carries a failing verdict."""
-        verdict = self.doc.get("verdict")
-        return isinstance(verdict, dict) and verdict.get("pass") is False
+def load(path: str) -> Calibration:
+    """Read and validate a calibration file ('-': stdin); every problem names the file and the field."""
+    return validate(_read_object(path, "calibration file"), path)
 
 
-def load(path: str) -> Loaded:
-    """Read and validate a calibration file; every problem names the file and the field."""
-    doc = _read_object(path, "calibration file")
+def validate(doc: Mapping[str, Any], path: str) -> Calibration:
+    """The Calibration of a document, validated as :func:`load` does."""
     if doc.get("format") != FORMAT:
         what = f"unknown format {doc['format']!r}" if "format" in doc else "missing field 'format'"
         raise InputError(f"not a tumblecal calibration: {what} (expected {FORMAT!r})", file=path)
@@ -192,15 +398,9 @@ def load(path: str) -> Loaded:
         raise InputError(f"field 'columns' must name three different columns, got {', '.join(columns)}", file=path)
     _vector(doc["gain"], "gain", path)  # required by the contract, so validated like offset
     _optional_fields(doc, path)
-    return Loaded(
-        path=path,
-        offset=_vector(doc["offset"], "offset", path),
-        matrix=invertible(_matrix(doc["matrix"], "matrix", path), path),
-        columns=columns,
-        sensor=doc["sensor"],
-        reference=_number(doc["reference"], "reference", path),
-        doc=doc,
-    )
+    _vector(doc["offset"], "offset", path)
+    invertible(_matrix(doc["matrix"], "matrix", path), path)
+    return from_dict(doc, path)
 
 
 @dataclass(frozen=True)
@@ -214,10 +414,10 @@ class PoseRecord:
     samples: int
 
 
-def pose_records(cal: Loaded) -> list[PoseRecord]:
+def pose_records(cal: Calibration) -> list[PoseRecord]:
     """The poses a calibration was solved from (for judging it again). ``load`` has validated
     every entry that is there; judging also needs them to exist and to carry ``std``."""
-    value, path = cal.doc.get("poses"), cal.path
+    value, path = list(cal.poses), cal.path
     if not isinstance(value, list) or not value:
         raise InputError("field 'poses' must be a non-empty list of the poses solved from", file=path)
     out = []
@@ -229,7 +429,7 @@ def pose_records(cal: Loaded) -> list[PoseRecord]:
     return out
 
 
-def _pose_entry(pose: dict[str, Any], name: str, path: str) -> None:
+def _pose_entry(pose: Mapping[str, Any], name: str, path: str) -> None:
     """The fields of one pose entry that are there, validated (``name``: ``poses[k]``)."""
     if pose.get("pose") is not None and not (isinstance(pose["pose"], str) and _is_label(pose["pose"])):
         raise InputError(
@@ -252,7 +452,7 @@ def _is_label(text: str) -> bool:
         return False
 
 
-def _optional_fields(doc: dict[str, Any], path: str) -> None:
+def _optional_fields(doc: Mapping[str, Any], path: str) -> None:
     """Fields beyond REQUIRED that ``show`` and ``check`` read, validated where present (null: absent)."""
     if not isinstance(doc["method"], str):
         raise InputError("field 'method' must be a string", file=path)
@@ -272,6 +472,11 @@ def _optional_fields(doc: dict[str, Any], path: str) -> None:
         _vector(value["gain"], f"{block}.gain", path)
         if value.get("tolerance_deg") is not None:
             _number(value["tolerance_deg"], f"{block}.tolerance_deg", path)
+    _nested_fields(doc, path)
+
+
+def _nested_fields(doc: Mapping[str, Any], path: str) -> None:
+    """residuals, unit, poses and verdict, validated where present."""
     residuals = doc.get("residuals")
     if residuals is not None:
         if not (isinstance(residuals, dict) and "max" in residuals):
@@ -292,7 +497,10 @@ def _optional_fields(doc: dict[str, Any], path: str) -> None:
             if not (isinstance(pose, dict) and all(key in pose for key in ("pose", "mean", "samples"))):
                 raise InputError(f"field 'poses[{k}]' must be an object with pose, mean and samples", file=path)
             _pose_entry(pose, f"poses[{k}]", path)
-    verdict = doc.get("verdict")
+    _verdict_field(doc.get("verdict"), path)
+
+
+def _verdict_field(verdict: Any, path: str) -> None:
     if verdict is not None and not (
         isinstance(verdict, dict)
         and isinstance(verdict.get("pass"), bool)
@@ -324,7 +532,7 @@ def _read_object(path: str, what: str) -> dict[str, Any]:
 def read_bytes(path: str, what: str) -> bytes:
     """The bytes of ``path`` ('-': stdin); a missing or unreadable file is one error naming it."""
     try:
-        if path == "-":  # DESIGN.md section 5: '-' means stdin wherever a path is taken
+        if path == "-":  # '-' means stdin wherever a path is taken (README option tables)
             return sys.stdin.buffer.read()
         with open(path, "rb") as f:
             return f.read()

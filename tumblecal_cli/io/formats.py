@@ -1,7 +1,7 @@
 """A calibration in other tools' terms: firmware (C header, offset registers), imucal, ROS
 imu_calib and MATLAB (``tumblecal export``), and imucal/ROS files read back (``tumblecal import``).
 
-Every mapping starts from tumblecal's model (DESIGN.md section 2): ``corrected = M (raw - b)``,
+Every mapping starts from tumblecal's model (README "Poses, signs and --reference"): ``corrected = M (raw - b)``,
 ``A = M^-1``. Each peer's own equation is quoted where it is used; README "export" writes them out.
 """
 
@@ -17,9 +17,9 @@ from typing import Any
 import numpy as np
 
 from tumblecal_cli import __version__
-from tumblecal_cli.calfile import FORMAT, VERSION, Loaded, created, invertible, is_number
-from tumblecal_cli.core import FloatArray
+from tumblecal_cli.core.model import FloatArray
 from tumblecal_cli.errors import InputError
+from tumblecal_cli.io.calfile import FORMAT, VERSION, Calibration, Unit, created, from_dict, invertible, is_number
 
 EXPORTS = ("c-header", "registers", "imucal-json", "ros-yaml", "matlab")
 IMPORTS = ("imucal-json", "ros-yaml")
@@ -31,8 +31,8 @@ FLOAT32_MAX = 3.4028234663852886e38
 SHORT = {"accelerometer": "accel", "magnetometer": "mag", "gyroscope": "gyro"}
 
 
-def a_matrix(cal: Loaded) -> FloatArray:
-    """A = M^-1: raw = A v + b (DESIGN.md section 2)."""
+def a_matrix(cal: Calibration) -> FloatArray:
+    """A = M^-1: raw = A v + b (README "Poses, signs and --reference")."""
     return np.asarray(np.linalg.inv(cal.matrix), dtype=np.float64)
 
 
@@ -51,20 +51,20 @@ def scale_and_rotation(matrix: FloatArray) -> tuple[FloatArray, FloatArray]:
 # -- firmware ---------------------------------------------------------------------------
 
 
-def c_header(cal: Loaded, *, prefix: str | None = None) -> str:
+def c_header(cal: Calibration, *, prefix: str | None = None) -> str:
     """A self-contained C99/C++ header: offset and M as ``static const float``, and an inline
     function that applies them, with the model and the unit's record in a comment."""
     name = (prefix or f"tumblecal_{SHORT[cal.sensor]}").lower()
     if not re.fullmatch(r"[a-z_][a-z0-9_]*", name):
         raise InputError(f"--prefix {prefix!r} is not a C identifier (letters, digits and '_')")
-    upper, doc = name.upper(), cal.doc
+    upper = name.upper()
     offset = ", ".join(_c_float(v, f"offset[{i}]", cal.path) for i, v in enumerate(cal.offset))
     rows = ",\n    ".join(
         "{" + ", ".join(_c_float(v, f"matrix[{i}][{j}]", cal.path) for j, v in enumerate(row)) + "}"
         for i, row in enumerate(cal.matrix)
     )
     lines = [
-        f"/* {_comment(doc['sensor'])} calibration, written by tumblecal {__version__} from {_comment(cal.path)}",
+        f"/* {_comment(cal.sensor)} calibration, written by tumblecal {__version__} from {_comment(cal.path)}",
         " *",
         *[f" * {line}" for line in _provenance(cal)],
         " *",
@@ -121,7 +121,7 @@ class Register:
 
 
 def registers(
-    cal: Loaded,
+    cal: Calibration,
     *,
     lsb: float,
     bits: int,
@@ -186,7 +186,7 @@ def registers_csv(rows: list[Register]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _fit(name: str, exact: float, low: int, high: int, bits: int, why: str, cal: Loaded, hint: str) -> int:
+def _fit(name: str, exact: float, low: int, high: int, bits: int, why: str, cal: Calibration, hint: str) -> int:
     count = round(exact) if math.isfinite(exact) else None
     if count is None or not low <= count <= high:
         shown = "an infinite number of" if count is None else f"{count:.6g}" if abs(count) > 1e12 else f"{count}"
@@ -206,7 +206,7 @@ def _hex(count: int, bits: int) -> str:
 # -- peer tools ---------------------------------------------------------------------------
 
 
-def imucal_json(cal: Loaded) -> str:
+def imucal_json(cal: Calibration) -> str:
     """imucal's FerrarisCalibrationInfo as its ``to_json`` writes it (format 2.0.0).
 
     imucal corrects ``acc = R_a^-1 K_a^-1 (raw - b_a)`` and ``gyr = R_g^-1 K_g^-1 (raw - K_ga acc
@@ -224,7 +224,7 @@ def imucal_json(cal: Loaded) -> str:
     ours = {"K": k, "R": r, "b": cal.offset}
     none: dict[str, FloatArray] = {"K": eye, "R": eye, "b": zero}
     acc, gyr = (ours, none) if cal.sensor == "accelerometer" else (none, ours)
-    units, raw_units = cal.doc.get("units") or "a.u.", cal.doc.get("input_units") or "a.u."
+    units, raw_units = cal.units or "a.u.", cal.input_units or "a.u."
     doc = {
         "acc_unit": units if acc is ours else "a.u.",
         "gyr_unit": units if gyr is ours else "a.u.",
@@ -244,7 +244,7 @@ def imucal_json(cal: Loaded) -> str:
     return json.dumps(doc, indent=4) + "\n"
 
 
-def ros_yaml(cal: Loaded) -> str:
+def ros_yaml(cal: Calibration) -> str:
     """ROS imu_calib's calibration file: ``SM`` (9 values, row-major) and ``bias`` (3).
 
     imu_calib (src/accel_calib/accel_calib.cpp, applyCalib) computes ``SM raw - bias``; equal to
@@ -260,7 +260,7 @@ def ros_yaml(cal: Loaded) -> str:
     return "\n".join(lines) + "\n"
 
 
-def matlab(cal: Loaded) -> str:
+def matlab(cal: Calibration) -> str:
     """A MATLAB/Octave script defining ``A`` and ``b`` in ``accelcal``'s convention.
 
     MATLAB's accelcal corrects row vectors, ``C = U*A + b``: with ``c = M (u - offset)`` for a
@@ -407,12 +407,12 @@ def imported(
     sensor: str,
     reference: float,
     columns: list[str],
-    unit: dict[str, Any],
-) -> dict[str, Any]:
-    """A format-1 calibration document for ``peer`` (method ``imported``; no uncertainty: the
+    unit: Unit,
+) -> Calibration:
+    """A format-1 calibration for ``peer`` (method ``imported``; no uncertainty: the
     peer's file does not carry one)."""
     gain = np.diag(np.linalg.inv(peer.matrix))
-    return {
+    doc = {
         "format": FORMAT,
         "version": VERSION,
         "sensor": sensor,
@@ -428,25 +428,26 @@ def imported(
         "poses": [],
         "imported": {"format": peer.format, "file": path, "sha256": hashlib.sha256(raw).hexdigest()}
         | {k: peer.was[k] for k in ("created", "method") if peer.was.get(k)},  # the original's, when recorded
-        "unit": unit,
+        "unit": unit.as_dict(),
         "created": created(),
         "tool": f"tumblecal {__version__}",
     }
+    return from_dict(doc)
 
 
-def _provenance(cal: Loaded) -> list[str]:
+def _provenance(cal: Calibration) -> list[str]:
     """Who, when and how, for a comment in an exported file (one fact per line)."""
-    doc, unit = cal.doc, cal.doc.get("unit") or {}
+    unit = (cal.unit or Unit()).as_dict()
     who = ", ".join(f"{k} {unit[k]}" for k in ("serial", "station", "operator") if unit.get(k)) or "no serial"
-    verdict = doc.get("verdict")
+    verdict = cal.verdict
     judged = ""
-    if isinstance(verdict, dict) and (verdict.get("limits") or not verdict["pass"]):
-        judged = f", verdict {'PASS' if verdict['pass'] else 'FAIL'}"
-    units = f"{doc.get('input_units') or 'raw units'} in, {doc.get('units') or 'reference units'} out"
+    if verdict is not None and (verdict.limits or not verdict.passed):
+        judged = f", verdict {'PASS' if verdict.passed else 'FAIL'}"
+    units = f"{cal.input_units or 'raw units'} in, {cal.units or 'reference units'} out"
     return [
-        _comment(f"tumblecal {doc['sensor']} calibration: {who}"),
-        _comment(f"created {doc.get('created', 'unknown')}, method {doc['method']}{judged}"),
-        _comment(f"{units}, reference {float(doc['reference'])!r}; columns {', '.join(cal.columns)}"),
+        _comment(f"tumblecal {cal.sensor} calibration: {who}"),
+        _comment(f"created {cal.created or 'unknown'}, method {cal.method}{judged}"),
+        _comment(f"{units}, reference {float(cal.reference)!r}; columns {', '.join(cal.columns)}"),
     ]
 
 
@@ -455,7 +456,7 @@ def _comment(text: object) -> str:
     return re.sub(r"[\x00-\x1f\x7f]", " ", str(text)).replace("*/", "* /")
 
 
-def _c_float(value: float, name: str, path: str) -> str:
+def _c_float(value: float, name: str, path: str | None) -> str:
     if not abs(value) <= FLOAT32_MAX:
         raise InputError(f"{name} = {float(value):g} does not fit in a C float", file=path)
     text = str(np.float32(value))  # the shortest text that reads back as the same float

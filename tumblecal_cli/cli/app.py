@@ -1,0 +1,199 @@
+"""The Typer application and the one error boundary: every error becomes its exit status here.
+
+numpy, pyarrow and the pipeline are imported inside the commands, so ``tumblecal --help`` and
+``--version`` pay only for Typer.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import sys
+from collections.abc import Iterator
+from typing import Annotated, Any
+
+import typer
+from typer.core import TyperCommand
+
+from tumblecal_cli import __version__
+from tumblecal_cli.cli.options import EXIT_CODES
+from tumblecal_cli.errors import Interrupted, PipeClosed, TumblecalError
+
+# The solvers' matrices are 3x3 to 12x12: BLAS threads only cost start-up and spin (see core.model.apply).
+# Set before numpy is first imported (lazily, inside the commands); a user's own setting wins.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+app = typer.Typer(
+    name="tumblecal",
+    help="Calibrate 3-axis sensors from static tumble poses, and correct captures with the result.",
+    epilog=EXIT_CODES,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    rich_markup_mode=None,
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
+
+_state = {"debug": False}
+
+
+class Command(TyperCommand):
+    """Plain help, with the options grouped under the ``rich_help_panel`` each one names."""
+
+    def format_options(self, ctx: Any, formatter: Any) -> None:
+        sections: dict[str, list[tuple[str, str]]] = {}
+        for param in self.get_params(ctx):
+            record = param.get_help_record(ctx)
+            if record is not None:
+                kind = "Arguments" if param.param_type_name == "argument" else "Options"
+                sections.setdefault(getattr(param, "rich_help_panel", None) or kind, []).append(record)
+        for title, records in sorted(sections.items(), key=lambda kv: kv[0] != "Arguments"):
+            with formatter.section(title):
+                formatter.write_dl(records)
+
+
+class ManyValuesCommand(Command):
+    """Lets ``--poses a.csv b.csv c.csv`` take every file after one flag.
+
+    Click options have a fixed arity, so before parsing, each value that follows ``--poses``
+    (up to the next option) becomes its own ``--poses=VALUE``. ``-`` (stdin) is a value, and so
+    is a labelled item whose label starts with '-' (``-x=xn.csv``).
+    """
+
+    many = ("--poses", "-p")
+
+    def parse_args(self, ctx: Any, args: list[str]) -> list[str]:
+        out: list[str] = []
+        flag: str | None = None
+        for arg in args:
+            name = arg.split("=", 1)[0]
+            if arg == "--":
+                flag = None
+            elif name in self.many:
+                flag = name
+                if "=" in arg:
+                    out.append(arg)
+                    continue
+                if arg == name:
+                    out.append(arg)
+                    continue
+            elif flag and (arg == "-" or not arg.startswith("-") or _is_labelled(arg)):
+                if out[-1] == flag:  # the flag's own value: keep the flag, give it the value with '='
+                    out.pop()
+                out.append(f"--poses={arg}")  # '=' so that '-x=xn.csv' is a value, not an option
+                continue
+            else:
+                flag = None
+            out.append(arg)
+        return super().parse_args(ctx, out)
+
+
+def _is_labelled(arg: str) -> bool:
+    """Whether ``arg`` looks like a pose item ``LABEL=FILE`` whose label starts with '-'
+    (``-x=xn.csv``, ``-0.5,0,0.87=a.csv``), not an option. (A pattern, not core.parse_label:
+    parsing the command line must not import numpy.) The label is validated later."""
+    label, sep, _ = arg.partition("=")
+    number = r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?"
+    return bool(sep) and re.fullmatch(rf"[-+][xyz]|{number},{number},{number}", label.lower()) is not None
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"tumblecal {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: Annotated[
+        bool, typer.Option("--version", callback=_version, is_eager=True, help="Print the version and exit.")
+    ] = False,
+    debug: Annotated[bool, typer.Option("--debug", help="Show the traceback of an error.")] = False,
+) -> None:
+    _state["debug"] = debug
+
+
+@contextlib.contextmanager
+def _term_as_interrupt() -> Iterator[None]:
+    """SIGTERM (a scheduler's or a station's kill) stops a command as Ctrl-C does: partial
+    outputs removed, a batch's summary written and its worker processes shut down; exit 130."""
+    import signal
+
+    def interrupt(signum: int, frame: Any) -> None:
+        raise Interrupted("interrupted (SIGTERM)")
+
+    try:
+        previous = signal.signal(signal.SIGTERM, interrupt)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the CLI; return the exit status. Every error is reported here and only here."""
+    try:
+        with _term_as_interrupt():  # a station's or scheduler's kill: outputs cleaned up as for Ctrl-C
+            result = app(args=argv, prog_name="tumblecal", standalone_mode=False)
+        sys.stdout.flush()  # a reader that stopped early (`| head`) is found here, not at exit
+    except (PipeClosed, BrokenPipeError):
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no flush error at exit
+        return PipeClosed.exit_code
+    except TumblecalError as err:
+        if _state["debug"]:
+            raise
+        report(str(err), err.hint, err.more)
+        return err.exit_code
+    except typer.Exit as err:
+        return err.exit_code
+    except typer.TyperException as err:  # the parser's usage errors: one line, like ours
+        if type(err).__name__ == "NoArgsIsHelpError":  # bare `tumblecal`: the help, on stderr
+            getattr(err, "show", print)()
+            return 2
+        ctx = getattr(err, "ctx", None)
+        command = ctx.command_path if ctx is not None else "tumblecal"
+        report(err.format_message(), f"see '{command} --help'")
+        return 2
+    except (typer.Abort, KeyboardInterrupt):
+        report("interrupted", None)
+        return 130
+    except Interrupted as err:  # SIGTERM (_term_as_interrupt)
+        report(str(err), None)
+        return Interrupted.exit_code
+    except OSError as err:  # the system refused (a full disk, stdout on /dev/full): not a bug
+        if _state["debug"]:
+            raise
+        report(f"{err.filename}: {err.strerror or err}" if err.filename else f"{err.strerror or err}", None)
+        return 2
+    except Exception as err:  # a bug: one line unless --debug
+        if _state["debug"]:
+            raise
+        report(f"internal error: {type(err).__name__}: {err}", "run with --debug for the traceback")
+        return 2
+    finally:
+        _state["debug"] = False
+    return result if isinstance(result, int) else 0
+
+
+def report(message: str, hint: str | None, more: tuple[str, ...] = ()) -> None:
+    for line in (message, *more):
+        print(f"error: {line}", file=sys.stderr)
+    if hint:
+        print(f"hint: {hint}", file=sys.stderr)
+
+
+def main_exit() -> None:
+    """Console-script entry point: the status, without the interpreter's teardown.
+
+    Every file is written (atomically) and every pool shut down before main() returns; what
+    is left is the interpreter's teardown, where a native library's thread (pyarrow's, seen
+    about once in 500 runs) could abort the process and turn a documented status into 134."""
+    status = main()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError):  # a closed pipe: main() has said so already
+            stream.flush()
+    os._exit(status)

@@ -1,0 +1,183 @@
+"""tumblecal batch: calibrate many units in one run, one calibration file each and a summary."""
+
+from __future__ import annotations
+
+import contextlib
+import inspect
+from typing import Annotated, Any
+
+import typer
+
+from tumblecal_cli.cli import render
+from tumblecal_cli.cli.app import Command, app
+from tumblecal_cli.cli.solve import solve
+from tumblecal_cli.pipeline.options import SolveOptions
+
+BATCH_PANEL = "Batch"
+BATCH_EXIT = """\
+Exit status, the first that any unit has: 2 an input or usage error; 3 a capture rejected;
+1 a unit outside its limits; 0 every unit passed. A unit that fails never stops the batch:
+its row in summary.csv says why. Nothing but the calibrations and summary.csv is written."""
+
+
+def _batch_options(
+    source: Annotated[
+        str,
+        typer.Argument(
+            metavar="UNITS",
+            help="A folder with one folder of pose files per unit, UNITS/<serial>/x.csv y.csv z.csv (files named "
+            "x y z, xp xn yp yn zp zn or +x ... are labelled so; others are unlabelled, in name order); with --log, "
+            "one log per unit, UNITS/<serial>.csv or UNITS/<serial>/<log>.csv. Or a manifest CSV: the header "
+            "'serial,...', then a serial and its files per row (relative to the manifest; a column headed x, "
+            "+x, xp ... labels its files; a cell may be LABEL=FILE).",
+        ),
+    ],
+    out_dir: Annotated[
+        str,
+        typer.Option(
+            "--out-dir",
+            "-d",
+            metavar="DIR",
+            help="Where each unit's calibration goes, as <serial>_<UTC time>.json (never replacing a file: "
+            "a unit's history stays), with summary.csv, one row per unit. Created if needed.",
+            rich_help_panel=BATCH_PANEL,
+        ),
+    ],
+    log: Annotated[
+        bool,
+        typer.Option(
+            "--log",
+            help="Each unit is one continuous log, cut into still blocks as 'solve --log' does.",
+            rich_help_panel=BATCH_PANEL,
+        ),
+    ] = False,
+    jobs: Annotated[
+        int,
+        typer.Option(
+            "--jobs",
+            "-j",
+            metavar="N",
+            min=1,
+            help="Solve N units at a time, in N processes.",
+            rich_help_panel=BATCH_PANEL,
+        ),
+    ] = 1,
+    resume: Annotated[
+        bool,
+        typer.Option(
+            "--resume",
+            help="Continue a batch: skip the units already in DIR/summary.csv (whatever their status; delete a "
+            "row to redo that unit). Without it an existing summary.csv is an error.",
+            rich_help_panel=BATCH_PANEL,
+        ),
+    ] = False,
+    dask_scheduler: Annotated[
+        str | None,
+        typer.Option(
+            "--dask-scheduler",
+            metavar="ADDRESS",
+            help="Run the units on a Dask distributed cluster, tcp://host:8786 (README: Dask). Needs "
+            "'tumblecal[dask]' here and on the workers, and UNITS and DIR at the same paths on every worker.",
+            rich_help_panel=BATCH_PANEL,
+        ),
+    ] = None,
+    json_summary: Annotated[
+        bool,
+        typer.Option(
+            "--json",
+            help="Print the summary on stdout as JSON: the batch's status, counts, and each unit's row.",
+            rich_help_panel=BATCH_PANEL,
+        ),
+    ] = False,
+    quiet: Annotated[
+        bool,
+        typer.Option(
+            "--quiet", "-q", help="Print nothing on stderr unless there is an error.", rich_help_panel=BATCH_PANEL
+        ),
+    ] = False,
+) -> None:
+    """batch's own options; the rest are solve's (see _batch_signature)."""
+
+
+def _batch_signature() -> inspect.Signature:
+    """batch takes its own options and every option of solve that SolveOptions holds, but a unit's serial."""
+    own = list(inspect.signature(_batch_options, eval_str=True).parameters.values())
+    shared = SolveOptions.names()
+    solves = inspect.signature(solve, eval_str=True).parameters.items()
+    return inspect.Signature(own + [p for n, p in solves if n in shared and n != "serial"])
+
+
+def batch(**given: Any) -> None:
+    """Calibrate many units in one run: one calibration file per unit, and a summary.
+
+    Each unit is solved as 'tumblecal solve' would (every solve option below applies to all of
+    them), its calibration written to DIR/<serial>_<UTC time>.json, and its outcome added to
+    DIR/summary.csv: serial, status, verdict, codes, file, method, offset, gain, their 1-sigma
+    uncertainties, inputs, and the message of a unit that failed.
+
+    \b
+      tumblecal batch units/ --out-dir cals/ --limits limits.yaml --jobs 2
+      tumblecal batch manifest.csv --out-dir cals/ --reference 9.81
+      tumblecal batch logs/ --log --rate 100 --out-dir cals/ --resume
+      tumblecal batch units/ --out-dir /shared/cals --dask-scheduler tcp://scheduler:8786
+    """
+
+    from tumblecal_cli.pipeline import batch as batches
+    from tumblecal_cli.pipeline.options import SolveOptions
+
+    own = {name: given.pop(name) for name in list(given) if name in _BATCH_OWN}
+    quiet, console = own["quiet"], render.make_console()
+    with contextlib.ExitStack() as stack:
+        shown: list[Any] = [False, lambda: None]  # a progress bar, once the units are known
+
+        def start(plan: batches.Plan) -> None:
+            if not quiet:
+                for note in plan.notes:
+                    console.print(f"note: {note}", soft_wrap=True, markup=False)
+                if len(plan.todo) < len(plan.units):
+                    done = len(plan.units) - len(plan.todo)
+                    console.print(f"resuming: {done} of {len(plan.units)} units already done", soft_wrap=True)
+            shown[:] = stack.enter_context(render.batch_progress(console, len(plan.todo), enabled=not quiet))
+
+        def unit(row: dict[str, Any]) -> None:
+            if row["status"] or not shown[0]:
+                render.print_unit(row, out_dir, console, quiet=quiet)
+            shown[1]()
+
+        out_dir = own["out_dir"]
+        result = batches.run_batch(
+            own["source"],
+            out_dir,
+            SolveOptions.of(given),
+            log=own["log"],
+            jobs=own["jobs"],
+            resume=own["resume"],
+            scheduler=own["dask_scheduler"],
+            on_start=start,
+            on_unit=unit,
+        )
+    _show(result, console, quiet=quiet, json_summary=own["json_summary"])
+
+
+def _show(result: Any, console: Any, *, quiet: bool, json_summary: bool) -> None:
+    """The batch's counts on stderr, the --json summary on stdout; its status."""
+    from tumblecal_cli.pipeline import batch as batches
+
+    if not quiet:
+        said = ", ".join(f"{n} {v}" for v, n in result.counts.items() if n)
+        console.print(
+            f"{len(result.rows)} unit{'s' if len(result.rows) != 1 else ''}: {said} -> {result.summary}",
+            soft_wrap=True,
+            markup=False,
+            highlight=False,
+        )
+    if json_summary:
+        table = [{c: r.get(c) for c in batches.SUMMARY_COLUMNS} for r in result.rows]
+        render.print_json({"status": result.status, "counts": result.counts, "summary": result.summary, "units": table})
+    if result.status:
+        raise typer.Exit(result.status)
+
+
+_BATCH_OWN = tuple(inspect.signature(_batch_options).parameters)  # the rest of batch's options are solve's
+batch.__signature__ = _batch_signature()  # type: ignore[attr-defined]
+app.command(cls=Command, epilog=BATCH_EXIT)(batch)

@@ -1,0 +1,236 @@
+"""Options and choices that several commands share, defined once."""
+
+from __future__ import annotations
+
+from enum import StrEnum
+from typing import Annotated, Any
+
+import typer
+
+EXIT_CODES = """\
+Exit status, the first that applies: 2 usage or input error (bad file, bad option, wrong
+number of files, a units mistake); 3 capture rejected by a quality check (moved, not the
+pose it claims, saturated, too short, upside down); 1 calibrated but outside its limits;
+0 pass. The calibration is written on 0 and 1, nothing on 2 or 3."""
+
+
+class SensorKind(StrEnum):
+    accelerometer = "accelerometer"
+    magnetometer = "magnetometer"
+    gyroscope = "gyroscope"
+
+
+class TimeUnit(StrEnum):
+    s = "s"
+    ms = "ms"
+    us = "us"
+    ns = "ns"
+
+
+Sensor = Annotated[
+    SensorKind,
+    typer.Option(
+        "--sensor",
+        help="Which sensor; picks the columns when a file holds several triplets (acc*, gyr*, mag*).",
+    ),
+]
+
+Columns = Annotated[
+    str | None,
+    typer.Option(
+        "--columns",
+        metavar="X,Y,Z",
+        help="The sensor columns, X,Y,Z: header names or 0-based indices. Default: detected.",
+    ),
+]
+
+NoHeader = Annotated[
+    bool,
+    typer.Option("--no-header", help="The first line is data. 3 columns are x,y,z; 4 are t,x,y,z."),
+]
+
+TimeColumn = Annotated[
+    str | None,
+    typer.Option("--time-column", metavar="NAME", help="The time column (default: t, time, timestamp, time_s or ts)."),
+]
+
+TimeUnitOption = Annotated[TimeUnit, typer.Option("--time-unit", help="Unit of the time column.")]
+
+Rate = Annotated[
+    float | None,
+    typer.Option(
+        "--rate",
+        metavar="HZ",
+        help="Sample rate in Hz: durations when there is no time column; a log's time, instead of its time column.",
+    ),
+]
+
+Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing on stderr unless there is an error.")]
+
+
+class MethodName(StrEnum):
+    auto = "auto"
+    one_pose = "one-pose"
+    one_pose_tilt = "one-pose-tilt"
+    three_pose = "three-pose"
+    six_pose = "six-pose"
+    six_pose_diagonal = "six-pose-diagonal"
+    least_squares = "least-squares"
+    sphere = "sphere"
+    minmax = "minmax"
+    ellipsoid = "ellipsoid"
+    gyro_bias = "gyro-bias"
+
+
+class PlaneName(StrEnum):
+    xy = "xy"
+    xz = "xz"
+    yz = "yz"
+
+
+class CheckName(StrEnum):
+    moved = "moved"
+    orientation = "orientation"
+    saturated = "saturated"
+    short = "short"
+    upside_down = "upside-down"
+
+
+JsonSummary = Annotated[
+    bool,
+    typer.Option(
+        "--json",
+        help="Print a machine-readable summary on stdout: status, verdict or rejections with their codes, "
+        "parameters, uncertainties, per-pose diagnostics.",
+    ),
+]
+
+LIMITS_PANEL = "Limits (exit 1)"
+
+
+def limit_option(flag: str, metavar: str, help: str) -> Any:
+    return typer.Option(flag, metavar=metavar, help=help, rich_help_panel=LIMITS_PANEL)
+
+
+LimitsFile = Annotated[
+    str | None,
+    limit_option(
+        "--limits",
+        "FILE",
+        "Limits file (YAML/JSON: offset, gain_error, nominal_gain, cross_axis, noise, residual; see README).",
+    ),
+]
+
+MaxOffset = Annotated[
+    str | None,
+    limit_option(
+        "--max-offset", "V|X,Y,Z", "limit.offset.*: bound on |offset| per axis, raw units (overrides the limits file)."
+    ),
+]
+
+MaxGainError = Annotated[
+    str | None,
+    limit_option(
+        "--max-gain-error",
+        "F|X,Y,Z",
+        "limit.gain.*: bound on |gain / nominal - 1|, e.g. 0.03 for 3% (overrides the limits file).",
+    ),
+]
+
+NominalGain = Annotated[
+    str | None,
+    limit_option(
+        "--nominal-gain",
+        "G|X,Y,Z",
+        "The gain a perfect unit has, raw units per output unit: 1, or 2048 for counts at 2048 LSB/g.",
+    ),
+]
+
+CHECKS_PANEL = "Quality checks (exit 3)"
+
+UNIT_PANEL = "Traceability"
+
+LOG_PANEL = "Finding the still blocks of a log (segment, solve --log)"
+
+
+def log_option(flag: str, metavar: str, help: str, panel: str | None = LOG_PANEL) -> Any:
+    return typer.Option(flag, metavar=metavar, help=help, rich_help_panel=panel)
+
+
+Window = Annotated[
+    float | None,
+    log_option(
+        "--window",
+        "S|N",
+        "Rolling window of the stillness detector: seconds when the log has a time column or --rate, "
+        "else samples. [default: 0.5 s, or 25 samples]",
+    ),
+]
+
+Threshold = Annotated[
+    float | None,
+    log_option(
+        "--threshold",
+        "V",
+        "A sample is still when the rolling standard deviation (root of the three axes' variances, raw "
+        "units) is below V. [default: 3 x the log's noise floor, its 10th percentile; printed]",
+    ),
+]
+
+MinDuration = Annotated[
+    float | None,
+    log_option(
+        "--min-duration",
+        "S|N",
+        "Drop still blocks shorter than this (seconds, else samples). [default: 1 s, or 50 samples]",
+    ),
+]
+
+Trim = Annotated[
+    float | None,
+    log_option(
+        "--trim",
+        "S|N",
+        "Cut this much off each end of a still period (seconds, else samples). [default: half the window]",
+    ),
+]
+
+PoseColumn = Annotated[
+    str | None,
+    log_option(
+        "--pose-column",
+        "NAME",
+        "Take the blocks from a label column instead of the detector: each run of one label is a block.",
+    ),
+]
+
+PoseMap = Annotated[
+    str | None,
+    log_option(
+        "--pose-map",
+        "LABEL=FACE,...",
+        "The face of each label of --pose-column, e.g. x_p=+x,x_a=-x,y_p=+y,y_a=-y,z_p=+z,z_a=-z "
+        "(labels that are faces need none; unmapped labels, such as rotations, are dropped).",
+    ),
+]
+
+
+class ExportFormat(StrEnum):
+    c_header = "c-header"
+    registers = "registers"
+    imucal_json = "imucal-json"
+    ros_yaml = "ros-yaml"
+    matlab = "matlab"
+
+
+class ImportFormat(StrEnum):
+    imucal_json = "imucal-json"
+    ros_yaml = "ros-yaml"
+
+
+class RegisterSign(StrEnum):
+    subtract = "subtract"
+    add = "add"
+
+
+REGISTERS_PANEL = "Registers (--format registers)"

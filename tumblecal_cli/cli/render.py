@@ -1,0 +1,442 @@
+"""What people read, on stderr (and the data commands print on stdout): tables with Rich,
+without colour when stderr is not a terminal or NO_COLOR is set."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import re
+import sys
+from collections.abc import Iterator
+from typing import TYPE_CHECKING, Any
+
+from tumblecal_cli.errors import PipeClosed, TumblecalError
+
+if TYPE_CHECKING:
+    from rich.console import Console
+
+    from tumblecal_cli.core.gate import Finding
+    from tumblecal_cli.core.segment import Segmentation
+    from tumblecal_cli.io.calfile import Calibration
+    from tumblecal_cli.io.captures import Log
+
+
+def make_console(stderr: bool = True) -> Console:
+    from rich.console import Console
+
+    class Quiet(Console):
+        def on_broken_pipe(self) -> None:  # Rich's own exits 1; a closed reader is exit 141 here (main)
+            raise PipeClosed("output closed")
+
+    return Quiet(stderr=stderr, highlight=False, markup=False)  # paths and column names are not markup
+
+
+def print_json(doc: dict[str, Any]) -> None:
+
+    print_text(json.dumps(doc, indent=2, ensure_ascii=False) + "\n")
+
+
+def print_csv(table: tuple[list[str], list[list[str]]]) -> None:
+    """A header and rows as CSV on stdout (a cell with a comma quoted)."""
+    import csv
+    import io
+
+    from tumblecal_cli.io.outputs import atomic_output
+
+    header, rows = table
+    text = io.StringIO()
+    csv.writer(text, lineterminator="\n").writerows([header, *rows])
+    with atomic_output("-") as out:
+        out.write(text.getvalue().encode())
+
+
+def print_text(text: str) -> None:
+    """Data on stdout; a reader that went away (``| head``) is exit 141, not a traceback."""
+    try:
+        sys.stdout.write(text)
+        sys.stdout.flush()
+    except BrokenPipeError:
+        raise PipeClosed("stdout closed") from None
+
+
+def summary(
+    cal: Calibration,
+    status: int,
+    output: str | None,
+    rejected: list[Finding],
+    warned: list[Finding],
+    notes: list[str],
+) -> dict[str, Any]:
+    """The --json summary: the outcome, then the calibration's parameters and diagnostics."""
+    doc = cal.to_dict()
+    head: dict[str, Any] = {
+        "status": {0: "pass", 1: "fail", 3: "rejected"}[status],
+        "exit_status": status,
+        "file": output,
+        "rejections": [f.as_dict() for f in rejected],
+        "verdict": None if rejected else doc["verdict"],
+        "warnings": [f.as_dict() for f in warned],
+        "notes": notes,
+    }
+    keys = ("sensor", "method", "reference", "units", "columns", "offset", "matrix", "gain", "uncertainty")
+    return head | {k: doc.get(k) for k in (*keys, "tilt_sensitivity", "poses", "unit")}
+
+
+def rejected_head(err: TumblecalError) -> dict[str, Any]:
+    """The head of every summary (see _summary) for a rejection with no parameters to follow it."""
+    head = {"status": "rejected", "exit_status": 3, "file": None, "rejections": [error_dict(err)]}
+    return head | {"verdict": None, "warnings": [], "notes": []}
+
+
+def error_dict(err: TumblecalError) -> dict[str, Any]:
+    return {"code": err.code, "file": err.file, "message": err.message}
+
+
+def print_summary(cal: Calibration, console: Console, warned: list[Finding], notes: list[str], *, judged: bool) -> None:
+    """The calibration for people: per axis offset and gain with their uncertainty and tilt
+    sensitivity, per pose its statistics, then warnings, notes and the verdict."""
+    doc = cal.to_dict()
+    tilt = doc.get("tilt_sensitivity") or {}
+    print_whole(console, _axes_table(doc))
+    if doc.get("poses"):  # an imported calibration has none
+        print_whole(console, _poses_table(doc))
+    matrix = doc["matrix"]
+    if any(matrix[i][j] for i in range(3) for j in range(3) if i != j):
+        import numpy as np
+
+        a = np.linalg.inv(np.array(matrix, dtype=float))
+        terms = ", ".join(
+            f"{'xyz'[i]}{'xyz'[j]} {a[i, j] / a[i, i]:+.3%}" for i in range(3) for j in range(3) if i != j
+        )
+        console.print(f"cross-axis terms (A = M⁻¹, each over its row's gain): {terms}", soft_wrap=True)
+    if doc.get("coverage") is not None:
+        console.print(f"coverage: {doc['coverage']:.0%} of the sphere's directions", soft_wrap=True)
+    if tilt.get("tolerance_deg") is not None:
+        console.print(f"± tilt: worst-case shift if each pose is {tilt['tolerance_deg']:g}° off level", soft_wrap=True)
+    for w in warned:
+        console.print(f"warning: {w.render()} ({w.code})", style="yellow", soft_wrap=True)
+    for note in notes:
+        console.print(f"note: {note}", soft_wrap=True)
+    verdict = doc.get("verdict")
+    if judged and isinstance(verdict, dict):
+        _print_verdict(console, verdict)
+
+
+def _g(v: float | None, digits: int = 6) -> str:
+    return "" if v is None else f"{v:.{digits}g}"
+
+
+def _axes_table(doc: dict[str, Any]) -> Any:
+    """Per axis: its column, offset and gain, each with its 1-sigma and tilt sensitivity."""
+    from rich import box
+    from rich.table import Table
+
+    from tumblecal_cli.core.gate import FIXED_GAINS
+
+    se = doc.get("uncertainty") or {}
+    tilt = doc.get("tilt_sensitivity") or {}
+    fixed = doc["method"] in FIXED_GAINS
+    # numbers never wrap or shrink; a long column or file name is what gives way on a narrow terminal
+    axes = Table(title=f"{doc['method']} calibration", title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
+    for name in ("axis", "column", "offset", "± 1σ", "± tilt", "gain", "± 1σ", "± tilt"):
+        text = name in ("axis", "column")
+        axes.add_column(
+            name,
+            justify="left" if text else "right",
+            no_wrap=not text,
+            min_width=len(name) if text else None,  # the heading whole
+            max_width=14 if text else None,  # ... and a long name folds within it, not widening the table
+            overflow="fold",  # a long column name folds onto a second line rather than losing its end
+        )
+    for i, axis in enumerate("xyz"):
+        cells = [axis, doc["columns"][i]]
+        for name in ("offset", "gain"):
+            if name == "gain" and fixed:
+                cells += [_g(doc["gain"][i]), "fixed", ""]
+            else:
+                cells += [_g(doc[name][i]), _g(_at(se, name, i), 2), _g(_at(tilt, name, i), 2)]
+        axes.add_row(*cells)
+    return axes
+
+
+def _poses_table(doc: dict[str, Any]) -> Any:
+    """Per pose: its face, file, samples, angle from its face, mean and standard deviation."""
+    from rich import box
+    from rich.table import Table
+
+    poses = Table(title="poses", title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
+    for name in ("pose", "file", "n", "angle", "", "x", "y", "z"):
+        text = name == "file"
+        poses.add_column(
+            name,
+            justify="left" if name in ("pose", "file", "") else "right",
+            no_wrap=not text,
+            min_width=6 if text else None,
+            max_width=14 if text else None,  # a long file name folds, the numbers stay whole
+            overflow="fold",
+        )
+    for p in doc.get("poses", []):
+        angle = p.get("angle_deg")
+        name = os.path.basename(str(p.get("file", ""))) + (f" #{p['block']}" if "block" in p else "")
+        poses.add_row(
+            p["pose"] or "?",
+            name,
+            str(p["samples"]),
+            "" if angle is None else f"{angle:.1f}°",
+            "mean",
+            *map(_g, p["mean"]),
+        )
+        if "std" in p:  # a field of every file tumblecal writes; other writers may leave it out
+            poses.add_row("", "", "", "", "std", *(f"{v:.3g}" for v in p["std"]), end_section=True)
+    return poses
+
+
+def _print_verdict(console: Console, verdict: dict[str, Any]) -> None:
+    judged_by = ", ".join(k for k in verdict.get("limits") or {} if k not in ("nominal_gain", "nominal_offset"))
+    limits = f"limits: {judged_by}" if judged_by else "no limits judged"
+    if verdict["pass"]:
+        console.print(f"verdict: PASS ({limits})", style="bold green", soft_wrap=True)
+        return
+    console.print(f"verdict: FAIL ({limits})", style="bold red", soft_wrap=True)
+    for f in verdict["failures"]:
+        where = f"{f['file']}: " if f.get("file") else ""
+        console.print(f"  {f['code']}: {where}{f.get('message', '')}", style="red", soft_wrap=True)
+
+
+def print_whole(console: Console, table: Any) -> None:
+    """A table of numbers that never shrinks them: on a terminal too narrow for its numbers, it
+    is printed wider (the terminal wraps its lines) rather than cropping digits unmarked."""
+    from rich.measure import Measurement
+
+    needed = Measurement.get(console, console.options.update_width(1000), table).minimum  # unclamped
+    width = console.width
+    console.width = max(width, needed + 2)  # print() clamps its own width= to the console's; + the edges
+    try:
+        console.print(table)
+    finally:
+        console.width = width
+
+
+def _at(block: dict[str, Any], name: str, i: int) -> float | None:
+    values = block.get(name)
+    return float(values[i]) if isinstance(values, list) and len(values) == 3 else None
+
+
+def print_blocks(log: Log, seg: Segmentation, console: Console, *, used: dict[int, str], everything: bool) -> None:
+    """The blocks for people (the kept ones; ``everything``: the dropped too), how they were
+    found, and a hint for each face without a block."""
+    from rich import box
+    from rich.table import Table
+
+    from tumblecal_cli.core import model as core
+    from tumblecal_cli.core import segment
+
+    name = log.layout.name
+    shown = seg.blocks if everything else seg.kept
+    title = f"still blocks of {os.path.basename(name)}"
+    table = Table(title=title, title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False, collapse_padding=True)
+    for col in ("block", "rows", "start", "length", "face", "angle", "std", "status"):  # fits 80 columns
+        table.add_column(col, justify="left" if col in ("face", "status", "rows") else "right", no_wrap=col != "status")
+    for b in shown:
+        if log.clock is not None:
+            start = f"{float(log.clock[b.first]):.6g}"
+        else:
+            start = "" if seg.period is None else f"{b.first * seg.period:.4g} s"
+        table.add_row(
+            str(b.number),
+            f"{int(log.rows[b.first])}-{int(log.rows[b.last])}",
+            start,
+            f"{b.duration:.3g} s" if b.duration is not None else str(b.samples),
+            b.face or (f"({b.nearest})" if b.label is None else f"({b.label})"),
+            f"{b.angle_deg:.1f}°",
+            f"{float(b.std.max()):.3g}",
+            used.get(b.number, "kept") if b.kept else f"dropped: {b.dropped}",
+        )
+    if shown:
+        console.print(table)
+    dropped = len(seg.blocks) - len(seg.kept)
+    if dropped and not everything:
+        console.print(f"{dropped} more dropped ({seg.dropped_counts()}); -v lists them", soft_wrap=True)
+    if seg.threshold is not None:
+        if seg.noise_floor is None:
+            how = "given"
+        elif seg.threshold == segment.FLOOR_FACTOR * seg.noise_floor:
+            how = f"{segment.FLOOR_FACTOR:g} x the noise floor {seg.noise_floor:.4g}"
+        else:  # readings that do not vary at all when still (segment.detect)
+            how = f"the noise floor is {seg.noise_floor:.4g}: still means no spread at all"
+        window = f"{seg.window * seg.period:.3g} s" if seg.period else f"{seg.window} samples"
+        console.print(
+            f"threshold {seg.threshold:.4g} ({how}; rolling std over {window}); "
+            f"{len(seg.blocks)} block{'' if len(seg.blocks) == 1 else 's'} found, {len(seg.kept)} kept",
+            soft_wrap=True,
+        )
+    for warning in seg.warnings:
+        console.print(f"warning: {warning}", style="yellow", soft_wrap=True)
+    if seg.gaps:
+        console.print(
+            f"warning: {name}: {len(seg.gaps)} gap{'s' if len(seg.gaps) > 1 else ''} in time (the first after data "
+            f"row {int(log.rows[seg.gaps[0] - 1])}); no block spans a gap",
+            style="yellow",
+            soft_wrap=True,
+        )
+    best = seg.best()
+    console.print(f"faces: {' '.join(f for f in core.FACES if f in best) or 'none'}", soft_wrap=True)
+    for hint in segment.missing(seg, list(core.FACES)):
+        console.print(f"hint: {hint}", soft_wrap=True)
+
+
+def count(n: int, noun: str) -> str:
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
+def short_sensor(sensor: str) -> str:
+    """ "accelerometer" as "acc.", and "accelerometer (raw -> g)" as "acc. (raw -> g)"."""
+    name, _, units = sensor.partition(" (")
+    return f"{name[:3]}." + (f" ({units}" if units else "")
+
+
+def print_lot(result: Any, console: Console, plot: str | None, *, drift_given: bool) -> None:
+    """The lot report for people: the parameter table, outliers, drift, unreadable files."""
+    from rich import box
+    from rich.table import Table
+
+    def g(v: float | None, digits: int = 4) -> str:  # compact: 80 columns hold the table
+        return "" if v is None else re.sub(r"e([-+])0*(\d)", r"e\1\2", f"{v:.{digits}g}").replace("e+", "e")
+
+    def span(r: Any) -> str:
+        if r.lower is None and r.upper is None:
+            return ""
+        if r.lower is not None and r.upper is not None and r.lower == -r.upper:
+            return f"±{g(r.upper)}"
+        return f"{g(r.lower)}..{g(r.upper)}"
+
+    several = len({r.sensor for r in result.rows}) > 1
+    table = Table(
+        title=f"lot of {count(result.units, 'unit')} ({count(result.files, 'file')})",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+        collapse_padding=True,
+    )
+    for name in ("parameter", "n", "mean", "std", "min", "max", "limits", "Cpk"):
+        table.add_column(name, justify="left" if name == "parameter" else "right", no_wrap=True)
+    for r in result.rows:
+        low_cpk = result.min_cpk is not None and r.cpk is not None and r.cpk < result.min_cpk
+        table.add_row(
+            f"{short_sensor(r.sensor)} {r.parameter}" if several else r.parameter,
+            str(r.count),
+            g(r.mean),
+            g(r.std, 2),
+            g(r.min),
+            g(r.max),
+            span(r),
+            ("" if r.cpk is None else f"{r.cpk:.2f}" if r.cpk < 100 else ">100") + (" <" if low_cpk else ""),
+        )
+    console.print(table)
+    for r in result.rows:
+        if r.outside:
+            console.print(f"outside the limits: {r.parameter}: {', '.join(r.outside)}", style="red", soft_wrap=True)
+        for unit, value, z in r.outliers:
+            console.print(f"outlier: {unit}: {r.parameter} {g(value)} (robust z {z:+.1f})", style="red", soft_wrap=True)
+    changed = {d.serial for d in result.drift}
+    flagged = [d for d in result.drift if d.flagged]
+    if changed:
+        line = f"drift: {len(changed)} unit{'s' if len(changed) > 1 else ''} calibrated more than once"
+        line += (
+            f"; {len(flagged)} change{'s' if len(flagged) != 1 else ''} beyond --max-drift"
+            if drift_given
+            else " (give --max-drift to flag changes)"
+        )
+        console.print(line, soft_wrap=True)
+    for d in flagged:
+        size = f"{d.relative:+.3%}" if d.relative is not None else f"{d.change:+.5g}"
+        console.print(
+            f"  {d.serial}: {d.parameter} changed {size} since {d.previous_created or os.path.basename(d.previous)}",
+            style="red",
+            soft_wrap=True,
+        )
+    if plot is not None and not result.unreadable:
+        console.print(f"wrote {plot}", soft_wrap=True)
+    verdict = "needs attention" if result.needs_attention else "in order"
+    console.print(f"lot: {verdict}", style="bold red" if result.needs_attention else "bold green", soft_wrap=True)
+
+
+def print_verify(
+    cal: Calibration,
+    rows: list[dict[str, Any]],
+    overall: dict[str, float],
+    ref: float,
+    bound: float | None,
+    failed: list[str],
+) -> None:
+    from rich import box
+    from rich.table import Table
+
+    console = make_console()
+    units = f" {cal.units}" if cal.units else ""
+    table = Table(
+        title=f"{cal.method} calibration on {len(rows)} capture{'s' if len(rows) > 1 else ''}, "
+        f"reference {ref:g}{units}",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+    )
+    for name in ("file", "n", "|mean| raw", "error", "|corrected|", "error", ""):
+        table.add_column(name, justify="left" if name in ("file", "") else "right", no_wrap=name != "file")
+    for r in rows:
+        before = "" if r["error_before"] is None else f"{r['error_before']:+.4g}"
+        mark = "FAIL" if r["file"] in failed else ""
+        table.add_row(
+            os.path.basename(r["file"]),
+            str(r["samples"]),
+            f"{r['norm_before']:.6g}",
+            before,
+            f"{r['norm_after']:.6g}",
+            f"{r['error_after']:+.4g}",
+            mark,
+        )
+    console.print(table)
+    judged = f", limit ±{bound:g}" if bound is not None else ""
+    verdict = "FAIL" if failed else "PASS" if bound is not None else "not judged"
+    if "rms_error_before" in overall:
+        console.print(
+            f"norm error before calibration: RMS {overall['rms_error_before']:.3g}, "
+            f"max {overall['max_error_before']:.3g}",
+            soft_wrap=True,
+        )
+    console.print(
+        f"norm error after calibration: RMS {overall['rms_error']:.3g}, max {overall['max_error']:.3g}{judged}: "
+        f"{verdict}",
+        soft_wrap=True,
+    )
+
+
+@contextlib.contextmanager
+def batch_progress(console: Console, total: int, *, enabled: bool) -> Iterator[tuple[bool, Any]]:
+    """A progress bar on stderr when it is a terminal: (shown, advance by one unit)."""
+    if not (enabled and console.is_terminal and total):
+        yield False, lambda: None
+        return
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    columns = (TextColumn("batch"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
+    with Progress(*columns, console=console, transient=True) as progress:
+        task = progress.add_task("units", total=total)
+        yield True, lambda: progress.advance(task)
+
+
+def print_unit(row: dict[str, Any], out_dir: str, console: Console, *, quiet: bool) -> None:
+    """One line per unit: its verdict and file, or why it failed (``quiet``: only a unit with
+    an error or a rejected capture, as ``solve -q`` still prints those)."""
+    if quiet and row["status"] not in (2, 3):
+        return
+    codes = f" ({', '.join(row['codes'])})" if row.get("codes") else ""
+    head = f"{row['serial']}: {row['verdict']}{codes}"
+    if row.get("file"):
+        head += f" -> {os.path.join(out_dir, row['file'])}"
+    messages = row.get("messages") or [row.get("message") or ""]
+    if len(messages) == 1 and not row.get("file"):
+        head, messages = f"{head}: {messages[0]}", []
+    for line in [head, *(f"  {m}" for m in messages if not row.get("file"))]:
+        console.print(line, soft_wrap=True, markup=False, highlight=False)

@@ -1,0 +1,129 @@
+"""tumblecal report: statistics of a production lot of calibration files."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Annotated
+
+import typer
+
+from tumblecal_cli.cli import render
+from tumblecal_cli.cli.app import Command, app
+from tumblecal_cli.cli.options import Quiet
+from tumblecal_cli.cli.solve import _plot_target
+from tumblecal_cli.errors import InputError
+
+if TYPE_CHECKING:
+    from tumblecal_cli.pipeline.report import Reported
+
+REPORT_EXIT = """\
+Exit status: 0 the lot is in order; 1 it needs attention (a unit outside --limits, an
+outlier, a drift beyond --max-drift, or a Cpk below --min-cpk); 2 usage or input error (an unreadable file among
+the rest: the report is still printed)."""
+
+
+@app.command(cls=Command, epilog=REPORT_EXIT)
+def report(
+    paths: Annotated[
+        list[str],
+        typer.Argument(
+            metavar="CALS...",
+            help="Calibration files, or folders searched for *.json and *.yaml (hidden ones skipped).",
+        ),
+    ],
+    limits_file: Annotated[
+        str | None,
+        typer.Option(
+            "--limits",
+            metavar="FILE",
+            help="Limits file (as for solve): offset, gain_error with nominal_gain, and cross_axis give the "
+            "specification limits Cpk is computed against.",
+        ),
+    ] = None,
+    max_drift: Annotated[
+        str | None,
+        typer.Option(
+            "--max-drift",
+            metavar="KEY=V,...",
+            help="Flag a unit whose latest calibration moved further than this from its previous one: "
+            "offset=V (raw units), gain=F (fraction of the previous gain), cross=F (e.g. offset=0.01,gain=0.002).",
+        ),
+    ] = None,
+    min_cpk: Annotated[
+        float | None,
+        typer.Option("--min-cpk", metavar="C", help="Flag a parameter whose Cpk is below C (1.33 is usual)."),
+    ] = None,
+    json_out: Annotated[
+        bool, typer.Option("--json", help="Print the whole report as JSON on stdout instead of the CSV table.")
+    ] = False,
+    plot: Annotated[
+        str | None,
+        typer.Option(
+            "--plot", metavar="PNG", help="Also draw a histogram per parameter, with its limits (needs [plot])."
+        ),
+    ] = None,
+    quiet: Quiet = False,
+) -> None:
+    """Statistics of a production lot: per parameter count, mean, std, min/max, Cpk, outliers, drift.
+
+    The lot is the latest calibration of each serial (unit.serial; files without one count
+    once each); a serial calibrated more than once also gets the change since its previous
+    calibration (by created). Outliers: |robust z| > 4 (median absolute deviation).
+    CSV (or --json) on stdout, tables on stderr.
+
+    \b
+      tumblecal report cals/ --limits limits.yaml
+      tumblecal report lot1/ lot2/ --max-drift offset=0.01,gain=0.002 --json
+      tumblecal report cals/ --limits limits.yaml --plot lot.png
+    """
+
+    from tumblecal_cli.pipeline import report as pipeline
+
+    if plot is not None:
+        from tumblecal_cli.io import plots
+
+        plots.require()
+    reported = pipeline.report(paths, limits=limits_file, max_drift=max_drift, min_cpk=min_cpk)
+    result = reported.result
+    if plot is not None:
+        _plot_target(plot, "-", False, [*reported.files, *([limits_file] if limits_file else [])])
+    if json_out:
+        render.print_json(result.as_dict())
+    else:
+        render.print_csv(result.csv_rows())
+    if plot is not None and not result.unreadable:  # exit 2 writes no file
+        _plot_lot(plot, reported)
+    if not quiet:
+        render.print_lot(result, render.make_console(), plot, drift_given=bool(max_drift))
+    if result.unreadable:  # an error line per file, after the report of the rest
+        (first, why), rest = result.unreadable[0], result.unreadable[1:]
+        raise InputError(
+            why,
+            file=first,
+            more=tuple(f"{path}: {message}" for path, message in rest),
+            hint=f"the report leaves out the {len(result.unreadable)} of {result.files} files that could not be read",
+        )
+    if result.needs_attention:
+        raise typer.Exit(1)
+
+
+def _plot_lot(plot: str, reported: Reported) -> None:
+    """report --plot: a histogram per parameter of the lot, with its limits."""
+    import numpy as np
+
+    from tumblecal_cli.core import lot
+    from tumblecal_cli.io import plots
+
+    result, members = reported.result, lot.lot(reported.entries)
+    several = len({r.sensor for r in result.rows}) != 1
+    histograms = [
+        plots.Histogram(
+            f"{row.sensor} {row.parameter}" if several else f"{row.parameter}",
+            np.array(
+                [e.values[row.parameter] for e in members if e.sensor == row.sensor and row.parameter in e.values]
+            ),
+            row.lower,
+            row.upper,
+        )
+        for row in result.rows
+    ]
+    plots.lot_figure(plot, histograms, title=f"{result.units} units, {result.files} files")

@@ -1,0 +1,132 @@
+"""tumblecal segment: find the still poses of one continuous log, and cut it into a CSV per pose."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+from tumblecal_cli.cli import render
+from tumblecal_cli.cli.app import Command, app
+from tumblecal_cli.cli.options import (
+    Columns,
+    MinDuration,
+    NoHeader,
+    PoseColumn,
+    PoseMap,
+    Quiet,
+    Rate,
+    Sensor,
+    SensorKind,
+    Threshold,
+    TimeColumn,
+    TimeUnit,
+    TimeUnitOption,
+    Trim,
+    Window,
+    log_option,
+)
+
+SEGMENT_EXIT = """\
+Exit status: 0 blocks found and written; 2 usage or input error (bad file or option, a time
+column that goes backwards); 3 nothing to calibrate from (fewer than two still blocks kept).
+Nothing is written on 2 or 3."""
+
+
+@app.command(cls=Command, epilog=SEGMENT_EXIT)
+def segment(
+    log: Annotated[str, typer.Argument(metavar="LOG", help="The continuous log, one CSV ('-' reads stdin).")],
+    out_dir: Annotated[
+        str | None,
+        typer.Option(
+            "--out-dir",
+            "-d",
+            metavar="DIR",
+            help="Write each kept block as a CSV of its own (the log's header and rows, unchanged): xp.csv xn.csv "
+            "yp.csv yn.csv zp.csv zn.csv for the best block of each face, blockNN.csv for the others; and "
+            "segments.csv, the index. DIR is created if needed. Without it the index goes to stdout.",
+        ),
+    ] = None,
+    sensor: Sensor = SensorKind.accelerometer,
+    columns: Columns = None,
+    no_header: NoHeader = False,
+    time_column: TimeColumn = None,
+    time_unit: TimeUnitOption = TimeUnit.s,
+    rate: Rate = None,
+    window: Window = None,
+    threshold: Threshold = None,
+    min_duration: MinDuration = None,
+    trim: Trim = None,
+    pose_column: PoseColumn = None,
+    pose_map: PoseMap = None,
+    max_noise: Annotated[
+        float,
+        log_option(
+            "--max-noise",
+            "FRACTION",
+            "Drop a block whose standard deviation, or drift between its first and last third, is above "
+            "FRACTION x its magnitude (as solve's moved check).",
+        ),
+    ] = 0.02,
+    max_tilt: Annotated[
+        float,
+        log_option("--max-tilt", "DEGREES", "Label a block with its nearest face only when within this angle."),
+    ] = 25.0,
+    nominal_offset: Annotated[
+        str | None,
+        log_option(
+            "--nominal-offset",
+            "V|X,Y,Z",
+            "The raw value at zero stimulus, removed before judging a block's direction. "
+            "[default: the per-axis midpoint of the block means]",
+        ),
+    ] = None,
+    verbose: Annotated[bool, typer.Option("--verbose", "-v", help="List the dropped blocks too.")] = False,
+    quiet: Quiet = False,
+) -> None:
+    """Find the static poses in one continuous log and cut it into one CSV per pose.
+
+    A sample is still when the rolling standard deviation around it is below the threshold;
+    each still run is a block, labelled with the face it rests on. The blocks go to
+    `solve --poses`, or let `solve --log` do all of it in one step.
+
+    \b
+      tumblecal segment session.csv --out-dir poses/
+      tumblecal solve --poses poses/xp.csv poses/xn.csv poses/yp.csv poses/yn.csv poses/zp.csv poses/zn.csv
+      tumblecal segment session.csv --rate 102.4 > segments.csv       # the index only
+      tumblecal segment annotated.csv --pose-column part --pose-map x_p=+x,x_a=-x,y_p=+y,y_a=-y,z_p=+z,z_a=-z -d poses/
+    """
+
+    from tumblecal_cli.pipeline import logs
+
+    def show(found: logs.Blocks, files: dict[int, str]) -> None:
+        if not quiet:  # "-> xp.csv" only where it is written; the index alone names the file each would go to
+            shown = {n: f"-> {f}" if out_dir is not None else f"kept ({f})" for n, f in files.items()}
+            render.print_blocks(found.log, found.seg, render.make_console(), used=shown, everything=verbose)
+
+    done = logs.segment(
+        log,
+        out_dir=out_dir,
+        on_blocks=show,
+        sensor=sensor.value,
+        columns=columns,
+        no_header=no_header,
+        time_column=time_column,
+        time_unit=time_unit.value,
+        rate=rate,
+        window=window,
+        threshold=threshold,
+        min_duration=min_duration,
+        trim=trim,
+        pose_column=pose_column,
+        pose_map=pose_map,
+        max_noise=max_noise,
+        max_tilt=max_tilt,
+        nominal_offset=nominal_offset,
+    )
+    if out_dir is None:
+        render.print_text(done.index)
+    elif not quiet:
+        gone = f"; removed {done.removed} block files of the earlier segmentation" if done.removed else ""
+        kept = len(done.blocks.seg.kept)
+        render.make_console().print(f"wrote {kept} block files and segments.csv to {out_dir}{gone}", soft_wrap=True)

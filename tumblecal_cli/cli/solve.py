@@ -1,0 +1,378 @@
+"""tumblecal solve: pose files (or one log) in, a calibration file out."""
+
+from __future__ import annotations
+
+import os
+from typing import TYPE_CHECKING, Annotated, Any
+
+import typer
+
+from tumblecal_cli.cli import render
+from tumblecal_cli.cli.app import ManyValuesCommand, app
+from tumblecal_cli.cli.options import (
+    CHECKS_PANEL,
+    EXIT_CODES,
+    UNIT_PANEL,
+    CheckName,
+    Columns,
+    JsonSummary,
+    LimitsFile,
+    MaxGainError,
+    MaxOffset,
+    MethodName,
+    MinDuration,
+    NoHeader,
+    NominalGain,
+    PlaneName,
+    PoseColumn,
+    PoseMap,
+    Quiet,
+    Rate,
+    Sensor,
+    SensorKind,
+    Threshold,
+    TimeColumn,
+    TimeUnit,
+    TimeUnitOption,
+    Trim,
+    Window,
+)
+from tumblecal_cli.errors import InputError
+
+if TYPE_CHECKING:
+    from tumblecal_cli.core.gate import Limits
+    from tumblecal_cli.io.calfile import Calibration
+    from tumblecal_cli.pipeline.solve import Solved
+
+
+@app.command(cls=ManyValuesCommand, epilog=EXIT_CODES)
+def solve(
+    poses: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--poses",
+            "-p",
+            metavar="FILE...",
+            help="Pose files, all after one --poses; each FILE or LABEL=FILE, LABEL a face (+x -x +y -y +z -z, "
+            "xp ... zn) or a direction X,Y,Z (0.707,0,0.707=a.csv). Unlabelled: 1 file is the --up face, "
+            "3 are +x +y +z, 6 are +x -x +y -y +z -z, in that order; 12 or more, orientation unknown "
+            "(sphere). A magnetometer's: one or more captures turned through many orientations. '-' reads stdin.",
+        ),
+    ] = None,
+    log: Annotated[
+        str | None,
+        typer.Option(
+            "--log",
+            metavar="FILE",
+            help="Instead of --poses: one continuous log, cut into still blocks as `tumblecal segment` does. "
+            "Face solvers take the best block of each face (the longest within --max-tilt, ties to the "
+            "quieter); sphere takes every kept block. auto: six-pose for six faces, least-squares for five, "
+            "else sphere for 12+ blocks, else three-pose. '-' reads stdin.",
+        ),
+    ] = None,
+    window: Window = None,
+    threshold: Threshold = None,
+    min_duration: MinDuration = None,
+    trim: Trim = None,
+    pose_column: PoseColumn = None,
+    pose_map: PoseMap = None,
+    output: Annotated[
+        str,
+        typer.Option(
+            "--output", "-o", metavar="FILE", help="Calibration file: .json, or .yaml/.yml for YAML; '-' is stdout."
+        ),
+    ] = "-",
+    up: Annotated[
+        str | None,
+        typer.Option(
+            "--up",
+            metavar="FACE",
+            help="1-pose: the sensor axis pointing up, which reads +reference: +x -x +y -y +z -z "
+            "(or xp xn yp yn zp zn). A sensor that reads -1 g on the axis pointing up is the opposite face. "
+            "[default: +z]",
+            show_default=False,
+        ),
+    ] = None,
+    reference: Annotated[
+        float | None,
+        typer.Option(
+            "--reference",
+            metavar="NUMBER",
+            help="The stimulus magnitude in the units the corrected data should have: 1 (g), "
+            "9.80665 (m/s^2), 16384 (LSB at +-2 g), the local field for a magnetometer. "
+            "The 1-pose solver has no gains, so there it must be in the file's units. "
+            "[default: 1, or 0 for a gyroscope]",
+        ),
+    ] = None,
+    method: Annotated[
+        MethodName,
+        typer.Option(
+            "--method",
+            "-m",
+            help="The solver (README: Choosing a solver). auto: one-pose for 1 file, three-pose for +x +y +z, "
+            "six-pose for the six faces, least-squares for 5+ labelled, sphere for 12+ unlabelled; "
+            "ellipsoid for a magnetometer, gyro-bias for a gyroscope.",
+        ),
+    ] = MethodName.auto,
+    sensor: Sensor = SensorKind.accelerometer,
+    tilt_compensate: Annotated[
+        bool,
+        typer.Option(
+            "--tilt-compensate",
+            help="1-pose: take the attitude from the readings, so fixture tilt leaves the up offset alone "
+            "(method one-pose-tilt).",
+        ),
+    ] = False,
+    bias_spread: Annotated[
+        float | None,
+        typer.Option(
+            "--bias-spread",
+            metavar="V",
+            help="one-pose-tilt: the spread (1σ) of the horizontal offsets, in the file's units; it bounds "
+            "the up offset's error. [default: 0.01 x reference]",
+        ),
+    ] = None,
+    plane: Annotated[
+        PlaneName | None,
+        typer.Option("--plane", help="minmax: the capture turned in one plane only (2-D); that plane's axes."),
+    ] = None,
+    units: Annotated[
+        str | None,
+        typer.Option("--units", metavar="TEXT", help="Label of the corrected units (default 'g' for reference 1)."),
+    ] = None,
+    input_units: Annotated[
+        str | None, typer.Option("--input-units", metavar="TEXT", help="Label of the raw units, e.g. counts.")
+    ] = None,
+    columns: Columns = None,
+    no_header: NoHeader = False,
+    time_column: TimeColumn = None,
+    time_unit: TimeUnitOption = TimeUnit.s,
+    rate: Rate = None,
+    json_summary: JsonSummary = False,
+    quiet: Quiet = False,
+    plot: Annotated[
+        str | None,
+        typer.Option(
+            "--plot",
+            metavar="PNG",
+            help="Also draw the poses' norms before and after calibration against the reference, with residual "
+            "bars (a magnetometer: its samples in three planes with the fitted ellipse); needs tumblecal[plot].",
+        ),
+    ] = None,
+    # -- quality checks (exit 3) --
+    max_noise: Annotated[
+        float | None,
+        typer.Option(
+            "--max-noise",
+            metavar="FRACTION",
+            help="pose.moved: reject a pose whose standard deviation, or drift between its first and last "
+            "third, is above FRACTION x reference in corrected units. For a gyroscope it is in its units, "
+            "and the check runs only when given; the turning captures of minmax and ellipsoid are not "
+            "judged. [default: 0.02]",
+            rich_help_panel=CHECKS_PANEL,
+        ),
+    ] = None,
+    max_tilt: Annotated[
+        float,
+        typer.Option(
+            "--max-tilt",
+            metavar="DEGREES",
+            max=180,
+            help="pose.orientation: reject a pose further than this from the face it is declared as.",
+            rich_help_panel=CHECKS_PANEL,
+        ),
+    ] = 25.0,
+    nominal_offset: Annotated[
+        str | None,
+        typer.Option(
+            "--nominal-offset",
+            metavar="V|X,Y,Z",
+            help="Raw value at zero stimulus, removed before judging a pose's direction "
+            "(raw counts from an unsigned ADC sit near 32768). [default: 0; with --log, the per-axis "
+            "midpoint of the block means]",
+            rich_help_panel=CHECKS_PANEL,
+        ),
+    ] = None,
+    full_scale: Annotated[
+        float | None,
+        typer.Option(
+            "--full-scale",
+            metavar="V",
+            help="pose.saturated: reject a pose with any |sample| >= 0.98 V (raw units). Without it, "
+            "integer data at the limits of a 16-bit type is clipped.",
+            rich_help_panel=CHECKS_PANEL,
+        ),
+    ] = None,
+    min_samples: Annotated[
+        int,
+        typer.Option(
+            "--min-samples",
+            metavar="N",
+            min=1,
+            help="pose.short: reject a pose with fewer rows (1 suits loggers that store one averaged row).",
+            rich_help_panel=CHECKS_PANEL,
+        ),
+    ] = 10,
+    fixture_tolerance: Annotated[
+        float,
+        typer.Option(
+            "--fixture-tolerance",
+            metavar="DEGREES",
+            min=0,
+            max=30,
+            help="How far the fixture may be off level; sets tilt_sensitivity, the worst-case parameter shift.",
+            rich_help_panel=CHECKS_PANEL,
+        ),
+    ] = 1.0,
+    no_checks: Annotated[
+        bool, typer.Option("--no-checks", help="Turn every quality check off.", rich_help_panel=CHECKS_PANEL)
+    ] = False,
+    no_check: Annotated[
+        list[CheckName] | None,
+        typer.Option(
+            "--no-check",
+            metavar="CHECK",
+            help="Turn one check off: moved, orientation, saturated, short or upside-down (repeatable).",
+            rich_help_panel=CHECKS_PANEL,
+        ),
+    ] = None,
+    # -- limits (exit 1) --
+    limits: LimitsFile = None,
+    max_offset: MaxOffset = None,
+    max_gain_error: MaxGainError = None,
+    nominal_gain: NominalGain = None,
+    # -- traceability --
+    serial: Annotated[
+        str | None,
+        typer.Option("--serial", metavar="TEXT", help="The unit's serial number.", rich_help_panel=UNIT_PANEL),
+    ] = None,
+    station: Annotated[
+        str | None, typer.Option("--station", metavar="TEXT", help="The test station.", rich_help_panel=UNIT_PANEL)
+    ] = None,
+    operator: Annotated[
+        str | None, typer.Option("--operator", metavar="TEXT", help="Who ran the test.", rich_help_panel=UNIT_PANEL)
+    ] = None,
+    meta: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--meta", metavar="KEY=VALUE", help="More about the unit (repeatable).", rich_help_panel=UNIT_PANEL
+        ),
+    ] = None,
+) -> None:
+    """Average each pose file, check it, solve for the offsets (and gains), judge the unit.
+
+    Writes the calibration on exit 0 (pass) and 1 (outside its limits), nothing on 2 or 3.
+
+    \b
+      tumblecal solve --poses x.csv y.csv z.csv -o cal.json     # 3-pose
+      tumblecal solve --poses z.csv -o cal.yaml                 # 1-pose, +z up
+      tumblecal solve --poses z.csv --up=-x --reference 16384   # counts, -x up
+      tumblecal solve -p x.csv y.csv z.csv -o cal.json --limits limits.yaml --serial A17 --json
+      tumblecal solve --log session.csv --rate 102.4 --reference 9.81 -o cal.json   # one continuous log
+    """
+
+    given = dict(locals())
+    from tumblecal_cli.io.outputs import check_not_input, check_writable
+    from tumblecal_cli.pipeline import solve as pipeline
+    from tumblecal_cli.pipeline.options import SolveOptions
+
+    inputs = [*(poses or []), *(p.partition("=")[2] for p in poses or [] if "=" in p), *([log] if log else [])]
+    inputs += [limits] if limits else []
+    if json_summary and output == "-" and (poses or log):
+        raise InputError("--json prints the summary on stdout, so the calibration needs -o FILE")
+    check_not_input(output, inputs)
+    check_writable(output)
+    if plot is not None:
+        _plot_target(plot, output, json_summary, inputs)
+    solved = pipeline.run(SolveOptions.of(given), poses=poses, log=log)
+    _show(solved, output=output, json_summary=json_summary, quiet=quiet, plot=plot, plane=plane and plane.value)
+
+
+def _show(solved: Solved, *, output: str, json_summary: bool, quiet: bool, plot: str | None, plane: str | None) -> None:
+    """The blocks of a log, the calibration's summary, the --json summary; the calibration
+    written (exit 0 and 1), or the rejection raised (exit 3)."""
+    console = render.make_console()
+    if solved.blocks is not None and not quiet:
+        render.print_blocks(solved.blocks.log, solved.blocks.seg, console, used=solved.blocks.used, everything=False)
+    cal, draft = solved.calibration, solved.draft
+    if cal is None:
+        assert solved.error is not None
+        if draft is not None and not quiet:
+            render.print_summary(draft, console, solved.warnings, solved.notes, judged=False)
+        if json_summary:
+            render.print_json(
+                render.summary(draft, 3, None, solved.rejections, solved.warnings, solved.notes)
+                if draft is not None
+                else render.rejected_head(solved.error)
+            )
+        raise solved.error
+    if plot is not None:  # drawn before the calibration is written: a failure leaves nothing behind
+        _plot_solve(plot, cal, [s.values for s in solved.samples], solved.limits, plane)
+    cal.save(output)
+    if not quiet:
+        render.print_summary(cal, console, solved.warnings, solved.notes, judged=True)
+        if output != "-":
+            console.print(f"wrote {output}", soft_wrap=True)
+    if json_summary:
+        render.print_json(render.summary(cal, solved.status, output, [], solved.warnings, solved.notes))
+    if solved.status:
+        raise typer.Exit(solved.status)
+
+
+def _plot_target(plot: str, output: str, json_summary: bool, inputs: list[str]) -> None:
+    """Refuse a --plot path that cannot work, before any work (matplotlib missing is one)."""
+    from tumblecal_cli.io import plots
+    from tumblecal_cli.io.outputs import check_not_input, check_writable
+
+    plots.require()
+    if plot == "-" and (output == "-" or json_summary):
+        raise InputError("--plot - would share stdout with the data", hint="give --plot FILE.png")
+    if plot != "-" and not plot.lower().endswith(".png"):
+        raise InputError("--plot writes a PNG image: give a file name ending in .png", file=plot)
+    if plot != "-" and output != "-" and os.path.abspath(plot) == os.path.abspath(output):
+        raise InputError("--plot and -o name the same file", file=plot)
+    check_not_input(plot, inputs, "--plot")
+    check_writable(plot, "--plot")
+
+
+def _plot_solve(plot: str, cal: Calibration, raw: list[Any], limits: Limits | None, plane: str | None) -> None:
+    """solve --plot: the poses' norms (seed 001's figure), or a magnetometer's rotation capture."""
+    import numpy as np
+
+    from tumblecal_cli.core import solvers
+    from tumblecal_cli.core.gate import FIXED_GAINS
+    from tumblecal_cli.io import plots
+
+    title = f"{cal.sensor}, {cal.method}" + (f", {cal.serial}" if cal.serial else "")
+    if cal.method in solvers.ROTATION:
+        plots.rotation_figure(
+            plot, np.concatenate(raw), cal.offset, cal.matrix, cal.reference, units=cal.units, title=title, plane=plane
+        )
+        return
+    assert limits is not None
+    if np.any(limits.nominal_gain != 1.0):  # given (--nominal-gain or the limits file)
+        nominal = float(np.mean(limits.nominal_gain))
+    else:  # else "before" is scaled by the mean solved gain: its shape, not its units
+        nominal = 1.0 if cal.method in FIXED_GAINS else float(np.mean(cal.gain))
+    names = [  # a log's blocks by number (they share the file), pose files by name
+        " ".join(
+            [
+                *([p["pose"]] if p["pose"] else []),
+                f"block {p['block']}" if "block" in p else os.path.basename(str(p["file"])),
+            ]
+        )
+        for p in cal.poses
+    ]
+    means = np.array([p["mean"] for p in cal.poses], dtype=np.float64)
+    plots.poses_figure(
+        plot,
+        names,
+        means,
+        cal.offset,
+        cal.matrix,
+        cal.reference,
+        nominal_gain=nominal,
+        nominal_offset=limits.nominal_offset,  # --nominal-offset: unsigned counts' zero
+        units=cal.units,
+        title=title,
+    )

@@ -1,0 +1,211 @@
+"""Calibration files after solve: judged again (check), written for firmware or another tool
+(export), and read from another tool (import)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
+
+from tumblecal_cli.errors import InputError
+from tumblecal_cli.pipeline.options import Triplet
+
+if TYPE_CHECKING:
+    from tumblecal_cli.core.gate import Finding
+    from tumblecal_cli.io.calfile import Calibration
+    from tumblecal_cli.io.formats import Peer
+
+
+@dataclass
+class Checked:
+    """A calibration judged afresh: ``calibration`` carries the new verdict; status 0 or 1."""
+
+    calibration: Calibration
+    failures: list[Finding]
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def status(self) -> int:
+        return 1 if self.failures else 0
+
+
+def check(
+    cal: str,
+    *,
+    limits: str | None = None,
+    max_offset: Triplet | None = None,
+    max_gain_error: Triplet | None = None,
+    nominal_gain: Triplet | None = None,
+) -> Checked:
+    """Judge an existing calibration file against limits again (the file is not changed)."""
+    import numpy as np
+
+    from tumblecal_cli.core import gate
+    from tumblecal_cli.io import calfile
+    from tumblecal_cli.pipeline.options import limits as parse_limits
+    from tumblecal_cli.pipeline.solve import limits_not_applying
+
+    given = parse_limits(limits, max_offset, max_gain_error, nominal_gain)
+    if not given.judges():
+        raise InputError("no limits to judge against", hint="give --limits FILE, --max-offset or --max-gain-error")
+    c = calfile.load(cal)
+    method = c.method
+    recorded = (c.verdict.limits if c.verdict is not None else {}).get("nominal_offset")
+    if recorded is not None and not any(given.nominal_offset):  # the centre solve judged it from
+        given = replace(given, nominal_offset=np.array(recorded, dtype=float))
+    bounds = given.for_method(method)
+    if not bounds.judges():
+        raise InputError(f"no limits to judge against: {'; '.join(limits_not_applying(given, method))}", file=cal)
+    if not c.poses:  # an imported calibration: its parameters can be judged, it has no poses
+        if bounds.noise is not None or bounds.residual is not None:
+            raise InputError(
+                "has no poses to judge the noise and residual limits by",
+                file=cal,
+                hint="judge it by offset, gain_error and cross_axis only (a limits file without noise and residual)",
+            )
+        records = []
+    else:
+        records = calfile.pose_records(c)
+    poses = [(p.file, p.face, gate.corrected(p.mean, p.std, p.face, c.offset, c.matrix, c.reference)) for p in records]
+    residuals = c.fields.get("residuals")
+    residual = residuals.get("max") if isinstance(residuals, dict) else None
+    if method in gate.ROTATION and bounds.residual is not None and residual is None:
+        raise InputError(
+            "has no fit residuals to judge the residual limit by",
+            file=cal,
+            hint="judge it without the residual limit, or solve the capture again",
+        )
+    failures = gate.verdict(method, c.offset, c.matrix, poses, bounds, residual)
+    verdict = calfile.Verdict(not failures, tuple(f.as_dict() for f in failures), bounds.as_dict())
+    return Checked(c.with_verdict(verdict), failures, limits_not_applying(given, method))
+
+
+def export(
+    cal: str,
+    fmt: str,
+    *,
+    prefix: str | None = None,
+    lsb: float | None = None,
+    bits: int = 16,
+    register_sign: str = "subtract",
+    gain_step: float | None = None,
+    nominal_gain: str | None = None,
+    force: bool = False,
+) -> str:
+    """The text of a calibration in another format: c-header, registers, imucal-json, ros-yaml
+    or matlab (README "export")."""
+    from tumblecal_cli.io import calfile, formats
+    from tumblecal_cli.pipeline.correct import refuse_failed
+    from tumblecal_cli.pipeline.options import triplet
+
+    given = {"--lsb": lsb, "--gain-step": gain_step, "--nominal-gain": nominal_gain}
+    if fmt != "registers":
+        if extra := [flag for flag, value in given.items() if value is not None]:
+            raise InputError(f"{', '.join(extra)} {'is' if len(extra) == 1 else 'are'} for --format registers")
+        if bits != 16 or register_sign != "subtract":
+            raise InputError("--bits and --register-sign are for --format registers")
+    elif lsb is None:
+        raise InputError("--format registers needs --lsb, the raw units of one register count")
+    if fmt != "c-header" and prefix is not None:
+        raise InputError("--prefix is for --format c-header")
+    if nominal_gain is not None and gain_step is None:
+        raise InputError("--nominal-gain is the gain trim's aim: it needs --gain-step")
+    c = calfile.load(cal)
+    if c.failed and not force:
+        refuse_failed(c, "export it", "export")
+    if fmt == "registers":
+        if not (lsb is not None and math.isfinite(lsb) and lsb > 0):
+            raise InputError(f"--lsb must be a positive number, got {lsb}")
+        if gain_step is not None and not (math.isfinite(gain_step) and gain_step > 0):
+            raise InputError(f"--gain-step must be a positive number, got {gain_step}")
+        from tumblecal_cli.core.gate import FIXED_GAINS
+
+        if gain_step is not None and c.method in FIXED_GAINS:
+            raise InputError(f"the {c.method} solver fixes the gains: there is no gain to trim", file=cal)
+        recorded = (c.verdict.limits if c.verdict is not None else {}).get("nominal_gain")
+        nominal = triplet(nominal_gain or ",".join(map(str, recorded or [1, 1, 1])), "--nominal-gain")  # type: ignore[call-overload]
+        if not (nominal > 0).all():
+            raise InputError(f"--nominal-gain must be positive, got {nominal_gain}")
+        rows = formats.registers(c, lsb=lsb, bits=bits, sign=register_sign, gain_step=gain_step, nominal_gain=nominal)
+        return formats.registers_csv(rows)
+    writers = {
+        "c-header": lambda: formats.c_header(c, prefix=prefix),
+        "imucal-json": lambda: formats.imucal_json(c),
+        "ros-yaml": lambda: formats.ros_yaml(c),
+        "matlab": lambda: formats.matlab(c),
+    }
+    return writers[fmt]()
+
+
+@dataclass
+class Imported:
+    """Another tool's calibration read in: the Calibration, the format it was in, and notes."""
+
+    calibration: Calibration
+    format: str
+    notes: list[str]
+
+
+def import_peer(
+    path: str,
+    *,
+    fmt: str | None = None,
+    sensor: str | None = None,
+    reference: float | None = None,
+    columns: str | None = None,
+    serial: str | None = None,
+) -> Imported:
+    """An imucal JSON or ROS imu_calib YAML file as a tumblecal Calibration (README "import")."""
+    from tumblecal_cli.io import calfile, formats
+    from tumblecal_cli.pipeline.options import unit_block
+
+    raw = calfile.read_bytes(path, "calibration file")
+    as_yaml = not path.lower().endswith(".json") and raw.lstrip()[:1] != b"{"  # ROS files are YAML, any name
+    doc = calfile.parse_object(raw, path, "calibration file", as_yaml=as_yaml)
+    found = formats.detect(doc)
+    name = fmt if fmt is not None else found
+    if name is None or (found is not None and found != name):
+        what = "neither an imucal JSON (cal_type, K_a …) nor a ROS imu_calib YAML (SM, bias)"
+        raise InputError(
+            f"{what} file" if found is None else f"the file is {found}, not {name}",
+            file=path,
+            hint="tumblecal import reads --from imucal-json or ros-yaml",
+        )
+    text = raw.decode("utf-8-sig", "replace")
+    peer = formats.read_peer(doc, name, path, sensor, text)
+    ref = reference if reference is not None else _peer_reference(peer, path)
+    if not (math.isfinite(ref) and (ref > 0 or (ref == 0 and peer.sensor == "gyroscope"))):
+        raise InputError(f"--reference must be a positive number (0 for a gyroscope), got {ref}")
+    if columns:
+        picked = [c.strip() for c in columns.split(",")]
+        if len(picked) != 3 or not all(picked) or len({c.lower() for c in picked}) != 3:
+            raise InputError(f"--columns takes three different names X,Y,Z, got {columns!r}")
+    elif peer.columns:
+        picked = peer.columns
+    elif name == "ros-yaml":
+        picked = list("xyz")
+    else:
+        picked = [f"{'gyr' if peer.sensor == 'gyroscope' else 'acc'}_{a}" for a in "xyz"]
+    who = unit_block(
+        serial if serial is not None else peer.serial, peer.was.get("station"), peer.was.get("operator"), []
+    )
+    cal = formats.imported(peer, path=path, raw=raw, sensor=peer.sensor, reference=ref, columns=picked, unit=who)
+    return Imported(cal, name, list(peer.notes))
+
+
+def _peer_reference(peer: Peer, path: str) -> float:
+    """The reference a peer file implies (README: import)."""
+    if peer.reference is not None:
+        return float(peer.reference)
+    if peer.sensor == "gyroscope":
+        return 0.0
+    if peer.format == "ros-yaml" and peer.sensor == "accelerometer":
+        return 9.80665  # imu_calib's do_calib: reference_acceleration defaults to 9.80665
+    by_units = {"g": 1.0, "m/s^2": 9.81, "m/s2": 9.81}  # imucal's Ferraris default expected gravity 9.81
+    if peer.units in by_units:
+        return by_units[peer.units]
+    raise InputError(
+        f"cannot tell the reference of output units {peer.units!r}",
+        file=path,
+        hint="give --reference, the stimulus magnitude in the output units",
+    )

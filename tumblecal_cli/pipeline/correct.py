@@ -1,0 +1,221 @@
+"""apply: captures corrected with one or more calibrations, streamed file to file.
+
+Everything but the sensor columns is copied as it was (``io.captures.correct_stream``); the
+sensor columns become ``M (raw - offset)`` (``core.model.apply``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from functools import partial
+from typing import TYPE_CHECKING
+
+from tumblecal_cli.errors import InputError, TumblecalError
+
+if TYPE_CHECKING:
+    from tumblecal_cli.core.model import FloatArray
+    from tumblecal_cli.io.calfile import Calibration
+    from tumblecal_cli.io.captures import Capture, Layout
+
+
+@dataclass
+class Applied:
+    """One capture corrected: its name, the rows written, the columns corrected, and notes."""
+
+    capture: str
+    rows: int
+    columns: list[str]
+    output: str
+    notes: list[str] = field(default_factory=list)
+
+
+def correct(
+    capture: str,
+    cal: str | Sequence[str],
+    *,
+    output: str = "-",
+    columns: str | Sequence[str] | None = None,
+    no_header: bool = False,
+    force: bool = False,
+) -> Applied:
+    """Correct one capture ('-': stdin) into ``output`` ('-': stdout), as ``tumblecal apply``:
+    ``cal`` is one calibration file or several (one per sensor of the capture)."""
+    from tumblecal_cli.io import calfile, captures
+    from tumblecal_cli.io.outputs import atomic_output, check_not_input, check_writable
+
+    paths = [cal] if isinstance(cal, str) else list(cal)
+    if "-" in paths and capture == "-":
+        raise InputError("--cal - and the capture cannot both be read from stdin", hint="give the capture as a file")
+    if paths.count("-") > 1:
+        raise InputError("only one --cal can be read from stdin ('-')")
+    check_not_input(output, [capture, *paths])
+    check_writable(output)
+    cals = [calfile.load(path) for path in paths]
+    claims_once(cals)
+    notes = []
+    for c in cals:
+        if c.failed and not force:
+            refuse_failed(c, "correct with it", "apply")
+        if c.failed:
+            notes.append(f"{c.path}: this unit failed its limits; correcting with it as --force asks")
+    if columns and len(cals) > 1:
+        raise InputError("--columns names the columns of one calibration; with several --cal each uses its own")
+    picked = (columns.split(",") if isinstance(columns, str) else list(columns)) if columns else None
+    c = cals[0]
+    with capture_for(c, capture, picked, no_header) as cap:
+        used = cap.layout.sensor_names
+        differ = [u.lower() for u in used] != [x.lower() for x in c.columns]
+        if differ and (picked or not cap.layout.has_header):  # the user named them, or nothing is named
+            notes.append(
+                f"{cap.layout.name}: correcting columns {', '.join(used)} "
+                f"(the calibration was made from {', '.join(c.columns)})"
+            )
+        elif differ:
+            raise InputError(
+                f"the capture's {c.sensor} columns are {', '.join(used)}, "
+                f"but {c.path} calibrates {c.sensor} columns {', '.join(c.columns)}",
+                file=cap.layout.name,
+                hint=f"if they are the same sensor, name them: --columns {','.join(used)}",
+            )
+        taken = set(cap.layout.sensor)
+        more = [(columns_of(cap.layout, other, taken), other) for other in cals[1:]]
+        with atomic_output(output) as out:
+            rows = captures.correct_stream(
+                cap, out, partial(_correct, c), more=[(t, partial(_correct, o)) for t, o in more]
+            )
+        used = [n for t in [cap.layout.sensor, *(t for t, _ in more)] for n in (cap.layout.names[i] for i in t)]
+    return Applied(cap.layout.name, rows, used, output, notes)
+
+
+def correct_many(
+    inputs: Sequence[str],
+    cal: Sequence[str],
+    out_dir: str,
+    *,
+    columns: str | None = None,
+    no_header: bool = False,
+    force: bool = False,
+    scheduler: str | None = None,
+) -> Iterator[tuple[str, int, str]]:
+    """Correct each capture into ``out_dir`` under its own name, here or on a Dask cluster
+    (``scheduler``): (capture, exit status, message) for each as it is done. A capture that
+    fails is its own status and message; the others go on."""
+    from tumblecal_cli.io import calfile
+    from tumblecal_cli.pipeline import batch as batches
+
+    if "-" in inputs:
+        raise InputError("stdin ('-') is one capture: with --out-dir give the captures as files")
+    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
+        raise InputError("is a file, not a folder: --out-dir takes a folder", file=out_dir)
+    inputs = list(dict.fromkeys(inputs))  # a file named twice is corrected once
+    outputs = [os.path.join(out_dir, os.path.basename(c)) for c in inputs]
+    names: dict[str, str] = {}
+    for c, o in zip(inputs, outputs, strict=True):
+        if o in names:
+            raise InputError(
+                f"{names[o]} and {c} would both be written to {o}", hint="correct them into separate folders"
+            )
+        names[o] = c
+        if os.path.exists(o):  # an input, or a file of someone else's: never replaced
+            raise InputError(
+                "already exists: --out-dir never replaces a file", file=o, hint="correct into a new or empty folder"
+            )
+    for path in cal:  # a bad calibration is one error, before any capture
+        if path == "-":
+            raise InputError("--cal - is read once: with several captures give the calibration as a file")
+        calfile.load(path)
+    options = {"cal": list(cal), "columns": columns, "no_header": no_header, "force": force}
+    if scheduler is not None:  # the workers do not share this working folder
+        inputs, outputs = [os.path.abspath(c) for c in inputs], [os.path.abspath(o) for o in outputs]
+        options["cal"] = [os.path.abspath(c) for c in cal]
+    run = batches.engine(1, scheduler)
+    os.makedirs(out_dir, exist_ok=True)
+    for (_, name, _), outcome in run(correct_one, [(options, c, o) for c, o in zip(inputs, outputs, strict=True)]):
+        if isinstance(outcome, BaseException):  # a worker lost on the cluster
+            outcome = (name, 2, f"{name}: the worker correcting it failed: {type(outcome).__name__}: {outcome}")
+        yield outcome
+
+
+def correct_one(options: dict[str, object], capture: str, output: str) -> tuple[str, int, str]:
+    """Correct one capture as ``tumblecal apply`` does: (capture, exit status, message)."""
+    try:
+        correct(capture, output=output, **options)  # type: ignore[arg-type]
+    except TumblecalError as err:
+        return capture, err.exit_code, "; ".join([str(err), *err.more])
+    except Exception as err:  # a bug: this file's error
+        return capture, 2, f"internal error: {type(err).__name__}: {err}"
+    return capture, 0, ""
+
+
+def claims_once(cals: list[Calibration]) -> None:
+    """Two calibrations for one column is a usage error: which correction would win?"""
+    for k, a in enumerate(cals):
+        for b in cals[k + 1 :]:
+            shared = [n for n in a.columns if n.lower() in {m.lower() for m in b.columns}]
+            if shared:
+                raise InputError(
+                    f"{a.path} and {b.path} both calibrate column{'s' if len(shared) > 1 else ''} {', '.join(shared)}",
+                    hint="give one calibration per sensor",
+                )
+
+
+def refuse_failed(cal: Calibration, doing: str, command: str) -> None:
+    """A calibration whose verdict failed goes nowhere without --force (apply, export)."""
+    failures = cal.verdict.failures if cal.verdict is not None else ()
+    codes = ", ".join(str(f.get("code")) for f in failures if isinstance(f, dict))
+    raise InputError(
+        f"this unit failed its limits ({codes or 'verdict: fail'}): refusing to {doing}",
+        file=cal.path,
+        hint=f"pass --force to {command} it anyway",
+    )
+
+
+@contextlib.contextmanager
+def capture_for(cal: Calibration, path: str, picked: list[str] | None, no_header: bool) -> Iterator[Capture]:
+    """A capture opened to be corrected by ``cal``: one without that sensor's columns is an
+    error naming both the capture and the calibration."""
+    from tumblecal_cli.io import captures
+
+    with contextlib.ExitStack() as stack:
+        try:
+            cap = stack.enter_context(
+                captures.open_capture(path, sensor=cal.sensor, columns=picked, prefer=cal.columns, no_header=no_header)
+            )
+        except InputError as err:
+            if not err.message.startswith(f"no {cal.sensor} x,y,z columns found"):
+                raise
+            raise InputError(
+                f"{err.message}, but {cal.path} calibrates {cal.sensor} columns {', '.join(cal.columns)}",
+                file=err.file,
+                hint="correct a capture of the sensor the calibration was made for, or name its columns with --columns",
+            ) from None
+        yield cap
+
+
+def columns_of(layout: Layout, cal: Calibration, taken: set[int]) -> tuple[int, int, int]:
+    """Where a second calibration's recorded columns are in the capture (by name only)."""
+    from tumblecal_cli.io import captures
+
+    lower = [n.lower() for n in layout.names]
+    missing = [n for n in cal.columns if n.lower() not in lower]
+    if missing:
+        raise InputError(
+            f"the capture has no column{'s' if len(missing) > 1 else ''} {', '.join(missing)}, "
+            f"which {cal.path} calibrates",
+            file=layout.name,
+            hint="with several --cal, each calibration's recorded columns must be in the capture's header",
+        )
+    triplet = captures.sensor_columns(layout, cal.sensor, cal.columns)
+    if taken & set(triplet):
+        raise InputError(f"{cal.path} calibrates columns another --cal already corrects", file=layout.name)
+    taken.update(triplet)
+    return triplet
+
+
+def _correct(cal: Calibration, raw: FloatArray) -> FloatArray:
+    from tumblecal_cli.core import model
+
+    return model.apply(raw, cal.offset, cal.matrix)

@@ -1,0 +1,56 @@
+"""Data in memory, for the Python API: DataFrames and (n, 3) arrays in, DataFrames out.
+
+pandas is imported only by the functions that return a DataFrame; a DataFrame given in is read
+through its own methods.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from tumblecal_cli.errors import InputError
+
+if TYPE_CHECKING:
+    from tumblecal_cli.io.captures import Samples
+    from tumblecal_cli.pipeline.options import SolveOptions
+
+
+def samples_of(label: str, data: Any, options: SolveOptions) -> Samples:
+    """One pose from memory: a DataFrame (its sensor columns found as a file's header would be,
+    or named by ``columns``) or an (n, 3) array; named ``<label>`` in messages and the file."""
+    from tumblecal_cli.io import captures
+
+    name = f"<{label}>"
+    if hasattr(data, "columns") and hasattr(data, "to_numpy"):
+        names = [str(c) for c in data.columns]
+        triplet = captures.sensor_triplet(names, sensor=options.sensor, columns=options.column_names, name=name)
+        picked = [names[i] for i in triplet]
+        values = np.asarray(data[[data.columns[i] for i in triplet]].to_numpy(dtype=np.float64, na_value=np.nan))
+    else:
+        picked = ["x", "y", "z"]
+        values = np.asarray(data, dtype=np.float64)
+    if values.ndim != 2 or values.shape[1] != 3 or not len(values):
+        raise InputError(f"a pose is (n, 3) readings, n >= 1; got shape {values.shape}", file=name)
+    values = values[~np.isnan(values).all(axis=1)]  # rows with no reading, as in a file
+    if not np.isfinite(values).all():
+        raise InputError("a reading that is not a finite number", file=name)
+    layout = captures.Layout(name, ",", picked, True, b"", 1, "\n")
+    digest = hashlib.sha256(np.ascontiguousarray(values).tobytes()).hexdigest()
+    rate = options.rate
+    duration = (len(values) / rate) if rate else None
+    return captures.Samples(layout, values, (0, len(values) - 1), digest, duration)
+
+
+def read_capture(path: str, *, no_header: bool = False) -> Any:
+    """A capture as a pandas DataFrame, read by the CSV rules of the command line (delimiter,
+    header, comments, BOM and line ends detected; sensor cells checked): every column, integer,
+    float or text, in the file's order."""
+    import pandas as pd
+
+    from tumblecal_cli.io import captures
+
+    _, names, columns = captures.read_table(path, no_header=no_header)
+    return pd.DataFrame({name: col.to_pandas() for name, col in zip(names, columns, strict=True)})

@@ -1,0 +1,478 @@
+"""Continuous logs: read one, find its still blocks, pick the poses a solver needs
+(``solve --log``), and cut it into one CSV per block (``segment``)."""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import os
+import re
+import sys
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tumblecal_cli.core import model, solvers
+from tumblecal_cli.core import segment as seg_core
+from tumblecal_cli.core.segment import Block, Segmentation
+from tumblecal_cli.errors import CaptureRejected, InputError
+from tumblecal_cli.io import captures
+from tumblecal_cli.io.captures import Log, Samples
+from tumblecal_cli.io.outputs import atomic_output
+from tumblecal_cli.pipeline.options import pose_map as parse_pose_map
+
+
+@dataclass
+class Blocks:
+    """A log read in and its still blocks: ``used`` names what each block was used for."""
+
+    log: Log
+    seg: Segmentation
+    used: dict[int, str] = field(default_factory=dict)
+
+
+@contextlib.contextmanager
+def segmented(
+    log: str,
+    *,
+    sensor: str,
+    columns: list[str] | None,
+    no_header: bool,
+    time_column: str | None,
+    time_unit: str,
+    rate: float | None,
+    pose_column: str | None,
+    pose_map: Mapping[str, str] | str | None,
+    settings: seg_core.Settings,
+    digest: bool = True,
+) -> Iterator[tuple[str, Log, Segmentation]]:
+    """Read a log ('-': stdin, kept in a temporary file until the block ends, for a second
+    read) and find its blocks: (the path to read it again, captures.Log, segment.Segmentation)."""
+    if sensor != "accelerometer":
+        raise InputError(
+            f"the still poses of a log are found and labelled by gravity: the accelerometer's, not the {sensor}'s",
+            hint="cut the log with `tumblecal segment` (each block keeps every column), then solve the "
+            f"{sensor}'s blocks with --poses and --sensor {sensor}",
+        )
+    if pose_map and not pose_column:
+        raise InputError("--pose-map names the faces of a --pose-column's labels: give the column too")
+    for option, value in (("--window", settings.window), ("--min-duration", settings.min_duration)):
+        if value is not None and not value > 0:
+            raise InputError(f"{option} must be positive, got {value:g}")
+    for option, value in (("--threshold", settings.threshold), ("--trim", settings.trim)):
+        if value is not None and not value >= 0:
+            raise InputError(f"{option} must not be negative, got {value:g}")
+    if rate is not None and not rate > 0:
+        raise InputError(f"--rate must be positive, got {rate:g}")
+    path = spool_stdin() if log == "-" else log
+    try:
+        data = captures.read_log(
+            path,
+            sensor=sensor,
+            columns=columns,
+            no_header=no_header,
+            time_column=time_column,
+            time_unit=time_unit,
+            label_column=pose_column,
+            use_time=rate is None,
+            name="<stdin>" if log == "-" else None,
+            digest=digest,
+        )
+        yield path, data, find_blocks(data, rate, pose_column, pose_map, settings)
+    finally:
+        if log == "-":
+            os.unlink(path)
+
+
+def find_blocks(
+    log: Log,
+    rate: float | None,
+    pose_column: str | None,
+    pose_map: Mapping[str, str] | str | None,
+    settings: seg_core.Settings,
+) -> Segmentation:
+    """The blocks of a log read in: by the detector, or by its label column."""
+    seconds = None if rate else log.seconds()
+    seg = _blocks_of(log, seconds, rate, pose_column, pose_map, settings)
+    name = log.layout.name
+    if rate and log.clock is not None and log.layout.time is not None:
+        column = log.layout.names[log.layout.time]
+        seg.warnings.append(f"{name}: --rate {rate:g} is used, not the time column {column} (no gap or order check)")
+    if seg.period is not None and seg.period >= 1.0 and seconds is not None:  # slower than 1 Hz: not an IMU's clock
+        seg.warnings.append(
+            f"{name}: the time column advances {seg.period:.3g} s per sample ({1 / seg.period:.3g} Hz); "
+            "if it is not in seconds, give --time-unit ms, us or ns"
+        )
+    if seg.period is None and (settings.window is not None or settings.min_duration is not None) and not rate:
+        seg.warnings.append(f"{name}: no time column and no --rate: --window and --min-duration are in samples")
+    return seg
+
+
+def _blocks_of(
+    log: Log,
+    seconds: model.FloatArray | None,
+    rate: float | None,
+    pose_column: str | None,
+    pose_map: Mapping[str, str] | str | None,
+    settings: seg_core.Settings,
+) -> Segmentation:
+    if pose_column is None:
+        return seg_core.detect(log.values, seconds, rate, settings)
+    mapping = parse_pose_map(pose_map)
+    labels = sorted(set(log.labels or []) - {""})
+    unknown = [label for label in mapping if label not in labels]
+    shown = ", ".join(labels[:12]) + (" ..." if len(labels) > 12 else "")
+    absent = (  # a typo, or a face this log lacks (the capture's problem, judged as missing faces)
+        f"{log.layout.name}: --pose-map names {', '.join(map(repr, unknown))}, not a label of column "
+        f"{pose_column!r} (labels: {shown or 'none'})"
+        if unknown
+        else None
+    )
+    for label in labels:
+        if label not in mapping:
+            # a rotation, or a label --pose-map leaves out: its blocks are dropped
+            with contextlib.suppress(ValueError):
+                mapping[label] = model.parse_face(label)
+    if not any(label in mapping for label in labels):
+        raise InputError(
+            f"no label in column {pose_column!r} names a face (labels: {shown or 'none'})",
+            file=log.layout.name,
+            hint="say which is which with --pose-map, e.g. x_p=+x,x_a=-x,y_p=+y,y_a=-y,z_p=+z,z_a=-z",
+        )
+    seg = seg_core.from_labels(log.values, log.labels or [], mapping, seconds, rate, settings)
+    if absent:
+        seg.warnings.append(absent)
+    return seg
+
+
+def enough_blocks(log: Log, seg: Segmentation, need: int) -> None:
+    """A log with fewer kept blocks than ``need`` has nothing to calibrate from (exit 3)."""
+
+    kept = seg.kept
+    if len(kept) >= need:
+        return
+    why = seg.dropped_counts()
+    found = f"{len(seg.blocks)} found" + (f", dropped: {why}" if why else "")
+    if seg.threshold is None:
+        hint = "label the static parts of the log in --pose-column (and map them with --pose-map)"
+    elif not seg.blocks:
+        hint = f"hold the unit still on each face, or raise --threshold (it was {seg.threshold:.4g})"
+    else:
+        hint = "hold each pose longer, or lower --min-duration; `tumblecal segment` lists every block"
+    raise CaptureRejected(
+        f"nothing to calibrate from: {len(kept)} still block{'' if len(kept) == 1 else 's'} kept ({found})",
+        file=log.layout.name,
+        hint=hint,
+        code="log.blocks",
+    )
+
+
+#: A face block further than this from its face is not what a face solver assumes (exactly on
+#: the face): with enough blocks, auto fits the sphere instead.
+AUTO_FACE_TILT_DEG = 5.0
+
+
+def log_poses(
+    log: Log, seg: Segmentation, method: str, up: str, sensor: str
+) -> tuple[str, list[str | None], list[Samples], list[str]]:
+    """The method and the poses a log gives it: the best block of each face a face solver
+    needs, or every kept block for an orientation-free one; and notes on that choice.
+
+    ``auto`` with a hand-placed log (a face's block more than AUTO_FACE_TILT_DEG off its face)
+    and 12 or more kept blocks fits the sphere: a face solver would take the tilt for cross-axis
+    terms and correct other orientations worse than no calibration (seen on real logs)."""
+    enough_blocks(log, seg, 1 if method in ("one-pose", "one-pose-tilt") else 2)
+    best, kept = seg.best(), seg.kept
+    labels: list[str | None]
+    notes: list[str] = []
+    if method in solvers.ORIENTATION_FREE or (
+        method == "auto" and len(best) < 5 and len(kept) >= solvers.SPHERE_MIN_POSES
+    ):
+        chosen, labels = kept, [None] * len(kept)
+        method = "sphere" if method == "auto" else method
+    else:
+        wanted: list[str] = {
+            "one-pose": [up],
+            "one-pose-tilt": [up],
+            "three-pose": list(solvers.THREE_FACES),
+            "six-pose": list(solvers.SIX_FACES),
+            "six-pose-diagonal": list(solvers.SIX_FACES),
+        }.get(method, list(best))
+        if method == "auto" and len(best) < 5:
+            wanted = list(solvers.THREE_FACES)
+        absent = [f for f in wanted if f not in best]
+        if absent or len(wanted) < (solvers.LEAST_SQUARES_MIN_POSES if method == "least-squares" else 1):
+            faces = " ".join(best) or "none"
+            need = {
+                "auto": "+x +y +z, five faces or all six (or 12 blocks for the sphere fit)",
+                "least-squares": "five faces or more",
+            }.get(method, " ".join(wanted))
+            raise CaptureRejected(
+                f"not the faces {method} needs ({need}); faces found: {faces}",
+                file=log.layout.name,
+                hint=(
+                    "map each face's label with --pose-map; `tumblecal segment -v` lists every block"
+                    if seg.threshold is None  # a labelled log
+                    else "rest the unit on each missing face for --min-duration; `tumblecal segment` lists every block"
+                ),
+                more=tuple(seg_core.missing(seg, absent or [f for f in solvers.SIX_FACES if f not in best])),
+                code="log.faces",
+            )
+        chosen, labels = [best[f] for f in wanted], list(wanted)
+        if set(best) >= set(solvers.SIX_FACES) and method in ("auto", "six-pose", "six-pose-diagonal"):
+            face, angle, number = _worst_face_tilt(best)
+            if angle > AUTO_FACE_TILT_DEG:
+                tilted = f"the {face} block ({number}) is {angle:.1f}° off its face"
+                if method == "auto" and len(kept) >= solvers.SPHERE_MIN_POSES:
+                    notes.append(
+                        f"auto fits the sphere to all {len(kept)} still blocks: {tilted}, and six-pose takes "
+                        "each block as exactly on its face (--method six-pose fits them anyway)"
+                    )
+                    chosen, labels, method = kept, [None] * len(kept), "sphere"
+                elif method != "auto":
+                    sphere = "; --method sphere fits tilted blocks" if len(kept) >= solvers.SPHERE_MIN_POSES else ""
+                    notes.append(
+                        f"{tilted}: {method} takes each block as exactly on its face, so the tilt goes into "
+                        f"its parameters{sphere}"
+                    )
+    name, order = solvers.pick(method, labels, sensor)
+    samples = [log.block(b.number, b.first, b.last) for b in chosen]
+    return name, [labels[k] for k in order], [samples[k] for k in order], notes
+
+
+def _worst_face_tilt(best: Mapping[str, Block]) -> tuple[str, float, int]:
+    """The face block furthest from its face, as (face, degrees, block number), each direction
+    taken about the midpoint of opposite faces' means (the offset cancels there, so a unit's
+    own offset does not read as tilt)."""
+    centre = np.array([0.5 * (best[f"+{a}"].mean[i] + best[f"-{a}"].mean[i]) for i, a in enumerate("xyz")])
+    worst = ("+x", 0.0, 0)
+    for face, block in best.items():
+        d = block.mean - centre
+        if not np.any(d) or face not in model.FACES:
+            continue
+        angle = model.angle_deg(d, face)
+        if angle > worst[1]:
+            worst = (face, angle, int(block.number))
+    return worst
+
+
+def block_files(seg: Segmentation) -> dict[int, str]:
+    """The file each kept block is written to: xp.csv ... for the best of each face, blockNN.csv else."""
+    alias = {face: name for name, face in model.FACE_ALIASES.items()}
+    best = {b.number: alias[face] for face, b in seg.best().items()}
+    width = max(2, len(str(len(seg.blocks))))
+    return {
+        b.number: f"{best[b.number]}.csv" if b.number in best else f"block{b.number:0{width}d}.csv" for b in seg.kept
+    }
+
+
+INDEX_COLUMNS = [
+    "block",
+    "file",
+    "status",
+    "reason",
+    "first_row",
+    "last_row",
+    "start_time",
+    "end_time",
+    "samples",
+    "duration_s",
+    "mean_x",
+    "mean_y",
+    "mean_z",
+    "std_x",
+    "std_y",
+    "std_z",
+    "face",
+    "nearest_face",
+    "angle_deg",
+    "label",
+]
+
+
+def index_rows(log: Log, seg: Segmentation, files: dict[int, str]) -> list[list[str]]:
+    """segments.csv: one row per block found, kept or dropped."""
+    rows = []
+    for b in seg.blocks:
+        times = ["", ""] if log.clock is None else [repr(float(log.clock[b.first])), repr(float(log.clock[b.last]))]
+        rows.append(
+            [
+                str(b.number),
+                files.get(b.number, ""),
+                "kept" if b.kept else "dropped",
+                b.dropped or "",
+                str(int(log.rows[b.first])),
+                str(int(log.rows[b.last])),
+                *times,
+                str(b.samples),
+                "" if b.duration is None else f"{b.duration:.6g}",
+                *(repr(float(v)) for v in b.mean),
+                *(f"{v:.6g}" for v in b.std),
+                b.face or "",
+                b.nearest,
+                f"{b.angle_deg:.2f}",
+                b.label or "",
+            ]
+        )
+    return rows
+
+
+def spool_stdin() -> str:
+    """stdin copied to a temporary file (a log is read twice: to find the blocks, then to copy them)."""
+    import shutil
+    import tempfile
+
+    with tempfile.NamedTemporaryFile(prefix="tumblecal-", suffix=".csv", delete=False) as tmp:
+        try:
+            shutil.copyfileobj(sys.stdin.buffer, tmp)
+        except BaseException:
+            os.unlink(tmp.name)
+            raise
+    return tmp.name
+
+
+def earlier_run(out_dir: str) -> tuple[bool, set[str]]:
+    """Whether ``out_dir`` holds an earlier ``segment``'s index (segments.csv with its header),
+    and the block files it lists that are still there: only names this command gives (xp.csv
+    ... block07.csv), never another file of the folder."""
+    index = os.path.join(out_dir, "segments.csv")
+    try:
+        with open(index, newline="", encoding="utf-8") as f:
+            reader = csv.DictReader(f)
+            names = {row.get("file") or "" for row in reader}
+            ours = reader.fieldnames == INDEX_COLUMNS
+    except (OSError, UnicodeDecodeError, csv.Error):
+        return False, set()
+    if not ours:
+        return False, set()
+    pattern = r"(?:[xyz][pn]|block\d{2,})\.csv"
+    return True, {n for n in names if re.fullmatch(pattern, n) and os.path.exists(os.path.join(out_dir, n))}
+
+
+@dataclass
+class Segmented:
+    """What :func:`segment` found and wrote: the blocks, the file each kept block goes to, the
+    index (segments.csv's text), and what was written into ``out_dir`` (None: nothing asked)."""
+
+    blocks: Blocks
+    files: dict[int, str]
+    index: str
+    out_dir: str | None = None
+    removed: int = 0  # block files of an earlier segmentation into out_dir, removed
+
+    def table(self) -> object:
+        """The index as a pandas DataFrame, one row per block found, kept or dropped."""
+        import pandas as pd
+
+        return pd.read_csv(io.StringIO(self.index))
+
+
+def segment(
+    log: str,
+    *,
+    out_dir: str | None = None,
+    on_blocks: Callable[[Blocks, dict[int, str]], None] | None = None,
+    sensor: str = "accelerometer",
+    columns: str | list[str] | None = None,
+    no_header: bool = False,
+    time_column: str | None = None,
+    time_unit: str = "s",
+    rate: float | None = None,
+    window: float | None = None,
+    threshold: float | None = None,
+    min_duration: float | None = None,
+    trim: float | None = None,
+    pose_column: str | None = None,
+    pose_map: str | Mapping[str, str] | None = None,
+    max_noise: float = 0.02,
+    max_tilt: float = 25.0,
+    nominal_offset: str | float | list[float] | None = None,
+) -> Segmented:
+    """Find the still blocks of a continuous log ('-': stdin), and with ``out_dir`` write each
+    kept block as a CSV of its own (the log's header and rows, unchanged) and segments.csv, the
+    index. ``on_blocks`` sees the blocks as soon as they are found, before they are judged
+    (fewer than two kept is exit 3) or written."""
+    from tumblecal_cli.pipeline.options import triplet
+
+    for option, value in (("--max-noise", max_noise), ("--max-tilt", max_tilt)):
+        if not value > 0:
+            raise InputError(f"{option} must be positive, got {value:g}")
+    if out_dir is not None and os.path.exists(out_dir) and not os.path.isdir(out_dir):
+        raise InputError("is a file, not a folder: --out-dir takes a folder", file=out_dir)
+    settings = seg_core.Settings(
+        window=window,
+        threshold=threshold,
+        min_duration=min_duration,
+        trim=trim,
+        max_noise=max_noise,
+        max_tilt_deg=max_tilt,
+        nominal_offset=None if nominal_offset is None else triplet(nominal_offset, "--nominal-offset"),
+    )
+    with segmented(
+        log,
+        sensor=sensor,
+        columns=columns.split(",") if isinstance(columns, str) else columns,
+        no_header=no_header,
+        time_column=time_column,
+        time_unit=time_unit,
+        rate=rate,
+        pose_column=pose_column,
+        pose_map=pose_map,
+        settings=settings,
+        digest=False,  # the block files are copies; nothing records the log's hash
+    ) as (path, data, seg):
+        found = Blocks(data, seg)
+        files = block_files(seg)
+        if on_blocks is not None:
+            on_blocks(found, files)
+        enough_blocks(data, seg, 2)
+        text = io.StringIO()
+        writer = csv.writer(text, lineterminator="\n")
+        writer.writerow(INDEX_COLUMNS)
+        writer.writerows(index_rows(data, seg, files))
+        result = Segmented(found, files, text.getvalue(), out_dir)
+        if out_dir is not None:
+            result.removed = _write_blocks(log, path, found, files, result.index, out_dir)
+    return result
+
+
+def _write_blocks(log: str, path: str, found: Blocks, files: dict[int, str], index: str, out_dir: str) -> int:
+    """Each kept block into ``out_dir`` and the index beside them; the number of an earlier
+    segmentation's block files removed."""
+    data, seg = found.log, found.seg
+    if log != "-":
+        for f in [*files.values(), "segments.csv"]:
+            check_path = os.path.join(out_dir, f)
+            if os.path.exists(check_path) and os.path.samefile(check_path, log):
+                raise InputError(f"--out-dir would overwrite the input with {f}", file=log)
+    ours, listed = earlier_run(out_dir)
+    foreign = [
+        f
+        for f in [*files.values(), "segments.csv"]
+        if os.path.lexists(os.path.join(out_dir, f)) and f not in listed and not (f == "segments.csv" and ours)
+    ]
+    if foreign:  # a file of the user's, not one an earlier segment wrote: never replaced
+        raise InputError(
+            f"--out-dir already holds {', '.join(foreign)}, which no earlier `tumblecal segment` wrote there",
+            file=out_dir,
+            hint="give an empty or new --out-dir, or move those files",
+        )
+    earlier = {
+        name
+        for name in listed - set(files.values())
+        if log == "-" or not os.path.samefile(os.path.join(out_dir, name), log)  # never the log itself
+    }
+    os.makedirs(out_dir, exist_ok=True)
+    kept = seg.kept
+    spans = [(int(data.rows[b.first]), int(data.rows[b.last])) for b in kept]
+    # the index first: a run stopped part-way leaves its blocks listed, so the next run
+    # into this folder knows them for its own and replaces them
+    with atomic_output(os.path.join(out_dir, "segments.csv")) as out:
+        out.write(index.encode())
+    captures.copy_rows(path, data.layout, spans, [os.path.join(out_dir, files[b.number]) for b in kept])
+    for name in sorted(earlier):  # a re-run replaces the earlier segmentation, never mixes with it
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(os.path.join(out_dir, name))
+    return len(earlier)

@@ -1,0 +1,259 @@
+"""The options of solve and the commands that share them, checked and resolved once.
+
+``SolveOptions`` is solve's keyword options (the command line's long options in snake case);
+:func:`settings` turns them into what the pipeline needs, or raises the one InputError a bad
+option deserves before any file is read (batch checks them once, before any unit).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, fields
+from typing import TYPE_CHECKING
+
+from tumblecal_cli.errors import InputError
+
+if TYPE_CHECKING:
+    from tumblecal_cli.core.gate import Limits
+    from tumblecal_cli.core.model import FloatArray
+    from tumblecal_cli.io.calfile import Unit
+
+#: A number, or three (X,Y,Z): text as the command line gives it, or numbers.
+Triplet = str | float | Sequence[float]
+
+
+@dataclass(frozen=True)
+class SolveOptions:
+    """solve's options (README "solve"); each the long option of the command line in snake case."""
+
+    method: str = "auto"
+    sensor: str = "accelerometer"
+    reference: float | None = None
+    up: str | None = None
+    tilt_compensate: bool = False
+    bias_spread: float | None = None
+    plane: str | None = None
+    units: str | None = None
+    input_units: str | None = None
+    # reading the files
+    columns: str | Sequence[str] | None = None
+    no_header: bool = False
+    time_column: str | None = None
+    time_unit: str = "s"
+    rate: float | None = None
+    # a continuous log (solve --log)
+    window: float | None = None
+    threshold: float | None = None
+    min_duration: float | None = None
+    trim: float | None = None
+    pose_column: str | None = None
+    pose_map: str | Mapping[str, str] | None = None
+    # quality checks (exit 3)
+    max_noise: float | None = None
+    max_tilt: float = 25.0
+    nominal_offset: Triplet | None = None
+    full_scale: float | None = None
+    min_samples: int = 10
+    fixture_tolerance: float = 1.0
+    no_checks: bool = False
+    no_check: Sequence[str] = ()
+    # limits (exit 1)
+    limits: str | None = None
+    max_offset: Triplet | None = None
+    max_gain_error: Triplet | None = None
+    nominal_gain: Triplet | None = None
+    # traceability
+    serial: str | None = None
+    station: str | None = None
+    operator: str | None = None
+    meta: Sequence[str] | Mapping[str, str] = ()
+
+    @classmethod
+    def of(cls, given: Mapping[str, object]) -> SolveOptions:
+        """The options among ``given`` (a command's parameters: other names are left out; an
+        enum is its value). An option this class does not know is a TypeError, as for a function."""
+        names = {f.name for f in fields(cls)}
+        picked = {k: getattr(v, "value", v) for k, v in given.items() if k in names and v is not None}
+        for key in ("meta", "no_check"):  # lists of values, each an enum's or text
+            if key in picked:
+                picked[key] = [getattr(v, "value", v) for v in picked[key]]  # type: ignore[attr-defined]
+        return cls(**picked)  # type: ignore[arg-type]
+
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        return tuple(f.name for f in fields(cls))
+
+    def replace(self, **changes: object) -> SolveOptions:
+        return SolveOptions(**(asdict(self) | changes))
+
+    @property
+    def column_names(self) -> list[str] | None:
+        if self.columns is None or self.columns == "":
+            return None
+        return self.columns.split(",") if isinstance(self.columns, str) else [str(c) for c in self.columns]
+
+
+@dataclass(frozen=True)
+class Settings:
+    """SolveOptions resolved: the method asked for, the --up face, the reference, the nominal
+    offset (None: not given), the limits, the unit block and the label -> face map of a log."""
+
+    method: str
+    up: str
+    reference: float
+    centre: FloatArray | None
+    limits: Limits
+    unit: Unit
+    pose_map: dict[str, str]
+
+
+LOG_ONLY = ("window", "threshold", "min_duration", "trim", "pose_column", "pose_map")
+
+
+def settings(options: SolveOptions, *, log: bool) -> Settings:
+    """The checks of solve's options that no pose file is needed for: the log's options, --meta,
+    the method, --up, the reference, the nominal offset and the limits."""
+    if not log:
+        given = [f"--{name.replace('_', '-')}" for name in LOG_ONLY if getattr(options, name) is not None]
+        if given:
+            raise InputError(f"{given[0]} is for a continuous log (--log), not --poses files")
+    mapping = pose_map(options.pose_map)
+    who = unit_block(options.serial, options.station, options.operator, options.meta)
+    method, sensor = options.method, options.sensor
+    chosen = "one-pose-tilt" if options.tilt_compensate and method == "auto" else method
+    if options.tilt_compensate and chosen != "one-pose-tilt":
+        raise InputError(f"--tilt-compensate is the one-pose-tilt method, not {chosen}")
+    up_face = face(options.up or "+z", "--up")
+    if method == "gyro-bias" and sensor != "gyroscope":  # one error, not one per unit
+        raise InputError(f"gyro-bias is a gyroscope's zero-rate bias: give --sensor gyroscope (not {sensor})")
+    for option, value in (
+        ("--max-noise", options.max_noise),
+        ("--max-tilt", options.max_tilt),
+        ("--full-scale", options.full_scale),
+    ):
+        if value is not None and not value > 0:
+            raise InputError(f"{option} must be positive, got {value:g}")
+    ref = options.reference if options.reference is not None else (0.0 if sensor == "gyroscope" else 1.0)
+    if not math.isfinite(ref) or ref < 0 or (ref == 0 and sensor != "gyroscope"):
+        raise InputError(
+            f"--reference must be a positive number, got {ref:g}",
+            hint="the stimulus magnitude: 1 (g), 9.80665 (m/s^2), 16384 (counts); 0 only for --sensor gyroscope",
+        )
+    centre = None if options.nominal_offset is None else triplet(options.nominal_offset, "--nominal-offset")
+    bounds = limits(
+        options.limits, options.max_offset, options.max_gain_error, options.nominal_gain, nominal_offset=centre
+    )
+    return Settings(chosen, up_face, ref, centre, bounds, who, mapping)
+
+
+def method_options(name: str, ref: float, plane: str | None, bias_spread: float | None) -> None:
+    """The options that only some methods take, once the method is known."""
+    if ref == 0 and name not in ("one-pose", "minmax", "gyro-bias"):
+        raise InputError(
+            f"--reference 0 (a gyroscope at rest) gives {name} no stimulus to fit gains or directions to",
+            hint="use --method gyro-bias for the zero-rate bias, or give the turning rate with --reference",
+        )
+    for flag, given, wanted in (("--plane", plane, "minmax"), ("--bias-spread", bias_spread, "one-pose-tilt")):
+        if given is not None and name != wanted:
+            raise InputError(f"{flag} is for the {wanted} method, not {name}")
+    if bias_spread is not None and not (math.isfinite(bias_spread) and bias_spread >= 0):
+        raise InputError(f"--bias-spread must be a number of 0 or more (the bias's 1-sigma spread), got {bias_spread}")
+
+
+def face(text: str, option: str) -> str:
+    """A face (+x ... -z, or an alias) given to ``option``."""
+    from tumblecal_cli.core import model
+
+    try:
+        return model.parse_face(text)
+    except ValueError as err:
+        raise InputError(f"{option}: {err}") from None
+
+
+def pose_map(value: str | Mapping[str, str] | None) -> dict[str, str]:
+    """--pose-map ``x_p=+x,x_a=-x,...`` (or a mapping) as {label: face}."""
+    from tumblecal_cli.core import model
+
+    items = [f"{k}={v}" for k, v in value.items()] if isinstance(value, Mapping) else (value or "").split(",")
+    out: dict[str, str] = {}
+    for item in items:
+        if not item.strip():
+            continue
+        label, sep, name = item.partition("=")
+        if not sep or not label.strip():
+            raise InputError(f"--pose-map {item!r}: write LABEL=FACE pairs, e.g. x_p=+x,x_a=-x")
+        try:
+            out[label.strip()] = model.parse_face(name)
+        except ValueError as err:
+            raise InputError(f"--pose-map {item}: {err}") from None
+    return out
+
+
+def triplet(value: Triplet, option: str) -> FloatArray:
+    """A number or X,Y,Z (text as the command line gives it, a number, or three numbers), as a (3,) array."""
+    import numpy as np
+
+    if isinstance(value, str):
+        text = value
+        try:
+            values = [float(p) for p in value.split(",")]
+        except ValueError:
+            values = []
+    elif isinstance(value, int | float):
+        text, values = repr(value), [float(value)]
+    else:
+        text = ",".join(map(str, value))
+        try:
+            values = [float(v) for v in value]
+        except (TypeError, ValueError):
+            values = []
+    if len(values) not in (1, 3) or not all(np.isfinite(values)):
+        raise InputError(f"{option} takes one number or three (X,Y,Z), got {text!r}")
+    return np.array(values * 3 if len(values) == 1 else values)
+
+
+def limits(
+    path: str | None,
+    max_offset: Triplet | None,
+    max_gain_error: Triplet | None,
+    nominal_gain: Triplet | None,
+    *,
+    nominal_offset: FloatArray | None = None,
+) -> Limits:
+    """The limits of a limits file, with the flags taking precedence (``nominal_offset``, solve's
+    --nominal-offset: the centre of the offset limit unless the file names one)."""
+    from tumblecal_cli.core import gate
+    from tumblecal_cli.io import calfile
+
+    bounds: dict[str, object] = dict(calfile.load_limits(path)) if path else {}
+    if nominal_offset is not None:
+        bounds.setdefault("nominal_offset", nominal_offset)
+    for key, given, option in (
+        ("offset", max_offset, "--max-offset"),
+        ("gain_error", max_gain_error, "--max-gain-error"),
+        ("nominal_gain", nominal_gain, "--nominal-gain"),
+    ):
+        if given is not None:
+            value = triplet(given, option)
+            if (value <= 0).any():
+                raise InputError(f"{option} must be positive, got {given!r}")
+            bounds[key] = value
+    return gate.Limits(**bounds)  # type: ignore[arg-type]
+
+
+def unit_block(
+    serial: str | None, station: str | None, operator: str | None, meta: Sequence[str] | Mapping[str, str]
+) -> Unit:
+    """The unit block of a calibration; --meta items are KEY=VALUE."""
+    from tumblecal_cli.io.calfile import Unit
+
+    if isinstance(meta, Mapping):
+        return Unit(serial, station, operator, {str(k): str(v) for k, v in meta.items()})
+    pairs: dict[str, str] = {}
+    for item in meta:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise InputError(f"--meta takes KEY=VALUE, got {item!r}")
+        pairs[key.strip()] = value
+    return Unit(serial, station, operator, pairs)

@@ -1,0 +1,431 @@
+"""solve: pose captures (or one continuous log) in, a judged Calibration out.
+
+The steps, each a module of its own: read the poses (``io.captures``, or ``pipeline.logs`` for a
+log), average them (``core.model.pose_stats``), solve (``core.solvers``), check the captures
+(``core.gate.check``, exit 3), judge the unit against its limits (``core.gate.verdict``, exit 1),
+and build the calibration (``io.calfile.build``). Nothing here prints or writes a file: the
+command line renders a :class:`Solved`, and ``Solved.calibration.save`` writes it.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
+
+from tumblecal_cli.errors import CaptureRejected, InputError
+
+if TYPE_CHECKING:
+    from tumblecal_cli.core.gate import Corrected, Finding, Limits, PoseCheck
+    from tumblecal_cli.core.model import FloatArray, PoseStats
+    from tumblecal_cli.io.calfile import Calibration
+    from tumblecal_cli.io.captures import Samples
+    from tumblecal_cli.pipeline.logs import Blocks
+    from tumblecal_cli.pipeline.options import Settings, SolveOptions
+
+#: What each quality check's rejection suggests doing about it.
+REJECTION_HINTS = {
+    "pose.short": "log the pose for longer, or lower --min-samples (1 for loggers that store one averaged row)",
+    "pose.saturated": "the pose reaches the sensor's limits: use a wider range, or give the real one with --full-scale",
+    "pose.orientation": "capture the pose again on its declared face, or raise --max-tilt for a tilted fixture",
+    "pose.moved": "hold the unit still and capture the pose again, or raise --max-noise",
+    "pose.upside_down": "give the files in the order +x +y +z, each with that axis pointing up",
+}
+
+
+@dataclass
+class Solved:
+    """The outcome of :func:`solve`.
+
+    ``status``: 0 pass, 1 outside the limits, 3 rejected (a capture the checks do not trust,
+    or too few poses; input errors raise instead). ``calibration`` is None when rejected;
+    ``draft`` is what was solved from the rejected captures, for inspection (None when nothing
+    was). ``rejections`` are the findings that rejected it, ``error`` the same as the exception
+    the command line raises; ``failures`` the limits it is outside; ``warnings`` and ``notes``
+    what a person should know. ``blocks``: a log's still blocks and what each was used for.
+    """
+
+    status: int
+    calibration: Calibration | None
+    draft: Calibration | None = None
+    rejections: list[Finding] = field(default_factory=list)
+    failures: list[Finding] = field(default_factory=list)
+    warnings: list[Finding] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    error: CaptureRejected | None = None
+    blocks: Blocks | None = None
+    samples: list[Samples] = field(default_factory=list)  # the poses as read (raw units)
+    limits: Limits | None = None  # the limits given (before the method's own applied)
+
+    @property
+    def passed(self) -> bool:
+        return self.status == 0
+
+
+Poses = Sequence[str] | Mapping[str, object]
+
+
+def solve(poses: Poses, **options: object) -> Solved:
+    """Solve a calibration from pose captures, as ``tumblecal solve --poses`` does.
+
+    ``poses``: the items of ``--poses`` (``FILE`` or ``LABEL=FILE``), or a mapping of labels
+    (faces such as ``"+x"``, or ``"X,Y,Z"`` directions) to DataFrames or (n, 3) arrays.
+    ``options``: solve's long options in snake case (``reference=``, ``method=``,
+    ``max_noise=``, ``limits=`` for a limits file, ``serial=`` ...; README "Using tumblecal from
+    Python"). Input errors raise InputError; a rejected capture is ``status`` 3, not an error.
+    """
+    from tumblecal_cli.pipeline.options import SolveOptions
+
+    return run(SolveOptions(**options), poses=poses)  # type: ignore[arg-type]
+
+
+def solve_log(log: str, **options: object) -> Solved:
+    """Solve a calibration from one continuous log ('-': stdin), as ``tumblecal solve --log``:
+    the still blocks are found (or taken from ``pose_column``), the best of each face used."""
+    from tumblecal_cli.pipeline.options import SolveOptions
+
+    return run(SolveOptions(**options), log=log)  # type: ignore[arg-type]
+
+
+def run(options: SolveOptions, *, poses: Poses | None = None, log: str | None = None) -> Solved:
+    """solve and solve_log, on options already gathered (the command line and batch call this)."""
+    from tumblecal_cli.pipeline import options as opts
+
+    if bool(poses) == (log is not None):
+        raise InputError(
+            "give the pose files with --poses, or one continuous log with --log" + (", not both" if poses else ""),
+            hint="see 'tumblecal solve --help'",
+        )
+    given = opts.settings(options, log=log is not None)
+    if log is not None:
+        return _from_log(log, options, given)
+    assert poses is not None
+    name, labels, samples = _read_poses(poses, options, given)
+    return _solve(name, labels, samples, options, given, whole=[s.values for s in samples])
+
+
+def _read_poses(poses: Poses, options: SolveOptions, given: Settings) -> tuple[str, list[str | None], list[Samples]]:
+    """The method, each pose's label and its samples, from files or from data in memory."""
+    from tumblecal_cli.core import solvers
+    from tumblecal_cli.io import captures
+    from tumblecal_cli.pipeline.options import method_options
+
+    if options.up is not None and len(poses) != 1:
+        raise InputError(
+            f"--up names the face of a single pose file, not of {len(poses)}",
+            hint="label each file instead (+x=xp.csv -x=xn.csv ...), or give them in the order +x +y +z",
+        )
+    in_memory = isinstance(poses, Mapping)
+    items: list[tuple[str | None, object]]
+    if isinstance(poses, Mapping):
+        items = [(_label(str(label)), data) for label, data in poses.items()]
+    else:
+        items = list(pose_items(list(poses), given.up))
+    if not in_memory and sum(f == "-" for _, f in items) > 1:
+        raise InputError("only one pose can be read from stdin ('-')")
+    name, order = solvers.pick(given.method, [label for label, _ in items], options.sensor)
+    items = [items[k] for k in order]
+    labels = [None if name in solvers.ORIENTATION_FREE else label for label, _ in items]
+    method_options(name, given.reference, options.plane, options.bias_spread)
+    if in_memory:
+        from tumblecal_cli.pipeline.frames import samples_of
+
+        samples = [samples_of(str(label), data, options) for label, data in items]
+    else:
+        samples = [
+            captures.read_samples(
+                str(f),
+                sensor=options.sensor,
+                columns=options.column_names,
+                no_header=options.no_header,
+                time_column=options.time_column,
+                time_unit=options.time_unit,
+                rate=options.rate,
+            )
+            for _, f in items
+        ]
+    return name, labels, samples
+
+
+def _label(text: str) -> str:
+    from tumblecal_cli.core import model
+
+    try:
+        return model.parse_label(text)
+    except ValueError as err:
+        raise InputError(f"pose {text!r}: {err}") from None
+
+
+def pose_items(items: list[str], up: str) -> list[tuple[str | None, str]]:
+    """(label, file) of each --poses item, ``FILE`` or ``LABEL=FILE``; unlabelled files get the
+    labels of their count (solvers.default_labels). Labels are for every file or for none."""
+    from tumblecal_cli.core import model, solvers
+
+    out: list[tuple[str | None, str]] = []
+    for item in items:
+        label, sep, rest = item.partition("=")
+        try:
+            out.append((model.parse_label(label), rest) if sep and label else (None, item))
+        except ValueError as err:
+            if "," in label:  # meant as a direction: say what is wrong with it
+                raise InputError(f"--poses {item}: {err}") from None
+            out.append((None, item))  # a file name with '=' in it
+    if any(label is None for label, _ in out) and any(label is not None for label, _ in out):
+        raise InputError(
+            "label every pose file or none (LABEL=FILE, e.g. +x=xp.csv)",
+            hint="unlabelled files are taken as 1: --up, 3: +x +y +z, 6: +x -x +y -y +z -z",
+        )
+    if out and out[0][0] is None:
+        out = list(zip(solvers.default_labels(len(out), up), items, strict=True))
+    return out
+
+
+def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
+    """solve --log: the log's blocks, the poses they give the method, then the solve."""
+    from tumblecal_cli.core import segment
+    from tumblecal_cli.pipeline import logs
+    from tumblecal_cli.pipeline.options import method_options
+
+    if given.method != "auto":
+        method_options(given.method, given.reference, options.plane, options.bias_spread)
+    settings = segment.Settings(
+        window=options.window,
+        threshold=options.threshold,
+        min_duration=options.min_duration,
+        trim=options.trim,
+        max_noise=options.max_noise if options.max_noise is not None else 0.02,
+        max_tilt_deg=options.max_tilt,
+        nominal_offset=given.centre,
+    )
+    with logs.segmented(
+        log,
+        sensor=options.sensor,
+        columns=options.column_names,
+        no_header=options.no_header,
+        time_column=options.time_column,
+        time_unit=options.time_unit,
+        rate=options.rate,
+        pose_column=options.pose_column,
+        pose_map=given.pose_map if options.pose_map is not None else None,
+        settings=settings,
+    ) as (_, data, seg):
+        pass  # every block is in memory: the log is not read again
+    blocks = logs.Blocks(data, seg)
+    try:
+        name, labels, samples, notes = logs.log_poses(data, seg, given.method, given.up, options.sensor)
+    except CaptureRejected as err:
+        return Solved(3, None, rejections=[], error=err, blocks=blocks)
+    blocks.used = {
+        int(s.block or 0): f"used: {label}" if label else "used" for s, label in zip(samples, labels, strict=True)
+    }
+    method_options(name, given.reference, options.plane, options.bias_spread)
+    segmentation = {"log": data.layout.name, "sha256": data.sha256} | seg.as_dict()
+    given = replace(given, centre=seg.centre)
+    solved = _solve(name, labels, samples, options, given, whole=[data.values], notes=notes, segmentation=segmentation)
+    solved.blocks = blocks
+    return solved
+
+
+def _solve(
+    name: str,
+    labels: list[str | None],
+    samples: list[Samples],
+    options: SolveOptions,
+    given: Settings,
+    *,
+    whole: list[FloatArray],
+    notes: list[str] | None = None,
+    segmentation: dict[str, object] | None = None,
+) -> Solved:
+    """Average, solve, check and judge the poses; build the calibration."""
+    from tumblecal_cli.core import gate, model, solvers
+    from tumblecal_cli.io import calfile
+    from tumblecal_cli.pipeline.options import triplet
+
+    log_notes = notes or []  # how the blocks of a log were chosen
+    ref, gyro = given.reference, options.sensor == "gyroscope"
+    noise = options.max_noise if options.max_noise is not None else (None if gyro else 0.02)
+    checks = gate.Options(
+        noise_bound=None if noise is None else (noise if gyro else noise * ref),  # a gyroscope: in its units
+        noise_rule="" if noise is None else (f"{noise:g}" if gyro else f"{noise:g} × reference {ref:g}"),
+        max_tilt_deg=options.max_tilt,
+        nominal_offset=triplet("0", "--nominal-offset") if given.centre is None else given.centre,
+        full_scale=options.full_scale,
+        min_samples=options.min_samples,
+        skip=frozenset(gate.CHECKS if options.no_checks else [c.replace("-", "_") for c in options.no_check]),
+        rails=gate.integer_rails(whole),
+    )
+    stats = [model.pose_stats(s.values) for s in samples]
+    names = [s.name for s in samples]
+    if name in ("one-pose", "one-pose-tilt"):
+        check_units(names[0], stats[0].mean - checks.nominal_offset, ref)
+    try:
+        fit = solvers.run(
+            name,
+            stats,
+            [s.values for s in samples],
+            labels,
+            reference=ref,
+            tolerance_deg=options.fixture_tolerance,
+            bias_spread=options.bias_spread if options.bias_spread is not None else 0.01 * ref,
+            plane=options.plane,
+            names=names,
+        )
+    except CaptureRejected as err:
+        if log_notes and name == "sphere":  # auto's choice: say why, and the way back
+            err.hint = f"{err.hint + '; ' if err.hint else ''}{log_notes[0]}"
+        return Solved(3, None, error=err, samples=samples, limits=given.limits)
+    solution = fit.solution
+    limits = given.limits.for_method(solution.method)
+    measured = [
+        gate.measure(n, f, s.values, st, checks) for n, f, s, st in zip(names, labels, samples, stats, strict=True)
+    ]
+    if ref > 0:  # a gyroscope at rest has no direction to judge
+        measured = gate.orient(measured, checks.nominal_offset, checks.max_tilt_deg)
+    rejected, warned = gate.check(measured, solution, checks)
+    fixed = [
+        gate.corrected(st.mean, st.std, f, solution.offset, solution.matrix, ref)
+        for st, f in zip(stats, labels, strict=True)
+    ]
+    failures = (
+        []
+        if rejected
+        else gate.verdict(
+            solution.method,
+            solution.offset,
+            solution.matrix,
+            list(zip(names, labels, fixed, strict=True)),
+            limits,
+            None if fit.residuals is None or not len(fit.residuals) else float(abs(fit.residuals).max()),
+        )
+    )
+    cal = calfile.build(
+        solution,
+        sensor=options.sensor,
+        reference=ref,
+        units=options.units,
+        input_units=options.input_units,
+        columns=samples[0].layout.sensor_names,
+        poses=[pose_record(s, m, c) for s, m, c in zip(samples, measured, fixed, strict=True)],
+        fit=fit,
+        tolerance_deg=options.fixture_tolerance,
+        unit=given.unit,
+        verdict=calfile.Verdict(not failures, tuple(f.as_dict() for f in failures), limits.as_dict()),
+        segmentation=segmentation,
+    )
+    said = log_notes + tilt_notes(cal) + list(fit.notes) + _solve_notes(stats, names, given.limits, solution.method)
+    solved = Solved(0, cal, cal, [], failures, warned, said, samples=samples, limits=given.limits)
+    if rejected:
+        first = rejected[0]
+        solved.status, solved.calibration, solved.rejections = 3, None, rejected
+        solved.error = CaptureRejected(
+            first.render(),
+            hint=first.hint or REJECTION_HINTS[first.code],
+            more=tuple(f.render() for f in rejected[1:]),
+            code=first.code,
+            codes=tuple(f.code for f in rejected),
+        )
+    elif failures:
+        solved.status = 1
+    return solved
+
+
+def check_units(name: str, centred: FloatArray, reference: float) -> None:
+    """A 1-pose mean (less --nominal-offset) far from --reference in magnitude: exit 2."""
+    from tumblecal_cli.core import model
+
+    suggested = model.units_mistake(centred, reference)
+    if suggested is None:
+        return
+    magnitude = float((centred**2).sum() ** 0.5)
+    if suggested == 0:
+        raise InputError(
+            f"the pose reads {magnitude:.4g} in magnitude but --reference is {reference:g}",
+            file=name,
+            hint="a pose at rest reads the reference: is the sensor working, and are these its columns?",
+        )
+    units = {1.0: "g", 9.80665: "m/s^2", 1000.0: "mg"}.get(suggested, "raw counts")
+    raise InputError(
+        f"the pose reads {magnitude:.4g} in magnitude but --reference is {reference:g}: a units mistake?",
+        file=name,
+        hint=f"the data looks like {units}: run with --reference {suggested:g} "
+        "(the 1-pose solver has no gains, so --reference must be in the file's units)",
+    )
+
+
+def pose_record(s: Samples, m: PoseCheck, c: Corrected) -> dict[str, object]:
+    """A pose's entry in the calibration file: what it was, what it measured, how it corrects."""
+    record: dict[str, object] = {
+        "pose": m.face,
+        "file": s.layout.name,
+        "sha256": s.sha256,
+        "rows": list(s.rows),
+        **({} if s.block is None else {"block": s.block}),
+        **({} if s.times is None else {"times": list(s.times)}),
+        "samples": m.stats.samples,
+        "mean": [float(v) for v in m.stats.mean],
+        "std": [float(v) for v in m.stats.std],
+    }
+    if s.duration is not None:
+        record["duration_s"] = s.duration
+    if s.temperature is not None:
+        record["temperature"] = s.temperature
+    record["angle_deg"] = m.angle_deg
+    record["clipped"] = m.clipped
+    record["drift"] = [float(v) for v in m.drift]
+    record["norm_error"] = c.norm_error
+    record["vector_error"] = c.vector_error
+    return record
+
+
+def tilt_notes(cal: Calibration) -> list[str]:
+    """A note when fixture tilt, not noise, bounds how well the parameters are known."""
+    tilt, se = cal.tilt_sensitivity, cal.uncertainty
+    if not tilt or not se:
+        return []
+    dominated = [
+        n
+        for n in ("offset", "gain")
+        if any(t > 3 * u for t, u in zip(tilt[n], se[n], strict=True))  # type: ignore[call-overload]
+    ]
+    if not dominated:
+        return []
+    worst = " and ".join(
+        f"the {n}s by up to {max(tilt[n]):.2g} (noise: {max(se[n]):.2g})"  # type: ignore[call-overload]
+        for n in dominated
+    )
+    advice = "level the fixture better and state how well with --fixture-tolerance"
+    if cal.method in ("one-pose", "three-pose"):
+        advice += ", or capture the six faces (six-pose takes offsets and gains from vertical readings only)"
+    return [
+        f"fixture tilt, not noise, limits this calibration: {tilt['tolerance_deg']:g}° off level moves {worst}; "
+        + advice
+    ]
+
+
+def _solve_notes(stats: list[PoseStats], names: list[str], limits: Limits, method: str) -> list[str]:
+    """What a person should know about how far the result can be trusted."""
+    few = [(os.path.basename(name), st.samples) for name, st in zip(names, stats, strict=True) if st.samples < 3]
+    effect = (
+        "the uncertainty comes from the fit's residuals instead" if method == "sphere" else "its uncertainty reads 0"
+    )
+    notes = [
+        f"{name} has {n} sample{'s' if n > 1 else ''}: its noise is unknown, "
+        f"so {effect} and the moved check cannot judge it"
+        for name, n in few[:3]
+    ]
+    if len(few) > 3:
+        notes[2:] = [
+            f"{len(few) - 2} more poses have fewer than 3 samples (noise unknown): {few[2][0]} ... {few[-1][0]}"
+        ]
+    notes += limits_not_applying(limits, method)
+    return notes
+
+
+def limits_not_applying(limits: Limits, method: str) -> list[str]:
+    """Notes for the limits given that do not apply to a method (gate.NOT_APPLYING)."""
+    return [
+        f"the {method} solver {why}, so the {name.replace('_', '-')} limit does not apply"
+        for name, why in limits.not_applying(method).items()
+    ]

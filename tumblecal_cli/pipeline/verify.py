@@ -1,0 +1,117 @@
+"""verify: a calibration checked on static captures it was not fitted on (seed 001's test of a
+calibration model: the norm of each corrected mean against the reference)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from tumblecal_cli.errors import CaptureRejected, InputError
+
+
+@dataclass
+class Verified:
+    """verify's figures: one row per capture, the overall errors, and the outcome (``status``
+    0 within ``max_norm_error`` or none given, 1 outside it, 3 a capture that is not static)."""
+
+    status: int
+    cal: Any  # the Calibration judged
+    reference: float
+    max_norm_error: float | None
+    rows: list[dict[str, Any]]
+    overall: dict[str, float]
+    rejected: list[str] = field(default_factory=list)
+    failed: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def error(self) -> CaptureRejected | None:
+        """The rejection as the command line reports it (None: none)."""
+        if not self.rejected:
+            return None
+        return CaptureRejected(
+            self.rejected[0], more=tuple(self.rejected[1:]), hint="capture it again holding the unit still"
+        )
+
+    def table(self) -> object:
+        """The per-capture rows as a pandas DataFrame."""
+        import pandas as pd
+
+        return pd.DataFrame(self.rows)
+
+
+def verify(
+    captures: Sequence[str],
+    cal: str,
+    *,
+    reference: float | None = None,
+    max_norm_error: float | None = None,
+    max_noise: float = 0.02,
+    columns: str | Sequence[str] | None = None,
+    no_header: bool = False,
+) -> Verified:
+    """The norm error of each static capture before and after correction with ``cal``."""
+    from tumblecal_cli.core import gate, model
+    from tumblecal_cli.io import calfile
+    from tumblecal_cli.io import captures as reading
+
+    if sum(f == "-" for f in captures) + (cal == "-") > 1:
+        raise InputError("only one file can be read from stdin ('-')")
+    c = calfile.load(cal)
+    ref = c.reference if reference is None else reference
+    if not math.isfinite(ref) or ref < 0:
+        raise InputError(f"--reference must be a positive number, got {ref:g}")
+    if max_norm_error is not None and not max_norm_error > 0:
+        raise InputError(f"--max-norm-error must be positive, got {max_norm_error:g}")
+    picked = (columns.split(",") if isinstance(columns, str) else list(columns)) if columns else None
+    # raw and corrected share units, so "before" means something: fixed gains, the same unit
+    # labels, or gains within 20 % of 1 (data already in g, m/s^2 ...: counts are far from it)
+    gains = [float(g) for g in c.gain]
+    same_units = (
+        c.method in gate.FIXED_GAINS
+        or (c.input_units is not None and c.input_units == c.units)
+        or (len(gains) == 3 and all(abs(g - 1.0) < 0.2 for g in gains))
+    )
+    fitted = {str(p.get("sha256")): str(p.get("file")) for p in c.poses if p.get("sha256")}
+    result = Verified(0, c, ref, max_norm_error, [], {})
+    for path in captures:
+        s = reading.read_samples(path, sensor=c.sensor, columns=picked, prefer=c.columns, no_header=no_header)
+        if s.sha256 in fitted:
+            result.notes.append(
+                f"{s.layout.name}: the calibration was fitted on this capture ({fitted[s.sha256]}): "
+                "it reads the reference by construction, a self-check rather than a verification"
+            )
+        st = model.pose_stats(s.values)
+        before = float((st.mean**2).sum() ** 0.5)
+        fixed = gate.corrected(st.mean, st.std, None, c.offset, c.matrix, ref)  # the norm error, as solve's
+        std = fixed.std
+        row: dict[str, Any] = {
+            "file": s.layout.name,
+            "samples": st.samples,
+            "norm_before": before,
+            "error_before": before - ref if same_units else None,
+            "norm_after": fixed.norm_error + ref,
+            "error_after": fixed.norm_error,
+            "std": [float(v) for v in std],
+        }
+        result.rows.append(row)
+        if max_noise > 0 and ref > 0 and float(std.max()) > max_noise * ref:
+            result.rejected.append(
+                f"{s.layout.name}: standard deviation {float(std.max()):.3g} is above --max-noise "
+                f"({max_noise * ref:.3g}): not a static capture"
+            )
+        elif max_norm_error is not None and not abs(row["error_after"]) <= max_norm_error:
+            result.failed.append(row["file"])
+    errors = [r["error_after"] for r in result.rows]
+    result.overall = {
+        "rms_error": float((sum(e * e for e in errors) / len(errors)) ** 0.5),
+        "max_error": float(max(abs(e) for e in errors)),
+    }
+    if same_units:
+        raw_errors = [r["error_before"] for r in result.rows]
+        result.overall["rms_error_before"] = float((sum(e * e for e in raw_errors) / len(raw_errors)) ** 0.5)
+        result.overall["max_error_before"] = float(max(abs(e) for e in raw_errors))
+    result.status = 3 if result.rejected else (1 if result.failed else 0)
+    return result
