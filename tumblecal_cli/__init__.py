@@ -21,6 +21,7 @@ import importlib
 from typing import TYPE_CHECKING
 
 from tumblecal_cli.errors import CaptureRejected, InputError, TumblecalError
+from tumblecal_cli.version import __version__
 
 if TYPE_CHECKING:
     from tumblecal_cli.io.calfile import Calibration, load
@@ -33,8 +34,6 @@ if TYPE_CHECKING:
     from tumblecal_cli.pipeline.report import report
     from tumblecal_cli.pipeline.solve import Solved, solve, solve_log
     from tumblecal_cli.pipeline.verify import verify
-
-__version__ = "0.1.0"
 
 #: Each public name and the module that holds it.
 _HOMES = {

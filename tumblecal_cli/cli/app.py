@@ -16,9 +16,9 @@ from typing import Annotated, Any
 import typer
 from typer.core import TyperCommand
 
-from tumblecal_cli import __version__
 from tumblecal_cli.cli.options import EXIT_CODES
 from tumblecal_cli.errors import Interrupted, PipeClosed, TumblecalError
+from tumblecal_cli.version import __version__
 
 # The solvers' matrices are 3x3 to 12x12: BLAS threads only cost start-up and spin (see core.model.apply).
 # Set before numpy is first imported (lazily, inside the commands); a user's own setting wins.

@@ -19,12 +19,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from tumblecal_cli import __version__
 from tumblecal_cli.core.model import SENSORS, FloatArray, Solution, parse_label
 from tumblecal_cli.core.model import apply as apply_model
 from tumblecal_cli.core.solvers import Fit
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.outputs import atomic_output
+from tumblecal_cli.version import __version__
 
 if TYPE_CHECKING:
     pass

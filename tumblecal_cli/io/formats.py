@@ -16,10 +16,10 @@ from typing import Any
 
 import numpy as np
 
-from tumblecal_cli import __version__
 from tumblecal_cli.core.model import FloatArray
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.calfile import FORMAT, VERSION, Calibration, Unit, created, from_dict, invertible, is_number
+from tumblecal_cli.version import __version__
 
 EXPORTS = ("c-header", "registers", "imucal-json", "ros-yaml", "matlab")
 IMPORTS = ("imucal-json", "ros-yaml")
