@@ -55,39 +55,47 @@ def test_each_solver_through_the_api_is_the_command(
     written = json.loads(out.read_text())
     items, options = _api_call(args)
     solved = tumblecal.solve(items, **options)
-    assert solved.status == 0 and solved.error is None
+    assert solved.status == 0
+    assert solved.error is None
     cal = solved.calibration
-    assert cal is not None and cal.method == written["method"] == method
+    assert cal is not None
+    assert cal.method == written["method"] == method
     assert cal.offset.tolist() == written["offset"]
     assert cal.matrix.tolist() == written["matrix"]
-    assert cal.verdict is not None and cal.verdict.passed
+    assert cal.verdict is not None
+    assert cal.verdict.passed
 
 
 def test_solve_with_limits_and_serial_then_save_and_load(tmp_path: Path) -> None:
     poses = [str(SAMPLE / f"{a}.csv") for a in "xyz"]
     solved = tumblecal.solve(poses, reference=1.0, limits=str(SAMPLE / "limits.yaml"), serial="A17")
     assert (solved.status, solved.failures, solved.rejections) == (0, [], [])
-    assert solved.calibration is not None and solved.calibration.serial == "A17"
+    assert solved.calibration is not None
+    assert solved.calibration.serial == "A17"
     for name in ("cal.json", "cal.yaml"):
         solved.calibration.save(str(tmp_path / name))
         back = tumblecal.load(str(tmp_path / name))
         assert back.to_dict() == solved.calibration.to_dict()
-        assert back.verdict is not None and back.verdict.limits["offset"] == [0.05, 0.05, 0.05]
+        assert back.verdict is not None
+        assert back.verdict.limits["offset"] == [0.05, 0.05, 0.05]
 
 
 def test_outside_the_limits_is_status_1_with_the_failures() -> None:
     poses = [str(SAMPLE / f"{a}.csv") for a in "xyz"]
     solved = tumblecal.solve(poses, max_offset="0.001")
     assert solved.status == 1
-    assert solved.calibration is not None and solved.calibration.failed
+    assert solved.calibration is not None
+    assert solved.calibration.failed
     assert {f.code for f in solved.failures} == {"limit.offset.x", "limit.offset.y", "limit.offset.z"}
 
 
 def test_a_rejected_capture_is_status_3_not_an_exception(tmp_path: Path) -> None:
     z = SAMPLE / "z.csv"
     solved = tumblecal.solve([f"+x={z}", f"+y={z}", f"+z={z}"])  # one capture passed off as three faces
-    assert solved.status == 3 and solved.calibration is None
-    assert solved.error is not None and solved.error.exit_code == 3
+    assert solved.status == 3
+    assert solved.calibration is None
+    assert solved.error is not None
+    assert solved.error.exit_code == 3
 
 
 def test_input_errors_raise_the_exception_family(tmp_path: Path) -> None:
@@ -110,10 +118,12 @@ def test_data_in_memory_solves_as_its_files_do(tmp_path: Path) -> None:
     from_arrays = tumblecal.solve(arrays)
     assert from_files.calibration is not None
     for other in (from_frames, from_arrays):
-        assert other.calibration is not None and other.calibration.method == "six-pose"
+        assert other.calibration is not None
+        assert other.calibration.method == "six-pose"
         np.testing.assert_allclose(other.calibration.offset, from_files.calibration.offset, rtol=0, atol=1e-12)
         np.testing.assert_allclose(other.calibration.matrix, from_files.calibration.matrix, rtol=0, atol=1e-12)
-    assert from_frames.calibration is not None and from_frames.calibration.columns == ["ax", "ay", "az"]
+    assert from_frames.calibration is not None
+    assert from_frames.calibration.columns == ["ax", "ay", "az"]
     with pytest.raises(tumblecal.InputError, match="unknown face"):
         tumblecal.solve({"+w": arrays["+x"]})
 
@@ -135,7 +145,8 @@ def test_apply_on_arrays_and_dataframes_is_the_command(tmp_path: Path, capsys: p
     np.testing.assert_allclose(fixed[cal.columns].to_numpy(), by_command[cal.columns].to_numpy(), rtol=0, atol=1e-12)
     assert list(fixed.columns) == list(frame.columns)
     assert fixed.index.equals(frame.index)
-    assert fixed["t"].equals(frame["t"]) and fixed["n"].equals(frame["n"])
+    assert fixed["t"].equals(frame["t"])
+    assert fixed["n"].equals(frame["n"])
     assert fixed.dtypes.drop(cal.columns).equals(frame.dtypes.drop(cal.columns))
     assert frame["ax"].iloc[0] == pytest.approx(values[0, 1])  # the input is not touched
     raw = frame[cal.columns].to_numpy()
@@ -151,7 +162,8 @@ def test_read_capture_reads_a_station_file_as_the_commands_do(tmp_path: Path) ->
     path.write_text("# station 7\r\ntime;ax;ay;az;label\r\n0.5;1;2;3;a\r\n1.5;4;5;6;b\r\n", encoding="utf-8")
     frame = tumblecal.read_capture(str(path))
     assert list(frame.columns) == ["time", "ax", "ay", "az", "label"]
-    assert frame["ax"].tolist() == [1, 4] and frame["label"].tolist() == ["a", "b"]
+    assert frame["ax"].tolist() == [1, 4]
+    assert frame["label"].tolist() == ["a", "b"]
     bad = tmp_path / "bad.csv"
     bad.write_text("ax,ay,az\n1,2,3\n1,x,3\n", encoding="utf-8")
     with pytest.raises(tumblecal.InputError, match=r"bad\.csv: not a number: 'x' \(line 3, column ay\)"):
@@ -165,17 +177,21 @@ def test_the_other_pipelines_answer_in_python(tmp_path: Path) -> None:
     cal = str(tmp_path / "cal.json")
     solved.calibration.save(cal)
     checked = tumblecal.check(cal, max_offset="0.001")
-    assert checked.status == 1 and checked.calibration.failed
+    assert checked.status == 1
+    assert checked.calibration.failed
     verified = tumblecal.verify([str(SAMPLE / "x.csv")], cal)
-    assert verified.status == 0 and len(verified.table()) == 1  # type: ignore[arg-type]
+    assert verified.status == 0
+    assert len(verified.table()) == 1
     assert "fitted on this capture" in verified.notes[0]
     assert tumblecal.verify([str(SAMPLE / "capture.csv")], cal).status == 3  # not static
     header = tumblecal.export(cal, "c-header")
     assert "tumblecal_accel_apply" in header
     reported = tumblecal.report([cal])
-    assert reported.status == 0 and reported.result.units == 1
+    assert reported.status == 0
+    assert reported.result.units == 1
     applied = tumblecal.correct(str(SAMPLE / "capture.csv"), cal, output=str(tmp_path / "c.csv"))
-    assert applied.rows == 3000 and applied.columns == ["ax", "ay", "az"]
+    assert applied.rows == 3000
+    assert applied.columns == ["ax", "ay", "az"]
 
 
 def test_public_names_are_listed() -> None:
@@ -183,3 +199,82 @@ def test_public_names_are_listed() -> None:
         assert getattr(tumblecal, name) is not None
     with pytest.raises(AttributeError):
         _ = tumblecal.no_such_name
+
+
+def test_a_rejected_draft_is_never_trusted(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The draft of a rejected solve fails its verdict: saved, apply refuses it without --force."""
+    solved = tumblecal.solve([str(SAMPLE / f"{a}.csv") for a in "yxz"])  # +x and +y swapped
+    assert solved.status == 3
+    assert solved.calibration is None
+    assert solved.draft is not None
+    assert solved.draft.failed
+    draft = tmp_path / "draft.json"
+    solved.draft.save(draft)
+    r = run(capsys, "apply", "--cal", draft, SAMPLE / "capture.csv", "-o", tmp_path / "out.csv")
+    assert r.code == 2
+    assert "refusing to correct with it" in r.err
+    assert not (tmp_path / "out.csv").exists()
+
+
+@pytest.mark.parametrize(
+    ("options", "words"),
+    [
+        ({"method": "bogus"}, "--method: 'bogus' is not one of auto"),
+        ({"time_unit": "fortnight"}, "--time-unit: 'fortnight'"),
+        ({"reference": "1"}, "--reference takes a number"),
+        ({"min_samples": "5"}, "--min-samples takes a whole number"),
+        ({"fixture_tolerance": 40}, "--fixture-tolerance is 0 to 30 degrees"),
+        ({"no_check": ["bogus"]}, "--no-check: 'bogus' is not one of"),
+    ],
+)
+def test_options_given_in_python_are_checked_as_the_parser_checks_them(options: dict[str, object], words: str) -> None:
+    with pytest.raises(tumblecal.InputError, match=words):
+        tumblecal.solve([str(SAMPLE / f"{a}.csv") for a in "xyz"], **options)
+
+
+def test_one_check_name_as_a_string_is_that_check() -> None:
+    poses = [str(SAMPLE / f"{a}.csv") for a in "xyz"]
+    assert tumblecal.solve(poses, max_noise=1e-4).status == 3  # moved
+    assert tumblecal.solve(poses, max_noise=1e-4, no_check="moved").status == 0
+
+
+def test_paths_single_paths_and_calibrations_are_taken_where_a_file_is(tmp_path: Path) -> None:
+    z = SAMPLE / "z.csv"
+    one = tumblecal.solve(z)  # a single path: one pose
+    assert one.calibration is not None
+    assert one.calibration.method == "one-pose"
+    solved = tumblecal.solve([SAMPLE / f"{a}.csv" for a in "xyz"])
+    assert solved.calibration is not None
+    solved.calibration.save(tmp_path / "cal.yaml")
+    cal = tumblecal.load(tmp_path / "cal.yaml")
+    assert tumblecal.check(cal, max_offset=1.0).status == 0
+    assert "tumblecal_accel_apply" in tumblecal.export(cal, "c-header")
+    assert tumblecal.verify(SAMPLE / "x.csv", cal).status == 0
+    assert tumblecal.correct(SAMPLE / "capture.csv", cal, output=tmp_path / "c.csv").rows == 3000
+    assert tumblecal.report(tmp_path / "cal.yaml").result.files == 1
+    assert list(tumblecal.read_capture(SAMPLE / "x.csv").columns) == ["t", "ax", "ay", "az"]
+
+
+def test_data_where_a_file_goes_is_an_input_error(tmp_path: Path) -> None:
+    frame = tumblecal.read_capture(SAMPLE / "z.csv")
+    cal = tumblecal.solve([SAMPLE / f"{a}.csv" for a in "xyz"]).calibration
+    assert cal is not None
+    for call in (
+        lambda: tumblecal.solve_log(frame),
+        lambda: tumblecal.verify([frame], cal),
+        lambda: tumblecal.correct(frame, cal),
+        lambda: tumblecal.verify([], cal),
+        lambda: tumblecal.solve({"+z": frame.assign(ax="a")}),
+        lambda: cal.apply({"ax": [1.0]}),
+        lambda: cal.apply(frame.assign(AX=frame["ax"]).rename(columns={"ax": "Ax"})),  # two in other cases
+    ):
+        with pytest.raises(tumblecal.InputError):
+            call()
+    three = [tumblecal.read_capture(SAMPLE / f"{a}.csv") for a in "xyz"]
+    assert tumblecal.solve(three).status == 0  # a list of data: labelled as three files are, +x +y +z
+
+
+def test_a_calibration_built_by_hand_applies() -> None:
+    offset, matrix, gain = [1, 0, 0], np.eye(3).tolist(), [1, 1, 1]  # lists, as a hand-written script has them
+    cal = tumblecal.Calibration("accelerometer", "three-pose", 1.0, ["x", "y", "z"], offset, matrix, gain)  # type: ignore[arg-type]
+    np.testing.assert_array_equal(cal.apply(np.array([[2.0, 1.0, 0.0]])), [[1.0, 1.0, 0.0]])

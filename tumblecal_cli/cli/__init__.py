@@ -2,10 +2,17 @@
 small group of commands, the options they share (``options``) and what people read (``render``).
 
 Each command parses its options, makes one call into ``tumblecal_cli.pipeline`` and renders the
-result; the pipeline is imported inside the commands, so ``tumblecal --help`` loads no numpy.
+result; the pipeline is imported inside the commands (batch reads the names of SolveOptions,
+whose module imports no numpy), so ``tumblecal --help`` loads no numpy.
 """
 
-from tumblecal_cli.cli import apply, batch, calfiles, report, segment, solve, verify
+import importlib
+
 from tumblecal_cli.cli.app import app, main, main_exit
 
-__all__ = ["app", "apply", "batch", "calfiles", "main", "main_exit", "report", "segment", "solve", "verify"]
+#: The command modules, in the order `tumblecal --help` lists their commands (registration order).
+COMMANDS = ("solve", "apply", "calfiles", "report", "verify", "segment", "batch")
+for _name in COMMANDS:
+    importlib.import_module(f"tumblecal_cli.cli.{_name}")
+
+__all__ = ["COMMANDS", "app", "main", "main_exit"]

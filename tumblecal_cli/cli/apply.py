@@ -100,11 +100,17 @@ def apply(
         )
         _show_many(done, len(set(inputs)), out_dir, quiet=quiet)
         return
-    applied = pipeline.correct(inputs[0], cal, output=output, columns=columns, no_header=no_header, force=force)
+    console = render.make_console()
+    applied = pipeline.correct(
+        inputs[0],
+        cal,
+        output=output,
+        columns=columns,
+        no_header=no_header,
+        force=force,
+        on_note=None if quiet else lambda note: console.print(f"note: {note}", soft_wrap=True),
+    )
     if not quiet:
-        console = render.make_console()
-        for note in applied.notes:
-            console.print(f"note: {note}", soft_wrap=True)
         target = "stdout" if output == "-" else output
         console.print(
             f"corrected {applied.rows} rows of {applied.capture} ({', '.join(applied.columns)}) -> {target}",

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 from typing import Any
@@ -224,11 +224,13 @@ class Drift:
     relative: float | None = None
 
 
-def parse_max_drift(text: str | None) -> dict[str, float]:
-    """``offset=0.01,gain=0.002,cross=0.001`` (any subset; ``cross_axis`` is ``cross``) as a dict.
-    None: no drift limits."""
+def parse_max_drift(text: str | Mapping[str, float] | None) -> dict[str, float]:
+    """``offset=0.01,gain=0.002,cross=0.001`` (any subset; ``cross_axis`` is ``cross``; or a
+    mapping of the same) as a dict. None: no drift limits."""
     if text is None:
         return {}
+    if isinstance(text, Mapping):
+        text = ",".join(f"{k}={v}" for k, v in text.items())
     out: dict[str, float] = {}
     items = [item.strip() for item in text.split(",")]
     if not any(items):

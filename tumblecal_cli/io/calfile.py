@@ -112,6 +112,14 @@ class Calibration:
     order: tuple[str, ...] = ORDER  # the file's own order of its fields
     path: str | None = None  # the file it was read from
 
+    def __post_init__(self) -> None:  # numbers given as lists (a Calibration built by hand) become arrays
+        for name, shape in (("offset", (3,)), ("matrix", (3, 3)), ("gain", (3,))):
+            value = np.asarray(getattr(self, name), dtype=np.float64)
+            if value.shape != shape:
+                raise InputError(f"a Calibration's {name} has shape {shape}, got {value.shape}", file=self.path)
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "columns", [str(c) for c in self.columns])
+
     @property
     def failed(self) -> bool:
         """Whether the calibration carries a failing verdict."""
@@ -126,21 +134,27 @@ class Calibration:
         with the calibration's ``columns`` corrected (matched case-insensitively; other columns,
         the index and their dtypes untouched)."""
         if hasattr(data, "columns") and hasattr(data, "loc"):  # a DataFrame, without importing pandas
-            names = _frame_columns(data, self.columns, self.path)
+            where = _frame_columns(data, self.columns, self.path)
             out = data.copy()
-            raw = np.asarray(data[names].to_numpy(dtype=np.float64, na_value=np.nan))
+            try:
+                raw = np.asarray(data.iloc[:, where].to_numpy(dtype=np.float64, na_value=np.nan))
+            except (TypeError, ValueError) as err:
+                raise InputError(f"the DataFrame's {', '.join(self.columns)} are not numbers ({err})") from None
             fixed = apply_model(raw, self.offset, self.matrix)
-            for k, name in enumerate(names):
-                out[name] = fixed[:, k]
+            for k, position in enumerate(where):
+                out.isetitem(position, fixed[:, k])
             return out
-        values = np.asarray(data, dtype=np.float64)
+        try:
+            values = np.asarray(data, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InputError(f"apply takes (n, 3) readings or a DataFrame, got a {type(data).__name__}") from None
         if values.ndim != 2 or values.shape[1] != 3:
             raise InputError(f"apply takes (n, 3) readings or a DataFrame, got an array of shape {values.shape}")
         return apply_model(values, self.offset, self.matrix)
 
-    def save(self, path: str) -> None:
+    def save(self, path: str | os.PathLike[str]) -> None:
         """Write atomically: JSON, or YAML when ``path`` ends in .yaml/.yml; '-' is stdout."""
-        write(self, path)
+        write(self, os.fspath(path))
 
     def to_dict(self) -> dict[str, Any]:
         """The file's document (the JSON/YAML boundary)."""
@@ -186,17 +200,29 @@ class Calibration:
         )
 
 
-def _frame_columns(frame: Any, wanted: Sequence[str], path: str | None) -> list[str]:
-    """The DataFrame's own names of ``wanted`` (case-insensitive), or an error naming those missing."""
-    lower = {str(c).lower(): c for c in frame.columns}
-    missing = [w for w in wanted if w.lower() not in lower]
+def _frame_columns(frame: Any, wanted: Sequence[str], path: str | None) -> list[int]:
+    """Where ``wanted`` are among the DataFrame's columns: the column of that exact name, else the
+    one column of that name in another case; an error names those missing or ambiguous."""
+    names = [str(c) for c in frame.columns]
+    where, missing = [], []
+    for w in wanted:
+        exact = [k for k, n in enumerate(names) if n == w]
+        near = exact or [k for k, n in enumerate(names) if n.lower() == w.lower()]
+        if len(near) > 1:
+            raise InputError(
+                f"the DataFrame has {len(near)} columns named {w!r}: which one is the sensor's?", file=path
+            )
+        if not near:
+            missing.append(w)
+        else:
+            where.append(near[0])
     if missing:
         raise InputError(
             f"the DataFrame has no column{'s' if len(missing) > 1 else ''} {', '.join(missing)}, "
-            f"which the calibration corrects (columns: {', '.join(map(str, frame.columns))})",
+            f"which the calibration corrects (columns: {', '.join(names)})",
             file=path,
         )
-    return [lower[w.lower()] for w in wanted]
+    return where
 
 
 def _nested(value: Any) -> Any:
@@ -368,9 +394,17 @@ def write(cal: Calibration | Mapping[str, Any], path: str) -> None:
         out.write(text)
 
 
-def load(path: str) -> Calibration:
+def load(path: str | os.PathLike[str]) -> Calibration:
     """Read and validate a calibration file ('-': stdin); every problem names the file and the field."""
-    return validate(_read_object(path, "calibration file"), path)
+    if not isinstance(path, str | os.PathLike):
+        raise InputError(f"load takes a calibration file's path, not a {type(path).__name__}")
+    name = os.fspath(path)
+    return validate(_read_object(name, "calibration file"), name)
+
+
+def resolve(cal: Calibration | str | os.PathLike[str]) -> Calibration:
+    """A calibration given as itself or as its file."""
+    return cal if isinstance(cal, Calibration) else load(cal)
 
 
 def validate(doc: Mapping[str, Any], path: str) -> Calibration:

@@ -19,7 +19,7 @@ import io
 import itertools
 import os
 import sys
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -586,7 +586,7 @@ class Batched:
     counts: dict[str, int]
     summary: str
 
-    def table(self) -> object:
+    def table(self) -> Any:
         """summary.csv as a pandas DataFrame."""
         import pandas as pd
 
@@ -596,7 +596,7 @@ class Batched:
 def run_batch(
     source: str,
     out_dir: str,
-    options: SolveOptions | None = None,
+    options: SolveOptions | Mapping[str, Any] | None = None,
     *,
     log: bool = False,
     jobs: int = 1,
@@ -615,7 +615,7 @@ def run_batch(
     from tumblecal_cli.io import calfile
     from tumblecal_cli.pipeline.options import SolveOptions, settings
 
-    options = options or SolveOptions()
+    options = options if isinstance(options, SolveOptions) else SolveOptions(**(options or {}))
     if out_dir == "-":
         raise InputError("--out-dir takes a folder: the calibrations are files, not a stream on stdout")
     settings(options, log=log)  # a bad option: one error, not one per unit

@@ -4,6 +4,8 @@
 from __future__ import annotations
 
 import math
+import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
@@ -14,6 +16,10 @@ if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Finding
     from tumblecal_cli.io.calfile import Calibration
     from tumblecal_cli.io.formats import Peer
+
+
+#: export's formats (README "export").
+FORMATS = ("c-header", "registers", "imucal-json", "ros-yaml", "matlab")
 
 
 @dataclass
@@ -30,7 +36,7 @@ class Checked:
 
 
 def check(
-    cal: str,
+    cal: Calibration | str | os.PathLike[str],
     *,
     limits: str | None = None,
     max_offset: Triplet | None = None,
@@ -48,19 +54,20 @@ def check(
     given = parse_limits(limits, max_offset, max_gain_error, nominal_gain)
     if not given.judges():
         raise InputError("no limits to judge against", hint="give --limits FILE, --max-offset or --max-gain-error")
-    c = calfile.load(cal)
+    c = calfile.resolve(cal)
+    where = c.path
     method = c.method
     recorded = (c.verdict.limits if c.verdict is not None else {}).get("nominal_offset")
     if recorded is not None and not any(given.nominal_offset):  # the centre solve judged it from
         given = replace(given, nominal_offset=np.array(recorded, dtype=float))
     bounds = given.for_method(method)
     if not bounds.judges():
-        raise InputError(f"no limits to judge against: {'; '.join(limits_not_applying(given, method))}", file=cal)
+        raise InputError(f"no limits to judge against: {'; '.join(limits_not_applying(given, method))}", file=where)
     if not c.poses:  # an imported calibration: its parameters can be judged, it has no poses
         if bounds.noise is not None or bounds.residual is not None:
             raise InputError(
                 "has no poses to judge the noise and residual limits by",
-                file=cal,
+                file=where,
                 hint="judge it by offset, gain_error and cross_axis only (a limits file without noise and residual)",
             )
         records = []
@@ -72,7 +79,7 @@ def check(
     if method in gate.ROTATION and bounds.residual is not None and residual is None:
         raise InputError(
             "has no fit residuals to judge the residual limit by",
-            file=cal,
+            file=where,
             hint="judge it without the residual limit, or solve the capture again",
         )
     failures = gate.verdict(method, c.offset, c.matrix, poses, bounds, residual)
@@ -81,7 +88,7 @@ def check(
 
 
 def export(
-    cal: str,
+    cal: Calibration | str | os.PathLike[str],
     fmt: str,
     *,
     prefix: str | None = None,
@@ -96,8 +103,40 @@ def export(
     or matlab (README "export")."""
     from tumblecal_cli.io import calfile, formats
     from tumblecal_cli.pipeline.correct import refuse_failed
-    from tumblecal_cli.pipeline.options import triplet
 
+    _export_options(fmt, prefix, lsb, bits, register_sign, gain_step, nominal_gain)
+    c = calfile.resolve(cal)
+    if c.failed and not force:
+        refuse_failed(c, "export it", "export")
+    if fmt == "registers":
+        assert lsb is not None
+        return _registers(c, lsb, bits, register_sign, gain_step, nominal_gain)
+    writers = {
+        "c-header": lambda: formats.c_header(c, prefix=prefix),
+        "imucal-json": lambda: formats.imucal_json(c),
+        "ros-yaml": lambda: formats.ros_yaml(c),
+        "matlab": lambda: formats.matlab(c),
+    }
+    return writers[fmt]()
+
+
+def _export_options(
+    fmt: str,
+    prefix: str | None,
+    lsb: float | None,
+    bits: int,
+    register_sign: str,
+    gain_step: float | None,
+    nominal_gain: str | None,
+) -> None:
+    """export's options that go together, checked before the calibration is read."""
+    if fmt not in FORMATS:
+        raise InputError(f"--format: {fmt!r} is not one of {', '.join(FORMATS)}")
+    if register_sign not in ("subtract", "add"):
+        raise InputError(f"--register-sign: {register_sign!r} is not one of subtract, add")
+    for flag, number in (("--lsb", lsb), ("--gain-step", gain_step)):
+        if number is not None and (isinstance(number, bool) or not isinstance(number, int | float)):
+            raise InputError(f"{flag} takes a number, got {number!r}")
     given = {"--lsb": lsb, "--gain-step": gain_step, "--nominal-gain": nominal_gain}
     if fmt != "registers":
         if extra := [flag for flag, value in given.items() if value is not None]:
@@ -110,31 +149,29 @@ def export(
         raise InputError("--prefix is for --format c-header")
     if nominal_gain is not None and gain_step is None:
         raise InputError("--nominal-gain is the gain trim's aim: it needs --gain-step")
-    c = calfile.load(cal)
-    if c.failed and not force:
-        refuse_failed(c, "export it", "export")
-    if fmt == "registers":
-        if not (lsb is not None and math.isfinite(lsb) and lsb > 0):
-            raise InputError(f"--lsb must be a positive number, got {lsb}")
-        if gain_step is not None and not (math.isfinite(gain_step) and gain_step > 0):
-            raise InputError(f"--gain-step must be a positive number, got {gain_step}")
-        from tumblecal_cli.core.gate import FIXED_GAINS
 
-        if gain_step is not None and c.method in FIXED_GAINS:
-            raise InputError(f"the {c.method} solver fixes the gains: there is no gain to trim", file=cal)
-        recorded = (c.verdict.limits if c.verdict is not None else {}).get("nominal_gain")
-        nominal = triplet(nominal_gain or ",".join(map(str, recorded or [1, 1, 1])), "--nominal-gain")  # type: ignore[call-overload]
-        if not (nominal > 0).all():
-            raise InputError(f"--nominal-gain must be positive, got {nominal_gain}")
-        rows = formats.registers(c, lsb=lsb, bits=bits, sign=register_sign, gain_step=gain_step, nominal_gain=nominal)
-        return formats.registers_csv(rows)
-    writers = {
-        "c-header": lambda: formats.c_header(c, prefix=prefix),
-        "imucal-json": lambda: formats.imucal_json(c),
-        "ros-yaml": lambda: formats.ros_yaml(c),
-        "matlab": lambda: formats.matlab(c),
-    }
-    return writers[fmt]()
+
+def _registers(
+    c: Calibration, lsb: float, bits: int, register_sign: str, gain_step: float | None, nominal_gain: str | None
+) -> str:
+    """export --format registers: offset (and gain trim) register counts, CSV."""
+    from tumblecal_cli.io import formats
+    from tumblecal_cli.pipeline.options import triplet
+
+    if not (lsb is not None and math.isfinite(lsb) and lsb > 0):
+        raise InputError(f"--lsb must be a positive number, got {lsb}")
+    if gain_step is not None and not (math.isfinite(gain_step) and gain_step > 0):
+        raise InputError(f"--gain-step must be a positive number, got {gain_step}")
+    from tumblecal_cli.core.gate import FIXED_GAINS
+
+    if gain_step is not None and c.method in FIXED_GAINS:
+        raise InputError(f"the {c.method} solver fixes the gains: there is no gain to trim", file=c.path)
+    recorded = (c.verdict.limits if c.verdict is not None else {}).get("nominal_gain")
+    nominal = triplet(nominal_gain or ",".join(map(str, recorded or [1, 1, 1])), "--nominal-gain")  # type: ignore[call-overload]
+    if not (nominal > 0).all():
+        raise InputError(f"--nominal-gain must be positive, got {nominal_gain}")
+    rows = formats.registers(c, lsb=lsb, bits=bits, sign=register_sign, gain_step=gain_step, nominal_gain=nominal)
+    return formats.registers_csv(rows)
 
 
 @dataclass
@@ -147,18 +184,19 @@ class Imported:
 
 
 def import_peer(
-    path: str,
+    path: str | os.PathLike[str],
     *,
     fmt: str | None = None,
     sensor: str | None = None,
     reference: float | None = None,
-    columns: str | None = None,
+    columns: str | Sequence[str] | None = None,
     serial: str | None = None,
 ) -> Imported:
     """An imucal JSON or ROS imu_calib YAML file as a tumblecal Calibration (README "import")."""
     from tumblecal_cli.io import calfile, formats
     from tumblecal_cli.pipeline.options import unit_block
 
+    path = os.fspath(path)
     raw = calfile.read_bytes(path, "calibration file")
     as_yaml = not path.lower().endswith(".json") and raw.lstrip()[:1] != b"{"  # ROS files are YAML, any name
     doc = calfile.parse_object(raw, path, "calibration file", as_yaml=as_yaml)
@@ -177,7 +215,7 @@ def import_peer(
     if not (math.isfinite(ref) and (ref > 0 or (ref == 0 and peer.sensor == "gyroscope"))):
         raise InputError(f"--reference must be a positive number (0 for a gyroscope), got {ref}")
     if columns:
-        picked = [c.strip() for c in columns.split(",")]
+        picked = [c.strip() for c in (columns.split(",") if isinstance(columns, str) else map(str, columns))]
         if len(picked) != 3 or not all(picked) or len({c.lower() for c in picked}) != 3:
             raise InputError(f"--columns takes three different names X,Y,Z, got {columns!r}")
     elif peer.columns:

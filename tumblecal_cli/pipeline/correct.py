@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import os
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from functools import partial
 from typing import TYPE_CHECKING
@@ -33,34 +33,46 @@ class Applied:
 
 
 def correct(
-    capture: str,
-    cal: str | Sequence[str],
+    capture: str | os.PathLike[str],
+    cal: Calibration | str | os.PathLike[str] | Sequence[Calibration | str | os.PathLike[str]],
     *,
-    output: str = "-",
+    output: str | os.PathLike[str] = "-",
     columns: str | Sequence[str] | None = None,
     no_header: bool = False,
     force: bool = False,
+    on_note: Callable[[str], None] | None = None,
 ) -> Applied:
     """Correct one capture ('-': stdin) into ``output`` ('-': stdout), as ``tumblecal apply``:
-    ``cal`` is one calibration file or several (one per sensor of the capture)."""
+    ``cal`` is one calibration (a file, or a Calibration) or several (one per sensor of the
+    capture). ``on_note`` hears each note as it is found, before the capture is streamed."""
     from tumblecal_cli.io import calfile, captures
     from tumblecal_cli.io.outputs import atomic_output, check_not_input, check_writable
+    from tumblecal_cli.pipeline.solve import path_of
 
-    paths = [cal] if isinstance(cal, str) else list(cal)
+    capture = path_of(capture, "correct streams a capture file (data in memory: Calibration.apply)")
+    given = [cal] if isinstance(cal, str | os.PathLike | calfile.Calibration) else list(cal)
+    paths = [c if isinstance(c, calfile.Calibration) else os.fspath(c) for c in given]
     if "-" in paths and capture == "-":
         raise InputError("--cal - and the capture cannot both be read from stdin", hint="give the capture as a file")
     if paths.count("-") > 1:
         raise InputError("only one --cal can be read from stdin ('-')")
-    check_not_input(output, [capture, *paths])
+    output = os.fspath(output)
+    check_not_input(output, [capture, *(p for p in paths if isinstance(p, str))])
     check_writable(output)
-    cals = [calfile.load(path) for path in paths]
+    cals = [calfile.resolve(path) for path in paths]
     claims_once(cals)
-    notes = []
+    notes: list[str] = []
+
+    def note(text: str) -> None:  # said as soon as it is known: a long file takes a while
+        notes.append(text)
+        if on_note is not None:
+            on_note(text)
+
     for c in cals:
         if c.failed and not force:
             refuse_failed(c, "correct with it", "apply")
         if c.failed:
-            notes.append(f"{c.path}: this unit failed its limits; correcting with it as --force asks")
+            note(f"{c.path}: this unit failed its limits; correcting with it as --force asks")
     if columns and len(cals) > 1:
         raise InputError("--columns names the columns of one calibration; with several --cal each uses its own")
     picked = (columns.split(",") if isinstance(columns, str) else list(columns)) if columns else None
@@ -69,7 +81,7 @@ def correct(
         used = cap.layout.sensor_names
         differ = [u.lower() for u in used] != [x.lower() for x in c.columns]
         if differ and (picked or not cap.layout.has_header):  # the user named them, or nothing is named
-            notes.append(
+            note(
                 f"{cap.layout.name}: correcting columns {', '.join(used)} "
                 f"(the calibration was made from {', '.join(c.columns)})"
             )

@@ -7,6 +7,7 @@ through its own methods.
 from __future__ import annotations
 
 import hashlib
+import os
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -24,14 +25,27 @@ def samples_of(label: str, data: Any, options: SolveOptions) -> Samples:
     from tumblecal_cli.io import captures
 
     name = f"<{label}>"
-    if hasattr(data, "columns") and hasattr(data, "to_numpy"):
-        names = [str(c) for c in data.columns]
-        triplet = captures.sensor_triplet(names, sensor=options.sensor, columns=options.column_names, name=name)
-        picked = [names[i] for i in triplet]
-        values = np.asarray(data[[data.columns[i] for i in triplet]].to_numpy(dtype=np.float64, na_value=np.nan))
-    else:
-        picked = ["x", "y", "z"]
-        values = np.asarray(data, dtype=np.float64)
+    if isinstance(data, str | os.PathLike):  # a file, in a mapping of labels
+        return captures.read_samples(
+            os.fspath(data),
+            sensor=options.sensor,
+            columns=options.column_names,
+            no_header=options.no_header,
+            time_column=options.time_column,
+            time_unit=options.time_unit,
+            rate=options.rate,
+        )
+    picked = ["x", "y", "z"]
+    try:
+        if hasattr(data, "columns") and hasattr(data, "to_numpy"):
+            names = [str(c) for c in data.columns]
+            triplet = captures.sensor_triplet(names, sensor=options.sensor, columns=options.column_names, name=name)
+            picked = [names[i] for i in triplet]
+            values = np.asarray(data.iloc[:, list(triplet)].to_numpy(dtype=np.float64, na_value=np.nan))
+        else:
+            values = np.asarray(data, dtype=np.float64)
+    except (TypeError, ValueError) as err:
+        raise InputError(f"readings that are not numbers ({err})", file=name) from None
     if values.ndim != 2 or values.shape[1] != 3 or not len(values):
         raise InputError(f"a pose is (n, 3) readings, n >= 1; got shape {values.shape}", file=name)
     values = values[~np.isnan(values).all(axis=1)]  # rows with no reading, as in a file
@@ -44,7 +58,7 @@ def samples_of(label: str, data: Any, options: SolveOptions) -> Samples:
     return captures.Samples(layout, values, (0, len(values) - 1), digest, duration)
 
 
-def read_capture(path: str, *, no_header: bool = False) -> Any:
+def read_capture(path: str | os.PathLike[str], *, no_header: bool = False) -> Any:
     """A capture as a pandas DataFrame, read by the CSV rules of the command line (delimiter,
     header, comments, BOM and line ends detected; sensor cells checked): every column, integer,
     float or text, in the file's order."""
@@ -52,5 +66,5 @@ def read_capture(path: str, *, no_header: bool = False) -> Any:
 
     from tumblecal_cli.io import captures
 
-    _, names, columns = captures.read_table(path, no_header=no_header)
+    _, names, columns = captures.read_table(os.fspath(path), no_header=no_header)
     return pd.DataFrame({name: col.to_pandas() for name, col in zip(names, columns, strict=True)})

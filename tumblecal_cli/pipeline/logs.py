@@ -11,6 +11,7 @@ import re
 import sys
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -362,7 +363,7 @@ class Segmented:
     out_dir: str | None = None
     removed: int = 0  # block files of an earlier segmentation into out_dir, removed
 
-    def table(self) -> object:
+    def table(self) -> Any:
         """The index as a pandas DataFrame, one row per block found, kept or dropped."""
         import pandas as pd
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 from typing import TYPE_CHECKING
 
 from tumblecal_cli.errors import InputError
@@ -109,11 +109,70 @@ class Settings:
 
 
 LOG_ONLY = ("window", "threshold", "min_duration", "trim", "pose_column", "pose_map")
+#: The choices of the options that take one (the command line's own enums).
+CHOICES = {
+    "method": (
+        "auto",
+        "one-pose",
+        "one-pose-tilt",
+        "three-pose",
+        "six-pose",
+        "six-pose-diagonal",
+        "least-squares",
+        "sphere",
+        "minmax",
+        "ellipsoid",
+        "gyro-bias",
+    ),
+    "sensor": ("accelerometer", "magnetometer", "gyroscope"),
+    "time_unit": ("s", "ms", "us", "ns"),
+    "plane": ("xy", "xz", "yz"),
+}
+CHECK_NAMES = ("moved", "orientation", "saturated", "short", "upside-down")
+NUMBERS = (
+    "reference",
+    "bias_spread",
+    "rate",
+    "window",
+    "threshold",
+    "min_duration",
+    "trim",
+    "max_noise",
+    "max_tilt",
+    "full_scale",
+    "fixture_tolerance",
+)
+
+
+def checked(options: SolveOptions) -> SolveOptions:
+    """The checks the command line's parser makes, for options given in Python: each choice
+    one of its own, numbers numbers, ranges kept; a lone string where a list goes is one item."""
+    for name, allowed in CHOICES.items():
+        value = getattr(options, name)
+        if value is not None and value not in allowed:
+            raise InputError(f"--{name.replace('_', '-')}: {value!r} is not one of {', '.join(allowed)}")
+    for name in NUMBERS:
+        value = getattr(options, name)
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)):
+            raise InputError(f"--{name.replace('_', '-')} takes a number, got {value!r}")
+    if isinstance(options.min_samples, bool) or not isinstance(options.min_samples, int) or options.min_samples < 1:
+        raise InputError(f"--min-samples takes a whole number of 1 or more, got {options.min_samples!r}")
+    if not 0 <= options.fixture_tolerance <= 30:
+        raise InputError(f"--fixture-tolerance is 0 to 30 degrees, got {options.fixture_tolerance:g}")
+    if not options.max_tilt <= 180:
+        raise InputError(f"--max-tilt is at most 180 degrees, got {options.max_tilt:g}")
+    no_check = [options.no_check] if isinstance(options.no_check, str) else list(options.no_check)
+    for name in no_check:
+        if name not in CHECK_NAMES:
+            raise InputError(f"--no-check: {name!r} is not one of {', '.join(CHECK_NAMES)}")
+    meta = [options.meta] if isinstance(options.meta, str) else options.meta
+    return replace(options, no_check=tuple(no_check), meta=meta)
 
 
 def settings(options: SolveOptions, *, log: bool) -> Settings:
     """The checks of solve's options that no pose file is needed for: the log's options, --meta,
     the method, --up, the reference, the nominal offset and the limits."""
+    options = checked(options)
     if not log:
         given = [f"--{name.replace('_', '-')}" for name in LOG_ONLY if getattr(options, name) is not None]
         if given:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,10 +32,10 @@ class Reported:
 
 
 def report(
-    paths: Sequence[str],
+    paths: Sequence[str | os.PathLike[str]] | str | os.PathLike[str],
     *,
     limits: str | None = None,
-    max_drift: str | None = None,
+    max_drift: str | Mapping[str, float] | None = None,
     min_cpk: float | None = None,
 ) -> Reported:
     """Statistics of the calibration files in ``paths`` (files, or folders searched for
@@ -47,7 +47,8 @@ def report(
         raise InputError("--min-cpk needs --limits: Cpk is measured against the limits")
     drift_limits = lot.parse_max_drift(max_drift)
     bounds = calfile.load_limits(limits) if limits else {}
-    found = find(list(paths), skip=limits)
+    given = [paths] if isinstance(paths, str | os.PathLike) else list(paths)
+    found = find([os.fspath(p) for p in given], skip=limits)
     entries, unreadable = _load(found)
     result = lot.summarise(entries, unreadable, bounds, max_drift=drift_limits, min_cpk=min_cpk)
     return Reported(result, entries, bounds, found)

@@ -63,7 +63,9 @@ class Solved:
         return self.status == 0
 
 
-Poses = Sequence[str] | Mapping[str, object]
+#: Pose captures: files (one path, or a list of ``FILE`` / ``LABEL=FILE`` items), or data in
+#: memory (a mapping of labels to DataFrames or (n, 3) arrays, or a list of them).
+Poses = str | os.PathLike[str] | Sequence[object] | Mapping[str, object]
 
 
 def solve(poses: Poses, **options: object) -> Solved:
@@ -92,7 +94,11 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | None = 
     """solve and solve_log, on options already gathered (the command line and batch call this)."""
     from tumblecal_cli.pipeline import options as opts
 
-    if bool(poses) == (log is not None):
+    options = opts.checked(options)
+    files_or_data = None if poses is None else _poses_given(poses, options)
+    if log is not None:
+        log = path_of(log, "solve_log takes a log file (a DataFrame in memory: solve it as {label: data})")
+    if bool(files_or_data) == (log is not None):
         raise InputError(
             "give the pose files with --poses, or one continuous log with --log" + (", not both" if poses else ""),
             hint="see 'tumblecal solve --help'",
@@ -100,12 +106,45 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | None = 
     given = opts.settings(options, log=log is not None)
     if log is not None:
         return _from_log(log, options, given)
-    assert poses is not None
-    name, labels, samples = _read_poses(poses, options, given)
+    assert files_or_data is not None
+    name, labels, samples = _read_poses(files_or_data, options, given)
     return _solve(name, labels, samples, options, given, whole=[s.values for s in samples])
 
 
-def _read_poses(poses: Poses, options: SolveOptions, given: Settings) -> tuple[str, list[str | None], list[Samples]]:
+def path_of(value: object, what: str) -> str:
+    """A path given as text or os.PathLike; anything else is an InputError saying ``what``."""
+    if isinstance(value, str | os.PathLike):
+        return os.fspath(value)
+    raise InputError(f"{what}, not a {type(value).__name__}")
+
+
+def _poses_given(poses: object, options: SolveOptions) -> list[str] | Mapping[str, object]:
+    """poses as files (one path, or a list of items) or as data in memory (a mapping of labels to
+    data, or a list of data, labelled as unlabelled files are)."""
+    from tumblecal_cli.core import solvers
+
+    if isinstance(poses, str | os.PathLike):
+        return [os.fspath(poses)]
+    if isinstance(poses, Mapping):
+        return poses
+    if not isinstance(poses, Sequence):
+        raise InputError(
+            f"poses are files, a list of data or a mapping of labels to data, not a {type(poses).__name__}"
+        )
+    items = list(poses)
+    if all(isinstance(p, str | os.PathLike) for p in items):
+        return [os.fspath(p) for p in items]
+    labels = solvers.default_labels(len(items), options.up or "+z")
+    if any(label is None for label in labels):
+        raise InputError(
+            f"{len(items)} poses in memory need their labels: give a mapping, e.g. {{'+x': data, ...}}",
+        )
+    return {str(label): data for label, data in zip(labels, items, strict=True)}
+
+
+def _read_poses(
+    poses: list[str] | Mapping[str, object], options: SolveOptions, given: Settings
+) -> tuple[str, list[str | None], list[Samples]]:
     """The method, each pose's label and its samples, from files or from data in memory."""
     from tumblecal_cli.core import solvers
     from tumblecal_cli.io import captures
@@ -121,7 +160,7 @@ def _read_poses(poses: Poses, options: SolveOptions, given: Settings) -> tuple[s
     if isinstance(poses, Mapping):
         items = [(_label(str(label)), data) for label, data in poses.items()]
     else:
-        items = list(pose_items(list(poses), given.up))
+        items = list(pose_items(poses, given.up))
     if not in_memory and sum(f == "-" for _, f in items) > 1:
         raise InputError("only one pose can be read from stdin ('-')")
     name, order = solvers.pick(given.method, [label for label, _ in items], options.sensor)
@@ -318,7 +357,11 @@ def _solve(
     solved = Solved(0, cal, cal, [], failures, warned, said, samples=samples, limits=given.limits)
     if rejected:
         first = rejected[0]
+        # the draft is never to be trusted: its verdict fails with the rejections, so apply and
+        # export refuse it without --force if it is saved
+        refused = calfile.Verdict(False, tuple(f.as_dict() for f in rejected), limits.as_dict())
         solved.status, solved.calibration, solved.rejections = 3, None, rejected
+        solved.draft = cal.with_verdict(refused)
         solved.error = CaptureRejected(
             first.render(),
             hint=first.hint or REJECTION_HINTS[first.code],

@@ -4,6 +4,7 @@ calibration model: the norm of each corrected mean against the reference)."""
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -35,7 +36,7 @@ class Verified:
             self.rejected[0], more=tuple(self.rejected[1:]), hint="capture it again holding the unit still"
         )
 
-    def table(self) -> object:
+    def table(self) -> Any:
         """The per-capture rows as a pandas DataFrame."""
         import pandas as pd
 
@@ -43,8 +44,8 @@ class Verified:
 
 
 def verify(
-    captures: Sequence[str],
-    cal: str,
+    captures: Sequence[str | os.PathLike[str]] | str | os.PathLike[str],
+    cal: Any,
     *,
     reference: float | None = None,
     max_norm_error: float | None = None,
@@ -56,10 +57,15 @@ def verify(
     from tumblecal_cli.core import gate, model
     from tumblecal_cli.io import calfile
     from tumblecal_cli.io import captures as reading
+    from tumblecal_cli.pipeline.solve import path_of
 
-    if sum(f == "-" for f in captures) + (cal == "-") > 1:
+    given = [captures] if isinstance(captures, str | os.PathLike) else list(captures)
+    paths = [path_of(c, "verify reads static captures from files") for c in given]
+    if not paths:
+        raise InputError("verify needs one static capture or more")
+    if sum(f == "-" for f in paths) + (cal == "-") > 1:
         raise InputError("only one file can be read from stdin ('-')")
-    c = calfile.load(cal)
+    c = calfile.resolve(cal)
     ref = c.reference if reference is None else reference
     if not math.isfinite(ref) or ref < 0:
         raise InputError(f"--reference must be a positive number, got {ref:g}")
@@ -76,7 +82,7 @@ def verify(
     )
     fitted = {str(p.get("sha256")): str(p.get("file")) for p in c.poses if p.get("sha256")}
     result = Verified(0, c, ref, max_norm_error, [], {})
-    for path in captures:
+    for path in paths:
         s = reading.read_samples(path, sensor=c.sensor, columns=picked, prefer=c.columns, no_header=no_header)
         if s.sha256 in fitted:
             result.notes.append(
