@@ -7,6 +7,7 @@ numpy, pyarrow and the pipeline are imported inside the commands, so ``tumblecal
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import re
 import sys
@@ -134,11 +135,18 @@ def _term_as_interrupt() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
+@functools.cache
+def _command() -> Any:
+    """The click command Typer builds from the command functions' signatures: built once per
+    process (it costs 30 ms; a batch's in-process units and the tests call main many times)."""
+    return typer.main.get_command(app)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; return the exit status. Every error is reported here and only here."""
     try:
         with _term_as_interrupt():  # a station's or scheduler's kill: outputs cleaned up as for Ctrl-C
-            result = app(args=argv, prog_name="tumblecal", standalone_mode=False)
+            result = _command().main(args=argv, prog_name="tumblecal", standalone_mode=False)
         sys.stdout.flush()  # a reader that stopped early (`| head`) is found here, not at exit
     except (PipeClosed, BrokenPipeError):
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no flush error at exit
