@@ -5,7 +5,7 @@
 Not a test (pytest does not collect it; tests/test_montecarlo.py runs it). For each solver a fixed
 truth ``(b, A)`` is captured ``--trials`` times with white Gaussian noise, solved with the solver's
 public function, and each parameter's RMS error over the trials is divided by its Cramér–Rao
-standard deviation, computed here from the Fisher information of the model (DESIGN.md section 2)::
+standard deviation, computed here from the Fisher information of the model (README "Poses, signs and --reference")::
 
     m_k = A · reference · u_k + b + e_k,    e_k ~ N(0, σ²/n · I)        (pose means, k = 1..N)
     CRB = inv(Jᵀ Σ⁻¹ J),                    J = d(all m_k) / d(parameters)
@@ -44,8 +44,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tumblecal_cli import core, solvers
-from tumblecal_cli.core import FloatArray, PoseStats, Solution
+from tumblecal_cli.core import model as core
+from tumblecal_cli.core import solvers
+from tumblecal_cli.core.model import FloatArray, PoseStats, Solution
 
 SIGMA = 0.01  # raw units, 1 sigma per sample
 SAMPLES = 200  # samples per pose

@@ -22,12 +22,9 @@ from typing import Any
 
 import pytest
 
-from tests.test_cli import run, tumblecal_exe
-from tumblecal_cli import batch
+from tests.conftest import IMUCAL, SAMPLE, SIX_FACES, run, snapshot, tumblecal_exe, unit
+from tumblecal_cli.pipeline import batch
 
-ROOT = Path(__file__).resolve().parent.parent
-SAMPLE = ROOT / "sample_data"
-IMUCAL = SAMPLE / "imucal"
 LIMITS = SAMPLE / "limits.yaml"
 SESSION = IMUCAL / "session_every4th.csv"
 #: README 'segment': the imucal session's still blocks need these
@@ -36,7 +33,6 @@ LOG_OPTIONS = ("--rate", "25.6", "--reference", "9.81")
 EPOCH = "1700000000"
 STAMP = "20231114T221320Z"  # EPOCH as a file name's UTC time
 CREATED = "2023-11-14T22:13:20Z"  # and as the calibration's 'created'
-SIX_FACES = ("xp", "xn", "yp", "yn", "zp", "zn")
 
 
 # -- helpers -------------------------------------------------------------------------------
@@ -54,30 +50,6 @@ def _fixed_time(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("SOURCE_DATE_EPOCH", EPOCH)
 
 
-def unit(root: Path, serial: str, kind: str) -> Path:
-    """A unit folder ``root/serial`` of one kind:
-
-    good (x y z of the sample set: passes), six (imucal's six faces in counts: passes without
-    limits, fails any limit in g), rejected (x.csv given as y: pose.orientation, exit 3),
-    error (z is a header without data: exit 2).
-    """
-    folder = root / serial
-    folder.mkdir(parents=True)
-    if kind == "six":
-        for face in SIX_FACES:
-            shutil.copy(IMUCAL / f"{face}.csv", folder / f"{face}.csv")
-        return folder
-    for name in "xyz":
-        shutil.copy(SAMPLE / f"{name}.csv", folder / f"{name}.csv")
-    if kind == "rejected":
-        shutil.copy(SAMPLE / "x.csv", folder / "y.csv")
-    elif kind == "error":
-        (folder / "z.csv").write_text("t,ax,ay,az\n")
-    else:
-        assert kind == "good", kind
-    return folder
-
-
 def units(root: Path, kinds: dict[str, str]) -> Path:
     for serial, kind in kinds.items():
         unit(root, serial, kind)
@@ -93,11 +65,6 @@ def read_rows(path: Path) -> list[dict[str, str]]:
 
 def by_serial(path: Path) -> dict[str, dict[str, str]]:
     return {r["serial"]: r for r in read_rows(path)}
-
-
-def snapshot(folder: Path) -> dict[str, bytes]:
-    """Every file under ``folder`` (hidden ones too) and its bytes."""
-    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
 def cal_name(serial: str, k: int = 1) -> str:
@@ -212,16 +179,16 @@ def test_batch_internal_error_in_one_unit_is_its_row(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """A bug while solving one unit is that unit's error (status 2), not the batch's end."""
-    from tumblecal_cli import cli
+    from tumblecal_cli.pipeline import solve as pipeline
 
-    solve = cli.solve
+    solve = pipeline.run
 
-    def flaky(**kwargs: Any) -> None:
-        if kwargs["serial"] == "B":
+    def flaky(options: Any, **kwargs: Any) -> Any:
+        if options.serial == "B":
             raise RuntimeError("boom")
-        solve(**kwargs)
+        return solve(options, **kwargs)
 
-    monkeypatch.setattr(cli, "solve", flaky)
+    monkeypatch.setattr(pipeline, "run", flaky)
     src = units(tmp_path / "units", {"A": "good", "B": "good", "C": "good"})
     r = run(capsys, "batch", src, "--out-dir", tmp_path / "out")
     assert r.code == 2, r.err
@@ -754,6 +721,7 @@ def test_batch_log_serial_both_folder_and_file_is_exit_2(tmp_path: Path, capsys:
 # -- --jobs ----------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_batch_jobs_2_is_byte_identical_to_jobs_1(tmp_path: Path) -> None:
     units(tmp_path / "units", {"A": "good", "B": "six", "C": "rejected", "D": "error", "E": "good", "F": "six"})
     one = run_exe(["batch", "units", "--out-dir", "one", "--limits", LIMITS, "-q"], cwd=tmp_path)
@@ -1064,10 +1032,12 @@ def test_batch_progress_bar_on_a_terminal(
 
     from rich.console import Console
 
-    from tumblecal_cli import cli
+    from tumblecal_cli.cli import render
 
     screen = io.StringIO()
-    monkeypatch.setattr(cli, "_console", lambda stderr=True: Console(file=screen, force_terminal=True, width=100))
+    monkeypatch.setattr(
+        render, "make_console", lambda stderr=True: Console(file=screen, force_terminal=True, width=100)
+    )
     src = units(tmp_path / "units", {"A": "good", "B": "rejected", "C": "good"})
     assert run(capsys, "batch", src, "--out-dir", tmp_path / "tty").code == 3
     text = screen.getvalue()
@@ -1112,6 +1082,7 @@ def test_batch_manifest_from_a_spreadsheet(tmp_path: Path, capsys: pytest.Captur
     assert row["inputs"].split(";") == [f"+{n}={tmp_path / f'{n}.csv'}" for n in "zxy"]
 
 
+@pytest.mark.slow
 def test_batch_stopped_by_sigterm_leaves_no_calibration_without_a_row(tmp_path: Path) -> None:
     """SIGTERM mid-batch (--jobs 2): every calibration written has its row, no staging file is
     left, and --resume finishes the lot with exactly one calibration per unit."""
@@ -1140,6 +1111,7 @@ def test_batch_stopped_by_sigterm_leaves_no_calibration_without_a_row(tmp_path: 
     assert len([p for p in out.iterdir() if p.suffix == ".json"]) == 80
 
 
+@pytest.mark.slow
 def test_batch_reads_a_manifest_from_stdin(tmp_path: Path) -> None:
     """`tumblecal batch - < manifest.csv`: its files are relative to the working folder."""
     manifest = (SAMPLE / "lot.csv").read_text()
@@ -1160,6 +1132,7 @@ def test_batch_reads_a_manifest_from_stdin(tmp_path: Path) -> None:
     assert rows["SN0001"]["offset_x"] == named_rows["SN0001"]["offset_x"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("args", "stdin", "message"),
     [
@@ -1185,12 +1158,12 @@ def test_batch_stdin_and_stdout_usage_errors(tmp_path: Path, args: list[str], st
 
 def test_sigterm_while_applying_stops_the_run(monkeypatch: pytest.MonkeyPatch) -> None:
     """apply over many captures: an interrupted file is not a failed one, the run stops."""
-    from tumblecal_cli import cli
     from tumblecal_cli.errors import Interrupted
+    from tumblecal_cli.pipeline import correct
 
-    def interrupted(**_: Any) -> None:
+    def interrupted(*_: Any, **__: Any) -> None:
         raise Interrupted("interrupted (SIGTERM)")
 
-    monkeypatch.setattr(cli, "apply", interrupted)
+    monkeypatch.setattr(correct, "correct", interrupted)
     with pytest.raises(Interrupted):
-        batch.apply_one({}, "c.csv", "out/c.csv")
+        correct.correct_one({}, "c.csv", "out/c.csv")

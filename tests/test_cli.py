@@ -1,4 +1,4 @@
-"""CLI tests: exit status, stdout and stderr checked separately (DESIGN.md section 5).
+"""CLI tests: exit status, stdout and stderr checked separately (README "Exit status").
 
 Most tests call ``tumblecal_cli.cli.main`` in-process (fast); a few run the installed
 ``tumblecal`` script and ``python -m tumblecal_cli`` as subprocesses, for stdin piping and the
@@ -7,7 +7,6 @@ entry points. Bad inputs live in ``tests/data/bad/``, one file per defect.
 
 from __future__ import annotations
 
-import io
 import json
 import os
 import shutil
@@ -18,7 +17,6 @@ import sys
 import threading
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -27,17 +25,25 @@ import pytest
 import yaml
 from numpy.typing import NDArray
 
-from tumblecal_cli import __version__, core
+from tests.conftest import (
+    BAD,
+    IMUCAL,
+    POSES_3,
+    SAMPLE,
+    assert_one_error,
+    assert_untouched,
+    feed_stdin,
+    precious,
+    run_exe,
+    tumblecal_exe,
+)
+from tests.conftest import run as run  # re-exported: tests/test_api.py imports run from here
+from tumblecal_cli import __version__
 from tumblecal_cli.cli import main
+from tumblecal_cli.core import model as core
 from tumblecal_cli.errors import InputError
 
 FloatArray = NDArray[np.float64]
-
-ROOT = Path(__file__).resolve().parent.parent
-SAMPLE = ROOT / "sample_data"
-IMUCAL = SAMPLE / "imucal"
-BAD = Path(__file__).resolve().parent / "data" / "bad"
-POSES_3 = [str(SAMPLE / "x.csv"), str(SAMPLE / "y.csv"), str(SAMPLE / "z.csv")]
 
 #: the sample set's truth (sample_data/README.md); the 3-pose result must be this within 3e-4
 TRUE_OFFSET = [0.021, -0.034, 0.047]
@@ -52,71 +58,9 @@ MATRIX = np.array(
         [0.0052, -0.0033, 0.9950],
     ]
 )
-PRECIOUS = b"an existing output that a failed run must leave alone\n"
 
 
 # -- helpers -------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Result:
-    code: int
-    out: str
-    err: str
-
-
-def run(capsys: pytest.CaptureFixture[str], *args: str | Path) -> Result:
-    """``tumblecal ARGS`` in-process."""
-    code = main([str(a) for a in args])
-    captured = capsys.readouterr()
-    return Result(code, captured.out, captured.err)
-
-
-def tumblecal_exe() -> str:
-    """The console script of the interpreter running the tests."""
-    beside = Path(sys.executable).parent / "tumblecal"
-    found = str(beside) if beside.exists() else shutil.which("tumblecal")
-    assert found, "the tumblecal console script is not installed"
-    return found
-
-
-def run_exe(
-    args: Sequence[str | Path], stdin: bytes = b"", cwd: Path | None = None
-) -> subprocess.CompletedProcess[bytes]:
-    env = {**os.environ, "NO_COLOR": "1"}
-    return subprocess.run(
-        [tumblecal_exe(), *map(str, args)], input=stdin, capture_output=True, cwd=cwd, env=env, timeout=60, check=False
-    )
-
-
-def feed_stdin(monkeypatch: pytest.MonkeyPatch, data: bytes) -> None:
-    monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(data)))
-
-
-def assert_one_error(result: Result, expected: str, *, code: int = 2, hint: str | None = None) -> None:
-    """Exit ``code``, nothing on stdout, and on stderr exactly ``error: <expected>`` (plus a hint)."""
-    assert result.code == code, result.err
-    assert result.out == ""
-    assert "Traceback" not in result.err
-    lines = result.err.splitlines()
-    assert [ln for ln in lines if ln.startswith("error:")] == [f"error: {expected}"]
-    other = [ln for ln in lines if not ln.startswith(("error:", "hint:"))]
-    assert other == [], "only the error line and its hint go to stderr"
-    hints = [ln for ln in lines if ln.startswith("hint:")]
-    if hint is not None:
-        assert len(hints) == 1
-        assert hint in hints[0]
-
-
-def precious(path: Path) -> Path:
-    path.write_bytes(PRECIOUS)
-    return path
-
-
-def assert_untouched(path: Path) -> None:
-    assert path.read_bytes() == PRECIOUS
-    leftovers = [p.name for p in path.parent.iterdir() if p.name.startswith(f".{path.name}.")]
-    assert leftovers == [], "no temporary file is left behind"
 
 
 def write_pose(
@@ -520,6 +464,7 @@ def test_apply_sample_capture_reads_one_g(tmp_path: Path, capsys: pytest.Capture
     np.testing.assert_allclose(segments, 1.0, atol=5e-4)
 
 
+@pytest.mark.slow
 def test_apply_stdin_to_stdout_subprocess(cal: Path, tmp_path: Path) -> None:
     src = tmp_path / "capture.csv"
     data, _, _ = _interleaved_capture(src, n=50)
@@ -534,6 +479,7 @@ def test_apply_stdin_to_stdout_subprocess(cal: Path, tmp_path: Path) -> None:
     assert (dash.returncode, dash.stdout, dash.stderr) == (0, via_file.stdout, b"")
 
 
+@pytest.mark.slow
 def test_apply_real_pipe_from_cat(cal: Path, tmp_path: Path) -> None:
     src = tmp_path / "capture.csv"
     _interleaved_capture(src, n=30)
@@ -718,6 +664,7 @@ def test_version(capsys: pytest.CaptureFixture[str]) -> None:
     assert __version__ == "0.1.0"
 
 
+@pytest.mark.slow
 def test_python_dash_m_version() -> None:
     done = subprocess.run(
         [sys.executable, "-m", "tumblecal_cli", "--version"], capture_output=True, timeout=60, check=False
@@ -725,6 +672,7 @@ def test_python_dash_m_version() -> None:
     assert (done.returncode, done.stdout, done.stderr) == (0, b"tumblecal 0.1.0\n", b"")
 
 
+@pytest.mark.slow
 def test_console_script_version() -> None:
     done = run_exe(["--version"])
     assert (done.returncode, done.stdout, done.stderr) == (0, b"tumblecal 0.1.0\n", b"")
@@ -968,6 +916,7 @@ def test_debug_raises_the_error_in_process(capsys: pytest.CaptureFixture[str]) -
     assert "Traceback" not in r.err
 
 
+@pytest.mark.slow
 def test_debug_shows_a_traceback_subprocess() -> None:
     done = run_exe(["--debug", "solve", "--poses", BAD / "empty.csv"])
     assert done.returncode != 0
@@ -1053,6 +1002,7 @@ def test_usage_errors_are_one_line(
     assert_one_error(run(capsys, *args), expected, hint=hint)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "command",
     [
@@ -1073,6 +1023,7 @@ def test_output_to_a_reader_already_gone_is_141(command: list[str | Path]) -> No
     assert (proc.returncode, proc.stderr) == (141, b"")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("command", ["apply", "solve"])
 def test_output_onto_the_file_on_stdin_is_refused(command: str, cal: Path, tmp_path: Path) -> None:
     """`tumblecal apply --cal cal.json -o c.csv < c.csv`: the input arrives by stdin, not by name."""
@@ -1090,6 +1041,7 @@ def test_output_onto_the_file_on_stdin_is_refused(command: str, cal: Path, tmp_p
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
 
 
+@pytest.mark.slow
 def test_sigterm_mid_apply_leaves_no_temporary_file(cal: Path, tmp_path: Path) -> None:
     """A station's kill (SIGTERM) is handled as Ctrl-C: exit 130, the old output as it was, no
     hidden temporary file beside it."""
@@ -1113,6 +1065,7 @@ def test_sigterm_mid_apply_leaves_no_temporary_file(cal: Path, tmp_path: Path) -
     assert sorted(p.name for p in out.iterdir()) == ["corrected.csv"]
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full")
 def test_a_full_disk_is_an_error_not_a_bug() -> None:
     with open("/dev/full", "wb") as full:
@@ -1126,6 +1079,7 @@ def test_a_full_disk_is_an_error_not_a_bug() -> None:
     assert proc.stderr.decode().splitlines() == ["error: <stdout>: cannot write: No space left on device"]
 
 
+@pytest.mark.slow
 def test_output_to_a_named_pipe_writes_into_it_and_keeps_it(tmp_path: Path) -> None:
     """`-o /dev/null`, `-o /dev/stdout`, a FIFO: written into, never replaced by a file (an
     atomic replace there would put a regular file where the device was). Tested on a FIFO."""
@@ -1144,6 +1098,7 @@ def test_output_to_a_named_pipe_writes_into_it_and_keeps_it(tmp_path: Path) -> N
     assert json.loads(received[0])["method"] == "one-pose"
 
 
+@pytest.mark.slow
 def test_output_to_dev_stdout_is_the_stream_not_the_file_behind_it(tmp_path: Path) -> None:
     """`{ echo head; tumblecal ... -o /dev/stdout; } >> log`: written to the stream, the lines
     before it kept (a rename onto /proc/self/fd/1's file would lose them)."""
@@ -1157,6 +1112,7 @@ def test_output_to_dev_stdout_is_the_stream_not_the_file_behind_it(tmp_path: Pat
     assert json.loads(rest)["method"] == "one-pose"
 
 
+@pytest.mark.slow
 def test_output_through_a_symbolic_link_replaces_its_target(tmp_path: Path) -> None:
     target = tmp_path / "cal_2026.json"
     target.write_text("old")
@@ -1172,6 +1128,7 @@ def test_output_through_a_symbolic_link_replaces_its_target(tmp_path: Path) -> N
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cal_2026.json", "latest.json"]
 
 
+@pytest.mark.slow
 def test_a_narrow_terminal_never_crops_the_numbers(tmp_path: Path) -> None:
     """At 50 columns the summary's numbers are printed whole (the lines run long) rather than
     cut to digits that look valid and are not."""
@@ -1189,6 +1146,7 @@ def test_a_narrow_terminal_never_crops_the_numbers(tmp_path: Path) -> None:
     assert x_row[3] == f"{doc['uncertainty']['offset'][0]:.2g}"
 
 
+@pytest.mark.slow
 def test_a_file_too_large_names_the_output(cal: Path, tmp_path: Path) -> None:
     """A refused write to a file names that file (the OS error carries no name of its own)."""
     out = tmp_path / "corrected.csv"
@@ -1199,6 +1157,7 @@ def test_a_file_too_large_names_the_output(cal: Path, tmp_path: Path) -> None:
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cal.json"]
 
 
+@pytest.mark.slow
 def test_closed_stdout_stops_quietly_with_141(tmp_path: Path) -> None:
     """`tumblecal apply ... | head -1`: the reader goes away; no traceback, status 141."""
     cal = tmp_path / "cal.json"

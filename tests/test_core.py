@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from numpy.typing import ArrayLike
 
 from tests.synth import FloatArray, Truth, pose_samples
-from tumblecal_cli import core
+from tumblecal_cli.core import model as core
 from tumblecal_cli.errors import CaptureRejected, InputError
 
 G = 9.80665  # m/s^2 per g
@@ -149,7 +149,7 @@ def test_one_pose_standard_errors_match_the_scatter() -> None:
 
 
 def test_three_pose_offsets_shift_to_first_order_with_fixture_tilt() -> None:
-    """Seed 000 notes / DESIGN.md section 2: 3-pose offsets come from horizontal readings.
+    """Seed 000 notes / README "Poses, signs and --reference": 3-pose offsets come from horizontal readings.
 
     In tests/synth.py each pose leans towards the next axis (+x towards +y, +y towards +z, +z
     towards +x), so each axis is tilted into in exactly one of its two horizontal poses, and
@@ -314,6 +314,7 @@ unit_vectors = (
 )
 
 
+@pytest.mark.slow
 @given(
     reference=REFERENCES,
     offset=st.tuples(*[st.floats(-100.0, 100.0)] * 3),

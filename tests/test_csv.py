@@ -1,4 +1,4 @@
-"""Capture reading (DESIGN.md section 5a): layout sniffing, column detection, streaming.
+"""Capture reading (README "CSV captures"): layout sniffing, column detection, streaming.
 
 Unit tests of ``captures.open_capture`` / ``captures.read_samples``; the CLI tests check the
 same rules end to end.
@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import hashlib
 import io
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -16,9 +15,10 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from tumblecal_cli import captures
-from tumblecal_cli.captures import open_capture, read_samples
+from tests.conftest import feed_stdin
 from tumblecal_cli.errors import InputError
+from tumblecal_cli.io import captures
+from tumblecal_cli.io.captures import open_capture, read_samples
 
 FloatArray = NDArray[np.float64]
 
@@ -44,10 +44,6 @@ def picked(path: str, **kwargs: object) -> tuple[list[str], str | None]:
     with open_capture(path, **kwargs) as cap:  # type: ignore[arg-type]
         lay = cap.layout
         return lay.sensor_names, None if lay.time is None else lay.names[lay.time]
-
-
-def feed_stdin(monkeypatch: pytest.MonkeyPatch, data: bytes) -> None:
-    monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(data)))
 
 
 # -- column detection ------------------------------------------------------------------------
@@ -330,6 +326,7 @@ def test_bad_rows_name_line_and_column(row: str, message: str, tmp_path: Path) -
     assert str(err.value) == f"{path}: {message}"
 
 
+@pytest.mark.slow
 def test_bad_row_in_a_later_block_names_its_line(tmp_path: Path) -> None:
     """Rows are counted across pyarrow's blocks (this file is larger than one block)."""
     n = 200_000
@@ -406,6 +403,7 @@ def test_xsens_whitespace_file() -> None:
     assert s.duration == pytest.approx(expected[-1, 0] - expected[0, 0])
 
 
+@pytest.mark.slow
 def test_large_whitespace_file_streams_across_chunks(tmp_path: Path) -> None:
     """Longer than the sniffed first block: the squeezed stream must not break a line."""
     rng = np.random.default_rng(3)

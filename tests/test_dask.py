@@ -18,13 +18,12 @@ from pathlib import Path
 
 import pytest
 
-from tests.test_batch import unit
-from tests.test_cli import tumblecal_exe
+from tests.conftest import SAMPLE, snapshot, tumblecal_exe, unit
 
 distributed = pytest.importorskip("distributed")
 
-ROOT = Path(__file__).resolve().parent.parent
-SAMPLE = ROOT / "sample_data"
+pytestmark = pytest.mark.slow
+
 LIMITS = SAMPLE / "limits.yaml"
 EPOCH = "1700000000"
 STAMP = "20231114T221320Z"
@@ -43,10 +42,6 @@ def run_exe(args: Sequence[str | Path], cwd: Path | None = None) -> subprocess.C
     return subprocess.run(
         command(args), capture_output=True, text=True, cwd=cwd, env=environment(), timeout=120, check=False
     )
-
-
-def snapshot(folder: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
 def make_units(root: Path) -> Path:

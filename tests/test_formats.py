@@ -16,10 +16,12 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tumblecal_cli import calfile, core, formats, lot
-from tumblecal_cli.cli import main
-from tumblecal_cli.core import FloatArray, Solution
+from tests.conftest import run
+from tumblecal_cli.core import model as core
+from tumblecal_cli.core.model import FloatArray, Solution
 from tumblecal_cli.errors import InputError
+from tumblecal_cli.io import calfile, formats
+from tumblecal_cli.pipeline import report as reports
 
 ROOT = Path(__file__).resolve().parent.parent
 IMUCAL_CAL = ROOT / "tests" / "data" / "imucal_session" / "example_cal.json"
@@ -33,12 +35,6 @@ IMUCAL_M = np.array(
     ]
 )
 IMUCAL_B = [-6.018868019671572, -48.287874016760156, -28.96636637224333]
-
-
-def run(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    code = main(args)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def write_cal(
@@ -83,25 +79,25 @@ def corrected(path: Path, raw: FloatArray) -> FloatArray:
 def test_import_imucal_published_calibration(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """imucal's own file: M = R_a^-1 K_a^-1 and offset b_a, as the solvers issue states them."""
     out = tmp_path / "cal.json"
-    code, _, err = run(["import", str(IMUCAL_CAL), "-o", str(out)], capsys)
+    code, _, err = run(capsys, "import", str(IMUCAL_CAL), "-o", str(out))
     assert code == 0, err
     cal = calfile.load(str(out))
     np.testing.assert_allclose(cal.matrix, IMUCAL_M, rtol=1e-9)
     assert cal.offset.tolist() == IMUCAL_B
-    assert cal.doc["method"] == "imported"
+    assert cal.to_dict()["method"] == "imported"
     assert cal.reference == 9.81
-    assert cal.doc["units"] == "m/s^2"
+    assert cal.to_dict()["units"] == "m/s^2"
     assert cal.columns == ["acc_x", "acc_y", "acc_z"]
-    assert cal.doc["imported"]["format"] == "imucal-json"
+    assert cal.to_dict()["imported"]["format"] == "imucal-json"
     assert "reference 9.81" in err
 
 
 def test_six_pose_solve_exports_what_imucal_published(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """Our six-pose solve of imucal's session, exported, carries imucal's own K_a, R_a and b_a."""
     cal, exported = tmp_path / "six.json", tmp_path / "imucal.json"
-    code, _, err = run(["solve", "--poses", *SIX, "--reference", "9.81", "-q", "-o", str(cal)], capsys)
+    code, _, err = run(capsys, "solve", "--poses", *SIX, "--reference", "9.81", "-q", "-o", str(cal))
     assert code == 0, err
-    assert run(["export", str(cal), "--format", "imucal-json", "-o", str(exported)], capsys)[0] == 0
+    assert run(capsys, "export", str(cal), "--format", "imucal-json", "-o", str(exported))[0] == 0
     ours, theirs = json.loads(exported.read_text()), json.loads(IMUCAL_CAL.read_text())
     assert list(ours) == [*theirs, "_format_version"]  # imucal's to_json field order, and its version key
     assert ours["_format_version"] == "2.0.0"
@@ -132,8 +128,8 @@ def test_export_import_round_trip(tmp_path: Path, capsys: pytest.CaptureFixture[
     offset, m = random_cal(rng)
     cal = write_cal(tmp_path / "cal.json", offset, m, reference=1.0)
     peer, back = tmp_path / ("peer.json" if fmt == "imucal-json" else "peer.yaml"), tmp_path / "back.json"
-    assert run(["export", str(cal), "--format", fmt, "-o", str(peer)], capsys)[0] == 0
-    code, _, err = run(["import", str(peer), "-o", str(back)], capsys)
+    assert run(capsys, "export", str(cal), "--format", fmt, "-o", str(peer))[0] == 0
+    code, _, err = run(capsys, "import", str(peer), "-o", str(back))
     assert code == 0, err
     raw = offset + rng.normal(0, 2048, (200, 3))
     want, got = corrected(cal, raw), corrected(back, raw)
@@ -145,14 +141,14 @@ def test_export_import_round_trip(tmp_path: Path, capsys: pytest.CaptureFixture[
 
 def test_gyroscope_goes_in_imucal_gyro_slot(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     cal = write_cal(tmp_path / "g.json", [0.5, -0.2, 0.1], np.diag([0.99, 1.01, 1.0]), sensor="gyroscope", reference=0)
-    code, out, _ = run(["export", str(cal), "--format", "imucal-json"], capsys)
+    code, out, _ = run(capsys, "export", str(cal), "--format", "imucal-json")
     doc = json.loads(out)
     assert code == 0
     assert doc["b_g"] == [0.5, -0.2, 0.1]
     assert doc["b_a"] == [0.0, 0.0, 0.0]
     peer = tmp_path / "peer.json"
     peer.write_text(out)
-    code, out, _ = run(["import", str(peer), "--sensor", "gyroscope"], capsys)
+    code, out, _ = run(capsys, "import", str(peer), "--sensor", "gyroscope")
     back = json.loads(out)
     assert code == 0
     assert back["sensor"] == "gyroscope"
@@ -161,7 +157,7 @@ def test_gyroscope_goes_in_imucal_gyro_slot(tmp_path: Path, capsys: pytest.Captu
 
 
 def test_import_imucal_gyroscope_notes_dropped_g_sensitivity(capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, err = run(["import", str(IMUCAL_CAL), "--sensor", "gyroscope"], capsys)
+    code, out, err = run(capsys, "import", str(IMUCAL_CAL), "--sensor", "gyroscope")
     assert code == 0
     assert json.loads(out)["units"] == "deg/s"
     assert "K_ga" in err
@@ -176,7 +172,7 @@ def test_ros_yaml_is_sm_raw_minus_bias(tmp_path: Path, capsys: pytest.CaptureFix
     rng = np.random.default_rng(3)
     offset, m = random_cal(rng)
     cal = write_cal(tmp_path / "cal.json", offset, m)
-    code, out, _ = run(["export", str(cal), "--format", "ros-yaml"], capsys)
+    code, out, _ = run(capsys, "export", str(cal), "--format", "ros-yaml")
     doc = yaml.safe_load(out)
     assert code == 0
     assert set(doc) == {"SM", "bias"}
@@ -192,7 +188,7 @@ def test_matlab_is_u_times_a_plus_b(tmp_path: Path, capsys: pytest.CaptureFixtur
     rng = np.random.default_rng(4)
     offset, m = random_cal(rng)
     cal = write_cal(tmp_path / "cal.json", offset, m)
-    code, out, _ = run(["export", str(cal), "--format", "matlab"], capsys)
+    code, out, _ = run(capsys, "export", str(cal), "--format", "matlab")
     assert code == 0
     body = out.split("A = [", 1)[1]
     a = np.array([float(v) for v in body.split("]", 1)[0].replace(";", " ").split()]).reshape(3, 3)
@@ -230,8 +226,8 @@ def test_c_header_compiles_cleanly_and_corrects(tmp_path: Path, capsys: pytest.C
     offset, m = random_cal(rng)
     cal = write_cal(tmp_path / "cal.json", offset, m, serial="SN */ 42\nx")  # a serial that tries to end the comment
     mag = write_cal(tmp_path / "mag.json", [0.1, 0.2, 0.3], np.eye(3), method="ellipsoid", sensor="magnetometer")
-    assert run(["export", str(cal), "--format", "c-header", "-o", str(tmp_path / "accel.h")], capsys)[0] == 0
-    assert run(["export", str(mag), "-f", "c-header", "-o", str(tmp_path / "mag.h")], capsys)[0] == 0
+    assert run(capsys, "export", str(cal), "--format", "c-header", "-o", str(tmp_path / "accel.h"))[0] == 0
+    assert run(capsys, "export", str(mag), "-f", "c-header", "-o", str(tmp_path / "mag.h"))[0] == 0
     header = (tmp_path / "accel.h").read_text()
     assert "#ifndef TUMBLECAL_ACCEL_H" in header
     assert "static const float TUMBLECAL_ACCEL_MATRIX[3][3]" in header
@@ -271,9 +267,7 @@ def test_c_header_compiles_as_cpp(tmp_path: Path, capsys: pytest.CaptureFixture[
     if gxx is None:
         pytest.skip("g++ is not installed")
     cal = write_cal(tmp_path / "cal.json", [1.0, 2.0, 3.0], np.eye(3))
-    assert (
-        run(["export", str(cal), "-f", "c-header", "--prefix", "imu0", "-o", str(tmp_path / "imu.h")], capsys)[0] == 0
-    )
+    assert run(capsys, "export", str(cal), "-f", "c-header", "--prefix", "imu0", "-o", str(tmp_path / "imu.h"))[0] == 0
     (tmp_path / "t.cpp").write_text(
         '#include "imu.h"\nint f(float* o) { const float r[3] = {1, 2, 3}; imu0_apply(r, o); return 0; }\n'
     )
@@ -291,7 +285,7 @@ def test_c_float_literals_are_valid() -> None:
 
 def test_c_header_rejects_a_bad_prefix(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     cal = write_cal(tmp_path / "cal.json", [0, 0, 0], np.eye(3))
-    code, out, err = run(["export", str(cal), "-f", "c-header", "--prefix", "9lives"], capsys)
+    code, out, err = run(capsys, "export", str(cal), "-f", "c-header", "--prefix", "9lives")
     assert code == 2
     assert out == ""
     assert "not a C identifier" in err
@@ -308,7 +302,7 @@ def registers(out: str) -> dict[str, list[str]]:
 
 def test_registers_offsets_subtract_and_add(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     cal = write_cal(tmp_path / "cal.json", [-6.0189, -48.2879, 29.4], np.eye(3))
-    code, out, _ = run(["export", str(cal), "--format", "registers", "--lsb", "0.98", "--bits", "16"], capsys)
+    code, out, _ = run(capsys, "export", str(cal), "--format", "registers", "--lsb", "0.98", "--bits", "16")
     rows = registers(out)
     assert code == 0
     assert [rows[f"offset_{a}"][0] for a in "xyz"] == ["-6", "-49", "30"]
@@ -316,7 +310,7 @@ def test_registers_offsets_subtract_and_add(tmp_path: Path, capsys: pytest.Captu
     assert rows["offset_z"][1] == "0x001E"
     assert float(rows["offset_x"][2]) == pytest.approx(-5.88)
     assert float(rows["offset_x"][4]) == pytest.approx(-0.1389)
-    code, out, _ = run(["export", str(cal), "-f", "registers", "--lsb", "0.98", "--register-sign", "add"], capsys)
+    code, out, _ = run(capsys, "export", str(cal), "-f", "registers", "--lsb", "0.98", "--register-sign", "add")
     assert code == 0
     assert [registers(out)[f"offset_{a}"][0] for a in "xyz"] == ["6", "49", "-30"]
 
@@ -325,7 +319,7 @@ def test_registers_gain_trim(tmp_path: Path, capsys: pytest.CaptureFixture[str])
     """Gain 2088 counts/g on x, nominal 2048: the trim must scale x by 2048/2088 (count -19 at 0.1 %)."""
     cal = write_cal(tmp_path / "cal.json", [0, 0, 0], np.diag(1 / np.array([2088.0, 2048.0, 2000.0])))
     args = ["export", str(cal), "-f", "registers", "--lsb", "1", "--gain-step", "0.001", "--nominal-gain", "2048"]
-    code, out, err = run(args, capsys)
+    code, out, err = run(capsys, *args)
     rows = registers(out)
     assert code == 0, err
     assert [rows[f"gain_{a}"][0] for a in "xyz"] == [str(round((2048 / 2088 - 1) / 0.001)), "0", "24"]
@@ -355,7 +349,7 @@ def test_registers_refuse_what_does_not_fit(
     cal = write_cal(tmp_path / "cal.json", [-6.0189, -48.2879, 29.4], np.eye(3))
     out = tmp_path / "regs.csv"
     out.write_text("old\n")
-    code, stdout, err = run(["export", str(cal), "-f", "registers", *args, "-o", str(out)], capsys)
+    code, stdout, err = run(capsys, "export", str(cal), "-f", "registers", *args, "-o", str(out))
     assert (code, stdout) == (2, ""), err
     assert message in err
     assert len(err.splitlines()) <= 2
@@ -371,12 +365,12 @@ def test_a_nominal_gain_given_to_solve_alone_is_recorded_for_the_gain_trim(
     poses = [str(imucal / f"{face}.csv") for face in ("xp", "xn", "yp", "yn", "zp", "zn")]
     cal = tmp_path / "ng.json"
     code, _, err = run(
-        ["solve", "-q", "-p", *poses, "--reference", "9.81", "--nominal-gain", "208", "-o", str(cal)], capsys
+        capsys, "solve", "-q", "-p", *poses, "--reference", "9.81", "--nominal-gain", "208", "-o", str(cal)
     )
     assert code == 0, err
     doc = json.loads(cal.read_text())
     assert doc["verdict"] == {"pass": True, "failures": [], "limits": {"nominal_gain": [208.0, 208.0, 208.0]}}
-    code, out, err = run(["export", str(cal), "-f", "registers", "--lsb", "1", "--gain-step", "0.001"], capsys)
+    code, out, err = run(capsys, "export", str(cal), "-f", "registers", "--lsb", "1", "--gain-step", "0.001")
     assert code == 0, err
     gain_x = float(np.linalg.inv(doc["matrix"])[0, 0])
     assert float(registers(out)["gain_x"][3]) == pytest.approx(208.0 / gain_x, rel=1e-12)
@@ -386,34 +380,37 @@ def test_registers_name_every_misfit_with_its_own_arithmetic_and_hint(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     cal = write_cal(tmp_path / "cal.json", [-6.0189, -48.2879, 29.4], np.eye(3))
-    code, _, err = run(["export", str(cal), "-f", "registers", "--lsb", "1", "--bits", "2"], capsys)
+    code, _, err = run(capsys, "export", str(cal), "-f", "registers", "--lsb", "1", "--bits", "2")
     assert code == 2
     errors = [line for line in err.splitlines() if line.startswith("error:")]
     assert [e.split(": ")[2].split(" needs")[0] for e in errors] == ["offset_x", "offset_y", "offset_z"]
     assert "hint: check --lsb" in err
     code, _, err = run(
-        ["export", str(cal), "-f", "registers", "--lsb", "1", "--bits", "6", "--register-sign", "add"], capsys
+        capsys, "export", str(cal), "-f", "registers", "--lsb", "1", "--bits", "6", "--register-sign", "add"
     )
     assert code == 2
     assert "offset_y needs 48 register counts (-(offset -48.2879) / --lsb 1), outside the signed 6-bit range" in err
     gains = write_cal(tmp_path / "gains.json", [0, 0, 0], np.diag(1 / np.array([2088.0, 2048.0, 2000.0])))
     args = ["export", str(gains), "-f", "registers", "--lsb", "1", "--bits", "4", "--gain-step", "0.001"]
-    code, _, err = run([*args, "--nominal-gain", "2048"], capsys)
+    code, _, err = run(capsys, *args, "--nominal-gain", "2048")
     assert code == 2
     assert "gain_x needs -19 register counts" in err
     assert "hint: check --gain-step (what one count adds to the factor) and --nominal-gain, or --bits" in err
     zero = write_cal(tmp_path / "zero.json", [0.0, 0.0, 0.0], np.eye(3))
-    code, out, _ = run(["export", str(zero), "-f", "registers", "--lsb", "1", "--register-sign", "add"], capsys)
+    code, out, _ = run(capsys, "export", str(zero), "-f", "registers", "--lsb", "1", "--register-sign", "add")
     assert code == 0
     assert {row[2] for row in registers(out).values()} == {"0"}  # never "-0"
 
 
+@pytest.mark.slow
 @given(offset=st.floats(-1e4, 1e4), lsb=st.floats(0.01, 100), bits=st.integers(4, 24))
 @settings(max_examples=200, deadline=None)
 def test_register_counts_round_to_nearest_and_fit(offset: float, lsb: float, bits: int) -> None:
     """Every count written fits the signed range and leaves at most half a count of error."""
     doc = {"offset": [offset, 0.0, 0.0], "matrix": np.eye(3).tolist()}
-    cal = calfile.Loaded("c.json", np.array(doc["offset"]), np.eye(3), ["x", "y", "z"], "magnetometer", 1.0, doc)
+    cal = calfile.Calibration(
+        "magnetometer", "six-pose", 1.0, ["x", "y", "z"], np.array(doc["offset"]), np.eye(3), np.ones(3)
+    )
     count = round(offset / lsb)
     if not -(2 ** (bits - 1)) <= count <= 2 ** (bits - 1) - 1:
         with pytest.raises(InputError, match="offset_x needs"):
@@ -428,7 +425,7 @@ def test_register_counts_round_to_nearest_and_fit(offset: float, lsb: float, bit
 
 def test_gain_trim_needs_gains(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     cal = write_cal(tmp_path / "cal.json", [0.1, 0.2, 0.3], np.eye(3), method="one-pose")
-    code, _, err = run(["export", str(cal), "-f", "registers", "--lsb", "0.01", "--gain-step", "0.001"], capsys)
+    code, _, err = run(capsys, "export", str(cal), "-f", "registers", "--lsb", "0.01", "--gain-step", "0.001")
     assert code == 2
     assert "fixes the gains" in err
 
@@ -447,14 +444,14 @@ def test_gain_trim_needs_gains(tmp_path: Path, capsys: pytest.CaptureFixture[str
 )
 def test_export_usage_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], message: str) -> None:
     cal = write_cal(tmp_path / "cal.json", [0, 0, 0], np.eye(3))
-    code, out, err = run(["export", str(cal), *args], capsys)
+    code, out, err = run(capsys, "export", str(cal), *args)
     assert (code, out) == (2, ""), err
     assert message in err
 
 
 def test_export_magnetometer_to_imucal_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     cal = write_cal(tmp_path / "m.json", [0, 0, 0], np.eye(3), method="ellipsoid", sensor="magnetometer")
-    code, _, err = run(["export", str(cal), "-f", "imucal-json"], capsys)
+    code, _, err = run(capsys, "export", str(cal), "-f", "imucal-json")
     assert code == 2
     assert "not a magnetometer" in err
     assert str(cal) in err
@@ -463,7 +460,7 @@ def test_export_magnetometer_to_imucal_is_refused(tmp_path: Path, capsys: pytest
 def test_export_never_writes_onto_its_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     cal = write_cal(tmp_path / "cal.json", [0, 0, 0], np.eye(3))
     before = cal.read_bytes()
-    code, _, err = run(["export", str(cal), "-f", "matlab", "-o", str(cal)], capsys)
+    code, _, err = run(capsys, "export", str(cal), "-f", "matlab", "-o", str(cal))
     assert code == 2
     assert "would overwrite the input" in err
     assert cal.read_bytes() == before
@@ -471,7 +468,7 @@ def test_export_never_writes_onto_its_input(tmp_path: Path, capsys: pytest.Captu
 
 def test_import_a_tumblecal_file_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     cal = write_cal(tmp_path / "cal.json", [0, 0, 0], np.eye(3))
-    code, out, err = run(["import", str(cal)], capsys)
+    code, out, err = run(capsys, "import", str(cal))
     assert code == 2
     assert out == ""
     assert "neither an imucal JSON" in err
@@ -479,22 +476,22 @@ def test_import_a_tumblecal_file_is_refused(tmp_path: Path, capsys: pytest.Captu
 
 
 def test_import_format_mismatch_and_bad_fields(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    code, _, err = run(["import", str(IMUCAL_CAL), "--from", "ros-yaml"], capsys)
+    code, _, err = run(capsys, "import", str(IMUCAL_CAL), "--from", "ros-yaml")
     assert code == 2
     assert "the file is imucal-json, not ros-yaml" in err
     bad = tmp_path / "ros.yaml"
     bad.write_text("SM: [1, 0, 0, 0, 1, 0, 0, 0]\nbias: [0, 0, 0]\n")
-    code, _, err = run(["import", str(bad)], capsys)
+    code, _, err = run(capsys, "import", str(bad))
     assert code == 2
     assert "field 'SM' must be 3x3 numbers" in err
     bad.write_text("SM: [1, 0, 0, 0, 0, 0, 0, 0, 1]\nbias: [0, 0, 0]\n")
-    code, _, err = run(["import", str(bad)], capsys)
+    code, _, err = run(capsys, "import", str(bad))
     assert code == 2
     assert "field 'SM' is singular" in err
     doc = json.loads(IMUCAL_CAL.read_text()) | {"_format_version": "9.0.0"}
     newer = tmp_path / "newer.json"
     newer.write_text(json.dumps(doc))
-    code, _, err = run(["import", str(newer)], capsys)
+    code, _, err = run(capsys, "import", str(newer))
     assert code == 2
     assert "format version '9.0.0'" in err
 
@@ -503,10 +500,10 @@ def test_import_unknown_units_needs_reference(tmp_path: Path, capsys: pytest.Cap
     doc = json.loads(IMUCAL_CAL.read_text()) | {"acc_unit": "mg"}
     peer = tmp_path / "mg.json"
     peer.write_text(json.dumps(doc))
-    code, _, err = run(["import", str(peer)], capsys)
+    code, _, err = run(capsys, "import", str(peer))
     assert code == 2
     assert "give --reference" in err
-    code, out, _ = run(["import", str(peer), "--reference", "1000", "--columns", "a,b,c", "--serial", "U1"], capsys)
+    code, out, _ = run(capsys, "import", str(peer), "--reference", "1000", "--columns", "a,b,c", "--serial", "U1")
     back = json.loads(out)
     assert code == 0
     assert back["reference"] == 1000
@@ -521,41 +518,41 @@ def test_import_ros_file_of_another_sensor_has_no_acceleration_units(
     file not from tumblecal), the units are unknown and a magnetometer's field must be given."""
     peer = tmp_path / "plain.yaml"
     peer.write_text("SM: [1, 0, 0, 0, 1, 0, 0, 0, 1]\nbias: [0.1, 0.2, 0.3]\n")
-    code, out, err = run(["import", str(peer), "--sensor", "gyroscope", "-q"], capsys)
+    code, out, err = run(capsys, "import", str(peer), "--sensor", "gyroscope", "-q")
     assert code == 0, err
     assert (json.loads(out)["units"], json.loads(out)["reference"]) == (None, 0.0)
-    code, out, err = run(["import", str(peer), "--sensor", "magnetometer", "-q"], capsys)
+    code, out, err = run(capsys, "import", str(peer), "--sensor", "magnetometer", "-q")
     assert code == 2
     assert "give --reference" in err
-    code, out, err = run(["import", str(peer), "--sensor", "magnetometer", "--reference", "48", "-q"], capsys)
+    code, out, err = run(capsys, "import", str(peer), "--sensor", "magnetometer", "--reference", "48", "-q")
     assert code == 0, err
     assert (json.loads(out)["units"], json.loads(out)["reference"]) == (None, 48.0)
-    code, out, _ = run(["import", str(peer), "-q"], capsys)
+    code, out, _ = run(capsys, "import", str(peer), "-q")
     assert (json.loads(out)["units"], json.loads(out)["reference"]) == ("m/s^2", 9.80665)
 
 
 def test_imported_calibration_applies_and_exports(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """An imported file is a calibration like any other: show, apply and export read it."""
     cal = tmp_path / "cal.json"
-    assert run(["import", str(IMUCAL_CAL), "-o", str(cal)], capsys)[0] == 0
-    assert run(["show", str(cal)], capsys)[0] == 0
+    assert run(capsys, "import", str(IMUCAL_CAL), "-o", str(cal))[0] == 0
+    assert run(capsys, "show", str(cal))[0] == 0
     capture = tmp_path / "c.csv"
     capture.write_text("acc_x,acc_y,acc_z\n-6.018868019671572,-48.287874016760156,2016.0\n")
-    code, out, _ = run(["apply", "--cal", str(cal), str(capture)], capsys)
+    code, out, _ = run(capsys, "apply", "--cal", str(cal), str(capture))
     assert code == 0
     z = [float(v) for v in out.splitlines()[1].split(",")]
     np.testing.assert_allclose(z, IMUCAL_M @ np.array([0.0, 0.0, 2016.0 - IMUCAL_B[2]]), rtol=1e-9)
-    assert run(["export", str(cal), "-f", "imucal-json"], capsys)[0] == 0
+    assert run(capsys, "export", str(cal), "-f", "imucal-json")[0] == 0
 
 
 def test_check_judges_an_imported_calibration(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """It has no poses: its parameters are judged, noise and residual limits cannot be."""
     cal = tmp_path / "cal.json"
-    assert run(["import", str(IMUCAL_CAL), "-o", str(cal)], capsys)[0] == 0
+    assert run(capsys, "import", str(IMUCAL_CAL), "-o", str(cal))[0] == 0
     ok = ["check", str(cal), "--max-offset", "50", "--max-gain-error", "0.05", "--nominal-gain", "209", "-q"]
-    assert run(ok, capsys)[0] == 0
-    assert run([*ok[:3], "40", *ok[4:]], capsys)[0] == 1  # offset y is -48.3
-    code, _, err = run(["check", str(cal), "--limits", str(ROOT / "sample_data" / "limits.yaml")], capsys)
+    assert run(capsys, *ok)[0] == 0
+    assert run(capsys, *ok[:3], "40", *ok[4:])[0] == 1  # offset y is -48.3
+    code, _, err = run(capsys, "check", str(cal), "--limits", str(ROOT / "sample_data" / "limits.yaml"))
     assert code == 2
     assert "has no poses to judge the noise and residual limits by" in err
 
@@ -564,12 +561,12 @@ def test_export_refuses_a_failed_calibration_unless_forced(tmp_path: Path, capsy
     """Firmware must not get a unit that failed its limits by accident (as apply refuses it)."""
     cal = tmp_path / "fail.json"
     three = [str(ROOT / "sample_data" / f"{f}.csv") for f in ("x", "y", "z")]
-    assert run(["solve", "-q", "-p", *three, "--max-offset", "0.01", "-o", str(cal)], capsys)[0] == 1
-    code, out, err = run(["export", str(cal), "-f", "c-header"], capsys)
+    assert run(capsys, "solve", "-q", "-p", *three, "--max-offset", "0.01", "-o", str(cal))[0] == 1
+    code, out, err = run(capsys, "export", str(cal), "-f", "c-header")
     assert (code, out) == (2, "")
     assert "failed its limits (limit.offset" in err
     assert "--force" in err
-    code, out, _ = run(["export", str(cal), "-f", "c-header", "--force"], capsys)
+    code, out, _ = run(capsys, "export", str(cal), "-f", "c-header", "--force")
     assert code == 0
     assert "verdict FAIL" in out
 
@@ -588,7 +585,7 @@ def test_gain_trim_refuses_units_mistakes(
 ) -> None:
     """Counts at ~208 per m/s^2 with a nominal gain of 1: a trim to 0.5 % is a units mistake."""
     cal = write_cal(tmp_path / "cal.json", [0, 0, 0], np.diag(1 / np.array([208.5, 208.0, 214.8])))
-    code, out, err = run(["export", str(cal), "-f", "registers", "--lsb", "1", *args], capsys)
+    code, out, err = run(capsys, "export", str(cal), "-f", "registers", "--lsb", "1", *args)
     assert (code, out) == (2, ""), err
     assert message in err
 
@@ -616,10 +613,10 @@ def test_round_trip_keeps_what_the_export_recorded(
     doc["created"] = "2026-03-04T05:06:07Z"
     cal.write_text(json.dumps(doc))
     peer = tmp_path / "peer.txt"  # any name: --from says what it is
-    assert run(["export", str(cal), "-f", fmt, "-o", str(peer)], capsys)[0] == 0
-    code, out, err = run(["import", str(peer), "--from", fmt], capsys)
+    assert run(capsys, "export", str(cal), "-f", fmt, "-o", str(peer))[0] == 0
+    code, out, err = run(capsys, "import", str(peer), "--from", fmt)
     assert code == 0, err
-    back, original = json.loads(out), calfile.load(str(cal)).doc
+    back, original = json.loads(out), calfile.load(str(cal)).to_dict()
     for key in ("sensor", "reference", "units", "input_units", "columns"):
         assert back[key] == original[key], key
     assert back["unit"] | {"meta": {}} == {"serial": "SN-7", "station": "line 3", "operator": "Kim Lee", "meta": {}}
@@ -629,8 +626,8 @@ def test_round_trip_keeps_what_the_export_recorded(
     capture.write_text("t,ax,ay,az\n0,1.1,2.2,3.3\n")
     back_file = tmp_path / "back.json"
     back_file.write_text(out)
-    assert lot.entry(calfile.load(str(back_file))).created == "2026-03-04T05:06:07Z"  # report's date for it
-    code, applied, err = run(["apply", "--cal", str(back_file), str(capture)], capsys)
+    assert reports.entry(calfile.load(str(back_file))).created == "2026-03-04T05:06:07Z"  # report's date for it
+    code, applied, err = run(capsys, "apply", "--cal", str(back_file), str(capture))
     assert code == 0, err
     np.testing.assert_allclose([float(v) for v in applied.splitlines()[1].split(",")[1:]], [0.5, 1.0, 1.5], rtol=1e-12)
 
@@ -645,6 +642,6 @@ def test_round_trip_keeps_what_the_export_recorded(
     ],
 )
 def test_import_option_errors(capsys: pytest.CaptureFixture[str], args: list[str], message: str) -> None:
-    code, out, err = run(["import", str(IMUCAL_CAL), *args], capsys)
+    code, out, err = run(capsys, "import", str(IMUCAL_CAL), *args)
     assert (code, out) == (2, "")
     assert message in err

@@ -17,7 +17,8 @@ import pytest
 from numpy.typing import ArrayLike
 
 from tests.synth import FloatArray, Truth, pose_samples
-from tumblecal_cli import core, gate
+from tumblecal_cli.core import gate
+from tumblecal_cli.core import model as core
 
 THREE = ("+x", "+y", "+z")
 NAMES = ("caps/unit7-x.csv", "caps/unit7-y.csv", "caps/unit7-z.csv")

@@ -1,5 +1,5 @@
 """CLI tests of the production-test gate: quality checks (exit 3), limits (exit 1), --json,
-traceability, ``show``, ``check`` and the gate's effect on ``apply`` (DESIGN.md section 5).
+traceability, ``show``, ``check`` and the gate's effect on ``apply`` (README "Exit status").
 
 Poses are synthetic with a known truth (tests/synth.py, the sample set's offset and gain), written
 to tmp_path; bad limits files live in tests/data/bad/. Every run is in-process.
@@ -19,8 +19,7 @@ import numpy as np
 import pytest
 import yaml
 
-from tests.synth import FloatArray, pose_samples
-from tests.test_cli import (
+from tests.conftest import (
     BAD,
     POSES_3,
     SAMPLE,
@@ -30,8 +29,9 @@ from tests.test_cli import (
     precious,
     run,
 )
-from tumblecal_cli import core
-from tumblecal_cli.core import FACES
+from tests.synth import FloatArray, pose_samples
+from tumblecal_cli.core import model as core
+from tumblecal_cli.core.model import FACES
 
 #: the truth of the synthetic poses: the sample set's (sample_data/README.md)
 OFFSET = (0.021, -0.034, 0.047)

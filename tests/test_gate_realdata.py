@@ -13,7 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from tests.test_cli import IMUCAL, ROOT, run
+from tests.conftest import IMUCAL, ROOT, run
+
+pytestmark = pytest.mark.slow
 
 NCSU_HEAD = ROOT / "tests" / "data" / "ncsu_xplus_head.csv"
 

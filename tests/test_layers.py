@@ -1,4 +1,4 @@
-"""The layers of DESIGN.md section 3: cli -> io -> core, imports flowing one way.
+"""The layers of README "Development": cli -> io -> core, imports flowing one way.
 
 Each check runs in a fresh interpreter, so what the test process has already imported does
 not hide a dependency.
@@ -6,6 +6,7 @@ not hide a dependency.
 
 from __future__ import annotations
 
+import functools
 import json
 import subprocess
 import sys
@@ -37,15 +38,20 @@ def imported(body: str, watch: tuple[str, ...]) -> list[str]:
     return found
 
 
+@pytest.mark.slow
 def test_core_imports_numpy_only() -> None:
-    assert imported("import tumblecal_cli.core", ("pandas", "pyarrow", "typer", "click", "rich", "yaml")) == []
+    assert imported("import tumblecal_cli.core.model", ("pandas", "pyarrow", "typer", "click", "rich", "yaml")) == []
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("module", ["gate", "solvers", "segment"])
 def test_core_layer_imports_numpy_only(module: str) -> None:
-    assert imported(f"import tumblecal_cli.{module}", ("pandas", "pyarrow", "typer", "click", "rich", "yaml")) == []
+    assert (
+        imported(f"import tumblecal_cli.core.{module}", ("pandas", "pyarrow", "typer", "click", "rich", "yaml")) == []
+    )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "body",
     [
@@ -70,15 +76,20 @@ def test_cli_help_does_not_import_the_numeric_stack(body: str) -> None:
     assert imported(body, ("numpy", "pyarrow", "pandas", "yaml", "distributed", "dask")) == []
 
 
+@pytest.mark.slow
 def test_batch_module_is_light() -> None:
     """A batch worker pays for numpy and Typer on its first unit, not on import; Dask only when asked."""
-    assert imported("import tumblecal_cli.batch", ("numpy", "pyarrow", "pandas", "typer", "rich", "distributed")) == []
+    assert (
+        imported("import tumblecal_cli.pipeline.batch", ("numpy", "pyarrow", "pandas", "typer", "rich", "distributed"))
+        == []
+    )
 
 
 def test_package_root_is_light() -> None:
     assert imported("import tumblecal_cli", ("numpy", "pyarrow", "pandas", "typer", "rich")) == []
 
 
+@pytest.mark.slow
 def test_nothing_imports_pandas() -> None:
     """pandas is only the benchmark's baseline: a whole solve and apply run without it."""
     body = (
@@ -92,3 +103,121 @@ def test_nothing_imports_pandas() -> None:
         "    assert main(['apply', '--cal', cal, 'sample_data/capture.csv', '-o', os.path.join(d, 'c.csv')]) == 0"
     )
     assert imported(body, ("pandas", "numpy", "pyarrow")) == ["numpy", "pyarrow"]
+
+
+# -- the import graph and the size of a command (an AST reading of the package) --------------
+
+PACKAGE = ROOT / "tumblecal_cli"
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+@functools.cache
+def _imports() -> dict[str, set[str]]:
+    """Each module of the package and the package's modules it imports (anywhere in it,
+    inside functions and TYPE_CHECKING blocks too), resolved to modules that exist."""
+    import ast
+
+    modules = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+    graph: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        found: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            targets: list[str] = []
+            if isinstance(node, ast.Import):
+                targets = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                targets = [f"{node.module}.{a.name}" for a in node.names] + [node.module]
+            for target in targets:
+                while target and target not in modules:
+                    target = target.rpartition(".")[0]
+                if target.startswith("tumblecal_cli") and target != name:
+                    found.add(target)
+        graph[name] = found
+    return graph
+
+
+def _in(module: str, layer: str) -> bool:
+    return module == f"tumblecal_cli.{layer}" or module.startswith(f"tumblecal_cli.{layer}.")
+
+
+def test_nothing_outside_the_cli_imports_it() -> None:
+    """(``python -m tumblecal_cli`` is the command line's entry point, as the console script is.)"""
+    wrong = [(m, t) for m, ts in _imports().items() if not _in(m, "cli") for t in ts if _in(t, "cli")]
+    assert wrong == [("tumblecal_cli.__main__", "tumblecal_cli.cli")]
+
+
+def test_core_imports_nothing_of_io_pipeline_or_cli() -> None:
+    graph = _imports()
+    wrong = [
+        (m, t) for m, ts in graph.items() if _in(m, "core") for t in ts if not (_in(t, "core") or t.endswith("errors"))
+    ]
+    assert wrong == []
+
+
+def test_io_imports_neither_the_pipeline_nor_the_cli() -> None:
+    graph = _imports()
+    wrong = [(m, t) for m, ts in graph.items() if _in(m, "io") for t in ts if _in(t, "pipeline") or _in(t, "cli")]
+    assert wrong == []
+
+
+def test_no_import_cycle() -> None:
+    """Among the package's modules (a package's __init__ that only gathers its own modules'
+    names for the public API is left out: it imports them lazily, by name)."""
+    graph = {m: {t for t in ts if t != "tumblecal_cli"} for m, ts in _imports().items() if m != "tumblecal_cli"}
+    state: dict[str, int] = {}
+    cycles: list[list[str]] = []
+
+    def visit(node: str, path: list[str]) -> None:
+        state[node] = 1
+        for nxt in sorted(graph.get(node, set())):
+            if state.get(nxt) == 1:
+                cycles.append([*path[path.index(nxt) :], nxt] if nxt in path else [node, nxt])
+            elif nxt not in state:
+                visit(nxt, [*path, nxt])
+        state[node] = 2
+
+    for module in sorted(graph):
+        if module not in state:
+            visit(module, [module])
+    # the cli package's __init__ imports its command modules so that they register; each of
+    # them imports cli.app, never the package's __init__: that is no cycle
+    assert [c for c in cycles if "tumblecal_cli.cli" not in c] == []
+
+
+def test_a_command_body_fits_on_a_screen() -> None:
+    """Each command function: parse, one pipeline call, render; at most 40 lines of body."""
+    import ast
+
+    long: list[tuple[str, int]] = []
+    for path in (PACKAGE / "cli").glob("*.py"):
+        for node in ast.parse(path.read_text()).body:
+            if (
+                isinstance(node, ast.FunctionDef) and any("command" in ast.unparse(d) for d in node.decorator_list)
+            ) or (isinstance(node, ast.FunctionDef) and node.name == "batch"):
+                body = node.body[1:] if isinstance(node.body[0], ast.Expr) else node.body  # the docstring is help
+                lines = (body[-1].end_lineno or 0) - body[0].lineno + 1
+                if lines > 40:
+                    long.append((f"{path.name}:{node.name}", lines))
+    assert long == []
+
+
+def test_pandas_only_inside_the_pipeline_functions() -> None:
+    """pandas is the DataFrame interface's: imported inside functions of the pipeline only."""
+    import ast
+
+    wrong = []
+    for path in PACKAGE.rglob("*.py"):
+        tree = ast.parse(path.read_text())
+        inside = {id(n) for f in ast.walk(tree) if isinstance(f, ast.FunctionDef) for n in ast.walk(f)}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import | ast.ImportFrom):
+                names = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""]
+                if any(n.split(".")[0] == "pandas" for n in names) and (
+                    "pipeline" not in path.parts or id(node) not in inside
+                ):
+                    wrong.append(f"{path.relative_to(ROOT)}:{node.lineno}")
+    assert wrong == []

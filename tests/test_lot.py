@@ -13,8 +13,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tumblecal_cli import calfile, lot
+from tumblecal_cli.core import lot
 from tumblecal_cli.errors import InputError
+from tumblecal_cli.io import calfile
+from tumblecal_cli.pipeline import report as reports
 
 Vec = tuple[float, float, float]
 
@@ -56,7 +58,7 @@ def write(path: Path, doc: dict[str, Any] | str) -> str:
 
 
 def loaded(tmp_path: Path, name: str = "cal.json", **fields: Any) -> lot.Entry:
-    return lot.entry(calfile.load(write(tmp_path / name, document(**fields))))
+    return reports.entry(calfile.load(write(tmp_path / name, document(**fields))))
 
 
 def standardised(n: int, seed: int = 1) -> np.ndarray[Any, np.dtype[np.float64]]:
@@ -155,7 +157,7 @@ def test_find_searches_folders_recursively_and_skips_hidden_names(tmp_path: Path
     write(tmp_path / "cals" / "summary.csv", "serial\n")
     single = write(tmp_path / "other" / "one.txt", "{}")  # named explicitly: taken whatever its suffix
     root = str(tmp_path / "cals")
-    assert lot.find([root, single, str(tmp_path / "cals" / "b.json")]) == sorted(
+    assert reports.find([root, single, str(tmp_path / "cals" / "b.json")]) == sorted(
         [f"{root}/a.YAML", f"{root}/b.json", f"{root}/deep/c.yml", single]
     )
 
@@ -163,21 +165,21 @@ def test_find_searches_folders_recursively_and_skips_hidden_names(tmp_path: Path
 def test_find_refuses_a_missing_path(tmp_path: Path) -> None:
     (tmp_path / "cals").mkdir()
     with pytest.raises(InputError, match="nope: no such file or folder"):
-        lot.find([str(tmp_path / "cals"), str(tmp_path / "nope")])
+        reports.find([str(tmp_path / "cals"), str(tmp_path / "nope")])
 
 
 def test_find_refuses_a_folder_without_calibration_files(tmp_path: Path) -> None:
     write(tmp_path / "cals" / "notes.txt", "x")
     write(tmp_path / "cals" / ".partial.json", "{}")
     with pytest.raises(InputError, match=r"no calibration files \(\*\.json, \*\.yaml\) in .*cals"):
-        lot.find([str(tmp_path / "cals")])
+        reports.find([str(tmp_path / "cals")])
 
 
 def test_load_all_collects_unreadable_files_and_goes_on(tmp_path: Path) -> None:
     good = write(tmp_path / "SN1.json", document())
     other = write(tmp_path / "package.json", json.dumps({"name": "not-a-calibration"}))
     broken = write(tmp_path / "SN2.json", '{"format": ')
-    entries, unreadable = lot.load_all([str(tmp_path)])
+    entries, unreadable = reports.load_all([str(tmp_path)])
     assert [e.path for e in entries] == [good]
     assert dict(unreadable) == {
         other: "not a tumblecal calibration: missing field 'format' (expected 'tumblecal-calibration')",
@@ -228,7 +230,7 @@ def test_cross_terms_only_when_the_matrix_has_off_diagonal_terms(tmp_path: Path)
 def test_entry_reads_a_hand_written_yaml_file(tmp_path: Path) -> None:
     text = calfile.dumps(document(serial=None), "cal.yaml")
     text = text.replace("serial: null", "serial: 1234").replace("'2024-05-01T10:00:00Z'", "2024-05-01T10:00:00Z")
-    e = lot.entry(calfile.load(write(tmp_path / "cal.yaml", text)))
+    e = reports.entry(calfile.load(write(tmp_path / "cal.yaml", text)))
     assert (e.serial, e.created) == ("1234", "2024-05-01T10:00:00Z")  # an int serial, an unquoted timestamp
 
 
@@ -266,7 +268,7 @@ def test_a_unit_calibrated_three_times_counts_once_with_its_newest(tmp_path: Pat
     write(tmp_path / "e.json", document(serial=None, offset=(0.07, 0, 0)))
     write(tmp_path / "f.json", document(serial=None, offset=(0.07, 0, 0)))  # no serial: each on its own
     write(tmp_path / "g.json", document(sensor="magnetometer", method="ellipsoid", offset=(5.0, 0, 0)))
-    entries, _ = lot.load_all([str(tmp_path)])
+    entries, _ = reports.load_all([str(tmp_path)])
     report = lot.summarise(entries, [], {}, max_drift={})
     assert (report.files, report.units) == (7, 5)
     row = next(r for r in report.rows if (r.sensor, r.parameter) == ("accelerometer", "offset.x"))
@@ -286,7 +288,7 @@ def test_drift_compares_the_latest_with_the_one_before_and_judges_gain_relative(
         document(created="2024-05-03T09:00:00Z", offset=(0.025, 0.0, 0.0), gain=(2.003, 1.003, 1.0)),
     )
     write(tmp_path / "SN2.json", document(serial="SN2"))  # calibrated once: no drift
-    entries, _ = lot.load_all([str(tmp_path)])
+    entries, _ = reports.load_all([str(tmp_path)])
     drift = lot.summarise(entries, [], {}, max_drift={"offset": 0.01, "gain": 0.002}).drift
     assert {d.serial for d in drift} == {"SN1"}
     assert [d.parameter for d in drift] == [*lot.OFFSETS, *lot.GAINS]
@@ -308,7 +310,7 @@ def test_drift_compares_the_latest_with_the_one_before_and_judges_gain_relative(
 def test_drift_of_cross_terms_against_the_cross_limit(tmp_path: Path) -> None:
     write(tmp_path / "1.json", document(method="six-pose", created="2024-01-01T00:00:00Z", cross=[[0, 0.01, 0]] * 3))
     write(tmp_path / "2.json", document(method="six-pose", created="2024-02-01T00:00:00Z", cross=[[0, 0.03, 0]] * 3))
-    entries, _ = lot.load_all([str(tmp_path)])
+    entries, _ = reports.load_all([str(tmp_path)])
     flagged = [d.parameter for d in lot.summarise(entries, [], {}, max_drift={"cross": 0.01}).drift if d.flagged]
     assert flagged == ["cross.xy", "cross.zy"]  # cross.yy is the diagonal: A[i, j] for i != j only
 
@@ -358,7 +360,7 @@ def lot_folder(tmp_path: Path) -> list[lot.Entry]:
     for k, x in enumerate(spread, start=1):
         write(tmp_path / f"SN{k}.json", document(serial=f"SN{k}", offset=(x, 0.0, 0.0)))
     write(tmp_path / "SN3_old.json", document(serial="SN3", created="2024-04-01T00:00:00Z", offset=(-0.02, 0.0, 0.0)))
-    entries, unreadable = lot.load_all([str(tmp_path)])
+    entries, unreadable = reports.load_all([str(tmp_path)])
     assert unreadable == []
     return entries
 
@@ -401,14 +403,14 @@ def test_outliers_without_a_serial_are_named_by_their_file(tmp_path: Path) -> No
     for k in range(10):
         write(tmp_path / f"u{k}.json", document(serial=None, offset=(0.01 + 0.001 * (k % 3), 0, 0)))
     write(tmp_path / "odd.json", document(serial=None, offset=(0.5, 0, 0)))
-    entries, _ = lot.load_all([str(tmp_path)])
+    entries, _ = reports.load_all([str(tmp_path)])
     assert [u for u, _, _ in lot.summarise(entries, [], {}, max_drift={}).rows[0].outliers] == ["odd.json"]
 
 
 def test_needs_attention_for_a_cpk_below_the_minimum(tmp_path: Path) -> None:
     for k, x in enumerate([0.01, 0.02, 0.03, 0.04], start=1):
         write(tmp_path / f"SN{k}.json", document(serial=f"SN{k}", offset=(x, 0.0, 0.0)))
-    entries, _ = lot.load_all([str(tmp_path)])
+    entries, _ = reports.load_all([str(tmp_path)])
     limits = {"offset": np.full(3, 0.05)}
     relaxed = lot.summarise(entries, [], limits, max_drift={})
     assert not relaxed.needs_attention
@@ -447,4 +449,4 @@ def test_sigterm_while_loading_stops_the_report(monkeypatch: pytest.MonkeyPatch,
 
     monkeypatch.setattr(calfile, "load", interrupted)
     with pytest.raises(Interrupted):
-        lot.load_all([str(tmp_path)])
+        reports.load_all([str(tmp_path)])

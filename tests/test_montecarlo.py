@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from tests import montecarlo as mc
-from tumblecal_cli import core, solvers
+from tumblecal_cli.core import model as core
+from tumblecal_cli.core import solvers
 
 SIX = np.array([core.FACES[f] for f in solvers.SIX_FACES])
 THREE = np.array([core.FACES[f] for f in ("+x", "+y", "+z")])
@@ -127,6 +128,7 @@ def test_a_group_off_its_bound_fails() -> None:
     assert mc.Row("x", check, rms=crb * 0.95, bound=crb, reported=None, tolerance=0.1).passed
 
 
+@pytest.mark.slow
 def test_benchmark_1000_trials(capsys: pytest.CaptureFixture[str]) -> None:
     """The whole benchmark, at its default 1000 trials (about 4 s): every solver within tolerance."""
     status = mc.main([])

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.test_formats import run
+from tests.conftest import run
 from tests.test_layers import imported
 from tests.test_plots import png_size as png_header
 from tests.test_solvers_cli import FIELD, magnetometer, sphere_directions, write_mag
@@ -31,9 +31,10 @@ def png_size(path: Path) -> tuple[int, int]:
     return width, height
 
 
+@pytest.mark.slow
 def test_solve_plot_six_pose(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     cal, png = tmp_path / "cal.json", tmp_path / "poses.png"
-    code, _, err = run(["solve", "-p", *SIX, "--reference", "9.81", "-o", str(cal), "--plot", str(png), "-q"], capsys)
+    code, _, err = run(capsys, "solve", "-p", *SIX, "--reference", "9.81", "-o", str(cal), "--plot", str(png), "-q")
     assert code == 0, err
     width, height = png_size(png)
     assert width > 300
@@ -41,22 +42,24 @@ def test_solve_plot_six_pose(tmp_path: Path, capsys: pytest.CaptureFixture[str])
     assert cal.exists()
 
 
+@pytest.mark.slow
 def test_solve_plot_magnetometer(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     rng = np.random.default_rng(7)
     turn = write_mag(tmp_path / "turn.csv", magnetometer(rng, sphere_directions(rng, 3000)))
     png = tmp_path / "mag.png"
     args = ["solve", "--sensor", "magnetometer", "--reference", str(FIELD), "-p", str(turn), "--plot", str(png)]
-    code, _, err = run([*args, "-o", str(tmp_path / "cal.json"), "-q"], capsys)
+    code, _, err = run(capsys, *args, "-o", str(tmp_path / "cal.json"), "-q")
     assert code == 0, err
     width, height = png_size(png)
     assert width > height  # three planes side by side
 
 
+@pytest.mark.slow
 def test_solve_plot_is_written_on_exit_1(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A unit outside its limits still has its calibration archived, and its figure."""
     png = tmp_path / "p.png"
     args = ["solve", "-p", *THREE, "--max-offset", "0.001", "-o", str(tmp_path / "cal.json"), "--plot", str(png)]
-    code, _, _ = run([*args, "-q"], capsys)
+    code, _, _ = run(capsys, *args, "-q")
     assert code == 1
     png_size(png)
 
@@ -66,7 +69,7 @@ def test_solve_plot_not_written_when_rejected(tmp_path: Path, capsys: pytest.Cap
     png = tmp_path / "p.png"
     png.write_bytes(b"old")
     swapped = [THREE[1], THREE[0], THREE[2]]
-    code, _, err = run(["solve", "-p", *swapped, "-o", str(tmp_path / "cal.json"), "--plot", str(png)], capsys)
+    code, _, err = run(capsys, "solve", "-p", *swapped, "-o", str(tmp_path / "cal.json"), "--plot", str(png))
     assert code == 3, err
     assert png.read_bytes() == b"old"
     assert not (tmp_path / "cal.json").exists()
@@ -87,7 +90,7 @@ def test_solve_plot_usage_errors(
 ) -> None:
     monkeypatch.chdir(tmp_path)
     before = Path(THREE[0]).read_bytes()
-    code, out, err = run(["solve", "-p", *THREE, *extra], capsys)
+    code, out, err = run(capsys, "solve", "-p", *THREE, *extra)
     assert (code, out) == (2, ""), err
     assert message in err
     assert Path(THREE[0]).read_bytes() == before
@@ -100,18 +103,19 @@ def test_plot_without_matplotlib_is_one_clear_error(
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "matplotlib" else real(name, *a))
     cal = tmp_path / "cal.json"
-    code, _, err = run(["solve", "-p", *THREE, "-o", str(cal), "--plot", str(tmp_path / "p.png")], capsys)
+    code, _, err = run(capsys, "solve", "-p", *THREE, "-o", str(cal), "--plot", str(tmp_path / "p.png"))
     assert code == 2
     assert "pip install 'tumblecal[plot]'" in err
     assert not cal.exists()  # refused before any work
-    code, out, err = run(["report", str(LOT), "--plot", str(tmp_path / "lot.png")], capsys)
+    code, out, err = run(capsys, "report", str(LOT), "--plot", str(tmp_path / "lot.png"))
     assert (code, out) == (2, "")
     assert "tumblecal[plot]" in err
 
 
+@pytest.mark.slow
 def test_report_plot(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     png = tmp_path / "lot.png"
-    code, out, err = run(["report", str(LOT), "--plot", str(png)], capsys)
+    code, out, err = run(capsys, "report", str(LOT), "--plot", str(png))
     assert code == 1  # the sample lot's outlier
     assert out.startswith("sensor,parameter,")
     assert f"wrote {png}" in err
@@ -120,11 +124,12 @@ def test_report_plot(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None
 
 
 def test_batch_has_no_plot_option(capsys: pytest.CaptureFixture[str]) -> None:
-    code, _, err = run(["batch", str(ROOT / "sample_data" / "lot.csv"), "--plot", "x.png"], capsys)
+    code, _, err = run(capsys, "batch", str(ROOT / "sample_data" / "lot.csv"), "--plot", "x.png")
     assert code == 2
     assert "No such option: --plot" in err
 
 
+@pytest.mark.slow
 def test_solve_without_plot_does_not_import_matplotlib(tmp_path: Path) -> None:
     body = (
         "import contextlib, io\n"

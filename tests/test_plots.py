@@ -25,9 +25,9 @@ from matplotlib.patches import Rectangle
 from numpy.typing import NDArray
 
 from tests.test_layers import imported
-from tumblecal_cli import plots
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.files import atomic_output
+from tumblecal_cli.io import plots
+from tumblecal_cli.io.outputs import atomic_output
 
 FloatArray = NDArray[np.float64]
 
@@ -113,6 +113,7 @@ def figures(monkeypatch: pytest.MonkeyPatch) -> list[Figure]:
 # --- PNG output -------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_poses_figure_is_a_png_of_the_right_size(tmp_path: Path) -> None:
     path = tmp_path / "poses.png"
     names = ["+x", "-x", "+y", "-y", "+z", "-z"]
@@ -120,12 +121,14 @@ def test_poses_figure_is_a_png_of_the_right_size(tmp_path: Path) -> None:
     check_png(path, 700, 640)
 
 
+@pytest.mark.slow
 def test_rotation_figure_is_a_png_of_the_right_size(tmp_path: Path) -> None:
     path = tmp_path / "rotation.png"
     plots.rotation_figure(str(path), turning(1500, 50.0), OFFSET, M, 50.0, units="uT", title="magnetometer")
     check_png(path, 1200, 800)
 
 
+@pytest.mark.slow
 def test_lot_figure_is_a_png_of_the_right_size(tmp_path: Path) -> None:
     rng = np.random.default_rng(3)
     histograms = [plots.Histogram(f"offset.{a}", rng.normal(0.02, 0.01, 40), -0.05, 0.05, "g") for a in "xyz"]
@@ -140,6 +143,7 @@ def test_lot_figure_is_a_png_of_the_right_size(tmp_path: Path) -> None:
     check_png(path, 1420, 860)  # 9 panels: 4 columns, 3 rows
 
 
+@pytest.mark.slow
 def test_same_call_same_bytes(tmp_path: Path) -> None:
     first, second = tmp_path / "a.png", tmp_path / "b.png"
     for path in (first, second):
@@ -148,6 +152,7 @@ def test_same_call_same_bytes(tmp_path: Path) -> None:
     assert b"Software" not in first.read_bytes()
 
 
+@pytest.mark.slow
 def test_dash_writes_the_png_to_stdout(capsysbinary: pytest.CaptureFixture[bytes]) -> None:
     plots.poses_figure("-", ["a", "b", "c"], pose_means(3), OFFSET, M, 1.0)
     out = capsysbinary.readouterr().out
@@ -157,6 +162,7 @@ def test_dash_writes_the_png_to_stdout(capsysbinary: pytest.CaptureFixture[bytes
 # --- what the figures show ---------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_poses_figure_shows_norms_before_and_after(figures: list[Figure]) -> None:
     gain = 16384.0  # raw counts, corrected in g
     means = pose_means(60) * gain
@@ -232,6 +238,7 @@ def test_rotation_figure_of_a_one_plane_capture_draws_that_plane_at_its_own_radi
     assert "circle of radius 25 uT (the field's part in the xy plane)" in labels
 
 
+@pytest.mark.slow
 def test_rotation_figure_outline_bounds_a_sphere_capture(figures: list[Figure]) -> None:
     plots.rotation_figure("unused.png", turning(3000, 1.0), OFFSET, M, 1.0)
     (fig,) = figures
@@ -272,6 +279,7 @@ def test_lot_figure_draws_limits_mean_and_counts(figures: list[Figure]) -> None:
     assert sum(heights(single)) == 1
 
 
+@pytest.mark.slow
 def test_lot_figure_twenty_parameters_in_four_columns(figures: list[Figure]) -> None:
     rng = np.random.default_rng(4)
     plots.lot_figure("unused.png", [plots.Histogram(f"p{i}", rng.normal(i, 1, 50), i - 3, i + 3) for i in range(20)])
@@ -393,6 +401,7 @@ def test_failed_render_leaves_the_old_file(good_file: Path, monkeypatch: pytest.
     assert [p.name for p in good_file.parent.iterdir()] == [good_file.name]
 
 
+@pytest.mark.slow
 def test_failed_write_leaves_the_old_file(good_file: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The disk fills half-way through the PNG: the temporary file goes, the old figure stays."""
 
@@ -417,6 +426,7 @@ def test_failed_write_leaves_the_old_file(good_file: Path, monkeypatch: pytest.M
     assert [p.name for p in good_file.parent.iterdir()] == [good_file.name]
 
 
+@pytest.mark.slow
 def test_missing_output_folder_is_an_input_error(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="the output folder does not exist"):
         plots.poses_figure(str(tmp_path / "nowhere" / "f.png"), ["a"], pose_means(1), OFFSET, M, 1.0)
@@ -434,5 +444,5 @@ def test_require_names_the_extra_when_matplotlib_is_missing(monkeypatch: pytest.
 
 
 def test_importing_plots_imports_neither_matplotlib_nor_numpy() -> None:
-    body = "import tumblecal_cli.plots\ntumblecal_cli.plots.require()"
+    body = "import tumblecal_cli.io.plots\ntumblecal_cli.io.plots.require()"
     assert imported(body, ("matplotlib", "numpy", "PIL")) == []

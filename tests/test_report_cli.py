@@ -11,8 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.test_cli import feed_stdin
-from tests.test_formats import run
+from tests.conftest import feed_stdin, run
 
 ROOT = Path(__file__).resolve().parent.parent
 LOT = ROOT / "sample_data" / "lot"
@@ -24,7 +23,7 @@ def rows(out: str) -> dict[str, dict[str, str]]:
 
 
 def test_report_csv_on_stdout_table_on_stderr(capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, err = run(["report", str(LOT), "--limits", str(LIMITS)], capsys)
+    code, out, err = run(capsys, "report", str(LOT), "--limits", str(LIMITS))
     table = rows(out)
     assert code == 1, err  # SN0013 is an outlier
     assert list(table) == ["offset.x", "offset.y", "offset.z", "gain.x", "gain.y", "gain.z"]
@@ -40,7 +39,7 @@ def test_report_csv_on_stdout_table_on_stderr(capsys: pytest.CaptureFixture[str]
 
 
 def test_report_drift_is_flagged_with_max_drift(capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, err = run(["report", str(LOT), "--max-drift", "offset=0.01,gain=0.002", "--json"], capsys)
+    code, out, err = run(capsys, "report", str(LOT), "--max-drift", "offset=0.01,gain=0.002", "--json")
     doc = json.loads(out)
     assert code == 1
     flagged = [d for d in doc["drift"] if d["flagged"]]
@@ -58,13 +57,13 @@ def test_report_in_order_exits_0(tmp_path: Path, capsys: pytest.CaptureFixture[s
     for path in lot.glob("SN0013_*.json"):
         path.unlink()
     args = ["report", str(lot), "--limits", str(LIMITS), "--max-drift", "offset=0.02", "--min-cpk", "1.0"]
-    code, _, err = run(args, capsys)
+    code, _, err = run(capsys, *args)
     assert code == 0, err
     assert "lot: in order" in err
 
 
 def test_report_min_cpk(capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, _ = run(["report", str(LOT), "--limits", str(LIMITS), "--min-cpk", "1.33", "--json"], capsys)
+    code, out, _ = run(capsys, "report", str(LOT), "--limits", str(LIMITS), "--min-cpk", "1.33", "--json")
     doc = json.loads(out)
     assert code == 1
     low = [p["parameter"] for p in doc["parameters"] if p["cpk"] is not None and p["cpk"] < 1.33]
@@ -76,7 +75,7 @@ def test_report_unreadable_file_is_exit_2_after_the_report(tmp_path: Path, capsy
     shutil.copytree(LOT, lot)
     (lot / "broken.json").write_text('{"format": "tumblecal-calibration",')
     (lot / ".SN0099.abc.partial.json").write_text("staging: ignored")
-    code, out, err = run(["report", str(lot)], capsys)
+    code, out, err = run(capsys, "report", str(lot))
     assert code == 2
     assert rows(out)["offset.x"]["count"] == "30"  # the report is still printed
     assert f"error: {lot / 'broken.json'}: not valid JSON" in err
@@ -97,16 +96,16 @@ def test_report_unreadable_file_is_exit_2_after_the_report(tmp_path: Path, capsy
     ],
 )
 def test_report_usage_errors(capsys: pytest.CaptureFixture[str], args: list[str], message: str) -> None:
-    code, out, err = run(["report", str(LOT), *args], capsys)
+    code, out, err = run(capsys, "report", str(LOT), *args)
     assert (code, out) == (2, "")
     assert message in err
 
 
 def test_report_no_files(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, err = run(["report", str(tmp_path)], capsys)
+    code, out, err = run(capsys, "report", str(tmp_path))
     assert (code, out) == (2, "")
     assert "no calibration files" in err
-    code, _, err = run(["report", str(tmp_path / "nope")], capsys)
+    code, _, err = run(capsys, "report", str(tmp_path / "nope"))
     assert code == 2
     assert "nope" in err
 
@@ -119,7 +118,7 @@ def test_report_flags_units_outside_the_limits(tmp_path: Path, capsys: pytest.Ca
         path.unlink()
     tight = tmp_path / "tight.yaml"
     tight.write_text("offset: 0.02\n")
-    code, out, err = run(["report", str(lot), "--limits", str(tight)], capsys)
+    code, out, err = run(capsys, "report", str(lot), "--limits", str(tight))
     table = rows(out)
     assert code == 1
     outside = table["offset.x"]["outside"].split(";")
@@ -133,7 +132,7 @@ def test_report_csv_quotes_odd_serials(tmp_path: Path, capsys: pytest.CaptureFix
     shutil.copytree(LOT, lot)
     odd = lot / "SN0013_20261121T090000Z.json"
     odd.write_text(odd.read_text().replace('"SN0013"', '"SN,13 \\"x\\""'))
-    code, out, _ = run(["report", str(lot)], capsys)
+    code, out, _ = run(capsys, "report", str(lot))
     assert code == 1
     parsed = list(csv.reader(io.StringIO(out)))
     assert {len(r) for r in parsed} == {13}
@@ -148,11 +147,11 @@ def test_report_skips_the_limits_file_kept_beside_the_calibrations(
     for path in sorted(LOT.glob("SN000[1-6]_*.json")):
         shutil.copy(path, lot)
     shutil.copy(LIMITS, lot / "limits.yaml")
-    code, out, err = run(["report", str(lot), "--limits", str(lot / "limits.yaml")], capsys)
+    code, out, err = run(capsys, "report", str(lot), "--limits", str(lot / "limits.yaml"))
     assert code == 0, err
     assert "lot of 6 units (6 files)" in err
     assert rows(out)["offset.x"]["count"] == "6"
-    code, _, err = run(["report", str(lot)], capsys)  # not the limits file: another tool's file in the folder
+    code, _, err = run(capsys, "report", str(lot))  # not the limits file: another tool's file in the folder
     assert code == 2
     assert f"{lot / 'limits.yaml'}: " in err
 
@@ -162,7 +161,7 @@ def test_report_reads_a_calibration_from_stdin(
 ) -> None:
     one = LOT / "SN0001_20261121T090000Z.json"
     feed_stdin(monkeypatch, one.read_bytes())
-    code, out, err = run(["report", "-"], capsys)
+    code, out, err = run(capsys, "report", "-")
     assert code == 0, err
     assert rows(out)["offset.x"]["count"] == "1"
     assert float(rows(out)["offset.x"]["mean"]) == pytest.approx(json.loads(one.read_text())["offset"][0], rel=1e-6)
@@ -179,7 +178,7 @@ def test_report_keeps_calibrations_in_other_units_apart(tmp_path: Path, capsys: 
     other["matrix"] = [[v * 9.81 for v in row] for row in other["matrix"]]
     other["gain"] = [g / 9.81 for g in other["gain"]]
     (lot / "SN9001_ms2.json").write_text(json.dumps(other))
-    _, out, err = run(["report", str(lot)], capsys)
+    _, out, err = run(capsys, "report", str(lot))
     assert "acc. (m/s^2) gain.x" in err
     table = list(csv.DictReader(io.StringIO(out)))
     sensors = {row["sensor"] for row in table}

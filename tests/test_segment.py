@@ -24,11 +24,11 @@ from typing import Any
 import numpy as np
 import pytest
 
+from tests.conftest import Result, assert_untouched, feed_stdin, precious, run
 from tests.synth import FloatArray, stimulus
-from tests.test_cli import Result, assert_untouched, feed_stdin, precious, run
-from tumblecal_cli import segment
-from tumblecal_cli.cli import INDEX_COLUMNS
-from tumblecal_cli.core import FACES
+from tumblecal_cli.core import segment
+from tumblecal_cli.core.model import FACES
+from tumblecal_cli.pipeline.logs import INDEX_COLUMNS
 
 #: the truth of the synthetic sensor: raw counts = A g + OFFSET + noise, |g| = 1 (an unsigned 16-bit ADC)
 NOMINAL = 32768.0
@@ -871,6 +871,7 @@ def test_time_of_rows_without_sensor_values_is_not_judged(
     )
 
 
+@pytest.mark.slow
 def test_how_the_time_was_read_is_said_when_it_looks_wrong(
     six_level: SynthLog, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

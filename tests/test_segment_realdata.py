@@ -18,7 +18,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tests.test_solvers_realdata import SESSION_FACES, tumblecal
+from tests.conftest import tumblecal
+from tests.test_solvers_realdata import SESSION_FACES
+
+pytestmark = pytest.mark.slow
 
 LOGS = Path(__file__).resolve().parent / "data" / "logs"
 SIX = ("+x", "-x", "+y", "-y", "+z", "-z")

@@ -1,6 +1,6 @@
 """Known-answer tests of the solvers beyond 1- and 3-pose (tumblecal_cli/solvers.py).
 
-Every synthetic capture here follows DESIGN.md section 2, ``raw = A·v + b + noise`` with a known
+Every synthetic capture here follows README "Poses, signs and --reference", ``raw = A·v + b + noise`` with a known
 ``A`` (gains and cross-axis terms), ``b``, noise and fixture tilt; each solver must recover the
 truth within the 1-sigma it reports (|estimate − truth| < 5σ), and where the 1-sigma has a closed
 form (noise/√n through the solver's formula) the reported one must match it. The last tests pin
@@ -20,7 +20,8 @@ import pytest
 from numpy.typing import ArrayLike
 
 from tests.synth import FloatArray, pose_samples
-from tumblecal_cli import core, solvers
+from tumblecal_cli.core import model as core
+from tumblecal_cli.core import solvers
 from tumblecal_cli.errors import CaptureRejected, InputError
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -729,6 +730,7 @@ def repeat_fit(solver: str, rng: np.random.Generator) -> solvers.Fit:
     return solvers.sphere(np.array([p.mean for p in poses]), np.array([p.stderr for p in poses]), 1.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver", list(REPEATS))
 def test_reported_uncertainty_matches_the_scatter_over_repeats(solver: str) -> None:
     """Over hundreds of captures of one truth, the std of each offset and gain is the 1-sigma the

@@ -1,6 +1,7 @@
 """End-to-end CLI tests of issue 4: pose labels, the solvers behind --method, the calibration
 file's new fields, magnetometer and gyroscope calibration, ``apply`` with several --cal and
-``verify`` (DESIGN.md sections 2, 4 and 5).
+``verify`` (README "Poses, signs and --reference", "Calibration file (format version 1)" and
+"Exit status").
 
 Every capture is synthetic with a known truth (tests/synth.py), written to tmp_path, except the
 imucal sample set, whose published calibration is the known answer of the six-pose solver.
@@ -19,9 +20,9 @@ from typing import Any
 import numpy as np
 import pytest
 
+from tests.conftest import IMUCAL, Result, assert_untouched, precious, run
 from tests.synth import FloatArray, pose_samples
-from tests.test_cli import IMUCAL, Result, assert_untouched, precious, run
-from tumblecal_cli.core import FACES
+from tumblecal_cli.core.model import FACES
 
 #: the truth of the synthetic accelerometer: raw = A v + OFFSET, A = diag(GAIN) + CROSS, |v| = 1
 OFFSET = np.array([0.021, -0.034, 0.047])

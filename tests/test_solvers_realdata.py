@@ -23,10 +23,8 @@ as the README's table.
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import gzip
-import io
 import json
 import math
 from collections.abc import Sequence
@@ -36,7 +34,9 @@ from typing import Any
 
 import pytest
 
-from tumblecal_cli.cli import main
+from tests.conftest import tumblecal
+
+pytestmark = pytest.mark.slow
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT / "tests" / "data"
@@ -64,24 +64,6 @@ SESSION_STILL = {
     "still_09535_zp.csv": (9535, 9882),  # +z, after z_rot
     "still_09949_zp.csv": (9949, 10199),  # +z, to the end of the session
 }
-
-
-# -- running tumblecal in-process --------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Result:
-    code: int
-    out: str
-    err: str
-
-
-def tumblecal(*args: str | Path) -> Result:
-    """``tumblecal ARGS`` in-process, stdout and stderr captured (also outside pytest)."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main([str(a) for a in args])
-    return Result(code, out.getvalue(), err.getvalue())
 
 
 def solve(cal: Path, poses: Sequence[str | Path], *options: str) -> dict[str, Any]:
@@ -304,7 +286,7 @@ IMUCAL_FACES = FaceSet(
 def test_imucal_least_squares_on_five_faces_predicts_the_sixth(tmp_path: Path) -> None:
     """Each face left out is read within 0.12 m/s^2 (11 mg) of 9.81. The y faces are the worst:
     without one of them, the y offset comes only from the four poses where y is horizontal, whose
-    y readings a tilt of the fixture moves to first order (DESIGN.md section 2): without -y it is
+    y readings a tilt of the fixture moves to first order (README "Poses, signs and --reference"): without -y it is
     -59.8 counts, against -48.3 from the two vertical readings (six-pose), 0.055 m/s^2 apart."""
     h = leave_one_face_out(tmp_path, IMUCAL_FACES)
     errors = dict(zip(h.captures, h.after, strict=True))

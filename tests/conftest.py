@@ -1,0 +1,142 @@
+"""Helpers shared by the test modules: running ``tumblecal`` (in-process or as the installed
+script), the sample data's paths, the "a failed run leaves the output alone" check, and the unit
+folders that ``batch`` reads. Test modules import them with ``from tests.conftest import ...``.
+
+Slow tests carry ``@pytest.mark.slow`` (a whole module: ``pytestmark``): the Dask cluster, the
+real-data logs, the Monte Carlo benchmark and scatter checks, subprocesses (the installed script,
+pools, signals, gcc, the README's shell sessions), PNG rendering, and the slowest tests (over about
+0.25 s on a 2-core machine). ``pytest -m "not slow"`` (``make check``) is the fast
+tier, under 30 s; ``pytest`` (``make test``) runs everything.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import shutil
+import subprocess
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import NamedTuple
+
+import pytest
+
+from tumblecal_cli.cli import main
+
+ROOT = Path(__file__).resolve().parent.parent
+SAMPLE = ROOT / "sample_data"
+IMUCAL = SAMPLE / "imucal"
+BAD = Path(__file__).resolve().parent / "data" / "bad"
+POSES_3 = [str(SAMPLE / "x.csv"), str(SAMPLE / "y.csv"), str(SAMPLE / "z.csv")]
+SIX_FACES = ("xp", "xn", "yp", "yn", "zp", "zn")
+PRECIOUS = b"an existing output that a failed run must leave alone\n"
+
+
+# -- running tumblecal ----------------------------------------------------------------------
+
+
+class Result(NamedTuple):
+    """One run's exit status, stdout and stderr (unpacks as ``code, out, err``)."""
+
+    code: int
+    out: str
+    err: str
+
+
+def run(capsys: pytest.CaptureFixture[str], *args: str | Path) -> Result:
+    """``tumblecal ARGS`` in-process."""
+    code = main([str(a) for a in args])
+    captured = capsys.readouterr()
+    return Result(code, captured.out, captured.err)
+
+
+def tumblecal(*args: str | Path) -> Result:
+    """``tumblecal ARGS`` in-process, stdout and stderr captured (also outside pytest)."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main([str(a) for a in args])
+    return Result(code, out.getvalue(), err.getvalue())
+
+
+def tumblecal_exe() -> str:
+    """The console script of the interpreter running the tests."""
+    beside = Path(sys.executable).parent / "tumblecal"
+    found = str(beside) if beside.exists() else shutil.which("tumblecal")
+    assert found, "the tumblecal console script is not installed"
+    return found
+
+
+def run_exe(
+    args: Sequence[str | Path], stdin: bytes = b"", cwd: Path | None = None
+) -> subprocess.CompletedProcess[bytes]:
+    env = {**os.environ, "NO_COLOR": "1"}
+    return subprocess.run(
+        [tumblecal_exe(), *map(str, args)], input=stdin, capture_output=True, cwd=cwd, env=env, timeout=60, check=False
+    )
+
+
+def feed_stdin(monkeypatch: pytest.MonkeyPatch, data: bytes) -> None:
+    monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(data)))
+
+
+# -- checking a run -------------------------------------------------------------------------
+
+
+def assert_one_error(result: Result, expected: str, *, code: int = 2, hint: str | None = None) -> None:
+    """Exit ``code``, nothing on stdout, and on stderr exactly ``error: <expected>`` (plus a hint)."""
+    assert result.code == code, result.err
+    assert result.out == ""
+    assert "Traceback" not in result.err
+    lines = result.err.splitlines()
+    assert [ln for ln in lines if ln.startswith("error:")] == [f"error: {expected}"]
+    other = [ln for ln in lines if not ln.startswith(("error:", "hint:"))]
+    assert other == [], "only the error line and its hint go to stderr"
+    hints = [ln for ln in lines if ln.startswith("hint:")]
+    if hint is not None:
+        assert len(hints) == 1
+        assert hint in hints[0]
+
+
+def precious(path: Path) -> Path:
+    path.write_bytes(PRECIOUS)
+    return path
+
+
+def assert_untouched(path: Path) -> None:
+    assert path.read_bytes() == PRECIOUS
+    leftovers = [p.name for p in path.parent.iterdir() if p.name.startswith(f".{path.name}.")]
+    assert leftovers == [], "no temporary file is left behind"
+
+
+def snapshot(folder: Path) -> dict[str, bytes]:
+    """Every file under ``folder`` (hidden ones too) and its bytes."""
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+# -- building inputs ------------------------------------------------------------------------
+
+
+def unit(root: Path, serial: str, kind: str) -> Path:
+    """A unit folder ``root/serial`` of one kind:
+
+    good (x y z of the sample set: passes), six (imucal's six faces in counts: passes without
+    limits, fails any limit in g), rejected (x.csv given as y: pose.orientation, exit 3),
+    error (z is a header without data: exit 2).
+    """
+    folder = root / serial
+    folder.mkdir(parents=True)
+    if kind == "six":
+        for face in SIX_FACES:
+            shutil.copy(IMUCAL / f"{face}.csv", folder / f"{face}.csv")
+        return folder
+    for name in "xyz":
+        shutil.copy(SAMPLE / f"{name}.csv", folder / f"{name}.csv")
+    if kind == "rejected":
+        shutil.copy(SAMPLE / "x.csv", folder / "y.csv")
+    elif kind == "error":
+        (folder / "z.csv").write_text("t,ax,ay,az\n")
+    else:
+        assert kind == "good", kind
+    return folder
