@@ -26,15 +26,7 @@ def samples_of(label: str, data: Any, options: SolveOptions) -> Samples:
 
     name = f"<{label}>"
     if isinstance(data, str | os.PathLike):  # a file, in a mapping of labels
-        return captures.read_samples(
-            os.fspath(data),
-            sensor=options.sensor,
-            columns=options.column_names,
-            no_header=options.no_header,
-            time_column=options.time_column,
-            time_unit=options.time_unit,
-            rate=options.rate,
-        )
+        return read_pose(os.fspath(data), options)
     picked = ["x", "y", "z"]
     try:
         if hasattr(data, "columns") and hasattr(data, "to_numpy"):
@@ -56,6 +48,21 @@ def samples_of(label: str, data: Any, options: SolveOptions) -> Samples:
     rate = options.rate
     duration = (len(values) / rate) if rate else None
     return captures.Samples(layout, values, (0, len(values) - 1), digest, duration)
+
+
+def read_pose(path: str, options: SolveOptions) -> Samples:
+    """A pose file ('-': stdin) read as solve's options say."""
+    from tumblecal_cli.io import captures
+
+    return captures.read_samples(
+        path,
+        sensor=options.sensor,
+        columns=options.column_names,
+        no_header=options.no_header,
+        time_column=options.time_column,
+        time_unit=options.time_unit,
+        rate=options.rate,
+    )
 
 
 def read_capture(path: str | os.PathLike[str], *, no_header: bool = False) -> Any:

@@ -111,20 +111,6 @@ class Settings:
 LOG_ONLY = ("window", "threshold", "min_duration", "trim", "pose_column", "pose_map")
 #: The choices of the options that take one (the command line's own enums).
 CHOICES = {
-    "method": (
-        "auto",
-        "one-pose",
-        "one-pose-tilt",
-        "three-pose",
-        "six-pose",
-        "six-pose-diagonal",
-        "least-squares",
-        "sphere",
-        "minmax",
-        "ellipsoid",
-        "gyro-bias",
-    ),
-    "sensor": ("accelerometer", "magnetometer", "gyroscope"),
     "time_unit": ("s", "ms", "us", "ns"),
     "plane": ("xy", "xz", "yz"),
 }
@@ -147,7 +133,10 @@ NUMBERS = (
 def checked(options: SolveOptions) -> SolveOptions:
     """The checks the command line's parser makes, for options given in Python: each choice
     one of its own, numbers numbers, ranges kept; a lone string where a list goes is one item."""
-    for name, allowed in CHOICES.items():
+    from tumblecal_cli.core.model import SENSORS
+    from tumblecal_cli.core.solvers import METHODS
+
+    for name, allowed in {"method": ("auto", *METHODS), "sensor": SENSORS, **CHOICES}.items():
         value = getattr(options, name)
         if value is not None and value not in allowed:
             raise InputError(f"--{name.replace('_', '-')}: {value!r} is not one of {', '.join(allowed)}")

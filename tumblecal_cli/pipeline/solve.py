@@ -147,7 +147,6 @@ def _read_poses(
 ) -> tuple[str, list[str | None], list[Samples]]:
     """The method, each pose's label and its samples, from files or from data in memory."""
     from tumblecal_cli.core import solvers
-    from tumblecal_cli.io import captures
     from tumblecal_cli.pipeline.options import method_options
 
     if options.up is not None and len(poses) != 1:
@@ -167,23 +166,12 @@ def _read_poses(
     items = [items[k] for k in order]
     labels = [None if name in solvers.ORIENTATION_FREE else label for label, _ in items]
     method_options(name, given.reference, options.plane, options.bias_spread)
-    if in_memory:
-        from tumblecal_cli.pipeline.frames import samples_of
+    from tumblecal_cli.pipeline.frames import read_pose, samples_of
 
+    if in_memory:
         samples = [samples_of(str(label), data, options) for label, data in items]
     else:
-        samples = [
-            captures.read_samples(
-                str(f),
-                sensor=options.sensor,
-                columns=options.column_names,
-                no_header=options.no_header,
-                time_column=options.time_column,
-                time_unit=options.time_unit,
-                rate=options.rate,
-            )
-            for _, f in items
-        ]
+        samples = [read_pose(str(f), options) for _, f in items]
     return name, labels, samples
 
 
