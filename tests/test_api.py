@@ -44,6 +44,7 @@ def _api_call(given: Sequence[str | Path]) -> tuple[list[str], dict[str, object]
     return items, options
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", list(METHOD_CASES))
 def test_each_solver_through_the_api_is_the_command(
     method: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]

@@ -130,6 +130,7 @@ def test_batch_mixed_units_one_row_each(tmp_path: Path, capsys: pytest.CaptureFi
     assert "4 units" in r.err
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("kinds", "options", "expected"),
     [

@@ -180,6 +180,7 @@ def test_solve_output_replaces_an_existing_file(tmp_path: Path, capsys: pytest.C
 # -- solve: --poses parsing --------------------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "args",
     [
@@ -252,6 +253,7 @@ def test_solve_unknown_face(capsys: pytest.CaptureFixture[str]) -> None:
 FACE_VECTORS = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0), "+z": (0, 0, 1), "-z": (0, 0, -1)}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("up", "face"),
     [("+x", "+x"), ("-x", "-x"), ("+y", "+y"), ("-y", "-y"), ("+z", "+z"), ("-z", "-z"), ("xp", "+x"), ("zn", "-z")],

@@ -418,6 +418,7 @@ def test_large_whitespace_file_streams_across_chunks(tmp_path: Path) -> None:
 # -- stdin ------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rows", [10, 120_000], ids=["small", "larger-than-the-first-block"])
 def test_stdin_reads_and_hashes_like_the_file(rows: int, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     text = "t,ax,ay,az\n" + "".join(f"{i * 0.01:.2f},{i % 10}.5,-0.25,1.0\n" for i in range(rows))

@@ -592,6 +592,7 @@ def scatter_ratios(sols: Sequence[core.Solution]) -> tuple[FloatArray, FloatArra
     return offset_ratio, gain_ratio
 
 
+@pytest.mark.slow
 def test_three_pose_reported_errors_match_the_scatter() -> None:
     rng = np.random.default_rng(70)
     sols = [
@@ -648,6 +649,7 @@ def test_tilted_stimulus_keeps_its_magnitude() -> None:
         assert math.degrees(math.acos(min(1.0, cosine))) == pytest.approx(theta, abs=1e-6)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("tolerance", [1.0, 2.0])
 def test_random_tilts_stay_within_the_tilt_sensitivity(tolerance: float) -> None:
     """Each pose off its face by a random angle up to the tolerance, in a random direction: every

@@ -414,6 +414,7 @@ def scenario(name: str, folder: Path) -> tuple[list[Path], list[str]]:
 SCENARIOS = ["moved", "swapped", "saturated", "int16-rail", "short", "upside-down"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", SCENARIOS)
 def test_no_checks_turns_every_check_off(name: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     files, options = scenario(name, tmp_path)
@@ -745,6 +746,7 @@ def test_solve_bad_limits_file(name: str, message: str, tmp_path: Path, capsys: 
     assert_untouched(out)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("name", "message"), BAD_LIMITS)
 def test_check_bad_limits_file(name: str, message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     cal = tmp_path / "cal.json"
@@ -1157,6 +1159,7 @@ INVALID_FIELDS = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("change", "message"), INVALID_FIELDS)
 def test_show_an_invalid_file_names_the_field(
     change: str, message: str, unit_cal: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
@@ -1166,6 +1169,7 @@ def test_show_an_invalid_file_names_the_field(
     assert_one_error(run(capsys, "show", bad, "--json"), f"{bad}: {message}")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "change", ["tilt_sensitivity=null", "-tilt_sensitivity", "-uncertainty", "unit=null", "verdict=null", "-poses"]
 )

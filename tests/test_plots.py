@@ -378,6 +378,7 @@ def good_file(tmp_path: Path, good_png: bytes) -> Path:
     return path
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("call", "message"), [(c, m) for _, c, m in BAD_INPUTS], ids=[i for i, _, _ in BAD_INPUTS])
 def test_bad_input_is_an_input_error_and_leaves_the_old_file(
     good_file: Path, call: Callable[[str], None], message: str

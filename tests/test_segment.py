@@ -898,6 +898,7 @@ def usage_files(six_level_csv: Path, tmp_path: Path) -> dict[str, str]:
     return {"LOG": str(six_level_csv), "POSE": str(pose), "OUT": str(tmp_path / "out")}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("args", "words"),
     [

@@ -904,6 +904,7 @@ def read_acc(path: Path) -> FloatArray:
     return np.array([[float(row[c]) for c in columns] for row in rows[1:]], dtype=np.float64)
 
 
+@pytest.mark.slow
 def test_six_pose_reproduces_imucals_published_calibration() -> None:
     poses = [core.pose_stats(read_acc(IMUCAL / f"{name}.csv")) for name in ("xp", "xn", "yp", "yn", "zp", "zn")]
     assert [p.samples for p in poses] == [1028, 1061, 734, 848, 881, 1044]

@@ -185,6 +185,7 @@ def test_alias_labels_are_the_faces(tmp_path: Path, capsys: pytest.CaptureFixtur
     assert [p["file"] for p in doc["poses"]] == [str(files[f]) for f in SIX]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "layout",
     [
@@ -229,6 +230,7 @@ def test_one_labelled_file_takes_its_label_not_up(tmp_path: Path, capsys: pytest
     np.testing.assert_allclose(doc["offset"], mean - np.array([0.0, 0.0, -1.0]), atol=1e-9)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("faces", "up", "expected"),
     [
@@ -388,6 +390,7 @@ METHOD_CASES: dict[str, Callable[[Path], list[str | Path]]] = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", list(METHOD_CASES))
 def test_method_field(method: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "cal.json"
@@ -404,6 +407,7 @@ def test_method_field(method: str, tmp_path: Path, capsys: pytest.CaptureFixture
         assert 0.0 <= doc["coverage"] <= 1.0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["six-pose", "sphere"])
 def test_explicit_method_gives_the_auto_result(method: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     args = METHOD_CASES[method](tmp_path)
@@ -594,6 +598,7 @@ def test_six_pose_on_imucal_equals_its_published_calibration(
     assert 0 < res["rms"] <= res["max"] < 0.01 * 9.81
 
 
+@pytest.mark.slow
 def test_show_and_check_accept_the_six_pose_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "cal.json"
     solved(run(capsys, "solve", "--poses", *IMUCAL_FILES, "--reference", "9.81", "-q", "-o", out), out)

@@ -613,9 +613,9 @@ def run_batch(
     from concurrent.futures.process import BrokenProcessPool
 
     from tumblecal_cli.io import calfile
-    from tumblecal_cli.pipeline.options import SolveOptions, settings
+    from tumblecal_cli.pipeline.options import SolveOptions, checked, settings
 
-    options = options if isinstance(options, SolveOptions) else SolveOptions(**(options or {}))
+    options = checked(options if isinstance(options, SolveOptions) else SolveOptions(**(options or {})))
     if out_dir == "-":
         raise InputError("--out-dir takes a folder: the calibrations are files, not a stream on stdout")
     settings(options, log=log)  # a bad option: one error, not one per unit

@@ -160,8 +160,8 @@ def checked(options: SolveOptions) -> SolveOptions:
 
 def settings(options: SolveOptions, *, log: bool) -> Settings:
     """The checks of solve's options that no pose file is needed for: the log's options, --meta,
-    the method, --up, the reference, the nominal offset and the limits."""
-    options = checked(options)
+    the method, --up, the reference, the nominal offset and the limits (``options`` as
+    :func:`checked` returns them)."""
     if not log:
         given = [f"--{name.replace('_', '-')}" for name in LOG_ONLY if getattr(options, name) is not None]
         if given:

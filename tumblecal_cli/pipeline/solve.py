@@ -82,7 +82,7 @@ def solve(poses: Poses, **options: object) -> Solved:
     return run(SolveOptions(**options), poses=poses)  # type: ignore[arg-type]
 
 
-def solve_log(log: str, **options: object) -> Solved:
+def solve_log(log: str | os.PathLike[str], **options: object) -> Solved:
     """Solve a calibration from one continuous log ('-': stdin), as ``tumblecal solve --log``:
     the still blocks are found (or taken from ``pose_column``), the best of each face used."""
     from tumblecal_cli.pipeline.options import SolveOptions
@@ -90,22 +90,23 @@ def solve_log(log: str, **options: object) -> Solved:
     return run(SolveOptions(**options), log=log)  # type: ignore[arg-type]
 
 
-def run(options: SolveOptions, *, poses: Poses | None = None, log: str | None = None) -> Solved:
+def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.PathLike[str] | None = None) -> Solved:
     """solve and solve_log, on options already gathered (the command line and batch call this)."""
     from tumblecal_cli.pipeline import options as opts
 
     options = opts.checked(options)
     files_or_data = None if poses is None else _poses_given(poses, options)
-    if log is not None:
-        log = path_of(log, "solve_log takes a log file (a DataFrame in memory: solve it as {label: data})")
-    if bool(files_or_data) == (log is not None):
+    path = (
+        None if log is None else path_of(log, "solve_log takes a log file (data in memory: solve it as {label: data})")
+    )
+    if bool(files_or_data) == (path is not None):
         raise InputError(
             "give the pose files with --poses, or one continuous log with --log" + (", not both" if poses else ""),
             hint="see 'tumblecal solve --help'",
         )
-    given = opts.settings(options, log=log is not None)
-    if log is not None:
-        return _from_log(log, options, given)
+    given = opts.settings(options, log=path is not None)
+    if path is not None:
+        return _from_log(path, options, given)
     assert files_or_data is not None
     name, labels, samples = _read_poses(files_or_data, options, given)
     return _solve(name, labels, samples, options, given, whole=[s.values for s in samples])
