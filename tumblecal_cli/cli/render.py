@@ -42,11 +42,11 @@ def print_csv(table: tuple[list[str], list[list[str]]]) -> None:
     import csv
     import io
 
-    from tumblecal_cli.io.outputs import atomic_output
+    from tumblecal_cli.io.outputs import atomic_output, spreadsheet_safe
 
     header, rows = table
     text = io.StringIO()
-    csv.writer(text, lineterminator="\n").writerows([header, *rows])
+    csv.writer(text, lineterminator="\n").writerows([header, *([spreadsheet_safe(c) for c in r] for r in rows)])
     with atomic_output("-") as out:
         out.write(text.getvalue().encode())
 

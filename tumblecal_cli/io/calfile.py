@@ -7,6 +7,7 @@ only: a ``!!python/object`` tag is an error, never run).
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -563,19 +564,33 @@ def _read_object(path: str, what: str) -> dict[str, Any]:
     return parse_object(read_bytes(path, what), path, what)
 
 
+#: The most a calibration, limits or peer file may hold: they are kilobytes (a calibration with
+#: ten thousand poses is 6 MB); a larger one is the wrong file (a capture, a device, /dev/zero).
+MAX_BYTES = 16 * 1024 * 1024
+
+
 def read_bytes(path: str, what: str) -> bytes:
-    """The bytes of ``path`` ('-': stdin); a missing or unreadable file is one error naming it."""
+    """The bytes of ``path`` ('-': stdin), at most MAX_BYTES; a missing or unreadable file, or
+    one too large to be a {what}, is one error naming it."""
     try:
         if path == "-":  # '-' means stdin wherever a path is taken (README option tables)
-            return sys.stdin.buffer.read()
-        with open(path, "rb") as f:
-            return f.read()
+            data = sys.stdin.buffer.read(MAX_BYTES + 1)
+        else:
+            with open(path, "rb") as f:
+                data = f.read(MAX_BYTES + 1)
     except FileNotFoundError:
         raise InputError(f"no such {what}", file=path) from None
     except IsADirectoryError:
         raise InputError(f"is a directory, not a {what}", file=path) from None
     except OSError as err:
         raise InputError(f"cannot read: {err.strerror}", file=path) from None
+    if len(data) > MAX_BYTES:
+        raise InputError(
+            f"holds more than {MAX_BYTES // (1024 * 1024)} MB: too large for a {what} (they are kilobytes)",
+            file=path,
+            hint=f"is this the {what} you meant?",
+        )
+    return data
 
 
 def parse_object(raw: bytes, path: str, what: str, *, as_yaml: bool | None = None) -> dict[str, Any]:
@@ -646,7 +661,7 @@ def _parse(text: str, path: str, *, as_yaml: bool | None = None) -> Any:
         import yaml
 
         try:
-            return yaml.safe_load(text)
+            return yaml.load(text, Loader=_yaml_loader())  # a SafeLoader that also refuses aliases
         except yaml.YAMLError as err:
             mark = getattr(err, "problem_mark", None)
             problem = getattr(err, "problem", None) or str(err).splitlines()[0]
@@ -660,6 +675,24 @@ def _parse(text: str, path: str, *, as_yaml: bool | None = None) -> Any:
         return json.loads(text)
     except json.JSONDecodeError as err:
         raise InputError(f"not valid JSON: {err.msg}", file=path, line=err.lineno, column=err.colno) from None
+
+
+@functools.cache
+def _yaml_loader() -> Any:
+    """yaml.SafeLoader that refuses aliases (``*name``): a calibration or limits file has no use
+    for them, and a tree of aliases expands exponentially (a few hundred bytes can become GB)."""
+    import yaml
+
+    class NoAliases(yaml.SafeLoader):
+        def compose_node(self, parent: Any, index: Any) -> Any:
+            if self.check_event(yaml.events.AliasEvent):
+                mark = self.peek_event().start_mark  # type: ignore[no-untyped-call]
+                raise yaml.composer.ComposerError(
+                    None, None, "an alias (*name): tumblecal's files are read without them", mark
+                )
+            return super().compose_node(parent, index)
+
+    return NoAliases
 
 
 def is_number(value: Any) -> bool:

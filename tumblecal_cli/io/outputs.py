@@ -18,6 +18,27 @@ from tumblecal_cli.errors import InputError, PipeClosed
 WRITE_ERRORS = (errno.ENOSPC, errno.EFBIG, errno.EDQUOT)
 
 
+#: A text cell starting with one of these is a formula to a spreadsheet (CSV injection).
+FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
+
+
+def spreadsheet_safe(cell: str) -> str:
+    """A CSV cell a spreadsheet shows as text: one that would start a formula gets a leading
+    ``'`` (OWASP's advice); numbers, negative ones included, are left as they are."""
+    if not cell.startswith(FORMULA_STARTS):
+        return cell
+    try:
+        float(cell)
+    except ValueError:
+        return "'" + cell
+    return cell
+
+
+def unsafe(cell: str) -> str:
+    """The cell :func:`spreadsheet_safe` was given."""
+    return cell[1:] if cell.startswith("'") and cell[1:].startswith(FORMULA_STARTS) else cell
+
+
 def check_not_input(output: str, inputs: Iterable[str], flag: str = "-o") -> None:
     """Refuse an output path that names one of the inputs (same file, any spelling)."""
     if output == "-" or not os.path.exists(output):

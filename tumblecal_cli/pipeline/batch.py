@@ -360,17 +360,27 @@ def publish(staging: str, out_dir: str, serial: str, created: str) -> str:
 # -- the summary -------------------------------------------------------------------------------
 
 
+#: The summary's cells whose text starts with what a station chose (the serial).
+FREE_TEXT = ("serial", "file")
+
+
 def cell(row: dict[str, Any], column: str) -> str:
+    """A summary cell: numbers in full, lists joined, free text made safe for a spreadsheet."""
+    from tumblecal_cli.io.outputs import spreadsheet_safe
+
     value = row.get(column)
     if value is None:
         return ""
     if isinstance(value, list):
         return SEPARATOR.join(str(v) for v in value)
-    return repr(value) if isinstance(value, float) else str(value)
+    text = repr(value) if isinstance(value, float) else str(value)
+    return spreadsheet_safe(text) if column in FREE_TEXT else text
 
 
 def read_summary(path: str) -> list[dict[str, Any]]:
     """The rows of an existing summary.csv (for --resume), typed as run_unit makes them."""
+    from tumblecal_cli.io.outputs import unsafe
+
     try:
         with open(path, newline="", encoding="utf-8") as f:
             reader = csv.DictReader(f)
@@ -394,7 +404,7 @@ def read_summary(path: str) -> list[dict[str, Any]]:
                 hint="delete that line and --resume again: that unit is redone",
             )
         try:
-            row: dict[str, Any] = {c: raw[c] or None for c in SUMMARY_COLUMNS}
+            row: dict[str, Any] = {c: (unsafe(raw[c]) if c in FREE_TEXT else raw[c]) or None for c in SUMMARY_COLUMNS}
             row["status"] = int(raw["status"])
             row["codes"] = [c for c in raw["codes"].split(SEPARATOR) if c]
             row["inputs"] = [c for c in raw["inputs"].split(SEPARATOR) if c]

@@ -228,6 +228,8 @@ def import_peer(
         serial if serial is not None else peer.serial, peer.was.get("station"), peer.was.get("operator"), []
     )
     cal = formats.imported(peer, path=path, raw=raw, sensor=peer.sensor, reference=ref, columns=picked, unit=who)
+    # what import writes, tumblecal must read back: validated as `load` validates a file
+    calfile.validate(cal.to_dict(), path)
     return Imported(cal, name, list(peer.notes))
 
 

@@ -296,12 +296,25 @@ def unit_block(
     """The unit block of a calibration; --meta items are KEY=VALUE."""
     from tumblecal_cli.io.calfile import Unit
 
-    if isinstance(meta, Mapping):
-        return Unit(serial, station, operator, {str(k): str(v) for k, v in meta.items()})
+    for flag, value in (("--serial", serial), ("--station", station), ("--operator", operator)):
+        identifier(value, flag)
     pairs: dict[str, str] = {}
-    for item in meta:
+    if isinstance(meta, Mapping):
+        pairs = {str(k): str(v) for k, v in meta.items()}
+    for item in [] if isinstance(meta, Mapping) else meta:
         key, sep, value = item.partition("=")
         if not sep or not key.strip():
             raise InputError(f"--meta takes KEY=VALUE, got {item!r}")
         pairs[key.strip()] = value
+    for key, value in pairs.items():
+        identifier(key, "--meta")
+        identifier(value, "--meta")
     return Unit(serial, station, operator, pairs)
+
+
+def identifier(value: str | None, flag: str) -> None:
+    """A serial, a station ... is one line of text: a control character (a newline, NUL) in it
+    would split a summary row or an error message."""
+    if value is not None and any(ord(ch) < 32 or ord(ch) == 127 for ch in value):
+        bad = next(ch for ch in value if ord(ch) < 32 or ord(ch) == 127)
+        raise InputError(f"{flag} {value!r} holds a control character (U+{ord(bad):04X})")

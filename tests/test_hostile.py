@@ -1,0 +1,126 @@
+"""Hostile inputs (issue: "nothing written on failure, no file trusted that should not be"): each
+test is named for the defect it pins, and failed on the main branch before its fix."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import POSES_3, SAMPLE, precious, run, unit
+
+#: A tree of YAML aliases, 10 wide and 8 deep: 10^8 strings once expanded (GB of memory).
+ALIAS_BOMB = "\n".join(
+    [f"a: &a [{', '.join(['x'] * 10)}]"]
+    + [f"{b}: &{b} [{', '.join(['*' + a] * 10)}]" for a, b in zip("abcdefg", "bcdefgh", strict=True)]
+)
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["show", "{file}"],
+        ["check", str(SAMPLE / "cal_placeholder.json"), "--limits", "{file}"],
+        ["import", "{file}", "--from", "ros-yaml"],
+    ],
+    ids=["show", "limits", "import"],
+)
+def test_yaml_alias_bomb_is_refused_at_once(
+    command: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bomb = tmp_path / "bomb.yaml"
+    bomb.write_text(ALIAS_BOMB + "\n", encoding="utf-8")
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "--poses", *POSES_3, "-o", cal).code == 0
+    args = [a.replace("{file}", str(bomb)).replace(str(SAMPLE / "cal_placeholder.json"), str(cal)) for a in command]
+    r = run(capsys, *args, "-o", tmp_path / "out.json") if command[0] == "import" else run(capsys, *args)
+    assert r.code == 2
+    assert r.err.splitlines()[0] == (
+        f"error: {bomb}: not valid YAML: an alias (*name): tumblecal's files are read without them (line 2, column 8)"
+    )
+    assert not (tmp_path / "out.json").exists()
+
+
+def test_a_calibration_file_too_large_is_refused_without_reading_it_all(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    big = tmp_path / "big.json"
+    with open(big, "wb") as f:
+        f.write(b"{" + b" " * (17 * 1024 * 1024) + b"}")
+    r = run(capsys, "show", big)
+    assert r.code == 2
+    assert r.err.splitlines() == [
+        f"error: {big}: holds more than 16 MB: too large for a calibration file (they are kilobytes)",
+        "hint: is this the calibration file you meant?",
+    ]
+    r = run(capsys, "check", "/dev/zero", "--max-offset", "1")
+    assert r.code == 2
+    assert "/dev/zero: holds more than 16 MB" in r.err
+
+
+def test_import_writes_nothing_that_tumblecal_would_reject(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A ROS file whose recorded columns name one column twice: exit 2, no file (before: written,
+    then refused by every command that read it)."""
+    ros = tmp_path / "imu_calib.yaml"
+    ros.write_text("# raw units in, g out, reference 1.0; columns ax, ax, az\nSM: [1,0,0,0,1,0,0,0,1]\nbias: [0,0,0]\n")
+    out = precious(tmp_path / "cal.json")
+    r = run(capsys, "import", ros, "-o", out)
+    assert r.code == 2
+    assert r.err.splitlines() == [f"error: {ros}: field 'columns' must name three different columns, got ax, ax, az"]
+    assert out.read_bytes() == precious(tmp_path / "again.json").read_bytes()
+
+
+@pytest.mark.parametrize("serial", ["=1+1", "+1+1", "-2+3", "@SUM(A1)"])
+def test_a_serial_that_is_a_formula_is_text_in_summary_csv(
+    serial: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """CSV injection: summary.csv and report's CSV show such a serial as text ('=...), and
+    --resume reads it back as the serial it was."""
+    src = tmp_path / "units"
+    manifest = tmp_path / "lot.csv"
+    unit(src, "good", "good")
+    with open(manifest, "w", newline="", encoding="utf-8") as f:
+        csv.writer(f).writerows([["serial", "x", "y", "z"], [serial, *(str(src / "good" / f"{a}.csv") for a in "xyz")]])
+    out = tmp_path / "cals"
+    assert run(capsys, "batch", manifest, "--out-dir", out).code == 0
+    with open(out / "summary.csv", newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    assert rows[0]["serial"] == "'" + serial
+    assert float(rows[0]["offset_y"]) < 0  # a negative number stays a number
+    again = run(capsys, "batch", manifest, "--out-dir", out, "--resume")
+    assert again.code == 0
+    assert "resuming: 1 of 1 units already done" in again.err
+    r = run(capsys, "report", out, "--max-drift", "offset=1e-9")
+    assert r.code == 0, r.err
+    cal = next(out.glob("*.json"))
+    assert json.loads(cal.read_text())["unit"]["serial"] == serial  # the calibration keeps it as given
+
+
+@pytest.mark.parametrize(("flag", "value"), [("--serial", "A1\nB2"), ("--station", "S\x00"), ("--meta", "k=v\r")])
+def test_control_characters_in_identifiers_are_refused(
+    flag: str, value: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "cal.json"
+    r = run(capsys, "solve", "--poses", *POSES_3, flag, value, "-o", out)
+    assert r.code == 2
+    assert len(r.err.splitlines()) == 1
+    assert "holds a control character" in r.err
+    assert not out.exists()
+
+
+def test_a_serial_that_is_a_formula_is_text_in_report_csv(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    cals = tmp_path / "cals"
+    cals.mkdir()
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1000")
+    assert run(capsys, "solve", "--poses", *POSES_3, "--serial", "=1+1", "-o", cals / "a.json").code == 0
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "2000")  # calibrated again, later, from its +z pose alone
+    assert run(capsys, "solve", "--poses", POSES_3[2], "--serial", "=1+1", "-o", cals / "b.json").code == 0
+    r = run(capsys, "report", cals, "--max-drift", "offset=1e-6")
+    assert r.code == 1, r.err
+    flagged = [row for row in csv.DictReader(r.out.splitlines()) if row["drift_flagged"]]
+    assert flagged
+    assert {row["drift_flagged"] for row in flagged} == {"'=1+1"}
