@@ -124,3 +124,65 @@ def test_a_serial_that_is_a_formula_is_text_in_report_csv(
     flagged = [row for row in csv.DictReader(r.out.splitlines()) if row["drift_flagged"]]
     assert flagged
     assert {row["drift_flagged"] for row in flagged} == {"'=1+1"}
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        (None, "field 'reference' must be a finite number"),
+        ('{"a": ' + "9" * 5000 + "}", "not valid JSON: Exceeds the limit (4300 digits)"),
+        ("[" * 100_000 + "]" * 100_000, "nested too deeply"),
+    ],
+    ids=["integer-beyond-float", "integer-of-5000-digits", "nested-100000-deep"],
+)
+def test_numbers_and_nesting_beyond_python_are_named_input_errors(
+    text: str | None, message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "cal.json"
+    if text is None:  # a whole calibration whose reference is 1 followed by 400 zeros
+        assert run(capsys, "solve", "--poses", *POSES_3, "-o", path).code == 0
+        text = path.read_text().replace('"reference": 1.0', '"reference": 1' + "0" * 400, 1)
+    path.write_text(text, encoding="utf-8")
+    r = run(capsys, "show", path)
+    assert r.code == 2
+    assert "internal error" not in r.err
+    assert message in r.err
+    assert len(r.err.splitlines()) == 1
+
+
+@pytest.mark.parametrize("command", ["solve", "verify"])
+def test_readings_beyond_float_range_are_an_input_error(
+    command: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """1e200 in a capture: its square overflows (a 'math domain error', or verify's norm error
+    of inf with exit 0, before)."""
+    capture = tmp_path / "z.csv"
+    capture.write_text("t,ax,ay,az\n0,0,0,1e200\n0.1,0,0,1e200\n", encoding="utf-8")
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "--poses", *POSES_3, "-o", cal).code == 0
+    if command == "solve":
+        r = run(capsys, "solve", "--poses", capture, "--reference", "1e200", "-o", tmp_path / "o.json")
+    else:
+        r = run(capsys, "verify", "--cal", cal, capture)
+    assert r.code == 2
+    assert r.err.splitlines()[0] == (
+        f"error: {capture}: a reading of 1e+200 is beyond what tumblecal computes with (|reading| <= 1e+150)"
+    )
+
+
+def test_a_calibration_of_the_time_column_is_refused_by_apply(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "--poses", *POSES_3, "-o", cal).code == 0
+    doc = json.loads(cal.read_text())
+    doc["columns"] = ["t", "ay", "az"]
+    cal.write_text(json.dumps(doc))
+    out = precious(tmp_path / "out.csv")
+    r = run(capsys, "apply", "--cal", cal, SAMPLE / "capture.csv", "-o", out)
+    assert r.code == 2
+    assert (
+        r.err.splitlines()[0]
+        == f"error: {SAMPLE / 'capture.csv'}: {cal} calibrates column t, the capture's time column"
+    )
+    assert out.read_bytes() == precious(tmp_path / "again.csv").read_bytes()

@@ -662,6 +662,8 @@ def _parse(text: str, path: str, *, as_yaml: bool | None = None) -> Any:
 
         try:
             return yaml.load(text, Loader=_yaml_loader())  # a SafeLoader that also refuses aliases
+        except RecursionError:
+            raise InputError("not a calibration: its YAML is nested too deeply to read", file=path) from None
         except yaml.YAMLError as err:
             mark = getattr(err, "problem_mark", None)
             problem = getattr(err, "problem", None) or str(err).splitlines()[0]
@@ -675,6 +677,10 @@ def _parse(text: str, path: str, *, as_yaml: bool | None = None) -> Any:
         return json.loads(text)
     except json.JSONDecodeError as err:
         raise InputError(f"not valid JSON: {err.msg}", file=path, line=err.lineno, column=err.colno) from None
+    except RecursionError:
+        raise InputError("not a calibration: its JSON is nested too deeply to read", file=path) from None
+    except ValueError as err:  # an integer of more digits than Python converts (4300)
+        raise InputError(f"not valid JSON: {err}", file=path) from None
 
 
 @functools.cache
@@ -697,7 +703,12 @@ def _yaml_loader() -> Any:
 
 def is_number(value: Any) -> bool:
     """A finite JSON/YAML number (not a boolean, which Python counts as an int)."""
-    return not isinstance(value, bool) and isinstance(value, int | float) and math.isfinite(value)
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an integer beyond any float (1e400 written out)
+        return False
 
 
 def _number(value: Any, name: str, path: str | None) -> float:

@@ -94,6 +94,14 @@ def correct(
             )
         taken = set(cap.layout.sensor)
         more = [(columns_of(cap.layout, other, taken), other) for other in cals[1:]]
+        time = cap.layout.time
+        for triplet, by in [(cap.layout.sensor, c), *((t, o) for t, o in more)]:
+            if time is not None and time in triplet:  # a calibration that would rewrite the clock
+                raise InputError(
+                    f"{by.path} calibrates column {cap.layout.names[time]}, the capture's time column",
+                    file=cap.layout.name,
+                    hint="a calibration corrects three sensor columns: check its 'columns' field",
+                )
         with atomic_output(output) as out:
             rows = captures.correct_stream(
                 cap, out, partial(_correct, c), more=[(t, partial(_correct, o)) for t, o in more]
