@@ -186,3 +186,14 @@ def test_a_calibration_of_the_time_column_is_refused_by_apply(
         == f"error: {SAMPLE / 'capture.csv'}: {cal} calibrates column t, the capture's time column"
     )
     assert out.read_bytes() == precious(tmp_path / "again.csv").read_bytes()
+
+
+def test_a_ros_comment_with_no_number_for_the_reference_is_ignored(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    ros = tmp_path / "imu_calib.yaml"
+    ros.write_text("# raw units in, g out, reference -; columns ax, ay, az\nSM: [1,0,0,0,1,0,0,0,1]\nbias: [0,0,0]\n")
+    out = tmp_path / "cal.json"
+    r = run(capsys, "import", ros, "-o", out)
+    assert r.code == 0, r.err
+    assert json.loads(out.read_text())["reference"] == 9.80665  # imu_calib's default, not the comment's "-"

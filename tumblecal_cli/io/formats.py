@@ -7,6 +7,7 @@ Every mapping starts from tumblecal's model (README "Poses, signs and --referenc
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import math
@@ -323,7 +324,8 @@ def recorded(text: str) -> dict[str, Any]:
         raw, cooked, reference, columns = found.groups()
         out["input_units"] = None if raw == "raw units" else raw
         out["units"] = None if cooked == "reference units" else cooked
-        out["reference"] = float(reference)
+        with contextlib.suppress(ValueError):  # "-" and the like: not a number, so nothing recorded
+            out["reference"] = float(reference)
         if columns and len(names := [c.strip() for c in columns.split(", ")]) == 3:
             out["columns"] = names
     return out
