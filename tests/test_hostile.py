@@ -197,3 +197,57 @@ def test_a_ros_comment_with_no_number_for_the_reference_is_ignored(
     r = run(capsys, "import", ros, "-o", out)
     assert r.code == 0, r.err
     assert json.loads(out.read_text())["reference"] == 9.80665  # imu_calib's default, not the comment's "-"
+
+
+def _segment_log(tmp_path: Path) -> Path:
+    from tests.test_segment import six_poses, synth_log, write_log
+
+    return write_log(tmp_path / "session.csv", synth_log(six_poses(), seed=2))
+
+
+def _listing(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
+
+
+def test_segment_that_fails_while_writing_leaves_the_folder_as_it_was(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A full disk after some block files: exit 2, and neither a new segments.csv nor any block
+    file nor a staging folder (before: segments.csv and the first blocks stayed)."""
+    import errno
+
+    from tumblecal_cli.io import captures
+
+    log = _segment_log(tmp_path)
+    out = tmp_path / "poses"
+    assert run(capsys, "segment", log, "--out-dir", out).code == 0  # an earlier segmentation
+    before = _listing(out)
+    real = captures.copy_rows
+
+    def disk_full_after_two(path: str, layout: object, spans: list[object], outputs: list[str]) -> None:
+        real(path, layout, spans[:2], outputs[:2])  # type: ignore[arg-type]
+        raise OSError(errno.ENOSPC, "No space left on device", outputs[2])
+
+    monkeypatch.setattr(captures, "copy_rows", disk_full_after_two)
+    r = run(capsys, "segment", log, "--out-dir", out, "--min-duration", "2")
+    assert r.code == 2
+    assert "No space left on device" in r.err
+    assert _listing(out) == before
+    fresh = tmp_path / "new"
+    assert run(capsys, "segment", log, "--out-dir", fresh).code == 2
+    assert not fresh.exists()  # a folder it created for nothing is gone too
+
+
+def test_segment_removes_the_staging_folder_a_killed_run_left(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    log = _segment_log(tmp_path)
+    out = tmp_path / "poses"
+    (out / ".tumblecal-segment-abc123").mkdir(parents=True)
+    (out / ".tumblecal-segment-abc123" / "xp.csv").write_text("half")
+    (out / "notes.txt").write_text("mine")
+    r = run(capsys, "segment", log, "--out-dir", out)
+    assert r.code == 0, r.err
+    assert "note: removed 1 staging folder(s) an earlier, interrupted segment run left" in r.err
+    assert not (out / ".tumblecal-segment-abc123").exists()
+    assert (out / "notes.txt").read_text() == "mine"

@@ -126,7 +126,13 @@ def segment(
     )
     if out_dir is None:
         render.print_text(done.index)
-    elif not quiet:
+        return
+    if done.stale and not quiet:
+        render.make_console().print(
+            f"note: removed {done.stale} staging folder(s) an earlier, interrupted segment run left in {out_dir}",
+            soft_wrap=True,
+        )
+    if not quiet:
         gone = f"; removed {done.removed} block files of the earlier segmentation" if done.removed else ""
         kept = len(done.blocks.seg.kept)
         render.make_console().print(f"wrote {kept} block files and segments.csv to {out_dir}{gone}", soft_wrap=True)

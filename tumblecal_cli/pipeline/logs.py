@@ -8,7 +8,9 @@ import csv
 import io
 import os
 import re
+import shutil
 import sys
+import tempfile
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -362,6 +364,7 @@ class Segmented:
     index: str
     out_dir: str | None = None
     removed: int = 0  # block files of an earlier segmentation into out_dir, removed
+    stale: int = 0  # staging folders of an earlier, killed segment run into out_dir, removed
 
     def table(self) -> Any:
         """The index as a pandas DataFrame, one row per block found, kept or dropped."""
@@ -435,6 +438,7 @@ def segment(
         writer.writerows(index_rows(data, seg, files))
         result = Segmented(found, files, text.getvalue(), out_dir)
         if out_dir is not None:
+            result.stale = stale_staging(out_dir)
             result.removed = _write_blocks(log, path, found, files, result.index, out_dir)
     return result
 
@@ -465,15 +469,47 @@ def _write_blocks(log: str, path: str, found: Blocks, files: dict[int, str], ind
         for name in listed - set(files.values())
         if log == "-" or not os.path.samefile(os.path.join(out_dir, name), log)  # never the log itself
     }
+    created = not os.path.isdir(out_dir)
     os.makedirs(out_dir, exist_ok=True)
     kept = seg.kept
     spans = [(int(data.rows[b.first]), int(data.rows[b.last])) for b in kept]
-    # the index first: a run stopped part-way leaves its blocks listed, so the next run
-    # into this folder knows them for its own and replaces them
-    with atomic_output(os.path.join(out_dir, "segments.csv")) as out:
-        out.write(index.encode())
-    captures.copy_rows(path, data.layout, spans, [os.path.join(out_dir, files[b.number]) for b in kept])
+    names = ["segments.csv", *(files[b.number] for b in kept)]
+    # everything is written into a staging folder first and published only when all of it is
+    # there: a failure (a full disk, a bad row) leaves the folder as it was
+    staging = tempfile.mkdtemp(prefix=STAGING, dir=out_dir)
+    published = False
+    try:
+        with atomic_output(os.path.join(staging, "segments.csv")) as out:
+            out.write(index.encode())
+        captures.copy_rows(path, data.layout, spans, [os.path.join(staging, name) for name in names[1:]])
+        # the index first: a run stopped part-way leaves its blocks listed, so the next run
+        # into this folder knows them for its own and replaces them
+        for name in names:
+            os.replace(os.path.join(staging, name), os.path.join(out_dir, name))
+        published = True
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+        if created and not published:
+            with contextlib.suppress(OSError):
+                os.rmdir(out_dir)  # only if empty
     for name in sorted(earlier):  # a re-run replaces the earlier segmentation, never mixes with it
         with contextlib.suppress(FileNotFoundError):
             os.unlink(os.path.join(out_dir, name))
     return len(earlier)
+
+
+#: The name a segment run's staging folder starts with (inside --out-dir).
+STAGING = ".tumblecal-segment-"
+
+
+def stale_staging(out_dir: str) -> int:
+    """Remove staging folders an earlier segment run into ``out_dir`` left (killed mid-way):
+    only folders of this name, never anybody else's files. The number removed."""
+    removed = 0
+    with contextlib.suppress(OSError):
+        for name in os.listdir(out_dir):
+            folder = os.path.join(out_dir, name)
+            if name.startswith(STAGING) and os.path.isdir(folder) and not os.path.islink(folder):
+                shutil.rmtree(folder, ignore_errors=True)
+                removed += 1
+    return removed
