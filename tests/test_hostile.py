@@ -251,3 +251,23 @@ def test_segment_removes_the_staging_folder_a_killed_run_left(
     assert "note: removed 1 staging folder(s) an earlier, interrupted segment run left" in r.err
     assert not (out / ".tumblecal-segment-abc123").exists()
     assert (out / "notes.txt").read_text() == "mine"
+
+
+def test_a_killed_runs_temporary_files_are_removed_by_the_next_write(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """kill -9 leaves ``.out.csv.PID-XXXX.tmp``; the next write of out.csv removes those whose
+    process is gone, and nothing else (a live process's, other names, other files)."""
+    import os
+
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "--poses", *POSES_3, "-o", cal).code == 0
+    dead = tmp_path / ".out.csv.4194305-abcd1234.tmp"  # above Linux's largest pid (2**22): no process
+    live = tmp_path / f".out.csv.{os.getppid()}-efgh5678.tmp"
+    other = [tmp_path / ".out.csv.tmp", tmp_path / ".other.csv.4194305-abcd1234.tmp", tmp_path / "out.csv.bak"]
+    for path in [dead, live, *other]:
+        path.write_text("partial")
+    assert run(capsys, "apply", "--cal", cal, SAMPLE / "capture.csv", "-o", tmp_path / "out.csv").code == 0
+    assert not dead.exists()
+    assert live.exists()
+    assert all(p.exists() for p in other)

@@ -101,8 +101,9 @@ def atomic_output(path: str) -> Iterator[IO[bytes]]:
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
         raise InputError("the output folder does not exist", file=path)
+    remove_stale(folder, os.path.basename(path))
     try:
-        fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{os.path.basename(path)}.", suffix=".tmp")
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{os.path.basename(path)}.{os.getpid()}-", suffix=".tmp")
     except OSError as err:
         raise InputError(f"cannot write: {err.strerror}", file=path) from None
     try:
@@ -124,6 +125,33 @@ def atomic_output(path: str) -> Iterator[IO[bytes]]:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
+
+
+def remove_stale(folder: str, name: str) -> list[str]:
+    """Remove the temporary files of ``name`` that a killed tumblecal left in ``folder``: only
+    files of its own naming (``.NAME.PID-XXXXXXXX.tmp``) whose process is gone on this machine,
+    never anybody else's. The names removed."""
+    pattern = re.compile(rf"\.{re.escape(name)}\.(\d+)-[A-Za-z0-9_]+\.tmp")
+    removed = []
+    with contextlib.suppress(OSError):
+        for entry in os.listdir(folder):
+            found = pattern.fullmatch(entry)
+            if found is None or int(found.group(1)) == os.getpid() or _alive(int(found.group(1))):
+                continue
+            with contextlib.suppress(OSError):
+                os.unlink(os.path.join(folder, entry))
+                removed.append(entry)
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):  # another user's process, or no such pid at all
+        return True
+    return True
 
 
 @contextlib.contextmanager
