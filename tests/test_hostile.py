@@ -271,3 +271,31 @@ def test_a_killed_runs_temporary_files_are_removed_by_the_next_write(
     assert not dead.exists()
     assert live.exists()
     assert all(p.exists() for p in other)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("command", ["solve", "segment"])
+def test_a_fifo_is_read_once_and_never_blocks(command: str, tmp_path: Path) -> None:
+    """A named pipe given as a pose file or a log: read once, as stdin is (before: opened a
+    second time, waiting for a writer for ever; process substitution failed with 'lseek failed')."""
+    import os
+    import subprocess
+
+    from tests.conftest import run_exe
+
+    source = SAMPLE / "z.csv" if command == "solve" else _segment_log(tmp_path)
+    fifo = tmp_path / "pipe.csv"
+    os.mkfifo(fifo)
+    writer = subprocess.Popen(["sh", "-c", f"cat '{source}' > '{fifo}'"])
+    try:
+        if command == "solve":
+            done = run_exe(["solve", "--poses", fifo, "-o", tmp_path / "cal.json", "-q"])
+        else:
+            done = run_exe(["segment", fifo, "--out-dir", tmp_path / "poses", "-q"])
+    finally:
+        writer.wait(timeout=60)
+    assert done.returncode == 0, done.stderr
+    if command == "solve":
+        assert json.loads((tmp_path / "cal.json").read_text())["poses"][0]["file"] == str(fifo)
+    else:
+        assert (tmp_path / "poses" / "segments.csv").exists()

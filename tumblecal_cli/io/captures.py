@@ -23,6 +23,7 @@ import hashlib
 import io
 import os
 import re
+import stat
 import sys
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
@@ -318,14 +319,15 @@ def open_capture(
             f.close()
         raise
     stream: Any
-    if path != "-" and layout.delimiter is not None:
+    regular = path != "-" and stat.S_ISREG(os.fstat(f.fileno()).st_mode)  # not a pipe, FIFO or device
+    if regular and layout.delimiter is not None:
         # a regular file: pyarrow reads it natively from the end of the header (1.7x faster)
         f.close()
         stream = pa.OSFile(path)
         stream.seek(consumed)
     else:
         stream = _DataStream(first[consumed:], f, hasher, squeeze=layout.delimiter is None, owns=path != "-")
-    return Capture(layout, stream, None if path == "-" else path, hasher)
+    return Capture(layout, stream, path if regular else None, hasher)  # a pipe is read once
 
 
 def _sniff(name: str, first: bytes, *, at_eof: bool, no_header: bool) -> tuple[Layout, int]:
@@ -842,6 +844,15 @@ def _write_batch(batch: pa.RecordBatch, out: IO[bytes], options: Any, lay: Layou
 def _write_plain(batch: pa.RecordBatch, out: IO[bytes], delimiter: str, eol: str) -> None:
     columns = [[("" if v is None else v) for v in c.to_pylist()] for c in batch.columns]
     out.write("".join(delimiter.join(row) + eol for row in zip(*columns, strict=True)).encode())
+
+
+def is_regular(path: str) -> bool:
+    """Whether ``path`` is a regular file (one that can be read twice), not a pipe, FIFO or device.
+    A path that cannot be examined counts as regular: opening it says what is wrong."""
+    try:
+        return stat.S_ISREG(os.stat(path).st_mode)
+    except OSError:
+        return True
 
 
 def sensor_triplet(

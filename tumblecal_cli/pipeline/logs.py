@@ -69,7 +69,8 @@ def segmented(
             raise InputError(f"{option} must not be negative, got {value:g}")
     if rate is not None and not rate > 0:
         raise InputError(f"--rate must be positive, got {rate:g}")
-    path = spool_stdin() if log == "-" else log
+    spooled = log == "-" or not captures.is_regular(log)  # a pipe or FIFO is read once: kept for a second read
+    path = spool_stdin(None if log == "-" else log) if spooled else log
     try:
         data = captures.read_log(
             path,
@@ -80,12 +81,12 @@ def segmented(
             time_unit=time_unit,
             label_column=pose_column,
             use_time=rate is None,
-            name="<stdin>" if log == "-" else None,
+            name="<stdin>" if log == "-" else log,
             digest=digest,
         )
         yield path, data, find_blocks(data, rate, pose_column, pose_map, settings)
     finally:
-        if log == "-":
+        if spooled:
             os.unlink(path)
 
 
@@ -322,14 +323,16 @@ def index_rows(log: Log, seg: Segmentation, files: dict[int, str]) -> list[list[
     return rows
 
 
-def spool_stdin() -> str:
-    """stdin copied to a temporary file (a log is read twice: to find the blocks, then to copy them)."""
-    import shutil
-    import tempfile
-
+def spool_stdin(source: str | None = None) -> str:
+    """stdin (or the pipe ``source``) copied to a temporary file (a log is read twice: to find the
+    blocks, then to copy them)."""
     with tempfile.NamedTemporaryFile(prefix="tumblecal-", suffix=".csv", delete=False) as tmp:
         try:
-            shutil.copyfileobj(sys.stdin.buffer, tmp)
+            if source is None:
+                shutil.copyfileobj(sys.stdin.buffer, tmp)
+            else:
+                with open(source, "rb") as f:
+                    shutil.copyfileobj(f, tmp)
         except BaseException:
             os.unlink(tmp.name)
             raise
