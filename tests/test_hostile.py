@@ -299,3 +299,26 @@ def test_a_fifo_is_read_once_and_never_blocks(command: str, tmp_path: Path) -> N
         assert json.loads((tmp_path / "cal.json").read_text())["poses"][0]["file"] == str(fifo)
     else:
         assert (tmp_path / "poses" / "segments.csv").exists()
+
+
+def test_apply_to_stdout_that_fails_part_way_ends_its_output_as_incomplete(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Rows already streamed cannot be taken back: the output ends with a line no CSV reader of
+    that header takes for a row, and the exit status is 2."""
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "--poses", *POSES_3, "-o", cal).code == 0
+    rows = [f"{k * 0.01:.2f},0.1,0.2,0.9" for k in range(200_000)]
+    rows[150_000] = "1500.00,0.1,x,0.9"
+    capture = tmp_path / "capture.csv"
+    capture.write_text("t,ax,ay,az\n" + "\n".join(rows) + "\n")
+    r = run(capsys, "apply", "--cal", cal, capture)
+    assert r.code == 2
+    assert r.err.splitlines() == [f"error: {capture}: not a number: 'x' (line 150002, column ay)"]
+    lines = r.out.splitlines()
+    assert lines[0] == "t,ax,ay,az"
+    assert len(lines) > 1000
+    assert lines[-1] == "tumblecal: output incomplete: the run stopped on an error (exit 2, see stderr)"
+    out = precious(tmp_path / "out.csv")
+    assert run(capsys, "apply", "--cal", cal, capture, "-o", out).code == 2
+    assert out.read_bytes() == precious(tmp_path / "again.csv").read_bytes()  # with -o: nothing written

@@ -76,6 +76,10 @@ def apply(
     digit needed to round-trip. A calibration whose unit failed its limits is refused
     unless --force.
 
+    With -o nothing is written unless the whole capture is corrected. To stdout the rows are
+    streamed as they are corrected, and a stream cannot be taken back: a bad row far into the
+    capture ends it with the line "tumblecal: output incomplete: ..." and exit 2.
+
     \b
       tumblecal apply --cal cal.json capture.csv -o corrected.csv
       cat capture.csv | tumblecal apply --cal cal.json > corrected.csv

@@ -788,17 +788,28 @@ def correct_stream(
     ahead = max(2, os.cpu_count() or 1)
     pending: deque[Future[pa.RecordBatch]] = deque()
     with ThreadPoolExecutor(max_workers=ahead) as pool:
-        for first_row, cols in cap.batches():
-            pending.append(pool.submit(convert, first_row, cols))
-            while len(pending) >= ahead or (pending and pending[0].done()):
+        try:
+            for first_row, cols in cap.batches():
+                pending.append(pool.submit(convert, first_row, cols))
+                while len(pending) >= ahead or (pending and pending[0].done()):
+                    rows += write(pending.popleft().result())
+            while pending:
                 rows += write(pending.popleft().result())
-        while pending:
-            rows += write(pending.popleft().result())
+        except InputError:
+            if not head:  # rows are out (to stdout, which cannot take them back): say it is not all
+                out.write(INCOMPLETE)
+            raise
         if head:
             out.write(head.pop())
         if progress is not None:
             progress(rows)
     return rows
+
+
+#: The last line of a corrected stream that stopped on a bad row after rows were written: one
+#: field, so that a reader checking the header's field count refuses it, and no `#`, so that it is
+#: not taken for a comment. Exit 2 says so too. (With -o the temporary file is thrown away.)
+INCOMPLETE = b"\ntumblecal: output incomplete: the run stopped on an error (exit 2, see stderr)\n"
 
 
 # numpy <-> arrow by their buffers: pyarrow's Array.to_numpy, pa.array and pa.scalar import
