@@ -496,18 +496,30 @@ def test_batch_resume_twice_killed_during_the_first_unit(
     assert r.code == 0, r.err
 
 
-def test_batch_resume_of_a_cut_row_is_a_clean_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_batch_resume_repairs_a_last_row_cut_short(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A batch killed (or a disk full) while writing a row leaves it cut short: --resume drops
+    it with a note and does that unit again. A cut row before the last is still exit 2."""
     src = units(tmp_path / "units", {"A": "good", "B": "good"})
     full = tmp_path / "full"
     assert run(capsys, "batch", src, "--out-dir", full, "-q").code == 0
     header, row_a, _ = (full / "summary.csv").read_text().splitlines(keepends=True)
-    out = tmp_path / "out"
+    for torn in ("B,0,pa", "B,0,pa\n"):
+        out = tmp_path / f"out{len(torn)}"
+        out.mkdir()
+        (out / "summary.csv").write_text(header + row_a + torn)
+        r = run(capsys, "batch", src, "--out-dir", out, "--resume")
+        assert r.code == 0, r.err
+        assert (
+            "its last row was cut short (a batch stopped while writing it): dropped, that unit is done again" in r.err
+        )
+        assert sorted(row["serial"] for row in read_rows(out / "summary.csv")) == ["A", "B"]
+    out = tmp_path / "middle"
     out.mkdir()
-    (out / "summary.csv").write_text(header + row_a + "B,0,pa")
+    (out / "summary.csv").write_text(header + "B,0,pa\n" + row_a)
     r = run(capsys, "batch", src, "--out-dir", out, "--resume")
     assert r.code == 2
     assert "internal error" not in r.err
-    assert "line 3" in r.err
+    assert "line 2" in r.err
 
 
 # -- --json ----------------------------------------------------------------------------------------

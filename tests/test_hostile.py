@@ -322,3 +322,104 @@ def test_apply_to_stdout_that_fails_part_way_ends_its_output_as_incomplete(
     out = precious(tmp_path / "out.csv")
     assert run(capsys, "apply", "--cal", cal, capture, "-o", out).code == 2
     assert out.read_bytes() == precious(tmp_path / "again.csv").read_bytes()  # with -o: nothing written
+
+
+def test_batch_stops_on_a_full_disk_and_leaves_that_unit_to_resume(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A unit whose calibration cannot be written is not done: the batch stops (exit 2, naming
+    the file), its row is not in summary.csv, and --resume does it (before: recorded as an error
+    row, then skipped by --resume as done)."""
+    from tumblecal_cli.errors import InputError
+    from tumblecal_cli.io import calfile
+
+    src = tmp_path / "units"
+    for serial in ("A", "B", "C"):
+        unit(src, serial, "good")
+    out = tmp_path / "cals"
+    real = calfile.Calibration.save
+
+    def full_disk_for_b(self: calfile.Calibration, path: str) -> None:
+        if self.serial == "B":
+            raise InputError("cannot write: No space left on device", file=str(path))
+        real(self, path)
+
+    monkeypatch.setattr(calfile.Calibration, "save", full_disk_for_b)
+    r = run(capsys, "batch", src, "--out-dir", out)
+    assert r.code == 2
+    assert "B: " in r.err
+    assert "No space left on device" in r.err
+    assert "--resume" in r.err
+    with open(out / "summary.csv", newline="", encoding="utf-8") as f:
+        assert [row["serial"] for row in csv.DictReader(f)] == ["A"]
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no staging file left
+    monkeypatch.setattr(calfile.Calibration, "save", real)
+    r = run(capsys, "batch", src, "--out-dir", out, "--resume")
+    assert r.code == 0, r.err
+    with open(out / "summary.csv", newline="", encoding="utf-8") as f:
+        assert [row["serial"] for row in csv.DictReader(f)] == ["A", "B", "C"]
+
+
+def test_batch_removes_the_staging_files_a_killed_batch_left(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    src = tmp_path / "units"
+    unit(src, "A", "good")
+    out = tmp_path / "cals"
+    out.mkdir()
+    stale = out / ".A.4194305-1700000000000000000.partial.json"  # a pid above Linux's largest
+    stale.write_text("{}")
+    mine = out / ".notes.partial.json"  # not of a batch's naming
+    mine.write_text("{}")
+    r = run(capsys, "batch", src, "--out-dir", out)
+    assert r.code == 0, r.err
+    assert f"note: removed 1 staging file(s) a killed batch left in {out}" in r.err
+    assert not stale.exists()
+    assert mine.exists()
+
+
+@pytest.mark.slow
+def test_batch_workers_exit_when_the_batch_is_killed(tmp_path: Path) -> None:
+    """kill -9 of `batch --jobs 2` cannot shut its pool down: its workers see it gone and exit
+    (before: alive after 60 s, holding 260 MB)."""
+    import os
+    import signal
+    import subprocess
+    import time
+    import uuid
+
+    from tests.conftest import tumblecal_exe
+
+    src = tmp_path / "units"
+    for k in range(60):
+        unit(src, f"U{k:03d}", "good")
+    mark = uuid.uuid4().hex
+    env = {**os.environ, "TUMBLECAL_TEST_MARK": mark}
+
+    def ours() -> list[int]:
+        found = []
+        for pid in filter(str.isdigit, os.listdir("/proc")):
+            try:
+                environ = Path(f"/proc/{pid}/environ").read_bytes()
+            except OSError:
+                continue
+            if f"TUMBLECAL_TEST_MARK={mark}".encode() in environ.split(b"\0"):
+                found.append(int(pid))
+        return found
+
+    batch = subprocess.Popen(
+        [tumblecal_exe(), "batch", str(src), "--out-dir", str(tmp_path / "cals"), "--jobs", "2", "-q"],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    deadline = time.monotonic() + 30
+    while len(ours()) < 3 and time.monotonic() < deadline:  # the batch and its workers
+        time.sleep(0.05)
+    assert len(ours()) >= 3
+    os.kill(batch.pid, signal.SIGKILL)
+    batch.wait(timeout=10)
+    deadline = time.monotonic() + 10
+    while ours() and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert ours() == []

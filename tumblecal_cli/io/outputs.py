@@ -136,7 +136,7 @@ def remove_stale(folder: str, name: str) -> list[str]:
     with contextlib.suppress(OSError):
         for entry in os.listdir(folder):
             found = pattern.fullmatch(entry)
-            if found is None or int(found.group(1)) == os.getpid() or _alive(int(found.group(1))):
+            if found is None or int(found.group(1)) == os.getpid() or alive(int(found.group(1))):
                 continue
             with contextlib.suppress(OSError):
                 os.unlink(os.path.join(folder, entry))
@@ -144,7 +144,8 @@ def remove_stale(folder: str, name: str) -> list[str]:
     return removed
 
 
-def _alive(pid: int) -> bool:
+def alive(pid: int) -> bool:
+    """Whether process ``pid`` runs on this machine (one of another user's counts as running)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:

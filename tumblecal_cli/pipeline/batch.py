@@ -18,6 +18,7 @@ import glob
 import io
 import itertools
 import os
+import re
 import sys
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
@@ -271,6 +272,8 @@ def _run_unit(unit: Unit, options: SolveOptions, out_dir: str, log: bool, token:
         assert solved.calibration is not None
         solved.calibration.save(staging)
     except TumblecalError as err:
+        if err.file == staging:  # its calibration could not be written (a full disk): not done
+            return row | _failed(err) | {"unwritten": True}
         return row | _failed(err)
     except Exception as err:  # a bug: this unit's error, with what to report
         return row | _failed(InputError(f"internal error: {type(err).__name__}: {err}"))
@@ -299,6 +302,49 @@ def failed_row(unit: Unit, err: BaseException) -> dict[str, Any]:
     """The row of a unit whose worker failed (a Dask worker lost, tumblecal missing there)."""
     message = f"the worker running it failed: {type(err).__name__}: {err}"
     return {"serial": unit.serial, "inputs": list(unit.inputs)} | _failed(InputError(message))
+
+
+def stale_staging(out_dir: str) -> list[str]:
+    """Remove the staging files a killed batch left in ``out_dir`` (``.SERIAL.PID-NS.partial.json``
+    of a process that is gone; never another name); a note when there were any."""
+    from tumblecal_cli.io.outputs import alive
+
+    pattern = re.compile(rf"\..+\.(\d+)-\d+{re.escape(STAGING)}")
+    removed = 0
+    with contextlib.suppress(OSError):
+        for name in os.listdir(out_dir):
+            found = pattern.fullmatch(name)
+            if found is not None and int(found.group(1)) != os.getpid() and not alive(int(found.group(1))):
+                with contextlib.suppress(OSError):
+                    os.unlink(os.path.join(out_dir, name))
+                    removed += 1
+    return [f"removed {removed} staging file(s) a killed batch left in {out_dir}"] if removed else []
+
+
+def repair_torn_row(path: str) -> list[str]:
+    """A summary whose last row was cut short (a batch killed, or a disk full, while writing it)
+    loses that row, so that its unit is done again; a note when it did. (Summary cells hold no
+    line breaks: a row is a line.)"""
+    from tumblecal_cli.io.outputs import atomic_output
+
+    try:
+        with open(path, "rb") as f:
+            data = f.read()
+    except OSError:
+        return []  # read_summary says what is wrong
+    whole = data.endswith(b"\n")
+    lines = data.split(b"\n")[:-1] if whole else data.split(b"\n")
+    if len(lines) < 2 or lines[0].decode("utf-8", "replace") != ",".join(SUMMARY_COLUMNS):
+        return []  # a header alone, or not a summary of ours: read_summary judges it
+    try:
+        cells = len(next(csv.reader([lines[-1].decode("utf-8")]), []))
+    except (UnicodeDecodeError, csv.Error):
+        cells = 0
+    if whole and cells == len(SUMMARY_COLUMNS):
+        return []
+    with atomic_output(path) as out:
+        out.write(data[: len(data) - len(lines[-1]) - (1 if whole else 0)])
+    return [f"{path}: its last row was cut short (a batch stopped while writing it): dropped, that unit is done again"]
 
 
 def clean_staging(out_dir: str, token: str) -> None:
@@ -485,7 +531,9 @@ def _processes(jobs: int) -> Engine:
             ["tumblecal_cli.pipeline.solve", "tumblecal_cli.io.captures", "tumblecal_cli.core.solvers"]
         )
         sent: dict[Future[Any], tuple[Any, ...]] = {}
-        with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
+        with ProcessPoolExecutor(
+            max_workers=jobs, mp_context=context, initializer=_watch_parent, initargs=(os.getpid(),)
+        ) as pool:
             try:
                 for args in work:  # keep a few units in flight per worker, not the whole lot
                     sent[pool.submit(fn, *args)] = args
@@ -500,6 +548,22 @@ def _processes(jobs: int) -> Engine:
                 raise
 
     return run
+
+
+def _watch_parent(parent: int) -> None:
+    """In a worker process: exit when the batch that started it is gone (killed with -9, it
+    cannot shut its pool down), instead of living on with the units in flight."""
+    import threading
+    import time
+
+    from tumblecal_cli.io.outputs import alive
+
+    def watch() -> None:
+        while alive(parent):
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="tumblecal-parent-watch", daemon=True).start()
 
 
 def _dask(address: str) -> Engine:
@@ -647,7 +711,9 @@ def run_batch(
                 file=summary_path,
                 hint="--resume continues it; or use another --out-dir",
             )
+        notes += repair_torn_row(summary_path)
         rows = read_summary(summary_path)
+    notes += stale_staging(out_dir)
     done = {str(r["serial"]) for r in rows}
     todo = [u for u in units if u.serial not in done]
     if on_start is not None:
@@ -662,6 +728,11 @@ def run_batch(
         for (unit, *_), outcome in run(run_unit, work):
             # a row is published as it is recorded
             row = failed_row(unit, outcome) if isinstance(outcome, BaseException) else finish(outcome, out_dir)
+            if row.get("unwritten"):  # the disk refused: stop here, and leave the unit to --resume
+                raise InputError(
+                    f"{row['serial']}: {row['message']}; {len(summary.rows) - len(done)} of {len(todo)} units done",
+                    hint="free some space, then run the same command with --resume: the units done are kept",
+                )
             summary.add(row)
             if on_unit is not None:
                 on_unit(row)
