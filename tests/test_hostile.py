@@ -423,3 +423,16 @@ def test_batch_workers_exit_when_the_batch_is_killed(tmp_path: Path) -> None:
     while ours() and time.monotonic() < deadline:
         time.sleep(0.2)
     assert ours() == []
+
+
+def test_a_name_with_a_line_break_cannot_split_an_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "--poses", *POSES_3, "-o", cal).code == 0
+    doc = json.loads(cal.read_text())
+    doc["columns"] = ["a\nb", "a\nb", "z\u2028"]
+    cal.write_text(json.dumps(doc))
+    r = run(capsys, "show", cal)
+    assert r.code == 2
+    assert r.err.splitlines() == [
+        f"error: {cal}: field 'columns' must name three different columns, got a\\nb, a\\nb, z\\u2028"
+    ]

@@ -188,10 +188,19 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def report(message: str, hint: str | None, more: tuple[str, ...] = ()) -> None:
+    """Each error one line on stderr (a file or column name holding a line break is shown escaped)."""
     for line in (message, *more):
-        print(f"error: {line}", file=sys.stderr)
+        print(f"error: {one_line(line)}", file=sys.stderr)
     if hint:
-        print(f"hint: {hint}", file=sys.stderr)
+        print(f"hint: {one_line(hint)}", file=sys.stderr)
+
+
+#: Characters that end a line for a terminal or for str.splitlines, and the rest of C0: escaped.
+_BREAKS = {c: repr(chr(c))[1:-1] for c in [*range(32), 127, 0x85, 0x2028, 0x2029] if chr(c) != "\t"}
+
+
+def one_line(text: str) -> str:
+    return text.translate(_BREAKS)
 
 
 def main_exit() -> None:
