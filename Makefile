@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 TC := $(BIN)/tumblecal
 
-.PHONY: demo test check bench montecarlo clean
+.PHONY: demo test check fuzz bench montecarlo clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -42,6 +42,12 @@ check: $(VENV)/.installed
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy
 	$(PYTEST) -q -m "not slow"; status=$$?; [ $$status -eq 0 ] || [ $$status -eq 5 ]
+
+# seeded mutation fuzzing of every reader (not part of `make test`): FUZZ_CASES=3000 FUZZ_SEED=1
+FUZZ_CASES ?= 3000
+FUZZ_SEED ?= 1
+fuzz: $(VENV)/.installed
+	$(BIN)/python tests/fuzz.py --cases $(FUZZ_CASES) --seed $(FUZZ_SEED)
 
 bench: $(VENV)/.installed
 	$(BIN)/python tests/bench.py

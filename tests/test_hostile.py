@@ -436,3 +436,82 @@ def test_a_name_with_a_line_break_cannot_split_an_error(tmp_path: Path, capsys: 
     assert r.err.splitlines() == [
         f"error: {cal}: field 'columns' must name three different columns, got a\\nb, a\\nb, z\\u2028"
     ]
+
+
+# -- the corpus: every hostile file through every command that reads its kind ---------------------
+
+HOSTILE = Path(__file__).resolve().parent / "data" / "hostile"
+CALIBRATIONS = [
+    "alias_bomb.yaml",
+    "deep_nesting.json",
+    "int_5000_digits.json",
+    "int_beyond_float.json",
+    "columns_with_line_breaks.json",
+]
+CASES = [
+    *(
+        pytest.param(name, command, id=f"{name}-{command[0]}")
+        for name in CALIBRATIONS
+        for command in (
+            ["show", "{f}"],
+            ["check", "{f}", "--max-offset", "1"],
+            ["export", "{f}", "--format", "c-header", "-o", "{out}"],
+            ["apply", "--cal", "{f}", str(SAMPLE / "capture.csv"), "-o", "{out}"],
+            ["verify", "--cal", "{f}", str(SAMPLE / "x.csv")],
+        )
+    ),
+    pytest.param(
+        "calibrates_the_time_column.json", ["apply", "--cal", "{f}", str(SAMPLE / "capture.csv"), "-o", "{out}"]
+    ),
+    pytest.param("ros_duplicate_columns.yaml", ["import", "{f}", "-o", "{out}"]),
+    pytest.param("limits_alias.yaml", ["check", "{cal}", "--limits", "{f}"]),
+    pytest.param("limits_alias.yaml", ["solve", "--poses", *POSES_3, "--limits", "{f}", "-o", "{out}"]),
+    *(
+        pytest.param(name, command, id=f"{name}-{command[0]}")
+        for name in ("capture_1e200.csv", "capture_1e308_constant.csv")
+        for command in (
+            ["solve", "--poses", "{f}", "--reference", "1e308", "-o", "{out}"],
+            ["verify", "--cal", "{cal}", "{f}"],
+        )
+    ),
+]
+
+
+@pytest.mark.parametrize(("name", "command"), CASES)
+def test_hostile_file(name: str, command: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """One error line (and a hint), exit 2, no traceback, an existing output left byte for byte,
+    no temporary file, in bounded time."""
+    import time
+
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "--poses", *POSES_3, "-o", cal).code == 0
+    out = precious(tmp_path / "out.json")
+    before = sorted(p.name for p in tmp_path.iterdir())
+    args = [
+        a.replace("{f}", str(HOSTILE / name)).replace("{out}", str(out)).replace("{cal}", str(cal)) for a in command
+    ]
+    started = time.monotonic()
+    r = run(capsys, *args)
+    assert time.monotonic() - started < 10
+    assert r.code == 2, r.err
+    lines = r.err.splitlines()
+    assert [ln for ln in lines if not ln.startswith("hint:")] == [lines[0]], r.err
+    assert lines[0].startswith("error: ")
+    assert "internal error" not in r.err
+    assert "Traceback" not in r.err
+    assert out.read_bytes() == precious(tmp_path / "again.json").read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name != "again.json") == before
+
+
+def test_a_cr_only_capture_keeps_its_line_ends_in_apply(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Line ends of a lone CR (old Macs): the header's and the rows' the same (before: a CR after
+    the header, LF after each row)."""
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "--poses", *POSES_3, "-o", cal).code == 0
+    capture = tmp_path / "cr.csv"
+    capture.write_bytes(b"t,ax,ay,az\r0.00,0.1,0.2,0.9\r0.01,0.1,0.2,0.9\r")
+    out = tmp_path / "out.csv"
+    assert run(capsys, "apply", "--cal", cal, capture, "-o", out).code == 0
+    data = out.read_bytes()
+    assert b"\n" not in data
+    assert data.count(b"\r") == 3

@@ -353,7 +353,7 @@ def _sniff(name: str, first: bytes, *, at_eof: bool, no_header: bool) -> tuple[L
     content = [ln.rstrip("\r\n") for ln in lines[k : k + 50] if not _skipped(ln)]
     delimiter = _detect_delimiter(content)
     cells = [c.strip().strip('"').strip() for c in _split(content[0], delimiter)]
-    eol = "\r\n" if lines[k].endswith("\r\n") else "\n"
+    eol = "\r\n" if lines[k].endswith("\r\n") else "\r" if lines[k].endswith("\r") else "\n"  # CR alone: old Macs
     header = not no_header and any(c and not re.match(_NUMBER, c) for c in cells)
     if header:
         names = cells

@@ -1,0 +1,177 @@
+"""Mutation fuzzing of every reader (``make fuzz``; not part of ``make test``).
+
+Each case takes one of the project's own good files (a pose capture, a calibration in JSON and
+in YAML, a limits file, a peer's calibration), mutates it with a seeded random generator (bytes
+flipped, inserted or cut, lines duplicated or dropped, cells replaced by huge, empty, non-finite
+or non-UTF-8 text, control characters, the file truncated), and runs the commands that read that
+kind of file in-process. It passes when every run ends in a documented exit status (0, 1, 2, 3)
+with no internal error, no traceback, every error on one line, and an existing output either left
+byte for byte (exit 2 or 3) or replaced whole. A failing case is written to ``fuzz-failures/``
+with the command that broke, for a test of its own.
+
+    python tests/fuzz.py [--cases 3000] [--seed 1]
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import random
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+SAMPLE = ROOT / "sample_data"
+
+#: Cells worth trying in a CSV or a JSON/YAML number's place.
+NASTY = [
+    "",
+    "nan",
+    "inf",
+    "-inf",
+    "1e400",
+    "1e200",
+    "-0",
+    "9" * 400,
+    "0x10",
+    "1,5",
+    '"',
+    "#",
+    "\x00",
+    "\u2028",
+    "\x0b",
+    "é",
+    "*a",
+    "&a [1]",
+    "!!python/object:os.system",
+    "[[[[",
+    "{",
+]
+
+
+def mutate(data: bytes, rng: random.Random) -> bytes:
+    """One to three random edits of ``data``."""
+    for _ in range(rng.randint(1, 3)):
+        kind = rng.randrange(7)
+        if not data:
+            return rng.choice(NASTY).encode()
+        at = rng.randrange(len(data))
+        if kind == 0:  # flip a byte
+            data = data[:at] + bytes([rng.randrange(256)]) + data[at + 1 :]
+        elif kind == 1:  # insert a nasty token
+            data = data[:at] + rng.choice(NASTY).encode("utf-8", "surrogatepass") + data[at:]
+        elif kind == 2:  # cut a span
+            data = data[:at] + data[at + rng.randint(1, 64) :]
+        elif kind == 3:  # truncate
+            data = data[:at]
+        elif kind == 4:  # duplicate or drop a line
+            lines = data.split(b"\n")
+            k = rng.randrange(len(lines))
+            lines[k : k + 1] = [] if rng.random() < 0.5 else [lines[k], lines[k]]
+            data = b"\n".join(lines)
+        elif kind == 5:  # a cell of a CSV row becomes nasty
+            lines = data.split(b"\n")
+            k = rng.randrange(len(lines))
+            cells = lines[k].split(b",")
+            cells[rng.randrange(len(cells))] = rng.choice(NASTY).encode()
+            lines[k] = b",".join(cells)
+            data = b"\n".join(lines)
+        else:  # line ends
+            data = data.replace(b"\n", rng.choice([b"\r\n", b"\r", b"\n\n"]))
+    return data
+
+
+def seeds(folder: Path) -> dict[str, tuple[bytes, list[list[str]]]]:
+    """The good files by kind, and the commands that read each (``{f}``: the mutated file,
+    ``{cal}``: a good calibration, ``{out}``: an existing output)."""
+    from tumblecal_cli.cli import main
+
+    cal = folder / "good.json"
+    with contextlib.redirect_stderr(io.StringIO()):
+        assert main(["solve", "--poses", *(str(SAMPLE / f"{a}.csv") for a in "xyz"), "-o", str(cal)]) == 0
+        assert main(["export", str(cal), "--format", "ros-yaml", "-o", str(folder / "ros.yaml")]) == 0
+    yaml_text = cal.read_text()  # JSON is YAML too; a .yaml name makes the YAML reader take it
+    capture = ["apply", "--cal", "{cal}", "{f}", "-o", "{out}"]
+    return {
+        "pose.csv": ((SAMPLE / "x.csv").read_bytes(), [["solve", "--poses", "{f}", "-o", "{out}"], capture]),
+        "capture.csv": ((SAMPLE / "capture.csv").read_bytes()[:4000], [capture, ["verify", "--cal", "{cal}", "{f}"]]),
+        "cal.json": (
+            cal.read_bytes(),
+            [["show", "{f}"], ["check", "{f}", "--max-offset", "1"], ["export", "{f}", "--format", "c-header"]],
+        ),
+        "cal.yaml": (yaml_text.encode(), [["show", "{f}"], ["apply", "--cal", "{f}", str(SAMPLE / "x.csv")]]),
+        "limits.yaml": ((SAMPLE / "limits.yaml").read_bytes(), [["check", "{cal}", "--limits", "{f}"]]),
+        "ros.yaml": ((folder / "ros.yaml").read_bytes(), [["import", "{f}", "-o", "{out}"]]),
+    }
+
+
+def one(folder: Path, name: str, data: bytes, command: list[str]) -> str | None:
+    """Run one case; what is wrong with it, or None."""
+    from tumblecal_cli.cli import main
+
+    target = folder / name
+    target.write_bytes(data)
+    out = folder / "out.txt"
+    out.write_bytes(b"precious\n")
+    args = [
+        a.replace("{f}", str(target)).replace("{cal}", str(folder / "good.json")).replace("{out}", str(out))
+        for a in command
+    ]
+    err, stdout = io.StringIO(), io.TextIOWrapper(io.BytesIO())  # stdout has a .buffer, as a real one
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(stdout):
+        try:
+            code = main(args)
+        except BaseException as crash:
+            return f"escaped the error boundary: {type(crash).__name__}: {crash}"
+    text = err.getvalue()
+    if code not in (0, 1, 2, 3):
+        return f"exit {code}"
+    if "internal error" in text or "Traceback" in text:
+        return text.strip().splitlines()[0]
+    errors = [line for line in text.splitlines() if line.startswith("error:")]
+    if code in (2, 3) and not errors:
+        return f"exit {code} with no error line"
+    if code in (2, 3) and out.read_bytes() != b"precious\n":
+        return f"exit {code} but the output was changed"
+    leftovers = [p.name for p in folder.iterdir() if p.name.startswith(".") and p.name.endswith(".tmp")]
+    if leftovers:
+        return f"temporary files left: {leftovers}"
+    return None
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", type=int, default=3000)
+    parser.add_argument("--seed", type=int, default=1)
+    given = parser.parse_args()
+    rng = random.Random(given.seed)
+    failures = 0
+    started = time.monotonic()
+    with tempfile.TemporaryDirectory(prefix="tumblecal-fuzz-") as tmp:
+        folder = Path(tmp)
+        kinds = seeds(folder)
+        names = sorted(kinds)
+        for case in range(given.cases):
+            name = names[case % len(names)]
+            good, commands = kinds[name]
+            data = mutate(good, rng)
+            command = rng.choice(commands)
+            wrong = one(folder, name, data, command)
+            if wrong is not None:
+                failures += 1
+                keep = ROOT / "fuzz-failures"
+                keep.mkdir(exist_ok=True)
+                (keep / f"case{case:05d}-{name}").write_bytes(data)
+                print(f"case {case} ({name}, {' '.join(command)}): {wrong}")
+    took = time.monotonic() - started
+    print(f"{given.cases} cases, seed {given.seed}: {failures} failed, {took:.0f} s")
+    shutil.rmtree(ROOT / "fuzz-failures", ignore_errors=True) if not failures else None
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
