@@ -515,3 +515,36 @@ def test_a_cr_only_capture_keeps_its_line_ends_in_apply(tmp_path: Path, capsys: 
     data = out.read_bytes()
     assert b"\n" not in data
     assert data.count(b"\r") == 3
+
+
+def test_a_first_line_over_a_megabyte_says_so(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    capture = tmp_path / "wide.csv"
+    capture.write_text("a," * 600_000 + "\n1,2,3\n")
+    r = run(capsys, "solve", "--poses", capture, "-o", tmp_path / "cal.json")
+    assert r.code == 2
+    assert (
+        r.err.splitlines()[0] == f"error: {capture}: the first line is longer than 1 MB: not a capture's header or data"
+    )
+
+
+def test_a_huge_cell_is_quoted_short(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    capture = tmp_path / "long.csv"
+    capture.write_text("t,ax,ay,az\n1,2,3," + "9" * 2_000_000 + "\n1,2,3,4\n")
+    r = run(capsys, "solve", "--poses", capture, "-o", tmp_path / "cal.json")
+    assert r.code == 2
+    assert r.err.splitlines() == [
+        f"error: {capture}: not a finite number: '{'9' * 40}'... (2,000,000 characters) (line 2, column az)"
+    ]
+
+
+def test_a_log_of_readings_beyond_float_range_is_an_input_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """(before: numpy's overflow warnings on stderr, then exit 3 'nothing to calibrate from')"""
+    log = tmp_path / "log.csv"
+    log.write_text("t,ax,ay,az\n" + "".join(f"{k / 100:.2f},{1e200 * (1 + k % 3 / 100):.4e},0,0\n" for k in range(600)))
+    r = run(capsys, "segment", log)
+    assert r.code == 2
+    assert r.err.splitlines()[0] == (
+        f"error: {log}: a reading of 1.02e+200 is beyond what tumblecal computes with (|reading| <= 1e+150)"
+    )

@@ -228,6 +228,22 @@ def tilt_sensitivity(
     raise ValueError(f"no tilt model for method {method!r}")
 
 
+#: The largest reading tumblecal computes with: squares and sums of squares stay finite.
+MAX_READING = 1e150
+
+
+def in_range(values: FloatArray, name: str) -> None:
+    """Readings beyond MAX_READING (1e200 in a capture) overflow the statistics: an input error
+    naming ``name``. NaN (an empty reading) is left to the caller."""
+    largest = float(np.nanmax(np.abs(values))) if values.size and not np.isnan(values).all() else 0.0
+    if not largest <= MAX_READING:
+        raise InputError(
+            f"a reading of {largest:.3g} is beyond what tumblecal computes with (|reading| <= {MAX_READING:g})",
+            file=name,
+            hint="are these the sensor's columns, in its units?",
+        )
+
+
 def units_mistake(mean: FloatArray, reference: float) -> float | None:
     """The reference the data suggests when |mean| is far from ``reference``, else None.
 

@@ -39,6 +39,12 @@ import pyarrow.csv as pcsv
 from tumblecal_cli.errors import InputError
 
 HEAD_BYTES = 1 << 20  # the sniffer looks at this much of the file
+
+
+def quoted(cell: object, keep: int = 40) -> str:
+    """A cell as an error message quotes it: ``repr``, cut to ``keep`` characters with its length."""
+    text = str(cell)
+    return repr(text) if len(text) <= keep else f"{text[:keep]!r}... ({len(text):,} characters)"
 BLOCK_BYTES = 1 << 20  # pyarrow block size when streaming: bigger blocks raise peak memory
 TIME_NAMES = ("t", "time", "timestamp", "time_s", "ts")
 #: A temperature column, averaged per pose into the calibration file (traceability).
@@ -213,7 +219,7 @@ class Capture:
             bad = pc.and_(pc.invert(is_empty), pc.invert(pc.match_substring_regex(text, _NUMBER)))
             if pc.any(bad).as_py():
                 i = int(pc.index(bad, True).as_py())
-                raise self._locate(first_row + i, j, f"not a number: {text[i].as_py()!r}", triplet)
+                raise self._locate(first_row + i, j, f"not a number: {quoted(text[i].as_py())}", triplet)
             empty[:, j] = _bools(is_empty)
             values[:, j] = _floats(pc.cast(pc.replace_substring_regex(text, "^$", "nan"), pa.float64()))
         all_empty: BoolArray = empty[:, 0] & empty[:, 1] & empty[:, 2]
@@ -334,6 +340,12 @@ def _sniff(name: str, first: bytes, *, at_eof: bool, no_header: bool) -> tuple[L
     """Decide the layout from the first block; returns it and the bytes it consumed."""
     if not first:
         raise InputError("empty file", file=name, hint="the capture has no bytes at all")
+    if not at_eof and b"\n" not in first and b"\r" not in first:
+        raise InputError(
+            f"the first line is longer than {HEAD_BYTES // (1 << 20)} MB: not a capture's header or data",
+            file=name,
+            hint="is this a CSV capture?",
+        )
     if b"\0" in first[:65536]:
         raise InputError("binary data, not a CSV text file", file=name)
     bom = 3 if first.startswith(b"\xef\xbb\xbf") else 0
@@ -633,7 +645,7 @@ def read_log(
             bad = ~np.isfinite(values) & ~empty[:, None]
             if bad.any():  # nan/inf would poison the pose mean (apply passes them through)
                 i, j = (int(k[0]) for k in np.nonzero(bad))
-                raise cap._locate(first_row + i, j, f"not a finite number: {cols[j][i].as_py()!r}")
+                raise cap._locate(first_row + i, j, f"not a finite number: {quoted(cols[j][i].as_py())}")
             blocks.append(values)
             keep.append(~empty)
             k = 3
@@ -685,7 +697,7 @@ def _times(cap: Capture, times: list[tuple[int, pa.Array]], mask: BoolArray | No
             i = int(pc.index(ok, False).as_py())
             line = cap._line_of_row(first_row + i)
             raise InputError(
-                f"time is not a number: {text[i].as_py()!r}",
+                f"time is not a number: {quoted(text[i].as_py())}",
                 file=lay.name,
                 line=line,
                 column=lay.names[lay.time],

@@ -84,6 +84,7 @@ def segmented(
             name="<stdin>" if log == "-" else log,
             digest=digest,
         )
+        model.in_range(data.values, data.layout.name)
         yield path, data, find_blocks(data, rate, pose_column, pose_map, settings)
     finally:
         if spooled:

@@ -272,7 +272,7 @@ def _solve(
     from tumblecal_cli.pipeline.options import triplet
 
     for s in samples:
-        in_range(s)
+        model.in_range(s.values, s.name)
     log_notes = notes or []  # how the blocks of a log were chosen
     ref, gyro = given.reference, options.sensor == "gyroscope"
     noise = options.max_noise if options.max_noise is not None else (None if gyro else 0.02)
@@ -363,23 +363,6 @@ def _solve(
     elif failures:
         solved.status = 1
     return solved
-
-
-#: The largest reading tumblecal computes with: squares and sums of squares stay finite.
-MAX_READING = 1e150
-
-
-def in_range(s: Samples) -> None:
-    """Readings beyond MAX_READING (1e200 in a capture) overflow the statistics: an input error."""
-    import numpy as np
-
-    largest = float(np.abs(s.values).max()) if s.values.size else 0.0
-    if not largest <= MAX_READING:
-        raise InputError(
-            f"a reading of {largest:.3g} is beyond what tumblecal computes with (|reading| <= {MAX_READING:g})",
-            file=s.name,
-            hint="are these the sensor's columns, in its units?",
-        )
 
 
 def check_units(name: str, centred: FloatArray, reference: float) -> None:

@@ -57,7 +57,7 @@ def verify(
     from tumblecal_cli.core import gate, model
     from tumblecal_cli.io import calfile
     from tumblecal_cli.io import captures as reading
-    from tumblecal_cli.pipeline.solve import in_range, path_of
+    from tumblecal_cli.pipeline.solve import path_of
 
     given = [captures] if isinstance(captures, str | os.PathLike) else list(captures)
     paths = [path_of(c, "verify reads static captures from files") for c in given]
@@ -84,7 +84,7 @@ def verify(
     result = Verified(0, c, ref, max_norm_error, [], {})
     for path in paths:
         s = reading.read_samples(path, sensor=c.sensor, columns=picked, prefer=c.columns, no_header=no_header)
-        in_range(s)
+        model.in_range(s.values, s.layout.name)
         if s.sha256 in fitted:
             result.notes.append(
                 f"{s.layout.name}: the calibration was fitted on this capture ({fitted[s.sha256]}): "
