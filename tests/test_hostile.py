@@ -548,3 +548,16 @@ def test_a_log_of_readings_beyond_float_range_is_an_input_error(
     assert r.err.splitlines()[0] == (
         f"error: {log}: a reading of 1.02e+200 is beyond what tumblecal computes with (|reading| <= 1e+150)"
     )
+
+
+def test_a_row_over_a_megabyte_says_so_and_where(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """(before: pyarrow's 'straddling object straddles two block boundaries')"""
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "--poses", *POSES_3, "-o", cal).code == 0
+    rows = [f"{k / 100:.2f},0.1,0.2,0.9" for k in range(100_000)]
+    rows[50_000] = "500.00,0.1,0.2," + "9" * (3 << 20)
+    capture = tmp_path / "capture.csv"
+    capture.write_text("t,ax,ay,az\n" + "\n".join(rows) + "\n")
+    r = run(capsys, "apply", "--cal", cal, capture, "-o", tmp_path / "out.csv")
+    assert r.code == 2
+    assert r.err.splitlines() == [f"error: {capture}: a row longer than 1 MB: not a capture's row (line 50002)"]

@@ -263,6 +263,13 @@ class Capture:
 
     def _diagnose(self, engine_message: str, bad_row: str | None = None) -> InputError:
         lay = self.layout
+        if "straddl" in engine_message:  # pyarrow: a row longer than a whole block
+            too_long = f"a row longer than {BLOCK_BYTES >> 20} MB: not a capture's row"
+            if self._path is not None:
+                for line, text in self._data_lines():
+                    if len(text) >= BLOCK_BYTES:
+                        return InputError(too_long, file=lay.name, line=line)
+            return InputError(too_long, file=lay.name)
         if self._path is not None:
             for line, text in self._data_lines():
                 cells = _split(text, lay.delimiter)
