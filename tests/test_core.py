@@ -1,4 +1,4 @@
-"""Known-answer and property tests of the numeric core (tumblecal_cli/core.py).
+"""Known-answer and property tests of the numeric core (tumblecal_cli/core/model.py).
 
 Every capture here is synthetic (tests/synth.py), so the truth is known: the solvers must recover
 it within the standard errors they report, and those standard errors must be the statistical

@@ -1,9 +1,9 @@
-"""The production-test gate (tumblecal_cli/gate.py) on numbers: quality checks, limits, verdict.
+"""The production-test gate (tumblecal_cli/core/gate.py) on numbers: quality checks, limits, verdict.
 
 Every capture is synthetic (tests/synth.py), so each check is driven across its bound by a known
 cause (noise, drift, tilt, clipping, a short pose, a pose captured upside down) and must fire on
 that cause alone. The last sections check that the solution's reported uncertainty and tilt
-sensitivity (tumblecal_cli/core.py) are what the scatter of many synthetic captures shows.
+sensitivity (tumblecal_cli/core/model.py) are what the scatter of many synthetic captures shows.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Finding the static poses in one continuous log: the detector (tumblecal_cli/segment.py), the
-``segment`` command and ``solve --log`` (tumblecal_cli/cli.py).
+``segment`` command and ``solve --log`` (tumblecal_cli/cli/segment.py, tumblecal_cli/pipeline/logs.py).
 
 Every log is synthetic with a known truth: a sensor with a known offset and gain/cross-axis matrix
 (raw = A · g + b + noise, raw counts near 32768) held still on known faces for a known number of

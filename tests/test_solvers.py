@@ -1,4 +1,4 @@
-"""Known-answer tests of the solvers beyond 1- and 3-pose (tumblecal_cli/solvers.py).
+"""Known-answer tests of the solvers beyond 1- and 3-pose (tumblecal_cli/core/solvers.py).
 
 Every synthetic capture here follows README "Poses, signs and --reference", ``raw = A·v + b + noise`` with a known
 ``A`` (gains and cross-axis terms), ``b``, noise and fixture tilt; each solver must recover the

@@ -45,6 +45,8 @@ def quoted(cell: object, keep: int = 40) -> str:
     """A cell as an error message quotes it: ``repr``, cut to ``keep`` characters with its length."""
     text = str(cell)
     return repr(text) if len(text) <= keep else f"{text[:keep]!r}... ({len(text):,} characters)"
+
+
 BLOCK_BYTES = 1 << 20  # pyarrow block size when streaming: bigger blocks raise peak memory
 TIME_NAMES = ("t", "time", "timestamp", "time_s", "ts")
 #: A temperature column, averaged per pose into the calibration file (traceability).
