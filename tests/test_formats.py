@@ -175,7 +175,7 @@ def test_ros_yaml_is_sm_raw_minus_bias(tmp_path: Path, capsys: pytest.CaptureFix
     code, out, _ = run(capsys, "export", str(cal), "--format", "ros-yaml")
     doc = yaml.safe_load(out)
     assert code == 0
-    assert set(doc) == {"SM", "bias"}
+    assert set(doc) == {"SM", "bias", "tumblecal"}  # tumblecal: the record import reads back (imu_calib ignores it)
     assert len(doc["SM"]) == 9
     assert len(doc["bias"]) == 3
     sm, bias = np.array(doc["SM"]).reshape(3, 3), np.array(doc["bias"])  # row-major, as imu_calib reads it
@@ -602,7 +602,7 @@ def test_round_trip_keeps_what_the_export_recorded(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], fmt: str, sensor: str, method: str
 ) -> None:
     """Sensor, serial, station, operator, date, method, units, reference and columns travel in
-    the export's comment and come back, so apply on the original capture works with the imported
+    a data field of the export and come back, so apply on the original capture works with the imported
     calibration and report dates it from when it was made."""
     reference = {"accelerometer": 1.0, "magnetometer": 48.0, "gyroscope": 0.0}[sensor]
     cal = write_cal(

@@ -64,7 +64,7 @@ def test_import_writes_nothing_that_tumblecal_would_reject(tmp_path: Path, capsy
     """A ROS file whose recorded columns name one column twice: exit 2, no file (before: written,
     then refused by every command that read it)."""
     ros = tmp_path / "imu_calib.yaml"
-    ros.write_text("# raw units in, g out, reference 1.0; columns ax, ax, az\nSM: [1,0,0,0,1,0,0,0,1]\nbias: [0,0,0]\n")
+    ros.write_text('SM: [1,0,0,0,1,0,0,0,1]\nbias: [0,0,0]\ntumblecal: {"columns": ["ax", "ax", "az"]}\n')
     out = precious(tmp_path / "cal.json")
     r = run(capsys, "import", ros, "-o", out)
     assert r.code == 2
@@ -561,3 +561,31 @@ def test_a_row_over_a_megabyte_says_so_and_where(tmp_path: Path, capsys: pytest.
     r = run(capsys, "apply", "--cal", cal, capture, "-o", tmp_path / "out.csv")
     assert r.code == 2
     assert r.err.splitlines() == [f"error: {capture}: a row longer than 1 MB: not a capture's row (line 50002)"]
+
+
+@pytest.mark.parametrize("fmt", ["ros-yaml", "imucal-json"])
+def test_metadata_never_travels_in_comments_that_import_parses(
+    fmt: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A serial written to look like the export's comment (`; reference 9.81; columns t, ay, az`)
+    comes back as that serial, and the reference and columns stay the calibration's (before: the
+    serial overrode them, and apply then rewrote the time column)."""
+    cal = tmp_path / "cal.json"
+    serial = "A1; reference 9.81; columns t, ay, az"
+    assert run(capsys, "solve", "--poses", *POSES_3, "--serial", serial, "-o", cal).code == 0
+    peer, back = tmp_path / "peer.txt", tmp_path / "back.json"
+    assert run(capsys, "export", cal, "--format", fmt, "-o", peer).code == 0
+    r = run(capsys, "import", peer, "--from", fmt, "-o", back)
+    assert r.code == 0, r.err
+    doc = json.loads(back.read_text())
+    assert doc["unit"]["serial"] == serial
+    assert (doc["reference"], doc["columns"]) == (1.0, ["ax", "ay", "az"])
+    text = (
+        peer.read_text()
+        .replace('"reference": 1.0', '"reference": "9.81"')
+        .replace('\\"reference\\": 1.0', '\\"reference\\": \\"9.81\\"')
+    )
+    peer.write_text(text)
+    r = run(capsys, "import", peer, "--from", fmt, "-o", tmp_path / "bad.json")
+    assert r.code == 2
+    assert "reference' must be a" in r.err

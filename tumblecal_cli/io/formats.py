@@ -7,7 +7,6 @@ Every mapping starts from tumblecal's model (README "Poses, signs and --referenc
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import json
 import math
@@ -17,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from tumblecal_cli.core.model import FloatArray
+from tumblecal_cli.core.model import SENSORS, FloatArray
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.calfile import FORMAT, VERSION, Calibration, Unit, created, from_dict, invertible, is_number
 from tumblecal_cli.version import __version__
@@ -231,7 +230,7 @@ def imucal_json(cal: Calibration) -> str:
         "gyr_unit": units if gyr is ours else "a.u.",
         "from_acc_unit": raw_units if acc is ours else "a.u.",
         "from_gyr_unit": raw_units if gyr is ours else "a.u.",
-        "comment": "; ".join(_provenance(cal)),
+        "comment": json.dumps({"about": "; ".join(_provenance(cal)), "tumblecal": record(cal)}),
         "K_a": acc["K"].tolist(),
         "R_a": acc["R"].tolist(),
         "b_a": acc["b"].tolist(),
@@ -257,6 +256,7 @@ def ros_yaml(cal: Calibration) -> str:
         *[f"# {line}" for line in _provenance(cal)],
         f"SM: [{', '.join(repr(float(v)) for v in cal.matrix.ravel())}]",
         f"bias: [{', '.join(repr(float(v)) for v in bias)}]",
+        f"tumblecal: {json.dumps(record(cal))}",  # JSON is YAML: what import brings back (imu_calib ignores it)
     ]
     return "\n".join(lines) + "\n"
 
@@ -296,7 +296,7 @@ class Peer:
     columns: list[str] | None
     serial: str | None
     notes: tuple[str, ...]
-    was: dict[str, Any] = field(default_factory=dict)  # what a tumblecal export recorded (see recorded())
+    was: dict[str, Any] = field(default_factory=dict)  # what a tumblecal export recorded (see record())
 
 
 def detect(doc: dict[str, Any]) -> str | None:
@@ -308,38 +308,71 @@ def detect(doc: dict[str, Any]) -> str | None:
     return None
 
 
-def recorded(text: str) -> dict[str, Any]:
-    """What ``_provenance`` wrote into an export's comment (empty for another tool's file)."""
+#: The fields of the record an export carries in a data field (README "export"), and their types.
+RECORD_FIELDS: dict[str, tuple[type, ...]] = {
+    "sensor": (str,),
+    "serial": (str,),
+    "station": (str,),
+    "operator": (str,),
+    "created": (str,),
+    "method": (str,),
+    "input_units": (str,),
+    "units": (str,),
+    "reference": (int, float),
+    "columns": (list,),
+}
+
+
+def record(cal: Calibration) -> dict[str, Any]:
+    """What an export records of the calibration for `import` to bring back: a data field of the
+    peer's file (never comment text that import would have to parse)."""
+    unit = (cal.unit or Unit()).as_dict()
+    return {
+        "sensor": cal.sensor,
+        **{k: unit.get(k) for k in ("serial", "station", "operator")},
+        "created": cal.created,
+        "method": cal.method,
+        "input_units": cal.input_units,
+        "units": cal.units,
+        "reference": float(cal.reference),
+        "columns": list(cal.columns),
+    }
+
+
+def recorded(value: object, path: str, where: str) -> dict[str, Any]:
+    """The record of a tumblecal export read back from its data field ``where`` (None or absent:
+    another tool's file, nothing recorded); each field validated, naming it."""
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        raise InputError(f"field {where!r} must be an object (what a tumblecal export recorded)", file=path)
     out: dict[str, Any] = {}
-    if found := re.search(r"tumblecal (accelerometer|magnetometer|gyroscope) calibration: (.*?)(?:;|$)", text, re.M):
-        out["sensor"] = found.group(1)
-        who = found.group(2)
-        for key in ("serial", "station", "operator"):  # "serial A17, station S3, operator Kim"
-            value = re.search(rf"(?:^|, ){key} (.*?)(?=, station |, operator |$)", who)
-            out[key] = value.group(1) if value else None
-    if found := re.search(r"(?:^|; )created (\S+), method ([\w-]+)", text, re.M):
-        out["created"], out["method"] = found.group(1), found.group(2)
-    units = r"(?:^|; )([^;\n]*?) in, ([^;\n]*?) out, reference ([-+0-9.eE]+)(?:; columns ([^;\n]+))?"
-    if found := re.search(units, text, re.M):
-        raw, cooked, reference, columns = found.groups()
-        out["input_units"] = None if raw == "raw units" else raw
-        out["units"] = None if cooked == "reference units" else cooked
-        with contextlib.suppress(ValueError):  # "-" and the like: not a number, so nothing recorded
-            out["reference"] = float(reference)
-        if columns and len(names := [c.strip() for c in columns.split(", ")]) == 3:
-            out["columns"] = names
+    for key, kinds in RECORD_FIELDS.items():
+        item = value.get(key)
+        if item is None:
+            continue
+        if isinstance(item, bool) or not isinstance(item, kinds):
+            raise InputError(f"field '{where}.{key}' must be a {kinds[0].__name__}", file=path)
+        out[key] = item
+    if "reference" in out and not (is_number(out["reference"]) and out["reference"] >= 0):
+        raise InputError(f"field '{where}.reference' must be a number of 0 or more", file=path)
+    if "sensor" in out and out["sensor"] not in SENSORS:
+        raise InputError(f"field '{where}.sensor' must be one of {', '.join(SENSORS)}", file=path)
+    columns = out.get("columns")
+    if columns is not None and not (len(columns) == 3 and all(isinstance(c, str) and c for c in columns)):
+        raise InputError(f"field '{where}.columns' must be three column names", file=path)
     return out
 
 
-def read_peer(doc: dict[str, Any], fmt: str, path: str, sensor: str | None, text: str = "") -> Peer:
-    """The calibration in a parsed imucal or ROS imu_calib file (``text``: the file, whose
-    comments a tumblecal export fills with its record). ``sensor`` None: the recorded one,
-    else an accelerometer."""
+def read_peer(doc: dict[str, Any], fmt: str, path: str, sensor: str | None) -> Peer:
+    """The calibration in a parsed imucal or ROS imu_calib file; what a tumblecal export recorded
+    comes from its data field (ROS: ``tumblecal``; imucal: the JSON in ``comment``), never from
+    comment text. ``sensor`` None: the recorded one, else an accelerometer."""
     if fmt == "ros-yaml":
         sm = _array(doc.get("SM"), "SM", 9, path).reshape(3, 3)
         bias = _array(doc.get("bias"), "bias", 3, path)
         invertible(sm, path, "SM")
-        was = recorded("\n".join(line[1:].strip() for line in text.splitlines() if line.startswith("#")))
+        was = recorded(doc.get("tumblecal"), path, "tumblecal")  # a data field; comments are for people
         # SM raw - bias = SM (raw - SM^-1 bias): offset = SM^-1 bias
         offset = np.asarray(np.linalg.solve(sm, bias), dtype=np.float64)
         # imu_calib calibrates accelerometers, in sensor_msgs/Imu's m/s^2; other sensors' units are unknown
@@ -353,8 +386,7 @@ def read_peer(doc: dict[str, Any], fmt: str, path: str, sensor: str | None, text
     version = doc.get("_format_version")
     if version not in IMUCAL_VERSIONS:
         raise InputError(f"imucal format version {version!r} is not one tumblecal reads (1.0.0, 2.0.0)", file=path)
-    comment = doc.get("comment")
-    was = recorded(comment) if isinstance(comment, str) else {}
+    was = recorded(_comment_record(doc.get("comment")), path, "comment.tumblecal")
     sensor = sensor or was.get("sensor") or "accelerometer"
     if sensor == "magnetometer":
         raise InputError("an imucal file holds an accelerometer and a gyroscope, not a magnetometer", file=path)
@@ -374,6 +406,18 @@ def read_peer(doc: dict[str, Any], fmt: str, path: str, sensor: str | None, text
         was = {}
     raw_units = None if raw_units == "a.u." else _text(raw_units)
     return _peer(fmt, sensor, was, b, matrix, _text(units), raw_units, notes)
+
+
+def _comment_record(comment: object) -> object:
+    """An imucal file's ``comment`` holds a tumblecal export's record as JSON (imucal takes no
+    fields of its own beyond its format's, and keeps ``comment`` as it is); another text: none."""
+    if not isinstance(comment, str) or not comment.lstrip().startswith("{"):
+        return None
+    try:
+        doc = json.loads(comment)
+    except ValueError:
+        return None
+    return doc.get("tumblecal") if isinstance(doc, dict) else None
 
 
 def _peer(

@@ -209,8 +209,7 @@ def import_peer(
             file=path,
             hint="tumblecal import reads --from imucal-json or ros-yaml",
         )
-    text = raw.decode("utf-8-sig", "replace")
-    peer = formats.read_peer(doc, name, path, sensor, text)
+    peer = formats.read_peer(doc, name, path, sensor)
     ref = reference if reference is not None else _peer_reference(peer, path)
     if not (math.isfinite(ref) and (ref > 0 or (ref == 0 and peer.sensor == "gyroscope"))):
         raise InputError(f"--reference must be a positive number (0 for a gyroscope), got {ref}")
