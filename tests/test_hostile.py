@@ -256,19 +256,20 @@ def test_segment_removes_the_staging_folder_a_killed_run_left(
 def test_a_killed_runs_temporary_files_are_removed_by_the_next_write(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """kill -9 leaves ``.out.csv.PID-XXXX.tmp``; the next write of out.csv removes those whose
-    process is gone, and nothing else (a live process's, other names, other files)."""
+    """kill -9 leaves ``.out.csv.PID-XXXXXXXX.tmp``; the next write into that folder removes the
+    temporary files of that naming whose process is gone, and nothing else (a live process's,
+    other names, other files)."""
     import os
 
     cal = tmp_path / "cal.json"
-    assert run(capsys, "solve", "--poses", *POSES_3, "-o", cal).code == 0
-    dead = tmp_path / ".out.csv.4194305-abcd1234.tmp"  # above Linux's largest pid (2**22): no process
+    dead = [tmp_path / f".{name}.4194305-abcd1234.tmp" for name in ("out.csv", "other.csv")]  # no such pid
     live = tmp_path / f".out.csv.{os.getppid()}-efgh5678.tmp"
-    other = [tmp_path / ".out.csv.tmp", tmp_path / ".other.csv.4194305-abcd1234.tmp", tmp_path / "out.csv.bak"]
-    for path in [dead, live, *other]:
+    other = [tmp_path / ".out.csv.tmp", tmp_path / ".out.csv.4194305-abc.tmp", tmp_path / "out.csv.bak"]
+    for path in [*dead, live, *other]:
         path.write_text("partial")
+    assert run(capsys, "solve", "--poses", *POSES_3, "-o", cal).code == 0  # a new process's first write here
     assert run(capsys, "apply", "--cal", cal, SAMPLE / "capture.csv", "-o", tmp_path / "out.csv").code == 0
-    assert not dead.exists()
+    assert not any(p.exists() for p in dead)
     assert live.exists()
     assert all(p.exists() for p in other)
 

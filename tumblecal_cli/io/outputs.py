@@ -101,7 +101,9 @@ def atomic_output(path: str) -> Iterator[IO[bytes]]:
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
         raise InputError("the output folder does not exist", file=path)
-    remove_stale(folder, os.path.basename(path))
+    if folder not in _SWEPT:  # once per folder and process: a batch writes thousands of files into one
+        _SWEPT.add(folder)
+        remove_stale(folder)
     try:
         fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{os.path.basename(path)}.{os.getpid()}-", suffix=".tmp")
     except OSError as err:
@@ -127,11 +129,17 @@ def atomic_output(path: str) -> Iterator[IO[bytes]]:
         raise
 
 
-def remove_stale(folder: str, name: str) -> list[str]:
-    """Remove the temporary files of ``name`` that a killed tumblecal left in ``folder``: only
-    files of its own naming (``.NAME.PID-XXXXXXXX.tmp``) whose process is gone on this machine,
-    never anybody else's. The names removed."""
-    pattern = re.compile(rf"\.{re.escape(name)}\.(\d+)-[A-Za-z0-9_]+\.tmp")
+#: Folders whose stale temporary files this process has already removed.
+_SWEPT: set[str] = set()
+#: The temporary file of an atomic output: ``.NAME.PID-XXXXXXXX.tmp``.
+TEMPORARY = re.compile(r"\..+\.(\d+)-[A-Za-z0-9_]{8}\.tmp")
+
+
+def remove_stale(folder: str) -> list[str]:
+    """Remove the temporary files that a killed tumblecal left in ``folder``: only files of its
+    own naming (``.NAME.PID-XXXXXXXX.tmp``) whose process is gone on this machine, never anybody
+    else's. The names removed."""
+    pattern = TEMPORARY
     removed = []
     with contextlib.suppress(OSError):
         for entry in os.listdir(folder):
