@@ -241,16 +241,21 @@ def test_segment_that_fails_while_writing_leaves_the_folder_as_it_was(
 def test_segment_removes_the_staging_folder_a_killed_run_left(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    import os
+
     log = _segment_log(tmp_path)
     out = tmp_path / "poses"
-    (out / ".tumblecal-segment-abc123").mkdir(parents=True)
-    (out / ".tumblecal-segment-abc123" / "xp.csv").write_text("half")
+    (out / ".tumblecal-segment-4194305-abc123").mkdir(parents=True)  # a pid above Linux's largest: gone
+    (out / ".tumblecal-segment-4194305-abc123" / "xp.csv").write_text("half")
     (out / "notes.txt").write_text("mine")
+    running = out / f".tumblecal-segment-{os.getppid()}-def456"  # another segment run, still writing
+    running.mkdir()
     r = run(capsys, "segment", log, "--out-dir", out)
     assert r.code == 0, r.err
     assert "note: removed 1 staging folder(s) an earlier, interrupted segment run left" in r.err
-    assert not (out / ".tumblecal-segment-abc123").exists()
+    assert not (out / ".tumblecal-segment-4194305-abc123").exists()
     assert (out / "notes.txt").read_text() == "mine"
+    assert running.is_dir()
 
 
 def test_a_killed_runs_temporary_files_are_removed_by_the_next_write(

@@ -6,6 +6,7 @@ import contextlib
 import errno
 import os
 import re
+import shutil
 import stat
 import sys
 import tempfile
@@ -135,19 +136,23 @@ _SWEPT: set[str] = set()
 TEMPORARY = re.compile(r"\..+\.(\d+)-[A-Za-z0-9_]{8}\.tmp")
 
 
-def remove_stale(folder: str) -> list[str]:
-    """Remove the temporary files that a killed tumblecal left in ``folder``: only files of its
-    own naming (``.NAME.PID-XXXXXXXX.tmp``) whose process is gone on this machine, never anybody
-    else's. The names removed."""
-    pattern = TEMPORARY
+def remove_stale(folder: str, pattern: re.Pattern[str] = TEMPORARY) -> list[str]:
+    """Remove what a killed tumblecal left in ``folder``: only entries whose whole name matches
+    ``pattern`` (tumblecal's own naming, its first group the writer's pid: temporary files of
+    atomic outputs by default, a batch's or a segment run's staging) and whose process is gone on
+    this machine; never anybody else's, never a running process's. The names removed."""
     removed = []
     with contextlib.suppress(OSError):
         for entry in os.listdir(folder):
             found = pattern.fullmatch(entry)
             if found is None or int(found.group(1)) == os.getpid() or alive(int(found.group(1))):
                 continue
+            path = os.path.join(folder, entry)
             with contextlib.suppress(OSError):
-                os.unlink(os.path.join(folder, entry))
+                if os.path.isdir(path) and not os.path.islink(path):
+                    shutil.rmtree(path)
+                else:
+                    os.unlink(path)
                 removed.append(entry)
     return removed
 

@@ -307,17 +307,9 @@ def failed_row(unit: Unit, err: BaseException) -> dict[str, Any]:
 def stale_staging(out_dir: str) -> list[str]:
     """Remove the staging files a killed batch left in ``out_dir`` (``.SERIAL.PID-NS.partial.json``
     of a process that is gone; never another name); a note when there were any."""
-    from tumblecal_cli.io.outputs import alive
+    from tumblecal_cli.io.outputs import remove_stale
 
-    pattern = re.compile(rf"\..+\.(\d+)-\d+{re.escape(STAGING)}")
-    removed = 0
-    with contextlib.suppress(OSError):
-        for name in os.listdir(out_dir):
-            found = pattern.fullmatch(name)
-            if found is not None and int(found.group(1)) != os.getpid() and not alive(int(found.group(1))):
-                with contextlib.suppress(OSError):
-                    os.unlink(os.path.join(out_dir, name))
-                    removed += 1
+    removed = len(remove_stale(out_dir, re.compile(rf"\..+\.(\d+)-\d+{re.escape(STAGING)}")))
     return [f"removed {removed} staging file(s) a killed batch left in {out_dir}"] if removed else []
 
 

@@ -480,7 +480,7 @@ def _write_blocks(log: str, path: str, found: Blocks, files: dict[int, str], ind
     names = ["segments.csv", *(files[b.number] for b in kept)]
     # everything is written into a staging folder first and published only when all of it is
     # there: a failure (a full disk, a bad row) leaves the folder as it was
-    staging = tempfile.mkdtemp(prefix=STAGING, dir=out_dir)
+    staging = tempfile.mkdtemp(prefix=f"{STAGING}{os.getpid()}-", dir=out_dir)
     published = False
     try:
         with atomic_output(os.path.join(staging, "segments.csv")) as out:
@@ -507,13 +507,8 @@ STAGING = ".tumblecal-segment-"
 
 
 def stale_staging(out_dir: str) -> int:
-    """Remove staging folders an earlier segment run into ``out_dir`` left (killed mid-way):
-    only folders of this name, never anybody else's files. The number removed."""
-    removed = 0
-    with contextlib.suppress(OSError):
-        for name in os.listdir(out_dir):
-            folder = os.path.join(out_dir, name)
-            if name.startswith(STAGING) and os.path.isdir(folder) and not os.path.islink(folder):
-                shutil.rmtree(folder, ignore_errors=True)
-                removed += 1
-    return removed
+    """Remove staging folders a killed segment run into ``out_dir`` left (``STAGING`` PID-...,
+    of a process that is gone: never a segment run still writing there). The number removed."""
+    from tumblecal_cli.io.outputs import remove_stale
+
+    return len(remove_stale(out_dir, re.compile(rf"{re.escape(STAGING)}(\d+)-\w+")))
