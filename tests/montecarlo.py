@@ -245,7 +245,7 @@ def cases(reference: float = REFERENCE) -> list[Case]:
             "six-pose-diagonal",
             six,
             diagonal,
-            lambda p: solvers.six_pose(p, reference, TILT_TOLERANCE_DEG, diagonal=True).solution,
+            lambda p: solvers.six_pose(p, reference, TILT_TOLERANCE_DEG, "six-pose-diagonal").solution,
             (
                 Check("offset", OFFSET, tilt_bg),
                 Check("offset", OFFSET, rigid_bg, ferraris),

@@ -650,9 +650,9 @@ def test_a_limit_exceeded_exits_1_and_writes_the_file(tmp_path: Path, capsys: py
             id="nominal-gain",
         ),
         pytest.param(
-            ["--limits", LIMITS, "--nominal-gain", "2"],
+            ["--limits", LIMITS, "--nominal-gain", "1.1"],
             ["limit.gain.x", "limit.gain.y", "limit.gain.z"],
-            THREE_POSE_LIMITS | {"nominal_gain": [2.0] * 3},
+            THREE_POSE_LIMITS | {"nominal_gain": [1.1] * 3},
             id="nominal-gain-overrides-file",
         ),
     ],

@@ -176,10 +176,14 @@ def test_xsens_log_auto_fits_the_sphere_to_its_hand_placed_blocks(tmp_path: Path
     r = tumblecal("solve", "--log", log, "-o", cal)
     assert r.code == 0, r.err
     assert json.loads(cal.read_text())["method"] == "sphere"
-    assert "note: auto fits the sphere to all 38 still blocks: the +x block (17) is 15.9° off its face" in r.err
-    r = tumblecal("solve", "--log", log, "--method", "six-pose", "-o", cal)  # asked for: fitted, with the note
+    assert (
+        "note: auto fits the sphere to all 38 still blocks: the faces of x disagree on its direction by 15.2° "
+        "(+x 15.9°, -x 1.7° off)" in r.err
+    )
+    r = tumblecal("solve", "--log", log, "--method", "six-pose", "-o", cal)  # asked for: fitted, with a warning
     assert r.code == 0, r.err
-    assert "note: the +x block (17) is 15.9° off its face: six-pose takes each block as exactly" in r.err
+    assert "warning: the faces +x (15.9° off) and -x (1.7° off) disagree by 15.2° on the direction of x" in r.err
+    assert "(poses.hand_placed)" in r.err
 
 
 # -- Hassan & Bao's phone log: no time column ------------------------------------------------------

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tests.conftest import IMUCAL, Result, assert_untouched, precious, run
+from tests.conftest import IMUCAL, SAMPLE, Result, assert_untouched, precious, run
 from tests.synth import FloatArray, pose_samples
 from tumblecal_cli.core.model import FACES
 
@@ -1035,3 +1035,63 @@ def test_tilt_compensate_with_several_poses_is_a_usage_error(
     r = run(capsys, "solve", *_args_three(tmp_path), "--tilt-compensate", "-o", out)
     assert_usage_error(r, "one-pose-tilt")
     assert_untouched(out)
+
+
+# -- units mistakes: gains judged against a nominal gain far off it, every axis alike --------------------
+
+
+def assert_units_mistake(r: Result, *words: str) -> None:
+    """Exit 2 (a misconfigured station, not a bad unit), one error line and a hint naming the fix."""
+    assert r.code == 2, r.err
+    assert r.out == ""
+    assert "a units mistake?" in r.err
+    for word in words:
+        assert word in r.err
+
+
+def test_gains_judged_in_the_wrong_units_are_exit_2_not_a_failing_unit(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Data in g, --reference 9.81 and a gain limit: every gain reads 0.102, which exit 1 would
+    report as a unit outside its limits; it is the station's setting, so exit 2 says which."""
+    files = six_faces(tmp_path)
+    out = precious(tmp_path / "cal.json")
+    for solver in ("six-pose", "six-pose-diagonal", "six-pose-magnitude", "auto"):
+        r = run(capsys, "solve", "-p", *files.values(), "-m", solver, "--reference", "9.81", "--max-gain-error", "0.02",
+                "-o", out)  # fmt: skip
+        assert_units_mistake(r, "from the nominal gain 1", "hint: the data looks like g: run with --reference 1")
+        assert_untouched(out)
+    r = run(capsys, "solve", "-p", *[files[f] for f in ("+x", "+y", "+z")], "--nominal-gain", "9.81", "-o", out)
+    assert_units_mistake(r, "from the nominal gain 9.81", "check --nominal-gain")
+
+
+def test_counts_judged_against_a_nominal_of_1_name_the_nominal_gain(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """imucal's counts at --reference 9.81 with a limits file made for g: the hint gives both ways out."""
+    out = tmp_path / "cal.json"
+    r = run(capsys, "solve", "-p", *IMUCAL_FILES, "--reference", "9.81", "--limits", SAMPLE / "limits.yaml", "-o", out)
+    assert_units_mistake(r, "--nominal-gain 210", "--reference 2048")
+    assert not out.exists()
+    # unjudged gains are the counts-to-m/s^2 scale a gain solver is for; judged against the right nominal, a unit
+    for args in ([], ["--nominal-gain", "210", "--max-gain-error", "0.05"]):
+        r = run(capsys, "solve", "-p", *IMUCAL_FILES, "--reference", "9.81", *args, "-o", out)
+        assert r.code == 0, r.err
+
+
+def test_one_axis_off_is_the_checks_and_limits_business_not_a_units_mistake(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """+x and +y files swapped: gains near 0 on two axes is a pose problem (exit 3), never exit 2."""
+    files = six_faces(tmp_path)
+    swapped = [files["+y"], files["+x"], files["+z"]]
+    r = run(capsys, "solve", "-p", *swapped, "--max-gain-error", "0.02", "-o", tmp_path / "cal.json")
+    assert r.code == 3, r.err
+
+
+def test_sphere_on_too_few_distinct_directions_says_so(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Thirteen poses on six faces: the sphere cannot fit 9 parameters, and the message says why."""
+    faces = [FACES[f] for f in SIX] * 2 + [FACES["+z"]]
+    files = directional(tmp_path, faces)
+    r = run(capsys, "solve", "-p", *files, "-m", "sphere", "-o", tmp_path / "cal.json")
+    assert_rejected(r, "13 poses, 6 distinct directions", "the sphere needs 9+")

@@ -538,3 +538,77 @@ def all_figures(workdir: Path) -> list[Heldout]:
         log_sphere(workdir, CKEXPLORER_LOG),
         log_sphere(workdir, HASSAN_LOG),
     ]
+
+
+# -- 6. six faces from a real log: what auto picks, judged on the log's other still blocks ------------------
+
+
+SESSION_LOG = Log("imucal example session (m/s²)", "imucal_ferraris_session.csv.gz", 9.81, "m/s²", True)
+
+
+@dataclass(frozen=True)
+class FaceChoice:
+    """Held-out RMS norm error (output units) of each face solver on one log's six face blocks."""
+
+    auto_method: str
+    auto: float
+    six: float
+    diagonal: float
+    before: float | None
+    notes: str
+
+
+def face_solvers_on_a_log(workdir: Path, log: Log, *segment_options: str) -> FaceChoice:
+    """``tumblecal segment`` the log; solve its six face blocks (the files it names xp.csv ...)
+    with auto, six-pose and six-pose-diagonal; verify each on every other kept block."""
+    source = LOGS / log.file
+    path = workdir / log.file.removesuffix(".gz")
+    path.write_bytes(gzip.decompress(source.read_bytes()) if log.file.endswith(".gz") else source.read_bytes())
+    blocks = workdir / "blocks"
+    r = tumblecal("segment", path, "-d", blocks, "-q", *segment_options)
+    assert r.code == 0, r.err
+    with (blocks / "segments.csv").open(newline="") as f:
+        kept = [row for row in csv.DictReader(f) if row["status"] == "kept"]
+    names = {"+x": "xp.csv", "-x": "xn.csv", "+y": "yp.csv", "-y": "yn.csv", "+z": "zp.csv", "-z": "zn.csv"}
+    poses = [f"{face}={blocks / name}" for face, name in names.items()]
+    held = [blocks / row["file"] for row in kept if row["file"] not in names.values()]
+    assert len(held) >= 6
+    errors: dict[str, float] = {}
+    method, notes, before = "", "", None
+    for m in ("auto", "six-pose", "six-pose-diagonal"):
+        cal = workdir / f"{m}.json"
+        r = tumblecal("solve", "-p", *poses, "-m", m, "--reference", f"{log.reference}", "-o", cal)
+        assert r.code == 0, r.err
+        _, after, raw = figures(verify(cal, held), log.reference, raw_in_output_units=log.raw_in_output_units)
+        errors[m] = _rms(after)
+        if m == "auto":
+            method, notes, before = json.loads(cal.read_text())["method"], r.err, None if raw is None else _rms(raw)
+    return FaceChoice(method, errors["auto"], errors["six-pose"], errors["six-pose-diagonal"], before, notes)
+
+
+@pytest.mark.parametrize(
+    ("log", "options", "method"),
+    [
+        (XSENS_LOG, (), "six-pose-magnitude"),  # its +x block 15.9° off, -z 10°: hand-placed
+        (HASSAN_LOG, (), "six-pose-magnitude"),  # faces 2-8° off
+        (CKEXPLORER_LOG, (), "six-pose-magnitude"),  # +z 15° off
+        (SESSION_LOG, ("--rate", "102.4"), "six-pose"),  # a fixture: every face within 1.1°
+    ],
+    ids=["xsens", "hassan", "ckexplorer", "imucal-session"],
+)
+def test_auto_on_six_real_faces_is_never_worse_than_the_better_face_solver(
+    tmp_path: Path, log: Log, options: tuple[str, ...], method: str
+) -> None:
+    """The issue's bar: auto's held-out error within 25 % (or 0.3 mg) of the better of six-pose and
+    six-pose-diagonal, and below the uncalibrated error. Measured, auto vs six-pose / diagonal (mg,
+    or 0.1 % of reference): xsens 3.8 vs 28.6 / 8.2; hassan 5.1 vs 13.8 / 6.5 (raw 29.3);
+    ckexplorer 1.8 vs 20.8 / 4.6 (raw 15.5); imucal session 0.48 vs 0.48 / 0.41 (raw 59)."""
+    c = face_solvers_on_a_log(tmp_path, log, *options)
+    assert c.auto_method == method
+    assert f"note: auto chose {method}" in c.notes
+    slack = 0.0003 * log.reference
+    assert c.auto <= 1.25 * min(c.six, c.diagonal) + slack
+    if c.before is not None:
+        assert c.auto < c.before / 5
+    if method == "six-pose-magnitude":  # the hand-placed logs: six-pose is the trap
+        assert c.auto < c.six / 2

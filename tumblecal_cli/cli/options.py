@@ -75,6 +75,7 @@ class MethodName(StrEnum):
     three_pose = "three-pose"
     six_pose = "six-pose"
     six_pose_diagonal = "six-pose-diagonal"
+    six_pose_magnitude = "six-pose-magnitude"
     least_squares = "least-squares"
     sphere = "sphere"
     minmax = "minmax"

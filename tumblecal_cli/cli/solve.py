@@ -65,9 +65,9 @@ def solve(
             "--log",
             metavar="FILE",
             help="Instead of --poses: one continuous log, cut into still blocks as `tumblecal segment` does. "
-            "Face solvers take the best block of each face (the longest within --max-tilt, ties to the "
-            "quieter); sphere takes every kept block. auto: six-pose for six faces, least-squares for five, "
-            "else sphere for 12+ blocks, else three-pose. '-' reads stdin.",
+            "Face solvers take the best block of each face (the least tilted of those nearly as long as its "
+            "longest); sphere takes every kept block. auto: six-pose for six faces that agree, else sphere "
+            "for 12+ blocks, else six-pose-magnitude, least-squares (five faces) or three-pose. '-' reads stdin.",
         ),
     ] = None,
     window: Window = None,
@@ -109,9 +109,10 @@ def solve(
         typer.Option(
             "--method",
             "-m",
-            help="The solver (README: Choosing a solver). auto: one-pose for 1 file, three-pose for +x +y +z, "
-            "six-pose for the six faces, least-squares for 5+ labelled, sphere for 12+ unlabelled; "
-            "ellipsoid for a magnetometer, gyro-bias for a gyroscope.",
+            help="The solver (README: Choosing a solver). auto: one-pose for 1 file, three-pose for +x +y +z; "
+            "for the six faces six-pose when opposite faces agree on their axis within 1.5° (a fixture), else "
+            "six-pose-magnitude (placed by hand); least-squares for 5+ labelled, sphere for 12+ unlabelled; "
+            "ellipsoid for a magnetometer, gyro-bias for a gyroscope. The summary says why.",
         ),
     ] = MethodName.auto,
     sensor: Sensor = SensorKind.accelerometer,

@@ -34,7 +34,10 @@ ROTATION = ("minmax", "ellipsoid")
 #: Why a limit does not apply to a method: {limit: (methods, the reason)}.
 NOT_APPLYING = {
     "gain_error": (FIXED_GAINS, "fixes the gains at 1"),
-    "cross_axis": ((*FIXED_GAINS, "three-pose", "six-pose-diagonal"), "estimates no cross-axis terms"),
+    "cross_axis": (
+        (*FIXED_GAINS, "three-pose", "six-pose-diagonal", "six-pose-magnitude"),
+        "estimates no cross-axis terms",
+    ),
     "noise": (ROTATION, "fits a capture turned through many orientations (its spread is the turning)"),
     "residual": (("minmax",), "has no fitted model to measure residuals against"),
 }

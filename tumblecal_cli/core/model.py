@@ -16,6 +16,7 @@ passes one in ``names``.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -52,6 +53,21 @@ def parse_face(text: str) -> str:
     if key not in FACES:
         raise ValueError(f"unknown face {text!r}: use one of +x -x +y -y +z -z (or xp xn yp yn zp zn)")
     return key
+
+
+_NAMED = re.compile(r"([+-])([xyz])|([xyz])(?:[_-]?(p|n|pos|neg|plus|minus))?")
+
+
+def face_of_name(text: str) -> str | None:
+    """The face a file name's stem or a column header names, or None: ``x`` (+x), ``+x``,
+    ``-x``, ``xp``/``xn``, ``x_p``/``x_n``, ``xplus``/``xminus``, ``x_pos``/``x_neg`` (any case)."""
+    match = _NAMED.fullmatch(text.strip().lower())
+    if match is None:
+        return None
+    sign, axis, bare, suffix = match.groups()
+    if axis:
+        return sign + axis
+    return ("-" if suffix in ("n", "neg", "minus") else "+") + bare
 
 
 def parse_label(text: str) -> str:

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from tumblecal_cli.core.model import FACES, angle_deg, pose_stats
+from tumblecal_cli.core.model import FACES, PoseStats, angle_deg, pose_stats
 
 FloatArray = np.ndarray[Any, np.dtype[np.float64]]
 IntArray = np.ndarray[Any, np.dtype[np.int64]]
@@ -35,6 +35,10 @@ FLOOR_PERCENTILE = 10.0
 FLOOR_FACTOR = 3.0
 GAP_FACTOR = 3.0  # a time step this many times the typical one is a gap
 SHORT, NOISY, DRIFTING, UNMAPPED = "too short", "too noisy", "drifting", "not a pose label"
+#: A block whose mean is this many times noisier than the longest block of its face still
+#: competes to be its face's block (white noise: a quarter of the samples).
+NOISE_MARGIN = 2.0
+TILT_MARGIN_DEG = 0.5
 MISLABELLED = "not its label's face"  # a labelled block whose data points elsewhere (a wrong --pose-map)
 
 
@@ -76,6 +80,11 @@ class Block:
     def kept(self) -> bool:
         return self.dropped is None
 
+    @property
+    def stderr(self) -> float:
+        """The standard error of the block's mean, its noisiest axis."""
+        return float(self.std.max()) / math.sqrt(self.samples)
+
 
 @dataclass
 class Segmentation:
@@ -105,15 +114,21 @@ class Segmentation:
         )
 
     def best(self) -> dict[str, Block]:
-        """The best kept block of each face found: the longest, ties to the quieter."""
+        """The best kept block of each face found: of the blocks whose mean is known within
+        NOISE_MARGIN times as well as the longest one's, the least tilted (a face solver takes
+        its block as exactly on the face, so tilt is its error, and noise only past this margin);
+        the longest unless that one is more than TILT_MARGIN_DEG less tilted (a fixture's
+        re-placements differ by tenths of a degree, a hand's by degrees)."""
         out: dict[str, Block] = {}
-        for b in self.kept:
-            if b.face is None or b.face not in FACES:
+        for face in FACES:
+            on = [b for b in self.kept if b.face == face]
+            if not on:
                 continue
-            other = out.get(b.face)
-            if other is None or (b.samples, -float(b.std.max())) > (other.samples, -float(other.std.max())):
-                out[b.face] = b
-        return {f: out[f] for f in FACES if f in out}
+            longest = max(on, key=lambda b: (b.samples, -float(b.std.max())))
+            bound = NOISE_MARGIN * longest.stderr
+            level = min((b for b in on if b.stderr <= bound), key=lambda b: (b.angle_deg, -b.samples))
+            out[face] = level if level.angle_deg < longest.angle_deg - TILT_MARGIN_DEG else longest
+        return out
 
     def as_dict(self) -> dict[str, Any]:
         """How the blocks were found, for the calibration file."""
@@ -292,6 +307,39 @@ def _judge(
         seg.centre = np.asarray(settings.nominal_offset, dtype=float)
     else:
         seg.centre = rough_centre(means, settings.max_tilt_deg)
+    _label(seg, axes, spans, stats, settings, faces, names)
+    if settings.nominal_offset is None:  # the midpoint of opposite faces, where both are found
+        centre = face_midpoint(seg)
+        if not np.array_equal(centre, seg.centre):
+            seg.centre, seg.blocks = centre, []
+            _label(seg, axes, spans, stats, settings, faces, names)
+    return seg
+
+
+def face_midpoint(seg: Segmentation) -> FloatArray:
+    """The centre with each axis whose two faces both have a block moved to the midpoint of those
+    blocks (each face's best): the offset cancels between opposite faces, so this is the reading
+    at zero stimulus to second order in their tilt, where the median of the block means is off by
+    whatever the orientations happen to be (seen: faces labelled 11-18° off on a real log)."""
+    centre = seg.centre.copy()
+    best = seg.best()
+    for i, axis in enumerate("xyz"):
+        up, down = best.get(f"+{axis}"), best.get(f"-{axis}")
+        if up is not None and down is not None:
+            centre[i] = 0.5 * (up.mean[i] + down.mean[i])
+    return centre
+
+
+def _label(
+    seg: Segmentation,
+    axes: FloatArray,
+    spans: list[tuple[int, int]],
+    stats: list[PoseStats],
+    settings: Settings,
+    faces: Mapping[int, str | None] | None,
+    names: Mapping[int, str] | None,
+) -> None:
+    """Each block measured about ``seg.centre``: its face, or why it is dropped."""
     for number, ((a, b), st) in enumerate(zip(spans, stats, strict=True), start=1):
         third = max(1, (b - a + 1) // 3)
         drift = axes[:, b + 1 - third : b + 1].mean(axis=1) - axes[:, a : a + third].mean(axis=1)
@@ -326,7 +374,6 @@ def _judge(
                 label=None if names is None else names[a],
             )
         )
-    return seg
 
 
 def rough_centre(means: FloatArray, max_tilt_deg: float) -> FloatArray:

@@ -30,6 +30,7 @@ from tumblecal_cli.core.model import (
     FloatArray,
     PoseStats,
     Solution,
+    angle_deg,
     direction,
     solve_one_pose,
     solve_three_pose,
@@ -89,6 +90,100 @@ def _six_pose_diagonal(means: FloatArray, reference: float) -> Params:
     (no cross-axis terms, so a tilted, hand-placed pose does not leak into them)."""
     b, a = _six_pose(means, reference)
     return b, np.diag(np.diag(a))
+
+
+def _six_pose_magnitude(means: FloatArray, reference: float) -> Params:
+    """Offsets ``b`` and gains ``k`` from each pose's *magnitude*, not its direction:
+    ``|(m_p - b) / k| = reference`` for the six poses, six equations in six unknowns, solved by
+    Newton's method from :func:`_six_pose_diagonal`. How a pose is tilted about its face changes
+    which axes share the stimulus, never its magnitude, so hand placement does not leak into
+    these parameters; the price is that no cross-axis term is estimated (seed 001's model with
+    ``T = I``, fitted on the six poses alone)."""
+    b, a = _six_pose_diagonal(means, reference)
+    k = np.diag(a).copy()
+    if not (np.all(np.isfinite(k)) and np.all(k != 0)):
+        return b, np.full((3, 3), np.nan)
+    for _ in range(100):
+        u = (means - b) / k
+        r = np.linalg.norm(u, axis=1)
+        if not np.all(r > 0):
+            break
+        jac = np.hstack([-u / (k * r[:, None]), -(u**2) / (k * r[:, None])])  # d|u| / d(b, k)
+        try:
+            step = np.linalg.solve(jac, reference - r)
+        except np.linalg.LinAlgError:
+            return b, np.full((3, 3), np.nan)
+        b, k = b + step[:3], k + step[3:]
+        if np.abs(step[3:]).max() <= 1e-15 * np.abs(k).max() and np.abs(step[:3]).max() <= 1e-15 * (
+            np.abs(b).max() + np.abs(k).max()
+        ):
+            break
+    converged = np.allclose(np.linalg.norm((means - b) / k, axis=1), reference, rtol=1e-9)
+    return b, np.diag(k) if converged and np.all(k > 0) else np.full((3, 3), np.nan)
+
+
+@dataclass(frozen=True)
+class FaceEvidence:
+    """How the six face poses sit on their faces, about the midpoint of opposite faces.
+
+    ``angles``: each pose's angle from its face. ``disagreement``: for each axis, the angle
+    between the directions its two faces give it (``m[+i] - b`` and ``b - m[-i]``). A fixture
+    that tilts every face alike (rigid but misaligned) turns both directions together and
+    six-pose takes that turn as the sensor's misalignment; faces placed by hand tilt each pose
+    its own way, the two directions disagree, and six-pose's cross-axis terms absorb tilt."""
+
+    angles: dict[str, float]
+    disagreement: dict[str, float]
+
+    @property
+    def worst(self) -> float:
+        return max(self.disagreement.values())
+
+    def disagreeing(self) -> str:
+        """The axis whose faces disagree most, for people: ``the faces of x disagree on its
+        direction by 15.2° (+x 15.9°, -x 1.7° off)``."""
+        axis = max(self.disagreement, key=lambda a: self.disagreement[a])
+        tilts = ", ".join(f"{f} {self.angles[f]:.1f}°" for f in (f"+{axis}", f"-{axis}"))
+        return f"the faces of {axis} disagree on its direction by {self.disagreement[axis]:.1f}° ({tilts} off)"
+
+
+#: Above this disagreement between opposite faces, auto leaves six-pose for six-pose-magnitude.
+#: Synthetic hand-placed tumbles (tests/test_solvers.py, cross-axis terms 0.2-2 %) put the
+#: crossover of the two methods' held-out errors between 1° and 2° of disagreement; the real
+#: logs in tests/data disagree by 0.3-1.4° on a fixture and 6-20° by hand.
+CONSISTENT_DEG = 1.5
+
+
+def face_evidence(means: FloatArray) -> FaceEvidence:
+    """The evidence of six poses in the order +x -x +y -y +z -z (see :class:`FaceEvidence`)."""
+    centre = 0.5 * (np.diag(means[0::2]) + np.diag(means[1::2]))
+    angles = {
+        face: angle_deg(m - centre, face) if np.any(m - centre) else 90.0
+        for face, m in zip(SIX_FACES, means, strict=True)
+    }
+    disagreement = {}
+    for i, axis in enumerate("xyz"):
+        up, down = means[2 * i] - centre, centre - means[2 * i + 1]
+        cos = float(up @ down) / max(float(np.linalg.norm(up) * np.linalg.norm(down)), 1e-300)
+        disagreement[axis] = math.degrees(math.acos(max(-1.0, min(1.0, cos))))
+    return FaceEvidence(angles, disagreement)
+
+
+def auto_six(means: FloatArray) -> tuple[str, str]:
+    """auto's solver for six labelled faces and why: six-pose when each axis's two faces agree on
+    its direction within CONSISTENT_DEG (a good or rigidly misaligned fixture: its cross-axis
+    terms are the sensor's), else six-pose-magnitude (faces placed by hand: cross-axis terms would
+    be tilt, and correct other orientations worse than no calibration)."""
+    ev = face_evidence(means)
+    if ev.worst <= CONSISTENT_DEG:
+        return "six-pose", (
+            f"auto chose six-pose: each axis's two faces agree on its direction within {ev.worst:.2g}° "
+            f"(limit {CONSISTENT_DEG:g}°), so its cross-axis terms are the sensor's, not fixture tilt"
+        )
+    return "six-pose-magnitude", (
+        f"auto chose six-pose-magnitude: {ev.disagreeing()}, as hand-placed faces do; six-pose would take that "
+        "tilt for cross-axis terms, the magnitude fit is immune to it (--method six-pose fits them anyway)"
+    )
 
 
 # -- least squares ---------------------------------------------------------------------------
@@ -221,17 +316,41 @@ def _norm_residuals(raw: FloatArray, b: FloatArray, matrix: FloatArray, referenc
 # -- public entry points, one per method --------------------------------------------------------
 
 
-def six_pose(poses: Sequence[PoseStats], reference: float, tolerance_deg: float, diagonal: bool = False) -> Fit:
-    """Six faces in the order +x -x +y -y +z -z; see :func:`_six_pose`."""
+_SIX = {"six-pose": _six_pose, "six-pose-diagonal": _six_pose_diagonal, "six-pose-magnitude": _six_pose_magnitude}
+
+
+def six_pose(poses: Sequence[PoseStats], reference: float, tolerance_deg: float, method: str = "six-pose") -> Fit:
+    """Six faces in the order +x -x +y -y +z -z; see :func:`_six_pose` and its variants."""
     directions = np.array([FACES[f] for f in SIX_FACES])
+    solver = _SIX[method]
 
     def fn(m: FloatArray) -> Params:
-        return _six_pose_diagonal(m, reference) if diagonal else _six_pose(m, reference)
+        return solver(m, reference)
 
-    if not diagonal:
+    if method == "six-pose":
         return _propagate("six-pose", fn, poses, directions, reference, tolerance_deg)
-    full = _six_pose(np.array([p.mean for p in poses]), reference)[1]
-    fit = _propagate("six-pose-diagonal", fn, poses, directions, reference, tolerance_deg, stimulus_matrix=full)
+    means = np.array([p.mean for p in poses])
+    if method == "six-pose-magnitude" and not np.all(np.isfinite(fn(means)[1])):
+        _inverse(_six_pose_diagonal(means, reference)[1], poses)  # no gain at all: undetermined
+        ev = face_evidence(means)
+        raise CaptureRejected(
+            "the six poses' magnitudes do not determine offsets and gains: "
+            + ", ".join(f"{f} {a:.0f}°" for f, a in ev.angles.items())
+            + " off their faces",
+            hint="rest the unit flat on each face, or capture 12 or more orientations for --method sphere",
+            code="poses.tilted",
+        )
+    # a tilted pose reaches the diagonal solver through the cross-axis terms it leaves out; the
+    # magnitude fit's own model moves it along the ellipsoid, which leaves its solution alone
+    # (from where each pose actually points, not from its face)
+    stimulus = None
+    if method == "six-pose-diagonal":
+        stimulus = _six_pose(means, reference)[1]
+    else:
+        b, a = fn(means)
+        pointing = (means - b) / np.diag(a)
+        directions = pointing / np.linalg.norm(pointing, axis=1)[:, None]
+    fit = _propagate(method, fn, poses, directions, reference, tolerance_deg, stimulus_matrix=stimulus)
     return replace(fit, cross_se=None)
 
 
@@ -346,6 +465,23 @@ def missing_faces(directions: FloatArray, within_deg: float = FACE_COVERAGE_DEG)
     return out
 
 
+#: Directions closer than this are one direction to the sphere fit (poses re-placed on a face).
+DISTINCT_DEG = 10.0
+#: The sphere's 9 parameters need this many distinct directions.
+SPHERE_MIN_DIRECTIONS = 9
+
+
+def distinct_directions(directions: FloatArray) -> int:
+    """How many of the unit ``directions`` differ by more than DISTINCT_DEG from each other
+    (greedy: each joins the first kept direction within the angle, else is kept)."""
+    cos = math.cos(math.radians(DISTINCT_DEG))
+    kept: list[FloatArray] = []
+    for d in directions:
+        if not any(float(d @ k) >= cos for k in kept):
+            kept.append(d)
+    return len(kept)
+
+
 def coverage(directions: FloatArray) -> float:
     """The share of 26 cube directions (faces, edges, corners) with a sample within 45°."""
     cos = math.cos(math.radians(COVERAGE_CAP_DEG))
@@ -381,6 +517,16 @@ def sphere(points: FloatArray, stderr: FloatArray | None, reference: float, *, w
     rough = points - 0.5 * (points.max(axis=0) + points.min(axis=0))
     norms = np.linalg.norm(rough, axis=1)
     _refuse_poor_coverage(rough[norms > 0] / norms[norms > 0, None], what)
+    if not ellipsoid:
+        distinct = distinct_directions(rough[norms > 0] / norms[norms > 0, None])
+        if distinct < SPHERE_MIN_DIRECTIONS:
+            raise CaptureRejected(
+                f"{len(points)} {what}, {distinct} distinct directions (more than {DISTINCT_DEG:g}° apart); "
+                f"the sphere needs {SPHERE_MIN_DIRECTIONS}+ to determine its 9 parameters",
+                hint="capture orientations between the faces (edges, corners), or label the six faces and "
+                "use a face solver",
+                code="poses.undetermined",
+            )
     fitted = _fit_sphere(points, reference)
     if fitted is None:
         raise CaptureRejected(
@@ -584,12 +730,14 @@ METHODS = (
     "three-pose",
     "six-pose",
     "six-pose-diagonal",
+    "six-pose-magnitude",
     "least-squares",
     "sphere",
     "minmax",
     "ellipsoid",
     "gyro-bias",
 )
+SIX_POSE = ("six-pose", "six-pose-diagonal", "six-pose-magnitude")
 #: Methods fitted to captures rotated through many orientations (not static poses).
 ROTATION = ("minmax", "ellipsoid")
 #: Methods that do not use the pose labels (the orientation is unknown or irrelevant).
@@ -631,7 +779,7 @@ def pick(method: str, labels: Sequence[str | None], sensor: str) -> tuple[str, l
                 f"{method} takes a pose on a face (the axis up), not the direction {labels[0]}",
                 hint="label it with a face (+z=z.csv) or give the face with --up",
             )
-    elif method in ("three-pose", "six-pose", "six-pose-diagonal"):
+    elif method in ("three-pose", *SIX_POSE):
         wanted = THREE_FACES if method == "three-pose" else SIX_FACES
         if sorted(str(x) for x in labels) != sorted(wanted):
             given = " ".join(str(x) for x in labels) if any(labels) else f"{n} unlabelled files"
@@ -706,8 +854,8 @@ def run(
         offset_tilt, gain_tilt = tilt_sensitivity(method, three.gain, reference, THREE_FACES, tolerance_deg)
         residuals = _norm_residuals(np.array([p.mean for p in stats]), three.offset, three.matrix, reference)
         return Fit(solution=three, residuals=residuals, tilt=(offset_tilt, gain_tilt, np.zeros((3, 3))))
-    if method in ("six-pose", "six-pose-diagonal"):
-        return six_pose(stats, reference, tolerance_deg, diagonal=method == "six-pose-diagonal")
+    if method in SIX_POSE:
+        return six_pose(stats, reference, tolerance_deg, method)
     if method == "least-squares":
         directions = np.array([direction(str(x)) for x in labels])
         return least_squares(stats, directions, reference, tolerance_deg, names)

@@ -119,14 +119,9 @@ def _face_of(path: str) -> str | None:
 
 def _face(text: str) -> str | None:
     """The face a label names (x, xp, +x, xn ...), or None."""
-    stem = text.lower()
-    if stem in ("x", "y", "z"):
-        return "+" + stem
-    if len(stem) == 2 and stem[0] in "+-" and stem[1] in "xyz":
-        return stem
-    if len(stem) == 2 and stem[0] in "xyz" and stem[1] in "pn":
-        return ("+" if stem[1] == "p" else "-") + stem[0]
-    return None
+    from tumblecal_cli.core.model import face_of_name
+
+    return face_of_name(text)
 
 
 def _folder_units(folder: str, *, log: bool, skip: str | None) -> tuple[list[Unit], list[str]]:

@@ -174,93 +174,91 @@ def enough_blocks(log: Log, seg: Segmentation, need: int) -> None:
     )
 
 
-#: A face block further than this from its face is not what a face solver assumes (exactly on
-#: the face): with enough blocks, auto fits the sphere instead.
-AUTO_FACE_TILT_DEG = 5.0
-
-
 def log_poses(
     log: Log, seg: Segmentation, method: str, up: str, sensor: str
 ) -> tuple[str, list[str | None], list[Samples], list[str]]:
     """The method and the poses a log gives it: the best block of each face a face solver
-    needs, or every kept block for an orientation-free one; and notes on that choice.
+    needs (Segmentation.best: the least tilted), or every kept block for an orientation-free
+    one; and notes on that choice.
 
-    ``auto`` with a hand-placed log (a face's block more than AUTO_FACE_TILT_DEG off its face)
-    and 12 or more kept blocks fits the sphere: a face solver would take the tilt for cross-axis
-    terms and correct other orientations worse than no calibration (seen on real logs)."""
+    ``auto`` with 12 or more kept blocks fits the sphere unless the six faces are there and
+    agree (solvers.auto_six): fewer faces, or faces placed by hand, and a face solver would take
+    the tilt for cross-axis terms (seen on real logs: worse than no calibration)."""
     enough_blocks(log, seg, 1 if method in ("one-pose", "one-pose-tilt") else 2)
     best, kept = seg.best(), seg.kept
-    labels: list[str | None]
     notes: list[str] = []
-    if method in solvers.ORIENTATION_FREE or (
-        method == "auto" and len(best) < 5 and len(kept) >= solvers.SPHERE_MIN_POSES
-    ):
-        chosen, labels = kept, [None] * len(kept)
-        method = "sphere" if method == "auto" else method
-    else:
-        wanted: list[str] = {
-            "one-pose": [up],
-            "one-pose-tilt": [up],
-            "three-pose": list(solvers.THREE_FACES),
-            "six-pose": list(solvers.SIX_FACES),
-            "six-pose-diagonal": list(solvers.SIX_FACES),
-        }.get(method, list(best))
-        if method == "auto" and len(best) < 5:
-            wanted = list(solvers.THREE_FACES)
-        absent = [f for f in wanted if f not in best]
-        if absent or len(wanted) < (solvers.LEAST_SQUARES_MIN_POSES if method == "least-squares" else 1):
-            faces = " ".join(best) or "none"
-            need = {
-                "auto": "+x +y +z, five faces or all six (or 12 blocks for the sphere fit)",
-                "least-squares": "five faces or more",
-            }.get(method, " ".join(wanted))
-            raise CaptureRejected(
-                f"not the faces {method} needs ({need}); faces found: {faces}",
-                file=log.layout.name,
-                hint=(
-                    "map each face's label with --pose-map; `tumblecal segment -v` lists every block"
-                    if seg.threshold is None  # a labelled log
-                    else "rest the unit on each missing face for --min-duration; `tumblecal segment` lists every block"
-                ),
-                more=tuple(seg_core.missing(seg, absent or [f for f in solvers.SIX_FACES if f not in best])),
-                code="log.faces",
+    labels: list[str | None]
+    many = len(kept) >= solvers.SPHERE_MIN_POSES
+    if method == "auto" and many:
+        six = set(best) >= set(solvers.SIX_FACES)
+        ev = solvers.face_evidence(np.array([best[f].mean for f in solvers.SIX_FACES])) if six else None
+        directions = np.array([b.mean - seg.centre for b in kept])
+        directions /= np.maximum(np.linalg.norm(directions, axis=1), 1e-300)[:, None]
+        fits = solvers.distinct_directions(directions) >= solvers.SPHERE_MIN_DIRECTIONS
+        if ev is None:
+            notes.append(
+                f"auto fits the sphere to all {len(kept)} still blocks: faces found {' '.join(best) or 'none'}, "
+                "not the six"
             )
-        chosen, labels = [best[f] for f in wanted], list(wanted)
-        if set(best) >= set(solvers.SIX_FACES) and method in ("auto", "six-pose", "six-pose-diagonal"):
-            face, angle, number = _worst_face_tilt(best)
-            if angle > AUTO_FACE_TILT_DEG:
-                tilted = f"the {face} block ({number}) is {angle:.1f}° off its face"
-                if method == "auto" and len(kept) >= solvers.SPHERE_MIN_POSES:
-                    notes.append(
-                        f"auto fits the sphere to all {len(kept)} still blocks: {tilted}, and six-pose takes "
-                        "each block as exactly on its face (--method six-pose fits them anyway)"
-                    )
-                    chosen, labels, method = kept, [None] * len(kept), "sphere"
-                elif method != "auto":
-                    sphere = "; --method sphere fits tilted blocks" if len(kept) >= solvers.SPHERE_MIN_POSES else ""
-                    notes.append(
-                        f"{tilted}: {method} takes each block as exactly on its face, so the tilt goes into "
-                        f"its parameters{sphere}"
-                    )
+            method = "sphere"
+        elif ev.worst > solvers.CONSISTENT_DEG and fits:  # else six-pose, or the magnitude fit (too few directions)
+            notes.append(
+                f"auto fits the sphere to all {len(kept)} still blocks: {ev.disagreeing()}, and a face solver "
+                "takes each block as exactly on its face (--method six-pose-magnitude fits the six face blocks)"
+            )
+            method = "sphere"
+    if method in solvers.ORIENTATION_FREE:
+        chosen_blocks, labels = kept, [None] * len(kept)
+    else:
+        wanted = _wanted(method, up, best)
+        chosen_blocks, labels = _face_blocks(log, seg, method, wanted, best), list(wanted)
+        if method == "six-pose-diagonal":
+            diagonal = solvers.face_evidence(np.array([b.mean for b in chosen_blocks]))
+            if diagonal.worst > solvers.CONSISTENT_DEG:
+                sphere = "; --method sphere fits tilted blocks" if many else ""
+                notes.append(
+                    f"{diagonal.disagreeing()}: {method} takes each block as exactly on its face, so the tilt goes "
+                    f"into its parameters (six-pose-magnitude is immune to it){sphere}"
+                )
     name, order = solvers.pick(method, labels, sensor)
-    samples = [log.block(b.number, b.first, b.last) for b in chosen]
+    samples = [log.block(b.number, b.first, b.last) for b in chosen_blocks]
     return name, [labels[k] for k in order], [samples[k] for k in order], notes
 
 
-def _worst_face_tilt(best: Mapping[str, Block]) -> tuple[str, float, int]:
-    """The face block furthest from its face, as (face, degrees, block number), each direction
-    taken about the midpoint of opposite faces' means (the offset cancels there, so a unit's
-    own offset does not read as tilt)."""
-    centre = np.array([0.5 * (best[f"+{a}"].mean[i] + best[f"-{a}"].mean[i]) for i, a in enumerate("xyz")])
-    worst = ("+x", 0.0, 0)
-    for face, block in best.items():
-        d = block.mean - centre
-        if not np.any(d) or face not in model.FACES:
-            continue
-        angle = model.angle_deg(d, face)
-        if angle > worst[1]:
-            worst = (face, angle, int(block.number))
-    return worst
+def _wanted(method: str, up: str, best: Mapping[str, Block]) -> list[str]:
+    """The faces a face solver takes from a log (auto: six, five or +x +y +z)."""
+    if method == "auto":
+        return list(solvers.SIX_FACES if len(best) == 6 else best if len(best) == 5 else solvers.THREE_FACES)
+    if method in ("one-pose", "one-pose-tilt"):
+        return [up]
+    if method == "three-pose":
+        return list(solvers.THREE_FACES)
+    if method in solvers.SIX_POSE:
+        return list(solvers.SIX_FACES)
+    return list(best)
+
+
+def _face_blocks(log: Log, seg: Segmentation, method: str, wanted: list[str], best: Mapping[str, Block]) -> list[Block]:
+    """The best block of each wanted face, or exit 3 naming what is missing."""
+    absent = [f for f in wanted if f not in best]
+    if absent or len(wanted) < (solvers.LEAST_SQUARES_MIN_POSES if method == "least-squares" else 1):
+        faces = " ".join(best) or "none"
+        need = {
+            "auto": "+x +y +z, five faces or all six (or 12 blocks for the sphere fit)",
+            "least-squares": "five faces or more",
+        }.get(method, " ".join(wanted))
+        raise CaptureRejected(
+            f"not the faces {method} needs ({need}); faces found: {faces}",
+            file=log.layout.name,
+            hint=(
+                "map each face's label with --pose-map; `tumblecal segment -v` lists every block"
+                if seg.threshold is None  # a labelled log
+                else "rest the unit on each missing face for --min-duration; `tumblecal segment` lists every block"
+            ),
+            more=tuple(seg_core.missing(seg, absent or [f for f in solvers.SIX_FACES if f not in best])),
+            code="log.faces",
+        )
+    return [best[f] for f in wanted]
 
 
 def block_files(seg: Segmentation) -> dict[int, str]:

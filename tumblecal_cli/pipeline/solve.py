@@ -288,6 +288,9 @@ def _solve(
     )
     stats = [model.pose_stats(s.values) for s in samples]
     names = [s.name for s in samples]
+    tilted: list[Finding] = []
+    if name == "six-pose" and ref > 0:
+        name, tilted = _six_faces(name, given.method == "auto", stats, names, log_notes)
     if name in ("one-pose", "one-pose-tilt"):
         check_units(names[0], stats[0].mean - checks.nominal_offset, ref)
     try:
@@ -307,6 +310,9 @@ def _solve(
             err.hint = f"{err.hint + '; ' if err.hint else ''}{log_notes[0]}"
         return Solved(3, None, error=err, samples=samples, limits=given.limits)
     solution = fit.solution
+    judged = given.limits.gain_error is not None or bool((given.limits.nominal_gain != 1).any())
+    if ref > 0 and solution.method in GAIN_SOLVERS and judged:
+        check_gains(solution.gain, ref, given.limits.nominal_gain)
     limits = given.limits.for_method(solution.method)
     measured = [
         gate.measure(n, f, s.values, st, checks) for n, f, s, st in zip(names, labels, samples, stats, strict=True)
@@ -314,6 +320,7 @@ def _solve(
     if ref > 0:  # a gyroscope at rest has no direction to judge
         measured = gate.orient(measured, checks.nominal_offset, checks.max_tilt_deg)
     rejected, warned = gate.check(measured, solution, checks)
+    warned += tilted
     fixed = [
         gate.corrected(st.mean, st.std, f, solution.offset, solution.matrix, ref)
         for st, f in zip(stats, labels, strict=True)
@@ -363,6 +370,85 @@ def _solve(
     elif failures:
         solved.status = 1
     return solved
+
+
+def _six_faces(
+    name: str, auto: bool, stats: list[PoseStats], names: list[str], notes: list[str]
+) -> tuple[str, list[Finding]]:
+    """Six faces: auto chooses six-pose or six-pose-magnitude by how well opposite faces agree
+    (solvers.auto_six) and says why in ``notes``; an explicit six-pose on faces that disagree
+    gets a warning (its cross-axis terms take the tilt)."""
+    import numpy as np
+
+    from tumblecal_cli.core import solvers
+    from tumblecal_cli.core.gate import Finding
+
+    means = np.array([st.mean for st in stats])
+    chosen, why = solvers.auto_six(means)
+    if auto:
+        notes.append(why)
+        return chosen, []
+    if chosen == "six-pose":
+        return name, []
+    ev = solvers.face_evidence(means)
+    axis = max(ev.disagreement, key=lambda a: ev.disagreement[a])
+    worst = ev.disagreement[axis]
+    pair = [f"+{axis}", f"-{axis}"]
+    files = " and ".join(f"{f} ({ev.angles[f]:.1f}° off)" for f in pair)
+    return name, [
+        Finding(
+            "poses.hand_placed",
+            f"the faces {files} disagree by {worst:.1f}° on the direction of {axis}: six-pose takes each pose as "
+            "exactly on its face, so the tilt goes into its cross-axis terms and other orientations may read "
+            "worse than uncalibrated; --method six-pose-magnitude is immune to it",
+            worst,
+            solvers.CONSISTENT_DEG,
+        )
+    ]
+
+
+#: Solvers that estimate gains, each judged by check_gains.
+GAIN_SOLVERS = ("three-pose", "six-pose", "six-pose-diagonal", "six-pose-magnitude", "least-squares", "sphere")
+#: Gains this far from nominal are not a sensor's error but a units mistake (exit 2, not exit 1).
+GAIN_UNITS_TOLERANCE = 0.25
+
+
+def check_gains(gain: FloatArray, reference: float, nominal: FloatArray) -> None:
+    """Gains judged against a nominal (a gain-error limit, or --nominal-gain) that are all more
+    than GAIN_UNITS_TOLERANCE from it, and alike: the data is in other units than the station
+    was set up for. Exit 2, naming the --reference (or --nominal-gain) the data suggests; exit 1
+    would fail good hardware on a misconfigured station. Unjudged gains are whatever scale the
+    data needs (16384 for counts into g): a gain solver corrects any units."""
+    from tumblecal_cli.core import model
+
+    ratio = gain / nominal
+    # a units mistake scales every axis alike; one axis off (a swapped or upside-down pose, a
+    # broken axis) is the quality checks' and the limits' to judge
+    alike = bool((ratio > 0).all()) and float(ratio.max() / ratio.min()) <= 1.0 + GAIN_UNITS_TOLERANCE
+    if not alike or float(abs(ratio - 1.0).min()) <= GAIN_UNITS_TOLERANCE:
+        return
+    shown = ", ".join(f"{g:.4g}" for g in gain)
+    nominal_text = ", ".join(f"{n:g}" for n in nominal) if len(set(nominal.tolist())) > 1 else f"{nominal[0]:g}"
+    typical = float(gain.mean())
+    suggested = model.suggest_reference(reference * typical / float(nominal.mean()))
+    units = {1.0: "g", 9.80665: "m/s^2", 1000.0: "mg"}.get(suggested)
+    if abs(typical - 1.0) <= GAIN_UNITS_TOLERANCE:
+        hint = (
+            "the gains are near 1, as for data in the units of --reference: check --nominal-gain "
+            "(or the limits file's nominal_gain)"
+        )
+    elif units is not None and suggested != reference:
+        hint = f"the data looks like {units}: run with --reference {suggested:g}"
+    else:
+        hint = (
+            f"the data looks like raw counts (about {typical:.4g} per unit of --reference): give --nominal-gain "
+            f"{model.suggest_reference(typical):g} to judge the gains as counts per unit, or --reference "
+            f"{model.suggest_reference(reference * typical):g} to keep the output in counts"
+        )
+    raise InputError(
+        f"gains {shown} are {float(ratio.mean()) - 1:+.0%} from the nominal gain {nominal_text}: a units mistake?",
+        hint=hint,
+    )
 
 
 def check_units(name: str, centred: FloatArray, reference: float) -> None:
