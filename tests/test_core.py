@@ -370,3 +370,13 @@ def test_three_pose_recovers_random_truths(
     sol = core.solve_three_pose(capture(np.random.default_rng(seed), truth, THREE, n), reference)
     assert_within_se(sol.offset, truth.offset, sol.offset_se, k=5.0)
     assert_within_se(sol.gain, truth.gain, sol.gain_se, k=5.0)
+
+
+@pytest.mark.parametrize(
+    ("name", "face"),
+    [("x", "+x"), ("+y", "+y"), ("-z", "-z"), ("xp", "+x"), ("XN", "-x"), ("y_p", "+y"), ("z_n", "-z"),
+     ("xplus", "+x"), ("zminus", "-z"), ("y-neg", "-y"), ("pose", None), ("x_rot", None), ("xx", None)],
+)  # fmt: skip
+def test_face_of_name(name: str, face: str | None) -> None:
+    """File stems and column headers that name a face (batch's folders and manifests)."""
+    assert core.face_of_name(name) == face
