@@ -203,7 +203,12 @@ def test_no_header_option_reads_the_first_line_as_data(tmp_path: Path) -> None:
 
 def test_time_column_and_duration(tmp_path: Path) -> None:
     path = write(tmp_path, "t,ax,ay,az\n" + "".join(f"{i * 10},0,0,1\n" for i in range(101)))
-    assert read_samples(path).duration == pytest.approx(1000.0)
+    assert read_samples(path, time_unit="s").duration == pytest.approx(1000.0)
+    auto = read_samples(path)  # a step of 10 at a sensor's rate: milliseconds, said in a note
+    assert auto.duration == pytest.approx(1.0)
+    assert auto.layout.notes == [
+        f"{path}: time column 't' read in milliseconds: it advances 10 per sample (100 Hz); --time-unit says otherwise"
+    ]
     assert read_samples(path, time_unit="ms").duration == pytest.approx(1.0)
     assert read_samples(path, time_unit="us").duration == pytest.approx(1e-3)
 
@@ -211,7 +216,7 @@ def test_time_column_and_duration(tmp_path: Path) -> None:
 def test_time_column_option(tmp_path: Path) -> None:
     path = write(tmp_path, "clock,ax,ay,az\n" + "".join(f"{i},0,0,1\n" for i in range(11)))
     assert read_samples(path).duration is None
-    assert read_samples(path, time_column="clock").duration == pytest.approx(10.0)
+    assert read_samples(path, time_column="clock", time_unit="s").duration == pytest.approx(10.0)
     with pytest.raises(InputError, match="time column 'tick' not found"):
         read_samples(path, time_column="tick")
 
@@ -296,7 +301,7 @@ def test_error_line_numbers_count_comments_and_blanks(tmp_path: Path) -> None:
 
 def test_interleaved_rows_with_empty_sensor_cells_are_skipped(tmp_path: Path) -> None:
     text = "t,ax,ay,az,lat\n0,,,,52.1\n1,1,2,3,\n2,,,,52.2\n3,4,5,6,\n4,,,,52.3\n"
-    s = read_samples(write(tmp_path, text))
+    s = read_samples(write(tmp_path, text), time_unit="s")
     np.testing.assert_array_equal(s.values, [[1, 2, 3], [4, 5, 6]])
     assert s.rows == (1, 3)
     assert s.duration == pytest.approx(2.0)  # from the rows used

@@ -888,12 +888,18 @@ def test_time_of_rows_without_sensor_values_is_not_judged(
 def test_how_the_time_was_read_is_said_when_it_looks_wrong(
     six_level: SynthLog, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """A time column in milliseconds read as seconds (100 Hz looks like 0.1 Hz), --rate over a
-    time column (its gaps and order go unchecked), and --window with no time at all."""
+    """A time column in milliseconds: read as such from its spacing (with a note), and read as
+    seconds (--time-unit s: 100 Hz looks like 0.1 Hz) refused with the reason rather than cut
+    into hundreds of blocks of noise; --rate over a time column (its gaps and order go
+    unchecked), and --window with no time at all."""
     src = write_log(tmp_path / "ms.csv", six_level, times=six_level.times * 1000.0)
     r = run(capsys, "segment", src)
-    assert len(index_of(r.out)) > 100  # read as seconds: a 1-sample window and minimum, blocks of noise
-    assert f"warning: {src}: the time column advances 10 s per sample (0.1 Hz); if it is not in seconds, " in r.err
+    assert len(index_of(r.out)) == 6, r.err
+    assert f"note: {src}: time column 't' read in milliseconds: it advances 10 per sample (100 Hz)" in r.err
+    r = run(capsys, "segment", src, "--time-unit", "s")
+    assert r.code == 2
+    assert "the log's time scale is wrong, not its poses" in r.err
+    assert r.out == ""
     r = run(capsys, "segment", src, "--time-unit", "ms")
     assert (r.code, "advances" in r.err) == (0, False), r.err
     r = run(capsys, "segment", src, "--rate", "100")

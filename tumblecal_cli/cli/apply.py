@@ -10,7 +10,7 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app, report
-from tumblecal_cli.cli.options import Columns, NoHeader, Quiet
+from tumblecal_cli.cli.options import Columns, Decimal, DropIncomplete, NoHeader, Quiet, SkipRows, file_shape
 from tumblecal_cli.errors import InputError
 
 
@@ -43,6 +43,9 @@ def apply(
     ] = "-",
     columns: Columns = None,
     no_header: NoHeader = False,
+    skip_rows: SkipRows = None,
+    decimal: Decimal = None,
+    drop_incomplete: DropIncomplete = False,
     force: Annotated[
         bool,
         typer.Option("--force", help="Apply a calibration whose verdict failed (refused otherwise)."),
@@ -90,6 +93,7 @@ def apply(
     from tumblecal_cli.pipeline import correct as pipeline
 
     inputs = batches.expand(capture or ["-"])
+    shape = file_shape(skip_rows, decimal, drop_incomplete)
     if out_dir is not None or dask_scheduler is not None or len(inputs) > 1:
         if output != "-" and out_dir is not None:
             raise InputError("-o names one output; with --out-dir each capture is written into DIR under its own name")
@@ -100,7 +104,7 @@ def apply(
                 else "--dask-scheduler corrects captures into --out-dir DIR"
             )
         done = pipeline.correct_many(
-            inputs, cal, out_dir, columns=columns, no_header=no_header, force=force, scheduler=dask_scheduler
+            inputs, cal, out_dir, columns=columns, no_header=no_header, force=force, scheduler=dask_scheduler, **shape
         )
         _show_many(done, len(set(inputs)), out_dir, quiet=quiet)
         return
@@ -112,6 +116,7 @@ def apply(
         columns=columns,
         no_header=no_header,
         force=force,
+        **shape,
         on_note=None if quiet else lambda note: console.print(f"note: {note}", soft_wrap=True),
     )
     if not quiet:

@@ -21,6 +21,7 @@ class SensorKind(StrEnum):
 
 
 class TimeUnit(StrEnum):
+    auto = "auto"
     s = "s"
     ms = "ms"
     us = "us"
@@ -54,7 +55,48 @@ TimeColumn = Annotated[
     typer.Option("--time-column", metavar="NAME", help="The time column (default: t, time, timestamp, time_s or ts)."),
 ]
 
-TimeUnitOption = Annotated[TimeUnit, typer.Option("--time-unit", help="Unit of the time column.")]
+TimeUnitOption = Annotated[
+    TimeUnit,
+    typer.Option(
+        "--time-unit",
+        help="Unit of the time column. auto: from its name (timestamp_ms, t_us), else from its spacing "
+        "(a step of 1-1000 is ms, to 1e6 us, to 1e9 ns), with a note.",
+    ),
+]
+
+
+class DecimalMark(StrEnum):
+    point = "."
+    comma = ","
+
+
+SkipRows = Annotated[
+    int | None,
+    typer.Option(
+        "--skip-rows",
+        metavar="N",
+        min=0,
+        help="Lines before the header to skip. Default: a station's metadata lines (fewer fields than the "
+        "header, e.g. Fs,100) are found and skipped, with a note.",
+    ),
+]
+
+Decimal = Annotated[
+    DecimalMark | None,
+    typer.Option(
+        "--decimal",
+        help="The numbers' decimal mark. Default: ',' when every number of a ; or tab separated file has one "
+        "(European spreadsheet exports), else '.'.",
+    ),
+]
+
+DropIncomplete = Annotated[
+    bool,
+    typer.Option(
+        "--drop-incomplete",
+        help="Drop a last line cut short (a logger stopped mid-write) with a warning, instead of exit 2.",
+    ),
+]
 
 Rate = Annotated[
     float | None,
@@ -235,3 +277,8 @@ class RegisterSign(StrEnum):
 
 
 REGISTERS_PANEL = "Registers (--format registers)"
+
+
+def file_shape(skip_rows: int | None, decimal: DecimalMark | None, drop_incomplete: bool) -> dict[str, Any]:
+    """--skip-rows, --decimal and --drop-incomplete as the pipeline's keyword arguments."""
+    return {"skip_rows": skip_rows, "decimal": decimal and decimal.value, "drop_incomplete": drop_incomplete}

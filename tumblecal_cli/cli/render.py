@@ -223,9 +223,12 @@ def _at(block: dict[str, Any], name: str, i: int) -> float | None:
     return float(values[i]) if isinstance(values, list) and len(values) == 3 else None
 
 
-def print_blocks(log: Log, seg: Segmentation, console: Console, *, used: dict[int, str], everything: bool) -> None:
+def print_blocks(
+    log: Log, seg: Segmentation, console: Console, *, used: dict[int, str], everything: bool, notes: bool = False
+) -> None:
     """The blocks for people (the kept ones; ``everything``: the dropped too), how they were
-    found, and a hint for each face without a block."""
+    found, and a hint for each face without a block; ``notes``: first how the log was read
+    (solve says that in its summary instead)."""
     from rich import box
     from rich.table import Table
 
@@ -233,6 +236,8 @@ def print_blocks(log: Log, seg: Segmentation, console: Console, *, used: dict[in
     from tumblecal_cli.core import segment
 
     name = log.layout.name
+    for note in log.layout.notes if notes else []:
+        console.print(f"note: {note}", soft_wrap=True, markup=False)
     shown = seg.blocks if everything else seg.kept
     title = f"still blocks of {os.path.basename(name)}"
     table = Table(title=title, title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False, collapse_padding=True)

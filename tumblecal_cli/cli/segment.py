@@ -10,6 +10,8 @@ from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
 from tumblecal_cli.cli.options import (
     Columns,
+    Decimal,
+    DropIncomplete,
     MinDuration,
     NoHeader,
     PoseColumn,
@@ -18,12 +20,14 @@ from tumblecal_cli.cli.options import (
     Rate,
     Sensor,
     SensorKind,
+    SkipRows,
     Threshold,
     TimeColumn,
     TimeUnit,
     TimeUnitOption,
     Trim,
     Window,
+    file_shape,
     log_option,
 )
 
@@ -51,8 +55,11 @@ def segment(
     columns: Columns = None,
     no_header: NoHeader = False,
     time_column: TimeColumn = None,
-    time_unit: TimeUnitOption = TimeUnit.s,
+    time_unit: TimeUnitOption = TimeUnit.auto,
     rate: Rate = None,
+    skip_rows: SkipRows = None,
+    decimal: Decimal = None,
+    drop_incomplete: DropIncomplete = False,
     window: Window = None,
     threshold: Threshold = None,
     min_duration: MinDuration = None,
@@ -102,7 +109,7 @@ def segment(
     def show(found: logs.Blocks, files: dict[int, str]) -> None:
         if not quiet:  # "-> xp.csv" only where it is written; the index alone names the file each would go to
             shown = {n: f"-> {f}" if out_dir is not None else f"kept ({f})" for n, f in files.items()}
-            render.print_blocks(found.log, found.seg, render.make_console(), used=shown, everything=verbose)
+            render.print_blocks(found.log, found.seg, render.make_console(), used=shown, everything=verbose, notes=True)
 
     done = logs.segment(
         log,
@@ -114,6 +121,7 @@ def segment(
         time_column=time_column,
         time_unit=time_unit.value,
         rate=rate,
+        **file_shape(skip_rows, decimal, drop_incomplete),
         window=window,
         threshold=threshold,
         min_duration=min_duration,

@@ -8,7 +8,7 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
-from tumblecal_cli.cli.options import Columns, NoHeader, Quiet
+from tumblecal_cli.cli.options import Columns, Decimal, DropIncomplete, NoHeader, Quiet, SkipRows
 
 
 @app.command(
@@ -51,6 +51,9 @@ def verify(
     ] = 0.02,
     columns: Columns = None,
     no_header: NoHeader = False,
+    skip_rows: SkipRows = None,
+    decimal: Decimal = None,
+    drop_incomplete: DropIncomplete = False,
     json_summary: Annotated[
         bool, typer.Option("--json", help="Print the per-capture and overall figures on stdout as JSON.")
     ] = False,
@@ -74,6 +77,9 @@ def verify(
         max_noise=max_noise,
         columns=columns,
         no_header=no_header,
+        skip_rows=skip_rows,
+        decimal=decimal and decimal.value,
+        drop_incomplete=drop_incomplete,
     )
     if json_summary:
         render.print_json(

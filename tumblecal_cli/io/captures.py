@@ -19,6 +19,7 @@ writes floats as their shortest round-trip text; README "Dependencies" has the m
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import io
 import os
@@ -65,6 +66,33 @@ _NUMBER = r"(?i)^[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:e[+-]?\d+)?|nan|inf|infinity)$"
 _WS_RUN = re.compile(rb"[ \t]+")
 _WS_EDGE = re.compile(rb"^ | (?=\r?$)", re.MULTILINE)
 _TIME_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+_UNIT_WORDS = {"s": "seconds", "ms": "milliseconds", "us": "microseconds", "ns": "nanoseconds"}
+#: A time column whose name carries its unit: ``timestamp_ms``, ``t_us``, ``time(ns)``, ``time [ms]``,
+#: Arduino's ``millis``/``micros``.
+_TIME_WITH_UNIT = re.compile(r"^(?:t|time|timestamp|ts)[ _.\-]*[(\[]?(s|sec|ms|us|µs|ns)[)\]]?$|^(millis|micros)$")
+#: A cell written with a decimal comma (``1,045729``, ``-0,5e-3``): European spreadsheet exports.
+_COMMA_NUMBER = re.compile(r"^\s*[+-]?\d*,\d+(?:[eE][+-]?\d+)?\s*$")
+MAX_PREAMBLE = 20  # metadata lines a station may write before its header
+
+
+@dataclass(frozen=True)
+class Dialect:
+    """How a station wrote its file, where the sniffer should not guess (README "CSV captures"):
+    ``skip_rows`` lines before the header (None: a metadata preamble is found by its field
+    count), the ``decimal`` mark (None: a comma when every number of a ``;`` or tab separated
+    file has one), and whether an incomplete last line (a logger stopped mid-write) is dropped."""
+
+    skip_rows: int | None = None
+    decimal: str | None = None
+    drop_incomplete: bool = False
+
+    def __post_init__(self) -> None:
+        skip = self.skip_rows
+        if skip is not None and (isinstance(skip, bool) or not isinstance(skip, int) or skip < 0):
+            raise InputError(f"--skip-rows takes a whole number of 0 or more, got {skip!r}")
+        if self.decimal not in (None, ".", ","):
+            raise InputError(f"--decimal is '.' or ',', got {self.decimal!r}")
+
 
 FloatArray = np.ndarray[Any, np.dtype[np.float64]]
 BoolArray = np.ndarray[Any, np.dtype[np.bool_]]
@@ -86,6 +114,9 @@ class Layout:
     temperature: int | None = None
     extra: int | None = None  # one more column read as text (a log's label column)
     notes: list[str] = field(default_factory=list)  # things a person should be told
+    decimal: str = "."  # the decimal mark of the file's numbers ("," in European exports)
+    time_unit: str | None = None  # the unit the time column's name gives (timestamp_ms), if any
+    incomplete: bytes | None = None  # the last line, when it is cut short and dropped (--drop-incomplete)
 
     @property
     def sensor_names(self) -> list[str]:
@@ -97,22 +128,36 @@ class _DataStream(io.RawIOBase):
     sniffed remainder of the first block, then the rest; hashes what it reads (stdin has no
     second pass) and squeezes runs of whitespace to single spaces for pyarrow."""
 
-    def __init__(self, first: bytes, rest: IO[bytes], hasher: Any, squeeze: bool, owns: bool = False) -> None:
+    def __init__(
+        self,
+        first: bytes,
+        rest: IO[bytes],
+        hasher: Any,
+        squeeze: bool,
+        owns: bool = False,
+        drop_last: Callable[[bytes], bool] | None = None,
+    ) -> None:
         self._rest = rest
         self._owns = owns  # close ``rest`` too (a file we opened; never stdin)
         self._hasher = hasher
         self._squeeze = squeeze
+        self._drop_last = drop_last  # whether an unterminated last line is dropped (--drop-incomplete)
+        self.dropped: bytes | None = None  # the line it dropped
         self._carry = b""
         self._buf = self._transform(first, final=False)
         self._eof = False
 
     def _transform(self, chunk: bytes, final: bool) -> bytes:
-        if not self._squeeze:
+        if not self._squeeze and self._drop_last is None:
             return chunk
         chunk = self._carry + chunk
-        cut = len(chunk) if final else chunk.rfind(b"\n") + 1
-        self._carry = chunk[cut:]
-        return _WS_EDGE.sub(b"", _WS_RUN.sub(b" ", chunk[:cut]))
+        cut = len(chunk) if final else max(chunk.rfind(b"\n"), chunk.rfind(b"\r")) + 1
+        self._carry, out = chunk[cut:], chunk[:cut]
+        if final and self._drop_last is not None and out and not out.endswith((b"\n", b"\r")):
+            start = max(out.rfind(b"\n"), out.rfind(b"\r")) + 1
+            if self._drop_last(out[start:]):
+                self.dropped, out = out[start:], out[:start]
+        return _WS_EDGE.sub(b"", _WS_RUN.sub(b" ", out)) if self._squeeze else out
 
     def readable(self) -> bool:
         return True
@@ -197,6 +242,10 @@ class Capture:
                     batch = batch.filter(pc.invert(pc.match_substring_regex(batch.column(keys[0]), r"^\s*#")))
                 yield row, [batch.column(k) for k in include]
                 row += batch.num_rows
+            dropped = getattr(self._stream, "dropped", None)
+            if dropped is not None:
+                shown = quoted(dropped.decode("utf-8", errors="replace"), 40)
+                lay.notes.append(f"{lay.name}: the last line is incomplete ({shown}), dropped (--drop-incomplete)")
         except (pa.ArrowInvalid, UnicodeDecodeError) as err:
             raise self._diagnose(str(err), bad_rows[-1] if bad_rows else None) from None
 
@@ -211,6 +260,7 @@ class Capture:
         values = np.empty((n, 3))
         empty = np.zeros((n, 3), dtype=bool)
         for j, text in enumerate(columns[:3]):
+            text = self.pointed(text)
             try:
                 values[:, j] = _floats(pc.cast(text, pa.float64()))
                 continue
@@ -221,7 +271,11 @@ class Capture:
             bad = pc.and_(pc.invert(is_empty), pc.invert(pc.match_substring_regex(text, _NUMBER)))
             if pc.any(bad).as_py():
                 i = int(pc.index(bad, True).as_py())
-                raise self._locate(first_row + i, j, f"not a number: {quoted(text[i].as_py())}", triplet)
+                cell = str(columns[j][i].as_py())
+                err = self._locate(first_row + i, j, f"not a number: {quoted(cell)}", triplet)
+                if _COMMA_NUMBER.match(cell) and self.layout.decimal == ".":
+                    err.hint = "it has a decimal comma: give --decimal , (columns separated by ; or tabs)"
+                raise err
             empty[:, j] = _bools(is_empty)
             values[:, j] = _floats(pc.cast(pc.replace_substring_regex(text, "^$", "nan"), pa.float64()))
         all_empty: BoolArray = empty[:, 0] & empty[:, 1] & empty[:, 2]
@@ -233,6 +287,10 @@ class Capture:
                 first_row + i, j, "empty sensor cell in a row whose other sensor cells are filled", triplet
             )
         return values, all_empty
+
+    def pointed(self, text: pa.Array) -> pa.Array:
+        """Number cells with a decimal point (a decimal comma file's cells with it replaced)."""
+        return text if self.layout.decimal == "." else pc.replace_substring(text, ",", ".")
 
     # -- error paths: find the line and column with the same rules, one line at a time --
 
@@ -303,13 +361,16 @@ def open_capture(
     time_column: str | None = None,
     name: str | None = None,
     extra: str | None = None,
+    dialect: Dialect | None = None,
 ) -> Capture:
     """Open ``path`` ('-' for stdin), sniff its layout and find its sensor and time columns.
 
     ``columns`` (from ``--columns``) overrides detection; ``prefer`` (a calibration's
     recorded columns) is used when all three are present; ``extra`` names one more column to
-    read (as text); ``name`` is how messages name the file (default: the path).
+    read (as text); ``name`` is how messages name the file (default: the path); ``dialect``
+    what the user says of the file's shape (preamble, decimal mark, a cut last line).
     """
+    dialect = dialect or Dialect()
     name = name or ("<stdin>" if path == "-" else path)
     try:
         f: IO[bytes] = sys.stdin.buffer if path == "-" else open(path, "rb")  # noqa: SIM115
@@ -323,8 +384,10 @@ def open_capture(
     first = f.read(HEAD_BYTES)
     hasher.update(first)
     try:
-        layout, consumed = _sniff(name, first, at_eof=len(first) < HEAD_BYTES, no_header=no_header)
+        layout, consumed = _sniff(name, first, at_eof=len(first) < HEAD_BYTES, no_header=no_header, dialect=dialect)
         layout.sensor, layout.time = _pick_columns(layout, sensor, columns, prefer, time_column)
+        if layout.time is not None:
+            layout.time_unit = _unit_of_name(layout.names[layout.time])
         lower = [n.lower() for n in layout.names]
         layout.temperature = next((i for i, n in enumerate(lower) if n in TEMPERATURE_NAMES), None)
         if extra is not None:
@@ -335,17 +398,63 @@ def open_capture(
         raise
     stream: Any
     regular = path != "-" and stat.S_ISREG(os.fstat(f.fileno()).st_mode)  # not a pipe, FIFO or device
-    if regular and layout.delimiter is not None:
+    cut = regular and _cut_short(f, layout, consumed, dialect.drop_incomplete)
+    if regular and layout.delimiter is not None and not cut:
         # a regular file: pyarrow reads it natively from the end of the header (1.7x faster)
         f.close()
         stream = pa.OSFile(path)
         stream.seek(consumed)
     else:
-        stream = _DataStream(first[consumed:], f, hasher, squeeze=layout.delimiter is None, owns=path != "-")
+        drop = functools.partial(_incomplete, layout) if dialect.drop_incomplete else None
+        squeeze = layout.delimiter is None
+        stream = _DataStream(first[consumed:], f, hasher, squeeze=squeeze, owns=path != "-", drop_last=drop)
     return Capture(layout, stream, path if regular else None, hasher)  # a pipe is read once
 
 
-def _sniff(name: str, first: bytes, *, at_eof: bool, no_header: bool) -> tuple[Layout, int]:
+def _incomplete(layout: Layout, line: bytes) -> bool:
+    """Whether an unterminated last line was cut short by a logger stopped mid-write: fewer
+    fields than the header, or a sensor cell empty or not a number. (A complete last line
+    without a line end is common, and kept.)"""
+    text = line.decode("utf-8", errors="replace").rstrip("\r\n")
+    if _skipped(text):
+        return False
+    cells = _split(text, layout.delimiter)
+    if len(cells) < len(layout.names):
+        return True
+    sensor = [cells[i].strip().replace(layout.decimal, ".") for i in layout.sensor]
+    return any(not re.match(_NUMBER, c) for c in sensor) and not all(not c for c in sensor)
+
+
+def _cut_short(f: IO[bytes], layout: Layout, consumed: int, drop: bool) -> bool:
+    """Whether a regular file's last line is cut short (see ``_incomplete``): an error naming
+    it, or with ``drop`` (--drop-incomplete) a note, and True (the line is left out as read)."""
+    size = os.fstat(f.fileno()).st_size
+    if size <= consumed:
+        return False
+    here = f.tell()
+    f.seek(max(consumed, size - 65536))
+    tail = f.read()
+    f.seek(here)
+    if tail.endswith((b"\n", b"\r")):
+        return False
+    last = tail[max(tail.rfind(b"\n"), tail.rfind(b"\r")) + 1 :]
+    if not _incomplete(layout, last):
+        return False
+    if drop:  # the stream leaves it out, and says so (Capture.batches)
+        return True
+    shown = quoted(last.decode("utf-8", errors="replace"), 40)
+    f.seek(0)
+    line = sum(chunk.count(b"\n") for chunk in iter(functools.partial(f.read, 1 << 20), b"")) + 1
+    f.close()
+    raise InputError(
+        f"last line incomplete: {shown} (a logger stopped mid-write?)",
+        file=layout.name,
+        line=line,
+        hint="--drop-incomplete drops it with a warning",
+    )
+
+
+def _sniff(name: str, first: bytes, *, at_eof: bool, no_header: bool, dialect: Dialect) -> tuple[Layout, int]:
     """Decide the layout from the first block; returns it and the bytes it consumed."""
     if not first:
         raise InputError("empty file", file=name, hint="the capture has no bytes at all")
@@ -364,18 +473,24 @@ def _sniff(name: str, first: bytes, *, at_eof: bool, no_header: bool) -> tuple[L
     except UnicodeDecodeError as err:
         raise InputError(f"not UTF-8 text (byte {err.start + bom})", file=name) from None
     lines = text.splitlines(keepends=True)
-    offset = bom  # bytes consumed so far
-    k = 0
-    while k < len(lines) and _skipped(lines[k]):
-        offset += len(lines[k].encode())
-        k += 1
-    if k == len(lines):
-        raise InputError("no data: the file holds only blank or # comment lines", file=name)
-    content = [ln.rstrip("\r\n") for ln in lines[k : k + 50] if not _skipped(ln)]
-    delimiter = _detect_delimiter(content)
+    k = _first_content(name, lines, dialect.skip_rows or 0)
+    notes: list[str] = []
+    at = [i for i in range(k, min(len(lines), k + 200)) if not _skipped(lines[i])]  # the lines sniffed
+    content = [lines[i].rstrip("\r\n") for i in at]
+    delimiter = _detect_delimiter(content[:50])
+    if dialect.skip_rows is None and not no_header:
+        skip, delimiter = _preamble(content, delimiter)
+        if skip:
+            shown = "; ".join(quoted(c, 30) for c in content[:2]) + (" ..." if skip > 2 else "")
+            notes.append(
+                f"{name}: {skip} line{'s' if skip > 1 else ''} before the header skipped "
+                f"(lines {at[0] + 1}-{at[skip - 1] + 1}: {shown}); --skip-rows N says how many"
+            )
+            k, content = at[skip], content[skip:]
     cells = [c.strip().strip('"').strip() for c in _split(content[0], delimiter)]
     eol = "\r\n" if lines[k].endswith("\r\n") else "\r" if lines[k].endswith("\r") else "\n"  # CR alone: old Macs
-    header = not no_header and any(c and not re.match(_NUMBER, c) for c in cells)
+    header = not no_header and any(c and not re.match(_NUMBER, c) and not _COMMA_NUMBER.match(c) for c in cells)
+    offset = bom + len("".join(lines[:k]).encode())  # bytes consumed so far
     if header:
         names = cells
         offset += len(lines[k].encode())
@@ -404,8 +519,66 @@ def _sniff(name: str, first: bytes, *, at_eof: bool, no_header: bool) -> tuple[L
         head=first[:offset],
         data_line=k + 1,
         eol=eol,
+        notes=notes,
     )
+    layout.decimal = _decimal(layout, content[1:] if header else content, dialect.decimal)
     return layout, offset
+
+
+def _first_content(name: str, lines: Sequence[str], skip: int) -> int:
+    """The index of the first line after ``skip`` lines (--skip-rows) that is not blank or a comment."""
+    if skip and skip >= len(lines):
+        raise InputError(
+            f"--skip-rows {skip} skips every line of the file's first block ({len(lines)} lines)", file=name
+        )
+    k = skip
+    while k < len(lines) and _skipped(lines[k]):
+        k += 1
+    if k == len(lines):
+        raise InputError("no data: the file holds only blank or # comment lines", file=name)
+    return k
+
+
+def _preamble(content: Sequence[str], delimiter: str | None) -> tuple[int, str | None]:
+    """How many of the first lines are a station's metadata (``Fs,100``, ``Device: X``), and the
+    delimiter of the table after them: lines with fewer fields than the header that follows them,
+    the header being a line of names with as many fields as most of the rows after it. Without
+    such a header nothing is skipped (``--skip-rows`` says how many)."""
+    for skip in range(min(MAX_PREAMBLE, len(content) - 1) + 1):
+        rest = content[skip:]
+        delim = delimiter if skip == 0 else _detect_delimiter(rest[:50])
+        counts = [len(_split(ln, delim)) for ln in rest[:50]]
+        width = max(set(counts), key=counts.count)
+        if counts[0] != width or width < 3:
+            continue  # not where the table starts
+        if skip == 0 or any(len(_split(ln, delim)) >= width for ln in content[:skip]):
+            return 0, delimiter
+        cells = [c.strip().strip('"').strip() for c in _split(rest[0], delim)]
+        named = all(c and not re.match(_NUMBER, c) and not _COMMA_NUMBER.match(c) for c in cells)
+        return (skip, delim) if named else (0, delimiter)
+    return 0, delimiter
+
+
+def _decimal(layout: Layout, rows: Sequence[str], given: str | None) -> str:
+    """The decimal mark: ``given`` (--decimal), else a comma when the file is separated by
+    something else and every number cell of the rows sniffed that has a comma is one like
+    ``1,045729`` and none has a point; else a point."""
+    if given not in (None, ".", ","):
+        raise InputError(f"--decimal must be '.' or ',', got {given!r}")
+    if given == "," and layout.delimiter == ",":
+        raise InputError(
+            "--decimal , needs columns separated by something else than a comma",
+            file=layout.name,
+            hint="a comma-separated file writes its numbers with a point",
+        )
+    if given is not None or layout.delimiter == ",":
+        return given or "."
+    cells = [c for ln in rows for c in _split(ln, layout.delimiter)]
+    commas = [c for c in cells if "," in c]
+    if commas and all(_COMMA_NUMBER.match(c) for c in commas) and not any("." in c for c in cells):
+        layout.notes.append(f"{layout.name}: numbers with a decimal comma (e.g. {commas[0].strip()!r}) read as such")
+        return ","
+    return "."
 
 
 def _detect_delimiter(lines: Sequence[str]) -> str | None:
@@ -420,6 +593,12 @@ def _detect_delimiter(lines: Sequence[str]) -> str | None:
         key = (sum(c == counts[0] for c in counts), counts[0], cand)
         if best is None or key[:2] > best[:2]:
             best = key
+    if best and best[2] == ",":  # 0,01;1,0;-0,5: the commas are decimal marks of a ; or tab separated file
+        for cand in ("\t", ";"):
+            if len({ln.count(cand) for ln in lines}) == 1 and lines[0].count(cand) >= 2:
+                cells = [c for ln in lines for c in ln.split(cand) if "," in c]
+                if all(_COMMA_NUMBER.match(c) for c in cells):
+                    return cand
     return best[2] if best else None
 
 
@@ -449,6 +628,8 @@ def _pick_columns(
     time = index_of(time_column, "time column") if time_column else None
     if time is None:
         time = next((i for i, n in enumerate(lower) if n in TIME_NAMES), None)
+    if time is None:
+        time = next((i for i, n in enumerate(lower) if _unit_of_name(n)), None)
     if columns:
         if len(columns) != 3:
             raise InputError(f"--columns needs three columns (x,y,z), got {len(columns)}")
@@ -480,6 +661,15 @@ def _pick_columns(
         file=layout.name,
         hint="pick one with --columns X,Y,Z or --sensor",
     )
+
+
+def _unit_of_name(name: str) -> str | None:
+    """The unit a time column's name gives: ``timestamp_ms`` -> ms, ``t_us`` -> us, ``millis`` -> ms."""
+    match = _TIME_WITH_UNIT.match(name.strip().lower())
+    if match is None:
+        return None
+    unit = match.group(1) or {"millis": "ms", "micros": "us"}[match.group(2)]
+    return {"sec": "s", "µs": "us"}.get(unit, unit)
 
 
 def _column(layout: Layout, ref: str, what: str) -> int:
@@ -592,9 +782,10 @@ def read_samples(
     columns: Sequence[str] | None = None,
     no_header: bool = False,
     time_column: str | None = None,
-    time_unit: str = "s",
+    time_unit: str = "auto",
     rate: float | None = None,
     prefer: Sequence[str] | None = None,
+    dialect: Dialect | None = None,
 ) -> Samples:
     """Read the sensor columns of a small capture (a pose file) into memory (``prefer``: a
     calibration's recorded columns, used when the file has them)."""
@@ -607,6 +798,7 @@ def read_samples(
         time_unit=time_unit,
         use_time=False,
         prefer=prefer,
+        dialect=dialect,
     )
     t, used = log.clock, log.rows
     duration = None
@@ -626,12 +818,13 @@ def read_log(
     columns: Sequence[str] | None = None,
     no_header: bool = False,
     time_column: str | None = None,
-    time_unit: str = "s",
+    time_unit: str = "auto",
     label_column: str | None = None,
     use_time: bool = True,
     name: str | None = None,
     digest: bool = True,
     prefer: Sequence[str] | None = None,
+    dialect: Dialect | None = None,
 ) -> Log:
     """Read a whole capture into memory (a log to segment, or a pose file). With ``use_time``
     its time column must hold numbers that never go backwards (else a time cell that is not a
@@ -646,6 +839,7 @@ def read_log(
         time_column=time_column,
         name=name,
         extra=label_column,
+        dialect=dialect,
     ) as cap:
         lay = cap.layout
         blocks, keep, times, temps, labels = [], [], [], [], []
@@ -679,16 +873,82 @@ def read_log(
             t = _times(cap, times, None if every else mask)
         elif times:
             try:
-                t = np.concatenate([_floats(pc.cast(c, pa.float64(), safe=False)) for _, c in times])[mask]
+                t = np.concatenate([_floats(pc.cast(cap.pointed(c), pa.float64(), safe=False)) for _, c in times])[mask]
             except pa.ArrowInvalid:  # a time cell that is not a number: the duration is unknown
                 t = None
         temperature = None
         if temps:
             with contextlib.suppress(pa.ArrowInvalid):  # a cell that is not a number: the temperature is unknown
-                temperature = np.concatenate([_floats(pc.cast(c, pa.float64(), safe=False)) for c in temps])[mask]
+                temperature = np.concatenate(
+                    [_floats(pc.cast(cap.pointed(c), pa.float64(), safe=False)) for c in temps]
+                )[mask]
         text = None if lay.extra is None else [str(labels[i] or "").strip() for i in used]
         sha256 = cap.sha256() if digest else ""
-    return Log(lay, values if every else values[mask], used, t, text, sha256, temperature, _TIME_SCALE[time_unit])
+    scale = _TIME_SCALE.get(time_unit, 1.0)
+    if t is not None:
+        try:
+            scale = time_scale(lay, t, time_unit)
+        except InputError:
+            if use_time:
+                raise
+            scale = _TIME_SCALE[lay.time_unit or "s"]  # the time column is not used (--rate): no judgement
+    return Log(lay, values if every else values[mask], used, t, text, sha256, temperature, scale)
+
+
+#: The seconds between samples of a sensor's log: 50 kHz to 0.1 Hz.
+_PERIODS = (2e-5, 10.0)
+
+
+def _epoch_unit(first: float, step: float) -> str | None:
+    """The unit of a clock that counts from 1970 (years 2001-2286 in s, ms, µs or ns), when its
+    spacing is a sensor's in that unit."""
+    for unit, scale in _TIME_SCALE.items():
+        if 1e9 <= first * scale < 1e10 and _PERIODS[0] <= step * scale <= _PERIODS[1]:
+            return unit
+    return None
+
+
+def time_scale(layout: Layout, clock: FloatArray, unit: str) -> float:
+    """Seconds per unit of a log's time column: ``unit`` (--time-unit) when given; with "auto",
+    the unit its name gives (``timestamp_ms``) unless its spacing contradicts it, else the unit of
+    an epoch clock (1.7e18: ns), else the unit its spacing implies (a median step under 0.2: s;
+    to 200: ms; to 2e5: µs; to 2e8: ns: each unit right from 5 Hz to 5 kHz), with a note."""
+    if unit != "auto":
+        return _TIME_SCALE[unit]
+    assert layout.time is not None
+    column, named = layout.names[layout.time], layout.time_unit
+    d = np.diff(clock[:100_001])
+    d = d[d > 0]
+    if d.size == 0:  # one reading, or a clock that never moves: nothing to judge by
+        return _TIME_SCALE[named or "s"]
+    step = float(np.median(d))
+    spaced = _epoch_unit(float(clock[0]), step) or next(
+        (u for u, top in (("s", 0.2), ("ms", 200.0), ("us", 2e5), ("ns", 2e8)) if step < top), None
+    )
+    hint = "give --time-unit s, ms, us or ns (or --rate HZ to use the sample rate instead)"
+    if named is not None:
+        period = step * _TIME_SCALE[named]
+        if _PERIODS[0] <= period <= _PERIODS[1]:
+            return _TIME_SCALE[named]
+        raise InputError(
+            f"time column {column!r} is named in {_UNIT_WORDS[named]}, but it advances {step:g} per sample "
+            f"(a sample every {period:.3g} s)" + (f"; its spacing suggests {_UNIT_WORDS[spaced]}" if spaced else ""),
+            file=layout.name,
+            hint=hint,
+        )
+    if spaced is None:
+        raise InputError(
+            f"time column {column!r} advances {step:g} per sample: not seconds, ms, µs or ns at a sensor's rate",
+            file=layout.name,
+            hint=hint,
+        )
+    if spaced != "s":
+        rate = 1.0 / (step * _TIME_SCALE[spaced])
+        layout.notes.append(
+            f"{layout.name}: time column {column!r} read in {_UNIT_WORDS[spaced]}: it advances {step:g} per sample "
+            f"({rate:.4g} Hz); --time-unit says otherwise"
+        )
+    return _TIME_SCALE[spaced]
 
 
 def _times(cap: Capture, times: list[tuple[int, pa.Array]], mask: BoolArray | None) -> FloatArray:
@@ -699,6 +959,7 @@ def _times(cap: Capture, times: list[tuple[int, pa.Array]], mask: BoolArray | No
     assert lay.time is not None
     parts = []
     for first_row, text in times:
+        text = cap.pointed(text)
         try:
             parts.append(_floats(pc.cast(text, pa.float64())))
         except pa.ArrowInvalid:
@@ -796,6 +1057,8 @@ def correct_stream(
             fixed = fn(values)
             for j, i in enumerate(triplet):  # the float -> shortest round-trip text: the costliest step
                 cols[i] = pc.cast(_arrow_floats(fixed[:, j], empty), pa.string())
+                if lay.decimal != ".":
+                    cols[i] = pc.replace_substring(cols[i], ".", lay.decimal)
         return pa.RecordBatch.from_arrays(cols, names=names)
 
     def write(batch: pa.RecordBatch) -> int:
@@ -896,11 +1159,13 @@ def sensor_triplet(
     return _pick_columns(layout, sensor, columns, prefer, None)[0]
 
 
-def read_table(path: str, *, no_header: bool = False) -> tuple[Layout, list[str], list[pa.Array]]:
+def read_table(
+    path: str, *, no_header: bool = False, dialect: Dialect | None = None
+) -> tuple[Layout, list[str], list[pa.Array]]:
     """Every column of a capture, by the rules solve and apply read it by: (layout, names,
     columns, each int64, float64 or text). The sensor columns are checked as apply checks them
     (a cell that is not a number is an error naming its line and column)."""
-    with open_capture(path, no_header=no_header) as cap:
+    with open_capture(path, no_header=no_header, dialect=dialect) as cap:
         parts: list[list[pa.Array]] = [[] for _ in cap.layout.names]
         for first, cols in cap.batches():
             cap.sensor_values([cols[i] for i in cap.layout.sensor], first)
@@ -909,7 +1174,7 @@ def read_table(path: str, *, no_header: bool = False) -> tuple[Layout, list[str]
     out: list[pa.Array] = []
     for chunks in parts:
         text = pa.chunked_array(chunks, type=pa.string()).combine_chunks() if chunks else pa.array([], pa.string())
-        trimmed = pc.utf8_trim_whitespace(text)
+        trimmed = pc.utf8_trim_whitespace(cap.pointed(text))
         for kind in (pa.int64(), pa.float64()):
             try:
                 out.append(pc.cast(pc.if_else(pc.equal(trimmed, ""), None, trimmed), kind))

@@ -18,7 +18,7 @@ from tumblecal_cli.errors import InputError, TumblecalError
 if TYPE_CHECKING:
     from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfile import Calibration
-    from tumblecal_cli.io.captures import Capture, Layout
+    from tumblecal_cli.io.captures import Capture, Dialect, Layout
 
 
 @dataclass
@@ -41,6 +41,9 @@ def correct(
     no_header: bool = False,
     force: bool = False,
     on_note: Callable[[str], None] | None = None,
+    skip_rows: int | None = None,
+    decimal: str | None = None,
+    drop_incomplete: bool = False,
 ) -> Applied:
     """Correct one capture ('-': stdin) into ``output`` ('-': stdout), as ``tumblecal apply``:
     ``cal`` is one calibration (a file, or a Calibration) or several (one per sensor of the
@@ -77,7 +80,9 @@ def correct(
         raise InputError("--columns names the columns of one calibration; with several --cal each uses its own")
     picked = (columns.split(",") if isinstance(columns, str) else list(columns)) if columns else None
     c = cals[0]
-    with capture_for(c, capture, picked, no_header) as cap:
+    with capture_for(c, capture, picked, no_header, captures.Dialect(skip_rows, decimal, drop_incomplete)) as cap:
+        for text in cap.layout.notes:
+            note(text)
         used = cap.layout.sensor_names
         differ = [u.lower() for u in used] != [x.lower() for x in c.columns]
         if differ and (picked or not cap.layout.has_header):  # the user named them, or nothing is named
@@ -119,6 +124,9 @@ def correct_many(
     no_header: bool = False,
     force: bool = False,
     scheduler: str | None = None,
+    skip_rows: int | None = None,
+    decimal: str | None = None,
+    drop_incomplete: bool = False,
 ) -> Iterator[tuple[str, int, str]]:
     """Correct each capture into ``out_dir`` under its own name, here or on a Dask cluster
     (``scheduler``): (capture, exit status, message) for each as it is done. A capture that
@@ -147,7 +155,8 @@ def correct_many(
         if path == "-":
             raise InputError("--cal - is read once: with several captures give the calibration as a file")
         calfile.load(path)
-    options = {"cal": list(cal), "columns": columns, "no_header": no_header, "force": force}
+    options: dict[str, object] = {"cal": list(cal), "columns": columns, "no_header": no_header, "force": force}
+    options |= {"skip_rows": skip_rows, "decimal": decimal, "drop_incomplete": drop_incomplete}
     if scheduler is not None:  # the workers do not share this working folder
         inputs, outputs = [os.path.abspath(c) for c in inputs], [os.path.abspath(o) for o in outputs]
         options["cal"] = [os.path.abspath(c) for c in cal]
@@ -194,7 +203,9 @@ def refuse_failed(cal: Calibration, doing: str, command: str) -> None:
 
 
 @contextlib.contextmanager
-def capture_for(cal: Calibration, path: str, picked: list[str] | None, no_header: bool) -> Iterator[Capture]:
+def capture_for(
+    cal: Calibration, path: str, picked: list[str] | None, no_header: bool, dialect: Dialect | None = None
+) -> Iterator[Capture]:
     """A capture opened to be corrected by ``cal``: one without that sensor's columns is an
     error naming both the capture and the calibration."""
     from tumblecal_cli.io import captures
@@ -202,7 +213,9 @@ def capture_for(cal: Calibration, path: str, picked: list[str] | None, no_header
     with contextlib.ExitStack() as stack:
         try:
             cap = stack.enter_context(
-                captures.open_capture(path, sensor=cal.sensor, columns=picked, prefer=cal.columns, no_header=no_header)
+                captures.open_capture(
+                    path, sensor=cal.sensor, columns=picked, prefer=cal.columns, no_header=no_header, dialect=dialect
+                )
             )
         except InputError as err:
             if not err.message.startswith(f"no {cal.sensor} x,y,z columns found"):

@@ -62,6 +62,7 @@ def read_pose(path: str, options: SolveOptions) -> Samples:
         time_column=options.time_column,
         time_unit=options.time_unit,
         rate=options.rate,
+        dialect=options.dialect,
     )
 
 

@@ -50,6 +50,7 @@ def segmented(
     pose_map: Mapping[str, str] | str | None,
     settings: seg_core.Settings,
     digest: bool = True,
+    dialect: captures.Dialect | None = None,
 ) -> Iterator[tuple[str, Log, Segmentation]]:
     """Read a log ('-': stdin, kept in a temporary file until the block ends, for a second
     read) and find its blocks: (the path to read it again, captures.Log, segment.Segmentation)."""
@@ -83,12 +84,17 @@ def segmented(
             use_time=rate is None,
             name="<stdin>" if log == "-" else log,
             digest=digest,
+            dialect=dialect,
         )
         model.in_range(data.values, data.layout.name)
         yield path, data, find_blocks(data, rate, pose_column, pose_map, settings)
     finally:
         if spooled:
             os.unlink(path)
+
+
+#: More still blocks of one or two samples than this (and most of those kept) is a wrong time scale.
+MAX_TINY_BLOCKS = 50
 
 
 def find_blocks(
@@ -112,6 +118,17 @@ def find_blocks(
         )
     if seg.period is None and (settings.window is not None or settings.min_duration is not None) and not rate:
         seg.warnings.append(f"{name}: no time column and no --rate: --window and --min-duration are in samples")
+    tiny = sum(b.samples <= 2 for b in seg.blocks)
+    if len(seg.blocks) > MAX_TINY_BLOCKS and (seg.window < 3 or tiny * 2 > len(seg.blocks)):
+        # hundreds of "still poses" a few samples long: the time scale is wrong, not the poses
+        every = f"a sample every {seg.period:.3g} s, " if seg.period else ""
+        raise InputError(
+            f"{len(seg.blocks)} still blocks, {tiny} of them one or two samples long ({every}a window of "
+            f"{seg.window} sample{'s' if seg.window != 1 else ''}): the log's time scale is wrong, not its poses",
+            file=name,
+            hint="give the time column's unit (--time-unit ms, us or ns) or the sample rate (--rate HZ); "
+            "--window and --min-duration set how long a still pose lasts",
+        )
     return seg
 
 
@@ -384,8 +401,11 @@ def segment(
     columns: str | list[str] | None = None,
     no_header: bool = False,
     time_column: str | None = None,
-    time_unit: str = "s",
+    time_unit: str = "auto",
     rate: float | None = None,
+    skip_rows: int | None = None,
+    decimal: str | None = None,
+    drop_incomplete: bool = False,
     window: float | None = None,
     threshold: float | None = None,
     min_duration: float | None = None,
@@ -428,6 +448,7 @@ def segment(
         pose_map=pose_map,
         settings=settings,
         digest=False,  # the block files are copies; nothing records the log's hash
+        dialect=captures.Dialect(skip_rows, decimal, drop_incomplete),
     ) as (path, data, seg):
         found = Blocks(data, seg)
         files = block_files(seg)

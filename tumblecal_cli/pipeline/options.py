@@ -18,6 +18,7 @@ if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Limits
     from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfile import Unit
+    from tumblecal_cli.io.captures import Dialect
 
 #: A number, or three (X,Y,Z): text as the command line gives it, or numbers.
 Triplet = str | float | Sequence[float]
@@ -40,8 +41,11 @@ class SolveOptions:
     columns: str | Sequence[str] | None = None
     no_header: bool = False
     time_column: str | None = None
-    time_unit: str = "s"
+    time_unit: str = "auto"
     rate: float | None = None
+    skip_rows: int | None = None
+    decimal: str | None = None
+    drop_incomplete: bool = False
     # a continuous log (solve --log)
     window: float | None = None
     threshold: float | None = None
@@ -88,6 +92,13 @@ class SolveOptions:
         return SolveOptions(**(asdict(self) | changes))
 
     @property
+    def dialect(self) -> Dialect:
+        """How the files are written, where the sniffer should not guess (captures.Dialect)."""
+        from tumblecal_cli.io.captures import Dialect
+
+        return Dialect(self.skip_rows, self.decimal, self.drop_incomplete)
+
+    @property
     def column_names(self) -> list[str] | None:
         if self.columns is None or self.columns == "":
             return None
@@ -111,7 +122,8 @@ class Settings:
 LOG_ONLY = ("window", "threshold", "min_duration", "trim", "pose_column", "pose_map")
 #: The choices of the options that take one (the command line's own enums).
 CHOICES = {
-    "time_unit": ("s", "ms", "us", "ns"),
+    "time_unit": ("auto", "s", "ms", "us", "ns"),
+    "decimal": (".", ","),
     "plane": ("xy", "xz", "yz"),
 }
 CHECK_NAMES = ("moved", "orientation", "saturated", "short", "upside-down")
@@ -144,6 +156,7 @@ def checked(options: SolveOptions) -> SolveOptions:
         value = getattr(options, name)
         if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)):
             raise InputError(f"--{name.replace('_', '-')} takes a number, got {value!r}")
+    options.dialect  # noqa: B018 - checks --skip-rows and --decimal
     if isinstance(options.min_samples, bool) or not isinstance(options.min_samples, int) or options.min_samples < 1:
         raise InputError(f"--min-samples takes a whole number of 1 or more, got {options.min_samples!r}")
     if not 0 <= options.fixture_tolerance <= 30:

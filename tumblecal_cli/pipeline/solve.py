@@ -234,6 +234,7 @@ def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
         time_column=options.time_column,
         time_unit=options.time_unit,
         rate=options.rate,
+        dialect=options.dialect,
         pose_column=options.pose_column,
         pose_map=given.pose_map if options.pose_map is not None else None,
         settings=settings,
@@ -351,7 +352,9 @@ def _solve(
         verdict=calfile.Verdict(not failures, tuple(f.as_dict() for f in failures), limits.as_dict()),
         segmentation=segmentation,
     )
-    said = log_notes + tilt_notes(cal) + list(fit.notes) + _solve_notes(stats, names, given.limits, solution.method)
+    read = list(dict.fromkeys(n for s in samples for n in s.layout.notes))  # how the files were read
+    said = read + log_notes + tilt_notes(cal) + list(fit.notes)
+    said += _solve_notes(stats, names, given.limits, solution.method)
     solved = Solved(0, cal, cal, [], failures, warned, said, samples=samples, limits=given.limits)
     if rejected:
         first = rejected[0]

@@ -52,6 +52,9 @@ def verify(
     max_noise: float = 0.02,
     columns: str | Sequence[str] | None = None,
     no_header: bool = False,
+    skip_rows: int | None = None,
+    decimal: str | None = None,
+    drop_incomplete: bool = False,
 ) -> Verified:
     """The norm error of each static capture before and after correction with ``cal``."""
     from tumblecal_cli.core import gate, model
@@ -83,7 +86,15 @@ def verify(
     fitted = {str(p.get("sha256")): str(p.get("file")) for p in c.poses if p.get("sha256")}
     result = Verified(0, c, ref, max_norm_error, [], {})
     for path in paths:
-        s = reading.read_samples(path, sensor=c.sensor, columns=picked, prefer=c.columns, no_header=no_header)
+        s = reading.read_samples(
+            path,
+            sensor=c.sensor,
+            columns=picked,
+            prefer=c.columns,
+            no_header=no_header,
+            dialect=reading.Dialect(skip_rows, decimal, drop_incomplete),
+        )
+        result.notes += s.layout.notes
         model.in_range(s.values, s.layout.name)
         if s.sha256 in fitted:
             result.notes.append(
