@@ -248,3 +248,14 @@ def test_named_faces(
     if clash is not None:
         assert got.clash is not None
         assert str(got.clash).startswith(clash)
+
+
+def test_a_solver_that_takes_no_faces_asks_no_names(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A gyroscope's zero-rate bias ignores the faces: neither the note nor the clash."""
+    shutil.copy(SAMPLE / "x.csv", tmp_path / "pose.csv")
+    gyro: list[str | Path] = ["--sensor", "gyroscope", "--columns", "ax,ay,az", "-o", tmp_path / "gyro.json"]
+    for given in ([SAMPLE / "y.csv", tmp_path / "pose.csv", SAMPLE / "z.csv"], [SAMPLE / f"{a}.csv" for a in "yxz"]):
+        r = run(capsys, "solve", "-p", *given, *gyro)
+        assert r.code == 0, r.err
+        assert notes(r) == []
+        assert json.loads((tmp_path / "gyro.json").read_text())["method"] == "gyro-bias"
