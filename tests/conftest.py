@@ -140,3 +140,14 @@ def unit(root: Path, serial: str, kind: str) -> Path:
     else:
         assert kind == "good", kind
     return folder
+
+
+def unnamed(files: Sequence[str | Path], folder: Path) -> list[Path]:
+    """Copies of pose files, in the same order, under names that give no face (pose1.csv ...):
+    their place in --poses gives their faces, as for any unlabelled files not named for one."""
+    folder.mkdir(parents=True, exist_ok=True)
+    out = []
+    for k, f in enumerate(files, start=1):
+        out.append(folder / f"pose{k}.csv")
+        shutil.copy(f, out[-1])
+    return out

@@ -13,6 +13,7 @@ import pandas as pd
 import pytest
 
 import tumblecal_cli as tumblecal
+from tests.conftest import unnamed
 from tests.test_cli import run
 from tests.test_solvers_cli import METHOD_CASES, six_faces, write_csv
 
@@ -204,7 +205,8 @@ def test_public_names_are_listed() -> None:
 
 def test_a_rejected_draft_is_never_trusted(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """The draft of a rejected solve fails its verdict: saved, apply refuses it without --force."""
-    solved = tumblecal.solve([str(SAMPLE / f"{a}.csv") for a in "yxz"])  # +x and +y swapped
+    # +x and +y swapped: files not named for their faces, so their order gives the faces
+    solved = tumblecal.solve([str(f) for f in unnamed([SAMPLE / f"{a}.csv" for a in "yxz"], tmp_path / "in")])
     assert solved.status == 3
     assert solved.calibration is None
     assert solved.draft is not None

@@ -613,18 +613,22 @@ def test_batch_manifest_labels_and_relative_paths(
 
 
 def test_batch_manifest_unlabelled_columns(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """Columns headed by other names are unlabelled: the files' order is solve's order."""
+    """Columns headed by other names are unlabelled: as solve takes them, files named for their
+    faces take those faces in any order, the others take their faces from their order."""
     lot = tmp_path / "lot"
-    manifest_data(lot)
+    data = manifest_data(lot)
+    for name in "xyz":
+        shutil.copy(data / f"{name}.csv", data / f"pose_{name}.csv")  # named for no face
     manifest = lot / "m.csv"
     manifest.write_text(
-        "serial,first,second,third\nOK,data/x.csv,data/y.csv,data/z.csv\nBAD,data/z.csv,data/y.csv,data/x.csv\n"
+        "serial,first,second,third\nOK,data/x.csv,data/y.csv,data/z.csv\nNAMED,data/z.csv,data/y.csv,data/x.csv\n"
+        "BAD,data/pose_z.csv,data/pose_y.csv,data/pose_x.csv\n"
     )
     r = run(capsys, "batch", manifest, "--out-dir", tmp_path / "out", "-q")
     assert r.code == 3, r.err
     rows = by_serial(tmp_path / "out" / "summary.csv")
     assert rows["OK"]["inputs"].split(";") == [str(lot / "data" / f"{n}.csv") for n in "xyz"]
-    assert (rows["OK"]["verdict"], rows["BAD"]["verdict"]) == ("pass", "rejected")
+    assert [rows[s]["verdict"] for s in ("OK", "NAMED", "BAD")] == ["pass", "pass", "rejected"]
 
 
 @pytest.mark.parametrize(

@@ -36,6 +36,7 @@ from tests.conftest import (
     precious,
     run_exe,
     tumblecal_exe,
+    unnamed,
 )
 from tests.conftest import run as run  # re-exported: tests/test_api.py imports run from here
 from tumblecal_cli import __version__
@@ -218,12 +219,29 @@ def test_solve_one_pose_up_minus_x(up: list[str], capsys: pytest.CaptureFixture[
 @pytest.mark.parametrize("files", [POSES_3[:2], [*POSES_3, str(SAMPLE / "zn.csv")]], ids=["2-files", "4-files"])
 def test_solve_wrong_number_of_pose_files(files: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = precious(tmp_path / "cal.json")
-    r = run(capsys, "solve", "--poses", *files, "-o", out)
+    r = run(capsys, "solve", "--poses", *unnamed(files, tmp_path / "unnamed"), "-o", out)
     assert_one_error(
         r,
         f"--poses: no solver takes {len(files)} unlabelled files: give 1 (one-pose), 3 (+x +y +z), "
         "6 (+x -x +y -y +z -z), 12+ unlabelled (sphere) or 5+ labelled (least-squares)",
         hint="label a file with its face or direction: --poses +x=a.csv -x=b.csv 0.707,0,0.707=c.csv",
+    )
+    assert_untouched(out)
+
+
+def test_solve_wrong_number_of_files_named_for_faces_says_the_names_gave_them(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Files named for their faces are labelled by their names, whatever their count: the error
+    names the faces and says where they came from."""
+    out = precious(tmp_path / "cal.json")
+    r = run(capsys, "solve", "--poses", *POSES_3[:2], "-o", out)
+    assert_one_error(
+        r,
+        "--poses: no solver takes the labels +x +y: give 1 (one-pose), 3 (+x +y +z), "
+        "6 (+x -x +y -y +z -z), 12+ unlabelled (sphere) or 5+ labelled (least-squares)",
+        hint="the files' names gave the faces (x.csv +x, y.csv +y); "
+        "label a file with its face or direction: --poses +x=a.csv -x=b.csv 0.707,0,0.707=c.csv",
     )
     assert_untouched(out)
 
@@ -978,7 +996,8 @@ def test_up_with_several_pose_files_is_a_usage_error(tmp_path: Path, capsys: pyt
     assert_one_error(
         r,
         "--up names the face of a single pose file, not of 3",
-        hint="label each file instead (+x=xp.csv -x=xn.csv ...), or give them in the order +x +y +z",
+        hint="label each file instead (+x=a.csv -x=b.csv ...), name them for their faces (xp.csv xn.csv ...), "
+        "or give them in the order +x +y +z",
     )
     assert_untouched(out)
 

@@ -28,6 +28,7 @@ from tests.conftest import (
     assert_untouched,
     precious,
     run,
+    unnamed,
 )
 from tests.synth import FloatArray, pose_samples
 from tumblecal_cli.core import model as core
@@ -262,9 +263,10 @@ def test_a_narrow_pass_warns_and_exits_0(tmp_path: Path, capsys: pytest.CaptureF
 
 
 def test_swapped_files_are_named_with_the_order_question(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    x, y, z = three_poses(tmp_path)
+    # files not named for their faces: their order gives the faces, here +x and +y swapped
+    x, y, z = unnamed(three_poses(tmp_path), tmp_path / "unnamed")
     out = precious(tmp_path / "cal.json")
-    r = solve(capsys, "-p", y, x, z, "-o", out)  # +x and +y swapped
+    r = solve(capsys, "-p", y, x, z, "-o", out)
     assert_rejected(
         r,
         [
@@ -399,8 +401,8 @@ def scenario(name: str, folder: Path) -> tuple[list[Path], list[str]]:
     if name == "moved":
         write_capture(y, pose_values("+y", seed=2) + ramp(200, axis=1, rise=0.2))
         return [x, y, z], []
-    if name == "swapped":
-        return [y, x, z], []
+    if name == "swapped":  # not named for their faces: their order gives the faces
+        return unnamed([y, x, z], folder / "unnamed"), []
     if name == "saturated":
         return [x, y, z], ["--full-scale", "1.07"]
     if name == "int16-rail":

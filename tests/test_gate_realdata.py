@@ -44,9 +44,9 @@ def test_real_three_pose_capture_passes_every_check(tmp_path: Path, capsys: pyte
 
 
 def test_real_pose_on_the_opposite_face_is_rejected(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    code, doc = summary(
-        capsys, tmp_path, "-p", IMUCAL / "xn.csv", IMUCAL / "yp.csv", IMUCAL / "zp.csv", "--reference", "9.81"
-    )
+    # labelled: unlabelled, xn.csv's name would give it -x (and no solver takes -x +y +z)
+    poses = [f"+x={IMUCAL / 'xn.csv'}", f"+y={IMUCAL / 'yp.csv'}", f"+z={IMUCAL / 'zp.csv'}"]
+    code, doc = summary(capsys, tmp_path, "-p", *poses, "--reference", "9.81")
     assert code == 3
     assert doc["status"] == "rejected"
     rejections = doc["rejections"]

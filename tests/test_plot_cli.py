@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.conftest import run
+from tests.conftest import run, unnamed
 from tests.test_layers import imported
 from tests.test_plots import png_size as png_header
 from tests.test_solvers_cli import FIELD, magnetometer, sphere_directions, write_mag
@@ -68,7 +68,7 @@ def test_solve_plot_not_written_when_rejected(tmp_path: Path, capsys: pytest.Cap
     """Exit 3 writes nothing: neither the calibration nor the figure (an old one stays as it was)."""
     png = tmp_path / "p.png"
     png.write_bytes(b"old")
-    swapped = [THREE[1], THREE[0], THREE[2]]
+    swapped = unnamed([THREE[1], THREE[0], THREE[2]], tmp_path / "unnamed")  # their order gives the faces
     code, _, err = run(capsys, "solve", "-p", *swapped, "-o", str(tmp_path / "cal.json"), "--plot", str(png))
     assert code == 3, err
     assert png.read_bytes() == b"old"

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tests.conftest import IMUCAL, SAMPLE, Result, assert_untouched, precious, run
+from tests.conftest import IMUCAL, SAMPLE, Result, assert_untouched, precious, run, unnamed
 from tests.synth import FloatArray, pose_samples
 from tumblecal_cli.core.model import FACES
 
@@ -1084,7 +1084,7 @@ def test_one_axis_off_is_the_checks_and_limits_business_not_a_units_mistake(
 ) -> None:
     """+x and +y files swapped: gains near 0 on two axes is a pose problem (exit 3), never exit 2."""
     files = six_faces(tmp_path)
-    swapped = [files["+y"], files["+x"], files["+z"]]
+    swapped = unnamed([files["+y"], files["+x"], files["+z"]], tmp_path / "unnamed")  # their order gives the faces
     r = run(capsys, "solve", "-p", *swapped, "--max-gain-error", "0.02", "-o", tmp_path / "cal.json")
     assert r.code == 3, r.err
 

@@ -57,7 +57,8 @@ def solve(
             "-p",
             metavar="FILE...",
             help="Pose files, all after one --poses; each FILE or LABEL=FILE, LABEL a face (+x -x +y -y +z -z, "
-            "xp ... zn) or a direction X,Y,Z (0.707,0,0.707=a.csv). Unlabelled: 1 file is the --up face, "
+            "xp ... zn) or a direction X,Y,Z (0.707,0,0.707=a.csv). Unlabelled: files each named for a different "
+            "face (xp.csv xn.csv ..., x_p, +x) take it, in any order; else 1 file is the --up face, "
             "3 are +x +y +z, 6 are +x -x +y -y +z -z, in that order; 12 or more, orientation unknown "
             "(sphere). A magnetometer's: one or more captures turned through many orientations. '-' reads stdin.",
         ),

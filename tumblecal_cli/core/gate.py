@@ -27,6 +27,10 @@ CHECKS = ("short", "saturated", "orientation", "moved", "upside_down")
 NARROW = 0.8
 #: With ``--full-scale V``, a sample at or above this fraction of V counts as clipped.
 CLIP_FRACTION = 0.98
+#: What a pose not on its face suggests when each pose's face came from its file's name.
+NAMED_HINT = (
+    "capture each pose with the face its file's name gives pointing up (xp.csv: +x), or label the files (+x=FILE)"
+)
 #: Methods whose gains are fixed at 1 (no gain limit applies).
 FIXED_GAINS = ("one-pose", "one-pose-tilt", "minmax", "gyro-bias")
 #: Methods fitted to captures turned through many orientations: a pose is meant to move.
@@ -98,6 +102,7 @@ class Options:
     min_samples: int = 10
     skip: frozenset[str] = frozenset()  # names from CHECKS
     rails: Rails | None = None  # the integer type's limits (integer_rails); None: no known limit
+    faces_by_name: bool = False  # the faces came from the files' names, not their order: no order to blame
 
 
 def measure(file: str, face: str | None, values: FloatArray, stats: PoseStats, options: Options) -> PoseCheck:
@@ -196,7 +201,7 @@ def check(poses: Sequence[PoseCheck], solution: Solution, options: Options) -> t
                 )
             elif check_name == "orientation" and p.angle_deg is not None:
                 judge(
-                    _orientation(p, declared, options.max_tilt_deg),
+                    _orientation(p, declared, options.max_tilt_deg, by_name=options.faces_by_name),
                     p.angle_deg > options.max_tilt_deg,
                     p.angle_deg > NARROW * options.max_tilt_deg,
                     f"{p.angle_deg:.1f}° from {p.face}, close to --max-tilt {options.max_tilt_deg:g}°",
@@ -224,26 +229,31 @@ def check(poses: Sequence[PoseCheck], solution: Solution, options: Options) -> t
                 assert p.face is not None
                 axis = "xyz".index(p.face[1])
                 if p.face[0] == "+" and solution.gain[axis] <= 0:
+                    cause = "its file misnamed" if options.faces_by_name else "the files out of order"
                     rejected.append(
                         Finding(
                             "pose.upside_down",
                             f"gain {solution.gain[axis]:.4g} on {p.face[1]} (mean {_vec(p.stats.mean)}): "
-                            f"its {p.face[1]} axis was not pointing up (upside down, or the files out of order)",
+                            f"its {p.face[1]} axis was not pointing up (upside down, or {cause})",
                             float(solution.gain[axis]),
                             0.0,
+                            hint=NAMED_HINT if options.faces_by_name else None,
                             **where,
                         )
                     )
     return rejected, warned
 
 
-def _orientation(p: PoseCheck, declared: Sequence[str | None], max_tilt: float) -> Finding:
+def _orientation(p: PoseCheck, declared: Sequence[str | None], max_tilt: float, *, by_name: bool = False) -> Finding:
     where = {"file": p.file, "pose": p.face}
     assert p.angle_deg is not None
     assert p.face is not None
     mean = _vec(p.stats.mean)
     if p.face in FACES and p.looks_like != p.face:
         text = f"declared {p.face} but reads like {p.looks_like} (mean {mean})"
+        if p.looks_like in declared and by_name:  # no order to blame: the names gave the faces
+            text += f"; its file's name gives {p.face}: was it captured on another face, or misnamed?"
+            return Finding("pose.orientation", text, p.angle_deg, max_tilt, hint=NAMED_HINT, **where)
         if p.looks_like in declared:
             order = " ".join(f[1] if f[0] == "+" else f for f in map(str, declared))
             text += f"; were the files given in the order {order}?"

@@ -108,8 +108,11 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Path
     if path is not None:
         return _from_log(path, options, given)
     assert files_or_data is not None
-    name, labels, samples = _read_poses(files_or_data, options, given)
-    return _solve(name, labels, samples, options, given, whole=[s.values for s in samples])
+    name, labels, samples, placed = _read_poses(files_or_data, options, given)
+    notes = [] if placed.note is None else [placed.note]
+    return _solve(
+        name, labels, samples, options, given, whole=[s.values for s in samples], notes=notes, by_name=placed.by_name
+    )
 
 
 def path_of(value: object, what: str) -> str:
@@ -145,25 +148,40 @@ def _poses_given(poses: object, options: SolveOptions) -> list[str] | Mapping[st
 
 def _read_poses(
     poses: list[str] | Mapping[str, object], options: SolveOptions, given: Settings
-) -> tuple[str, list[str | None], list[Samples]]:
-    """The method, each pose's label and its samples, from files or from data in memory."""
+) -> tuple[str, list[str | None], list[Samples], Placed]:
+    """The method, each pose's label and its samples, from files or from data in memory; and how
+    the files got their faces."""
     from tumblecal_cli.core import solvers
     from tumblecal_cli.pipeline.options import method_options
 
     if options.up is not None and len(poses) != 1:
         raise InputError(
             f"--up names the face of a single pose file, not of {len(poses)}",
-            hint="label each file instead (+x=xp.csv -x=xn.csv ...), or give them in the order +x +y +z",
+            hint="label each file instead (+x=a.csv -x=b.csv ...), name them for their faces (xp.csv xn.csv ...), "
+            "or give them in the order +x +y +z",
         )
     in_memory = isinstance(poses, Mapping)
     items: list[tuple[str | None, object]]
+    placed = Placed([])
     if isinstance(poses, Mapping):
         items = [(_label(str(label)), data) for label, data in poses.items()]
     else:
-        items = list(pose_items(poses, given.up))
+        placed = pose_items(poses, given.up, up_given=options.up is not None)
+        items = list(placed.items)
     if not in_memory and sum(f == "-" for _, f in items) > 1:
         raise InputError("only one pose can be read from stdin ('-')")
-    name, order = solvers.pick(given.method, [label for label, _ in items], options.sensor)
+    try:
+        name, order = solvers.pick(given.method, [label for label, _ in items], options.sensor)
+    except InputError as err:
+        if not placed.by_name:
+            raise
+        named = ", ".join(f"{os.path.basename(str(f))} {label}" for label, f in items)
+        hint = f"the files' names gave the faces ({named})" + (f"; {err.hint}" if err.hint else "")
+        raise InputError(err.message, file=err.file, hint=hint) from None
+    if name in solvers.ORIENTATION_FREE:  # the faces are not used: neither a note nor a clash
+        placed = Placed(placed.items)
+    elif placed.clash is not None:
+        raise placed.clash
     items = [items[k] for k in order]
     labels = [None if name in solvers.ORIENTATION_FREE else label for label, _ in items]
     method_options(name, given.reference, options.plane, options.bias_spread)
@@ -173,7 +191,7 @@ def _read_poses(
         samples = [samples_of(str(label), data, options) for label, data in items]
     else:
         samples = [read_pose(str(f), options) for _, f in items]
-    return name, labels, samples
+    return name, labels, samples, placed
 
 
 def _label(text: str) -> str:
@@ -185,9 +203,23 @@ def _label(text: str) -> str:
         raise InputError(f"pose {text!r}: {err}") from None
 
 
-def pose_items(items: list[str], up: str) -> list[tuple[str | None, str]]:
-    """(label, file) of each --poses item, ``FILE`` or ``LABEL=FILE``; unlabelled files get the
-    labels of their count (solvers.default_labels). Labels are for every file or for none."""
+@dataclass
+class Placed:
+    """The ``--poses`` items as (label, file), and how unlabelled files got their faces."""
+
+    items: list[tuple[str | None, str]]
+    note: str | None = None  # said when the faces came from the files' names, not their places
+    clash: InputError | None = None  # a name that says another face than its file's place gives
+
+    @property
+    def by_name(self) -> bool:
+        return self.note is not None
+
+
+def pose_items(items: list[str], up: str, *, up_given: bool = False) -> Placed:
+    """(label, file) of each --poses item, ``FILE`` or ``LABEL=FILE``. Labels are for every file
+    or for none; unlabelled files take the faces their names give (:func:`named_faces`), else
+    the labels of their count (solvers.default_labels)."""
     from tumblecal_cli.core import model, solvers
 
     out: list[tuple[str | None, str]] = []
@@ -202,11 +234,57 @@ def pose_items(items: list[str], up: str) -> list[tuple[str | None, str]]:
     if any(label is None for label, _ in out) and any(label is not None for label, _ in out):
         raise InputError(
             "label every pose file or none (LABEL=FILE, e.g. +x=xp.csv)",
-            hint="unlabelled files are taken as 1: --up, 3: +x +y +z, 6: +x -x +y -y +z -z",
+            hint="unlabelled files take the faces their names give (xp.csv xn.csv ..., each a different face), "
+            "else by their count 1: --up, 3: +x +y +z, 6: +x -x +y -y +z -z",
         )
-    if out and out[0][0] is None:
-        out = list(zip(solvers.default_labels(len(out), up), items, strict=True))
-    return out
+    if not out or out[0][0] is not None:
+        return Placed(out)
+    return named_faces(items, solvers.default_labels(len(out), up), up_given=up_given)
+
+
+def face_of_file(path: str) -> str | None:
+    """The face a file's name gives (x.csv, xp.csv, x_p.csv, +x.csv, xn.csv ...: core.model.face_of_name
+    on the name up to its first dot), or None."""
+    from tumblecal_cli.core.model import face_of_name
+
+    return face_of_name(os.path.basename(path).split(".", 1)[0])
+
+
+def named_faces(files: list[str], placed: list[str | None], *, up_given: bool = False) -> Placed:
+    """The faces of unlabelled files. When every file's name gives a face and no two the same
+    (xn.csv xp.csv yn.csv ..., in the shell's order), the names give the faces, with a note if
+    that differs from their places; otherwise their places do (``placed``: by their count),
+    and a name that gives another face than its file's place is the clash to raise (exit 2)
+    if the solver uses faces. --up (``up_given``) labels a single file: its name is not asked."""
+    named = [face_of_file(f) for f in files]
+    if up_given:
+        return Placed(list(zip(placed, files, strict=True)))
+    if all(named) and len(set(named)) == len(named):
+        items = list(zip(named, files, strict=True))
+        if named == placed:
+            return Placed(items)
+        said = ", ".join(f"{os.path.basename(f)} {n}" for n, f in items)
+        return Placed(items, note=f"faces taken from the file names: {said}")
+    clashes = [(f, n, p) for f, n, p in zip(files, named, placed, strict=True) if n and p and n != p]
+    if not clashes:
+        return Placed(list(zip(placed, files, strict=True)))
+    twice = [n for n in dict.fromkeys(named) if n and named.count(n) > 1]
+    if twice:
+        both = " and ".join(os.path.basename(f) for f, n in zip(files, named, strict=True) if n == twice[0])
+        why = f"; the names cannot give the faces: {both} both say {twice[0]}"
+    else:
+        why = "; the names cannot give the faces: not every file is named for one"
+    lines = [f"{f}: its name says {n} but its place in --poses gives it {p}" for f, n, p in clashes]
+    example = " ".join(f"{n}={f}" for f, n, _ in clashes[:2])
+    return Placed(
+        list(zip(placed, files, strict=True)),
+        clash=InputError(
+            lines[0].split(": ", 1)[1] + why,
+            file=clashes[0][0],
+            more=tuple(lines[1:]),
+            hint=f"label every item with its face ({example} ...), or name each file for a different face",
+        ),
+    )
 
 
 def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
@@ -266,15 +344,17 @@ def _solve(
     whole: list[FloatArray],
     notes: list[str] | None = None,
     segmentation: dict[str, object] | None = None,
+    by_name: bool = False,
 ) -> Solved:
-    """Average, solve, check and judge the poses; build the calibration."""
+    """Average, solve, check and judge the poses; build the calibration. ``notes``: how the
+    poses were chosen (a log's blocks) or labelled (by their files' names: ``by_name``)."""
     from tumblecal_cli.core import gate, model, solvers
     from tumblecal_cli.io import calfile
     from tumblecal_cli.pipeline.options import triplet
 
     for s in samples:
         model.in_range(s.values, s.name)
-    log_notes = notes or []  # how the blocks of a log were chosen
+    log_notes = notes or []  # how the blocks of a log were chosen, or the files labelled
     ref, gyro = given.reference, options.sensor == "gyroscope"
     noise = options.max_noise if options.max_noise is not None else (None if gyro else 0.02)
     checks = gate.Options(
@@ -286,6 +366,7 @@ def _solve(
         min_samples=options.min_samples,
         skip=frozenset(gate.CHECKS if options.no_checks else [c.replace("-", "_") for c in options.no_check]),
         rails=gate.integer_rails(whole),
+        faces_by_name=by_name,
     )
     stats = [model.pose_stats(s.values) for s in samples]
     names = [s.name for s in samples]
@@ -307,6 +388,8 @@ def _solve(
             names=names,
         )
     except CaptureRejected as err:
+        if by_name and err.code == "pose.upside_down":  # a three-pose gain of zero: not the files' order
+            err.hint = gate.NAMED_HINT
         if log_notes and name == "sphere":  # auto's choice: say why, and the way back
             err.hint = f"{err.hint + '; ' if err.hint else ''}{log_notes[0]}"
         return Solved(3, None, error=err, samples=samples, limits=given.limits)
