@@ -114,6 +114,8 @@ def print_summary(cal: Calibration, console: Console, warned: list[Finding], not
         console.print(f"coverage: {doc['coverage']:.0%} of the sphere's directions", soft_wrap=True)
     if tilt.get("tolerance_deg") is not None:
         console.print(f"± tilt: worst-case shift if each pose is {tilt['tolerance_deg']:g}° off level", soft_wrap=True)
+    if tilt.get("gain_tolerance") is not None:
+        console.print(_gain_tolerance_line(doc, float(tilt["gain_tolerance"])), soft_wrap=True)
     for w in warned:
         console.print(f"warning: {w.render()} ({w.code})", style="yellow", soft_wrap=True)
     for note in notes:
@@ -121,6 +123,18 @@ def print_summary(cal: Calibration, console: Console, warned: list[Finding], not
     verdict = doc.get("verdict")
     if judged and isinstance(verdict, dict):
         _print_verdict(console, verdict)
+
+
+def _gain_tolerance_line(doc: dict[str, Any], tolerance: float) -> str:
+    """A 1-pose up offset's ± tilt holds tolerance × reference for the up axis's unknown gain error."""
+    poses = doc.get("poses") or [{}]
+    face = str(poses[0].get("pose") or "")
+    axis = f"the {face[1:]} offset (up axis {face})" if len(face) == 2 else "the up axis's offset"
+    reference = float(doc["reference"])
+    return (
+        f"± tilt of {axis} includes ±{tolerance * reference:.4g} (--gain-tolerance {tolerance:g} × reference "
+        f"{reference:g}) for an unknown gain error of ±{tolerance:.2%}: one pose cannot tell it from an offset"
+    )
 
 
 def _g(v: float | None, digits: int = 6) -> str:
