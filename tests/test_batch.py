@@ -527,18 +527,19 @@ def test_batch_json_matches_summary_csv(tmp_path: Path, capsys: pytest.CaptureFi
     r = run(capsys, "batch", src, "--out-dir", out, "--max-offset", "0.05", "--json")
     assert r.code == 2, r.err
     doc = json.loads(r.out)
-    assert set(doc) == {"status", "counts", "summary", "units"}
-    assert doc["status"] == 2
+    assert list(doc) == ["status", "exit_status", "counts", "summary", "units"]
+    assert (doc["status"], doc["exit_status"]) == ("error", 2)
     assert doc["summary"] == str(out / "summary.csv")
     assert doc["counts"] == {"pass": 2, "fail": 1, "error": 1, "rejected": 1}
 
     rows = read_rows(out / "summary.csv")
     assert [u["serial"] for u in doc["units"]] == [row["serial"] for row in rows]
     for u, row in zip(doc["units"], rows, strict=True):
-        assert set(u) == set(batch.SUMMARY_COLUMNS)
-        assert isinstance(u["status"], int)
+        assert list(u) == ["serial", "status", "exit_status", *batch.SUMMARY_COLUMNS[2:]]
+        # the status a word, as every --json gives it; summary.csv's number beside it
+        assert (u["status"], u["exit_status"]) == (row["verdict"], int(row["status"]))
         assert isinstance(u["codes"], list)
-        assert {c: batch.cell(u, c) for c in batch.SUMMARY_COLUMNS} == row
+        assert {c: batch.cell(u | {"status": u["exit_status"]}, c) for c in batch.SUMMARY_COLUMNS} == row
         for c in batch.NUMBERS:  # numbers as numbers, equal to the CSV's text read back
             assert u[c] is None if row[c] == "" else u[c] == float(row[c])
     assert doc["counts"] == {v: sum(row["verdict"] == v for row in rows) for v in doc["counts"]}
@@ -558,7 +559,7 @@ def test_batch_json_all_pass_status_0(tmp_path: Path, capsys: pytest.CaptureFixt
     r = run(capsys, "batch", src, "--out-dir", tmp_path / "out", "--json", "-q")
     assert (r.code, r.err) == (0, "")
     doc = json.loads(r.out)
-    assert doc["status"] == 0
+    assert (doc["status"], doc["exit_status"]) == ("pass", 0)
     assert doc["counts"] == {"pass": 1, "fail": 0, "error": 0, "rejected": 0}
     assert doc["units"][0]["file"] == cal_name("A")
     assert doc["units"][0]["message"] is None

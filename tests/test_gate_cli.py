@@ -485,7 +485,7 @@ def test_no_check_needs_a_known_check(tmp_path: Path, capsys: pytest.CaptureFixt
     ],
 )
 def test_bad_gate_options_are_usage_errors(args: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
-    assert_one_error(solve(capsys, "-p", *POSES_3, *args), message)
+    assert_one_error(solve(capsys, "-p", *POSES_3, *args), message, json_out="--json" in args)
 
 
 def test_gyroscope_noise_is_judged_only_with_max_noise(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -523,6 +523,7 @@ def test_a_units_mistake_is_2_even_when_a_check_fails(tmp_path: Path, capsys: py
             r,
             f"{pose}: the pose reads {magnitude:.4g} in magnitude but --reference is 1: a units mistake?",
             hint="run with --reference 9.80665",
+            json_out=True,
         )
         assert_untouched(out)
     # with its reference the drifting pose is judged, and rejected
@@ -546,7 +547,7 @@ def test_an_input_error_is_2_even_when_a_pose_moved(
     out = precious(tmp_path / "cal.json")
     r = solve(capsys, "-p", *moving_poses(tmp_path), "-o", out, "--json", *extra)
     assert r.code == 2
-    assert r.out == "", "no JSON summary for a usage error"
+    assert json.loads(r.out)["status"] == "error", "no JSON summary for a usage error: an error object"
     [error] = lines(r, "error:")
     assert message in error
     assert_untouched(out)
@@ -563,7 +564,7 @@ def test_an_output_that_cannot_be_written_is_2_even_when_a_pose_moved(
         out, message = tmp_path / "cals", "is a folder: -o takes a file name"
         out.mkdir()
     r = solve(capsys, "-p", *poses, "-o", out, "--json")
-    assert_one_error(r, f"{out}: {message}")
+    assert_one_error(r, f"{out}: {message}", json_out=True)
     r = solve(capsys, "-p", *poses, "-o", out, "--no-checks")  # and when there is nothing else wrong
     assert_one_error(r, f"{out}: {message}")
     assert not (tmp_path / "no").exists()
@@ -742,7 +743,7 @@ BAD_LIMITS = [
 def test_solve_bad_limits_file(name: str, message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = precious(tmp_path / "cal.json")
     r = solve(capsys, "-p", *POSES_3, "-o", out, "--limits", BAD / name, "--json")
-    assert_one_error(r, f"{BAD / name}: {message}")
+    assert_one_error(r, f"{BAD / name}: {message}", json_out=True)
     assert_untouched(out)
 
 

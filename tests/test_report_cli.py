@@ -82,6 +82,32 @@ def test_report_unreadable_file_is_exit_2_after_the_report(tmp_path: Path, capsy
     assert "the report leaves out the 1 of 32 files that could not be read" in err
     assert "partial" not in err
 
+    # --json: one document, the report of the files read, its status the word for exit 2
+    code, out, err = run(capsys, "report", str(lot), "--json")
+    assert code == 2
+    doc = json.loads(out)  # one JSON document: no error object after the report
+    assert (doc["status"], doc["exit_status"]) == ("error", 2)
+    assert doc["unreadable"][0]["file"] == str(lot / "broken.json")
+    assert f"error: {lot / 'broken.json'}: not valid JSON" in err
+
+
+def test_report_json_needing_attention_is_fail(capsys: pytest.CaptureFixture[str]) -> None:
+    r = run(capsys, "report", str(LOT), "--json")  # the lot has an outlier
+    assert r.code == 1
+    doc = json.loads(r.out)
+    assert list(doc)[:2] == ["status", "exit_status"]
+    assert (doc["status"], doc["exit_status"]) == ("fail", 1)
+
+
+def test_report_json_in_order_is_pass(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    lot = tmp_path / "lot"
+    shutil.copytree(LOT, lot)
+    for path in lot.glob("SN0013_*.json"):
+        path.unlink()
+    r = run(capsys, "report", str(lot), "--max-drift", "offset=0.02", "--json")
+    assert r.code == 0, r.err
+    assert (json.loads(r.out)["status"], json.loads(r.out)["exit_status"]) == ("pass", 0)
+
 
 @pytest.mark.parametrize(
     ("args", "message"),

@@ -32,9 +32,29 @@ def make_console(stderr: bool = True) -> Console:
     return Quiet(stderr=stderr, highlight=False, markup=False)  # paths and column names are not markup
 
 
-def print_json(doc: dict[str, Any]) -> None:
+#: Whether this run has printed its --json document: the error boundary (cli.app.main) then
+#: prints no error object after it (stdout holds one JSON document).
+_printed = {"json": False}
 
+
+def print_json(doc: dict[str, Any]) -> None:
+    _printed["json"] = True
     print_text(json.dumps(doc, indent=2, ensure_ascii=False) + "\n")
+
+
+def json_printed(reset: bool = False) -> bool:
+    """Whether print_json has run since the last reset (``reset``: start afresh, for a new run)."""
+    printed = _printed["json"]
+    if reset:
+        _printed["json"] = False
+    return printed
+
+
+def error_json(status: int, error: dict[str, Any]) -> None:
+    """With --json, an error that ended the command (exit 2, or 3 with no summary) on stdout."""
+    from tumblecal_cli.cli.options import STATUS_WORDS
+
+    print_json({"status": STATUS_WORDS.get(status, "error"), "exit_status": status, "error": error})
 
 
 def print_csv(table: tuple[list[str], list[list[str]]]) -> None:
@@ -69,9 +89,11 @@ def summary(
     notes: list[str],
 ) -> dict[str, Any]:
     """The --json summary: the outcome, then the calibration's parameters and diagnostics."""
+    from tumblecal_cli.cli.options import STATUS_WORDS
+
     doc = cal.to_dict()
     head: dict[str, Any] = {
-        "status": {0: "pass", 1: "fail", 3: "rejected"}[status],
+        "status": STATUS_WORDS[status],
         "exit_status": status,
         "file": output,
         "rejections": [f.as_dict() for f in rejected],
