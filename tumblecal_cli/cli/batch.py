@@ -114,7 +114,8 @@ def batch(**given: Any) -> None:
     Each unit is solved as 'tumblecal solve' would (every solve option below applies to all of
     them), its calibration written to DIR/<serial>_<UTC time>.json, and its outcome added to
     DIR/summary.csv: serial, status, verdict, codes, file, method, offset, gain, their 1-sigma
-    uncertainties, inputs, and the message of a unit that failed.
+    uncertainties, inputs, the message of a unit that failed, and duplicate_of: the other
+    serials whose calibration records the same pose file (by sha256), each also a warning.
 
     \b
       tumblecal batch units/ --out-dir cals/ --limits limits.yaml --jobs 2
@@ -165,6 +166,8 @@ def _show(result: Any, console: Any, *, quiet: bool, json_summary: bool) -> None
     from tumblecal_cli.pipeline import batch as batches
 
     if not quiet:
+        for warning in result.warnings:
+            console.print(f"warning: {warning}", style="red", soft_wrap=True, markup=False, highlight=False)
         said = ", ".join(f"{n} {v}" for v, n in result.counts.items() if n)
         console.print(
             f"{len(result.rows)} unit{'s' if len(result.rows) != 1 else ''}: {said} -> {result.summary}",
@@ -175,7 +178,9 @@ def _show(result: Any, console: Any, *, quiet: bool, json_summary: bool) -> None
     if json_summary:  # each status a word, as every --json says it, its number beside it
         table = [_unit_json(r, batches.SUMMARY_COLUMNS) for r in result.rows]
         head = {"status": STATUS_WORDS[result.status], "exit_status": result.status}
-        render.print_json(head | {"counts": result.counts, "summary": result.summary, "units": table})
+        render.print_json(
+            head | {"counts": result.counts, "summary": result.summary, "warnings": result.warnings, "units": table}
+        )
     if result.status:
         raise typer.Exit(result.status)
 

@@ -333,9 +333,12 @@ def short_sensor(sensor: str) -> str:
 
 
 def print_lot(result: Any, console: Console, plot: str | None, *, drift_given: bool) -> None:
-    """The lot report for people: the parameter table, outliers, drift, unreadable files."""
+    """The lot report for people: the parameter table, outliers, drift, pose files under two
+    serials, unreadable files."""
     from rich import box
     from rich.table import Table
+
+    from tumblecal_cli.core import lot
 
     def g(v: float | None, digits: int = 4) -> str:  # compact: 80 columns hold the table
         return "" if v is None else re.sub(r"e([-+])0*(\d)", r"e\1\2", f"{v:.{digits}g}").replace("e+", "e")
@@ -392,6 +395,8 @@ def print_lot(result: Any, console: Console, plot: str | None, *, drift_given: b
             style="red",
             soft_wrap=True,
         )
+    for warning in lot.duplicate_warnings(result.duplicates):
+        console.print(f"warning: {warning}", style="red", soft_wrap=True)
     if plot is not None and not result.unreadable:
         console.print(f"wrote {plot}", soft_wrap=True)
     verdict = "needs attention" if result.needs_attention else "in order"

@@ -21,7 +21,7 @@ import os
 import re
 import sys
 from collections.abc import Callable, Iterable, Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from tumblecal_cli.errors import InputError, TumblecalError
@@ -59,7 +59,10 @@ SUMMARY_COLUMNS = [
     "created",
     "inputs",
     "message",
+    "duplicate_of",
 ]
+#: The columns of a summary an earlier version wrote (before duplicate_of): --resume takes it.
+EARLIER_COLUMNS = SUMMARY_COLUMNS[:-1]
 NUMBERS = {c for c in SUMMARY_COLUMNS if c[-2:] in ("_x", "_y", "_z")}
 VERDICTS = {0: "pass", 1: "fail", 3: "rejected", 2: "error"}
 #: Units submitted to a Dask cluster at a time (a million-unit lot is not a million futures).
@@ -278,7 +281,43 @@ def _run_unit(unit: Unit, options: SolveOptions, out_dir: str, log: bool, token:
     # why a unit failed its limits, as its row's message (the file holds the whole verdict)
     messages = [f"{f.get('code')}: {f.get('message', '')}" for f in failures]
     outcome = {"status": status, "verdict": VERDICTS[status], "codes": codes, "staging": staging}
+    outcome["poses"] = pose_files(cal.poses)  # not a summary column: for duplicate_of
     return row | outcome | ({"message": "; ".join(messages)} if messages else {}) | _parameters(cal)
+
+
+def pose_files(poses: Iterable[Mapping[str, Any]]) -> list[tuple[str, str]]:
+    """(sha256, file) of each pose a calibration records (a log's blocks share one)."""
+    return list(dict.fromkeys((str(p["sha256"]), str(p.get("file", ""))) for p in poses if p.get("sha256")))
+
+
+def mark_duplicates(rows: list[dict[str, Any]], out_dir: str) -> list[str]:
+    """Set each row's ``duplicate_of``: the other serials whose calibration records a pose file
+    with the same sha256 (a copy of one unit's capture given as another's); a warning for each
+    such file, naming the serials and the file. A row from an earlier run (``--resume``) has its
+    poses read back from its calibration file."""
+    from tumblecal_cli.core import lot
+
+    records = []
+    for row in rows:
+        poses = row.get("poses")
+        if poses is None and row.get("file"):
+            poses = row["poses"] = _recorded_poses(os.path.join(out_dir, str(row["file"])))
+        records += [(str(row["serial"]), sha, file) for sha, file in poses or []]
+    found = lot.duplicates(records)
+    others = lot.duplicate_of(found)
+    for row in rows:
+        row["duplicate_of"] = others.get(str(row["serial"])) or None
+    return lot.duplicate_warnings(found)
+
+
+def _recorded_poses(path: str) -> list[tuple[str, str]]:
+    """The (sha256, file) of the poses a published calibration records; none if it is unreadable."""
+    from tumblecal_cli.io import calfile
+
+    try:
+        return pose_files(calfile.load(path).poses)
+    except TumblecalError:
+        return []
 
 
 def finish(row: dict[str, Any], out_dir: str) -> dict[str, Any]:
@@ -321,13 +360,14 @@ def repair_torn_row(path: str) -> list[str]:
         return []  # read_summary says what is wrong
     whole = data.endswith(b"\n")
     lines = data.split(b"\n")[:-1] if whole else data.split(b"\n")
-    if len(lines) < 2 or lines[0].decode("utf-8", "replace") != ",".join(SUMMARY_COLUMNS):
+    header = lines[0].decode("utf-8", "replace") if lines else ""
+    if len(lines) < 2 or header not in (",".join(SUMMARY_COLUMNS), ",".join(EARLIER_COLUMNS)):
         return []  # a header alone, or not a summary of ours: read_summary judges it
     try:
         cells = len(next(csv.reader([lines[-1].decode("utf-8")]), []))
     except (UnicodeDecodeError, csv.Error):
         cells = 0
-    if whole and cells == len(SUMMARY_COLUMNS):
+    if whole and cells == header.count(",") + 1:
         return []
     with atomic_output(path) as out:
         out.write(data[: len(data) - len(lines[-1]) - (1 if whole else 0)])
@@ -417,7 +457,7 @@ def read_summary(path: str) -> list[dict[str, Any]]:
     try:
         with open(path, newline="", encoding="utf-8") as f:
             reader = csv.DictReader(f)
-            if reader.fieldnames != SUMMARY_COLUMNS:
+            if reader.fieldnames not in (SUMMARY_COLUMNS, EARLIER_COLUMNS):
                 raise InputError(
                     "not a tumblecal batch summary (its header differs)",
                     file=path,
@@ -437,15 +477,23 @@ def read_summary(path: str) -> list[dict[str, Any]]:
                 hint="delete that line and --resume again: that unit is redone",
             )
         try:
-            row: dict[str, Any] = {c: (unsafe(raw[c]) if c in FREE_TEXT else raw[c]) or None for c in SUMMARY_COLUMNS}
+            row: dict[str, Any] = {
+                c: (unsafe(raw.get(c, "")) if c in FREE_TEXT else raw.get(c, "")) or None for c in SUMMARY_COLUMNS
+            }
             row["status"] = int(raw["status"])
             row["codes"] = [c for c in raw["codes"].split(SEPARATOR) if c]
+            row["duplicate_of"] = [c for c in (raw.get("duplicate_of") or "").split(SEPARATOR) if c] or None
             row["inputs"] = [c for c in raw["inputs"].split(SEPARATOR) if c]
             for c in NUMBERS:
                 row[c] = float(raw[c]) if raw[c] else None
         except (TypeError, ValueError, KeyError):
             raise InputError("a row this version did not write", file=path, line=n) from None
         out.append(row)
+    if reader.fieldnames == EARLIER_COLUMNS:  # rows are appended in this version's columns from here
+        from tumblecal_cli.io.outputs import atomic_output
+
+        with atomic_output(path) as target:
+            target.write(text(out).encode())
     return out
 
 
@@ -646,6 +694,7 @@ class Batched:
     rows: list[dict[str, Any]]
     counts: dict[str, int]
     summary: str
+    warnings: list[str] = field(default_factory=list)  # the same pose file under two serials
 
     def table(self) -> Any:
         """summary.csv as a pandas DataFrame."""
@@ -730,7 +779,8 @@ def run_batch(
             hint="the summary keeps the units done: run the same command with --resume",
         ) from None
     finally:
+        warnings = mark_duplicates(summary.rows, out_dir)  # before the summary is written whole
         summary.close()
         clean_staging(out_dir, token)
     counts = {v: sum(r["verdict"] == v for r in summary.rows) for v in VERDICTS.values()}
-    return Batched(status(summary.rows), summary.rows, counts, summary_path)
+    return Batched(status(summary.rows), summary.rows, counts, summary_path, warnings)
