@@ -80,6 +80,9 @@ class Unit:
     serial: str
     inputs: tuple[str, ...]
     problem: str | None = None  # why it cannot be solved as found (no files): its row's error
+    #: The inputs as found, when ``inputs`` are made absolute for a cluster (:func:`absolute`): what
+    #: its calibration, its row and its errors name, as a batch run here does.
+    found: tuple[str, ...] = ()
 
 
 # -- finding the units -------------------------------------------------------------------------
@@ -257,7 +260,8 @@ def _run_unit(unit: Unit, options: SolveOptions, out_dir: str, log: bool, token:
     from tumblecal_cli.pipeline import solve
 
     staging = os.path.join(out_dir, f".{unit.serial}.{token}{STAGING}")
-    row: dict[str, Any] = {"serial": unit.serial, "inputs": list(unit.inputs)}
+    row: dict[str, Any] = {"serial": unit.serial, "inputs": list(unit.found or unit.inputs)}
+    names = {_file(a): _file(f) for a, f in zip(unit.inputs, unit.found, strict=True)} if unit.found else {}
     if unit.problem is not None:
         return row | _failed(InputError(unit.problem))
     if log and len(unit.inputs) != 1:
@@ -268,11 +272,12 @@ def _run_unit(unit: Unit, options: SolveOptions, out_dir: str, log: bool, token:
         if solved.error is not None:
             raise solved.error
         assert solved.calibration is not None
+        solved.calibration = as_found(solved.calibration, names)
         solved.calibration.save(staging)
     except TumblecalError as err:
         if err.file == staging:  # its calibration could not be written (a full disk): not done
             return row | _failed(err) | {"unwritten": True}
-        return row | _failed(err)
+        return _as_found_text(row | _failed(err), names)
     except Exception as err:  # a bug: this unit's error, with what to report
         return row | _failed(InputError(f"internal error: {type(err).__name__}: {err}"))
     cal, status = solved.calibration, solved.status
@@ -283,6 +288,41 @@ def _run_unit(unit: Unit, options: SolveOptions, out_dir: str, log: bool, token:
     outcome = {"status": status, "verdict": VERDICTS[status], "codes": codes, "staging": staging}
     outcome["poses"] = pose_files(cal.poses)  # not a summary column: for duplicate_of
     return row | outcome | ({"message": "; ".join(messages)} if messages else {}) | _parameters(cal)
+
+
+def _file(item: str) -> str:
+    """The file of a pose item, ``FILE`` or ``LABEL=FILE``."""
+    label, sep, rest = item.partition("=")
+    return rest if sep and label and _looks_like_label(label) else item
+
+
+def as_found(cal: Calibration, names: Mapping[str, str]) -> Calibration:
+    """``cal`` with the pose files (and a log's name) it records as ``names`` maps them: a
+    cluster's worker reads absolute paths, and records the files as a batch run here would."""
+    if not names:
+        return cal
+    from dataclasses import replace
+
+    poses = tuple(dict(p) | {"file": names.get(str(p.get("file")), p.get("file"))} for p in cal.poses)
+    fields = dict(cal.fields)
+    segmentation = fields.get("segmentation")
+    if isinstance(segmentation, Mapping) and segmentation.get("log") in names:
+        fields["segmentation"] = dict(segmentation) | {"log": names[str(segmentation["log"])]}
+    return replace(cal, poses=poses, fields=fields)
+
+
+def _as_found_text(row: dict[str, Any], names: Mapping[str, str]) -> dict[str, Any]:
+    """A failed row's messages naming the files as found (the longest path first: no path is
+    replaced inside a longer one)."""
+    for key in ("message", "messages"):
+        value = row.get(key)
+        for path in sorted(names, key=len, reverse=True):
+            if isinstance(value, str):
+                value = value.replace(path, names[path])
+            elif isinstance(value, list):
+                value = [str(v).replace(path, names[path]) for v in value]
+        row[key] = value
+    return row
 
 
 def pose_files(poses: Iterable[Mapping[str, Any]]) -> list[tuple[str, str]]:
@@ -335,7 +375,7 @@ def finish(row: dict[str, Any], out_dir: str) -> dict[str, Any]:
 def failed_row(unit: Unit, err: BaseException) -> dict[str, Any]:
     """The row of a unit whose worker failed (a Dask worker lost, tumblecal missing there)."""
     message = f"the worker running it failed: {type(err).__name__}: {err}"
-    return {"serial": unit.serial, "inputs": list(unit.inputs)} | _failed(InputError(message))
+    return {"serial": unit.serial, "inputs": list(unit.found or unit.inputs)} | _failed(InputError(message))
 
 
 def stale_staging(out_dir: str) -> list[str]:
@@ -732,7 +772,7 @@ def run_batch(
     calfile.created()  # so is a bad SOURCE_DATE_EPOCH
     units, notes = find_units(source, log=log, out_dir=out_dir)
     if scheduler is not None:  # the workers do not share this working folder
-        units = [Unit(u.serial, tuple(absolute(i) for i in u.inputs), u.problem) for u in units]
+        units = [Unit(u.serial, tuple(absolute(i) for i in u.inputs), u.problem, u.inputs) for u in units]
         out_dir = os.path.abspath(out_dir)
         if options.limits:
             options = options.replace(limits=os.path.abspath(options.limits))
