@@ -1223,7 +1223,7 @@ def test_show_an_invalid_file_names_the_field(
 ) -> None:
     bad = mutate(unit_cal, change, tmp_path / "bad.json")
     assert_one_error(run(capsys, "show", bad), f"{bad}: {message}")
-    assert_one_error(run(capsys, "show", bad, "--json"), f"{bad}: {message}")
+    assert_one_error(run(capsys, "show", bad, "--json"), f"{bad}: {message}", json_out=True)
 
 
 @pytest.mark.slow

@@ -50,6 +50,13 @@ def json_printed(reset: bool = False) -> bool:
     return printed
 
 
+def status_word(status: int) -> str:
+    """An exit status as --json says it: pass, fail, error or rejected."""
+    from tumblecal_cli.cli.options import STATUS_WORDS
+
+    return STATUS_WORDS[status]
+
+
 def error_json(status: int, error: dict[str, Any]) -> None:
     """With --json, an error that ended the command (exit 2, or 3 with no summary) on stdout."""
     from tumblecal_cli.cli.options import STATUS_WORDS

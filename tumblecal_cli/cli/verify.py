@@ -8,7 +8,7 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
-from tumblecal_cli.cli.options import STATUS_WORDS, Columns, NoHeader, Quiet
+from tumblecal_cli.cli.options import Columns, NoHeader, Quiet
 
 
 @app.command(
@@ -78,7 +78,7 @@ def verify(
     if json_summary:
         render.print_json(
             {
-                "status": STATUS_WORDS[done.status],
+                "status": render.status_word(done.status),
                 "exit_status": done.status,
                 "cal": cal,
                 "reference": done.reference,
