@@ -84,10 +84,22 @@ def feed_stdin(monkeypatch: pytest.MonkeyPatch, data: bytes) -> None:
 # -- checking a run -------------------------------------------------------------------------
 
 
-def assert_one_error(result: Result, expected: str, *, code: int = 2, hint: str | None = None) -> None:
-    """Exit ``code``, nothing on stdout, and on stderr exactly ``error: <expected>`` (plus a hint)."""
+def assert_one_error(
+    result: Result, expected: str, *, code: int = 2, hint: str | None = None, json_out: bool = False
+) -> None:
+    """Exit ``code``, nothing on stdout, and on stderr exactly ``error: <expected>`` (plus a hint).
+    ``json_out`` (the command had --json): stdout is the error object saying the same instead."""
     assert result.code == code, result.err
-    assert result.out == ""
+    if json_out:
+        import json
+
+        doc = json.loads(result.out)
+        assert (doc["status"], doc["exit_status"]) == ({2: "error", 3: "rejected"}[code], code)
+        error = doc["error"]
+        assert expected.startswith((f"{error['file']}: " if error["file"] else "") + error["message"])
+        assert error["hint"] == next((ln[6:] for ln in result.err.splitlines() if ln.startswith("hint: ")), None)
+    else:
+        assert result.out == ""
     assert "Traceback" not in result.err
     lines = result.err.splitlines()
     assert [ln for ln in lines if ln.startswith("error:")] == [f"error: {expected}"]

@@ -527,18 +527,19 @@ def test_batch_json_matches_summary_csv(tmp_path: Path, capsys: pytest.CaptureFi
     r = run(capsys, "batch", src, "--out-dir", out, "--max-offset", "0.05", "--json")
     assert r.code == 2, r.err
     doc = json.loads(r.out)
-    assert set(doc) == {"status", "counts", "summary", "units"}
-    assert doc["status"] == 2
+    assert list(doc) == ["status", "exit_status", "counts", "summary", "warnings", "units"]
+    assert (doc["status"], doc["exit_status"]) == ("error", 2)
     assert doc["summary"] == str(out / "summary.csv")
     assert doc["counts"] == {"pass": 2, "fail": 1, "error": 1, "rejected": 1}
 
     rows = read_rows(out / "summary.csv")
     assert [u["serial"] for u in doc["units"]] == [row["serial"] for row in rows]
     for u, row in zip(doc["units"], rows, strict=True):
-        assert set(u) == set(batch.SUMMARY_COLUMNS)
-        assert isinstance(u["status"], int)
+        assert list(u) == ["serial", "status", "exit_status", *batch.SUMMARY_COLUMNS[2:]]
+        # the status a word, as every --json gives it; summary.csv's number beside it
+        assert (u["status"], u["exit_status"]) == (row["verdict"], int(row["status"]))
         assert isinstance(u["codes"], list)
-        assert {c: batch.cell(u, c) for c in batch.SUMMARY_COLUMNS} == row
+        assert {c: batch.cell(u | {"status": u["exit_status"]}, c) for c in batch.SUMMARY_COLUMNS} == row
         for c in batch.NUMBERS:  # numbers as numbers, equal to the CSV's text read back
             assert u[c] is None if row[c] == "" else u[c] == float(row[c])
     assert doc["counts"] == {v: sum(row["verdict"] == v for row in rows) for v in doc["counts"]}
@@ -558,7 +559,7 @@ def test_batch_json_all_pass_status_0(tmp_path: Path, capsys: pytest.CaptureFixt
     r = run(capsys, "batch", src, "--out-dir", tmp_path / "out", "--json", "-q")
     assert (r.code, r.err) == (0, "")
     doc = json.loads(r.out)
-    assert doc["status"] == 0
+    assert (doc["status"], doc["exit_status"]) == ("pass", 0)
     assert doc["counts"] == {"pass": 1, "fail": 0, "error": 0, "rejected": 0}
     assert doc["units"][0]["file"] == cal_name("A")
     assert doc["units"][0]["message"] is None
@@ -1180,3 +1181,61 @@ def test_sigterm_while_applying_stops_the_run(monkeypatch: pytest.MonkeyPatch) -
     monkeypatch.setattr(correct, "correct", interrupted)
     with pytest.raises(Interrupted):
         correct.correct_one({}, "c.csv", "out/c.csv")
+
+
+# -- the same pose file under two serials ----------------------------------------------------------
+
+
+def test_batch_flags_the_same_pose_file_under_two_serials(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A and B hold copies of the same x, y, z captures (one unit's files given as another's);
+    C has its own. Each is calibrated, and summary.csv, --json and a warning say which share."""
+    src = units(tmp_path / "units", {"A": "good", "B": "good", "C": "six"})
+    out = tmp_path / "out"
+    r = run(capsys, "batch", src, "--out-dir", out, "--json")
+    assert r.code == 0, r.err
+    rows = by_serial(out / "summary.csv")
+    assert {s: row["duplicate_of"] for s, row in rows.items()} == {"A": "B", "B": "A", "C": ""}
+    warnings = [ln for ln in r.err.splitlines() if ln.startswith("warning:")]
+    a, b = (", ".join(str(src / serial / f"{axis}.csv") for axis in "xyz") for serial in "AB")
+    assert warnings == [
+        f"warning: A and B record the same 3 pose files: A: {a}; B: {b}: at most one of them measured that unit"
+    ]
+    doc = json.loads(r.out)
+    assert [(u["serial"], u["duplicate_of"]) for u in doc["units"]] == [("A", ["B"]), ("B", ["A"]), ("C", None)]
+    assert doc["warnings"] == [w.removeprefix("warning: ") for w in warnings]
+
+
+def test_batch_resume_flags_a_duplicate_of_a_unit_done_before(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A unit done in an earlier run (its poses read back from its calibration) and one added
+    later from the same captures; an earlier version's summary (no duplicate_of) resumes too."""
+    src = units(tmp_path / "units", {"A": "good"})
+    out = tmp_path / "out"
+    assert run(capsys, "batch", src, "--out-dir", out, "-q").code == 0
+    summary = out / "summary.csv"
+    earlier = [line.rsplit(",", 1)[0] for line in summary.read_text().splitlines()]  # without duplicate_of
+    assert earlier[0] == ",".join(batch.SUMMARY_COLUMNS[:-1])
+    summary.write_text("\n".join(earlier) + "\n")
+    unit(src, "B", "good")
+    r = run(capsys, "batch", src, "--out-dir", out, "--resume")
+    assert r.code == 0, r.err
+    assert {s: row["duplicate_of"] for s, row in by_serial(summary).items()} == {"A": "B", "B": "A"}
+    assert "warning: A and B record the same 3 pose files" in r.err
+
+
+def test_duplicates_are_by_content_across_serials() -> None:
+    from tumblecal_cli.core import lot
+
+    found = lot.duplicates(
+        [
+            ("A", "h1", "a/x.csv"),
+            ("A", "h1", "a/x.csv"),  # A calibrated twice from its own file: not a duplicate
+            ("B", "h2", "b/x.csv"),
+            ("C", "h2", "c/x.csv"),
+            (None, "h2", "x.csv"),  # no serial: nothing to compare
+            ("D", None, "d/x.csv"),
+        ]
+    )
+    assert [(d.sha256, d.uses) for d in found] == [("h2", (("B", "b/x.csv"), ("C", "c/x.csv")))]
+    assert lot.duplicate_of(found) == {"B": ["C"], "C": ["B"]}

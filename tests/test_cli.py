@@ -1197,3 +1197,101 @@ def test_closed_stdout_stops_quietly_with_141(tmp_path: Path) -> None:
         proc.stdout.close()
         assert proc.wait(timeout=60) == 141
         assert proc.stderr.read() == b""
+
+
+# -- --json: the status word, and an error as a JSON object ------------------------------------
+
+
+def error_object(out: str) -> dict[str, Any]:
+    """The one JSON document on stdout: an error object."""
+    doc: dict[str, Any] = json.loads(out)
+    assert list(doc) == ["status", "exit_status", "error"]
+    assert list(doc["error"]) == ["file", "line", "column", "message", "hint", "more"]
+    return doc
+
+
+def test_json_input_error_prints_an_error_object(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bad = tmp_path / "z.csv"
+    bad.write_text("t,ax,ay,az\n0,0,0,1\n1,0,x,1\n")
+    out = precious(tmp_path / "cal.json")
+    r = run(capsys, "solve", "--poses", bad, "-o", out, "--json")
+    assert r.code == 2
+    doc = error_object(r.out)
+    assert (doc["status"], doc["exit_status"]) == ("error", 2)
+    assert doc["error"] | {"hint": None} == {
+        "file": str(bad),
+        "line": 3,
+        "column": "ay",
+        "message": "not a number: 'x'",
+        "hint": None,
+        "more": [],
+    }
+    assert [ln for ln in r.err.splitlines() if ln.startswith("error:")] == [
+        f"error: {bad}: not a number: 'x' (line 3, column ay)"
+    ]  # stderr still has its one line
+    assert_untouched(out)
+
+    r = run(capsys, "solve", "--poses", bad, "-o", out)  # without --json: nothing on stdout
+    assert (r.code, r.out) == (2, "")
+
+
+@pytest.mark.parametrize(
+    ("args", "message", "hint"),
+    [
+        (["solve", "--poses", "z.csv", "--json", "--max-tilt", "lots"], "Invalid value for '--max-tilt'", "--help"),
+        (["check", "MISSING", "--max-offset", "1", "--json"], "no such calibration file", None),
+        (["verify", "--cal", "MISSING", "z.csv", "--json"], "no such calibration file", None),
+        (["batch", "MISSING", "--out-dir", "OUT", "--json"], "no such folder or manifest file", None),
+        (["report", "MISSING", "--json"], "no such file or folder", None),
+        (["show", "MISSING", "--json"], "no such calibration file", None),
+    ],
+    ids=["usage", "check", "verify", "batch", "report", "show"],
+)
+def test_every_json_command_prints_its_exit_2_as_an_error_object(
+    args: list[str], message: str, hint: str | None, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    given = [a.replace("MISSING", str(tmp_path / "missing.json")).replace("OUT", str(tmp_path / "out")) for a in args]
+    r = run(capsys, *given)
+    assert r.code == 2
+    doc = error_object(r.out)
+    assert (doc["status"], doc["exit_status"]) == ("error", 2)
+    assert message in doc["error"]["message"]
+    if hint is not None:
+        assert hint in doc["error"]["hint"]
+    assert len([ln for ln in r.err.splitlines() if ln.startswith("error:")]) == 1
+
+
+def test_json_after_double_dash_or_on_a_command_without_it_prints_nothing(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    r = run(capsys, "apply", "--json")  # apply has no --json: its usage error stays on stderr
+    assert (r.code, r.out) == (2, "")
+    assert "No such option: --json" in r.err
+    r = run(capsys, "solve", "--poses", "missing.csv", "-o", "cal.json", "--", "--json")
+    assert (r.code, r.out) == (2, "")
+
+
+@pytest.mark.parametrize(
+    ("command", "status", "code"),
+    [
+        (["solve", "-p", *POSES_3, "--max-offset", "0.01"], "fail", 1),
+        (["solve", "-p", *POSES_3], "pass", 0),
+        (["solve", "-p", *POSES_3, "--max-noise", "0.0001"], "rejected", 3),
+    ],
+    ids=["fail", "pass", "rejected"],
+)
+def test_json_status_words(
+    command: list[str], status: str, code: int, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "cal.json"
+    r = run(capsys, *command, "-o", out, "--json", "-q")
+    assert r.code == code
+    doc = json.loads(r.out)
+    assert (doc["status"], doc["exit_status"]) == (status, code)
+    if code in (0, 1):  # check judges it again; verify judges the captures it corrects
+        judged = run(capsys, "check", out, "--json", "-q", "--max-offset", "0.01" if code == 1 else "1")
+        assert (json.loads(judged.out)["status"], json.loads(judged.out)["exit_status"]) == (status, code)
+        for limit, word in (("0.5", "pass"), ("1e-9", "fail")):
+            verified = run(capsys, "verify", "--cal", out, *POSES_3, "--json", "-q", "--max-norm-error", limit)
+            doc = json.loads(verified.out)
+            assert (doc["status"], doc["exit_status"]) == (word, verified.code)

@@ -9,6 +9,7 @@ empty folder of their own, so a relative path cannot be found there by chance. T
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
@@ -113,6 +114,25 @@ def test_batch_on_dask_is_byte_identical_to_local(tmp_path: Path, scheduler: str
     )
 
 
+def test_batch_on_dask_records_the_pose_files_as_local(tmp_path: Path, scheduler: str) -> None:
+    """UNITS given relative to the working folder: the workers read absolute paths, but each
+    calibration's poses[*].file (and summary.csv's inputs and messages) name the files as a
+    local batch does, relative as given."""
+    make_units(tmp_path / "units")
+    local = run_exe(["batch", "units", "--out-dir", "local", "--max-offset", "0.05"], cwd=tmp_path)
+    dask = run_exe(
+        ["batch", "units", "--out-dir", "dask", "--max-offset", "0.05", "--dask-scheduler", scheduler], cwd=tmp_path
+    )
+    assert (local.returncode, dask.returncode) == (2, 2), dask.stderr
+    for serial in "ABEF":
+        here, there = (json.loads((tmp_path / d / f"{serial}_{STAMP}.json").read_text()) for d in ("local", "dask"))
+        files = [p["file"] for p in here["poses"]]
+        assert all(f.startswith(os.path.join("units", serial, "")) for f in files), files
+        assert [p["file"] for p in there["poses"]] == files
+    assert snapshot(tmp_path / "dask") == snapshot(tmp_path / "local")  # rows, inputs and messages too
+    assert str(tmp_path) not in (tmp_path / "dask" / "summary.csv").read_text()
+
+
 def test_batch_on_dask_json_and_resume(tmp_path: Path, scheduler: str) -> None:
     src = make_units(tmp_path / "units")
     local = run_exe(["batch", src, "--out-dir", tmp_path / "local", "--json", "-q"])
@@ -134,12 +154,13 @@ def test_batch_on_dask_json_and_resume(tmp_path: Path, scheduler: str) -> None:
 @pytest.mark.parametrize("what", ["batch", "apply"])
 def test_dask_relative_paths_are_the_clients(what: str, tmp_path: Path, scheduler: str, calibration: Path) -> None:
     """Relative paths are this process's: the client makes them absolute before sending them to
-    workers that run in another folder. Calibrations then name their pose files by absolute
-    path, as a local run given absolute paths does."""
+    workers that run in another folder. A batch's calibrations still name their pose files as
+    given, relative, as a local run does (apply's outputs hold no input path: compared with a
+    local run given absolute paths)."""
     if what == "batch":
         make_units(tmp_path / "units")
         args: list[str | Path] = ["batch", "units", "--limits", LIMITS]
-        absolute: list[str | Path] = ["batch", tmp_path / "units", "--limits", LIMITS]
+        absolute: list[str | Path] = args
     else:
         make_captures(tmp_path / "caps")
         shutil.copy(calibration, tmp_path / "cal.json")

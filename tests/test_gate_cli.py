@@ -487,7 +487,7 @@ def test_no_check_needs_a_known_check(tmp_path: Path, capsys: pytest.CaptureFixt
     ],
 )
 def test_bad_gate_options_are_usage_errors(args: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
-    assert_one_error(solve(capsys, "-p", *POSES_3, *args), message)
+    assert_one_error(solve(capsys, "-p", *POSES_3, *args), message, json_out="--json" in args)
 
 
 def test_gyroscope_noise_is_judged_only_with_max_noise(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -525,6 +525,7 @@ def test_a_units_mistake_is_2_even_when_a_check_fails(tmp_path: Path, capsys: py
             r,
             f"{pose}: the pose reads {magnitude:.4g} in magnitude but --reference is 1: a units mistake?",
             hint="run with --reference 9.80665",
+            json_out=True,
         )
         assert_untouched(out)
     # with its reference the drifting pose is judged, and rejected
@@ -548,7 +549,7 @@ def test_an_input_error_is_2_even_when_a_pose_moved(
     out = precious(tmp_path / "cal.json")
     r = solve(capsys, "-p", *moving_poses(tmp_path), "-o", out, "--json", *extra)
     assert r.code == 2
-    assert r.out == "", "no JSON summary for a usage error"
+    assert json.loads(r.out)["status"] == "error", "no JSON summary for a usage error: an error object"
     [error] = lines(r, "error:")
     assert message in error
     assert_untouched(out)
@@ -565,7 +566,7 @@ def test_an_output_that_cannot_be_written_is_2_even_when_a_pose_moved(
         out, message = tmp_path / "cals", "is a folder: -o takes a file name"
         out.mkdir()
     r = solve(capsys, "-p", *poses, "-o", out, "--json")
-    assert_one_error(r, f"{out}: {message}")
+    assert_one_error(r, f"{out}: {message}", json_out=True)
     r = solve(capsys, "-p", *poses, "-o", out, "--no-checks")  # and when there is nothing else wrong
     assert_one_error(r, f"{out}: {message}")
     assert not (tmp_path / "no").exists()
@@ -744,7 +745,7 @@ BAD_LIMITS = [
 def test_solve_bad_limits_file(name: str, message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = precious(tmp_path / "cal.json")
     r = solve(capsys, "-p", *POSES_3, "-o", out, "--limits", BAD / name, "--json")
-    assert_one_error(r, f"{BAD / name}: {message}")
+    assert_one_error(r, f"{BAD / name}: {message}", json_out=True)
     assert_untouched(out)
 
 
@@ -906,11 +907,67 @@ def test_tilt_sensitivity_of_one_pose(tmp_path: Path, capsys: pytest.CaptureFixt
     doc = json.loads(r.out)
     tilt = doc["tilt_sensitivity"]
     expected = core.tilt_sensitivity("one-pose", np.array(doc["gain"]), 1.0, ["-x"], 2.0)
-    np.testing.assert_allclose(tilt["offset"], expected[0], rtol=1e-12)
+    # the up axis x also holds the default --gain-tolerance 0.02 x reference 1 (below)
+    np.testing.assert_allclose(tilt["offset"], expected[0] + [0.02, 0, 0], rtol=1e-12)
     # x is vertical (second order, under 1 mg at 2°); y and z horizontal (first order, sin 2°); no gains
-    assert tilt["offset"][0] < 1e-3
+    assert tilt["offset"][0] - 0.02 < 1e-3
     np.testing.assert_allclose(tilt["offset"][1:], math.sin(math.radians(2)), rtol=0.1)
     assert tilt["gain"] == [0.0, 0.0, 0.0]
+
+
+@pytest.mark.parametrize(("given", "tolerance"), [([], 0.02), (["--gain-tolerance", "0.05"], 0.05)])
+@pytest.mark.parametrize("method", ["one-pose", "one-pose-tilt"])
+def test_one_pose_up_offset_holds_the_gain_tolerance(
+    given: list[str], tolerance: float, method: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """One pose cannot tell the up axis's gain error from its offset: a unit whose z gain is 3 %
+    high reads an up offset 0.03 x reference off, and the up offset's tilt_sensitivity holds
+    --gain-tolerance x reference for it (reference 16384: the raw units the 1-pose solver keeps)."""
+    reference = 16384.0
+    rng = np.random.default_rng(7)
+    values = pose_samples(
+        rng, FACES["+z"], offset=(20, -30, 40), gain=(1, 1, 1.03), reference=reference, noise=2.0, n=200
+    )
+    pose = write_capture(tmp_path / "z.csv", values, fmt="%.3f")
+    out = tmp_path / "cal.json"
+    r = solve(capsys, "-p", pose, "--reference", "16384", "--method", method, "-o", out, *given)
+    assert r.code == 0, r.err
+    doc = json.loads(out.read_text())
+    tilt = doc["tilt_sensitivity"]
+    assert tilt["gain_tolerance"] == tolerance
+    assert doc["offset"][2] == pytest.approx(40 + 0.03 * reference, abs=5)  # the gain error, in the offset
+    level = 1 - math.cos(math.radians(1))  # the up axis's own (second-order) tilt term, 1°
+    if method == "one-pose":
+        assert tilt["offset"][2] == pytest.approx(tolerance * reference + level * reference, rel=1e-12)
+    else:  # the tilt term is bounded by --bias-spread instead; the gain part is the same
+        assert tolerance * reference < tilt["offset"][2] < tolerance * reference + 0.01 * reference
+    np.testing.assert_allclose(tilt["offset"][:2], reference * math.sin(math.radians(1)), rtol=1e-12)
+    said = f"± tilt of the z offset (up axis +z) includes ±{tolerance * reference:.4g} (--gain-tolerance {tolerance:g}"
+    assert [ln for ln in r.err.splitlines() if ln.startswith("± tilt of the z offset")] == [
+        f"{said} × reference 16384) for an unknown gain error of ±{tolerance:.2%}: one pose cannot tell it from "
+        "an offset"
+    ]
+    # the note on fixture tilt speaks of the tilt alone, not of the gain tolerance added to it
+    assert f"moves the offsets by up to {reference * math.sin(math.radians(1)):.2g}" in r.err
+
+
+def test_three_pose_records_no_gain_tolerance(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    doc = solved(capsys, tmp_path / "cal.json", "--gain-tolerance", "0.05")
+    assert "gain_tolerance" not in doc["tilt_sensitivity"]
+
+
+@pytest.mark.parametrize(
+    ("value", "expected"),
+    [
+        ("-0.01", "Invalid value for '--gain-tolerance'"),
+        ("nan", "--gain-tolerance is a fraction of 0 or more (0.02: ±2 %), got nan"),
+    ],
+)
+def test_gain_tolerance_is_checked(value: str, expected: str, capsys: pytest.CaptureFixture[str]) -> None:
+    r = solve(capsys, "-p", SAMPLE / "z.csv", "--gain-tolerance", value)
+    assert r.code == 2
+    assert r.out == ""
+    assert expected in r.err
 
 
 def test_pose_diagnostics(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -1168,7 +1225,7 @@ def test_show_an_invalid_file_names_the_field(
 ) -> None:
     bad = mutate(unit_cal, change, tmp_path / "bad.json")
     assert_one_error(run(capsys, "show", bad), f"{bad}: {message}")
-    assert_one_error(run(capsys, "show", bad, "--json"), f"{bad}: {message}")
+    assert_one_error(run(capsys, "show", bad, "--json"), f"{bad}: {message}", json_out=True)
 
 
 @pytest.mark.slow

@@ -82,6 +82,32 @@ def test_report_unreadable_file_is_exit_2_after_the_report(tmp_path: Path, capsy
     assert "the report leaves out the 1 of 32 files that could not be read" in err
     assert "partial" not in err
 
+    # --json: one document, the report of the files read, its status the word for exit 2
+    code, out, err = run(capsys, "report", str(lot), "--json")
+    assert code == 2
+    doc = json.loads(out)  # one JSON document: no error object after the report
+    assert (doc["status"], doc["exit_status"]) == ("error", 2)
+    assert doc["unreadable"][0]["file"] == str(lot / "broken.json")
+    assert f"error: {lot / 'broken.json'}: not valid JSON" in err
+
+
+def test_report_json_needing_attention_is_fail(capsys: pytest.CaptureFixture[str]) -> None:
+    r = run(capsys, "report", str(LOT), "--json")  # the lot has an outlier
+    assert r.code == 1
+    doc = json.loads(r.out)
+    assert list(doc)[:2] == ["status", "exit_status"]
+    assert (doc["status"], doc["exit_status"]) == ("fail", 1)
+
+
+def test_report_json_in_order_is_pass(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    lot = tmp_path / "lot"
+    shutil.copytree(LOT, lot)
+    for path in lot.glob("SN0013_*.json"):
+        path.unlink()
+    r = run(capsys, "report", str(lot), "--max-drift", "offset=0.02", "--json")
+    assert r.code == 0, r.err
+    assert (json.loads(r.out)["status"], json.loads(r.out)["exit_status"]) == ("pass", 0)
+
 
 @pytest.mark.parametrize(
     ("args", "message"),
@@ -186,3 +212,32 @@ def test_report_keeps_calibrations_in_other_units_apart(tmp_path: Path, capsys: 
     g_rows = [row for row in table if row["parameter"] == "gain.x" and row["count"] == "30"]
     assert len(g_rows) == 1  # the g lot's statistics are its own
     assert float(g_rows[0]["mean"]) == pytest.approx(1.0, abs=0.01)
+
+
+def test_report_flags_the_same_pose_file_under_two_serials(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """SN0002's calibration records SN0001's z capture (same sha256): at most one of them
+    measured that unit, so the lot, otherwise in order, needs attention."""
+    lot = tmp_path / "lot"
+    shutil.copytree(LOT, lot)
+    for path in lot.glob("SN0013_*.json"):
+        path.unlink()
+    args = ["report", str(lot), "--max-drift", "offset=0.02", "--json"]
+    assert run(capsys, *args).code == 0  # in order
+    [first] = lot.glob("SN0001_*.json")
+    [second] = lot.glob("SN0002_*.json")
+    shared = json.loads(first.read_text())["poses"][2]
+    doc = json.loads(second.read_text())
+    doc["poses"][2] |= {"sha256": shared["sha256"], "file": shared["file"]}
+    second.write_text(json.dumps(doc))
+    code, out, err = run(capsys, *args)
+    assert code == 1
+    report = json.loads(out)
+    assert (report["status"], report["exit_status"]) == ("fail", 1)
+    assert report["duplicates"] == [
+        {"sha256": shared["sha256"], "serials": ["SN0001", "SN0002"], "files": [shared["file"], shared["file"]]}
+    ]
+    assert (
+        f"warning: SN0001 and SN0002 record the same pose file (sha256 {shared['sha256'][:12]}): {shared['file']}: "
+        "at most one of them measured that unit"
+    ) in err.splitlines()
+    assert "lot: needs attention" in err

@@ -143,7 +143,12 @@ def _command() -> Any:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the CLI; return the exit status. Every error is reported here and only here."""
+    """Run the CLI; return the exit status. Every error is reported here and only here: one
+    line on stderr, and with --json an error object on stdout (:func:`json_error`)."""
+    from tumblecal_cli.cli import render
+
+    args = sys.argv[1:] if argv is None else list(argv)
+    render.json_printed(reset=True)
     try:
         with _term_as_interrupt():  # a station's or scheduler's kill: outputs cleaned up as for Ctrl-C
             result = _command().main(args=argv, prog_name="tumblecal", standalone_mode=False)
@@ -155,6 +160,7 @@ def main(argv: list[str] | None = None) -> int:
         if _state["debug"]:
             raise
         report(str(err), err.hint, err.more)
+        json_error(args, err.exit_code, _fields(err.message, err.hint, err.file, err.line, err.column, err.more))
         return err.exit_code
     except typer.Exit as err:
         return err.exit_code
@@ -165,6 +171,7 @@ def main(argv: list[str] | None = None) -> int:
         ctx = getattr(err, "ctx", None)
         command = ctx.command_path if ctx is not None else "tumblecal"
         report(err.format_message(), f"see '{command} --help'")
+        json_error(args, 2, _fields(err.format_message(), f"see '{command} --help'"))
         return 2
     except (typer.Abort, KeyboardInterrupt):
         report("interrupted", None)
@@ -176,15 +183,53 @@ def main(argv: list[str] | None = None) -> int:
         if _state["debug"]:
             raise
         report(f"{err.filename}: {err.strerror or err}" if err.filename else f"{err.strerror or err}", None)
+        json_error(args, 2, _fields(f"{err.strerror or err}", None, err.filename))
         return 2
     except Exception as err:  # a bug: one line unless --debug
         if _state["debug"]:
             raise
         report(f"internal error: {type(err).__name__}: {err}", "run with --debug for the traceback")
+        json_error(
+            args, 2, _fields(f"internal error: {type(err).__name__}: {err}", "run with --debug for the traceback")
+        )
         return 2
     finally:
         _state["debug"] = False
     return result if isinstance(result, int) else 0
+
+
+def json_error(args: list[str], status: int, error: dict[str, Any]) -> None:
+    """With --json (on a command that takes it), an error that ends the command prints
+    ``{"status": "error", "exit_status": 2, "error": {...}}`` on stdout, unless the command
+    printed its own document first (a report of the files it could read, a rejected solve's
+    summary): stdout holds one JSON document, whole."""
+    from tumblecal_cli.cli import render
+
+    if status not in (2, 3) or render.json_printed() or not _wants_json(args):
+        return
+    with contextlib.suppress(PipeClosed, OSError):  # a reader gone: the status says it all
+        render.error_json(status, error)
+
+
+def _wants_json(args: list[str]) -> bool:
+    """Whether ``args`` give --json to a command that has that option (before any ``--``)."""
+    name = next((a for a in args if not a.startswith("-")), None)
+    command = getattr(_command(), "commands", {}).get(name) if name else None
+    if command is None or not any("--json" in getattr(p, "opts", ()) for p in command.params):
+        return False
+    rest = args[args.index(str(name)) + 1 :]
+    return "--json" in (rest[: rest.index("--")] if "--" in rest else rest)
+
+
+def _fields(
+    message: str,
+    hint: str | None,
+    file: str | None = None,
+    line: int | None = None,
+    column: int | str | None = None,
+    more: tuple[str, ...] = (),
+) -> dict[str, Any]:
+    return {"file": file, "line": line, "column": column, "message": message, "hint": hint, "more": list(more)}
 
 
 def report(message: str, hint: str | None, more: tuple[str, ...] = ()) -> None:

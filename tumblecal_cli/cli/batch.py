@@ -10,6 +10,7 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
+from tumblecal_cli.cli.options import STATUS_WORDS
 from tumblecal_cli.cli.solve import solve
 from tumblecal_cli.pipeline.options import SolveOptions
 
@@ -113,7 +114,8 @@ def batch(**given: Any) -> None:
     Each unit is solved as 'tumblecal solve' would (every solve option below applies to all of
     them), its calibration written to DIR/<serial>_<UTC time>.json, and its outcome added to
     DIR/summary.csv: serial, status, verdict, codes, file, method, offset, gain, their 1-sigma
-    uncertainties, inputs, and the message of a unit that failed.
+    uncertainties, inputs, the message of a unit that failed, and duplicate_of: the other
+    serials whose calibration records the same pose file (by sha256), each also a warning.
 
     \b
       tumblecal batch units/ --out-dir cals/ --limits limits.yaml --jobs 2
@@ -164,6 +166,8 @@ def _show(result: Any, console: Any, *, quiet: bool, json_summary: bool) -> None
     from tumblecal_cli.pipeline import batch as batches
 
     if not quiet:
+        for warning in result.warnings:
+            console.print(f"warning: {warning}", style="red", soft_wrap=True, markup=False, highlight=False)
         said = ", ".join(f"{n} {v}" for v, n in result.counts.items() if n)
         console.print(
             f"{len(result.rows)} unit{'s' if len(result.rows) != 1 else ''}: {said} -> {result.summary}",
@@ -171,11 +175,25 @@ def _show(result: Any, console: Any, *, quiet: bool, json_summary: bool) -> None
             markup=False,
             highlight=False,
         )
-    if json_summary:
-        table = [{c: r.get(c) for c in batches.SUMMARY_COLUMNS} for r in result.rows]
-        render.print_json({"status": result.status, "counts": result.counts, "summary": result.summary, "units": table})
+    if json_summary:  # each status a word, as every --json says it, its number beside it
+        table = [_unit_json(r, batches.SUMMARY_COLUMNS) for r in result.rows]
+        head = {"status": STATUS_WORDS[result.status], "exit_status": result.status}
+        render.print_json(
+            head | {"counts": result.counts, "summary": result.summary, "warnings": result.warnings, "units": table}
+        )
     if result.status:
         raise typer.Exit(result.status)
+
+
+def _unit_json(row: dict[str, Any], columns: list[str]) -> dict[str, Any]:
+    """A unit's row of summary.csv for --json: its status a word, the number as exit_status."""
+    out: dict[str, Any] = {}
+    for c in columns:
+        if c == "status":
+            out |= {"status": STATUS_WORDS[int(row[c])], "exit_status": int(row[c])}
+        else:
+            out[c] = row.get(c)
+    return out
 
 
 _BATCH_OWN = tuple(inspect.signature(_batch_options).parameters)  # the rest of batch's options are solve's

@@ -13,6 +13,9 @@ number of files, a units mistake); 3 capture rejected by a quality check (moved,
 pose it claims, saturated, too short, upside down); 1 calibrated but outside its limits;
 0 pass. The calibration is written on 0 and 1, nothing on 2 or 3."""
 
+#: The word every --json output gives its exit status as ("status"; the number is "exit_status").
+STATUS_WORDS = {0: "pass", 1: "fail", 2: "error", 3: "rejected"}
+
 
 class SensorKind(StrEnum):
     accelerometer = "accelerometer"

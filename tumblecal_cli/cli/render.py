@@ -32,9 +32,36 @@ def make_console(stderr: bool = True) -> Console:
     return Quiet(stderr=stderr, highlight=False, markup=False)  # paths and column names are not markup
 
 
-def print_json(doc: dict[str, Any]) -> None:
+#: Whether this run has printed its --json document: the error boundary (cli.app.main) then
+#: prints no error object after it (stdout holds one JSON document).
+_printed = {"json": False}
 
+
+def print_json(doc: dict[str, Any]) -> None:
+    _printed["json"] = True
     print_text(json.dumps(doc, indent=2, ensure_ascii=False) + "\n")
+
+
+def json_printed(reset: bool = False) -> bool:
+    """Whether print_json has run since the last reset (``reset``: start afresh, for a new run)."""
+    printed = _printed["json"]
+    if reset:
+        _printed["json"] = False
+    return printed
+
+
+def status_word(status: int) -> str:
+    """An exit status as --json says it: pass, fail, error or rejected."""
+    from tumblecal_cli.cli.options import STATUS_WORDS
+
+    return STATUS_WORDS[status]
+
+
+def error_json(status: int, error: dict[str, Any]) -> None:
+    """With --json, an error that ended the command (exit 2, or 3 with no summary) on stdout."""
+    from tumblecal_cli.cli.options import STATUS_WORDS
+
+    print_json({"status": STATUS_WORDS.get(status, "error"), "exit_status": status, "error": error})
 
 
 def print_csv(table: tuple[list[str], list[list[str]]]) -> None:
@@ -69,9 +96,11 @@ def summary(
     notes: list[str],
 ) -> dict[str, Any]:
     """The --json summary: the outcome, then the calibration's parameters and diagnostics."""
+    from tumblecal_cli.cli.options import STATUS_WORDS
+
     doc = cal.to_dict()
     head: dict[str, Any] = {
-        "status": {0: "pass", 1: "fail", 3: "rejected"}[status],
+        "status": STATUS_WORDS[status],
         "exit_status": status,
         "file": output,
         "rejections": [f.as_dict() for f in rejected],
@@ -114,6 +143,8 @@ def print_summary(cal: Calibration, console: Console, warned: list[Finding], not
         console.print(f"coverage: {doc['coverage']:.0%} of the sphere's directions", soft_wrap=True)
     if tilt.get("tolerance_deg") is not None:
         console.print(f"± tilt: worst-case shift if each pose is {tilt['tolerance_deg']:g}° off level", soft_wrap=True)
+    if tilt.get("gain_tolerance") is not None:
+        console.print(_gain_tolerance_line(doc, float(tilt["gain_tolerance"])), soft_wrap=True)
     for w in warned:
         console.print(f"warning: {w.render()} ({w.code})", style="yellow", soft_wrap=True)
     for note in notes:
@@ -121,6 +152,18 @@ def print_summary(cal: Calibration, console: Console, warned: list[Finding], not
     verdict = doc.get("verdict")
     if judged and isinstance(verdict, dict):
         _print_verdict(console, verdict)
+
+
+def _gain_tolerance_line(doc: dict[str, Any], tolerance: float) -> str:
+    """A 1-pose up offset's ± tilt holds tolerance × reference for the up axis's unknown gain error."""
+    poses = doc.get("poses") or [{}]
+    face = str(poses[0].get("pose") or "")
+    axis = f"the {face[1:]} offset (up axis {face})" if len(face) == 2 else "the up axis's offset"
+    reference = float(doc["reference"])
+    return (
+        f"± tilt of {axis} includes ±{tolerance * reference:.4g} (--gain-tolerance {tolerance:g} × reference "
+        f"{reference:g}) for an unknown gain error of ±{tolerance:.2%}: one pose cannot tell it from an offset"
+    )
 
 
 def _g(v: float | None, digits: int = 6) -> str:
@@ -302,9 +345,12 @@ def short_sensor(sensor: str) -> str:
 
 
 def print_lot(result: Any, console: Console, plot: str | None, *, drift_given: bool) -> None:
-    """The lot report for people: the parameter table, outliers, drift, unreadable files."""
+    """The lot report for people: the parameter table, outliers, drift, pose files under two
+    serials, unreadable files."""
     from rich import box
     from rich.table import Table
+
+    from tumblecal_cli.core import lot
 
     def g(v: float | None, digits: int = 4) -> str:  # compact: 80 columns hold the table
         return "" if v is None else re.sub(r"e([-+])0*(\d)", r"e\1\2", f"{v:.{digits}g}").replace("e+", "e")
@@ -361,6 +407,8 @@ def print_lot(result: Any, console: Console, plot: str | None, *, drift_given: b
             style="red",
             soft_wrap=True,
         )
+    for warning in lot.duplicate_warnings(result.duplicates):
+        console.print(f"warning: {warning}", style="red", soft_wrap=True)
     if plot is not None and not result.unreadable:
         console.print(f"wrote {plot}", soft_wrap=True)
     verdict = "needs attention" if result.needs_attention else "in order"

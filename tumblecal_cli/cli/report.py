@@ -8,7 +8,7 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
-from tumblecal_cli.cli.options import Quiet
+from tumblecal_cli.cli.options import STATUS_WORDS, Quiet
 from tumblecal_cli.cli.solve import _plot_target
 from tumblecal_cli.errors import InputError
 
@@ -87,7 +87,7 @@ def report(
     if plot is not None:
         _plot_target(plot, "-", False, [*reported.files, *([limits_file] if limits_file else [])])
     if json_out:
-        render.print_json(result.as_dict())
+        render.print_json({"status": STATUS_WORDS[reported.status], "exit_status": reported.status} | result.as_dict())
     else:
         render.print_csv(result.csv_rows())
     if plot is not None and not result.unreadable:  # exit 2 writes no file

@@ -232,6 +232,18 @@ def solve(
             rich_help_panel=CHECKS_PANEL,
         ),
     ] = 1.0,
+    gain_tolerance: Annotated[
+        float,
+        typer.Option(
+            "--gain-tolerance",
+            metavar="FRACTION",
+            min=0,
+            help="one-pose, one-pose-tilt: the up axis's gain error (a fraction) its offset may hold: one pose "
+            "cannot tell a gain error from an offset, so FRACTION x reference is added to that offset's "
+            "tilt_sensitivity.",
+            rich_help_panel=CHECKS_PANEL,
+        ),
+    ] = 0.02,
     no_checks: Annotated[
         bool, typer.Option("--no-checks", help="Turn every quality check off.", rich_help_panel=CHECKS_PANEL)
     ] = False,

@@ -84,7 +84,7 @@ def verify(
     if json_summary:
         render.print_json(
             {
-                "status": {0: "pass", 1: "fail", 3: "rejected"}[done.status],
+                "status": render.status_word(done.status),
                 "exit_status": done.status,
                 "cal": cal,
                 "reference": done.reference,

@@ -82,6 +82,7 @@ class Entry:
     method: str
     values: dict[str, float]
     units: str = ""  # "[input units -> ]output units", to keep calibrations of other units apart
+    poses: tuple[tuple[str, str], ...] = ()  # (sha256, file) of each pose file it was solved from
 
 
 def _when(e: Entry) -> tuple[int, float, str, str]:
@@ -109,6 +110,67 @@ def lot(entries: Iterable[Entry]) -> list[Entry]:
         if key not in latest or _when(e) > _when(latest[key]):
             latest[key] = e
     return sorted([*latest.values(), *alone], key=lambda e: e.path)
+
+
+# --- the same pose file under two serials -------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Duplicate:
+    """One pose file's content (its sha256) recorded in the calibrations of more than one
+    serial: at most one of them can have been measured on that unit. ``uses``: (serial, the
+    file as that serial's calibration names it), one per serial, by serial."""
+
+    sha256: str
+    uses: tuple[tuple[str, str], ...]
+
+    @property
+    def serials(self) -> tuple[str, ...]:
+        return tuple(serial for serial, _ in self.uses)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"sha256": self.sha256, "serials": list(self.serials), "files": [f for _, f in self.uses]}
+
+
+def duplicates(records: Iterable[tuple[str | None, str | None, str]]) -> list[Duplicate]:
+    """The pose files (by sha256) recorded under two or more serials, from (serial, sha256,
+    file) records. A serial's own files recorded twice (a unit calibrated again from the same
+    captures) are not a duplicate; records without a serial or a sha256 cannot be compared."""
+    seen: dict[str, dict[str, str]] = {}
+    for serial, sha256, file in records:
+        if serial and sha256:
+            seen.setdefault(sha256, {}).setdefault(serial, file)
+    found = [Duplicate(sha, tuple(sorted(uses.items()))) for sha, uses in seen.items() if len(uses) > 1]
+    return sorted(found, key=lambda d: (d.serials, d.sha256))
+
+
+def duplicate_warnings(found: Iterable[Duplicate]) -> list[str]:
+    """One line for each set of serials that share pose files, naming the serials and the files
+    (each serial's own name for them when the names differ), by serials then file."""
+    groups: dict[tuple[str, ...], list[Duplicate]] = {}
+    for d in found:
+        groups.setdefault(d.serials, []).append(d)
+    lines = []
+    for serials, shared in sorted(groups.items()):
+        shared.sort(key=lambda d: d.uses)
+        who = " and ".join(serials) if len(serials) == 2 else ", ".join(serials)
+        what = "the same pose file" if len(shared) == 1 else f"the same {len(shared)} pose files"
+        sha = f" (sha256 {shared[0].sha256[:12]})" if len(shared) == 1 else ""
+        if all(len({f for _, f in d.uses}) == 1 for d in shared):  # each file by one name
+            named = ", ".join(d.uses[0][1] for d in shared)
+        else:
+            named = "; ".join(f"{s}: {', '.join(d.uses[k][1] for d in shared)}" for k, s in enumerate(serials))
+        lines.append(f"{who} record {what}{sha}: {named}: at most one of them measured that unit")
+    return lines
+
+
+def duplicate_of(found: Iterable[Duplicate]) -> dict[str, list[str]]:
+    """Each serial in ``found`` and the other serials that share a pose file with it, sorted."""
+    out: dict[str, set[str]] = {}
+    for d in found:
+        for serial in d.serials:
+            out.setdefault(serial, set()).update(s for s in d.serials if s != serial)
+    return {serial: sorted(others) for serial, others in out.items()}
 
 
 # --- statistics ---------------------------------------------------------------------------------
@@ -310,11 +372,15 @@ class Report:
     drift: list[Drift]
     unreadable: list[tuple[str, str]]
     min_cpk: float | None = None
+    duplicates: list[Duplicate] = field(default_factory=list)
 
     @property
     def needs_attention(self) -> bool:
-        """Any unit outside a limit, any outlier, any flagged drift, or (with ``min_cpk``) any Cpk below it."""
+        """Any unit outside a limit, any outlier, any flagged drift, the same pose file under
+        two serials, or (with ``min_cpk``) any Cpk below it."""
         if any(row.outliers or row.outside for row in self.rows) or any(d.flagged for d in self.drift):
+            return True
+        if self.duplicates:
             return True
         threshold = self.min_cpk
         return threshold is not None and any(row.cpk is not None and row.cpk < threshold for row in self.rows)
@@ -360,6 +426,7 @@ class Report:
                 for d in self.drift
             ],
             "unreadable": [{"file": path, "error": message} for path, message in self.unreadable],
+            "duplicates": [d.as_dict() for d in self.duplicates],
         }
 
     def csv_rows(self) -> tuple[list[str], list[list[str]]]:
@@ -438,6 +505,7 @@ def summarise(
         drift=drift(entries, max_drift),
         unreadable=list(unreadable),
         min_cpk=min_cpk,
+        duplicates=duplicates((e.serial, sha, file) for e in entries for sha, file in e.poses),
     )
 
 

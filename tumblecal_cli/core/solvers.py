@@ -594,7 +594,25 @@ def _theta_to_params(theta: FloatArray, cov_theta: FloatArray, *, symmetric: boo
 # -- one pose, tilt-compensated (seed 004) -----------------------------------------------------------
 
 
-def one_pose_tilt(pose: PoseStats, up: str, reference: float, tolerance_deg: float, bias_spread: float) -> Fit:
+def gain_error_bound(reference: float, gain_tolerance: float) -> float:
+    """How far a 1-pose up-axis offset is off for an up-axis gain error of up to ``gain_tolerance``.
+
+    With ``raw = A·v + b`` (README "Poses, signs and --reference") and the up axis's gain
+    ``1 + ε``, that axis reads ``(1 + ε)·reference + b``; the 1-pose solver fixes the gain at 1
+    (seed 000 eqs. 1-3, ``offset = mean - v``), so its up offset is ``b + ε·reference``: a 1 %
+    gain error moves it by 0.01 × reference. One pose cannot tell the two apart, so the bound is
+    a stated tolerance, not a measurement.
+
+    It belongs with ``tilt_sensitivity``, not ``uncertainty``: ``uncertainty`` is a 1-sigma
+    estimated from the samples' noise, while this, like the tilt figures, is a worst case at a
+    tolerance the user states (and that no amount of data shrinks). The two worst cases add:
+    tilt lowers the up reading, and a gain below 1 lowers it too."""
+    return abs(gain_tolerance) * reference
+
+
+def one_pose_tilt(
+    pose: PoseStats, up: str, reference: float, tolerance_deg: float, bias_spread: float, gain_tolerance: float = 0.0
+) -> Fit:
     """1-pose offsets with the attitude computed from the readings (seed 004, CN102313822).
 
     Seed 004, eqs. (2)-(3): with the bias assumed zero, the readings give the attitude, and the
@@ -604,7 +622,8 @@ def one_pose_tilt(pose: PoseStats, up: str, reference: float, tolerance_deg: flo
     spread σ (``bias_spread``, seed 004's error variance) tilts the assumed attitude by up to
     ``δ = √2·σ / reference`` (eqs. (4)-(5)): the up offset is then off by at most
     ``reference·(cos θ - cos(θ + δ))``. The horizontal offsets are the plain 1-pose ones, with
-    their first-order tilt bound ``reference·sin(tolerance)``.
+    their first-order tilt bound ``reference·sin(tolerance)``. The up offset also absorbs the up
+    axis's unknown gain error, as the 1-pose one does (:func:`gain_error_bound`).
     """
     axis = "xyz".index(up[1])
     sign = 1.0 if up[0] == "+" else -1.0
@@ -622,7 +641,7 @@ def one_pose_tilt(pose: PoseStats, up: str, reference: float, tolerance_deg: flo
     delta = math.sqrt(2.0) * bias_spread / reference if reference > 0 else 0.0
     vertical = reference * abs(math.cos(theta) - math.cos(min(math.pi, theta + delta)))
     tilt_offset = np.full(3, reference * math.sin(math.radians(tolerance_deg)))
-    tilt_offset[axis] = vertical
+    tilt_offset[axis] = vertical + gain_error_bound(reference, gain_tolerance)
     grad = _central_differences(offsets, pose.mean, 1e-6)  # d offset / d mean
     offset_se = np.sqrt((grad**2) @ pose.stderr**2)
     solution = Solution("one-pose-tilt", offset, np.eye(3), offset_se, np.zeros(3))
@@ -840,15 +859,18 @@ def run(
     bias_spread: float,
     plane: str | None,
     names: Sequence[str],
+    gain_tolerance: float = 0.0,
 ) -> Fit:
-    """Run ``method`` (resolved by :func:`pick`, poses in its order) on the poses."""
+    """Run ``method`` (resolved by :func:`pick`, poses in its order) on the poses.
+    ``gain_tolerance``: the 1-pose methods' stated bound on the up axis's unknown gain error."""
     if method == "one-pose":
         face = str(labels[0])
         one = solve_one_pose(stats[0], face, reference)
         offset_tilt, gain_tilt = tilt_sensitivity(method, one.gain, reference, [face], tolerance_deg)
+        offset_tilt = offset_tilt + np.abs(np.asarray(FACES[face])) * gain_error_bound(reference, gain_tolerance)
         return Fit(solution=one, tilt=(offset_tilt, gain_tilt, np.zeros((3, 3))))
     if method == "one-pose-tilt":
-        return one_pose_tilt(stats[0], str(labels[0]), reference, tolerance_deg, bias_spread)
+        return one_pose_tilt(stats[0], str(labels[0]), reference, tolerance_deg, bias_spread, gain_tolerance)
     if method == "three-pose":
         three = solve_three_pose(stats, reference, names=names)
         offset_tilt, gain_tilt = tilt_sensitivity(method, three.gain, reference, THREE_FACES, tolerance_deg)

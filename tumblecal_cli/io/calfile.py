@@ -275,13 +275,15 @@ def build(
     poses: list[dict[str, Any]],
     fit: Fit | None = None,
     tolerance_deg: float = 1.0,
+    gain_tolerance: float | None = None,
     unit: Unit | Mapping[str, Any] | None = None,
     verdict: Verdict | None = None,
     segmentation: dict[str, Any] | None = None,
 ) -> Calibration:
     """The calibration document, fields in the order of README "Calibration file (format version 1)"; ``fit`` adds what
     the solver measured beyond the parameters (tilt sensitivity, covariance, coverage, residuals);
-    ``segmentation`` how the poses were found in a continuous log (after ``poses``)."""
+    ``segmentation`` how the poses were found in a continuous log (after ``poses``);
+    ``gain_tolerance`` the gain error a 1-pose up offset's tilt sensitivity allows for."""
     if units is None and sensor == "accelerometer" and reference == 1.0:
         units = "g"
     doc = {
@@ -313,7 +315,10 @@ def build(
         tilt: dict[str, Any] = {"offset": _floats(offset), "gain": _floats(gain)}
         if fit.cross_se is not None:
             tilt["cross_axis"] = [_floats(row) for row in cross]
-        doc["tilt_sensitivity"] = tilt | {"tolerance_deg": tolerance_deg}
+        tilt["tolerance_deg"] = tolerance_deg
+        if gain_tolerance is not None:
+            tilt["gain_tolerance"] = gain_tolerance
+        doc["tilt_sensitivity"] = tilt
     if fit is not None:
         if fit.cross_se is not None:
             doc["uncertainty"] = {
@@ -505,8 +510,9 @@ def _optional_fields(doc: Mapping[str, Any], path: str) -> None:
             raise InputError(f"field {block!r} must be an object with 'offset' and 'gain'", file=path)
         _vector(value["offset"], f"{block}.offset", path)
         _vector(value["gain"], f"{block}.gain", path)
-        if value.get("tolerance_deg") is not None:
-            _number(value["tolerance_deg"], f"{block}.tolerance_deg", path)
+        for key in ("tolerance_deg", "gain_tolerance"):
+            if value.get(key) is not None:
+                _number(value[key], f"{block}.{key}", path)
     _nested_fields(doc, path)
 
 

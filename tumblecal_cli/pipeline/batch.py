@@ -21,7 +21,7 @@ import os
 import re
 import sys
 from collections.abc import Callable, Iterable, Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from tumblecal_cli.errors import InputError, TumblecalError
@@ -59,7 +59,10 @@ SUMMARY_COLUMNS = [
     "created",
     "inputs",
     "message",
+    "duplicate_of",
 ]
+#: The columns of a summary an earlier version wrote (before duplicate_of): --resume takes it.
+EARLIER_COLUMNS = SUMMARY_COLUMNS[:-1]
 NUMBERS = {c for c in SUMMARY_COLUMNS if c[-2:] in ("_x", "_y", "_z")}
 VERDICTS = {0: "pass", 1: "fail", 3: "rejected", 2: "error"}
 #: Units submitted to a Dask cluster at a time (a million-unit lot is not a million futures).
@@ -77,6 +80,9 @@ class Unit:
     serial: str
     inputs: tuple[str, ...]
     problem: str | None = None  # why it cannot be solved as found (no files): its row's error
+    #: The inputs as found, when ``inputs`` are made absolute for a cluster (:func:`absolute`): what
+    #: its calibration, its row and its errors name, as a batch run here does.
+    found: tuple[str, ...] = ()
 
 
 # -- finding the units -------------------------------------------------------------------------
@@ -254,7 +260,8 @@ def _run_unit(unit: Unit, options: SolveOptions, out_dir: str, log: bool, token:
     from tumblecal_cli.pipeline import solve
 
     staging = os.path.join(out_dir, f".{unit.serial}.{token}{STAGING}")
-    row: dict[str, Any] = {"serial": unit.serial, "inputs": list(unit.inputs)}
+    row: dict[str, Any] = {"serial": unit.serial, "inputs": list(unit.found or unit.inputs)}
+    names = {_file(a): _file(f) for a, f in zip(unit.inputs, unit.found, strict=True)} if unit.found else {}
     if unit.problem is not None:
         return row | _failed(InputError(unit.problem))
     if log and len(unit.inputs) != 1:
@@ -265,11 +272,12 @@ def _run_unit(unit: Unit, options: SolveOptions, out_dir: str, log: bool, token:
         if solved.error is not None:
             raise solved.error
         assert solved.calibration is not None
+        solved.calibration = as_found(solved.calibration, names)
         solved.calibration.save(staging)
     except TumblecalError as err:
         if err.file == staging:  # its calibration could not be written (a full disk): not done
             return row | _failed(err) | {"unwritten": True}
-        return row | _failed(err)
+        return _as_found_text(row | _failed(err), names)
     except Exception as err:  # a bug: this unit's error, with what to report
         return row | _failed(InputError(f"internal error: {type(err).__name__}: {err}"))
     cal, status = solved.calibration, solved.status
@@ -278,7 +286,78 @@ def _run_unit(unit: Unit, options: SolveOptions, out_dir: str, log: bool, token:
     # why a unit failed its limits, as its row's message (the file holds the whole verdict)
     messages = [f"{f.get('code')}: {f.get('message', '')}" for f in failures]
     outcome = {"status": status, "verdict": VERDICTS[status], "codes": codes, "staging": staging}
+    outcome["poses"] = pose_files(cal.poses)  # not a summary column: for duplicate_of
     return row | outcome | ({"message": "; ".join(messages)} if messages else {}) | _parameters(cal)
+
+
+def _file(item: str) -> str:
+    """The file of a pose item, ``FILE`` or ``LABEL=FILE``."""
+    label, sep, rest = item.partition("=")
+    return rest if sep and label and _looks_like_label(label) else item
+
+
+def as_found(cal: Calibration, names: Mapping[str, str]) -> Calibration:
+    """``cal`` with the pose files (and a log's name) it records as ``names`` maps them: a
+    cluster's worker reads absolute paths, and records the files as a batch run here would."""
+    if not names:
+        return cal
+    from dataclasses import replace
+
+    poses = tuple(dict(p) | {"file": names.get(str(p.get("file")), p.get("file"))} for p in cal.poses)
+    fields = dict(cal.fields)
+    segmentation = fields.get("segmentation")
+    if isinstance(segmentation, Mapping) and segmentation.get("log") in names:
+        fields["segmentation"] = dict(segmentation) | {"log": names[str(segmentation["log"])]}
+    return replace(cal, poses=poses, fields=fields)
+
+
+def _as_found_text(row: dict[str, Any], names: Mapping[str, str]) -> dict[str, Any]:
+    """A failed row's messages naming the files as found (the longest path first: no path is
+    replaced inside a longer one)."""
+    for key in ("message", "messages"):
+        value = row.get(key)
+        for path in sorted(names, key=len, reverse=True):
+            if isinstance(value, str):
+                value = value.replace(path, names[path])
+            elif isinstance(value, list):
+                value = [str(v).replace(path, names[path]) for v in value]
+        row[key] = value
+    return row
+
+
+def pose_files(poses: Iterable[Mapping[str, Any]]) -> list[tuple[str, str]]:
+    """(sha256, file) of each pose a calibration records (a log's blocks share one)."""
+    return list(dict.fromkeys((str(p["sha256"]), str(p.get("file", ""))) for p in poses if p.get("sha256")))
+
+
+def mark_duplicates(rows: list[dict[str, Any]], out_dir: str) -> list[str]:
+    """Set each row's ``duplicate_of``: the other serials whose calibration records a pose file
+    with the same sha256 (a copy of one unit's capture given as another's); a warning for each
+    such file, naming the serials and the file. A row from an earlier run (``--resume``) has its
+    poses read back from its calibration file."""
+    from tumblecal_cli.core import lot
+
+    records = []
+    for row in rows:
+        poses = row.get("poses")
+        if poses is None and row.get("file"):
+            poses = row["poses"] = _recorded_poses(os.path.join(out_dir, str(row["file"])))
+        records += [(str(row["serial"]), sha, file) for sha, file in poses or []]
+    found = lot.duplicates(records)
+    others = lot.duplicate_of(found)
+    for row in rows:
+        row["duplicate_of"] = others.get(str(row["serial"])) or None
+    return lot.duplicate_warnings(found)
+
+
+def _recorded_poses(path: str) -> list[tuple[str, str]]:
+    """The (sha256, file) of the poses a published calibration records; none if it is unreadable."""
+    from tumblecal_cli.io import calfile
+
+    try:
+        return pose_files(calfile.load(path).poses)
+    except TumblecalError:
+        return []
 
 
 def finish(row: dict[str, Any], out_dir: str) -> dict[str, Any]:
@@ -296,7 +375,7 @@ def finish(row: dict[str, Any], out_dir: str) -> dict[str, Any]:
 def failed_row(unit: Unit, err: BaseException) -> dict[str, Any]:
     """The row of a unit whose worker failed (a Dask worker lost, tumblecal missing there)."""
     message = f"the worker running it failed: {type(err).__name__}: {err}"
-    return {"serial": unit.serial, "inputs": list(unit.inputs)} | _failed(InputError(message))
+    return {"serial": unit.serial, "inputs": list(unit.found or unit.inputs)} | _failed(InputError(message))
 
 
 def stale_staging(out_dir: str) -> list[str]:
@@ -321,13 +400,14 @@ def repair_torn_row(path: str) -> list[str]:
         return []  # read_summary says what is wrong
     whole = data.endswith(b"\n")
     lines = data.split(b"\n")[:-1] if whole else data.split(b"\n")
-    if len(lines) < 2 or lines[0].decode("utf-8", "replace") != ",".join(SUMMARY_COLUMNS):
+    header = lines[0].decode("utf-8", "replace") if lines else ""
+    if len(lines) < 2 or header not in (",".join(SUMMARY_COLUMNS), ",".join(EARLIER_COLUMNS)):
         return []  # a header alone, or not a summary of ours: read_summary judges it
     try:
         cells = len(next(csv.reader([lines[-1].decode("utf-8")]), []))
     except (UnicodeDecodeError, csv.Error):
         cells = 0
-    if whole and cells == len(SUMMARY_COLUMNS):
+    if whole and cells == header.count(",") + 1:
         return []
     with atomic_output(path) as out:
         out.write(data[: len(data) - len(lines[-1]) - (1 if whole else 0)])
@@ -417,7 +497,7 @@ def read_summary(path: str) -> list[dict[str, Any]]:
     try:
         with open(path, newline="", encoding="utf-8") as f:
             reader = csv.DictReader(f)
-            if reader.fieldnames != SUMMARY_COLUMNS:
+            if reader.fieldnames not in (SUMMARY_COLUMNS, EARLIER_COLUMNS):
                 raise InputError(
                     "not a tumblecal batch summary (its header differs)",
                     file=path,
@@ -437,15 +517,23 @@ def read_summary(path: str) -> list[dict[str, Any]]:
                 hint="delete that line and --resume again: that unit is redone",
             )
         try:
-            row: dict[str, Any] = {c: (unsafe(raw[c]) if c in FREE_TEXT else raw[c]) or None for c in SUMMARY_COLUMNS}
+            row: dict[str, Any] = {
+                c: (unsafe(raw.get(c, "")) if c in FREE_TEXT else raw.get(c, "")) or None for c in SUMMARY_COLUMNS
+            }
             row["status"] = int(raw["status"])
             row["codes"] = [c for c in raw["codes"].split(SEPARATOR) if c]
+            row["duplicate_of"] = [c for c in (raw.get("duplicate_of") or "").split(SEPARATOR) if c] or None
             row["inputs"] = [c for c in raw["inputs"].split(SEPARATOR) if c]
             for c in NUMBERS:
                 row[c] = float(raw[c]) if raw[c] else None
         except (TypeError, ValueError, KeyError):
             raise InputError("a row this version did not write", file=path, line=n) from None
         out.append(row)
+    if reader.fieldnames == EARLIER_COLUMNS:  # rows are appended in this version's columns from here
+        from tumblecal_cli.io.outputs import atomic_output
+
+        with atomic_output(path) as target:
+            target.write(text(out).encode())
     return out
 
 
@@ -646,6 +734,7 @@ class Batched:
     rows: list[dict[str, Any]]
     counts: dict[str, int]
     summary: str
+    warnings: list[str] = field(default_factory=list)  # the same pose file under two serials
 
     def table(self) -> Any:
         """summary.csv as a pandas DataFrame."""
@@ -683,7 +772,7 @@ def run_batch(
     calfile.created()  # so is a bad SOURCE_DATE_EPOCH
     units, notes = find_units(source, log=log, out_dir=out_dir)
     if scheduler is not None:  # the workers do not share this working folder
-        units = [Unit(u.serial, tuple(absolute(i) for i in u.inputs), u.problem) for u in units]
+        units = [Unit(u.serial, tuple(absolute(i) for i in u.inputs), u.problem, u.inputs) for u in units]
         out_dir = os.path.abspath(out_dir)
         if options.limits:
             options = options.replace(limits=os.path.abspath(options.limits))
@@ -730,7 +819,8 @@ def run_batch(
             hint="the summary keeps the units done: run the same command with --resume",
         ) from None
     finally:
+        warnings = mark_duplicates(summary.rows, out_dir)  # before the summary is written whole
         summary.close()
         clean_staging(out_dir, token)
     counts = {v: sum(r["verdict"] == v for r in summary.rows) for v in VERDICTS.values()}
-    return Batched(status(summary.rows), summary.rows, counts, summary_path)
+    return Batched(status(summary.rows), summary.rows, counts, summary_path, warnings)

@@ -107,6 +107,7 @@ def entry(cal: calfile.Calibration) -> lot.Entry:
         method=cal.method,
         values=values,
         units=(f"{cal.input_units} -> " if cal.input_units else "") + str(cal.units or "no units"),
+        poses=tuple((str(p["sha256"]), str(p.get("file", ""))) for p in cal.poses if p.get("sha256")),
     )
 
 

@@ -373,7 +373,7 @@ def _solve(
     tilted: list[Finding] = []
     if name == "six-pose" and ref > 0:
         name, tilted = _six_faces(name, given.method == "auto", stats, names, log_notes)
-    if name in ("one-pose", "one-pose-tilt"):
+    if name in ONE_POSE:
         check_units(names[0], stats[0].mean - checks.nominal_offset, ref)
     try:
         fit = solvers.run(
@@ -386,6 +386,7 @@ def _solve(
             bias_spread=options.bias_spread if options.bias_spread is not None else 0.01 * ref,
             plane=options.plane,
             names=names,
+            gain_tolerance=options.gain_tolerance,
         )
     except CaptureRejected as err:
         if by_name and err.code == "pose.upside_down":  # a three-pose gain of zero: not the files' order
@@ -431,6 +432,7 @@ def _solve(
         poses=[pose_record(s, m, c) for s, m, c in zip(samples, measured, fixed, strict=True)],
         fit=fit,
         tolerance_deg=options.fixture_tolerance,
+        gain_tolerance=options.gain_tolerance if solution.method in ONE_POSE else None,
         unit=given.unit,
         verdict=calfile.Verdict(not failures, tuple(f.as_dict() for f in failures), limits.as_dict()),
         segmentation=segmentation,
@@ -493,6 +495,8 @@ def _six_faces(
     ]
 
 
+#: The solvers without gains whose up-axis offset absorbs that axis's gain error (--gain-tolerance).
+ONE_POSE = ("one-pose", "one-pose-tilt")
 #: Solvers that estimate gains, each judged by check_gains.
 GAIN_SOLVERS = ("three-pose", "six-pose", "six-pose-diagonal", "six-pose-magnitude", "least-squares", "sphere")
 #: Gains this far from nominal are not a sensor's error but a units mistake (exit 2, not exit 1).
@@ -590,6 +594,7 @@ def tilt_notes(cal: Calibration) -> list[str]:
     tilt, se = cal.tilt_sensitivity, cal.uncertainty
     if not tilt or not se:
         return []
+    tilt = dict(tilt) | {"offset": tilt_only(cal)}
     dominated = [
         n
         for n in ("offset", "gain")
@@ -608,6 +613,21 @@ def tilt_notes(cal: Calibration) -> list[str]:
         f"fixture tilt, not noise, limits this calibration: {tilt['tolerance_deg']:g}° off level moves {worst}; "
         + advice
     ]
+
+
+def tilt_only(cal: Calibration) -> list[float]:
+    """The tilt sensitivity of the offsets without the part a stated gain tolerance adds to a
+    1-pose up axis (solvers.gain_error_bound): what fixture tilt alone moves them by."""
+    from tumblecal_cli.core import model, solvers
+
+    tilt = cal.tilt_sensitivity or {}
+    offset = [float(v) for v in tilt.get("offset") or []]  # type: ignore[attr-defined]
+    tolerance = tilt.get("gain_tolerance")
+    face = cal.poses[0].get("pose") if cal.poses else None
+    if isinstance(tolerance, int | float) and face in model.FACES and len(offset) == 3:
+        part = solvers.gain_error_bound(cal.reference, float(tolerance))
+        offset = [v - abs(c) * part for v, c in zip(offset, model.FACES[face], strict=True)]
+    return offset
 
 
 def _solve_notes(stats: list[PoseStats], names: list[str], limits: Limits, method: str) -> list[str]:
