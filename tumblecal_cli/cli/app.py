@@ -90,6 +90,18 @@ class ManyValuesCommand(Command):
         return super().parse_args(ctx, out)
 
 
+class LabelledItemsCommand(Command):
+    """Lets positional items labelled with a '-' face (``-z=down.csv``) through: they are moved
+    after a ``--``, where Click takes them as arguments, not options."""
+
+    def parse_args(self, ctx: Any, args: list[str]) -> list[str]:
+        if "--" in args:
+            return super().parse_args(ctx, args)
+        labelled = [a for a in args if _is_labelled(a)]
+        rest = [a for a in args if not _is_labelled(a)]
+        return super().parse_args(ctx, [*rest, "--", *labelled] if labelled else rest)
+
+
 def _is_labelled(arg: str) -> bool:
     """Whether ``arg`` looks like a pose item ``LABEL=FILE`` whose label starts with '-'
     (``-x=xn.csv``, ``-0.5,0,0.87=a.csv``), not an option. (A pattern, not core.parse_label:

@@ -493,3 +493,80 @@ def print_unit(row: dict[str, Any], out_dir: str, console: Console, *, quiet: bo
         head, messages = f"{head}: {messages[0]}", []
     for line in [head, *(f"  {m}" for m in messages if not row.get("file"))]:
         console.print(line, soft_wrap=True, markup=False, highlight=False)
+
+
+def thermal_doc(done: Any) -> dict[str, Any]:
+    """The --json summary of ``tumblecal thermal``: the thermal block, the drift over the range, notes."""
+    return {
+        "thermal": done.calibration.thermal.as_dict(),
+        "drift": drift_rows(done.calibration),
+        "warnings": [w.as_dict() for w in done.warnings],
+        "notes": done.notes,
+    }
+
+
+def drift_rows(cal: Calibration) -> list[dict[str, Any]]:
+    """Per axis: the offset drift (raw units) and gain drift (relative) at both ends of the thermal
+    range against the reference temperature, and how the gain drift is known."""
+    import numpy as np
+
+    block = cal.thermal
+    assert block is not None
+    drift = block.drift()
+    ends = np.array([drift.t_min, drift.t_max])
+    off, gain = drift.at(ends)
+    grid = np.linspace(drift.t_min, drift.t_max, 201)
+    off_all, _ = drift.at(grid)
+    span = max(drift.t_max - drift.t_min, 1e-12)
+    rows = []
+    for j, axis in enumerate("xyz"):
+        worst = float(np.abs(off_all[:, j]).max())
+        rows.append(
+            {
+                "axis": axis,
+                "offset_drift": [float(off[0, j]), float(off[1, j])],
+                "offset_drift_max": worst,
+                "offset_drift_per_degc": float(np.abs(np.diff(off_all[:, j])).max() / (span / 200)),
+                "gain_drift": [float(gain[0, j]), float(gain[1, j])],
+                "gain_drift_kind": block.gain_drift[j],
+            }
+        )
+    return rows
+
+
+def print_thermal(done: Any, console: Console) -> None:
+    """``tumblecal thermal`` for people: the fit, the drift per axis over the range, notes."""
+    from rich.table import Table
+
+    cal = done.calibration
+    block = cal.thermal
+    fit = done.fit
+    drift = block.drift()
+    units = cal.input_units or "raw units"
+    how = "chosen by cross-validation over temperature" if fit.order_auto else "as given"
+    cv = ", ".join(f"{k}: {v:.3g}" for k, v in fit.cv_error.items())
+    console.print(
+        f"thermal: order {drift.order} ({how}; prediction error by order {cv}), T_ref {drift.t_ref:.2f} °C, "
+        f"range {drift.t_min:.1f} to {drift.t_max:.1f} °C, {fit.cells} cells from {len(done.sweeps)} sweeps",
+        soft_wrap=True,
+    )
+    table = Table(title=f"drift over {drift.t_min:.1f} to {drift.t_max:.1f} °C against {drift.t_ref:.2f} °C")
+    for name in ("axis", f"offset drift ({units})", "max |offset drift|", "gain drift", "gain drift is"):
+        table.add_column(name)
+    for row in drift_rows(cal):
+        low, high = row["offset_drift"]
+        g_low, g_high = row["gain_drift"]
+        gains = "—" if row["gain_drift_kind"] == "unobserved" else f"{g_low:+.3%} .. {g_high:+.3%}"
+        if row["gain_drift_kind"] == "folded":
+            gains = "in the offset drift"
+        table.add_row(
+            row["axis"], f"{low:+.4g} .. {high:+.4g}", f"{row['offset_drift_max']:.4g}", gains, row["gain_drift_kind"]
+        )
+    print_whole(console, table)
+    for k in range(drift.order):
+        terms = ", ".join(f"{'xyz'[j]} {block.offset[j][k]:+.4g} ± {fit.offset_se[j][k]:.2g}" for j in range(3))
+        console.print(f"offset coefficient of (T - T_ref)^{k + 1}: {terms}", soft_wrap=True)
+    for w in done.warnings:
+        console.print(f"warning: {w.render()} ({w.code})", style="yellow", soft_wrap=True)
+    for note in done.notes:
+        console.print(f"note: {note}", soft_wrap=True)

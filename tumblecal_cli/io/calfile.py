@@ -23,6 +23,8 @@ import numpy as np
 from tumblecal_cli.core.model import SENSORS, FloatArray, Solution, parse_label
 from tumblecal_cli.core.model import apply as apply_model
 from tumblecal_cli.core.solvers import Fit
+from tumblecal_cli.core.thermal import Drift
+from tumblecal_cli.core.thermal import correct as thermal_correct
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.outputs import atomic_output
 from tumblecal_cli.version import __version__
@@ -48,6 +50,7 @@ ORDER = (
     "gain",
     "uncertainty",
     "tilt_sensitivity",
+    "thermal",
     "poses",
     "unit",
     "verdict",
@@ -83,6 +86,81 @@ class Verdict:
 
 
 @dataclass(frozen=True, eq=False)
+class Thermal:
+    """The temperature drift (README "tumblecal thermal"): ``offset`` (3, order) raw units per °C^k
+    and ``gain`` (3, order) relative change per °C^k, k = 1..order, of d = T - ``reference_temperature``
+    with T clamped to ``range``; read from the capture's ``column``. ``gain_drift`` says per axis
+    how its gain drift is known (separate, folded into the offset drift, unobserved); ``extra``
+    keeps the block's other fields (uncertainty, order choice, sweeps) as written."""
+
+    column: str
+    reference_temperature: float
+    range: tuple[float, float]
+    offset: FloatArray
+    gain: FloatArray
+    gain_drift: tuple[str, ...] = ("separate", "separate", "separate")
+    extra: Mapping[str, object] = field(default_factory=dict)
+
+    @property
+    def order(self) -> int:
+        return int(np.asarray(self.offset).shape[1])
+
+    def drift(self) -> Drift:
+        return Drift(self.reference_temperature, self.range[0], self.range[1], self.offset, self.gain)
+
+    def as_dict(self) -> dict[str, Any]:
+        doc: dict[str, Any] = {
+            "column": self.column,
+            "reference_temperature": self.reference_temperature,
+            "range": [float(self.range[0]), float(self.range[1])],
+            "order": self.order,
+            "offset": [_floats(row) for row in self.offset],
+            "gain": [_floats(row) for row in self.gain],
+            "gain_drift": list(self.gain_drift),
+        }
+        doc.update(self.extra)
+        return doc
+
+
+THERMAL_KEYS = ("column", "reference_temperature", "range", "order", "offset", "gain", "gain_drift")
+GAIN_DRIFT_KINDS = ("separate", "folded", "unobserved")
+
+
+def thermal_from(value: Any, path: str | None) -> Thermal:
+    """The ``thermal`` block of a file, validated (every problem names the field)."""
+    if not isinstance(value, dict):
+        raise InputError("field 'thermal' must be an object (column, reference_temperature, range, ...)", file=path)
+    for key in THERMAL_KEYS:
+        if key not in value:
+            raise InputError(f"field 'thermal' has no {key!r}", file=path)
+    if not isinstance(value["column"], str) or not value["column"]:
+        raise InputError("field 'thermal.column' must be a column name", file=path)
+    t_ref = _number(value["reference_temperature"], "thermal.reference_temperature", path)
+    span = value["range"]
+    if not (isinstance(span, list) and len(span) == 2):
+        raise InputError("field 'thermal.range' must be [lowest, highest] °C", file=path)
+    low, high = (_number(v, "thermal.range", path) for v in span)
+    if low >= high:
+        raise InputError(f"field 'thermal.range' [{low:g}, {high:g}] must be [lowest, highest] °C", file=path)
+    order = value["order"]
+    if isinstance(order, bool) or order not in (1, 2, 3):
+        raise InputError("field 'thermal.order' must be 1, 2 or 3", file=path)
+    rows = {}
+    for key in ("offset", "gain"):
+        table = value[key]
+        if not (
+            isinstance(table, list) and len(table) == 3 and all(isinstance(r, list) and len(r) == order for r in table)
+        ):
+            raise InputError(f"field 'thermal.{key}' must be 3 lists of {order} numbers (one per axis)", file=path)
+        rows[key] = np.array([[_number(v, f"thermal.{key}", path) for v in row] for row in table])
+    kinds = value["gain_drift"]
+    if not (isinstance(kinds, list) and len(kinds) == 3 and all(k in GAIN_DRIFT_KINDS for k in kinds)):
+        raise InputError(f"field 'thermal.gain_drift' must be 3 of {', '.join(GAIN_DRIFT_KINDS)}", file=path)
+    extra = {k: v for k, v in value.items() if k not in THERMAL_KEYS}
+    return Thermal(value["column"], t_ref, (low, high), rows["offset"], rows["gain"], tuple(kinds), extra)
+
+
+@dataclass(frozen=True, eq=False)
 class Calibration:
     """A sensor's calibration: ``corrected = matrix @ (raw - offset)``.
 
@@ -104,6 +182,7 @@ class Calibration:
     input_units: str | None = None
     uncertainty: Mapping[str, FloatArray] = field(default_factory=dict)
     tilt_sensitivity: Mapping[str, object] | None = None
+    thermal: Thermal | None = None
     poses: tuple[Mapping[str, Any], ...] = ()
     unit: Unit | None = None
     verdict: Verdict | None = None
@@ -130,10 +209,12 @@ class Calibration:
     def serial(self) -> str | None:
         return None if self.unit is None else self.unit.serial
 
-    def apply(self, data: Any) -> Any:
+    def apply(self, data: Any, temperature: Any = None) -> Any:
         """Correct readings: an (n, 3) array gives an (n, 3) array; a pandas DataFrame gives a copy
         with the calibration's ``columns`` corrected (matched case-insensitively; other columns,
-        the index and their dtypes untouched)."""
+        the index and their dtypes untouched). With a ``thermal`` block each row is corrected at its
+        own temperature: the DataFrame's ``thermal.column``, or ``temperature`` (n,) °C given with
+        an array (clamped to the calibrated range)."""
         if hasattr(data, "columns") and hasattr(data, "loc"):  # a DataFrame, without importing pandas
             where = _frame_columns(data, self.columns, self.path)
             out = data.copy()
@@ -141,7 +222,13 @@ class Calibration:
                 raw = np.asarray(data.iloc[:, where].to_numpy(dtype=np.float64, na_value=np.nan))
             except (TypeError, ValueError) as err:
                 raise InputError(f"the DataFrame's {', '.join(self.columns)} are not numbers ({err})") from None
-            fixed = apply_model(raw, self.offset, self.matrix)
+            if self.thermal is not None and temperature is None:
+                (at,) = _frame_columns(data, [self.thermal.column], self.path)
+                try:
+                    temperature = data.iloc[:, at].to_numpy(dtype=np.float64, na_value=np.nan)
+                except (TypeError, ValueError) as err:
+                    raise InputError(f"the DataFrame's {self.thermal.column} is not numbers ({err})") from None
+            fixed = self._corrected(raw, temperature)
             for k, position in enumerate(where):
                 out.isetitem(position, fixed[:, k])
             return out
@@ -151,7 +238,22 @@ class Calibration:
             raise InputError(f"apply takes (n, 3) readings or a DataFrame, got a {type(data).__name__}") from None
         if values.ndim != 2 or values.shape[1] != 3:
             raise InputError(f"apply takes (n, 3) readings or a DataFrame, got an array of shape {values.shape}")
-        return apply_model(values, self.offset, self.matrix)
+        return self._corrected(values, temperature)
+
+    def _corrected(self, raw: FloatArray, temperature: Any) -> FloatArray:
+        if self.thermal is None:
+            return apply_model(raw, self.offset, self.matrix)
+        if temperature is None:
+            raise InputError(
+                f"this calibration corrects each row at its temperature: give temperature= (n,) °C "
+                f"(its column {self.thermal.column!r})",
+                file=self.path,
+            )
+        temp = np.asarray(temperature, dtype=np.float64).reshape(-1)
+        if temp.shape[0] != raw.shape[0]:
+            raise InputError(f"temperature has {temp.shape[0]} values for {raw.shape[0]} rows", file=self.path)
+        fixed, _ = thermal_correct(raw, temp, self.offset, self.matrix, self.thermal.drift())
+        return fixed
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write atomically: JSON, or YAML when ``path`` ends in .yaml/.yml; '-' is stdout."""
@@ -173,6 +275,7 @@ class Calibration:
             "gain": _floats(self.gain),
             "uncertainty": {k: _nested(v) for k, v in self.uncertainty.items()} if self.uncertainty else None,
             "tilt_sensitivity": None if self.tilt_sensitivity is None else dict(self.tilt_sensitivity),
+            "thermal": None if self.thermal is None else self.thermal.as_dict(),
             "poses": [dict(p) for p in self.poses],
             "unit": None if self.unit is None else self.unit.as_dict(),
             "verdict": None if self.verdict is None else self.verdict.as_dict(),
@@ -188,6 +291,8 @@ class Calibration:
         for key in ("unit", "verdict"):  # given since the file was read (a verdict judged afresh)
             if key not in doc and typed[key] is not None:
                 doc[key] = typed[key]
+        if "thermal" not in doc and self.thermal is not None:  # added to a file that had none: before poses
+            doc = _insert_before(doc, "poses", {"thermal": typed["thermal"]})
         return doc
 
     def with_verdict(self, verdict: Verdict) -> Calibration:
@@ -249,6 +354,7 @@ def from_dict(doc: Mapping[str, Any], path: str | None = None) -> Calibration:
         input_units=doc.get("input_units"),
         uncertainty={k: np.array(v, dtype=np.float64) for k, v in uncertainty.items() if v is not None},
         tilt_sensitivity=doc.get("tilt_sensitivity"),
+        thermal=None if doc.get("thermal") is None else thermal_from(doc["thermal"], path),
         poses=tuple(doc.get("poses") or ()),
         unit=None
         if unit is None
@@ -340,6 +446,18 @@ def build(
 
 #: The order of the covariance's rows: the offset, then A = inv(M) row by row.
 COVARIANCE_PARAMETERS = ["offset.x", "offset.y", "offset.z"] + [f"A.{i}{j}" for i in "xyz" for j in "xyz"]
+
+
+def _insert_before(doc: dict[str, Any], key: str, extra: dict[str, Any]) -> dict[str, Any]:
+    """``doc`` with ``extra`` placed before ``key`` (at the end when ``key`` is not there)."""
+    if key not in doc:
+        return {**doc, **extra}
+    out: dict[str, Any] = {}
+    for k, v in doc.items():
+        if k == key:
+            out.update(extra)
+        out[k] = v
+    return out
 
 
 def _insert_after(doc: dict[str, Any], key: str, extra: dict[str, Any]) -> dict[str, Any]:

@@ -18,7 +18,6 @@ writes floats as their shortest round-trip text; README "Dependencies" has the m
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import hashlib
 import io
@@ -288,6 +287,29 @@ class Capture:
             )
         return values, all_empty
 
+    def temperature_values(self, text: pa.Array, first_row: int, empty: BoolArray) -> FloatArray:
+        """The temperature column of a block as floats (°C); a cell that is not a number, or an
+        empty one on a row with sensor values (``empty``: rows without), is an error naming its
+        line and column."""
+        lay = self.layout
+        assert lay.temperature is not None
+        where = (lay.temperature, lay.temperature, lay.temperature)
+        trimmed = pc.utf8_trim_whitespace(self.pointed(text))
+        blank = _bools(pc.equal(pc.utf8_length(trimmed), 0))
+        missing = blank & ~empty
+        if missing.any():
+            i = int(np.argmax(missing))
+            raise self._locate(first_row + i, 0, "empty temperature cell in a row with sensor values", where)
+        try:
+            return _floats(pc.cast(pc.replace_substring_regex(trimmed, "^$", "nan"), pa.float64()))
+        except pa.ArrowInvalid:
+            bad = pc.and_(
+                pc.invert(pc.equal(pc.utf8_length(trimmed), 0)), pc.invert(pc.match_substring_regex(trimmed, _NUMBER))
+            )
+            i = int(pc.index(bad, True).as_py()) if pc.any(bad).as_py() else 0
+            cell = str(text[i].as_py())
+            raise self._locate(first_row + i, 0, f"temperature is not a number: {quoted(cell)}", where) from None
+
     def pointed(self, text: pa.Array) -> pa.Array:
         """Number cells with a decimal point (a decimal comma file's cells with it replaced)."""
         return text if self.layout.decimal == "." else pc.replace_substring(text, ",", ".")
@@ -362,6 +384,7 @@ def open_capture(
     name: str | None = None,
     extra: str | None = None,
     dialect: Dialect | None = None,
+    temperature_column: str | None = None,
 ) -> Capture:
     """Open ``path`` ('-' for stdin), sniff its layout and find its sensor and time columns.
 
@@ -389,7 +412,10 @@ def open_capture(
         if layout.time is not None:
             layout.time_unit = _unit_of_name(layout.names[layout.time])
         lower = [n.lower() for n in layout.names]
-        layout.temperature = next((i for i, n in enumerate(lower) if n in TEMPERATURE_NAMES), None)
+        if temperature_column is not None:
+            layout.temperature = _column(layout, temperature_column, "--temperature-column")
+        else:
+            layout.temperature = next((i for i, n in enumerate(lower) if n in TEMPERATURE_NAMES), None)
         if extra is not None:
             layout.extra = _column(layout, extra, "column")
     except InputError:
@@ -825,11 +851,15 @@ def read_log(
     digest: bool = True,
     prefer: Sequence[str] | None = None,
     dialect: Dialect | None = None,
+    temperature_column: str | None = None,
+    need_temperature: bool = False,
 ) -> Log:
     """Read a whole capture into memory (a log to segment, or a pose file). With ``use_time``
     its time column must hold numbers that never go backwards (else a time cell that is not a
     number leaves ``clock`` unknown); ``label_column`` is read as text; ``digest`` off leaves
-    ``sha256`` empty (a second pass over the file saved)."""
+    ``sha256`` empty (a second pass over the file saved). ``need_temperature``: the temperature
+    column (``temperature_column``, else one of TEMPERATURE_NAMES) must be there and hold a
+    number on every row with sensor values (an error names the line and column)."""
     with open_capture(
         path,
         sensor=sensor,
@@ -840,8 +870,11 @@ def read_log(
         name=name,
         extra=label_column,
         dialect=dialect,
+        temperature_column=temperature_column,
     ) as cap:
         lay = cap.layout
+        if need_temperature:
+            _require_temperature(lay)
         blocks, keep, times, temps, labels = [], [], [], [], []
         for first_row, cols in cap.batches(only_sensor=True):
             values, empty = cap.sensor_values(cols, first_row)
@@ -856,7 +889,7 @@ def read_log(
                 times.append((first_row, cols[k]))
                 k += 1
             if lay.temperature is not None:
-                temps.append(cols[k])
+                temps.append(cap.temperature_values(cols[k], first_row, empty) if need_temperature else cols[k])
                 k += 1
             if lay.extra is not None:
                 labels.extend(cols[k].to_pylist())
@@ -876,12 +909,7 @@ def read_log(
                 t = np.concatenate([_floats(pc.cast(cap.pointed(c), pa.float64(), safe=False)) for _, c in times])[mask]
             except pa.ArrowInvalid:  # a time cell that is not a number: the duration is unknown
                 t = None
-        temperature = None
-        if temps:
-            with contextlib.suppress(pa.ArrowInvalid):  # a cell that is not a number: the temperature is unknown
-                temperature = np.concatenate(
-                    [_floats(pc.cast(cap.pointed(c), pa.float64(), safe=False)) for c in temps]
-                )[mask]
+        temperature = _temperatures(cap, temps, mask) if temps else None
         text = None if lay.extra is None else [str(labels[i] or "").strip() for i in used]
         sha256 = cap.sha256() if digest else ""
     scale = _TIME_SCALE.get(time_unit, 1.0)
@@ -893,6 +921,30 @@ def read_log(
                 raise
             scale = _TIME_SCALE[lay.time_unit or "s"]  # the time column is not used (--rate): no judgement
     return Log(lay, values if every else values[mask], used, t, text, sha256, temperature, scale)
+
+
+def _require_temperature(lay: Layout) -> None:
+    if lay.temperature is None:
+        raise InputError(
+            f"no temperature column (looked for {', '.join(TEMPERATURE_NAMES)})",
+            file=lay.name,
+            hint=f"name it with --temperature-column (columns: {', '.join(lay.names)})",
+        )
+
+
+def _temperatures(cap: Capture, temps: list[Any], mask: BoolArray) -> FloatArray | None:
+    """The temperature column of the rows kept: blocks already read as numbers
+    (``Capture.temperature_values``), or text, where a cell that is not a number leaves the
+    temperature unknown (None)."""
+    if isinstance(temps[0], np.ndarray):
+        out: FloatArray = np.concatenate(temps)[mask]
+        return out
+    try:
+        floats = [_floats(pc.cast(cap.pointed(c), pa.float64(), safe=False)) for c in temps]
+    except pa.ArrowInvalid:
+        return None
+    found: FloatArray = np.concatenate(floats)[mask]
+    return found
 
 
 #: The seconds between samples of a sensor's log: 50 kHz to 0.1 Hz.
@@ -1035,12 +1087,17 @@ def sensor_columns(layout: Layout, sensor: str, prefer: Sequence[str]) -> tuple[
 def correct_stream(
     cap: Capture,
     out: IO[bytes],
-    correct: Callable[[FloatArray], FloatArray],
+    correct: Callable[..., FloatArray],
     progress: Callable[[int], None] | None = None,
-    more: Sequence[tuple[tuple[int, int, int], Callable[[FloatArray], FloatArray]]] = (),
+    more: Sequence[tuple[tuple[int, int, int], Callable[..., FloatArray]]] = (),
+    temperature: int | None = None,
 ) -> int:
     """Write ``cap`` to ``out`` with its sensor columns replaced by ``correct(values)`` (and
     each triplet of ``more`` by its own correction: one pass for a whole IMU).
+
+    With ``temperature`` (the index of the capture's temperature column) every correction is
+    called as ``correct(values, temperature)``, the block's temperatures (n,) °C read alongside
+    its sensor columns (``Capture.temperature_values``).
 
     Every other byte is copied: the preamble and header verbatim, other cells as their text,
     the line ending; a whitespace-separated file is written with single spaces. Rows whose
@@ -1054,7 +1111,10 @@ def correct_stream(
     def convert(first_row: int, cols: list[pa.Array]) -> pa.RecordBatch:
         for triplet, fn in [(lay.sensor, correct), *more]:
             values, empty = cap.sensor_values([cols[i] for i in triplet], first_row, triplet)
-            fixed = fn(values)
+            if temperature is None:
+                fixed = fn(values)
+            else:
+                fixed = fn(values, cap.temperature_values(cols[temperature], first_row, empty))
             for j, i in enumerate(triplet):  # the float -> shortest round-trip text: the costliest step
                 cols[i] = pc.cast(_arrow_floats(fixed[:, j], empty), pa.string())
                 if lay.decimal != ".":
