@@ -70,6 +70,21 @@ def chamber(seed: int = 18) -> dict[str, np.ndarray]:
     return out
 
 
+def check_capture(seed: int = 7) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """20 still segments of 100 rows at random temperatures and orientations: (directions (20, 3),
+    temperatures (20,), rows (2000, 4) of temp, ax, ay, az)."""
+    rng = np.random.default_rng(seed)
+    directions, temps, rows = [], [], []
+    for _ in range(20):
+        v = rng.normal(size=3)
+        v /= np.linalg.norm(v)
+        t = round(float(rng.uniform(T_LOW, T_HIGH)), 2)
+        rows.append(np.column_stack([np.full(100, t), reading(np.tile(v, (100, 1)), np.full(100, t), rng)]))
+        directions.append(v)
+        temps.append(t)
+    return np.array(directions), np.array(temps), np.vstack(rows)
+
+
 def main() -> None:
     here = Path(__file__).resolve().parent / "thermal"
     here.mkdir(exist_ok=True)
@@ -88,14 +103,8 @@ def main() -> None:
             f"{t:.2f},{r[0]:.6f},{r[1]:.6f},{r[2]:.6f}" for t, r in zip(temp, rows, strict=True)
         ]
         (here / f"{NAMES[face]}.csv").write_text("\n".join(lines) + "\n")
-    rng = np.random.default_rng(7)
-    lines = ["temp,ax,ay,az"]
-    for _ in range(20):  # 20 still segments at random temperatures and orientations
-        v = rng.normal(size=3)
-        v /= np.linalg.norm(v)
-        t = rng.uniform(T_LOW, T_HIGH)
-        rows = reading(np.tile(v, (100, 1)), np.full(100, t), rng)
-        lines += [f"{t:.2f},{r[0]:.6f},{r[1]:.6f},{r[2]:.6f}" for r in rows]
+    _, _, rows = check_capture()
+    lines = ["temp,ax,ay,az"] + [f"{r[0]:.2f},{r[1]:.6f},{r[2]:.6f},{r[3]:.6f}" for r in rows]
     (here / "check.csv").write_text("\n".join(lines) + "\n")
 
 

@@ -117,7 +117,7 @@ def apply(
         no_header=no_header,
         force=force,
         **shape,
-        on_note=None if quiet else lambda note: console.print(f"note: {note}", soft_wrap=True),
+        on_note=None if quiet else lambda note: console.print(render.note_line(note), soft_wrap=True),
     )
     if not quiet:
         target = "stdout" if output == "-" else output

@@ -78,6 +78,11 @@ def print_csv(table: tuple[list[str], list[list[str]]]) -> None:
         out.write(text.getvalue().encode())
 
 
+def note_line(note: str) -> str:
+    """A note as printed: ``note: ...``, or a warning as it is (it starts with ``warning:``)."""
+    return note if note.startswith("warning: ") else f"note: {note}"
+
+
 def print_text(text: str) -> None:
     """Data on stdout; a reader that went away (``| head``) is exit 141, not a traceback."""
     try:

@@ -11,7 +11,7 @@ import os
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from functools import partial
-from typing import TYPE_CHECKING
+from typing import IO, TYPE_CHECKING
 
 from tumblecal_cli.errors import InputError, TumblecalError
 
@@ -108,9 +108,7 @@ def correct(
                     hint="a calibration corrects three sensor columns: check its 'columns' field",
                 )
         with atomic_output(output) as out:
-            rows = captures.correct_stream(
-                cap, out, partial(_correct, c), more=[(t, partial(_correct, o)) for t, o in more]
-            )
+            rows = _stream(cap, out, c, more, note)
         used = [n for t in [cap.layout.sensor, *(t for t, _ in more)] for n in (cap.layout.names[i] for i in t)]
     return Applied(cap.layout.name, rows, used, output, notes)
 
@@ -252,3 +250,82 @@ def _correct(cal: Calibration, raw: FloatArray) -> FloatArray:
     from tumblecal_cli.core import model
 
     return model.apply(raw, cal.offset, cal.matrix)
+
+
+# -- temperature: each row corrected at its own temperature (core.thermal.correct) -------------
+
+
+def _stream(
+    cap: Capture,
+    out: IO[bytes],
+    cal: Calibration,
+    more: list[tuple[tuple[int, int, int], Calibration]],
+    note: Callable[[str], None],
+) -> int:
+    """Stream ``cap`` corrected into ``out``: each calibration's columns by its own correction,
+    at each row's temperature where it has a thermal block (one warning for the rows clamped)."""
+    from tumblecal_cli.io import captures
+
+    cals = [cal, *(o for _, o in more)]
+    temperature = thermal_column(cap.layout, cals)
+    clamped: list[int] = []  # rows outside a thermal block's range, per block of rows
+    fixes: list[Callable[..., FloatArray]] = []
+    for x in cals:
+        if x.thermal is not None:
+            fixes.append(partial(_thermal, x, clamped))
+        elif temperature is not None:
+            fixes.append(partial(_ignore_temperature, partial(_correct, x)))
+        else:
+            fixes.append(partial(_correct, x))
+    pairs = [(t, f) for (t, _), f in zip(more, fixes[1:], strict=True)]
+    rows = captures.correct_stream(cap, out, fixes[0], more=pairs, temperature=temperature)
+    if sum(clamped):
+        note(_clamped_warning(cap.layout, [x for x in cals if x.thermal is not None], sum(clamped)))
+    return rows
+
+
+def thermal_column(layout: Layout, cals: Sequence[Calibration]) -> int | None:
+    """The capture's temperature column for the calibrations with a ``thermal`` block (None when
+    none has one); a capture without it is an error naming the column."""
+    names = {x.thermal.column for x in cals if x.thermal is not None}
+    if not names:
+        return None
+    if len(names) > 1:
+        raise InputError(
+            f"the calibrations read their temperatures from different columns: {', '.join(sorted(names))}",
+            file=layout.name,
+        )
+    (name,) = names
+    lower = [n.lower() for n in layout.names]
+    if name.lower() not in lower:
+        raise InputError(
+            f"the capture has no temperature column {name!r}, which the calibration's thermal block corrects with",
+            file=layout.name,
+            hint=f"columns: {', '.join(layout.names)}",
+        )
+    layout.temperature = lower.index(name.lower())
+    return layout.temperature
+
+
+def _thermal(cal: Calibration, clamped: list[int], raw: FloatArray, temperature: FloatArray) -> FloatArray:
+    from tumblecal_cli.core import thermal
+
+    assert cal.thermal is not None
+    fixed, outside = thermal.correct(raw, temperature, cal.offset, cal.matrix, cal.thermal.drift())
+    clamped.append(outside)  # list.append is atomic: the blocks are converted in threads
+    return fixed
+
+
+def _ignore_temperature(
+    fix: Callable[[FloatArray], FloatArray], raw: FloatArray, temperature: FloatArray
+) -> FloatArray:
+    return fix(raw)
+
+
+def _clamped_warning(layout: Layout, cals: Sequence[Calibration], count: int) -> str:
+    spans = sorted({(x.thermal.range[0], x.thermal.range[1]) for x in cals if x.thermal is not None})
+    ranges = ", ".join(f"{low:g} to {high:g} °C" for low, high in spans)
+    return (
+        f"warning: {layout.name}: {count} row{'s' if count != 1 else ''} outside the calibrated temperature range "
+        f"{ranges}, corrected at its nearest end (clamped, not extrapolated)"
+    )

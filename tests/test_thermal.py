@@ -1,0 +1,315 @@
+"""tumblecal thermal and the apply of a thermal block: known truth (sample_data/make_thermal.py's
+chamber run), the refusals, the file block, and each row corrected at its own temperature."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+import pytest
+
+from tests.conftest import SAMPLE, run
+from tumblecal_cli.core import thermal as core
+from tumblecal_cli.core.model import FACES
+from tumblecal_cli.errors import InputError
+from tumblecal_cli.io import calfile
+
+THERMAL = SAMPLE / "thermal"
+FACE_FILES = {"+x": "up_xp", "-x": "down_xn", "+y": "up_yp", "-y": "down_yn", "+z": "up_zp", "-z": "down_zn"}
+ITEMS = [f"{face}={THERMAL / f'sweep_{name}.csv'}" for face, name in FACE_FILES.items()]
+
+
+def _truth() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("make_thermal", SAMPLE / "make_thermal.py")
+    assert spec is not None
+    assert spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["make_thermal"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+mt = _truth()
+
+
+@pytest.fixture(scope="module")
+def base(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The base calibration: six-pose from the room-temperature poses (25 °C)."""
+    out = tmp_path_factory.mktemp("thermal") / "base.json"
+    from tumblecal_cli.cli import main
+
+    poses = [str(THERMAL / f"{n}.csv") for n in ("xp", "xn", "yp", "yn", "zp", "zn")]
+    assert main(["solve", "--poses", *poses, "-o", str(out), "--quiet"]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def fitted(base: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from tumblecal_cli.cli import main
+
+    out = tmp_path_factory.mktemp("thermal") / "base-thermal.json"
+    assert main(["thermal", *ITEMS, "--cal", str(base), "-o", str(out), "--quiet"]) == 0
+    return out
+
+
+def _sweeps(seed: int) -> list[core.Sweep]:
+    runs = mt.chamber(seed)
+    return [core.Sweep(r[:, 1:], r[:, 0], np.array(FACES[f], dtype=float)) for f, r in runs.items()]
+
+
+# -- core: known truth --------------------------------------------------------------------------
+
+
+def test_fit_recovers_the_chamber_truth_within_a_few_standard_errors() -> None:
+    fit = core.fit(_sweeps(18), gain_scale=mt.GAIN * 1.0, t_ref=mt.T_REF, order=2)
+    drift = fit.drift
+    for got, se, truth in (
+        (drift.offset[:, 0], fit.offset_se[:, 0], mt.OFFSET_DRIFT1),
+        (drift.offset[:, 1], fit.offset_se[:, 1], mt.OFFSET_DRIFT2),
+        (drift.gain[:, 0], fit.gain_se[:, 0], mt.GAIN_DRIFT1),
+        (drift.gain[:, 1], fit.gain_se[:, 1], np.zeros(3)),
+    ):
+        assert np.all(np.abs(got - truth) < 4 * se), (got, truth, se)
+    assert fit.gain_drift == ("separate", "separate", "separate")
+
+
+def test_order_auto_picks_the_true_order_on_most_seeds() -> None:
+    picked = [
+        core.fit(_sweeps(seed), gain_scale=mt.GAIN * 1.0, t_ref=mt.T_REF, order=None).drift.order for seed in range(10)
+    ]
+    assert picked.count(2) >= 8, picked
+
+
+def test_one_face_folds_its_vertical_axis_gain_drift_into_the_offset() -> None:
+    runs = mt.chamber(3)
+    sweep = core.Sweep(runs["+z"][:, 1:], runs["+z"][:, 0], np.array(FACES["+z"], dtype=float))
+    fit = core.fit([sweep], gain_scale=mt.GAIN * 1.0, t_ref=mt.T_REF, order=2)
+    assert fit.gain_drift == ("unobserved", "unobserved", "folded")
+    # the folded z drift is offset + gain x reference: what +z reads
+    assert fit.drift.offset[2, 0] == pytest.approx(mt.OFFSET_DRIFT1[2] + mt.GAIN[2] * mt.GAIN_DRIFT1[2], rel=0.05)
+
+
+def test_correct_clamps_to_the_range_and_counts_the_rows() -> None:
+    drift = core.Drift(25.0, 0.0, 50.0, np.array([[1.0], [0.0], [0.0]]), np.zeros((3, 1)))
+    raw = np.zeros((3, 3))
+    out, outside = core.correct(raw, np.array([25.0, 60.0, -5.0]), np.zeros(3), np.eye(3), drift)
+    assert outside == 2
+    assert out[:, 0].tolist() == [0.0, -25.0, 25.0]  # at 60 °C the drift of 50 °C, at -5 that of 0 °C
+
+
+# -- the command ----------------------------------------------------------------------------------
+
+
+def test_thermal_writes_the_base_calibration_plus_a_thermal_block(
+    base: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "cal.json"
+    code, stdout, err = run(capsys, "thermal", *ITEMS, "--cal", base, "-o", out)
+    assert code == 0, err
+    assert stdout == ""
+    assert "order 2 (chosen by cross-validation over temperature" in err
+    doc = json.loads(out.read_text())
+    old = json.loads(base.read_text())
+    assert {k: v for k, v in doc.items() if k != "thermal"} == old
+    block = doc["thermal"]
+    assert block["column"] == "temp"
+    assert block["order"] == 2
+    assert block["reference_temperature"] == pytest.approx(25.0, abs=0.01)
+    assert block["range"][0] < -9.9
+    assert block["range"][1] > 59.9
+    assert block["gain_drift"] == ["separate"] * 3
+    assert list(doc).index("thermal") == list(doc).index("poses") - 1
+    assert len(block["sweeps"]) == 6
+
+
+def test_thermal_json_summary_gives_the_drift_over_the_range(
+    base: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, stdout, _ = run(capsys, "thermal", *ITEMS, "--cal", base, "-o", tmp_path / "c.json", "--json", "--order", "1")
+    assert code == 0
+    doc = json.loads(stdout)
+    assert doc["status"] == "pass"
+    assert doc["thermal"]["order"] == 1
+    assert doc["thermal"]["order_choice"]["method"] == "given"
+    assert [row["axis"] for row in doc["drift"]] == ["x", "y", "z"]
+
+
+def _sweep_file(path: Path, temps: np.ndarray, face: str = "+z", text_at: int | None = None) -> Path:
+    rng = np.random.default_rng(1)
+    v = np.tile(np.array(FACES[face], dtype=float), (len(temps), 1))
+    rows = mt.reading(v, temps, rng)
+    lines = ["temp,ax,ay,az"]
+    for k, (t, r) in enumerate(zip(temps, rows, strict=True)):
+        cell = "warm" if k == text_at else f"{t:.2f}"
+        lines.append(f"{cell},{r[0]:.6f},{r[1]:.6f},{r[2]:.6f}")
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.mark.parametrize(
+    ("temps", "code", "message"),
+    [
+        (np.full(400, 25.0), "temperature.constant", "is constant at 25 °C"),
+        (25 + np.random.default_rng(2).uniform(-8, 8, 400), "temperature.noise", "does not trend"),
+        (np.linspace(20, 26, 400), "temperature.swing", "order 1 (the least) needs at least 10 °C"),
+    ],
+)
+def test_a_temperature_that_cannot_carry_a_fit_is_rejected(
+    base: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], temps: np.ndarray, code: str, message: str
+) -> None:
+    sweep = _sweep_file(tmp_path / "sweep.csv", temps)
+    out = tmp_path / "out.json"
+    result = run(capsys, "thermal", f"+z={sweep}", "--cal", base, "-o", out)
+    assert result.code == 3, result.err
+    assert message in result.err
+    assert not out.exists()
+    result = run(capsys, "thermal", f"+z={sweep}", "--cal", base, "-o", out, "--json")
+    assert result.code == 3
+
+
+def test_a_swing_too_small_for_the_order_names_the_order(
+    base: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    sweep = _sweep_file(tmp_path / "sweep.csv", np.linspace(20, 32, 600))
+    assert run(capsys, "thermal", f"+z={sweep}", "--cal", base, "-o", tmp_path / "a.json", "--order", "1").code == 0
+    code, _, err = run(capsys, "thermal", f"+z={sweep}", "--cal", base, "-o", tmp_path / "b.json", "--order", "3")
+    assert code == 3
+    assert "order 3 needs at least 20 °C" in err
+
+
+def test_a_text_temperature_cell_is_exit_2_naming_its_line_and_column(
+    base: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    sweep = _sweep_file(tmp_path / "sweep.csv", np.linspace(0, 40, 400), text_at=10)
+    code, _, err = run(capsys, "thermal", f"+z={sweep}", "--cal", base, "-o", tmp_path / "o.json")
+    assert code == 2
+    assert "temperature is not a number: 'warm' (line 12, column temp)" in err
+
+
+def test_a_sweep_without_the_temperature_column_is_exit_2(
+    base: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, _, err = run(capsys, "thermal", f"+x={SAMPLE / 'x.csv'}", "--cal", base, "-o", tmp_path / "o.json")
+    assert code == 2
+    assert "no temperature column" in err
+    assert "--temperature-column" in err
+    code, _, err = run(
+        capsys, "thermal", *ITEMS, "--cal", base, "-o", tmp_path / "o.json", "--temperature-column", "heat"
+    )
+    assert code == 2
+    assert "heat" in err
+
+
+def test_a_sweep_that_moved_is_rejected_after_the_drift_is_removed(
+    base: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    runs = mt.chamber(18)
+    rows = runs["+z"].copy()
+    half = len(rows) // 2
+    tilt = np.radians(5)
+    rows[half:, 1] += np.sin(tilt)  # knocked over by 5° halfway
+    path = tmp_path / "moved.csv"
+    path.write_text("temp,ax,ay,az\n" + "\n".join(",".join(f"{v:.6f}" for v in r) for r in rows) + "\n")
+    items = [i for i in ITEMS if not i.startswith("+z=")] + [f"+z={path}"]
+    code, _, err = run(capsys, "thermal", *items, "--cal", base, "-o", tmp_path / "o.json")
+    assert code == 3
+    assert "moved.csv" in err
+    assert "the unit moved" in err
+    assert "after removing the fitted drift" in err
+
+
+def test_a_base_without_a_temperature_needs_the_reference_temperature(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    base = tmp_path / "base.json"
+    poses = [str(SAMPLE / n) for n in ("x.csv", "y.csv", "z.csv")]
+    assert run(capsys, "solve", "--poses", *poses, "-o", base, "-q").code == 0
+    code, _, err = run(capsys, "thermal", *ITEMS, "--cal", base, "-o", tmp_path / "o.json")
+    assert code == 2
+    assert "--reference-temperature" in err
+    code, _, err = run(
+        capsys, "thermal", *ITEMS, "--cal", base, "-o", tmp_path / "o.json", "--reference-temperature", "25"
+    )
+    assert code == 0, err
+
+
+# -- apply ----------------------------------------------------------------------------------------
+
+
+def _segment_errors(rows: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    means = rows.reshape(len(directions), -1, 3).mean(axis=1)
+    errors: np.ndarray = np.linalg.norm(means - directions, axis=1)
+    return errors
+
+
+def test_apply_corrects_each_row_at_its_temperature(
+    base: Path, fitted: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    directions, _, _ = mt.check_capture()
+    errors = {}
+    for name, cal in (("base", base), ("thermal", fitted)):
+        out = tmp_path / f"{name}.csv"
+        code, _, err = run(capsys, "apply", "--cal", cal, THERMAL / "check.csv", "-o", out)
+        assert code == 0, err
+        data = np.loadtxt(out, delimiter=",", skiprows=1)
+        errors[name] = _segment_errors(data[:, 1:], directions)
+    noise = mt.NOISE / np.sqrt(100) * np.sqrt(3)  # a segment mean's vector error from noise alone
+    assert np.sqrt(np.mean(errors["thermal"] ** 2)) < 2 * noise
+    assert np.sqrt(np.mean(errors["base"] ** 2)) > 10 * noise
+
+
+def test_apply_without_the_temperature_column_is_exit_2_naming_it(
+    fitted: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "o.csv"
+    code, _, err = run(capsys, "apply", "--cal", fitted, SAMPLE / "x.csv", "-o", out)
+    assert code == 2
+    assert "no temperature column 'temp'" in err
+    assert not out.exists()
+
+
+def test_apply_clamps_rows_outside_the_range_with_one_warning(
+    fitted: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    capture = _sweep_file(tmp_path / "hot.csv", np.array([20.0] * 5 + [75.0] * 3 + [-30.0] * 2))
+    code, _, err = run(capsys, "apply", "--cal", fitted, capture, "-o", tmp_path / "o.csv")
+    assert code == 0
+    assert err.count("warning:") == 1
+    assert "5 rows outside the calibrated temperature range" in err
+    assert "clamped" in err
+
+
+def test_calibration_apply_uses_the_dataframes_temperature_column(fitted: Path) -> None:
+    pd = pytest.importorskip("pandas")
+    cal = calfile.load(fitted)
+    directions, _, rows = mt.check_capture()
+    frame = pd.DataFrame(rows, columns=["temp", "ax", "ay", "az"])
+    out = cal.apply(frame)
+    assert list(out.columns) == ["temp", "ax", "ay", "az"]
+    errors = _segment_errors(out[["ax", "ay", "az"]].to_numpy(), directions)
+    assert np.sqrt(np.mean(errors**2)) < 2 * mt.NOISE / np.sqrt(100) * np.sqrt(3)
+    array = cal.apply(rows[:, 1:], temperature=rows[:, 0])
+    assert np.allclose(array, out[["ax", "ay", "az"]].to_numpy())
+    with pytest.raises(InputError, match="give temperature="):
+        cal.apply(rows[:, 1:])
+
+
+# -- the file -------------------------------------------------------------------------------------
+
+
+def test_the_thermal_block_round_trips_and_a_bad_one_names_its_field(fitted: Path, tmp_path: Path) -> None:
+    cal = calfile.load(fitted)
+    assert cal.thermal is not None
+    again = tmp_path / "again.json"
+    cal.save(again)
+    assert json.loads(again.read_text()) == json.loads(fitted.read_text())
+    doc = json.loads(fitted.read_text())
+    doc["thermal"]["offset"] = [[1.0], [2.0], [3.0]]  # order 2 with one coefficient per axis
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(doc))
+    with pytest.raises(InputError, match=r"field 'thermal.offset' must be 3 lists of 2 numbers"):
+        calfile.load(bad)
