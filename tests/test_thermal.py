@@ -313,3 +313,28 @@ def test_the_thermal_block_round_trips_and_a_bad_one_names_its_field(fitted: Pat
     bad.write_text(json.dumps(doc))
     with pytest.raises(InputError, match=r"field 'thermal.offset' must be 3 lists of 2 numbers"):
         calfile.load(bad)
+
+
+# -- show and check -------------------------------------------------------------------------------
+
+
+def test_show_prints_the_drift_per_axis(fitted: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "show", fitted)
+    assert code == 0
+    assert "temperature drift (raw units), -10.0 to 60.1 °C against 25.00 °C" in out
+    assert "offset per (T - T_ref)^2:" in out
+
+
+def test_check_judges_the_offset_drift_over_the_range_and_per_degree(
+    fitted: Path, base: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    limits = tmp_path / "limits.yaml"
+    limits.write_text("offset_drift: 0.012\n")
+    code, _, err = run(capsys, "check", fitted, "--limits", limits)
+    assert code == 1
+    assert "limit.offset_drift.z: offset drifts by 0.0155 on z over the range, above 0.012" in err
+    limits.write_text("offset_drift: 0.02\noffset_drift_per_degc: [0.001, 0.001, 0.001]\n")
+    assert run(capsys, "check", fitted, "--limits", limits, "--quiet").code == 0
+    code, _, err = run(capsys, "check", base, "--limits", limits)
+    assert code == 2
+    assert "has no thermal block to judge the offset_drift limits by" in err

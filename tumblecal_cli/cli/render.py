@@ -135,6 +135,8 @@ def print_summary(cal: Calibration, console: Console, warned: list[Finding], not
     print_whole(console, _axes_table(doc))
     if doc.get("poses"):  # an imported calibration has none
         print_whole(console, _poses_table(doc))
+    if cal.thermal is not None:
+        print_drift(cal, console)
     matrix = doc["matrix"]
     if any(matrix[i][j] for i in range(3) for j in range(3) if i != j):
         import numpy as np
@@ -541,37 +543,48 @@ def drift_rows(cal: Calibration) -> list[dict[str, Any]]:
 
 def print_thermal(done: Any, console: Console) -> None:
     """``tumblecal thermal`` for people: the fit, the drift per axis over the range, notes."""
-    from rich.table import Table
-
-    cal = done.calibration
-    block = cal.thermal
     fit = done.fit
-    drift = block.drift()
-    units = cal.input_units or "raw units"
+    drift = done.calibration.thermal.drift()
     how = "chosen by cross-validation over temperature" if fit.order_auto else "as given"
     cv = ", ".join(f"{k}: {v:.3g}" for k, v in fit.cv_error.items())
     console.print(
-        f"thermal: order {drift.order} ({how}; prediction error by order {cv}), T_ref {drift.t_ref:.2f} °C, "
-        f"range {drift.t_min:.1f} to {drift.t_max:.1f} °C, {fit.cells} cells from {len(done.sweeps)} sweeps",
+        f"thermal: order {drift.order} ({how}; prediction error by order {cv}), "
+        f"{fit.cells} cells from {len(done.sweeps)} sweeps",
         soft_wrap=True,
     )
-    table = Table(title=f"drift over {drift.t_min:.1f} to {drift.t_max:.1f} °C against {drift.t_ref:.2f} °C")
-    for name in ("axis", f"offset drift ({units})", "max |offset drift|", "gain drift", "gain drift is"):
-        table.add_column(name)
-    for row in drift_rows(cal):
-        low, high = row["offset_drift"]
-        g_low, g_high = row["gain_drift"]
-        gains = "—" if row["gain_drift_kind"] == "unobserved" else f"{g_low:+.3%} .. {g_high:+.3%}"
-        if row["gain_drift_kind"] == "folded":
-            gains = "in the offset drift"
-        table.add_row(
-            row["axis"], f"{low:+.4g} .. {high:+.4g}", f"{row['offset_drift_max']:.4g}", gains, row["gain_drift_kind"]
-        )
-    print_whole(console, table)
-    for k in range(drift.order):
-        terms = ", ".join(f"{'xyz'[j]} {block.offset[j][k]:+.4g} ± {fit.offset_se[j][k]:.2g}" for j in range(3))
-        console.print(f"offset coefficient of (T - T_ref)^{k + 1}: {terms}", soft_wrap=True)
+    print_drift(done.calibration, console)
     for w in done.warnings:
         console.print(f"warning: {w.render()} ({w.code})", style="yellow", soft_wrap=True)
     for note in done.notes:
         console.print(f"note: {note}", soft_wrap=True)
+
+
+def print_drift(cal: Calibration, console: Console) -> None:
+    """A thermal block for people: per axis the offset and gain drift at the ends of the range
+    against T_ref, and the offset coefficients with their 1-sigma."""
+    from rich.table import Table
+
+    block = cal.thermal
+    assert block is not None
+    drift = block.drift()
+    units = cal.input_units or "raw units"
+    table = Table(
+        title=f"temperature drift ({units}), {drift.t_min:.1f} to {drift.t_max:.1f} °C against {drift.t_ref:.2f} °C"
+    )
+    for name in ("axis", "offset drift", "max |drift|", "gain drift", "gain drift is"):
+        table.add_column(name)
+    for row in drift_rows(cal):
+        low, high = row["offset_drift"]
+        g_low, g_high = row["gain_drift"]
+        kind = row["gain_drift_kind"]
+        gains = {"unobserved": "—", "folded": "in the offset"}.get(kind, f"{g_low:+.3%} .. {g_high:+.3%}")
+        table.add_row(row["axis"], f"{low:+.4g} .. {high:+.4g}", f"{row['offset_drift_max']:.4g}", gains, kind)
+    print_whole(console, table)
+    se = block.extra.get("uncertainty")
+    offset_se = se.get("offset") if isinstance(se, dict) else None
+    for k in range(drift.order):
+        terms = ", ".join(
+            f"{'xyz'[j]} {block.offset[j][k]:+.4g}" + (f" ± {offset_se[j][k]:.2g}" if offset_se else "")
+            for j in range(3)
+        )
+        console.print(f"offset per (T - T_ref)^{k + 1}: {terms}", soft_wrap=True)

@@ -331,6 +331,10 @@ class Limits:
     cross_axis: float | None = None  # bound on |A[i, j] / A[i, i]|, i != j
     noise: float | None = None  # bound on each pose's standard deviation, output units
     residual: float | None = None  # bound on each pose's | |M (mean - offset)| - reference |
+    offset_drift: FloatArray | None = (
+        None  # (3,) bound on |offset(T) - offset(T_ref)| over the thermal range, raw units
+    )
+    offset_drift_per_degc: FloatArray | None = None  # (3,) bound on |d offset / dT|, raw units per °C
 
     def for_method(self, method: str) -> Limits:
         """The limits that apply to a method (NOT_APPLYING: no gain limit where the gains are
@@ -348,7 +352,10 @@ class Limits:
 
     def judges(self) -> bool:
         """Whether any bound is set (a nominal gain alone judges nothing)."""
-        return any(getattr(self, name) is not None for name in ("offset", "gain_error", *NOT_APPLYING))
+        return any(
+            getattr(self, name) is not None
+            for name in ("offset", "gain_error", "offset_drift", "offset_drift_per_degc", *NOT_APPLYING)
+        )
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {}
@@ -363,6 +370,9 @@ class Limits:
         for name in ("cross_axis", "noise", "residual"):
             if getattr(self, name) is not None:
                 out[name] = float(getattr(self, name))
+        for name in ("offset_drift", "offset_drift_per_degc"):
+            if getattr(self, name) is not None:
+                out[name] = [float(v) for v in getattr(self, name)]
         return out
 
 
@@ -400,13 +410,15 @@ def verdict(
     poses: Sequence[tuple[str, str | None, Corrected]],
     limits: Limits,
     fit_residual: float | None = None,
+    drift: tuple[FloatArray, FloatArray] | None = None,
 ) -> list[Finding]:
     """Every limit the unit is outside of (empty: pass). ``poses`` are (file, face, corrected).
 
     A capture turned through many orientations (ROTATION) has no pose to read against the
     reference: its residual limit judges ``fit_residual``, the fit's largest residual over
-    the samples, instead."""
-    failures: list[Finding] = []
+    the samples, instead. ``drift``: a thermal block's largest offset drift over its range and
+    largest drift per °C, per axis (core.thermal.extremes), judged by the offset_drift limits."""
+    failures: list[Finding] = _drift_failures(limits, drift)
     a = np.linalg.inv(matrix)
     gain = np.diag(a)
     for i, axis in enumerate(AXES):
@@ -482,6 +494,30 @@ def verdict(
                 )
             )
     return failures
+
+
+def _drift_failures(limits: Limits, drift: tuple[FloatArray, FloatArray] | None) -> list[Finding]:
+    """The offset-drift limits (README "tumblecal thermal"): over the range, and per °C."""
+    out: list[Finding] = []
+    if drift is None:
+        return out
+    for bound, values, code, what in (
+        (limits.offset_drift, drift[0], "limit.offset_drift", "offset drifts by {:.4g} on {} over the range"),
+        (limits.offset_drift_per_degc, drift[1], "limit.offset_drift_per_degc", "offset drifts {:.4g} per °C on {}"),
+    ):
+        if bound is None:
+            continue
+        for i, axis in enumerate(AXES):
+            if not values[i] <= bound[i]:
+                out.append(
+                    Finding(
+                        f"{code}.{axis}",
+                        f"{what.format(values[i], axis)}, above {bound[i]:g}",
+                        float(values[i]),
+                        float(bound[i]),
+                    )
+                )
+    return out
 
 
 def _samples(n: int) -> str:

@@ -123,6 +123,16 @@ def correct(
     return out, outside
 
 
+def extremes(drift: Drift, points: int = 1001) -> tuple[FloatArray, FloatArray]:
+    """Per axis, the largest |offset drift| over [t_min, t_max] (raw units) and the largest
+    |d offset / dT| there (raw units per °C), on a grid of ``points`` temperatures."""
+    grid = np.linspace(drift.t_min, drift.t_max, points)
+    off, _ = drift.at(grid)
+    step = (drift.t_max - drift.t_min) / (points - 1) or 1.0
+    slope = np.abs(np.diff(off, axis=0)).max(axis=0) / step
+    return np.abs(off).max(axis=0), slope
+
+
 def trend_range(temperature: FloatArray) -> tuple[float, float]:
     """(lowest, highest) of the medians of TREND_PIECES consecutive pieces of one capture: the
     range its temperature trends over, robust to a noisy sensor's single readings."""

@@ -740,6 +740,8 @@ LIMIT_KEYS = {
     "noise": "one",
     "residual": "one",
     "nominal_offset": "per axis",  # the offset a good unit has (unsigned counts: 32768); any number
+    "offset_drift": "per axis",  # a thermal block's largest offset drift over its range, raw units
+    "offset_drift_per_degc": "per axis",  # ... and per °C
 }
 
 

@@ -82,7 +82,18 @@ def check(
             file=where,
             hint="judge it without the residual limit, or solve the capture again",
         )
-    failures = gate.verdict(method, c.offset, c.matrix, poses, bounds, residual)
+    drift = None
+    if bounds.offset_drift is not None or bounds.offset_drift_per_degc is not None:
+        if c.thermal is None:
+            raise InputError(
+                "has no thermal block to judge the offset_drift limits by",
+                file=where,
+                hint="add one with 'tumblecal thermal', or judge it without those limits",
+            )
+        from tumblecal_cli.core.thermal import extremes
+
+        drift = extremes(c.thermal.drift())
+    failures = gate.verdict(method, c.offset, c.matrix, poses, bounds, residual, drift)
     verdict = calfile.Verdict(not failures, tuple(f.as_dict() for f in failures), bounds.as_dict())
     return Checked(c.with_verdict(verdict), failures, limits_not_applying(given, method))
 
