@@ -338,3 +338,114 @@ def test_check_judges_the_offset_drift_over_the_range_and_per_degree(
     code, _, err = run(capsys, "check", base, "--limits", limits)
     assert code == 2
     assert "has no thermal block to judge the offset_drift limits by" in err
+
+
+# -- export ---------------------------------------------------------------------------------------
+
+
+def _params(text: str, sep: str) -> dict[str, float]:
+    out = {}
+    for line in text.splitlines():
+        if line.startswith("#"):
+            continue
+        cells = line.split(sep)
+        name, value = (cells[0], cells[1]) if sep == "," else (cells[2], cells[3])
+        out[name] = float(value)
+    return out
+
+
+def _drift_ms2(cal: calfile.Calibration, temps: np.ndarray) -> np.ndarray:
+    """The offset drift in corrected m/s^2 (M @ drift x g) at clamped temperatures."""
+    assert cal.thermal is not None
+    off, _ = cal.thermal.drift().at(temps)
+    drift: np.ndarray = 9.80665 * off @ cal.matrix.T
+    return drift
+
+
+def test_export_ardupilot_reproduces_the_drift_through_its_own_formula(
+    fitted: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, out, _ = run(capsys, "export", fitted, "--format", "ardupilot", "--instance", "2")
+    assert code == 0
+    assert "gain drift NOT written" in out
+    p = _params(out, ",")
+    assert p["INS_TCAL2_ENABLE"] == 1
+    cal = calfile.load(fitted)
+    assert cal.thermal is not None
+    assert p["INS_TCAL2_TMIN"] == pytest.approx(cal.thermal.range[0], abs=0.005)
+    coeff = np.array([[p[f"INS_TCAL2_ACC{k}_{a}"] for k in (1, 2, 3)] for a in "XYZ"]) * 1e-6
+
+    def poly(d: np.ndarray) -> np.ndarray:  # AP_InertialSensor_tempcal.cpp polynomial_eval
+        value: np.ndarray = (coeff[:, 0] + (coeff[:, 1] + coeff[:, 2] * d[:, None]) * d[:, None]) * d[:, None]
+        return value
+
+    temps = np.array([-30.0, 0.0, 20.0, 45.0, 80.0])
+    low, high = p["INS_TCAL2_TMIN"], p["INS_TCAL2_TMAX"]
+    for caltemp in (25.0, 31.5):  # whatever temperature its own accel calibration was made at
+        t = np.clip(temps, low, high)
+        correction = poly(t - 35.0) - poly(np.full(len(t), np.clip(caltemp, low, high)) - 35.0)
+        expected = _drift_ms2(cal, temps) - _drift_ms2(cal, np.array([caltemp]))
+        assert np.allclose(correction, expected, atol=1e-6)
+
+
+def test_export_px4_reproduces_the_drift_through_its_own_formula(
+    fitted: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, out, _ = run(capsys, "export", fitted, "--format", "px4")
+    assert code == 0
+    p = _params(out, "\t")
+    assert p["TC_A_ENABLE"] == 1
+    assert "TC_A0_ID" not in p
+    assert "set TC_A0_ID to the sensor's device id" in out
+    temps = np.array([-30.0, 0.0, 20.0, 45.0, 80.0])
+    d = np.clip(temps, p["TC_A0_TMIN"], p["TC_A0_TMAX"]) - p["TC_A0_TREF"]  # calc_thermal_offsets_3D
+    x = np.array([[p[f"TC_A0_X{k}_{i}"] for k in range(4)] for i in range(3)])
+    offset = x[:, 0] + x[:, 1] * d[:, None] + x[:, 2] * d[:, None] ** 2 + x[:, 3] * d[:, None] ** 3
+    assert np.allclose(offset, _drift_ms2(calfile.load(fitted), temps), atol=1e-6)
+
+
+def test_export_firmware_formats_need_a_thermal_block_and_known_units(
+    base: Path, fitted: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, _, err = run(capsys, "export", base, "--format", "px4")
+    assert code == 2
+    assert "has no thermal block" in err
+    doc = json.loads(fitted.read_text())
+    doc["units"] = "counts"
+    odd = tmp_path / "odd.json"
+    odd.write_text(json.dumps(doc))
+    code, _, err = run(capsys, "export", odd, "--format", "ardupilot")
+    assert code == 2
+    assert "writes m/s^2: the calibration's corrected units are 'counts'" in err
+    assert run(capsys, "export", fitted, "--format", "ardupilot", "--instance", "0").code == 2
+    assert run(capsys, "export", fitted, "--format", "c-header", "--instance", "1").code == 2
+
+
+@pytest.mark.slow
+def test_c_header_apply_at_matches_calibration_apply(fitted: Path, tmp_path: Path) -> None:
+    import shutil
+    import subprocess
+
+    if shutil.which("gcc") is None:
+        pytest.skip("gcc is not installed")
+    header = tmp_path / "cal.h"
+    from tumblecal_cli.cli import main
+
+    assert main(["export", str(fitted), "--format", "c-header", "-o", str(header)]) == 0
+    (tmp_path / "t.c").write_text(
+        '#include <stdio.h>\n#include "cal.h"\nint main(void) {\n'
+        "    float raw[3] = {0.5f, -0.2f, 1.1f}, out[3], temps[3] = {-20.0f, 40.0f, 70.0f};\n"
+        "    int j;\n"
+        '    for (j = 0; j < 3; j++) { tumblecal_accel_apply_at(raw, temps[j], out); printf("%.9g %.9g %.9g\\n", '
+        "out[0], out[1], out[2]); }\n    return 0;\n}\n"
+    )
+    subprocess.run(
+        ["gcc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-o", str(tmp_path / "t"), str(tmp_path / "t.c")],
+        check=True,
+        cwd=tmp_path,
+    )
+    got = np.loadtxt(
+        subprocess.run([str(tmp_path / "t")], check=True, capture_output=True, text=True).stdout.splitlines()
+    )
+    want = calfile.load(fitted).apply(np.array([[0.5, -0.2, 1.1]] * 3), temperature=[-20.0, 40.0, 70.0])
+    assert np.allclose(got, want, atol=1e-5)

@@ -106,7 +106,8 @@ def export(
             "--format",
             "-f",
             help="c-header: C99/C++ header for firmware; registers: offset (and gain trim) register counts, CSV; "
-            "imucal-json, ros-yaml, matlab: the peer tools' own files (README: export).",
+            "imucal-json, ros-yaml, matlab: the peer tools' own files; ardupilot, px4: a thermal block as "
+            "INS_TCAL or TC_A/TC_G parameters (README: export).",
         ),
     ],
     output: Annotated[
@@ -162,6 +163,15 @@ def export(
     force: Annotated[
         bool, typer.Option("--force", help="Export a calibration whose verdict failed (refused otherwise).")
     ] = False,
+    instance: Annotated[
+        int | None,
+        typer.Option(
+            "--instance",
+            metavar="N",
+            help="ardupilot, px4: the IMU the parameters are for (INS_TCAL<N>, 1-3; TC_A<N>/TC_G<N>, 0-2). "
+            "[default: the first]",
+        ),
+    ] = None,
 ) -> None:
     """Write a calibration for firmware or for another tool.
 
@@ -169,6 +179,7 @@ def export(
       tumblecal export cal.json --format c-header -o imu_cal.h
       tumblecal export cal.json --format registers --lsb 0.98 --bits 16
       tumblecal export cal.json --format imucal-json -o imucal_cal.json
+      tumblecal export cal-thermal.json --format ardupilot -o tcal.param
     """
 
     from tumblecal_cli.io.outputs import atomic_output, check_not_input, check_writable
@@ -186,6 +197,7 @@ def export(
         gain_step=gain_step,
         nominal_gain=nominal_gain,
         force=force,
+        instance=instance,
     )
     with atomic_output(output) as out:
         out.write(text.encode())

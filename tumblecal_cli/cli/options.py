@@ -267,6 +267,8 @@ class ExportFormat(StrEnum):
     imucal_json = "imucal-json"
     ros_yaml = "ros-yaml"
     matlab = "matlab"
+    ardupilot = "ardupilot"
+    px4 = "px4"
 
 
 class ImportFormat(StrEnum):

@@ -21,7 +21,7 @@ from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.calfile import FORMAT, VERSION, Calibration, Unit, created, from_dict, invertible, is_number
 from tumblecal_cli.version import __version__
 
-EXPORTS = ("c-header", "registers", "imucal-json", "ros-yaml", "matlab")
+EXPORTS = ("c-header", "registers", "imucal-json", "ros-yaml", "matlab", "ardupilot", "px4")
 IMPORTS = ("imucal-json", "ros-yaml")
 #: imucal's calibration file format (imucal/calibration_info.py, _CAL_FORMAT_VERSION); its
 #: loader also reads files without the key as the legacy 1.0 layout, which has the same fields.
@@ -103,9 +103,197 @@ def c_header(cal: Calibration, *, prefix: str | None = None) -> str:
         "    }",
         "}",
         "",
+        *_c_thermal(cal, name, upper),
         f"#endif /* {upper}_H */",
     ]
     return "\n".join(lines) + "\n"
+
+
+def _c_thermal(cal: Calibration, name: str, upper: str) -> list[str]:
+    """A thermal block in a C header: its coefficients and ``name_apply_at(raw, temp_c, out)``,
+    core.thermal.correct in C (the drift polynomials in d = clamp(T) - T_ref, Horner's rule)."""
+    if cal.thermal is None:
+        return []
+    t = cal.thermal
+    k = t.order
+
+    def table(values: Any, what: str) -> str:
+        return ",\n    ".join(
+            "{" + ", ".join(_c_float(float(v), f"thermal.{what}", cal.path) for v in row) + "}" for row in values
+        )
+
+    limits = (("T_REF", t.reference_temperature), ("T_MIN", t.range[0]), ("T_MAX", t.range[1]))
+    return [
+        f'/* Temperature drift (README "tumblecal thermal"), order {k}, in d = clamp(T) - T_REF, degC:',
+        " *   offset_drift[i] = sum_k OFFSET_DRIFT[i][k-1] d^k  (raw units)",
+        " *   gain_drift[i]   = sum_k GAIN_DRIFT[i][k-1] d^k    (relative)",
+        " *   corrected = M * ((raw - offset - offset_drift) / (1 + gain_drift)) */",
+        *(f"static const float {upper}_{w} TUMBLECAL_UNUSED = {_c_float(v, 'thermal', cal.path)};" for w, v in limits),
+        f"static const float {upper}_OFFSET_DRIFT[3][{k}] TUMBLECAL_UNUSED = {{",
+        f"    {table(t.offset, 'offset')}",
+        "};",
+        f"static const float {upper}_GAIN_DRIFT[3][{k}] TUMBLECAL_UNUSED = {{",
+        f"    {table(t.gain, 'gain')}",
+        "};",
+        "",
+        f"/* sum_k c[k-1] d^k, k = 1..{k} (Horner's rule) */",
+        f"static inline float {name}_drift(const float c[{k}], float d)",
+        "{",
+        "    float p = 0.0f;",
+        "    int k;",
+        f"    for (k = {k - 1}; k >= 0; k--) {{",
+        "        p = (p + c[k]) * d;",
+        "    }",
+        "    return p;",
+        "}",
+        "",
+        "/* out = M ((raw - offset - offset_drift) / (1 + gain_drift)) at temp_c (clamped); out may be raw. */",
+        f"static inline void {name}_apply_at(const float raw[3], float temp_c, float out[3])",
+        "{",
+        f"    const float t = temp_c < {upper}_T_MIN ? {upper}_T_MIN : temp_c;",
+        f"    const float d = (t > {upper}_T_MAX ? {upper}_T_MAX : t) - {upper}_T_REF;",
+        "    float v[3];",
+        "    int i;",
+        "    for (i = 0; i < 3; i++) {",
+        f"        v[i] = (raw[i] - {upper}_OFFSET[i] - {name}_drift({upper}_OFFSET_DRIFT[i], d))",
+        f"             / (1.0f + {name}_drift({upper}_GAIN_DRIFT[i], d));",
+        "    }",
+        "    for (i = 0; i < 3; i++) {",
+        f"        out[i] = {upper}_MATRIX[i][0] * v[0] + {upper}_MATRIX[i][1] * v[1] + {upper}_MATRIX[i][2] * v[2];",
+        "    }",
+        "}",
+        "",
+    ]
+
+
+# -- thermal drift for autopilot firmware ---------------------------------------------------------
+
+#: The corrected units each firmware's thermal parameters are in, and the factor from ours.
+FIRMWARE_UNITS = {
+    "accelerometer": ("m/s^2", {"g": 9.80665, "m/s^2": 1.0, "m/s2": 1.0, "m/s²": 1.0}),
+    "gyroscope": ("rad/s", {"rad/s": 1.0, "deg/s": math.pi / 180, "dps": math.pi / 180, "°/s": math.pi / 180}),
+}
+#: ArduPilot's fixed reference temperature and parameter scale (AP_InertialSensor_tempcal.cpp:
+#: TEMP_REFERENCE 35.0, SCALE_FACTOR 1.0e6).
+ARDUPILOT_T_REF = 35.0
+ARDUPILOT_SCALE = 1.0e6
+
+
+def firmware_drift(cal: Calibration, fmt: str) -> tuple[FloatArray, str]:
+    """The offset drift coefficients (3, order) in the firmware's corrected units per °C^k:
+    ``M @ c_k`` (corrected = M (raw - b - drift(T)) = M (raw - b) - M drift(T)) times the factor
+    from the calibration's ``units``; and those units' name."""
+    if cal.thermal is None:
+        raise InputError(
+            f"has no thermal block: --format {fmt} writes the firmware's temperature-drift parameters",
+            file=cal.path,
+            hint="add one with 'tumblecal thermal'",
+        )
+    if cal.sensor not in FIRMWARE_UNITS:
+        raise InputError(f"--format {fmt} takes an accelerometer's or a gyroscope's calibration", file=cal.path)
+    name, factors = FIRMWARE_UNITS[cal.sensor]
+    units = (cal.units or "").strip()
+    if units not in factors:
+        raise InputError(
+            f"--format {fmt} writes {name}: the calibration's corrected units are {cal.units!r}, "
+            f"not one of {', '.join(factors)}",
+            file=cal.path,
+            hint="solve the base calibration with --units naming them (and --reference in them)",
+        )
+    coeffs: FloatArray = factors[units] * (cal.matrix @ np.asarray(cal.thermal.offset, dtype=np.float64))
+    return coeffs, name
+
+
+def _shifted(coeffs: FloatArray, shift: float) -> FloatArray:
+    """Coefficients (3, order) of sum_k a_k x^k (k >= 1) re-expanded in d = x - shift:
+    b_m = sum_{k >= m} a_k C(k, m) shift^(k - m), for m >= 1 (the constant dropped)."""
+    order = coeffs.shape[1]
+    out = np.zeros_like(coeffs)
+    for m in range(1, order + 1):
+        for k in range(m, order + 1):
+            out[:, m - 1] += coeffs[:, k - 1] * math.comb(k, m) * shift ** (k - m)
+    return out
+
+
+def _gain_note(cal: Calibration) -> list[str]:
+    """What the firmware cannot hold: a temperature-dependent gain."""
+    assert cal.thermal is not None
+    thermal = cal.thermal
+    d = np.array([thermal.range[0], thermal.range[1]]) - thermal.reference_temperature
+    powers = np.column_stack([d ** (k + 1) for k in range(thermal.order)])
+    worst = np.abs(powers @ np.asarray(thermal.gain, dtype=np.float64).T).max(axis=0)
+    if not worst.any():
+        return []
+    figures = ", ".join(f"{a} {w:.3%}" for a, w in zip("xyz", worst, strict=True))
+    return [f"gain drift NOT written (the firmware has no temperature-dependent scale): largest {figures}"]
+
+
+def ardupilot_params(cal: Calibration, instance: int = 1) -> str:
+    """ArduPilot's INS_TCAL<n>_* parameters (AP_InertialSensor_tempcal.cpp), as NAME,VALUE lines.
+
+    ArduPilot corrects ``v -= P(T - 35) - P(CALTEMP - 35)`` with ``P(d) = (c1 d + c2 d^2 + c3 d^3)
+    1e-6`` (``polynomial_eval``), T and CALTEMP (INS_ACCn_CALTEMP / INS_GYRn_CALTEMP, set by its own
+    calibration) clamped to [TMIN, TMAX], before its offsets and scales, in m/s^2 or rad/s. Our
+    drift is zero at T_ref, so P is the drift re-expanded about 35 °C without its constant: then
+    P(T - 35) - P(CALTEMP - 35) = drift(T) - drift(CALTEMP), right whatever CALTEMP is.
+    """
+    coeffs, units = firmware_drift(cal, "ardupilot")
+    assert cal.thermal is not None
+    thermal = cal.thermal
+    shifted = _shifted(coeffs, ARDUPILOT_T_REF - thermal.reference_temperature) * ARDUPILOT_SCALE
+    kind = "ACC" if cal.sensor == "accelerometer" else "GYR"
+    head = f"INS_TCAL{instance}_"
+    lines = [
+        f"# ArduPilot temperature calibration of IMU {instance} ({cal.sensor}), written by tumblecal {__version__}",
+        f"# from {_comment(cal.path)}: offset drift in {units} per degC^k x 1e6, about 35 degC, subtracted",
+        *[f"# {line}" for line in _gain_note(cal)],
+        f"{head}ENABLE,1",
+        f"{head}TMIN,{thermal.range[0]:.2f}",
+        f"{head}TMAX,{thermal.range[1]:.2f}",
+    ]
+    for k in range(3):
+        for j, axis in enumerate("XYZ"):
+            value = shifted[j, k] if k < thermal.order else 0.0
+            lines.append(f"{head}{kind}{k + 1}_{axis},{_param(value)}")
+    return "\n".join(lines) + "\n"
+
+
+def px4_params(cal: Calibration, instance: int = 0) -> str:
+    """PX4's TC_A<n>_* or TC_G<n>_* parameters (temperature_compensation module), in
+    QGroundControl's parameter-file layout (vehicle, component, name, value, type; 9 float, 6 int32).
+
+    PX4 computes ``offset = X0 + X1 d + X2 d^2 + X3 d^3``, d = clamp(T, TMIN, TMAX) - TREF
+    (``calc_thermal_offsets_3D``) and corrects ``data - thermal_offset - CAL offset`` before the
+    rotation to the body frame; our drift is zero at T_ref, so X0 = 0 and TREF = T_ref: the
+    calibration's own offsets stay in CAL_ACC/CAL_GYRO.
+    """
+    coeffs, units = firmware_drift(cal, "px4")
+    assert cal.thermal is not None
+    thermal = cal.thermal
+    kind = "A" if cal.sensor == "accelerometer" else "G"
+    head = f"TC_{kind}{instance}_"
+    cal_name = "CAL_ACC" if kind == "A" else "CAL_GYRO"
+    lines = [
+        f"# PX4 thermal compensation of {cal.sensor} {instance}, written by tumblecal {__version__}",
+        f"# from {_comment(cal.path)}: offset drift in {units} per degC^k, subtracted",
+        f"# set {head}ID to the sensor's device id ({cal_name}{instance}_ID): tumblecal does not know it",
+        *[f"# {line}" for line in _gain_note(cal)],
+        "# Vehicle-Id\tComponent-Id\tName\tValue\tType",
+        f"1\t1\tTC_{kind}_ENABLE\t1\t6",
+    ]
+    rows = [("TREF", thermal.reference_temperature), ("TMIN", thermal.range[0]), ("TMAX", thermal.range[1])]
+    for k in range(4):
+        for j in range(3):
+            value = 0.0 if k == 0 or k > thermal.order else coeffs[j, k - 1]
+            rows.append((f"X{k}_{j}", value))
+    lines += [f"1\t1\t{head}{name}\t{_param(value)}\t9" for name, value in rows]
+    return "\n".join(lines) + "\n"
+
+
+def _param(value: float) -> str:
+    if not math.isfinite(value) or abs(value) > FLOAT32_MAX:
+        raise InputError(f"a thermal coefficient {value!r} does not fit a float parameter")
+    return f"{value:.9g}"
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 
 
 #: export's formats (README "export").
-FORMATS = ("c-header", "registers", "imucal-json", "ros-yaml", "matlab")
+FORMATS = ("c-header", "registers", "imucal-json", "ros-yaml", "matlab", "ardupilot", "px4")
 
 
 @dataclass
@@ -109,13 +109,20 @@ def export(
     gain_step: float | None = None,
     nominal_gain: str | None = None,
     force: bool = False,
+    instance: int | None = None,
 ) -> str:
-    """The text of a calibration in another format: c-header, registers, imucal-json, ros-yaml
-    or matlab (README "export")."""
+    """The text of a calibration in another format: c-header, registers, imucal-json, ros-yaml,
+    matlab, or a thermal block as ardupilot or px4 parameters (README "export"); ``instance`` is
+    the firmware's IMU number (ArduPilot from 1, PX4 from 0)."""
     from tumblecal_cli.io import calfile, formats
     from tumblecal_cli.pipeline.correct import refuse_failed
 
     _export_options(fmt, prefix, lsb, bits, register_sign, gain_step, nominal_gain)
+    if instance is not None and fmt not in ("ardupilot", "px4"):
+        raise InputError("--instance is for --format ardupilot and px4")
+    first = 1 if fmt == "ardupilot" else 0
+    if instance is not None and not first <= instance <= first + 2:
+        raise InputError(f"--instance for {fmt} is {first} to {first + 2}, got {instance}")
     c = calfile.resolve(cal)
     if c.failed and not force:
         refuse_failed(c, "export it", "export")
@@ -127,6 +134,8 @@ def export(
         "imucal-json": lambda: formats.imucal_json(c),
         "ros-yaml": lambda: formats.ros_yaml(c),
         "matlab": lambda: formats.matlab(c),
+        "ardupilot": lambda: formats.ardupilot_params(c, first if instance is None else instance),
+        "px4": lambda: formats.px4_params(c, first if instance is None else instance),
     }
     return writers[fmt]()
 
