@@ -56,6 +56,44 @@ def write_log(path: Path, rows: int) -> None:
             np.savetxt(f, np.column_stack([t, xyz]), fmt=["%.3f", "%.6f", "%.6f", "%.6f"], delimiter=",")
 
 
+def write_warm_log(path: Path, rows: int) -> None:
+    """A t,temp,ax,ay,az capture at 1 kHz warming from 20 to 50 °C (the thermal bench)."""
+    rng = np.random.default_rng(4)
+    with path.open("w") as f:
+        f.write("t,temp,ax,ay,az\n")
+        for start in range(0, rows, 500_000):
+            n = min(500_000, rows - start)
+            k = np.arange(start, start + n)
+            xyz = rng.normal([0.01, -0.02, 1.01], 0.01, size=(n, 3))
+            columns = np.column_stack([k / 1000.0, 20.0 + 30.0 * k / rows, xyz])
+            np.savetxt(f, columns, fmt=["%.3f", "%.2f", "%.6f", "%.6f", "%.6f"], delimiter=",")
+
+
+def thermal_bench(folder: Path, cal: Path, rows: int = 1_000_000) -> tuple[str, float, float, str]:
+    """apply with a thermal block (order 3) against apply without one, on one warming capture."""
+    import json
+
+    log = folder / "warm.csv"
+    write_warm_log(log, rows)
+    doc = json.loads(cal.read_text())
+    doc["thermal"] = {
+        "column": "temp",
+        "reference_temperature": 25.0,
+        "range": [0.0, 60.0],
+        "order": 3,
+        "offset": [[2e-4, 3e-6, 1e-8]] * 3,
+        "gain": [[1e-4, 1e-7, 1e-9]] * 3,
+        "gain_drift": ["separate"] * 3,
+    }
+    warm = folder / "warm-cal.json"
+    warm.write_text(json.dumps(doc))
+    out = str(folder / "out.csv")
+    base, _ = run([*TUMBLECAL, "apply", "-q", "--cal", str(cal), str(log), "-o", out])
+    ours, _ = run([*TUMBLECAL, "apply", "-q", "--cal", str(warm), str(log), "-o", out])
+    size = log.stat().st_size / 1e6
+    return (f"apply thermal 1M ({size:.0f} MB)", ours, base, "vs the same apply without a thermal block")
+
+
 def write_tumble(path: Path, rows: int) -> None:
     """A 1 kHz t,x,y,z session turned from face to face: 15 s still, 5 s moving, repeated."""
     rng = np.random.default_rng(2)
@@ -121,6 +159,7 @@ def main() -> None:
             rows.append(
                 (f"apply {millions}M rows ({size:.0f} MB)", ours, base, f"{size / ours:.0f} MB/s, peak {rss:.0f} MiB")
             )
+        rows.append(thermal_bench(folder, cal))
         solve_argv = [*TUMBLECAL, "solve", "-q", "--poses", *poses, "-o", str(folder / "c.json")]
         ours, _ = run(solve_argv, repeat=5)
         base, _ = run([sys.executable, "-c", "import pandas, numpy"], repeat=5)
@@ -150,6 +189,7 @@ def main() -> None:
         print(f"{what:<28} {ours:>9.2f}s {base:>9.2f}s {ours / base:>6.2f}x  {note}")
     print(f"{'apply peak memory 4M / 1M':<28} {memory[4]:>8.0f}Mi {memory[1]:>8.0f}Mi {memory[4] / memory[1]:>6.2f}x")
     print("baselines: apply vs python -c 'import pandas; pandas.read_csv(f)'")
+    print("           apply thermal vs apply of the same capture with the calibration without its thermal block")
     print("           solve vs python -c 'import pandas, numpy'")
     print("           segment vs python -c 'import pandas; pandas.read_csv(f)'")
     print("           batch vs a bash loop of 'tumblecal solve' per unit (200 units x 3 poses x 1000 samples)")

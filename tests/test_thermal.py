@@ -449,3 +449,37 @@ def test_c_header_apply_at_matches_calibration_apply(fitted: Path, tmp_path: Pat
     )
     want = calfile.load(fitted).apply(np.array([[0.5, -0.2, 1.1]] * 3), temperature=[-20.0, 40.0, 70.0])
     assert np.allclose(got, want, atol=1e-5)
+
+
+# -- the Python API and a gyroscope -----------------------------------------------------------------
+
+
+def test_the_api_fits_a_gyroscopes_bias_drift_from_captures_in_any_pose(tmp_path: Path) -> None:
+    import tumblecal_cli as tumblecal
+
+    rng = np.random.default_rng(4)
+    drift1, drift2 = np.array([0.01, -0.02, 0.015]), np.array([2e-4, 1e-4, -3e-4])  # deg/s per °C, °C^2
+    bias = np.array([0.5, -0.3, 0.2])
+    files = []
+    for k, (low, high) in enumerate(((0.0, 50.0), (45.0, -5.0))):
+        temp = np.linspace(low, high, 3000)
+        d = (temp - 20.0)[:, None]
+        rate = bias + drift1 * d + drift2 * d**2 + rng.normal(0, 0.05, (len(temp), 3))
+        path = tmp_path / f"gyro{k}.csv"
+        lines = ["die_temp,gx,gy,gz"] + [
+            f"{t:.3f},{r[0]:.5f},{r[1]:.5f},{r[2]:.5f}" for t, r in zip(temp, rate, strict=True)
+        ]
+        path.write_text("\n".join(lines) + "\n")
+        files.append(str(path))
+    base = tumblecal.solve([files[0]], sensor="gyroscope", units="deg/s").calibration
+    assert base is not None
+    done = tumblecal.thermal(files, base, reference_temperature=20.0)
+    block = done.calibration.thermal
+    assert block is not None
+    assert block.column == "die_temp"
+    assert block.order == 2
+    assert block.gain_drift == ("unobserved", "unobserved", "unobserved")
+    se = np.array(block.extra["uncertainty"]["offset"])  # type: ignore[index]
+    assert np.all(np.abs(block.offset[:, 0] - drift1) < 4 * se[:, 0])
+    assert np.all(np.abs(block.offset[:, 1] - drift2) < 4 * se[:, 1])
+    assert "GYR1_X" in tumblecal.export(done.calibration, "ardupilot")

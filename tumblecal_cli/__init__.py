@@ -9,6 +9,8 @@ The Python API (README "Using tumblecal from Python")::
     solved.calibration.save("cal.json")
     cal = tumblecal.load("cal.json")
     corrected = cal.apply(df)          # a DataFrame, or (n, 3) readings
+    warm = tumblecal.thermal(["+z=up.csv", "-z=down.csv"], "cal.json").calibration
+    corrected = warm.apply(df)         # each row at the DataFrame's temperature column
 
 Layers, imports flowing one way: ``cli`` (Typer, Rich) -> ``pipeline`` (what a user does) ->
 ``io`` (files) -> ``core`` (numpy only). The names below are loaded when first used, so
@@ -33,6 +35,7 @@ if TYPE_CHECKING:
     from tumblecal_cli.pipeline.options import SolveOptions
     from tumblecal_cli.pipeline.report import report
     from tumblecal_cli.pipeline.solve import Solved, solve, solve_log
+    from tumblecal_cli.pipeline.thermal import ThermalResult, thermal
     from tumblecal_cli.pipeline.verify import verify
 
 #: Each public name and the module that holds it.
@@ -52,6 +55,8 @@ _HOMES = {
     "export": "tumblecal_cli.pipeline.calfiles",
     "import_peer": "tumblecal_cli.pipeline.calfiles",
     "run_batch": "tumblecal_cli.pipeline.batch",
+    "thermal": "tumblecal_cli.pipeline.thermal",
+    "ThermalResult": "tumblecal_cli.pipeline.thermal",
 }
 
 __all__ = [
@@ -60,6 +65,7 @@ __all__ = [
     "InputError",
     "SolveOptions",
     "Solved",
+    "ThermalResult",
     "TumblecalError",
     "__version__",
     "check",
@@ -73,6 +79,7 @@ __all__ = [
     "segment",
     "solve",
     "solve_log",
+    "thermal",
     "verify",
 ]
 

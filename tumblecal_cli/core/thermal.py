@@ -87,9 +87,18 @@ class Drift:
 
     def at(self, temperature: FloatArray) -> tuple[FloatArray, FloatArray]:
         """(offset drift (n, 3) raw units, relative gain drift (n, 3)) at each temperature (clamped)."""
-        d = np.clip(temperature, self.t_min, self.t_max) - self.t_ref
-        powers = _powers(d, self.order)  # (n, order)
-        return powers @ self.offset.T, powers @ self.gain.T
+        d = (np.clip(temperature, self.t_min, self.t_max) - self.t_ref)[:, None]
+        return _horner(self.offset, d), _horner(self.gain, d)
+
+
+def _horner(coeffs: FloatArray, d: FloatArray) -> FloatArray:
+    """sum_k coeffs[:, k-1] d^k for d (n, 1): (n, 3), by Horner's rule in broadcast products (a
+    matrix product would go to OpenBLAS, whose threads slow apply down: core.model.apply)."""
+    out = np.zeros((d.shape[0], 3))
+    for k in range(coeffs.shape[1] - 1, -1, -1):
+        out += coeffs[:, k]
+        out *= d
+    return out
 
 
 @dataclass(frozen=True)
@@ -116,7 +125,9 @@ def correct(
     A row whose temperature is NaN is corrected at T_ref's drift, zero (its own cells are empty)."""
     temp = np.where(np.isfinite(temperature), temperature, drift.t_ref)
     off, gain = drift.at(temp)
-    d = (raw - offset - off) / (1.0 + gain)
+    d = raw - offset - off
+    if np.any(drift.gain):
+        d /= 1.0 + gain
     with np.errstate(invalid="ignore", over="ignore"):
         out: FloatArray = d[:, 0:1] * matrix[:, 0] + d[:, 1:2] * matrix[:, 1] + d[:, 2:3] * matrix[:, 2]
     outside = int(np.count_nonzero((temp < drift.t_min) | (temp > drift.t_max)))
