@@ -571,14 +571,14 @@ def print_drift(cal: Calibration, console: Console) -> None:
     table = Table(
         title=f"temperature drift ({units}), {drift.t_min:.1f} to {drift.t_max:.1f} °C against {drift.t_ref:.2f} °C"
     )
-    for name in ("axis", "offset drift", "max |drift|", "gain drift", "gain drift is"):
-        table.add_column(name)
+    for name in ("axis", "offset drift", "max |drift|", "gain drift", "gain drift"):
+        table.add_column(name, no_wrap=True)
     for row in drift_rows(cal):
         low, high = row["offset_drift"]
         g_low, g_high = row["gain_drift"]
         kind = row["gain_drift_kind"]
         gains = {"unobserved": "—", "folded": "in the offset"}.get(kind, f"{g_low:+.3%} .. {g_high:+.3%}")
-        table.add_row(row["axis"], f"{low:+.4g} .. {high:+.4g}", f"{row['offset_drift_max']:.4g}", gains, kind)
+        table.add_row(row["axis"], f"{low:+.3g} .. {high:+.3g}", f"{row['offset_drift_max']:.3g}", gains, kind)
     print_whole(console, table)
     se = block.extra.get("uncertainty")
     offset_se = se.get("offset") if isinstance(se, dict) else None

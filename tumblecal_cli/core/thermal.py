@@ -275,7 +275,7 @@ def _fit_axis(
     meat = (xs * resid[:, None] ** 2).T @ xs
     cov = bread @ meat @ bread
     n, p = xs.shape
-    cov *= n / max(n - p, 1)  # HC1's small-sample factor
+    cov *= n / max(n - p, 1)  # HC1's small-sample factor (module docstring)
     se = np.sqrt(np.clip(np.diag(cov), 0, None)) / scale
     return coef_s / scale, se, resid
 

@@ -212,7 +212,7 @@ def _judge_temperature(read: list[SweepRead], order: int | None, min_swing: floa
     scatter = max(highs) - min(lows)
     trend = max(r.trend[1] for r in read) - min(r.trend[0] for r in read)
     need = core.required_swing(order or 1, min_swing)
-    if trend < NOISE_SHARE * scatter and trend < need:
+    if trend < NOISE_SHARE * scatter and trend < need <= scatter:
         raise CaptureRejected(
             f"the temperature column {name!r} does not trend: its readings scatter over {scatter:.1f} °C "
             f"but its running median moves only {trend:.2f} °C (noise, not a sweep)",
