@@ -483,3 +483,23 @@ def test_the_api_fits_a_gyroscopes_bias_drift_from_captures_in_any_pose(tmp_path
     assert np.all(np.abs(block.offset[:, 0] - drift1) < 4 * se[:, 0])
     assert np.all(np.abs(block.offset[:, 1] - drift2) < 4 * se[:, 1])
     assert "GYR1_X" in tumblecal.export(done.calibration, "ardupilot")
+
+
+@pytest.mark.slow
+def test_plot_draws_the_drift_and_writes_nothing_on_a_rejection(
+    base: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pytest.importorskip("matplotlib")
+    png = tmp_path / "drift.png"
+    code, _, err = run(capsys, "thermal", *ITEMS, "--cal", base, "-o", tmp_path / "c.json", "--plot", png, "-q")
+    assert code == 0, err
+    assert png.read_bytes().startswith(b"\x89PNG")
+    flat = _sweep_file(tmp_path / "flat.csv", np.full(300, 25.0))
+    png.unlink()
+    assert run(capsys, "thermal", f"+z={flat}", "--cal", base, "-o", tmp_path / "d.json", "--plot", png).code == 3
+    assert not png.exists()
+    code, _, err = run(
+        capsys, "thermal", *ITEMS, "--cal", base, "-o", tmp_path / "e.json", "--plot", tmp_path / "a.jpg"
+    )
+    assert code == 2
+    assert "PNG" in err

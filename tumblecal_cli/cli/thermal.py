@@ -10,6 +10,7 @@ import typer
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import LabelledItemsCommand, app
 from tumblecal_cli.cli.options import CHECKS_PANEL, EXIT_CODES, Columns, JsonSummary, Quiet
+from tumblecal_cli.cli.solve import _plot_target
 
 
 @app.command(cls=LabelledItemsCommand, epilog=EXIT_CODES)
@@ -95,8 +96,11 @@ def thermal(
 
     if json_summary and output == "-":
         raise InputError("--json prints the summary on stdout, so the calibration needs -o FILE")
-    check_not_input(output, [cal, *(s.partition("=")[2] or s for s in sweeps)])
+    inputs = [cal, *(s.partition("=")[2] or s for s in sweeps)]
+    check_not_input(output, inputs)
     check_writable(output)
+    if plot is not None:
+        _plot_target(plot, output, json_summary, inputs)
     done = pipeline.thermal(
         sweeps,
         cal,
@@ -107,6 +111,8 @@ def thermal(
         max_noise=max_noise,
         columns=columns.split(",") if columns else None,
     )
+    if plot is not None:  # drawn before the calibration is written: a failure leaves nothing behind
+        pipeline.plot(done, plot)
     done.calibration.save(output)
     if json_summary:
         render.print_json({"status": "pass", "exit_status": 0, **render.thermal_doc(done)})

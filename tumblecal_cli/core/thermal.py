@@ -215,6 +215,17 @@ def detrended(sweep: Sweep, drift: Drift, gain_scale: FloatArray) -> FloatArray:
     return out
 
 
+def observed(sweep: Sweep, drift: Drift, gain_scale: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """A sweep as its cells (for a figure): (temperature (m,), observed drift (m, 3), fitted drift
+    (m, 3)), the sweep's own constant (its reading at T_ref) removed from the observed readings
+    as the fit removes it, so that ``observed - fitted`` are the fit's residuals."""
+    cells = _cells([sweep])
+    off, gain = drift.at(cells.temp)
+    fitted = off + gain * (cells.up * gain_scale)
+    constant = (cells.value - fitted).mean(axis=0)
+    return cells.temp, cells.value - constant, fitted
+
+
 # -- the fit ---------------------------------------------------------------------------------------
 
 

@@ -285,6 +285,49 @@ def lot_figure(path: str, histograms: list[Histogram], *, title: str = "") -> No
     _write(fig, path)
 
 
+def drift_figure(
+    path: str,
+    sweeps: list[tuple[str, FloatArray, FloatArray, FloatArray]],
+    *,
+    units: str | None = None,
+    title: str = "",
+) -> None:
+    """``thermal --plot``: per axis, each sweep's observed drift against temperature (its cells,
+    dots) with the fitted drift (line), and below it the residuals. ``sweeps`` are (label,
+    temperature (m,), observed (m, 3), fitted (m, 3)), core.thermal.observed."""
+    import numpy as np
+
+    if not sweeps:
+        raise InputError("no sweeps to plot")
+    fig = _figure(width=12.0, height=6.4, title=title)
+    grid = fig.add_gridspec(2, 3, height_ratios=[2, 1])
+    colours = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown", "tab:pink", "tab:olive"]
+    for j, axis in enumerate("xyz"):
+        top = fig.add_subplot(grid[0, j])
+        bottom = fig.add_subplot(grid[1, j], sharex=top)
+        for k, (label, temp, seen, fitted) in enumerate(sweeps):
+            t = _array(temp, f"temperature of {label}", (-1,))
+            o = _array(seen, f"drift of {label}", (t.size, 3))
+            f = _array(fitted, f"fit of {label}", (t.size, 3))
+            order = np.argsort(t)
+            colour = colours[k % len(colours)]
+            top.plot(t, o[:, j], ".", color=colour, markersize=3, alpha=0.6, label=_short(label))
+            top.plot(t[order], f[order, j], "-", color=colour, linewidth=1.2)
+            bottom.plot(t, o[:, j] - f[:, j], ".", color=colour, markersize=3, alpha=0.6)
+        top.set_title(f"{axis}: drift against temperature", fontsize="medium")
+        top.set_ylabel(f"drift{_unit(units)}")
+        top.grid(alpha=0.3)
+        bottom.axhline(0.0, color="black", linewidth=0.8)
+        bottom.set_xlabel("temperature (°C)")
+        bottom.set_ylabel("residual")
+        bottom.grid(alpha=0.3)
+        top.tick_params(labelsize="small")
+        bottom.tick_params(labelsize="small")
+        if j == 0:
+            top.legend(fontsize="x-small", loc="best")
+    _write(fig, path)
+
+
 def _bins(values: FloatArray) -> int:
     """numpy's "auto" rule (the finer of Freedman–Diaconis and Sturges), at most 50 bins."""
     import numpy as np

@@ -112,6 +112,27 @@ def thermal(
     return ThermalResult(out, fitted, read, warnings, notes)
 
 
+def plot(done: ThermalResult, path: str) -> None:
+    """``thermal --plot``: each axis's drift against temperature, the fit and its residuals."""
+    import numpy as np
+
+    from tumblecal_cli.core import thermal as core
+    from tumblecal_cli.io import plots
+
+    cal = done.calibration
+    assert cal.thermal is not None
+    drift = cal.thermal.drift()
+    gain_scale = np.zeros(3) if cal.sensor == "gyroscope" else np.abs(cal.gain) * cal.reference
+    data = []
+    for r in done.sweeps:
+        sweep = core.Sweep(r.log.values, _finite(r), None if r.face is None else _up(r.face))
+        temp, seen, fitted = core.observed(sweep, drift, gain_scale)
+        label = f"{r.face} {os.path.basename(r.file)}" if r.face else os.path.basename(r.file)
+        data.append((label, temp, seen, fitted))
+    title = f"{cal.sensor} temperature drift, order {drift.order}" + (f", {cal.serial}" if cal.serial else "")
+    plots.drift_figure(path, data, units=cal.input_units, title=title)
+
+
 def _order(order: int | str) -> int | None:
     if order in ("auto", None):
         return None
