@@ -503,3 +503,44 @@ def test_plot_draws_the_drift_and_writes_nothing_on_a_rejection(
     )
     assert code == 2
     assert "PNG" in err
+
+
+def test_verify_reads_a_capture_at_its_own_temperature(
+    base: Path, fitted: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    hot = _sweep_file(tmp_path / "hot.csv", np.full(400, 55.0), face="+x")
+    errors = {}
+    for name, cal in (("base", base), ("thermal", fitted)):
+        code, out, err = run(capsys, "verify", "--cal", cal, hot, "--json")
+        assert code == 0, err
+        errors[name] = abs(json.loads(out)["captures"][0]["error_after"])
+    assert errors["thermal"] < 0.0005  # the mean of 400 samples of 2 mg noise
+    assert errors["base"] > 0.005  # the drift at 55 °C: about 8 mg offset and 0.3 % gain on x
+
+
+def test_a_longer_dwell_does_not_move_the_fit() -> None:
+    """Every (sweep, temperature interval) counts once: dwelling 50 times longer at 25 °C leaves
+    the coefficients where they were (an unweighted fit would be pulled towards that dwell)."""
+    sweeps = _sweeps(5)
+    longer = []
+    for s in sweeps:
+        near = np.abs(s.temperature - 25.0) < 0.5
+        extra = np.repeat(np.flatnonzero(near), 50)
+        rng = np.random.default_rng(9)
+        values = s.values[extra] + rng.normal(0.0, mt.NOISE, (len(extra), 3))
+        longer.append(
+            core.Sweep(np.vstack([s.values, values]), np.concatenate([s.temperature, s.temperature[extra]]), s.up)
+        )
+    one = core.fit(sweeps, gain_scale=mt.GAIN * 1.0, t_ref=mt.T_REF, order=2)
+    two = core.fit(longer, gain_scale=mt.GAIN * 1.0, t_ref=mt.T_REF, order=2)
+    assert np.all(np.abs(two.drift.offset - one.drift.offset) < 0.5 * one.offset_se)
+
+
+def test_a_single_face_says_its_gain_drift_is_folded(
+    base: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "one.json"
+    code, _, err = run(capsys, "thermal", f"+z={THERMAL / 'sweep_up_zp.csv'}", "--cal", base, "-o", out)
+    assert code == 0, err
+    assert "note: gain drift of z folded into its offset drift" in err
+    assert json.loads(out.read_text())["thermal"]["gain_drift"] == ["unobserved", "unobserved", "folded"]

@@ -134,6 +134,14 @@ def correct(
     return out, outside
 
 
+def at_reference(raw: FloatArray, temperature: FloatArray, offset: FloatArray, drift: Drift) -> FloatArray:
+    """Raw readings (n, 3) as they would read at T_ref: ``offset + (raw - offset - offset drift) /
+    (1 + gain drift)``, so that ``M (result - offset)`` is :func:`correct` (the model, last line)."""
+    off, gain = drift.at(temperature)
+    out: FloatArray = offset + (raw - offset - off) / (1.0 + gain)
+    return out
+
+
 def extremes(drift: Drift, points: int = 1001) -> tuple[FloatArray, FloatArray]:
     """Per axis, the largest |offset drift| over [t_min, t_max] (raw units) and the largest
     |d offset / dT| there (raw units per °C), on a grid of ``points`` temperatures."""

@@ -7,9 +7,13 @@ import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from tumblecal_cli.errors import CaptureRejected, InputError
+
+if TYPE_CHECKING:
+    from tumblecal_cli.io.calfile import Calibration
+    from tumblecal_cli.io.captures import Dialect, Samples
 
 
 @dataclass
@@ -86,14 +90,7 @@ def verify(
     fitted = {str(p.get("sha256")): str(p.get("file")) for p in c.poses if p.get("sha256")}
     result = Verified(0, c, ref, max_norm_error, [], {})
     for path in paths:
-        s = reading.read_samples(
-            path,
-            sensor=c.sensor,
-            columns=picked,
-            prefer=c.columns,
-            no_header=no_header,
-            dialect=reading.Dialect(skip_rows, decimal, drop_incomplete),
-        )
+        s = _read(path, c, picked, no_header, reading.Dialect(skip_rows, decimal, drop_incomplete), result.notes)
         result.notes += s.layout.notes
         model.in_range(s.values, s.layout.name)
         if s.sha256 in fitted:
@@ -133,3 +130,42 @@ def verify(
         result.overall["max_error_before"] = float(max(abs(e) for e in raw_errors))
     result.status = 3 if result.rejected else (1 if result.failed else 0)
     return result
+
+
+def _read(
+    path: str, c: Calibration, picked: list[str] | None, no_header: bool, dialect: Dialect, notes: list[str]
+) -> Samples:
+    """A static capture's readings; with a thermal block, each row brought to T_ref at its own
+    temperature (core.thermal.at_reference), the rows outside the range noted."""
+    import numpy as np
+
+    from tumblecal_cli.core import thermal
+    from tumblecal_cli.io import captures as reading
+
+    if c.thermal is None:
+        return reading.read_samples(
+            path, sensor=c.sensor, columns=picked, prefer=c.columns, no_header=no_header, dialect=dialect
+        )
+    log = reading.read_log(
+        path,
+        sensor=c.sensor,
+        columns=picked,
+        prefer=c.columns,
+        no_header=no_header,
+        use_time=False,
+        dialect=dialect,
+        temperature_column=c.thermal.column,
+        need_temperature=True,
+    )
+    temp = log.temperature
+    assert temp is not None
+    drift = c.thermal.drift()
+    outside = int(np.count_nonzero((temp < drift.t_min) | (temp > drift.t_max)))
+    if outside:
+        notes.append(
+            f"{log.layout.name}: {outside} rows outside the calibrated temperature range "
+            f"{drift.t_min:g} to {drift.t_max:g} °C, corrected at its nearest end"
+        )
+    values = thermal.at_reference(log.values, temp, c.offset, drift)
+    rows = (int(log.rows[0]), int(log.rows[-1]))
+    return reading.Samples(log.layout, values, rows, log.sha256, None, float(np.nanmean(temp)))
