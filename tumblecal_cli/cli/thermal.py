@@ -9,11 +9,17 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import LabelledItemsCommand, app
-from tumblecal_cli.cli.options import CHECKS_PANEL, EXIT_CODES, Columns, JsonSummary, Quiet
+from tumblecal_cli.cli.options import CHECKS_PANEL, Columns, JsonSummary, Quiet
 from tumblecal_cli.cli.solve import _plot_target
 
 
-@app.command(cls=LabelledItemsCommand, epilog=EXIT_CODES)
+@app.command(
+    cls=LabelledItemsCommand,
+    epilog="Exit status: 0 written; 2 usage or input error (a sweep without the temperature column, a cell that "
+    "is not a number, a base without a temperature and no --reference-temperature); 3 a temperature that cannot "
+    "carry the fit (constant, noise without a trend, a swing too small for the order) or a sweep that moved "
+    "once its drift is removed. Nothing is written on 2 or 3.",
+)
 def thermal(
     sweeps: Annotated[
         list[str],
@@ -77,7 +83,9 @@ def thermal(
     plot: Annotated[
         str | None,
         typer.Option(
-            "--plot", metavar="PNG", help="Draw each axis's drift against temperature, the fit and residuals."
+            "--plot",
+            metavar="PNG",
+            help="Draw each axis's drift against temperature, the fit and residuals; needs tumblecal[plot].",
         ),
     ] = None,
     json_summary: JsonSummary = False,
