@@ -544,3 +544,18 @@ def test_a_single_face_says_its_gain_drift_is_folded(
     assert code == 0, err
     assert "note: gain drift of z folded into its offset drift" in err
     assert json.loads(out.read_text())["thermal"]["gain_drift"] == ["unobserved", "unobserved", "folded"]
+
+
+def test_the_sensor_must_be_the_base_calibrations_and_the_block_survives_yaml(
+    base: Path, fitted: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, _, err = run(capsys, "thermal", *ITEMS, "--cal", base, "--sensor", "gyroscope", "-o", tmp_path / "g.json")
+    assert code == 2
+    assert "--sensor gyroscope, but the base calibration's sensor is accelerometer" in err
+    cal = calfile.load(fitted)
+    cal.save(tmp_path / "cal.yaml")
+    again = calfile.load(tmp_path / "cal.yaml")
+    assert again.thermal is not None
+    assert cal.thermal is not None
+    assert np.array_equal(again.thermal.offset, cal.thermal.offset)
+    assert again.thermal.extra == cal.thermal.extra

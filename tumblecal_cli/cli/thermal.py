@@ -9,7 +9,7 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import LabelledItemsCommand, app
-from tumblecal_cli.cli.options import CHECKS_PANEL, Columns, JsonSummary, Quiet
+from tumblecal_cli.cli.options import CHECKS_PANEL, Columns, JsonSummary, Quiet, SensorKind
 from tumblecal_cli.cli.solve import _plot_target
 
 
@@ -80,6 +80,14 @@ def thermal(
         ),
     ] = None,
     columns: Columns = None,
+    sensor: Annotated[
+        SensorKind | None,
+        typer.Option(
+            "--sensor",
+            help="The sensor the sweeps are of; it must be the base calibration's (a gyroscope fits its zero-rate "
+            "bias from still captures in any pose). [default: the calibration's]",
+        ),
+    ] = None,
     plot: Annotated[
         str | None,
         typer.Option(
@@ -118,6 +126,7 @@ def thermal(
         min_swing=min_swing,
         max_noise=max_noise,
         columns=columns.split(",") if columns else None,
+        sensor=sensor and sensor.value,
     )
     if plot is not None:  # drawn before the calibration is written: a failure leaves nothing behind
         pipeline.plot(done, plot)

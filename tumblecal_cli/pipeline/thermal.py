@@ -63,6 +63,7 @@ def thermal(
     max_noise: float | None = None,
     max_tilt: float = 25.0,
     columns: Sequence[str] | None = None,
+    sensor: str | None = None,
 ) -> ThermalResult:
     """Fit the temperature drift of ``cal``'s sensor from still sweeps, as ``tumblecal thermal``.
 
@@ -77,6 +78,12 @@ def thermal(
     from tumblecal_cli.io import calfile
 
     base = calfile.resolve(cal if isinstance(cal, calfile.Calibration) else os.fspath(cal))
+    if sensor is not None and sensor != base.sensor:
+        raise InputError(
+            f"--sensor {sensor}, but the base calibration's sensor is {base.sensor}",
+            file=base.path,
+            hint="give the calibration of the sensor the sweeps are of",
+        )
     if base.sensor == "magnetometer":
         raise InputError("thermal fits an accelerometer's or a gyroscope's drift, not a magnetometer's", file=base.path)
     wanted = _order(order)
