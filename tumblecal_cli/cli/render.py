@@ -445,3 +445,74 @@ def print_unit(row: dict[str, Any], out_dir: str, console: Console, *, quiet: bo
         head, messages = f"{head}: {messages[0]}", []
     for line in [head, *(f"  {m}" for m in messages if not row.get("file"))]:
         console.print(line, soft_wrap=True, markup=False, highlight=False)
+
+
+@contextlib.contextmanager
+def samples_progress(console: Console, *, enabled: bool) -> Iterator[Any]:
+    """A count of the samples read so far on stderr when it is a terminal (a long capture takes
+    a while): a callback taking that count, or None."""
+    if not (enabled and console.is_terminal):
+        yield None
+        return
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    columns = (SpinnerColumn(), TextColumn("read {task.completed:,.0f} samples"), TimeElapsedColumn())
+    with Progress(*columns, console=console, transient=True) as progress:
+        task = progress.add_task("samples", total=None)
+        yield lambda n: progress.update(task, completed=n)
+
+
+def show_noise(done: Any, *, json_summary: bool, quiet: bool, plot: str | None) -> None:
+    """noise's figures: the --plot and the --json object (not for a rejected capture: it
+    writes nothing), then the table, verdict and notes for people on stderr."""
+    if plot is not None and done.error is None:
+        from tumblecal_cli.core import allan
+        from tumblecal_cli.io import plots
+
+        plots.require()
+        plots.noise_figure(plot, done.curve, allan.figures(done.curve), done.units, title=done.file)
+    if json_summary:
+        print_json(done.to_dict())
+    if quiet:
+        return
+    console = make_console()
+    head = f"{done.file}: {count(done.samples, 'sample')} at {done.rate:g} Hz ({done.samples / done.rate:.4g} s)"
+    console.print(head, soft_wrap=True)
+    table, lines = _noise_table(done)
+    print_whole(console, table)
+    for line in lines:
+        console.print(line, soft_wrap=True)
+    for note in done.notes:
+        console.print(f"note: {note}", soft_wrap=True)
+    verdict = done.verdict()
+    if verdict is not None and done.error is None:
+        for name in verdict["not_judged"]:
+            console.print(f"warning: {name} not determined, so not judged", style="yellow", soft_wrap=True)
+        _print_verdict(console, verdict)
+
+
+def _noise_table(done: Any) -> tuple[Any, list[str]]:
+    """The figures per axis (value ± its 95 % uncertainty), and a line per figure saying the
+    cluster times it was read from, or why it is not determined."""
+    from rich.table import Table
+
+    table = Table(box=None, pad_edge=False)
+    table.add_column("figure")
+    for axis in "xyz":
+        table.add_column(axis, justify="right")
+    table.add_column("units")
+    lines = []
+    for name, unit in zip(("noise_density", "bias_instability", "random_walk"), done.figure_units, strict=True):
+        cells, read = [], []
+        for axis, figs in zip("xyz", done.axes, strict=True):
+            f = getattr(figs, name)
+            cells.append("—" if f.value is None else f"{f.value:.3g}±{f.uncertainty:.1g}")
+            if f.tau is None:
+                read.append(f"{axis}: not determined ({f.why})")
+            else:
+                read.append(
+                    f"{axis} {f.tau[0]:.3g} s" if f.tau[0] == f.tau[1] else f"{axis} {f.tau[0]:.3g}–{f.tau[1]:.3g} s"
+                )
+        table.add_row(name.replace("_", " "), *cells, unit)
+        lines.append(f"{name.replace('_', ' ')} read at τ: {'; '.join(read)}")
+    return table, lines
