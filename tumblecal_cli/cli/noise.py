@@ -110,6 +110,7 @@ def noise(
             decimal=decimal and decimal.value,
             drop_incomplete=drop_incomplete,
             progress=progress,
+            kalibr=kalibr is not None,
         )
     render.show_noise(done, json_summary=json_summary, quiet=quiet, plot=plot)
     if done.error is not None:

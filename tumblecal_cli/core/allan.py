@@ -361,8 +361,12 @@ class _Axis:
         """Runs (first, last point, inclusive) of consecutive segments within SLOPE_TOLERANCE of ``slope``."""
         if self.tau.size < 2:
             return []
-        seg = np.diff(np.log(self.adev)) / np.diff(np.log(self.tau))
-        on = np.abs(seg - slope) <= SLOPE_TOLERANCE
+        span = np.diff(np.log(self.tau))
+        seg = np.diff(np.log(self.adev)) / span
+        # a segment is on the slope within SLOPE_TOLERANCE, or within its ends' own scatter
+        # (1 sigma of log sigma is about 1 / sqrt(2 edf), SP 1065 section 5.3) where that is wider
+        scatter = np.sqrt(0.5 / self.dof[:-1] + 0.5 / self.dof[1:]) / span
+        on = np.abs(seg - slope) <= np.maximum(SLOPE_TOLERANCE, scatter)
         runs, k = [], 0
         while k < on.size:
             if not on[k]:
@@ -379,8 +383,10 @@ class _Axis:
         on the longest run of points on that slope (IEEE 952 C, table C.1)."""
         name = "white-noise (-1/2)" if slope < 0 else "random-walk (+1/2)"
         runs = self.runs(slope)
-        if slope > 0:  # the rise must be more than the points' own scatter
-            runs = [(a, b) for a, b in runs if self.low[b] > self.high[a]]
+        if slope > 0:  # it must rise by more than the points' own scatter: the parts of each run that do
+            runs = [
+                (i, j) for a, b in runs for i in range(a, b) for j in range(i + 1, b + 1) if self.low[j] > self.high[i]
+            ]
         if not runs:
             return Figure(None, None, None, f"the curve shows no {name} slope")
         first, last = max(runs, key=lambda r: (self.tau[r[1]] / self.tau[r[0]], -r[0]))

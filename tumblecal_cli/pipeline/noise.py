@@ -196,6 +196,7 @@ def noise(
     decimal: str | None = None,
     drop_incomplete: bool = False,
     progress: Callable[[int], None] | None = None,
+    kalibr: bool = False,
 ) -> Noise:
     """The Allan deviation of a still capture and its noise figures (README "tumblecal noise")."""
     from tumblecal_cli.core import allan
@@ -217,6 +218,8 @@ def noise(
     known = kind in TO_SI and unit_key(data_units) in TO_SI[kind]
     choice = units or ("datasheet" if known else "native")
     scale = factors(kind, data_units, choice)
+    if kalibr:  # refused before the capture is read
+        _kalibr_units(kind, c, data_units)
     bounds = _limits(limits)
     loaded = _stream(
         path,
@@ -247,6 +250,18 @@ def noise(
         result.failures, result.not_judged = judge(axes, bounds, figure_units)
     result.status = 3 if result.rejected else 1 if result.failures else 0
     return result
+
+
+def _kalibr_units(sensor: str, cal: Any, units: str | None) -> None:
+    """Kalibr's figures are in SI: refuse a sensor it has no keys for, or units not known."""
+    if sensor not in KALIBR_KEYS:
+        raise InputError(f"Kalibr's noise model has no {sensor}: only an accelerometer or a gyroscope")
+    if cal is None:
+        raise InputError(
+            "--kalibr needs --cal: Kalibr's figures are in SI, and raw readings have no known units",
+            hint="give the calibration of this sensor (its units: g, m/s^2, deg/s or rad/s)",
+        )
+    factors(sensor, units, "si")
 
 
 def _limits(limits: str | Mapping[str, Any] | None) -> dict[str, Any]:
