@@ -486,8 +486,16 @@ def show_noise(done: Any, *, json_summary: bool, quiet: bool, plot: str | None) 
         console.print(f"note: {note}", soft_wrap=True)
     verdict = done.verdict()
     if verdict is not None and done.error is None:
-        for name in verdict["not_judged"]:
-            console.print(f"warning: {name} not determined, so not judged", style="yellow", soft_wrap=True)
+        unjudged: dict[str, list[str]] = {}
+        for item in verdict["not_judged"]:  # "random_walk.x"
+            name, _, axis = item.partition(".")
+            unjudged.setdefault(name, []).append(axis)
+        for name, axes in unjudged.items():
+            console.print(
+                f"warning: {name} has a limit but is not determined on {', '.join(axes)}: not judged there",
+                style="yellow",
+                soft_wrap=True,
+            )
         _print_verdict(console, verdict)
 
 
@@ -503,16 +511,16 @@ def _noise_table(done: Any) -> tuple[Any, list[str]]:
     table.add_column("units")
     lines = []
     for name, unit in zip(("noise_density", "bias_instability", "random_walk"), done.figure_units, strict=True):
-        cells, read = [], []
+        cells: list[str] = []
+        read: dict[str, list[str]] = {}
         for axis, figs in zip("xyz", done.axes, strict=True):
             f = getattr(figs, name)
             cells.append("—" if f.value is None else f"{f.value:.3g}±{f.uncertainty:.1g}")
             if f.tau is None:
-                read.append(f"{axis}: not determined ({f.why})")
+                text = f"not determined ({f.why})"
             else:
-                read.append(
-                    f"{axis} {f.tau[0]:.3g} s" if f.tau[0] == f.tau[1] else f"{axis} {f.tau[0]:.3g}–{f.tau[1]:.3g} s"
-                )
+                text = f"τ = {f.tau[0]:.3g} s" if f.tau[0] == f.tau[1] else f"τ = {f.tau[0]:.3g}–{f.tau[1]:.3g} s"
+            read.setdefault(text, []).append(axis)  # axes read alike: said once
         table.add_row(name.replace("_", " "), *cells, unit)
-        lines.append(f"{name.replace('_', ' ')} read at τ: {'; '.join(read)}")
+        lines.append(f"{name.replace('_', ' ')}: " + "; ".join(f"{''.join(a)} {t}" for t, a in read.items()))
     return table, lines
