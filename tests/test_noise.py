@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import yaml
 
-from tests.conftest import ROOT, run
+from tests.conftest import ROOT, feed_stdin, run
 from tumblecal_cli.core import allan
 
 DATA = ROOT / "tests" / "data"
@@ -209,6 +209,24 @@ def test_json_shape_and_not_determined_as_null(still: Path, capsys: pytest.Captu
         assert (figs["random_walk"]["value"], figs["random_walk"]["uncertainty"]) == (None, None)
 
 
+def test_denser_taus_from_stdin_with_the_time_in_ms(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    y = simulate(3000, 11)
+    path = tmp_path / "ms.csv"
+    np.savetxt(path, np.column_stack([np.arange(3000) * 10.0, y]), delimiter=",", header="t_ms,x,y,z", comments="")
+    feed_stdin(monkeypatch, path.read_bytes())
+    r = run(capsys, "noise", "-", "--taus", "4", "--json", "-q")
+    assert (r.code, r.err) == (0, "")
+    doc = json.loads(r.out)
+    assert (doc["file"], doc["rate"], doc["samples"]) == ("<stdin>", 100.0, 3000)
+    m = [round(t * RATE) for t in doc["adev"]["tau"]]
+    assert m[:8] == [1, 2, 3, 4, 5, 6, 7, 8]  # 2^(k/4) rounded, each once
+    np.testing.assert_allclose(np.array([doc["adev"][a] for a in "xyz"]).T, allan.oadev(y, m), rtol=1e-9)
+    r = run(capsys, "noise", path, "--taus", "0")
+    assert (r.code, r.err) == (2, "error: --taus must be 1 to 64 points per octave, got 0\n")
+
+
 def test_no_rate_is_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = write(tmp_path / "no_time.csv", simulate(500, 7), time=False)
     r = run(capsys, "noise", path)
@@ -306,10 +324,13 @@ def test_kalibr_needs_known_units_and_a_shown_random_walk(
         "error: --units si needs a calibration in known accelerometer units, not 'counts'",
     )
     cal = cal_file(tmp_path / "acc.json", "accelerometer", "g")
-    r = run(capsys, "noise", still, "--cal", cal, "--kalibr", kalibr, "-q")
+    plot = tmp_path / "adev.png"
+    r = run(capsys, "noise", still, "--cal", cal, "--kalibr", kalibr, "--plot", plot, "-q", "--json")
     assert r.code == 3
+    assert json.loads(r.out)["status"] == "rejected"
     assert "random walk is not determined on every axis, and Kalibr needs it" in r.err
     assert not kalibr.exists()
+    assert not plot.exists()
 
 
 def test_accelerometer_in_g_reads_in_micro_g(still: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -476,7 +476,9 @@ def show_noise(done: Any, *, json_summary: bool, quiet: bool, plot: str | None) 
     if quiet:
         return
     console = make_console()
-    head = f"{done.file}: {count(done.samples, 'sample')} at {done.rate:g} Hz ({done.samples / done.rate:.4g} s)"
+    seconds = done.samples / done.rate
+    span = f"{seconds / 3600:.3g} h" if seconds >= 3600 else f"{seconds:.4g} s"
+    head = f"{done.file}: {count(done.samples, 'sample')} at {done.rate:g} Hz ({span})"
     console.print(head, soft_wrap=True)
     table, lines = _noise_table(done)
     print_whole(console, table)

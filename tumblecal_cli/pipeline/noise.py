@@ -91,11 +91,13 @@ class Noise:
     not_judged: list[str] = field(default_factory=list)
     rejected: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    short: CaptureRejected | None = None  # --kalibr asked for a figure the capture does not show
 
     @property
     def error(self) -> CaptureRejected | None:
+        """The rejection as the command line reports it (None: none): a move first."""
         if not self.rejected:
-            return None
+            return self.short
         return CaptureRejected(
             self.rejected[0],
             more=tuple(self.rejected[1:]),
@@ -151,7 +153,7 @@ class Noise:
             "adev": curve,
             "axes": axes,
             "verdict": self.verdict(),
-            "rejections": self.rejected,
+            "rejections": self.rejected or ([self.short.message] if self.short else []),
             "notes": self.notes,
         }
 
@@ -248,7 +250,12 @@ def noise(
     result.rejected = [f"{name}: {m.message()}" for m in watch.verdict()]
     if not result.rejected:
         result.failures, result.not_judged = judge(axes, bounds, figure_units)
-    result.status = 3 if result.rejected else 1 if result.failures else 0
+    if kalibr and not result.rejected:  # judged now: a rejected run writes no --plot either
+        try:
+            result.kalibr()
+        except CaptureRejected as err:
+            result.short = err
+    result.status = 3 if result.error else 1 if result.failures else 0
     return result
 
 
@@ -325,8 +332,6 @@ def _stream(
 ) -> tuple[Any, Any, str, list[str], float]:
     """Read the capture block by block into the Allan stream and the step watch."""
     import numpy as np
-    import pyarrow as pa
-    import pyarrow.compute as pc
 
     from tumblecal_cli.core import allan
     from tumblecal_cli.core.model import apply
@@ -358,17 +363,7 @@ def _stream(
             if empty.any():
                 values = values[~empty]
             if hz is None and values.shape[0] > 1:
-                try:
-                    clock = np.asarray(pc.cast(cap.pointed(cols[3]), pa.float64()).to_numpy(zero_copy_only=False))
-                except pa.ArrowInvalid:
-                    raise InputError(
-                        "the time column holds a cell that is not a number", file=lay.name, hint="give --rate HZ"
-                    ) from None
-                clock = clock[~empty] if empty.any() else clock
-                step = float(np.median(np.diff(clock))) * reading.time_scale(lay, clock, time_unit)
-                if not step > 0:
-                    raise InputError("the time column does not advance", file=lay.name, hint="give --rate HZ")
-                hz = float(f"{1.0 / step:.9g}")  # the median step's float noise, not the rate's
+                hz = reading.block_rate(cap, cols[3], empty, time_unit)
             if cal is not None:
                 values = apply(values, cal.offset, cal.matrix)
             if watch is None and hz is not None:
