@@ -707,7 +707,8 @@ def test_one_pose_gains_are_not_judged(tmp_path: Path, capsys: pytest.CaptureFix
 BAD_LIMITS = [
     pytest.param(
         "limits_unknown_key.yaml",
-        "unknown limit 'gain' (known: offset, gain_error, nominal_gain, cross_axis, noise, residual, nominal_offset)",
+        "unknown limit 'gain' (known: offset, gain_error, nominal_gain, cross_axis, noise, residual, nominal_offset, "
+        "noise_density, bias_instability, random_walk)",
         id="unknown-key",
     ),
     pytest.param("limits_negative_offset.yaml", "limit 'offset' must be positive, got -0.05", id="negative"),
