@@ -9,6 +9,10 @@ of a few runs of a fresh process, wall clock, and peak memory (max RSS) of that 
     solve, 3 poses      vs  python -c "import pandas, numpy"               (start-up)
     segment, 600k rows  vs  python -c "import pandas; pandas.read_csv(f)"  (target <= 1.5x)
     batch, 200 units    vs  a shell loop calling `tumblecal solve` per unit (target: 20x the units/s)
+    noise, 10M samples  vs  pandas.read_csv + allantools.oadev per axis (octave taus), the same file
+    noise peak memory   10M samples / 2.5M samples  (streaming: ~1, not ~4)
+
+`python tests/bench.py noise` runs the noise lines alone.
 """
 
 from __future__ import annotations
@@ -141,8 +145,60 @@ def timed(argv: list[str], repeat: int, fresh: Path) -> float:
     return best
 
 
+def write_still(path: Path, rows: int) -> None:
+    """A still x,y,z capture (white noise and a slow random walk), 5 decimals, written with pyarrow."""
+    import pyarrow as pa
+    import pyarrow.csv as pcsv
+
+    rng = np.random.default_rng(2)
+    walk = np.zeros(3)
+    with pcsv.CSVWriter(str(path), pa.schema([(a, pa.float64()) for a in "xyz"])) as writer:
+        for start in range(0, rows, 1_000_000):
+            n = min(1_000_000, rows - start)
+            steps = np.cumsum(rng.normal(0, 1e-5, (n, 3)), axis=0) + walk
+            walk = steps[-1]
+            xyz = np.round(rng.normal([0.01, -0.02, 1.01], 0.01, (n, 3)) + steps, 5)
+            writer.write_table(pa.table({a: xyz[:, i] for i, a in enumerate("xyz")}))
+
+
+OADEV = """
+import sys, pandas, allantools
+d = pandas.read_csv(sys.argv[1])
+for c in "xyz":
+    allantools.oadev(d[c].to_numpy(), rate=200.0, data_type="freq", taus="octave")
+"""
+
+
+def bench_noise(folder: Path) -> tuple[list[tuple[str, float, float, str]], dict[float, float]]:
+    """noise on 10M samples against allantools' oadev (read with pandas) in the same run, and
+    noise's peak memory at 2.5M and 10M samples."""
+    rows, memory = [], {}
+    for millions in (2.5, 10):
+        still = folder / f"still{millions}M.csv"
+        write_still(still, int(millions * 1_000_000))
+        ours, rss = run([*TUMBLECAL, "noise", "-q", "--rate", "200", str(still)], repeat=1 if millions == 10 else 2)
+        memory[millions] = rss
+        if millions == 10:
+            base, base_rss = run([sys.executable, "-c", OADEV, str(still)], repeat=1)
+            size = still.stat().st_size / 1e6
+            note = f"{size:.0f} MB; peak {rss:.0f} MiB, allantools {base_rss:.0f} MiB"
+            rows.append(("noise 10M samples", ours, base, note))
+        still.unlink()
+    return rows, memory
+
+
 def main() -> None:
     rows: list[tuple[str, float, float, str]] = []
+    if sys.argv[1:] == ["noise"]:
+        with tempfile.TemporaryDirectory() as tmp:
+            rows, memory = bench_noise(Path(tmp))
+        for what, ours, base, note in rows:
+            print(f"{what:<28} {ours:>9.2f}s {base:>9.2f}s {ours / base:>6.2f}x  {note}")
+        peak = memory
+        print(
+            f"{'noise peak memory 10M / 2.5M':<28} {peak[10]:>8.0f}Mi {peak[2.5]:>8.0f}Mi {peak[10] / peak[2.5]:>6.2f}x"
+        )
+        return
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         cal = folder / "cal.json"
@@ -182,17 +238,22 @@ def main() -> None:
             argv = [*TUMBLECAL, "batch", "-q", str(units), "-d", str(folder / "cals"), "--jobs", str(jobs)]
             ours = timed(argv, 3, folder / "cals")
             rows.append((f"batch 200 units, --jobs {jobs}", ours, base, f"{base / ours:.0f}x the units/s of the loop"))
+        noise_rows, noise_memory = bench_noise(folder)
+        rows += noise_rows
     machine = f"{platform.node()} ({os.cpu_count()} cores, Python {platform.python_version()})"
     print(f"tumblecal bench, {date.today()}, {machine}")
     print(f"{'what':<28} {'tumblecal':>10} {'baseline':>10} {'ratio':>7}  notes")
     for what, ours, base, note in rows:
         print(f"{what:<28} {ours:>9.2f}s {base:>9.2f}s {ours / base:>6.2f}x  {note}")
     print(f"{'apply peak memory 4M / 1M':<28} {memory[4]:>8.0f}Mi {memory[1]:>8.0f}Mi {memory[4] / memory[1]:>6.2f}x")
+    peak = noise_memory
+    print(f"{'noise peak memory 10M / 2.5M':<28} {peak[10]:>8.0f}Mi {peak[2.5]:>8.0f}Mi {peak[10] / peak[2.5]:>6.2f}x")
     print("baselines: apply vs python -c 'import pandas; pandas.read_csv(f)'")
     print("           apply thermal vs apply of the same capture with the calibration without its thermal block")
     print("           solve vs python -c 'import pandas, numpy'")
     print("           segment vs python -c 'import pandas; pandas.read_csv(f)'")
     print("           batch vs a bash loop of 'tumblecal solve' per unit (200 units x 3 poses x 1000 samples)")
+    print("           noise vs pandas.read_csv + allantools.oadev of each axis (octave taus), the same file")
 
 
 if __name__ == "__main__":

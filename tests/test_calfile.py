@@ -415,3 +415,22 @@ def test_atomic_output_block_error_leaves_the_old_file(tmp_path: Path) -> None:
         partial_then_fail()
     assert path.read_bytes() == b"old"
     assert os.listdir(tmp_path) == ["cal.yaml"]
+
+
+def test_show_of_a_file_whose_tilt_block_states_no_tolerance(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """tilt_sensitivity without tolerance_deg (another tool's file, or hand-edited) is valid: show
+    says what tilt limits without a number of degrees (was an internal error, found by fuzzing)."""
+    import json
+
+    from tests.conftest import POSES_3, run
+
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "--poses", *POSES_3, "-o", cal).code == 0
+    doc = json.loads(cal.read_text())
+    del doc["tilt_sensitivity"]["tolerance_deg"]
+    cal.write_text(json.dumps(doc))
+    code, out, err = run(capsys, "show", cal)  # show's summary is its output: stdout
+    assert code == 0, err
+    assert "fixture tilt, not noise, limits this calibration: the fixture's tilt moves the offsets" in out

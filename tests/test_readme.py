@@ -39,9 +39,11 @@ def sessions() -> list[tuple[str, list[str]]]:
 
 @pytest.fixture(scope="module")
 def workdir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A folder like the repo root: sample_data/ (linked) and an empty demo/."""
+    """A folder like the repo root: sample_data/ and tests/data/ (linked) and an empty demo/."""
     folder = tmp_path_factory.mktemp("readme")
     (folder / "sample_data").symlink_to(ROOT / "sample_data")
+    (folder / "tests").mkdir()
+    (folder / "tests" / "data").symlink_to(ROOT / "tests" / "data")  # the real still captures `noise` reads
     (folder / "demo").mkdir()
     return folder
 

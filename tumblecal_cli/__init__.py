@@ -32,6 +32,7 @@ if TYPE_CHECKING:
     from tumblecal_cli.pipeline.correct import correct
     from tumblecal_cli.pipeline.frames import read_capture
     from tumblecal_cli.pipeline.logs import segment
+    from tumblecal_cli.pipeline.noise import Noise, noise
     from tumblecal_cli.pipeline.options import SolveOptions
     from tumblecal_cli.pipeline.report import report
     from tumblecal_cli.pipeline.solve import Solved, solve, solve_log
@@ -50,6 +51,8 @@ _HOMES = {
     "correct": "tumblecal_cli.pipeline.correct",
     "segment": "tumblecal_cli.pipeline.logs",
     "verify": "tumblecal_cli.pipeline.verify",
+    "noise": "tumblecal_cli.pipeline.noise",
+    "Noise": "tumblecal_cli.pipeline.noise",
     "report": "tumblecal_cli.pipeline.report",
     "check": "tumblecal_cli.pipeline.calfiles",
     "export": "tumblecal_cli.pipeline.calfiles",
@@ -63,6 +66,7 @@ __all__ = [
     "Calibration",
     "CaptureRejected",
     "InputError",
+    "Noise",
     "SolveOptions",
     "Solved",
     "ThermalResult",
@@ -73,6 +77,7 @@ __all__ = [
     "export",
     "import_peer",
     "load",
+    "noise",
     "read_capture",
     "report",
     "run_batch",

@@ -588,3 +588,84 @@ def print_drift(cal: Calibration, console: Console) -> None:
             for j in range(3)
         )
         console.print(f"offset per (T - T_ref)^{k + 1}: {terms}", soft_wrap=True)
+
+
+@contextlib.contextmanager
+def samples_progress(console: Console, *, enabled: bool) -> Iterator[Any]:
+    """A count of the samples read so far on stderr when it is a terminal (a long capture takes
+    a while): a callback taking that count, or None."""
+    if not (enabled and console.is_terminal):
+        yield None
+        return
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    columns = (SpinnerColumn(), TextColumn("read {task.completed:,.0f} samples"), TimeElapsedColumn())
+    with Progress(*columns, console=console, transient=True) as progress:
+        task = progress.add_task("samples", total=None)
+        yield lambda n: progress.update(task, completed=n)
+
+
+def show_noise(done: Any, *, json_summary: bool, quiet: bool, plot: str | None) -> None:
+    """noise's figures: the --plot and the --json object (not for a rejected capture: it
+    writes nothing), then the table, verdict and notes for people on stderr."""
+    if plot is not None and done.error is None:
+        from tumblecal_cli.core import allan
+        from tumblecal_cli.io import plots
+
+        plots.require()
+        plots.noise_figure(plot, done.curve, allan.figures(done.curve), done.units, title=done.file)
+    if json_summary:
+        print_json(done.to_dict())
+    if quiet:
+        return
+    console = make_console()
+    seconds = done.samples / done.rate
+    span = f"{seconds / 3600:.3g} h" if seconds >= 3600 else f"{seconds:.4g} s"
+    head = f"{done.file}: {count(done.samples, 'sample')} at {done.rate:g} Hz ({span})"
+    console.print(head, soft_wrap=True)
+    table, lines = _noise_table(done)
+    print_whole(console, table)
+    for line in lines:
+        console.print(line, soft_wrap=True)
+    for note in done.notes:
+        console.print(f"note: {note}", soft_wrap=True)
+    verdict = done.verdict()
+    if verdict is not None and done.error is None:
+        unjudged: dict[str, list[str]] = {}
+        for item in verdict["not_judged"]:  # "random_walk.x"
+            name, _, axis = item.partition(".")
+            unjudged.setdefault(name, []).append(axis)
+        for name, axes in unjudged.items():
+            console.print(
+                f"warning: {name} has a limit but is not determined on {', '.join(axes)}: not judged there",
+                style="yellow",
+                soft_wrap=True,
+            )
+        _print_verdict(console, verdict)
+
+
+def _noise_table(done: Any) -> tuple[Any, list[str]]:
+    """The figures per axis (value ± its 95 % uncertainty), and a line per figure saying the
+    cluster times it was read from, or why it is not determined."""
+    from rich.table import Table
+
+    table = Table(box=None, pad_edge=False)
+    table.add_column("figure")
+    for axis in "xyz":
+        table.add_column(axis, justify="right")
+    table.add_column("units")
+    lines = []
+    for name, unit in zip(("noise_density", "bias_instability", "random_walk"), done.figure_units, strict=True):
+        cells: list[str] = []
+        read: dict[str, list[str]] = {}
+        for axis, figs in zip("xyz", done.axes, strict=True):
+            f = getattr(figs, name)
+            cells.append("—" if f.value is None else f"{f.value:.3g}±{f.uncertainty:.1g}")
+            if f.tau is None:
+                text = f"not determined ({f.why})"
+            else:
+                text = f"τ = {f.tau[0]:.3g} s" if f.tau[0] == f.tau[1] else f"τ = {f.tau[0]:.3g}–{f.tau[1]:.3g} s"
+            read.setdefault(text, []).append(axis)  # axes read alike: said once
+        table.add_row(name.replace("_", " "), *cells, unit)
+        lines.append(f"{name.replace('_', ' ')}: " + "; ".join(f"{''.join(a)} {t}" for t, a in read.items()))
+    return table, lines

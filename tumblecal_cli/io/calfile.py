@@ -740,9 +740,15 @@ LIMIT_KEYS = {
     "noise": "one",
     "residual": "one",
     "nominal_offset": "per axis",  # the offset a good unit has (unsigned counts: 32768); any number
+    # `tumblecal noise`'s figures, in the units it reports them in (solve and report ignore them)
+    "noise_density": "per axis",
+    "bias_instability": "per axis",
+    "random_walk": "per axis",
     "offset_drift": "per axis",  # a thermal block's largest offset drift over its range, raw units
     "offset_drift_per_degc": "per axis",  # ... and per °C
 }
+#: The limits only `tumblecal noise` judges.
+NOISE_LIMITS = ("noise_density", "bias_instability", "random_walk")
 
 
 def load_limits(path: str) -> dict[str, Any]:

@@ -1006,6 +1006,22 @@ def time_scale(layout: Layout, clock: FloatArray, unit: str) -> float:
     return _TIME_SCALE[spaced]
 
 
+def block_rate(cap: Capture, column: pa.Array, empty: BoolArray, unit: str) -> float:
+    """Samples per second from one block's time column (its median step, in the unit
+    ``time_scale`` finds), to 9 digits: a still capture's rate when no --rate is given."""
+    try:
+        clock = _floats(pc.cast(cap.pointed(column), pa.float64()))
+    except pa.ArrowInvalid:
+        raise InputError(
+            "the time column holds a cell that is not a number", file=cap.layout.name, hint="give --rate HZ"
+        ) from None
+    clock = clock[~empty] if empty.any() else clock
+    step = float(np.median(np.diff(clock))) * time_scale(cap.layout, clock, unit) if clock.size > 1 else 0.0
+    if not step > 0:
+        raise InputError("the time column does not advance", file=cap.layout.name, hint="give --rate HZ")
+    return float(f"{1.0 / step:.9g}")  # the median step's float noise, not the rate's
+
+
 def _times(cap: Capture, times: list[tuple[int, pa.Array]], mask: BoolArray | None) -> FloatArray:
     """A log's time column on the rows ``mask`` keeps (all when None): numbers that never go
     backwards, else an error naming the line. Rows without sensor values are not judged: an

@@ -399,3 +399,44 @@ def _unit(units: str | None) -> str:
 def _short(name: str, keep: int = 24) -> str:
     """A long tick label shortened in the middle, so the file name's end stays readable."""
     return name if len(name) <= keep else f"{name[: keep // 2 - 1]}…{name[-(keep // 2) :]}"
+
+
+def noise_figure(path: str, curve: Any, figures: list[Any], units: str | None, *, title: str = "") -> None:
+    """``noise --plot``: the Allan deviation of each axis on log-log axes with its 95 % band, the
+    fitted -1/2 and +1/2 lines over the cluster times they were read from, and the read-off
+    points (N at 1 s, the minimum 0.664 B, K at 3 s). ``curve`` a core.allan.Curve, ``figures``
+    its core.allan.Figures per axis, both in the data's units."""
+    import numpy as np
+
+    from tumblecal_cli.core.allan import BIAS_FACTOR
+
+    tau = _array(curve.tau, "cluster times", (-1,))
+    adev = _array(curve.adev, "Allan deviation", (-1, 3))
+    low, high = curve.interval()
+    fig = _figure(width=11.0, height=4.2, title=title)
+    axes = fig.subplots(1, 3, sharey=True)
+    for j, (ax, figs) in enumerate(zip(axes, figures, strict=True)):
+        top = np.where(np.isfinite(high[:, j]), high[:, j], np.nan)
+        ax.fill_between(tau, low[:, j], top, color=_AFTER, alpha=0.2, lw=0, label="95 % interval")
+        ax.loglog(tau, adev[:, j], "o-", color=_AFTER, ms=3, lw=1, label="overlapping ADEV")
+        marks = []
+        n, b, k = figs.noise_density, figs.bias_instability, figs.random_walk
+        if n.value is not None and n.tau is not None:
+            span = np.geomspace(min(n.tau[0], 1.0), max(n.tau[1], 1.0), 20)
+            ax.loglog(span, n.value / np.sqrt(span), "--", color=_FIT, lw=1, label="−½ slope (noise density)")
+            marks.append((1.0, n.value, "N"))
+        if k.value is not None and k.tau is not None:
+            span = np.geomspace(min(k.tau[0], 3.0), max(k.tau[1], 3.0), 20)
+            ax.loglog(span, k.value * np.sqrt(span / 3.0), ":", color=_FIT, lw=1.2, label="+½ slope (random walk)")
+            marks.append((3.0, k.value, "K"))
+        if b.value is not None and b.tau is not None:
+            ax.axhline(b.value * BIAS_FACTOR, color=_OUTLINE, lw=0.8, label="minimum (0.664 B)")
+            marks.append((b.tau[0], b.value * BIAS_FACTOR, "B"))
+        for x, y, name in marks:
+            ax.plot([x], [y], "s", color=_FIT, ms=6)
+            ax.annotate(name, (x, y), textcoords="offset points", xytext=(5, 5), fontsize="small")
+        _plane_axes(ax, "xyz"[j], "τ (s)", f"σ(τ){_unit(units)}" if j == 0 else "")
+        ax.set_aspect("auto")
+        ax.grid(alpha=0.3, which="both")
+    axes[0].legend(fontsize="x-small", loc="lower left")
+    _write(fig, path)

@@ -292,6 +292,8 @@ def limits(
     from tumblecal_cli.io import calfile
 
     bounds: dict[str, object] = dict(calfile.load_limits(path)) if path else {}
+    for key in calfile.NOISE_LIMITS:  # a station's one limits file also bounds `tumblecal noise`
+        bounds.pop(key, None)
     if nominal_offset is not None:
         bounds.setdefault("nominal_offset", nominal_offset)
     for key, given, option in (

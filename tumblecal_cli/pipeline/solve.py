@@ -609,10 +609,9 @@ def tilt_notes(cal: Calibration) -> list[str]:
     advice = "level the fixture better and state how well with --fixture-tolerance"
     if cal.method in ("one-pose", "three-pose"):
         advice += ", or capture the six faces (six-pose takes offsets and gains from vertical readings only)"
-    return [
-        f"fixture tilt, not noise, limits this calibration: {tilt['tolerance_deg']:g}° off level moves {worst}; "
-        + advice
-    ]
+    level = tilt.get("tolerance_deg")  # a file from elsewhere may not say at what tilt
+    off = f"{level:g}° off level" if isinstance(level, int | float) else "the fixture's tilt"
+    return [f"fixture tilt, not noise, limits this calibration: {off} moves {worst}; " + advice]
 
 
 def tilt_only(cal: Calibration) -> list[float]:

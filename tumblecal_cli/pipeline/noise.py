@@ -1,0 +1,410 @@
+"""noise: the Allan deviation of a still capture and the noise figures read off it (IEEE Std
+952-1997 Annex C), in the units datasheets use, judged against limits, and written as the
+noise model Kalibr and VINS read.
+
+The capture is streamed block by block (``core.allan.AllanStream``, ``core.allan.StepWatch``):
+memory does not grow with its length, so a day at 200 Hz (17M rows) runs in a few tens of MB.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from tumblecal_cli.errors import CaptureRejected, InputError
+
+#: Units a calibration may name, and what one of them is in SI (m/s^2 or rad/s).
+TO_SI = {
+    "accelerometer": {"g": 9.80665, "mg": 9.80665e-3, "m/s^2": 1.0, "m/s²": 1.0, "m/s2": 1.0, "ms^-2": 1.0},
+    "gyroscope": {
+        "rad/s": 1.0,
+        "deg/s": math.pi / 180.0,
+        "°/s": math.pi / 180.0,
+        "dps": math.pi / 180.0,
+        "degree/s": math.pi / 180.0,
+        "degrees/s": math.pi / 180.0,
+        "mdps": math.pi / 180.0e3,
+    },
+}
+#: The units each choice of --units reports the three figures in (noise density, bias
+#: instability, random walk); "{u}" is the data's own unit.
+UNIT_NAMES = {
+    "native": ("{u}/√Hz", "{u}", "{u}/s/√Hz"),
+    ("datasheet", "accelerometer"): ("µg/√Hz", "µg", "µg/s/√Hz"),
+    ("datasheet", "gyroscope"): ("°/√h", "°/h", "°/h/√h"),
+    ("si", "accelerometer"): ("m/s²/√Hz", "m/s²", "m/s³/√Hz"),
+    ("si", "gyroscope"): ("rad/s/√Hz", "rad/s", "rad/s²/√Hz"),
+}
+UNIT_CHOICES = ("native", "datasheet", "si")
+#: Kalibr's imu.yaml keys for each sensor (noise density, random walk), in SI.
+KALIBR_KEYS = {
+    "accelerometer": ("accelerometer_noise_density", "accelerometer_random_walk"),
+    "gyroscope": ("gyroscope_noise_density", "gyroscope_random_walk"),
+}
+
+
+def unit_key(units: str | None) -> str:
+    return "" if units is None else units.strip().lower().replace(" ", "")
+
+
+def factors(sensor: str, units: str | None, choice: str) -> tuple[float, float, float]:
+    """What the figures in the data's units are multiplied by to read in ``choice``'s units."""
+    if choice == "native":
+        return (1.0, 1.0, 1.0)
+    si = TO_SI.get(sensor, {}).get(unit_key(units))
+    if si is None:
+        raise InputError(
+            f"--units {choice} needs a calibration in known {sensor} units, "
+            f"not {units!r}" + ("" if sensor in TO_SI else f" (a {sensor} has none)"),
+            hint=f"calibrations in {', '.join(TO_SI.get(sensor, {'m/s^2': 1.0}))}; or --units native",
+        )
+    if choice == "si":
+        return (si, si, si)
+    if sensor == "accelerometer":  # µg: per g, a millionth
+        f = si / 9.80665 * 1e6
+        return (f, f, f)
+    deg = si * 180.0 / math.pi  # °/s; sqrt(h) = 60 sqrt(s): °/s/√Hz = °/√s = 60 °/√h
+    return (deg * 60.0, deg * 3600.0, deg * 3600.0 * 60.0)
+
+
+@dataclass
+class Noise:
+    """noise's result: the curve (``curve``, in the data's units), the figures of each axis in
+    ``figure_units``, and the outcome (``status`` 0 pass, 1 outside its limits, 3 the capture
+    moved: ``rejected`` says how)."""
+
+    status: int
+    file: str
+    sensor: str
+    rate: float
+    samples: int
+    units: str | None  # the data's units (the calibration's), None: raw
+    choice: str  # native | datasheet | si
+    figure_units: tuple[str, str, str]
+    curve: Any  # core.allan.Curve, in the data's units
+    axes: list[Any]  # core.allan.Figures per axis, in figure_units
+    limits: dict[str, Any] = field(default_factory=dict)
+    failures: list[Any] = field(default_factory=list)  # core.gate.Finding
+    not_judged: list[str] = field(default_factory=list)
+    rejected: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    short: CaptureRejected | None = None  # --kalibr asked for a figure the capture does not show
+
+    @property
+    def error(self) -> CaptureRejected | None:
+        """The rejection as the command line reports it (None: none): a move first."""
+        if not self.rejected:
+            return self.short
+        return CaptureRejected(
+            self.rejected[0],
+            more=tuple(self.rejected[1:]),
+            code="capture.moved",
+            hint="capture it again with the unit resting still (and its temperature settled)",
+        )
+
+    def verdict(self) -> dict[str, Any] | None:
+        if not self.limits:
+            return None
+        bounds = {k: [float(x) for x in v] for k, v in self.limits.items()}
+        return {
+            "pass": not self.failures,
+            "failures": [f.as_dict() for f in self.failures],
+            "limits": bounds,
+            "not_judged": self.not_judged,
+        }
+
+    def to_dict(self) -> dict[str, Any]:
+        """The --json object (README "tumblecal noise")."""
+        low, high = self.curve.interval()
+        curve = {"tau": [float(t) for t in self.curve.tau], "terms": [int(t) for t in self.curve.terms]}
+        for j, axis in enumerate("xyz"):
+            curve[axis] = [float(v) for v in self.curve.adev[:, j]]
+            curve[f"{axis}_interval"] = [
+                [_finite(lo), _finite(hi)] for lo, hi in zip(low[:, j], high[:, j], strict=True)
+            ]
+        axes = {}
+        for axis, figs in zip("xyz", self.axes, strict=True):
+            axes[axis] = {
+                name: {
+                    "value": f.value,
+                    "uncertainty": f.uncertainty,
+                    "units": unit,
+                    "tau": list(f.tau) if f.tau else None,
+                    **({"why": f.why} if f.value is None else {}),
+                }
+                for name, f, unit in zip(
+                    ("noise_density", "bias_instability", "random_walk"),
+                    (figs.noise_density, figs.bias_instability, figs.random_walk),
+                    self.figure_units,
+                    strict=True,
+                )
+            }
+        return {
+            "status": {0: "pass", 1: "fail", 3: "rejected"}[self.status],
+            "exit_status": self.status,
+            "file": self.file,
+            "sensor": self.sensor,
+            "rate": self.rate,
+            "samples": self.samples,
+            "units": self.units,
+            "adev": curve,
+            "axes": axes,
+            "verdict": self.verdict(),
+            "rejections": self.rejected or ([self.short.message] if self.short else []),
+            "notes": self.notes,
+        }
+
+    def kalibr(self) -> dict[str, float]:
+        """The Kalibr/VINS noise model of this sensor in SI: the largest of the three axes."""
+        if self.sensor not in KALIBR_KEYS:
+            raise InputError(f"Kalibr's noise model has no {self.sensor}: only an accelerometer or a gyroscope")
+        to_si = factors(self.sensor, self.units, "si")
+        back = factors(self.sensor, self.units, self.choice)
+        out: dict[str, float] = {}
+        for key, name, k in zip(KALIBR_KEYS[self.sensor], ("noise_density", "random_walk"), (0, 2), strict=True):
+            values = [getattr(a, name).value for a in self.axes]
+            if any(v is None for v in values):
+                raise CaptureRejected(
+                    f"{self.file}: {name.replace('_', ' ')} is not determined on every axis, and Kalibr needs it",
+                    code="capture.short",
+                    hint="a longer still capture shows the random walk (hours, for a good IMU)",
+                )
+            out[key] = max(float(v) for v in values if v is not None) / back[k] * to_si[k]
+        out["update_rate"] = self.rate
+        return out
+
+
+def _finite(v: float) -> float | None:
+    return float(v) if math.isfinite(v) else None
+
+
+def noise(
+    capture: str | os.PathLike[str],
+    *,
+    rate: float | None = None,
+    sensor: str = "accelerometer",
+    cal: Any = None,
+    limits: str | Mapping[str, Any] | None = None,
+    units: str | None = None,
+    per_octave: int = 1,
+    columns: str | None = None,
+    no_header: bool = False,
+    time_column: str | None = None,
+    time_unit: str = "auto",
+    skip_rows: int | None = None,
+    decimal: str | None = None,
+    drop_incomplete: bool = False,
+    progress: Callable[[int], None] | None = None,
+    kalibr: bool = False,
+) -> Noise:
+    """The Allan deviation of a still capture and its noise figures (README "tumblecal noise")."""
+    from tumblecal_cli.core import allan
+    from tumblecal_cli.io import calfile
+    from tumblecal_cli.pipeline.solve import path_of
+
+    path = path_of(capture, "noise reads a still capture from a file")
+    if rate is not None and not (math.isfinite(rate) and rate > 0):
+        raise InputError(f"--rate must be a positive number of Hz, got {rate:g}")
+    if not 1 <= per_octave <= 64:
+        raise InputError(f"--taus must be 1 to 64 points per octave, got {per_octave}")
+    c = calfile.resolve(cal) if cal is not None else None
+    data_units = c.units if c is not None else None
+    kind = c.sensor if c is not None else sensor
+    if units is not None and units not in UNIT_CHOICES:
+        raise InputError(f"--units must be one of {', '.join(UNIT_CHOICES)}, got {units!r}")
+    if units in ("datasheet", "si") and c is None:
+        raise InputError(f"--units {units} needs --cal: raw readings have no known units")
+    known = kind in TO_SI and unit_key(data_units) in TO_SI[kind]
+    choice = units or ("datasheet" if known else "native")
+    scale = factors(kind, data_units, choice)
+    if kalibr:  # refused before the capture is read
+        _kalibr_units(kind, c, data_units)
+    bounds = _limits(limits)
+    loaded = _stream(
+        path,
+        c,
+        kind,
+        rate,
+        allan.AllanStream(per_octave),
+        columns=columns,
+        no_header=no_header,
+        time_column=time_column,
+        time_unit=time_unit,
+        dialect=(skip_rows, decimal, drop_incomplete),
+        progress=progress,
+    )
+    curve, watch, name, notes, hz = loaded
+    if curve.samples < 2:
+        raise InputError(f"{curve.samples} sample: an Allan deviation needs many", file=name)
+    names = UNIT_NAMES.get(choice) or UNIT_NAMES[(choice, kind)]
+    figure_units = tuple(n.format(u=data_units or "raw") for n in names)
+    axes = [
+        allan.Figures(*(getattr(f, n).scaled(s) for n, s in zip(allan.NAMES, scale, strict=True)))
+        for f in allan.figures(curve)
+    ]
+    result = Noise(0, name, kind, hz, curve.samples, data_units, choice, figure_units, curve, axes, bounds)  # type: ignore[arg-type]
+    result.notes = notes
+    result.rejected = [f"{name}: {m.message()}" for m in watch.verdict()]
+    if not result.rejected:
+        result.failures, result.not_judged = judge(axes, bounds, figure_units)
+    if kalibr and not result.rejected:  # judged now: a rejected run writes no --plot either
+        try:
+            result.kalibr()
+        except CaptureRejected as err:
+            result.short = err
+    result.status = 3 if result.error else 1 if result.failures else 0
+    return result
+
+
+def _kalibr_units(sensor: str, cal: Any, units: str | None) -> None:
+    """Kalibr's figures are in SI: refuse a sensor it has no keys for, or units not known."""
+    if sensor not in KALIBR_KEYS:
+        raise InputError(f"Kalibr's noise model has no {sensor}: only an accelerometer or a gyroscope")
+    if cal is None:
+        raise InputError(
+            "--kalibr needs --cal: Kalibr's figures are in SI, and raw readings have no known units",
+            hint="give the calibration of this sensor (its units: g, m/s^2, deg/s or rad/s)",
+        )
+    factors(sensor, units, "si")
+
+
+def _limits(limits: str | Mapping[str, Any] | None) -> dict[str, Any]:
+    """The noise limits of a limits file (or a mapping of them), each (3,)."""
+    import numpy as np
+
+    from tumblecal_cli.io import calfile
+
+    if limits is None:
+        return {}
+    given = calfile.load_limits(os.fspath(limits)) if isinstance(limits, str | os.PathLike) else dict(limits)
+    out = {}
+    for key in calfile.NOISE_LIMITS:
+        if given.get(key) is not None:
+            value = given[key]
+            array = calfile.limit_value(list(value) if not np.isscalar(value) else value, key, None, per_axis=True)
+            out[key] = array
+    return out
+
+
+def judge(axes: list[Any], bounds: Mapping[str, Any], figure_units: tuple[str, ...]) -> tuple[list[Any], list[str]]:
+    """Each figure above its limit (a failure, code ``limit.<figure>.<axis>``), and those not
+    determined where a limit asks for them (not judged: said, not failed)."""
+    from tumblecal_cli.core import allan, gate
+
+    failures, not_judged = [], []
+    for name, unit in zip(allan.NAMES, figure_units, strict=True):
+        if name not in bounds:
+            continue
+        for j, axis in enumerate("xyz"):
+            f = getattr(axes[j], name)
+            bound = float(bounds[name][j])
+            if f.value is None:
+                not_judged.append(f"{name}.{axis}")
+                continue
+            if not f.value <= bound:
+                failures.append(
+                    gate.Finding(
+                        f"limit.{name}.{axis}",
+                        f"{name.replace('_', ' ')} {f.value:.3g} {unit} on {axis} is above {bound:g}",
+                        float(f.value),
+                        bound,
+                    )
+                )
+    return failures, not_judged
+
+
+def _stream(
+    path: str,
+    cal: Any,
+    sensor: str,
+    rate: float | None,
+    stream: Any,
+    *,
+    columns: str | None,
+    no_header: bool,
+    time_column: str | None,
+    time_unit: str,
+    dialect: tuple[int | None, str | None, bool],
+    progress: Callable[[int], None] | None,
+) -> tuple[Any, Any, str, list[str], float]:
+    """Read the capture block by block into the Allan stream and the step watch."""
+    import numpy as np
+
+    from tumblecal_cli.core import allan
+    from tumblecal_cli.core.model import apply
+    from tumblecal_cli.io import captures as reading
+
+    picked = columns.split(",") if columns else None
+    with reading.open_capture(
+        path,
+        sensor=sensor,
+        columns=picked,
+        prefer=cal.columns if cal is not None else None,
+        no_header=no_header,
+        time_column=time_column,
+        dialect=reading.Dialect(*dialect),
+    ) as cap:
+        lay = cap.layout
+        if rate is None and lay.time is None:
+            raise InputError(
+                "the sample rate is unknown: the capture has no time column", file=lay.name, hint="give --rate HZ"
+            )
+        hz = rate
+        watch: Any = None
+        for first_row, cols in cap.batches(only_sensor=True):
+            values, empty = cap.sensor_values(cols, first_row)
+            bad = ~np.isfinite(values) & ~empty[:, None]
+            if bad.any():
+                i, j = (int(k[0]) for k in np.nonzero(bad))
+                raise cap._locate(first_row + i, j, f"not a finite number: {reading.quoted(cols[j][i].as_py())}")
+            if empty.any():
+                values = values[~empty]
+            if hz is None and values.shape[0] > 1:
+                hz = reading.block_rate(cap, cols[3], empty, time_unit)
+            if cal is not None:
+                values = apply(values, cal.offset, cal.matrix)
+            if watch is None and hz is not None:
+                watch = allan.StepWatch(max(16, 2 ** round(math.log2(max(hz, 1.0)))))  # about a second
+            stream.add(values)
+            if watch is not None:
+                watch.add(values)
+            if progress is not None:
+                progress(stream.n)
+    if hz is None:
+        raise InputError("the sample rate is unknown", file=lay.name, hint="give --rate HZ")
+    return stream.result(hz), watch or allan.StepWatch(1), lay.name, list(lay.notes), hz
+
+
+def write_kalibr(path: str, result: Noise) -> dict[str, Any]:
+    """Write (atomically) the noise model Kalibr's imu.yaml and VINS read, in SI. An existing
+    file's other keys (the other sensor's figures, rostopic ...) are kept: run it once for the
+    accelerometer and once for the gyroscope into one file."""
+    import yaml
+
+    from tumblecal_cli.io import calfile
+    from tumblecal_cli.io.outputs import atomic_output
+
+    model = result.kalibr()
+    doc: dict[str, Any] = {}
+    if os.path.exists(path):
+        doc = calfile.parse_object(calfile.read_bytes(path, "Kalibr imu.yaml"), path, "Kalibr imu.yaml", as_yaml=True)
+    old_rate = doc.get("update_rate")
+    if isinstance(old_rate, int | float) and abs(float(old_rate) - result.rate) > 1e-6 * result.rate:
+        raise InputError(
+            f"holds update_rate {old_rate:g}, this capture's rate is {result.rate:g} Hz",
+            file=path,
+            hint="one imu.yaml describes one IMU at one rate: write another file",
+        )
+    doc.update(model)
+    head = (
+        "# IMU noise model (Kalibr / VINS): continuous-time densities in SI, the largest axis's,\n"
+        f"# from the Allan deviation of {os.path.basename(result.file)} "
+        f"({result.samples} samples at {result.rate:g} Hz)\n"
+        "# accelerometer: m/s^2/sqrt(Hz) and m/s^3/sqrt(Hz); gyroscope: rad/s/sqrt(Hz) and rad/s^2/sqrt(Hz)\n"
+    )
+    with atomic_output(path) as out:
+        out.write((head + yaml.safe_dump(doc, sort_keys=False)).encode())
+    return model
