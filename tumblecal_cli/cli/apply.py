@@ -77,7 +77,8 @@ def apply(
     every other column and the line endings. The sensor columns are the calibration's own
     (a capture without them is refused unless --columns names them), written with every
     digit needed to round-trip. A calibration whose unit failed its limits is refused
-    unless --force.
+    unless --force. One with a thermal block (tumblecal thermal) corrects each row at its own
+    temperature, read from the column the block names; rows outside its range are clamped to it.
 
     With -o nothing is written unless the whole capture is corrected. To stdout the rows are
     streamed as they are corrected, and a stream cannot be taken back: a bad row far into the
