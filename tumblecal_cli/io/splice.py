@@ -1,0 +1,292 @@
+"""apply's fast path: corrected sensor cells spliced into the capture's own bytes.
+
+A block of whole lines (about 1 MiB) is corrected without reading its other cells at all:
+numpy finds the line ends and the delimiters, pyarrow parses the sensor cells alone, and the
+output is the block's bytes with those cells' text replaced (``pyarrow.compute.take`` over
+the pieces: the text before a sensor cell, the new text, the text after it). So the other
+cells keep their bytes by construction, and memory is bounded by the block whatever the
+number of columns.
+
+It takes a block only when every line is plain: the header's number of delimiters on every
+line, one line ending throughout (the file's), no ``#``, valid UTF-8, sensor cells that are
+numbers or all empty in a row. ``Splicer.block`` returns None for anything else, and the
+caller reads that block by the general rules (``captures.correct_stream``), which also make
+every error message: what this path writes is what the general path writes, byte for byte.
+
+Floats are spelled as pyarrow's cast spells them (shortest round-trip digits; ``1e-7``,
+``1e+10``, ``0.00001``, ``2``). orjson spells them alike wherever 1e-5 <= |x| < 1e10 and x is
+not a whole number, about 5x faster, so it writes those and pyarrow the rest (checked once a
+process against pyarrow on a sample, else pyarrow writes all).
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+
+FloatArray = np.ndarray[Any, np.dtype[np.float64]]
+IntArray = np.ndarray[Any, np.dtype[np.int64]]
+Correction = tuple[tuple[int, int, int], Callable[[FloatArray], FloatArray]]
+
+#: Where orjson and pyarrow spell a float alike: LOW <= |x| < HIGH, and not a whole number.
+LOW, HIGH = 1e-5, 1e10
+#: Past this share of floats that orjson does not spell like pyarrow, a block is all pyarrow's.
+PATCH_SHARE = 0.05
+
+
+class Splicer:
+    """Corrects blocks of plain lines of one capture layout (see the module's docstring)."""
+
+    def __init__(self, ncols: int, delimiter: str, eol: str, decimal: str, corrections: Sequence[Correction]) -> None:
+        _keep_freed_memory()
+        self.ncols = ncols
+        self.delimiter = ord(delimiter)
+        self.crlf = eol == "\r\n"
+        self.eol = eol.encode()
+        self.decimal = decimal
+        self.fields = sorted({c for cols, _ in corrections for c in cols})  # sensor columns, in file order
+        at = {c: k for k, c in enumerate(self.fields)}
+        self.corrections = [([at[c] for c in cols], fn) for cols, fn in corrections]
+        self.runs = [(0, 0)]  # sensor columns next to each other: written as one piece
+        for j in range(1, len(self.fields)):
+            if self.fields[j] == self.fields[j - 1] + 1:
+                self.runs[-1] = (self.runs[-1][0], j)
+            else:
+                self.runs.append((j, j))
+
+    def block(self, buf: bytes) -> tuple[Any, int] | None:
+        """(the corrected bytes, the number of rows) of ``buf``, whole lines; None when a line
+        is not plain (the general reader takes the block)."""
+        if not buf.endswith(b"\n"):  # the file's last line, without its line end
+            buf += self.eol
+        cells = self._cells(buf)
+        if cells is None:
+            return None
+        starts, ends = cells
+        n, s = starts.shape
+        lengths = ends - starts
+        empty = lengths == 0
+        values = self._parse(buf, starts, ends, empty)
+        if values is None:
+            return None
+        fixed = np.empty((n, s))
+        for where, fn in self.corrections:
+            fixed[:, where] = fn(values[:, where])
+        text, first, last, joined = self._format(fixed.ravel(), empty.ravel())
+        groups = self.runs if joined else [(j, j) for j in range(s)]
+        return _splice(buf, starts, ends, text, first.reshape(n, s), last.reshape(n, s), groups), n
+
+    def _cells(self, buf: bytes) -> tuple[Any, Any] | None:
+        """Start and end offsets (n, s) of each line's sensor cells, or None."""
+        if b"#" in buf or not _utf8(buf):
+            return None
+        data = np.frombuffer(buf, dtype=np.uint8)
+        newline = np.flatnonzero(data == 10)
+        n = newline.size
+        if self.crlf:
+            if buf.count(b"\r") != n or newline[0] == 0 or not (data[newline - 1] == 13).all():
+                return None
+            ends = newline - 1
+        elif b"\r" in buf:
+            return None
+        else:
+            ends = newline
+        k = self.ncols - 1
+        delimiters = np.flatnonzero(data == self.delimiter)
+        if delimiters.size != n * k:
+            return None
+        at = delimiters.reshape(n, k)
+        starts = np.empty(n, dtype=np.int64)
+        starts[0] = 0
+        starts[1:] = newline[:-1] + 1
+        if not ((at[:, 0] >= starts).all() and (at[:, -1] < ends).all()):  # so each line has k exactly
+            return None
+        s = len(self.fields)
+        first = np.empty((n, s), dtype=np.int32)
+        last = np.empty((n, s), dtype=np.int32)
+        for j, c in enumerate(self.fields):
+            first[:, j] = at[:, c - 1] + 1 if c else starts
+            last[:, j] = at[:, c] if c < k else ends
+        return first, last
+
+    def _parse(self, buf: bytes, starts: Any, ends: Any, empty: Any) -> FloatArray | None:
+        """The sensor cells as floats (n, s): NaN where a row's cells of one sensor are all
+        empty; None when some are empty and some not, or a cell is not a number."""
+        n, s = starts.shape
+        if empty.any():
+            for where, _ in self.corrections:
+                some = empty[:, where]
+                if (some.any(axis=1) & ~some.all(axis=1)).any():
+                    return None
+        bounds = np.empty(2 * n * s, dtype=np.int32)  # cell, gap, cell, gap ...: every other value a cell
+        bounds[0::2] = starts.ravel()
+        bounds[1::2] = ends.ravel()
+        pieces = _strings(buf, bounds)
+        filled = np.flatnonzero(~empty.ravel())
+        text = pc.take(pieces, _ints(2 * filled))
+        if self.decimal != ".":
+            text = pc.replace_substring(text, self.decimal, ".")
+        try:
+            parsed = pc.cast(text, pa.float64())
+        except pa.ArrowInvalid:
+            return None
+        values = np.full(n * s, np.nan)
+        values[filled] = _floats(parsed)
+        return values.reshape(n, s)
+
+    def _format(self, values: FloatArray, empty: Any) -> tuple[list[Any], IntArray, IntArray, bool]:
+        """The text of ``values`` (empty where ``empty``) as pyarrow spells them: (the parts of a
+        buffer, each value's first and end offsets in it, whether values are one delimiter apart)."""
+        with np.errstate(invalid="ignore"):
+            size = np.abs(values)
+            odd = size < LOW  # NaN: neither this nor the next, so not spelled alike
+            odd |= ~(size < HIGH)
+            odd |= values == np.trunc(values)
+            odd |= empty
+        wrong = np.flatnonzero(odd)
+        if wrong.size <= PATCH_SHARE * values.size and _orjson_agrees():
+            return self._format_orjson(values, empty, wrong)
+        text = pc.cast(_arrow_floats(values, empty), pa.string())
+        if self.decimal != ".":
+            text = pc.replace_substring(text, ".", self.decimal)
+        offsets = _offsets(text)
+        data = text.buffers()[2]  # None when every value is empty
+        return [data] if data is not None else [], offsets[:-1], offsets[1:], False
+
+    def _format_orjson(self, values: FloatArray, empty: Any, wrong: Any) -> tuple[list[Any], IntArray, IntArray, bool]:
+        import orjson
+
+        text = orjson.dumps(values, option=orjson.OPT_SERIALIZE_NUMPY)  # b"[v,v,v,...]"
+        commas = np.empty(values.size + 1, dtype=np.int64)
+        commas[0] = 0
+        commas[-1] = len(text) - 1
+        commas[1:-1] = np.flatnonzero(np.frombuffer(text, dtype=np.uint8) == 44)
+        parts: list[Any] = [text]
+        if wrong.size:  # pyarrow's spelling (or nothing) in place of orjson's
+            spelled = _arrow_floats(values[wrong], empty[wrong])
+            right = [(s or "").encode() for s in pc.cast(spelled, pa.string()).to_pylist()]
+            start, end = commas[wrong] + 1, commas[wrong + 1]
+            whole, at = memoryview(text), 0
+            parts = []
+            for a, b, r in zip(start.tolist(), end.tolist(), right, strict=True):
+                parts += [whole[at:a], r]
+                at = b
+            parts.append(whole[at:])
+            shift = np.zeros(values.size + 1, dtype=np.int64)
+            shift[wrong + 1] = np.array([len(r) for r in right]) - (end - start)
+            commas += np.cumsum(shift)
+        if self.delimiter != 44 or self.decimal != ".":
+            chars = np.frombuffer(b"".join(parts), dtype=np.uint8).copy()
+            if self.decimal != ".":
+                chars[chars == 46] = ord(self.decimal)
+            chars[commas[1:-1]] = self.delimiter
+            parts = [chars]
+        return parts, commas[:-1] + 1, commas[1:], True
+
+
+def _splice(
+    buf: bytes, starts: Any, ends: Any, text: list[Any], first: Any, last: Any, groups: list[tuple[int, int]]
+) -> Any:
+    """``buf`` with the cells ``starts``..``ends`` (n, s) replaced by ``joined(text)[first:last]``:
+    the bytes themselves. Each of ``groups`` (first cell, last cell) is taken as one piece."""
+    n = starts.shape[0]
+    a = [g for g, _ in groups]
+    b = [h for _, h in groups]
+    g = len(groups)
+    around = np.empty(2 * n * g + 2, dtype=np.int64)  # 0, group start, group end, ..., len(buf)
+    around[0] = 0
+    around[-1] = len(buf)
+    inner = around[1:-1].reshape(n, g, 2)
+    inner[:, :, 0] = starts[:, a]
+    inner[:, :, 1] = ends[:, b]
+    new = np.empty((n, g, 2), dtype=np.int64)
+    new[:, :, 0] = first[:, a]
+    new[:, :, 1] = last[:, b]
+    new += len(buf)
+    data = b"".join([buf, *text])
+    whole = _strings(data, np.concatenate([around, new.ravel()]).astype(np.int32))
+    order = np.empty(2 * n * g + 1, dtype=np.int64)  # text between groups, new group, ..., the end
+    order[0::2] = 2 * np.arange(n * g + 1)
+    order[1::2] = 2 * n * g + 2 + 2 * np.arange(n * g)
+    out = pc.take(whole, _ints(order))
+    offsets = _offsets(out)
+    return memoryview(out.buffers()[2])[offsets[0] : offsets[-1]]
+
+
+def _ints(values: Any) -> pa.Array:
+    """An int64 arrow array of ``values`` (``pa.array`` would import pandas where it is installed)."""
+    data = np.ascontiguousarray(values, dtype=np.int64)
+    return pa.Array.from_buffers(pa.int64(), len(data), [None, pa.py_buffer(data)])
+
+
+def _strings(data: Any, offsets: Any) -> pa.Array:
+    """A string array over ``data`` whose values are between consecutive ``offsets`` (no copy)."""
+    return pa.Array.from_buffers(pa.string(), len(offsets) - 1, [None, pa.py_buffer(offsets), pa.py_buffer(data)])
+
+
+def _offsets(text: pa.Array) -> Any:
+    return np.frombuffer(text.buffers()[1], dtype=np.int32, count=len(text) + 1, offset=text.offset * 4)
+
+
+def _floats(arr: pa.Array) -> FloatArray:
+    if len(arr) == 0:
+        return np.empty(0)
+    return np.frombuffer(arr.buffers()[1], dtype=np.float64, count=len(arr), offset=arr.offset * 8)
+
+
+def _arrow_floats(values: FloatArray, null: Any) -> pa.Array:
+    validity = pa.py_buffer(np.packbits(~null, bitorder="little")) if null.any() else None
+    data = pa.py_buffer(np.ascontiguousarray(values, dtype=np.float64))
+    return pa.Array.from_buffers(pa.float64(), len(values), [validity, data])
+
+
+def _utf8(buf: bytes) -> bool:
+    if buf.isascii():
+        return True
+    try:
+        buf.decode("utf-8")
+    except UnicodeDecodeError:
+        return False
+    return True
+
+
+@functools.cache
+def _keep_freed_memory() -> None:
+    """Have glibc's malloc serve the blocks' buffers (a few MB each, freed and taken again for
+    every block) from memory it keeps, not from fresh mappings: fresh pages fault in one by one,
+    and that was a third of the CPU time (330k page faults on a 4M-row file). Peak memory stays
+    that of a few blocks. A no-op where malloc is not glibc's."""
+    import ctypes
+    import ctypes.util
+
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        mallopt = libc.mallopt
+    except (OSError, AttributeError):
+        return
+    m_trim_threshold, m_mmap_threshold = -1, -3
+    mallopt(m_mmap_threshold, 64 << 20)  # sizes below this come from the heap, not a new mapping
+    mallopt(m_trim_threshold, 256 << 20)  # and freed memory is kept for the next block
+
+
+@functools.cache
+def _orjson_agrees() -> bool:
+    """Whether orjson spells floats in [LOW, HIGH) that are not whole numbers as pyarrow does
+    (checked on a sample once a process; False without orjson)."""
+    try:
+        import orjson
+    except ImportError:
+        return False
+    rng = np.random.default_rng(0)
+    sample = rng.normal(size=4000) * 10.0 ** rng.integers(-5, 10, size=4000)
+    sample = np.concatenate([sample, [LOW, -LOW, 0.1, 0.3, 1 / 3, 2 / 3, 1e-4, 9999999999.5, 123456.789]])
+    size = np.abs(sample)
+    sample = sample[(size >= LOW) & (size < HIGH) & (sample != np.trunc(sample))]
+    ours = orjson.dumps(sample, option=orjson.OPT_SERIALIZE_NUMPY)[1:-1].split(b",")
+    theirs = pc.cast(_arrow_floats(sample, np.zeros(sample.size, dtype=bool)), pa.string()).to_pylist()
+    return bool([t.decode() for t in ours] == theirs)
