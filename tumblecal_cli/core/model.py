@@ -298,8 +298,8 @@ def apply(raw: FloatArray, offset: FloatArray, matrix: FloatArray) -> FloatArray
             total += columns[1] * matrix[i, 1]
             total += columns[2] * matrix[i, 2]
             out[:, i] = total
-        odd = ~np.isfinite(d).all(axis=1)
-        if odd.any():  # inf x 0 is nan: an axis M does not mix in must not spoil the others
+        odd = None if np.isfinite(d).all() else ~np.isfinite(d).all(axis=1)  # the row test only when needed
+        if odd is not None:  # inf x 0 is nan: an axis M does not mix in must not spoil the others
             rows = d[odd]
             fixed = np.zeros_like(rows)
             for i, j in zip(*np.nonzero(matrix), strict=True):

@@ -52,6 +52,8 @@ class Splicer:
         self.fields = sorted({c for cols, _ in corrections for c in cols})  # sensor columns, in file order
         at = {c: k for k, c in enumerate(self.fields)}
         self.corrections = [([at[c] for c in cols], fn) for cols, fn in corrections]
+        straight = len(self.corrections) == 1 and self.corrections[0][0] == list(range(len(self.fields)))
+        self.whole = self.corrections[0][1] if straight else None
         self.runs = [(0, 0)]  # sensor columns next to each other: written as one piece
         for j in range(1, len(self.fields)):
             if self.fields[j] == self.fields[j - 1] + 1:
@@ -67,22 +69,24 @@ class Splicer:
         cells = self._cells(buf)
         if cells is None:
             return None
-        starts, ends = cells
-        n, s = starts.shape
-        lengths = ends - starts
-        empty = lengths == 0
-        values = self._parse(buf, starts, ends, empty)
+        n, s = cells.shape[0], len(self.fields)
+        empty = cells[:, 1::2] == cells[:, 0::2]  # (n, s)
+        values = self._parse(buf, cells, empty)
         if values is None:
             return None
-        fixed = np.empty((n, s))
-        for where, fn in self.corrections:
-            fixed[:, where] = fn(values[:, where])
-        text, first, last, joined = self._format(fixed.ravel(), empty.ravel())
-        groups = self.runs if joined else [(j, j) for j in range(s)]
-        return _splice(buf, starts, ends, text, first.reshape(n, s), last.reshape(n, s), groups), n
+        if self.whole is not None:  # one sensor, its columns in file order: no copies
+            fixed = np.ascontiguousarray(self.whole(values), dtype=np.float64)
+        else:
+            fixed = np.empty((n, s))
+            for where, fn in self.corrections:
+                fixed[:, where] = fn(values[:, where])
+        parts, bounds, skip = self._format(fixed.ravel(), empty.ravel())
+        groups = self.runs if skip else [(j, j) for j in range(s)]
+        return _splice(buf, cells, parts, bounds, skip, groups), n
 
-    def _cells(self, buf: bytes) -> tuple[Any, Any] | None:
-        """Start and end offsets (n, s) of each line's sensor cells, or None."""
+    def _cells(self, buf: bytes) -> Any | None:
+        """Each line's sensor cells (n, 2s): start and end offsets in ``buf``, cell by cell; None
+        when a line is not plain."""
         if b"#" in buf or not _utf8(buf):
             return None
         data = np.frombuffer(buf, dtype=np.uint8)
@@ -101,64 +105,65 @@ class Splicer:
         if delimiters.size != n * k:
             return None
         at = delimiters.reshape(n, k)
-        starts = np.empty(n, dtype=np.int64)
-        starts[0] = 0
-        starts[1:] = newline[:-1] + 1
-        if not ((at[:, 0] >= starts).all() and (at[:, -1] < ends).all()):  # so each line has k exactly
+        if not (at[1:, 0] > newline[:-1]).all() or not (at[:, -1] < ends).all():  # so k on every line
             return None
-        s = len(self.fields)
-        first = np.empty((n, s), dtype=np.int32)
-        last = np.empty((n, s), dtype=np.int32)
+        cells = np.empty((n, 2 * len(self.fields)), dtype=np.int32)
         for j, c in enumerate(self.fields):
-            first[:, j] = at[:, c - 1] + 1 if c else starts
-            last[:, j] = at[:, c] if c < k else ends
-        return first, last
+            if c:
+                np.add(at[:, c - 1], 1, out=cells[:, 2 * j])
+            else:
+                cells[0, 0] = 0
+                np.add(newline[:-1], 1, out=cells[1:, 0])
+            cells[:, 2 * j + 1] = at[:, c] if c < k else ends
+        return cells
 
-    def _parse(self, buf: bytes, starts: Any, ends: Any, empty: Any) -> FloatArray | None:
+    def _parse(self, buf: bytes, cells: Any, empty: Any) -> FloatArray | None:
         """The sensor cells as floats (n, s): NaN where a row's cells of one sensor are all
         empty; None when some are empty and some not, or a cell is not a number."""
-        n, s = starts.shape
+        n, s = empty.shape
+        m = n * s
         if empty.any():
             for where, _ in self.corrections:
                 some = empty[:, where]
                 if (some.any(axis=1) & ~some.all(axis=1)).any():
                     return None
-        bounds = np.empty(2 * n * s, dtype=np.int32)  # cell, gap, cell, gap ...: every other value a cell
-        bounds[0::2] = starts.ravel()
-        bounds[1::2] = ends.ravel()
-        pieces = _strings(buf, bounds)
-        filled = np.flatnonzero(~empty.ravel())
-        text = pc.take(pieces, _ints(2 * filled))
+            valid = np.zeros(2 * m - 1, dtype=bool)
+            valid[0::2] = ~empty.ravel()
+            bits = pa.py_buffer(np.packbits(valid, bitorder="little"))
+        else:
+            bits = _every_other_bit(2 * m - 1)
+        # cell, gap, cell, gap ...: the gaps null, so that the cast parses the cells alone, in place
+        pieces = pa.Array.from_buffers(pa.string(), 2 * m - 1, [bits, pa.py_buffer(cells.ravel()), pa.py_buffer(buf)])
         if self.decimal != ".":
-            text = pc.replace_substring(text, self.decimal, ".")
+            pieces = pc.replace_substring(pieces, self.decimal, ".")
         try:
-            parsed = pc.cast(text, pa.float64())
+            parsed = pc.cast(pieces, pa.float64())
         except pa.ArrowInvalid:
             return None
-        values = np.full(n * s, np.nan)
-        values[filled] = _floats(parsed)
-        return values.reshape(n, s)
+        values = _floats(parsed)[0::2].reshape(n, s)
+        if empty.any():
+            values = np.where(empty, np.nan, values)
+        return values
 
-    def _format(self, values: FloatArray, empty: Any) -> tuple[list[Any], IntArray, IntArray, bool]:
-        """The text of ``values`` (empty where ``empty``) as pyarrow spells them: (the parts of a
-        buffer, each value's first and end offsets in it, whether values are one delimiter apart)."""
+    def _format(self, values: FloatArray, empty: Any) -> tuple[list[Any], IntArray, int]:
+        """The text of ``values`` (empty where ``empty``) as pyarrow spells them: (the parts of
+        a buffer, and value v's offsets in it: ``bounds[v] + skip`` to ``bounds[v + 1]``). With
+        ``skip`` 1 the values are one delimiter apart (orjson's text), with 0 back to back."""
         with np.errstate(invalid="ignore"):
             size = np.abs(values)
-            odd = size < LOW  # NaN: neither this nor the next, so not spelled alike
-            odd |= ~(size < HIGH)
-            odd |= values == np.trunc(values)
-            odd |= empty
-        wrong = np.flatnonzero(odd)
+            alike = size >= LOW  # NaN: neither this nor the next, so not spelled alike
+            alike &= size < HIGH
+            alike &= values != np.trunc(values)
+        wrong = np.flatnonzero(~alike)
         if wrong.size <= PATCH_SHARE * values.size and _orjson_agrees():
             return self._format_orjson(values, empty, wrong)
         text = pc.cast(_arrow_floats(values, empty), pa.string())
         if self.decimal != ".":
             text = pc.replace_substring(text, ".", self.decimal)
-        offsets = _offsets(text)
         data = text.buffers()[2]  # None when every value is empty
-        return [data] if data is not None else [], offsets[:-1], offsets[1:], False
+        return [data] if data is not None else [], _offsets(text), 0
 
-    def _format_orjson(self, values: FloatArray, empty: Any, wrong: Any) -> tuple[list[Any], IntArray, IntArray, bool]:
+    def _format_orjson(self, values: FloatArray, empty: Any, wrong: Any) -> tuple[list[Any], IntArray, int]:
         import orjson
 
         text = orjson.dumps(values, option=orjson.OPT_SERIALIZE_NUMPY)  # b"[v,v,v,...]"
@@ -186,36 +191,52 @@ class Splicer:
                 chars[chars == 46] = ord(self.decimal)
             chars[commas[1:-1]] = self.delimiter
             parts = [chars]
-        return parts, commas[:-1] + 1, commas[1:], True
+        return parts, commas, 1
 
 
-def _splice(
-    buf: bytes, starts: Any, ends: Any, text: list[Any], first: Any, last: Any, groups: list[tuple[int, int]]
-) -> Any:
-    """``buf`` with the cells ``starts``..``ends`` (n, s) replaced by ``joined(text)[first:last]``:
-    the bytes themselves. Each of ``groups`` (first cell, last cell) is taken as one piece."""
-    n = starts.shape[0]
-    a = [g for g, _ in groups]
-    b = [h for _, h in groups]
-    g = len(groups)
-    around = np.empty(2 * n * g + 2, dtype=np.int64)  # 0, group start, group end, ..., len(buf)
-    around[0] = 0
-    around[-1] = len(buf)
-    inner = around[1:-1].reshape(n, g, 2)
-    inner[:, :, 0] = starts[:, a]
-    inner[:, :, 1] = ends[:, b]
-    new = np.empty((n, g, 2), dtype=np.int64)
-    new[:, :, 0] = first[:, a]
-    new[:, :, 1] = last[:, b]
-    new += len(buf)
-    data = b"".join([buf, *text])
-    whole = _strings(data, np.concatenate([around, new.ravel()]).astype(np.int32))
+def _splice(buf: bytes, cells: Any, parts: list[Any], bounds: Any, skip: int, groups: list[tuple[int, int]]) -> Any:
+    """``buf`` with each line's sensor cells (``cells``, n x 2s offsets) replaced by their new
+    text (value v of the buffer ``parts`` joined: ``bounds[v] + skip`` to ``bounds[v + 1]``):
+    the bytes themselves. Each of ``groups`` (first cell, last cell) is one piece."""
+    n, s, g = cells.shape[0], cells.shape[1] // 2, len(groups)
+    m = n * s
+    offsets = np.empty(4 * n * g + 2, dtype=np.int32)
+    offsets[0] = 0  # the block's text: before the first group, the group, between groups, ...
+    offsets[2 * n * g + 1] = len(buf)  # ... after the last group; then the new text's groups
+    old = offsets[1 : 2 * n * g + 1].reshape(n, g, 2)
+    new = offsets[2 * n * g + 2 :].reshape(n, g, 2)
+    for j, (a, b) in enumerate(groups):
+        old[:, j, 0] = cells[:, 2 * a]
+        old[:, j, 1] = cells[:, 2 * b + 1]
+        np.add(bounds[a:m:s], len(buf) + skip, out=new[:, j, 0], casting="unsafe")
+        np.add(bounds[b + 1 : m + 1 : s], len(buf), out=new[:, j, 1], casting="unsafe")
+    whole = _strings(b"".join([buf, *parts]), offsets)
     order = np.empty(2 * n * g + 1, dtype=np.int64)  # text between groups, new group, ..., the end
-    order[0::2] = 2 * np.arange(n * g + 1)
-    order[1::2] = 2 * n * g + 2 + 2 * np.arange(n * g)
+    order[0::2] = _every_other(n * g + 1)
+    np.add(_every_other(n * g), 2 * n * g + 2, out=order[1::2])
     out = pc.take(whole, _ints(order))
-    offsets = _offsets(out)
-    return memoryview(out.buffers()[2])[offsets[0] : offsets[-1]]
+    at = _offsets(out)
+    return memoryview(out.buffers()[2])[at[0] : at[-1]]
+
+
+_BITS: list[Any] = [pa.py_buffer(b"\x55" * (1 << 18))]
+
+
+def _every_other_bit(n: int) -> Any:
+    """A validity bitmap of n values, every other one valid (0, 2, 4, ...)."""
+    if (n + 7) // 8 > _BITS[0].size:
+        _BITS[0] = pa.py_buffer(b"\x55" * (n // 4 + 1))
+    return _BITS[0]
+
+
+_EVEN: list[IntArray] = [np.arange(0, 2 << 20, 2, dtype=np.int64)]
+
+
+def _every_other(n: int) -> IntArray:
+    """0, 2, 4, ... (n values): a view of one array, made again only when a block needs more."""
+    if n > _EVEN[0].size:
+        _EVEN[0] = np.arange(0, 4 * n, 2, dtype=np.int64)
+    return _EVEN[0][:n]
 
 
 def _ints(values: Any) -> pa.Array:
