@@ -1101,9 +1101,10 @@ def _pipeline(jobs: Iterator[tuple[Any, ...]], write: Callable[[list[Any]], int]
     order: this thread reads block k+1 and writes block k-1 while the pool converts block k
     (pyarrow and numpy release the GIL). At most `ahead` blocks are in memory at once."""
     rows = 0
-    ahead = max(2, os.cpu_count() or 1)
+    workers = max(2, os.cpu_count() or 1)
+    ahead = workers
     pending: deque[Future[list[Any]]] = deque()
-    with ThreadPoolExecutor(max_workers=ahead) as pool:
+    with ThreadPoolExecutor(max_workers=workers) as pool:
         for fn, *args in jobs:
             pending.append(pool.submit(fn, *args))
             while len(pending) >= ahead or (pending and pending[0].done()):
@@ -1158,7 +1159,7 @@ def _splice_jobs(
                     carry += chunk
                     continue
                 cut = chunk.rfind(b"\n") + 1
-                block, carry = carry + chunk[:cut], chunk[cut:]
+                block, carry = b"".join((carry, memoryview(chunk)[:cut])), chunk[cut:]
                 yield spliced, block, at
                 at += len(block)
             if carry:
