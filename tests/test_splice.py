@@ -249,3 +249,36 @@ def test_memory_is_bounded_by_the_block_whatever_the_columns(tmp_path: Path) -> 
         peaks[path.name] = usage.ru_maxrss / 1024  # MiB
     assert peaks["wide.csv"] < peaks["small.csv"] + 150, peaks
     assert (tmp_path / "wide.csv.out").read_bytes().count(b"\n") == 11
+
+
+@pytest.mark.slow
+def test_apply_with_several_calibrations_writes_the_general_paths_bytes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``tumblecal apply --cal acc.json --cal gyro.json`` (the pipeline the command calls): the
+    spliced output is the general path's, on an IMU log with a comment line in its preamble."""
+    import functools
+    import json
+
+    from tumblecal_cli.pipeline.correct import correct
+
+    cal = tmp_path / "acc.json"
+    poses = [str(ROOT / "sample_data" / f"{a}.csv") for a in "xyz"]
+    subprocess.run(
+        [sys.executable, "-m", "tumblecal_cli", "solve", "-q", "--poses", *poses, "-o", str(cal)], check=True
+    )
+    gyro = json.loads(cal.read_text())
+    gyro["columns"], gyro["sensor"] = ["gx", "gy", "gz"], "gyroscope"
+    (tmp_path / "gyro.json").write_text(json.dumps(gyro))
+    values = table(3000)
+    rows = "\r\n".join(f"{i},{a:.6f},{b:.6f},{c:.6f},{c:.3f},{a:.3f},{b:.3f}" for i, (a, b, c) in enumerate(values))
+    log = write(tmp_path, "# imu 7\r\nt,ax,ay,az,gx,gy,gz\r\n" + rows + "\r\n", "imu.csv")
+    cals = [str(cal), str(tmp_path / "gyro.json")]
+    taken = spliced_blocks(monkeypatch)
+    fast = correct(str(log), cals, output=str(tmp_path / "fast.csv"))
+    assert taken == [True]
+    monkeypatch.setattr(captures, "correct_stream", functools.partial(captures.correct_stream, splice=False))
+    general = correct(str(log), cals, output=str(tmp_path / "general.csv"))
+    assert fast.rows == general.rows == 3000
+    assert fast.columns == general.columns == ["ax", "ay", "az", "gx", "gy", "gz"]
+    assert (tmp_path / "fast.csv").read_bytes() == (tmp_path / "general.csv").read_bytes()
