@@ -1099,10 +1099,10 @@ def correct_stream(
 def _pipeline(jobs: Iterator[tuple[Any, ...]], write: Callable[[list[Any]], int]) -> int:
     """Run ``jobs`` (a function and its arguments) on a pool and ``write`` their results in
     order: this thread reads block k+1 and writes block k-1 while the pool converts block k
-    (pyarrow and numpy release the GIL). At most `ahead` blocks are in memory at once."""
+    (pyarrow and numpy release the GIL). At most `ahead` blocks are in flight at once."""
     rows = 0
     workers = max(2, os.cpu_count() or 1)
-    ahead = workers
+    ahead = workers + 2  # two blocks more than workers: a worker done early finds the next one waiting
     pending: deque[Future[list[Any]]] = deque()
     with ThreadPoolExecutor(max_workers=workers) as pool:
         for fn, *args in jobs:

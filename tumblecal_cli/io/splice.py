@@ -51,8 +51,8 @@ class Splicer:
         self.decimal = decimal
         self.fields = sorted({c for cols, _ in corrections for c in cols})  # sensor columns, in file order
         at = {c: k for k, c in enumerate(self.fields)}
-        self.corrections = [([at[c] for c in cols], fn) for cols, fn in corrections]
-        straight = len(self.corrections) == 1 and self.corrections[0][0] == list(range(len(self.fields)))
+        self.corrections = [(_as_slice([at[c] for c in cols]), fn) for cols, fn in corrections]
+        straight = len(self.corrections) == 1 and self.corrections[0][0] == slice(0, len(self.fields))
         self.whole = self.corrections[0][1] if straight else None
         self.runs = [(0, 0)]  # sensor columns next to each other: written as one piece
         for j in range(1, len(self.fields)):
@@ -217,6 +217,11 @@ def _splice(buf: bytes, cells: Any, parts: list[Any], bounds: Any, skip: int, gr
     out = pc.take(whole, _ints(order))
     at = _offsets(out)
     return memoryview(out.buffers()[2])[at[0] : at[-1]]
+
+
+def _as_slice(where: list[int]) -> Any:
+    """Positions a, a+1, a+2 as a slice (a view, not a copy, of the values), else as they are."""
+    return slice(where[0], where[-1] + 1) if where == list(range(where[0], where[-1] + 1)) else where
 
 
 _BITS: list[Any] = [pa.py_buffer(b"\x55" * (1 << 18))]
