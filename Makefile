@@ -49,7 +49,10 @@ FUZZ_SEED ?= 1
 fuzz: $(VENV)/.installed
 	$(BIN)/python tests/fuzz.py --cases $(FUZZ_CASES) --seed $(FUZZ_SEED)
 
+# polars is the baseline `apply` is measured against (the script a user would write instead):
+# installed into the venv for the benchmark only, like pandas it is no dependency of a command
 bench: $(VENV)/.installed
+	$(BIN)/python -m pip install --quiet polars
 	$(BIN)/python tests/bench.py
 
 # each solver's RMS error over 1000 synthetic captures against its Cramér–Rao bound (README: Accuracy)
