@@ -227,7 +227,7 @@ def test_a_rejected_draft_is_never_trusted(tmp_path: Path, capsys: pytest.Captur
         ({"reference": "1"}, "--reference takes a number"),
         ({"min_samples": "5"}, "--min-samples takes a whole number"),
         ({"fixture_tolerance": 40}, "--fixture-tolerance is 0 to 30 degrees"),
-        ({"gain_tolerance": -0.01}, "--gain-tolerance is a fraction of 0 or more"),
+        ({"gain_tolerance": -0.01}, "--gain-tolerance is a fraction from 0 to below 1"),
         ({"gain_tolerance": "2%"}, "--gain-tolerance takes a number"),
         ({"no_check": ["bogus"]}, "--no-check: 'bogus' is not one of"),
     ],

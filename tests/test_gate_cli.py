@@ -961,7 +961,8 @@ def test_three_pose_records_no_gain_tolerance(tmp_path: Path, capsys: pytest.Cap
     ("value", "expected"),
     [
         ("-0.01", "Invalid value for '--gain-tolerance'"),
-        ("nan", "--gain-tolerance is a fraction of 0 or more (0.02: ±2 %), got nan"),
+        ("nan", "--gain-tolerance is a fraction from 0 to below 1 (0.02: ±2 %), got nan"),
+        ("1e308", "--gain-tolerance is a fraction from 0 to below 1 (0.02: ±2 %), got 1e+308"),
     ],
 )
 def test_gain_tolerance_is_checked(value: str, expected: str, capsys: pytest.CaptureFixture[str]) -> None:

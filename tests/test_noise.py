@@ -371,3 +371,14 @@ def test_real_xsens_still_start(capsys: pytest.CaptureFixture[str]) -> None:
             figs = doc["axes"][axis]
             assert figs["noise_density"]["value"] == pytest.approx(level, rel=0.1)
             assert (figs["random_walk"]["value"], figs["bias_instability"]["value"]) == (None, None)
+
+
+@pytest.mark.parametrize("flag", ["--plot", "--kalibr"])
+def test_noise_never_writes_onto_its_input(flag: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    capture = tmp_path / "still.png" if flag == "--plot" else tmp_path / "still.csv"
+    text = "t,ax,ay,az\n" + "".join(f"{i / 100:.2f},0.01,0.02,1.0{i % 7}\n" for i in range(3000))
+    capture.write_text(text)
+    code, _, err = run(capsys, "noise", capture, flag, capture)
+    assert code == 2, err
+    assert "would overwrite the input" in err
+    assert capture.read_text() == text

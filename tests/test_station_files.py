@@ -277,3 +277,50 @@ def test_python_api_takes_the_same_options(tmp_path: Path) -> None:
     np.testing.assert_allclose(solved.calibration.offset, plain.calibration.offset, rtol=1e-12)
     with pytest.raises(InputError, match="--decimal"):
         tumblecal.solve(POSES_3, decimal=";")
+
+
+# -- found in review: each failed before its fix ------------------------------------------------
+
+
+def test_ts_and_times_are_names_not_t_in_seconds(tmp_path: Path) -> None:
+    """`ts` is a time column's name, not t + s: an epoch-ms clock named ts is read as such."""
+    rows = "".join(f"{1730147632975 + 10 * i},0.01,0.02,1.0\n" for i in range(300))
+    log = read_log(str(write(tmp_path / "ts.csv", "ts,ax,ay,az\n" + rows)))
+    assert log.scale == 1e-3
+    assert any("read in milliseconds" in n for n in log.layout.notes)
+
+
+def test_a_step_of_200_is_milliseconds_at_5_hz(tmp_path: Path) -> None:
+    log = read_log(str(write(tmp_path / "slow.csv", still_log(200))))
+    assert log.scale == 1e-3
+
+
+def test_a_whole_last_line_wider_than_64_kib_without_a_line_end_is_data(tmp_path: Path) -> None:
+    row = ",".join(["0.01", "0.02", "1.0", *(["23456.789"] * 12_000)])
+    header = ",".join(["ax", "ay", "az", *(f"c{i}" for i in range(12_000))])
+    s = read_samples(str(write(tmp_path / "wide.csv", header + "\n" + row + "\n" + row)))
+    assert s.values.shape == (2, 3)
+
+
+def test_a_cut_last_line_of_a_cr_only_file_names_its_line(tmp_path: Path) -> None:
+    path = write(tmp_path / "cr.csv", "t,ax,ay,az\r0,1,2,3\r1,1,2,3\r2,1,2")
+    with pytest.raises(InputError, match="last line incomplete") as err:
+        read_samples(str(path))
+    assert err.value.line == 4
+
+
+def test_apply_says_it_dropped_a_cut_last_line(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "--poses", *POSES_3, "-o", cal).code == 0
+    cut = write(tmp_path / "cut.csv", "t,ax,ay,az\n0,1,2,3\n1,1,2,3\n2,1,2,3e")
+    code, out, err = run(capsys, "apply", "--cal", cal, cut, "--drop-incomplete")
+    assert code == 0, err
+    assert "note: " in err
+    assert "the last line is incomplete ('2,1,2,3e'), dropped (--drop-incomplete)" in err
+    assert out.count("\n") == 3
+
+
+def test_a_one_line_preamble_is_named_alone(tmp_path: Path) -> None:
+    path = write(tmp_path / "z.csv", "Fs,100\n" + still_log(0.01))
+    note = read_samples(str(path)).layout.notes[0]
+    assert note == f"{path}: 1 line before the header skipped (line 1: 'Fs,100'); --skip-rows N says how many"

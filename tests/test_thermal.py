@@ -559,3 +559,17 @@ def test_the_sensor_must_be_the_base_calibrations_and_the_block_survives_yaml(
     assert cal.thermal is not None
     assert np.array_equal(again.thermal.offset, cal.thermal.offset)
     assert again.thermal.extra == cal.thermal.extra
+
+
+@pytest.mark.parametrize("cell", ["nan", "inf"])
+def test_apply_refuses_a_reading_at_no_temperature(
+    fitted: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], cell: str
+) -> None:
+    """nan and inf parse as numbers, but a row cannot be corrected at them (was: at T_ref, silently)."""
+    capture = tmp_path / "c.csv"
+    capture.write_text("temp,ax,ay,az\n20,0.01,0.02,1.0\n" + f"{cell},0.01,0.02,1.0\n" + "21,0.01,0.02,1.0\n" * 3000)
+    out = tmp_path / "o.csv"
+    code, _, err = run(capsys, "apply", "--cal", fitted, capture, "-o", out)
+    assert code == 2
+    assert f"temperature is not a finite number: '{cell}' (line 3, column temp)" in err
+    assert not out.exists()

@@ -24,6 +24,7 @@ from tumblecal_cli.cli.options import (
     TimeUnitOption,
     limit_option,
 )
+from tumblecal_cli.errors import InputError
 
 
 class UnitChoice(StrEnum):
@@ -93,6 +94,7 @@ def noise(
 
     from tumblecal_cli.pipeline import noise as pipeline
 
+    _targets(plot, kalibr, json_summary, [capture, *(p for p in (cal, limits) if p)])
     with render.samples_progress(render.make_console(), enabled=not quiet) as progress:
         done = pipeline.noise(
             capture,
@@ -119,3 +121,17 @@ def noise(
         pipeline.write_kalibr(kalibr, done)
     if done.status:
         raise typer.Exit(done.status)
+
+
+def _targets(plot: str | None, kalibr: str | None, json_summary: bool, inputs: list[str]) -> None:
+    """Refuse a --plot or --kalibr path that names an input or cannot be written, before any work."""
+    from tumblecal_cli.cli.solve import _plot_target
+    from tumblecal_cli.io.outputs import check_not_input, check_writable
+
+    if plot is not None:
+        _plot_target(plot, "-", json_summary, inputs)
+    if kalibr is not None:
+        if kalibr == "-":
+            raise InputError("--kalibr writes a file: give a path (imu.yaml)")
+        check_not_input(kalibr, inputs, "--kalibr")
+        check_writable(kalibr, "--kalibr")

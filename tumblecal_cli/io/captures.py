@@ -72,7 +72,9 @@ _TIME_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 _UNIT_WORDS = {"s": "seconds", "ms": "milliseconds", "us": "microseconds", "ns": "nanoseconds"}
 #: A time column whose name carries its unit: ``timestamp_ms``, ``t_us``, ``time(ns)``, ``time [ms]``,
 #: Arduino's ``millis``/``micros``.
-_TIME_WITH_UNIT = re.compile(r"^(?:t|time|timestamp|ts)[ _.\-]*[(\[]?(s|sec|ms|us|µs|ns)[)\]]?$|^(millis|micros)$")
+_TIME_WITH_UNIT = re.compile(
+    r"^(?:t|time|timestamp|ts)(?:[ _.\-]+[(\[]?|[(\[])(s|sec|ms|us|µs|ns)[)\]]?$|^(millis|micros)$"
+)  # a separator or a bracket before the unit: `ts` and `times` are names, not t + s
 #: A cell written with a decimal comma (``1,045729``, ``-0,5e-3``): European spreadsheet exports.
 _COMMA_NUMBER = re.compile(r"^\s*[+-]?\d*,\d+(?:[eE][+-]?\d+)?\s*$")
 MAX_PREAMBLE = 20  # metadata lines a station may write before its header
@@ -292,9 +294,19 @@ class Capture:
         return values, all_empty
 
     def temperature_values(self, text: pa.Array, first_row: int, empty: BoolArray) -> FloatArray:
-        """The temperature column of a block as floats (°C); a cell that is not a number, or an
-        empty one on a row with sensor values (``empty``: rows without), is an error naming its
-        line and column."""
+        """The temperature column of a block as floats (°C); a cell that is not a finite number,
+        or an empty one, on a row with sensor values (``empty``: rows without), is an error naming
+        its line and column."""
+        values = self._temperatures(text, first_row, empty)
+        odd = ~np.isfinite(values) & ~empty
+        if odd.any():  # nan, inf: no temperature to correct the row at
+            i = int(np.argmax(odd))
+            where = (self.layout.temperature or 0,) * 3
+            cell = quoted(str(text[i].as_py()))
+            raise self._locate(first_row + i, 0, f"temperature is not a finite number: {cell}", where)
+        return values
+
+    def _temperatures(self, text: pa.Array, first_row: int, empty: BoolArray) -> FloatArray:
         lay = self.layout
         assert lay.temperature is not None
         with contextlib.suppress(pa.ArrowInvalid):  # every cell a number (the usual case): one cast
@@ -463,20 +475,28 @@ def _cut_short(f: IO[bytes], layout: Layout, consumed: int, drop: bool) -> bool:
     size = os.fstat(f.fileno()).st_size
     if size <= consumed:
         return False
-    here = f.tell()
-    f.seek(max(consumed, size - 65536))
-    tail = f.read()
+    here, back = f.tell(), 65536
+    while True:  # back from the end until the last line's start is in view (a wide row: further)
+        start = max(consumed, size - back)
+        f.seek(start)
+        tail = f.read()
+        if tail.endswith((b"\n", b"\r")):
+            f.seek(here)
+            return False
+        cut = max(tail.rfind(b"\n"), tail.rfind(b"\r"))
+        if cut >= 0 or start == consumed:
+            break
+        back *= 4
     f.seek(here)
-    if tail.endswith((b"\n", b"\r")):
-        return False
-    last = tail[max(tail.rfind(b"\n"), tail.rfind(b"\r")) + 1 :]
+    last = tail[cut + 1 :]
     if not _incomplete(layout, last):
         return False
     if drop:  # the stream leaves it out, and says so (Capture.batches)
         return True
     shown = quoted(last.decode("utf-8", errors="replace"), 40)
     f.seek(0)
-    line = sum(chunk.count(b"\n") for chunk in iter(functools.partial(f.read, 1 << 20), b"")) + 1
+    end = b"\r" if layout.eol == "\r" else b"\n"  # CR alone ends a line of an old Mac's file
+    line = sum(chunk.count(end) for chunk in iter(functools.partial(f.read, 1 << 20), b"")) + 1
     f.close()
     raise InputError(
         f"last line incomplete: {shown} (a logger stopped mid-write?)",
@@ -513,10 +533,11 @@ def _sniff(name: str, first: bytes, *, at_eof: bool, no_header: bool, dialect: D
     if dialect.skip_rows is None and not no_header:
         skip, delimiter = _preamble(content, delimiter)
         if skip:
-            shown = "; ".join(quoted(c, 30) for c in content[:2]) + (" ..." if skip > 2 else "")
+            shown = "; ".join(quoted(c, 30) for c in content[: min(skip, 2)]) + (" ..." if skip > 2 else "")
             notes.append(
                 f"{name}: {skip} line{'s' if skip > 1 else ''} before the header skipped "
-                f"(lines {at[0] + 1}-{at[skip - 1] + 1}: {shown}); --skip-rows N says how many"
+                f"({f'lines {at[0] + 1}-{at[skip - 1] + 1}' if skip > 1 else f'line {at[0] + 1}'}: {shown}); "
+                "--skip-rows N says how many"
             )
             k, content = at[skip], content[skip:]
     cells = [c.strip().strip('"').strip() for c in _split(content[0], delimiter)]
@@ -981,7 +1002,7 @@ def time_scale(layout: Layout, clock: FloatArray, unit: str) -> float:
         return _TIME_SCALE[named or "s"]
     step = float(np.median(d))
     spaced = _epoch_unit(float(clock[0]), step) or next(
-        (u for u, top in (("s", 0.2), ("ms", 200.0), ("us", 2e5), ("ns", 2e8)) if step < top), None
+        (u for u, top in (("s", 0.2), ("ms", 200.0), ("us", 2e5), ("ns", 2e8)) if step <= top), None
     )
     hint = "give --time-unit s, ms, us or ns (or --rate HZ to use the sample rate instead)"
     if named is not None:

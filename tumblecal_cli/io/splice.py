@@ -95,6 +95,8 @@ class Splicer:
         extra: tuple[FloatArray, ...] = ()
         if self.temperature is not None:
             extra = (values[:, self.temperature],)
+            if (~np.isfinite(extra[0]) & ~empty.all(axis=1)).any():
+                return None  # a reading at no temperature (nan, inf): the general path names it
             values = values[:, self.sensors]
             cells = cells.reshape(n, -1, 2)[:, self.sensors, :].reshape(n, 2 * s)
         if self.whole is not None:  # one sensor, its columns in file order: no copies

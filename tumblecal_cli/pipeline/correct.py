@@ -107,8 +107,11 @@ def correct(
                     file=cap.layout.name,
                     hint="a calibration corrects three sensor columns: check its 'columns' field",
                 )
+        said = len(cap.layout.notes)
         with atomic_output(output) as out:
             rows = _stream(cap, out, c, more, note)
+        for text in cap.layout.notes[said:]:  # found while reading (a cut last line dropped)
+            note(text)
         used = [n for t in [cap.layout.sensor, *(t for t, _ in more)] for n in (cap.layout.names[i] for i in t)]
     return Applied(cap.layout.name, rows, used, output, notes)
 

@@ -163,8 +163,9 @@ def checked(options: SolveOptions) -> SolveOptions:
         raise InputError(f"--min-samples takes a whole number of 1 or more, got {options.min_samples!r}")
     if not 0 <= options.fixture_tolerance <= 30:
         raise InputError(f"--fixture-tolerance is 0 to 30 degrees, got {options.fixture_tolerance:g}")
-    if not (math.isfinite(options.gain_tolerance) and options.gain_tolerance >= 0):
-        raise InputError(f"--gain-tolerance is a fraction of 0 or more (0.02: ±2 %), got {options.gain_tolerance:g}")
+    if not (math.isfinite(options.gain_tolerance) and 0 <= options.gain_tolerance < 1):
+        tolerance = options.gain_tolerance
+        raise InputError(f"--gain-tolerance is a fraction from 0 to below 1 (0.02: ±2 %), got {tolerance:g}")
     if not options.max_tilt <= 180:
         raise InputError(f"--max-tilt is at most 180 degrees, got {options.max_tilt:g}")
     no_check = [options.no_check] if isinstance(options.no_check, str) else list(options.no_check)
