@@ -126,6 +126,7 @@ class MethodName(StrEnum):
     minmax = "minmax"
     ellipsoid = "ellipsoid"
     gyro_bias = "gyro-bias"
+    ferraris_turns = "ferraris-turns"
 
 
 class PlaneName(StrEnum):
@@ -202,6 +203,27 @@ LOG_PANEL = "Finding the still blocks of a log (segment, solve --log)"
 def log_option(flag: str, metavar: str, help: str, panel: str | None = LOG_PANEL) -> Any:
     return typer.Option(flag, metavar=metavar, help=help, rich_help_panel=panel)
 
+
+Turns = Annotated[
+    str | None,
+    log_option(
+        "--turns",
+        "LABEL=AXIS,...",
+        "A gyroscope's known turns (method ferraris-turns, with --sensor gyroscope and --pose-column): the "
+        "sections of the label column that turn the unit about a sensor axis, e.g. x_rot=+x,y_rot=+y,z_rot=+z. "
+        "The --pose-map faces give the bias and the g-sensitivity (the accelerometer columns of the same log).",
+    ),
+]
+
+TurnAngle = Annotated[
+    float | None,
+    log_option(
+        "--turn-angle",
+        "DEG",
+        "The angle of each --turns section in degrees, signed by the right-hand rule about its axis (the sign "
+        "the gyroscope reads), e.g. 360; imucal's expected_angle is the same number.",
+    ),
+]
 
 Window = Annotated[
     float | None,

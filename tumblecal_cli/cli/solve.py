@@ -38,6 +38,8 @@ from tumblecal_cli.cli.options import (
     TimeUnit,
     TimeUnitOption,
     Trim,
+    TurnAngle,
+    Turns,
     Window,
 )
 from tumblecal_cli.errors import InputError
@@ -80,6 +82,8 @@ def solve(
     trim: Trim = None,
     pose_column: PoseColumn = None,
     pose_map: PoseMap = None,
+    turns: Turns = None,
+    turn_angle: TurnAngle = None,
     output: Annotated[
         str,
         typer.Option(
