@@ -107,7 +107,8 @@ def ferraris(still: Still, turns: list[Turn]) -> TurnsFit:
     - ``A Θ = W`` with ``Θ_k = θ_k e_k`` (Eq. 15): ``A = W Θ⁺`` (exact for three turns).
 
     Uncertainty from the noise at rest ``σ`` (pooled over the faces, each about its own mean):
-    ``σ_b = σ / √N``; ``δW_k = -(Σ dt) δb + noise of variance σ² Σ dt²``, carried to ``A``.
+    ``σ_b = σ / √N``; ``W`` carries the errors of ``b`` and ``G`` and the turn's own noise
+    (:func:`_variance`).
     """
     acc_means = np.array([a.mean(axis=0) for a in still.acc])
     gyr_means = np.array([g.mean(axis=0) for g in still.gyr])
@@ -120,18 +121,17 @@ def ferraris(still: Still, turns: list[Turn]) -> TurnsFit:
     noise: FloatArray = np.sqrt((deviations**2).sum(axis=0) / dof)
     bias_se: FloatArray = noise / np.sqrt(len(resting))
     integrated = np.empty((3, len(turns)))
+    gravity = np.empty((len(turns), 3))  # each turn's mean accelerometer reading, g
     for k, t in enumerate(turns):
         a = (t.acc - acc_offset) @ acc_matrix.T
         rate = t.gyr - bias - a @ sens.T
         integrated[:, k] = (rate * t.dt[:, None]).sum(axis=0)
+        gravity[k] = a.mean(axis=0)
     theta = np.array([t.axis * t.angle_deg for t in turns]).T  # (3, k)
     pinv = np.linalg.pinv(theta)  # (k, 3)
     a_matrix = integrated @ pinv
     matrix = np.asarray(np.linalg.inv(a_matrix), dtype=np.float64)
-    seconds = np.array([t.dt.sum() for t in turns])
-    squares = np.array([(t.dt**2).sum() for t in turns])
-    var = (bias_se[:, None] * (seconds @ pinv)[None, :]) ** 2 + (noise[:, None] ** 2) * (squares @ pinv**2)[None, :]
-    se = np.sqrt(var)
+    se = np.sqrt(_variance(still, turns, gravity, pinv, noise))
     fixed = matrix @ integrated
     measured = np.einsum("ik,ki->k", fixed, np.array([t.axis for t in turns]))
     residual = np.linalg.norm(fixed - theta, axis=0)
@@ -147,3 +147,21 @@ def ferraris(still: Still, turns: list[Turn]) -> TurnsFit:
         se * (1 - np.eye(3)),
         noise,
     )
+
+
+def _variance(still: Still, turns: list[Turn], gravity: FloatArray, pinv: FloatArray, noise: FloatArray) -> FloatArray:
+    """The variance of each element of ``A = W Θ⁺`` from white noise ``σ_i`` per axis. Each face
+    mean ``m_f`` errs by ``σ/√n_f``; ``b`` is their sample-weighted mean and ``G e_j`` half the
+    +j face less the -j face, so ``δW_k = -T_k Σ_f c_kf δm_f + ε_k`` with ``T_k`` the turn's
+    seconds, ``c_kf = n_f/N ± ā_kj/2`` (``ā_k`` its mean gravity in g, ``j`` the face's axis) and
+    ``ε_k`` the turn's own noise, variance ``σ² Σ dt²``. Then ``δA_ij = Σ_k δW_ik Θ⁺_kj``."""
+    counts = np.array([len(g) for g in still.gyr], dtype=np.float64)
+    seconds = np.array([t.dt.sum() for t in turns])
+    squares = np.array([(t.dt**2).sum() for t in turns])
+    signs = np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
+    axis_of = np.array([0, 0, 1, 1, 2, 2])
+    c = counts[None, :] / counts.sum() + signs[None, :] * gravity[:, axis_of] / 2.0  # (k, 6)
+    through = (seconds[:, None] * c).T @ pinv  # (6, 3): face f's effect on column j
+    per_axis = ((through**2) / counts[:, None]).sum(axis=0) + squares @ pinv**2  # (3,)
+    out: FloatArray = (noise**2)[:, None] * per_axis[None, :]
+    return out
