@@ -286,3 +286,11 @@ def test_reported_uncertainty_matches_the_spread() -> None:
     ratio_offset = offsets.std(axis=0) / np.mean([f.solution.offset_se for f in fits], axis=0)
     assert np.all((ratio_gain > 0.75) & (ratio_gain < 1.3)), ratio_gain
     assert np.all((ratio_offset > 0.75) & (ratio_offset < 1.3)), ratio_offset
+
+
+def test_limits_judge_a_gyroscope_calibration(session: Path, tmp_path: Path) -> None:
+    out = tmp_path / "gyro.json"
+    r = solve_turns(session, out, "-q", "--max-offset", "1")  # the bias is 2-4.5 counts
+    assert r.code == 1
+    doc = json.loads(out.read_text())  # written: stations archive failing units too
+    assert [f["code"] for f in doc["verdict"]["failures"]] == ["limit.offset.x", "limit.offset.y", "limit.offset.z"]

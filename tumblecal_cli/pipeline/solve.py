@@ -109,7 +109,9 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Path
         from tumblecal_cli.pipeline import turns
 
         out = turns.from_log(path, options, given)
-        return Solved(out.status, out.calibration, out.draft, out.rejections, error=out.error, notes=out.notes)
+        return Solved(
+            out.status, out.calibration, out.draft, out.rejections, out.failures, error=out.error, notes=out.notes
+        )
     if path is not None:
         return _from_log(path, options, given)
     assert files_or_data is not None

@@ -51,6 +51,7 @@ class Outcome:
     rejections: list[Finding] = field(default_factory=list)
     error: CaptureRejected | None = None
     notes: list[str] = field(default_factory=list)
+    failures: list[Finding] = field(default_factory=list)  # the limits it is outside
 
 
 @dataclass(frozen=True)
@@ -201,16 +202,15 @@ def _solve(acc: Log, gyr: Log, options: SolveOptions, given: Settings) -> Outcom
     rejections = _moved(fit, still, still_sections, options) + _implausible(fit, turns, axes, angle)
     skip = options.no_checks or "moved" in options.no_check
     rejections = [r for r in rejections if not (skip and r.code == "turns.moved")]
-    cal = _calibration(fit, acc, gyr, still_sections, list(SIX), turns, given_turns, options, given)
+    cal, failures = _calibration(fit, acc, gyr, still_sections, list(SIX), turns, given_turns, options, given)
     if rejections:
         return Outcome(3, None, draft=cal, rejections=rejections, error=_rejected(rejections, name), notes=notes)
     notes += [
-        f"turn {t['label']} about {t['axis']}: {t['measured_deg']:+.2f}° as calibrated, "
-        f"{t['duration_s']:.3g} s, residual {t['residual_deg']:.2g}°"
-        for t in cal.fields.get("turns", [])
+        f"turn {label} about {axis}: {fit.measured_deg[k]:+.2f}° as calibrated, "
+        f"{given_turns[k].dt.sum():.3g} s, residual {fit.residual_deg[k]:.2g}°"
+        for k, (label, axis) in enumerate(turns.items())
     ]
-    status = 1 if cal.failed else 0
-    return Outcome(status, cal, cal, notes=notes)
+    return Outcome(1 if failures else 0, cal, cal, notes=notes, failures=failures)
 
 
 def _face(label: str) -> str | None:
@@ -269,7 +269,7 @@ def _calibration(
     given_turns: list[core.Turn],
     options: SolveOptions,
     given: Settings,
-) -> Any:
+) -> tuple[Calibration, list[Finding]]:
     from tumblecal_cli.core import gate
     from tumblecal_cli.core.solvers import Fit
     from tumblecal_cli.io import calfile
@@ -336,4 +336,4 @@ def _calibration(
         out[key] = value
         if key == "poses":
             out.update(extra)
-    return calfile.from_dict(out)
+    return calfile.from_dict(out), failures
