@@ -120,7 +120,8 @@ def solve(
             help="The solver (README: Choosing a solver). auto: one-pose for 1 file, three-pose for +x +y +z; "
             "for the six faces six-pose when opposite faces agree on their axis within 1.5° (a fixture), else "
             "six-pose-magnitude (placed by hand); least-squares for 5+ labelled, sphere for 12+ unlabelled; "
-            "ellipsoid for a magnetometer, gyro-bias for a gyroscope. The summary says why.",
+            "ellipsoid for a magnetometer, gyro-bias for a gyroscope (ferraris-turns with --turns). "
+            "The summary says why.",
         ),
     ] = MethodName.auto,
     sensor: Sensor = SensorKind.accelerometer,
@@ -180,7 +181,8 @@ def solve(
             help="pose.moved: reject a pose whose standard deviation, or drift between its first and last "
             "third, is above FRACTION x reference in corrected units. For a gyroscope it is in its units, "
             "and the check runs only when given; the turning captures of minmax and ellipsoid are not "
-            "judged. [default: 0.02]",
+            "judged. ferraris-turns: deg/s of the calibrated gyroscope on a still face (default 1). "
+            "[default: 0.02]",
             rich_help_panel=CHECKS_PANEL,
         ),
     ] = None,
