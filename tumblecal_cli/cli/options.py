@@ -127,6 +127,7 @@ class MethodName(StrEnum):
     ellipsoid = "ellipsoid"
     gyro_bias = "gyro-bias"
     ferraris_turns = "ferraris-turns"
+    rotations = "rotations"
 
 
 class PlaneName(StrEnum):
@@ -222,6 +223,17 @@ TurnAngle = Annotated[
         "DEG",
         "The angle of each --turns section in degrees, signed by the right-hand rule about its axis (the sign "
         "the gyroscope reads), e.g. 360; imucal's expected_angle is the same number.",
+    ),
+]
+
+AccelCal = Annotated[
+    str | None,
+    log_option(
+        "--accel-cal",
+        "FILE",
+        "A gyroscope's hand turns (method rotations, with --sensor gyroscope and --log): the accelerometer "
+        "calibration that gives each still block's gravity direction; the gyroscope is integrated over each "
+        "rotation between still blocks. No labels, no known angles.",
     ),
 ]
 

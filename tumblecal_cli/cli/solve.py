@@ -13,6 +13,7 @@ from tumblecal_cli.cli.options import (
     CHECKS_PANEL,
     EXIT_CODES,
     UNIT_PANEL,
+    AccelCal,
     CheckName,
     Columns,
     Decimal,
@@ -84,6 +85,7 @@ def solve(
     pose_map: PoseMap = None,
     turns: Turns = None,
     turn_angle: TurnAngle = None,
+    accel_cal: AccelCal = None,
     output: Annotated[
         str,
         typer.Option(
@@ -304,6 +306,7 @@ def solve(
 
     inputs = [*(poses or []), *(p.partition("=")[2] for p in poses or [] if "=" in p), *([log] if log else [])]
     inputs += [limits] if limits else []
+    inputs += [accel_cal] if accel_cal else []
     if json_summary and output == "-" and (poses or log):
         raise InputError("--json prints the summary on stdout, so the calibration needs -o FILE")
     check_not_input(output, inputs)

@@ -756,8 +756,9 @@ METHODS = (
     "ellipsoid",
     "gyro-bias",
     "ferraris-turns",
+    "rotations",
 )
-#: Methods that take a gyroscope's turns, not still poses (pipeline.turns; core.turns).
+#: Methods that take a gyroscope's turns, not still poses (pipeline.turns, pipeline.rotations).
 TURNS = ("ferraris-turns",)
 SIX_POSE = ("six-pose", "six-pose-diagonal", "six-pose-magnitude")
 #: Methods fitted to captures rotated through many orientations (not static poses).

@@ -56,6 +56,8 @@ class SolveOptions:
     # a gyroscope's known turns in a labelled log (solve --log --sensor gyroscope)
     turns: str | Mapping[str, str] | None = None
     turn_angle: float | None = None
+    # a gyroscope's hand turns between still poses (solve --log --sensor gyroscope)
+    accel_cal: str | None = None
     # quality checks (exit 3)
     max_noise: float | None = None
     max_tilt: float = 25.0
@@ -123,7 +125,17 @@ class Settings:
     pose_map: dict[str, str]
 
 
-LOG_ONLY = ("window", "threshold", "min_duration", "trim", "pose_column", "pose_map", "turns", "turn_angle")
+LOG_ONLY = (
+    "window",
+    "threshold",
+    "min_duration",
+    "trim",
+    "pose_column",
+    "pose_map",
+    "turns",
+    "turn_angle",
+    "accel_cal",
+)
 #: The choices of the options that take one (the command line's own enums).
 CHOICES = {
     "time_unit": ("auto", "s", "ms", "us", "ns"),
@@ -218,9 +230,25 @@ def settings(options: SolveOptions, *, log: bool) -> Settings:
 
 
 def turn_options(options: SolveOptions, *, log: bool) -> None:
-    """--turns and --turn-angle: a gyroscope's labelled turns in one log, the angle known."""
+    """--turns and --turn-angle: a gyroscope's labelled turns in one log, the angle known;
+    --accel-cal: its hand turns between still poses."""
     from tumblecal_cli.core.solvers import TURNS
 
+    if options.accel_cal is not None or options.method == "rotations":
+        if options.accel_cal is None:
+            raise InputError(
+                "rotations takes the gravity directions from an accelerometer calibration: give --accel-cal"
+            )
+        if options.sensor != "gyroscope" or options.turns is not None or options.method not in ("auto", "rotations"):
+            raise InputError(
+                "--accel-cal is for a gyroscope's hand turns: --sensor gyroscope with --log, without --turns "
+                "(method rotations)"
+            )
+        if not log or options.pose_column is not None:
+            raise InputError(
+                "--accel-cal: the hand turns of one continuous --log, its still blocks found (no --pose-column)"
+            )
+        return
     if options.turns is None and options.method not in TURNS:
         if options.turn_angle is not None:
             raise InputError("--turn-angle is the angle of the --turns sections: give --turns too")
