@@ -114,7 +114,9 @@ def start_scale(rotations: list[Rotation], bias: FloatArray) -> float:
 def fit(rotations: list[Rotation], bias: FloatArray) -> RotationsFit:
     """Levenberg-Marquardt on ``Σ |R(q_k(M))ᵀ u_before - u_after|²`` over the 9 entries of M,
     from :func:`start_scale`, Jacobian by central differences; covariance ``s² (JᵀJ)⁻¹`` with
-    ``s²`` the residual variance (the directions' noise is not known per rotation)."""
+    ``s²`` the residual variance (the directions' noise is not known per rotation): the squared
+    residuals over ``2k - 9`` degrees of freedom, two per rotation (a difference of unit vectors
+    is nearly perpendicular to them)."""
     theta = (start_scale(rotations, bias) * np.eye(3)).ravel()
 
     def jacobian(x: FloatArray) -> FloatArray:
@@ -145,7 +147,7 @@ def fit(rotations: list[Rotation], bias: FloatArray) -> RotationsFit:
             lam *= 10
             if lam > 1e12:
                 break
-    dof = max(len(r) - 9, 1)
+    dof = max(2 * len(rotations) - 9, 1)  # each rotation's 3 residuals hold 2 degrees of freedom (unit vectors)
     cov = np.asarray((cost / dof) * np.linalg.pinv(jac.T @ jac), dtype=np.float64)
     m = theta.reshape(3, 3)
     angles, residuals, axes = [], [], []
