@@ -176,3 +176,59 @@ def test_reported_gain_uncertainty_matches_the_spread() -> None:
         ses.append(core.gain_se(fit.matrix, fit.matrix_cov)[0])
     ratio = np.std(gains, axis=0) / np.mean(ses, axis=0)
     assert np.all((ratio > 0.6) & (ratio < 1.5)), ratio
+
+
+# -- real data: imu_tk's Xsens log (tests/data/logs), fitted on one half, judged on the other ----
+
+
+def _xsens_merged(tmp_path: Path) -> tuple[list[str], Path]:
+    """imu_tk's accelerometer and gyroscope logs (same clock) as one CSV: t, acc_x..z, gyr_x..z."""
+    import gzip
+
+    logs = Path(__file__).resolve().parent / "data" / "logs"
+    acc, gyr = (
+        gzip.decompress((logs / f"xsens_{s}.txt.gz").read_bytes()).decode().split("\n") for s in ("acc", "gyro")
+    )
+    lines = ["t,acc_x,acc_y,acc_z,gyr_x,gyr_y,gyr_z"]
+    for a, g in zip(acc, gyr, strict=True):
+        if a.strip():
+            ta, *av = a.split()
+            tg, *gv = g.split()
+            assert ta == tg
+            lines.append(",".join([ta, *av, *gv]))
+    path = tmp_path / "xsens.csv"
+    path.write_text("\n".join(lines) + "\n")
+    return lines, path
+
+
+@pytest.mark.slow
+def test_xsens_hand_turns_fitted_on_one_half_judged_on_the_other(tmp_path: Path) -> None:
+    """The gyroscope misses gravity after each held-out rotation by 0.57° RMS (measured; 0.88°
+    at most), against 4.28° (8.6°) with the best single sensitivity and the same bias."""
+    from tumblecal_cli.pipeline.options import SolveOptions
+    from tumblecal_cli.pipeline.rotations import hand_turns
+
+    lines, merged = _xsens_merged(tmp_path)
+    acc = tmp_path / "acc.json"
+    assert run("solve", "--log", merged, "--method", "sphere", "-o", acc, "-q").code == 0
+    half = len(lines) // 2
+    first, second = tmp_path / "first.csv", tmp_path / "second.csv"
+    first.write_text("\n".join(lines[:half]) + "\n")
+    second.write_text("\n".join([lines[0], *lines[half:]]) + "\n")
+    out = tmp_path / "gyro.json"
+    r = run("solve", "--sensor", "gyroscope", "--log", first, "--accel-cal", acc, "-o", out, "-q")
+    assert r.code == 0, r.err
+    cal = json.loads(out.read_text())
+    assert len(cal["rotations"]) == 17
+    assert cal["residuals"]["rms"] < 0.5  # measured 0.347°
+    options = SolveOptions(sensor="gyroscope", accel_cal=str(acc))
+    fitted, held = hand_turns(str(first), options), hand_turns(str(second), options)
+    assert len(held.rotations) == 19
+    scale = core.start_scale(fitted.rotations, fitted.bias)
+    offset, matrix = np.asarray(cal["offset"]), np.asarray(cal["matrix"])
+    before = core.judged(held.rotations, offset, scale * np.eye(3))[1]
+    after = core.judged(held.rotations, offset, matrix)[1]
+    rms_before, rms_after = (float(np.sqrt(np.mean(x**2))) for x in (before, after))
+    assert rms_before > 3.5  # measured 4.28°
+    assert rms_after < 0.7  # measured 0.57°
+    assert after.max() < 1.0  # measured 0.88°

@@ -150,15 +150,24 @@ def fit(rotations: list[Rotation], bias: FloatArray) -> RotationsFit:
     dof = max(2 * len(rotations) - 9, 1)  # each rotation's 3 residuals hold 2 degrees of freedom (unit vectors)
     cov = np.asarray((cost / dof) * np.linalg.pinv(jac.T @ jac), dtype=np.float64)
     m = theta.reshape(3, 3)
+    angles, residuals, axes = judged(rotations, bias, m)
+    return RotationsFit(m, cov, angles, residuals, axes)
+
+
+def judged(
+    rotations: list[Rotation], bias: FloatArray, matrix: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Each rotation under the calibration (bias, M): its angle (degrees), the angle between the
+    gravity direction it predicts after it and the one measured (degrees), and its axis."""
     angles, residuals, axes = [], [], []
     for rot in rotations:
-        q = integrate((rot.gyr - bias) @ m.T, rot.dt)
+        q = integrate((rot.gyr - bias) @ matrix.T, rot.dt)
         q = q if q[0] >= 0 else -q
         angles.append(np.degrees(2 * np.arctan2(np.linalg.norm(q[1:]), q[0])))
         axes.append(q[1:] / max(float(np.linalg.norm(q[1:])), 1e-300))
         predicted = rotate_into(q, rot.before)
         residuals.append(np.degrees(np.arctan2(np.linalg.norm(np.cross(predicted, rot.after)), predicted @ rot.after)))
-    return RotationsFit(m, cov, np.array(angles), np.array(residuals), np.array(axes))
+    return np.array(angles), np.array(residuals), np.array(axes).reshape(-1, 3)
 
 
 def gain_se(matrix: FloatArray, cov: FloatArray) -> tuple[FloatArray, FloatArray]:

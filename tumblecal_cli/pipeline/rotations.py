@@ -9,6 +9,7 @@ same rows are integrated over each rotation between consecutive kept blocks.
 from __future__ import annotations
 
 import itertools
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -31,8 +32,23 @@ HINTS = {
 }
 
 
-def from_log(log: str, options: SolveOptions, given: Settings) -> Outcome:
-    """Segment the log by its accelerometer, read its gyroscope, fit M over the rotations."""
+@dataclass
+class HandTurns:
+    """A log's kept still blocks (in time order), the rotations between consecutive ones, the
+    gyroscope's still samples and their mean (the bias), and how messages name each rotation."""
+
+    acc: Log
+    gyr: Log
+    kept: list[Any]
+    rotations: list[core.Rotation]
+    still: Any
+    bias: Any
+    names: list[str]
+
+
+def hand_turns(log: str, options: SolveOptions) -> HandTurns:
+    """Segment the log by its accelerometer (``options.accel_cal`` gives the gravity directions)
+    and read its gyroscope: the rotations between its still blocks."""
     from tumblecal_cli.core import segment
     from tumblecal_cli.io import calfile
     from tumblecal_cli.pipeline import logs
@@ -89,6 +105,21 @@ def from_log(log: str, options: SolveOptions, given: Settings) -> Outcome:
         for k, (a, b) in enumerate(itertools.pairwise(kept))
     ]
     names = [f"block {a.number} to {b.number}" for a, b in itertools.pairwise(kept)]
+    return HandTurns(acc, gyr, kept, rots, still, bias, names)
+
+
+def from_log(log: str, options: SolveOptions, given: Settings) -> Outcome:
+    """The rotations of the log (:func:`hand_turns`), M fitted over them, the checks."""
+    turns = hand_turns(log, options)
+    acc, gyr, kept, rots, still, bias, names = (
+        turns.acc,
+        turns.gyr,
+        turns.kept,
+        turns.rotations,
+        turns.still,
+        turns.bias,
+        turns.names,
+    )
     name = gyr.layout.name
     if len(rots) < core.MIN_ROTATIONS:
         finding = Finding(
