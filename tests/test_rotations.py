@@ -232,3 +232,28 @@ def test_xsens_hand_turns_fitted_on_one_half_judged_on_the_other(tmp_path: Path)
     assert rms_before > 3.5  # measured 4.28°
     assert rms_after < 0.7  # measured 0.57°
     assert after.max() < 1.0  # measured 0.88°
+
+
+def test_verify_a_gyroscope_on_held_out_hand_turns(hand_log: Path, accel_cal: Path, tmp_path: Path) -> None:
+    """Fitted on one synthetic session, judged on another of the same unit: each rotation's
+    gravity error before (the mean gain alone) and after (the full matrix), and the RMS."""
+    import tumblecal_cli as tumblecal
+
+    cal = tmp_path / "gyro.json"
+    assert run("solve", "--sensor", "gyroscope", "--log", hand_log, "--accel-cal", accel_cal, "-o", cal, "-q").code == 0
+    held = tmp_path / "held.csv"
+    synthetic_log(held, np.random.default_rng(9), rotations=8)
+    r = run("verify", "--cal", cal, "--log", held, "--accel-cal", accel_cal, "--json")
+    assert r.code == 0, r.err
+    doc = json.loads(r.out)
+    assert len(doc["rotations"]) == 8
+    assert doc["rms_error_after_deg"] < 0.1 < doc["rms_error_before_deg"]  # the cross-axis terms matter
+    assert "RMS error" in r.err
+    done = tumblecal.verify_rotations(held, cal, accel_cal=accel_cal)
+    assert done.overall == {k: v for k, v in doc.items() if k.endswith("_deg")}
+
+
+def test_verify_log_needs_a_gyroscope_calibration(hand_log: Path, accel_cal: Path) -> None:
+    r = run("verify", "--cal", accel_cal, "--log", hand_log, "--accel-cal", accel_cal)
+    assert r.code == 2
+    assert "verifies a gyroscope's calibration, not the accelerometer's" in r.err
