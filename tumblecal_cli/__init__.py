@@ -37,7 +37,7 @@ if TYPE_CHECKING:
     from tumblecal_cli.pipeline.report import report
     from tumblecal_cli.pipeline.solve import Solved, solve, solve_log
     from tumblecal_cli.pipeline.thermal import ThermalResult, thermal
-    from tumblecal_cli.pipeline.verify import verify
+    from tumblecal_cli.pipeline.verify import verify, verify_rotations
 
 #: Each public name and the module that holds it.
 _HOMES = {
@@ -51,6 +51,7 @@ _HOMES = {
     "correct": "tumblecal_cli.pipeline.correct",
     "segment": "tumblecal_cli.pipeline.logs",
     "verify": "tumblecal_cli.pipeline.verify",
+    "verify_rotations": "tumblecal_cli.pipeline.verify",
     "noise": "tumblecal_cli.pipeline.noise",
     "Noise": "tumblecal_cli.pipeline.noise",
     "report": "tumblecal_cli.pipeline.report",
@@ -86,6 +87,7 @@ __all__ = [
     "solve_log",
     "thermal",
     "verify",
+    "verify_rotations",
 ]
 
 

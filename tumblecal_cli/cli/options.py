@@ -126,6 +126,8 @@ class MethodName(StrEnum):
     minmax = "minmax"
     ellipsoid = "ellipsoid"
     gyro_bias = "gyro-bias"
+    ferraris_turns = "ferraris-turns"
+    rotations = "rotations"
 
 
 class PlaneName(StrEnum):
@@ -202,6 +204,38 @@ LOG_PANEL = "Finding the still blocks of a log (segment, solve --log)"
 def log_option(flag: str, metavar: str, help: str, panel: str | None = LOG_PANEL) -> Any:
     return typer.Option(flag, metavar=metavar, help=help, rich_help_panel=panel)
 
+
+Turns = Annotated[
+    str | None,
+    log_option(
+        "--turns",
+        "LABEL=AXIS,...",
+        "A gyroscope's known turns (method ferraris-turns, with --sensor gyroscope and --pose-column): the "
+        "sections of the label column that turn the unit about a sensor axis, e.g. x_rot=+x,y_rot=+y,z_rot=+z. "
+        "The --pose-map faces give the bias and the g-sensitivity (the accelerometer columns of the same log).",
+    ),
+]
+
+TurnAngle = Annotated[
+    float | None,
+    log_option(
+        "--turn-angle",
+        "DEG",
+        "The angle of each --turns section in degrees, signed by the right-hand rule about its axis (the sign "
+        "the gyroscope reads), e.g. 360; imucal's expected_angle is the same number.",
+    ),
+]
+
+AccelCal = Annotated[
+    str | None,
+    log_option(
+        "--accel-cal",
+        "FILE",
+        "A gyroscope's hand turns (method rotations, with --sensor gyroscope and --log): the accelerometer "
+        "calibration that gives each still block's gravity direction; the gyroscope is integrated over each "
+        "rotation between still blocks. No labels, no known angles.",
+    ),
+]
 
 Window = Annotated[
     float | None,

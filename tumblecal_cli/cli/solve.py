@@ -13,6 +13,7 @@ from tumblecal_cli.cli.options import (
     CHECKS_PANEL,
     EXIT_CODES,
     UNIT_PANEL,
+    AccelCal,
     CheckName,
     Columns,
     Decimal,
@@ -38,6 +39,8 @@ from tumblecal_cli.cli.options import (
     TimeUnit,
     TimeUnitOption,
     Trim,
+    TurnAngle,
+    Turns,
     Window,
 )
 from tumblecal_cli.errors import InputError
@@ -80,6 +83,9 @@ def solve(
     trim: Trim = None,
     pose_column: PoseColumn = None,
     pose_map: PoseMap = None,
+    turns: Turns = None,
+    turn_angle: TurnAngle = None,
+    accel_cal: AccelCal = None,
     output: Annotated[
         str,
         typer.Option(
@@ -116,7 +122,8 @@ def solve(
             help="The solver (README: Choosing a solver). auto: one-pose for 1 file, three-pose for +x +y +z; "
             "for the six faces six-pose when opposite faces agree on their axis within 1.5° (a fixture), else "
             "six-pose-magnitude (placed by hand); least-squares for 5+ labelled, sphere for 12+ unlabelled; "
-            "ellipsoid for a magnetometer, gyro-bias for a gyroscope. The summary says why.",
+            "ellipsoid for a magnetometer, gyro-bias for a gyroscope (ferraris-turns with --turns). "
+            "The summary says why.",
         ),
     ] = MethodName.auto,
     sensor: Sensor = SensorKind.accelerometer,
@@ -176,7 +183,8 @@ def solve(
             help="pose.moved: reject a pose whose standard deviation, or drift between its first and last "
             "third, is above FRACTION x reference in corrected units. For a gyroscope it is in its units, "
             "and the check runs only when given; the turning captures of minmax and ellipsoid are not "
-            "judged. [default: 0.02]",
+            "judged. ferraris-turns: deg/s of the calibrated gyroscope on a still face (default 1). "
+            "[default: 0.02]",
             rich_help_panel=CHECKS_PANEL,
         ),
     ] = None,
@@ -298,6 +306,7 @@ def solve(
 
     inputs = [*(poses or []), *(p.partition("=")[2] for p in poses or [] if "=" in p), *([log] if log else [])]
     inputs += [limits] if limits else []
+    inputs += [accel_cal] if accel_cal else []
     if json_summary and output == "-" and (poses or log):
         raise InputError("--json prints the summary on stdout, so the calibration needs -o FILE")
     check_not_input(output, inputs)

@@ -18,11 +18,11 @@ from tumblecal_cli.cli.options import Columns, Decimal, DropIncomplete, NoHeader
 )
 def verify(
     captures_: Annotated[
-        list[str],
+        list[str] | None,
         typer.Argument(
             metavar="CAPTURE", help="Static captures the calibration was not fitted on, one or more; '-' reads stdin."
         ),
-    ],
+    ] = None,
     cal: Annotated[
         str, typer.Option("--cal", "-c", metavar="FILE", help="Calibration file from 'tumblecal solve'.")
     ] = ...,  # type: ignore[assignment]
@@ -49,6 +49,23 @@ def verify(
             "it is not static. 0 turns the check off.",
         ),
     ] = 0.02,
+    log: Annotated[
+        str | None,
+        typer.Option(
+            "--log",
+            metavar="FILE",
+            help="Instead of captures: a gyroscope calibration judged on a log of hand turns between still poses "
+            "(with --accel-cal): each rotation's gravity error before and after it.",
+        ),
+    ] = None,
+    accel_cal: Annotated[
+        str | None,
+        typer.Option("--accel-cal", metavar="FILE", help="With --log: the accelerometer calibration (gravity)."),
+    ] = None,
+    rate: Annotated[
+        float | None,
+        typer.Option("--rate", metavar="HZ", help="With --log: the sample rate, if it has no time column."),
+    ] = None,
     columns: Columns = None,
     no_header: NoHeader = False,
     skip_rows: SkipRows = None,
@@ -69,8 +86,10 @@ def verify(
 
     from tumblecal_cli.pipeline import verify as pipeline
 
+    if log is not None or accel_cal is not None:
+        return _rotations(cal, log, accel_cal, rate, columns, captures_, json_summary=json_summary, quiet=quiet)
     done = pipeline.verify(
-        captures_,
+        captures_ or [],
         cal,
         reference=reference,
         max_norm_error=max_norm_error,
@@ -104,3 +123,43 @@ def verify(
         raise done.error
     if done.status:
         raise typer.Exit(done.status)
+
+
+def _rotations(
+    cal: str,
+    log: str | None,
+    accel_cal: str | None,
+    rate: float | None,
+    columns: str | None,
+    captures_: list[str] | None,
+    *,
+    json_summary: bool,
+    quiet: bool,
+) -> None:
+    """verify --log LOG --accel-cal ACC: a gyroscope calibration on held-out hand turns."""
+    from tumblecal_cli.errors import InputError
+    from tumblecal_cli.pipeline import verify as pipeline
+
+    if log is None or accel_cal is None or captures_:
+        raise InputError("a gyroscope is verified on one --log of hand turns with --accel-cal (and no captures)")
+    done = pipeline.verify_rotations(log, cal, accel_cal=accel_cal, rate=rate, columns=columns)
+    if json_summary:
+        render.print_json({"status": "pass", "exit_status": 0, "cal": cal, "rotations": done.rows, **done.overall})
+    if not quiet:
+        console = render.make_console()
+        console.print("rotation          angle  error before  error after", soft_wrap=True, markup=False)
+        for r in done.rows:
+            console.print(
+                f"{r['rotation']:<16} {r['angle_deg']:6.1f}°  {r['error_before_deg']:11.2f}°  "
+                f"{r['error_after_deg']:10.2f}°",
+                soft_wrap=True,
+                markup=False,
+            )
+        o = done.overall
+        console.print(
+            f"RMS error {o['rms_error_before_deg']:.3g}° before, {o['rms_error_after_deg']:.3g}° after "
+            f"(largest {o['max_error_before_deg']:.3g}°, {o['max_error_after_deg']:.3g}°) "
+            f"over {len(done.rows)} rotations",
+            soft_wrap=True,
+            markup=False,
+        )

@@ -755,7 +755,11 @@ METHODS = (
     "minmax",
     "ellipsoid",
     "gyro-bias",
+    "ferraris-turns",
+    "rotations",
 )
+#: Methods that take a gyroscope's turns, not still poses (pipeline.turns, pipeline.rotations).
+TURNS = ("ferraris-turns",)
 SIX_POSE = ("six-pose", "six-pose-diagonal", "six-pose-magnitude")
 #: Methods fitted to captures rotated through many orientations (not static poses).
 ROTATION = ("minmax", "ellipsoid")

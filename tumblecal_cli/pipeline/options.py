@@ -53,6 +53,11 @@ class SolveOptions:
     trim: float | None = None
     pose_column: str | None = None
     pose_map: str | Mapping[str, str] | None = None
+    # a gyroscope's known turns in a labelled log (solve --log --sensor gyroscope)
+    turns: str | Mapping[str, str] | None = None
+    turn_angle: float | None = None
+    # a gyroscope's hand turns between still poses (solve --log --sensor gyroscope)
+    accel_cal: str | None = None
     # quality checks (exit 3)
     max_noise: float | None = None
     max_tilt: float = 25.0
@@ -120,7 +125,17 @@ class Settings:
     pose_map: dict[str, str]
 
 
-LOG_ONLY = ("window", "threshold", "min_duration", "trim", "pose_column", "pose_map")
+LOG_ONLY = (
+    "window",
+    "threshold",
+    "min_duration",
+    "trim",
+    "pose_column",
+    "pose_map",
+    "turns",
+    "turn_angle",
+    "accel_cal",
+)
 #: The choices of the options that take one (the command line's own enums).
 CHOICES = {
     "time_unit": ("auto", "s", "ms", "us", "ns"),
@@ -141,6 +156,7 @@ NUMBERS = (
     "full_scale",
     "fixture_tolerance",
     "gain_tolerance",
+    "turn_angle",
 )
 
 
@@ -191,6 +207,7 @@ def settings(options: SolveOptions, *, log: bool) -> Settings:
     if options.tilt_compensate and chosen != "one-pose-tilt":
         raise InputError(f"--tilt-compensate is the one-pose-tilt method, not {chosen}")
     up_face = face(options.up or "+z", "--up")
+    turn_options(options, log=log)
     if method == "gyro-bias" and sensor != "gyroscope":  # one error, not one per unit
         raise InputError(f"gyro-bias is a gyroscope's zero-rate bias: give --sensor gyroscope (not {sensor})")
     for option, value in (
@@ -211,6 +228,55 @@ def settings(options: SolveOptions, *, log: bool) -> Settings:
         options.limits, options.max_offset, options.max_gain_error, options.nominal_gain, nominal_offset=centre
     )
     return Settings(chosen, up_face, ref, centre, bounds, who, mapping)
+
+
+def turn_options(options: SolveOptions, *, log: bool) -> None:
+    """--turns and --turn-angle: a gyroscope's labelled turns in one log, the angle known;
+    --accel-cal: its hand turns between still poses."""
+    from tumblecal_cli.core.solvers import TURNS
+
+    if options.accel_cal is not None or options.method == "rotations":
+        if options.accel_cal is None:
+            raise InputError(
+                "rotations takes the gravity directions from an accelerometer calibration: give --accel-cal"
+            )
+        if options.sensor != "gyroscope" or options.turns is not None or options.method not in ("auto", "rotations"):
+            raise InputError(
+                "--accel-cal is for a gyroscope's hand turns: --sensor gyroscope with --log, without --turns "
+                "(method rotations)"
+            )
+        if not log or options.pose_column is not None:
+            raise InputError(
+                "--accel-cal: the hand turns of one continuous --log, its still blocks found (no --pose-column)"
+            )
+        return
+    if options.turns is None and options.method not in TURNS:
+        if options.turn_angle is not None:
+            raise InputError("--turn-angle is the angle of the --turns sections: give --turns too")
+        return
+    if options.turns is None:
+        raise InputError(
+            f"{options.method} takes the turns of a labelled log: give --turns LABEL=AXIS,... and --turn-angle",
+            hint="e.g. --turns x_rot=+x,y_rot=+y,z_rot=+z --turn-angle 360",
+        )
+    if options.method not in ("auto", *TURNS):
+        raise InputError(f"--turns is for the ferraris-turns method, not {options.method}")
+    if options.sensor != "gyroscope":
+        raise InputError(f"--turns calibrates a gyroscope: give --sensor gyroscope (not {options.sensor})")
+    if not log or options.pose_column is None:
+        raise InputError(
+            "--turns names sections of a labelled log: give it with --log and its label column with --pose-column",
+            hint="e.g. --log session.csv --pose-column part --pose-map x_p=+x,x_a=-x,... --turns x_rot=+x,...",
+        )
+    angle = options.turn_angle
+    if angle is None or not (math.isfinite(angle) and 0 < abs(angle) <= 3600):
+        raise InputError(
+            "--turn-angle: the signed angle of each turn in degrees (right-hand rule about its axis), "
+            f"0 < |angle| <= 3600, got {'nothing' if angle is None else f'{angle:g}'}",
+            hint="e.g. --turn-angle 360 (or -360: the sign the gyroscope reads turning, as imucal's expected_angle)",
+        )
+    if not pose_map(options.turns, "--turns"):
+        raise InputError("--turns names no section: give LABEL=AXIS pairs, e.g. x_rot=+x,y_rot=+y,z_rot=+z")
 
 
 def method_options(name: str, ref: float, plane: str | None, bias_spread: float | None) -> None:
@@ -237,8 +303,9 @@ def face(text: str, option: str) -> str:
         raise InputError(f"{option}: {err}") from None
 
 
-def pose_map(value: str | Mapping[str, str] | None) -> dict[str, str]:
-    """--pose-map ``x_p=+x,x_a=-x,...`` (or a mapping) as {label: face}."""
+def pose_map(value: str | Mapping[str, str] | None, option: str = "--pose-map") -> dict[str, str]:
+    """--pose-map ``x_p=+x,x_a=-x,...`` (or a mapping) as {label: face}; ``option`` names the
+    option in errors (--turns takes the same LABEL=AXIS pairs)."""
     from tumblecal_cli.core import model
 
     items = [f"{k}={v}" for k, v in value.items()] if isinstance(value, Mapping) else (value or "").split(",")
@@ -248,11 +315,14 @@ def pose_map(value: str | Mapping[str, str] | None) -> dict[str, str]:
             continue
         label, sep, name = item.partition("=")
         if not sep or not label.strip():
-            raise InputError(f"--pose-map {item!r}: write LABEL=FACE pairs, e.g. x_p=+x,x_a=-x")
+            pairs = "LABEL=FACE pairs, e.g. x_p=+x,x_a=-x"
+            if option == "--turns":
+                pairs = "LABEL=AXIS pairs, e.g. x_rot=+x,y_rot=+y"
+            raise InputError(f"{option} {item!r}: write {pairs}")
         try:
             out[label.strip()] = model.parse_face(name)
         except ValueError as err:
-            raise InputError(f"--pose-map {item}: {err}") from None
+            raise InputError(f"{option} {item}: {err}") from None
     return out
 
 

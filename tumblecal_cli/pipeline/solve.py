@@ -105,6 +105,16 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Path
             hint="see 'tumblecal solve --help'",
         )
     given = opts.settings(options, log=path is not None)
+    if path is not None and (options.turns is not None or options.accel_cal is not None):  # a gyroscope's turns
+        from tumblecal_cli.pipeline import rotations, turns
+
+        if options.turns is not None:
+            out = turns.from_log(path, options, given)
+        else:
+            out = rotations.from_log(path, options, given)
+        return Solved(
+            out.status, out.calibration, out.draft, out.rejections, out.failures, error=out.error, notes=out.notes
+        )
     if path is not None:
         return _from_log(path, options, given)
     assert files_or_data is not None

@@ -169,3 +169,82 @@ def _read(
     values = thermal.at_reference(log.values, temp, c.offset, drift)
     rows = (int(log.rows[0]), int(log.rows[-1]))
     return reading.Samples(log.layout, values, rows, log.sha256, None, float(np.nanmean(temp)))
+
+
+@dataclass
+class VerifiedRotations:
+    """verify of a gyroscope calibration on a log of hand turns: one row per rotation between
+    still blocks (its angle, and how far the gravity direction it predicts misses the measured
+    one, before and after the calibration's matrix), and the overall RMS and largest."""
+
+    status: int
+    cal: Any
+    rows: list[dict[str, Any]]
+    overall: dict[str, float]
+    notes: list[str] = field(default_factory=list)
+
+    def table(self) -> Any:
+        import pandas as pd
+
+        return pd.DataFrame(self.rows)
+
+
+def verify_rotations(
+    log: str | os.PathLike[str],
+    cal: Any,
+    *,
+    accel_cal: str | os.PathLike[str],
+    rate: float | None = None,
+    time_column: str | None = None,
+    time_unit: str = "auto",
+    columns: str | Sequence[str] | None = None,
+) -> VerifiedRotations:
+    """A gyroscope calibration judged on a log it was not fitted on: the rotations between its
+    still blocks (pipeline.rotations.hand_turns, gravity from ``accel_cal``). "Before" is the
+    calibration's bias and its mean gain alone (no per-axis scale, no cross-axis terms): what a
+    datasheet sensitivity gives; "after" is its full matrix."""
+    import numpy as np
+
+    from tumblecal_cli.core import rotations as core
+    from tumblecal_cli.io import calfile
+    from tumblecal_cli.pipeline.options import SolveOptions
+    from tumblecal_cli.pipeline.rotations import hand_turns
+    from tumblecal_cli.pipeline.solve import path_of
+
+    c = calfile.resolve(cal)
+    if c.sensor != "gyroscope":
+        raise InputError(
+            f"--log with --accel-cal verifies a gyroscope's calibration, not the {c.sensor}'s", file=c.path
+        )
+    if rate is not None and not rate > 0:
+        raise InputError(f"--rate must be positive, got {rate:g}")
+    options = SolveOptions(
+        sensor="gyroscope",
+        accel_cal=path_of(accel_cal, "--accel-cal takes a calibration file"),
+        rate=rate,
+        time_column=time_column,
+        time_unit=time_unit,
+        columns=columns,
+    )
+    turns = hand_turns(path_of(log, "verify --log takes a log file"), options)
+    if not turns.rotations:
+        raise CaptureRejected(
+            f"no rotation between still blocks ({len(turns.kept)} kept)",
+            file=turns.gyr.layout.name,
+            hint="rest the unit between turns; `tumblecal segment` lists the still blocks",
+            code="rotations.few",
+        )
+    nominal = np.eye(3) / float(np.mean(np.abs(c.gain)))
+    _, before, _ = core.judged(turns.rotations, c.offset, nominal)
+    angles, after, _ = core.judged(turns.rotations, c.offset, c.matrix)
+    rows = [
+        {"rotation": n, "angle_deg": float(a), "error_before_deg": float(b), "error_after_deg": float(e)}
+        for n, a, b, e in zip(turns.names, angles, before, after, strict=True)
+    ]
+    overall = {
+        "rms_error_before_deg": float(np.sqrt(np.mean(before**2))),
+        "max_error_before_deg": float(before.max()),
+        "rms_error_after_deg": float(np.sqrt(np.mean(after**2))),
+        "max_error_after_deg": float(after.max()),
+    }
+    return VerifiedRotations(0, c, rows, overall)

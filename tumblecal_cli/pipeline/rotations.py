@@ -1,0 +1,234 @@
+"""solve --sensor gyroscope --log LOG --accel-cal ACC: a gyroscope's scale and misalignment
+from hand turns between still poses, no labels and no known angles (core.rotations).
+
+The log's still blocks are found by its accelerometer columns (as ``segment`` does); the
+accelerometer calibration gives each block's gravity direction; the gyroscope's columns of the
+same rows are integrated over each rotation between consecutive kept blocks.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from tumblecal_cli.core import rotations as core
+from tumblecal_cli.core.gate import Finding
+from tumblecal_cli.errors import CaptureRejected, InputError
+from tumblecal_cli.io import captures
+from tumblecal_cli.pipeline.turns import Outcome, seconds_per_sample
+
+if TYPE_CHECKING:
+    from tumblecal_cli.io.calfile import Calibration
+    from tumblecal_cli.io.captures import Log
+    from tumblecal_cli.pipeline.options import Settings, SolveOptions
+
+HINTS = {
+    "rotations.few": "turn the unit by hand between more still poses (2 s or more each), about all three axes",
+    "rotations.axes": "turn the unit about each of its three axes between still poses",
+    "rotations.residual": "hold the unit still in each pose; `tumblecal segment` lists the still blocks",
+}
+
+
+@dataclass
+class HandTurns:
+    """A log's kept still blocks (in time order), the rotations between consecutive ones, the
+    gyroscope's still samples and their mean (the bias), and how messages name each rotation."""
+
+    acc: Log
+    gyr: Log
+    kept: list[Any]
+    rotations: list[core.Rotation]
+    still: Any
+    bias: Any
+    names: list[str]
+
+
+def hand_turns(log: str, options: SolveOptions) -> HandTurns:
+    """Segment the log by its accelerometer (``options.accel_cal`` gives the gravity directions)
+    and read its gyroscope: the rotations between its still blocks."""
+    from tumblecal_cli.core import segment
+    from tumblecal_cli.io import calfile
+    from tumblecal_cli.pipeline import logs
+
+    assert options.accel_cal is not None
+    accel = calfile.load(options.accel_cal)
+    if accel.sensor != "accelerometer":
+        raise InputError(f"--accel-cal takes an accelerometer's calibration, not a {accel.sensor}'s", file=accel.path)
+    settings = segment.Settings(
+        window=options.window,
+        threshold=options.threshold,
+        min_duration=options.min_duration,
+        trim=options.trim,
+        max_noise=0.02,
+        max_tilt_deg=180.0,  # any orientation is a pose here
+        nominal_offset=accel.offset,
+    )
+    with logs.segmented(
+        log,
+        sensor="accelerometer",
+        columns=None,
+        no_header=options.no_header,
+        time_column=options.time_column,
+        time_unit=options.time_unit,
+        rate=options.rate,
+        pose_column=None,
+        pose_map=None,
+        settings=settings,
+        dialect=options.dialect,
+    ) as (path, acc, seg):
+        gyr = captures.read_log(
+            path,
+            sensor="gyroscope",
+            columns=options.column_names,
+            no_header=options.no_header,
+            time_column=options.time_column,
+            time_unit=options.time_unit,
+            use_time=options.rate is None,
+            name=acc.layout.name,
+            dialect=options.dialect,
+        )
+    if not np.array_equal(acc.rows, gyr.rows):
+        raise InputError(
+            "the accelerometer and the gyroscope are not read on the same rows (an interleaved log?)",
+            file=gyr.layout.name,
+        )
+    kept = sorted(seg.kept, key=lambda b: b.first)
+    dt = seconds_per_sample(gyr, options.rate)
+    still = np.concatenate([gyr.values[b.first : b.last + 1] for b in kept]) if kept else np.zeros((0, 3))
+    bias = still.mean(axis=0) if len(still) else np.zeros(3)
+    directions = [_direction(accel, acc.values[b.first : b.last + 1].mean(axis=0)) for b in kept]
+    rots = [
+        core.Rotation(gyr.values[a.last : b.first], dt[a.last : b.first], directions[k], directions[k + 1])
+        for k, (a, b) in enumerate(itertools.pairwise(kept))
+    ]
+    names = [f"block {a.number} to {b.number}" for a, b in itertools.pairwise(kept)]
+    return HandTurns(acc, gyr, kept, rots, still, bias, names)
+
+
+def from_log(log: str, options: SolveOptions, given: Settings) -> Outcome:
+    """The rotations of the log (:func:`hand_turns`), M fitted over them, the checks."""
+    turns = hand_turns(log, options)
+    acc, gyr, kept, rots, still, bias, names = (
+        turns.acc,
+        turns.gyr,
+        turns.kept,
+        turns.rotations,
+        turns.still,
+        turns.bias,
+        turns.names,
+    )
+    name = gyr.layout.name
+    if len(rots) < core.MIN_ROTATIONS:
+        finding = Finding(
+            "rotations.few",
+            f"{len(rots)} rotations between {len(kept)} still blocks; need {core.MIN_ROTATIONS}",
+            len(rots),
+            core.MIN_ROTATIONS,
+        )
+        return Outcome(3, None, rejections=[finding], error=_rejected([finding], name))
+    fit = core.fit(rots, bias)
+    rank = int(np.linalg.matrix_rank(fit.axes * np.radians(fit.angle_deg)[:, None], tol=0.2))
+    findings = []
+    if rank < 3:
+        findings.append(Finding("rotations.axes", f"rotations about {rank} independent axes; need 3", rank, 3))
+    for label, res in zip(names, fit.residual_deg, strict=True):
+        if res > core.MAX_RESIDUAL_DEG:
+            findings.append(
+                Finding(
+                    "rotations.residual",
+                    f"rotation {label}: the gyroscope misses the gravity direction after it by {res:.1f}° "
+                    f"(more than {core.MAX_RESIDUAL_DEG:g}°): the unit moved in a still block, or samples are missing",
+                    float(res),
+                    core.MAX_RESIDUAL_DEG,
+                )
+            )
+    cal, failures = _calibration(fit, bias, still, acc, gyr, kept, names, options, given)
+    if findings:
+        return Outcome(3, None, draft=cal, rejections=findings, error=_rejected(findings, name))
+    notes = [
+        f"{len(rots)} rotations between {len(kept)} still blocks: residual RMS "
+        f"{float(np.sqrt(np.mean(fit.residual_deg**2))):.3g}°, largest {float(fit.residual_deg.max()):.3g}°"
+    ]
+    return Outcome(1 if failures else 0, cal, cal, notes=notes, failures=failures)
+
+
+def _direction(accel: Calibration, mean: Any) -> Any:
+    v = accel.matrix @ (mean - accel.offset)
+    return v / np.linalg.norm(v)
+
+
+def _rejected(findings: list[Finding], name: str) -> CaptureRejected:
+    first = findings[0]
+    return CaptureRejected(
+        first.message,
+        file=name,
+        hint=HINTS[first.code],
+        more=tuple(f.render() for f in findings[1:]),
+        code=first.code,
+        codes=tuple(f.code for f in findings),
+    )
+
+
+def _calibration(
+    fit: core.RotationsFit,
+    bias: Any,
+    still: Any,
+    acc: Log,
+    gyr: Log,
+    kept: list[Any],
+    names: list[str],
+    options: SolveOptions,
+    given: Settings,
+) -> tuple[Calibration, list[Finding]]:
+    from tumblecal_cli.core import gate
+    from tumblecal_cli.core.model import Solution
+    from tumblecal_cli.core.solvers import Fit
+    from tumblecal_cli.io import calfile
+
+    gain_se, cross_se = core.gain_se(fit.matrix, fit.matrix_cov)
+    bias_se = still.std(axis=0, ddof=1) / np.sqrt(len(still))
+    solution = Solution("rotations", bias, fit.matrix, bias_se, gain_se)
+    limits = given.limits.for_method(solution.method)
+    failures = gate.verdict(solution.method, solution.offset, solution.matrix, [], limits)
+    poses = [
+        {
+            "pose": None,
+            "file": gyr.layout.name,
+            "sha256": acc.sha256,
+            "rows": [int(gyr.rows[b.first]), int(gyr.rows[b.last])],
+            "block": b.number,
+            "samples": b.samples,
+            "mean": [float(v) for v in gyr.values[b.first : b.last + 1].mean(axis=0)],
+            "std": [float(v) for v in gyr.values[b.first : b.last + 1].std(axis=0)],
+            "accelerometer_mean": [float(v) for v in b.mean],
+        }
+        for b in kept
+    ]
+    cal = calfile.build(
+        solution,
+        sensor="gyroscope",
+        reference=given.reference,
+        units=options.units or "deg/s",
+        input_units=options.input_units,
+        columns=gyr.layout.sensor_names,
+        poses=poses,
+        fit=Fit(solution, residuals=fit.residual_deg, cross_se=cross_se),
+        unit=given.unit,
+        verdict=calfile.Verdict(not failures, tuple(f.as_dict() for f in failures), limits.as_dict()),
+    )
+    extra = {
+        "rotations": [
+            {"between": name, "angle_deg": float(angle), "residual_deg": float(res)}
+            for name, angle, res in zip(names, fit.angle_deg, fit.residual_deg, strict=True)
+        ],
+        "segmentation": {"log": gyr.layout.name, "sha256": acc.sha256, "source": "detector"},
+    }
+    doc: dict[str, Any] = {}
+    for key, value in cal.to_dict().items():
+        doc[key] = value
+        if key == "poses":
+            doc.update(extra)
+    return calfile.from_dict(doc), failures

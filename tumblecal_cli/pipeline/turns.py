@@ -1,0 +1,339 @@
+"""solve --sensor gyroscope --log LOG --pose-column ... --turns ...: a gyroscope's bias,
+g-sensitivity, scale and misalignment from one labelled log of the Ferraris procedure
+(core.turns). The log holds both triplets on the same rows: the accelerometer's columns say
+which way gravity points (the six faces, and during each turn), the gyroscope's are calibrated.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from tumblecal_cli.core import model
+from tumblecal_cli.core import turns as core
+from tumblecal_cli.core.gate import Finding
+from tumblecal_cli.errors import CaptureRejected, InputError
+from tumblecal_cli.io import captures
+from tumblecal_cli.pipeline.options import pose_map
+
+if TYPE_CHECKING:
+    from tumblecal_cli.io.calfile import Calibration
+    from tumblecal_cli.io.captures import Log
+    from tumblecal_cli.pipeline.options import Settings, SolveOptions
+
+SIX = ("+x", "-x", "+y", "-y", "+z", "-z")
+#: A still face whose accelerometer varies more than this (1-sigma, g) was moved (the
+#: accelerometer's own --max-noise default).
+STILL_ACC_NOISE_G = 0.02
+#: A still face whose calibrated gyroscope varies more than this (1-sigma, deg/s) was turned
+#: (--max-noise overrides; at rest imucal's session reads 0.21 deg/s).
+STILL_GYRO_NOISE_DPS = 1.0
+
+HINTS = {
+    "turns.faces": "label a still section for each of the six faces with --pose-map (x_p=+x,x_a=-x,...)",
+    "turns.axes": "turn the unit about each of its three axes, and name each turn's section with --turns",
+    "turns.angle": "check --turn-angle and its sign (right-hand rule about the named axis), and each turn's axis",
+    "turns.moved": "hold the unit still on each face, or raise --max-noise (deg/s of the calibrated gyroscope)",
+}
+
+
+@dataclass
+class Outcome:
+    """What :func:`from_log` found (pipeline.solve makes it a Solved): ``status`` 0 pass, 1 outside
+    the limits, 3 rejected (``error``, ``rejections``; ``draft`` what was solved anyway)."""
+
+    status: int
+    calibration: Calibration | None
+    draft: Calibration | None = None
+    rejections: list[Finding] = field(default_factory=list)
+    error: CaptureRejected | None = None
+    notes: list[str] = field(default_factory=list)
+    failures: list[Finding] = field(default_factory=list)  # the limits it is outside
+
+
+@dataclass(frozen=True)
+class Section:
+    """All rows of one label: indices into the log's readings, and their data rows."""
+
+    label: str
+    index: np.ndarray[Any, np.dtype[np.int64]]
+
+    def rows(self, log: Log) -> tuple[int, int]:
+        return int(log.rows[self.index[0]]), int(log.rows[self.index[-1]])
+
+
+def from_log(log: str, options: SolveOptions, given: Settings) -> Outcome:
+    """Read the log's two triplets, take its sections by label, solve and judge the gyroscope."""
+    from tumblecal_cli.pipeline.logs import spool_stdin
+
+    spooled = log == "-" or not captures.is_regular(log)
+    path = spool_stdin(None if log == "-" else log) if spooled else log
+    try:
+        acc, gyr = (_read(path, log, options, sensor) for sensor in ("accelerometer", "gyroscope"))
+    finally:
+        if spooled:
+            os.unlink(path)
+    if not np.array_equal(acc.rows, gyr.rows):
+        raise InputError(
+            "the accelerometer and the gyroscope are not read on the same rows (an interleaved log?)",
+            file=gyr.layout.name,
+            hint="known turns need both triplets on every row of the log",
+        )
+    model.in_range(gyr.values, gyr.layout.name)
+    return _solve(acc, gyr, options, given)
+
+
+def _read(path: str, log: str, options: SolveOptions, sensor: str) -> Log:
+    return captures.read_log(
+        path,
+        sensor=sensor,
+        columns=options.column_names if sensor == "gyroscope" else None,
+        no_header=options.no_header,
+        time_column=options.time_column,
+        time_unit=options.time_unit,
+        label_column=options.pose_column,
+        use_time=options.rate is None,
+        name="<stdin>" if log == "-" else log,
+        digest=sensor == "gyroscope",
+        dialect=options.dialect,
+    )
+
+
+def sections(log: Log) -> dict[str, Section]:
+    """Every label's rows (all its runs, as imucal takes a label's rows)."""
+    labels = np.asarray(log.labels or [], dtype=object)
+    out = {}
+    for label in dict.fromkeys(str(x) for x in labels):
+        if label:
+            out[label] = Section(label, np.flatnonzero(labels == label).astype(np.int64))
+    return out
+
+
+def seconds_per_sample(log: Log, rate: float | None) -> np.ndarray[Any, np.dtype[np.float64]]:
+    """The seconds each reading stands for: 1/--rate, else the time to the next reading (the
+    last one the median step); without either the turns cannot be integrated (exit 2)."""
+    if rate:
+        return np.full(len(log.values), 1.0 / rate)
+    t = log.seconds()
+    if t is None:
+        raise InputError(
+            "integrating the turns needs the time between samples: the log has no time column",
+            file=log.layout.name,
+            hint="give the sample rate with --rate HZ (or the time column with --time-column)",
+        )
+    step = np.diff(t)
+    return np.append(step, np.median(step) if step.size else 0.0)
+
+
+def _rejected(findings: list[Finding], name: str) -> CaptureRejected:
+    first = findings[0]
+    return CaptureRejected(
+        first.message,
+        file=name,
+        hint=first.hint or HINTS[first.code],
+        more=tuple(f.render() for f in findings[1:]),
+        code=first.code,
+        codes=tuple(f.code for f in findings),
+    )
+
+
+def _solve(acc: Log, gyr: Log, options: SolveOptions, given: Settings) -> Outcome:
+    name = gyr.layout.name
+    found = sections(gyr)
+    faces = {face: label for label, face in given.pose_map.items() if label in found}
+    shown = ", ".join(found) or "none"
+    for label in found:  # labels that are faces (+x, xp) need no --pose-map entry
+        face = _face(label)
+        if face is not None and face not in faces:
+            faces[face] = label
+    missing = [f for f in SIX if f not in faces]
+    if missing:
+        return Outcome(
+            3,
+            None,
+            error=_rejected(
+                [
+                    Finding(
+                        "turns.faces",
+                        f"ferraris-turns needs a still section on each face; none for {' '.join(missing)} "
+                        f"(labels of column {options.pose_column!r}: {shown})",
+                        len(SIX) - len(missing),
+                        len(SIX),
+                    )
+                ],
+                name,
+            ),
+        )
+    wanted = pose_map(options.turns, "--turns")
+    notes = [f"--turns names {label!r}, not a label of the log: left out" for label in wanted if label not in found]
+    turns = {label: axis for label, axis in wanted.items() if label in found}
+    axes = np.array([model.FACES[a] for a in turns.values()], dtype=np.float64).reshape(-1, 3)
+    rank = core.axes_rank(axes)
+    if rank < 3:
+        which = ", ".join(f"{label} ({axis})" for label, axis in turns.items()) or "none found"
+        return Outcome(
+            3,
+            None,
+            notes=notes,
+            error=_rejected(
+                [
+                    Finding(
+                        "turns.axes",
+                        f"turns {which}: rotations about {rank} independent axes; need 3",
+                        rank,
+                        3,
+                    )
+                ],
+                name,
+            ),
+        )
+    dt = seconds_per_sample(gyr, options.rate)
+    still_sections = [found[faces[f]] for f in SIX]
+    still = core.Still([acc.values[s.index] for s in still_sections], [gyr.values[s.index] for s in still_sections])
+    angle = float(options.turn_angle or 0.0)
+    given_turns = [
+        core.Turn(acc.values[found[label].index], gyr.values[found[label].index], axis, angle, dt[found[label].index])
+        for label, axis in zip(turns, axes, strict=True)
+    ]
+    fit = core.ferraris(still, given_turns)
+    rejections = _moved(fit, still, still_sections, options) + _implausible(fit, turns, axes, angle)
+    skip = options.no_checks or "moved" in options.no_check
+    rejections = [r for r in rejections if not (skip and r.code == "turns.moved")]
+    cal, failures = _calibration(fit, acc, gyr, still_sections, list(SIX), turns, given_turns, options, given)
+    if rejections:
+        return Outcome(3, None, draft=cal, rejections=rejections, error=_rejected(rejections, name), notes=notes)
+    notes += [
+        f"turn {label} about {axis}: {fit.measured_deg[k]:+.2f}° as calibrated, "
+        f"{given_turns[k].dt.sum():.3g} s, residual {fit.residual_deg[k]:.2g}°"
+        for k, (label, axis) in enumerate(turns.items())
+    ]
+    return Outcome(1 if failures else 0, cal, cal, notes=notes, failures=failures)
+
+
+def _face(label: str) -> str | None:
+    try:
+        return model.parse_face(label)
+    except ValueError:
+        return None
+
+
+def _moved(fit: core.TurnsFit, still: core.Still, secs: list[Section], options: SolveOptions) -> list[Finding]:
+    """Still faces whose accelerometer (g) or calibrated gyroscope (deg/s) varies as a moving unit's."""
+    bound = options.max_noise if options.max_noise is not None else STILL_GYRO_NOISE_DPS
+    # raw units into deg/s by the turns' median gain: a turn gone wrong does not make every face "move"
+    gain = float(np.median(np.abs(fit.solution.gain)))
+    out = []
+    for section, a_raw, g_raw in zip(secs, still.acc, still.gyr, strict=True):
+        a = (a_raw - fit.acc_offset) @ fit.acc_matrix.T
+        acc_std, gyro_std = float(a.std(axis=0).max()), float(g_raw.std(axis=0).max()) / gain
+        if gyro_std > bound:
+            what = f"its gyroscope varies {gyro_std:.3g} deg/s (1-sigma), above {bound:g}"
+            out.append(Finding("turns.moved", f"still section {section.label} moved: {what}", gyro_std, bound))
+        elif acc_std > STILL_ACC_NOISE_G:
+            what = f"its accelerometer varies {acc_std:.3g} g (1-sigma), above {STILL_ACC_NOISE_G:g}"
+            bound_g = STILL_ACC_NOISE_G
+            out.append(Finding("turns.moved", f"still section {section.label} moved: {what}", acc_std, bound_g))
+    return out
+
+
+def _implausible(fit: core.TurnsFit, turns: dict[str, str], axes: Any, angle: float) -> list[Finding]:
+    """Turns whose integrated angle, at the gain of all the turns, is more than 25 % from --turn-angle."""
+    measured = core.plausible_angles(fit.integrated, axes, np.full(len(axes), angle))
+    out = []
+    for (label, axis), got in zip(turns.items(), measured, strict=True):
+        off = abs(got - angle) / abs(angle)
+        if off > core.ANGLE_TOLERANCE:
+            way = " (the other way round)" if got * angle < 0 else ""
+            out.append(
+                Finding(
+                    "turns.angle",
+                    f"turn {label}: integrated {got:+.0f}° about {axis}{way} where --turn-angle gives {angle:+g}°, "
+                    f"{off:.0%} off (more than {core.ANGLE_TOLERANCE:.0%})",
+                    float(got),
+                    angle,
+                )
+            )
+    return out
+
+
+def _calibration(
+    fit: core.TurnsFit,
+    acc: Log,
+    gyr: Log,
+    secs: list[Section],
+    faces: list[str],
+    turns: dict[str, str],
+    given_turns: list[core.Turn],
+    options: SolveOptions,
+    given: Settings,
+) -> tuple[Calibration, list[Finding]]:
+    from tumblecal_cli.core import gate
+    from tumblecal_cli.core.solvers import Fit
+    from tumblecal_cli.io import calfile
+
+    solution = fit.solution
+    limits = given.limits.for_method(solution.method)
+    failures = gate.verdict(solution.method, solution.offset, solution.matrix, [], limits)
+    poses = [
+        {
+            "pose": face,
+            "file": gyr.layout.name,
+            "sha256": gyr.sha256,
+            "rows": list(s.rows(gyr)),
+            "label": s.label,
+            "samples": len(s.index),
+            "mean": [float(v) for v in gyr.values[s.index].mean(axis=0)],
+            "std": [float(v) for v in gyr.values[s.index].std(axis=0, ddof=1)] if len(s.index) > 1 else [0.0] * 3,
+            "accelerometer_mean": [float(v) for v in acc.values[s.index].mean(axis=0)],
+        }
+        for face, s in zip(faces, secs, strict=True)
+    ]
+    cal = calfile.build(
+        solution,
+        sensor="gyroscope",
+        reference=given.reference,
+        units=options.units or "deg/s",
+        input_units=options.input_units,
+        columns=gyr.layout.sensor_names,
+        poses=poses,
+        fit=Fit(solution, residuals=fit.residual_deg, cross_se=fit.cross_se),
+        unit=given.unit,
+        verdict=calfile.Verdict(not failures, tuple(f.as_dict() for f in failures), limits.as_dict()),
+    )
+    found = sections(gyr)
+    doc = cal.to_dict()
+    extra = {
+        "turns": [
+            {
+                "label": label,
+                "axis": axis,
+                "angle_deg": t.angle_deg,
+                "rows": list(found[label].rows(gyr)),
+                "samples": len(t.gyr),
+                "duration_s": float(t.dt.sum()),
+                "integrated": [float(v) for v in fit.integrated[:, k]],
+                "measured_deg": float(fit.measured_deg[k]),
+                "residual_deg": float(fit.residual_deg[k]),
+            }
+            for k, ((label, axis), t) in enumerate(zip(turns.items(), given_turns, strict=True))
+        ],
+        "g_sensitivity": {
+            "matrix": [[float(v) for v in row] for row in fit.g_sensitivity],
+            "units": "raw units per g; column j: gravity along +j (not applied by apply)",
+            "accelerometer": {
+                "columns": acc.layout.sensor_names,
+                "offset": [float(v) for v in fit.acc_offset],
+                "matrix": [[float(v) for v in row] for row in fit.acc_matrix],
+            },
+        },
+        "segmentation": {"log": gyr.layout.name, "sha256": gyr.sha256, "source": "label column"},
+    }
+    out: dict[str, Any] = {}
+    for key, value in doc.items():
+        out[key] = value
+        if key == "poses":
+            out.update(extra)
+    return calfile.from_dict(out), failures
