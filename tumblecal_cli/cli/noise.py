@@ -22,6 +22,7 @@ from tumblecal_cli.cli.options import (
     TimeColumn,
     TimeUnit,
     TimeUnitOption,
+    file_shape,
     limit_option,
 )
 from tumblecal_cli.errors import InputError
@@ -108,9 +109,7 @@ def noise(
             no_header=no_header,
             time_column=time_column,
             time_unit=time_unit.value,
-            skip_rows=skip_rows,
-            decimal=decimal and decimal.value,
-            drop_incomplete=drop_incomplete,
+            **file_shape(skip_rows, decimal, drop_incomplete),
             progress=progress,
             kalibr=kalibr is not None,
         )

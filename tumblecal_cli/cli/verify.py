@@ -8,7 +8,7 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
-from tumblecal_cli.cli.options import Columns, Decimal, DropIncomplete, NoHeader, Quiet, SkipRows
+from tumblecal_cli.cli.options import Columns, Decimal, DropIncomplete, NoHeader, Quiet, SkipRows, file_shape
 
 
 @app.command(
@@ -96,9 +96,7 @@ def verify(
         max_noise=max_noise,
         columns=columns,
         no_header=no_header,
-        skip_rows=skip_rows,
-        decimal=decimal and decimal.value,
-        drop_incomplete=drop_incomplete,
+        **file_shape(skip_rows, decimal, drop_incomplete),
     )
     if json_summary:
         render.print_json(

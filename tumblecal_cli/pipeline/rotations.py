@@ -18,7 +18,7 @@ from tumblecal_cli.core import rotations as core
 from tumblecal_cli.core.gate import Finding
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import captures
-from tumblecal_cli.pipeline.turns import Outcome, seconds_per_sample
+from tumblecal_cli.pipeline.turns import Outcome, gyro_calibration, seconds_per_sample
 
 if TYPE_CHECKING:
     from tumblecal_cli.io.calfile import Calibration
@@ -183,16 +183,11 @@ def _calibration(
     options: SolveOptions,
     given: Settings,
 ) -> tuple[Calibration, list[Finding]]:
-    from tumblecal_cli.core import gate
     from tumblecal_cli.core.model import Solution
-    from tumblecal_cli.core.solvers import Fit
-    from tumblecal_cli.io import calfile
 
     gain_se, cross_se = core.gain_se(fit.matrix, fit.matrix_cov)
     bias_se = still.std(axis=0, ddof=1) / np.sqrt(len(still))
     solution = Solution("rotations", bias, fit.matrix, bias_se, gain_se)
-    limits = given.limits.for_method(solution.method)
-    failures = gate.verdict(solution.method, solution.offset, solution.matrix, [], limits)
     poses = [
         {
             "pose": None,
@@ -207,18 +202,6 @@ def _calibration(
         }
         for b in kept
     ]
-    cal = calfile.build(
-        solution,
-        sensor="gyroscope",
-        reference=given.reference,
-        units=options.units or "deg/s",
-        input_units=options.input_units,
-        columns=gyr.layout.sensor_names,
-        poses=poses,
-        fit=Fit(solution, residuals=fit.residual_deg, cross_se=cross_se),
-        unit=given.unit,
-        verdict=calfile.Verdict(not failures, tuple(f.as_dict() for f in failures), limits.as_dict()),
-    )
     extra = {
         "rotations": [
             {"between": name, "angle_deg": float(angle), "residual_deg": float(res)}
@@ -226,9 +209,4 @@ def _calibration(
         ],
         "segmentation": {"log": gyr.layout.name, "sha256": acc.sha256, "source": "detector"},
     }
-    doc: dict[str, Any] = {}
-    for key, value in cal.to_dict().items():
-        doc[key] = value
-        if key == "poses":
-            doc.update(extra)
-    return calfile.from_dict(doc), failures
+    return gyro_calibration(solution, gyr, poses, fit.residual_deg, cross_se, extra, options, given)

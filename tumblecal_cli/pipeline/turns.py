@@ -270,13 +270,7 @@ def _calibration(
     options: SolveOptions,
     given: Settings,
 ) -> tuple[Calibration, list[Finding]]:
-    from tumblecal_cli.core import gate
-    from tumblecal_cli.core.solvers import Fit
-    from tumblecal_cli.io import calfile
-
     solution = fit.solution
-    limits = given.limits.for_method(solution.method)
-    failures = gate.verdict(solution.method, solution.offset, solution.matrix, [], limits)
     poses = [
         {
             "pose": face,
@@ -291,20 +285,7 @@ def _calibration(
         }
         for face, s in zip(faces, secs, strict=True)
     ]
-    cal = calfile.build(
-        solution,
-        sensor="gyroscope",
-        reference=given.reference,
-        units=options.units or "deg/s",
-        input_units=options.input_units,
-        columns=gyr.layout.sensor_names,
-        poses=poses,
-        fit=Fit(solution, residuals=fit.residual_deg, cross_se=fit.cross_se),
-        unit=given.unit,
-        verdict=calfile.Verdict(not failures, tuple(f.as_dict() for f in failures), limits.as_dict()),
-    )
     found = sections(gyr)
-    doc = cal.to_dict()
     extra = {
         "turns": [
             {
@@ -331,9 +312,43 @@ def _calibration(
         },
         "segmentation": {"log": gyr.layout.name, "sha256": gyr.sha256, "source": "label column"},
     }
-    out: dict[str, Any] = {}
-    for key, value in doc.items():
-        out[key] = value
+    return gyro_calibration(solution, gyr, poses, fit.residual_deg, fit.cross_se, extra, options, given)
+
+
+def gyro_calibration(
+    solution: model.Solution,
+    gyr: Log,
+    poses: list[dict[str, Any]],
+    residual_deg: Any,
+    cross_se: Any,
+    extra: dict[str, Any],
+    options: SolveOptions,
+    given: Settings,
+) -> tuple[Calibration, list[Finding]]:
+    """A gyroscope's calibration from known turns or hand turns: judged by the limits, built with
+    its ``poses`` (the still sections or blocks), and ``extra`` (the turns or rotations, the
+    segmentation) placed right after the poses; and the limits it fails."""
+    from tumblecal_cli.core import gate
+    from tumblecal_cli.core.solvers import Fit
+    from tumblecal_cli.io import calfile
+
+    limits = given.limits.for_method(solution.method)
+    failures = gate.verdict(solution.method, solution.offset, solution.matrix, [], limits)
+    cal = calfile.build(
+        solution,
+        sensor="gyroscope",
+        reference=given.reference,
+        units=options.units or "deg/s",
+        input_units=options.input_units,
+        columns=gyr.layout.sensor_names,
+        poses=poses,
+        fit=Fit(solution, residuals=residual_deg, cross_se=cross_se),
+        unit=given.unit,
+        verdict=calfile.Verdict(not failures, tuple(f.as_dict() for f in failures), limits.as_dict()),
+    )
+    doc: dict[str, Any] = {}
+    for key, value in cal.to_dict().items():
+        doc[key] = value
         if key == "poses":
-            out.update(extra)
-    return calfile.from_dict(out), failures
+            doc.update(extra)
+    return calfile.from_dict(doc), failures
