@@ -1171,23 +1171,20 @@ def correct_stream(
                     cols[i] = pc.replace_substring(cols[i], ".", lay.decimal)
         return [pa.RecordBatch.from_arrays(cols, names=names)]
 
+    def emit(items: list[Any], sink: Any) -> int:
+        return _emit(items, sink, options, lay)
+
     def write(items: list[Any]) -> int:
         if head:
             out.write(head.pop())
-        rows = 0
-        for item in items:
-            if isinstance(item, pa.RecordBatch):
-                rows += _write_batch(item, out, options, lay)
-            else:  # spliced bytes and their number of rows
-                out.write(item[0])
-                rows += item[1]
-        return rows
+        return emit(items, out)
 
-    jobs = _splice_jobs(cap, corrections, convert, temperature) if splice else None
-    if jobs is None:
-        jobs = ((convert, cap, first_row, cols) for first_row, cols in cap.batches())
+    plan = _splice_jobs(cap, corrections, convert, temperature) if splice else None
     try:
-        rows = _pipeline(jobs, write)
+        if plan is None:
+            rows = _pipeline(((convert, cap, first_row, cols) for first_row, cols in cap.batches()), write)
+        else:
+            rows = _spliced(cap, *plan, write, emit, out, head)
     except InputError:
         if not head:  # rows are out (to stdout, which cannot take them back): say it is not all
             out.write(INCOMPLETE)
@@ -1196,6 +1193,19 @@ def correct_stream(
         out.write(head.pop())
     if progress is not None:
         progress(rows)
+    return rows
+
+
+def _emit(items: list[Any], sink: Any, options: Any, lay: Layout) -> int:
+    """Write a block's results (record batches, or spliced bytes and their number of rows) to
+    ``sink``; returns the rows."""
+    rows = 0
+    for item in items:
+        if isinstance(item, pa.RecordBatch):
+            rows += _write_batch(item, sink, options, lay)
+        else:
+            sink.write(item[0])
+            rows += item[1]
     return rows
 
 
@@ -1217,15 +1227,53 @@ def _pipeline(jobs: Iterator[tuple[Any, ...]], write: Callable[[list[Any]], int]
     return rows
 
 
+def _spliced(
+    cap: Capture,
+    jobs: Iterator[tuple[Any, ...]],
+    spliced: Callable[[bytes, int], list[Any]],
+    write: Callable[[list[Any]], int],
+    emit: Callable[[list[Any], Any], int],
+    out: IO[bytes],
+    head: list[bytes],
+) -> int:
+    """Run a regular file's jobs (``_splice_jobs``) on this process's threads, or a big file's
+    blocks on worker processes, one per core, that write to ``out`` themselves (``io.forked``).
+    ``head`` is emptied once something is written."""
+    from tumblecal_cli.io import forked
+
+    path, start = cap._path, len(cap.layout.head)
+    assert path is not None
+    workers = forked.workers_for(path, os.path.getsize(path) - start) if _descriptor(out) else 0
+    blocks = forked.cuts(path, start, BLOCK_BYTES) if workers else None
+    if not blocks:
+        return _pipeline(jobs, write)
+
+    def render(block: bytes, at: int) -> tuple[list[Any], int]:  # in a worker: the block's bytes
+        sink = forked.Parts()
+        return sink.parts, emit(spliced(block, at), sink)
+
+    return forked.pipeline(path, blocks, render, out, head[0], workers, written=head.pop)
+
+
+def _descriptor(out: IO[bytes]) -> bool:
+    """Whether ``out`` writes to a file descriptor (a worker process can write to it too)."""
+    try:
+        out.fileno()
+    except (AttributeError, OSError, ValueError):  # io.UnsupportedOperation is both of the last two
+        return False
+    return True
+
+
 def _splice_jobs(
     cap: Capture,
     corrections: Sequence[tuple[tuple[int, int, int], Callable[..., FloatArray]]],
     convert: Callable[[Capture, int, list[pa.Array]], list[Any]],
     temperature: int | None = None,
-) -> Iterator[tuple[Any, ...]] | None:
+) -> tuple[Iterator[tuple[Any, ...]], Callable[[bytes, int], list[Any]]] | None:
     """The jobs that correct a regular file block by block, spliced where its lines are plain
-    (``io.splice``), else by the general rules; None when the file is not one to splice (a
-    stream, whitespace-separated, CR line ends, a cut last line left out)."""
+    (``io.splice``), else by the general rules, and the function of a block's job
+    (``spliced(block, at)``); None when the file is not one to splice (a stream,
+    whitespace-separated, CR line ends, a cut last line left out)."""
     from tumblecal_cli.io.splice import Splicer
 
     lay = cap.layout
@@ -1269,7 +1317,7 @@ def _splice_jobs(
             if carry:
                 yield spliced, carry, at
 
-    return jobs()
+    return jobs(), spliced
 
 
 class _Slice(Capture):

@@ -54,6 +54,7 @@ class Splicer:
         """``temperature``: the index of a temperature column, parsed too (not rewritten) and
         given to each correction as ``fn(values, temperature)`` (a thermal calibration)."""
         _keep_freed_memory()
+        _orjson_agrees()  # once, before any worker is forked (io.forked): they inherit the answer
         self.ncols = ncols
         self.delimiter = ord(delimiter)
         self.crlf = eol == "\r\n"
