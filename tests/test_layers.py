@@ -105,6 +105,29 @@ def test_nothing_imports_pandas() -> None:
     assert imported(body, ("pandas", "numpy", "pyarrow")) == ["numpy", "pyarrow"]
 
 
+@pytest.mark.slow
+def test_apply_loads_only_what_correcting_needs(tmp_path: Path) -> None:
+    """A station's ``tumblecal apply -q`` pays for numpy, pyarrow and orjson, not for Rich, the
+    solvers, the batch runner or Typer's build of every other command (README "Speed")."""
+    cal = tmp_path / "cal.json"
+    poses = [str(ROOT / "sample_data" / f"{a}.csv") for a in "xyz"]
+    solve = [sys.executable, "-m", "tumblecal_cli", "solve", "-q", "--poses", *poses, "-o", str(cal)]
+    subprocess.run(solve, check=True)
+    body = (
+        "import typer.main\n"
+        "from tumblecal_cli.cli import main\n"
+        "built = []\n"
+        "build = typer.main.get_command\n"
+        "typer.main.get_command = lambda group: built.append(len(group.registered_commands)) or build(group)\n"
+        f"argv = ['apply', '-q', '--cal', {str(cal)!r}, 'sample_data/capture.csv', '-o', {str(tmp_path / 'c.csv')!r}]\n"
+        "assert main(argv) == 0\n"
+        "assert built == [1], built\n"
+    )
+    watch = ("rich", "tumblecal_cli.core.solvers", "tumblecal_cli.pipeline.batch", "tumblecal_cli.pipeline.solve")
+    assert imported(body, watch) == []
+    assert (tmp_path / "c.csv").read_bytes().count(b"\n") > 100
+
+
 # -- the import graph and the size of a command (an AST reading of the package) --------------
 
 PACKAGE = ROOT / "tumblecal_cli"

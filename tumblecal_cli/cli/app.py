@@ -7,6 +7,7 @@ numpy, pyarrow and the pipeline are imported inside the commands, so ``tumblecal
 from __future__ import annotations
 
 import contextlib
+import copy
 import functools
 import os
 import re
@@ -148,10 +149,23 @@ def _term_as_interrupt() -> Iterator[None]:
 
 
 @functools.cache
-def _command() -> Any:
+def _command(name: str | None = None) -> Any:
     """The click command Typer builds from the command functions' signatures: built once per
-    process (it costs 30 ms; a batch's in-process units and the tests call main many times)."""
+    process (it costs 20-30 ms; a batch's in-process units and the tests call main many times).
+    With ``name``, a command's name, the group holds that command alone (2 ms): what a script's
+    ``tumblecal apply ...`` needs, parsed and reported exactly as by the whole group."""
+    if name is not None:
+        one = [c for c in app.registered_commands if _name(c) == name]
+        if one:
+            alone = copy.copy(app)
+            alone.registered_commands = one
+            return typer.main.get_command(alone)
     return typer.main.get_command(app)
+
+
+def _name(info: Any) -> str | None:
+    callback = info.callback
+    return info.name or (typer.main.get_command_name(callback.__name__) if callback is not None else None)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -163,7 +177,8 @@ def main(argv: list[str] | None = None) -> int:
     render.json_printed(reset=True)
     try:
         with _term_as_interrupt():  # a station's or scheduler's kill: outputs cleaned up as for Ctrl-C
-            result = _command().main(args=argv, prog_name="tumblecal", standalone_mode=False)
+            named = args[0] if args and not args[0].startswith("-") else None
+            result = _command(named).main(args=argv, prog_name="tumblecal", standalone_mode=False)
         sys.stdout.flush()  # a reader that stopped early (`| head`) is found here, not at exit
     except (PipeClosed, BrokenPipeError):
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no flush error at exit

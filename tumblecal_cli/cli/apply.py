@@ -90,10 +90,9 @@ def apply(
       tumblecal apply --cal cal.json 'logs/*.csv' --out-dir corrected/
     """
 
-    from tumblecal_cli.pipeline import batch as batches
     from tumblecal_cli.pipeline import correct as pipeline
 
-    inputs = batches.expand(capture or ["-"])
+    inputs = pipeline.expand(capture or ["-"])
     shape = file_shape(skip_rows, decimal, drop_incomplete)
     if out_dir is not None or dask_scheduler is not None or len(inputs) > 1:
         if output != "-" and out_dir is not None:
@@ -109,7 +108,6 @@ def apply(
         )
         _show_many(done, len(set(inputs)), out_dir, quiet=quiet)
         return
-    console = render.make_console()
     applied = pipeline.correct(
         inputs[0],
         cal,
@@ -118,14 +116,11 @@ def apply(
         no_header=no_header,
         force=force,
         **shape,
-        on_note=None if quiet else lambda note: console.print(render.note_line(note), soft_wrap=True),
+        on_note=None if quiet else lambda note: render.say(render.note_line(note)),
     )
     if not quiet:
         target = "stdout" if output == "-" else output
-        console.print(
-            f"corrected {applied.rows} rows of {applied.capture} ({', '.join(applied.columns)}) -> {target}",
-            soft_wrap=True,
-        )
+        render.say(f"corrected {applied.rows} rows of {applied.capture} ({', '.join(applied.columns)}) -> {target}")
 
 
 def _show_many(done: Iterator[tuple[str, int, str]], total: int, out_dir: str, *, quiet: bool) -> None:

@@ -22,15 +22,13 @@ import numpy as np
 
 from tumblecal_cli.core.model import SENSORS, FloatArray, Solution, parse_label
 from tumblecal_cli.core.model import apply as apply_model
-from tumblecal_cli.core.solvers import Fit
-from tumblecal_cli.core.thermal import Drift
-from tumblecal_cli.core.thermal import correct as thermal_correct
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.outputs import atomic_output
 from tumblecal_cli.version import __version__
 
 if TYPE_CHECKING:
-    pass
+    from tumblecal_cli.core.solvers import Fit
+    from tumblecal_cli.core.thermal import Drift
 
 FORMAT = "tumblecal-calibration"
 VERSION = 1
@@ -106,6 +104,8 @@ class Thermal:
         return int(np.asarray(self.offset).shape[1])
 
     def drift(self) -> Drift:
+        from tumblecal_cli.core.thermal import Drift
+
         return Drift(self.reference_temperature, self.range[0], self.range[1], self.offset, self.gain)
 
     def as_dict(self) -> dict[str, Any]:
@@ -252,6 +252,8 @@ class Calibration:
         temp = np.asarray(temperature, dtype=np.float64).reshape(-1)
         if temp.shape[0] != raw.shape[0]:
             raise InputError(f"temperature has {temp.shape[0]} values for {raw.shape[0]} rows", file=self.path)
+        from tumblecal_cli.core.thermal import correct as thermal_correct
+
         fixed, _ = thermal_correct(raw, temp, self.offset, self.matrix, self.thermal.drift())
         return fixed
 

@@ -314,11 +314,9 @@ def _keep_freed_memory() -> None:
     and that was a third of the CPU time (330k page faults on a 4M-row file). Peak memory stays
     that of a few blocks. A no-op where malloc is not glibc's."""
     import ctypes
-    import ctypes.util
 
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-        mallopt = libc.mallopt
+    try:  # the C library the process runs with (find_library would run ldconfig: a subprocess)
+        mallopt = ctypes.CDLL(None).mallopt
     except (OSError, AttributeError):
         return
     m_trim_threshold, m_mmap_threshold = -1, -3

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import contextlib
 import csv
-import glob
 import io
 import itertools
 import os
@@ -696,24 +695,6 @@ def _dask(address: str) -> Engine:
                         sent[client.submit(fn, *more, pure=False)] = more
 
     return run
-
-
-# -- apply over many files ---------------------------------------------------------------------
-
-
-def expand(patterns: list[str]) -> list[str]:
-    """The captures named: each a file, '-', or a glob pattern (``'logs/*.csv'``, ``**`` too) that
-    is expanded here, so a pattern also works quoted or on a remote cluster's shared storage."""
-    out: list[str] = []
-    for pattern in patterns:
-        if pattern == "-" or os.path.exists(pattern) or not glob.has_magic(pattern):
-            out.append(pattern)
-            continue
-        found = sorted(glob.glob(pattern, recursive=True))
-        if not found:
-            raise InputError(f"no file matches {pattern}")
-        out += found
-    return out
 
 
 @dataclass

@@ -7,6 +7,7 @@ sensor columns become ``M (raw - offset)`` (``core.model.apply``).
 from __future__ import annotations
 
 import contextlib
+import glob
 import os
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -50,7 +51,7 @@ def correct(
     capture). ``on_note`` hears each note as it is found, before the capture is streamed."""
     from tumblecal_cli.io import calfile, captures
     from tumblecal_cli.io.outputs import atomic_output, check_not_input, check_writable
-    from tumblecal_cli.pipeline.solve import path_of
+    from tumblecal_cli.pipeline.options import path_of
 
     capture = path_of(capture, "correct streams a capture file (data in memory: Calibration.apply)")
     given = [cal] if isinstance(cal, str | os.PathLike | calfile.Calibration) else list(cal)
@@ -114,6 +115,21 @@ def correct(
             note(text)
         used = [n for t in [cap.layout.sensor, *(t for t, _ in more)] for n in (cap.layout.names[i] for i in t)]
     return Applied(cap.layout.name, rows, used, output, notes)
+
+
+def expand(patterns: list[str]) -> list[str]:
+    """The captures named: each a file, '-', or a glob pattern (``'logs/*.csv'``, ``**`` too) that
+    is expanded here, so a pattern also works quoted or on a remote cluster's shared storage."""
+    out: list[str] = []
+    for pattern in patterns:
+        if pattern == "-" or os.path.exists(pattern) or not glob.has_magic(pattern):
+            out.append(pattern)
+            continue
+        found = sorted(glob.glob(pattern, recursive=True))
+        if not found:
+            raise InputError(f"no file matches {pattern}")
+        out += found
+    return out
 
 
 def correct_many(

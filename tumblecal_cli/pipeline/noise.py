@@ -203,7 +203,7 @@ def noise(
     """The Allan deviation of a still capture and its noise figures (README "tumblecal noise")."""
     from tumblecal_cli.core import allan
     from tumblecal_cli.io import calfile
-    from tumblecal_cli.pipeline.solve import path_of
+    from tumblecal_cli.pipeline.options import path_of
 
     path = path_of(capture, "noise reads a still capture from a file")
     if rate is not None and not (math.isfinite(rate) and rate > 0):

@@ -8,6 +8,7 @@ option deserves before any file is read (batch checks them once, before any unit
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, fields, replace
 from typing import TYPE_CHECKING
@@ -408,3 +409,10 @@ def identifier(value: str | None, flag: str) -> None:
     if value is not None and any(ord(ch) < 32 or ord(ch) == 127 for ch in value):
         bad = next(ch for ch in value if ord(ch) < 32 or ord(ch) == 127)
         raise InputError(f"{flag} {value!r} holds a control character (U+{ord(bad):04X})")
+
+
+def path_of(value: object, what: str) -> str:
+    """A path given as text or os.PathLike; anything else is an InputError saying ``what``."""
+    if isinstance(value, str | os.PathLike):
+        return os.fspath(value)
+    raise InputError(f"{what}, not a {type(value).__name__}")

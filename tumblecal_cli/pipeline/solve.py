@@ -15,6 +15,7 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 from tumblecal_cli.errors import CaptureRejected, InputError
+from tumblecal_cli.pipeline.options import path_of
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Corrected, Finding, Limits, PoseCheck
@@ -123,13 +124,6 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Path
     return _solve(
         name, labels, samples, options, given, whole=[s.values for s in samples], notes=notes, by_name=placed.by_name
     )
-
-
-def path_of(value: object, what: str) -> str:
-    """A path given as text or os.PathLike; anything else is an InputError saying ``what``."""
-    if isinstance(value, str | os.PathLike):
-        return os.fspath(value)
-    raise InputError(f"{what}, not a {type(value).__name__}")
 
 
 def _poses_given(poses: object, options: SolveOptions) -> list[str] | Mapping[str, object]:

@@ -64,7 +64,7 @@ def verify(
     from tumblecal_cli.core import gate, model
     from tumblecal_cli.io import calfile
     from tumblecal_cli.io import captures as reading
-    from tumblecal_cli.pipeline.solve import path_of
+    from tumblecal_cli.pipeline.options import path_of
 
     given = [captures] if isinstance(captures, str | os.PathLike) else list(captures)
     paths = [path_of(c, "verify reads static captures from files") for c in given]
@@ -207,9 +207,8 @@ def verify_rotations(
 
     from tumblecal_cli.core import rotations as core
     from tumblecal_cli.io import calfile
-    from tumblecal_cli.pipeline.options import SolveOptions
+    from tumblecal_cli.pipeline.options import SolveOptions, path_of
     from tumblecal_cli.pipeline.rotations import hand_turns
-    from tumblecal_cli.pipeline.solve import path_of
 
     c = calfile.resolve(cal)
     if c.sensor != "gyroscope":
