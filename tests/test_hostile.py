@@ -222,13 +222,16 @@ def test_segment_that_fails_while_writing_leaves_the_folder_as_it_was(
     out = tmp_path / "poses"
     assert run(capsys, "segment", log, "--out-dir", out).code == 0  # an earlier segmentation
     before = _listing(out)
-    real = captures.copy_rows
+    for copier in ("copy_rows", "copy_bytes"):  # a log read whole, or block by block (io.logread)
+        real = getattr(captures, copier)
 
-    def disk_full_after_two(path: str, layout: object, spans: list[object], outputs: list[str]) -> None:
-        real(path, layout, spans[:2], outputs[:2])  # type: ignore[arg-type]
-        raise OSError(errno.ENOSPC, "No space left on device", outputs[2])
+        def disk_full_after_two(
+            path: str, layout: object, spans: list[object], outputs: list[str], real: object = real
+        ) -> None:
+            real(path, layout, spans[:2], outputs[:2])  # type: ignore[operator]
+            raise OSError(errno.ENOSPC, "No space left on device", outputs[2])
 
-    monkeypatch.setattr(captures, "copy_rows", disk_full_after_two)
+        monkeypatch.setattr(captures, copier, disk_full_after_two)
     r = run(capsys, "segment", log, "--out-dir", out, "--min-duration", "2")
     assert r.code == 2
     assert "No space left on device" in r.err

@@ -806,6 +806,12 @@ class Log:
     sha256: str
     temperature: FloatArray | None = None
     scale: float = 1.0
+    #: Each reading's line in the file: its first byte and the byte after its line end (a log
+    #: read block by block, io.logread: its readings are those of the still periods only).
+    lines: np.ndarray[Any, np.dtype[np.int64]] | None = None
+    #: ... and then what the whole log's readings are judged by for their integer type
+    #: (gate.integer_rails): the lowest, the highest, and one that is not a whole number if any.
+    extremes: FloatArray | None = None
 
     def seconds(self) -> FloatArray | None:
         """Seconds since the first reading (differences first: epoch nanoseconds keep their digits)."""
@@ -1083,6 +1089,24 @@ def _times(cap: Capture, times: list[tuple[int, pa.Array]], mask: BoolArray | No
             hint="sort the log by time, or split it where the logger restarted",
         )
     return t
+
+
+def copy_bytes(path: str, layout: Layout, spans: Sequence[tuple[int, int]], outputs: Sequence[str]) -> None:
+    """Write bytes ``start``..``end`` of ``path`` (each span a block's whole lines) to its
+    output after the file's own preamble and header, in pieces: memory stays that of a piece."""
+    from tumblecal_cli.io.outputs import atomic_output
+
+    with open(path, "rb") as f:
+        fd = f.fileno()
+        for (start, end), output in zip(spans, outputs, strict=True):
+            with atomic_output(output) as out:
+                out.write(layout.head)
+                while start < end:
+                    piece = os.pread(fd, min(end - start, BLOCK_BYTES * 4), start)
+                    if not piece:
+                        raise InputError("the log got shorter while it was read", file=layout.name)
+                    out.write(piece)
+                    start += len(piece)
 
 
 def copy_rows(path: str, layout: Layout, spans: Sequence[tuple[int, int]], outputs: Sequence[str]) -> None:

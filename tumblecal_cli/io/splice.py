@@ -50,9 +50,11 @@ class Splicer:
         decimal: str,
         corrections: Sequence[Correction],
         temperature: int | None = None,
+        also: Sequence[int] = (),
     ) -> None:
         """``temperature``: the index of a temperature column, parsed too (not rewritten) and
-        given to each correction as ``fn(values, temperature)`` (a thermal calibration)."""
+        given to each correction as ``fn(values, temperature)`` (a thermal calibration).
+        ``also``: more columns parsed by ``read`` (a log's time column)."""
         _keep_freed_memory()
         _orjson_agrees()  # once, before any worker is forked (io.forked): they inherit the answer
         self.ncols = ncols
@@ -63,7 +65,7 @@ class Splicer:
         self.fields = sorted({c for cols, _ in corrections for c in cols})  # sensor columns, in file order
         # the columns parsed, in file order (the cells' offsets must grow): the sensor columns and
         # a temperature column; where each sensor column and the temperature are among them
-        self.parsed = sorted(set(self.fields) | ({temperature} if temperature is not None else set()))
+        self.parsed = sorted(set(self.fields) | ({temperature} if temperature is not None else set()) | set(also))
         self.sensors = [self.parsed.index(c) for c in self.fields]
         self.temperature = None if temperature is None else self.parsed.index(temperature)
         at = {c: k for k, c in enumerate(self.fields)}
@@ -82,9 +84,10 @@ class Splicer:
         is not plain (the general reader takes the block)."""
         if not buf.endswith(b"\n"):  # the file's last line, without its line end
             buf += self.eol
-        cells = self._cells(buf)
-        if cells is None:
+        found = self._cells(buf)
+        if found is None:
             return None
+        cells = found[0]
         n, s = cells.shape[0], len(self.fields)
         blank = cells[:, 1::2] == cells[:, 0::2]  # (n, parsed columns)
         empty = blank if self.temperature is None else blank[:, self.sensors]  # (n, s)
@@ -110,9 +113,27 @@ class Splicer:
         groups = self.runs if skip else [(j, j) for j in range(s)]
         return _splice(buf, cells, parts, bounds, skip, groups), n
 
-    def _cells(self, buf: bytes) -> Any | None:
-        """Each line's sensor cells (n, 2s): start and end offsets in ``buf``, cell by cell; None
-        when a line is not plain."""
+    def read(self, buf: bytes) -> tuple[FloatArray, Any, IntArray] | None:
+        """The parsed columns of ``buf``'s lines (n, len(self.parsed), NaN where a cell is
+        empty), whether each line's sensor cells are all empty (n,), and where each line ends
+        (its line feed's offset); None when a line is not plain, or some of a sensor's cells of
+        a line are empty and some not (the general reader names it)."""
+        if not buf.endswith(b"\n"):
+            buf += self.eol
+        found = self._cells(buf)
+        if found is None:
+            return None
+        cells, newline = found
+        blank = cells[:, 1::2] == cells[:, 0::2]
+        empty = blank[:, self.sensors]
+        values = self._parse(buf, cells, blank, empty)
+        if values is None:
+            return None
+        return values, empty.all(axis=1), newline
+
+    def _cells(self, buf: bytes) -> tuple[Any, IntArray] | None:
+        """Each line's parsed cells (n, 2 x parsed): start and end offsets in ``buf``, cell by
+        cell, and each line's line feed; None when a line is not plain."""
         if b"#" in buf or not _utf8(buf):
             return None
         data = np.frombuffer(buf, dtype=np.uint8)
@@ -141,7 +162,7 @@ class Splicer:
                 cells[0, 0] = 0
                 np.add(newline[:-1], 1, out=cells[1:, 0])
             cells[:, 2 * j + 1] = at[:, c] if c < k else ends
-        return cells
+        return cells, newline
 
     def _parse(self, buf: bytes, cells: Any, blank: Any, empty: Any) -> FloatArray | None:
         """The parsed cells as floats (n, parsed columns): NaN where ``blank``; None when some

@@ -51,9 +51,14 @@ def segmented(
     settings: seg_core.Settings,
     digest: bool = True,
     dialect: captures.Dialect | None = None,
+    whole: bool = False,
 ) -> Iterator[tuple[str, Log, Segmentation]]:
     """Read a log ('-': stdin, kept in a temporary file until the block ends, for a second
-    read) and find its blocks: (the path to read it again, captures.Log, segment.Segmentation)."""
+    read) and find its blocks: (the path to read it again, captures.Log, segment.Segmentation).
+
+    The Log holds the readings of the still periods only (io.logread) unless ``whole`` asks for
+    every one (hand turns integrate what lies between), or the log must be read whole anyway
+    (a label column, or what io.logread does not take)."""
     if sensor != "accelerometer":
         raise InputError(
             f"the still poses of a log are found and labelled by gravity: the accelerometer's, not the {sensor}'s",
@@ -73,6 +78,26 @@ def segmented(
     spooled = log == "-" or not captures.is_regular(log)  # a pipe or FIFO is read once: kept for a second read
     path = spool_stdin(None if log == "-" else log) if spooled else log
     try:
+        if pose_column is None and not whole:  # block by block, the still periods kept (io.logread)
+            from tumblecal_cli.io import logread
+
+            scanned = logread.scan_log(
+                path,
+                settings=settings,
+                sensor=sensor,
+                columns=columns,
+                no_header=no_header,
+                time_column=time_column,
+                time_unit=time_unit,
+                rate=rate,
+                name="<stdin>" if log == "-" else log,
+                digest=digest,
+                dialect=dialect,
+            )
+            if scanned is not None:
+                data, seg = scanned
+                yield path, data, review(data, seg, rate, settings)
+                return
         data = captures.read_log(
             path,
             sensor=sensor,
@@ -106,12 +131,18 @@ def find_blocks(
 ) -> Segmentation:
     """The blocks of a log read in: by the detector, or by its label column."""
     seconds = None if rate else log.seconds()
-    seg = _blocks_of(log, seconds, rate, pose_column, pose_map, settings)
+    return review(log, _blocks_of(log, seconds, rate, pose_column, pose_map, settings), rate, settings)
+
+
+def review(log: Log, seg: Segmentation, rate: float | None, settings: seg_core.Settings) -> Segmentation:
+    """Notes on how the log's time was read, and exit 2 for a log whose time scale is wrong
+    (hundreds of blocks of one or two samples)."""
+    seconds = log.clock is not None and not rate
     name = log.layout.name
     if rate and log.clock is not None and log.layout.time is not None:
         column = log.layout.names[log.layout.time]
         seg.warnings.append(f"{name}: --rate {rate:g} is used, not the time column {column} (no gap or order check)")
-    if seg.period is not None and seg.period >= 1.0 and seconds is not None:  # slower than 1 Hz: not an IMU's clock
+    if seg.period is not None and seg.period >= 1.0 and seconds:  # slower than 1 Hz: not an IMU's clock
         seg.warnings.append(
             f"{name}: the time column advances {seg.period:.3g} s per sample ({1 / seg.period:.3g} Hz); "
             "if it is not in seconds, give --time-unit ms, us or ns"
@@ -495,7 +526,6 @@ def _write_blocks(log: str, path: str, found: Blocks, files: dict[int, str], ind
     created = not os.path.isdir(out_dir)
     os.makedirs(out_dir, exist_ok=True)
     kept = seg.kept
-    spans = [(int(data.rows[b.first]), int(data.rows[b.last])) for b in kept]
     names = ["segments.csv", *(files[b.number] for b in kept)]
     # everything is written into a staging folder first and published only when all of it is
     # there: a failure (a full disk, a bad row) leaves the folder as it was
@@ -504,7 +534,13 @@ def _write_blocks(log: str, path: str, found: Blocks, files: dict[int, str], ind
     try:
         with atomic_output(os.path.join(staging, "segments.csv")) as out:
             out.write(index.encode())
-        captures.copy_rows(path, data.layout, spans, [os.path.join(staging, name) for name in names[1:]])
+        outputs = [os.path.join(staging, name) for name in names[1:]]
+        if data.lines is not None:  # where each block's lines are in the file: copied as they are
+            spans = [(int(data.lines[b.first, 0]), int(data.lines[b.last, 1])) for b in kept]
+            captures.copy_bytes(path, data.layout, spans, outputs)
+        else:
+            spans = [(int(data.rows[b.first]), int(data.rows[b.last])) for b in kept]
+            captures.copy_rows(path, data.layout, spans, outputs)
         # the index first: a run stopped part-way leaves its blocks listed, so the next run
         # into this folder knows them for its own and replaces them
         for name in names:

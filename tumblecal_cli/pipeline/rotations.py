@@ -78,6 +78,7 @@ def hand_turns(log: str, options: SolveOptions) -> HandTurns:
         pose_map=None,
         settings=settings,
         dialect=options.dialect,
+        whole=True,  # the turns between the still blocks are integrated
     ) as (path, acc, seg):
         gyr = captures.read_log(
             path,

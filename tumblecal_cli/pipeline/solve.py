@@ -333,7 +333,8 @@ def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
     method_options(name, given.reference, options.plane, options.bias_spread)
     segmentation = {"log": data.layout.name, "sha256": data.sha256} | seg.as_dict()
     given = replace(given, centre=seg.centre)
-    solved = _solve(name, labels, samples, options, given, whole=[data.values], notes=notes, segmentation=segmentation)
+    whole = [data.values if data.extremes is None else data.extremes]  # the still blocks alone: the extremes
+    solved = _solve(name, labels, samples, options, given, whole=whole, notes=notes, segmentation=segmentation)
     solved.blocks = blocks
     return solved
 

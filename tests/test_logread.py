@@ -1,0 +1,220 @@
+"""A log read block by block (io.logread, core.scan) finds what the whole log read at once finds.
+
+The streamed path keeps only the still periods' readings; every block it reports (its rows,
+face, verdict and statistics), the threshold, the period and the gaps must be the whole path's.
+Where it does not take a log (a comment, time going backwards, a label column...) it says so
+and the whole path runs, so every error message stays that path's own.
+"""
+
+from __future__ import annotations
+
+import gzip
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tumblecal_cli.core import scan as scan_core
+from tumblecal_cli.core import segment as sc
+from tumblecal_cli.io import captures, logread
+from tumblecal_cli.pipeline import logs
+
+ROOT = Path(__file__).resolve().parent.parent
+DATA = ROOT / "tests" / "data" / "logs"
+
+
+def tumble(rows: int, seed: int = 2, rate: float = 1000.0, noise: float = 0.002) -> np.ndarray:
+    """t, x, y, z of a unit turned face to face: 15 s still, 5 s turning (at 1 kHz), repeated."""
+    rng = np.random.default_rng(seed)
+    faces = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float)
+    t = np.arange(rows) / rate
+    phase = (t % 20.0) / 20.0 * 20.0
+    k = (t // 20.0).astype(int)
+    w = np.clip((phase - 15.0) / 5.0, 0, 1)[:, None]
+    g = (1 - w) * faces[k % 6] + w * faces[(k + 1) % 6] + np.sin(np.pi * w) * 0.3 * rng.normal(size=(rows, 3))
+    xyz = g + np.array([0.01, -0.02, 0.015]) + rng.normal(0, noise, size=(rows, 3))
+    return np.column_stack([t, xyz])
+
+
+def write(path: Path, table: np.ndarray, header: str = "t,x,y,z", fmt: str | list[str] = "%.6f") -> Path:
+    with path.open("w") as f:
+        f.write(header + "\n")
+        np.savetxt(f, table, fmt=fmt, delimiter=",")
+    return path
+
+
+def both(path: Path, rate: float | None = None, **settings: object) -> tuple[object, object]:
+    """(the streamed log and segmentation or None, the whole log and segmentation)."""
+    s = sc.Settings(**settings)  # type: ignore[arg-type]
+    streamed = logread.scan_log(str(path), settings=s, rate=rate)
+    if streamed is not None:
+        streamed = (streamed[0], logs.review(streamed[0], streamed[1], rate, s))
+    whole = captures.read_log(str(path), use_time=rate is None)
+    return streamed, (whole, logs.find_blocks(whole, rate, None, None, s))
+
+
+def same(streamed: tuple[captures.Log, sc.Segmentation], whole: tuple[captures.Log, sc.Segmentation]) -> None:
+    (a, sa), (b, sb) = streamed, whole
+    assert a.sha256 == b.sha256
+    assert sa.period == sb.period
+    assert (sa.window, sa.min_samples, sa.trim, sa.gaps) == (sb.window, sb.min_samples, sb.trim, sb.gaps)
+    assert sa.threshold == pytest.approx(sb.threshold, rel=1e-6)
+    assert (sa.noise_floor is None) == (sb.noise_floor is None)
+    assert sa.noise_floor == pytest.approx(sb.noise_floor, rel=1e-6) if sb.noise_floor is not None else True
+    assert len(sa.blocks) == len(sb.blocks)
+    for x, y in zip(sa.blocks, sb.blocks, strict=True):
+        assert (int(a.rows[x.first]), int(a.rows[x.last])) == (int(b.rows[y.first]), int(b.rows[y.last]))
+        assert (x.face, x.nearest, x.dropped, x.samples) == (y.face, y.nearest, y.dropped, y.samples)
+        np.testing.assert_allclose(x.mean, y.mean, rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(x.std, y.std, rtol=1e-9, atol=1e-15)
+        if a.clock is not None and b.clock is not None:
+            assert (a.clock[x.first], a.clock[x.last]) == (b.clock[y.first], b.clock[y.last])
+    np.testing.assert_allclose(sa.centre, sb.centre, rtol=1e-12, atol=1e-15)
+    pa = [a.block(x.number, x.first, x.last) for x in sa.kept]
+    pb = [b.block(y.number, y.first, y.last) for y in sb.kept]
+    for p, q in zip(pa, pb, strict=True):
+        assert (p.rows, p.duration, p.times, p.temperature) == (q.rows, q.duration, q.times, q.temperature)
+        np.testing.assert_array_equal(p.values, q.values)
+
+
+@pytest.fixture
+def small_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Blocks of 16 KiB: a small log is hundreds of them, so every seam is crossed."""
+    monkeypatch.setattr(captures, "BLOCK_BYTES", 16 << 10)
+
+
+@pytest.mark.parametrize(
+    "settings",
+    [{}, {"trim": 0.0}, {"trim": 0.4}, {"window": 0.05, "min_duration": 0.5}, {"threshold": 0.01}],
+    ids=["defaults", "no-trim", "trim", "short-window", "threshold"],
+)
+def test_a_tumble_session_streamed_is_the_whole_read(
+    tmp_path: Path, small_blocks: None, settings: dict[str, float]
+) -> None:
+    path = write(tmp_path / "session.csv", tumble(150_000))
+    streamed, whole = both(path, **settings)
+    assert streamed is not None
+    same(streamed, whole)  # type: ignore[arg-type]
+    log = streamed[0]  # type: ignore[index]
+    assert log.values.shape[0] < 0.9 * whole[0].values.shape[0]  # type: ignore[index]  # the turns are not kept
+
+
+def test_gaps_a_rate_and_interleaved_rows(tmp_path: Path, small_blocks: None) -> None:
+    table = tumble(120_000)
+    table[60_000:, 0] += 2.5  # the logger paused: a gap in time
+    path = write(tmp_path / "gap.csv", table)
+    streamed, whole = both(path)
+    assert streamed is not None
+    assert whole[1].gaps  # type: ignore[index]
+    same(streamed, whole)  # type: ignore[arg-type]
+    # no time column: --rate
+    no_time = write(tmp_path / "rate.csv", table[:, 1:], header="x,y,z")
+    streamed, whole = both(no_time, rate=1000.0)
+    assert streamed is not None
+    same(streamed, whole)  # type: ignore[arg-type]
+    # another sensor's rows between (an interleaved logger): rows, not readings
+    lines = ["t,ax,ay,az,gx,gy,gz"]
+    for i, (t, x, y, z) in enumerate(table[:80_000]):
+        lines.append(f"{t:.3f},{x:.6f},{y:.6f},{z:.6f},,,")
+        if i % 3 == 0:
+            lines.append(f"{t:.3f},,,,0.1,0.2,0.3")
+    mixed = tmp_path / "mixed.csv"
+    mixed.write_text("\n".join(lines) + "\n")
+    streamed, whole = both(mixed)
+    assert streamed is not None
+    same(streamed, whole)  # type: ignore[arg-type]
+
+
+def test_a_temperature_column_and_a_log_shorter_than_a_window(tmp_path: Path, small_blocks: None) -> None:
+    table = tumble(60_000)
+    temp = 20.0 + np.arange(table.shape[0]) * 1e-4
+    path = write(tmp_path / "warm.csv", np.column_stack([table[:, :1], temp, table[:, 1:]]), header="t,temp,x,y,z")
+    streamed, whole = both(path)
+    assert streamed is not None
+    same(streamed, whole)  # type: ignore[arg-type]
+    short = write(tmp_path / "short.csv", tumble(300))  # 0.3 s: less than the 0.5 s window
+    streamed, whole = both(short, min_duration=0.1)
+    assert streamed is not None
+    same(streamed, whole)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("name", ["ckexplorer_acc_log.csv", "hassan_mobile_30orient.csv", "imucal_annotated_session"])
+def test_real_logs_streamed_are_the_whole_read(tmp_path: Path, small_blocks: None, name: str) -> None:
+    if name.startswith("imucal"):  # counts at 204.8 Hz, with a label column the detector ignores
+        path = tmp_path / "imucal.csv"
+        with gzip.open(DATA / "imucal_annotated_session.csv.gz", "rb") as src, path.open("wb") as dst:
+            shutil.copyfileobj(src, dst)
+        rate = 204.8
+    else:
+        path = tmp_path / name
+        shutil.copy(DATA / name, path)
+        rate = 100.0
+    streamed, whole = both(path, rate=rate)
+    assert streamed is not None
+    same(streamed, whole)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    "change",
+    [
+        lambda text: text.replace("\n10.000000", "\n# a note\n10.000000", 1),
+        lambda text: text.replace("\n10.000000", "\n9.000000", 1),  # time goes backwards
+        lambda text: text.replace("\n10.000000,", "\n10.000000,,", 1),  # a row with a field too many
+        lambda text: text.replace("\n", "\r", 3),
+    ],
+    ids=["comment", "time-backwards", "ragged", "cr"],
+)
+def test_what_the_stream_does_not_take_is_read_whole(tmp_path: Path, small_blocks: None, change: object) -> None:
+    path = tmp_path / "log.csv"
+    write(path, tumble(30_000))
+    path.write_text(change(path.read_text()))  # type: ignore[operator]
+    assert logread.scan_log(str(path), settings=sc.Settings()) is None
+
+
+def test_a_floor_that_rises_after_the_first_blocks_is_still_exact(tmp_path: Path, small_blocks: None) -> None:
+    """A quiet start and a noisy rest: the bound set early would miss the later still samples,
+    so the scan says it cannot finish (or finishes exactly): never a different answer."""
+    quiet = tumble(40_000, noise=0.0002)
+    loud = tumble(160_000, seed=3, noise=0.004)
+    loud[:, 0] += quiet[-1, 0] + 0.001
+    path = write(tmp_path / "rise.csv", np.vstack([quiet, loud]))
+    streamed, whole = both(path)
+    if streamed is not None:
+        same(streamed, whole)  # type: ignore[arg-type]
+
+
+def test_segment_writes_the_same_files_either_way(
+    tmp_path: Path, small_blocks: None, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = write(tmp_path / "session.csv", tumble(130_000))
+    logs.segment(str(path), out_dir=str(tmp_path / "streamed"))
+    monkeypatch.setattr(logread, "scan_log", lambda *a, **k: None)
+    logs.segment(str(path), out_dir=str(tmp_path / "whole"))
+    streamed = sorted(p.name for p in (tmp_path / "streamed").iterdir())
+    assert streamed == sorted(p.name for p in (tmp_path / "whole").iterdir())
+    assert len(streamed) > 5
+    for name in streamed:
+        assert (tmp_path / "streamed" / name).read_bytes() == (tmp_path / "whole" / name).read_bytes(), name
+
+
+def test_the_scan_keeps_a_bounded_share(tmp_path: Path) -> None:
+    """The still samples and a pad around them, and the turning before the noise floor is known:
+    not the whole log."""
+    rng = np.random.default_rng(5)
+    n = 200_000
+    moving = rng.normal(0, 0.3, size=(n, 3)) + np.array([0.0, 0.0, 1.0])
+    for start in (20_000, 90_000, 160_000):  # three still poses of 20 s: 30 % of the log
+        moving[start : start + 20_000] = rng.normal(0, 0.002, size=(20_000, 3)) + np.array([0.0, 0.0, 1.0])
+    scan = scan_core.Scan(0.001, sc.Settings())
+    seconds = np.arange(n, dtype=np.float64) * 0.001
+    for k in range(0, n, 7_000):
+        m = len(moving[k : k + 7_000])
+        scan.feed(moving[k : k + m], seconds[k : k + m], np.zeros((m, 0)), np.zeros((m, 0), dtype=np.int64))
+    done = scan.finish()
+    assert done is not None
+    seg, kept = done
+    whole = sc.detect(moving, seconds)
+    assert [b.samples for b in seg.kept] == [b.samples for b in whole.kept] == [19_500] * 3
+    # the still poses, and the turning before the first of them (until the noise floor is known)
+    assert kept.values.shape[0] < 0.5 * n

@@ -1,0 +1,487 @@
+"""The still-block detector of ``core.segment.detect``, fed a log block by block (numpy only).
+
+``detect`` needs the whole log in memory: 20 million readings are 0.5 GB of floats before
+anything else. ``Scan`` finds the same blocks while the log streams past and keeps only the
+readings of the still periods (and those within a window of one): its memory grows with the
+still blocks, not with the log.
+
+The rules are ``detect``'s (its docstring): the spread of the window centred on each sample,
+``FLOOR_FACTOR`` times its ``FLOOR_PERCENTILE``-th percentile as the threshold, runs below it
+split at gaps in time, reaching half a window past the still centres less the trim. Three
+figures of the whole log are only known at its end, and each is kept exact:
+
+- the sample period (the median time step): a count of each distinct step;
+- the noise floor (a percentile of every sample's spread): a sample is a *candidate* when its
+  spread is below the *bound* in force when it is seen, and candidates and their neighbours are
+  kept with their spreads. The bound starts infinite and falls to ``BOUND_FACTOR`` times the
+  threshold the log so far gives, each time the log has doubled; every spread below the lowest
+  bound used is among those kept, so the percentile is exact when it is below that bound;
+- the gaps: every step over half a gap of the first blocks' period, judged at the end.
+
+``finish`` returns None when the log broke an assumption: its threshold came out above a bound
+used earlier, its period differs from the first blocks' enough to change the window, or its
+steps are too many kinds to count. The caller then reads the log whole and calls ``detect``.
+
+A block's spreads may come computed (``feed(..., inside=)``, ``window_spread`` of the block
+alone, on another thread): only the windows across its start are computed here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from tumblecal_cli.core.segment import (
+    FLOOR_FACTOR,
+    FLOOR_PERCENTILE,
+    GAP_FACTOR,
+    MIN_DURATION,
+    WINDOW,
+    FloatArray,
+    IntArray,
+    Segmentation,
+    Settings,
+    _in_samples,
+    _judge,
+    _runs,
+)
+
+#: A sample is a still candidate when its spread is below this many times the threshold so far.
+BOUND_FACTOR = 4.0
+#: More distinct time steps than this and the median step is not counted: the caller reads whole.
+MAX_STEPS = 1 << 20
+
+
+@dataclass
+class Part:
+    """Consecutive samples of a log: the index of the first, readings as axes (3, n), and what
+    the caller carries with them: floats (n, f) and ints (n, k)."""
+
+    first: int
+    axes: FloatArray
+    floats: FloatArray
+    ints: IntArray
+
+    def __len__(self) -> int:
+        return int(self.axes.shape[1])
+
+    def cut(self, a: int, b: int) -> Part:
+        """Samples ``a``..``b - 1`` of this part (views)."""
+        return Part(self.first + a, self.axes[:, a:b], self.floats[a:b], self.ints[a:b])
+
+
+@dataclass
+class Kept:
+    """The samples kept, end to end, as runs of consecutive samples of the log."""
+
+    axes: FloatArray  # (3, n)
+    floats: FloatArray
+    ints: IntArray
+    spread: FloatArray
+    run_first: IntArray  # each run's first sample: its index in the log ...
+    run_at: IntArray  # ... and its position here
+    run_size: IntArray
+
+    @property
+    def values(self) -> FloatArray:
+        """The readings (n, 3): a view of ``axes``."""
+        return self.axes.T
+
+    def log_index(self, at: IntArray) -> IntArray:
+        """The log's index of the samples at positions ``at``."""
+        k = np.searchsorted(self.run_at, at, side="right") - 1
+        return self.run_first[k] + (at - self.run_at[k])
+
+    def position(self, index: int) -> int | None:
+        """Where the log's sample ``index`` is kept, or None."""
+        k = int(np.searchsorted(self.run_first, index, side="right")) - 1
+        if k < 0 or index >= self.run_first[k] + self.run_size[k]:
+            return None
+        return int(self.run_at[k] + index - self.run_first[k])
+
+
+class _Store:
+    """Kept samples written end to end into arrays made once for as many as the log can hold
+    (``capacity``: memory is only touched where written), grown if the guess was short."""
+
+    def __init__(self, capacity: int) -> None:
+        self.capacity = max(1024, capacity)
+        self.axes: FloatArray | None = None
+        self.floats: FloatArray | None = None
+        self.ints: IntArray | None = None
+        self.spread = np.empty(self.capacity)
+        self.runs: list[tuple[int, int]] = []  # (first index, size)
+        self.size = 0
+
+    def add(self, part: Part, spread: FloatArray) -> None:
+        n = len(part)
+        if self.axes is None or self.floats is None or self.ints is None:
+            self.axes = np.empty((3, self.capacity))
+            self.floats = np.empty((self.capacity, part.floats.shape[1]))
+            self.ints = np.empty((self.capacity, part.ints.shape[1]), dtype=np.int64)
+        if self.size + n > self.capacity:
+            self._grow(self.size + n)
+        if self.runs and self.runs[-1][0] + self.runs[-1][1] == part.first:
+            self.runs[-1] = (self.runs[-1][0], self.runs[-1][1] + n)
+        else:
+            self.runs.append((part.first, n))
+        k = self.size
+        assert self.axes is not None
+        assert self.floats is not None
+        assert self.ints is not None
+        self.axes[:, k : k + n] = part.axes
+        self.floats[k : k + n] = part.floats
+        self.ints[k : k + n] = part.ints
+        self.spread[k : k + n] = spread
+        self.size += n
+
+    def _grow(self, need: int) -> None:
+        capacity = max(need, self.capacity * 3 // 2)
+        assert self.axes is not None
+        assert self.floats is not None
+        assert self.ints is not None
+        axes = np.empty((3, capacity))
+        axes[:, : self.size] = self.axes[:, : self.size]
+        self.axes = axes
+        self.floats = np.concatenate([self.floats[: self.size], np.empty((capacity - self.size, self.floats.shape[1]))])
+        self.ints = np.concatenate(
+            [self.ints[: self.size], np.empty((capacity - self.size, self.ints.shape[1]), dtype=np.int64)]
+        )
+        self.spread = np.concatenate([self.spread[: self.size], np.empty(capacity - self.size)])
+        self.capacity = capacity
+
+    def spreads_below(self, bound: float) -> FloatArray:
+        every = self.spread[: self.size]
+        return every[every < bound]
+
+    def join(self, template: Part) -> Kept:
+        k = self.size
+        first = np.array([r[0] for r in self.runs], dtype=np.int64)
+        size = np.array([r[1] for r in self.runs], dtype=np.int64)
+        at = np.concatenate([[0], np.cumsum(size)[:-1]]).astype(np.int64) if size.size else size
+        if self.axes is None or self.floats is None or self.ints is None:
+            return Kept(template.axes, template.floats, template.ints, np.zeros(0), first, at, size)
+        return Kept(self.axes[:, :k], self.floats[:k], self.ints[:k], self.spread[:k], first, at, size)
+
+
+class Scan:
+    """Feed a log's blocks in order (``feed``), then ``finish``."""
+
+    def __init__(self, period: float | None, settings: Settings | None = None, capacity: int = 1 << 16) -> None:
+        """``period``: seconds per sample from the log's first blocks (the median step there),
+        or 1/rate; None when neither is known (the window is then in samples). ``capacity``:
+        how many samples the log may have, about (room for the kept ones is made once)."""
+        settings = self.settings = settings or Settings()
+        self.period = period
+        self.window = _in_samples(settings.window, WINDOW, period, 2)
+        self.min_samples = _in_samples(settings.min_duration, MIN_DURATION, period, 1)
+        self.trim = self.window // 2 if settings.trim is None else _in_samples(settings.trim, (0.0, 0), period, 0)
+        self.reach = self.window // 2
+        self.pad = max(0, self.reach - self.trim) + 1  # neighbours kept each side of a candidate
+        self.n = 0  # samples fed
+        self.carry: Part | None = None  # the last window - 1 samples: the windows that go on
+        self.finalized = 0  # samples whose spread is known
+        self.tail_spread = 0.0  # the spread of the last whole window so far
+        self.held: list[Part] = []  # samples with a spread, waiting for their neighbours' verdict
+        self.held_spread = np.zeros(0)
+        self.held_candidate = np.zeros(0, dtype=bool)
+        self.before = np.zeros(0, dtype=bool)  # candidate flags of the pad samples decided last
+        self.store = _Store(capacity)
+        self.template: Part | None = None
+        self.bound = np.inf if settings.threshold is None else float(settings.threshold)
+        self.least_bound = self.bound  # the lowest bound any sample was judged by
+        self.tightened = 0  # samples finalized when the bound was last lowered
+        self.lo, self.hi = np.full(3, np.inf), np.full(3, -np.inf)  # range of every 16th reading
+        self.steps: dict[float, int] = {}
+        self.last_second: float | None = None
+        self.gap_at: list[IntArray] = []  # samples after a step over half a gap (judged at the end)
+        self.gap_step: list[FloatArray] = []
+        self.counted = True  # the steps could be counted (not too many kinds)
+
+    def feed(
+        self,
+        values: FloatArray,
+        seconds: FloatArray | None,
+        floats: FloatArray,
+        ints: IntArray,
+        inside: FloatArray | None = None,
+    ) -> None:
+        """The next ``values`` (m, 3) of the log, their ``seconds`` and what goes with them;
+        ``inside``: ``window_spread([values], window)``, when computed already."""
+        m = values.shape[0]
+        if m == 0:
+            return
+        self._time(seconds)
+        every = values[(-self.n) % 16 :: 16]  # the readings at multiples of 16 in the whole log
+        if every.size:
+            np.minimum(self.lo, every.min(axis=0), out=self.lo)
+            np.maximum(self.hi, every.max(axis=0), out=self.hi)
+        part = Part(self.n, values.T, floats, ints)
+        self.n += m
+        if self.template is None:
+            self.template = part.cut(0, 0)
+        w = self.window
+        carry = self.carry
+        size = m + (len(carry) if carry is not None else 0)
+        if size < w:
+            self.carry = _join([carry, part]) if carry is not None else part
+            return
+        if carry is not None and len(carry) == w - 1 and inside is not None and m >= w:
+            across = window_spread([carry.axes.T, values[: w - 1]], w)  # the windows that start in carry
+            windows = np.concatenate([across, inside])
+        else:
+            windows = window_spread([p.axes.T for p in (carry, part) if p is not None], w)
+        self.tail_spread = float(windows[-1])
+        head = w // 2
+        start = carry.first if carry is not None else part.first
+        last_centre = start + size - w + head  # the last sample whose centred window is whole
+        if self.finalized == 0:  # the log's first samples take the first whole window's spread
+            windows = np.concatenate([np.full(head, windows[0]), windows])
+        done = _between([carry, part], self.finalized, last_centre + 1)
+        self.finalized = last_centre + 1
+        self.carry = _join(_between([carry, part], self.n - (w - 1), self.n))
+        self._take(done, windows)
+        self._decide(final=False)
+
+    def _time(self, seconds: FloatArray | None) -> None:
+        if seconds is None or self.period is None:
+            return
+        if self.last_second is None:
+            steps, offset = np.diff(seconds), self.n + 1
+        else:
+            steps, offset = np.diff(seconds, prepend=self.last_second), self.n
+        self.last_second = float(seconds[-1])
+        if self.counted:
+            _count(steps, self.steps)
+            self.counted = len(self.steps) <= MAX_STEPS
+        big = np.flatnonzero(steps > 0.5 * GAP_FACTOR * self.period)
+        if big.size:
+            self.gap_at.append(big + offset)
+            self.gap_step.append(steps[big])
+
+    def _take(self, done: list[Part], spread: FloatArray) -> None:
+        """Samples whose spread is now known: candidates are those below the bound in force."""
+        self.least_bound = min(self.least_bound, self.bound)
+        self.held += [p for p in done if len(p)]
+        self.held_spread = np.concatenate([self.held_spread, spread])
+        self.held_candidate = np.concatenate([self.held_candidate, spread < self.bound])
+        if self.settings.threshold is None and self.finalized >= 2 * max(self.tightened, 2 * self.window):
+            self._tighten()
+
+    def _tighten(self) -> None:
+        """A lower bound from the threshold of the log so far (each time the log has doubled)."""
+        self.tightened = self.finalized
+        decided = self.finalized - self.held_spread.size
+        if decided <= 0:
+            return
+        low = self.store.spreads_below(self.least_bound)
+        k = _rank(decided)
+        if low.size > k:
+            floor = float(np.partition(low, k)[k])
+            quantised = 1e-6 * (float((self.hi - self.lo).max()) or 1.0)  # finish's threshold for no spread
+            self.bound = min(self.bound, BOUND_FACTOR * max(FLOOR_FACTOR * floor, quantised))
+
+    def _decide(self, *, final: bool) -> None:
+        """Keep each held sample within ``pad`` of a candidate; the last ``pad`` wait for what follows."""
+        held = self.held
+        size = self.held_spread.size
+        ready = size if final else size - self.pad
+        if not held or ready <= 0:
+            return
+        first = held[0].first
+        flags = np.concatenate([self.before, self.held_candidate]).astype(np.int64)
+        total = np.concatenate([[0], np.cumsum(flags)])
+        i = np.arange(ready) + self.before.size  # positions in flags
+        near = total[np.minimum(i + self.pad + 1, flags.size)] - total[np.maximum(i - self.pad, 0)] > 0
+        edges = np.flatnonzero(np.diff(np.concatenate([[False], near, [False]]).astype(np.int8)))
+        for a, b in zip(edges[0::2].tolist(), edges[1::2].tolist(), strict=True):  # runs of kept samples
+            at = a
+            for piece in _between(held, first + a, first + b):
+                self.store.add(piece, self.held_spread[at : at + len(piece)])
+                at += len(piece)
+        self.before = self.held_candidate[max(0, ready - self.pad) : ready]
+        rest = _between(held, first + ready, first + size)
+        self.held = [Part(p.first, p.axes.copy(), p.floats.copy(), p.ints.copy()) for p in rest]  # not the block
+        self.held_spread = self.held_spread[ready:].copy()
+        self.held_candidate = self.held_candidate[ready:].copy()
+
+    def finish(self) -> tuple[Segmentation, Kept] | None:
+        """The segmentation, and the samples kept (each block's ``first``..``last`` are
+        positions among them); None when the log must be read whole instead (the module's
+        docstring)."""
+        if self.n == 0 or self.template is None:
+            return None
+        if self.carry is not None and self.finalized < self.n:
+            tail = self.carry.cut(self.finalized - self.carry.first, len(self.carry))
+            if self.finalized == 0:  # shorter than a window: one window of every sample
+                spread = np.full(len(tail), float(window_spread([tail.axes.T], len(tail))[0]))
+            else:  # the last samples take the last whole window's spread
+                spread = np.full(len(tail), self.tail_spread)
+            self.finalized = self.n
+            self._take([tail], spread)
+        self._decide(final=True)
+        period = self._period()
+        if period is False or (period != self.period and not self._same_windows(period)):
+            return None
+        floor = None
+        threshold = self.settings.threshold
+        if threshold is None:
+            k = _rank(self.n)
+            low = self.store.spreads_below(self.least_bound)
+            if low.size <= k:
+                return None
+            floor = float(np.partition(low, k)[k])
+            scale = float((self.hi - self.lo).max()) or 1.0
+            # quantised readings of a quiet sensor can have no spread at all: still is then "exactly level"
+            threshold = FLOOR_FACTOR * floor if floor > 1e-9 * scale else 1e-6 * scale
+        if not threshold <= self.least_bound:
+            return None
+        kept = self.store.join(self.template)
+        breaks = self._gaps(period)
+        spans = self._spans(kept, breaks, threshold)
+        if spans is None:
+            return None
+        seg = Segmentation(
+            [],
+            self.window,
+            period,
+            threshold,
+            floor,
+            self.min_samples,
+            self.trim,
+            np.zeros(3),
+            self.settings.max_tilt_deg,
+            [int(g) for g in breaks],
+        )
+        return _judge(seg, kept.values, spans, self.settings), kept
+
+    def _period(self) -> float | bool | None:
+        """The median step, as ``detect`` takes it (nearest rank); False when not counted."""
+        if self.period is None or self.last_second is None or not self.steps:
+            return self.period
+        if not self.counted:
+            return False
+        kinds = np.array(sorted(self.steps))
+        counts = np.array([self.steps[k] for k in kinds.tolist()])
+        total = int(counts.sum())
+        k = min(total - 1, max(0, round(0.5 * (total - 1))))
+        return float(kinds[int(np.searchsorted(np.cumsum(counts), k + 1))])
+
+    def _same_windows(self, period: float | None) -> bool:
+        """Whether the whole log's period gives the windows its first blocks' did."""
+        if period is None or self.period is None or not period >= 0.5 * self.period:
+            return False
+        s = self.settings
+        trim = self.window // 2 if s.trim is None else _in_samples(s.trim, (0.0, 0), period, 0)
+        return (
+            _in_samples(s.window, WINDOW, period, 2) == self.window
+            and _in_samples(s.min_duration, MIN_DURATION, period, 1) == self.min_samples
+            and trim == self.trim
+        )
+
+    def _gaps(self, period: float | None) -> IntArray:
+        if period is None or not self.gap_at:
+            return np.zeros(0, dtype=np.int64)
+        at, steps = np.concatenate(self.gap_at), np.concatenate(self.gap_step)
+        return at[steps > GAP_FACTOR * period].astype(np.int64)
+
+    def _spans(self, kept: Kept, breaks: IntArray, threshold: float) -> list[tuple[int, int]] | None:
+        """``detect``'s spans, as positions among the kept samples; None if one reaches past
+        what was kept (it cannot, by the pad: a check)."""
+        split = [kept.run_at[1:]]  # samples not kept between two runs: never still
+        for g in breaks.tolist():  # a gap between two kept samples of one run
+            at = kept.position(g)
+            if at is not None and at > 0 and kept.position(g - 1) == at - 1:
+                split.append(np.array([at]))
+        starts, ends = _runs(kept.spread < threshold, np.unique(np.concatenate(split)).astype(np.int64))
+        reach, trim, w = self.reach, self.trim, self.window
+        first, last = kept.log_index(starts), kept.log_index(ends)
+        edges = np.concatenate([[0], breaks, [self.n]])
+        stretch = np.searchsorted(breaks, first, side="right")
+        first = np.maximum(first - reach + trim, edges[stretch])
+        last = np.minimum(last + (w - reach - 1) - trim, edges[stretch + 1] - 1)
+        spans = []
+        for a, b in zip(first.tolist(), last.tolist(), strict=True):
+            if b < a:
+                continue
+            pa, pb = kept.position(a), kept.position(b)
+            if pa is None or pb is None or pb - pa != b - a:
+                return None
+            spans.append((pa, pb))
+        return spans
+
+
+def _rank(n: int) -> int:
+    """The nearest rank of the FLOOR_PERCENTILE-th percentile of n values (``segment._quantile``)."""
+    return min(n - 1, max(0, round(FLOOR_PERCENTILE / 100 * (n - 1))))
+
+
+def window_spread(pieces: list[FloatArray], w: int) -> FloatArray:
+    """sqrt(var_x + var_y + var_z) of each whole window of ``w`` samples of the readings
+    ``pieces`` (each (n, 3)) end to end, by its first sample: ``segment.rolling_std``'s sums,
+    about the first reading (small numbers keep their digits)."""
+    axes = np.concatenate([p.T for p in pieces], axis=1) if len(pieces) > 1 else np.array(pieces[0].T, order="C")
+    n = axes.shape[1]
+    var = np.zeros(n - w + 1)
+    s = np.empty(n + 1)
+    s[0] = 0.0
+    for axis in axes:
+        axis -= axis[0]
+        np.cumsum(axis, out=s[1:])
+        total = s[w:] - s[:-w]
+        np.square(axis, out=axis)
+        np.cumsum(axis, out=s[1:])
+        var += (s[w:] - s[:-w]) / w - (total / w) ** 2
+    return np.sqrt(np.maximum(var, 0.0))
+
+
+def _join(parts: Sequence[Part | None]) -> Part:
+    """Consecutive parts as one (a copy, unless there is one)."""
+    found: list[Part] = [p for p in parts if p is not None and len(p)]
+    if not found:
+        return next(p for p in parts if p is not None)
+    if len(found) == 1:
+        return found[0]
+    return Part(
+        found[0].first,
+        np.concatenate([p.axes for p in found], axis=1),
+        np.concatenate([p.floats for p in found]),
+        np.concatenate([p.ints for p in found]),
+    )
+
+
+def _between(parts: Sequence[Part | None], first: int, end: int) -> list[Part]:
+    """The samples of consecutive ``parts`` whose log index is ``first`` .. ``end - 1`` (views)."""
+    out = []
+    for p in parts:
+        if p is None or not len(p):
+            continue
+        lo, hi = max(first, p.first), min(end, p.first + len(p))
+        if lo < hi:
+            out.append(p.cut(lo - p.first, hi - p.first))
+    return out
+
+
+def _count(steps: FloatArray, counts: dict[float, int]) -> None:
+    """Add each distinct step of ``steps`` to ``counts``: by their bits when they are close
+    (a clock's steps are a few neighbouring floats: a count, not a sort), else by sorting."""
+    ahead = steps[steps > 0]
+    if ahead.size < steps.size:  # a clock that stands still (or steps back, with --rate): sorted
+        kinds, many = np.unique(steps[~(steps > 0)], return_counts=True)
+        for k, c in zip(kinds.tolist(), many.tolist(), strict=True):
+            counts[k] = counts.get(k, 0) + c
+    if not ahead.size:
+        return
+    bits = ahead.view(np.int64)
+    lo = int(bits.min())
+    if int(bits.max()) - lo < 1 << 16:
+        tally = np.bincount(bits - lo)
+        found = np.flatnonzero(tally)
+        kinds = (found + lo).view(np.float64)
+        many = tally[found]
+    else:
+        kinds, many = np.unique(ahead, return_counts=True)
+    for k, c in zip(kinds.tolist(), many.tolist(), strict=True):
+        counts[k] = counts.get(k, 0) + c

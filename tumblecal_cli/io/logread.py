@@ -1,0 +1,300 @@
+"""A log read block by block into the streaming detector (``core.scan``): segment and
+solve --log on logs of any length.
+
+``captures.read_log`` holds a whole log in memory (its readings, rows, clock and the text of
+each block until the end): 3.5 GB for 20 million rows. Here a regular file of plain lines
+(``io.splice``'s rules) is read in blocks on a pool of threads, each block's sensor, time and
+temperature cells parsed where they lie, and fed in order to ``core.scan.Scan``, which keeps
+the readings of the still periods only. What is kept is returned as a ``captures.Log`` whose
+samples are those readings (a block's ``first``..``last`` index them), with each reading's
+line's place in the file, so that ``segment`` copies the blocks' lines without reading the
+file again.
+
+Anything else returns None before anything is said or written, and the caller reads the log
+whole, by the general rules: a stream, whitespace or CR line ends, a line that is not plain
+(a comment, a blank line, a cell that is not a number, a partly empty reading), time that goes
+backwards or is not a number, a reading that is not finite or too large, a label column, or
+a log ``Scan`` cannot finish (its docstring). Every error message and every figure of those
+logs is therefore the general path's own.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from collections import deque
+from collections.abc import Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+
+from tumblecal_cli.core import model
+from tumblecal_cli.core.scan import Scan, window_spread
+from tumblecal_cli.core.segment import FloatArray, IntArray, Segmentation, Settings, sample_period
+from tumblecal_cli.errors import InputError
+from tumblecal_cli.io import captures
+from tumblecal_cli.io.captures import Dialect, Log
+
+#: Readings the time unit and the first period are judged from (``captures.time_scale`` reads as many).
+FIRST = 100_001
+
+
+class _Plain(Exception):
+    """A block, a clock or a reading the streaming path does not take: read the log whole."""
+
+
+def scan_log(
+    path: str,
+    *,
+    settings: Settings,
+    sensor: str = "accelerometer",
+    columns: list[str] | None = None,
+    no_header: bool = False,
+    time_column: str | None = None,
+    time_unit: str = "auto",
+    rate: float | None = None,
+    name: str | None = None,
+    digest: bool = True,
+    dialect: Dialect | None = None,
+) -> tuple[Log, Segmentation] | None:
+    """The log at ``path`` (a regular file) and its still blocks found by ``core.scan``, or
+    None when it is to be read whole (the module's docstring). ``rate``: the time column is
+    then not judged (as ``read_log(use_time=False)``)."""
+    from tumblecal_cli.io.splice import Splicer
+
+    with captures.open_capture(
+        path, sensor=sensor, columns=columns, no_header=no_header, time_column=time_column, name=name, dialect=dialect
+    ) as cap:
+        lay = cap.layout
+        if cap._path is None or not isinstance(cap._stream, pa.OSFile) or lay.delimiter is None:
+            return None
+        if lay.eol not in ("\n", "\r\n") or len(lay.delimiter) != 1:
+            return None
+        extra = [i for i in (lay.time, lay.temperature) if i is not None]
+        splicer = Splicer(len(lay.names), lay.delimiter, lay.eol, lay.decimal, [(lay.sensor, _same)], also=extra)
+        where = [splicer.parsed.index(i) for i in (*lay.sensor, *extra)]
+        notes = len(lay.notes)
+        try:
+            found = _scan(path, lay, splicer, where, settings, time_unit, rate, digest)
+        except _Plain:
+            del lay.notes[notes:]  # the general path says them again
+            return None
+    if found is None:
+        del lay.notes[notes:]
+        return None
+    return found
+
+
+def _same(values: Any) -> Any:
+    return values
+
+
+def _scan(
+    path: str,
+    lay: captures.Layout,
+    splicer: Any,
+    where: list[int],
+    settings: Settings,
+    time_unit: str,
+    rate: float | None,
+    digest: bool,
+) -> tuple[Log, Segmentation] | None:
+    hasher = hashlib.sha256() if digest else None
+    if hasher is not None:
+        with open(path, "rb") as f:
+            hasher.update(f.read(len(lay.head)))
+    feeder = _Feeder(lay, settings, time_unit, rate, os.path.getsize(path))
+    for block in _blocks(path, lay, splicer, where, hasher, feeder.shared):
+        feeder.check(block)
+        feeder.add(block)
+    scan = feeder.started()
+    done = scan.finish()
+    if done is None:
+        return None
+    seg, kept = done
+    timed, warm = lay.time is not None, lay.temperature is not None
+    log = Log(
+        lay,
+        kept.values,
+        kept.ints[:, 0],
+        kept.floats[:, 0] if timed else None,
+        None,
+        "" if hasher is None else hasher.hexdigest(),
+        kept.floats[:, 1 if timed else 0] if warm else None,
+        feeder.scale,
+        lines=kept.ints[:, 1:3],
+        extremes=feeder.extremes(),
+    )
+    return log, seg
+
+
+class _Block:
+    """One block of the file, parsed: its readings (rows with sensor values) and theirs."""
+
+    def __init__(self, parsed: Any, empty: Any, lines: Any, timed: bool, window: int | None) -> None:
+        keep = ~empty if empty.any() else None  # an interleaved logger's rows of another sensor: not readings
+        self.empty = empty
+        self.lines = lines if keep is None else lines[keep]
+        parsed = parsed if keep is None else parsed[keep]
+        self.values: FloatArray = np.ascontiguousarray(parsed[:, :3])
+        self.clock: FloatArray | None = parsed[:, 3] if timed else None
+        self.temp: FloatArray | None = parsed[:, 3 + timed] if parsed.shape[1] > 3 + timed else None
+        self.finite = bool(np.isfinite(self.values).all())
+        self.lo = float(self.values.min()) if self.values.size and self.finite else 0.0
+        self.hi = float(self.values.max()) if self.values.size and self.finite else 0.0
+        fraction = self.values[self.values != np.round(self.values)] if self.finite else np.zeros(0)
+        self.odd = float(fraction[0]) if fraction.size else None
+        self.inside = window_spread([self.values], window) if window and len(self.values) >= window else None
+        self.rows: IntArray = np.zeros(0, dtype=np.int64)
+
+
+class _Feeder:
+    """The blocks into a Scan: judged first (what the streaming path does not take), held until
+    the first FIRST readings give the time unit and the period."""
+
+    def __init__(self, lay: captures.Layout, settings: Settings, time_unit: str, rate: float | None, size: int):
+        self.lay, self.settings, self.time_unit, self.rate, self.size = lay, settings, time_unit, rate, size
+        self.scan: Scan | None = None
+        self.first: list[_Block] = []
+        self.shared: dict[str, int] = {}  # the window, once known: the threads compute a block's spreads
+        self.scale, self.zero, self.last_clock = 1.0, 0.0, -np.inf
+        self.lo, self.hi = np.inf, -np.inf  # every reading's range ...
+        self.odd: float | None = None  # ... and one that is not a whole number
+
+    def check(self, block: _Block) -> None:
+        if not block.finite or max(-block.lo, block.hi) > model.MAX_READING:
+            raise _Plain  # the general path names the cell, or says what is too large
+        self.lo, self.hi = min(self.lo, block.lo), max(self.hi, block.hi)
+        self.odd = block.odd if self.odd is None else self.odd
+        clock = block.clock
+        if clock is not None:
+            if np.isnan(clock).any():
+                raise _Plain
+            if self.rate is None and clock.size and (clock[0] < self.last_clock or (np.diff(clock) < 0).any()):
+                raise _Plain  # time going backwards: the general path names the line
+            if clock.size:
+                self.last_clock = float(clock[-1])
+        if block.temp is not None and not np.isfinite(block.temp).all():
+            raise _Plain
+
+    def add(self, block: _Block) -> None:
+        if self.scan is not None:
+            self._feed(self.scan, block)
+            return
+        self.first.append(block)
+        if sum(len(b.values) for b in self.first) >= FIRST:
+            self.started()
+
+    def started(self) -> Scan:
+        """The Scan, made from the first blocks (and fed them) if it is not yet."""
+        if self.scan is not None:
+            return self.scan
+        if not sum(len(b.values) for b in self.first):
+            raise _Plain  # no readings at all: the general path says so
+        lay, seconds = self.lay, None
+        if lay.time is not None:
+            clock = np.concatenate([b.clock for b in self.first if b.clock is not None])
+            self.zero = float(clock[0])
+            try:
+                self.scale = captures.time_scale(lay, clock, self.time_unit)
+            except InputError:
+                if self.rate is None:
+                    raise _Plain from None  # the general path raises it, with everything before it said
+                self.scale = captures._TIME_SCALE[lay.time_unit or "s"]
+            seconds = None if self.rate else (clock - self.zero) * self.scale
+        capacity = _capacity(self.first, self.size)
+        scan = self.scan = Scan(sample_period(seconds, self.rate), self.settings, capacity=capacity)
+        self.shared["window"] = scan.window
+        for b in self.first:
+            self._feed(scan, b)
+        self.first = []
+        return scan
+
+    def _feed(self, scan: Scan, block: _Block) -> None:
+        clock = block.clock
+        seconds = (clock - self.zero) * self.scale if clock is not None and self.rate is None else None
+        columns = [c for c in (clock, block.temp) if c is not None]
+        floats = np.column_stack(columns) if columns else np.zeros((len(block.values), 0))
+        ints = np.column_stack([block.rows, block.lines])
+        inside = block.inside
+        if inside is not None and inside.size + scan.window - 1 != len(block.values):
+            inside = None  # computed with another window (before the first blocks gave it)
+        scan.feed(block.values, seconds, floats, ints, inside)
+
+    def extremes(self) -> FloatArray:
+        """What gate.integer_rails judges the whole log's readings by: the lowest, the highest,
+        and one that is not a whole number (if any)."""
+        return np.array([[self.lo] * 3, [self.hi] * 3, [self.lo if self.odd is None else self.odd] * 3])
+
+
+def _capacity(first: list[_Block], size: int) -> int:
+    """As many readings as the file may hold, by the first blocks' bytes per reading (and a margin)."""
+    read = sum(int(b.lines[-1, 1] - b.lines[0, 0]) for b in first if len(b.lines))
+    readings = sum(len(b.values) for b in first)
+    return int(1.25 * size * readings / max(read, 1)) + (1 << 16)
+
+
+def _blocks(
+    path: str, lay: captures.Layout, splicer: Any, where: list[int], hasher: Any, shared: dict[str, int]
+) -> Iterator[_Block]:
+    """Each block of the file parsed, in file order, on a pool of threads (numpy and pyarrow let
+    go of the GIL); hashed here, in order."""
+    workers = max(2, os.cpu_count() or 1)
+    pending: deque[Future[_Block]] = deque()
+    row = 0
+    size = os.path.getsize(path)
+    timed = lay.time is not None
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        for at, text in _cut(path, len(lay.head)):
+            if hasher is not None:
+                hasher.update(text)
+            pending.append(pool.submit(_parse, splicer, text, at, where, size, timed, shared))
+            while len(pending) > workers + 2:
+                block = pending.popleft().result()
+                row = _number(block, row)
+                yield block
+        while pending:
+            block = pending.popleft().result()
+            row = _number(block, row)
+            yield block
+
+
+def _number(block: _Block, row: int) -> int:
+    """Give ``block`` its readings' data rows (its lines are rows ``row``...); the next row."""
+    n = int(block.empty.size)
+    rows = np.arange(row, row + n, dtype=np.int64)
+    block.rows = rows if not block.empty.any() else rows[~block.empty]
+    return row + n
+
+
+def _parse(
+    splicer: Any, block: bytes, at: int, where: list[int], size: int, timed: bool, shared: dict[str, int]
+) -> _Block:
+    found = splicer.read(block)
+    if found is None:
+        raise _Plain
+    parsed, empty, newline = found
+    ends = np.minimum(newline.astype(np.int64) + 1 + at, size)  # a last line without its line end
+    starts = np.concatenate([[at], ends[:-1]])
+    return _Block(parsed[:, where], empty, np.column_stack([starts, ends]), timed, shared.get("window"))
+
+
+def _cut(path: str, start: int) -> Iterator[tuple[int, bytes]]:
+    """The file's bytes from ``start`` in blocks of whole lines (the last line may lack its end)."""
+    with open(path, "rb") as f:
+        f.seek(start)
+        at, carry = start, b""
+        while chunk := f.read(captures.BLOCK_BYTES):
+            cut = chunk.rfind(b"\n") + 1
+            if cut == 0:
+                if len(carry) + len(chunk) >= captures.BLOCK_BYTES:
+                    raise _Plain  # a line longer than a block
+                carry += chunk
+                continue
+            block, carry = b"".join((carry, memoryview(chunk)[:cut])), chunk[cut:]
+            yield at, block
+            at += len(block)
+        if carry:
+            yield at, carry
