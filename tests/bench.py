@@ -4,12 +4,15 @@ Not a test (pytest does not collect it): timings depend on the machine. Each fig
 of a few runs of a fresh process, wall clock, and peak memory (max RSS) of that process.
 
     apply, 1M/4M/20M rows  vs  the polars script a user would write instead (POLARS_APPLY below:
-                           scan_csv -> M (v - b) -> sink_csv; target <= 1x at 4M and 20M rows)
+                           scan_csv -> M (v - b) -> sink_csv; target <= 1x at 4M and 20M rows),
+                           each run writing over the last one's output, and at 20M also each
+                           run into a new file (the output removed before each run, both)
     apply, 2 sensors       vs  the same script with both calibrations (4M rows of t, acc, gyro)
     apply, pandas          vs  python -c "import pandas; pandas.read_csv(f)"  (4M rows: reading only)
     apply peak memory      20M rows / 1M rows (streaming: <= 1.3x), and 100,000 columns / 1M rows
     solve, 3 poses      vs  python -c "import pandas, numpy"               (start-up)
     segment, 600k rows  vs  python -c "import pandas; pandas.read_csv(f)"  (target <= 1.5x)
+    segment, solve --log, 20M rows (a 5.6 h tumble session)  vs  the same read_csv; peak memory
     batch, 200 units    vs  a shell loop calling `tumblecal solve` per unit (target: 20x the units/s)
     noise, 10M samples  vs  pandas.read_csv + allantools.oadev per axis (octave taus), the same file
     noise peak memory   10M samples / 2.5M samples  (streaming: ~1, not ~4)
@@ -46,11 +49,18 @@ pl.scan_csv(sys.argv[1]).with_columns(exprs).sink_csv(sys.argv[2])
 """
 
 
-def run(argv: list[str], repeat: int = 3) -> tuple[float, float]:
-    """Best wall time (s) and the peak RSS (MiB) of that run, each a fresh process. (Runs of
-    tumblecal and its baseline come in the same call to `main`, one after the other.)"""
+def run(argv: list[str], repeat: int = 3, fresh: Path | None = None) -> tuple[float, float]:
+    """Best wall time (s) and the peak RSS (MiB) of that run, each a fresh process, ``fresh``
+    (a file or folder) removed before each. (Runs of tumblecal and its baseline come in the
+    same call to `main`, one after the other.)"""
+    import shutil
+
     best = (float("inf"), 0.0)
     for _ in range(repeat):
+        if fresh is not None and fresh.is_dir():
+            shutil.rmtree(fresh)
+        elif fresh is not None:
+            fresh.unlink(missing_ok=True)
         start = time.perf_counter()
         proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         _, status, usage = os.wait4(proc.pid, 0)
@@ -62,13 +72,16 @@ def run(argv: list[str], repeat: int = 3) -> tuple[float, float]:
     return best
 
 
-def paired(ours: list[str], base: list[str], repeat: int = 3) -> tuple[tuple[float, float], tuple[float, float]]:
+def paired(
+    ours: list[str], base: list[str], repeat: int = 3, fresh: tuple[Path, Path] | None = None
+) -> tuple[tuple[float, float], tuple[float, float]]:
     """``run`` for tumblecal and its baseline taking turns (ours, base, ours, base ...), so that
-    a busy spell on a shared machine falls on both: the best of each, with its peak RSS."""
+    a busy spell on a shared machine falls on both: the best of each, with its peak RSS.
+    ``fresh``: each one's output, removed before each of its runs."""
     a = b = (float("inf"), 0.0)
     for _ in range(repeat):
-        a = min(a, run(ours, repeat=1))
-        b = min(b, run(base, repeat=1))
+        a = min(a, run(ours, repeat=1, fresh=fresh[0] if fresh else None))
+        b = min(b, run(base, repeat=1, fresh=fresh[1] if fresh else None))
     return a, b
 
 
@@ -155,19 +168,25 @@ def gyro_calibration(cal: Path, out: Path) -> None:
 
 
 def write_tumble(path: Path, rows: int) -> None:
-    """A 1 kHz t,x,y,z session turned from face to face: 15 s still, 5 s moving, repeated."""
+    """A 1 kHz t,x,y,z session turned from face to face: 15 s still, 5 s moving, repeated
+    (written a million rows at a time with pyarrow: 20M rows in seconds)."""
+    import pyarrow as pa
+    import pyarrow.csv as pcsv
+
     rng = np.random.default_rng(2)
     faces = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float)
-    t = np.arange(rows) / 1000.0
-    phase = t % 20.0
-    k = (t // 20.0).astype(int)
-    here, there = faces[k % 6], faces[(k + 1) % 6]
-    w = np.clip((phase - 15.0) / 5.0, 0, 1)[:, None]  # 0 while still, 0 -> 1 while turning
-    g = (1 - w) * here + w * there + np.sin(np.pi * w) * 0.3 * rng.normal(size=(rows, 3))
-    xyz = g + np.array([0.01, -0.02, 0.015]) + rng.normal(0, 0.002, size=(rows, 3))
-    with path.open("w") as f:
-        f.write("t,x,y,z\n")
-        np.savetxt(f, np.column_stack([t, xyz]), fmt=["%.3f", "%.6f", "%.6f", "%.6f"], delimiter=",")
+    with path.open("wb") as f:
+        f.write(b"t,x,y,z\n")
+        for start in range(0, rows, 1_000_000):
+            n = min(1_000_000, rows - start)
+            t = np.arange(start, start + n) / 1000.0
+            phase = t % 20.0
+            k = (t // 20.0).astype(int)
+            w = np.clip((phase - 15.0) / 5.0, 0, 1)[:, None]  # 0 while still, 0 -> 1 while turning
+            g = (1 - w) * faces[k % 6] + w * faces[(k + 1) % 6] + np.sin(np.pi * w) * 0.3 * rng.normal(size=(n, 3))
+            xyz = np.round(g + np.array([0.01, -0.02, 0.015]) + rng.normal(0, 0.002, size=(n, 3)), 6)
+            table = pa.table({"t": np.round(t, 3), "x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2]})
+            pcsv.write_csv(table, f, pcsv.WriteOptions(include_header=False))
 
 
 def write_units(folder: Path, units: int) -> None:
@@ -243,6 +262,26 @@ def bench_noise(folder: Path) -> tuple[list[tuple[str, float, float, str]], dict
     return rows, memory
 
 
+def bench_logs(folder: Path) -> list[tuple[str, float, float, str]]:
+    """segment (writing every block) and solve --log of a 20M-row session against
+    pandas.read_csv of it, each with its peak memory."""
+    session = folder / "session20M.csv"
+    write_tumble(session, 20_000_000)
+    size = session.stat().st_size / 1e6
+    base, base_rss = run([sys.executable, "-c", f"import pandas; pandas.read_csv({str(session)!r})"], repeat=2)
+    out = folder / "blocks20M"
+    ours, rss = run([*TUMBLECAL, "segment", "-q", str(session), "-d", str(out)], repeat=2, fresh=out)
+    blocks = len(list(out.glob("*.csv"))) - 1
+    found = [
+        (f"segment 20M rows ({size:.0f} MB)", ours, base, f"{blocks} blocks; peak {rss:.0f} MiB, pandas {base_rss:.0f}")
+    ]
+    cal = folder / "log-cal.json"
+    ours, rss = run([*TUMBLECAL, "solve", "-q", "--log", str(session), "-o", str(cal)], repeat=2)
+    found.append(("solve --log 20M rows", ours, base, f"peak {rss:.0f} MiB, pandas {base_rss:.0f}"))
+    session.unlink()
+    return found
+
+
 def main() -> None:
     rows: list[tuple[str, float, float, str]] = []
     if sys.argv[1:] == ["noise"]:
@@ -272,6 +311,16 @@ def main() -> None:
             memory[millions] = rss
             note = f"{size / ours:.0f} MB/s, peak {rss:.0f} MiB (polars {base_rss:.0f})"
             rows.append((f"apply {millions}M rows ({size:.0f} MB)", ours, base, note))
+            if millions == 20:  # each run into a new file: no earlier output's pages to replace
+                new, new_base = folder / "new.csv", folder / "new-polars.csv"
+                (ours, rss), (base, _) = paired(
+                    [*TUMBLECAL, "apply", "-q", "--cal", str(cal), str(log), "-o", str(new)],
+                    [sys.executable, "-c", POLARS_APPLY, str(log), str(new_base), str(cal)],
+                    fresh=(new, new_base),
+                )
+                rows.append(("apply 20M rows, new output", ours, base, "the output removed before each run (both)"))
+                new.unlink(missing_ok=True)
+                new_base.unlink(missing_ok=True)
             if millions == 4:
                 base, _ = run([sys.executable, "-c", f"import pandas; pandas.read_csv({str(log)!r})"])
                 rows.append(("apply 4M rows vs pandas", ours, base, "pandas.read_csv only reads"))
@@ -301,6 +350,8 @@ def main() -> None:
         ours, _ = run([*TUMBLECAL, "segment", "-q", str(session), "-d", str(folder / "poses")])
         blocks = len(list((folder / "poses").glob("*.csv"))) - 1
         rows.append(("segment 600k rows (10 min)", ours, base, f"{blocks} blocks written"))
+        session.unlink()
+        rows += bench_logs(folder)
         units = folder / "units"
         write_units(units, 200)
         loop = (  # what a station script does today: one process per unit
@@ -327,7 +378,7 @@ def main() -> None:
     print("baselines: apply vs the polars script in tests/bench.py (scan_csv -> M (v - b) -> sink_csv)")
     print("           apply thermal vs apply of the same capture with the calibration without its thermal block")
     print("           solve vs python -c 'import pandas, numpy'")
-    print("           segment vs python -c 'import pandas; pandas.read_csv(f)'")
+    print("           segment, solve --log vs python -c 'import pandas; pandas.read_csv(f)' of the same log")
     print("           batch vs a bash loop of 'tumblecal solve' per unit (200 units x 3 poses x 1000 samples)")
     print("           noise vs pandas.read_csv + allantools.oadev of each axis (octave taus), the same file")
 

@@ -25,6 +25,7 @@ import contextlib
 import functools
 import hashlib
 import io
+import itertools
 import os
 import re
 import stat
@@ -1214,11 +1215,14 @@ def correct_stream(
         return emit(items, out)
 
     plan = _splice_jobs(cap, corrections, convert, temperature) if splice else None
+    splicer = _stream_splicer(cap, corrections, temperature) if splice and plan is None else None
     try:
-        if plan is None:
-            rows = _pipeline(((convert, cap, first_row, cols) for first_row, cols in cap.batches()), write)
-        else:
+        if plan is not None:
             rows = _spliced(cap, *plan, write, emit, out, head)
+        elif splicer is not None:
+            rows = _stream_spliced(cap, splicer, convert, write)
+        else:
+            rows = _pipeline(((convert, cap, first_row, cols) for first_row, cols in cap.batches()), write)
     except InputError:
         if not head:  # rows are out (to stdout, which cannot take them back): say it is not all
             out.write(INCOMPLETE)
@@ -1287,6 +1291,133 @@ def _spliced(
         return sink.parts, emit(spliced(block, at), sink)
 
     return forked.pipeline(path, blocks, render, out, head[0], workers, written=head.pop)
+
+
+def _stream_splicer(
+    cap: Capture,
+    corrections: Sequence[tuple[tuple[int, int, int], Callable[..., FloatArray]]],
+    temperature: int | None,
+) -> Any | None:
+    """A splicer for a capture read as a stream (stdin, a pipe) of plain-line shape, else None."""
+    from tumblecal_cli.io.splice import Splicer
+
+    lay = cap.layout
+    if cap._path is not None or not isinstance(cap._stream, _DataStream) or cap._stream._squeeze:
+        return None
+    if lay.delimiter is None or len(lay.delimiter) != 1 or lay.eol not in ("\n", "\r\n"):
+        return None
+    return Splicer(len(lay.names), lay.delimiter, lay.eol, lay.decimal, corrections, temperature)
+
+
+def _stream_spliced(
+    cap: Capture, splicer: Any, convert: Callable[[Capture, int, list[pa.Array]], list[Any]], write: Callable[..., int]
+) -> int:
+    """A stream's blocks of plain lines spliced on threads, in order, until one is not plain:
+    from there on (that block, the ones read after it, the rest of the stream) the general
+    rules, whose messages count data rows from the stream's first ("data row N": a stream has
+    no second pass to find line numbers). Returns the rows written."""
+    rows = 0
+    workers = max(2, os.cpu_count() or 1)
+    pending: deque[tuple[Future[Any] | None, bytes]] = deque()
+    blocks = _stream_blocks(cap._stream)
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        for block, plain in blocks:
+            pending.append((pool.submit(splicer.block, block) if plain else None, block))
+            while pending and (len(pending) >= workers + 2 or (pending[0][0] is None or pending[0][0].done())):
+                job, text = pending.popleft()
+                done = job.result() if job is not None else None
+                if done is None:  # the general rules from here
+                    rest = [text, *(b for _, b in pending)]
+                    for other, _ in pending:
+                        if other is not None:
+                            other.cancel()
+                    pending.clear()
+                    return rows + _stream_rest(cap, itertools.chain(rest, (b for b, _ in blocks)), rows, convert, write)
+                rows += write([done])
+        while pending:
+            job, text = pending.popleft()
+            done = job.result() if job is not None else None
+            if done is None:
+                rest = [text, *(b for _, b in pending)]
+                pending.clear()
+                return rows + _stream_rest(cap, iter(rest), rows, convert, write)
+            rows += write([done])
+    _note_dropped(cap)
+    return rows
+
+
+def _stream_blocks(stream: Any) -> Iterator[tuple[bytes, bool]]:
+    """A stream's bytes as blocks of whole lines (the last may lack its line end), each with
+    whether it may be spliced: not a line longer than a block (the general reader says so)."""
+    carry = b""
+    while chunk := stream.read(BLOCK_BYTES):
+        cut = chunk.rfind(b"\n") + 1
+        if cut == 0:
+            carry += chunk
+            if len(carry) >= BLOCK_BYTES:
+                yield carry, False
+                carry = b""
+            continue
+        block, carry = b"".join((carry, memoryview(chunk)[:cut])), chunk[cut:]
+        yield block, block.find(b"\n") < BLOCK_BYTES  # its first line, which began in an earlier read
+    if carry:
+        yield carry, True
+
+
+def _stream_rest(
+    cap: Capture,
+    blocks: Iterator[bytes],
+    before: int,
+    convert: Callable[[Capture, int, list[pa.Array]], list[Any]],
+    write: Callable[..., int],
+) -> int:
+    rest = _Rest(cap, _Chained(blocks), before)
+    rows = _pipeline(((convert, rest, first_row, cols) for first_row, cols in rest.batches()), write)
+    _note_dropped(cap)
+    return rows
+
+
+def _note_dropped(cap: Capture) -> None:
+    """The note for a last line --drop-incomplete dropped (what ``Capture.batches`` says)."""
+    dropped = getattr(cap._stream, "dropped", None)
+    if dropped is not None:
+        shown = quoted(dropped.decode("utf-8", errors="replace"), 40)
+        note = f"{cap.layout.name}: the last line is incomplete ({shown}), dropped (--drop-incomplete)"
+        if note not in cap.layout.notes:
+            cap.layout.notes.append(note)
+
+
+class _Chained(io.RawIOBase):
+    """Blocks of bytes read as one stream."""
+
+    def __init__(self, blocks: Iterator[bytes]) -> None:
+        self._blocks = blocks
+        self._buf = memoryview(b"")
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer: Any) -> int:
+        while not len(self._buf):
+            block = next(self._blocks, None)
+            if block is None:
+                return 0
+            self._buf = memoryview(block)
+        n = min(len(buffer), len(self._buf))
+        buffer[:n] = self._buf[:n]
+        self._buf = self._buf[n:]
+        return n
+
+
+class _Rest(Capture):
+    """The rest of a stream after ``before`` data rows were spliced: its messages count from the first."""
+
+    def __init__(self, cap: Capture, stream: Any, before: int) -> None:
+        super().__init__(cap.layout, stream, None, cap._hasher)
+        self._before = before
+
+    def _locate(self, row: int, sensor_j: int, what: str, triplet: tuple[int, int, int] | None = None) -> InputError:
+        return super()._locate(row + self._before, sensor_j, what, triplet)
 
 
 def _descriptor(out: IO[bytes]) -> bool:
