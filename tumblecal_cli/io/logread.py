@@ -23,7 +23,7 @@ from __future__ import annotations
 import hashlib
 import os
 from collections import deque
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
@@ -131,23 +131,31 @@ def _scan(
 
 
 class _Block:
-    """One block of the file, parsed: its readings (rows with sensor values) and theirs."""
+    """One block of the file, parsed on a worker thread: its readings (rows with sensor values)
+    and what goes with them, ready for the Scan but for the data rows' offset."""
 
     def __init__(self, parsed: Any, empty: Any, lines: Any, timed: bool, window: int | None) -> None:
         keep = ~empty if empty.any() else None  # an interleaved logger's rows of another sensor: not readings
-        self.empty = empty
-        self.lines = lines if keep is None else lines[keep]
+        self.lines = int(empty.size)  # lines in the block: all of them data rows (plain lines)
         parsed = parsed if keep is None else parsed[keep]
         self.values: FloatArray = np.ascontiguousarray(parsed[:, :3])
         self.clock: FloatArray | None = parsed[:, 3] if timed else None
         self.temp: FloatArray | None = parsed[:, 3 + timed] if parsed.shape[1] > 3 + timed else None
+        rows = np.arange(self.lines, dtype=np.int64) if keep is None else np.flatnonzero(keep).astype(np.int64)
+        spans = lines if keep is None else lines[keep]
+        self.ints: IntArray = np.column_stack([rows, spans])  # data row (from the block's first), line's bytes
+        extra = [c for c in (self.clock, self.temp) if c is not None]
+        self.floats: FloatArray = np.column_stack(extra) if extra else np.zeros((len(self.values), 0))
         self.finite = bool(np.isfinite(self.values).all())
         self.lo = float(self.values.min()) if self.values.size and self.finite else 0.0
         self.hi = float(self.values.max()) if self.values.size and self.finite else 0.0
         fraction = self.values[self.values != np.round(self.values)] if self.finite else np.zeros(0)
         self.odd = float(fraction[0]) if fraction.size else None
+        clock = self.clock
+        self.clock_ok = clock is None or not np.isnan(clock).any()
+        self.backwards = clock is not None and clock.size > 1 and bool((np.diff(clock) < 0).any())
+        self.temp_ok = self.temp is None or bool(np.isfinite(self.temp).all())
         self.inside = window_spread([self.values], window) if window and len(self.values) >= window else None
-        self.rows: IntArray = np.zeros(0, dtype=np.int64)
 
 
 class _Feeder:
@@ -169,15 +177,12 @@ class _Feeder:
         self.lo, self.hi = min(self.lo, block.lo), max(self.hi, block.hi)
         self.odd = block.odd if self.odd is None else self.odd
         clock = block.clock
-        if clock is not None:
-            if np.isnan(clock).any():
-                raise _Plain
-            if self.rate is None and clock.size and (clock[0] < self.last_clock or (np.diff(clock) < 0).any()):
-                raise _Plain  # time going backwards: the general path names the line
-            if clock.size:
-                self.last_clock = float(clock[-1])
-        if block.temp is not None and not np.isfinite(block.temp).all():
+        if not block.clock_ok or not block.temp_ok:
             raise _Plain
+        if clock is not None and clock.size:
+            if self.rate is None and (block.backwards or clock[0] < self.last_clock):
+                raise _Plain  # time going backwards: the general path names the line
+            self.last_clock = float(clock[-1])
 
     def add(self, block: _Block) -> None:
         if self.scan is not None:
@@ -215,13 +220,10 @@ class _Feeder:
     def _feed(self, scan: Scan, block: _Block) -> None:
         clock = block.clock
         seconds = (clock - self.zero) * self.scale if clock is not None and self.rate is None else None
-        columns = [c for c in (clock, block.temp) if c is not None]
-        floats = np.column_stack(columns) if columns else np.zeros((len(block.values), 0))
-        ints = np.column_stack([block.rows, block.lines])
         inside = block.inside
         if inside is not None and inside.size + scan.window - 1 != len(block.values):
             inside = None  # computed with another window (before the first blocks gave it)
-        scan.feed(block.values, seconds, floats, ints, inside)
+        scan.feed(block.values, seconds, block.floats, block.ints, inside)
 
     def extremes(self) -> FloatArray:
         """What gate.integer_rails judges the whole log's readings by: the lowest, the highest,
@@ -231,7 +233,7 @@ class _Feeder:
 
 def _capacity(first: list[_Block], size: int) -> int:
     """As many readings as the file may hold, by the first blocks' bytes per reading (and a margin)."""
-    read = sum(int(b.lines[-1, 1] - b.lines[0, 0]) for b in first if len(b.lines))
+    read = sum(int(b.ints[-1, 2] - b.ints[0, 1]) for b in first if len(b.ints))
     readings = sum(len(b.values) for b in first)
     return int(1.25 * size * readings / max(read, 1)) + (1 << 16)
 
@@ -239,62 +241,47 @@ def _capacity(first: list[_Block], size: int) -> int:
 def _blocks(
     path: str, lay: captures.Layout, splicer: Any, where: list[int], hasher: Any, shared: dict[str, int]
 ) -> Iterator[_Block]:
-    """Each block of the file parsed, in file order, on a pool of threads (numpy and pyarrow let
-    go of the GIL); hashed here, in order."""
+    """Each block of the file read and parsed on a pool of threads (numpy, pyarrow and the
+    reads let go of the GIL), in file order, its rows numbered here; hashed here, in order."""
+    from tumblecal_cli.io.forked import cuts
+
+    blocks = cuts(path, len(lay.head), captures.BLOCK_BYTES)
+    if blocks is None:
+        raise _Plain  # a line longer than a block
     workers = max(2, os.cpu_count() or 1)
-    pending: deque[Future[_Block]] = deque()
+    pending: deque[Future[tuple[_Block, bytes]]] = deque()
     row = 0
     size = os.path.getsize(path)
     timed = lay.time is not None
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        for at, text in _cut(path, len(lay.head)):
-            if hasher is not None:
-                hasher.update(text)
-            pending.append(pool.submit(_parse, splicer, text, at, where, size, timed, shared))
+    with open(path, "rb") as f, ThreadPoolExecutor(max_workers=workers) as pool:
+        for at, length in blocks:
+            pending.append(pool.submit(_parse, splicer, f.fileno(), at, length, where, size, timed, shared))
             while len(pending) > workers + 2:
-                block = pending.popleft().result()
-                row = _number(block, row)
-                yield block
+                row = yield from _numbered(pending.popleft(), row, hasher)
         while pending:
-            block = pending.popleft().result()
-            row = _number(block, row)
-            yield block
+            row = yield from _numbered(pending.popleft(), row, hasher)
 
 
-def _number(block: _Block, row: int) -> int:
-    """Give ``block`` its readings' data rows (its lines are rows ``row``...); the next row."""
-    n = int(block.empty.size)
-    rows = np.arange(row, row + n, dtype=np.int64)
-    block.rows = rows if not block.empty.any() else rows[~block.empty]
-    return row + n
+def _numbered(job: Future[tuple[_Block, bytes]], row: int, hasher: Any) -> Generator[_Block, None, int]:
+    block, text = job.result()
+    if hasher is not None:
+        hasher.update(text)
+    if row:
+        block.ints[:, 0] += row
+    yield block
+    return row + block.lines
 
 
 def _parse(
-    splicer: Any, block: bytes, at: int, where: list[int], size: int, timed: bool, shared: dict[str, int]
-) -> _Block:
-    found = splicer.read(block)
+    splicer: Any, fd: int, at: int, length: int, where: list[int], size: int, timed: bool, shared: dict[str, int]
+) -> tuple[_Block, bytes]:
+    text = os.pread(fd, length, at)
+    if len(text) != length:
+        raise _Plain  # the file changed while it was read
+    found = splicer.read(text)
     if found is None:
         raise _Plain
     parsed, empty, newline = found
     ends = np.minimum(newline.astype(np.int64) + 1 + at, size)  # a last line without its line end
     starts = np.concatenate([[at], ends[:-1]])
-    return _Block(parsed[:, where], empty, np.column_stack([starts, ends]), timed, shared.get("window"))
-
-
-def _cut(path: str, start: int) -> Iterator[tuple[int, bytes]]:
-    """The file's bytes from ``start`` in blocks of whole lines (the last line may lack its end)."""
-    with open(path, "rb") as f:
-        f.seek(start)
-        at, carry = start, b""
-        while chunk := f.read(captures.BLOCK_BYTES):
-            cut = chunk.rfind(b"\n") + 1
-            if cut == 0:
-                if len(carry) + len(chunk) >= captures.BLOCK_BYTES:
-                    raise _Plain  # a line longer than a block
-                carry += chunk
-                continue
-            block, carry = b"".join((carry, memoryview(chunk)[:cut])), chunk[cut:]
-            yield at, block
-            at += len(block)
-        if carry:
-            yield at, carry
+    return _Block(parsed[:, where], empty, np.column_stack([starts, ends]), timed, shared.get("window")), text
