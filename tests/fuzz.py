@@ -106,7 +106,24 @@ def seeds(folder: Path) -> dict[str, tuple[bytes, list[list[str]]]]:
         "cal.yaml": (yaml_text.encode(), [["show", "{f}"], ["apply", "--cal", "{f}", str(SAMPLE / "x.csv")]]),
         "limits.yaml": ((SAMPLE / "limits.yaml").read_bytes(), [["check", "{cal}", "--limits", "{f}"]]),
         "ros.yaml": ((folder / "ros.yaml").read_bytes(), [["import", "{f}", "-o", "{out}"]]),
+        "log.csv": (_tumble_log(), [["segment", "{f}"], ["solve", "--log", "{f}", "-o", "{out}"]]),
     }
+
+
+def _tumble_log() -> bytes:
+    """A session at 100 Hz rested on each of six faces for 2 s, turned between (45 kB)."""
+    import numpy as np
+
+    rng = np.random.default_rng(11)
+    faces = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float)
+    rows = []
+    for k, face in enumerate(faces):
+        turn = np.linspace(faces[k - 1], face, 50) + rng.normal(0, 0.2, (50, 3)) if k else np.zeros((0, 3))
+        rows += [turn, face + np.array([0.01, -0.02, 0.015]) + rng.normal(0, 0.002, (200, 3))]
+    xyz = np.vstack(rows)
+    t = np.arange(len(xyz)) / 100.0
+    lines = [f"{a:.2f},{x:.5f},{y:.5f},{z:.5f}" for a, (x, y, z) in zip(t, xyz.tolist(), strict=True)]
+    return ("t,x,y,z\n" + "\n".join(lines) + "\n").encode()
 
 
 def one(folder: Path, name: str, data: bytes, command: list[str]) -> str | None:
