@@ -218,3 +218,32 @@ def test_the_scan_keeps_a_bounded_share(tmp_path: Path) -> None:
     assert [b.samples for b in seg.kept] == [b.samples for b in whole.kept] == [19_500] * 3
     # the still poses, and the turning before the first of them (until the noise floor is known)
     assert kept.values.shape[0] < 0.5 * n
+
+
+def test_a_block_file_that_cannot_be_written_leaves_the_folder_as_it_was(
+    tmp_path: Path, small_blocks: None, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The block files are written on threads: a full disk in one of them is the run's error,
+    and neither the others nor a staging folder stay."""
+    import errno
+    import threading
+
+    from tumblecal_cli.errors import InputError
+
+    path = write(tmp_path / "session.csv", tumble(130_000))
+    out = tmp_path / "poses"
+    calls, lock = [0], threading.Lock()
+    real = captures._copy_range
+
+    def full_disk(source: int, target: object, at: int, size: int) -> int:
+        with lock:
+            calls[0] += 1
+            third = calls[0] == 3
+        if third:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(source, target, at, size)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(captures, "_copy_range", full_disk)
+    with pytest.raises(InputError, match="No space left on device"):
+        logs.segment(str(path), out_dir=str(out))
+    assert not out.exists() or list(out.iterdir()) == []

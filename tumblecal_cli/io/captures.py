@@ -1094,20 +1094,30 @@ def _times(cap: Capture, times: list[tuple[int, pa.Array]], mask: BoolArray | No
 
 def copy_bytes(path: str, layout: Layout, spans: Sequence[tuple[int, int]], outputs: Sequence[str]) -> None:
     """Write bytes ``start``..``end`` of ``path`` (each span a block's whole lines) to its
-    output after the file's own preamble and header, in pieces: memory stays that of a piece."""
+    output after the file's own preamble and header, in pieces: memory stays that of a piece.
+    The files are written on a few threads (making a file is most of the cost of a short one,
+    and the kernel does it without the GIL); the first error is raised once all have ended."""
     from tumblecal_cli.io.outputs import atomic_output
 
-    with open(path, "rb") as f:
-        fd = f.fileno()
-        for (start, end), output in zip(spans, outputs, strict=True):
-            with atomic_output(output) as out:
-                out.write(layout.head)
-                out.flush()
-                while start < end:  # the kernel copies, file to file (read and written back where it cannot)
-                    done = _copy_range(fd, out, start, min(end - start, BLOCK_BYTES * 16))
-                    if not done:
-                        raise InputError("the log got shorter while it was read", file=layout.name)
-                    start += done
+    def one(fd: int, start: int, end: int, output: str) -> None:
+        with atomic_output(output) as out:
+            out.write(layout.head)
+            out.flush()
+            while start < end:  # the kernel copies, file to file (read and written back where it cannot)
+                done = _copy_range(fd, out, start, min(end - start, BLOCK_BYTES * 16))
+                if not done:
+                    raise InputError("the log got shorter while it was read", file=layout.name)
+                start += done
+
+    with open(path, "rb") as f, ThreadPoolExecutor(max_workers=4) as pool:
+        jobs = [pool.submit(one, f.fileno(), a, b, o) for (a, b), o in zip(spans, outputs, strict=True)]
+        try:
+            for job in jobs:
+                job.result()
+        except BaseException:  # an error, Ctrl-C: the files not begun are not begun, those begun end
+            for job in jobs:
+                job.cancel()
+            raise
 
 
 def _copy_range(source: int, out: IO[bytes], at: int, size: int) -> int:
