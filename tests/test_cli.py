@@ -1066,9 +1066,8 @@ def test_output_onto_the_file_on_stdin_is_refused(command: str, cal: Path, tmp_p
 def test_sigterm_mid_apply_leaves_no_temporary_file(cal: Path, tmp_path: Path) -> None:
     """A station's kill (SIGTERM) is handled as Ctrl-C: exit 130, the old output as it was, no
     hidden temporary file beside it."""
-    big = tmp_path / "big.csv"
-    rows = "\n".join(f"{i},0.01,0.02,1.0" for i in range(2_000_000))
-    big.write_text(f"t,ax,ay,az\n{rows}\n")
+    big = tmp_path / "big.csv"  # 170 MB: apply's worker processes take most of a second (2M rows ended too soon)
+    big.write_text("t,ax,ay,az\n" + "0.001,0.012345,0.023456,1.012345\n" * 5_000_000)
     out = tmp_path / "out"
     out.mkdir()
     target = precious(out / "corrected.csv")

@@ -247,3 +247,52 @@ def test_a_block_file_that_cannot_be_written_leaves_the_folder_as_it_was(
     with pytest.raises(InputError, match="No space left on device"):
         logs.segment(str(path), out_dir=str(out))
     assert not out.exists() or list(out.iterdir()) == []
+
+
+def test_a_quantised_log_whose_threshold_is_one_of_its_spreads_is_read_whole(tmp_path: Path) -> None:
+    """Counts that sit still but for 1-count flicker (found in review): the spreads take a few
+    exact values and the threshold, 3 x the floor, is one of them, so rounding alone would say
+    which side a sample is on. The streamed path sees that and the log is read whole."""
+    rng = np.random.default_rng(3)
+    faces = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]) * 1000 + [12, -7, 30]
+    parts = []
+    for k in range(6):
+        still = np.tile(faces[k], (6000, 1))
+        axis, sign = rng.integers(0, 3, 6000), rng.choice([-1, 1], 6000)
+        flicker = rng.random(6000) < 0.1
+        still[flicker, axis[flicker]] += sign[flicker]
+        big = rng.random(6000) < 0.004
+        still[big, axis[big]] += 3 * sign[big]
+        w = np.linspace(0, 1, 800)[:, None]
+        turn = np.round((1 - w) * faces[k] + w * faces[(k + 1) % 6] + rng.normal(0, 30, (800, 3)))
+        parts += [still, turn.astype(int)]
+    path = write(tmp_path / "counts.csv", np.vstack(parts), header="x,y,z", fmt="%d")
+    assert logread.scan_log(str(path), settings=sc.Settings()) is None
+
+
+def test_a_time_cell_empty_on_another_sensors_row_is_the_whole_reads_business(tmp_path: Path) -> None:
+    """The whole read judges the whole time (and temperature) column, rows without readings
+    too: an error, or with --rate no clock at all. The streamed path leaves such a log to it."""
+    lines = ["t,ax,ay,az,gx,gy,gz"]
+    for i, (t, x, y, z) in enumerate(tumble(30_000)):
+        lines.append(f"{t:.3f},{x:.6f},{y:.6f},{z:.6f},,,")
+        if i % 3 == 0:
+            lines.append(",,,,0.1,0.2,0.3")
+    path = tmp_path / "blank_time.csv"
+    path.write_text("\n".join(lines) + "\n")
+    assert logread.scan_log(str(path), settings=sc.Settings()) is None
+    assert logread.scan_log(str(path), settings=sc.Settings(), rate=1000.0) is None
+
+
+def test_rolling_std_keeps_its_digits_on_a_long_log_of_counts() -> None:
+    """Its running sums restart every SPAN samples: raw counts near 32768 over a million
+    samples once lost 1e-5 of each spread (found in review)."""
+    rng = np.random.default_rng(4)
+    n = 1_000_000
+    faces = np.repeat(np.array([[1000, 0, 0], [0, -1000, 0], [0, 0, 1000], [-1000, 0, 0]]), n // 4, axis=0)
+    values = 32768.0 + faces + np.round(rng.normal(0, 3, (n, 3)))  # an unsigned ADC turned face to face
+    spread = sc.rolling_std(values, 500)  # the sums over the whole log were off by 1e-7 here
+    for i in (250, 123_456, 654_321, 999_000):
+        window = values[i - 250 : i + 250]
+        direct = float(np.sqrt(np.var(window, axis=0).sum()))
+        assert spread[i] == pytest.approx(direct, rel=1e-12)

@@ -19,8 +19,10 @@ figures of the whole log are only known at its end, and each is kept exact:
 - the gaps: every step over half a gap of the first blocks' period, judged at the end.
 
 ``finish`` returns None when the log broke an assumption: its threshold came out above a bound
-used earlier, its period differs from the first blocks' enough to change the window, or its
-steps are too many kinds to count. The caller then reads the log whole and calls ``detect``.
+used earlier, its period differs from the first blocks' enough to change the window, its
+steps are too many kinds to count, or a spread lies on the threshold (within ``TIE``: a
+quantised log's spreads take a few exact values, and one can be the threshold itself, so
+rounding alone would say which side). The caller then reads the log whole and calls ``detect``.
 
 A block's spreads may come computed (``feed(..., inside=)``, ``window_spread`` of the block
 alone, on another thread): only the windows across its start are computed here.
@@ -46,10 +48,14 @@ from tumblecal_cli.core.segment import (
     _in_samples,
     _judge,
     _runs,
+    window_spread,
 )
 
 #: A sample is a still candidate when its spread is below this many times the threshold so far.
 BOUND_FACTOR = 4.0
+#: A spread this close to the threshold (relative) is on it: still or not by rounding alone, which
+#: the whole read's sums and these do differently (by 1e-12 or so), so the log is read whole.
+TIE = 1e-9
 #: More distinct time steps than this and the median step is not counted: the caller reads whole.
 MAX_STEPS = 1 << 20
 
@@ -190,7 +196,8 @@ class Scan:
         self.before = np.zeros(0, dtype=bool)  # candidate flags of the pad samples decided last
         self.store = _Store(capacity)
         self.template: Part | None = None
-        self.bound = np.inf if settings.threshold is None else float(settings.threshold)
+        # a given threshold is the bound, and a hair over it: a spread on it must be seen (finish's TIE)
+        self.bound = np.inf if settings.threshold is None else float(settings.threshold) * (1 + 2 * TIE)
         self.least_bound = self.bound  # the lowest bound any sample was judged by
         self.tightened = 0  # samples finalized when the bound was last lowered
         self.lo, self.hi = np.full(3, np.inf), np.full(3, -np.inf)  # range of every 16th reading
@@ -336,9 +343,11 @@ class Scan:
             scale = float((self.hi - self.lo).max()) or 1.0
             # quantised readings of a quiet sensor can have no spread at all: still is then "exactly level"
             threshold = FLOOR_FACTOR * floor if floor > 1e-9 * scale else 1e-6 * scale
-        if not threshold <= self.least_bound:
+        if not threshold * (1 + TIE) <= self.least_bound:
             return None
         kept = self.store.join(self.template)
+        if (np.abs(kept.spread - threshold) <= TIE * threshold).any():
+            return None  # a spread on the threshold (a quantised log's): either side by rounding alone
         breaks = self._gaps(period)
         spans = self._spans(kept, breaks, threshold)
         if spans is None:
@@ -416,25 +425,6 @@ class Scan:
 def _rank(n: int) -> int:
     """The nearest rank of the FLOOR_PERCENTILE-th percentile of n values (``segment._quantile``)."""
     return min(n - 1, max(0, round(FLOOR_PERCENTILE / 100 * (n - 1))))
-
-
-def window_spread(pieces: list[FloatArray], w: int) -> FloatArray:
-    """sqrt(var_x + var_y + var_z) of each whole window of ``w`` samples of the readings
-    ``pieces`` (each (n, 3)) end to end, by its first sample: ``segment.rolling_std``'s sums,
-    about the first reading (small numbers keep their digits)."""
-    axes = np.concatenate([p.T for p in pieces], axis=1) if len(pieces) > 1 else np.array(pieces[0].T, order="C")
-    n = axes.shape[1]
-    var = np.zeros(n - w + 1)
-    s = np.empty(n + 1)
-    s[0] = 0.0
-    for axis in axes:
-        axis -= axis[0]
-        np.cumsum(axis, out=s[1:])
-        total = s[w:] - s[:-w]
-        np.square(axis, out=axis)
-        np.cumsum(axis, out=s[1:])
-        var += (s[w:] - s[:-w]) / w - (total / w) ** 2
-    return np.sqrt(np.maximum(var, 0.0))
 
 
 def _join(parts: Sequence[Part | None]) -> Part:

@@ -174,12 +174,14 @@ class _DataStream(io.RawIOBase):
         super().close()
 
     def readinto(self, buffer: Any) -> int:
-        view = memoryview(buffer)
-        while not self._buf and not self._eof:
+        """As much as ``buffer`` holds, unless the stream ends (see ``_Chained.readinto``: a
+        read of a lone line feed would end pyarrow's reading)."""
+        view = memoryview(buffer).cast("B")
+        while len(self._buf) < len(view) and not self._eof:
             chunk = self._rest.read(max(len(view), 1 << 16))
             self._hasher.update(chunk)
             self._eof = not chunk
-            self._buf = self._transform(chunk, final=self._eof)
+            self._buf += self._transform(chunk, final=self._eof)
         n = min(len(view), len(self._buf))
         view[:n] = self._buf[:n]
         self._buf = self._buf[n:]
@@ -1408,14 +1410,21 @@ class _Chained(io.RawIOBase):
         return True
 
     def readinto(self, buffer: Any) -> int:
-        while not len(self._buf):
-            block = next(self._blocks, None)
-            if block is None:
-                return 0
-            self._buf = memoryview(block)
-        n = min(len(buffer), len(self._buf))
-        buffer[:n] = self._buf[:n]
-        self._buf = self._buf[n:]
+        """As much as ``buffer`` holds, across blocks: pyarrow's streaming reader takes a read
+        that is a lone line feed (the end of a CRLF cut at a block's last byte) for the end of
+        the data, and drops what follows without a word (pyarrow 26)."""
+        view = memoryview(buffer).cast("B")
+        n = 0
+        while n < len(view):
+            if not len(self._buf):
+                block = next(self._blocks, None)
+                if block is None:
+                    break
+                self._buf = memoryview(block)
+            k = min(len(view) - n, len(self._buf))
+            view[n : n + k] = self._buf[:k]
+            self._buf = self._buf[k:]
+            n += k
         return n
 
 

@@ -17,7 +17,8 @@ faster than one, not 2x). Processes share nothing. So:
 A worker is a ``fork`` of this process: it has the calibration, the splicer and every module
 already. It never returns into the caller's code: it ends with ``os._exit``. Linux only
 (``fork`` is unsafe on macOS); elsewhere, for files under ``MIN_BYTES``, for an output without
-a file descriptor and for a line too long to find the cuts, the caller's threads do the work.
+a file descriptor, for a line too long to find the cuts, and in a process that runs threads of
+its own (a Dask worker: a fork copies their locks as they are), the caller's threads do the work.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ import pickle
 import signal
 import struct
 import sys
+import threading
 from collections.abc import Callable
 from typing import IO, Any
 
@@ -48,6 +50,8 @@ def workers_for(path: str | None, size: int) -> int:
     """How many worker processes to correct ``size`` bytes of the file ``path`` with: 0 for
     this process alone (a small file, a stream, one core, not Linux)."""
     if path is None or size < MIN_BYTES or not sys.platform.startswith("linux") or not hasattr(os, "fork"):
+        return 0
+    if threading.active_count() > 1:  # a process with threads of its own (a Dask worker): no fork
         return 0
     cores = len(os.sched_getaffinity(0))
     return min(cores, MAX_WORKERS) if cores > 1 else 0
@@ -138,7 +142,12 @@ class _Pool:
 
     def start(self, i: int, serve: Callable[[int, int, int], None]) -> None:
         report_r, report_w = os.pipe()
-        pid = os.fork()
+        try:
+            pid = os.fork()
+        except OSError:
+            os.close(report_r)
+            os.close(report_w)
+            raise
         if pid == 0:  # the worker: it never returns from here
             status = 1
             try:

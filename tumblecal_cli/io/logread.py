@@ -31,8 +31,8 @@ import numpy as np
 import pyarrow as pa
 
 from tumblecal_cli.core import model
-from tumblecal_cli.core.scan import Scan, window_spread
-from tumblecal_cli.core.segment import FloatArray, IntArray, Segmentation, Settings, sample_period
+from tumblecal_cli.core.scan import Scan
+from tumblecal_cli.core.segment import FloatArray, IntArray, Segmentation, Settings, sample_period, window_spread
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import captures
 from tumblecal_cli.io.captures import Dialect, Log
@@ -134,9 +134,12 @@ class _Block:
     """One block of the file, parsed on a worker thread: its readings (rows with sensor values)
     and what goes with them, ready for the Scan but for the data rows' offset."""
 
-    def __init__(self, parsed: Any, empty: Any, lines: Any, timed: bool, window: int | None) -> None:
+    def __init__(self, parsed: Any, empty: Any, lines: Any, timed: bool, shared: dict[str, Any]) -> None:
         keep = ~empty if empty.any() else None  # an interleaved logger's rows of another sensor: not readings
         self.lines = int(empty.size)  # lines in the block: all of them data rows (plain lines)
+        # a time or temperature cell that is empty or not finite on any row, one without readings
+        # too: the whole read judges the whole column (an error, or no clock at all with --rate)
+        self.columns_ok = bool(np.isfinite(parsed[:, 3:]).all())
         parsed = parsed if keep is None else parsed[keep]
         self.values: FloatArray = np.ascontiguousarray(parsed[:, :3])
         self.clock: FloatArray | None = parsed[:, 3] if timed else None
@@ -152,9 +155,8 @@ class _Block:
         fraction = self.values[self.values != np.round(self.values)] if self.finite else np.zeros(0)
         self.odd = float(fraction[0]) if fraction.size else None
         clock = self.clock
-        self.clock_ok = clock is None or not np.isnan(clock).any()
         self.backwards = clock is not None and clock.size > 1 and bool((np.diff(clock) < 0).any())
-        self.temp_ok = self.temp is None or bool(np.isfinite(self.temp).all())
+        window = shared.get("window")
         self.inside = window_spread([self.values], window) if window and len(self.values) >= window else None
 
 
@@ -166,7 +168,7 @@ class _Feeder:
         self.lay, self.settings, self.time_unit, self.rate, self.size = lay, settings, time_unit, rate, size
         self.scan: Scan | None = None
         self.first: list[_Block] = []
-        self.shared: dict[str, int] = {}  # the window, once known: the threads compute a block's spreads
+        self.shared: dict[str, Any] = {}  # the window, once known: the threads compute a block's spreads
         self.scale, self.zero, self.last_clock = 1.0, 0.0, -np.inf
         self.lo, self.hi = np.inf, -np.inf  # every reading's range ...
         self.odd: float | None = None  # ... and one that is not a whole number
@@ -177,7 +179,7 @@ class _Feeder:
         self.lo, self.hi = min(self.lo, block.lo), max(self.hi, block.hi)
         self.odd = block.odd if self.odd is None else self.odd
         clock = block.clock
-        if not block.clock_ok or not block.temp_ok:
+        if not block.columns_ok:
             raise _Plain
         if clock is not None and clock.size:
             if self.rate is None and (block.backwards or clock[0] < self.last_clock):
@@ -239,7 +241,7 @@ def _capacity(first: list[_Block], size: int) -> int:
 
 
 def _blocks(
-    path: str, lay: captures.Layout, splicer: Any, where: list[int], hasher: Any, shared: dict[str, int]
+    path: str, lay: captures.Layout, splicer: Any, where: list[int], hasher: Any, shared: dict[str, Any]
 ) -> Iterator[_Block]:
     """Each block of the file read and parsed on a pool of threads (numpy, pyarrow and the
     reads let go of the GIL), in file order, its rows numbered here; hashed here, in order."""
@@ -273,7 +275,7 @@ def _numbered(job: Future[tuple[_Block, bytes]], row: int, hasher: Any) -> Gener
 
 
 def _parse(
-    splicer: Any, fd: int, at: int, length: int, where: list[int], size: int, timed: bool, shared: dict[str, int]
+    splicer: Any, fd: int, at: int, length: int, where: list[int], size: int, timed: bool, shared: dict[str, Any]
 ) -> tuple[_Block, bytes]:
     text = os.pread(fd, length, at)
     if len(text) != length:
@@ -284,4 +286,4 @@ def _parse(
     parsed, empty, newline = found
     ends = np.minimum(newline.astype(np.int64) + 1 + at, size)  # a last line without its line end
     starts = np.concatenate([[at], ends[:-1]])
-    return _Block(parsed[:, where], empty, np.column_stack([starts, ends]), timed, shared.get("window")), text
+    return _Block(parsed[:, where], empty, np.column_stack([starts, ends]), timed, shared), text
