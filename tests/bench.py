@@ -1,7 +1,8 @@
 """`make bench`: tumblecal's speed as ratios against baselines measured in the same run.
 
-Not a test (pytest does not collect it): timings depend on the machine. Each figure is the best
-of a few runs of a fresh process, wall clock, and peak memory (max RSS) of that process.
+Not a test (pytest does not collect it): timings depend on the machine. Each figure is the wall
+clock of a fresh process and its peak memory (max RSS): for apply and its baseline the median of
+five runs each, taking turns; elsewhere the best of a few runs.
 
     apply, 1M/4M/20M rows  vs  the polars script a user would write instead (POLARS_APPLY below:
                            scan_csv -> M (v - b) -> sink_csv; target <= 1x at 4M and 20M rows),
@@ -73,16 +74,21 @@ def run(argv: list[str], repeat: int = 3, fresh: Path | None = None) -> tuple[fl
 
 
 def paired(
-    ours: list[str], base: list[str], repeat: int = 3, fresh: tuple[Path, Path] | None = None
+    ours: list[str], base: list[str], repeat: int = 5, fresh: tuple[Path, Path] | None = None
 ) -> tuple[tuple[float, float], tuple[float, float]]:
     """``run`` for tumblecal and its baseline taking turns (ours, base, ours, base ...), so that
-    a busy spell on a shared machine falls on both: the best of each, with its peak RSS.
-    ``fresh``: each one's output, removed before each of its runs."""
-    a = b = (float("inf"), 0.0)
+    a busy spell on a shared machine falls on both: the median wall time of each, with the
+    highest peak RSS. ``fresh``: each one's output, removed before each of its runs."""
+    import statistics
+
+    a, b = [], []
     for _ in range(repeat):
-        a = min(a, run(ours, repeat=1, fresh=fresh[0] if fresh else None))
-        b = min(b, run(base, repeat=1, fresh=fresh[1] if fresh else None))
-    return a, b
+        a.append(run(ours, repeat=1, fresh=fresh[0] if fresh else None))
+        b.append(run(base, repeat=1, fresh=fresh[1] if fresh else None))
+    return (
+        (statistics.median(t for t, _ in a), max(m for _, m in a)),
+        (statistics.median(t for t, _ in b), max(m for _, m in b)),
+    )
 
 
 def write_log(path: Path, rows: int) -> None:
