@@ -141,7 +141,7 @@ class _Block:
         # too: the whole read judges the whole column (an error, or no clock at all with --rate)
         self.columns_ok = bool(np.isfinite(parsed[:, 3:]).all())
         parsed = parsed if keep is None else parsed[keep]
-        self.values: FloatArray = np.ascontiguousarray(parsed[:, :3])
+        self.values: FloatArray = parsed[:, :3]  # a view: the scan copies what it keeps
         self.clock: FloatArray | None = parsed[:, 3] if timed else None
         self.temp: FloatArray | None = parsed[:, 3 + timed] if parsed.shape[1] > 3 + timed else None
         rows = np.arange(self.lines, dtype=np.int64) if keep is None else np.flatnonzero(keep).astype(np.int64)
@@ -152,8 +152,10 @@ class _Block:
         self.finite = bool(np.isfinite(self.values).all())
         self.lo = float(self.values.min()) if self.values.size and self.finite else 0.0
         self.hi = float(self.values.max()) if self.values.size and self.finite else 0.0
-        fraction = self.values[self.values != np.round(self.values)] if self.finite else np.zeros(0)
-        self.odd = float(fraction[0]) if fraction.size else None
+        self.odd: float | None = None  # a reading that is not a whole number: one in the log is enough
+        if self.finite and "odd" not in shared:
+            fraction = self.values[self.values != np.round(self.values)]
+            self.odd = float(fraction[0]) if fraction.size else None
         clock = self.clock
         self.backwards = clock is not None and clock.size > 1 and bool((np.diff(clock) < 0).any())
         window = shared.get("window")
@@ -177,7 +179,8 @@ class _Feeder:
         if not block.finite or max(-block.lo, block.hi) > model.MAX_READING:
             raise _Plain  # the general path names the cell, or says what is too large
         self.lo, self.hi = min(self.lo, block.lo), max(self.hi, block.hi)
-        self.odd = block.odd if self.odd is None else self.odd
+        if self.odd is None and block.odd is not None:
+            self.odd = self.shared["odd"] = block.odd
         clock = block.clock
         if not block.columns_ok:
             raise _Plain
