@@ -250,10 +250,7 @@ class Capture:
                     batch = batch.filter(pc.invert(pc.match_substring_regex(batch.column(keys[0]), r"^\s*#")))
                 yield row, [batch.column(k) for k in include]
                 row += batch.num_rows
-            dropped = getattr(self._stream, "dropped", None)
-            if dropped is not None:
-                shown = quoted(dropped.decode("utf-8", errors="replace"), 40)
-                lay.notes.append(f"{lay.name}: the last line is incomplete ({shown}), dropped (--drop-incomplete)")
+            _note_dropped(self)
         except (pa.ArrowInvalid, UnicodeDecodeError) as err:
             raise self._diagnose(str(err), bad_rows[-1] if bad_rows else None) from None
 
@@ -1227,7 +1224,7 @@ def correct_stream(
         return emit(items, out)
 
     plan = _splice_jobs(cap, corrections, convert, temperature) if splice else None
-    splicer = _stream_splicer(cap, corrections, temperature) if splice and plan is None else None
+    splicer = splicer_for(cap, corrections, temperature, stream=True) if splice and plan is None else None
     try:
         if plan is not None:
             rows = _spliced(cap, *plan, write, emit, out, head)
@@ -1305,20 +1302,28 @@ def _spliced(
     return forked.pipeline(path, blocks, render, out, head[0], workers, written=head.pop)
 
 
-def _stream_splicer(
+def splicer_for(
     cap: Capture,
     corrections: Sequence[tuple[tuple[int, int, int], Callable[..., FloatArray]]],
-    temperature: int | None,
+    temperature: int | None = None,
+    also: Sequence[int] = (),
+    *,
+    stream: bool = False,
 ) -> Any | None:
-    """A splicer for a capture read as a stream (stdin, a pipe) of plain-line shape, else None."""
+    """An ``io.splice.Splicer`` for ``cap`` (its arguments), when its lines can be spliced: a
+    one-character delimiter, LF or CRLF line ends, and read as a regular file by pyarrow (or,
+    with ``stream``, as a stream: stdin, a pipe); else None (whitespace-separated, CR line ends,
+    a cut last line left out: the general rules)."""
     from tumblecal_cli.io.splice import Splicer
 
     lay = cap.layout
-    if cap._path is not None or not isinstance(cap._stream, _DataStream) or cap._stream._squeeze:
-        return None
     if lay.delimiter is None or len(lay.delimiter) != 1 or lay.eol not in ("\n", "\r\n"):
         return None
-    return Splicer(len(lay.names), lay.delimiter, lay.eol, lay.decimal, corrections, temperature)
+    if stream and (cap._path is not None or not isinstance(cap._stream, _DataStream)):
+        return None
+    if not stream and (cap._path is None or not isinstance(cap._stream, pa.OSFile)):
+        return None
+    return Splicer(len(lay.names), lay.delimiter, lay.eol, lay.decimal, corrections, temperature, also)
 
 
 def _stream_spliced(
@@ -1332,28 +1337,28 @@ def _stream_spliced(
     workers = max(2, os.cpu_count() or 1)
     pending: deque[tuple[Future[Any] | None, bytes]] = deque()
     blocks = _stream_blocks(cap._stream)
+
+    def general(text: bytes, rows: int) -> int:  # the general rules from ``text`` on
+        for other, _ in pending:
+            if other is not None:
+                other.cancel()
+        rest = [text, *(b for _, b in pending)]
+        pending.clear()
+        return _stream_rest(cap, itertools.chain(rest, (b for b, _ in blocks)), rows, convert, write)
+
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        for block, plain in blocks:
-            pending.append((pool.submit(splicer.block, block) if plain else None, block))
-            while pending and (len(pending) >= workers + 2 or (pending[0][0] is None or pending[0][0].done())):
+        for item in itertools.chain(blocks, [None]):  # None: the end, every block still pending written
+            if item is not None:
+                block, plain = item
+                pending.append((pool.submit(splicer.block, block) if plain else None, block))
+            while pending and (
+                item is None or len(pending) >= workers + 2 or pending[0][0] is None or pending[0][0].done()
+            ):
                 job, text = pending.popleft()
                 done = job.result() if job is not None else None
-                if done is None:  # the general rules from here
-                    rest = [text, *(b for _, b in pending)]
-                    for other, _ in pending:
-                        if other is not None:
-                            other.cancel()
-                    pending.clear()
-                    return rows + _stream_rest(cap, itertools.chain(rest, (b for b, _ in blocks)), rows, convert, write)
+                if done is None:
+                    return rows + general(text, rows)
                 rows += write([done])
-        while pending:
-            job, text = pending.popleft()
-            done = job.result() if job is not None else None
-            if done is None:
-                rest = [text, *(b for _, b in pending)]
-                pending.clear()
-                return rows + _stream_rest(cap, iter(rest), rows, convert, write)
-            rows += write([done])
     _note_dropped(cap)
     return rows
 
@@ -1458,15 +1463,10 @@ def _splice_jobs(
     (``io.splice``), else by the general rules, and the function of a block's job
     (``spliced(block, at)``); None when the file is not one to splice (a stream,
     whitespace-separated, CR line ends, a cut last line left out)."""
-    from tumblecal_cli.io.splice import Splicer
-
-    lay = cap.layout
-    if cap._path is None or not isinstance(cap._stream, pa.OSFile) or lay.delimiter is None:
+    splicer = splicer_for(cap, corrections, temperature)
+    if splicer is None or cap._path is None:
         return None
-    if lay.eol not in ("\n", "\r\n") or len(lay.delimiter) != 1:
-        return None
-    splicer = Splicer(len(lay.names), lay.delimiter, lay.eol, lay.decimal, corrections, temperature)
-    path = cap._path
+    lay, path = cap.layout, cap._path
 
     def general(source: _Slice) -> list[Any]:
         return [item for first, cols in source.batches() for item in convert(source, first, cols)]
@@ -1481,25 +1481,16 @@ def _splice_jobs(
         at = len(lay.head)
         with open(path, "rb") as f:
             f.seek(at)
-            carry = b""
-            while chunk := f.read(BLOCK_BYTES):
-                end = chunk.find(b"\n")
-                if len(carry) + (len(chunk) if end < 0 else end) >= BLOCK_BYTES:  # a line longer than a block
+            for block, plain in _stream_blocks(f):
+                if not plain:  # a line longer than a block: the general rules for the rest of the file
                     rest = pa.OSFile(path)
                     rest.seek(at)
                     source = _Slice(cap, rest, at)
                     for first, cols in source.batches():
                         yield convert, source, first, cols
                     return
-                if end < 0:
-                    carry += chunk
-                    continue
-                cut = chunk.rfind(b"\n") + 1
-                block, carry = b"".join((carry, memoryview(chunk)[:cut])), chunk[cut:]
                 yield spliced, block, at
                 at += len(block)
-            if carry:
-                yield spliced, carry, at
 
     return jobs(), spliced
 

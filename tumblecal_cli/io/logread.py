@@ -28,7 +28,6 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
-import pyarrow as pa
 
 from tumblecal_cli.core import model
 from tumblecal_cli.core.scan import Scan
@@ -62,29 +61,19 @@ def scan_log(
     """The log at ``path`` (a regular file) and its still blocks found by ``core.scan``, or
     None when it is to be read whole (the module's docstring). ``rate``: the time column is
     then not judged (as ``read_log(use_time=False)``)."""
-    from tumblecal_cli.io.splice import Splicer
-
     with captures.open_capture(
         path, sensor=sensor, columns=columns, no_header=no_header, time_column=time_column, name=name, dialect=dialect
     ) as cap:
         lay = cap.layout
-        if cap._path is None or not isinstance(cap._stream, pa.OSFile) or lay.delimiter is None:
-            return None
-        if lay.eol not in ("\n", "\r\n") or len(lay.delimiter) != 1:
-            return None
         extra = [i for i in (lay.time, lay.temperature) if i is not None]
-        splicer = Splicer(len(lay.names), lay.delimiter, lay.eol, lay.decimal, [(lay.sensor, _same)], also=extra)
-        where = [splicer.parsed.index(i) for i in (*lay.sensor, *extra)]
-        notes = len(lay.notes)
-        try:
-            found = _scan(path, lay, splicer, where, settings, time_unit, rate, digest)
-        except _Plain:
-            del lay.notes[notes:]  # the general path says them again
+        splicer = captures.splicer_for(cap, [(lay.sensor, _same)], also=extra)
+        if splicer is None:
             return None
-    if found is None:
-        del lay.notes[notes:]
-        return None
-    return found
+        where = [splicer.parsed.index(i) for i in (*lay.sensor, *extra)]
+        try:
+            return _scan(path, lay, splicer, where, settings, time_unit, rate, digest)
+        except _Plain:  # the layout and its notes go with it: the whole read opens the log again
+            return None
 
 
 def _same(values: Any) -> Any:
