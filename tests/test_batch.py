@@ -1125,6 +1125,55 @@ def test_batch_stopped_by_sigterm_leaves_no_calibration_without_a_row(tmp_path: 
     assert len([p for p in out.iterdir() if p.suffix == ".json"]) == 80
 
 
+def test_a_stop_just_after_publishing_waits_for_the_row(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Ctrl-C arriving between a calibration's link and its summary row (the race a SIGTERM hit
+    in CI) is held until the row is written: the batch stops, but no calibration lacks its row."""
+    import signal
+
+    src = units(tmp_path / "units", {f"U{k}": "good" for k in range(3)})
+    out = tmp_path / "out"
+    publish = batch.publish
+
+    def publish_then_stop(*args: Any) -> str:
+        name = publish(*args)
+        signal.raise_signal(signal.SIGINT)  # delivered at once, were it not held
+        return name
+
+    monkeypatch.setattr(batch, "publish", publish_then_stop)
+    with pytest.raises(KeyboardInterrupt):
+        batch.run_batch(str(src), str(out))
+    rows = read_rows(out / "summary.csv")
+    files = sorted(p.name for p in out.iterdir() if p.name != "summary.csv")
+    assert len(rows) == 1
+    assert files == [rows[0]["file"]]
+
+
+def test_held_signals_act_after_the_block_and_are_put_back() -> None:
+    import signal
+
+    seen: list[str] = []
+
+    def stop(signum: int, frame: Any) -> None:
+        seen.append("handler")
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGINT, stop)
+    try:
+
+        def two_stops_in_a_block() -> None:
+            with batch.held_signals():
+                signal.raise_signal(signal.SIGINT)
+                signal.raise_signal(signal.SIGINT)
+                seen.append("block done")
+
+        with pytest.raises(KeyboardInterrupt):
+            two_stops_in_a_block()
+        assert seen == ["block done", "handler"]
+        assert signal.getsignal(signal.SIGINT) is stop
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 @pytest.mark.slow
 def test_batch_reads_a_manifest_from_stdin(tmp_path: Path) -> None:
     """`tumblecal batch - < manifest.csv`: its files are relative to the working folder."""

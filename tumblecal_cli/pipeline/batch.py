@@ -359,6 +359,36 @@ def _recorded_poses(path: str) -> list[tuple[str, str]]:
         return []
 
 
+@contextlib.contextmanager
+def held_signals() -> Iterator[None]:
+    """Hold Ctrl-C and SIGTERM until the block is done, then act on them as they would have
+    acted: a stop between publishing a calibration and recording its row would leave a
+    calibration that no row names. (Outside the main thread signals are left alone.)"""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[tuple[int, Any]] = []
+    previous = {}
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        handler = signal.getsignal(signum)
+        if handler is not None:  # None: set outside Python, and it could not be put back
+            previous[signum] = signal.signal(signum, lambda n, frame: caught.append((n, frame)))
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        for number, frame in caught[:1]:  # the first stop is the one acted on
+            handler = previous[signal.Signals(number)]
+            if callable(handler):
+                handler(number, frame)
+            elif handler == signal.SIG_DFL:
+                signal.raise_signal(number)
+
+
 def finish(row: dict[str, Any], out_dir: str) -> dict[str, Any]:
     """Publish a row's staged calibration under its name; the row with ``file`` set."""
     staging = row.pop("staging", None)
@@ -783,14 +813,14 @@ def run_batch(
         epoch = os.environ.get("SOURCE_DATE_EPOCH", "")  # the caller's, wherever the units run
         work = [(u, options, out_dir, log, token, epoch) for u in todo]
         for (unit, *_), outcome in run(run_unit, work):
-            # a row is published as it is recorded
-            row = failed_row(unit, outcome) if isinstance(outcome, BaseException) else finish(outcome, out_dir)
-            if row.get("unwritten"):  # the disk refused: stop here, and leave the unit to --resume
-                raise InputError(
-                    f"{row['serial']}: {row['message']}; {len(summary.rows) - len(done)} of {len(todo)} units done",
-                    hint="free some space, then run the same command with --resume: the units done are kept",
-                )
-            summary.add(row)
+            with held_signals():  # a calibration is published with its row, or not at all
+                row = failed_row(unit, outcome) if isinstance(outcome, BaseException) else finish(outcome, out_dir)
+                if row.get("unwritten"):  # the disk refused: stop here, and leave the unit to --resume
+                    raise InputError(
+                        f"{row['serial']}: {row['message']}; {len(summary.rows) - len(done)} of {len(todo)} units done",
+                        hint="free some space, then run the same command with --resume: the units done are kept",
+                    )
+                summary.add(row)
             if on_unit is not None:
                 on_unit(row)
     except BrokenProcessPool:
