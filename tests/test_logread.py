@@ -296,3 +296,20 @@ def test_rolling_std_keeps_its_digits_on_a_long_log_of_counts() -> None:
         window = values[i - 250 : i + 250]
         direct = float(np.sqrt(np.var(window, axis=0).sum()))
         assert spread[i] == pytest.approx(direct, rel=1e-12)
+
+
+@pytest.mark.parametrize("kinds", [1, 3, scan_core.PEELS + 1, 200, 100_000])
+def test_time_steps_are_counted_exactly_however_many_kinds(kinds: int) -> None:
+    """The median step needs each step's exact count: a few kinds are counted one by one, the
+    rest by bits or by sorting; a clock standing still or stepping back is counted too."""
+    rng = np.random.default_rng(kinds)
+    kind = 0.001 + np.arange(kinds) * (1e-12 if kinds < 1000 else 1e-6)
+    steps = np.concatenate([kind[rng.integers(0, kinds, 50_000)], [0.0, 0.0, -0.5]])
+    rng.shuffle(steps)
+    counts: dict[float, int] = {0.001: 7}  # what earlier blocks counted
+    scan_core._count(steps[:20_000], counts)
+    scan_core._count(steps[20_000:], counts)
+    values, many = np.unique(steps, return_counts=True)
+    expected = dict(zip(values.tolist(), many.tolist(), strict=True))
+    expected[0.001] = expected.get(0.001, 0) + 7
+    assert counts == expected

@@ -90,14 +90,20 @@ def _scan(
     rate: float | None,
     digest: bool,
 ) -> tuple[Log, Segmentation] | None:
-    hasher = hashlib.sha256() if digest else None
-    if hasher is not None:
-        with open(path, "rb") as f:
-            hasher.update(f.read(len(lay.head)))
-    feeder = _Feeder(lay, settings, time_unit, rate, os.path.getsize(path))
-    for block in _blocks(path, lay, splicer, where, hasher, feeder.shared):
-        feeder.check(block)
-        feeder.add(block)
+    hasher = _Digest() if digest else None
+    try:
+        if hasher is not None:
+            with open(path, "rb") as f:
+                hasher.update(f.read(len(lay.head)))
+        feeder = _Feeder(lay, settings, time_unit, rate, os.path.getsize(path))
+        for block in _blocks(path, lay, splicer, where, hasher, feeder.shared):
+            feeder.check(block)
+            feeder.add(block)
+    except BaseException:
+        if hasher is not None:
+            hasher.cancel()
+        raise
+    sha256 = "" if hasher is None else hasher.hexdigest()
     scan = feeder.started()
     done = scan.finish()
     if done is None:
@@ -110,13 +116,31 @@ def _scan(
         kept.ints[:, 0],
         kept.floats[:, 0] if timed else None,
         None,
-        "" if hasher is None else hasher.hexdigest(),
+        sha256,
         kept.floats[:, 1 if timed else 0] if warm else None,
         feeder.scale,
         lines=kept.ints[:, 1:3],
         extremes=feeder.extremes(),
     )
     return log, seg
+
+
+class _Digest:
+    """The file's SHA-256, taken on a thread of its own (the main thread feeds the Scan)."""
+
+    def __init__(self) -> None:
+        self._sha = hashlib.sha256()
+        self._thread = ThreadPoolExecutor(max_workers=1)
+
+    def update(self, text: bytes) -> None:
+        self._thread.submit(self._sha.update, text)  # in order: one thread takes them in turn
+
+    def hexdigest(self) -> str:
+        self._thread.shutdown(wait=True)
+        return self._sha.hexdigest()
+
+    def cancel(self) -> None:
+        self._thread.shutdown(wait=True, cancel_futures=True)
 
 
 class _Block:
