@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.conftest import run
 from tumblecal_cli.core import scan as scan_core
 from tumblecal_cli.core import segment as sc
 from tumblecal_cli.io import captures, logread
@@ -59,6 +60,7 @@ def same(streamed: tuple[captures.Log, sc.Segmentation], whole: tuple[captures.L
     assert a.sha256 == b.sha256
     assert sa.period == sb.period
     assert (sa.window, sa.min_samples, sa.trim, sa.gaps) == (sb.window, sb.min_samples, sb.trim, sb.gaps)
+    assert sa.gap_rows == sb.gap_rows
     assert sa.threshold == pytest.approx(sb.threshold, rel=1e-6)
     assert (sa.noise_floor is None) == (sb.noise_floor is None)
     assert sa.noise_floor == pytest.approx(sb.noise_floor, rel=1e-6) if sb.noise_floor is not None else True
@@ -100,14 +102,20 @@ def test_a_tumble_session_streamed_is_the_whole_read(
     assert log.values.shape[0] < 0.9 * whole[0].values.shape[0]  # type: ignore[index]  # the turns are not kept
 
 
-def test_gaps_a_rate_and_interleaved_rows(tmp_path: Path, small_blocks: None) -> None:
+def test_gaps_a_rate_and_interleaved_rows(
+    tmp_path: Path, small_blocks: None, capsys: pytest.CaptureFixture[str]
+) -> None:
     table = tumble(120_000)
     table[60_000:, 0] += 2.5  # the logger paused: a gap in time
     path = write(tmp_path / "gap.csv", table)
     streamed, whole = both(path)
     assert streamed is not None
-    assert whole[1].gaps  # type: ignore[index]
+    assert whole[1].gap_rows == [59_999]  # type: ignore[index]
     same(streamed, whole)  # type: ignore[arg-type]
+    # the warning names the row before the gap (the streamed path once gave a kept position's row)
+    r = run(capsys, "segment", path, "-d", tmp_path / "blocks")
+    assert r.code == 0, r.err
+    assert "1 gap in time (the first after data row 59999)" in r.err
     # no time column: --rate
     no_time = write(tmp_path / "rate.csv", table[:, 1:], header="x,y,z")
     streamed, whole = both(no_time, rate=1000.0)
@@ -123,6 +131,7 @@ def test_gaps_a_rate_and_interleaved_rows(tmp_path: Path, small_blocks: None) ->
     mixed.write_text("\n".join(lines) + "\n")
     streamed, whole = both(mixed)
     assert streamed is not None
+    assert whole[1].gap_rows == [59_999 + 20_000]  # type: ignore[index]  # a gyroscope row every third
     same(streamed, whole)  # type: ignore[arg-type]
 
 

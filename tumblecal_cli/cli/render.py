@@ -339,9 +339,10 @@ def print_blocks(
     for warning in seg.warnings:
         console.print(f"warning: {warning}", style="yellow", soft_wrap=True)
     if seg.gaps:
+        first = f" (the first after data row {seg.gap_rows[0]})" if seg.gap_rows else ""
         console.print(
-            f"warning: {name}: {len(seg.gaps)} gap{'s' if len(seg.gaps) > 1 else ''} in time (the first after data "
-            f"row {int(log.rows[seg.gaps[0] - 1])}); no block spans a gap",
+            f"warning: {name}: {len(seg.gaps)} gap{'s' if len(seg.gaps) > 1 else ''} in time{first}; "
+            "no block spans a gap",
             style="yellow",
             soft_wrap=True,
         )

@@ -207,6 +207,10 @@ class Scan:
         self.last_second: float | None = None
         self.gap_at: list[IntArray] = []  # samples after a step over half a gap (judged at the end)
         self.gap_step: list[FloatArray] = []
+        self.gap_ints: list[IntArray] = []  # ... and the ints of the sample before each
+        self.last_ints: IntArray | None = None  # the ints of the last sample fed
+        #: after finish: the ints of the sample before each gap of the segmentation (k, ints columns)
+        self.before_gaps: IntArray = np.zeros((0, 0), dtype=np.int64)
         self.counted = True  # the steps could be counted (not too many kinds)
 
     def feed(
@@ -222,7 +226,7 @@ class Scan:
         m = values.shape[0]
         if m == 0:
             return
-        self._time(seconds)
+        self._time(seconds, ints)
         every = values[(-self.n) % 16 :: 16]  # the readings at multiples of 16 in the whole log
         if every.size:
             np.minimum(self.lo, every.min(axis=0), out=self.lo)
@@ -254,7 +258,9 @@ class Scan:
         self._take(done, windows)
         self._decide(final=False)
 
-    def _time(self, seconds: FloatArray | None) -> None:
+    def _time(self, seconds: FloatArray | None, ints: IntArray) -> None:
+        before_block = self.last_ints
+        self.last_ints = ints[-1].copy()
         if seconds is None or self.period is None:
             return
         if self.last_second is None:
@@ -269,6 +275,11 @@ class Scan:
         if big.size:
             self.gap_at.append(big + offset)
             self.gap_step.append(steps[big])
+            before = big + (offset - self.n) - 1  # the sample before each, here (-1: the last block's last)
+            found = ints[np.maximum(before, 0)]
+            if before[0] < 0 and before_block is not None:
+                found[0] = before_block
+            self.gap_ints.append(found)
 
     def _take(self, done: list[Part], spread: FloatArray) -> None:
         """Samples whose spread is now known: candidates are those below the bound in force."""
@@ -393,9 +404,11 @@ class Scan:
         )
 
     def _gaps(self, period: float | None) -> IntArray:
+        """The sample after each gap (and ``before_gaps``, the ints of the sample before it)."""
         if period is None or not self.gap_at:
             return np.zeros(0, dtype=np.int64)
         at, steps = np.concatenate(self.gap_at), np.concatenate(self.gap_step)
+        self.before_gaps = np.concatenate(self.gap_ints)[steps > GAP_FACTOR * period]
         return at[steps > GAP_FACTOR * period].astype(np.int64)
 
     def _spans(self, kept: Kept, breaks: IntArray, threshold: float) -> list[tuple[int, int]] | None:

@@ -100,6 +100,7 @@ class Segmentation:
     centre: FloatArray
     max_tilt_deg: float = 25.0
     gaps: list[int] = field(default_factory=list)  # sample index after each gap in time
+    gap_rows: list[int] = field(default_factory=list)  # data row of the reading before each gap (its caller's)
     warnings: list[str] = field(default_factory=list)  # for people: how the log's time was read
 
     @property

@@ -109,6 +109,7 @@ def _scan(
     if done is None:
         return None
     seg, kept = done
+    seg.gap_rows = [int(r) for r in scan.before_gaps[:, 0]] if len(scan.before_gaps) else []
     timed, warm = lay.time is not None, lay.temperature is not None
     log = Log(
         lay,

@@ -131,7 +131,9 @@ def find_blocks(
 ) -> Segmentation:
     """The blocks of a log read in: by the detector, or by its label column."""
     seconds = None if rate else log.seconds()
-    return review(log, _blocks_of(log, seconds, rate, pose_column, pose_map, settings), rate, settings)
+    seg = _blocks_of(log, seconds, rate, pose_column, pose_map, settings)
+    seg.gap_rows = [int(log.rows[g - 1]) for g in seg.gaps]
+    return review(log, seg, rate, settings)
 
 
 def review(log: Log, seg: Segmentation, rate: float | None, settings: seg_core.Settings) -> Segmentation:
