@@ -296,7 +296,7 @@ class Scan:
         decided = self.finalized - self.held_spread.size
         if decided <= 0:
             return
-        low = self.store.spreads_below(self.least_bound)
+        low = self.store.spreads_below(self.least_bound)  # a copy: partitioned in place
         k = _rank(decided)
         if low.size > k:
             floor = float(np.partition(low, k)[k])
@@ -311,10 +311,13 @@ class Scan:
         if not held or ready <= 0:
             return
         first = held[0].first
-        flags = np.concatenate([self.before, self.held_candidate]).astype(np.int64)
-        total = np.concatenate([[0], np.cumsum(flags)])
-        i = np.arange(ready) + self.before.size  # positions in flags
-        near = total[np.minimum(i + self.pad + 1, flags.size)] - total[np.maximum(i - self.pad, 0)] > 0
+        flags = np.concatenate([self.before, self.held_candidate])
+        pad, at = self.pad, self.before.size  # the first held sample's position in flags
+        # candidates before each position of flags, with pad zeros before and the total repeated after
+        total = np.zeros(flags.size + 2 * pad + 2, dtype=np.int64)
+        np.cumsum(flags, out=total[pad + 1 : pad + 1 + flags.size])
+        total[pad + 1 + flags.size :] = total[pad + flags.size]
+        near = total[at + 2 * pad + 1 : at + ready + 2 * pad + 1] > total[at : at + ready]  # a candidate within pad
         edges = np.flatnonzero(np.diff(np.concatenate([[False], near, [False]]).astype(np.int8)))
         for a, b in zip(edges[0::2].tolist(), edges[1::2].tolist(), strict=True):  # runs of kept samples
             at = a
@@ -349,7 +352,7 @@ class Scan:
         threshold = self.settings.threshold
         if threshold is None:
             k = _rank(self.n)
-            low = self.store.spreads_below(self.least_bound)
+            low = self.store.spreads_below(self.least_bound)  # a copy: partitioned in place
             if low.size <= k:
                 return None
             floor = float(np.partition(low, k)[k])
@@ -359,7 +362,9 @@ class Scan:
         if not threshold * (1 + TIE) <= self.least_bound:
             return None
         kept = self.store.join(self.template)
-        if (np.abs(kept.spread - threshold) <= TIE * threshold).any():
+        on = kept.spread >= threshold * (1 - TIE)
+        on &= kept.spread <= threshold * (1 + TIE)
+        if on.any():
             return None  # a spread on the threshold (a quantised log's): either side by rounding alone
         breaks = self._gaps(period)
         spans = self._spans(kept, breaks, threshold)
