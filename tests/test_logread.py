@@ -322,3 +322,19 @@ def test_time_steps_are_counted_exactly_however_many_kinds(kinds: int) -> None:
     expected = dict(zip(values.tolist(), many.tolist(), strict=True))
     expected[0.001] = expected.get(0.001, 0) + 7
     assert counts == expected
+
+
+@pytest.mark.parametrize("narrow", [0, 1 << 31], ids=["int64", "int32"])
+def test_rows_and_line_offsets_either_width(
+    tmp_path: Path, small_blocks: None, monkeypatch: pytest.MonkeyPatch, narrow: int
+) -> None:
+    """Rows and line offsets are kept as int32 for files under NARROW bytes, else int64."""
+    monkeypatch.setattr(logread, "NARROW", narrow)
+    path = write(tmp_path / "session.csv", tumble(60_000))
+    streamed, whole = both(path)
+    assert streamed is not None
+    same(streamed, whole)  # type: ignore[arg-type]
+    log = streamed[0]  # type: ignore[index]
+    assert log.rows.dtype == (np.int64 if narrow == 0 else np.int32)
+    assert log.lines is not None
+    assert log.lines.dtype == log.rows.dtype

@@ -128,7 +128,7 @@ class _Store:
         if self.axes is None or self.floats is None or self.ints is None:
             self.axes = np.empty((3, self.capacity))
             self.floats = np.empty((self.capacity, part.floats.shape[1]))
-            self.ints = np.empty((self.capacity, part.ints.shape[1]), dtype=np.int64)
+            self.ints = np.empty((self.capacity, part.ints.shape[1]), dtype=part.ints.dtype)
         if self.size + n > self.capacity:
             self._grow(self.size + n)
         if self.runs and self.runs[-1][0] + self.runs[-1][1] == part.first:
@@ -155,7 +155,7 @@ class _Store:
         self.axes = axes
         self.floats = np.concatenate([self.floats[: self.size], np.empty((capacity - self.size, self.floats.shape[1]))])
         self.ints = np.concatenate(
-            [self.ints[: self.size], np.empty((capacity - self.size, self.ints.shape[1]), dtype=np.int64)]
+            [self.ints[: self.size], np.empty((capacity - self.size, self.ints.shape[1]), dtype=self.ints.dtype)]
         )
         self.spread = np.concatenate([self.spread[: self.size], np.empty(capacity - self.size)])
         self.capacity = capacity

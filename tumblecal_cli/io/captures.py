@@ -800,14 +800,15 @@ class Log:
 
     layout: Layout
     values: FloatArray  # (n, 3)
-    rows: np.ndarray[Any, np.dtype[np.int64]]  # data row (0-based) of each reading
+    rows: np.ndarray[Any, np.dtype[np.int64]]  # data row (0-based) of each reading (int32 from io.logread)
     clock: FloatArray | None
     labels: list[str] | None
     sha256: str
     temperature: FloatArray | None = None
     scale: float = 1.0
     #: Each reading's line in the file: its first byte and the byte after its line end (a log
-    #: read block by block, io.logread: its readings are those of the still periods only).
+    #: read block by block, io.logread: its readings are those of the still periods only; int32
+    #: for a file under 2 GiB, as its rows).
     lines: np.ndarray[Any, np.dtype[np.int64]] | None = None
     #: ... and then what the whole log's readings are judged by for their integer type
     #: (gate.integer_rails): the lowest, the highest, and one that is not a whole number if any.

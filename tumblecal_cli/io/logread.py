@@ -36,6 +36,9 @@ from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import captures
 from tumblecal_cli.io.captures import Dialect, Log
 
+#: Files smaller than this keep their readings' rows and line offsets as int32 (4 bytes, not 8).
+NARROW = 1 << 31
+
 #: Readings the time unit and the first period are judged from (``captures.time_scale`` reads as many).
 FIRST = 100_001
 
@@ -158,9 +161,10 @@ class _Block:
         self.values: FloatArray = parsed[:, :3]  # a view: the scan copies what it keeps
         self.clock: FloatArray | None = parsed[:, 3] if timed else None
         self.temp: FloatArray | None = parsed[:, 3 + timed] if parsed.shape[1] > 3 + timed else None
-        rows = np.arange(self.lines, dtype=np.int64) if keep is None else np.flatnonzero(keep).astype(np.int64)
-        spans = lines if keep is None else lines[keep]
-        self.ints: IntArray = np.column_stack([rows, spans])  # data row (from the block's first), line's bytes
+        # data row (from the block's first), its line's first byte and the byte after its line end
+        self.ints: IntArray = np.empty((len(self.values), 3), dtype=lines.dtype)
+        self.ints[:, 0] = np.arange(self.lines) if keep is None else np.flatnonzero(keep)
+        self.ints[:, 1:] = lines if keep is None else lines[keep]
         extra = [c for c in (self.clock, self.temp) if c is not None]
         self.floats: FloatArray = np.column_stack(extra) if extra else np.zeros((len(self.values), 0))
         self.finite = bool(np.isfinite(self.values).all())
@@ -301,6 +305,8 @@ def _parse(
     if found is None:
         raise _Plain
     parsed, empty, newline = found
-    ends = np.minimum(newline.astype(np.int64) + 1 + at, size)  # a last line without its line end
-    starts = np.concatenate([[at], ends[:-1]])
-    return _Block(parsed[:, where], empty, np.column_stack([starts, ends]), timed, shared), text
+    lines = np.empty((newline.size, 2), dtype=np.int32 if size < NARROW else np.int64)  # the kept ints: half
+    np.minimum(newline + 1 + at, size, out=lines[:, 1])  # a last line without its line end
+    lines[0, 0] = at
+    lines[1:, 0] = lines[:-1, 1]
+    return _Block(parsed[:, where], empty, lines, timed, shared), text
