@@ -296,7 +296,7 @@ class Scan:
         decided = self.finalized - self.held_spread.size
         if decided <= 0:
             return
-        low = self.store.spreads_below(self.least_bound)  # a copy: partitioned in place
+        low = self.store.spreads_below(self.least_bound)
         k = _rank(decided)
         if low.size > k:
             floor = float(np.partition(low, k)[k])
@@ -352,7 +352,7 @@ class Scan:
         threshold = self.settings.threshold
         if threshold is None:
             k = _rank(self.n)
-            low = self.store.spreads_below(self.least_bound)  # a copy: partitioned in place
+            low = self.store.spreads_below(self.least_bound)
             if low.size <= k:
                 return None
             floor = float(np.partition(low, k)[k])

@@ -130,14 +130,18 @@ def _scan(
 
 
 class _Digest:
-    """The file's SHA-256, taken on a thread of its own (the main thread feeds the Scan)."""
+    """The file's SHA-256, taken on a thread of its own (the main thread feeds the Scan), a few
+    blocks behind at most (the blocks waiting are held in memory)."""
 
     def __init__(self) -> None:
         self._sha = hashlib.sha256()
         self._thread = ThreadPoolExecutor(max_workers=1)
+        self._waiting: deque[Future[None]] = deque()
 
     def update(self, text: bytes) -> None:
-        self._thread.submit(self._sha.update, text)  # in order: one thread takes them in turn
+        self._waiting.append(self._thread.submit(self._sha.update, text))  # in order: one thread
+        while len(self._waiting) > 8:
+            self._waiting.popleft().result()
 
     def hexdigest(self) -> str:
         self._thread.shutdown(wait=True)
