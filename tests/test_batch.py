@@ -23,6 +23,7 @@ from typing import Any
 import pytest
 
 from tests.conftest import IMUCAL, SAMPLE, SIX_FACES, run, snapshot, tumblecal_exe, unit
+from tumblecal_cli.errors import InputError
 from tumblecal_cli.pipeline import batch
 
 LIMITS = SAMPLE / "limits.yaml"
@@ -1172,6 +1173,49 @@ def test_held_signals_act_after_the_block_and_are_put_back() -> None:
         assert signal.getsignal(signal.SIGINT) is stop
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+def test_held_signals_put_every_handler_back_whenever_a_stop_lands(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A stop landing while the handlers are swapped in (a SIGTERM the CLI turns into an
+    exception) or put back (a Ctrl-C) leaves none of the holding ones behind: they would
+    swallow every later Ctrl-C or SIGTERM."""
+    import signal
+
+    def stop(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    real = signal.signal
+    previous = real(signal.SIGTERM, stop)
+    before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        for moment, sent in (("swapping in", signal.SIGTERM), ("putting back", signal.SIGINT)):
+
+            def swap_then_stop(signum: int, handler: Any, moment: str = moment, sent: int = sent) -> Any:
+                old = real(signum, handler)
+                swapping_in = handler not in before.values()
+                if signum == signal.SIGINT and swapping_in == (moment == "swapping in"):
+                    signal.raise_signal(sent)  # acted on at the next bytecode
+                return old
+
+            monkeypatch.setattr(signal, "signal", swap_then_stop)
+            with pytest.raises(KeyboardInterrupt), batch.held_signals():
+                pass
+            monkeypatch.setattr(signal, "signal", real)
+            assert {s: signal.getsignal(s) for s in before} == before, moment
+    finally:
+        real(signal.SIGTERM, previous)
+
+
+def test_a_block_that_fails_is_told_though_a_stop_was_held() -> None:
+    import signal
+
+    def full_disk() -> None:
+        with batch.held_signals():
+            signal.raise_signal(signal.SIGINT)
+            raise InputError("no space left on device")
+
+    with pytest.raises(InputError, match="no space"):
+        full_disk()
 
 
 @pytest.mark.slow

@@ -361,9 +361,10 @@ def _recorded_poses(path: str) -> list[tuple[str, str]]:
 
 @contextlib.contextmanager
 def held_signals() -> Iterator[None]:
-    """Hold Ctrl-C and SIGTERM until the block is done, then act on them as they would have
+    """Hold Ctrl-C and SIGTERM until the block is done, then act on the first as it would have
     acted: a stop between publishing a calibration and recording its row would leave a
-    calibration that no row names. (Outside the main thread signals are left alone.)"""
+    calibration that no row names. A block that raises ends the batch anyway: its error is the
+    one told. (Outside the main thread signals are left alone.)"""
     import signal
     import threading
 
@@ -371,22 +372,37 @@ def held_signals() -> Iterator[None]:
         yield
         return
     caught: list[tuple[int, Any]] = []
-    previous = {}
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        handler = signal.getsignal(signum)
-        if handler is not None:  # None: set outside Python, and it could not be put back
-            previous[signum] = signal.signal(signum, lambda n, frame: caught.append((n, frame)))
+    previous: dict[signal.Signals, Any] = {}
+
+    def hold(number: int, frame: Any) -> None:
+        caught.append((number, frame))
+
     try:
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            handler = signal.getsignal(signum)
+            if handler is not None:  # None: set outside Python, and it could not be put back
+                previous[signum] = handler  # before the swap: a stop in between still puts it back
+                signal.signal(signum, hold)
         yield
     finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
-        for number, frame in caught[:1]:  # the first stop is the one acted on
-            handler = previous[signal.Signals(number)]
-            if callable(handler):
-                handler(number, frame)
-            elif handler == signal.SIG_DFL:
-                signal.raise_signal(number)
+        _put_back(list(previous.items()))
+    for number, frame in caught[:1]:
+        handler = previous[signal.Signals(number)]
+        if callable(handler):
+            handler(number, frame)
+        elif handler == signal.SIG_DFL:
+            signal.raise_signal(number)
+
+
+def _put_back(handlers: list[tuple[Any, Any]]) -> None:
+    """Each signal's handler put back, the later ones even if a stop lands after the first."""
+    import signal
+
+    if handlers:
+        try:
+            signal.signal(*handlers[0])
+        finally:
+            _put_back(handlers[1:])
 
 
 def finish(row: dict[str, Any], out_dir: str) -> dict[str, Any]:
