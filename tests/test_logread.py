@@ -67,6 +67,7 @@ def same(streamed: tuple[captures.Log, sc.Segmentation], whole: tuple[captures.L
     assert len(sa.blocks) == len(sb.blocks)
     for x, y in zip(sa.blocks, sb.blocks, strict=True):
         assert (int(a.rows[x.first]), int(a.rows[x.last])) == (int(b.rows[y.first]), int(b.rows[y.last]))
+        assert a.reading(x.first) == b.reading(y.first) == y.first  # among the whole log's readings
         assert (x.face, x.nearest, x.dropped, x.samples) == (y.face, y.nearest, y.dropped, y.samples)
         np.testing.assert_allclose(x.mean, y.mean, rtol=1e-12, atol=1e-15)
         np.testing.assert_allclose(x.std, y.std, rtol=1e-9, atol=1e-15)
@@ -121,6 +122,13 @@ def test_gaps_a_rate_and_interleaved_rows(
     streamed, whole = both(no_time, rate=1000.0)
     assert streamed is not None
     same(streamed, whole)  # type: ignore[arg-type]
+    # a block's start is its first reading's place in the log (it once was its place among those kept)
+    r = run(capsys, "segment", no_time, "--rate", "1000", "-d", tmp_path / "rated")
+    assert r.code == 0, r.err
+    starts = [line.split()[1:3] for line in r.err.splitlines() if line.split()[:1] and line.split()[0].isdigit()]
+    assert len(starts) > 3
+    for rows, start in starts:
+        assert start == f"{int(rows.split('-')[0]) / 1000:.4g}", (rows, start)
     # another sensor's rows between (an interleaved logger): rows, not readings
     lines = ["t,ax,ay,az,gx,gy,gz"]
     for i, (t, x, y, z) in enumerate(table[:80_000]):

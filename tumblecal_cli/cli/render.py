@@ -307,7 +307,7 @@ def print_blocks(
         if log.clock is not None:
             start = f"{float(log.clock[b.first]):.6g}"
         else:
-            start = "" if seg.period is None else f"{b.first * seg.period:.4g} s"
+            start = "" if seg.period is None else f"{log.reading(b.first) * seg.period:.4g} s"
         table.add_row(
             str(b.number),
             f"{int(log.rows[b.first])}-{int(log.rows[b.last])}",

@@ -811,8 +811,19 @@ class Log:
     #: for a file under 2 GiB, as its rows).
     lines: np.ndarray[Any, np.dtype[np.int64]] | None = None
     #: ... and then what the whole log's readings are judged by for their integer type
-    #: (gate.integer_rails): the lowest, the highest, and one that is not a whole number if any.
+    #: (gate.integer_rails): the lowest, the highest, and one that is not a whole number if any;
     extremes: FloatArray | None = None
+    #: and where each run of the readings kept starts among the whole log's and among these.
+    runs: tuple[np.ndarray[Any, np.dtype[np.int64]], np.ndarray[Any, np.dtype[np.int64]]] | None = None
+
+    def reading(self, position: int) -> int:
+        """The index among the whole log's readings of the reading at ``position`` here (the
+        same, unless the log was read block by block and only its still periods kept)."""
+        if self.runs is None:
+            return position
+        first, at = self.runs
+        k = int(np.searchsorted(at, position, side="right")) - 1
+        return int(first[k] + position - at[k])
 
     def seconds(self) -> FloatArray | None:
         """Seconds since the first reading (differences first: epoch nanoseconds keep their digits)."""

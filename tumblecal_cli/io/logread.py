@@ -125,6 +125,7 @@ def _scan(
         feeder.scale,
         lines=kept.ints[:, 1:3],
         extremes=feeder.extremes(),
+        runs=(kept.run_first, kept.run_at),
     )
     return log, seg
 
