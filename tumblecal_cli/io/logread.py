@@ -145,6 +145,8 @@ class _Digest:
             self._waiting.popleft().result()
 
     def hexdigest(self) -> str:
+        while self._waiting:
+            self._waiting.popleft().result()
         self._thread.shutdown(wait=True)
         return self._sha.hexdigest()
 
