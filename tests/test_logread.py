@@ -11,6 +11,7 @@ from __future__ import annotations
 import gzip
 import shutil
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import pytest
@@ -346,3 +347,37 @@ def test_rows_and_line_offsets_either_width(
     assert log.rows.dtype == (np.int64 if narrow == 0 else np.int32)
     assert log.lines is not None
     assert log.lines.dtype == log.rows.dtype
+
+
+@pytest.mark.parametrize("noise", [0.0, 1e-7], ids=["noise-free", "1e-7 g"])
+def test_a_noise_free_or_very_quiet_log_keeps_whole_faces_either_way(
+    tmp_path: Path, small_blocks: None, noise: float
+) -> None:
+    """Spreads far below the readings' range keep their digits (sums about a reading near
+    them): faces printed to 4 decimals in m/s^2, exactly constant, were cut short by rounding
+    (both reads, in different places), and at 1e-7 g the whole read saw a noise floor of 0
+    and the two reads found different blocks."""
+    if noise:
+        table = tumble(120_000, noise=noise)
+        path = write(tmp_path / "quiet.csv", table, fmt=["%.3f", "%.9f", "%.9f", "%.9f"])
+    else:  # six faces of 15 s, 3 s turns, in m/s^2 to 4 decimals
+        rng = np.random.default_rng(1)
+        faces = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float)
+        t = np.arange(108_000) / 1000.0
+        k = (t // 18).astype(int)
+        w = np.clip((t % 18 - 15) / 3, 0, 1)[:, None]
+        g = (1 - w) * faces[k % 6] + w * faces[(k + 1) % 6] + np.sin(np.pi * w) * 0.3 * rng.normal(size=(t.size, 3))
+        table = np.column_stack([t, (g + np.array([0.0123, -0.0217, 0.0151])) * 9.80665])
+        path = write(tmp_path / "flat.csv", table, fmt=["%.3f", "%.4f", "%.4f", "%.4f"])
+    streamed, whole = both(path)
+    log, seg = cast("tuple[captures.Log, sc.Segmentation]", whole)
+    rows = [(int(log.rows[y.first]), int(log.rows[y.last])) for y in seg.blocks]
+    assert streamed is not None or not noise  # a threshold from no spread at all may be the whole read's
+    if streamed is not None:
+        a, sa = cast("tuple[captures.Log, sc.Segmentation]", streamed)
+        assert [(int(a.rows[x.first]), int(a.rows[x.last])) for x in sa.blocks] == rows
+        assert sa.noise_floor == pytest.approx(seg.noise_floor, rel=1e-3)  # both near the truth:
+        assert sa.noise_floor == pytest.approx(np.sqrt(3) * noise, rel=0.05)  # sqrt(3) sigma
+    assert len(rows) == 6  # one block per face, none split
+    assert len({last - first for first, last in rows[1:]}) == 1  # each face as long as the others
+    assert rows[1][1] - rows[1][0] > 14_000  # 15 s still at 1 kHz, less the window's reach
