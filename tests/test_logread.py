@@ -62,6 +62,7 @@ def same(streamed: tuple[captures.Log, sc.Segmentation], whole: tuple[captures.L
     assert sa.period == sb.period
     assert (sa.window, sa.min_samples, sa.trim, sa.gaps) == (sb.window, sb.min_samples, sb.trim, sb.gaps)
     assert sa.gap_rows == sb.gap_rows
+    assert sa.zero_steps == sb.zero_steps
     assert sa.threshold == pytest.approx(sb.threshold, rel=1e-6)
     assert (sa.noise_floor is None) == (sb.noise_floor is None)
     assert sa.noise_floor == pytest.approx(sb.noise_floor, rel=1e-6) if sb.noise_floor is not None else True
@@ -381,3 +382,25 @@ def test_a_noise_free_or_very_quiet_log_keeps_whole_faces_either_way(
     assert len(rows) == 6  # one block per face, none split
     assert len({last - first for first, last in rows[1:]}) == 1  # each face as long as the others
     assert rows[1][1] - rows[1][0] > 14_000  # 15 s still at 1 kHz, less the window's reach
+
+
+@pytest.mark.slow
+def test_a_clock_coarser_than_the_samples_is_named_with_rate(
+    tmp_path: Path, small_blocks: None, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A 3 kHz log stamped in whole milliseconds: two steps in three are 0. Both reads say so
+    and point to --rate (they said the poses were too short), and --rate then finds the faces."""
+    table = tumble(180_000, rate=3000.0)
+    table[:, 0] = np.floor(table[:, 0] * 1000)  # integer milliseconds
+    path = write(tmp_path / "coarse.csv", table, fmt=["%d", "%.6f", "%.6f", "%.6f"])
+    streamed, whole = both(path)
+    assert streamed is not None
+    same(streamed, whole)  # type: ignore[arg-type]
+    assert cast("tuple[captures.Log, sc.Segmentation]", whole)[1].zero_steps == pytest.approx(2 / 3, abs=1e-4)
+    r = run(capsys, "segment", path, "-d", tmp_path / "blocks")
+    assert r.code == 3
+    assert "67% of the time column's steps are 0" in r.err
+    assert "hint: the time column does not advance with the samples: give the sample rate with --rate HZ" in r.err
+    r = run(capsys, "segment", path, "--rate", "3000", "-d", tmp_path / "rated")
+    assert r.code == 0, r.err
+    assert "faces: +x -x +y\n" in r.err  # the three faces of its first minute

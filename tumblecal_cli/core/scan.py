@@ -382,6 +382,8 @@ class Scan:
             self.settings.max_tilt_deg,
             [int(g) for g in breaks],
         )
+        if self.steps:
+            seg.zero_steps = self.steps.get(0.0, 0) / sum(self.steps.values())
         return _judge(seg, kept.values, spans, self.settings), kept
 
     def _period(self) -> float | bool | None:

@@ -118,6 +118,10 @@ def segmented(
             os.unlink(path)
 
 
+#: More time steps of 0 than this share (besides a logger's odd repeated stamp) and the clock
+#: is not the samples' clock: a warning that names --rate.
+ZERO_STEPS = 0.01
+
 #: More still blocks of one or two samples than this (and most of those kept) is a wrong time scale.
 MAX_TINY_BLOCKS = 50
 
@@ -133,6 +137,8 @@ def find_blocks(
     seconds = None if rate else log.seconds()
     seg = _blocks_of(log, seconds, rate, pose_column, pose_map, settings)
     seg.gap_rows = [int(log.rows[g - 1]) for g in seg.gaps]
+    if seconds is not None and seconds.size > 1:
+        seg.zero_steps = int(np.count_nonzero(np.diff(seconds) == 0)) / (seconds.size - 1)
     return review(log, seg, rate, settings)
 
 
@@ -148,6 +154,12 @@ def review(log: Log, seg: Segmentation, rate: float | None, settings: seg_core.S
         seg.warnings.append(
             f"{name}: the time column advances {seg.period:.3g} s per sample ({1 / seg.period:.3g} Hz); "
             "if it is not in seconds, give --time-unit ms, us or ns"
+        )
+    if seg.zero_steps > ZERO_STEPS and seconds:
+        seg.warnings.append(
+            f"{name}: {seg.zero_steps:.0%} of the time column's steps are 0 (a clock coarser than the samples, "
+            "or one that stops): the period, gaps and durations taken from it are not the samples'; "
+            "give the sample rate with --rate HZ"
         )
     if seg.period is None and (settings.window is not None or settings.min_duration is not None) and not rate:
         seg.warnings.append(f"{name}: no time column and no --rate: --window and --min-duration are in samples")
@@ -212,6 +224,8 @@ def enough_blocks(log: Log, seg: Segmentation, need: int) -> None:
     found = f"{len(seg.blocks)} found" + (f", dropped: {why}" if why else "")
     if seg.threshold is None:
         hint = "label the static parts of the log in --pose-column (and map them with --pose-map)"
+    elif seg.zero_steps > ZERO_STEPS:  # the clock's, not the poses' fault
+        hint = "the time column does not advance with the samples: give the sample rate with --rate HZ"
     elif not seg.blocks:
         hint = f"hold the unit still on each face, or raise --threshold (it was {seg.threshold:.4g})"
     else:
