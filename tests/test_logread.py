@@ -63,6 +63,7 @@ def same(streamed: tuple[captures.Log, sc.Segmentation], whole: tuple[captures.L
     assert (sa.window, sa.min_samples, sa.trim, sa.gaps) == (sb.window, sb.min_samples, sb.trim, sb.gaps)
     assert sa.gap_rows == sb.gap_rows
     assert sa.zero_steps == sb.zero_steps
+    assert sa.mean_step == pytest.approx(sb.mean_step, rel=1e-12) if sb.mean_step is not None else sa.mean_step is None
     assert sa.threshold == pytest.approx(sb.threshold, rel=1e-6)
     assert (sa.noise_floor is None) == (sb.noise_floor is None)
     assert sa.noise_floor == pytest.approx(sb.noise_floor, rel=1e-6) if sb.noise_floor is not None else True
@@ -404,3 +405,20 @@ def test_a_clock_coarser_than_the_samples_is_named_with_rate(
     r = run(capsys, "segment", path, "--rate", "3000", "-d", tmp_path / "rated")
     assert r.code == 0, r.err
     assert "faces: +x -x +y\n" in r.err  # the three faces of its first minute
+
+
+def test_a_clock_that_repeats_a_stamp_now_and_then_is_not_coarse(tmp_path: Path, small_blocks: None) -> None:
+    """A 1 kHz logger stamping whole ms on arrival repeats a stamp now and then (and skips one):
+    its steps still average its median step, so no warning (the review found one at 2.8 %)."""
+    table = tumble(60_000)
+    rng = np.random.default_rng(5)
+    table[:, 0] = np.floor(np.arange(table.shape[0]) + rng.uniform(0, 1.03, table.shape[0]))
+    path = write(tmp_path / "jitter.csv", table, fmt=["%d", "%.6f", "%.6f", "%.6f"])
+    streamed, whole = both(path)
+    assert streamed is not None
+    same(streamed, whole)  # type: ignore[arg-type]
+    seg = cast("tuple[captures.Log, sc.Segmentation]", whole)[1]
+    assert seg.zero_steps > logs.ZERO_STEPS
+    assert seg.mean_step == pytest.approx(0.001, rel=0.01)
+    assert not logs.coarse_clock(seg)
+    assert not any("steps are 0" in w for w in seg.warnings)

@@ -384,6 +384,9 @@ class Scan:
         )
         if self.steps:
             seg.zero_steps = self.steps.get(0.0, 0) / sum(self.steps.values())
+            if period:
+                short = {k: c for k, c in self.steps.items() if 0 <= k <= GAP_FACTOR * period}
+                seg.mean_step = sum(k * c for k, c in short.items()) / sum(short.values())
         return _judge(seg, kept.values, spans, self.settings), kept
 
     def _period(self) -> float | bool | None:

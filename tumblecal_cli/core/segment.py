@@ -102,6 +102,7 @@ class Segmentation:
     gaps: list[int] = field(default_factory=list)  # sample index after each gap in time
     gap_rows: list[int] = field(default_factory=list)  # data row of the reading before each gap (its caller's)
     zero_steps: float = 0.0  # the share of time steps that are 0: a clock coarser than the samples, or stopped
+    mean_step: float | None = None  # the mean of the time steps no longer than a gap (beside the median, period)
     warnings: list[str] = field(default_factory=list)  # for people: how the log's time was read
 
     @property

@@ -118,9 +118,19 @@ def segmented(
             os.unlink(path)
 
 
-#: More time steps of 0 than this share (besides a logger's odd repeated stamp) and the clock
-#: is not the samples' clock: a warning that names --rate.
+#: More time steps of 0 than this share, and steps shorter on average than the median one by
+#: more than SHORTFALL (a logger that stamps on arrival repeats a stamp now and then, and its
+#: steps still average the median), and the clock is not the samples': a warning names --rate.
 ZERO_STEPS = 0.01
+SHORTFALL = 0.05
+
+
+def coarse_clock(seg: Segmentation) -> bool:
+    """Whether the log's time column does not advance with its samples (a 3 kHz log stamped in
+    whole milliseconds, a clock that stops)."""
+    if seg.zero_steps <= ZERO_STEPS:
+        return False
+    return not seg.period or seg.mean_step is None or seg.mean_step < (1 - SHORTFALL) * seg.period
 
 #: More still blocks of one or two samples than this (and most of those kept) is a wrong time scale.
 MAX_TINY_BLOCKS = 50
@@ -138,7 +148,10 @@ def find_blocks(
     seg = _blocks_of(log, seconds, rate, pose_column, pose_map, settings)
     seg.gap_rows = [int(log.rows[g - 1]) for g in seg.gaps]
     if seconds is not None and seconds.size > 1:
-        seg.zero_steps = int(np.count_nonzero(np.diff(seconds) == 0)) / (seconds.size - 1)
+        steps = np.diff(seconds)
+        seg.zero_steps = int(np.count_nonzero(steps == 0)) / steps.size
+        if seg.period:
+            seg.mean_step = float(steps[(steps >= 0) & (steps <= seg_core.GAP_FACTOR * seg.period)].mean())
     return review(log, seg, rate, settings)
 
 
@@ -155,7 +168,7 @@ def review(log: Log, seg: Segmentation, rate: float | None, settings: seg_core.S
             f"{name}: the time column advances {seg.period:.3g} s per sample ({1 / seg.period:.3g} Hz); "
             "if it is not in seconds, give --time-unit ms, us or ns"
         )
-    if seg.zero_steps > ZERO_STEPS and seconds:
+    if coarse_clock(seg) and seconds:
         seg.warnings.append(
             f"{name}: {seg.zero_steps:.0%} of the time column's steps are 0 (a clock coarser than the samples, "
             "or one that stops): the period, gaps and durations taken from it are not the samples'; "
@@ -224,7 +237,7 @@ def enough_blocks(log: Log, seg: Segmentation, need: int) -> None:
     found = f"{len(seg.blocks)} found" + (f", dropped: {why}" if why else "")
     if seg.threshold is None:
         hint = "label the static parts of the log in --pose-column (and map them with --pose-map)"
-    elif seg.zero_steps > ZERO_STEPS:  # the clock's, not the poses' fault
+    elif coarse_clock(seg):  # the clock's, not the poses' fault
         hint = "the time column does not advance with the samples: give the sample rate with --rate HZ"
     elif not seg.blocks:
         hint = f"hold the unit still on each face, or raise --threshold (it was {seg.threshold:.4g})"
