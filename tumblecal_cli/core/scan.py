@@ -20,9 +20,11 @@ figures of the whole log are only known at its end, and each is kept exact:
 
 ``finish`` returns None when the log broke an assumption: its threshold came out above a bound
 used earlier, its period differs from the first blocks' enough to change the window, its
-steps are too many kinds to count, or a spread lies on the threshold (within ``TIE``: a
-quantised log's spreads take a few exact values, and one can be the threshold itself, so
-rounding alone would say which side). The caller then reads the log whole and calls ``detect``.
+steps are too many kinds to count, or a spread lies on the threshold (within ``TIE``, or
+``ROUNDING`` times (range / threshold)^2 where that is more: a quantised log's spreads take a
+few exact values, and one can be the threshold itself; a quiet log's spreads are summed from
+other stretches here than in the whole read; either way rounding alone would say which side).
+The caller then reads the log whole and calls ``detect``.
 
 A block's spreads may come computed (``feed(..., inside=)``, ``window_spread`` of the block
 alone, on another thread): only the windows across its start are computed here.
@@ -54,8 +56,14 @@ from tumblecal_cli.core.segment import (
 #: A sample is a still candidate when its spread is below this many times the threshold so far.
 BOUND_FACTOR = 4.0
 #: A spread this close to the threshold (relative) is on it: still or not by rounding alone, which
-#: the whole read's sums and these do differently (by 1e-12 or so), so the log is read whole.
+#: the whole read's sums and these do differently, so the log is read whole ...
 TIE = 1e-9
+#: ... and closer than this times (the readings' range / the threshold)^2: the two reads sum a
+#: window from different stretches (window_spread), and their spreads differ by up to about
+#: 80 ulp of that (1.3e-9 at 1e-3 g of noise beside faces 2 g apart, 3e-6 at 1e-5 g).
+ROUNDING = 1e-13
+#: A given --threshold keeps the spreads up to this much over it (relative), to judge them by the tie.
+MARGIN = 1e-3
 #: More distinct time steps than this and the median step is not counted: the caller reads whole.
 MAX_STEPS = 1 << 20
 #: The most kinds of time step counted one by one in a block before the rest are sorted.
@@ -198,8 +206,8 @@ class Scan:
         self.before = np.zeros(0, dtype=bool)  # candidate flags of the pad samples decided last
         self.store = _Store(capacity)
         self.template: Part | None = None
-        # a given threshold is the bound, and a hair over it: a spread on it must be seen (finish's TIE)
-        self.bound = np.inf if settings.threshold is None else float(settings.threshold) * (1 + 2 * TIE)
+        # a given threshold is the bound, and a little over it: a spread on it must be seen (finish's tie)
+        self.bound = np.inf if settings.threshold is None else float(settings.threshold) * (1 + MARGIN)
         self.least_bound = self.bound  # the lowest bound any sample was judged by
         self.tightened = 0  # samples finalized when the bound was last lowered
         self.lo, self.hi = np.full(3, np.inf), np.full(3, -np.inf)  # range of every 16th reading
@@ -359,13 +367,14 @@ class Scan:
             scale = float((self.hi - self.lo).max()) or 1.0
             # quantised readings of a quiet sensor can have no spread at all: still is then "exactly level"
             threshold = FLOOR_FACTOR * floor if floor > 1e-9 * scale else 1e-6 * scale
-        if not threshold * (1 + TIE) <= self.least_bound:
-            return None
+        tie = max(TIE, ROUNDING * (float((self.hi - self.lo).max()) / threshold) ** 2)
+        if not threshold * (1 + tie) <= self.least_bound:
+            return None  # a spread on the threshold could have been let go
         kept = self.store.join(self.template)
-        on = kept.spread >= threshold * (1 - TIE)
-        on &= kept.spread <= threshold * (1 + TIE)
+        on = kept.spread >= threshold * (1 - tie)
+        on &= kept.spread <= threshold * (1 + tie)
         if on.any():
-            return None  # a spread on the threshold (a quantised log's): either side by rounding alone
+            return None  # a spread on the threshold (a quantised log's, a quiet one's): either side by rounding
         breaks = self._gaps(period)
         spans = self._spans(kept, breaks, threshold)
         if spans is None:

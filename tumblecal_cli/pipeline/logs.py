@@ -132,6 +132,7 @@ def coarse_clock(seg: Segmentation) -> bool:
         return False
     return not seg.period or seg.mean_step is None or seg.mean_step < (1 - SHORTFALL) * seg.period
 
+
 #: More still blocks of one or two samples than this (and most of those kept) is a wrong time scale.
 MAX_TINY_BLOCKS = 50
 
