@@ -435,3 +435,15 @@ def test_a_threshold_within_rounding_of_a_spread_is_the_whole_reads(tmp_path: Pa
     if streamed is not None:
         a, sa = cast("tuple[captures.Log, sc.Segmentation]", streamed)
         assert [(int(a.rows[x.first]), int(a.rows[x.last])) for x in sa.blocks] == rows
+
+
+@pytest.mark.parametrize("threshold", ["0", "1e-200"])
+def test_a_threshold_of_nothing_is_the_whole_reads_exit_3(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], threshold: str
+) -> None:
+    """--threshold 0 (or 1e-200) crashed the streamed read (ZeroDivisionError, OverflowError)."""
+    path = write(tmp_path / "session.csv", tumble(30_000))
+    r = run(capsys, "segment", path, "--threshold", threshold, "-d", tmp_path / "blocks")
+    assert r.code == 3, r.err
+    assert "internal error" not in r.err
+    assert "nothing to calibrate from: 0 still blocks kept" in r.err

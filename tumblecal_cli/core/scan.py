@@ -367,7 +367,8 @@ class Scan:
             scale = float((self.hi - self.lo).max()) or 1.0
             # quantised readings of a quiet sensor can have no spread at all: still is then "exactly level"
             threshold = FLOOR_FACTOR * floor if floor > 1e-9 * scale else 1e-6 * scale
-        tie = max(TIE, ROUNDING * (float((self.hi - self.lo).max()) / threshold) ** 2)
+        ratio = float((self.hi - self.lo).max()) / threshold if threshold > 0 else np.inf
+        tie = max(TIE, ROUNDING * ratio * ratio) if ratio < 1e100 else np.inf  # (--threshold 0: no tie holds)
         if not threshold * (1 + tie) <= self.least_bound:
             return None  # a spread on the threshold could have been let go
         kept = self.store.join(self.template)
