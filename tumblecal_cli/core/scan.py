@@ -34,6 +34,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -107,8 +108,8 @@ class Kept:
 
     def log_index(self, at: IntArray) -> IntArray:
         """The log's index of the samples at positions ``at``."""
-        k = np.searchsorted(self.run_at, at, side="right") - 1
-        return self.run_first[k] + (at - self.run_at[k])
+        found: IntArray = log_index(self.run_first, self.run_at, at)
+        return found
 
     def position(self, index: int) -> int | None:
         """Where the log's sample ``index`` is kept, or None."""
@@ -116,6 +117,13 @@ class Kept:
         if k < 0 or index >= self.run_first[k] + self.run_size[k]:
             return None
         return int(self.run_at[k] + index - self.run_first[k])
+
+
+def log_index(run_first: IntArray, run_at: IntArray, at: Any) -> Any:
+    """The log's index of the kept samples at positions ``at``, from where each run of them
+    starts in the log (``run_first``) and among those kept (``run_at``)."""
+    k = np.searchsorted(run_at, at, side="right") - 1
+    return run_first[k] + (at - run_at[k])
 
 
 class _Store:
@@ -358,16 +366,17 @@ class Scan:
             return None
         floor = None
         threshold = self.settings.threshold
+        span = float((self.hi - self.lo).max())  # the readings' range
         if threshold is None:
             k = _rank(self.n)
             low = self.store.spreads_below(self.least_bound)
             if low.size <= k:
                 return None
             floor = float(np.partition(low, k)[k])
-            scale = float((self.hi - self.lo).max()) or 1.0
+            scale = span or 1.0
             # quantised readings of a quiet sensor can have no spread at all: still is then "exactly level"
             threshold = FLOOR_FACTOR * floor if floor > 1e-9 * scale else 1e-6 * scale
-        ratio = float((self.hi - self.lo).max()) / threshold if threshold > 0 else np.inf
+        ratio = span / threshold if threshold > 0 else np.inf
         tie = max(TIE, ROUNDING * ratio * ratio) if ratio < 1e100 else np.inf  # (--threshold 0: no tie holds)
         if not threshold * (1 + tie) <= self.least_bound:
             return None  # a spread on the threshold could have been let go

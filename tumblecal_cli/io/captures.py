@@ -821,9 +821,9 @@ class Log:
         same, unless the log was read block by block and only its still periods kept)."""
         if self.runs is None:
             return position
-        first, at = self.runs
-        k = int(np.searchsorted(at, position, side="right")) - 1
-        return int(first[k] + position - at[k])
+        from tumblecal_cli.core.scan import log_index
+
+        return int(log_index(*self.runs, position))
 
     def seconds(self) -> FloatArray | None:
         """Seconds since the first reading (differences first: epoch nanoseconds keep their digits)."""
