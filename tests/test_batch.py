@@ -737,8 +737,11 @@ def test_batch_log_serial_both_folder_and_file_is_exit_2(tmp_path: Path, capsys:
 
 
 @pytest.mark.slow
-def test_batch_jobs_2_is_byte_identical_to_jobs_1(tmp_path: Path) -> None:
+def test_batch_jobs_2_is_byte_identical_to_jobs_1(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     units(tmp_path / "units", {"A": "good", "B": "six", "C": "rejected", "D": "error", "E": "good", "F": "six"})
+    scratch = tmp_path / "scratch"  # the worker pool's own temporary folder goes here, and must go
+    scratch.mkdir()
+    monkeypatch.setenv("TMPDIR", str(scratch))
     one = run_exe(["batch", "units", "--out-dir", "one", "--max-offset", "0.05", "-q"], cwd=tmp_path)
     two = run_exe(["batch", "units", "--out-dir", "two", "--max-offset", "0.05", "-q", "--jobs", "2"], cwd=tmp_path)
     assert (one.returncode, one.stdout, two.returncode, two.stdout) == (2, "", 2, "")
@@ -748,6 +751,7 @@ def test_batch_jobs_2_is_byte_identical_to_jobs_1(tmp_path: Path) -> None:
     first, second = snapshot(tmp_path / "one"), snapshot(tmp_path / "two")
     assert sorted(first) == sorted([*(cal_name(s) for s in "ABEF"), "summary.csv"])
     assert second == first
+    assert list(scratch.iterdir()) == []
 
 
 # -- options -----------------------------------------------------------------------------------------

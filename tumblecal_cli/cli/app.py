@@ -288,6 +288,10 @@ def main_exit() -> None:
     is left is the interpreter's teardown, where a native library's thread (pyarrow's, seen
     about once in 500 runs) could abort the process and turn a documented status into 134."""
     status = main()
+    if "multiprocessing" in sys.modules:  # batch --jobs: the exit work of its pool's module (the
+        from multiprocessing import util  # forkserver's folder in $TMPDIR, left behind otherwise)
+
+        util._exit_function()  # type: ignore[attr-defined]
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(OSError, ValueError):  # a closed pipe: main() has said so already
             stream.flush()
