@@ -16,7 +16,7 @@ import itertools
 import json
 import math
 import shutil
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -961,3 +961,49 @@ def test_solve_log_three_faces_with_nominal_offset(tmp_path: Path, capsys: pytes
     assert doc["method"] == "three-pose"
     assert [p["pose"] for p in doc["poses"]] == ["+x", "+y", "+z"]
     assert [p["block"] for p in doc["poses"]] == [1, 2, 3]
+
+
+# -- the floor's percentile and the still runs, exactly -------------------------------------------
+
+
+def _arrays(rng: np.random.Generator) -> Iterator[FloatArray]:
+    """Spreads as a log gives them and worse: random, sorted either way, a few values many
+    times, one value, and every STRIDE-th the least (the sample that brackets misleads)."""
+    for n in (1, 7, segment.BRACKETED - 1, segment.BRACKETED, 300_000):
+        yield rng.random(n)
+        yield np.sort(rng.random(n))
+        yield np.sort(rng.random(n))[::-1].copy()
+        yield rng.integers(0, 5, n).astype(float)
+        yield np.full(n, 2.0)
+        tricked = rng.random(n)
+        tricked[:: segment.STRIDE] = 0.0
+        yield tricked
+
+
+def test_smallest_is_the_kth_of_those_under_the_bound_whatever_their_order() -> None:
+    rng = np.random.default_rng(7)
+    for values in _arrays(rng):
+        n = values.size
+        for below in (np.inf, 0.5, 0.0, 3.0, float(np.median(values))):
+            under = np.sort(values[values < below])
+            for k in sorted({0, n // 10, n // 2, n - 1, n, int(rng.integers(0, n))}):
+                want = float(under[k]) if k < under.size else None
+                assert segment.smallest(values, k, below) == want, (n, k, below)
+
+
+def test_runs_are_the_still_stretches_split_at_the_breaks() -> None:
+    rng = np.random.default_rng(8)
+    for values in _arrays(rng):
+        n = values.size
+        breaks = np.unique(rng.integers(1, n, 4)) if n > 1 else np.zeros(0, dtype=np.int64)
+        for mask in (values < np.median(values), values >= np.median(values), np.zeros(n, bool), np.ones(n, bool)):
+            starts, ends = segment._runs(mask, breaks)
+            rebuilt = np.zeros(n, bool)
+            for a, b in zip(starts.tolist(), ends.tolist(), strict=True):
+                assert a <= b
+                assert mask[a : b + 1].all()
+                assert a == 0 or not mask[a - 1] or a in breaks  # a run starts after a False or at a break
+                assert b == n - 1 or not mask[b + 1] or b + 1 in breaks
+                rebuilt[a : b + 1] = True
+            assert np.array_equal(rebuilt, mask)
+    assert [x.tolist() for x in segment._runs(np.zeros(0, bool), np.zeros(0, dtype=np.int64))] == [[], []]

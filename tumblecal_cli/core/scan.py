@@ -51,6 +51,7 @@ from tumblecal_cli.core.segment import (
     _in_samples,
     _judge,
     _runs,
+    smallest,
     window_spread,
 )
 
@@ -176,9 +177,9 @@ class _Store:
         self.spread = np.concatenate([self.spread[: self.size], np.empty(capacity - self.size)])
         self.capacity = capacity
 
-    def spreads_below(self, bound: float) -> FloatArray:
-        every = self.spread[: self.size]
-        return every[every < bound]
+    def smallest(self, k: int, bound: float) -> float | None:
+        """The ``k``-th smallest spread kept below ``bound`` (``segment.smallest``)."""
+        return smallest(self.spread[: self.size], k, bound)
 
     def join(self, template: Part) -> Kept:
         k = self.size
@@ -312,10 +313,8 @@ class Scan:
         decided = self.finalized - self.held_spread.size
         if decided <= 0:
             return
-        low = self.store.spreads_below(self.least_bound)
-        k = _rank(decided)
-        if low.size > k:
-            floor = float(np.partition(low, k)[k])
+        floor = self.store.smallest(_rank(decided), self.least_bound)
+        if floor is not None:
             quantised = 1e-6 * (float((self.hi - self.lo).max()) or 1.0)  # finish's threshold for no spread
             self.bound = min(self.bound, BOUND_FACTOR * max(FLOOR_FACTOR * floor, quantised))
 
@@ -368,11 +367,9 @@ class Scan:
         threshold = self.settings.threshold
         span = float((self.hi - self.lo).max())  # the readings' range
         if threshold is None:
-            k = _rank(self.n)
-            low = self.store.spreads_below(self.least_bound)
-            if low.size <= k:
+            floor = self.store.smallest(_rank(self.n), self.least_bound)
+            if floor is None:
                 return None
-            floor = float(np.partition(low, k)[k])
             scale = span or 1.0
             # quantised readings of a quiet sensor can have no spread at all: still is then "exactly level"
             threshold = FLOOR_FACTOR * floor if floor > 1e-9 * scale else 1e-6 * scale
