@@ -989,6 +989,10 @@ def test_smallest_is_the_kth_of_those_under_the_bound_whatever_their_order() -> 
             for k in sorted({0, n // 10, n // 2, n - 1, n, int(rng.integers(0, n))}):
                 want = float(under[k]) if k < under.size else None
                 assert segment.smallest(values, k, below) == want, (n, k, below)
+    # the whole read's percentile (and sample_period's median) takes an inf as a partition would
+    with_inf = np.r_[rng.random(100_000), np.full(50_000, np.inf)]
+    assert segment._quantile(with_inf, 1.0) == np.inf
+    assert segment._quantile(with_inf, 0.5) == float(np.partition(with_inf, 75_000)[75_000])
 
 
 def test_runs_are_the_still_stretches_split_at_the_breaks() -> None:

@@ -241,9 +241,8 @@ def _quantile(values: FloatArray, q: float) -> float:
     """The ``q`` quantile (nearest rank) by partition: np.percentile and np.median import
     numpy.ma, 10-20 ms of start-up."""
     k = min(values.size - 1, max(0, round(q * (values.size - 1))))
-    found = smallest(values, k)
-    assert found is not None
-    return found
+    found = smallest(values, k)  # None when the k-th is not below infinity (an inf, a NaN)
+    return found if found is not None else float(np.partition(values, k)[k])
 
 
 #: ``smallest`` brackets the k-th value from every STRIDE-th value, once there are BRACKETED ...
