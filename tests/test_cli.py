@@ -939,7 +939,7 @@ def test_debug_raises_the_error_in_process(capsys: pytest.CaptureFixture[str]) -
 @pytest.mark.slow
 def test_debug_shows_a_traceback_subprocess() -> None:
     done = run_exe(["--debug", "solve", "--poses", BAD / "empty.csv"])
-    assert done.returncode != 0
+    assert done.returncode == 2  # the documented status (a station reads 1 as a unit out of limits)
     assert b"Traceback" in done.stderr
     assert b"empty file" in done.stderr
     plain = run_exe(["solve", "--poses", BAD / "empty.csv"])
@@ -1294,3 +1294,55 @@ def test_json_status_words(
             verified = run(capsys, "verify", "--cal", out, *POSES_3, "--json", "-q", "--max-norm-error", limit)
             doc = json.loads(verified.out)
             assert (doc["status"], doc["exit_status"]) == (word, verified.code)
+
+
+# -- a column named for two roles ---------------------------------------------------------------
+
+TIME_TWICE = "--columns names 't', the time column"
+THERMAL = ["thermal", f"+z={SAMPLE / 'thermal' / 'sweep_up_zp.csv'}", "--cal", "CAL", "--reference-temperature", "25"]
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        pytest.param(["solve", "-p", *POSES_3, "--columns", "t,ax,ay"], TIME_TWICE, id="solve"),
+        pytest.param(["noise", POSES_3[0], "--columns", "t,ax,ay"], TIME_TWICE, id="noise"),
+        pytest.param(["verify", "--cal", "CAL", "--columns", "t,ax,ay", POSES_3[0]], TIME_TWICE, id="verify"),
+        pytest.param(
+            ["apply", "--cal", "CAL", "--columns", "t,ax,ay", POSES_3[0], "-o", "OUT"], TIME_TWICE, id="apply"
+        ),
+        pytest.param(
+            ["solve", "-p", *POSES_3, "--time-column", "ay"],
+            "--time-column names 'ay', one of the accelerometer columns",
+            id="time-column",
+        ),
+        pytest.param(
+            [*THERMAL, "--temperature-column", "ax"],
+            "--temperature-column names 'ax', one of the accelerometer columns",
+            id="thermal-sensor",
+        ),
+        pytest.param(
+            [*THERMAL, "--temperature-column", "t"],
+            "--temperature-column names 't', the time column",
+            id="thermal-time",
+        ),
+    ],
+)
+def test_a_column_named_for_two_roles_is_one_error_line_not_an_internal_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str | Path], message: str
+) -> None:
+    """A sensor column that is also the time (or temperature) column was read twice: 'internal
+    error: KeyError: Field "0" exists 2 times in schema'."""
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "-q", "-p", *POSES_3, "-o", cal).code == 0
+    out = precious(tmp_path / "out.csv")
+    args = [cal if a == "CAL" else out if a == "OUT" else a for a in args]
+    r = run(capsys, *args)
+    assert r.code == 2, r.err
+    assert r.out == ""
+    error, hint = r.err.splitlines()
+    assert error.startswith("error: ")
+    assert error.endswith(message)
+    assert hint.startswith("hint: name ")
+    assert "(columns: t, " in hint
+    assert_untouched(out)

@@ -131,7 +131,7 @@ def test_no_triplet(tmp_path: Path) -> None:
         (["acc2_x", "acc2_y", "acc2_z"], ["acc2_x", "acc2_y", "acc2_z"]),
         (["ACC_Z", "acc_y", "acc_x"], ["acc_z", "acc_y", "acc_x"]),  # any order, any case
         (["4", "5", "6"], ["acc2_x", "acc2_y", "acc2_z"]),  # 0-based indices
-        (["t", "acc_x", "6"], ["t", "acc_x", "acc2_z"]),  # mixed
+        (["acc_y", "acc_x", "6"], ["acc_y", "acc_x", "acc2_z"]),  # mixed
     ],
 )
 def test_columns_override(columns: list[str], expected: list[str], tmp_path: Path) -> None:

@@ -179,12 +179,18 @@ def test_a_calibration_of_the_time_column_is_refused_by_apply(
     doc["columns"] = ["t", "ay", "az"]
     cal.write_text(json.dumps(doc))
     out = precious(tmp_path / "out.csv")
-    r = run(capsys, "apply", "--cal", cal, SAMPLE / "capture.csv", "-o", out)
-    assert r.code == 2
-    assert (
-        r.err.splitlines()[0]
-        == f"error: {SAMPLE / 'capture.csv'}: {cal} calibrates column t, the capture's time column"
-    )
+    commands: list[list[str | Path]] = [
+        ["apply", "--cal", cal, SAMPLE / "capture.csv", "-o", out],
+        ["verify", "--cal", cal, POSES_3[0]],
+    ]
+    for command in commands:
+        r = run(capsys, *command)
+        assert r.code == 2
+        name = command[3]
+        assert r.err.splitlines() == [
+            f"error: {name}: the calibration's columns include 't', the capture's time column",
+            "hint: a calibration corrects three sensor columns: check its 'columns' field (columns: t, ax, ay, az)",
+        ]
     assert out.read_bytes() == precious(tmp_path / "again.csv").read_bytes()
 
 

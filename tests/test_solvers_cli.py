@@ -1079,6 +1079,25 @@ def test_counts_judged_against_a_nominal_of_1_name_the_nominal_gain(
         assert r.code == 0, r.err
 
 
+def test_a_nominal_gain_of_1_given_is_judged_and_check_says_what_solve_says(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--nominal-gain 1 said out loud is a nominal to judge by (it was taken for the default and
+    g data at --reference 9.81 passed); check of a counts calibration against a limits file in g
+    is the same units mistake (exit 2) that solve reports, not a unit outside its limits."""
+    files = six_faces(tmp_path)
+    out = precious(tmp_path / "cal.json")
+    three = [files[f] for f in ("+x", "+y", "+z")]
+    r = run(capsys, "solve", "-p", *three, "--reference", "9.81", "--nominal-gain", "1", "-o", out)
+    assert_units_mistake(r, "from the nominal gain 1", "hint: the data looks like g: run with --reference 1")
+    assert_untouched(out)
+    counts = tmp_path / "counts.json"
+    assert run(capsys, "solve", "-p", *IMUCAL_FILES, "--reference", "9.81", "-o", counts).code == 0
+    r = run(capsys, "check", counts, "--limits", SAMPLE / "limits.yaml")
+    assert_units_mistake(r, f"{counts}: gains", "--nominal-gain 210")
+    assert run(capsys, "check", counts, "--nominal-gain", "210", "--max-gain-error", "0.05").code == 0
+
+
 def test_one_axis_off_is_the_checks_and_limits_business_not_a_units_mistake(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -287,7 +287,13 @@ def main_exit() -> None:
     Every file is written (atomically) and every pool shut down before main() returns; what
     is left is the interpreter's teardown, where a native library's thread (pyarrow's, seen
     about once in 500 runs) could abort the process and turn a documented status into 134."""
-    status = main()
+    try:
+        status = main()
+    except Exception as err:  # only --debug lets one through: its traceback, and the status all the same
+        import traceback
+
+        traceback.print_exc()
+        status = err.exit_code if isinstance(err, TumblecalError) else 2
     if "multiprocessing" in sys.modules:  # batch --jobs: the exit work of its pool's module (the
         from multiprocessing import util  # forkserver's folder in $TMPDIR, left behind otherwise)
 

@@ -379,7 +379,7 @@ def _plot_solve(plot: str, cal: Calibration, raw: list[Any], limits: Limits | No
         )
         return
     assert limits is not None
-    if np.any(limits.nominal_gain != 1.0):  # given (--nominal-gain or the limits file)
+    if limits.nominal_gain_given:  # --nominal-gain or the limits file
         nominal = float(np.mean(limits.nominal_gain))
     else:  # else "before" is scaled by the mean solved gain: its shape, not its units
         nominal = 1.0 if cal.method in FIXED_GAINS else float(np.mean(cal.gain))

@@ -328,6 +328,7 @@ class Limits:
     nominal_offset: FloatArray = field(default_factory=lambda: np.zeros(3))  # unsigned counts: 32768
     gain_error: FloatArray | None = None  # (3,) bound on |gain / nominal_gain - 1|
     nominal_gain: FloatArray = field(default_factory=lambda: np.ones(3))
+    nominal_gain_given: bool = False  # named (a limits file, --nominal-gain): the gains are judged by it, 1 too
     cross_axis: float | None = None  # bound on |A[i, j] / A[i, i]|, i != j
     noise: float | None = None  # bound on each pose's standard deviation, output units
     residual: float | None = None  # bound on each pose's | |M (mean - offset)| - reference |

@@ -436,6 +436,7 @@ def open_capture(
             layout.temperature = next((i for i, n in enumerate(lower) if n in TEMPERATURE_NAMES), None)
         if extra is not None:
             layout.extra = _column(layout, extra, "column")
+        _no_column_twice(layout, sensor, columns, prefer, time_column, temperature_column)
     except InputError:
         if f is not sys.stdin.buffer:
             f.close()
@@ -714,6 +715,46 @@ def _pick_columns(
         file=layout.name,
         hint="pick one with --columns X,Y,Z or --sensor",
     )
+
+
+def _no_column_twice(
+    layout: Layout,
+    sensor: str,
+    columns: Sequence[str] | None,
+    prefer: Sequence[str] | None,
+    time_column: str | None,
+    temperature_column: str | None,
+) -> None:
+    """A sensor column that is also the time or the temperature column, by an option or a
+    calibration's columns: an error naming which (the column would be read twice, and
+    corrected as a reading)."""
+    names = layout.names
+    if layout.temperature is not None and layout.temperature == layout.time:
+        raise InputError(
+            f"{'--temperature-column' if temperature_column else 'the temperature column'} names "
+            f"{names[layout.time]!r}, the time column",
+            file=layout.name,
+            hint=f"name the temperature column with --temperature-column NAME (columns: {', '.join(names)})",
+        )
+    for role, index, option in (
+        ("time", layout.time, time_column and "--time-column"),
+        ("temperature", layout.temperature, temperature_column and "--temperature-column"),
+    ):
+        if index is None or index not in layout.sensor:
+            continue
+        column = names[index]
+        if columns:
+            message = f"--columns names {column!r}, the {role} column"
+            hint = "name three sensor columns: --columns X,Y,Z"
+        elif option:
+            message = f"{option} names {column!r}, one of the {sensor} columns"
+            hint = f"name the {role} column with {option} NAME"
+        elif prefer:
+            message = f"the calibration's columns include {column!r}, the capture's {role} column"
+            hint = "a calibration corrects three sensor columns: check its 'columns' field"
+        else:
+            continue
+        raise InputError(message, file=layout.name, hint=f"{hint} (columns: {', '.join(names)})")
 
 
 def _unit_of_name(name: str) -> str | None:

@@ -49,7 +49,7 @@ def check(
     from tumblecal_cli.core import gate
     from tumblecal_cli.io import calfile
     from tumblecal_cli.pipeline.options import limits as parse_limits
-    from tumblecal_cli.pipeline.solve import limits_not_applying
+    from tumblecal_cli.pipeline.solve import GAIN_SOLVERS, check_gains, limits_not_applying
 
     given = parse_limits(limits, max_offset, max_gain_error, nominal_gain)
     if not given.judges():
@@ -61,6 +61,11 @@ def check(
     if recorded is not None and not any(given.nominal_offset):  # the centre solve judged it from
         given = replace(given, nominal_offset=np.array(recorded, dtype=float))
     bounds = given.for_method(method)
+    if method in GAIN_SOLVERS and c.reference > 0 and (bounds.gain_error is not None or given.nominal_gain_given):
+        try:  # gains in other units than the limits': exit 2, as solve says it, not "outside limits"
+            check_gains(c.gain, c.reference, given.nominal_gain)
+        except InputError as err:
+            raise InputError(err.message, file=where, hint=err.hint) from None
     if not bounds.judges():
         raise InputError(f"no limits to judge against: {'; '.join(limits_not_applying(given, method))}", file=where)
     if not c.poses:  # an imported calibration: its parameters can be judged, it has no poses

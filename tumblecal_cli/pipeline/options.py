@@ -378,7 +378,7 @@ def limits(
             if (value <= 0).any():
                 raise InputError(f"{option} must be positive, got {given!r}")
             bounds[key] = value
-    return gate.Limits(**bounds)  # type: ignore[arg-type]
+    return gate.Limits(**bounds, nominal_gain_given="nominal_gain" in bounds)  # type: ignore[arg-type]
 
 
 def unit_block(

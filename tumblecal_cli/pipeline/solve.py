@@ -400,7 +400,7 @@ def _solve(
             err.hint = f"{err.hint + '; ' if err.hint else ''}{log_notes[0]}"
         return Solved(3, None, error=err, samples=samples, limits=given.limits)
     solution = fit.solution
-    judged = given.limits.gain_error is not None or bool((given.limits.nominal_gain != 1).any())
+    judged = given.limits.gain_error is not None or given.limits.nominal_gain_given
     if ref > 0 and solution.method in GAIN_SOLVERS and judged:
         check_gains(solution.gain, ref, given.limits.nominal_gain)
     limits = given.limits.for_method(solution.method)
