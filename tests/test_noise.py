@@ -283,6 +283,39 @@ def test_a_drift_far_above_the_random_walk_is_exit_3(tmp_path: Path, capsys: pyt
     assert " on x from start to end" in r.err
 
 
+@pytest.mark.parametrize(
+    ("log", "rate"),
+    [
+        pytest.param(DATA / "logs" / "ckexplorer_acc_log.csv", "100", id="ck-explorer-tumble"),
+        pytest.param(DATA / "logs" / "hassan_mobile_30orient.csv", "100", id="phone-30-orientations"),
+    ],
+)
+def test_a_real_log_that_moves_throughout_is_exit_3(capsys: pytest.CaptureFixture[str], log: Path, rate: str) -> None:
+    """Real tumbling logs (poses held between turns): each jump is one of many, so neither the
+    step nor the drift rule saw them, and noise printed figures of the motion with exit 0."""
+    r = run(capsys, "noise", log, "--rate", rate, "--json")
+    assert r.code == 3, r.err
+    assert json.loads(r.out)["status"] == "rejected"
+    assert "from one block to the next" in r.err
+    assert "times the noise within a block (not a still capture)" in r.err
+
+
+def test_still_noise_filtered_down_to_1_hz_is_not_moving(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A sensor low-pass filtered far below its rate (1 Hz at 1 kHz): consecutive samples are
+    alike, but its block means jump no more than still noise does."""
+    rng = np.random.default_rng(12)
+    a = math.exp(-2 * math.pi * 1.0 / 1000.0)
+    w = rng.normal(0.0, 0.01, (120_000, 3))
+    y = np.empty_like(w)
+    y[0] = w[0]
+    for i in range(1, len(w)):
+        y[i] = a * y[i - 1] + (1 - a) * w[i]
+    path = tmp_path / "filtered.csv"
+    np.savetxt(path, y, delimiter=",", header="x,y,z", comments="", fmt="%.9g")
+    r = run(capsys, "noise", path, "--rate", "1000", "-q")
+    assert r.code == 0, r.err
+
+
 @pytest.mark.slow
 def test_kalibr_in_si_from_a_gyroscope_in_degrees(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     rng = np.random.default_rng(10)  # white noise 0.01 °/s/√Hz and a strong random walk 0.01 °/s²/√Hz, 2 h

@@ -425,6 +425,11 @@ STEP_FACTOR = 10.0
 #: A change from the first block to the last this many times what a random walk with the
 #: blocks' own increments would reach in as many steps is a drift, not noise.
 DRIFT_FACTOR = 5.0
+#: Block means that jump from one block to the next (rms) by this many times the noise within a
+#: block (the median block's standard deviation) are a capture that moves throughout: still, they
+#: jump by about sqrt(2 / samples per block) of it (0.1-0.2 on real still captures), and by no more
+#: than 0.9 of it for a sensor filtered down to 1 Hz; hand-tumbled and tilted logs gave 5-330.
+MOTION_FACTOR = 3.0
 #: Fewer blocks than this judge nothing (the spread of a handful of differences is no yardstick).
 MIN_BLOCKS = 8
 
@@ -434,7 +439,7 @@ class Moved:
     """Why a capture is not still: the axis, what was measured and its bound, and a sentence."""
 
     axis: str
-    kind: str  # "step" or "drift"
+    kind: str  # "step", "drift" or "moving"
     value: float
     bound: float
     at_sample: int | None  # a step: the first sample of the block after it
@@ -446,6 +451,11 @@ class Moved:
                 f"{self.value / self.bound * STEP_FACTOR:.0f} times the spread of its block means "
                 "(not a still capture)"
             )
+        if self.kind == "moving":
+            return (
+                f"block means jump by {self.value:.3g} (rms) on {self.axis} from one block to the next, "
+                f"{self.value / self.bound * MOTION_FACTOR:.0f} times the noise within a block (not a still capture)"
+            )
         return (
             f"drifts {self.value:.3g} on {self.axis} from start to end, {self.value / self.bound * DRIFT_FACTOR:.0f} "
             "times what its own random walk reaches (not a still capture)"
@@ -455,13 +465,14 @@ class Moved:
 class StepWatch:
     """Means of consecutive blocks of ``block`` samples, streamed: a capture moved when one
     difference between neighbours stands far out of the others (a step), or when the first and
-    last blocks differ far more than a random walk with those increments would (a drift).
+    last blocks differ far more than a random walk with those increments would (a drift), or
+    when the block means jump far more than the noise within a block allows, throughout (moving).
 
     With the differences d_k of M + 1 block means (d_k = ybar_{k+1} - ybar_k): a random walk's
     net change after M steps has a standard deviation std(d) sqrt(M), white noise's far less, so
     ``|ybar_M - ybar_0| > DRIFT_FACTOR std(d) sqrt(M)`` is a trend no noise of the capture
     explains; the spread used for steps leaves the largest difference out, so the step does not
-    hide itself. Memory: three running sums per axis."""
+    hide itself. Memory: three running sums per axis, and each block's standard deviation."""
 
     def __init__(self, block: int) -> None:
         self.block = max(1, int(block))
@@ -475,18 +486,30 @@ class StepWatch:
         self.sum2 = np.zeros(3)
         self.largest = np.zeros(3)
         self.largest_at = np.zeros(3, dtype=np.int64)
+        self.origin = np.zeros(3)  # the block's first sample: its spread is summed about it
+        self.about = np.zeros(3)
+        self.squares = np.zeros(3)
+        self.within: list[FloatArray] = []  # each block's standard deviation per axis
 
     def add(self, samples: FloatArray) -> None:
         y = np.asarray(samples, dtype=np.float64)
         k = 0
         while k < y.shape[0]:
             take = min(self.block - self.count, y.shape[0] - k)
-            self.partial += y[k : k + take].sum(axis=0)
+            piece = y[k : k + take]
+            self.partial += piece.sum(axis=0)
+            if self.count == 0:
+                self.origin = piece[0].copy()
+            about = piece - self.origin
+            self.about += about.sum(axis=0)
+            self.squares += np.square(about, out=about).sum(axis=0)
             self.count += take
             k += take
             if self.count == self.block:
                 self._close(self.partial / self.block, self.seen + k - self.block)
-                self.partial = np.zeros(3)
+                mean = self.about / self.block
+                self.within.append(np.sqrt(np.maximum(self.squares / self.block - mean * mean, 0.0)))
+                self.partial, self.about, self.squares = np.zeros(3), np.zeros(3), np.zeros(3)
                 self.count = 0
         self.seen += y.shape[0]
 
@@ -512,7 +535,12 @@ class StepWatch:
         rest = np.maximum(self.sum2 - self.largest**2, 0.0) / (m - 1)  # without the largest
         mean = self.sum / m
         centred = np.maximum(self.sum2 / m - mean * mean, 0.0)
+        jumps = np.sqrt(self.sum2 / m)
+        noise = np.median(np.array(self.within), axis=0)  # a quantised quiet axis: 0, not judged so
         for j, axis in enumerate(AXES):
+            if noise[j] > 0 and jumps[j] > MOTION_FACTOR * noise[j]:
+                out.append(Moved(axis, "moving", float(jumps[j]), MOTION_FACTOR * float(noise[j]), None))
+                continue
             bound = STEP_FACTOR * math.sqrt(rest[j])
             if self.largest[j] > bound:
                 out.append(Moved(axis, "step", float(self.largest[j]), bound, int(self.largest_at[j])))
