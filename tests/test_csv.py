@@ -207,7 +207,8 @@ def test_time_column_and_duration(tmp_path: Path) -> None:
     auto = read_samples(path)  # a step of 10 at a sensor's rate: milliseconds, said in a note
     assert auto.duration == pytest.approx(1.0)
     assert auto.layout.notes == [
-        f"{path}: time column 't' read in milliseconds: it advances 10 per sample (100 Hz); --time-unit says otherwise"
+        f"{path}: time column 't' read in milliseconds: it advances 10 per sample (100 Hz); "
+        "if it is not, give --time-unit"
     ]
     assert read_samples(path, time_unit="ms").duration == pytest.approx(1.0)
     assert read_samples(path, time_unit="us").duration == pytest.approx(1e-3)

@@ -59,7 +59,7 @@ def test_an_unnamed_unit_comes_from_the_spacing_with_a_note(tmp_path: Path, step
     assert seconds[-1] == pytest.approx(199 * 0.01)
     words = {"ms": "milliseconds", "us": "microseconds", "ns": "nanoseconds"}
     said = f"time column 't' read in {words.get(unit)}: it advances {step:g} per sample (100 Hz)"
-    expected = [] if unit == "s" else [f"{tmp_path / 'log.csv'}: {said}; --time-unit says otherwise"]
+    expected = [] if unit == "s" else [f"{tmp_path / 'log.csv'}: {said}; if it is not, give --time-unit"]
     assert [n for n in log.layout.notes if "time column" in n] == expected
 
 

@@ -1084,7 +1084,7 @@ def time_scale(layout: Layout, clock: FloatArray, unit: str) -> float:
         rate = 1.0 / (step * _TIME_SCALE[spaced])
         layout.notes.append(
             f"{layout.name}: time column {column!r} read in {_UNIT_WORDS[spaced]}: it advances {step:g} per sample "
-            f"({rate:.4g} Hz); --time-unit says otherwise"
+            f"({rate:.4g} Hz); if it is not, give --time-unit"
         )
     return _TIME_SCALE[spaced]
 
