@@ -1098,6 +1098,42 @@ def test_a_nominal_gain_of_1_given_is_judged_and_check_says_what_solve_says(
     assert run(capsys, "check", counts, "--nominal-gain", "210", "--max-gain-error", "0.05").code == 0
 
 
+def test_auto_names_a_pose_captured_on_another_face_not_a_tilt(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The real +z capture given again in the +x place: auto's magnitude fit cannot use it and
+    said 'the six poses' magnitudes do not determine offsets and gains: +x 64°', hint 'rest the
+    unit flat'; the orientation check says which file reads like which face, as six-pose does."""
+    files = [tmp_path / f"p_{n}.csv" for n in ("xp", "xn", "yp", "yn", "zp", "zn")]
+    for source, copy in zip([IMUCAL_FILES[4], *IMUCAL_FILES[1:]], files, strict=True):
+        shutil.copy(source, copy)
+    out = tmp_path / "cal.json"
+    for method in ("auto", "six-pose-magnitude", "six-pose"):
+        r = run(capsys, "solve", "-q", "-p", *files, "--reference", "9.81", "-m", method, "-o", out)
+        assert r.code == 3, r.err
+        assert f"error: {files[0]}: declared +x but reads like +z" in r.err
+        assert "hint: give the pose files in the order +x -x +y -y +z -z" in r.err
+        assert not out.exists()
+
+
+def test_labelled_files_on_the_wrong_faces_blame_the_labels_not_their_order(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """+x=xn.csv -x=xp.csv: the labels gave the faces, so 'were the files given in the order
+    x -x y -y z -z?' and 'give the pose files in the order ...' pointed at the wrong fix."""
+    d = {n: f for n, f in zip(("xp", "xn", "yp", "yn", "zp", "zn"), IMUCAL_FILES, strict=True)}
+    items = [f"+x={d['xn']}", f"-x={d['xp']}", f"+y={d['yp']}", f"-y={d['yn']}", f"+z={d['zp']}", f"-z={d['zn']}"]
+    for method in ("auto", "six-pose"):
+        r = run(capsys, "solve", "-q", "-p", *items, "--reference", "9.81", "-m", method, "-o", tmp_path / "c.json")
+        assert r.code == 3, r.err
+        assert f"error: {d['xn']}: declared +x but reads like -x" in r.err
+        assert "it is labelled +x: was it captured on another face, or labelled wrong?" in r.err
+        assert "order" not in r.err
+        assert r.err.endswith(
+            "hint: label each file with the face that pointed up while it was captured (+x=FILE: its x axis up)\n"
+        )
+
+
 def test_one_axis_off_is_the_checks_and_limits_business_not_a_units_mistake(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -31,6 +31,7 @@ CLIP_FRACTION = 0.98
 NAMED_HINT = (
     "capture each pose with the face its file's name gives pointing up (xp.csv: +x), or label the files (+x=FILE)"
 )
+LABELLED_HINT = "label each file with the face that pointed up while it was captured (+x=FILE: its x axis up)"
 #: Methods whose gains are fixed at 1 (no gain limit applies).
 FIXED_GAINS = ("one-pose", "one-pose-tilt", "minmax", "gyro-bias")
 #: Methods fitted to captures turned through many orientations: a pose is meant to move.
@@ -103,6 +104,7 @@ class Options:
     skip: frozenset[str] = frozenset()  # names from CHECKS
     rails: Rails | None = None  # the integer type's limits (integer_rails); None: no known limit
     faces_by_name: bool = False  # the faces came from the files' names, not their order: no order to blame
+    faces_labelled: bool = False  # ... or from the labels given (+x=FILE): the labels to blame
 
 
 def measure(file: str, face: str | None, values: FloatArray, stats: PoseStats, options: Options) -> PoseCheck:
@@ -201,7 +203,13 @@ def check(poses: Sequence[PoseCheck], solution: Solution, options: Options) -> t
                 )
             elif check_name == "orientation" and p.angle_deg is not None:
                 judge(
-                    _orientation(p, declared, options.max_tilt_deg, by_name=options.faces_by_name),
+                    _orientation(
+                        p,
+                        declared,
+                        options.max_tilt_deg,
+                        by_name=options.faces_by_name,
+                        labelled=options.faces_labelled,
+                    ),
                     p.angle_deg > options.max_tilt_deg,
                     p.angle_deg > NARROW * options.max_tilt_deg,
                     f"{p.angle_deg:.1f}° from {p.face}, close to --max-tilt {options.max_tilt_deg:g}°",
@@ -229,7 +237,13 @@ def check(poses: Sequence[PoseCheck], solution: Solution, options: Options) -> t
                 assert p.face is not None
                 axis = "xyz".index(p.face[1])
                 if p.face[0] == "+" and solution.gain[axis] <= 0:
-                    cause = "its file misnamed" if options.faces_by_name else "the files out of order"
+                    cause = (
+                        "its file misnamed"
+                        if options.faces_by_name
+                        else "its label wrong"
+                        if options.faces_labelled
+                        else "the files out of order"
+                    )
                     rejected.append(
                         Finding(
                             "pose.upside_down",
@@ -237,14 +251,20 @@ def check(poses: Sequence[PoseCheck], solution: Solution, options: Options) -> t
                             f"its {p.face[1]} axis was not pointing up (upside down, or {cause})",
                             float(solution.gain[axis]),
                             0.0,
-                            hint=NAMED_HINT if options.faces_by_name else None,
+                            hint=NAMED_HINT
+                            if options.faces_by_name
+                            else LABELLED_HINT
+                            if options.faces_labelled
+                            else None,
                             **where,
                         )
                     )
     return rejected, warned
 
 
-def _orientation(p: PoseCheck, declared: Sequence[str | None], max_tilt: float, *, by_name: bool = False) -> Finding:
+def _orientation(
+    p: PoseCheck, declared: Sequence[str | None], max_tilt: float, *, by_name: bool = False, labelled: bool = False
+) -> Finding:
     where = {"file": p.file, "pose": p.face}
     assert p.angle_deg is not None
     assert p.face is not None
@@ -254,6 +274,9 @@ def _orientation(p: PoseCheck, declared: Sequence[str | None], max_tilt: float, 
         if p.looks_like in declared and by_name:  # no order to blame: the names gave the faces
             text += f"; its file's name gives {p.face}: was it captured on another face, or misnamed?"
             return Finding("pose.orientation", text, p.angle_deg, max_tilt, hint=NAMED_HINT, **where)
+        if p.looks_like in declared and labelled:  # the user's labels gave the faces
+            text += f"; it is labelled {p.face}: was it captured on another face, or labelled wrong?"
+            return Finding("pose.orientation", text, p.angle_deg, max_tilt, hint=LABELLED_HINT, **where)
         if p.looks_like in declared:
             order = " ".join(f[1] if f[0] == "+" else f for f in map(str, declared))
             text += f"; were the files given in the order {order}?"

@@ -122,7 +122,15 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Path
     name, labels, samples, placed = _read_poses(files_or_data, options, given)
     notes = [] if placed.note is None else [placed.note]
     return _solve(
-        name, labels, samples, options, given, whole=[s.values for s in samples], notes=notes, by_name=placed.by_name
+        name,
+        labels,
+        samples,
+        options,
+        given,
+        whole=[s.values for s in samples],
+        notes=notes,
+        by_name=placed.by_name,
+        labelled=placed.labelled,
     )
 
 
@@ -166,7 +174,7 @@ def _read_poses(
         )
     in_memory = isinstance(poses, Mapping)
     items: list[tuple[str | None, object]]
-    placed = Placed([])
+    placed = Placed([], labelled=True)  # in memory: the mapping's keys are the faces
     if isinstance(poses, Mapping):
         items = [(_label(str(label)), data) for label, data in poses.items()]
     else:
@@ -183,7 +191,7 @@ def _read_poses(
         hint = f"the files' names gave the faces ({named})" + (f"; {err.hint}" if err.hint else "")
         raise InputError(err.message, file=err.file, hint=hint) from None
     if name in solvers.ORIENTATION_FREE:  # the faces are not used: neither a note nor a clash
-        placed = Placed(placed.items)
+        placed = Placed(placed.items, labelled=placed.labelled)
     elif placed.clash is not None:
         raise placed.clash
     items = [items[k] for k in order]
@@ -214,6 +222,7 @@ class Placed:
     items: list[tuple[str | None, str]]
     note: str | None = None  # said when the faces came from the files' names, not their places
     clash: InputError | None = None  # a name that says another face than its file's place gives
+    labelled: bool = False  # every item came with its face (+x=FILE)
 
     @property
     def by_name(self) -> bool:
@@ -242,7 +251,7 @@ def pose_items(items: list[str], up: str, *, up_given: bool = False) -> Placed:
             "else by their count 1: --up, 3: +x +y +z, 6: +x -x +y -y +z -z",
         )
     if not out or out[0][0] is not None:
-        return Placed(out)
+        return Placed(out, labelled=bool(out))
     return named_faces(items, solvers.default_labels(len(out), up), up_given=up_given)
 
 
@@ -350,6 +359,7 @@ def _solve(
     notes: list[str] | None = None,
     segmentation: dict[str, object] | None = None,
     by_name: bool = False,
+    labelled: bool = False,
 ) -> Solved:
     """Average, solve, check and judge the poses; build the calibration. ``notes``: how the
     poses were chosen (a log's blocks) or labelled (by their files' names: ``by_name``)."""
@@ -372,6 +382,7 @@ def _solve(
         skip=frozenset(gate.CHECKS if options.no_checks else [c.replace("-", "_") for c in options.no_check]),
         rails=gate.integer_rails(whole),
         faces_by_name=by_name,
+        faces_labelled=labelled,
     )
     stats = [model.pose_stats(s.values) for s in samples]
     names = [s.name for s in samples]
@@ -394,6 +405,21 @@ def _solve(
             gain_tolerance=options.gain_tolerance,
         )
     except CaptureRejected as err:
+        if err.code == "poses.tilted" and ref > 0:  # a pose on another face than declared reads as
+            again = _solve(  # a tilt of 60°: the checks of the six-pose fit say which file and face
+                "six-pose",
+                labels,
+                samples,
+                options,
+                replace(given, method="six-pose"),
+                whole=whole,
+                notes=notes,
+                segmentation=segmentation,
+                by_name=by_name,
+                labelled=labelled,
+            )
+            if again.status == 3 and {f.code for f in again.rejections} & {"pose.orientation", "pose.upside_down"}:
+                return again
         if by_name and err.code == "pose.upside_down":  # a three-pose gain of zero: not the files' order
             err.hint = gate.NAMED_HINT
         if log_notes and name == "sphere":  # auto's choice: say why, and the way back
