@@ -1134,6 +1134,22 @@ def test_labelled_files_on_the_wrong_faces_blame_the_labels_not_their_order(
         )
 
 
+def test_a_negative_gain_is_a_warning_even_with_the_checks_off(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--no-checks with the x faces' files swapped wrote gain -208.5 and said PASS, nothing else."""
+    files = [tmp_path / "a.csv", tmp_path / "b.csv", *IMUCAL_FILES[2:]]
+    shutil.copy(IMUCAL_FILES[1], files[0])
+    shutil.copy(IMUCAL_FILES[0], files[1])
+    r = run(capsys, "solve", "-p", *files, "--reference", "9.81", "--no-checks", "-o", tmp_path / "cal.json")
+    assert r.code == 0, r.err
+    assert "warning: gain -208.5 on x is negative: this calibration mirrors x" in r.err
+    assert [line for line in r.err.splitlines() if line.startswith("warning: gain")] == [
+        "warning: gain -208.5 on x is negative: this calibration mirrors x (a pose upside down or on the wrong face; "
+        "the check that rejects it is off) (pose.upside_down)"
+    ]  # y and z are not
+
+
 def test_one_axis_off_is_the_checks_and_limits_business_not_a_units_mistake(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

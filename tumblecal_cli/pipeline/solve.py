@@ -437,6 +437,18 @@ def _solve(
         measured = gate.orient(measured, checks.nominal_offset, checks.max_tilt_deg)
     rejected, warned = gate.check(measured, solution, checks)
     warned += tilted
+    if "upside_down" in checks.skip and solution.method not in gate.FIXED_GAINS:  # its check off: still said
+        warned += [
+            gate.Finding(
+                "pose.upside_down",
+                f"gain {g:.4g} on {axis} is negative: this calibration mirrors {axis} (a pose upside down or "
+                "on the wrong face; the check that rejects it is off)",
+                float(g),
+                0.0,
+            )
+            for axis, g in zip("xyz", solution.gain.tolist(), strict=True)
+            if g < 0
+        ]
     fixed = [
         gate.corrected(st.mean, st.std, f, solution.offset, solution.matrix, ref)
         for st, f in zip(stats, labels, strict=True)
