@@ -981,6 +981,27 @@ def test_verify_reference_override(acc_cal: Path, tmp_path: Path, capsys: pytest
     assert judged.code == 1, judged.err
 
 
+def test_verify_in_other_units_than_the_calibration_is_a_units_mistake(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """imucal's calibration (counts in, m/s^2 out) on a capture in g read 0.000485 against 9.81
+    (-100 %), 'not judged', exit 0; a --reference off by 25 % or more is the same mistake."""
+    cal = tmp_path / "counts.json"
+    assert run(capsys, "solve", "-q", "-p", *IMUCAL_FILES, "--reference", "9.81", "-o", cal).code == 0
+    capture = checks(tmp_path)[0]  # readings in g
+    r = run(capsys, "verify", "--cal", cal, capture)
+    assert r.code == 2, r.err
+    assert r.out == ""
+    error, hint = r.err.splitlines()
+    assert error.startswith(f"error: {capture}: corrected magnitude ")
+    assert error.endswith("from the reference 9.81: a units mistake, or another sensor's calibration?")
+    assert hint.startswith("hint: the calibration's poses read about 20")
+    assert run(capsys, "verify", "--cal", cal, IMUCAL_FILES[0]).code == 0  # its own units: fine
+    g_cal = tmp_path / "g.json"
+    assert run(capsys, "solve", "-q", "-p", *six_faces(tmp_path).values(), "-o", g_cal).code == 0
+    assert run(capsys, "verify", "--cal", g_cal, capture, "--reference", "1.4").code == 2
+
+
 def test_verify_missing_capture(acc_cal: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     missing = tmp_path / "nowhere.csv"
     r = run(capsys, "verify", "--cal", acc_cal, checks(tmp_path)[0], missing)

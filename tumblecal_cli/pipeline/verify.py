@@ -101,6 +101,7 @@ def verify(
         st = model.pose_stats(s.values)
         before = float((st.mean**2).sum() ** 0.5)
         fixed = gate.corrected(st.mean, st.std, None, c.offset, c.matrix, ref)  # the norm error, as solve's
+        _units(s.layout.name, c, before, fixed.norm_error + ref, ref)
         std = fixed.std
         row: dict[str, Any] = {
             "file": s.layout.name,
@@ -130,6 +131,31 @@ def verify(
         result.overall["max_error_before"] = float(max(abs(e) for e in raw_errors))
     result.status = 3 if result.rejected else (1 if result.failed else 0)
     return result
+
+
+#: A corrected magnitude this far (relative) from the reference is no calibration's error: the
+#: capture is in other units than the calibration was made from (solve's GAIN_UNITS_TOLERANCE).
+UNITS_TOLERANCE = 0.25
+
+
+def _units(name: str, c: Calibration, raw: float, norm: float, ref: float) -> None:
+    """A capture whose corrected magnitude is far from the reference: exit 2, with the raw
+    magnitude the calibration's own poses read (it would report a -97 % error, "not judged")."""
+    if not ref > 0 or abs(norm - ref) <= UNITS_TOLERANCE * ref:
+        return
+    made = [float(sum(v * v for v in p["mean"]) ** 0.5) for p in c.poses if isinstance(p.get("mean"), list)]
+    hint = "correct captures in the units the calibration was made from"
+    if made:
+        typical = sorted(made)[len(made) // 2]
+        hint = f"the calibration's poses read about {typical:.4g} in raw magnitude, this capture {raw:.4g}: {hint}"
+    if c.sensor == "magnetometer":
+        hint += "; where the field differs from the calibration's, give it with --reference"
+    raise InputError(
+        f"corrected magnitude {norm:.4g} is {norm / ref - 1:+.0%} from the reference {ref:g}: a units mistake, "
+        "or another sensor's calibration?",
+        file=name,
+        hint=hint,
+    )
 
 
 def _read(
