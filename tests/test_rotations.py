@@ -4,6 +4,7 @@ rejections and the usage errors."""
 
 from __future__ import annotations
 
+import gzip
 import json
 from pathlib import Path
 from typing import Any
@@ -11,6 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from tests.conftest import ROOT
 from tests.conftest import tumblecal as run
 from tumblecal_cli.core import rotations as core
 from tumblecal_cli.io.calfile import Calibration
@@ -257,3 +259,31 @@ def test_verify_log_needs_a_gyroscope_calibration(hand_log: Path, accel_cal: Pat
     r = run("verify", "--cal", accel_cal, "--log", hand_log, "--accel-cal", accel_cal)
     assert r.code == 2
     assert "verifies a gyroscope's calibration, not the accelerometer's" in r.err
+
+
+def test_hand_turns_from_a_log_of_the_gyroscope_alone_say_so(accel_cal: Path, tmp_path: Path) -> None:
+    """Xsens's real gyroscope log (t and three columns): the accelerometer was read from the
+    gyroscope's own columns, and the answer was '0 rotations between 0 still blocks' or
+    'rotations about 1 independent axes', exit 3, a pose table of the gyroscope."""
+    log = tmp_path / "xsens_gyro.txt"
+    with gzip.open(ROOT / "tests" / "data" / "logs" / "xsens_gyro.txt.gz") as f:
+        log.write_bytes(f.read())
+    r = run(
+        "solve",
+        "--sensor",
+        "gyroscope",
+        "--log",
+        log,
+        "--accel-cal",
+        accel_cal,
+        "--no-header",
+        "-o",
+        tmp_path / "g.json",
+    )
+    assert r.code == 2, r.err
+    error, hint = r.err.splitlines()
+    assert error == (
+        f"error: {log}: the accelerometer and the gyroscope would both be read from columns x, y, z: "
+        "--accel-cal needs a log with both sensors' columns"
+    )
+    assert hint.startswith("hint: log both sensors")

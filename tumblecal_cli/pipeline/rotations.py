@@ -91,6 +91,14 @@ def hand_turns(log: str, options: SolveOptions) -> HandTurns:
             name=acc.layout.name,
             dialect=options.dialect,
         )
+    if tuple(acc.layout.sensor) == tuple(gyr.layout.sensor):  # a log of one sensor: both read the same columns
+        raise InputError(
+            f"the accelerometer and the gyroscope would both be read from columns "
+            f"{', '.join(acc.layout.sensor_names)}: --accel-cal needs a log with both sensors' columns",
+            file=gyr.layout.name,
+            hint="log both sensors (acc_x ... gyr_x ...), or name the gyroscope's columns with --columns; "
+            "a gyroscope alone is calibrated from known turns (--turns)",
+        )
     if not np.array_equal(acc.rows, gyr.rows):
         raise InputError(
             "the accelerometer and the gyroscope are not read on the same rows (an interleaved log?)",
