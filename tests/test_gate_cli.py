@@ -1530,6 +1530,18 @@ def test_reference_must_be_a_positive_number(
     assert_untouched(out)
 
 
+@pytest.mark.parametrize("reference", ["2048", "1"])
+def test_a_gyroscope_reference_other_than_0_is_refused(
+    reference: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """It was taken and written into the calibration (reference 2048 for a zero-rate bias)."""
+    out = precious(tmp_path / "cal.json")
+    gyroscope = ["--sensor", "gyroscope", "--columns", "ax,ay,az"]
+    r = solve(capsys, "-p", SAMPLE / "z.csv", *gyroscope, "--reference", reference, "-o", out)
+    assert_one_error(r, f"--reference is a gyroscope's reading at rest, which is 0, got {reference}", hint="leave")
+    assert_untouched(out)
+
+
 def test_gyroscope_at_rest_has_reference_zero_and_no_angle(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "cal.json"
     r = solve(capsys, "-q", "-p", SAMPLE / "z.csv", "--sensor", "gyroscope", "--columns", "ax,ay,az", "-o", out)

@@ -224,6 +224,11 @@ def settings(options: SolveOptions, *, log: bool) -> Settings:
             f"--reference must be a positive number, got {ref:g}",
             hint="the stimulus magnitude: 1 (g), 9.80665 (m/s^2), 16384 (counts); 0 only for --sensor gyroscope",
         )
+    if sensor == "gyroscope" and ref != 0:  # at rest it reads no rate, and turns give their own angles
+        raise InputError(
+            f"--reference is a gyroscope's reading at rest, which is 0, got {ref:g}",
+            hint="leave --reference out for --sensor gyroscope (its gains come from turns: --turns or --accel-cal)",
+        )
     centre = None if options.nominal_offset is None else triplet(options.nominal_offset, "--nominal-offset")
     bounds = limits(
         options.limits, options.max_offset, options.max_gain_error, options.nominal_gain, nominal_offset=centre

@@ -101,7 +101,6 @@ def verify(
         st = model.pose_stats(s.values)
         before = float((st.mean**2).sum() ** 0.5)
         fixed = gate.corrected(st.mean, st.std, None, c.offset, c.matrix, ref)  # the norm error, as solve's
-        _units(s.layout.name, c, before, fixed.norm_error + ref, ref)
         std = fixed.std
         row: dict[str, Any] = {
             "file": s.layout.name,
@@ -118,7 +117,9 @@ def verify(
                 f"{s.layout.name}: standard deviation {float(std.max()):.3g} is above --max-noise "
                 f"({max_noise * ref:.3g}): not a static capture"
             )
-        elif max_norm_error is not None and not abs(row["error_after"]) <= max_norm_error:
+            continue
+        _units(s.layout.name, c, before, fixed.norm_error + ref, ref)  # a static capture: its magnitude judged
+        if max_norm_error is not None and not abs(row["error_after"]) <= max_norm_error:
             result.failed.append(row["file"])
     errors = [r["error_after"] for r in result.rows]
     result.overall = {
