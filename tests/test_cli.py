@@ -921,7 +921,7 @@ def test_apply_output_onto_an_input(
 def test_apply_output_folder_missing(cal: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "no" / "such" / "out.csv"
     r = run(capsys, "apply", "--cal", cal, SAMPLE / "capture.csv", "-o", out)
-    assert_one_error(r, f"{out}: the output folder does not exist")
+    assert_one_error(r, f"{out}: the output folder does not exist", hint=f"make it first: mkdir -p {out.parent}")
 
 
 # -- --debug -------------------------------------------------------------------------------

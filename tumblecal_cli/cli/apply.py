@@ -139,7 +139,8 @@ def _show_many(done: Iterator[tuple[str, int, str]], total: int, out_dir: str, *
                 highlight=False,
             )
     if failed:
-        raise InputError(f"{failed} of {total} captures failed (above); the others are in {out_dir}")
+        rest = f"; the others are in {out_dir}" if failed < total else ""
+        raise InputError(f"{failed} of {total} capture{'s' if total != 1 else ''} failed (above){rest}")
     if not quiet:
         many = "s" if total != 1 else ""
         console.print(f"corrected {total} capture{many} into {out_dir}", soft_wrap=True, markup=False)

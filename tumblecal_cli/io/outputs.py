@@ -6,6 +6,7 @@ import contextlib
 import errno
 import os
 import re
+import shlex
 import shutil
 import stat
 import sys
@@ -62,6 +63,10 @@ def _is_stdin(path: str) -> bool:
     return (there.st_dev, there.st_ino) == (here.st_dev, here.st_ino)
 
 
+def _make_it(folder: str) -> str:
+    return f"make it first: mkdir -p {shlex.quote(folder)}"
+
+
 def check_writable(output: str, flag: str = "-o") -> None:
     """Refuse an output that cannot be written, before any work: a usage error (exit 2) comes
     before a rejection (3) or a failed limit (1), and a folder is never replaced by a file."""
@@ -69,8 +74,9 @@ def check_writable(output: str, flag: str = "-o") -> None:
         return
     if os.path.isdir(output):
         raise InputError(f"is a folder: {flag} takes a file name", file=output)
-    if not os.path.isdir(os.path.dirname(os.path.abspath(output))):
-        raise InputError("the output folder does not exist", file=output)
+    folder = os.path.dirname(os.path.abspath(output))
+    if not os.path.isdir(folder):
+        raise InputError("the output folder does not exist", file=output, hint=_make_it(folder))
 
 
 @contextlib.contextmanager
@@ -101,7 +107,7 @@ def atomic_output(path: str) -> Iterator[IO[bytes]]:
     path = os.path.realpath(path) if os.path.islink(path) else path
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
-        raise InputError("the output folder does not exist", file=path)
+        raise InputError("the output folder does not exist", file=path, hint=_make_it(folder))
     if folder not in _SWEPT:  # once per folder and process: a batch writes thousands of files into one
         _SWEPT.add(folder)
         remove_stale(folder)
