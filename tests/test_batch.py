@@ -960,6 +960,7 @@ def test_apply_one_bad_capture_among_good_ones(
         assert (out / p.name).read_bytes() == one_by_one(capsys, calibration, p, tmp_path / f"one_{p.name}")
     alone = run(capsys, "apply", "--cal", calibration, bad, "--out-dir", tmp_path / "alone")
     assert alone.err.splitlines()[-1] == "error: 1 of 1 capture failed (above)"  # no others to point at
+    assert not (tmp_path / "alone").exists()  # the folder it made for them is not left empty
 
 
 def test_apply_many_never_replaces_a_file_in_the_out_dir(

@@ -178,11 +178,17 @@ def correct_many(
         inputs, outputs = [os.path.abspath(c) for c in inputs], [os.path.abspath(o) for o in outputs]
         options["cal"] = [os.path.abspath(c) for c in cal]
     run = batches.engine(1, scheduler)
+    made = not os.path.isdir(out_dir)
     os.makedirs(out_dir, exist_ok=True)
-    for (_, name, _), outcome in run(correct_one, [(options, c, o) for c, o in zip(inputs, outputs, strict=True)]):
-        if isinstance(outcome, BaseException):  # a worker lost on the cluster
-            outcome = (name, 2, f"{name}: the worker correcting it failed: {type(outcome).__name__}: {outcome}")
-        yield outcome
+    try:
+        for (_, name, _), outcome in run(correct_one, [(options, c, o) for c, o in zip(inputs, outputs, strict=True)]):
+            if isinstance(outcome, BaseException):  # a worker lost on the cluster
+                outcome = (name, 2, f"{name}: the worker correcting it failed: {type(outcome).__name__}: {outcome}")
+            yield outcome
+    finally:  # a folder made for nothing (every capture failed, or Ctrl-C first) is not left behind
+        if made:
+            with contextlib.suppress(OSError):  # not empty: it holds what was written
+                os.rmdir(out_dir)
 
 
 def correct_one(options: dict[str, object], capture: str, output: str) -> tuple[str, int, str]:
