@@ -6,12 +6,14 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
 import shutil
+import subprocess
 from pathlib import Path
 
 import pytest
 
-from tests.conftest import feed_stdin, run
+from tests.conftest import IMUCAL, POSES_3, SAMPLE, feed_stdin, run, tumblecal_exe
 
 ROOT = Path(__file__).resolve().parent.parent
 LOT = ROOT / "sample_data" / "lot"
@@ -241,3 +243,21 @@ def test_report_flags_the_same_pose_file_under_two_serials(tmp_path: Path, capsy
         "at most one of them measured that unit"
     ) in err.splitlines()
     assert "lot: needs attention" in err
+
+
+@pytest.mark.slow
+def test_a_report_into_a_file_or_pipe_cuts_no_number_short(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Written to a file (a station's log), the table was laid out for 80 columns and its numbers
+    came out as '6.6e…' and Cpk as 'C…'; with COLUMNS given, that width is kept."""
+    counts, g = tmp_path / "counts.json", tmp_path / "g.json"
+    faces = [IMUCAL / f"{n}.csv" for n in ("xp", "xn", "yp", "yn", "zp", "zn")]
+    assert run(capsys, "solve", "-q", "-p", *faces, "--reference", "9.81", "-o", counts).code == 0
+    assert run(capsys, "solve", "-q", "-p", *POSES_3, "-o", g).code == 0
+    env = {k: v for k, v in os.environ.items() if k != "COLUMNS"}
+    args = [tumblecal_exe(), "report", str(counts), str(g), "--limits", str(SAMPLE / "limits.yaml")]
+    done = subprocess.run(args, capture_output=True, text=True, env=env, timeout=60, check=False)
+    assert done.returncode in (0, 1), done.stderr
+    assert "Cpk" in done.stderr
+    assert "…" not in done.stderr
+    narrow = subprocess.run(args, capture_output=True, text=True, env=env | {"COLUMNS": "80"}, timeout=60, check=False)
+    assert "…" in narrow.stderr  # the width asked for

@@ -29,7 +29,14 @@ def make_console(stderr: bool = True) -> Console:
         def on_broken_pipe(self) -> None:  # Rich's own exits 1; a closed reader is exit 141 here (main)
             raise PipeClosed("output closed")
 
-    return Quiet(stderr=stderr, highlight=False, markup=False)  # paths and column names are not markup
+    console = Quiet(stderr=stderr, highlight=False, markup=False)  # paths and column names are not markup
+    if not console.is_terminal and "COLUMNS" not in os.environ:  # a file or a pipe: no screen to fit, so no
+        console.width = WIDE  # number cut short to "6.6e…" (a table is only as wide as its cells)
+    return console
+
+
+#: The width tables are laid out for when they go to a file or a pipe (COLUMNS wins).
+WIDE = 1000
 
 
 #: Whether this run has printed its --json document: the error boundary (cli.app.main) then
