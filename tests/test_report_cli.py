@@ -261,3 +261,19 @@ def test_a_report_into_a_file_or_pipe_cuts_no_number_short(tmp_path: Path, capsy
     assert "…" not in done.stderr
     narrow = subprocess.run(args, capture_output=True, text=True, env=env | {"COLUMNS": "80"}, timeout=60, check=False)
     assert "…" in narrow.stderr  # the width asked for
+
+
+def test_a_batch_summary_given_for_a_calibration_is_named_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """It was 'not valid JSON: Expecting value (line 1, column 1)'."""
+    summary = tmp_path / "summary.csv"
+    summary.write_text("serial,status,verdict,exit_status\nU1,pass,pass,0\n")
+    r = run(capsys, "report", summary)
+    assert r.code == 2
+    assert f"error: {summary}: a batch summary (CSV), not a calibration" in r.err.splitlines()
+    r = run(capsys, "apply", "--cal", summary, SAMPLE / "capture.csv", "-o", tmp_path / "out.csv")
+    assert r.err.splitlines() == [
+        f"error: {summary}: a batch summary (CSV), not a calibration",
+        f"hint: give the calibrations: their folder ({tmp_path}) or its *.json files",
+    ]

@@ -810,6 +810,14 @@ def _parse(text: str, path: str, *, as_yaml: bool | None = None) -> Any:
     try:
         return json.loads(text)
     except json.JSONDecodeError as err:
+        first = text.lstrip("\ufeff").split("\n", 1)[0].strip()
+        if first.startswith("serial,status,"):  # batch's summary.csv, given where its calibrations go
+            folder = os.path.dirname(path) or "."
+            raise InputError(
+                "a batch summary (CSV), not a calibration",
+                file=path,
+                hint=f"give the calibrations: their folder ({folder}) or its *.json files",
+            ) from None
         raise InputError(f"not valid JSON: {err.msg}", file=path, line=err.lineno, column=err.colno) from None
     except RecursionError:
         raise InputError("not a calibration: its JSON is nested too deeply to read", file=path) from None
