@@ -7,6 +7,7 @@ to tmp_path; bad limits files live in tests/data/bad/. Every run is in-process.
 
 from __future__ import annotations
 
+import gzip
 import json
 import math
 import re
@@ -22,6 +23,7 @@ import yaml
 from tests.conftest import (
     BAD,
     POSES_3,
+    ROOT,
     SAMPLE,
     Result,
     assert_one_error,
@@ -1638,3 +1640,17 @@ def test_a_calibration_given_as_limits(tmp_path: Path, capsys: pytest.CaptureFix
     solved(capsys, cal)
     r = solve(capsys, "-p", *POSES_3, "--limits", cal, "-o", tmp_path / "other.json")
     assert_one_error(r, f"{cal}: a tumblecal-calibration file, not a limits file", hint="Limits and the verdict")
+
+
+def test_check_of_a_log_calibration_names_each_block(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The six failures of a solve --log calibration named the same log six times, no block."""
+    log = tmp_path / "session.csv"
+    log.write_bytes(
+        gzip.decompress((ROOT / "tests" / "data" / "logs" / "imucal_annotated_session.csv.gz").read_bytes())
+    )
+    cal, limits = tmp_path / "cal.json", tmp_path / "limits.yaml"
+    limits.write_text("noise: 0.0001\n")
+    assert run(capsys, "solve", "-q", "--log", log, "--reference", "9.81", "-o", cal).code == 0
+    solved = [ln for ln in run(capsys, "check", cal, "--limits", limits).err.splitlines() if "limit.noise" in ln]
+    assert len(solved) == 6
+    assert all(re.match(rf"  limit\.noise: {re.escape(str(log))} block \d+: noise ", ln) for ln in solved), solved

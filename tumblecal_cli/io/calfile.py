@@ -585,7 +585,10 @@ def pose_records(cal: Calibration) -> list[PoseRecord]:
         if "std" not in pose:
             raise InputError(f"field 'poses[{k}]' must be an object with pose, mean, std and samples", file=path)
         mean, std = np.array(pose["mean"], dtype=np.float64), np.array(pose["std"], dtype=np.float64)
-        out.append(PoseRecord(pose["pose"], str(pose.get("file", "")), mean, std, pose["samples"]))
+        name = str(pose.get("file", ""))
+        if isinstance(pose.get("block"), int):  # a log's blocks share its file: named as solve names them
+            name = f"{name} block {pose['block']}"
+        out.append(PoseRecord(pose["pose"], name, mean, std, pose["samples"]))
     return out
 
 
