@@ -1062,12 +1062,28 @@ def test_output_onto_the_file_on_stdin_is_refused(command: str, cal: Path, tmp_p
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
 
 
+@pytest.fixture(scope="module")
+def big(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """170 MB: apply's worker processes take most of a second (2M rows ended too soon)."""
+    path = tmp_path_factory.mktemp("big") / "big.csv"
+    path.write_text("t,ax,ay,az\n" + "0.001,0.012345,0.023456,1.012345\n" * 5_000_000)
+    return path
+
+
 @pytest.mark.slow
-def test_sigterm_mid_apply_leaves_no_temporary_file(cal: Path, tmp_path: Path) -> None:
-    """A station's kill (SIGTERM) is handled as Ctrl-C: exit 130, the old output as it was, no
-    hidden temporary file beside it."""
-    big = tmp_path / "big.csv"  # 170 MB: apply's worker processes take most of a second (2M rows ended too soon)
-    big.write_text("t,ax,ay,az\n" + "0.001,0.012345,0.023456,1.012345\n" * 5_000_000)
+@pytest.mark.parametrize(
+    ("signum", "said"),
+    [
+        (signal.SIGTERM, "error: interrupted (SIGTERM)"),
+        (signal.SIGINT, "error: interrupted"),  # Typer made Ctrl-C a silent 130
+        (signal.SIGHUP, "error: interrupted (SIGHUP)"),  # it killed the run, its temporary file left behind
+    ],
+)
+def test_a_stop_mid_apply_leaves_no_temporary_file(
+    cal: Path, big: Path, tmp_path: Path, signum: signal.Signals, said: str
+) -> None:
+    """A station's kill (SIGTERM), Ctrl-C or a closed terminal: exit 130, said, the old output
+    as it was, no hidden temporary file beside it."""
     out = tmp_path / "out"
     out.mkdir()
     target = precious(out / "corrected.csv")
@@ -1077,12 +1093,32 @@ def test_sigterm_mid_apply_leaves_no_temporary_file(cal: Path, tmp_path: Path) -
         deadline = time.monotonic() + 30
         while not any(p.name.endswith(".tmp") for p in out.iterdir()) and time.monotonic() < deadline:
             time.sleep(0.01)  # until it has started writing
-        proc.send_signal(signal.SIGTERM)
+        proc.send_signal(signum)
         assert proc.wait(timeout=60) == 130
         assert proc.stderr is not None
-        assert proc.stderr.read().decode().splitlines() == ["error: interrupted (SIGTERM)"]
+        assert proc.stderr.read().decode().splitlines() == [said]
     assert_untouched(target)
     assert sorted(p.name for p in out.iterdir()) == ["corrected.csv"]
+
+
+@pytest.mark.slow
+def test_closed_standard_streams_are_as_if_dev_null(cal: Path, tmp_path: Path) -> None:
+    """`>&-`, `2>&-`, `<&-`: a traceback and exit 1, the error printed on stdout, 'internal
+    error: AttributeError' for stdin. Now the run goes on as if they were /dev/null."""
+    exe, out = tumblecal_exe(), tmp_path / "out.csv"
+
+    def sh(line: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(["sh", "-c", line], capture_output=True, text=True, timeout=60, check=False)
+
+    shown = sh(f"'{exe}' show '{cal}' >&-")
+    assert (shown.returncode, shown.stderr) == (0, "")
+    failed = sh(f"'{exe}' apply --cal '{cal}' '{tmp_path / 'none.csv'}' -o '{out}' 2>&-")
+    assert (failed.returncode, failed.stdout) == (2, "")  # the error went where stderr went: nowhere
+    solved = sh(f"'{exe}' solve -p {' '.join(map(str, POSES_3))} -o '{tmp_path / 'c.json'}' 2>&-")
+    assert solved.returncode == 0
+    empty = sh(f"'{exe}' apply --cal '{cal}' - -o '{out}' <&-")
+    assert (empty.returncode, empty.stderr.splitlines()[0]) == (2, "error: <stdin>: empty file")
+    assert not out.exists()
 
 
 @pytest.mark.slow

@@ -136,22 +136,27 @@ def _root(
 
 @contextlib.contextmanager
 def _term_as_interrupt() -> Iterator[None]:
-    """SIGTERM (a scheduler's or a station's kill) stops a command as Ctrl-C does: partial
-    outputs removed, a batch's summary written and its worker processes shut down; exit 130."""
+    """Ctrl-C, SIGTERM (a scheduler's or a station's kill) and SIGHUP stop a command alike:
+    partial outputs removed, a batch's summary written and its worker processes shut down;
+    exit 130."""
     import signal
 
     def interrupt(signum: int, frame: Any) -> None:
-        raise Interrupted("interrupted (SIGTERM)")
+        raise Interrupted("interrupted" if signum == signal.SIGINT else f"interrupted ({signal.Signals(signum).name})")
 
+    # Ctrl-C as well (Typer turns a KeyboardInterrupt into a silent status 130), and a closed
+    # terminal's SIGHUP; a signal the caller ignores (nohup, a background job) stays ignored
+    caught = [s for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP) if signal.getsignal(s) != signal.SIG_IGN]
     try:
-        previous = signal.signal(signal.SIGTERM, interrupt)
+        previous = [(s, signal.signal(s, interrupt)) for s in caught]
     except ValueError:  # not the main thread: leave signals alone
         yield
         return
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for signum, handler in previous:
+            signal.signal(signum, handler)
 
 
 @functools.cache
@@ -281,12 +286,29 @@ def one_line(text: str) -> str:
     return text.translate(_BREAKS)
 
 
+def _closed_streams() -> None:
+    """A standard stream the caller closed (``>&-``, ``2>&-``, ``<&-``) is /dev/null instead, as
+    Python's own print treats it: the run goes on, no file it opens takes that number (an output
+    written as fd 1 would get whatever is printed), and no message goes where data goes."""
+    for fd, name, mode in ((0, "stdin", "r"), (1, "stdout", "w"), (2, "stderr", "w")):
+        try:
+            os.fstat(fd)
+            continue
+        except OSError:
+            null = os.open(os.devnull, os.O_RDWR)  # the lowest free number: this one, the lower ones open
+        if null != fd:
+            os.dup2(null, fd)
+            os.close(null)
+        setattr(sys, name, open(fd, mode, encoding="utf-8", closefd=False))  # noqa: SIM115
+
+
 def main_exit() -> None:
     """Console-script entry point: the status, without the interpreter's teardown.
 
     Every file is written (atomically) and every pool shut down before main() returns; what
     is left is the interpreter's teardown, where a native library's thread (pyarrow's, seen
     about once in 500 runs) could abort the process and turn a documented status into 134."""
+    _closed_streams()
     try:
         status = main()
     except Exception as err:  # only --debug lets one through: its traceback, and the status all the same

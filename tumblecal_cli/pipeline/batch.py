@@ -361,7 +361,7 @@ def _recorded_poses(path: str) -> list[tuple[str, str]]:
 
 @contextlib.contextmanager
 def held_signals() -> Iterator[None]:
-    """Hold Ctrl-C and SIGTERM until the block is done, then act on the first as it would have
+    """Hold Ctrl-C, SIGTERM and SIGHUP until the block is done, then act on the first as it would have
     acted: a stop between publishing a calibration and recording its row would leave a
     calibration that no row names. A block that raises ends the batch anyway: its error is the
     one told. (Outside the main thread signals are left alone.)"""
@@ -378,7 +378,7 @@ def held_signals() -> Iterator[None]:
         caught.append((number, frame))
 
     try:
-        for signum in (signal.SIGINT, signal.SIGTERM):
+        for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
             handler = signal.getsignal(signum)
             if handler is not None:  # None: set outside Python, and it could not be put back
                 previous[signum] = handler  # before the swap: a stop in between still puts it back
