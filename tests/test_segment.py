@@ -11,6 +11,7 @@ starts and ends and which face it rests on. CLI runs are in-process through ``ru
 from __future__ import annotations
 
 import csv
+import gzip
 import io
 import itertools
 import json
@@ -24,7 +25,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tests.conftest import Result, assert_untouched, feed_stdin, precious, run
+from tests.conftest import ROOT, Result, assert_untouched, feed_stdin, precious, run
 from tests.synth import FloatArray, stimulus
 from tumblecal_cli.core import segment
 from tumblecal_cli.core.model import FACES
@@ -1011,3 +1012,28 @@ def test_runs_are_the_still_stretches_split_at_the_breaks() -> None:
                 rebuilt[a : b + 1] = True
             assert np.array_equal(rebuilt, mask)
     assert [x.tolist() for x in segment._runs(np.zeros(0, bool), np.zeros(0, dtype=np.int64))] == [[], []]
+
+
+@pytest.mark.parametrize("ending", ["\r", "mixed"])
+def test_segment_writes_the_blocks_of_a_log_with_cr_or_mixed_line_ends(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], ending: str
+) -> None:
+    """The block files were cut at LF alone: 'internal error: IndexError' for a CR-only log
+    (read as one line), one row short for a log of mixed line ends."""
+    plain = gzip.decompress((ROOT / "tests" / "data" / "logs" / "imucal_annotated_session.csv.gz").read_bytes())
+    lines = plain.decode().splitlines(keepends=True)
+    if ending == "\r":
+        odd = plain.replace(b"\n", b"\r")
+    else:  # LF, CR LF and CR in turn
+        odd = "".join(ln[:-1] + ("\n", "\r\n", "\r")[k % 3] for k, ln in enumerate(lines)).encode()
+    (tmp_path / "plain.csv").write_bytes(plain)
+    (tmp_path / "odd.csv").write_bytes(odd)
+    assert run(capsys, "segment", "-q", tmp_path / "plain.csv", "-d", tmp_path / "plain").code == 0
+    r = run(capsys, "segment", "-q", tmp_path / "odd.csv", "-d", tmp_path / "odd")
+    assert r.code == 0, r.err
+    names = sorted(p.name for p in (tmp_path / "plain").iterdir())
+    assert names == sorted(p.name for p in (tmp_path / "odd").iterdir())
+    assert len(names) > 10
+    for name in names:
+        got = (tmp_path / "odd" / name).read_bytes().replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+        assert got == (tmp_path / "plain" / name).read_bytes(), name

@@ -1197,8 +1197,14 @@ def copy_rows(path: str, layout: Layout, spans: Sequence[tuple[int, int]], outpu
 
 def row_offsets(data: np.ndarray[Any, np.dtype[np.uint8]], head: int) -> tuple[Any, Any]:
     """Byte offsets (start, end) of each data row of a file's bytes whose preamble and header
-    take ``head`` bytes: every line that is not blank or a # comment (the reader's rules)."""
-    newline = np.flatnonzero(data[head:] == 10) + head
+    take ``head`` bytes: every line that is not blank or a # comment (the reader's rules). A
+    line ends at LF, CR LF or a CR alone (old Mac files, and files of mixed line ends)."""
+    ending = data[head:] == 10
+    cr = data[head:] == 13
+    if cr.any():
+        cr[:-1] &= ~ending[1:]  # a CR before an LF: the LF ends that line
+        ending |= cr
+    newline = np.flatnonzero(ending) + head
     starts = np.concatenate([[head], newline + 1])
     ends = np.concatenate([newline + 1, [data.size]])
     if starts[-1] >= data.size:  # the file ends with a newline: no line after it
