@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import csv
 import json
+import subprocess
 from pathlib import Path
 
 import pytest
 
-from tests.conftest import POSES_3, SAMPLE, precious, run, unit
+from tests.conftest import POSES_3, ROOT, SAMPLE, precious, run, tumblecal_exe, unit
 
 #: A tree of YAML aliases, 10 wide and 8 deep: 10^8 strings once expanded (GB of memory).
 ALIAS_BOMB = "\n".join(
@@ -604,3 +605,105 @@ def test_metadata_never_travels_in_comments_that_import_parses(
     r = run(capsys, "import", peer, "--from", fmt, "-o", tmp_path / "bad.json")
     assert r.code == 2
     assert "reference' must be a" in r.err
+
+
+# -- found by a stress run: values no sensor has, and output names that are none ------------------
+
+THERMAL = SAMPLE / "thermal"
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--reference-temperature", "nan"], "--reference-temperature must be in °C, from -273.15 to 1000, got nan"),
+        (["--reference-temperature", "inf"], "--reference-temperature must be in °C, from -273.15 to 1000, got inf"),
+        (["--reference-temperature", "25", "--min-swing", "nan"], "--min-swing must be a positive number of °C"),
+    ],
+)
+def test_thermal_option_values_no_sweep_has(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], message: str
+) -> None:
+    """LAPACK printed to stdout and 'internal error: LinAlgError' followed (or a ValueError)."""
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "-q", "-p", *POSES_3, "-o", cal).code == 0
+    sweeps = [f"+z={THERMAL / 'sweep_up_zp.csv'}", f"-z={THERMAL / 'sweep_down_zn.csv'}"]
+    r = run(capsys, "thermal", *sweeps, "--cal", cal, *args, "-o", tmp_path / "t.json")
+    assert r.code == 2, r.err
+    assert r.out == ""
+    assert r.err.splitlines()[0].startswith(f"error: {message}")
+
+
+def test_a_thermal_sweep_with_a_cell_of_1e308(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Overflow warnings, then 'internal error: StopIteration', the file unnamed."""
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "-q", "-p", *POSES_3, "-o", cal).code == 0
+    lines = (THERMAL / "sweep_up_zp.csv").read_text().splitlines()
+    lines[1000] = ",".join([*lines[1000].split(",")[:-1], "1e308"])
+    broken = tmp_path / "sweep.csv"
+    broken.write_text("\n".join(lines) + "\n")
+    r = run(capsys, "thermal", f"+z={broken}", f"-z={THERMAL / 'sweep_down_zn.csv'}", "--cal", cal,
+            "--reference-temperature", "25", "-o", tmp_path / "t.json")  # fmt: skip
+    assert r.code == 2
+    assert r.err.splitlines()[0].startswith(f"error: {broken}: a reading of 1e+308 is beyond")
+
+
+@pytest.mark.parametrize("diagonal", [1e308, 1e-320])
+def test_a_calibration_matrix_no_sensor_has(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], diagonal: float
+) -> None:
+    """export wrote NaN and inf with exit 0; noise divided by zero."""
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "-q", "-p", *POSES_3, "-o", cal).code == 0
+    doc = json.loads(cal.read_text())
+    doc["matrix"] = [[diagonal if i == j else 0.0 for j in range(3)] for i in range(3)]
+    cal.write_text(json.dumps(doc))
+    r = run(capsys, "export", cal, "-f", "imucal-json", "-o", tmp_path / "out.json")
+    assert r.code == 2
+    assert r.err.startswith(
+        f"error: {cal}: field 'matrix' has entries of {diagonal:.3g}: no sensor's correction is that"
+    )
+    assert not (tmp_path / "out.json").exists()
+
+
+@pytest.mark.parametrize("option", ["--window", "--min-duration", "--trim", "--rate", "--threshold"])
+@pytest.mark.parametrize("value", ["inf", "1e308"])
+def test_segment_option_values_that_overflow(capsys: pytest.CaptureFixture[str], option: str, value: str) -> None:
+    """'internal error: OverflowError: cannot convert float infinity to integer'."""
+    if option == "--threshold" and value == "1e308":
+        return  # a threshold that keeps everything still is a threshold
+    r = run(capsys, "segment", "-q", ROOT / "tests" / "data" / "logs" / "ckexplorer_acc_log.csv", option, value)
+    assert r.code == 2
+    assert r.err.startswith(f"error: {option} must be ")
+    assert "internal error" not in r.err
+
+
+@pytest.mark.parametrize(
+    ("output", "message"),
+    [
+        ("", "error: -o names no file (an empty name)"),
+        ("newdir/", "error: newdir/: names a folder (it ends with '/'): -o takes a file name"),
+    ],
+)
+def test_an_output_name_that_is_no_file_name(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, output: str, message: str
+) -> None:
+    """The rename at the end failed naming the temporary file: '.../..23972-f_zt2vqi.tmp: No such file'."""
+    monkeypatch.chdir(tmp_path)
+    r = run(capsys, "solve", "-q", "-p", *POSES_3, "-o", output)
+    assert r.code == 2
+    assert r.err.splitlines()[0] == message
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+def test_show_onto_a_full_disk_names_stdout() -> None:
+    """It said 'error: No space left on device', naming nothing."""
+    with open("/dev/full", "wb") as full:
+        done = subprocess.run(
+            [tumblecal_exe(), "show", str(SAMPLE / "lot" / "SN0001_20261121T090000Z.json")],
+            stdout=full,
+            stderr=subprocess.PIPE,
+            check=False,
+        )
+    assert done.returncode == 2
+    assert done.stderr.decode().splitlines() == ["error: <stdout>: cannot write: No space left on device"]

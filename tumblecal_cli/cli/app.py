@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import errno
 import functools
 import os
 import re
@@ -220,8 +221,12 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as err:  # the system refused (a full disk, stdout on /dev/full): not a bug
         if _state["debug"]:
             raise
-        report(f"{err.filename}: {err.strerror or err}" if err.filename else f"{err.strerror or err}", None)
-        json_error(args, 2, _fields(f"{err.strerror or err}", None, err.filename))
+        # a write with no file named is a standard stream's (every file goes through io.outputs)
+        text, name = f"{err.strerror or err}", err.filename
+        if name is None and err.errno in (errno.ENOSPC, errno.EFBIG, errno.EDQUOT):
+            text, name = f"cannot write: {text}", "<stdout>"
+        report(f"{name}: {text}" if name else text, None)
+        json_error(args, 2, _fields(text, None, name))
         return 2
     except Exception as err:  # a bug: one line unless --debug
         if _state["debug"]:

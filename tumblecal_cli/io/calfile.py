@@ -872,6 +872,9 @@ def invertible(matrix: FloatArray, path: str, name: str = "matrix") -> FloatArra
     """M must have an inverse (A, whose diagonal is the gain): a singular one corrects nothing."""
     if not np.isfinite(np.linalg.cond(matrix)) or np.linalg.cond(matrix) > 1e12:
         raise InputError(f"field {name!r} is singular (it has no inverse)", file=path)
+    largest = float(np.abs(matrix).max())
+    if not 1e-100 <= largest <= 1e100:  # its inverse, the gains, the exports would overflow
+        raise InputError(f"field {name!r} has entries of {largest:.3g}: no sensor's correction is that", file=path)
     return matrix
 
 

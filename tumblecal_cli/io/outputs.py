@@ -63,6 +63,15 @@ def _is_stdin(path: str) -> bool:
     return (there.st_dev, there.st_ino) == (here.st_dev, here.st_ino)
 
 
+def _named(path: str, flag: str = "-o") -> None:
+    """An output named nothing, or a folder by its trailing '/': the rename at the end would
+    fail naming only its temporary file."""
+    if not path:
+        raise InputError(f"{flag} names no file (an empty name)", hint=f"give a file name, or {flag} - for stdout")
+    if path.endswith(("/", os.sep)):
+        raise InputError(f"names a folder (it ends with '/'): {flag} takes a file name", file=path)
+
+
 def _make_it(folder: str) -> str:
     return f"make it first: mkdir -p {shlex.quote(folder)}"
 
@@ -72,6 +81,7 @@ def check_writable(output: str, flag: str = "-o") -> None:
     before a rejection (3) or a failed limit (1), and a folder is never replaced by a file."""
     if output == "-":
         return
+    _named(output, flag)
     if os.path.isdir(output):
         raise InputError(f"is a folder: {flag} takes a file name", file=output)
     folder = os.path.dirname(os.path.abspath(output))
@@ -104,6 +114,7 @@ def atomic_output(path: str) -> Iterator[IO[bytes]]:
         with _stream_errors(path), open(path, "wb") as stream:
             yield stream
         return
+    _named(path, "the output")
     path = os.path.realpath(path) if os.path.islink(path) else path
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
@@ -129,7 +140,10 @@ def atomic_output(path: str) -> Iterator[IO[bytes]]:
             umask = os.umask(0)
             os.umask(umask)
             os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
+        try:
+            os.replace(tmp, path)
+        except OSError as err:  # the name's, not the temporary file's
+            raise InputError(f"cannot write: {err.strerror}", file=path) from None
     except BaseException:
         with contextlib.suppress(OSError):
             os.unlink(tmp)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import io
+import math
 import os
 import re
 import shutil
@@ -25,6 +26,11 @@ from tumblecal_cli.io import captures
 from tumblecal_cli.io.captures import Log, Samples
 from tumblecal_cli.io.outputs import atomic_output
 from tumblecal_cli.pipeline.options import pose_map as parse_pose_map
+
+#: The longest --window, --min-duration or --trim taken, in seconds (116 days: longer than a log) ...
+LONGEST = 1e7
+#: ... and the fastest --rate, in Hz: beyond these a value is a typo, and its samples overflow.
+FASTEST = 1e9
 
 
 @dataclass
@@ -68,13 +74,14 @@ def segmented(
     if pose_map and not pose_column:
         raise InputError("--pose-map names the faces of a --pose-column's labels: give the column too")
     for option, value in (("--window", settings.window), ("--min-duration", settings.min_duration)):
-        if value is not None and not value > 0:
-            raise InputError(f"{option} must be positive, got {value:g}")
-    for option, value in (("--threshold", settings.threshold), ("--trim", settings.trim)):
-        if value is not None and not value >= 0:
-            raise InputError(f"{option} must not be negative, got {value:g}")
-    if rate is not None and not rate > 0:
-        raise InputError(f"--rate must be positive, got {rate:g}")
+        if value is not None and not 0 < value <= LONGEST:
+            raise InputError(f"{option} must be a positive number of seconds up to {LONGEST:g}, got {value:g}")
+    if settings.trim is not None and not 0 <= settings.trim <= LONGEST:
+        raise InputError(f"--trim must be a number of seconds from 0 to {LONGEST:g}, got {settings.trim:g}")
+    if settings.threshold is not None and not 0 <= settings.threshold < math.inf:
+        raise InputError(f"--threshold must be a number from 0 up, got {settings.threshold:g}")
+    if rate is not None and not 0 < rate <= FASTEST:
+        raise InputError(f"--rate must be a positive number of Hz up to {FASTEST:g}, got {rate:g}")
     spooled = log == "-" or not captures.is_regular(log)  # a pipe or FIFO is read once: kept for a second read
     path = spool_stdin(None if log == "-" else log) if spooled else log
     try:

@@ -25,6 +25,8 @@ if TYPE_CHECKING:
 
 #: The default of --min-swing (°C): the swing order 1 needs.
 MIN_SWING = 10.0
+#: A temperature beyond this (°C, either sign) is no sweep's: a wrong column, or a broken cell.
+HOTTEST = 1000.0
 #: A sweep whose trend moves less than this share of its readings' scatter is noise, not a sweep.
 NOISE_SHARE = 0.5
 
@@ -87,6 +89,8 @@ def thermal(
     if base.sensor == "magnetometer":
         raise InputError("thermal fits an accelerometer's or a gyroscope's drift, not a magnetometer's", file=base.path)
     wanted = _order(order)
+    if not 0 < min_swing <= 1000.0:
+        raise InputError(f"--min-swing must be a positive number of °C up to 1000, got {min_swing:g}")
     t_ref = _reference_temperature(base, reference_temperature)
     read = _read(poses, base, temperature_column, columns)
     _judge_temperature(read, wanted, min_swing)
@@ -155,6 +159,8 @@ def _order(order: int | str) -> int | None:
 def _reference_temperature(base: Calibration, given: float | None) -> float:
     """T_ref: --reference-temperature, else the mean of the base calibration's pose temperatures."""
     if given is not None:
+        if not -273.15 <= float(given) <= 1000.0:  # nan, inf, or no temperature a sensor works at
+            raise InputError(f"--reference-temperature must be in °C, from -273.15 to 1000, got {given:g}")
         return float(given)
     recorded = [p.get("temperature") for p in base.poses]
     if recorded and all(isinstance(t, int | float) for t in recorded):
@@ -171,6 +177,7 @@ def _read(
 ) -> list[SweepRead]:
     import numpy as np
 
+    from tumblecal_cli.core import model
     from tumblecal_cli.core import thermal as core
     from tumblecal_cli.io import captures
     from tumblecal_cli.pipeline.solve import pose_items
@@ -193,9 +200,17 @@ def _read(
         )
         temp = log.temperature
         assert temp is not None
+        model.in_range(log.values, log.layout.name)
         finite = temp[np.isfinite(temp)]
         if finite.size == 0:
             raise InputError("the temperature column holds no numbers", file=log.layout.name)
+        hottest = float(np.abs(finite).max())
+        if hottest > HOTTEST:
+            raise InputError(
+                f"a temperature of {hottest:.3g} °C is none a sensor is swept through (|°C| <= {HOTTEST:g})",
+                file=log.layout.name,
+                hint="is --temperature-column the temperature, in °C?",
+            )
         out.append(SweepRead(None if gyro else face, log.layout.name, log, core.trend_range(finite)))
     return out
 

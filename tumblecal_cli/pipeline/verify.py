@@ -242,8 +242,8 @@ def verify_rotations(
         raise InputError(
             f"--log with --accel-cal verifies a gyroscope's calibration, not the {c.sensor}'s", file=c.path
         )
-    if rate is not None and not rate > 0:
-        raise InputError(f"--rate must be positive, got {rate:g}")
+    if rate is not None and not 0 < rate <= 1e9:
+        raise InputError(f"--rate must be a positive number of Hz up to 1e+09, got {rate:g}")
     options = SolveOptions(
         sensor="gyroscope",
         accel_cal=path_of(accel_cal, "--accel-cal takes a calibration file"),
