@@ -765,6 +765,7 @@ def test_batch_jobs_2_is_byte_identical_to_jobs_1(tmp_path: Path, monkeypatch: p
         pytest.param(["--limits", "MISSING"], "MISSING: no such limits file", id="limits-missing"),
         pytest.param(["--max-offset", "1,2"], "--max-offset", id="max-offset-two-values"),
         pytest.param(["--jobs", "0"], "--jobs", id="jobs-0"),
+        pytest.param(["--jobs", "99999999999999999999999"], "--jobs", id="jobs-huge"),  # was OverflowError
         pytest.param(["--method", "bogus"], "--method", id="method"),
         pytest.param(["--up", "up"], "--up", id="up"),
     ],

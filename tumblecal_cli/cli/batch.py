@@ -59,6 +59,7 @@ def _batch_options(
             "-j",
             metavar="N",
             min=1,
+            max=1024,
             help="Solve N units at a time, in N processes.",
             rich_help_panel=BATCH_PANEL,
         ),
