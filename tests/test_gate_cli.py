@@ -484,6 +484,7 @@ def test_no_check_needs_a_known_check(tmp_path: Path, capsys: pytest.CaptureFixt
         (["--max-offset", "0.1,0.1"], "--max-offset takes one number or three (X,Y,Z), got '0.1,0.1'"),
         (["--max-gain-error", "2%"], "--max-gain-error takes one number or three (X,Y,Z), got '2%'"),
         (["--nominal-gain", "0,1,1"], "--nominal-gain must be positive, got '0,1,1'"),
+        (["--nominal-gain", "1e308"], "--nominal-gain must be a number up to 1e100, got '1e308'"),  # overflow warnings
         (["--json"], "--json prints the summary on stdout, so the calibration needs -o FILE"),
         (["--json", "-o", "-"], "--json prints the summary on stdout, so the calibration needs -o FILE"),
     ],

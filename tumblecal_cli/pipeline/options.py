@@ -382,6 +382,8 @@ def limits(
             value = triplet(given, option)
             if (value <= 0).any():
                 raise InputError(f"{option} must be positive, got {given!r}")
+            if not (value <= 1e100).all():  # (1e308 overflowed the units check)
+                raise InputError(f"{option} must be a number up to 1e100, got {given!r}")
             bounds[key] = value
     return gate.Limits(**bounds, nominal_gain_given="nominal_gain" in bounds)  # type: ignore[arg-type]
 
