@@ -427,9 +427,15 @@ STEP_FACTOR = 10.0
 DRIFT_FACTOR = 5.0
 #: Block means that jump from one block to the next (rms) by this many times the noise within a
 #: block (the median block's standard deviation) are a capture that moves throughout: still, they
-#: jump by about sqrt(2 / samples per block) of it (0.1-0.2 on real still captures), and by no more
-#: than 0.9 of it for a sensor filtered down to 1 Hz; hand-tumbled and tilted logs gave 5-330.
-MOTION_FACTOR = 3.0
+#: jump by about sqrt(2 / samples per block) of it (0.1-0.2 on real still captures). Noise filtered
+#: far below a block's length changes smoothly, and a smooth change jumps by up to sqrt(12) of the
+#: spread it makes within a block: 3.0-3.4 for two poles at 0.2 Hz or 0.15 Hz, 4-5 at 0.05 Hz. Real
+#: logs tumbled by hand gave 15-330 (one of slow continuous motion, CK-Explorer's, 5-6: not caught).
+#: Noise filtered harder still (two poles at 0.05 Hz) reaches 17, so motion is also asked to come
+#: in bursts: the rms jump over TAIL_FACTOR times the median one (1.4-1.8 for filtered noise, whose
+#: jumps are alike; 3-1900 on the hand-tumbled logs, whose turns stand out of the still blocks).
+MOTION_FACTOR = 8.0
+TAIL_FACTOR = 2.5
 #: Fewer blocks than this judge nothing (the spread of a handful of differences is no yardstick).
 MIN_BLOCKS = 8
 
@@ -454,7 +460,7 @@ class Moved:
         if self.kind == "moving":
             return (
                 f"block means jump by {self.value:.3g} (rms) on {self.axis} from one block to the next, "
-                f"{self.value / self.bound * MOTION_FACTOR:.0f} times the noise within a block (not a still capture)"
+                f"{self.value / self.bound * MOTION_FACTOR:.1f} times the noise within a block (not a still capture)"
             )
         return (
             f"drifts {self.value:.3g} on {self.axis} from start to end, {self.value / self.bound * DRIFT_FACTOR:.0f} "
@@ -472,7 +478,8 @@ class StepWatch:
     net change after M steps has a standard deviation std(d) sqrt(M), white noise's far less, so
     ``|ybar_M - ybar_0| > DRIFT_FACTOR std(d) sqrt(M)`` is a trend no noise of the capture
     explains; the spread used for steps leaves the largest difference out, so the step does not
-    hide itself. Memory: three running sums per axis, and each block's standard deviation."""
+    hide itself. Memory: three running sums per axis, and each block's standard deviation and
+    difference from the one before."""
 
     def __init__(self, block: int) -> None:
         self.block = max(1, int(block))
@@ -490,6 +497,7 @@ class StepWatch:
         self.about = np.zeros(3)
         self.squares = np.zeros(3)
         self.within: list[FloatArray] = []  # each block's standard deviation per axis
+        self.jumps: list[FloatArray] = []  # each difference between neighbouring block means
 
     def add(self, samples: FloatArray) -> None:
         y = np.asarray(samples, dtype=np.float64)
@@ -516,6 +524,7 @@ class StepWatch:
     def _close(self, mean: FloatArray, at: int) -> None:
         if self.last is not None:
             d = mean - self.last
+            self.jumps.append(d)
             self.sum += d
             self.sum2 += d * d
             bigger = np.abs(d) > self.largest
@@ -537,10 +546,8 @@ class StepWatch:
         centred = np.maximum(self.sum2 / m - mean * mean, 0.0)
         jumps = np.sqrt(self.sum2 / m)
         noise = np.median(np.array(self.within), axis=0)  # a quantised quiet axis: 0, not judged so
-        for j, axis in enumerate(AXES):
-            if noise[j] > 0 and jumps[j] > MOTION_FACTOR * noise[j]:
-                out.append(Moved(axis, "moving", float(jumps[j]), MOTION_FACTOR * float(noise[j]), None))
-                continue
+        typical = np.median(np.abs(np.array(self.jumps)), axis=0)
+        for j, axis in enumerate(AXES):  # a step says where; a drift, how far; else moving throughout
             bound = STEP_FACTOR * math.sqrt(rest[j])
             if self.largest[j] > bound:
                 out.append(Moved(axis, "step", float(self.largest[j]), bound, int(self.largest_at[j])))
@@ -549,4 +556,8 @@ class StepWatch:
             bound = DRIFT_FACTOR * math.sqrt(centred[j] * m)
             if net > bound:
                 out.append(Moved(axis, "drift", net, bound, None))
+                continue
+            moving = noise[j] > 0 and jumps[j] > MOTION_FACTOR * noise[j]
+            if moving and jumps[j] > TAIL_FACTOR * typical[j]:
+                out.append(Moved(axis, "moving", float(jumps[j]), MOTION_FACTOR * float(noise[j]), None))
         return out
