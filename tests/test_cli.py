@@ -1111,7 +1111,14 @@ def test_closed_standard_streams_are_as_if_dev_null(cal: Path, tmp_path: Path) -
         return subprocess.run(["sh", "-c", line], capture_output=True, text=True, timeout=60, check=False)
 
     shown = sh(f"'{exe}' show '{cal}' >&-")
-    assert (shown.returncode, shown.stderr) == (0, "")
+    assert (shown.returncode, shown.stderr) == (0, "")  # a table for people: as print() drops it
+    data = sh(f"'{exe}' solve -q -p {' '.join(map(str, POSES_3))} >&-")  # the calibration is data
+    assert (data.returncode, data.stderr.splitlines()[0]) == (
+        2,
+        "error: <stdout>: is closed: the output has nowhere to go",
+    )
+    hung = sh(f"'{exe}' apply --cal '{cal}' '{tmp_path / 'none.csv'}' -o '{out}' 2>/dev/full")
+    assert hung.returncode == 2  # a stderr that takes nothing: the status stands (it was 1)
     failed = sh(f"'{exe}' apply --cal '{cal}' '{tmp_path / 'none.csv'}' -o '{out}' 2>&-")
     assert (failed.returncode, failed.stdout) == (2, "")  # the error went where stderr went: nowhere
     solved = sh(f"'{exe}' solve -p {' '.join(map(str, POSES_3))} -o '{tmp_path / 'c.json'}' 2>&-")

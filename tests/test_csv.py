@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from tests.conftest import feed_stdin
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import captures
-from tumblecal_cli.io.captures import open_capture, read_samples
+from tumblecal_cli.io.captures import open_capture, read_log, read_samples
 
 FloatArray = NDArray[np.float64]
 
@@ -504,3 +504,13 @@ def test_columns_naming_one_column_twice(tmp_path: Path) -> None:
         read_samples(str(path), columns=["ax", "ax", "az"])
     assert err.value.exit_code == 2
     assert str(path) in str(err.value)
+
+
+def test_columns_of_a_headerless_file_take_what_was_only_guessed_the_time(tmp_path: Path) -> None:
+    """A headerless file's first column is taken for time; --columns 0,1,2 says it is a sensor's
+    (x, y, z, temperature): it was refused as "--columns names 't', the time column"."""
+    path = tmp_path / "xyzt.csv"
+    path.write_text("".join(f"1.03{k % 7},0.02{k % 5},0.01{k % 3},25.0\n" for k in range(50)))
+    log = read_log(str(path), no_header=True, columns=["0", "1", "2"], use_time=False)
+    assert log.layout.time is None
+    assert log.values[0].tolist() == [1.03, 0.02, 0.01]

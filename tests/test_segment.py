@@ -990,6 +990,9 @@ def test_smallest_is_the_kth_of_those_under_the_bound_whatever_their_order() -> 
             for k in sorted({0, n // 10, n // 2, n - 1, n, int(rng.integers(0, n))}):
                 want = float(under[k]) if k < under.size else None
                 assert segment.smallest(values, k, below) == want, (n, k, below)
+    # fewer values under the bound than a bracket spans (no rank of the sample to partition at)
+    few = rng.random(segment.BRACKETED)
+    assert segment.smallest(few, 0, 0.003) == float(np.sort(few[few < 0.003])[0])
     # the whole read's percentile (and sample_period's median) takes an inf as a partition would
     with_inf = np.r_[rng.random(100_000), np.full(50_000, np.inf)]
     assert segment._quantile(with_inf, 1.0) == np.inf
@@ -1037,3 +1040,26 @@ def test_segment_writes_the_blocks_of_a_log_with_cr_or_mixed_line_ends(
     for name in names:
         got = (tmp_path / "odd" / name).read_bytes().replace(b"\r\n", b"\n").replace(b"\r", b"\n")
         assert got == (tmp_path / "plain" / name).read_bytes(), name
+
+
+def test_a_full_temporary_folder_is_named_not_stdout(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A log on stdin is kept in $TMPDIR for a second read; a full one said
+    'error: <stdout>: cannot write: No space left on device'."""
+    import errno
+    import tempfile
+
+    def full(*args: object, **kwargs: object) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    monkeypatch.setattr(shutil, "copyfileobj", full)
+    feed_stdin(monkeypatch, (ROOT / "sample_data" / "x.csv").read_bytes())
+    r = run(capsys, "segment", "-")
+    assert r.code == 2
+    assert r.err.splitlines() == [
+        f"error: {tmp_path}: cannot keep the log for a second read: No space left on device",
+        "hint: set TMPDIR to a folder with room for the log",
+    ]
+    assert list(tmp_path.iterdir()) == []  # its temporary file removed

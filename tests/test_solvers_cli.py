@@ -1117,6 +1117,10 @@ def test_a_nominal_gain_of_1_given_is_judged_and_check_says_what_solve_says(
     r = run(capsys, "check", counts, "--limits", SAMPLE / "limits.yaml")
     assert_units_mistake(r, f"{counts}: gains", "--nominal-gain 210")
     assert run(capsys, "check", counts, "--nominal-gain", "210", "--max-gain-error", "0.05").code == 0
+    in_g = tmp_path / "g.json"  # data in g solved at --reference 9.81: check has no --reference to give
+    assert run(capsys, "solve", "-q", "-p", *three, "--reference", "9.81", "-o", in_g).code == 0
+    r = run(capsys, "check", in_g, "--max-gain-error", "0.05")
+    assert_units_mistake(r, "hint: the data looks like g: solve it again with --reference 1")
 
 
 def test_auto_names_a_pose_captured_on_another_face_not_a_tilt(

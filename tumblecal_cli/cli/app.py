@@ -276,11 +276,13 @@ def _fields(
 
 
 def report(message: str, hint: str | None, more: tuple[str, ...] = ()) -> None:
-    """Each error one line on stderr (a file or column name holding a line break is shown escaped)."""
-    for line in (message, *more):
-        print(f"error: {one_line(line)}", file=sys.stderr)
-    if hint:
-        print(f"hint: {one_line(hint)}", file=sys.stderr)
+    """Each error one line on stderr (a file or column name holding a line break is shown escaped);
+    a stderr that cannot be written (a hung-up terminal) takes nothing, and the status stands."""
+    with contextlib.suppress(OSError):
+        for line in (message, *more):
+            print(f"error: {one_line(line)}", file=sys.stderr)
+        if hint:
+            print(f"hint: {one_line(hint)}", file=sys.stderr)
 
 
 #: Characters that end a line for a terminal or for str.splitlines, and the rest of C0: escaped.
@@ -304,7 +306,9 @@ def _closed_streams() -> None:
         if null != fd:
             os.dup2(null, fd)
             os.close(null)
-        setattr(sys, name, open(fd, mode, encoding="utf-8", closefd=False))  # noqa: SIM115
+        stream = open(fd, mode, encoding="utf-8", closefd=False)  # noqa: SIM115
+        stream.closed_by_caller = True  # type: ignore[attr-defined]  # data for it is an error (io.outputs)
+        setattr(sys, name, stream)
 
 
 def main_exit() -> None:
@@ -319,7 +323,8 @@ def main_exit() -> None:
     except Exception as err:  # only --debug lets one through: its traceback, and the status all the same
         import traceback
 
-        traceback.print_exc()
+        with contextlib.suppress(OSError):
+            traceback.print_exc()
         status = err.exit_code if isinstance(err, TumblecalError) else 2
     if "multiprocessing" in sys.modules:  # batch --jobs: the exit work of its pool's module (the
         from multiprocessing import util  # forkserver's folder in $TMPDIR, left behind otherwise)

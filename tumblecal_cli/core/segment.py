@@ -259,8 +259,8 @@ def smallest(values: FloatArray, k: int, below: float = np.inf) -> float | None:
         sample = sample[sample < below]
         j, margin = k // STRIDE, max(256, sample.size // 64)
         a, b = j - margin, j + margin
-        if sample.size and a < sample.size:
-            ranks = [r for r in (a, b) if 0 <= r < sample.size]
+        ranks = [r for r in (a, b) if 0 <= r < sample.size]
+        if ranks:  # (none: fewer values under ``below`` than a bracket spans, partitioned below)
             ends = np.partition(sample, ranks)
             lo = float(ends[a]) if a >= 0 else -np.inf
             hi = float(ends[b]) if b < sample.size else None  # None: up to ``below``

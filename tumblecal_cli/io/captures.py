@@ -743,6 +743,9 @@ def _no_column_twice(
         if index is None or index not in layout.sensor:
             continue
         column = names[index]
+        if columns and not layout.has_header and not option:  # a headerless file's guess, not a name
+            setattr(layout, role, None)  # the user's columns are the sensor's: no time (or temperature)
+            continue
         if columns:
             message = f"--columns names {column!r}, the {role} column"
             hint = "name three sensor columns: --columns X,Y,Z"

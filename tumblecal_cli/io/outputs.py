@@ -98,6 +98,8 @@ def atomic_output(path: str) -> Iterator[IO[bytes]]:
     into as it is: replacing it would put a file where a device was. A symbolic link to a file
     keeps its link: the file it points to is what is replaced."""
     if path == "-" or path in ("/dev/stdout", "/dev/fd/1", "/proc/self/fd/1"):  # the same stream
+        if getattr(sys.stdout, "closed_by_caller", False):  # `>&-`: the data would go nowhere
+            raise InputError("is closed: the output has nowhere to go", file="<stdout>", hint="give -o FILE")
         with _stream_errors("<stdout>"):
             yield sys.stdout.buffer
             sys.stdout.buffer.flush()

@@ -64,8 +64,9 @@ def check(
     if method in GAIN_SOLVERS and c.reference > 0 and (bounds.gain_error is not None or given.nominal_gain_given):
         try:  # gains in other units than the limits': exit 2, as solve says it, not "outside limits"
             check_gains(c.gain, c.reference, given.nominal_gain)
-        except InputError as err:
-            raise InputError(err.message, file=where, hint=err.hint) from None
+        except InputError as err:  # check has no --reference: the calibration is to be solved again
+            hint = (err.hint or "").replace("run with --reference", "solve it again with --reference")
+            raise InputError(err.message, file=where, hint=hint or None) from None
     if not bounds.judges():
         raise InputError(f"no limits to judge against: {'; '.join(limits_not_applying(given, method))}", file=where)
     if not c.poses:  # an imported calibration: its parameters can be judged, it has no poses

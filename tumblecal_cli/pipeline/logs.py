@@ -24,7 +24,7 @@ from tumblecal_cli.core.segment import Block, Segmentation
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import captures
 from tumblecal_cli.io.captures import Log, Samples
-from tumblecal_cli.io.outputs import atomic_output
+from tumblecal_cli.io.outputs import WRITE_ERRORS, atomic_output
 from tumblecal_cli.pipeline.options import pose_map as parse_pose_map
 
 #: The longest --window, --min-duration or --trim taken, in seconds (116 days: longer than a log) ...
@@ -410,16 +410,25 @@ def index_rows(log: Log, seg: Segmentation, files: dict[int, str]) -> list[list[
 def spool_stdin(source: str | None = None) -> str:
     """stdin (or the pipe ``source``) copied to a temporary file (a log is read twice: to find the
     blocks, then to copy them)."""
-    with tempfile.NamedTemporaryFile(prefix="tumblecal-", suffix=".csv", delete=False) as tmp:
-        try:
+    folder = tempfile.gettempdir()
+    room = "set TMPDIR to a folder with room for the log"
+    try:
+        tmp = tempfile.NamedTemporaryFile(prefix="tumblecal-", suffix=".csv", delete=False)  # noqa: SIM115
+    except OSError as err:
+        raise InputError(f"cannot make a temporary file: {err.strerror}", file=folder, hint=room) from None
+    try:
+        with tmp:  # (its close writes the last bytes: inside, so a full disk is caught as well)
             if source is None:
                 shutil.copyfileobj(sys.stdin.buffer, tmp)
             else:
                 with open(source, "rb") as f:
                     shutil.copyfileobj(f, tmp)
-        except BaseException:
+    except BaseException as err:
+        with contextlib.suppress(OSError):
             os.unlink(tmp.name)
-            raise
+        if isinstance(err, OSError) and err.errno in WRITE_ERRORS:  # the temporary folder's, not stdout's
+            raise InputError(f"cannot keep the log for a second read: {err.strerror}", file=folder, hint=room) from None
+        raise
     return tmp.name
 
 
