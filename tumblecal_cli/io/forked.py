@@ -41,6 +41,9 @@ MAX_WORKERS = 8
 #: A block is cut at the last line end in this much before its end: a longer line, no workers.
 WINDOW = 64 << 10
 
+#: The signals that stop a command (cli.app): held while a worker is forked.
+STOPS = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP}
+
 _REPORT = struct.Struct("<qqq")  # failed (0/1), rows, bytes of the pickled error that follow
 
 Render = Callable[[bytes, int], tuple[list[Any], int]]
@@ -142,17 +145,23 @@ class _Pool:
 
     def start(self, i: int, serve: Callable[[int, int, int], None]) -> None:
         report_r, report_w = os.pipe()
+        # a stop that lands in fork() is raised in its at-fork hooks, where Python drops it (the
+        # run went on to exit 0): held until the worker is on the books, then acted on
+        held = signal.pthread_sigmask(signal.SIG_BLOCK, STOPS)
         try:
             pid = os.fork()
         except OSError:
+            signal.pthread_sigmask(signal.SIG_SETMASK, held)
             os.close(report_r)
             os.close(report_w)
             raise
         if pid == 0:  # the worker: it never returns from here
             status = 1
             try:
-                signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+                signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C and a hang-up are the parent's
+                signal.signal(signal.SIGHUP, signal.SIG_IGN)
                 signal.signal(signal.SIGTERM, signal.SIG_DFL)
+                signal.pthread_sigmask(signal.SIG_SETMASK, held)
                 turn_r, turn_w = self.ring[i - 1][0], self.ring[i][1]
                 for fd in (*self.reports, report_r, *(end for pair in self.ring for end in pair)):
                     if fd not in (turn_r, turn_w):
@@ -164,6 +173,7 @@ class _Pool:
         os.close(report_w)
         self.pids.append(pid)
         self.reports.append(report_r)
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)  # a stop meanwhile: raised here, the worker known
 
     def report(self, worker: int) -> int:
         """The rows of ``worker``'s next block, written; its error raised."""

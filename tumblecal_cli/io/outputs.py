@@ -6,11 +6,11 @@ import contextlib
 import errno
 import os
 import re
+import secrets
 import shlex
 import shutil
 import stat
 import sys
-import tempfile
 from collections.abc import Iterable, Iterator
 from typing import IO
 
@@ -97,24 +97,10 @@ def atomic_output(path: str) -> Iterator[IO[bytes]]:
     A path that is not a regular file (``/dev/null``, ``/dev/stdout``, a named pipe) is written
     into as it is: replacing it would put a file where a device was. A symbolic link to a file
     keeps its link: the file it points to is what is replaced."""
-    if path == "-" or path in ("/dev/stdout", "/dev/fd/1", "/proc/self/fd/1"):  # the same stream
-        if getattr(sys.stdout, "closed_by_caller", False):  # `>&-`: the data would go nowhere
-            raise InputError("is closed: the output has nowhere to go", file="<stdout>", hint="give -o FILE")
-        with _stream_errors("<stdout>"):
-            yield sys.stdout.buffer
-            sys.stdout.buffer.flush()
-        return
-    if re.fullmatch(r"/dev/(?:stderr|fd/\d+)|/proc/self/fd/\d+", path):  # another open stream: append
-        with _stream_errors(path), open(path, "ab") as stream:  # ("wb" would truncate a file behind it)
-            yield stream
-        return
-    try:
-        special = not stat.S_ISREG(os.stat(path).st_mode)
-    except OSError:  # not there (or a dangling link): a new file
-        special = False
-    if special:
-        with _stream_errors(path), open(path, "wb") as stream:
-            yield stream
+    stream = _stream_for(path)
+    if stream is not None:
+        with stream as out:
+            yield out
         return
     _named(path, "the output")
     path = os.path.realpath(path) if os.path.islink(path) else path
@@ -124,11 +110,20 @@ def atomic_output(path: str) -> Iterator[IO[bytes]]:
     if folder not in _SWEPT:  # once per folder and process: a batch writes thousands of files into one
         _SWEPT.add(folder)
         remove_stale(folder)
+    # named before it is made, inside the try that removes it: a stop (Ctrl-C, SIGTERM) that lands
+    # as it is made cannot leave it behind (the PID in the name: no other running process's)
+    base, tmp = os.path.join(folder, f".{os.path.basename(path)}.{os.getpid()}-"), ""
     try:
-        fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{os.path.basename(path)}.{os.getpid()}-", suffix=".tmp")
-    except OSError as err:
-        raise InputError(f"cannot write: {err.strerror}", file=path) from None
-    try:
+        fd = -1
+        while fd < 0:
+            tmp = f"{base}{secrets.token_hex(4)}.tmp"
+            try:
+                fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o600)
+            except FileExistsError:
+                continue
+            except OSError as err:
+                tmp = ""  # not made
+                raise InputError(f"cannot write: {err.strerror}", file=path) from None
         try:
             with os.fdopen(fd, "wb") as f:
                 yield f
@@ -136,20 +131,56 @@ def atomic_output(path: str) -> Iterator[IO[bytes]]:
             if err.errno not in WRITE_ERRORS:
                 raise
             raise InputError(f"cannot write: {err.strerror}", file=path) from None
-        if os.path.exists(path):
-            os.chmod(tmp, os.stat(path).st_mode & 0o777)
-        else:
-            umask = os.umask(0)
-            os.umask(umask)
-            os.chmod(tmp, 0o666 & ~umask)
-        try:
-            os.replace(tmp, path)
-        except OSError as err:  # the name's, not the temporary file's
-            raise InputError(f"cannot write: {err.strerror}", file=path) from None
+        _publish(tmp, path)
     except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
+        if tmp:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
         raise
+
+
+def _stream_for(path: str) -> contextlib.AbstractContextManager[IO[bytes]] | None:
+    """What ``path`` is written into as it is (stdout, another open stream, a device or a pipe),
+    or None for a file to replace."""
+    if path == "-" or path in ("/dev/stdout", "/dev/fd/1", "/proc/self/fd/1"):  # the same stream
+        if getattr(sys.stdout, "closed_by_caller", False):  # `>&-`: the data would go nowhere
+            raise InputError("is closed: the output has nowhere to go", file="<stdout>", hint="give -o FILE")
+        return _stdout()
+    if re.fullmatch(r"/dev/(?:stderr|fd/\d+)|/proc/self/fd/\d+", path):  # another open stream: append
+        return _opened(path, "ab")  # ("wb" would truncate a file behind it)
+    try:
+        special = not stat.S_ISREG(os.stat(path).st_mode)
+    except OSError:  # not there (or a dangling link): a new file
+        special = False
+    return _opened(path, "wb") if special else None
+
+
+@contextlib.contextmanager
+def _stdout() -> Iterator[IO[bytes]]:
+    with _stream_errors("<stdout>"):
+        yield sys.stdout.buffer
+        sys.stdout.buffer.flush()
+
+
+@contextlib.contextmanager
+def _opened(path: str, mode: str) -> Iterator[IO[bytes]]:
+    with _stream_errors(path), open(path, mode) as stream:
+        yield stream
+
+
+def _publish(tmp: str, path: str) -> None:
+    """The temporary file ``tmp``, whole, renamed over ``path`` with the old file's permissions
+    (a new one's: 0666 less the umask)."""
+    if os.path.exists(path):
+        os.chmod(tmp, os.stat(path).st_mode & 0o777)
+    else:
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+    try:
+        os.replace(tmp, path)
+    except OSError as err:  # the name's, not the temporary file's
+        raise InputError(f"cannot write: {err.strerror}", file=path) from None
 
 
 #: Folders whose stale temporary files this process has already removed.
