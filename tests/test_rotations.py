@@ -287,3 +287,33 @@ def test_hand_turns_from_a_log_of_the_gyroscope_alone_say_so(accel_cal: Path, tm
         "--accel-cal needs a log with both sensors' columns"
     )
     assert hint.startswith("hint: log both sensors")
+
+
+def test_a_clock_that_cannot_carry_the_turns_is_refused(hand_log: Path, accel_cal: Path, tmp_path: Path) -> None:
+    """Time in whole seconds (100 Hz) solved gains 1000x off with a PASS, and verify --log
+    said nothing of a frozen clock or a gap: both now refuse, solve and verify alike."""
+    lines = hand_log.read_text().splitlines()
+    header, rows = lines[0], [ln.split(",") for ln in lines[1:]]
+    coarse, gap = tmp_path / "coarse.csv", tmp_path / "gap.csv"
+    coarse.write_text("\n".join([header, *(",".join([f"{round(float(r[0]))}", *r[1:]]) for r in rows)]) + "\n")
+    half = len(rows) // 2
+    shifted = [",".join([f"{float(r[0]) + (3.0 if k >= half else 0.0):.6f}", *r[1:]]) for k, r in enumerate(rows)]
+    gap.write_text("\n".join([header, *shifted]) + "\n")
+    good = tmp_path / "g.json"
+    assert (
+        run("solve", "--sensor", "gyroscope", "--log", hand_log, "--accel-cal", accel_cal, "-q", "-o", good).code == 0
+    )
+    for log, code, said in (
+        (coarse, 2, "the time column does not advance with the samples (99% of its steps are 0)"),
+        (gap, 3, "spans a gap in time (after data row"),
+    ):
+        solved = run(
+            "solve", "--sensor", "gyroscope", "--log", log, "--accel-cal", accel_cal, "-o", tmp_path / "x.json"
+        )
+        verified = run("verify", "--cal", good, "--accel-cal", accel_cal, "--log", log)
+        for r in (solved, verified):
+            assert r.code == code, r.err
+            assert said in r.err
+        assert not (tmp_path / "x.json").exists()
+    assert run("solve", "--sensor", "gyroscope", "--log", coarse, "--accel-cal", accel_cal, "--rate", "200",
+               "-q", "-o", tmp_path / "rate.json").code == 0  # fmt: skip

@@ -105,6 +105,7 @@ def hand_turns(log: str, options: SolveOptions) -> HandTurns:
             file=gyr.layout.name,
         )
     kept = sorted(seg.kept, key=lambda b: b.first)
+    _clock_integrates(seg, kept, gyr, options.rate)
     dt = seconds_per_sample(gyr, options.rate)
     still = np.concatenate([gyr.values[b.first : b.last + 1] for b in kept]) if kept else np.zeros((0, 3))
     bias = still.mean(axis=0) if len(still) else np.zeros(3)
@@ -115,6 +116,33 @@ def hand_turns(log: str, options: SolveOptions) -> HandTurns:
     ]
     names = [f"block {a.number} to {b.number}" for a, b in itertools.pairwise(kept)]
     return HandTurns(acc, gyr, kept, rots, still, bias, names)
+
+
+def _clock_integrates(seg: Any, kept: list[Any], gyr: Log, rate: float | None) -> None:
+    """The log's clock can carry the integration of its turns: one that does not advance with
+    the samples (whole seconds at 100 Hz) gave gains 1000x off with a PASS; a gap in a turn
+    leaves the turn's samples out (exit 2 and 3, for solve and verify alike)."""
+    from tumblecal_cli.pipeline import logs
+
+    if rate is not None:
+        return
+    if logs.coarse_clock(seg):
+        raise InputError(
+            f"the time column does not advance with the samples ({seg.zero_steps:.0%} of its steps are 0): "
+            "the turns cannot be integrated from it",
+            file=gyr.layout.name,
+            hint="give the sample rate: --rate HZ",
+        )
+    for a, b in itertools.pairwise(kept):
+        inside = [g for g in seg.gaps if a.last < g <= b.first]
+        if inside:
+            raise CaptureRejected(
+                f"the turn from block {a.number} to block {b.number} spans a gap in time (after data row "
+                f"{int(gyr.rows[inside[0] - 1])}): its samples are not all there to integrate",
+                file=gyr.layout.name,
+                hint="log without gaps, or leave that turn out: cut the log at the gap",
+                code="rotations.gap",
+            )
 
 
 def from_log(log: str, options: SolveOptions, given: Settings) -> Outcome:
