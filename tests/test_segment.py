@@ -1063,3 +1063,22 @@ def test_a_full_temporary_folder_is_named_not_stdout(
         "hint: set TMPDIR to a folder with room for the log",
     ]
     assert list(tmp_path.iterdir()) == []  # its temporary file removed
+
+
+@pytest.mark.parametrize(("column", "role"), [("acc_x", "one of the accelerometer columns"), ("t", "the time column")])
+def test_a_pose_column_that_is_a_sensor_or_the_time_column(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], column: str, role: str
+) -> None:
+    """It was 'internal error: KeyError: Field "3" exists 2 times in schema'."""
+    plain = gzip.decompress((ROOT / "tests" / "data" / "logs" / "imucal_annotated_session.csv.gz").read_bytes())
+    lines = plain.decode().splitlines()
+    log = tmp_path / "ann.csv"
+    log.write_text("\n".join([f"t,{lines[0]}", *(f"{k / 204.8:.4f},{ln}" for k, ln in enumerate(lines[1:]))]) + "\n")
+    commands: list[list[str | Path]] = [
+        ["segment", "-q", log],
+        ["solve", "-q", "--log", log, "-o", tmp_path / "c.json"],
+    ]
+    for command in commands:
+        r = run(capsys, *command, "--pose-column", column)
+        assert r.code == 2
+        assert r.err.splitlines()[0] == f"error: {log}: --pose-column names '{column}', {role}"

@@ -434,9 +434,19 @@ def open_capture(
             layout.temperature = _column(layout, temperature_column, "--temperature-column")
         else:
             layout.temperature = next((i for i, n in enumerate(lower) if n in TEMPERATURE_NAMES), None)
+        _no_column_twice(layout, sensor, columns, prefer, time_column, temperature_column)
         if extra is not None:
             layout.extra = _column(layout, extra, "column")
-        _no_column_twice(layout, sensor, columns, prefer, time_column, temperature_column)
+            taken = {i: f"one of the {sensor} columns" for i in layout.sensor}
+            for role, index in (("time", layout.time), ("temperature", layout.temperature)):
+                if index is not None:
+                    taken[index] = f"the {role} column"
+            if layout.extra in taken:  # it would be read twice: as labels and as numbers
+                raise InputError(
+                    f"--pose-column names {layout.names[layout.extra]!r}, {taken[layout.extra]}",
+                    file=name,
+                    hint=f"name the column of pose labels (columns: {', '.join(layout.names)})",
+                )
     except InputError:
         if f is not sys.stdin.buffer:
             f.close()
