@@ -4,6 +4,7 @@ test is named for the defect it pins, and failed on the main branch before its f
 from __future__ import annotations
 
 import csv
+import gzip
 import json
 import subprocess
 from pathlib import Path
@@ -707,3 +708,27 @@ def test_show_onto_a_full_disk_names_stdout() -> None:
         )
     assert done.returncode == 2
     assert done.stderr.decode().splitlines() == ["error: <stdout>: cannot write: No space left on device"]
+
+
+def test_a_sweep_below_absolute_zero(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """400 °C taken off every temperature was fitted, exit 0."""
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "-q", "-p", *POSES_3, "-o", cal).code == 0
+    rows = (THERMAL / "sweep_up_zp.csv").read_text().splitlines()
+    cold = tmp_path / "cold.csv"
+    cells = [r.split(",") for r in rows[1:]]
+    cold.write_text("\n".join([rows[0], *(",".join([c[0], f"{float(c[1]) - 400:.2f}", *c[2:]]) for c in cells)]) + "\n")
+    r = run(capsys, "thermal", f"+z={cold}", "--cal", cal, "--reference-temperature", "25", "-o", tmp_path / "t.json")
+    assert r.code == 2
+    assert r.err.splitlines()[0].startswith(f"error: {cold}: a temperature of -4")
+    assert "°C is none a sensor is swept through (-273.15 to 1000)" in r.err
+
+
+def test_a_pose_map_that_gives_a_label_two_faces(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The last one was kept, and the run went on to exit 3."""
+    log = tmp_path / "session.csv"
+    log.write_bytes(
+        gzip.decompress((ROOT / "tests" / "data" / "logs" / "imucal_annotated_session.csv.gz").read_bytes())
+    )
+    r = run(capsys, "segment", log, "--pose-column", "part", "--pose-map", "x_p=+x,x_p=-x")
+    assert (r.code, r.err.splitlines()[0]) == (2, "error: --pose-map gives label 'x_p' twice: +x and -x")

@@ -1000,6 +1000,8 @@ def test_verify_in_other_units_than_the_calibration_is_a_units_mistake(
     g_cal = tmp_path / "g.json"
     assert run(capsys, "solve", "-q", "-p", *six_faces(tmp_path).values(), "-o", g_cal).code == 0
     assert run(capsys, "verify", "--cal", g_cal, capture, "--reference", "1.4").code == 2
+    zero = run(capsys, "verify", "--cal", g_cal, capture, "--reference", "0")  # it judged errors of +1, exit 0
+    assert (zero.code, zero.err.splitlines()[0]) == (2, "error: --reference must be a positive number, got 0")
 
 
 def test_verify_missing_capture(acc_cal: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

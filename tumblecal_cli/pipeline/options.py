@@ -326,9 +326,12 @@ def pose_map(value: str | Mapping[str, str] | None, option: str = "--pose-map") 
                 pairs = "LABEL=AXIS pairs, e.g. x_rot=+x,y_rot=+y"
             raise InputError(f"{option} {item!r}: write {pairs}")
         try:
-            out[label.strip()] = model.parse_face(name)
+            face = model.parse_face(name)
         except ValueError as err:
             raise InputError(f"{option} {item}: {err}") from None
+        if out.get(label.strip(), face) != face:  # which would it be?
+            raise InputError(f"{option} gives label {label.strip()!r} twice: {out[label.strip()]} and {face}")
+        out[label.strip()] = face
     return out
 
 

@@ -25,8 +25,8 @@ if TYPE_CHECKING:
 
 #: The default of --min-swing (°C): the swing order 1 needs.
 MIN_SWING = 10.0
-#: A temperature beyond this (°C, either sign) is no sweep's: a wrong column, or a broken cell.
-HOTTEST = 1000.0
+#: A temperature outside these (°C) is no sweep's: a wrong column, a broken cell, kelvin read as °C.
+COLDEST, HOTTEST = -273.15, 1000.0
 #: A sweep whose trend moves less than this share of its readings' scatter is noise, not a sweep.
 NOISE_SHARE = 0.5
 
@@ -204,10 +204,10 @@ def _read(
         finite = temp[np.isfinite(temp)]
         if finite.size == 0:
             raise InputError("the temperature column holds no numbers", file=log.layout.name)
-        hottest = float(np.abs(finite).max())
-        if hottest > HOTTEST:
+        worst = float(finite.max() if finite.max() > HOTTEST else finite.min())
+        if not COLDEST <= worst <= HOTTEST:
             raise InputError(
-                f"a temperature of {hottest:.3g} °C is none a sensor is swept through (|°C| <= {HOTTEST:g})",
+                f"a temperature of {worst:.5g} °C is none a sensor is swept through ({COLDEST:g} to {HOTTEST:g})",
                 file=log.layout.name,
                 hint="is --temperature-column the temperature, in °C?",
             )

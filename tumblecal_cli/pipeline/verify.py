@@ -74,8 +74,10 @@ def verify(
         raise InputError("only one file can be read from stdin ('-')")
     c = calfile.resolve(cal)
     ref = c.reference if reference is None else reference
-    if not math.isfinite(ref) or ref < 0:
-        raise InputError(f"--reference must be a positive number, got {ref:g}")
+    if not math.isfinite(ref) or ref < 0 or (ref == 0 and c.sensor != "gyroscope"):
+        raise InputError(
+            f"--reference must be a positive number, got {ref:g}", hint="0 only for a gyroscope's calibration"
+        )
     if max_norm_error is not None and not max_norm_error > 0:
         raise InputError(f"--max-norm-error must be positive, got {max_norm_error:g}")
     picked = (columns.split(",") if isinstance(columns, str) else list(columns)) if columns else None
