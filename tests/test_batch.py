@@ -660,6 +660,16 @@ def test_batch_manifest_unlabelled_columns(tmp_path: Path, capsys: pytest.Captur
         pytest.param(
             "serial,x,y,z\n../A,data/x.csv\n", "serial '../A' cannot name a file (line 2, column 1)", id="bad-serial"
         ),
+        pytest.param(  # a raw NUL went to stderr on the unit's line
+            "serial,x,y,z\nSN\x001,data/x.csv\n",
+            "serial 'SN\\x001' holds a control character (line 2, column 1)",
+            id="control-character",
+        ),
+        pytest.param(  # 'File name too long', and a hint to run it again with --resume
+            "serial,x,y,z\n" + "A" * 300 + ",data/x.csv\n",
+            "serial of 300 bytes: a file is named after it (at most 200) (line 2, column 1)",
+            id="long-serial",
+        ),
     ],
 )
 def test_batch_bad_manifest_is_exit_2_before_any_unit(

@@ -224,7 +224,7 @@ def test_c_header_compiles_cleanly_and_corrects(tmp_path: Path, capsys: pytest.C
     (accelerometer and magnetometer) and reproduces tumblecal's correction to float precision."""
     rng = np.random.default_rng(11)
     offset, m = random_cal(rng)
-    cal = write_cal(tmp_path / "cal.json", offset, m, serial="SN */ 42\nx")  # a serial that tries to end the comment
+    cal = write_cal(tmp_path / "cal.json", offset, m, serial="SN */ 42 x")  # a serial that tries to end the comment
     mag = write_cal(tmp_path / "mag.json", [0.1, 0.2, 0.3], np.eye(3), method="ellipsoid", sensor="magnetometer")
     assert run(capsys, "export", str(cal), "--format", "c-header", "-o", str(tmp_path / "accel.h"))[0] == 0
     assert run(capsys, "export", str(mag), "-f", "c-header", "-o", str(tmp_path / "mag.h"))[0] == 0

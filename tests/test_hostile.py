@@ -732,3 +732,16 @@ def test_a_pose_map_that_gives_a_label_two_faces(tmp_path: Path, capsys: pytest.
     )
     r = run(capsys, "segment", log, "--pose-column", "part", "--pose-map", "x_p=+x,x_p=-x")
     assert (r.code, r.err.splitlines()[0]) == (2, "error: --pose-map gives label 'x_p' twice: +x and -x")
+
+
+def test_a_calibration_whose_serial_holds_a_line_break(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """show and report printed it across lines, export wrote it out, import then named --serial."""
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "-q", "-p", *POSES_3, "-o", cal).code == 0
+    doc = json.loads(cal.read_text())
+    doc["unit"] = {"serial": "A1\r\nSM: [1]"}
+    cal.write_text(json.dumps(doc))
+    for command in (["show", cal], ["report", cal], ["export", cal, "-f", "ros-yaml", "-o", tmp_path / "r.yaml"]):
+        r = run(capsys, *command)
+        assert r.code == 2
+        assert f"error: {cal}: field 'unit.serial' holds a control character: 'A1\\r\\nSM: [1]'" in r.err.splitlines()

@@ -73,3 +73,12 @@ class Interrupted(BaseException):
     of a unit's or a file's errors takes it for one of theirs; the CLI's boundary reports it."""
 
     exit_code = 130
+
+
+#: Characters that end a line for a terminal or for str.splitlines, and the rest of C0: escaped.
+_BREAKS = {c: repr(chr(c))[1:-1] for c in [*range(32), 127, 0x85, 0x2028, 0x2029] if chr(c) != "\t"}
+
+
+def one_line(text: str) -> str:
+    """``text`` as one line: a file or column name holding a line break (or a NUL) shown escaped."""
+    return text.translate(_BREAKS)

@@ -20,7 +20,7 @@ import typer
 from typer.core import TyperCommand
 
 from tumblecal_cli.cli.options import EXIT_CODES
-from tumblecal_cli.errors import Interrupted, PipeClosed, TumblecalError
+from tumblecal_cli.errors import Interrupted, PipeClosed, TumblecalError, one_line
 from tumblecal_cli.version import __version__
 
 # The solvers' matrices are 3x3 to 12x12: BLAS threads only cost start-up and spin (see core.model.apply).
@@ -283,14 +283,6 @@ def report(message: str, hint: str | None, more: tuple[str, ...] = ()) -> None:
             print(f"error: {one_line(line)}", file=sys.stderr)
         if hint:
             print(f"hint: {one_line(hint)}", file=sys.stderr)
-
-
-#: Characters that end a line for a terminal or for str.splitlines, and the rest of C0: escaped.
-_BREAKS = {c: repr(chr(c))[1:-1] for c in [*range(32), 127, 0x85, 0x2028, 0x2029] if chr(c) != "\t"}
-
-
-def one_line(text: str) -> str:
-    return text.translate(_BREAKS)
 
 
 def _closed_streams() -> None:

@@ -516,8 +516,10 @@ def print_unit(row: dict[str, Any], out_dir: str, console: Console, *, quiet: bo
     messages = row.get("messages") or [row.get("message") or ""]
     if len(messages) == 1 and not row.get("file"):
         head, messages = f"{head}: {messages[0]}", []
+    from tumblecal_cli.errors import one_line  # a serial or a message with a control character: escaped
+
     for line in [head, *(f"  {m}" for m in messages if not row.get("file"))]:
-        console.print(line, soft_wrap=True, markup=False, highlight=False)
+        console.print(one_line(line), soft_wrap=True, markup=False, highlight=False)
 
 
 def thermal_doc(done: Any) -> dict[str, Any]:

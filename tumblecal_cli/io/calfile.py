@@ -653,6 +653,10 @@ def _nested_fields(doc: Mapping[str, Any], path: str) -> None:
         raise InputError("field 'unit' must be an object (serial, station, operator, meta)", file=path)
     if not isinstance((unit or {}).get("meta") or {}, dict):
         raise InputError("field 'unit.meta' must be an object (KEY: VALUE)", file=path)
+    for key in ("serial", "station", "operator"):  # one line each: a line break would split report's lines
+        value = (unit or {}).get(key)
+        if isinstance(value, str) and any(ord(ch) < 32 or ord(ch) == 127 for ch in value):
+            raise InputError(f"field 'unit.{key}' holds a control character: {value!r}", file=path)
     poses = doc.get("poses")
     if poses is not None:
         if not isinstance(poses, list):

@@ -199,6 +199,15 @@ def _manifest_units(path: str, *, log: bool) -> tuple[list[Unit], list[str]]:
         serial = row[0].strip()
         if not serial or "/" in serial or "\\" in serial or serial.startswith("."):
             raise InputError(f"serial {serial!r} cannot name a file", file=path, line=n, column=1)
+        if any(ord(ch) < 32 or ord(ch) == 127 for ch in serial):  # it would split a summary row or a line
+            raise InputError(f"serial {serial!r} holds a control character", file=path, line=n, column=1)
+        if len(serial.encode()) > LONGEST_SERIAL:  # the calibration is named after it
+            raise InputError(
+                f"serial of {len(serial.encode())} bytes: a file is named after it (at most {LONGEST_SERIAL})",
+                file=path,
+                line=n,
+                column=1,
+            )
         if serial in where:
             raise InputError(f"serial {serial} is also on line {where[serial]}", file=path, line=n, column=1)
         where[serial] = n
@@ -624,6 +633,10 @@ def status(rows: Iterable[dict[str, Any]]) -> int:
 
 
 # -- where the work runs -----------------------------------------------------------------------
+
+
+#: The longest serial, in bytes: the calibration is named SERIAL_STAMP.json (a file name: 255).
+LONGEST_SERIAL = 200
 
 
 #: Runs ``fn(*args)`` for each args; yields (args, result) as they finish (on a cluster the

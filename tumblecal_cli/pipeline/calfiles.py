@@ -249,6 +249,8 @@ def import_peer(
         picked = list("xyz")
     else:
         picked = [f"{'gyr' if peer.sensor == 'gyroscope' else 'acc'}_{a}" for a in "xyz"]
+    if serial is None and peer.serial is not None and any(ord(ch) < 32 or ord(ch) == 127 for ch in peer.serial):
+        raise InputError(f"its serial holds a control character: {peer.serial!r}", file=path, hint="give --serial")
     who = unit_block(
         serial if serial is not None else peer.serial, peer.was.get("station"), peer.was.get("operator"), []
     )
