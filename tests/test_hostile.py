@@ -741,7 +741,12 @@ def test_a_calibration_whose_serial_holds_a_line_break(tmp_path: Path, capsys: p
     doc = json.loads(cal.read_text())
     doc["unit"] = {"serial": "A1\r\nSM: [1]"}
     cal.write_text(json.dumps(doc))
-    for command in (["show", cal], ["report", cal], ["export", cal, "-f", "ros-yaml", "-o", tmp_path / "r.yaml"]):
+    commands: list[list[str | Path]] = [
+        ["show", cal],
+        ["report", cal],
+        ["export", cal, "-f", "ros-yaml", "-o", tmp_path / "r.yaml"],
+    ]
+    for command in commands:
         r = run(capsys, *command)
         assert r.code == 2
         assert f"error: {cal}: field 'unit.serial' holds a control character: 'A1\\r\\nSM: [1]'" in r.err.splitlines()
