@@ -750,3 +750,31 @@ def test_a_calibration_whose_serial_holds_a_line_break(tmp_path: Path, capsys: p
         r = run(capsys, *command)
         assert r.code == 2
         assert f"error: {cal}: field 'unit.serial' holds a control character: 'A1\\r\\nSM: [1]'" in r.err.splitlines()
+
+
+def test_a_still_capture_that_never_changes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """noise printed RuntimeWarnings (log of 0) and a bias instability of '0±nan'."""
+    capture = tmp_path / "constant.csv"
+    capture.write_text("x,y,z\n" + "1,2,3\n" * 5000)
+    r = run(capsys, "noise", capture, "--rate", "100")
+    assert r.code == 0, r.err
+    assert "nan" not in r.err
+    assert "bias instability: xyz not determined (the readings do not change: no noise to measure)" in r.err
+
+
+def test_a_matrix_that_maps_one_axis_onto_another(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A with a 0 on its diagonal (x and y swapped): RuntimeWarnings in show, report and check,
+    and check's cross-axis limit passed it (0 / 0 is NaN, and NaN is not over any limit)."""
+    cal = tmp_path / "cal.json"
+    faces = [SAMPLE / f"{n}.csv" for n in ("x", "xn", "y", "yn", "z", "zn")]
+    assert run(capsys, "solve", "-q", "-p", *faces, "-m", "six-pose", "-o", cal).code == 0  # cross-axis terms
+    doc = json.loads(cal.read_text())
+    doc["matrix"] = [[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
+    cal.write_text(json.dumps(doc))
+    limits = tmp_path / "limits.yaml"
+    limits.write_text("cross_axis: 0.01\n")
+    assert run(capsys, "show", cal).code == 0
+    assert run(capsys, "report", cal).code == 0
+    r = run(capsys, "check", cal, "--limits", limits)
+    assert r.code == 1
+    assert "limit.cross.xy: cross-axis term xy is +inf%" in r.err

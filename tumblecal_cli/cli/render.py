@@ -158,9 +158,11 @@ def print_summary(cal: Calibration, console: Console, warned: list[Finding], not
     if any(matrix[i][j] for i in range(3) for j in range(3) if i != j):
         import numpy as np
 
+        from tumblecal_cli.core.gate import cross_term
+
         a = np.linalg.inv(np.array(matrix, dtype=float))
         terms = ", ".join(
-            f"{'xyz'[i]}{'xyz'[j]} {a[i, j] / a[i, i]:+.3%}" for i in range(3) for j in range(3) if i != j
+            f"{'xyz'[i]}{'xyz'[j]} {cross_term(a, i, j):+.3%}" for i in range(3) for j in range(3) if i != j
         )
         console.print(f"cross-axis terms (A = M⁻¹, each over its row's gain): {terms}", soft_wrap=True)
     if doc.get("coverage") is not None:

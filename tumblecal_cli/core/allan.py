@@ -359,7 +359,7 @@ class _Axis:
 
     def runs(self, slope: float) -> list[tuple[int, int]]:
         """Runs (first, last point, inclusive) of consecutive segments within SLOPE_TOLERANCE of ``slope``."""
-        if self.tau.size < 2:
+        if self.tau.size < 2 or not (self.adev > 0).all():  # readings that do not change: no slope to read
             return []
         span = np.diff(np.log(self.tau))
         seg = np.diff(np.log(self.adev)) / span
@@ -405,6 +405,8 @@ class _Axis:
         if self.tau.size < 3:
             return Figure(None, None, None, "too few points")
         k = int(np.argmin(self.adev))
+        if not self.adev[k] > 0:
+            return Figure(None, None, None, "the readings do not change: no noise to measure")
         last = self.tau.size - 1
         if k == last:
             return Figure(None, None, None, "the curve is still falling at its longest cluster time")

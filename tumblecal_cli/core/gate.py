@@ -473,7 +473,7 @@ def verdict(
     if limits.cross_axis is not None and np.count_nonzero(matrix - np.diag(np.diag(matrix))):
         for i in range(3):
             for j in range(3):
-                ratio = a[i, j] / a[i, i]
+                ratio = cross_term(a, i, j)
                 if i != j and abs(ratio) > limits.cross_axis:
                     failures.append(
                         Finding(
@@ -554,3 +554,9 @@ def _vec(v: FloatArray) -> str:
 
 def _num(value: float) -> float | int:
     return int(value) if float(value).is_integer() and abs(value) < 2**53 else float(value)
+
+
+def cross_term(a: Any, i: int, j: int) -> float:
+    """A[i, j] / A[i, i], the cross-axis term; infinite where A[i, i] is 0 (a matrix that maps
+    another axis onto axis i: no limit passes it)."""
+    return float(a[i, j]) / float(a[i, i]) if a[i, i] else math.inf

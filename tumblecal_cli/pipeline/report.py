@@ -93,7 +93,7 @@ def entry(cal: calfile.Calibration) -> lot.Entry:
     if np.count_nonzero(cal.matrix - np.diag(np.diag(cal.matrix))):  # as gate.verdict: M has cross terms
         for i, row in enumerate(lot.AXES):
             for j, col in enumerate(lot.AXES):
-                if i != j:
+                if i != j and a[i, i]:  # (A[i, i] 0: a matrix that maps another axis onto this one, no term)
                     values[f"cross.{row}{col}"] = float(a[i, j] / a[i, i])
     serial = cal.serial
     imported = cal.fields.get("imported")
