@@ -356,6 +356,8 @@ def test_kalibr_in_si_from_a_gyroscope_in_degrees(tmp_path: Path, capsys: pytest
     assert model["gyroscope_noise_density"] == pytest.approx(worst / 60 * math.pi / 180)
     assert model["gyroscope_noise_density"] == pytest.approx(0.01 * math.pi / 180, rel=0.05)
     assert model["gyroscope_random_walk"] == pytest.approx(0.01 * math.pi / 180, rel=0.5)
+    devnull = run(capsys, "noise", path, "--cal", cal, "--kalibr", "/dev/null", "-q")  # was 'empty Kalibr imu.yaml'
+    assert devnull.code == 0, devnull.err
 
 
 def test_kalibr_needs_known_units_and_a_shown_random_walk(

@@ -389,7 +389,7 @@ def write_kalibr(path: str, result: Noise) -> dict[str, Any]:
 
     model = result.kalibr()
     doc: dict[str, Any] = {}
-    if os.path.exists(path):
+    if os.path.isfile(path):  # a file's keys are kept; a device or a pipe (/dev/null, -) is written into
         doc = calfile.parse_object(calfile.read_bytes(path, "Kalibr imu.yaml"), path, "Kalibr imu.yaml", as_yaml=True)
     old_rate = doc.get("update_rate")
     if isinstance(old_rate, int | float) and abs(float(old_rate) - result.rate) > 1e-6 * result.rate:
