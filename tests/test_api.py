@@ -283,3 +283,10 @@ def test_a_calibration_built_by_hand_applies() -> None:
     offset, matrix, gain = [1, 0, 0], np.eye(3).tolist(), [1, 1, 1]  # lists, as a hand-written script has them
     cal = tumblecal.Calibration("accelerometer", "three-pose", 1.0, ["x", "y", "z"], offset, matrix, gain)  # type: ignore[arg-type]
     np.testing.assert_array_equal(cal.apply(np.array([[2.0, 1.0, 0.0]])), [[1.0, 1.0, 0.0]])
+
+
+def test_saving_onto_a_folder_is_an_input_error(tmp_path: Path) -> None:
+    """It was IsADirectoryError from inside the writer."""
+    cal = tumblecal.load(str(SAMPLE / "lot" / "SN0001_20261121T090000Z.json"))
+    with pytest.raises(tumblecal.InputError, match="is a folder: an output is a file name"):
+        cal.save(str(tmp_path))

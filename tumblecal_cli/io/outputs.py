@@ -149,10 +149,12 @@ def _stream_for(path: str) -> contextlib.AbstractContextManager[IO[bytes]] | Non
     if re.fullmatch(r"/dev/(?:stderr|fd/\d+)|/proc/self/fd/\d+", path):  # another open stream: append
         return _opened(path, "ab")  # ("wb" would truncate a file behind it)
     try:
-        special = not stat.S_ISREG(os.stat(path).st_mode)
+        mode = os.stat(path).st_mode
     except OSError:  # not there (or a dangling link): a new file
-        special = False
-    return _opened(path, "wb") if special else None
+        return None
+    if stat.S_ISDIR(mode):
+        raise InputError("is a folder: an output is a file name", file=path)
+    return None if stat.S_ISREG(mode) else _opened(path, "wb")
 
 
 @contextlib.contextmanager
