@@ -1350,3 +1350,18 @@ def test_duplicates_are_by_content_across_serials() -> None:
     )
     assert [(d.sha256, d.uses) for d in found] == [("h2", (("B", "b/x.csv"), ("C", "c/x.csv")))]
     assert lot.duplicate_of(found) == {"B": ["C"], "C": ["B"]}
+
+
+def test_a_serial_of_200_bytes_and_an_output_name_of_250(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The longest serial the manifest takes, and a plain -o name near the file system's 255
+    bytes, failed 'File name too long': the temporary file's name added its own ~40 bytes."""
+    src = units(tmp_path / "units", {"A": "good"})
+    files = ",".join(str(src / "A" / f"{n}.csv") for n in "xyz")
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f"serial,x,y,z\n{'S' * 200},{files}\n")
+    r = run(capsys, "batch", manifest, "--out-dir", tmp_path / "out", "-q")
+    assert r.code == 0, r.err
+    assert any(p.name.startswith("S" * 200) for p in (tmp_path / "out").iterdir())
+    named = tmp_path / f"{'L' * 250}.json"
+    assert run(capsys, "solve", "-q", "-p", *(src / "A" / f"{n}.csv" for n in "xyz"), "-o", named).code == 0
+    assert named.exists()

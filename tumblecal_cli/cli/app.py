@@ -312,12 +312,18 @@ def main_exit() -> None:
     _closed_streams()
     try:
         status = main()
+    except (KeyboardInterrupt, Interrupted):  # a second stop while the first was being told
+        status = 130
     except Exception as err:  # only --debug lets one through: its traceback, and the status all the same
         import traceback
 
         with contextlib.suppress(OSError):
             traceback.print_exc()
         status = err.exit_code if isinstance(err, TumblecalError) else 2
+    import signal
+
+    for stop in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):  # the work is done: no traceback in the exit
+        signal.signal(stop, signal.SIG_IGN)
     if "multiprocessing" in sys.modules:  # batch --jobs: the exit work of its pool's module (the
         from multiprocessing import util  # forkserver's folder in $TMPDIR, left behind otherwise)
 

@@ -144,16 +144,21 @@ class _Pool:
         self.ring = [os.pipe() for _ in range(workers)]  # ring[i]: worker i -> worker i + 1
 
     def start(self, i: int, serve: Callable[[int, int, int], None]) -> None:
-        report_r, report_w = os.pipe()
         # a stop that lands in fork() is raised in its at-fork hooks, where Python drops it (the
-        # run went on to exit 0): held until the worker is on the books, then acted on
-        held = signal.pthread_sigmask(signal.SIG_BLOCK, STOPS)
+        # run went on to exit 0): held until the worker is on the books, then acted on. The mask
+        # is read first (a stop can be raised by the call that blocks): whatever stops this, the
+        # caller's mask is put back and the pipes closed
+        held = signal.pthread_sigmask(signal.SIG_BLOCK, ())
+        report_r = report_w = -1
         try:
+            report_r, report_w = os.pipe()
+            signal.pthread_sigmask(signal.SIG_BLOCK, STOPS)
             pid = os.fork()
-        except OSError:
+        except BaseException:
             signal.pthread_sigmask(signal.SIG_SETMASK, held)
-            os.close(report_r)
-            os.close(report_w)
+            for fd in (report_r, report_w):
+                if fd >= 0:
+                    os.close(fd)
             raise
         if pid == 0:  # the worker: it never returns from here
             status = 1

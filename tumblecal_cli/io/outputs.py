@@ -112,13 +112,14 @@ def atomic_output(path: str) -> Iterator[IO[bytes]]:
         remove_stale(folder)
     # named before it is made, inside the try that removes it: a stop (Ctrl-C, SIGTERM) that lands
     # as it is made cannot leave it behind (the PID in the name: no other running process's)
-    base, tmp = os.path.join(folder, f".{os.path.basename(path)}.{os.getpid()}-"), ""
+    name = os.path.basename(path).encode()[:SHORTEST].decode(errors="ignore")  # room for the rest: 255 bytes
+    base, tmp = os.path.join(folder, f".{name}.{os.getpid()}-"), ""
     try:
         fd = -1
         while fd < 0:
             tmp = f"{base}{secrets.token_hex(4)}.tmp"
             try:
-                fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o600)
+                fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666)  # less the umask
             except FileExistsError:
                 continue
             except OSError as err:
@@ -172,18 +173,18 @@ def _opened(path: str, mode: str) -> Iterator[IO[bytes]]:
 
 def _publish(tmp: str, path: str) -> None:
     """The temporary file ``tmp``, whole, renamed over ``path`` with the old file's permissions
-    (a new one's: 0666 less the umask)."""
+    (a new one keeps its own: 0666 less the umask, as it was made)."""
     if os.path.exists(path):
         os.chmod(tmp, os.stat(path).st_mode & 0o777)
-    else:
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
     try:
         os.replace(tmp, path)
     except OSError as err:  # the name's, not the temporary file's
         raise InputError(f"cannot write: {err.strerror}", file=path) from None
 
+
+#: The bytes of an output's name its temporary file's name keeps (a name of 255 bytes is allowed,
+#: and the temporary file's adds its own 20).
+SHORTEST = 100
 
 #: Folders whose stale temporary files this process has already removed.
 _SWEPT: set[str] = set()
