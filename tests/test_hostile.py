@@ -411,7 +411,9 @@ def test_batch_workers_exit_when_the_batch_is_killed(tmp_path: Path) -> None:
     for k in range(60):
         unit(src, f"U{k:03d}", "good")
     mark = uuid.uuid4().hex
-    env = {**os.environ, "TUMBLECAL_TEST_MARK": mark}
+    scratch = tmp_path / "tmp"  # the pool's own folder, which no one can remove after a kill -9: not /tmp's
+    scratch.mkdir()
+    env = {**os.environ, "TUMBLECAL_TEST_MARK": mark, "TMPDIR": str(scratch)}
 
     def ours() -> list[int]:
         found = []
