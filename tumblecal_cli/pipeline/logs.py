@@ -9,6 +9,7 @@ import io
 import math
 import os
 import re
+import secrets
 import shutil
 import sys
 import tempfile
@@ -82,9 +83,7 @@ def segmented(
         raise InputError(f"--threshold must be a number from 0 up, got {settings.threshold:g}")
     if rate is not None and not 0 < rate <= FASTEST:
         raise InputError(f"--rate must be a positive number of Hz up to {FASTEST:g}, got {rate:g}")
-    spooled = log == "-" or not captures.is_regular(log)  # a pipe or FIFO is read once: kept for a second read
-    path = spool_stdin(None if log == "-" else log) if spooled else log
-    try:
+    with read_twice(log) as path:  # a pipe or FIFO is read once: kept for a second read
         if pose_column is None and not whole:  # block by block, the still periods kept (io.logread)
             from tumblecal_cli.io import logread
 
@@ -120,9 +119,6 @@ def segmented(
         )
         model.in_range(data.values, data.layout.name)
         yield path, data, find_blocks(data, rate, pose_column, pose_map, settings)
-    finally:
-        if spooled:
-            os.unlink(path)
 
 
 #: More time steps of 0 than this share, and steps shorter on average than the median one by
@@ -407,29 +403,37 @@ def index_rows(log: Log, seg: Segmentation, files: dict[int, str]) -> list[list[
     return rows
 
 
-def spool_stdin(source: str | None = None) -> str:
-    """stdin (or the pipe ``source``) copied to a temporary file (a log is read twice: to find the
-    blocks, then to copy them)."""
+@contextlib.contextmanager
+def read_twice(log: str) -> Iterator[str]:
+    """The log as a file to read twice (to find the blocks, then to copy them): itself when it
+    is a regular file, else (stdin '-', a pipe, a FIFO) a copy in $TMPDIR, removed however the
+    block ends. The copy is named before it is made, inside the try that removes it."""
+    if log != "-" and captures.is_regular(log):
+        yield log
+        return
     folder = tempfile.gettempdir()
     room = "set TMPDIR to a folder with room for the log"
+    tmp = os.path.join(folder, f"tumblecal-{os.getpid()}-{secrets.token_hex(4)}.csv")
     try:
-        tmp = tempfile.NamedTemporaryFile(prefix="tumblecal-", suffix=".csv", delete=False)  # noqa: SIM115
-    except OSError as err:
-        raise InputError(f"cannot make a temporary file: {err.strerror}", file=folder, hint=room) from None
-    try:
-        with tmp:  # (its close writes the last bytes: inside, so a full disk is caught as well)
-            if source is None:
-                shutil.copyfileobj(sys.stdin.buffer, tmp)
-            else:
-                with open(source, "rb") as f:
-                    shutil.copyfileobj(f, tmp)
-    except BaseException as err:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp.name)
-        if isinstance(err, OSError) and err.errno in WRITE_ERRORS:  # the temporary folder's, not stdout's
+        try:
+            out = open(tmp, "xb")  # noqa: SIM115
+        except OSError as err:
+            raise InputError(f"cannot make a temporary file: {err.strerror}", file=folder, hint=room) from None
+        try:
+            with out:  # (its close writes the last bytes: inside, so a full disk is caught as well)
+                if log == "-":
+                    shutil.copyfileobj(sys.stdin.buffer, out)
+                else:
+                    with open(log, "rb") as f:
+                        shutil.copyfileobj(f, out)
+        except OSError as err:
+            if err.errno not in WRITE_ERRORS:  # the temporary folder's, not stdout's
+                raise
             raise InputError(f"cannot keep the log for a second read: {err.strerror}", file=folder, hint=room) from None
-        raise
-    return tmp.name
+        yield tmp
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
 
 
 def earlier_run(out_dir: str) -> tuple[bool, set[str]]:

@@ -6,7 +6,6 @@ which way gravity points (the six faces, and during each turn), the gyroscope's 
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -67,15 +66,10 @@ class Section:
 
 def from_log(log: str, options: SolveOptions, given: Settings) -> Outcome:
     """Read the log's two triplets, take its sections by label, solve and judge the gyroscope."""
-    from tumblecal_cli.pipeline.logs import spool_stdin
+    from tumblecal_cli.pipeline.logs import read_twice
 
-    spooled = log == "-" or not captures.is_regular(log)
-    path = spool_stdin(None if log == "-" else log) if spooled else log
-    try:
+    with read_twice(log) as path:
         acc, gyr = (_read(path, log, options, sensor) for sensor in ("accelerometer", "gyroscope"))
-    finally:
-        if spooled:
-            os.unlink(path)
     if not np.array_equal(acc.rows, gyr.rows):
         raise InputError(
             "the accelerometer and the gyroscope are not read on the same rows (an interleaved log?)",
