@@ -780,3 +780,24 @@ def test_a_matrix_that_maps_one_axis_onto_another(tmp_path: Path, capsys: pytest
     r = run(capsys, "check", cal, "--limits", limits)
     assert r.code == 1
     assert "limit.cross.xy: cross-axis term xy is +inf%" in r.err
+
+
+def test_an_output_that_is_a_symbolic_link_loop(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The link was replaced by a regular file (realpath of a loop is the link itself)."""
+    (tmp_path / "a").symlink_to(tmp_path / "b")
+    (tmp_path / "b").symlink_to(tmp_path / "a")
+    r = run(capsys, "solve", "-q", "-p", *POSES_3, "-o", tmp_path / "a")
+    assert r.code == 2
+    assert r.err.startswith(f"error: {tmp_path / 'a'}: cannot write: Too many levels of symbolic links")
+    assert (tmp_path / "a").is_symlink()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "b"]
+
+
+def test_data_for_a_closed_stderr_is_an_error() -> None:
+    """-o /dev/stderr with stderr closed (2>&-) dropped the calibration, exit 0."""
+    done = subprocess.run(
+        ["sh", "-c", f"'{tumblecal_exe()}' solve -q -p {' '.join(map(str, POSES_3))} -o /dev/stderr 2>&-"],
+        capture_output=True,
+        check=False,
+    )
+    assert (done.returncode, done.stdout) == (2, b"")

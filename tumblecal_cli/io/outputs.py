@@ -103,7 +103,7 @@ def atomic_output(path: str) -> Iterator[IO[bytes]]:
             yield out
         return
     _named(path, "the output")
-    path = os.path.realpath(path) if os.path.islink(path) else path
+    path = _target(path) if os.path.islink(path) else path
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
         raise InputError("the output folder does not exist", file=path, hint=_make_it(folder))
@@ -140,6 +140,17 @@ def atomic_output(path: str) -> Iterator[IO[bytes]]:
         raise
 
 
+def _target(link: str) -> str:
+    """The file a symbolic link names (it is what is replaced: the link stays); a link that
+    loops names none, and is an error rather than replaced by a file."""
+    try:
+        return os.path.realpath(link, strict=True)
+    except FileNotFoundError:  # a dangling link: the file it names is made
+        return os.path.realpath(link)
+    except OSError as err:
+        raise InputError(f"cannot write: {err.strerror} (a symbolic link that loops?)", file=link) from None
+
+
 def _stream_for(path: str) -> contextlib.AbstractContextManager[IO[bytes]] | None:
     """What ``path`` is written into as it is (stdout, another open stream, a device or a pipe),
     or None for a file to replace."""
@@ -147,6 +158,8 @@ def _stream_for(path: str) -> contextlib.AbstractContextManager[IO[bytes]] | Non
         if getattr(sys.stdout, "closed_by_caller", False):  # `>&-`: the data would go nowhere
             raise InputError("is closed: the output has nowhere to go", file="<stdout>", hint="give -o FILE")
         return _stdout()
+    if path in ("/dev/stderr", "/dev/fd/2", "/proc/self/fd/2") and getattr(sys.stderr, "closed_by_caller", False):
+        raise InputError("is closed: the output has nowhere to go", file="<stderr>", hint="give -o FILE")
     if re.fullmatch(r"/dev/(?:stderr|fd/\d+)|/proc/self/fd/\d+", path):  # another open stream: append
         return _opened(path, "ab")  # ("wb" would truncate a file behind it)
     try:
