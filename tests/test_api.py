@@ -5,8 +5,10 @@ gives what ``tumblecal solve`` writes; ``Calibration.apply`` on arrays and DataF
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -290,3 +292,33 @@ def test_saving_onto_a_folder_is_an_input_error(tmp_path: Path) -> None:
     cal = tumblecal.load(str(SAMPLE / "lot" / "SN0001_20261121T090000Z.json"))
     with pytest.raises(tumblecal.InputError, match="is a folder: an output is a file name"):
         cal.save(str(tmp_path))
+
+
+#: Arguments of a kind the signatures do not take (typed Any: a notebook's code is not type-checked).
+NOTHING: Any = None
+A_LIST: Any = [SAMPLE / "x.csv"]
+
+
+@pytest.mark.parametrize(
+    ("call", "said"),
+    [
+        pytest.param(
+            lambda: tumblecal.read_capture(NOTHING), "read_capture reads a capture file, not a NoneType", id="read-none"
+        ),
+        pytest.param(lambda: tumblecal.read_capture(A_LIST), "not a list", id="read-list"),
+        pytest.param(
+            lambda: tumblecal.segment(NOTHING), "segment reads a log file ('-': stdin), not a NoneType", id="segment"
+        ),
+        pytest.param(lambda: tumblecal.import_peer(NOTHING), "import_peer reads a file of another tool", id="import"),
+        pytest.param(lambda: tumblecal.run_batch(str(SAMPLE / "lot.csv"), NOTHING), "writes into a folder", id="batch"),
+        pytest.param(
+            lambda: tumblecal.correct(str(SAMPLE / "capture.csv"), NOTHING, output="-"),
+            "needs a calibration",
+            id="correct",
+        ),
+    ],
+)
+def test_arguments_of_the_wrong_kind_raise_the_family(call: Any, said: str) -> None:
+    """They raised TypeError, AttributeError or ValueError from inside (a DataFrame's truth value)."""
+    with pytest.raises(tumblecal.InputError, match=re.escape(said)):
+        call()

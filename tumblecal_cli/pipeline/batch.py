@@ -803,8 +803,12 @@ def run_batch(
     from concurrent.futures.process import BrokenProcessPool
 
     from tumblecal_cli.io import calfile
-    from tumblecal_cli.pipeline.options import SolveOptions, checked, settings
+    from tumblecal_cli.pipeline.options import SolveOptions, checked, path_of, settings
 
+    source = path_of(source, "run_batch takes a folder of units or a manifest file")
+    out_dir = path_of(out_dir, "run_batch writes into a folder (out_dir)")
+    if options is not None and not isinstance(options, SolveOptions | Mapping):
+        raise InputError(f"run_batch's options are a SolveOptions or a mapping, not a {type(options).__name__}")
     options = checked(options if isinstance(options, SolveOptions) else SolveOptions(**(options or {})))
     if out_dir == "-":
         raise InputError("--out-dir takes a folder: the calibrations are files, not a stream on stdout")

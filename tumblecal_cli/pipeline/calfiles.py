@@ -220,9 +220,9 @@ def import_peer(
 ) -> Imported:
     """An imucal JSON or ROS imu_calib YAML file as a tumblecal Calibration (README "import")."""
     from tumblecal_cli.io import calfile, formats
-    from tumblecal_cli.pipeline.options import unit_block
+    from tumblecal_cli.pipeline.options import path_of, unit_block
 
-    path = os.fspath(path)
+    path = path_of(path, "import_peer reads a file of another tool")
     raw = calfile.read_bytes(path, "calibration file")
     as_yaml = not path.lower().endswith(".json") and raw.lstrip()[:1] != b"{"  # ROS files are YAML, any name
     doc = calfile.parse_object(raw, path, "calibration file", as_yaml=as_yaml)

@@ -12,7 +12,7 @@ import os
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from functools import partial
-from typing import IO, TYPE_CHECKING
+from typing import IO, TYPE_CHECKING, Any
 
 from tumblecal_cli.errors import InputError, TumblecalError
 
@@ -54,8 +54,7 @@ def correct(
     from tumblecal_cli.pipeline.options import path_of
 
     capture = path_of(capture, "correct streams a capture file (data in memory: Calibration.apply)")
-    given = [cal] if isinstance(cal, str | os.PathLike | calfile.Calibration) else list(cal)
-    paths = [c if isinstance(c, calfile.Calibration) else os.fspath(c) for c in given]
+    paths = _calibrations(cal)
     if "-" in paths and capture == "-":
         raise InputError("--cal - and the capture cannot both be read from stdin", hint="give the capture as a file")
     if paths.count("-") > 1:
@@ -130,6 +129,17 @@ def expand(patterns: list[str]) -> list[str]:
             raise InputError(f"no file matches {pattern}")
         out += found
     return out
+
+
+def _calibrations(cal: object) -> list[Any]:
+    """``cal`` as a list of Calibrations and paths (one, or one per sensor)."""
+    from tumblecal_cli.io.calfile import Calibration
+
+    one = isinstance(cal, str | os.PathLike | Calibration)
+    given: list[Any] = [cal] if one else list(cal) if isinstance(cal, Sequence) else []
+    if not given or not all(isinstance(c, str | os.PathLike | Calibration) for c in given):
+        raise InputError(f"correct needs a calibration (a file, or a Calibration), not {cal!r:.60}")
+    return [c if isinstance(c, Calibration) else os.fspath(c) for c in given]
 
 
 def correct_many(

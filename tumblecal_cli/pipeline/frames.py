@@ -73,6 +73,8 @@ def read_capture(path: str | os.PathLike[str], *, no_header: bool = False) -> An
     import pandas as pd
 
     from tumblecal_cli.io import captures
+    from tumblecal_cli.pipeline.options import path_of
 
-    _, names, columns = captures.read_table(os.fspath(path), no_header=no_header)
+    path = path_of(path, "read_capture reads a capture file")
+    _, names, columns = captures.read_table(path, no_header=no_header)
     return pd.DataFrame({name: col.to_pandas() for name, col in zip(names, columns, strict=True)})

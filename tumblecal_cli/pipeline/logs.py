@@ -501,8 +501,11 @@ def segment(
     kept block as a CSV of its own (the log's header and rows, unchanged) and segments.csv, the
     index. ``on_blocks`` sees the blocks as soon as they are found, before they are judged
     (fewer than two kept is exit 3) or written."""
-    from tumblecal_cli.pipeline.options import triplet
+    from tumblecal_cli.pipeline.options import path_of, triplet
 
+    log = path_of(log, "segment reads a log file ('-': stdin)")
+    if out_dir is not None:
+        out_dir = path_of(out_dir, "out_dir is a folder's path")
     for option, value in (("--max-noise", max_noise), ("--max-tilt", max_tilt)):
         if not value > 0:
             raise InputError(f"{option} must be positive, got {value:g}")
