@@ -297,6 +297,9 @@ def test_saving_onto_a_folder_is_an_input_error(tmp_path: Path) -> None:
 #: Arguments of a kind the signatures do not take (typed Any: a notebook's code is not type-checked).
 NOTHING: Any = None
 A_LIST: Any = [SAMPLE / "x.csv"]
+A_NUMBER: Any = 5
+CAL = str(SAMPLE / "lot" / "SN0001_20261121T090000Z.json")
+POSES = [str(SAMPLE / f"{a}.csv") for a in "xyz"]
 
 
 @pytest.mark.parametrize(
@@ -316,6 +319,12 @@ A_LIST: Any = [SAMPLE / "x.csv"]
             "needs a calibration",
             id="correct",
         ),
+        pytest.param(lambda: tumblecal.report(NOTHING), "report takes calibration files", id="report"),
+        pytest.param(lambda: tumblecal.verify(NOTHING, CAL), "verify takes capture files", id="verify"),
+        pytest.param(
+            lambda: tumblecal.thermal(["+z=a.csv"], NOTHING), "a calibration is a Calibration or its file", id="thermal"
+        ),
+        pytest.param(lambda: tumblecal.solve(POSES, serial=A_NUMBER), "--serial is text, not a int", id="serial"),
     ],
 )
 def test_arguments_of_the_wrong_kind_raise_the_family(call: Any, said: str) -> None:

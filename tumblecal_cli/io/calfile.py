@@ -530,7 +530,11 @@ def load(path: str | os.PathLike[str]) -> Calibration:
 
 def resolve(cal: Calibration | str | os.PathLike[str]) -> Calibration:
     """A calibration given as itself or as its file."""
-    return cal if isinstance(cal, Calibration) else load(cal)
+    if isinstance(cal, Calibration):
+        return cal
+    if not isinstance(cal, str | os.PathLike):  # (load(None) says as much; this names the kind)
+        raise InputError(f"a calibration is a Calibration or its file, not a {type(cal).__name__}")
+    return load(cal)
 
 
 def validate(doc: Mapping[str, Any], path: str) -> Calibration:

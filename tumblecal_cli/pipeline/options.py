@@ -416,6 +416,8 @@ def unit_block(
 def identifier(value: str | None, flag: str) -> None:
     """A serial, a station ... is one line of text: a control character (a newline, NUL) in it
     would split a summary row or an error message."""
+    if value is not None and not isinstance(value, str):
+        raise InputError(f"{flag} is text, not a {type(value).__name__}: {value!r}")
     if value is not None and any(ord(ch) < 32 or ord(ch) == 127 for ch in value):
         bad = next(ch for ch in value if ord(ch) < 32 or ord(ch) == 127)
         raise InputError(f"{flag} {value!r} holds a control character (U+{ord(bad):04X})")

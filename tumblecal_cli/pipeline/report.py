@@ -47,6 +47,8 @@ def report(
         raise InputError("--min-cpk needs --limits: Cpk is measured against the limits")
     drift_limits = lot.parse_max_drift(max_drift)
     bounds = calfile.load_limits(limits) if limits else {}
+    if not isinstance(paths, str | os.PathLike | Sequence):
+        raise InputError(f"report takes calibration files (one, or a list), not a {type(paths).__name__}")
     given = [paths] if isinstance(paths, str | os.PathLike) else list(paths)
     found = find([os.fspath(p) for p in given], skip=limits)
     entries, unreadable = _load(found)

@@ -79,7 +79,7 @@ def thermal(
     from tumblecal_cli.core import thermal as core
     from tumblecal_cli.io import calfile
 
-    base = calfile.resolve(cal if isinstance(cal, calfile.Calibration) else os.fspath(cal))
+    base = calfile.resolve(cal)
     if sensor is not None and sensor != base.sensor:
         raise InputError(
             f"--sensor {sensor}, but the base calibration's sensor is {base.sensor}",

@@ -66,6 +66,8 @@ def verify(
     from tumblecal_cli.io import captures as reading
     from tumblecal_cli.pipeline.options import path_of
 
+    if not isinstance(captures, str | os.PathLike | Sequence):
+        raise InputError(f"verify takes capture files (one, or a list), not a {type(captures).__name__}")
     given = [captures] if isinstance(captures, str | os.PathLike) else list(captures)
     paths = [path_of(c, "verify reads static captures from files") for c in given]
     if not paths:
