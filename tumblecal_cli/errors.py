@@ -79,6 +79,12 @@ class Interrupted(BaseException):
 _BREAKS = {c: repr(chr(c))[1:-1] for c in [*range(32), 127, 0x85, 0x2028, 0x2029] if chr(c) != "\t"}
 
 
+def control_character(text: str) -> str | None:
+    """The first control character in ``text`` (C0 or DEL: a line break, a NUL), or None: a
+    serial, a station ... holding one would split a summary row or a line for people."""
+    return next((ch for ch in text if ord(ch) < 32 or ord(ch) == 127), None)
+
+
 def one_line(text: str) -> str:
     """``text`` as one line: a file or column name holding a line break (or a NUL) shown escaped."""
     return text.translate(_BREAKS)

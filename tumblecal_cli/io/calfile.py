@@ -22,7 +22,7 @@ import numpy as np
 
 from tumblecal_cli.core.model import SENSORS, FloatArray, Solution, parse_label
 from tumblecal_cli.core.model import apply as apply_model
-from tumblecal_cli.errors import InputError
+from tumblecal_cli.errors import InputError, control_character
 from tumblecal_cli.io.outputs import atomic_output
 from tumblecal_cli.version import __version__
 
@@ -659,7 +659,7 @@ def _nested_fields(doc: Mapping[str, Any], path: str) -> None:
         raise InputError("field 'unit.meta' must be an object (KEY: VALUE)", file=path)
     for key in ("serial", "station", "operator"):  # one line each: a line break would split report's lines
         value = (unit or {}).get(key)
-        if isinstance(value, str) and any(ord(ch) < 32 or ord(ch) == 127 for ch in value):
+        if isinstance(value, str) and control_character(value):
             raise InputError(f"field 'unit.{key}' holds a control character: {value!r}", file=path)
     poses = doc.get("poses")
     if poses is not None:

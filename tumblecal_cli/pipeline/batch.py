@@ -23,7 +23,7 @@ from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from tumblecal_cli.errors import InputError, TumblecalError
+from tumblecal_cli.errors import InputError, TumblecalError, control_character
 
 if TYPE_CHECKING:
     from tumblecal_cli.io.calfile import Calibration
@@ -199,7 +199,7 @@ def _manifest_units(path: str, *, log: bool) -> tuple[list[Unit], list[str]]:
         serial = row[0].strip()
         if not serial or "/" in serial or "\\" in serial or serial.startswith("."):
             raise InputError(f"serial {serial!r} cannot name a file", file=path, line=n, column=1)
-        if any(ord(ch) < 32 or ord(ch) == 127 for ch in serial):  # it would split a summary row or a line
+        if control_character(serial):  # it would split a summary row or a line
             raise InputError(f"serial {serial!r} holds a control character", file=path, line=n, column=1)
         if len(serial.encode()) > LONGEST_SERIAL:  # the calibration is named after it
             raise InputError(

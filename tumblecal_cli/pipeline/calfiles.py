@@ -9,7 +9,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
-from tumblecal_cli.errors import InputError
+from tumblecal_cli.errors import InputError, control_character
 from tumblecal_cli.pipeline.options import Triplet
 
 if TYPE_CHECKING:
@@ -249,7 +249,7 @@ def import_peer(
         picked = list("xyz")
     else:
         picked = [f"{'gyr' if peer.sensor == 'gyroscope' else 'acc'}_{a}" for a in "xyz"]
-    if serial is None and peer.serial is not None and any(ord(ch) < 32 or ord(ch) == 127 for ch in peer.serial):
+    if serial is None and peer.serial is not None and control_character(peer.serial):
         raise InputError(f"its serial holds a control character: {peer.serial!r}", file=path, hint="give --serial")
     who = unit_block(
         serial if serial is not None else peer.serial, peer.was.get("station"), peer.was.get("operator"), []

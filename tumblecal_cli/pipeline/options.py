@@ -13,7 +13,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, fields, replace
 from typing import TYPE_CHECKING
 
-from tumblecal_cli.errors import InputError
+from tumblecal_cli.errors import InputError, control_character
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Limits
@@ -418,8 +418,8 @@ def identifier(value: str | None, flag: str) -> None:
     would split a summary row or an error message."""
     if value is not None and not isinstance(value, str):
         raise InputError(f"{flag} is text, not a {type(value).__name__}: {value!r}")
-    if value is not None and any(ord(ch) < 32 or ord(ch) == 127 for ch in value):
-        bad = next(ch for ch in value if ord(ch) < 32 or ord(ch) == 127)
+    bad = None if value is None else control_character(value)
+    if bad is not None:
         raise InputError(f"{flag} {value!r} holds a control character (U+{ord(bad):04X})")
 
 
