@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import signal
+
 
 class TumblecalError(Exception):
     """Base of every error tumblecal reports to a user.
@@ -74,6 +76,10 @@ class Interrupted(BaseException):
 
     exit_code = 130
 
+
+#: The signals that stop a command (cli.app's handlers, batch's hold while it publishes, the
+#: mask while apply forks its workers): Ctrl-C, a station's or scheduler's kill, a closed terminal.
+STOPS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 #: Characters that end a line for a terminal or for str.splitlines, and the rest of C0: escaped.
 _BREAKS = {c: repr(chr(c))[1:-1] for c in [*range(32), 127, 0x85, 0x2028, 0x2029] if chr(c) != "\t"}

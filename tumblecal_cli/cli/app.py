@@ -20,7 +20,7 @@ import typer
 from typer.core import TyperCommand
 
 from tumblecal_cli.cli.options import EXIT_CODES
-from tumblecal_cli.errors import Interrupted, PipeClosed, TumblecalError, one_line
+from tumblecal_cli.errors import STOPS, Interrupted, PipeClosed, TumblecalError, one_line
 from tumblecal_cli.version import __version__
 
 # The solvers' matrices are 3x3 to 12x12: BLAS threads only cost start-up and spin (see core.model.apply).
@@ -147,7 +147,7 @@ def _term_as_interrupt() -> Iterator[None]:
 
     # Ctrl-C as well (Typer turns a KeyboardInterrupt into a silent status 130), and a closed
     # terminal's SIGHUP; a signal the caller ignores (nohup, a background job) stays ignored
-    caught = [s for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP) if signal.getsignal(s) != signal.SIG_IGN]
+    caught = [s for s in STOPS if signal.getsignal(s) != signal.SIG_IGN]
     try:
         previous = [(s, signal.signal(s, interrupt)) for s in caught]
     except ValueError:  # not the main thread: leave signals alone
@@ -322,7 +322,7 @@ def main_exit() -> None:
         status = err.exit_code if isinstance(err, TumblecalError) else 2
     import signal
 
-    for stop in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):  # the work is done: no traceback in the exit
+    for stop in STOPS:  # the work is done: no traceback in the exit
         signal.signal(stop, signal.SIG_IGN)
     if "multiprocessing" in sys.modules:  # batch --jobs: the exit work of its pool's module (the
         from multiprocessing import util  # forkserver's folder in $TMPDIR, left behind otherwise)

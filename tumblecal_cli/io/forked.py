@@ -34,15 +34,14 @@ import threading
 from collections.abc import Callable
 from typing import IO, Any
 
+from tumblecal_cli.errors import STOPS
+
 #: Below this much data a file is corrected in this process (forking costs ~10 ms a worker).
 MIN_BYTES = 16 << 20
 #: Most worker processes, whatever the number of cores.
 MAX_WORKERS = 8
 #: A block is cut at the last line end in this much before its end: a longer line, no workers.
 WINDOW = 64 << 10
-
-#: The signals that stop a command (cli.app): held while a worker is forked.
-STOPS = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP}
 
 _REPORT = struct.Struct("<qqq")  # failed (0/1), rows, bytes of the pickled error that follow
 

@@ -23,7 +23,7 @@ from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from tumblecal_cli.errors import InputError, TumblecalError, control_character
+from tumblecal_cli.errors import STOPS, InputError, TumblecalError, control_character
 
 if TYPE_CHECKING:
     from tumblecal_cli.io.calfile import Calibration
@@ -387,7 +387,7 @@ def held_signals() -> Iterator[None]:
         caught.append((number, frame))
 
     try:
-        for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        for signum in STOPS:
             handler = signal.getsignal(signum)
             if handler is not None:  # None: set outside Python, and it could not be put back
                 previous[signum] = handler  # before the swap: a stop in between still puts it back

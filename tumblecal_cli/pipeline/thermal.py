@@ -159,8 +159,8 @@ def _order(order: int | str) -> int | None:
 def _reference_temperature(base: Calibration, given: float | None) -> float:
     """T_ref: --reference-temperature, else the mean of the base calibration's pose temperatures."""
     if given is not None:
-        if not -273.15 <= float(given) <= 1000.0:  # nan, inf, or no temperature a sensor works at
-            raise InputError(f"--reference-temperature must be in °C, from -273.15 to 1000, got {given:g}")
+        if not COLDEST <= float(given) <= HOTTEST:  # nan, inf, or no temperature a sensor works at
+            raise InputError(f"--reference-temperature must be in °C, from {COLDEST:g} to {HOTTEST:g}, got {given:g}")
         return float(given)
     recorded = [p.get("temperature") for p in base.poses]
     if recorded and all(isinstance(t, int | float) for t in recorded):

@@ -138,14 +138,11 @@ def verify(
     return result
 
 
-#: A corrected magnitude this far (relative) from the reference is no calibration's error: the
-#: capture is in other units than the calibration was made from (solve's GAIN_UNITS_TOLERANCE).
-UNITS_TOLERANCE = 0.25
-
-
 def _units(name: str, c: Calibration, raw: float, norm: float, ref: float) -> None:
     """A capture whose corrected magnitude is far from the reference: exit 2, with the raw
     magnitude the calibration's own poses read (it would report a -97 % error, "not judged")."""
+    from tumblecal_cli.core.model import UNITS_TOLERANCE  # as far as solve's 1-pose units check
+
     if not ref > 0 or abs(norm - ref) <= UNITS_TOLERANCE * ref:
         return
     made = [float(sum(v * v for v in p["mean"]) ** 0.5) for p in c.poses if isinstance(p.get("mean"), list)]
@@ -246,8 +243,10 @@ def verify_rotations(
         raise InputError(
             f"--log with --accel-cal verifies a gyroscope's calibration, not the {c.sensor}'s", file=c.path
         )
-    if rate is not None and not 0 < rate <= 1e9:
-        raise InputError(f"--rate must be a positive number of Hz up to 1e+09, got {rate:g}")
+    from tumblecal_cli.pipeline.logs import FASTEST
+
+    if rate is not None and not 0 < rate <= FASTEST:
+        raise InputError(f"--rate must be a positive number of Hz up to {FASTEST:g}, got {rate:g}")
     options = SolveOptions(
         sensor="gyroscope",
         accel_cal=path_of(accel_cal, "--accel-cal takes a calibration file"),
