@@ -434,19 +434,9 @@ def open_capture(
             layout.temperature = _column(layout, temperature_column, "--temperature-column")
         else:
             layout.temperature = next((i for i, n in enumerate(lower) if n in TEMPERATURE_NAMES), None)
-        _no_column_twice(layout, sensor, columns, prefer, time_column, temperature_column)
         if extra is not None:
             layout.extra = _column(layout, extra, "column")
-            taken = {i: f"one of the {sensor} columns" for i in layout.sensor}
-            for role, index in (("time", layout.time), ("temperature", layout.temperature)):
-                if index is not None:
-                    taken[index] = f"the {role} column"
-            if layout.extra in taken:  # it would be read twice: as labels and as numbers
-                raise InputError(
-                    f"--pose-column names {layout.names[layout.extra]!r}, {taken[layout.extra]}",
-                    file=name,
-                    hint=f"name the column of pose labels (columns: {', '.join(layout.names)})",
-                )
+        _no_column_twice(layout, sensor, columns, prefer, time_column, temperature_column)
     except InputError:
         if f is not sys.stdin.buffer:
             f.close()
@@ -736,8 +726,8 @@ def _no_column_twice(
     temperature_column: str | None,
 ) -> None:
     """A sensor column that is also the time or the temperature column, by an option or a
-    calibration's columns: an error naming which (the column would be read twice, and
-    corrected as a reading)."""
+    calibration's columns, or a label column (--pose-column) that is any of them: an error
+    naming which (the column would be read twice, and corrected as a reading)."""
     names = layout.names
     if layout.temperature is not None and layout.temperature == layout.time:
         raise InputError(
@@ -768,6 +758,17 @@ def _no_column_twice(
         else:
             continue
         raise InputError(message, file=layout.name, hint=f"{hint} (columns: {', '.join(names)})")
+    if layout.extra is not None:  # read as labels and as numbers
+        taken = {i: f"one of the {sensor} columns" for i in layout.sensor}
+        for role, index in (("time", layout.time), ("temperature", layout.temperature)):
+            if index is not None:
+                taken[index] = f"the {role} column"
+        if layout.extra in taken:
+            raise InputError(
+                f"--pose-column names {names[layout.extra]!r}, {taken[layout.extra]}",
+                file=layout.name,
+                hint=f"name the column of pose labels (columns: {', '.join(names)})",
+            )
 
 
 def _unit_of_name(name: str) -> str | None:
