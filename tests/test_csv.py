@@ -1,6 +1,6 @@
 """Capture reading (README "CSV captures"): layout sniffing, column detection, streaming.
 
-Unit tests of ``captures.open_capture`` / ``captures.read_samples``; the CLI tests check the
+Unit tests of ``capture.open_capture`` / ``readings.read_samples``; the CLI tests check the
 same rules end to end.
 """
 
@@ -17,8 +17,9 @@ from numpy.typing import NDArray
 
 from tests.conftest import feed_stdin
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import captures
-from tumblecal_cli.io.captures import open_capture, read_log, read_samples
+from tumblecal_cli.io import capture, rewrite, sniff
+from tumblecal_cli.io.capture import open_capture
+from tumblecal_cli.io.readings import read_log, read_samples
 
 FloatArray = NDArray[np.float64]
 
@@ -340,7 +341,7 @@ def test_bad_row_in_a_later_block_names_its_line(tmp_path: Path) -> None:
     bad = n - 10
     lines[bad] = f"{bad},1,oops,3"
     text = "# comment\nt,ax,ay,az\n" + "\n".join(lines) + "\n"
-    assert len(text) > captures.BLOCK_BYTES
+    assert len(text) > capture.BLOCK_BYTES
     path = write(tmp_path, text)
     with pytest.raises(InputError) as err:
         read_samples(path)
@@ -416,7 +417,7 @@ def test_large_whitespace_file_streams_across_chunks(tmp_path: Path) -> None:
     data = np.column_stack([np.arange(60_000) * 0.01, rng.integers(30000, 40000, (60_000, 3))])
     path = tmp_path / "big.txt"
     np.savetxt(path, data, fmt=["%16.7e", "%16.7e", "%16.7e", "%16.7e"])
-    assert path.stat().st_size > captures.HEAD_BYTES
+    assert path.stat().st_size > sniff.HEAD_BYTES
     s = read_samples(str(path))
     np.testing.assert_array_equal(s.values, data[:, 1:])
 
@@ -489,7 +490,7 @@ def test_correct_stream_round_trips(tmp_path: Path) -> None:
     path = write(tmp_path, text)
     out = io.BytesIO()
     with open_capture(path) as cap:
-        rows = captures.correct_stream(cap, out, lambda v: v)
+        rows = rewrite.correct_stream(cap, out, lambda v: v)
     assert rows == 500
     back = np.loadtxt(io.BytesIO(out.getvalue()), delimiter=",", skiprows=1)[:, 1:]
     np.testing.assert_array_equal(back, raw)

@@ -21,8 +21,8 @@ from pathlib import Path
 import pytest
 
 from tumblecal_cli.errors import InputError, TumblecalError
-from tumblecal_cli.io import captures, forked
-from tumblecal_cli.io.captures import open_capture
+from tumblecal_cli.io import capture, forked, rewrite
+from tumblecal_cli.io.capture import open_capture
 
 from .test_splice import CASES, ROOT, _accel, lines, table, write
 
@@ -32,7 +32,7 @@ BLOCK = 2048
 @pytest.fixture
 def small_blocks(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     """Blocks of 2 KiB, workers for any size of file, and a record of each forked run's workers."""
-    monkeypatch.setattr(captures, "BLOCK_BYTES", BLOCK)
+    monkeypatch.setattr(capture, "BLOCK_BYTES", BLOCK)
     monkeypatch.setattr(forked, "MIN_BYTES", 0)
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1, 2})  # 3 workers, even on 2 cores
     monkeypatch.setattr(threading, "active_count", lambda: 1)  # whatever threads other tests left
@@ -55,7 +55,7 @@ def corrected(path: Path, out: io.BytesIO | None) -> tuple[bytes, str | None]:
         sink = out if out is not None else stack.enter_context(open(target, "wb"))
         try:
             with open_capture(str(path)) as cap:
-                captures.correct_stream(cap, sink, _accel)
+                rewrite.correct_stream(cap, sink, _accel)
         except TumblecalError as err:
             error = str(err)
     return (out.getvalue() if out is not None else target.read_bytes()), error
@@ -121,7 +121,7 @@ def test_an_error_in_a_late_block_names_its_line_after_the_blocks_before_it(
     assert "line 2502" in error
     assert "oops" in error
     assert (out, error) == corrected(path, io.BytesIO())
-    assert out.endswith(captures.INCOMPLETE)
+    assert out.endswith(rewrite.INCOMPLETE)
     assert out.count(b"\n") > 2000  # the blocks before the bad one are out, those after it are not
     assert b"2.999" not in out
     assert no_children_left()
@@ -137,7 +137,7 @@ def test_a_line_longer_than_the_window_keeps_the_work_here(tmp_path: Path, small
     assert "line 2" in error
     # how many rows are out before the reader stops depends on the threads' timing (the general path's way)
     for written in (to_file, to_memory):
-        assert written == b"" or (written.startswith(b"t,ax,ay,az,note\n") and written.endswith(captures.INCOMPLETE))
+        assert written == b"" or (written.startswith(b"t,ax,ay,az,note\n") and written.endswith(rewrite.INCOMPLETE))
     assert small_blocks == []
 
 

@@ -224,14 +224,14 @@ def test_segment_that_fails_while_writing_leaves_the_folder_as_it_was(
     file nor a staging folder (before: segments.csv and the first blocks stayed)."""
     import errno
 
-    from tumblecal_cli.io import captures
+    from tumblecal_cli.io import capture
 
     log = _segment_log(tmp_path)
     out = tmp_path / "poses"
     assert run(capsys, "segment", log, "--out-dir", out).code == 0  # an earlier segmentation
     before = _listing(out)
     for copier in ("copy_rows", "copy_bytes"):  # a log read whole, or block by block (io.logread)
-        real = getattr(captures, copier)
+        real = getattr(capture, copier)
 
         def disk_full_after_two(
             path: str, layout: object, spans: list[object], outputs: list[str], real: object = real
@@ -239,7 +239,7 @@ def test_segment_that_fails_while_writing_leaves_the_folder_as_it_was(
             real(path, layout, spans[:2], outputs[:2])  # type: ignore[operator]
             raise OSError(errno.ENOSPC, "No space left on device", outputs[2])
 
-        monkeypatch.setattr(captures, copier, disk_full_after_two)
+        monkeypatch.setattr(capture, copier, disk_full_after_two)
     r = run(capsys, "segment", log, "--out-dir", out, "--min-duration", "2")
     assert r.code == 2
     assert "No space left on device" in r.err

@@ -19,7 +19,7 @@ import pytest
 from tests.conftest import run
 from tumblecal_cli.core import scan as scan_core
 from tumblecal_cli.core import segment as sc
-from tumblecal_cli.io import captures, logread
+from tumblecal_cli.io import capture, logread, readings
 from tumblecal_cli.pipeline import logs
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -52,11 +52,11 @@ def both(path: Path, rate: float | None = None, **settings: object) -> tuple[obj
     streamed = logread.scan_log(str(path), settings=s, rate=rate)
     if streamed is not None:
         streamed = (streamed[0], logs.review(streamed[0], streamed[1], rate, s))
-    whole = captures.read_log(str(path), use_time=rate is None)
+    whole = readings.read_log(str(path), use_time=rate is None)
     return streamed, (whole, logs.find_blocks(whole, rate, None, None, s))
 
 
-def same(streamed: tuple[captures.Log, sc.Segmentation], whole: tuple[captures.Log, sc.Segmentation]) -> None:
+def same(streamed: tuple[readings.Log, sc.Segmentation], whole: tuple[readings.Log, sc.Segmentation]) -> None:
     (a, sa), (b, sb) = streamed, whole
     assert a.sha256 == b.sha256
     assert sa.period == sb.period
@@ -87,7 +87,7 @@ def same(streamed: tuple[captures.Log, sc.Segmentation], whole: tuple[captures.L
 @pytest.fixture
 def small_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
     """Blocks of 16 KiB: a small log is hundreds of them, so every seam is crossed."""
-    monkeypatch.setattr(captures, "BLOCK_BYTES", 16 << 10)
+    monkeypatch.setattr(capture, "BLOCK_BYTES", 16 << 10)
 
 
 @pytest.mark.parametrize(
@@ -253,7 +253,7 @@ def test_a_block_file_that_cannot_be_written_leaves_the_folder_as_it_was(
     path = write(tmp_path / "session.csv", tumble(130_000))
     out = tmp_path / "poses"
     calls, lock = [0], threading.Lock()
-    real = captures._copy_range
+    real = capture._copy_range
 
     def full_disk(source: int, target: object, at: int, size: int) -> int:
         with lock:
@@ -263,7 +263,7 @@ def test_a_block_file_that_cannot_be_written_leaves_the_folder_as_it_was(
             raise OSError(errno.ENOSPC, "No space left on device")
         return real(source, target, at, size)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(captures, "_copy_range", full_disk)
+    monkeypatch.setattr(capture, "_copy_range", full_disk)
     with pytest.raises(InputError, match="No space left on device"):
         logs.segment(str(path), out_dir=str(out))
     assert not out.exists() or list(out.iterdir()) == []
@@ -372,13 +372,13 @@ def test_a_noise_free_or_very_quiet_log_keeps_whole_faces_either_way(
         table = np.column_stack([t, (g + np.array([0.0123, -0.0217, 0.0151])) * 9.80665])
         path = write(tmp_path / "flat.csv", table, fmt=["%.3f", "%.4f", "%.4f", "%.4f"])
     streamed, whole = both(path)
-    log, seg = cast("tuple[captures.Log, sc.Segmentation]", whole)
+    log, seg = cast("tuple[readings.Log, sc.Segmentation]", whole)
     rows = [(int(log.rows[y.first]), int(log.rows[y.last])) for y in seg.blocks]
     if noise:  # spreads 1e-7 beside faces 2 apart: the two reads' rounding differs by more than the
         assert streamed is None  # threshold's tie allows, so the log is read whole
         assert seg.noise_floor == pytest.approx(np.sqrt(3) * noise, rel=0.05)  # sqrt(3) sigma
     if streamed is not None:
-        a, sa = cast("tuple[captures.Log, sc.Segmentation]", streamed)
+        a, sa = cast("tuple[readings.Log, sc.Segmentation]", streamed)
         assert [(int(a.rows[x.first]), int(a.rows[x.last])) for x in sa.blocks] == rows
     assert len(rows) == 6  # one block per face, none split
     assert len({last - first for first, last in rows[1:]}) == 1  # each face as long as the others
@@ -397,7 +397,7 @@ def test_a_clock_coarser_than_the_samples_is_named_with_rate(
     streamed, whole = both(path)
     assert streamed is not None
     same(streamed, whole)  # type: ignore[arg-type]
-    assert cast("tuple[captures.Log, sc.Segmentation]", whole)[1].zero_steps == pytest.approx(2 / 3, abs=1e-4)
+    assert cast("tuple[readings.Log, sc.Segmentation]", whole)[1].zero_steps == pytest.approx(2 / 3, abs=1e-4)
     r = run(capsys, "segment", path, "-d", tmp_path / "blocks")
     assert r.code == 3
     assert "67% of the time column's steps are 0" in r.err
@@ -417,7 +417,7 @@ def test_a_clock_that_repeats_a_stamp_now_and_then_is_not_coarse(tmp_path: Path,
     streamed, whole = both(path)
     assert streamed is not None
     same(streamed, whole)  # type: ignore[arg-type]
-    seg = cast("tuple[captures.Log, sc.Segmentation]", whole)[1]
+    seg = cast("tuple[readings.Log, sc.Segmentation]", whole)[1]
     assert seg.zero_steps > logs.ZERO_STEPS
     assert seg.mean_step == pytest.approx(0.001, rel=0.01)
     assert not logs.coarse_clock(seg)
@@ -429,11 +429,11 @@ def test_a_threshold_within_rounding_of_a_spread_is_the_whole_reads(tmp_path: Pa
     streamed read ended a block one row later): the log is read whole, or the two agree."""
     path = write(tmp_path / "quiet.csv", tumble(120_000, seed=0, noise=1e-5), fmt="%.9f")
     streamed, whole = both(path, threshold=2.7250007230206297e-05)
-    log, seg = cast("tuple[captures.Log, sc.Segmentation]", whole)
+    log, seg = cast("tuple[readings.Log, sc.Segmentation]", whole)
     rows = [(int(log.rows[y.first]), int(log.rows[y.last])) for y in seg.blocks]
     assert rows[5] == (100_249, 114_751)
     if streamed is not None:
-        a, sa = cast("tuple[captures.Log, sc.Segmentation]", streamed)
+        a, sa = cast("tuple[readings.Log, sc.Segmentation]", streamed)
         assert [(int(a.rows[x.first]), int(a.rows[x.last])) for x in sa.blocks] == rows
 
 

@@ -22,8 +22,9 @@ import pytest
 
 from tumblecal_cli.core import model
 from tumblecal_cli.errors import TumblecalError
-from tumblecal_cli.io import captures, splice
-from tumblecal_cli.io.captures import Dialect, open_capture
+from tumblecal_cli.io import capture, rewrite, sniff, splice
+from tumblecal_cli.io.capture import open_capture
+from tumblecal_cli.io.sniff import Dialect
 
 ROOT = Path(__file__).resolve().parent.parent
 RNG = np.random.default_rng(7)
@@ -36,8 +37,8 @@ def corrected(path: str, *, splice_on: bool, more: int = 0, **options: object) -
     out = io.BytesIO()
     try:
         with open_capture(path, **options) as cap:  # type: ignore[arg-type]
-            extra = [(captures.sensor_columns(cap.layout, "gyroscope", ["gx", "gy", "gz"]), _gyro)] if more else []
-            captures.correct_stream(cap, out, _accel, more=extra, splice=splice_on)
+            extra = [(sniff.sensor_columns(cap.layout, "gyroscope", ["gx", "gy", "gz"]), _gyro)] if more else []
+            rewrite.correct_stream(cap, out, _accel, more=extra, splice=splice_on)
     except TumblecalError as err:
         return out.getvalue(), str(err)
     return out.getvalue(), None
@@ -210,9 +211,9 @@ def test_several_sensors_in_one_pass(tmp_path: Path, monkeypatch: pytest.MonkeyP
 
 
 def test_a_line_longer_than_a_block(tmp_path: Path) -> None:
-    text = "t,ax,ay,az,note\n1,0.5,0.5,0.5,ok\n2,0.5,0.5,0.5," + "n" * (captures.BLOCK_BYTES + 10) + "\n"
+    text = "t,ax,ay,az,note\n1,0.5,0.5,0.5,ok\n2,0.5,0.5,0.5," + "n" * (capture.BLOCK_BYTES + 10) + "\n"
     out, _ = same(write(tmp_path, text))
-    assert len(out) > captures.BLOCK_BYTES
+    assert len(out) > capture.BLOCK_BYTES
 
 
 def test_dropped_last_line(tmp_path: Path) -> None:
@@ -277,7 +278,7 @@ def test_apply_with_several_calibrations_writes_the_general_paths_bytes(
     taken = spliced_blocks(monkeypatch)
     fast = correct(str(log), cals, output=str(tmp_path / "fast.csv"))
     assert taken == [True]
-    monkeypatch.setattr(captures, "correct_stream", functools.partial(captures.correct_stream, splice=False))
+    monkeypatch.setattr(rewrite, "correct_stream", functools.partial(rewrite.correct_stream, splice=False))
     general = correct(str(log), cals, output=str(tmp_path / "general.csv"))
     assert fast.rows == general.rows == 3000
     assert fast.columns == general.columns == ["ax", "ay", "az", "gx", "gy", "gz"]
@@ -294,7 +295,7 @@ def thermal_corrected(path: str, *, splice_on: bool) -> tuple[bytes, str | None]
     try:
         with open_capture(path) as cap:
             assert cap.layout.temperature is not None
-            captures.correct_stream(cap, out, _warm, temperature=cap.layout.temperature, splice=splice_on)
+            rewrite.correct_stream(cap, out, _warm, temperature=cap.layout.temperature, splice=splice_on)
     except TumblecalError as err:
         return out.getvalue(), str(err)
     return out.getvalue(), None

@@ -14,7 +14,8 @@ import pytest
 import tumblecal_cli as tumblecal
 from tests.conftest import POSES_3, PRECIOUS, SAMPLE, assert_untouched, run, tumblecal_exe
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io.captures import Dialect, read_log, read_samples
+from tumblecal_cli.io.readings import read_log, read_samples
+from tumblecal_cli.io.sniff import Dialect
 
 DATA = Path(__file__).resolve().parent / "data"
 NCSU = DATA / "ncsu_xplus_head.csv"

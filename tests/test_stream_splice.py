@@ -12,8 +12,9 @@ from pathlib import Path
 import pytest
 
 from tumblecal_cli.errors import TumblecalError
-from tumblecal_cli.io import captures
-from tumblecal_cli.io.captures import Dialect, open_capture
+from tumblecal_cli.io import capture, rewrite
+from tumblecal_cli.io.capture import open_capture
+from tumblecal_cli.io.sniff import Dialect
 
 from .test_splice import CASES, ROOT, _accel, lines, spliced_blocks, table
 
@@ -29,7 +30,7 @@ def piped(
     notes: list[str] = []
     try:
         with open_capture("-", **options) as cap:  # type: ignore[arg-type]
-            captures.correct_stream(cap, out, _accel, splice=splice_on)
+            rewrite.correct_stream(cap, out, _accel, splice=splice_on)
             notes = list(cap.layout.notes)
     except TumblecalError as err:
         return out.getvalue(), str(err), notes
@@ -38,7 +39,7 @@ def piped(
 
 @pytest.fixture
 def small_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(captures, "BLOCK_BYTES", BLOCK)
+    monkeypatch.setattr(capture, "BLOCK_BYTES", BLOCK)
 
 
 @pytest.mark.parametrize("case", list(CASES))
@@ -64,7 +65,7 @@ def test_stdin_takes_the_fast_path_then_the_general_one(monkeypatch: pytest.Monk
     fast = piped(data, monkeypatch, splice_on=True)
     assert fast == piped(data, monkeypatch, splice_on=False)
     assert fast[1] == "<stdin>: not a number: 'oops' in column 'ay' (data row 2500)"
-    assert fast[0].endswith(captures.INCOMPLETE)
+    assert fast[0].endswith(rewrite.INCOMPLETE)
     assert taken.count(False) == 1  # the block with the comment; after it, the general reader
 
 
@@ -94,7 +95,7 @@ def test_crlf_lines_across_the_general_readers_reads_are_all_written(monkeypatch
     """A block of BLOCK_BYTES + 1 bytes ending in CRLF once fed pyarrow a read of a lone line
     feed, which it took for the end of the data: 30 of 40 rows were dropped, exit 0 (found in
     review). Reads now fill the reader's buffer across blocks."""
-    monkeypatch.setattr(captures, "BLOCK_BYTES", 64)
+    monkeypatch.setattr(capture, "BLOCK_BYTES", 64)
     import random
 
     pick = random.Random(3)  # these cells make a block of 65 bytes ending in CRLF

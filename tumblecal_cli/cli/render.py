@@ -19,7 +19,7 @@ if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Finding
     from tumblecal_cli.core.segment import Segmentation
     from tumblecal_cli.io.calfile import Calibration
-    from tumblecal_cli.io.captures import Log
+    from tumblecal_cli.io.readings import Log
 
 
 def make_console(stderr: bool = True) -> Console:

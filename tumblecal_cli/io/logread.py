@@ -1,11 +1,11 @@
 """A log read block by block into the streaming detector (``core.scan``): segment and
 solve --log on logs of any length.
 
-``captures.read_log`` holds a whole log in memory (its readings, rows, clock and the text of
+``readings.read_log`` holds a whole log in memory (its readings, rows, clock and the text of
 each block until the end): 3.5 GB for 20 million rows. Here a regular file of plain lines
 (``io.splice``'s rules) is read in blocks on a pool of threads, each block's sensor, time and
 temperature cells parsed where they lie, and fed in order to ``core.scan.Scan``, which keeps
-the readings of the still periods only. What is kept is returned as a ``captures.Log`` whose
+the readings of the still periods only. What is kept is returned as a ``readings.Log`` whose
 samples are those readings (a block's ``first``..``last`` index them), with each reading's
 line's place in the file, so that ``segment`` copies the blocks' lines without reading the
 file again.
@@ -33,13 +33,14 @@ from tumblecal_cli.core import model
 from tumblecal_cli.core.scan import Scan
 from tumblecal_cli.core.segment import FloatArray, IntArray, Segmentation, Settings, sample_period, window_spread
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import captures
-from tumblecal_cli.io.captures import Dialect, Log
+from tumblecal_cli.io import capture, readings, rewrite, sniff
+from tumblecal_cli.io.readings import Log
+from tumblecal_cli.io.sniff import Dialect
 
 #: Files smaller than this keep their readings' rows and line offsets as int32 (4 bytes, not 8).
 NARROW = 1 << 31
 
-#: Readings the time unit and the first period are judged from (``captures.time_scale`` reads as many).
+#: Readings the time unit and the first period are judged from (``readings.time_scale`` reads as many).
 FIRST = 100_001
 
 
@@ -64,12 +65,12 @@ def scan_log(
     """The log at ``path`` (a regular file) and its still blocks found by ``core.scan``, or
     None when it is to be read whole (the module's docstring). ``rate``: the time column is
     then not judged (as ``read_log(use_time=False)``)."""
-    with captures.open_capture(
+    with capture.open_capture(
         path, sensor=sensor, columns=columns, no_header=no_header, time_column=time_column, name=name, dialect=dialect
     ) as cap:
         lay = cap.layout
         extra = [i for i in (lay.time, lay.temperature) if i is not None]
-        splicer = captures.splicer_for(cap, [(lay.sensor, _same)], also=extra)
+        splicer = rewrite.splicer_for(cap, [(lay.sensor, _same)], also=extra)
         if splicer is None:
             return None
         where = [splicer.parsed.index(i) for i in (*lay.sensor, *extra)]
@@ -85,7 +86,7 @@ def _same(values: Any) -> Any:
 
 def _scan(
     path: str,
-    lay: captures.Layout,
+    lay: sniff.Layout,
     splicer: Any,
     where: list[int],
     settings: Settings,
@@ -191,7 +192,7 @@ class _Feeder:
     """The blocks into a Scan: judged first (what the streaming path does not take), held until
     the first FIRST readings give the time unit and the period."""
 
-    def __init__(self, lay: captures.Layout, settings: Settings, time_unit: str, rate: float | None, size: int):
+    def __init__(self, lay: sniff.Layout, settings: Settings, time_unit: str, rate: float | None, size: int):
         self.lay, self.settings, self.time_unit, self.rate, self.size = lay, settings, time_unit, rate, size
         self.scan: Scan | None = None
         self.first: list[_Block] = []
@@ -233,11 +234,11 @@ class _Feeder:
             clock = np.concatenate([b.clock for b in self.first if b.clock is not None])
             self.zero = float(clock[0])
             try:
-                self.scale = captures.time_scale(lay, clock, self.time_unit)
+                self.scale = readings.time_scale(lay, clock, self.time_unit)
             except InputError:
                 if self.rate is None:
                     raise _Plain from None  # the general path raises it, with everything before it said
-                self.scale = captures._TIME_SCALE[lay.time_unit or "s"]
+                self.scale = sniff.TIME_SCALE[lay.time_unit or "s"]
             seconds = None if self.rate else (clock - self.zero) * self.scale
         capacity = _capacity(self.first, self.size)
         scan = self.scan = Scan(sample_period(seconds, self.rate), self.settings, capacity=capacity)
@@ -269,13 +270,13 @@ def _capacity(first: list[_Block], size: int) -> int:
 
 
 def _blocks(
-    path: str, lay: captures.Layout, splicer: Any, where: list[int], hasher: Any, shared: dict[str, Any]
+    path: str, lay: sniff.Layout, splicer: Any, where: list[int], hasher: Any, shared: dict[str, Any]
 ) -> Iterator[_Block]:
     """Each block of the file read and parsed on a pool of threads (numpy, pyarrow and the
     reads let go of the GIL), in file order, its rows numbered here; hashed here, in order."""
     from tumblecal_cli.io.forked import cuts
 
-    blocks = cuts(path, len(lay.head), captures.BLOCK_BYTES)
+    blocks = cuts(path, len(lay.head), capture.BLOCK_BYTES)
     if blocks is None:
         raise _Plain  # a line longer than a block
     workers = max(2, os.cpu_count() or 1)

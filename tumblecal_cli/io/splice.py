@@ -10,7 +10,7 @@ number of columns.
 It takes a block only when every line is plain: the header's number of delimiters on every
 line, one line ending throughout (the file's), no ``#``, valid UTF-8, sensor cells that are
 numbers or all empty in a row. ``Splicer.block`` returns None for anything else, and the
-caller reads that block by the general rules (``captures.correct_stream``), which also make
+caller reads that block by the general rules (``rewrite.correct_stream``), which also make
 every error message: what this path writes is what the general path writes, byte for byte.
 
 Floats are spelled as pyarrow's cast spells them (shortest round-trip digits; ``1e-7``,

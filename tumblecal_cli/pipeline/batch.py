@@ -661,7 +661,7 @@ def _processes(jobs: int) -> Engine:
 
         context = multiprocessing.get_context("forkserver")  # safe beside the progress bar's thread
         context.set_forkserver_preload(
-            ["tumblecal_cli.pipeline.solve", "tumblecal_cli.io.captures", "tumblecal_cli.core.solvers"]
+            ["tumblecal_cli.pipeline.solve", "tumblecal_cli.io.readings", "tumblecal_cli.core.solvers"]
         )
         sent: dict[Future[Any], tuple[Any, ...]] = {}
         with ProcessPoolExecutor(

@@ -1,6 +1,6 @@
 """apply: captures corrected with one or more calibrations, streamed file to file.
 
-Everything but the sensor columns is copied as it was (``io.captures.correct_stream``); the
+Everything but the sensor columns is copied as it was (``io.rewrite.correct_stream``); the
 sensor columns become ``M (raw - offset)`` (``core.model.apply``).
 """
 
@@ -19,7 +19,8 @@ from tumblecal_cli.errors import InputError, TumblecalError
 if TYPE_CHECKING:
     from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfile import Calibration
-    from tumblecal_cli.io.captures import Capture, Dialect, Layout
+    from tumblecal_cli.io.capture import Capture
+    from tumblecal_cli.io.sniff import Dialect, Layout
 
 
 @dataclass
@@ -49,7 +50,7 @@ def correct(
     """Correct one capture ('-': stdin) into ``output`` ('-': stdout), as ``tumblecal apply``:
     ``cal`` is one calibration (a file, or a Calibration) or several (one per sensor of the
     capture). ``on_note`` hears each note as it is found, before the capture is streamed."""
-    from tumblecal_cli.io import calfile, captures
+    from tumblecal_cli.io import calfile, sniff
     from tumblecal_cli.io.outputs import atomic_output, check_not_input, check_writable
     from tumblecal_cli.pipeline.options import path_of
 
@@ -80,7 +81,7 @@ def correct(
         raise InputError("--columns names the columns of one calibration; with several --cal each uses its own")
     picked = (columns.split(",") if isinstance(columns, str) else list(columns)) if columns else None
     c = cals[0]
-    with capture_for(c, capture, picked, no_header, captures.Dialect(skip_rows, decimal, drop_incomplete)) as cap:
+    with capture_for(c, capture, picked, no_header, sniff.Dialect(skip_rows, decimal, drop_incomplete)) as cap:
         for text in cap.layout.notes:
             note(text)
         used = cap.layout.sensor_names
@@ -241,12 +242,12 @@ def capture_for(
 ) -> Iterator[Capture]:
     """A capture opened to be corrected by ``cal``: one without that sensor's columns is an
     error naming both the capture and the calibration."""
-    from tumblecal_cli.io import captures
+    from tumblecal_cli.io import capture
 
     with contextlib.ExitStack() as stack:
         try:
             cap = stack.enter_context(
-                captures.open_capture(
+                capture.open_capture(
                     path, sensor=cal.sensor, columns=picked, prefer=cal.columns, no_header=no_header, dialect=dialect
                 )
             )
@@ -263,7 +264,7 @@ def capture_for(
 
 def columns_of(layout: Layout, cal: Calibration, taken: set[int]) -> tuple[int, int, int]:
     """Where a second calibration's recorded columns are in the capture (by name only)."""
-    from tumblecal_cli.io import captures
+    from tumblecal_cli.io import sniff
 
     lower = [n.lower() for n in layout.names]
     missing = [n for n in cal.columns if n.lower() not in lower]
@@ -274,7 +275,7 @@ def columns_of(layout: Layout, cal: Calibration, taken: set[int]) -> tuple[int, 
             file=layout.name,
             hint="with several --cal, each calibration's recorded columns must be in the capture's header",
         )
-    triplet = captures.sensor_columns(layout, cal.sensor, cal.columns)
+    triplet = sniff.sensor_columns(layout, cal.sensor, cal.columns)
     if taken & set(triplet):
         raise InputError(f"{cal.path} calibrates columns another --cal already corrects", file=layout.name)
     taken.update(triplet)
@@ -299,7 +300,7 @@ def _stream(
 ) -> int:
     """Stream ``cap`` corrected into ``out``: each calibration's columns by its own correction,
     at each row's temperature where it has a thermal block (one warning for the rows clamped)."""
-    from tumblecal_cli.io import captures
+    from tumblecal_cli.io import rewrite
 
     cals = [cal, *(o for _, o in more)]
     temperature = thermal_column(cap.layout, cals)
@@ -313,7 +314,7 @@ def _stream(
         else:
             fixes.append(partial(_correct, x))
     pairs = [(t, f) for (t, _), f in zip(more, fixes[1:], strict=True)]
-    rows = captures.correct_stream(cap, out, fixes[0], more=pairs, temperature=temperature)
+    rows = rewrite.correct_stream(cap, out, fixes[0], more=pairs, temperature=temperature)
     if sum(clamped):
         note(_clamped_warning(cap.layout, [x for x in cals if x.thermal is not None], sum(clamped)))
     return rows

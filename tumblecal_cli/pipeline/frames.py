@@ -15,14 +15,14 @@ import numpy as np
 from tumblecal_cli.errors import InputError
 
 if TYPE_CHECKING:
-    from tumblecal_cli.io.captures import Samples
+    from tumblecal_cli.io.readings import Samples
     from tumblecal_cli.pipeline.options import SolveOptions
 
 
 def samples_of(label: str, data: Any, options: SolveOptions) -> Samples:
     """One pose from memory: a DataFrame (its sensor columns found as a file's header would be,
     or named by ``columns``) or an (n, 3) array; named ``<label>`` in messages and the file."""
-    from tumblecal_cli.io import captures
+    from tumblecal_cli.io import readings, sniff
 
     name = f"<{label}>"
     if isinstance(data, str | os.PathLike):  # a file, in a mapping of labels
@@ -31,7 +31,7 @@ def samples_of(label: str, data: Any, options: SolveOptions) -> Samples:
     try:
         if hasattr(data, "columns") and hasattr(data, "to_numpy"):
             names = [str(c) for c in data.columns]
-            triplet = captures.sensor_triplet(names, sensor=options.sensor, columns=options.column_names, name=name)
+            triplet = sniff.sensor_triplet(names, sensor=options.sensor, columns=options.column_names, name=name)
             picked = [names[i] for i in triplet]
             values = np.asarray(data.iloc[:, list(triplet)].to_numpy(dtype=np.float64, na_value=np.nan))
         else:
@@ -43,18 +43,18 @@ def samples_of(label: str, data: Any, options: SolveOptions) -> Samples:
     values = values[~np.isnan(values).all(axis=1)]  # rows with no reading, as in a file
     if not np.isfinite(values).all():
         raise InputError("a reading that is not a finite number", file=name)
-    layout = captures.Layout(name, ",", picked, True, b"", 1, "\n")
+    layout = sniff.Layout(name, ",", picked, True, b"", 1, "\n")
     digest = hashlib.sha256(np.ascontiguousarray(values).tobytes()).hexdigest()
     rate = options.rate
     duration = (len(values) / rate) if rate else None
-    return captures.Samples(layout, values, (0, len(values) - 1), digest, duration)
+    return readings.Samples(layout, values, (0, len(values) - 1), digest, duration)
 
 
 def read_pose(path: str, options: SolveOptions) -> Samples:
     """A pose file ('-': stdin) read as solve's options say."""
-    from tumblecal_cli.io import captures
+    from tumblecal_cli.io import readings
 
-    return captures.read_samples(
+    return readings.read_samples(
         path,
         sensor=options.sensor,
         columns=options.column_names,
@@ -72,9 +72,9 @@ def read_capture(path: str | os.PathLike[str], *, no_header: bool = False) -> An
     float or text, in the file's order."""
     import pandas as pd
 
-    from tumblecal_cli.io import captures
+    from tumblecal_cli.io import capture
     from tumblecal_cli.pipeline.options import path_of
 
     path = path_of(path, "read_capture reads a capture file")
-    _, names, columns = captures.read_table(path, no_header=no_header)
+    _, names, columns = capture.read_table(path, no_header=no_header)
     return pd.DataFrame({name: col.to_pandas() for name, col in zip(names, columns, strict=True)})

@@ -23,9 +23,9 @@ from tumblecal_cli.core import model, solvers
 from tumblecal_cli.core import segment as seg_core
 from tumblecal_cli.core.segment import Block, Segmentation
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import captures
-from tumblecal_cli.io.captures import Log, Samples
+from tumblecal_cli.io import capture, readings, sniff
 from tumblecal_cli.io.outputs import WRITE_ERRORS, atomic_output
+from tumblecal_cli.io.readings import Log, Samples
 from tumblecal_cli.pipeline.options import pose_map as parse_pose_map
 
 #: The longest --window, --min-duration or --trim taken, in seconds (116 days: longer than a log) ...
@@ -57,11 +57,11 @@ def segmented(
     pose_map: Mapping[str, str] | str | None,
     settings: seg_core.Settings,
     digest: bool = True,
-    dialect: captures.Dialect | None = None,
+    dialect: sniff.Dialect | None = None,
     whole: bool = False,
 ) -> Iterator[tuple[str, Log, Segmentation]]:
     """Read a log ('-': stdin, kept in a temporary file until the block ends, for a second
-    read) and find its blocks: (the path to read it again, captures.Log, segment.Segmentation).
+    read) and find its blocks: (the path to read it again, readings.Log, segment.Segmentation).
 
     The Log holds the readings of the still periods only (io.logread) unless ``whole`` asks for
     every one (hand turns integrate what lies between), or the log must be read whole anyway
@@ -104,7 +104,7 @@ def segmented(
                 data, seg = scanned
                 yield path, data, review(data, seg, rate, settings)
                 return
-        data = captures.read_log(
+        data = readings.read_log(
             path,
             sensor=sensor,
             columns=columns,
@@ -408,7 +408,7 @@ def read_twice(log: str) -> Iterator[str]:
     """The log as a file to read twice (to find the blocks, then to copy them): itself when it
     is a regular file, else (stdin '-', a pipe, a FIFO) a copy in $TMPDIR, removed however the
     block ends. The copy is named before it is made, inside the try that removes it."""
-    if log != "-" and captures.is_regular(log):
+    if log != "-" and capture.is_regular(log):
         yield log
         return
     folder = tempfile.gettempdir()
@@ -532,7 +532,7 @@ def segment(
         pose_map=pose_map,
         settings=settings,
         digest=False,  # the block files are copies; nothing records the log's hash
-        dialect=captures.Dialect(skip_rows, decimal, drop_incomplete),
+        dialect=sniff.Dialect(skip_rows, decimal, drop_incomplete),
     ) as (path, data, seg):
         found = Blocks(data, seg)
         files = block_files(seg)
@@ -590,10 +590,10 @@ def _write_blocks(log: str, path: str, found: Blocks, files: dict[int, str], ind
         outputs = [os.path.join(staging, name) for name in names[1:]]
         if data.lines is not None:  # where each block's lines are in the file: copied as they are
             spans = [(int(data.lines[b.first, 0]), int(data.lines[b.last, 1])) for b in kept]
-            captures.copy_bytes(path, data.layout, spans, outputs)
+            capture.copy_bytes(path, data.layout, spans, outputs)
         else:
             spans = [(int(data.rows[b.first]), int(data.rows[b.last])) for b in kept]
-            captures.copy_rows(path, data.layout, spans, outputs)
+            capture.copy_rows(path, data.layout, spans, outputs)
         # the index first: a run stopped part-way leaves its blocks listed, so the next run
         # into this folder knows them for its own and replaces them
         for name in names:

@@ -335,17 +335,17 @@ def _stream(
 
     from tumblecal_cli.core import allan
     from tumblecal_cli.core.model import apply
-    from tumblecal_cli.io import captures as reading
+    from tumblecal_cli.io import capture, readings, sniff
 
     picked = columns.split(",") if columns else None
-    with reading.open_capture(
+    with capture.open_capture(
         path,
         sensor=sensor,
         columns=picked,
         prefer=cal.columns if cal is not None else None,
         no_header=no_header,
         time_column=time_column,
-        dialect=reading.Dialect(*dialect),
+        dialect=sniff.Dialect(*dialect),
     ) as cap:
         lay = cap.layout
         if rate is None and lay.time is None:
@@ -359,11 +359,11 @@ def _stream(
             bad = ~np.isfinite(values) & ~empty[:, None]
             if bad.any():
                 i, j = (int(k[0]) for k in np.nonzero(bad))
-                raise cap._locate(first_row + i, j, f"not a finite number: {reading.quoted(cols[j][i].as_py())}")
+                raise cap._locate(first_row + i, j, f"not a finite number: {sniff.quoted(cols[j][i].as_py())}")
             if empty.any():
                 values = values[~empty]
             if hz is None and values.shape[0] > 1:
-                hz = reading.block_rate(cap, cols[3], empty, time_unit)
+                hz = readings.block_rate(cap, cols[3], empty, time_unit)
             if cal is not None:
                 values = apply(values, cal.offset, cal.matrix)
             if watch is None and hz is not None:

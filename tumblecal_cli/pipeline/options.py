@@ -19,7 +19,7 @@ if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Limits
     from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfile import Unit
-    from tumblecal_cli.io.captures import Dialect
+    from tumblecal_cli.io.sniff import Dialect
 
 #: A number, or three (X,Y,Z): text as the command line gives it, or numbers.
 Triplet = str | float | Sequence[float]
@@ -100,8 +100,8 @@ class SolveOptions:
 
     @property
     def dialect(self) -> Dialect:
-        """How the files are written, where the sniffer should not guess (captures.Dialect)."""
-        from tumblecal_cli.io.captures import Dialect
+        """How the files are written, where the sniffer should not guess (sniff.Dialect)."""
+        from tumblecal_cli.io.sniff import Dialect
 
         return Dialect(self.skip_rows, self.decimal, self.drop_incomplete)
 

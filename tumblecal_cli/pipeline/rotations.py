@@ -17,12 +17,12 @@ import numpy as np
 from tumblecal_cli.core import rotations as core
 from tumblecal_cli.core.gate import Finding
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import captures
+from tumblecal_cli.io import readings
 from tumblecal_cli.pipeline.turns import Outcome, gyro_calibration, seconds_per_sample
 
 if TYPE_CHECKING:
     from tumblecal_cli.io.calfile import Calibration
-    from tumblecal_cli.io.captures import Log
+    from tumblecal_cli.io.readings import Log
     from tumblecal_cli.pipeline.options import Settings, SolveOptions
 
 HINTS = {
@@ -80,7 +80,7 @@ def hand_turns(log: str, options: SolveOptions) -> HandTurns:
         dialect=options.dialect,
         whole=True,  # the turns between the still blocks are integrated
     ) as (path, acc, seg):
-        gyr = captures.read_log(
+        gyr = readings.read_log(
             path,
             sensor="gyroscope",
             columns=options.column_names,

@@ -1,6 +1,6 @@
 """solve: pose captures (or one continuous log) in, a judged Calibration out.
 
-The steps, each a module of its own: read the poses (``io.captures``, or ``pipeline.logs`` for a
+The steps, each a module of its own: read the poses (``io.readings``, or ``pipeline.logs`` for a
 log), average them (``core.model.pose_stats``), solve (``core.solvers``), check the captures
 (``core.gate.check``, exit 3), judge the unit against its limits (``core.gate.verdict``, exit 1),
 and build the calibration (``io.calfile.build``). Nothing here prints or writes a file: the
@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Corrected, Finding, Limits, PoseCheck
     from tumblecal_cli.core.model import FloatArray, PoseStats
     from tumblecal_cli.io.calfile import Calibration
-    from tumblecal_cli.io.captures import Samples
+    from tumblecal_cli.io.readings import Samples
     from tumblecal_cli.pipeline.logs import Blocks
     from tumblecal_cli.pipeline.options import Settings, SolveOptions
 

@@ -1,7 +1,7 @@
 """thermal: temperature sweeps in, a calibration with a ``thermal`` block out.
 
 The steps: read the base calibration (``io.calfile``) and each sweep with its temperature column
-(``io.captures.read_log``), refuse a temperature that cannot carry a fit (constant, noise without
+(``io.readings.read_log``), refuse a temperature that cannot carry a fit (constant, noise without
 a trend, a swing too small for the order: exit 3), fit the drift (``core.thermal.fit``), judge the
 sweeps with the quality checks of ``solve`` on their readings with the drift removed
 (``core.gate``: a pose that moved is exit 3), and add the block to the base calibration.
@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.core.thermal import Sweep, ThermalFit
     from tumblecal_cli.io.calfile import Calibration, Thermal
-    from tumblecal_cli.io.captures import Log
+    from tumblecal_cli.io.readings import Log
 
 #: The default of --min-swing (°C): the swing order 1 needs.
 MIN_SWING = 10.0
@@ -179,7 +179,7 @@ def _read(
 
     from tumblecal_cli.core import model
     from tumblecal_cli.core import thermal as core
-    from tumblecal_cli.io import captures
+    from tumblecal_cli.io import readings
     from tumblecal_cli.pipeline.solve import pose_items
 
     texts = [os.fspath(i) for i in items]
@@ -189,7 +189,7 @@ def _read(
     placed = pose_items(texts, "+z")
     out = []
     for face, path in placed.items:
-        log = captures.read_log(
+        log = readings.read_log(
             path,
             sensor=base.sensor,
             columns=columns,

@@ -15,12 +15,12 @@ from tumblecal_cli.core import model
 from tumblecal_cli.core import turns as core
 from tumblecal_cli.core.gate import Finding
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import captures
+from tumblecal_cli.io import readings
 from tumblecal_cli.pipeline.options import pose_map
 
 if TYPE_CHECKING:
     from tumblecal_cli.io.calfile import Calibration
-    from tumblecal_cli.io.captures import Log
+    from tumblecal_cli.io.readings import Log
     from tumblecal_cli.pipeline.options import Settings, SolveOptions
 
 SIX = ("+x", "-x", "+y", "-y", "+z", "-z")
@@ -81,7 +81,7 @@ def from_log(log: str, options: SolveOptions, given: Settings) -> Outcome:
 
 
 def _read(path: str, log: str, options: SolveOptions, sensor: str) -> Log:
-    return captures.read_log(
+    return readings.read_log(
         path,
         sensor=sensor,
         columns=options.column_names if sensor == "gyroscope" else None,

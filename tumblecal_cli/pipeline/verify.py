@@ -13,7 +13,8 @@ from tumblecal_cli.errors import CaptureRejected, InputError
 
 if TYPE_CHECKING:
     from tumblecal_cli.io.calfile import Calibration
-    from tumblecal_cli.io.captures import Dialect, Samples
+    from tumblecal_cli.io.readings import Samples
+    from tumblecal_cli.io.sniff import Dialect
 
 
 @dataclass
@@ -62,8 +63,7 @@ def verify(
 ) -> Verified:
     """The norm error of each static capture before and after correction with ``cal``."""
     from tumblecal_cli.core import gate, model
-    from tumblecal_cli.io import calfile
-    from tumblecal_cli.io import captures as reading
+    from tumblecal_cli.io import calfile, sniff
     from tumblecal_cli.pipeline.options import path_of
 
     if not isinstance(captures, str | os.PathLike | Sequence):
@@ -94,7 +94,7 @@ def verify(
     fitted = {str(p.get("sha256")): str(p.get("file")) for p in c.poses if p.get("sha256")}
     result = Verified(0, c, ref, max_norm_error, [], {})
     for path in paths:
-        s = _read(path, c, picked, no_header, reading.Dialect(skip_rows, decimal, drop_incomplete), result.notes)
+        s = _read(path, c, picked, no_header, sniff.Dialect(skip_rows, decimal, drop_incomplete), result.notes)
         result.notes += s.layout.notes
         model.in_range(s.values, s.layout.name)
         if s.sha256 in fitted:
@@ -168,13 +168,13 @@ def _read(
     import numpy as np
 
     from tumblecal_cli.core import thermal
-    from tumblecal_cli.io import captures as reading
+    from tumblecal_cli.io import readings
 
     if c.thermal is None:
-        return reading.read_samples(
+        return readings.read_samples(
             path, sensor=c.sensor, columns=picked, prefer=c.columns, no_header=no_header, dialect=dialect
         )
-    log = reading.read_log(
+    log = readings.read_log(
         path,
         sensor=c.sensor,
         columns=picked,
@@ -196,7 +196,7 @@ def _read(
         )
     values = thermal.at_reference(log.values, temp, c.offset, drift)
     rows = (int(log.rows[0]), int(log.rows[-1]))
-    return reading.Samples(log.layout, values, rows, log.sha256, None, float(np.nanmean(temp)))
+    return readings.Samples(log.layout, values, rows, log.sha256, None, float(np.nanmean(temp)))
 
 
 @dataclass

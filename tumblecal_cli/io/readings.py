@@ -1,0 +1,361 @@
+"""Readings in memory: a pose file's ``Samples`` and a whole ``Log``, with their clock.
+
+``read_log`` streams a capture (``io.capture``) into arrays: the sensor triplet of every
+non-empty row, its data row, the time column (its unit judged by ``time_scale``), the
+temperature and a label column; ``read_samples`` is the same for a pose file.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+
+from tumblecal_cli.errors import InputError
+from tumblecal_cli.io.capture import Capture, open_capture, to_floats
+from tumblecal_cli.io.sniff import (
+    NUMBER,
+    TEMPERATURE_NAMES,
+    TIME_SCALE,
+    UNIT_WORDS,
+    BoolArray,
+    Dialect,
+    FloatArray,
+    Layout,
+    quoted,
+)
+
+
+@dataclass(frozen=True)
+class Samples:
+    """The sensor readings of one capture (or of one block of a log), empty rows dropped."""
+
+    layout: Layout
+    values: FloatArray  # (n, 3) raw units
+    rows: tuple[int, int]  # first and last data row used (0-based, inclusive)
+    sha256: str
+    duration: float | None  # seconds spanned by the time column (or --rate), if known
+    temperature: float | None = None  # mean of the temperature column, if there is one
+    block: int | None = None  # the block's number, for a pose cut from a log
+    times: tuple[float, float] | None = None  # a block's first and last time, when the log has them
+
+    @property
+    def name(self) -> str:
+        """How messages name this pose: its file, and its block when cut from a log."""
+        return self.layout.name if self.block is None else f"{self.layout.name} block {self.block}"
+
+
+@dataclass(frozen=True)
+class Log:
+    """A whole log in memory: the sensor readings of every non-empty row, with their data row,
+    time (``clock``: the time column in its own unit, ``scale`` seconds each) and label."""
+
+    layout: Layout
+    values: FloatArray  # (n, 3)
+    rows: np.ndarray[Any, np.dtype[np.int64]]  # data row (0-based) of each reading (int32 from io.logread)
+    clock: FloatArray | None
+    labels: list[str] | None
+    sha256: str
+    temperature: FloatArray | None = None
+    scale: float = 1.0
+    #: Each reading's line in the file: its first byte and the byte after its line end (a log
+    #: read block by block, io.logread: its readings are those of the still periods only; int32
+    #: for a file under 2 GiB, as its rows).
+    lines: np.ndarray[Any, np.dtype[np.int64]] | None = None
+    #: ... and then what the whole log's readings are judged by for their integer type
+    #: (gate.integer_rails): the lowest, the highest, and one that is not a whole number if any;
+    extremes: FloatArray | None = None
+    #: and where each run of the readings kept starts among the whole log's and among these.
+    runs: tuple[np.ndarray[Any, np.dtype[np.int64]], np.ndarray[Any, np.dtype[np.int64]]] | None = None
+
+    def reading(self, position: int) -> int:
+        """The index among the whole log's readings of the reading at ``position`` here (the
+        same, unless the log was read block by block and only its still periods kept)."""
+        if self.runs is None:
+            return position
+        from tumblecal_cli.core.scan import log_index
+
+        return int(log_index(*self.runs, position))
+
+    def seconds(self) -> FloatArray | None:
+        """Seconds since the first reading (differences first: epoch nanoseconds keep their digits)."""
+        return None if self.clock is None else (self.clock - self.clock[0]) * self.scale
+
+    def block(self, number: int, first: int, last: int) -> Samples:
+        """Readings ``first``..``last`` (inclusive) as a pose."""
+        clock = self.clock
+        times = None if clock is None else (float(clock[first]), float(clock[last]))
+        temp = self.temperature
+        return Samples(
+            self.layout,
+            self.values[first : last + 1],
+            (int(self.rows[first]), int(self.rows[last])),
+            self.sha256,
+            None if clock is None else float(clock[last] - clock[first]) * self.scale,
+            None if temp is None else float(temp[first : last + 1].mean()),
+            block=number,
+            times=times,
+        )
+
+
+def read_samples(
+    path: str,
+    *,
+    sensor: str = "accelerometer",
+    columns: Sequence[str] | None = None,
+    no_header: bool = False,
+    time_column: str | None = None,
+    time_unit: str = "auto",
+    rate: float | None = None,
+    prefer: Sequence[str] | None = None,
+    dialect: Dialect | None = None,
+) -> Samples:
+    """Read the sensor columns of a small capture (a pose file) into memory (``prefer``: a
+    calibration's recorded columns, used when the file has them)."""
+    log = read_log(
+        path,
+        sensor=sensor,
+        columns=columns,
+        no_header=no_header,
+        time_column=time_column,
+        time_unit=time_unit,
+        use_time=False,
+        prefer=prefer,
+        dialect=dialect,
+    )
+    t, used = log.clock, log.rows
+    duration = None
+    if t is not None:
+        duration = float(t[-1] - t[0]) * log.scale if np.isfinite(t[[0, -1]]).all() else None
+    elif rate:
+        duration = (used[-1] - used[0] + 1) / rate
+    temp = log.temperature
+    temperature = float(temp.mean()) if temp is not None and np.isfinite(temp).all() else None
+    return Samples(log.layout, log.values, (int(used[0]), int(used[-1])), log.sha256, duration, temperature)
+
+
+def read_log(
+    path: str,
+    *,
+    sensor: str = "accelerometer",
+    columns: Sequence[str] | None = None,
+    no_header: bool = False,
+    time_column: str | None = None,
+    time_unit: str = "auto",
+    label_column: str | None = None,
+    use_time: bool = True,
+    name: str | None = None,
+    digest: bool = True,
+    prefer: Sequence[str] | None = None,
+    dialect: Dialect | None = None,
+    temperature_column: str | None = None,
+    need_temperature: bool = False,
+) -> Log:
+    """Read a whole capture into memory (a log to segment, or a pose file). With ``use_time``
+    its time column must hold numbers that never go backwards (else a time cell that is not a
+    number leaves ``clock`` unknown); ``label_column`` is read as text; ``digest`` off leaves
+    ``sha256`` empty (a second pass over the file saved). ``need_temperature``: the temperature
+    column (``temperature_column``, else one of TEMPERATURE_NAMES) must be there and hold a
+    number on every row with sensor values (an error names the line and column)."""
+    with open_capture(
+        path,
+        sensor=sensor,
+        columns=columns,
+        prefer=prefer,
+        no_header=no_header,
+        time_column=time_column,
+        name=name,
+        extra=label_column,
+        dialect=dialect,
+        temperature_column=temperature_column,
+    ) as cap:
+        lay = cap.layout
+        if need_temperature:
+            _require_temperature(lay)
+        blocks, keep, times, temps, labels = [], [], [], [], []
+        for first_row, cols in cap.batches(only_sensor=True):
+            values, empty = cap.sensor_values(cols, first_row)
+            bad = ~np.isfinite(values) & ~empty[:, None]
+            if bad.any():  # nan/inf would poison the pose mean (apply passes them through)
+                i, j = (int(k[0]) for k in np.nonzero(bad))
+                raise cap._locate(first_row + i, j, f"not a finite number: {quoted(cols[j][i].as_py())}")
+            blocks.append(values)
+            keep.append(~empty)
+            k = 3
+            if lay.time is not None:
+                times.append((first_row, cols[k]))
+                k += 1
+            if lay.temperature is not None:
+                temps.append(cap.temperature_values(cols[k], first_row, empty) if need_temperature else cols[k])
+                k += 1
+            if lay.extra is not None:
+                labels.extend(cols[k].to_pylist())
+        values = np.concatenate(blocks) if len(blocks) > 1 else blocks[0] if blocks else np.empty((0, 3))
+        mask = np.concatenate(keep) if keep else np.zeros(0, dtype=bool)
+        every = bool(mask.all())  # no empty rows (the usual case): no copies to drop them
+        used = np.flatnonzero(mask).astype(np.int64)
+        if used.size == 0:
+            raise InputError(
+                "no rows with sensor values", file=lay.name, hint=f"columns read: {', '.join(lay.sensor_names)}"
+            )
+        t = None
+        if times and use_time:
+            t = _times(cap, times, None if every else mask)
+        elif times:
+            try:
+                t = np.concatenate([to_floats(pc.cast(cap.pointed(c), pa.float64(), safe=False)) for _, c in times])[
+                    mask
+                ]
+            except pa.ArrowInvalid:  # a time cell that is not a number: the duration is unknown
+                t = None
+        temperature = _temperatures(cap, temps, mask) if temps else None
+        text = None if lay.extra is None else [str(labels[i] or "").strip() for i in used]
+        sha256 = cap.sha256() if digest else ""
+    scale = TIME_SCALE.get(time_unit, 1.0)
+    if t is not None:
+        try:
+            scale = time_scale(lay, t, time_unit)
+        except InputError:
+            if use_time:
+                raise
+            scale = TIME_SCALE[lay.time_unit or "s"]  # the time column is not used (--rate): no judgement
+    return Log(lay, values if every else values[mask], used, t, text, sha256, temperature, scale)
+
+
+def _require_temperature(lay: Layout) -> None:
+    if lay.temperature is None:
+        raise InputError(
+            f"no temperature column (looked for {', '.join(TEMPERATURE_NAMES)})",
+            file=lay.name,
+            hint=f"name it with --temperature-column (columns: {', '.join(lay.names)})",
+        )
+
+
+def _temperatures(cap: Capture, temps: list[Any], mask: BoolArray) -> FloatArray | None:
+    """The temperature column of the rows kept: blocks already read as numbers
+    (``Capture.temperature_values``), or text, where a cell that is not a number leaves the
+    temperature unknown (None)."""
+    if isinstance(temps[0], np.ndarray):
+        out: FloatArray = np.concatenate(temps)[mask]
+        return out
+    try:
+        floats = [to_floats(pc.cast(cap.pointed(c), pa.float64(), safe=False)) for c in temps]
+    except pa.ArrowInvalid:
+        return None
+    found: FloatArray = np.concatenate(floats)[mask]
+    return found
+
+
+#: The seconds between samples of a sensor's log: 50 kHz to 0.1 Hz.
+_PERIODS = (2e-5, 10.0)
+
+
+def _epoch_unit(first: float, step: float) -> str | None:
+    """The unit of a clock that counts from 1970 (years 2001-2286 in s, ms, µs or ns), when its
+    spacing is a sensor's in that unit."""
+    for unit, scale in TIME_SCALE.items():
+        if 1e9 <= first * scale < 1e10 and _PERIODS[0] <= step * scale <= _PERIODS[1]:
+            return unit
+    return None
+
+
+def time_scale(layout: Layout, clock: FloatArray, unit: str) -> float:
+    """Seconds per unit of a log's time column: ``unit`` (--time-unit) when given; with "auto",
+    the unit its name gives (``timestamp_ms``) unless its spacing contradicts it, else the unit of
+    an epoch clock (1.7e18: ns), else the unit its spacing implies (a median step under 0.2: s;
+    to 200: ms; to 2e5: µs; to 2e8: ns: each unit right from 5 Hz to 5 kHz), with a note."""
+    if unit != "auto":
+        return TIME_SCALE[unit]
+    assert layout.time is not None
+    column, named = layout.names[layout.time], layout.time_unit
+    d = np.diff(clock[:100_001])
+    d = d[d > 0]
+    if d.size == 0:  # one reading, or a clock that never moves: nothing to judge by
+        return TIME_SCALE[named or "s"]
+    step = float(np.median(d))
+    spaced = _epoch_unit(float(clock[0]), step) or next(
+        (u for u, top in (("s", 0.2), ("ms", 200.0), ("us", 2e5), ("ns", 2e8)) if step <= top), None
+    )
+    hint = "give --time-unit s, ms, us or ns (or --rate HZ to use the sample rate instead)"
+    if named is not None:
+        period = step * TIME_SCALE[named]
+        if _PERIODS[0] <= period <= _PERIODS[1]:
+            return TIME_SCALE[named]
+        raise InputError(
+            f"time column {column!r} is named in {UNIT_WORDS[named]}, but it advances {step:g} per sample "
+            f"(a sample every {period:.3g} s)" + (f"; its spacing suggests {UNIT_WORDS[spaced]}" if spaced else ""),
+            file=layout.name,
+            hint=hint,
+        )
+    if spaced is None:
+        raise InputError(
+            f"time column {column!r} advances {step:g} per sample: not seconds, ms, µs or ns at a sensor's rate",
+            file=layout.name,
+            hint=hint,
+        )
+    if spaced != "s":
+        rate = 1.0 / (step * TIME_SCALE[spaced])
+        layout.notes.append(
+            f"{layout.name}: time column {column!r} read in {UNIT_WORDS[spaced]}: it advances {step:g} per sample "
+            f"({rate:.4g} Hz); if it is not, give --time-unit"
+        )
+    return TIME_SCALE[spaced]
+
+
+def block_rate(cap: Capture, column: pa.Array, empty: BoolArray, unit: str) -> float:
+    """Samples per second from one block's time column (its median step, in the unit
+    ``time_scale`` finds), to 9 digits: a still capture's rate when no --rate is given."""
+    try:
+        clock = to_floats(pc.cast(cap.pointed(column), pa.float64()))
+    except pa.ArrowInvalid:
+        raise InputError(
+            "the time column holds a cell that is not a number", file=cap.layout.name, hint="give --rate HZ"
+        ) from None
+    clock = clock[~empty] if empty.any() else clock
+    step = float(np.median(np.diff(clock))) * time_scale(cap.layout, clock, unit) if clock.size > 1 else 0.0
+    if not step > 0:
+        raise InputError("the time column does not advance", file=cap.layout.name, hint="give --rate HZ")
+    return float(f"{1.0 / step:.9g}")  # the median step's float noise, not the rate's
+
+
+def _times(cap: Capture, times: list[tuple[int, pa.Array]], mask: BoolArray | None) -> FloatArray:
+    """A log's time column on the rows ``mask`` keeps (all when None): numbers that never go
+    backwards, else an error naming the line. Rows without sensor values are not judged: an
+    interleaved logger stamps each sensor's rows with its own clock."""
+    lay = cap.layout
+    assert lay.time is not None
+    parts = []
+    for first_row, text in times:
+        text = cap.pointed(text)
+        try:
+            parts.append(to_floats(pc.cast(text, pa.float64())))
+        except pa.ArrowInvalid:
+            ok = pc.match_substring_regex(pc.utf8_trim_whitespace(text), NUMBER)
+            i = int(pc.index(ok, False).as_py())
+            line = cap._line_of_row(first_row + i)
+            raise InputError(
+                f"time is not a number: {quoted(text[i].as_py())}",
+                file=lay.name,
+                line=line,
+                column=lay.names[lay.time],
+                hint="give the sample rate with --rate HZ instead of the time column (--time-column to pick another)",
+            ) from None
+    t = np.concatenate(parts)
+    rows = np.arange(t.size) if mask is None else np.flatnonzero(mask)
+    t = t if mask is None else t[mask]
+    back = np.flatnonzero(np.diff(t) < 0)
+    if back.size:
+        k = int(back[0]) + 1
+        line = cap._line_of_row(int(rows[k]))
+        raise InputError(
+            f"time goes backwards: {float(t[k])!r} after {float(t[k - 1])!r}",
+            file=lay.name,
+            line=line,
+            column=lay.names[lay.time],
+            hint="sort the log by time, or split it where the logger restarted",
+        )
+    return t
