@@ -20,6 +20,7 @@ from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import capture, rewrite, sniff
 from tumblecal_cli.io.capture import open_capture
 from tumblecal_cli.io.readings import read_log, read_samples
+from tumblecal_cli.io.readspec import ReadSpec
 
 FloatArray = NDArray[np.float64]
 
@@ -42,7 +43,7 @@ def one_row(header: str) -> str:
 
 def picked(path: str, **kwargs: object) -> tuple[list[str], str | None]:
     """(sensor column names, time column name) that open_capture decides."""
-    with open_capture(path, **kwargs) as cap:  # type: ignore[arg-type]
+    with open_capture(path, ReadSpec(**kwargs)) as cap:  # type: ignore[arg-type]
         lay = cap.layout
         return lay.sensor_names, None if lay.time is None else lay.names[lay.time]
 
@@ -198,34 +199,34 @@ def test_headerless_five_columns_need_columns(tmp_path: Path) -> None:
 def test_no_header_option_reads_the_first_line_as_data(tmp_path: Path) -> None:
     # a first line of numbers is data anyway; --no-header says so explicitly
     path = write(tmp_path, "1,2,3\n4,5,6\n")
-    assert read_samples(path, no_header=True).values.tolist() == [[1, 2, 3], [4, 5, 6]]
+    assert read_samples(path, ReadSpec(no_header=True)).values.tolist() == [[1, 2, 3], [4, 5, 6]]
     assert read_samples(path).values.tolist() == [[1, 2, 3], [4, 5, 6]]
 
 
 def test_time_column_and_duration(tmp_path: Path) -> None:
     path = write(tmp_path, "t,ax,ay,az\n" + "".join(f"{i * 10},0,0,1\n" for i in range(101)))
-    assert read_samples(path, time_unit="s").duration == pytest.approx(1000.0)
+    assert read_samples(path, ReadSpec(time_unit="s")).duration == pytest.approx(1000.0)
     auto = read_samples(path)  # a step of 10 at a sensor's rate: milliseconds, said in a note
     assert auto.duration == pytest.approx(1.0)
     assert auto.layout.notes == [
         f"{path}: time column 't' read in milliseconds: it advances 10 per sample (100 Hz); "
         "if it is not, give --time-unit"
     ]
-    assert read_samples(path, time_unit="ms").duration == pytest.approx(1.0)
-    assert read_samples(path, time_unit="us").duration == pytest.approx(1e-3)
+    assert read_samples(path, ReadSpec(time_unit="ms")).duration == pytest.approx(1.0)
+    assert read_samples(path, ReadSpec(time_unit="us")).duration == pytest.approx(1e-3)
 
 
 def test_time_column_option(tmp_path: Path) -> None:
     path = write(tmp_path, "clock,ax,ay,az\n" + "".join(f"{i},0,0,1\n" for i in range(11)))
     assert read_samples(path).duration is None
-    assert read_samples(path, time_column="clock", time_unit="s").duration == pytest.approx(10.0)
+    assert read_samples(path, ReadSpec(time_column="clock", time_unit="s")).duration == pytest.approx(10.0)
     with pytest.raises(InputError, match="time column 'tick' not found"):
-        read_samples(path, time_column="tick")
+        read_samples(path, ReadSpec(time_column="tick"))
 
 
 def test_rate_gives_the_duration_without_a_time_column(tmp_path: Path) -> None:
     path = write(tmp_path, "ax,ay,az\n" + "0,0,1\n" * 200)
-    assert read_samples(path, rate=100.0).duration == pytest.approx(2.0)
+    assert read_samples(path, ReadSpec(rate=100.0)).duration == pytest.approx(2.0)
     assert read_samples(path).duration is None
 
 
@@ -303,7 +304,7 @@ def test_error_line_numbers_count_comments_and_blanks(tmp_path: Path) -> None:
 
 def test_interleaved_rows_with_empty_sensor_cells_are_skipped(tmp_path: Path) -> None:
     text = "t,ax,ay,az,lat\n0,,,,52.1\n1,1,2,3,\n2,,,,52.2\n3,4,5,6,\n4,,,,52.3\n"
-    s = read_samples(write(tmp_path, text), time_unit="s")
+    s = read_samples(write(tmp_path, text), ReadSpec(time_unit="s"))
     np.testing.assert_array_equal(s.values, [[1, 2, 3], [4, 5, 6]])
     assert s.rows == (1, 3)
     assert s.duration == pytest.approx(2.0)  # from the rows used
@@ -376,7 +377,7 @@ def test_ncsu_microstrain_picks_scaled_accel() -> None:
 
 
 def test_ncsu_microstrain_duration_in_ns() -> None:
-    s = read_samples(str(NCSU), time_unit="ns")
+    s = read_samples(str(NCSU), ReadSpec(time_unit="ns"))
     stamps = [int(t) for t, x in zip(_ncsu_column("timestamp"), _ncsu_column("scaledAccelX"), strict=True) if x]
     assert s.duration == pytest.approx((stamps[-1] - stamps[0]) * 1e-9, rel=1e-6)
     assert s.duration is not None
@@ -384,13 +385,13 @@ def test_ncsu_microstrain_duration_in_ns() -> None:
 
 
 def test_ncsu_microstrain_gyroscope() -> None:
-    s = read_samples(str(NCSU), sensor="gyroscope")
+    s = read_samples(str(NCSU), ReadSpec(sensor="gyroscope"))
     assert s.layout.sensor_names == ["scaledGyroX", "scaledGyroY", "scaledGyroZ"]
     assert s.values.shape == (132, 3)
 
 
 def test_ncsu_microstrain_columns_can_still_pick_an_estimate() -> None:
-    s = read_samples(str(NCSU), columns=["estLinearAccelX", "estLinearAccelY", "estLinearAccelZ"])
+    s = read_samples(str(NCSU), ReadSpec(columns=("estLinearAccelX", "estLinearAccelY", "estLinearAccelZ")))
     assert s.values.shape == (199 - 132, 3)
 
 
@@ -502,7 +503,7 @@ def test_columns_naming_one_column_twice(tmp_path: Path) -> None:
     path = tmp_path / "p.csv"
     path.write_text("ax,ay,az\n1,2,3\n")
     with pytest.raises(InputError, match="--columns names the same column twice: ax,ax,az") as err:
-        read_samples(str(path), columns=["ax", "ax", "az"])
+        read_samples(str(path), ReadSpec(columns=("ax", "ax", "az")))
     assert err.value.exit_code == 2
     assert str(path) in str(err.value)
 
@@ -512,6 +513,6 @@ def test_columns_of_a_headerless_file_take_what_was_only_guessed_the_time(tmp_pa
     (x, y, z, temperature): it was refused as "--columns names 't', the time column"."""
     path = tmp_path / "xyzt.csv"
     path.write_text("".join(f"1.03{k % 7},0.02{k % 5},0.01{k % 3},25.0\n" for k in range(50)))
-    log = read_log(str(path), no_header=True, columns=["0", "1", "2"], use_time=False)
+    log = read_log(str(path), ReadSpec(no_header=True, columns=("0", "1", "2")), use_time=False)
     assert log.layout.time is None
     assert log.values[0].tolist() == [1.03, 0.02, 0.01]

@@ -20,6 +20,7 @@ from tests.conftest import run
 from tumblecal_cli.core import scan as scan_core
 from tumblecal_cli.core import segment as sc
 from tumblecal_cli.io import capture, logread, readings
+from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.pipeline import logs
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -49,7 +50,7 @@ def write(path: Path, table: np.ndarray, header: str = "t,x,y,z", fmt: str | lis
 def both(path: Path, rate: float | None = None, **settings: object) -> tuple[object, object]:
     """(the streamed log and segmentation or None, the whole log and segmentation)."""
     s = sc.Settings(**settings)  # type: ignore[arg-type]
-    streamed = logread.scan_log(str(path), settings=s, rate=rate)
+    streamed = logread.scan_log(str(path), ReadSpec(rate=rate), settings=s)
     if streamed is not None:
         streamed = (streamed[0], logs.review(streamed[0], streamed[1], rate, s))
     whole = readings.read_log(str(path), use_time=rate is None)
@@ -189,7 +190,7 @@ def test_what_the_stream_does_not_take_is_read_whole(tmp_path: Path, small_block
     path = tmp_path / "log.csv"
     write(path, tumble(30_000))
     path.write_text(change(path.read_text()))  # type: ignore[operator]
-    assert logread.scan_log(str(path), settings=sc.Settings()) is None
+    assert logread.scan_log(str(path), ReadSpec(), settings=sc.Settings()) is None
 
 
 def test_a_floor_that_rises_after_the_first_blocks_is_still_exact(tmp_path: Path, small_blocks: None) -> None:
@@ -287,7 +288,7 @@ def test_a_quantised_log_whose_threshold_is_one_of_its_spreads_is_read_whole(tmp
         turn = np.round((1 - w) * faces[k] + w * faces[(k + 1) % 6] + rng.normal(0, 30, (800, 3)))
         parts += [still, turn.astype(int)]
     path = write(tmp_path / "counts.csv", np.vstack(parts), header="x,y,z", fmt="%d")
-    assert logread.scan_log(str(path), settings=sc.Settings()) is None
+    assert logread.scan_log(str(path), ReadSpec(), settings=sc.Settings()) is None
 
 
 def test_a_time_cell_empty_on_another_sensors_row_is_the_whole_reads_business(tmp_path: Path) -> None:
@@ -300,8 +301,8 @@ def test_a_time_cell_empty_on_another_sensors_row_is_the_whole_reads_business(tm
             lines.append(",,,,0.1,0.2,0.3")
     path = tmp_path / "blank_time.csv"
     path.write_text("\n".join(lines) + "\n")
-    assert logread.scan_log(str(path), settings=sc.Settings()) is None
-    assert logread.scan_log(str(path), settings=sc.Settings(), rate=1000.0) is None
+    assert logread.scan_log(str(path), ReadSpec(), settings=sc.Settings()) is None
+    assert logread.scan_log(str(path), ReadSpec(rate=1000.0), settings=sc.Settings()) is None
 
 
 def test_rolling_std_keeps_its_digits_on_a_long_log_of_counts() -> None:

@@ -24,7 +24,7 @@ from tumblecal_cli.core import model
 from tumblecal_cli.errors import TumblecalError
 from tumblecal_cli.io import capture, rewrite, sniff, splice
 from tumblecal_cli.io.capture import open_capture
-from tumblecal_cli.io.sniff import Dialect
+from tumblecal_cli.io.readspec import Dialect, ReadSpec
 
 ROOT = Path(__file__).resolve().parent.parent
 RNG = np.random.default_rng(7)
@@ -36,7 +36,7 @@ def corrected(path: str, *, splice_on: bool, more: int = 0, **options: object) -
     """The bytes ``correct_stream`` writes for ``path``, and the error it stopped on."""
     out = io.BytesIO()
     try:
-        with open_capture(path, **options) as cap:  # type: ignore[arg-type]
+        with open_capture(path, ReadSpec(**options)) as cap:  # type: ignore[arg-type]
             extra = [(sniff.sensor_columns(cap.layout, "gyroscope", ["gx", "gy", "gz"]), _gyro)] if more else []
             rewrite.correct_stream(cap, out, _accel, more=extra, splice=splice_on)
     except TumblecalError as err:

@@ -15,7 +15,7 @@ import tumblecal_cli as tumblecal
 from tests.conftest import POSES_3, PRECIOUS, SAMPLE, assert_untouched, run, tumblecal_exe
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.readings import read_log, read_samples
-from tumblecal_cli.io.sniff import Dialect
+from tumblecal_cli.io.readspec import Dialect, ReadSpec
 
 DATA = Path(__file__).resolve().parent / "data"
 NCSU = DATA / "ncsu_xplus_head.csv"
@@ -65,7 +65,7 @@ def test_an_unnamed_unit_comes_from_the_spacing_with_a_note(tmp_path: Path, step
 
 
 def test_an_explicit_time_unit_wins_over_the_spacing(tmp_path: Path) -> None:
-    log = read_log(str(write(tmp_path / "log.csv", still_log(10))), time_unit="s")
+    log = read_log(str(write(tmp_path / "log.csv", still_log(10))), ReadSpec(time_unit="s"))
     assert log.scale == 1.0
     assert log.layout.notes == []
 
@@ -73,7 +73,7 @@ def test_an_explicit_time_unit_wins_over_the_spacing(tmp_path: Path) -> None:
 def test_real_epoch_nanoseconds_are_recognised_by_their_spacing() -> None:
     """NCSU's MicroStrain log names its column `timestamp` and writes epoch nanoseconds (~1 kHz)."""
     s = read_samples(str(NCSU))
-    assert s.duration == pytest.approx(read_samples(str(NCSU), time_unit="ns").duration)
+    assert s.duration == pytest.approx(read_samples(str(NCSU), ReadSpec(time_unit="ns")).duration)
     assert s.duration is not None
     assert 0.05 < s.duration < 1.0
     assert any("read in nanoseconds" in n for n in s.layout.notes)
@@ -145,7 +145,7 @@ def test_skip_rows_forces_the_preamble(tmp_path: Path) -> None:
     path = write(tmp_path / "z.csv", "serial,station,operator,date\n" + still_log(0.01))
     with pytest.raises(InputError, match="no accelerometer x,y,z columns found"):
         read_samples(str(path))
-    s = read_samples(str(path), dialect=Dialect(skip_rows=1))
+    s = read_samples(str(path), ReadSpec(dialect=Dialect(skip_rows=1)))
     assert s.layout.names == ["t", "ax", "ay", "az"]
     assert s.values.shape == (200, 3)
     with pytest.raises(InputError, match="--skip-rows takes a whole number"):
@@ -215,10 +215,12 @@ def test_decimal_option_forces_it_and_the_hint_names_it(tmp_path: Path) -> None:
     with pytest.raises(InputError, match=r"not a number: '0,01' \(line 3, column ax\)") as err:
         read_samples(str(path))
     assert "--decimal ," in (err.value.hint or "")
-    s = read_samples(str(write(tmp_path / "c.csv", "ax;ay;az\n0,01;0,02;1,01\n")), dialect=Dialect(decimal=","))
+    s = read_samples(
+        str(write(tmp_path / "c.csv", "ax;ay;az\n0,01;0,02;1,01\n")), ReadSpec(dialect=Dialect(decimal=","))
+    )
     np.testing.assert_array_equal(s.values, [[0.01, 0.02, 1.01]])
     with pytest.raises(InputError, match="--decimal , needs columns separated by something else"):
-        read_samples(str(write(tmp_path / "d.csv", "ax,ay,az\n0,0,1\n")), dialect=Dialect(decimal=","))
+        read_samples(str(write(tmp_path / "d.csv", "ax,ay,az\n0,0,1\n")), ReadSpec(dialect=Dialect(decimal=",")))
 
 
 # -- a last line cut short -------------------------------------------------------------------

@@ -14,7 +14,7 @@ import pytest
 from tumblecal_cli.errors import TumblecalError
 from tumblecal_cli.io import capture, rewrite
 from tumblecal_cli.io.capture import open_capture
-from tumblecal_cli.io.sniff import Dialect
+from tumblecal_cli.io.readspec import Dialect, ReadSpec
 
 from .test_splice import CASES, ROOT, _accel, lines, spliced_blocks, table
 
@@ -29,7 +29,7 @@ def piped(
     out = io.BytesIO()
     notes: list[str] = []
     try:
-        with open_capture("-", **options) as cap:  # type: ignore[arg-type]
+        with open_capture("-", ReadSpec(**options)) as cap:  # type: ignore[arg-type]
             rewrite.correct_stream(cap, out, _accel, splice=splice_on)
             notes = list(cap.layout.notes)
     except TumblecalError as err:

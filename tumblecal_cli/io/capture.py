@@ -33,6 +33,7 @@ import pyarrow.compute as pc
 import pyarrow.csv as pcsv
 
 from tumblecal_cli.errors import InputError
+from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.io.sniff import (
     COMMA_NUMBER,
     HEAD_BYTES,
@@ -41,7 +42,6 @@ from tumblecal_cli.io.sniff import (
     WS_EDGE,
     WS_RUN,
     BoolArray,
-    Dialect,
     FloatArray,
     Layout,
     column_index,
@@ -320,26 +320,17 @@ class Capture:
 
 
 def open_capture(
-    path: str,
-    *,
-    sensor: str = "accelerometer",
-    columns: Sequence[str] | None = None,
-    prefer: Sequence[str] | None = None,
-    no_header: bool = False,
-    time_column: str | None = None,
-    name: str | None = None,
-    extra: str | None = None,
-    dialect: Dialect | None = None,
-    temperature_column: str | None = None,
+    path: str, spec: ReadSpec | None = None, *, name: str | None = None, extra: str | None = None
 ) -> Capture:
-    """Open ``path`` ('-' for stdin), sniff its layout and find its sensor and time columns.
-
-    ``columns`` (from ``--columns``) overrides detection; ``prefer`` (a calibration's
-    recorded columns) is used when all three are present; ``extra`` names one more column to
-    read (as text); ``name`` is how messages name the file (default: the path); ``dialect``
-    what the user says of the file's shape (preamble, decimal mark, a cut last line).
+    """Open ``path`` ('-' for stdin), sniff its layout and find its sensor and time columns by
+    ``spec`` (``columns`` overrides detection; ``prefer``, a calibration's recorded columns, is
+    used when all three are present; ``dialect`` is what the user says of the file's shape);
+    ``extra`` names one more column to read (as text); ``name`` is how messages name the file
+    (default: the path).
     """
-    dialect = dialect or Dialect()
+    spec = spec or ReadSpec()
+    sensor, columns, prefer, time_column = spec.sensor, spec.columns, spec.prefer, spec.time_column
+    temperature_column, dialect = spec.temperature_column, spec.dialect
     name = name or ("<stdin>" if path == "-" else path)
     try:
         f: IO[bytes] = sys.stdin.buffer if path == "-" else open(path, "rb")  # noqa: SIM115
@@ -353,7 +344,7 @@ def open_capture(
     first = f.read(HEAD_BYTES)
     hasher.update(first)
     try:
-        layout, consumed = sniff(name, first, at_eof=len(first) < HEAD_BYTES, no_header=no_header, dialect=dialect)
+        layout, consumed = sniff(name, first, at_eof=len(first) < HEAD_BYTES, no_header=spec.no_header, dialect=dialect)
         layout.sensor, layout.time = pick_columns(layout, sensor, columns, prefer, time_column)
         if layout.time is not None:
             layout.time_unit = unit_of_name(layout.names[layout.time])
@@ -551,13 +542,11 @@ def is_regular(path: str) -> bool:
         return True
 
 
-def read_table(
-    path: str, *, no_header: bool = False, dialect: Dialect | None = None
-) -> tuple[Layout, list[str], list[pa.Array]]:
+def read_table(path: str, spec: ReadSpec | None = None) -> tuple[Layout, list[str], list[pa.Array]]:
     """Every column of a capture, by the rules solve and apply read it by: (layout, names,
     columns, each int64, float64 or text). The sensor columns are checked as apply checks them
     (a cell that is not a number is an error naming its line and column)."""
-    with open_capture(path, no_header=no_header, dialect=dialect) as cap:
+    with open_capture(path, spec) as cap:
         parts: list[list[pa.Array]] = [[] for _ in cap.layout.names]
         for first, cols in cap.batches():
             cap.sensor_values([cols[i] for i in cap.layout.sensor], first)

@@ -35,7 +35,7 @@ from tumblecal_cli.core.segment import FloatArray, IntArray, Segmentation, Setti
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import capture, readings, rewrite, sniff
 from tumblecal_cli.io.readings import Log
-from tumblecal_cli.io.sniff import Dialect
+from tumblecal_cli.io.readspec import ReadSpec
 
 #: Files smaller than this keep their readings' rows and line offsets as int32 (4 bytes, not 8).
 NARROW = 1 << 31
@@ -49,25 +49,13 @@ class _Plain(Exception):
 
 
 def scan_log(
-    path: str,
-    *,
-    settings: Settings,
-    sensor: str = "accelerometer",
-    columns: list[str] | None = None,
-    no_header: bool = False,
-    time_column: str | None = None,
-    time_unit: str = "auto",
-    rate: float | None = None,
-    name: str | None = None,
-    digest: bool = True,
-    dialect: Dialect | None = None,
+    path: str, spec: ReadSpec, *, settings: Settings, name: str | None = None, digest: bool = True
 ) -> tuple[Log, Segmentation] | None:
-    """The log at ``path`` (a regular file) and its still blocks found by ``core.scan``, or
-    None when it is to be read whole (the module's docstring). ``rate``: the time column is
-    then not judged (as ``read_log(use_time=False)``)."""
-    with capture.open_capture(
-        path, sensor=sensor, columns=columns, no_header=no_header, time_column=time_column, name=name, dialect=dialect
-    ) as cap:
+    """The log at ``path`` (a regular file) read by ``spec``, and its still blocks found by
+    ``core.scan``, or None when it is to be read whole (the module's docstring). With
+    ``spec.rate`` the time column is not judged (as ``read_log(use_time=False)``)."""
+    time_unit, rate = spec.time_unit, spec.rate
+    with capture.open_capture(path, spec, name=name) as cap:
         lay = cap.layout
         extra = [i for i in (lay.time, lay.temperature) if i is not None]
         splicer = rewrite.splicer_for(cap, [(lay.sensor, _same)], also=extra)

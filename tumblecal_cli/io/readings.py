@@ -7,7 +7,6 @@ temperature and a label column; ``read_samples`` is the same for a pose file.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -17,13 +16,13 @@ import pyarrow.compute as pc
 
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.capture import Capture, open_capture, to_floats
+from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.io.sniff import (
     NUMBER,
     TEMPERATURE_NAMES,
     TIME_SCALE,
     UNIT_WORDS,
     BoolArray,
-    Dialect,
     FloatArray,
     Layout,
     quoted,
@@ -102,31 +101,11 @@ class Log:
         )
 
 
-def read_samples(
-    path: str,
-    *,
-    sensor: str = "accelerometer",
-    columns: Sequence[str] | None = None,
-    no_header: bool = False,
-    time_column: str | None = None,
-    time_unit: str = "auto",
-    rate: float | None = None,
-    prefer: Sequence[str] | None = None,
-    dialect: Dialect | None = None,
-) -> Samples:
-    """Read the sensor columns of a small capture (a pose file) into memory (``prefer``: a
-    calibration's recorded columns, used when the file has them)."""
-    log = read_log(
-        path,
-        sensor=sensor,
-        columns=columns,
-        no_header=no_header,
-        time_column=time_column,
-        time_unit=time_unit,
-        use_time=False,
-        prefer=prefer,
-        dialect=dialect,
-    )
+def read_samples(path: str, spec: ReadSpec | None = None) -> Samples:
+    """Read the sensor columns of a small capture (a pose file) into memory, by ``spec``."""
+    spec = spec or ReadSpec()
+    log = read_log(path, spec, use_time=False)
+    rate = spec.rate
     t, used = log.clock, log.rows
     duration = None
     if t is not None:
@@ -140,39 +119,24 @@ def read_samples(
 
 def read_log(
     path: str,
+    spec: ReadSpec | None = None,
     *,
-    sensor: str = "accelerometer",
-    columns: Sequence[str] | None = None,
-    no_header: bool = False,
-    time_column: str | None = None,
-    time_unit: str = "auto",
     label_column: str | None = None,
     use_time: bool = True,
     name: str | None = None,
     digest: bool = True,
-    prefer: Sequence[str] | None = None,
-    dialect: Dialect | None = None,
-    temperature_column: str | None = None,
     need_temperature: bool = False,
 ) -> Log:
-    """Read a whole capture into memory (a log to segment, or a pose file). With ``use_time``
-    its time column must hold numbers that never go backwards (else a time cell that is not a
-    number leaves ``clock`` unknown); ``label_column`` is read as text; ``digest`` off leaves
-    ``sha256`` empty (a second pass over the file saved). ``need_temperature``: the temperature
-    column (``temperature_column``, else one of TEMPERATURE_NAMES) must be there and hold a
-    number on every row with sensor values (an error names the line and column)."""
-    with open_capture(
-        path,
-        sensor=sensor,
-        columns=columns,
-        prefer=prefer,
-        no_header=no_header,
-        time_column=time_column,
-        name=name,
-        extra=label_column,
-        dialect=dialect,
-        temperature_column=temperature_column,
-    ) as cap:
+    """Read a whole capture into memory by ``spec`` (a log to segment, or a pose file). With
+    ``use_time`` its time column must hold numbers that never go backwards (else a time cell
+    that is not a number leaves ``clock`` unknown); ``label_column`` is read as text; ``digest``
+    off leaves ``sha256`` empty (a second pass over the file saved). ``need_temperature``: the
+    temperature column (``spec.temperature_column``, else one of TEMPERATURE_NAMES) must be
+    there and hold a number on every row with sensor values (an error names the line and
+    column)."""
+    spec = spec or ReadSpec()
+    time_unit = spec.time_unit
+    with open_capture(path, spec, name=name, extra=label_column) as cap:
         lay = cap.layout
         if need_temperature:
             _require_temperature(lay)

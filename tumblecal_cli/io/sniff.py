@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from tumblecal_cli.errors import InputError
+from tumblecal_cli.io.readspec import Dialect
 
 HEAD_BYTES = 1 << 20  # the sniffer looks at this much of the file
 
@@ -75,25 +76,6 @@ COMMA_NUMBER = re.compile(r"^\s*[+-]?\d*,\d+(?:[eE][+-]?\d+)?\s*$")
 
 
 MAX_PREAMBLE = 20  # metadata lines a station may write before its header
-
-
-@dataclass(frozen=True)
-class Dialect:
-    """How a station wrote its file, where the sniffer should not guess (README "CSV captures"):
-    ``skip_rows`` lines before the header (None: a metadata preamble is found by its field
-    count), the ``decimal`` mark (None: a comma when every number of a ``;`` or tab separated
-    file has one), and whether an incomplete last line (a logger stopped mid-write) is dropped."""
-
-    skip_rows: int | None = None
-    decimal: str | None = None
-    drop_incomplete: bool = False
-
-    def __post_init__(self) -> None:
-        skip = self.skip_rows
-        if skip is not None and (isinstance(skip, bool) or not isinstance(skip, int) or skip < 0):
-            raise InputError(f"--skip-rows takes a whole number of 0 or more, got {skip!r}")
-        if self.decimal not in (None, ".", ","):
-            raise InputError(f"--decimal is '.' or ',', got {self.decimal!r}")
 
 
 FloatArray = np.ndarray[Any, np.dtype[np.float64]]

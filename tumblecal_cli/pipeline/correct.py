@@ -10,17 +10,19 @@ import contextlib
 import glob
 import os
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
-from typing import IO, TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, Any, Unpack
 
 from tumblecal_cli.errors import InputError, TumblecalError
+from tumblecal_cli.pipeline.options import FileKeywords
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfile import Calibration
     from tumblecal_cli.io.capture import Capture
-    from tumblecal_cli.io.sniff import Dialect, Layout
+    from tumblecal_cli.io.readspec import ReadSpec
+    from tumblecal_cli.io.sniff import Layout
 
 
 @dataclass
@@ -34,26 +36,28 @@ class Applied:
     notes: list[str] = field(default_factory=list)
 
 
+class CorrectKeywords(FileKeywords, total=False):
+    """correct's options beside the capture's shape (README "tumblecal apply")."""
+
+    output: str | os.PathLike[str]
+    force: bool
+    on_note: Callable[[str], None] | None
+
+
 def correct(
     capture: str | os.PathLike[str],
     cal: Calibration | str | os.PathLike[str] | Sequence[Calibration | str | os.PathLike[str]],
-    *,
-    output: str | os.PathLike[str] = "-",
-    columns: str | Sequence[str] | None = None,
-    no_header: bool = False,
-    force: bool = False,
-    on_note: Callable[[str], None] | None = None,
-    skip_rows: int | None = None,
-    decimal: str | None = None,
-    drop_incomplete: bool = False,
+    **options: Unpack[CorrectKeywords],
 ) -> Applied:
     """Correct one capture ('-': stdin) into ``output`` ('-': stdout), as ``tumblecal apply``:
     ``cal`` is one calibration (a file, or a Calibration) or several (one per sensor of the
     capture). ``on_note`` hears each note as it is found, before the capture is streamed."""
-    from tumblecal_cli.io import calfile, sniff
+    from tumblecal_cli.io import calfile
     from tumblecal_cli.io.outputs import atomic_output, check_not_input, check_writable
-    from tumblecal_cli.pipeline.options import path_of
+    from tumblecal_cli.pipeline.options import file_spec, keywords_known, path_of
 
+    keywords_known(options, CorrectKeywords, "correct")
+    output, force, on_note = options.get("output", "-"), options.get("force", False), options.get("on_note")
     capture = path_of(capture, "correct streams a capture file (data in memory: Calibration.apply)")
     paths = _calibrations(cal)
     if "-" in paths and capture == "-":
@@ -77,11 +81,12 @@ def correct(
             refuse_failed(c, "correct with it", "apply")
         if c.failed:
             note(f"{c.path}: this unit failed its limits; correcting with it as --force asks")
-    if columns and len(cals) > 1:
+    spec = file_spec(options)
+    picked = spec.columns
+    if picked and len(cals) > 1:
         raise InputError("--columns names the columns of one calibration; with several --cal each uses its own")
-    picked = (columns.split(",") if isinstance(columns, str) else list(columns)) if columns else None
     c = cals[0]
-    with capture_for(c, capture, picked, no_header, sniff.Dialect(skip_rows, decimal, drop_incomplete)) as cap:
+    with capture_for(c, capture, spec) as cap:
         for text in cap.layout.notes:
             note(text)
         used = cap.layout.sensor_names
@@ -143,25 +148,28 @@ def _calibrations(cal: object) -> list[Any]:
     return [c if isinstance(c, Calibration) else os.fspath(c) for c in given]
 
 
+class ManyKeywords(FileKeywords, total=False):
+    """correct_many's options beside the captures' shape."""
+
+    force: bool
+
+
 def correct_many(
     inputs: Sequence[str],
     cal: Sequence[str],
     out_dir: str,
     *,
-    columns: str | None = None,
-    no_header: bool = False,
-    force: bool = False,
     scheduler: str | None = None,
-    skip_rows: int | None = None,
-    decimal: str | None = None,
-    drop_incomplete: bool = False,
+    **options: Unpack[ManyKeywords],
 ) -> Iterator[tuple[str, int, str]]:
     """Correct each capture into ``out_dir`` under its own name, here or on a Dask cluster
     (``scheduler``): (capture, exit status, message) for each as it is done. A capture that
     fails is its own status and message; the others go on."""
     from tumblecal_cli.io import calfile
     from tumblecal_cli.pipeline import batch as batches
+    from tumblecal_cli.pipeline.options import keywords_known
 
+    keywords_known(options, ManyKeywords, "correct_many")
     if "-" in inputs:
         raise InputError("stdin ('-') is one capture: with --out-dir give the captures as files")
     if os.path.exists(out_dir) and not os.path.isdir(out_dir):
@@ -183,16 +191,15 @@ def correct_many(
         if path == "-":
             raise InputError("--cal - is read once: with several captures give the calibration as a file")
         calfile.load(path)
-    options: dict[str, object] = {"cal": list(cal), "columns": columns, "no_header": no_header, "force": force}
-    options |= {"skip_rows": skip_rows, "decimal": decimal, "drop_incomplete": drop_incomplete}
+    each: dict[str, object] = {"cal": list(cal), **options}
     if scheduler is not None:  # the workers do not share this working folder
         inputs, outputs = [os.path.abspath(c) for c in inputs], [os.path.abspath(o) for o in outputs]
-        options["cal"] = [os.path.abspath(c) for c in cal]
+        each["cal"] = [os.path.abspath(c) for c in cal]
     run = batches.engine(1, scheduler)
     made = not os.path.isdir(out_dir)
     os.makedirs(out_dir, exist_ok=True)
     try:
-        for (_, name, _), outcome in run(correct_one, [(options, c, o) for c, o in zip(inputs, outputs, strict=True)]):
+        for (_, name, _), outcome in run(correct_one, [(each, c, o) for c, o in zip(inputs, outputs, strict=True)]):
             if isinstance(outcome, BaseException):  # a worker lost on the cluster
                 outcome = (name, 2, f"{name}: the worker correcting it failed: {type(outcome).__name__}: {outcome}")
             yield outcome
@@ -237,20 +244,15 @@ def refuse_failed(cal: Calibration, doing: str, command: str) -> None:
 
 
 @contextlib.contextmanager
-def capture_for(
-    cal: Calibration, path: str, picked: list[str] | None, no_header: bool, dialect: Dialect | None = None
-) -> Iterator[Capture]:
-    """A capture opened to be corrected by ``cal``: one without that sensor's columns is an
-    error naming both the capture and the calibration."""
+def capture_for(cal: Calibration, path: str, spec: ReadSpec) -> Iterator[Capture]:
+    """A capture opened to be corrected by ``cal`` (read by ``spec``'s columns and dialect):
+    one without that sensor's columns is an error naming both the capture and the calibration."""
     from tumblecal_cli.io import capture
 
     with contextlib.ExitStack() as stack:
         try:
-            cap = stack.enter_context(
-                capture.open_capture(
-                    path, sensor=cal.sensor, columns=picked, prefer=cal.columns, no_header=no_header, dialect=dialect
-                )
-            )
+            spec = replace(spec, sensor=cal.sensor, prefer=tuple(cal.columns))
+            cap = stack.enter_context(capture.open_capture(path, spec))
         except InputError as err:
             if not err.message.startswith(f"no {cal.sensor} x,y,z columns found"):
                 raise

@@ -54,16 +54,7 @@ def read_pose(path: str, options: SolveOptions) -> Samples:
     """A pose file ('-': stdin) read as solve's options say."""
     from tumblecal_cli.io import readings
 
-    return readings.read_samples(
-        path,
-        sensor=options.sensor,
-        columns=options.column_names,
-        no_header=options.no_header,
-        time_column=options.time_column,
-        time_unit=options.time_unit,
-        rate=options.rate,
-        dialect=options.dialect,
-    )
+    return readings.read_samples(path, options.read)
 
 
 def read_capture(path: str | os.PathLike[str], *, no_header: bool = False) -> Any:
@@ -73,8 +64,9 @@ def read_capture(path: str | os.PathLike[str], *, no_header: bool = False) -> An
     import pandas as pd
 
     from tumblecal_cli.io import capture
+    from tumblecal_cli.io.readspec import ReadSpec
     from tumblecal_cli.pipeline.options import path_of
 
     path = path_of(path, "read_capture reads a capture file")
-    _, names, columns = capture.read_table(path, no_header=no_header)
+    _, names, columns = capture.read_table(path, ReadSpec(no_header=no_header))
     return pd.DataFrame({name: col.to_pandas() for name, col in zip(names, columns, strict=True)})

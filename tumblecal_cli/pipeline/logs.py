@@ -15,7 +15,7 @@ import sys
 import tempfile
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Unpack
 
 import numpy as np
 
@@ -23,9 +23,11 @@ from tumblecal_cli.core import model, solvers
 from tumblecal_cli.core import segment as seg_core
 from tumblecal_cli.core.segment import Block, Segmentation
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import capture, readings, sniff
+from tumblecal_cli.io import capture, readings
 from tumblecal_cli.io.outputs import WRITE_ERRORS, atomic_output
 from tumblecal_cli.io.readings import Log, Samples
+from tumblecal_cli.io.readspec import ReadSpec
+from tumblecal_cli.pipeline.options import ReadKeywords
 from tumblecal_cli.pipeline.options import pose_map as parse_pose_map
 
 #: The longest --window, --min-duration or --trim taken, in seconds (116 days: longer than a log) ...
@@ -46,18 +48,12 @@ class Blocks:
 @contextlib.contextmanager
 def segmented(
     log: str,
+    spec: ReadSpec,
     *,
-    sensor: str,
-    columns: list[str] | None,
-    no_header: bool,
-    time_column: str | None,
-    time_unit: str,
-    rate: float | None,
     pose_column: str | None,
     pose_map: Mapping[str, str] | str | None,
     settings: seg_core.Settings,
     digest: bool = True,
-    dialect: sniff.Dialect | None = None,
     whole: bool = False,
 ) -> Iterator[tuple[str, Log, Segmentation]]:
     """Read a log ('-': stdin, kept in a temporary file until the block ends, for a second
@@ -66,6 +62,7 @@ def segmented(
     The Log holds the readings of the still periods only (io.logread) unless ``whole`` asks for
     every one (hand turns integrate what lies between), or the log must be read whole anyway
     (a label column, or what io.logread does not take)."""
+    sensor, rate = spec.sensor, spec.rate
     if sensor != "accelerometer":
         raise InputError(
             f"the still poses of a log are found and labelled by gravity: the accelerometer's, not the {sensor}'s",
@@ -87,35 +84,19 @@ def segmented(
         if pose_column is None and not whole:  # block by block, the still periods kept (io.logread)
             from tumblecal_cli.io import logread
 
-            scanned = logread.scan_log(
-                path,
-                settings=settings,
-                sensor=sensor,
-                columns=columns,
-                no_header=no_header,
-                time_column=time_column,
-                time_unit=time_unit,
-                rate=rate,
-                name="<stdin>" if log == "-" else log,
-                digest=digest,
-                dialect=dialect,
-            )
+            name = "<stdin>" if log == "-" else log
+            scanned = logread.scan_log(path, spec, settings=settings, name=name, digest=digest)
             if scanned is not None:
                 data, seg = scanned
                 yield path, data, review(data, seg, rate, settings)
                 return
         data = readings.read_log(
             path,
-            sensor=sensor,
-            columns=columns,
-            no_header=no_header,
-            time_column=time_column,
-            time_unit=time_unit,
+            spec,
             label_column=pose_column,
             use_time=rate is None,
             name="<stdin>" if log == "-" else log,
             digest=digest,
-            dialect=dialect,
         )
         model.in_range(data.values, data.layout.name)
         yield path, data, find_blocks(data, rate, pose_column, pose_map, settings)
@@ -473,37 +454,37 @@ class Segmented:
         return pd.read_csv(io.StringIO(self.index))
 
 
+class SegmentKeywords(ReadKeywords, total=False):
+    """segment's options beside how the log is read (README "tumblecal segment")."""
+
+    window: float | None
+    threshold: float | None
+    min_duration: float | None
+    trim: float | None
+    pose_column: str | None
+    pose_map: str | Mapping[str, str] | None
+    max_noise: float
+    max_tilt: float
+    nominal_offset: str | float | list[float] | None
+
+
 def segment(
     log: str,
     *,
     out_dir: str | None = None,
     on_blocks: Callable[[Blocks, dict[int, str]], None] | None = None,
-    sensor: str = "accelerometer",
-    columns: str | list[str] | None = None,
-    no_header: bool = False,
-    time_column: str | None = None,
-    time_unit: str = "auto",
-    rate: float | None = None,
-    skip_rows: int | None = None,
-    decimal: str | None = None,
-    drop_incomplete: bool = False,
-    window: float | None = None,
-    threshold: float | None = None,
-    min_duration: float | None = None,
-    trim: float | None = None,
-    pose_column: str | None = None,
-    pose_map: str | Mapping[str, str] | None = None,
-    max_noise: float = 0.02,
-    max_tilt: float = 25.0,
-    nominal_offset: str | float | list[float] | None = None,
+    **options: Unpack[SegmentKeywords],
 ) -> Segmented:
     """Find the still blocks of a continuous log ('-': stdin), and with ``out_dir`` write each
     kept block as a CSV of its own (the log's header and rows, unchanged) and segments.csv, the
     index. ``on_blocks`` sees the blocks as soon as they are found, before they are judged
     (fewer than two kept is exit 3) or written."""
-    from tumblecal_cli.pipeline.options import path_of, triplet
+    from tumblecal_cli.pipeline.options import keywords_known, path_of, read_spec, triplet
 
+    keywords_known(options, SegmentKeywords, "segment")
     log = path_of(log, "segment reads a log file ('-': stdin)")
+    max_noise, max_tilt = options.get("max_noise", 0.02), options.get("max_tilt", 25.0)
+    nominal_offset = options.get("nominal_offset")
     if out_dir is not None:
         out_dir = path_of(out_dir, "out_dir is a folder's path")
     for option, value in (("--max-noise", max_noise), ("--max-tilt", max_tilt)):
@@ -512,27 +493,21 @@ def segment(
     if out_dir is not None and os.path.exists(out_dir) and not os.path.isdir(out_dir):
         raise InputError("is a file, not a folder: --out-dir takes a folder", file=out_dir)
     settings = seg_core.Settings(
-        window=window,
-        threshold=threshold,
-        min_duration=min_duration,
-        trim=trim,
+        window=options.get("window"),
+        threshold=options.get("threshold"),
+        min_duration=options.get("min_duration"),
+        trim=options.get("trim"),
         max_noise=max_noise,
         max_tilt_deg=max_tilt,
         nominal_offset=None if nominal_offset is None else triplet(nominal_offset, "--nominal-offset"),
     )
     with segmented(
         log,
-        sensor=sensor,
-        columns=columns.split(",") if isinstance(columns, str) else columns,
-        no_header=no_header,
-        time_column=time_column,
-        time_unit=time_unit,
-        rate=rate,
-        pose_column=pose_column,
-        pose_map=pose_map,
+        read_spec(options),
+        pose_column=options.get("pose_column"),
+        pose_map=options.get("pose_map"),
         settings=settings,
         digest=False,  # the block files are copies; nothing records the log's hash
-        dialect=sniff.Dialect(skip_rows, decimal, drop_incomplete),
     ) as (path, data, seg):
         found = Blocks(data, seg)
         files = block_files(seg)

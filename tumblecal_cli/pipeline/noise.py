@@ -11,10 +11,14 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any, Unpack
 
 from tumblecal_cli.errors import CaptureRejected, InputError
+from tumblecal_cli.pipeline.options import ReadKeywords
+
+if TYPE_CHECKING:
+    from tumblecal_cli.io.readspec import ReadSpec
 
 #: Units a calibration may name, and what one of them is in SI (m/s^2 or rad/s).
 TO_SI = {
@@ -181,30 +185,34 @@ def _finite(v: float) -> float | None:
     return float(v) if math.isfinite(v) else None
 
 
+class NoiseKeywords(ReadKeywords, total=False):
+    """noise's options beside how the capture is read (README "tumblecal noise")."""
+
+    cal: Any  # a Calibration, or its file
+    limits: str | Mapping[str, Any] | None
+    units: str | None
+    per_octave: int
+    progress: Callable[[int], None] | None
+    kalibr: bool
+
+
 def noise(
     capture: str | os.PathLike[str],
-    *,
-    rate: float | None = None,
-    sensor: str = "accelerometer",
-    cal: Any = None,
-    limits: str | Mapping[str, Any] | None = None,
-    units: str | None = None,
-    per_octave: int = 1,
-    columns: str | None = None,
-    no_header: bool = False,
-    time_column: str | None = None,
-    time_unit: str = "auto",
-    skip_rows: int | None = None,
-    decimal: str | None = None,
-    drop_incomplete: bool = False,
-    progress: Callable[[int], None] | None = None,
-    kalibr: bool = False,
+    **options: Unpack[NoiseKeywords],
 ) -> Noise:
     """The Allan deviation of a still capture and its noise figures (README "tumblecal noise")."""
     from tumblecal_cli.core import allan
     from tumblecal_cli.io import calfile
-    from tumblecal_cli.pipeline.options import path_of
+    from tumblecal_cli.pipeline.options import keywords_known, path_of, read_spec
 
+    keywords_known(options, NoiseKeywords, "noise")
+    rate, cal, units, kalibr = (
+        options.get("rate"),
+        options.get("cal"),
+        options.get("units"),
+        options.get("kalibr", False),
+    )
+    per_octave = options.get("per_octave", 1)
     path = path_of(capture, "noise reads a still capture from a file")
     if rate is not None and not (math.isfinite(rate) and rate > 0):
         raise InputError(f"--rate must be a positive number of Hz, got {rate:g}")
@@ -212,7 +220,7 @@ def noise(
         raise InputError(f"--taus must be 1 to 64 points per octave, got {per_octave}")
     c = calfile.resolve(cal) if cal is not None else None
     data_units = c.units if c is not None else None
-    kind = c.sensor if c is not None else sensor
+    kind = c.sensor if c is not None else options.get("sensor", "accelerometer")
     if units is not None and units not in UNIT_CHOICES:
         raise InputError(f"--units must be one of {', '.join(UNIT_CHOICES)}, got {units!r}")
     if units in ("datasheet", "si") and c is None:
@@ -222,20 +230,9 @@ def noise(
     scale = factors(kind, data_units, choice)
     if kalibr:  # refused before the capture is read
         _kalibr_units(kind, c, data_units)
-    bounds = _limits(limits)
-    loaded = _stream(
-        path,
-        c,
-        kind,
-        rate,
-        allan.AllanStream(per_octave),
-        columns=columns,
-        no_header=no_header,
-        time_column=time_column,
-        time_unit=time_unit,
-        dialect=(skip_rows, decimal, drop_incomplete),
-        progress=progress,
-    )
+    bounds = _limits(options.get("limits"))
+    spec = replace(read_spec(options, prefer=None if c is None else c.columns), sensor=kind)
+    loaded = _stream(path, c, spec, allan.AllanStream(per_octave), options.get("progress"))
     curve, watch, name, notes, hz = loaded
     if curve.samples < 2:
         raise InputError(f"{curve.samples} sample: an Allan deviation needs many", file=name)
@@ -317,18 +314,7 @@ def judge(axes: list[Any], bounds: Mapping[str, Any], figure_units: tuple[str, .
 
 
 def _stream(
-    path: str,
-    cal: Any,
-    sensor: str,
-    rate: float | None,
-    stream: Any,
-    *,
-    columns: str | None,
-    no_header: bool,
-    time_column: str | None,
-    time_unit: str,
-    dialect: tuple[int | None, str | None, bool],
-    progress: Callable[[int], None] | None,
+    path: str, cal: Any, spec: ReadSpec, stream: Any, progress: Callable[[int], None] | None
 ) -> tuple[Any, Any, str, list[str], float]:
     """Read the capture block by block into the Allan stream and the step watch."""
     import numpy as np
@@ -337,16 +323,8 @@ def _stream(
     from tumblecal_cli.core.model import apply
     from tumblecal_cli.io import capture, readings, sniff
 
-    picked = columns.split(",") if columns else None
-    with capture.open_capture(
-        path,
-        sensor=sensor,
-        columns=picked,
-        prefer=cal.columns if cal is not None else None,
-        no_header=no_header,
-        time_column=time_column,
-        dialect=sniff.Dialect(*dialect),
-    ) as cap:
+    rate, time_unit = spec.rate, spec.time_unit
+    with capture.open_capture(path, spec) as cap:
         lay = cap.layout
         if rate is None and lay.time is None:
             raise InputError(

@@ -11,7 +11,7 @@ import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, fields, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypedDict
 
 from tumblecal_cli.errors import InputError, control_character
 
@@ -19,7 +19,7 @@ if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Limits
     from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfile import Unit
-    from tumblecal_cli.io.sniff import Dialect
+    from tumblecal_cli.io.readspec import Dialect, ReadSpec
 
 #: A number, or three (X,Y,Z): text as the command line gives it, or numbers.
 Triplet = str | float | Sequence[float]
@@ -101,15 +101,84 @@ class SolveOptions:
     @property
     def dialect(self) -> Dialect:
         """How the files are written, where the sniffer should not guess (sniff.Dialect)."""
-        from tumblecal_cli.io.sniff import Dialect
+        from tumblecal_cli.io.readspec import Dialect
 
         return Dialect(self.skip_rows, self.decimal, self.drop_incomplete)
+
+    @property
+    def read(self) -> ReadSpec:
+        """How the pose files or the log are read (io.readspec)."""
+        from tumblecal_cli.io.readspec import ReadSpec, column_list
+
+        return ReadSpec(
+            sensor=self.sensor,
+            columns=column_list(self.columns),
+            no_header=self.no_header,
+            time_column=self.time_column,
+            time_unit=self.time_unit,
+            rate=self.rate,
+            dialect=self.dialect,
+        )
 
     @property
     def column_names(self) -> list[str] | None:
         if self.columns is None or self.columns == "":
             return None
         return self.columns.split(",") if isinstance(self.columns, str) else [str(c) for c in self.columns]
+
+
+class FileKeywords(TypedDict, total=False):
+    """How the Python API's functions are told a file's shape and its sensor columns: the
+    command line's long options in snake case (verify and correct: the sensor is the
+    calibration's)."""
+
+    columns: str | Sequence[str] | None
+    no_header: bool
+    skip_rows: int | None
+    decimal: str | None
+    drop_incomplete: bool
+
+
+class ReadKeywords(FileKeywords, total=False):
+    """... and the sensor and the clock: all a ``ReadSpec`` holds (``read_spec`` makes one)."""
+
+    sensor: str
+    time_column: str | None
+    time_unit: str
+    rate: float | None
+
+
+def file_spec(given: FileKeywords, prefer: Sequence[str] | None = None) -> ReadSpec:
+    """The ReadSpec of a function's keyword options on a file's shape and its sensor columns
+    (``prefer``: a calibration's columns); the sensor and the clock are left at their defaults."""
+    from tumblecal_cli.io.readspec import Dialect, ReadSpec, column_list
+
+    return ReadSpec(
+        columns=column_list(given.get("columns")),
+        no_header=given.get("no_header", False),
+        dialect=Dialect(given.get("skip_rows"), given.get("decimal"), given.get("drop_incomplete", False)),
+        prefer=None if prefer is None else tuple(prefer),
+    )
+
+
+def read_spec(given: ReadKeywords, prefer: Sequence[str] | None = None) -> ReadSpec:
+    """The ReadSpec of a function's keyword options: the file's shape, the sensor and the clock."""
+    return replace(
+        file_spec(given, prefer),
+        sensor=given.get("sensor", "accelerometer"),
+        time_column=given.get("time_column"),
+        time_unit=given.get("time_unit", "auto"),
+        rate=given.get("rate"),
+    )
+
+
+def keywords_known(given: Mapping[str, object], known: type, function: str) -> None:
+    """A keyword that ``known`` (a TypedDict) does not hold is a TypeError, as Python says it of
+    a function's unknown keyword."""
+    names = known.__required_keys__ | known.__optional_keys__  # type: ignore[attr-defined]
+    for key in given:
+        if key not in names:
+            raise TypeError(f"{function}() got an unexpected keyword argument {key!r}")
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ same rows are integrated over each rotation between consecutive kept blocks.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -68,29 +68,14 @@ def hand_turns(log: str, options: SolveOptions) -> HandTurns:
     )
     with logs.segmented(
         log,
-        sensor="accelerometer",
-        columns=None,
-        no_header=options.no_header,
-        time_column=options.time_column,
-        time_unit=options.time_unit,
-        rate=options.rate,
+        replace(options.read, sensor="accelerometer", columns=None),
         pose_column=None,
         pose_map=None,
         settings=settings,
-        dialect=options.dialect,
         whole=True,  # the turns between the still blocks are integrated
     ) as (path, acc, seg):
-        gyr = readings.read_log(
-            path,
-            sensor="gyroscope",
-            columns=options.column_names,
-            no_header=options.no_header,
-            time_column=options.time_column,
-            time_unit=options.time_unit,
-            use_time=options.rate is None,
-            name=acc.layout.name,
-            dialect=options.dialect,
-        )
+        spec = replace(options.read, sensor="gyroscope")
+        gyr = readings.read_log(path, spec, use_time=options.rate is None, name=acc.layout.name)
     if tuple(acc.layout.sensor) == tuple(gyr.layout.sensor):  # a log of one sensor: both read the same columns
         raise InputError(
             f"the accelerometer and the gyroscope would both be read from columns "

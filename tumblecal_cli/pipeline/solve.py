@@ -319,13 +319,7 @@ def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
     )
     with logs.segmented(
         log,
-        sensor=options.sensor,
-        columns=options.column_names,
-        no_header=options.no_header,
-        time_column=options.time_column,
-        time_unit=options.time_unit,
-        rate=options.rate,
-        dialect=options.dialect,
+        options.read,
         pose_column=options.pose_column,
         pose_map=given.pose_map if options.pose_map is not None else None,
         settings=settings,

@@ -12,7 +12,7 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypedDict, Unpack
 
 from tumblecal_cli.errors import CaptureRejected, InputError
 
@@ -22,6 +22,7 @@ if TYPE_CHECKING:
     from tumblecal_cli.core.thermal import Sweep, ThermalFit
     from tumblecal_cli.io.calfile import Calibration, Thermal
     from tumblecal_cli.io.readings import Log
+    from tumblecal_cli.io.readspec import ReadSpec
 
 #: The default of --min-swing (°C): the swing order 1 needs.
 MIN_SWING = 10.0
@@ -54,18 +55,23 @@ class ThermalResult:
     status: int = 0
 
 
+class ThermalKeywords(TypedDict, total=False):
+    """thermal's options (README "tumblecal thermal"): the command line's long options in snake case."""
+
+    temperature_column: str | None
+    reference_temperature: float | None
+    order: int | str
+    min_swing: float
+    max_noise: float | None
+    max_tilt: float
+    columns: str | Sequence[str] | None
+    sensor: str | None
+
+
 def thermal(
     poses: Sequence[str | os.PathLike[str]],
     cal: Calibration | str | os.PathLike[str],
-    *,
-    temperature_column: str | None = None,
-    reference_temperature: float | None = None,
-    order: int | str = "auto",
-    min_swing: float = MIN_SWING,
-    max_noise: float | None = None,
-    max_tilt: float = 25.0,
-    columns: Sequence[str] | None = None,
-    sensor: str | None = None,
+    **options: Unpack[ThermalKeywords],
 ) -> ThermalResult:
     """Fit the temperature drift of ``cal``'s sensor from still sweeps, as ``tumblecal thermal``.
 
@@ -78,7 +84,12 @@ def thermal(
 
     from tumblecal_cli.core import thermal as core
     from tumblecal_cli.io import calfile
+    from tumblecal_cli.io.readspec import ReadSpec, column_list
+    from tumblecal_cli.pipeline.options import keywords_known
 
+    keywords_known(options, ThermalKeywords, "thermal")
+    sensor, order, min_swing = options.get("sensor"), options.get("order", "auto"), options.get("min_swing", MIN_SWING)
+    max_noise, max_tilt = options.get("max_noise"), options.get("max_tilt", 25.0)
     base = calfile.resolve(cal)
     if sensor is not None and sensor != base.sensor:
         raise InputError(
@@ -91,8 +102,14 @@ def thermal(
     wanted = _order(order)
     if not 0 < min_swing <= 1000.0:
         raise InputError(f"--min-swing must be a positive number of °C up to 1000, got {min_swing:g}")
-    t_ref = _reference_temperature(base, reference_temperature)
-    read = _read(poses, base, temperature_column, columns)
+    t_ref = _reference_temperature(base, options.get("reference_temperature"))
+    spec = ReadSpec(
+        sensor=base.sensor,
+        columns=column_list(options.get("columns")),
+        temperature_column=options.get("temperature_column"),
+        prefer=tuple(base.columns),
+    )
+    read = _read(poses, base, spec)
     _judge_temperature(read, wanted, min_swing)
     sweeps = [core.Sweep(r.log.values, _finite(r), None if r.face is None else _up(r.face)) for r in read]
     gyro = base.sensor == "gyroscope"
@@ -172,9 +189,7 @@ def _reference_temperature(base: Calibration, given: float | None) -> float:
     )
 
 
-def _read(
-    items: Sequence[str | os.PathLike[str]], base: Calibration, column: str | None, columns: Sequence[str] | None
-) -> list[SweepRead]:
+def _read(items: Sequence[str | os.PathLike[str]], base: Calibration, spec: ReadSpec) -> list[SweepRead]:
     import numpy as np
 
     from tumblecal_cli.core import model
@@ -189,15 +204,7 @@ def _read(
     placed = pose_items(texts, "+z")
     out = []
     for face, path in placed.items:
-        log = readings.read_log(
-            path,
-            sensor=base.sensor,
-            columns=columns,
-            prefer=base.columns,
-            use_time=False,
-            temperature_column=column,
-            need_temperature=True,
-        )
+        log = readings.read_log(path, spec, use_time=False, need_temperature=True)
         temp = log.temperature
         assert temp is not None
         model.in_range(log.values, log.layout.name)

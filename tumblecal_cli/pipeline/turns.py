@@ -6,7 +6,7 @@ which way gravity points (the six faces, and during each turn), the gyroscope's 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -81,18 +81,14 @@ def from_log(log: str, options: SolveOptions, given: Settings) -> Outcome:
 
 
 def _read(path: str, log: str, options: SolveOptions, sensor: str) -> Log:
+    columns = options.read.columns if sensor == "gyroscope" else None
     return readings.read_log(
         path,
-        sensor=sensor,
-        columns=options.column_names if sensor == "gyroscope" else None,
-        no_header=options.no_header,
-        time_column=options.time_column,
-        time_unit=options.time_unit,
+        replace(options.read, sensor=sensor, columns=columns),
         label_column=options.pose_column,
         use_time=options.rate is None,
         name="<stdin>" if log == "-" else log,
         digest=sensor == "gyroscope",
-        dialect=options.dialect,
     )
 
 

@@ -6,15 +6,16 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any, Unpack
 
 from tumblecal_cli.errors import CaptureRejected, InputError
+from tumblecal_cli.pipeline.options import FileKeywords
 
 if TYPE_CHECKING:
     from tumblecal_cli.io.calfile import Calibration
     from tumblecal_cli.io.readings import Samples
-    from tumblecal_cli.io.sniff import Dialect
+    from tumblecal_cli.io.readspec import ReadSpec
 
 
 @dataclass
@@ -48,24 +49,27 @@ class Verified:
         return pd.DataFrame(self.rows)
 
 
+class VerifyKeywords(FileKeywords, total=False):
+    """verify's options beside the captures' shape (README "tumblecal verify")."""
+
+    reference: float | None
+    max_norm_error: float | None
+    max_noise: float
+
+
 def verify(
     captures: Sequence[str | os.PathLike[str]] | str | os.PathLike[str],
     cal: Any,
-    *,
-    reference: float | None = None,
-    max_norm_error: float | None = None,
-    max_noise: float = 0.02,
-    columns: str | Sequence[str] | None = None,
-    no_header: bool = False,
-    skip_rows: int | None = None,
-    decimal: str | None = None,
-    drop_incomplete: bool = False,
+    **options: Unpack[VerifyKeywords],
 ) -> Verified:
     """The norm error of each static capture before and after correction with ``cal``."""
     from tumblecal_cli.core import gate, model
-    from tumblecal_cli.io import calfile, sniff
-    from tumblecal_cli.pipeline.options import path_of
+    from tumblecal_cli.io import calfile
+    from tumblecal_cli.pipeline.options import file_spec, keywords_known, path_of
 
+    keywords_known(options, VerifyKeywords, "verify")
+    reference, max_norm_error = options.get("reference"), options.get("max_norm_error")
+    max_noise = options.get("max_noise", 0.02)
     if not isinstance(captures, str | os.PathLike | Sequence):
         raise InputError(f"verify takes capture files (one, or a list), not a {type(captures).__name__}")
     given = [captures] if isinstance(captures, str | os.PathLike) else list(captures)
@@ -82,7 +86,7 @@ def verify(
         )
     if max_norm_error is not None and not max_norm_error > 0:
         raise InputError(f"--max-norm-error must be positive, got {max_norm_error:g}")
-    picked = (columns.split(",") if isinstance(columns, str) else list(columns)) if columns else None
+    spec = replace(file_spec(options, prefer=c.columns), sensor=c.sensor)
     # raw and corrected share units, so "before" means something: fixed gains, the same unit
     # labels, or gains within 20 % of 1 (data already in g, m/s^2 ...: counts are far from it)
     gains = [float(g) for g in c.gain]
@@ -94,7 +98,7 @@ def verify(
     fitted = {str(p.get("sha256")): str(p.get("file")) for p in c.poses if p.get("sha256")}
     result = Verified(0, c, ref, max_norm_error, [], {})
     for path in paths:
-        s = _read(path, c, picked, no_header, sniff.Dialect(skip_rows, decimal, drop_incomplete), result.notes)
+        s = _read(path, c, spec, result.notes)
         result.notes += s.layout.notes
         model.in_range(s.values, s.layout.name)
         if s.sha256 in fitted:
@@ -160,9 +164,7 @@ def _units(name: str, c: Calibration, raw: float, norm: float, ref: float) -> No
     )
 
 
-def _read(
-    path: str, c: Calibration, picked: list[str] | None, no_header: bool, dialect: Dialect, notes: list[str]
-) -> Samples:
+def _read(path: str, c: Calibration, spec: ReadSpec, notes: list[str]) -> Samples:
     """A static capture's readings; with a thermal block, each row brought to T_ref at its own
     temperature (core.thermal.at_reference), the rows outside the range noted."""
     import numpy as np
@@ -171,20 +173,9 @@ def _read(
     from tumblecal_cli.io import readings
 
     if c.thermal is None:
-        return readings.read_samples(
-            path, sensor=c.sensor, columns=picked, prefer=c.columns, no_header=no_header, dialect=dialect
-        )
-    log = readings.read_log(
-        path,
-        sensor=c.sensor,
-        columns=picked,
-        prefer=c.columns,
-        no_header=no_header,
-        use_time=False,
-        dialect=dialect,
-        temperature_column=c.thermal.column,
-        need_temperature=True,
-    )
+        return readings.read_samples(path, spec)
+    spec = replace(spec, temperature_column=c.thermal.column)
+    log = readings.read_log(path, spec, use_time=False, need_temperature=True)
     temp = log.temperature
     assert temp is not None
     drift = c.thermal.drift()
