@@ -17,7 +17,7 @@ a temperature outside the calibrated range is clamped to its nearest end, never 
 
 Fit. A still pose with face direction u (|u| = 1) reads on axis j, as the temperature changes,
 ``raw_j(T) = c_pj + sum_k beta_jk d^k + u_j G_j sum_k gamma_jk d^k`` with ``G_j = g_j reference``
-(the gravity term of the linearised model, seed 000 eqs. 1-3 with a gain that drifts) and
+(the gravity term of the linearised model, Vitali 2018 eqs. 1-3 with a gain that drifts) and
 ``c_pj`` the pose's own constant (its tilt, cross-axis terms: anything that does not change with
 temperature). Offset and gain drift separate only where the axis is seen in two orientations
 (u_j takes two values: up and down, or up and level); where every pose sees it the same way up,
