@@ -30,8 +30,8 @@ heteroscedasticity-consistent (sandwich, HC0) standard errors of weighted least 
 1980, Econometrica 48(4), eq. 3), so residual hysteresis widens them rather than being ignored.
 Order ``auto`` is chosen by cross-validation over temperature: the range is cut into FOLDS bands,
 each band is predicted from a fit to the others, and the lowest order whose prediction error is
-within AUTO_TOLERANCE of the best is taken (the "one standard error" spirit of Hastie, Tibshirani
-and Friedman, Elements of Statistical Learning, 2nd ed., sect. 7.10).
+within AUTO_TOLERANCE of the best is taken (the "one standard error" spirit of Hastie et al.
+2009, The Elements of Statistical Learning, 2nd ed., sect. 7.10).
 """
 
 from __future__ import annotations
