@@ -149,7 +149,7 @@ def test_one_pose_standard_errors_match_the_scatter() -> None:
 
 
 def test_three_pose_offsets_shift_to_first_order_with_fixture_tilt() -> None:
-    """Seed 000 notes / README "Poses, signs and --reference": 3-pose offsets come from horizontal readings.
+    """Vitali 2018 notes / README "Poses, signs and --reference": 3-pose offsets come from horizontal readings.
 
     In tests/synth.py each pose leans towards the next axis (+x towards +y, +y towards +z, +z
     towards +x), so each axis is tilted into in exactly one of its two horizontal poses, and
@@ -176,8 +176,8 @@ def test_three_pose_cross_axis_terms_bias_offsets_and_gains() -> None:
     """With A = diag(gain) + C, axis i reads C[i, j]·reference in the pose where j is up.
 
     So offset_i = b_i + (C[i, j] + C[i, k])·reference / 2 over the two other axes j, k, and
-    gain_i = A[i, i] − (C[i, j] + C[i, k]) / 2: 3-pose cannot see cross-axis terms (seed 000
-    points to DT0053's 6-point method for them).
+    gain_i = A[i, i] − (C[i, j] + C[i, k]) / 2: 3-pose cannot see cross-axis terms (Vitali
+    2018 points to ST DT0053's 6-point method for them).
     """
     truth = UNIT_SYSTEMS["m/s2"]
     cross = np.array([[0.0, 0.010, -0.004], [0.006, 0.0, 0.003], [-0.002, 0.008, 0.0]])

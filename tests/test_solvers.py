@@ -488,7 +488,7 @@ def test_sphere_needs_a_positive_reference() -> None:
         solvers.sphere(points, np.full((12, 3), 1e-3), 0.0)
 
 
-# --- one pose, tilt-compensated (seed 004) -------------------------------------------------------------------
+# --- one pose, tilt-compensated (Ding and Uchida 2012) -------------------------------------------------------
 
 ONE_POSE_TILT = {
     # (reference, offset, up face, bias_spread): gains 1, raw units = reference units
@@ -526,7 +526,7 @@ def test_one_pose_tilt_recovers_the_up_offset_of_a_tilted_pose(case: str) -> Non
     # the plain 1-pose offset of the up axis errs by ref·(1 − cos θ) (towards the stimulus) ...
     naive = abs(plain.offset[axis] - offset[axis])
     assert_within(naive, reference * (1 - math.cos(theta)), plain.offset_se[axis])
-    # ... the tilt-compensated one far less, and within seed 004's bound from the bias spread
+    # ... the tilt-compensated one far less, and within Ding and Uchida 2012's bound from the bias spread
     err = abs(sol.offset[axis] - offset[axis])
     assert err < 0.25 * naive
     assert fit.tilt is not None
@@ -554,7 +554,7 @@ def test_one_pose_tilt_of_a_level_pose_is_the_plain_one_pose() -> None:
     np.testing.assert_allclose(fit.solution.offset, [0.0, 0.0, 0.03], atol=1e-15)
 
 
-# --- magnetometer: min/max (seed 002) ---------------------------------------------------------------------
+# --- magnetometer: min/max (Okasho n.d.) ------------------------------------------------------------------
 
 MAG_REFERENCE = 50.0  # µT
 MAG_OFFSET = np.array([25.0, -12.0, 40.0])

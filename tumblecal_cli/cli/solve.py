@@ -365,7 +365,7 @@ def _plot_target(plot: str, output: str, json_summary: bool, inputs: list[str]) 
 
 
 def _plot_solve(plot: str, cal: Calibration, raw: list[Any], limits: Limits | None, plane: str | None) -> None:
-    """solve --plot: the poses' norms (seed 001's figure), or a magnetometer's rotation capture."""
+    """solve --plot: the poses' norms (the figure of Sports Sensing 2023), or a magnetometer's rotation capture."""
     import numpy as np
 
     from tumblecal_cli.core import solvers

@@ -77,7 +77,8 @@ def verify(
     quiet: Quiet = False,
 ) -> None:
     """Check a calibration on static captures it was not fitted on: the norm of each mean, before
-    and after correction, against the reference (seed 001's test of a calibration model).
+    and after correction, against the reference (the test of a calibration model in Sports
+    Sensing 2023).
 
     \b
       tumblecal verify --cal cal.json check1.csv check2.csv check3.csv

@@ -1,4 +1,23 @@
-"""The numeric core, numpy only: ``model`` (faces, pose statistics, the measurement model, 1- and
-3-pose solvers, apply), ``solvers`` (six-pose to ellipsoid), ``gate`` (quality checks, limits and
-the verdict), ``segment`` (still blocks of a log) and ``lot`` (lot statistics). No files, no
-terminal, no pandas; every formula cites its source (README "Sources")."""
+"""The numeric core, numpy only: no files, no terminal, no pandas; every formula cites its source
+(README "Sources"). Its modules:
+
+- ``model``: faces and pose labels, pose statistics, the measurement model, the 1- and 3-pose
+  solvers, tilt sensitivity, and apply (``M (raw - b)``).
+- ``solvers``: the solvers beyond 1- and 3-pose (six-pose, least squares, sphere, tilt-compensated
+  1-pose, magnetometer min/max and ellipsoid, gyroscope bias) and the choice among them.
+- ``gate``: the production-test gate: quality checks on each pose (exit 3), limits and the
+  verdict (exit 1).
+- ``segment``: the still blocks of a log held in memory (or its pose labels), judged and labelled
+  with the faces they show.
+- ``scan``: the same still-block detection fed a log block by block, keeping only the still
+  periods' readings.
+- ``thermal``: offset and gain drift fitted against temperature, and each row corrected at its
+  own temperature.
+- ``turns``: a gyroscope's bias, g-sensitivity, scale and misalignment from known turns (the
+  Ferraris procedure).
+- ``rotations``: a gyroscope's scale and misalignment from hand turns between still poses,
+  gravity the reference.
+- ``allan``: the Allan deviation of a still capture, computed as it streams, and the noise
+  figures read off it.
+- ``lot``: statistics over a production lot of calibrations: which files count, capability and
+  outliers per parameter, and each re-calibrated unit's drift."""

@@ -2,8 +2,8 @@
 
 Part of the core layer (README "Development"): pure numbers, no files, no terminal. Sources:
 IEEE Std 952-1997 (Annex C, "Allan variance method of data reduction", cited as IEEE 952 C),
-and W. J. Riley, "Handbook of Frequency Stability Analysis", NIST SP 1065 (2008) (cited as
-SP 1065).
+and Riley 2008, "Handbook of Frequency Stability Analysis", NIST SP 1065 (cited as SP 1065).
+Every work cited here is listed in README "Sources".
 
 **The deviation.** A sensor's rate-like output ``y`` (one sample every ``tau0``) is integrated
 to ``S_k = sum_{j<k} y_j`` (``S_0 = 0``, N = n + 1 points: the "phase" of SP 1065), and the
@@ -33,8 +33,8 @@ approximation for the overlapping Allan variance (SP 1065 section 5.3.3, after H
 Barnes 1981), for the power-law noise the curve's local slope shows: white FM (slope -1/2,
 the sensor's white noise), flicker FM (0, the bias-instability floor) or random-walk FM (+1/2).
 The interval is the chi-squared one, ``sigma^2 * edf / chi2_{p}(edf)`` (SP 1065 eq. 39), with
-the chi-squared quantiles from the Wilson-Hilferty approximation (Abramowitz and Stegun 26.4.17;
-within 1 % of the exact quantile for edf >= 3), at ``LEVEL`` (95 %).
+the chi-squared quantiles from the Wilson-Hilferty approximation (Abramowitz and Stegun 1964,
+26.4.17; within 1 % of the exact quantile for edf >= 3), at ``LEVEL`` (95 %).
 
 **Figures** (IEEE 952 C, table C.1 and figure C.2):
 
@@ -224,7 +224,7 @@ def edf(n_phase: int, m: int, slope: float) -> float:
 
 def chi2_quantile(p: float, dof: float) -> float:
     """The p-quantile of chi-squared with ``dof`` degrees of freedom, Wilson-Hilferty
-    (Abramowitz and Stegun 26.4.17)."""
+    (Abramowitz and Stegun 1964, 26.4.17)."""
     z = _normal_quantile(p)
     h = 2.0 / (9.0 * dof)
     return dof * max(1.0 - h + z * math.sqrt(h), 1e-6) ** 3

@@ -43,7 +43,7 @@ GAINS = tuple(f"gain.{k}" for k in AXES)
 CROSS = tuple(f"cross.{i}{j}" for i in AXES for j in AXES if i != j)
 #: Every parameter, in the order of the report's rows.
 PARAMETERS = OFFSETS + GAINS + CROSS
-#: |modified z| above this marks an outlier. Iglewicz & Hoaglin (1993) suggest 3.5; a lot report
+#: |modified z| above this marks an outlier. Iglewicz and Hoaglin 1993 suggest 3.5; a lot report
 #: is read by people who act on every flag, so it takes the more conservative 4.
 OUTLIER_Z = 4.0
 #: Families of parameters a drift limit is given for (``--max-drift offset=...,gain=...,cross=...``).
@@ -205,7 +205,7 @@ def cpk(values: Sequence[float] | FloatArray, lower: float | None, upper: float 
     """Process capability index Cpk = min(USL − μ, μ − LSL) / 3σ, with σ the sample standard
     deviation (ddof=1); with one specification limit, the one-sided index (CPU or CPL). None when
     there are fewer than 2 values, σ is 0, or there is no limit."""
-    # Source: AIAG, Statistical Process Control (SPC) reference manual, 2nd ed. (2005), ch. IV
+    # Source: AIAG 2005, Statistical Process Control (SPC) reference manual, 2nd ed., ch. IV
     # (CPU = (USL − X̄)/3σ, CPL = (X̄ − LSL)/3σ, Cpk = min); Montgomery, Introduction to Statistical
     # Quality Control, ch. 8 (process capability; one-sided Cpu / Cpl). A lot of calibrations has no
     # rational subgroups, so σ is the overall sample σ (ddof=1): what AIAG calls Ppk; the report
@@ -229,8 +229,8 @@ def robust_z(values: Sequence[float] | FloatArray) -> FloatArray:
     """Modified z-score of each value: 0.6745·(x − median) / MAD. When MAD is 0 (more than half
     the values equal), (x − median) / (1.253314·MeanAD) with MeanAD the mean absolute deviation
     from the median; when that is 0 too (all equal), zeros."""
-    # Source: Iglewicz & Hoaglin, "How to Detect and Handle Outliers", ASQC Basic References in
-    # Quality Control vol. 16 (1993): M_i = 0.6745·(x_i − x̃)/MAD (0.6745: the 0.75 normal quantile,
+    # Source: Iglewicz and Hoaglin 1993, "How to Detect and Handle Outliers", ASQC Basic References
+    # in Quality Control vol. 16: M_i = 0.6745·(x_i − x̃)/MAD (0.6745: the 0.75 normal quantile,
     # so M_i ~ z for normal data). The MAD = 0 fallback with MeanAD·1.253314 (√(π/2): E|X − μ| = σ·√(2/π)
     # for normal data) is the one IBM documents for its modified z score (Cognos Analytics / SPSS).
     x = np.asarray(values, dtype=np.float64)

@@ -6,8 +6,8 @@ Measurement model (README "Poses, signs and --reference")::
     corrected = M @ (raw - b)      M = inv(A)
 
 ``b`` (offset) is in raw units; ``A`` has the gains on its diagonal. Every formula cites its
-source: seed ``000_8435ca53169b1f1c.txt`` is ST's design tip "1-point / 3-point tumble sensor
-calibration" (A. Vitali, 2018), called "seed 000" below.
+source by author and year, listed in README "Sources": Vitali 2018 is ST's design tip "1-point /
+3-point tumble sensor calibration", cited below by its equations and sections.
 
 Nothing here reads files or talks to a terminal; errors carry no file name unless the caller
 passes one in ``names``.
@@ -146,14 +146,14 @@ class Solution:
 
 
 def solve_one_pose(pose: PoseStats, up: str, reference: float) -> Solution:
-    """1-pose tumble: offsets only, gains fixed at 1 (seed 000, "1 姿勢タンブル較正").
+    """1-pose tumble: offsets only, gains fixed at 1 (Vitali 2018, "1 姿勢タンブル較正").
 
-    With true stimulus ``v = reference * FACES[up]``, seed 000 eqs. 1-3 (``AccX = 0 + Xofs`` ...
+    With true stimulus ``v = reference * FACES[up]``, Vitali 2018 eqs. 1-3 (``AccX = 0 + Xofs`` ...
     ``AccZ = 1 + Zofs``) give ``offset = mean - v``. The data must already be in the units of
     ``reference``: there is no gain to absorb a unit change.
     """
     v = reference * np.asarray(FACES[up])
-    offset = pose.mean - v  # seed 000 eqs. 1-3
+    offset = pose.mean - v  # Vitali 2018 eqs. 1-3
     return Solution(
         method="one-pose",
         offset=offset,
@@ -166,9 +166,9 @@ def solve_one_pose(pose: PoseStats, up: str, reference: float) -> Solution:
 def solve_three_pose(
     poses: Sequence[PoseStats], reference: float, names: Sequence[str] = ("+x", "+y", "+z")
 ) -> Solution:
-    """3-pose tumble: per-axis offset and gain from the +x, +y, +z poses (seed 000, "3 姿勢").
+    """3-pose tumble: per-axis offset and gain from the +x, +y, +z poses (Vitali 2018, "3 姿勢").
 
-    With ``m[k]`` the mean of pose k (k = 0, 1, 2 for +x, +y, +z), seed 000 averages, for each
+    With ``m[k]`` the mean of pose k (k = 0, 1, 2 for +x, +y, +z), Vitali 2018 averages, for each
     axis, the two poses where that axis is horizontal::
 
         Xofs = (AccX2 + AccX3) / 2, Yofs = (AccY1 + AccY3) / 2, Zofs = (AccZ1 + AccZ2) / 2
@@ -176,7 +176,7 @@ def solve_three_pose(
 
     and corrects by subtracting the offset and dividing by the gain, so ``M = diag(1 / gain)``.
     The offsets come from horizontal readings, so they shift to first order with fixture tilt
-    (seed 000, notes; README "Poses, signs and --reference").
+    (Vitali 2018, notes; README "Poses, signs and --reference").
     """
     if reference <= 0:
         raise InputError("the 3-pose solver needs a positive --reference (the stimulus magnitude)")
@@ -188,10 +188,10 @@ def solve_three_pose(
     gain_se = np.empty(3)
     for axis in range(3):
         horizontal = [k for k in range(3) if k != axis]
-        # seed 000: Xofs = (AccX2 + AccX3) / 2, and cyclically for y and z
+        # Vitali 2018: Xofs = (AccX2 + AccX3) / 2, and cyclically for y and z
         offset[axis] = means[horizontal, axis].mean()
         offset_se[axis] = 0.5 * math.hypot(*se[horizontal, axis])
-        # seed 000: Xgain = AccX1 - Xofs, scaled to raw units per output unit
+        # Vitali 2018: Xgain = AccX1 - Xofs, scaled to raw units per output unit
         gain[axis] = (means[axis, axis] - offset[axis]) / reference
         gain_se[axis] = math.sqrt(se[axis, axis] ** 2 + offset_se[axis] ** 2) / reference
     for axis, g in enumerate(gain):
@@ -207,7 +207,7 @@ def solve_three_pose(
     return Solution(
         method="three-pose",
         offset=offset,
-        matrix=np.diag(1.0 / gain),  # seed 000: subtract the offset, multiply by 1 / gain
+        matrix=np.diag(1.0 / gain),  # Vitali 2018: subtract the offset, multiply by 1 / gain
         offset_se=offset_se,
         gain_se=gain_se,
     )
@@ -218,8 +218,8 @@ def tilt_sensitivity(
 ) -> tuple[FloatArray, FloatArray]:
     """Worst-case shift of (offset, gain) if every pose is off its face by ``tolerance_deg``.
 
-    Seed 000 (notes on 1-/3-point tumble) and seed 004 (CN102313822, the vertical axis's gravity
-    term is a cosine): tilting a pose by θ moves a
+    Vitali 2018 (notes on 1-/3-point tumble) and Ding and Uchida 2012 (patent CN102313822, the
+    vertical axis's gravity term is a cosine): tilting a pose by θ moves a
     reading on a horizontal axis by ``gain·reference·sin θ`` (first order: 1° -> 17 mg) and the
     vertical one by ``gain·reference·(1 - cos θ)`` (second order: 1° -> 0.15 mg).
 

@@ -7,14 +7,16 @@ M (raw - b)``, ``M = inv(A)``, and returns a :class:`~tumblecal_cli.core.model.S
 solvers fitted to pose means share one propagation (:func:`_propagate`): the parameters
 ``(b, A)`` are functions of the means, so their covariance is ``J diag(se^2) J^T`` with ``J``
 the Jacobian by central differences (exact for the linear solvers), and their worst-case shift
-under fixture tilt comes from the same ``J`` (seed 000 notes, seed 004: a horizontal reading
-moves by ``gain·reference·sin θ``, the vertical one by ``gain·reference·(1 - cos θ)``).
+under fixture tilt comes from the same ``J`` (Vitali 2018 notes, Ding and Uchida 2012: a
+horizontal reading moves by ``gain·reference·sin θ``, the vertical one by
+``gain·reference·(1 - cos θ)``).
 
-Sources cited below: seed 000 (ST design tip on tumble calibration, pointing to DT0053 for the
-6-point and N-point forms), seed 001 (the ``T·S·(a + o)`` model, judged by the norm of many
-static poses), seed 002 (magnetometer hard iron by min/max), seed 004 (CN102313822, bias with an
-assumed attitude); Ferraris et al. 1995 (the 6-position form imucal implements); ST AN4508 (the
-12-parameter linear fit); Tedaldi et al., ICRA 2014 (orientation-free fit).
+Sources cited below (README "Sources"): Vitali 2018 (ST design tip on tumble calibration,
+pointing to ST DT0053 for the 6-point and N-point forms), Sports Sensing 2023 (the
+``T·S·(a + o)`` model, judged by the norm of many static poses), Okasho n.d. (magnetometer hard
+iron by min/max), Ding and Uchida 2012 (patent CN102313822, bias with an assumed attitude);
+Ferraris et al. 1995 (the 6-position form imucal implements); ST AN4508 (the 12-parameter linear
+fit); Tedaldi et al. 2014 (orientation-free fit).
 """
 
 from __future__ import annotations
@@ -70,7 +72,7 @@ class Fit:
 
 
 def _six_pose(means: FloatArray, reference: float) -> Params:
-    """Ferraris et al. 1995 (the form imucal implements), 6-point tumble of seed 000 / DT0053.
+    """Ferraris et al. 1995 (the form imucal implements), 6-point tumble of Vitali 2018 / ST DT0053.
 
     ``means`` are the +x -x +y -y +z -z poses. Each offset is the mean of the two *vertical*
     readings of its axis (opposite faces: the stimulus cancels, and a vertical reading moves only
@@ -97,8 +99,8 @@ def _six_pose_magnitude(means: FloatArray, reference: float) -> Params:
     ``|(m_p - b) / k| = reference`` for the six poses, six equations in six unknowns, solved by
     Newton's method from :func:`_six_pose_diagonal`. How a pose is tilted about its face changes
     which axes share the stimulus, never its magnitude, so hand placement does not leak into
-    these parameters; the price is that no cross-axis term is estimated (seed 001's model with
-    ``T = I``, fitted on the six poses alone)."""
+    these parameters; the price is that no cross-axis term is estimated (the model of Sports
+    Sensing 2023 with ``T = I``, fitted on the six poses alone)."""
     b, a = _six_pose_diagonal(means, reference)
     k = np.diag(a).copy()
     if not (np.all(np.isfinite(k)) and np.all(k != 0)):
@@ -277,8 +279,8 @@ def _tilt(
     """Worst-case shift of each parameter when every pose is off its direction by the tolerance.
 
     Tilting pose k by θ about a horizontal axis ``w`` moves its mean by
-    ``A·reference·(sin θ·w - (1 - cos θ)·u_k)`` (seed 000 notes; seed 004, the vertical term is a
-    cosine). Through ``c = d(param)/d(mean_k)`` that is at worst
+    ``A·reference·(sin θ·w - (1 - cos θ)·u_k)`` (Vitali 2018 notes; Ding and Uchida 2012, the
+    vertical term is a cosine). Through ``c = d(param)/d(mean_k)`` that is at worst
     ``|(c·A)_perp|·reference·sin θ + |c·A·u_k|·reference·(1 - cos θ)``; poses tilt independently,
     so the worst cases add. ``A`` is the solved one, itself off by up to the gain's relative
     shift, so the bound is scaled up by ``1 / (1 - shift)`` to stay a bound for the true ``A``.
@@ -308,7 +310,7 @@ def _inverse(a: FloatArray, poses: Sequence[PoseStats]) -> FloatArray:
 
 
 def _norm_residuals(raw: FloatArray, b: FloatArray, matrix: FloatArray, reference: float) -> FloatArray:
-    """Seed 001's test of a model: ``|M (raw - b)| - reference`` for each pose (or sample)."""
+    """The test of a model in Sports Sensing 2023: ``|M (raw - b)| - reference`` for each pose (or sample)."""
     result: FloatArray = np.linalg.norm((raw - b) @ matrix.T, axis=1) - reference
     return result
 
@@ -379,7 +381,7 @@ def least_squares(
     return replace(fit, notes=(note,))
 
 
-# -- orientation-free: the sphere fit (Tedaldi et al. 2014; seed 001's model) ----------------------
+# -- orientation-free: the sphere fit (Tedaldi et al. 2014; Sports Sensing 2023's model) -----------
 
 
 def _ellipsoid_start(points: FloatArray, reference: float) -> Params | None:
@@ -423,7 +425,8 @@ def _sphere_residuals(theta: FloatArray, points: FloatArray, reference: float) -
 
 def _fit_sphere(points: FloatArray, reference: float) -> tuple[FloatArray, FloatArray] | None:
     """Levenberg-Marquardt on ``sum (|M (p - b)| - reference)^2``, M upper triangular (Tedaldi
-    et al. 2014, eq. 10, with seed 001's offset-first model). Returns (theta, Jacobian) or None."""
+    et al. 2014, eq. 10, with the offset-first model of Sports Sensing 2023). Returns (theta,
+    Jacobian) or None."""
     start = _ellipsoid_start(points, reference)
     if start is None:
         return None
@@ -591,7 +594,7 @@ def _theta_to_params(theta: FloatArray, cov_theta: FloatArray, *, symmetric: boo
     return result
 
 
-# -- one pose, tilt-compensated (seed 004) -----------------------------------------------------------
+# -- one pose, tilt-compensated (Ding and Uchida 2012) -----------------------------------------------
 
 
 def gain_error_bound(reference: float, gain_tolerance: float) -> float:
@@ -599,7 +602,7 @@ def gain_error_bound(reference: float, gain_tolerance: float) -> float:
 
     With ``raw = A·v + b`` (README "Poses, signs and --reference") and the up axis's gain
     ``1 + ε``, that axis reads ``(1 + ε)·reference + b``; the 1-pose solver fixes the gain at 1
-    (seed 000 eqs. 1-3, ``offset = mean - v``), so its up offset is ``b + ε·reference``: a 1 %
+    (Vitali 2018 eqs. 1-3, ``offset = mean - v``), so its up offset is ``b + ε·reference``: a 1 %
     gain error moves it by 0.01 × reference. One pose cannot tell the two apart, so the bound is
     a stated tolerance, not a measurement.
 
@@ -613,17 +616,18 @@ def gain_error_bound(reference: float, gain_tolerance: float) -> float:
 def one_pose_tilt(
     pose: PoseStats, up: str, reference: float, tolerance_deg: float, bias_spread: float, gain_tolerance: float = 0.0
 ) -> Fit:
-    """1-pose offsets with the attitude computed from the readings (seed 004, CN102313822).
+    """1-pose offsets with the attitude computed from the readings (Ding and Uchida 2012, patent
+    CN102313822).
 
-    Seed 004, eqs. (2)-(3): with the bias assumed zero, the readings give the attitude, and the
-    axis pointing up reads ``reference·cos θ`` of it. So its offset is the up reading minus
+    Ding and Uchida 2012, eqs. (2)-(3): with the bias assumed zero, the readings give the attitude,
+    and the axis pointing up reads ``reference·cos θ`` of it. So its offset is the up reading minus
     ``reference·cos θ``, with ``cos θ = |up reading| / |mean|``: the fixture's tilt, to any order,
-    no longer enters it. What remains is the assumed-zero bias of the horizontal axes, whose
-    spread σ (``bias_spread``, seed 004's error variance) tilts the assumed attitude by up to
-    ``δ = √2·σ / reference`` (eqs. (4)-(5)): the up offset is then off by at most
-    ``reference·(cos θ - cos(θ + δ))``. The horizontal offsets are the plain 1-pose ones, with
-    their first-order tilt bound ``reference·sin(tolerance)``. The up offset also absorbs the up
-    axis's unknown gain error, as the 1-pose one does (:func:`gain_error_bound`).
+    no longer enters it. What remains is the assumed-zero bias of the horizontal axes, whose spread
+    σ (``bias_spread``, the error variance of Ding and Uchida 2012) tilts the assumed attitude by up
+    to ``δ = √2·σ / reference`` (eqs. (4)-(5)): the up offset is then off by at most
+    ``reference·(cos θ - cos(θ + δ))``. The horizontal offsets are the plain 1-pose ones, with their
+    first-order tilt bound ``reference·sin(tolerance)``. The up offset also absorbs the up axis's
+    unknown gain error, as the 1-pose one does (:func:`gain_error_bound`).
     """
     axis = "xyz".index(up[1])
     sign = 1.0 if up[0] == "+" else -1.0
@@ -632,7 +636,7 @@ def one_pose_tilt(
         magnitude = float(np.linalg.norm(mean))
         cos_t = min(1.0, abs(mean[axis]) / magnitude) if magnitude > 0 else 1.0
         out = mean.copy()
-        out[axis] = mean[axis] - sign * reference * cos_t  # seed 004 eq. (2): f_z = g cos θ + b_z
+        out[axis] = mean[axis] - sign * reference * cos_t  # Ding and Uchida 2012 eq. (2): f_z = g cos θ + b_z
         return out
 
     offset = offsets(pose.mean)
@@ -652,7 +656,7 @@ def one_pose_tilt(
     return Fit(solution=solution, tilt=(tilt_offset, np.zeros(3), np.zeros((3, 3))), notes=(note,))
 
 
-# -- magnetometer: min/max (seed 002) ------------------------------------------------------------------
+# -- magnetometer: min/max (Okasho n.d.) ----------------------------------------------------------------
 
 
 #: In 2-D min/max, each in-plane axis spans at least this fraction of the other's range.
@@ -660,7 +664,7 @@ PLANE_SPAN = 0.5
 
 
 def minmax(samples: FloatArray, plane: str | None = None) -> Fit:
-    """Hard iron from the extremes (seed 002): ``offset = (max + min) / 2`` per axis.
+    """Hard iron from the extremes (Okasho n.d.): ``offset = (max + min) / 2`` per axis.
 
     In 2-D mode (``plane`` "xy", "xz" or "yz": the unit turned about the third axis) only the two
     axes in the plane are determined; the third keeps offset 0. The 1-sigma of each offset is
@@ -668,7 +672,7 @@ def minmax(samples: FloatArray, plane: str | None = None) -> Fit:
     successive differences (``std(diff)/√2``), which a slow rotation leaves nearly untouched.
     """
     lo, hi = samples.min(axis=0), samples.max(axis=0)
-    offset = 0.5 * (lo + hi)  # seed 002: (max + min) / 2
+    offset = 0.5 * (lo + hi)  # Okasho n.d.: (max + min) / 2
     noise = np.diff(samples, axis=0).std(axis=0) / math.sqrt(2.0) if len(samples) > 2 else np.zeros(3)
     offset_se = noise / math.sqrt(2.0)
     axes = [i for i in range(3) if plane is None or "xyz"[i] in plane]

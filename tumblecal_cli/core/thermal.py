@@ -17,7 +17,7 @@ a temperature outside the calibrated range is clamped to its nearest end, never 
 
 Fit. A still pose with face direction u (|u| = 1) reads on axis j, as the temperature changes,
 ``raw_j(T) = c_pj + sum_k beta_jk d^k + u_j G_j sum_k gamma_jk d^k`` with ``G_j = g_j reference``
-(the gravity term of the linearised model, seed 000 eqs. 1-3 with a gain that drifts) and
+(the gravity term of the linearised model, Vitali 2018 eqs. 1-3 with a gain that drifts) and
 ``c_pj`` the pose's own constant (its tilt, cross-axis terms: anything that does not change with
 temperature). Offset and gain drift separate only where the axis is seen in two orientations
 (u_j takes two values: up and down, or up and level); where every pose sees it the same way up,
@@ -30,8 +30,8 @@ heteroscedasticity-consistent (sandwich, HC0) standard errors of weighted least 
 1980, Econometrica 48(4), eq. 3), so residual hysteresis widens them rather than being ignored.
 Order ``auto`` is chosen by cross-validation over temperature: the range is cut into FOLDS bands,
 each band is predicted from a fit to the others, and the lowest order whose prediction error is
-within AUTO_TOLERANCE of the best is taken (the "one standard error" spirit of Hastie, Tibshirani
-and Friedman, Elements of Statistical Learning, 2nd ed., sect. 7.10).
+within AUTO_TOLERANCE of the best is taken (the "one standard error" spirit of Hastie et al.
+2009, The Elements of Statistical Learning, 2nd ed., sect. 7.10).
 """
 
 from __future__ import annotations

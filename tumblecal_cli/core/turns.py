@@ -1,6 +1,6 @@
 """Gyroscope scale and misalignment from known turns: the Ferraris procedure. numpy only.
 
-Ferraris, Grimaldi and Parvis 1995 (README "Sources"), in the form imucal's
+Ferraris et al. 1995 (README "Sources"), in the form imucal's
 ``FerrarisCalibration`` implements (its ``compute``, equation by equation): the unit rests on
 its six faces (the gyroscope's zero-rate bias and, against gravity, its g-sensitivity), then
 turns through a known angle about each of its axes (the integrated rate gives the gyroscope's

@@ -318,7 +318,7 @@ def registers(
     nominal_gain: FloatArray | None = None,
 ) -> list[Register]:
     """Offsets (and gain trims with ``gain_step``) in register counts, checked against the
-    signed ``bits``-wide range (seed 002 writes hard-iron offsets into int16 registers).
+    signed ``bits``-wide range (Okasho n.d. writes hard-iron offsets into int16 registers).
 
     ``sign`` says what the part does with an offset register: ``subtract`` (output = raw -
     count * lsb, so count = round(b / lsb)) or ``add`` (output = raw + count * lsb). A gain trim

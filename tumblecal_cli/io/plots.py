@@ -69,7 +69,7 @@ def poses_figure(
 ) -> None:
     """Each pose's norm before (``|raw mean − nominal_offset| / nominal_gain``: unsigned counts
     sit around 32768) and after (``|M·(mean − offset)|``) calibration against ``reference``, and
-    the residuals ``norm − reference`` as bars (seed 001)."""
+    the residuals ``norm − reference`` as bars (Sports Sensing 2023)."""
     import numpy as np
 
     means = _array(raw_means, "raw_means", (-1, 3))

@@ -1,3 +1,22 @@
 """What a user does, composed from io and core: the public Python API (``tumblecal_cli.__all__``)
 that the commands, ``batch`` and the Dask workers call. pandas only inside the functions that take
-or return DataFrames."""
+or return DataFrames. Its modules:
+
+- ``solve``: pose captures (or one continuous log) in, a judged Calibration out.
+- ``options``: solve's options (and those the commands share), checked and resolved once.
+- ``logs``: continuous logs: their still blocks found, the poses a solver needs picked (solve
+  --log), and one CSV written per block (segment).
+- ``turns``: a gyroscope calibrated from one labelled log of the Ferraris procedure (solve --turns).
+- ``rotations``: a gyroscope's scale and misalignment from hand turns in a log (solve
+  --accel-cal).
+- ``correct``: apply: captures corrected with one or more calibrations, streamed file to file.
+- ``batch``: batch, and apply over many files: the units, the summary, and where they run (in
+  process, worker processes or a Dask cluster).
+- ``thermal``: temperature sweeps in, a calibration with a ``thermal`` block out.
+- ``verify``: a calibration checked on static captures (a gyroscope's: on a log of hand turns)
+  it was not fitted on.
+- ``noise``: the Allan deviation of a still capture and its noise figures, judged against limits
+  and written as the noise model Kalibr and VINS read.
+- ``report``: a lot's calibration files found, read and summarised (``core.lot``).
+- ``calfiles``: calibration files after solve: check, export to firmware or another tool, import.
+- ``frames``: the Python API's data in memory: DataFrames and (n, 3) arrays in, DataFrames out."""

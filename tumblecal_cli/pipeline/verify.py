@@ -1,5 +1,5 @@
-"""verify: a calibration checked on static captures it was not fitted on (seed 001's test of a
-calibration model: the norm of each corrected mean against the reference)."""
+"""verify: a calibration checked on static captures it was not fitted on (the test of a
+calibration model in Sports Sensing 2023: the norm of each corrected mean against the reference)."""
 
 from __future__ import annotations
 
