@@ -1,7 +1,15 @@
 """Files. Errors name the file, line and column. Its modules:
 
-- ``captures``: CSV captures in and out, one set of rules (README "CSV captures"): the layout
-  sniffed, the sensor columns read, and corrected captures written with every other cell kept.
+- ``readspec``: how to read a source (``ReadSpec``: the sensor, its columns, the clock, the
+  file's dialect), one value from the command line down to every reader.
+- ``sniff``: a CSV capture's layout decided from its head: delimiter, header, preamble, decimal
+  mark, and which columns hold the sensor triplet, the time and the temperature.
+- ``capture``: a CSV capture streamed through pyarrow with every cell's text kept, and its
+  errors located by line and column (README "CSV captures").
+- ``readings``: pose files and whole logs read into memory (``Samples``, ``Log``), with their
+  clock's unit judged.
+- ``rewrite``: apply's streaming writer: a capture written again with its sensor columns
+  corrected and every other byte kept.
 - ``splice``: apply's fast path, corrected sensor cells spliced into a plain file's own bytes.
 - ``forked``: apply's blocks corrected by forked worker processes, one per core.
 - ``logread``: a long log read block by block into the streaming still-block detector
