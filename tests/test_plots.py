@@ -117,7 +117,7 @@ def figures(monkeypatch: pytest.MonkeyPatch) -> list[Figure]:
 def test_poses_figure_is_a_png_of_the_right_size(tmp_path: Path) -> None:
     path = tmp_path / "poses.png"
     names = ["+x", "-x", "+y", "-y", "+z", "-z"]
-    plots.poses_figure(str(path), names, pose_means(6), OFFSET, M, 1.0, units="g", title="six poses")
+    plots.poses_figure(str(path), names, pose_means(6), plots.Fitted(OFFSET, M, 1.0, units="g"), title="six poses")
     check_png(path, 700, 640)
 
 
@@ -147,14 +147,14 @@ def test_lot_figure_is_a_png_of_the_right_size(tmp_path: Path) -> None:
 def test_same_call_same_bytes(tmp_path: Path) -> None:
     first, second = tmp_path / "a.png", tmp_path / "b.png"
     for path in (first, second):
-        plots.poses_figure(str(path), ["a", "b", "c"], pose_means(3), OFFSET, M, 1.0)
+        plots.poses_figure(str(path), ["a", "b", "c"], pose_means(3), plots.Fitted(OFFSET, M, 1.0))
     assert first.read_bytes() == second.read_bytes()
     assert b"Software" not in first.read_bytes()
 
 
 @pytest.mark.slow
 def test_dash_writes_the_png_to_stdout(capsysbinary: pytest.CaptureFixture[bytes]) -> None:
-    plots.poses_figure("-", ["a", "b", "c"], pose_means(3), OFFSET, M, 1.0)
+    plots.poses_figure("-", ["a", "b", "c"], pose_means(3), plots.Fitted(OFFSET, M, 1.0))
     out = capsysbinary.readouterr().out
     assert png_size(out) == (700, 640)
 
@@ -167,7 +167,9 @@ def test_poses_figure_shows_norms_before_and_after(figures: list[Figure]) -> Non
     gain = 16384.0  # raw counts, corrected in g
     means = pose_means(60) * gain
     names = [f"session_2026_11_21_pose_{i:02d}.csv" for i in range(60)]
-    plots.poses_figure("unused.png", names, means, OFFSET * gain, M / gain, 1.0, nominal_gain=gain, units="g")
+    plots.poses_figure(
+        "unused.png", names, means, plots.Fitted(OFFSET * gain, M / gain, 1.0, units="g"), nominal_gain=gain
+    )
     (fig,) = figures
     top, bottom = fig.axes
     reference, before, after = top.get_lines()
@@ -194,7 +196,7 @@ def test_poses_figure_before_is_centred_on_the_nominal_offset(figures: list[Figu
     gain, zero = 16384.0, np.full(3, 32768.0)
     means = pose_means(12) * gain + zero
     plots.poses_figure(
-        "unused.png", [f"p{i}" for i in range(12)], means, OFFSET * gain + zero, M / gain, 1.0,
+        "unused.png", [f"p{i}" for i in range(12)], means, plots.Fitted(OFFSET * gain + zero, M / gain, 1.0),
         nominal_gain=gain, nominal_offset=zero,
     )  # fmt: skip
     (fig,) = figures
@@ -293,28 +295,32 @@ def test_lot_figure_twenty_parameters_in_four_columns(figures: list[Figure]) -> 
 BAD_INPUTS: list[tuple[str, Callable[[str], None], str]] = [
     (
         "poses-nan",
-        lambda p: plots.poses_figure(p, ["a", "b"], np.full((2, 3), np.nan), OFFSET, M, 1.0),
+        lambda p: plots.poses_figure(p, ["a", "b"], np.full((2, 3), np.nan), plots.Fitted(OFFSET, M, 1.0)),
         "raw_means has 6 of 6 values that are not finite",
     ),
     (
         "poses-shape",
-        lambda p: plots.poses_figure(p, ["a", "b"], np.ones((2, 2)), OFFSET, M, 1.0),
+        lambda p: plots.poses_figure(p, ["a", "b"], np.ones((2, 2)), plots.Fitted(OFFSET, M, 1.0)),
         "raw_means has shape 2×2, expected n×3",
     ),
     (
         "poses-names",
-        lambda p: plots.poses_figure(p, ["a"], pose_means(2), OFFSET, M, 1.0),
+        lambda p: plots.poses_figure(p, ["a"], pose_means(2), plots.Fitted(OFFSET, M, 1.0)),
         "1 pose names for 2 pose means",
     ),
-    ("poses-none", lambda p: plots.poses_figure(p, [], np.empty((0, 3)), OFFSET, M, 1.0), "no poses to plot"),
+    (
+        "poses-none",
+        lambda p: plots.poses_figure(p, [], np.empty((0, 3)), plots.Fitted(OFFSET, M, 1.0)),
+        "no poses to plot",
+    ),
     (
         "poses-matrix",
-        lambda p: plots.poses_figure(p, ["a"], pose_means(1), OFFSET, np.eye(2), 1.0),
+        lambda p: plots.poses_figure(p, ["a"], pose_means(1), plots.Fitted(OFFSET, np.eye(2), 1.0)),
         "matrix has shape 2×2, expected 3×3",
     ),
     (
         "poses-gain",
-        lambda p: plots.poses_figure(p, ["a"], pose_means(1), OFFSET, M, 1.0, nominal_gain=0.0),
+        lambda p: plots.poses_figure(p, ["a"], pose_means(1), plots.Fitted(OFFSET, M, 1.0), nominal_gain=0.0),
         "nominal_gain must be positive",
     ),
     (
@@ -366,7 +372,7 @@ BAD_INPUTS: list[tuple[str, Callable[[str], None], str]] = [
 def good_png(tmp_path_factory: pytest.TempPathFactory) -> bytes:
     """A good figure, rendered once for the module."""
     path = tmp_path_factory.mktemp("good") / "figure.png"
-    plots.poses_figure(str(path), ["a", "b", "c"], pose_means(3), OFFSET, M, 1.0)
+    plots.poses_figure(str(path), ["a", "b", "c"], pose_means(3), plots.Fitted(OFFSET, M, 1.0))
     return path.read_bytes()
 
 
@@ -397,7 +403,7 @@ def test_failed_render_leaves_the_old_file(good_file: Path, monkeypatch: pytest.
     before = good_file.read_bytes()
     monkeypatch.setattr(Figure, "savefig", broken)
     with pytest.raises(RuntimeError, match="renderer failed"):
-        plots.poses_figure(str(good_file), ["a"], pose_means(1), OFFSET, M, 1.0)
+        plots.poses_figure(str(good_file), ["a"], pose_means(1), plots.Fitted(OFFSET, M, 1.0))
     assert good_file.read_bytes() == before
     assert [p.name for p in good_file.parent.iterdir()] == [good_file.name]
 
@@ -422,7 +428,7 @@ def test_failed_write_leaves_the_old_file(good_file: Path, monkeypatch: pytest.M
     before = good_file.read_bytes()
     monkeypatch.setattr(plots, "atomic_output", failing)
     with pytest.raises(InputError, match=f"{good_file}: cannot write: No space left on device"):
-        plots.poses_figure(str(good_file), ["a", "b"], pose_means(2), OFFSET, M, 2.0)
+        plots.poses_figure(str(good_file), ["a", "b"], pose_means(2), plots.Fitted(OFFSET, M, 2.0))
     assert good_file.read_bytes() == before
     assert [p.name for p in good_file.parent.iterdir()] == [good_file.name]
 
@@ -430,7 +436,7 @@ def test_failed_write_leaves_the_old_file(good_file: Path, monkeypatch: pytest.M
 @pytest.mark.slow
 def test_missing_output_folder_is_an_input_error(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="the output folder does not exist"):
-        plots.poses_figure(str(tmp_path / "nowhere" / "f.png"), ["a"], pose_means(1), OFFSET, M, 1.0)
+        plots.poses_figure(str(tmp_path / "nowhere" / "f.png"), ["a"], pose_means(1), plots.Fitted(OFFSET, M, 1.0))
 
 
 # --- the optional extra -------------------------------------------------------------------------

@@ -397,11 +397,8 @@ def _plot_solve(plot: str, cal: Calibration, raw: list[Any], limits: Limits | No
         plot,
         names,
         means,
-        cal.offset,
-        cal.matrix,
-        cal.reference,
+        plots.Fitted(cal.offset, cal.matrix, cal.reference, cal.units),
         nominal_gain=nominal,
         nominal_offset=limits.nominal_offset,  # --nominal-offset: unsigned counts' zero
-        units=cal.units,
         title=title,
     )

@@ -856,21 +856,31 @@ def _auto(labels: Sequence[str | None], sensor: str) -> str:
     )
 
 
+@dataclass(frozen=True)
+class SolverSettings:
+    """What a solver is told beside its poses: the ``reference`` magnitude, the fixture's tilt
+    tolerance (degrees) the tilt sensitivity is stated for, a 1-pose tilt fit's prior on the
+    horizontal offsets (``bias_spread``, raw units), minmax's ``plane``, and the 1-pose methods'
+    stated bound on the up axis's unknown gain error (``gain_tolerance``)."""
+
+    reference: float
+    tolerance_deg: float
+    bias_spread: float
+    plane: str | None = None
+    gain_tolerance: float = 0.0
+
+
 def run(
     method: str,
     stats: Sequence[PoseStats],
     values: Sequence[FloatArray],
     labels: Sequence[str | None],
-    *,
-    reference: float,
-    tolerance_deg: float,
-    bias_spread: float,
-    plane: str | None,
+    settings: SolverSettings,
     names: Sequence[str],
-    gain_tolerance: float = 0.0,
 ) -> Fit:
-    """Run ``method`` (resolved by :func:`pick`, poses in its order) on the poses.
-    ``gain_tolerance``: the 1-pose methods' stated bound on the up axis's unknown gain error."""
+    """Run ``method`` (resolved by :func:`pick`, poses in its order) on the poses."""
+    reference, tolerance_deg, bias_spread = settings.reference, settings.tolerance_deg, settings.bias_spread
+    plane, gain_tolerance = settings.plane, settings.gain_tolerance
     if method == "one-pose":
         face = str(labels[0])
         one = solve_one_pose(stats[0], face, reference)

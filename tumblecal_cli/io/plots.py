@@ -54,28 +54,37 @@ class Histogram:
     label: str = ""  # x-axis label, e.g. the units
 
 
+@dataclass(frozen=True)
+class Fitted:
+    """A calibration's correction as a figure shows it: ``corrected = matrix · (raw − offset)``
+    against ``reference``, in ``units``."""
+
+    offset: FloatArray
+    matrix: FloatArray
+    reference: float
+    units: str | None = None
+
+
 def poses_figure(
     path: str,
     names: list[str],
     raw_means: FloatArray,
-    offset: FloatArray,
-    matrix: FloatArray,
-    reference: float,
+    fitted: Fitted,
     *,
     nominal_gain: float = 1.0,
     nominal_offset: FloatArray | None = None,
-    units: str | None = None,
     title: str = "",
 ) -> None:
     """Each pose's norm before (``|raw mean − nominal_offset| / nominal_gain``: unsigned counts
-    sit around 32768) and after (``|M·(mean − offset)|``) calibration against ``reference``, and
+    sit around 32768) and after (``|M·(mean − offset)|``, ``fitted``) calibration against ``reference``, and
     the residuals ``norm − reference`` as bars (Sports Sensing 2023)."""
     import numpy as np
 
     means = _array(raw_means, "raw_means", (-1, 3))
-    b = _array(offset, "offset", (3,))
-    m = _array(matrix, "matrix", (3, 3))
-    ref = _number(reference, "reference")
+    b = _array(fitted.offset, "offset", (3,))
+    m = _array(fitted.matrix, "matrix", (3, 3))
+    ref = _number(fitted.reference, "reference")
+    units = fitted.units
     gain = _number(nominal_gain, "nominal_gain")
     if gain <= 0:
         raise InputError(f"nominal_gain must be positive, not {nominal_gain}")

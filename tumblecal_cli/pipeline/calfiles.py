@@ -7,7 +7,7 @@ import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypedDict, Unpack
 
 from tumblecal_cli.errors import InputError, control_character
 from tumblecal_cli.pipeline.options import Triplet
@@ -104,25 +104,31 @@ def check(
     return Checked(c.with_verdict(verdict), failures, limits_not_applying(given, method))
 
 
-def export(
-    cal: Calibration | str | os.PathLike[str],
-    fmt: str,
-    *,
-    prefix: str | None = None,
-    lsb: float | None = None,
-    bits: int = 16,
-    register_sign: str = "subtract",
-    gain_step: float | None = None,
-    nominal_gain: str | None = None,
-    force: bool = False,
-    instance: int | None = None,
-) -> str:
+class ExportKeywords(TypedDict, total=False):
+    """export's options (README "export"): the command line's long options in snake case."""
+
+    prefix: str | None
+    lsb: float | None
+    bits: int
+    register_sign: str
+    gain_step: float | None
+    nominal_gain: str | None
+    force: bool
+    instance: int | None
+
+
+def export(cal: Calibration | str | os.PathLike[str], fmt: str, **options: Unpack[ExportKeywords]) -> str:
     """The text of a calibration in another format: c-header, registers, imucal-json, ros-yaml,
     matlab, or a thermal block as ardupilot or px4 parameters (README "export"); ``instance`` is
     the firmware's IMU number (ArduPilot from 1, PX4 from 0)."""
     from tumblecal_cli.io import calfile, formats
     from tumblecal_cli.pipeline.correct import refuse_failed
+    from tumblecal_cli.pipeline.options import keywords_known
 
+    keywords_known(options, ExportKeywords, "export")
+    prefix, lsb, bits = options.get("prefix"), options.get("lsb"), options.get("bits", 16)
+    register_sign, gain_step = options.get("register_sign", "subtract"), options.get("gain_step")
+    nominal_gain, force, instance = options.get("nominal_gain"), options.get("force", False), options.get("instance")
     _export_options(fmt, prefix, lsb, bits, register_sign, gain_step, nominal_gain)
     if instance is not None and fmt not in ("ardupilot", "px4"):
         raise InputError("--instance is for --format ardupilot and px4")

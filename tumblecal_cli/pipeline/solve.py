@@ -386,18 +386,14 @@ def _solve(
     if name in ONE_POSE:
         check_units(names[0], stats[0].mean - checks.nominal_offset, ref)
     try:
-        fit = solvers.run(
-            name,
-            stats,
-            [s.values for s in samples],
-            labels,
+        told = solvers.SolverSettings(
             reference=ref,
             tolerance_deg=options.fixture_tolerance,
             bias_spread=options.bias_spread if options.bias_spread is not None else 0.01 * ref,
             plane=options.plane,
-            names=names,
             gain_tolerance=options.gain_tolerance,
         )
+        fit = solvers.run(name, stats, [s.values for s in samples], labels, told, names)
     except CaptureRejected as err:
         if err.code == "poses.tilted" and ref > 0:  # a pose on another face than declared reads as
             again = _solve(  # a tilt of 60°: the checks of the six-pose fit say which file and face
