@@ -20,14 +20,14 @@ import pytest
 from numpy.typing import ArrayLike
 
 from tests.synth import FloatArray, pose_samples
+from tumblecal_cli.core import methods, solvers
 from tumblecal_cli.core import model as core
-from tumblecal_cli.core import solvers
 from tumblecal_cli.errors import CaptureRejected, InputError
 
 ROOT = Path(__file__).resolve().parent.parent
 G = 9.80665  # m/s^2 per g
 SIX = solvers.SIX_FACES
-THREE = solvers.THREE_FACES
+THREE = methods.THREE_FACES
 K = 5.0  # |estimate - truth| < K sigma
 
 
@@ -766,7 +766,7 @@ def test_reported_uncertainty_matches_the_scatter_over_repeats(solver: str) -> N
     ],
 )
 def test_default_labels(count: int, up: str, labels: list[str | None]) -> None:
-    assert solvers.default_labels(count, up) == labels
+    assert methods.default_labels(count, up) == labels
 
 
 DIAG = ["0.707107,0,0.707107", "-0.707107,0.707107,0"]
@@ -790,7 +790,7 @@ DIAG = ["0.707107,0,0.707107", "-0.707107,0.707107,0"]
     ],
 )
 def test_pick_auto(labels: list[str | None], sensor: str, method: str) -> None:
-    picked, order = solvers.pick("auto", labels, sensor)
+    picked, order = methods.pick("auto", labels, sensor)
     assert picked == method
     assert order == list(range(len(labels)))
 
@@ -806,7 +806,7 @@ def test_pick_auto(labels: list[str | None], sensor: str, method: str) -> None:
     ],
 )
 def test_pick_puts_shuffled_faces_in_the_solver_order(method: str, labels: list[str | None], picked: str) -> None:
-    got, order = solvers.pick(method, labels, "accelerometer")
+    got, order = methods.pick(method, labels, "accelerometer")
     assert got == picked
     wanted = SIX if len(labels) == 6 else THREE
     assert sorted(order) == list(range(len(labels)))
@@ -833,7 +833,7 @@ def test_pick_puts_shuffled_faces_in_the_solver_order(method: str, labels: list[
 )
 def test_pick_rejects_too_few_or_unusable_files(method: str, labels: list[str | None], message: str) -> None:
     with pytest.raises(InputError, match=message) as err:
-        solvers.pick(method, labels, "accelerometer")
+        methods.pick(method, labels, "accelerometer")
     assert err.value.exit_code == 2
 
 
@@ -968,8 +968,8 @@ def test_auto_on_hand_placed_faces_is_within_25_percent_of_the_better_face_solve
     for k in range(60):
         unit, directions = _hand_placed(rng, max_tilt, (0.002, 0.005, 0.01, 0.02)[k % 4], rigid_deg)
         poses = direction_poses(rng, unit, directions, 200)
-        method, _ = solvers.auto_six(np.array([p.mean for p in poses]))
-        errors = {m: _held_out_error(unit, solvers.six_pose(poses, 1.0, 1.0, m), held) for m in solvers.SIX_POSE}
+        method, _ = methods.auto_six(np.array([p.mean for p in poses]))
+        errors = {m: _held_out_error(unit, solvers.six_pose(poses, 1.0, 1.0, m), held) for m in methods.SIX_POSE}
         raw = unit.reference * held @ unit.a.T + unit.offset
         before = float(np.sqrt(np.mean((np.linalg.norm(raw, axis=1) - 1.0) ** 2)))
         assert errors[method] < before

@@ -368,12 +368,12 @@ def _plot_solve(plot: str, cal: Calibration, raw: list[Any], limits: Limits | No
     """solve --plot: the poses' norms (the figure of Sports Sensing 2023), or a magnetometer's rotation capture."""
     import numpy as np
 
-    from tumblecal_cli.core import solvers
+    from tumblecal_cli.core import methods
     from tumblecal_cli.core.gate import FIXED_GAINS
     from tumblecal_cli.io import plots
 
     title = f"{cal.sensor}, {cal.method}" + (f", {cal.serial}" if cal.serial else "")
-    if cal.method in solvers.ROTATION:
+    if cal.method in methods.ROTATION:
         plots.rotation_figure(
             plot, np.concatenate(raw), cal.offset, cal.matrix, cal.reference, units=cal.units, title=title, plane=plane
         )

@@ -4,7 +4,9 @@
 - ``model``: faces and pose labels, pose statistics, the measurement model, the 1- and 3-pose
   solvers, tilt sensitivity, and apply (``M (raw - b)``).
 - ``solvers``: the solvers beyond 1- and 3-pose (six-pose, least squares, sphere, tilt-compensated
-  1-pose, magnetometer min/max and ellipsoid, gyroscope bias) and the choice among them.
+  1-pose, magnetometer min/max and ellipsoid, gyroscope bias).
+- ``methods``: which solver: the methods there are, ``auto`` resolved from the labels and the
+  sensor, and the evidence that chooses between six-pose and six-pose-magnitude.
 - ``gate``: the production-test gate: quality checks on each pose (exit 3), limits and the
   verdict (exit 1).
 - ``segment``: the still blocks of a log held in memory (or its pose labels), judged and labelled

@@ -27,12 +27,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from tumblecal_cli.core.methods import SIX_POSE, THREE_FACES, face_evidence
 from tumblecal_cli.core.model import (
     FACES,
     FloatArray,
     PoseStats,
     Solution,
-    angle_deg,
     direction,
     solve_one_pose,
     solve_three_pose,
@@ -122,70 +122,6 @@ def _six_pose_magnitude(means: FloatArray, reference: float) -> Params:
             break
     converged = np.allclose(np.linalg.norm((means - b) / k, axis=1), reference, rtol=1e-9)
     return b, np.diag(k) if converged and np.all(k > 0) else np.full((3, 3), np.nan)
-
-
-@dataclass(frozen=True)
-class FaceEvidence:
-    """How the six face poses sit on their faces, about the midpoint of opposite faces.
-
-    ``angles``: each pose's angle from its face. ``disagreement``: for each axis, the angle
-    between the directions its two faces give it (``m[+i] - b`` and ``b - m[-i]``). A fixture
-    that tilts every face alike (rigid but misaligned) turns both directions together and
-    six-pose takes that turn as the sensor's misalignment; faces placed by hand tilt each pose
-    its own way, the two directions disagree, and six-pose's cross-axis terms absorb tilt."""
-
-    angles: dict[str, float]
-    disagreement: dict[str, float]
-
-    @property
-    def worst(self) -> float:
-        return max(self.disagreement.values())
-
-    def disagreeing(self) -> str:
-        """The axis whose faces disagree most, for people: ``the faces of x disagree on its
-        direction by 15.2° (+x 15.9°, -x 1.7° off)``."""
-        axis = max(self.disagreement, key=lambda a: self.disagreement[a])
-        tilts = ", ".join(f"{f} {self.angles[f]:.1f}°" for f in (f"+{axis}", f"-{axis}"))
-        return f"the faces of {axis} disagree on its direction by {self.disagreement[axis]:.1f}° ({tilts} off)"
-
-
-#: Above this disagreement between opposite faces, auto leaves six-pose for six-pose-magnitude.
-#: Synthetic hand-placed tumbles (tests/test_solvers.py, cross-axis terms 0.2-2 %) put the
-#: crossover of the two methods' held-out errors between 1° and 2° of disagreement; the real
-#: logs in tests/data disagree by 0.3-1.4° on a fixture and 6-20° by hand.
-CONSISTENT_DEG = 1.5
-
-
-def face_evidence(means: FloatArray) -> FaceEvidence:
-    """The evidence of six poses in the order +x -x +y -y +z -z (see :class:`FaceEvidence`)."""
-    centre = 0.5 * (np.diag(means[0::2]) + np.diag(means[1::2]))
-    angles = {
-        face: angle_deg(m - centre, face) if np.any(m - centre) else 90.0
-        for face, m in zip(SIX_FACES, means, strict=True)
-    }
-    disagreement = {}
-    for i, axis in enumerate("xyz"):
-        up, down = means[2 * i] - centre, centre - means[2 * i + 1]
-        cos = float(up @ down) / max(float(np.linalg.norm(up) * np.linalg.norm(down)), 1e-300)
-        disagreement[axis] = math.degrees(math.acos(max(-1.0, min(1.0, cos))))
-    return FaceEvidence(angles, disagreement)
-
-
-def auto_six(means: FloatArray) -> tuple[str, str]:
-    """auto's solver for six labelled faces and why: six-pose when each axis's two faces agree on
-    its direction within CONSISTENT_DEG (a good or rigidly misaligned fixture: its cross-axis
-    terms are the sensor's), else six-pose-magnitude (faces placed by hand: cross-axis terms would
-    be tilt, and correct other orientations worse than no calibration)."""
-    ev = face_evidence(means)
-    if ev.worst <= CONSISTENT_DEG:
-        return "six-pose", (
-            f"auto chose six-pose: each axis's two faces agree on its direction within {ev.worst:.2g}° "
-            f"(limit {CONSISTENT_DEG:g}°), so its cross-axis terms are the sensor's, not fixture tilt"
-        )
-    return "six-pose-magnitude", (
-        f"auto chose six-pose-magnitude: {ev.disagreeing()}, as hand-placed faces do; six-pose would take that "
-        "tilt for cross-axis terms, the magnitude fit is immune to it (--method six-pose fits them anyway)"
-    )
 
 
 # -- least squares ---------------------------------------------------------------------------
@@ -743,117 +679,6 @@ def gyro_bias(poses: Sequence[PoseStats]) -> Fit:
     var = sum((p.samples**2) * p.stderr**2 for p in poses) / n.sum() ** 2
     solution = Solution("gyro-bias", offset, np.eye(3), np.sqrt(var), np.zeros(3))
     return Fit(solution=solution)
-
-
-# -- choosing a solver from what was given ------------------------------------------------------------
-
-METHODS = (
-    "one-pose",
-    "one-pose-tilt",
-    "three-pose",
-    "six-pose",
-    "six-pose-diagonal",
-    "six-pose-magnitude",
-    "least-squares",
-    "sphere",
-    "minmax",
-    "ellipsoid",
-    "gyro-bias",
-    "ferraris-turns",
-    "rotations",
-)
-#: Methods that take a gyroscope's turns, not still poses (pipeline.turns, pipeline.rotations).
-TURNS = ("ferraris-turns",)
-SIX_POSE = ("six-pose", "six-pose-diagonal", "six-pose-magnitude")
-#: Methods fitted to captures rotated through many orientations (not static poses).
-ROTATION = ("minmax", "ellipsoid")
-#: Methods that do not use the pose labels (the orientation is unknown or irrelevant).
-ORIENTATION_FREE = ("sphere", "minmax", "ellipsoid", "gyro-bias")
-THREE_FACES = ("+x", "+y", "+z")
-
-
-def default_labels(count: int, up: str) -> list[str | None]:
-    """Labels of unlabelled pose files: 1 -> ``up``, 3 -> +x +y +z, 6 -> +x -x +y -y +z -z, in
-    that order; any other count has none (for the orientation-free solvers)."""
-    if count == 1:
-        return [up]
-    if count == 3:
-        return list(THREE_FACES)
-    if count == 6:
-        return list(SIX_FACES)
-    return [None] * count
-
-
-def pick(method: str, labels: Sequence[str | None], sensor: str) -> tuple[str, list[int]]:
-    """The method to run (``auto`` resolved) and the order of the poses it takes them in.
-
-    Too few files, or labels a method cannot use, is a usage error (exit 2); the data's own
-    shortcomings (directions that do not span) are judged by the solver (exit 3).
-    """
-    n = len(labels)
-    order = list(range(n))
-    if method == "auto":
-        method = _auto(labels, sensor)
-    if method == "gyro-bias" and sensor != "gyroscope":  # else the accelerometer's columns "moved"
-        raise InputError(f"gyro-bias is a gyroscope's zero-rate bias: give --sensor gyroscope (not {sensor})")
-    if method in ("one-pose", "one-pose-tilt"):
-        if n != 1:
-            raise InputError(f"{method} takes 1 pose file, got {n}")
-        if labels[0] is None:
-            raise InputError(f"{method} needs the face pointing up: label the file (+z=z.csv) or give --up")
-        if labels[0] not in FACES:
-            raise InputError(
-                f"{method} takes a pose on a face (the axis up), not the direction {labels[0]}",
-                hint="label it with a face (+z=z.csv) or give the face with --up",
-            )
-    elif method in ("three-pose", *SIX_POSE):
-        wanted = THREE_FACES if method == "three-pose" else SIX_FACES
-        if sorted(str(x) for x in labels) != sorted(wanted):
-            given = " ".join(str(x) for x in labels) if any(labels) else f"{n} unlabelled files"
-            raise InputError(
-                f"{method} takes {len(wanted)} pose files, one per face {' '.join(wanted)}; got {given}",
-                hint="label each file with its face, e.g. --poses +x=xp.csv -x=xn.csv ... (see --help)",
-            )
-        order = [list(labels).index(f) for f in wanted]
-    elif method == "least-squares":
-        if n < LEAST_SQUARES_MIN_POSES or any(x is None for x in labels):
-            raise InputError(
-                f"least-squares takes {LEAST_SQUARES_MIN_POSES} or more labelled pose files "
-                + (f"(a face or a direction X,Y,Z each), got {n}" if all(labels) else f"got {n} unlabelled"),
-                hint="label each file: --poses +x=a.csv 0.707,0,0.707=b.csv ...",
-            )
-    elif method == "sphere" and n < SPHERE_MIN_POSES:
-        raise InputError(
-            f"sphere takes {SPHERE_MIN_POSES} or more static pose files (9 parameters, and a residual "
-            f"to judge the fit by), got {n}",
-            hint="capture more orientations, or label the poses for the face solvers",
-        )
-    return method, order
-
-
-def _auto(labels: Sequence[str | None], sensor: str) -> str:
-    if sensor == "gyroscope":
-        return "gyro-bias"
-    if sensor == "magnetometer":
-        return "ellipsoid"
-    n = len(labels)
-    faces = sorted(str(x) for x in labels)
-    if n == 1:
-        return "one-pose"
-    if faces == sorted(THREE_FACES):
-        return "three-pose"
-    if faces == sorted(SIX_FACES):
-        return "six-pose"
-    if all(labels) and n >= LEAST_SQUARES_MIN_POSES:
-        return "least-squares"
-    if not any(labels) and n >= SPHERE_MIN_POSES:
-        return "sphere"
-    what = f"the labels {' '.join(str(x) for x in labels)}" if all(labels) else f"{n} unlabelled files"
-    raise InputError(
-        f"--poses: no solver takes {what}: give 1 (one-pose), 3 (+x +y +z), 6 (+x -x +y -y +z -z), "
-        f"{SPHERE_MIN_POSES}+ unlabelled (sphere) or {LEAST_SQUARES_MIN_POSES}+ labelled (least-squares)",
-        hint="label a file with its face or direction: --poses +x=a.csv -x=b.csv 0.707,0,0.707=c.csv",
-    )
 
 
 @dataclass(frozen=True)

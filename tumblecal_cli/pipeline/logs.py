@@ -19,7 +19,7 @@ from typing import Any, Unpack
 
 import numpy as np
 
-from tumblecal_cli.core import model, solvers
+from tumblecal_cli.core import methods, model, solvers
 from tumblecal_cli.core import segment as seg_core
 from tumblecal_cli.core.segment import Block, Segmentation
 from tumblecal_cli.errors import CaptureRejected, InputError
@@ -244,7 +244,7 @@ def log_poses(
     one; and notes on that choice.
 
     ``auto`` with 12 or more kept blocks fits the sphere unless the six faces are there and
-    agree (solvers.auto_six): fewer faces, or faces placed by hand, and a face solver would take
+    agree (methods.auto_six): fewer faces, or faces placed by hand, and a face solver would take
     the tilt for cross-axis terms (seen on real logs: worse than no calibration)."""
     enough_blocks(log, seg, 1 if method in ("one-pose", "one-pose-tilt") else 2)
     best, kept = seg.best(), seg.kept
@@ -253,7 +253,7 @@ def log_poses(
     many = len(kept) >= solvers.SPHERE_MIN_POSES
     if method == "auto" and many:
         six = set(best) >= set(solvers.SIX_FACES)
-        ev = solvers.face_evidence(np.array([best[f].mean for f in solvers.SIX_FACES])) if six else None
+        ev = methods.face_evidence(np.array([best[f].mean for f in solvers.SIX_FACES])) if six else None
         directions = np.array([b.mean - seg.centre for b in kept])
         directions /= np.maximum(np.linalg.norm(directions, axis=1), 1e-300)[:, None]
         fits = solvers.distinct_directions(directions) >= solvers.SPHERE_MIN_DIRECTIONS
@@ -263,26 +263,26 @@ def log_poses(
                 "not the six"
             )
             method = "sphere"
-        elif ev.worst > solvers.CONSISTENT_DEG and fits:  # else six-pose, or the magnitude fit (too few directions)
+        elif ev.worst > methods.CONSISTENT_DEG and fits:  # else six-pose, or the magnitude fit (too few directions)
             notes.append(
                 f"auto fits the sphere to all {len(kept)} still blocks: {ev.disagreeing()}, and a face solver "
                 "takes each block as exactly on its face (--method six-pose-magnitude fits the six face blocks)"
             )
             method = "sphere"
-    if method in solvers.ORIENTATION_FREE:
+    if method in methods.ORIENTATION_FREE:
         chosen_blocks, labels = kept, [None] * len(kept)
     else:
         wanted = _wanted(method, up, best)
         chosen_blocks, labels = _face_blocks(log, seg, method, wanted, best), list(wanted)
         if method == "six-pose-diagonal":
-            diagonal = solvers.face_evidence(np.array([b.mean for b in chosen_blocks]))
-            if diagonal.worst > solvers.CONSISTENT_DEG:
+            diagonal = methods.face_evidence(np.array([b.mean for b in chosen_blocks]))
+            if diagonal.worst > methods.CONSISTENT_DEG:
                 sphere = "; --method sphere fits tilted blocks" if many else ""
                 notes.append(
                     f"{diagonal.disagreeing()}: {method} takes each block as exactly on its face, so the tilt goes "
                     f"into its parameters (six-pose-magnitude is immune to it){sphere}"
                 )
-    name, order = solvers.pick(method, labels, sensor)
+    name, order = methods.pick(method, labels, sensor)
     samples = [log.block(b.number, b.first, b.last) for b in chosen_blocks]
     return name, [labels[k] for k in order], [samples[k] for k in order], notes
 
@@ -290,12 +290,12 @@ def log_poses(
 def _wanted(method: str, up: str, best: Mapping[str, Block]) -> list[str]:
     """The faces a face solver takes from a log (auto: six, five or +x +y +z)."""
     if method == "auto":
-        return list(solvers.SIX_FACES if len(best) == 6 else best if len(best) == 5 else solvers.THREE_FACES)
+        return list(solvers.SIX_FACES if len(best) == 6 else best if len(best) == 5 else methods.THREE_FACES)
     if method in ("one-pose", "one-pose-tilt"):
         return [up]
     if method == "three-pose":
-        return list(solvers.THREE_FACES)
-    if method in solvers.SIX_POSE:
+        return list(methods.THREE_FACES)
+    if method in methods.SIX_POSE:
         return list(solvers.SIX_FACES)
     return list(best)
 

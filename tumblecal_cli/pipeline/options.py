@@ -233,8 +233,8 @@ NUMBERS = (
 def checked(options: SolveOptions) -> SolveOptions:
     """The checks the command line's parser makes, for options given in Python: each choice
     one of its own, numbers numbers, ranges kept; a lone string where a list goes is one item."""
+    from tumblecal_cli.core.methods import METHODS
     from tumblecal_cli.core.model import SENSORS
-    from tumblecal_cli.core.solvers import METHODS
 
     for name, allowed in {"method": ("auto", *METHODS), "sensor": SENSORS, **CHOICES}.items():
         value = getattr(options, name)
@@ -308,7 +308,7 @@ def settings(options: SolveOptions, *, log: bool) -> Settings:
 def turn_options(options: SolveOptions, *, log: bool) -> None:
     """--turns and --turn-angle: a gyroscope's labelled turns in one log, the angle known;
     --accel-cal: its hand turns between still poses."""
-    from tumblecal_cli.core.solvers import TURNS
+    from tumblecal_cli.core.methods import TURNS
 
     if options.accel_cal is not None or options.method == "rotations":
         if options.accel_cal is None:

@@ -137,7 +137,7 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Path
 def _poses_given(poses: object, options: SolveOptions) -> list[str] | Mapping[str, object]:
     """poses as files (one path, or a list of items) or as data in memory (a mapping of labels to
     data, or a list of data, labelled as unlabelled files are)."""
-    from tumblecal_cli.core import solvers
+    from tumblecal_cli.core import methods
 
     if isinstance(poses, str | os.PathLike):
         return [os.fspath(poses)]
@@ -150,7 +150,7 @@ def _poses_given(poses: object, options: SolveOptions) -> list[str] | Mapping[st
     items = list(poses)
     if all(isinstance(p, str | os.PathLike) for p in items):
         return [os.fspath(p) for p in items]
-    labels = solvers.default_labels(len(items), options.up or "+z")
+    labels = methods.default_labels(len(items), options.up or "+z")
     if any(label is None for label in labels):
         raise InputError(
             f"{len(items)} poses in memory need their labels: give a mapping, e.g. {{'+x': data, ...}}",
@@ -163,7 +163,7 @@ def _read_poses(
 ) -> tuple[str, list[str | None], list[Samples], Placed]:
     """The method, each pose's label and its samples, from files or from data in memory; and how
     the files got their faces."""
-    from tumblecal_cli.core import solvers
+    from tumblecal_cli.core import methods
     from tumblecal_cli.pipeline.options import method_options
 
     if options.up is not None and len(poses) != 1:
@@ -183,19 +183,19 @@ def _read_poses(
     if not in_memory and sum(f == "-" for _, f in items) > 1:
         raise InputError("only one pose can be read from stdin ('-')")
     try:
-        name, order = solvers.pick(given.method, [label for label, _ in items], options.sensor)
+        name, order = methods.pick(given.method, [label for label, _ in items], options.sensor)
     except InputError as err:
         if not placed.by_name:
             raise
         named = ", ".join(f"{os.path.basename(str(f))} {label}" for label, f in items)
         hint = f"the files' names gave the faces ({named})" + (f"; {err.hint}" if err.hint else "")
         raise InputError(err.message, file=err.file, hint=hint) from None
-    if name in solvers.ORIENTATION_FREE:  # the faces are not used: neither a note nor a clash
+    if name in methods.ORIENTATION_FREE:  # the faces are not used: neither a note nor a clash
         placed = Placed(placed.items, labelled=placed.labelled)
     elif placed.clash is not None:
         raise placed.clash
     items = [items[k] for k in order]
-    labels = [None if name in solvers.ORIENTATION_FREE else label for label, _ in items]
+    labels = [None if name in methods.ORIENTATION_FREE else label for label, _ in items]
     method_options(name, given.reference, options.plane, options.bias_spread)
     from tumblecal_cli.pipeline.frames import read_pose, samples_of
 
@@ -232,8 +232,8 @@ class Placed:
 def pose_items(items: list[str], up: str, *, up_given: bool = False) -> Placed:
     """(label, file) of each --poses item, ``FILE`` or ``LABEL=FILE``. Labels are for every file
     or for none; unlabelled files take the faces their names give (:func:`named_faces`), else
-    the labels of their count (solvers.default_labels)."""
-    from tumblecal_cli.core import model, solvers
+    the labels of their count (methods.default_labels)."""
+    from tumblecal_cli.core import methods, model
 
     out: list[tuple[str | None, str]] = []
     for item in items:
@@ -252,7 +252,7 @@ def pose_items(items: list[str], up: str, *, up_given: bool = False) -> Placed:
         )
     if not out or out[0][0] is not None:
         return Placed(out, labelled=bool(out))
-    return named_faces(items, solvers.default_labels(len(out), up), up_given=up_given)
+    return named_faces(items, methods.default_labels(len(out), up), up_given=up_given)
 
 
 def face_of_file(path: str) -> str | None:
@@ -497,21 +497,21 @@ def _six_faces(
     name: str, auto: bool, stats: list[PoseStats], names: list[str], notes: list[str]
 ) -> tuple[str, list[Finding]]:
     """Six faces: auto chooses six-pose or six-pose-magnitude by how well opposite faces agree
-    (solvers.auto_six) and says why in ``notes``; an explicit six-pose on faces that disagree
+    (methods.auto_six) and says why in ``notes``; an explicit six-pose on faces that disagree
     gets a warning (its cross-axis terms take the tilt)."""
     import numpy as np
 
-    from tumblecal_cli.core import solvers
+    from tumblecal_cli.core import methods
     from tumblecal_cli.core.gate import Finding
 
     means = np.array([st.mean for st in stats])
-    chosen, why = solvers.auto_six(means)
+    chosen, why = methods.auto_six(means)
     if auto:
         notes.append(why)
         return chosen, []
     if chosen == "six-pose":
         return name, []
-    ev = solvers.face_evidence(means)
+    ev = methods.face_evidence(means)
     axis = max(ev.disagreement, key=lambda a: ev.disagreement[a])
     worst = ev.disagreement[axis]
     pair = [f"+{axis}", f"-{axis}"]
@@ -523,7 +523,7 @@ def _six_faces(
             "exactly on its face, so the tilt goes into its cross-axis terms and other orientations may read "
             "worse than uncalibrated; --method six-pose-magnitude is immune to it",
             worst,
-            solvers.CONSISTENT_DEG,
+            methods.CONSISTENT_DEG,
         )
     ]
 
