@@ -33,6 +33,7 @@ import pyarrow.compute as pc
 import pyarrow.csv as pcsv
 
 from tumblecal_cli.errors import InputError
+from tumblecal_cli.io.outputs import atomic_output
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.io.sniff import (
     COMMA_NUMBER,
@@ -431,7 +432,6 @@ def copy_bytes(path: str, layout: Layout, spans: Sequence[tuple[int, int]], outp
     output after the file's own preamble and header, in pieces: memory stays that of a piece.
     The files are written on a few threads (making a file is most of the cost of a short one,
     and the kernel does it without the GIL); the first error is raised once all have ended."""
-    from tumblecal_cli.io.outputs import atomic_output
 
     def one(fd: int, start: int, end: int, output: str) -> None:
         with atomic_output(output) as out:
@@ -467,7 +467,6 @@ def _copy_range(source: int, out: IO[bytes], at: int, size: int) -> int:
 def copy_rows(path: str, layout: Layout, spans: Sequence[tuple[int, int]], outputs: Sequence[str]) -> None:
     """Write data rows ``first``..``last`` of each span to its output file, byte for byte, after
     the file's own preamble and header: each block a capture on its own. Atomic per file."""
-    from tumblecal_cli.io.outputs import atomic_output
 
     data = np.fromfile(path, dtype=np.uint8)
     starts, ends = row_offsets(data, len(layout.head))

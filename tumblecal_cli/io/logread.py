@@ -34,6 +34,7 @@ from tumblecal_cli.core.scan import Scan
 from tumblecal_cli.core.segment import FloatArray, IntArray, Segmentation, Settings, sample_period, window_spread
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import capture, readings, rewrite, sniff
+from tumblecal_cli.io.forked import cuts
 from tumblecal_cli.io.readings import Log
 from tumblecal_cli.io.readspec import ReadSpec
 
@@ -262,7 +263,6 @@ def _blocks(
 ) -> Iterator[_Block]:
     """Each block of the file read and parsed on a pool of threads (numpy, pyarrow and the
     reads let go of the GIL), in file order, its rows numbered here; hashed here, in order."""
-    from tumblecal_cli.io.forked import cuts
 
     blocks = cuts(path, len(lay.head), capture.BLOCK_BYTES)
     if blocks is None:

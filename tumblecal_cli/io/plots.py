@@ -16,6 +16,9 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
+from tumblecal_cli.core.allan import BIAS_FACTOR
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.outputs import atomic_output
 
@@ -78,7 +81,6 @@ def poses_figure(
     """Each pose's norm before (``|raw mean − nominal_offset| / nominal_gain``: unsigned counts
     sit around 32768) and after (``|M·(mean − offset)|``, ``fitted``) calibration against ``reference``, and
     the residuals ``norm − reference`` as bars (Sports Sensing 2023)."""
-    import numpy as np
 
     means = _array(raw_means, "raw_means", (-1, 3))
     b = _array(fitted.offset, "offset", (3,))
@@ -158,7 +160,6 @@ def rotation_figure(
     all orientations fills the fitted ellipsoid's shadow instead, drawn dashed; the two coincide
     when ``A`` has no cross terms to the third axis.
     """
-    import numpy as np
     from matplotlib.lines import Line2D
 
     samples = _array(raw, "raw samples", (-1, 3))
@@ -241,7 +242,6 @@ def rotation_figure(
 def lot_figure(path: str, histograms: list[Histogram], *, title: str = "") -> None:
     """One histogram per parameter (≤ 4 columns): the mean as a solid line, the limits as red
     dashed lines, the x range widened to show them."""
-    import numpy as np
     from matplotlib.lines import Line2D
     from matplotlib.ticker import MaxNLocator
 
@@ -304,7 +304,6 @@ def drift_figure(
     """``thermal --plot``: per axis, each sweep's observed drift against temperature (its cells,
     dots) with the fitted drift (line), and below it the residuals. ``sweeps`` are (label,
     temperature (m,), observed (m, 3), fitted (m, 3)), core.thermal.observed."""
-    import numpy as np
 
     if not sweeps:
         raise InputError("no sweeps to plot")
@@ -339,7 +338,6 @@ def drift_figure(
 
 def _bins(values: FloatArray) -> int:
     """numpy's "auto" rule (the finer of Freedman–Diaconis and Sturges), at most 50 bins."""
-    import numpy as np
 
     sturges = math.ceil(math.log2(values.size)) + 1
     q1, q3 = np.percentile(values, [25.0, 75.0])
@@ -376,7 +374,6 @@ def _write(fig: Figure, path: str) -> None:
 
 def _array(value: Any, what: str, shape: tuple[int, ...]) -> FloatArray:
     """``value`` as a finite float array of ``shape`` (-1: any length); InputError otherwise."""
-    import numpy as np
 
     try:
         array = np.asarray(value, dtype=np.float64)
@@ -415,9 +412,6 @@ def noise_figure(path: str, curve: Any, figures: list[Any], units: str | None, *
     fitted -1/2 and +1/2 lines over the cluster times they were read from, and the read-off
     points (N at 1 s, the minimum 0.664 B, K at 3 s). ``curve`` a core.allan.Curve, ``figures``
     its core.allan.Figures per axis, both in the data's units."""
-    import numpy as np
-
-    from tumblecal_cli.core.allan import BIAS_FACTOR
 
     tau = _array(curve.tau, "cluster times", (-1,))
     adev = _array(curve.adev, "Allan deviation", (-1, 3))

@@ -14,6 +14,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
+from tumblecal_cli.core.scan import log_index
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.capture import Capture, open_capture, to_floats
 from tumblecal_cli.io.readspec import ReadSpec
@@ -76,7 +77,6 @@ class Log:
         same, unless the log was read block by block and only its still periods kept)."""
         if self.runs is None:
             return position
-        from tumblecal_cli.core.scan import log_index
 
         return int(log_index(*self.runs, position))
 

@@ -22,9 +22,10 @@ import pyarrow.compute as pc
 import pyarrow.csv as pcsv
 
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import capture
+from tumblecal_cli.io import capture, forked
 from tumblecal_cli.io.capture import Capture, DataStream, note_dropped
 from tumblecal_cli.io.sniff import BoolArray, FloatArray, Layout, skipped
+from tumblecal_cli.io.splice import Splicer
 
 
 def correct_stream(
@@ -142,7 +143,6 @@ def _spliced(
     """Run a regular file's jobs (``_splice_jobs``) on this process's threads, or a big file's
     blocks on worker processes, one per core, that write to ``out`` themselves (``io.forked``).
     ``head`` is emptied once something is written."""
-    from tumblecal_cli.io import forked
 
     path, start = cap._path, len(cap.layout.head)
     assert path is not None
@@ -170,7 +170,6 @@ def splicer_for(
     one-character delimiter, LF or CRLF line ends, and read as a regular file by pyarrow (or,
     with ``stream``, as a stream: stdin, a pipe); else None (whitespace-separated, CR line ends,
     a cut last line left out: the general rules)."""
-    from tumblecal_cli.io.splice import Splicer
 
     lay = cap.layout
     if lay.delimiter is None or len(lay.delimiter) != 1 or lay.eol not in ("\n", "\r\n"):
