@@ -13,6 +13,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from tumblecal_cli.errors import InputError
+from tumblecal_cli.io import capture, readings, sniff
+from tumblecal_cli.io.readspec import ReadSpec
+from tumblecal_cli.pipeline.options import path_of
 
 if TYPE_CHECKING:
     from tumblecal_cli.io.readings import Samples
@@ -22,7 +25,6 @@ if TYPE_CHECKING:
 def samples_of(label: str, data: Any, options: SolveOptions) -> Samples:
     """One pose from memory: a DataFrame (its sensor columns found as a file's header would be,
     or named by ``columns``) or an (n, 3) array; named ``<label>`` in messages and the file."""
-    from tumblecal_cli.io import readings, sniff
 
     name = f"<{label}>"
     if isinstance(data, str | os.PathLike):  # a file, in a mapping of labels
@@ -52,7 +54,6 @@ def samples_of(label: str, data: Any, options: SolveOptions) -> Samples:
 
 def read_pose(path: str, options: SolveOptions) -> Samples:
     """A pose file ('-': stdin) read as solve's options say."""
-    from tumblecal_cli.io import readings
 
     return readings.read_samples(path, options.read)
 
@@ -62,10 +63,6 @@ def read_capture(path: str | os.PathLike[str], *, no_header: bool = False) -> An
     header, comments, BOM and line ends detected; sensor cells checked): every column, integer,
     float or text, in the file's order."""
     import pandas as pd
-
-    from tumblecal_cli.io import capture
-    from tumblecal_cli.io.readspec import ReadSpec
-    from tumblecal_cli.pipeline.options import path_of
 
     path = path_of(path, "read_capture reads a capture file")
     _, names, columns = capture.read_table(path, ReadSpec(no_header=no_header))

@@ -23,11 +23,11 @@ from tumblecal_cli.core import methods, model, solvers
 from tumblecal_cli.core import segment as seg_core
 from tumblecal_cli.core.segment import Block, Segmentation
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import capture, readings
-from tumblecal_cli.io.outputs import WRITE_ERRORS, atomic_output
+from tumblecal_cli.io import capture, logread, readings
+from tumblecal_cli.io.outputs import WRITE_ERRORS, atomic_output, remove_stale
 from tumblecal_cli.io.readings import Log, Samples
 from tumblecal_cli.io.readspec import ReadSpec
-from tumblecal_cli.pipeline.options import ReadKeywords
+from tumblecal_cli.pipeline.options import ReadKeywords, keywords_known, path_of, read_spec, triplet
 from tumblecal_cli.pipeline.options import pose_map as parse_pose_map
 
 #: The longest --window, --min-duration or --trim taken, in seconds (116 days: longer than a log) ...
@@ -82,8 +82,6 @@ def segmented(
         raise InputError(f"--rate must be a positive number of Hz up to {FASTEST:g}, got {rate:g}")
     with read_twice(log) as path:  # a pipe or FIFO is read once: kept for a second read
         if pose_column is None and not whole:  # block by block, the still periods kept (io.logread)
-            from tumblecal_cli.io import logread
-
             name = "<stdin>" if log == "-" else log
             scanned = logread.scan_log(path, spec, settings=settings, name=name, digest=digest)
             if scanned is not None:
@@ -479,7 +477,6 @@ def segment(
     kept block as a CSV of its own (the log's header and rows, unchanged) and segments.csv, the
     index. ``on_blocks`` sees the blocks as soon as they are found, before they are judged
     (fewer than two kept is exit 3) or written."""
-    from tumblecal_cli.pipeline.options import keywords_known, path_of, read_spec, triplet
 
     keywords_known(options, SegmentKeywords, "segment")
     log = path_of(log, "segment reads a log file ('-': stdin)")
@@ -592,6 +589,5 @@ STAGING = ".tumblecal-segment-"
 def stale_staging(out_dir: str) -> int:
     """Remove staging folders a killed segment run into ``out_dir`` left (``STAGING`` PID-...,
     of a process that is gone: never a segment run still writing there). The number removed."""
-    from tumblecal_cli.io.outputs import remove_stale
 
     return len(remove_stale(out_dir, re.compile(rf"{re.escape(STAGING)}(\d+)-\w+")))

@@ -14,8 +14,15 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Unpack
 
+import numpy as np
+import yaml
+
+from tumblecal_cli.core import allan, gate
+from tumblecal_cli.core.model import apply
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.pipeline.options import ReadKeywords
+from tumblecal_cli.io import calfile, capture, readings, sniff
+from tumblecal_cli.io.outputs import atomic_output
+from tumblecal_cli.pipeline.options import ReadKeywords, keywords_known, path_of, read_spec
 
 if TYPE_CHECKING:
     from tumblecal_cli.io.readspec import ReadSpec
@@ -201,9 +208,6 @@ def noise(
     **options: Unpack[NoiseKeywords],
 ) -> Noise:
     """The Allan deviation of a still capture and its noise figures (README "tumblecal noise")."""
-    from tumblecal_cli.core import allan
-    from tumblecal_cli.io import calfile
-    from tumblecal_cli.pipeline.options import keywords_known, path_of, read_spec
 
     keywords_known(options, NoiseKeywords, "noise")
     rate, cal, units, kalibr = (
@@ -270,9 +274,6 @@ def _kalibr_units(sensor: str, cal: Any, units: str | None) -> None:
 
 def _limits(limits: str | Mapping[str, Any] | None) -> dict[str, Any]:
     """The noise limits of a limits file (or a mapping of them), each (3,)."""
-    import numpy as np
-
-    from tumblecal_cli.io import calfile
 
     if limits is None:
         return {}
@@ -289,7 +290,6 @@ def _limits(limits: str | Mapping[str, Any] | None) -> dict[str, Any]:
 def judge(axes: list[Any], bounds: Mapping[str, Any], figure_units: tuple[str, ...]) -> tuple[list[Any], list[str]]:
     """Each figure above its limit (a failure, code ``limit.<figure>.<axis>``), and those not
     determined where a limit asks for them (not judged: said, not failed)."""
-    from tumblecal_cli.core import allan, gate
 
     failures, not_judged = [], []
     for name, unit in zip(allan.NAMES, figure_units, strict=True):
@@ -317,11 +317,6 @@ def _stream(
     path: str, cal: Any, spec: ReadSpec, stream: Any, progress: Callable[[int], None] | None
 ) -> tuple[Any, Any, str, list[str], float]:
     """Read the capture block by block into the Allan stream and the step watch."""
-    import numpy as np
-
-    from tumblecal_cli.core import allan
-    from tumblecal_cli.core.model import apply
-    from tumblecal_cli.io import capture, readings, sniff
 
     rate, time_unit = spec.rate, spec.time_unit
     with capture.open_capture(path, spec) as cap:
@@ -360,10 +355,6 @@ def write_kalibr(path: str, result: Noise) -> dict[str, Any]:
     """Write (atomically) the noise model Kalibr's imu.yaml and VINS read, in SI. An existing
     file's other keys (the other sensor's figures, rostopic ...) are kept: run it once for the
     accelerometer and once for the gyroscope into one file."""
-    import yaml
-
-    from tumblecal_cli.io import calfile
-    from tumblecal_cli.io.outputs import atomic_output
 
     model = result.kalibr()
     doc: dict[str, Any] = {}

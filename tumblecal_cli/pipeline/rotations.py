@@ -15,9 +15,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from tumblecal_cli.core import rotations as core
+from tumblecal_cli.core import segment
 from tumblecal_cli.core.gate import Finding
+from tumblecal_cli.core.model import Solution
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import readings
+from tumblecal_cli.io import calfile, readings
+from tumblecal_cli.pipeline import logs
 from tumblecal_cli.pipeline.turns import Outcome, gyro_calibration, seconds_per_sample
 
 if TYPE_CHECKING:
@@ -49,9 +52,6 @@ class HandTurns:
 def hand_turns(log: str, options: SolveOptions) -> HandTurns:
     """Segment the log by its accelerometer (``options.accel_cal`` gives the gravity directions)
     and read its gyroscope: the rotations between its still blocks."""
-    from tumblecal_cli.core import segment
-    from tumblecal_cli.io import calfile
-    from tumblecal_cli.pipeline import logs
 
     assert options.accel_cal is not None
     accel = calfile.load(options.accel_cal)
@@ -107,7 +107,6 @@ def _clock_integrates(seg: Any, kept: list[Any], gyr: Log, rate: float | None) -
     """The log's clock can carry the integration of its turns: one that does not advance with
     the samples (whole seconds at 100 Hz) gave gains 1000x off with a PASS; a gap in a turn
     leaves the turn's samples out (exit 2 and 3, for solve and verify alike)."""
-    from tumblecal_cli.pipeline import logs
 
     if rate is not None:
         return
@@ -205,7 +204,6 @@ def _calibration(
     options: SolveOptions,
     given: Settings,
 ) -> tuple[Calibration, list[Finding]]:
-    from tumblecal_cli.core.model import Solution
 
     gain_se, cross_se = core.gain_se(fit.matrix, fit.matrix_cov)
     bias_se = still.std(axis=0, ddof=1) / np.sqrt(len(still))
