@@ -159,7 +159,7 @@ def correct_many(
     (``scheduler``): (capture, exit status, message) for each as it is done. A capture that
     fails is its own status and message; the others go on."""
     from tumblecal_cli.io import calfile
-    from tumblecal_cli.pipeline import batch as batches
+    from tumblecal_cli.pipeline.cluster import engine
 
     if "-" in inputs:
         raise InputError("stdin ('-') is one capture: with --out-dir give the captures as files")
@@ -187,14 +187,16 @@ def correct_many(
     if scheduler is not None:  # the workers do not share this working folder
         inputs, outputs = [os.path.abspath(c) for c in inputs], [os.path.abspath(o) for o in outputs]
         options["cal"] = [os.path.abspath(c) for c in cal]
-    run = batches.engine(1, scheduler)
+    run = engine(1, scheduler)
     made = not os.path.isdir(out_dir)
     os.makedirs(out_dir, exist_ok=True)
     try:
         for (_, name, _), outcome in run(correct_one, [(options, c, o) for c, o in zip(inputs, outputs, strict=True)]):
             if isinstance(outcome, BaseException):  # a worker lost on the cluster
-                outcome = (name, 2, f"{name}: the worker correcting it failed: {type(outcome).__name__}: {outcome}")
-            yield outcome
+                failed = f"{name}: the worker correcting it failed: {type(outcome).__name__}: {outcome}"
+                yield str(name), 2, failed
+            else:
+                yield outcome
     finally:  # a folder made for nothing (every capture failed, or Ctrl-C first) is not left behind
         if made:
             with contextlib.suppress(OSError):  # not empty: it holds what was written
