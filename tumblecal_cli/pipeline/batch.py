@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 from tumblecal_cli.errors import STOPS, InputError, TumblecalError, control_character
 
 if TYPE_CHECKING:
-    from tumblecal_cli.io.calfile import Calibration
+    from tumblecal_cli.io.calfile import Calibration, Pose
     from tumblecal_cli.pipeline.options import SolveOptions
 
 #: Files a unit folder's poses (or log) may be in; anything else there is left alone.
@@ -285,9 +285,9 @@ def _run_unit(unit: Unit, options: SolveOptions, out_dir: str, log: bool, token:
         return row | _failed(InputError(f"internal error: {type(err).__name__}: {err}"))
     cal, status = solved.calibration, solved.status
     failures = cal.verdict.failures if cal.verdict is not None else ()
-    codes = list(dict.fromkeys(str(f.get("code")) for f in failures))
+    codes = list(dict.fromkeys(f.code for f in failures))
     # why a unit failed its limits, as its row's message (the file holds the whole verdict)
-    messages = [f"{f.get('code')}: {f.get('message', '')}" for f in failures]
+    messages = [f"{f.code}: {f.message}" for f in failures]
     outcome = {"status": status, "verdict": VERDICTS[status], "codes": codes, "staging": staging}
     outcome["poses"] = pose_files(cal.poses)  # not a summary column: for duplicate_of
     return row | outcome | ({"message": "; ".join(messages)} if messages else {}) | _parameters(cal)
@@ -306,12 +306,11 @@ def as_found(cal: Calibration, names: Mapping[str, str]) -> Calibration:
         return cal
     from dataclasses import replace
 
-    poses = tuple(dict(p) | {"file": names.get(str(p.get("file")), p.get("file"))} for p in cal.poses)
-    fields = dict(cal.fields)
-    segmentation = fields.get("segmentation")
-    if isinstance(segmentation, Mapping) and segmentation.get("log") in names:
-        fields["segmentation"] = dict(segmentation) | {"log": names[str(segmentation["log"])]}
-    return replace(cal, poses=poses, fields=fields)
+    poses = tuple(replace(p, file=names.get(str(p.file), p.file)) for p in cal.poses)
+    segmentation = cal.segmentation
+    if segmentation is not None and segmentation.log in names:
+        segmentation = replace(segmentation, log=names[str(segmentation.log)])
+    return replace(cal, poses=poses, segmentation=segmentation)
 
 
 def _as_found_text(row: dict[str, Any], names: Mapping[str, str]) -> dict[str, Any]:
@@ -328,9 +327,9 @@ def _as_found_text(row: dict[str, Any], names: Mapping[str, str]) -> dict[str, A
     return row
 
 
-def pose_files(poses: Iterable[Mapping[str, Any]]) -> list[tuple[str, str]]:
+def pose_files(poses: Iterable[Pose]) -> list[tuple[str, str]]:
     """(sha256, file) of each pose a calibration records (a log's blocks share one)."""
-    return list(dict.fromkeys((str(p["sha256"]), str(p.get("file", ""))) for p in poses if p.get("sha256")))
+    return list(dict.fromkeys((p.sha256, p.file or "") for p in poses if p.sha256))
 
 
 def mark_duplicates(rows: list[dict[str, Any]], out_dir: str) -> list[str]:

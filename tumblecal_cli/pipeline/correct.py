@@ -229,7 +229,7 @@ def claims_once(cals: list[Calibration]) -> None:
 def refuse_failed(cal: Calibration, doing: str, command: str) -> None:
     """A calibration whose verdict failed goes nowhere without --force (apply, export)."""
     failures = cal.verdict.failures if cal.verdict is not None else ()
-    codes = ", ".join(str(f.get("code")) for f in failures if isinstance(f, dict))
+    codes = ", ".join(f.code for f in failures)
     raise InputError(
         f"this unit failed its limits ({codes or 'verdict: fail'}): refusing to {doing}",
         file=cal.path,
