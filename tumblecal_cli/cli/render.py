@@ -8,15 +8,17 @@ import json
 import os
 import re
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from typing import TYPE_CHECKING, Any
 
 from tumblecal_cli.errors import PipeClosed, TumblecalError
 
 if TYPE_CHECKING:
     from rich.console import Console
+    from rich.table import Table
 
     from tumblecal_cli.core.gate import Finding
+    from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.core.segment import Segmentation
     from tumblecal_cli.io.calfile import Calibration
     from tumblecal_cli.io.readings import Log
@@ -147,45 +149,41 @@ def error_dict(err: TumblecalError) -> dict[str, Any]:
 def print_summary(cal: Calibration, console: Console, warned: list[Finding], notes: list[str], *, judged: bool) -> None:
     """The calibration for people: per axis offset and gain with their uncertainty and tilt
     sensitivity, per pose its statistics, then warnings, notes and the verdict."""
-    doc = cal.to_dict()
-    tilt = doc.get("tilt_sensitivity") or {}
-    print_whole(console, _axes_table(doc))
-    if doc.get("poses"):  # an imported calibration has none
-        print_whole(console, _poses_table(doc))
+    tilt = cal.tilt_sensitivity
+    print_whole(console, _axes_table(cal))
+    if cal.poses:  # an imported calibration has none
+        print_whole(console, _poses_table(cal))
     if cal.thermal is not None:
         print_drift(cal, console)
-    matrix = doc["matrix"]
-    if any(matrix[i][j] for i in range(3) for j in range(3) if i != j):
+    if any(cal.matrix[i][j] for i in range(3) for j in range(3) if i != j):
         import numpy as np
 
         from tumblecal_cli.core.gate import cross_term
 
-        a = np.linalg.inv(np.array(matrix, dtype=float))
+        a = np.asarray(np.linalg.inv(cal.matrix), dtype=np.float64)
         terms = ", ".join(
             f"{'xyz'[i]}{'xyz'[j]} {cross_term(a, i, j):+.3%}" for i in range(3) for j in range(3) if i != j
         )
         console.print(f"cross-axis terms (A = M⁻¹, each over its row's gain): {terms}", soft_wrap=True)
-    if doc.get("coverage") is not None:
-        console.print(f"coverage: {doc['coverage']:.0%} of the sphere's directions", soft_wrap=True)
-    if tilt.get("tolerance_deg") is not None:
-        console.print(f"± tilt: worst-case shift if each pose is {tilt['tolerance_deg']:g}° off level", soft_wrap=True)
-    if tilt.get("gain_tolerance") is not None:
-        console.print(_gain_tolerance_line(doc, float(tilt["gain_tolerance"])), soft_wrap=True)
+    if cal.coverage is not None:
+        console.print(f"coverage: {cal.coverage:.0%} of the sphere's directions", soft_wrap=True)
+    if tilt is not None and tilt.tolerance_deg is not None:
+        console.print(f"± tilt: worst-case shift if each pose is {tilt.tolerance_deg:g}° off level", soft_wrap=True)
+    if tilt is not None and tilt.gain_tolerance is not None:
+        console.print(_gain_tolerance_line(cal, tilt.gain_tolerance), soft_wrap=True)
     for w in warned:
         console.print(f"warning: {w.render()} ({w.code})", style="yellow", soft_wrap=True)
     for note in notes:
         console.print(f"note: {note}", soft_wrap=True)
-    verdict = doc.get("verdict")
-    if judged and isinstance(verdict, dict):
-        _print_verdict(console, verdict)
+    if judged and cal.verdict is not None:
+        _print_verdict(console, cal.verdict.passed, cal.verdict.limit_names, cal.verdict.failures)
 
 
-def _gain_tolerance_line(doc: dict[str, Any], tolerance: float) -> str:
+def _gain_tolerance_line(cal: Calibration, tolerance: float) -> str:
     """A 1-pose up offset's ± tilt holds tolerance × reference for the up axis's unknown gain error."""
-    poses = doc.get("poses") or [{}]
-    face = str(poses[0].get("pose") or "")
+    face = (cal.poses[0].face if cal.poses else None) or ""
     axis = f"the {face[1:]} offset (up axis {face})" if len(face) == 2 else "the up axis's offset"
-    reference = float(doc["reference"])
+    reference = cal.reference
     return (
         f"± tilt of {axis} includes ±{tolerance * reference:.4g} (--gain-tolerance {tolerance:g} × reference "
         f"{reference:g}) for an unknown gain error of ±{tolerance:.2%}: one pose cannot tell it from an offset"
@@ -196,18 +194,22 @@ def _g(v: float | None, digits: int = 6) -> str:
     return "" if v is None else f"{v:.{digits}g}"
 
 
-def _axes_table(doc: dict[str, Any]) -> Any:
+def _axes_table(cal: Calibration) -> Table:
     """Per axis: its column, offset and gain, each with its 1-sigma and tilt sensitivity."""
     from rich import box
     from rich.table import Table
 
     from tumblecal_cli.core.gate import FIXED_GAINS
 
-    se = doc.get("uncertainty") or {}
-    tilt = doc.get("tilt_sensitivity") or {}
-    fixed = doc["method"] in FIXED_GAINS
+    se = cal.uncertainty
+    tilt = (
+        {}
+        if cal.tilt_sensitivity is None
+        else {"offset": cal.tilt_sensitivity.offset, "gain": cal.tilt_sensitivity.gain}
+    )
+    fixed = cal.method in FIXED_GAINS
     # numbers never wrap or shrink; a long column or file name is what gives way on a narrow terminal
-    axes = Table(title=f"{doc['method']} calibration", title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
+    axes = Table(title=f"{cal.method} calibration", title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
     for name in ("axis", "column", "offset", "± 1σ", "± tilt", "gain", "± 1σ", "± tilt"):
         text = name in ("axis", "column")
         axes.add_column(
@@ -219,17 +221,17 @@ def _axes_table(doc: dict[str, Any]) -> Any:
             overflow="fold",  # a long column name folds onto a second line rather than losing its end
         )
     for i, axis in enumerate("xyz"):
-        cells = [axis, doc["columns"][i]]
-        for name in ("offset", "gain"):
+        cells = [axis, cal.columns[i]]
+        for name, values in (("offset", cal.offset), ("gain", cal.gain)):
             if name == "gain" and fixed:
-                cells += [_g(doc["gain"][i]), "fixed", ""]
+                cells += [_g(float(values[i])), "fixed", ""]
             else:
-                cells += [_g(doc[name][i]), _g(_at(se, name, i), 2), _g(_at(tilt, name, i), 2)]
+                cells += [_g(float(values[i])), _g(_at(se, name, i), 2), _g(_at(tilt, name, i), 2)]
         axes.add_row(*cells)
     return axes
 
 
-def _poses_table(doc: dict[str, Any]) -> Any:
+def _poses_table(cal: Calibration) -> Table:
     """Per pose: its face, file, samples, angle from its face, mean and standard deviation."""
     from rich import box
     from rich.table import Table
@@ -245,32 +247,32 @@ def _poses_table(doc: dict[str, Any]) -> Any:
             max_width=14 if text else None,  # a long file name folds, the numbers stay whole
             overflow="fold",
         )
-    for p in doc.get("poses", []):
-        angle = p.get("angle_deg")
-        name = os.path.basename(str(p.get("file", ""))) + (f" #{p['block']}" if "block" in p else "")
+    for p in cal.poses:
+        name = os.path.basename(p.file or "") + (f" #{p.block}" if p.block is not None else "")
         poses.add_row(
-            p["pose"] or "?",
+            p.face or "?",
             name,
-            str(p["samples"]),
-            "" if angle is None else f"{angle:.1f}°",
+            str(p.samples),
+            "" if p.angle_deg is None else f"{p.angle_deg:.1f}°",
             "mean",
-            *map(_g, p["mean"]),
+            *(_g(float(v)) for v in p.mean),
         )
-        if "std" in p:  # a field of every file tumblecal writes; other writers may leave it out
-            poses.add_row("", "", "", "", "std", *(f"{v:.3g}" for v in p["std"]), end_section=True)
+        if p.std is not None:  # a field of every file tumblecal writes; other writers may leave it out
+            poses.add_row("", "", "", "", "std", *(f"{v:.3g}" for v in p.std), end_section=True)
     return poses
 
 
-def _print_verdict(console: Console, verdict: dict[str, Any]) -> None:
-    judged_by = ", ".join(k for k in verdict.get("limits") or {} if k not in ("nominal_gain", "nominal_offset"))
+def _print_verdict(console: Console, passed: bool, limit_names: Iterable[str], failures: Iterable[Finding]) -> None:
+    """The verdict for people: PASS or FAIL with the limits judged by, and each failure."""
+    judged_by = ", ".join(k for k in limit_names if k not in ("nominal_gain", "nominal_offset"))
     limits = f"limits: {judged_by}" if judged_by else "no limits judged"
-    if verdict["pass"]:
+    if passed:
         console.print(f"verdict: PASS ({limits})", style="bold green", soft_wrap=True)
         return
     console.print(f"verdict: FAIL ({limits})", style="bold red", soft_wrap=True)
-    for f in verdict["failures"]:
-        where = f"{f['file']}: " if f.get("file") else ""
-        console.print(f"  {f['code']}: {where}{f.get('message', '')}", style="red", soft_wrap=True)
+    for f in failures:
+        where = f"{f.file}: " if f.file else ""
+        console.print(f"  {f.code}: {where}{f.message}", style="red", soft_wrap=True)
 
 
 def print_whole(console: Console, table: Any) -> None:
@@ -287,9 +289,9 @@ def print_whole(console: Console, table: Any) -> None:
         console.width = width
 
 
-def _at(block: dict[str, Any], name: str, i: int) -> float | None:
+def _at(block: Mapping[str, FloatArray], name: str, i: int) -> float | None:
     values = block.get(name)
-    return float(values[i]) if isinstance(values, list) and len(values) == 3 else None
+    return float(values[i]) if values is not None and values.shape == (3,) else None
 
 
 def print_blocks(
@@ -663,7 +665,7 @@ def show_noise(done: Any, *, json_summary: bool, quiet: bool, plot: str | None) 
                 style="yellow",
                 soft_wrap=True,
             )
-        _print_verdict(console, verdict)
+        _print_verdict(console, bool(verdict["pass"]), verdict["limits"], done.failures)
 
 
 def _noise_table(done: Any) -> tuple[Any, list[str]]:

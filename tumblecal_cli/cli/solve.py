@@ -386,13 +386,13 @@ def _plot_solve(plot: str, cal: Calibration, raw: list[Any], limits: Limits | No
     names = [  # a log's blocks by number (they share the file), pose files by name
         " ".join(
             [
-                *([p["pose"]] if p["pose"] else []),
-                f"block {p['block']}" if "block" in p else os.path.basename(str(p["file"])),
+                *([p.face] if p.face else []),
+                f"block {p.block}" if p.block is not None else os.path.basename(str(p.file)),
             ]
         )
         for p in cal.poses
     ]
-    means = np.array([p["mean"] for p in cal.poses], dtype=np.float64)
+    means = np.array([p.mean for p in cal.poses], dtype=np.float64)
     plots.poses_figure(
         plot,
         names,

@@ -15,11 +15,12 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any
 
 import numpy as np
 
-from tumblecal_cli.core.model import FACES, FloatArray, PoseStats, Solution, angle_deg, direction
+from tumblecal_cli.core.model import FACES, FloatArray, PoseStats, Solution, angle_deg, direction, suggest_reference
+from tumblecal_cli.core.thermal import Drift, extremes
+from tumblecal_cli.errors import InputError
 
 #: The quality checks, by the last part of their code (``pose.<check>``).
 CHECKS = ("short", "saturated", "orientation", "moved", "upside_down")
@@ -64,8 +65,8 @@ class Finding:
     def render(self) -> str:
         return f"{self.file}: {self.message}" if self.file else self.message
 
-    def as_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"code": self.code, "value": _num(self.value), "bound": _num(self.bound)}
+    def as_dict(self) -> dict[str, object]:
+        out: dict[str, object] = {"code": self.code, "value": _num(self.value), "bound": _num(self.bound)}
         if self.file is not None:
             out["pose"] = self.pose
             out["file"] = self.file
@@ -363,8 +364,8 @@ class Limits:
     def for_method(self, method: str) -> Limits:
         """The limits that apply to a method (NOT_APPLYING: no gain limit where the gains are
         fixed, no cross-axis limit where there are no cross-axis terms ...)."""
-        dropped: dict[str, Any] = dict.fromkeys(self.not_applying(method))
-        return replace(self, **dropped)
+        dropped: dict[str, None] = dict.fromkeys(self.not_applying(method))
+        return replace(self, **dropped)  # type: ignore[arg-type]  # each a field that may be None
 
     def not_applying(self, method: str) -> dict[str, str]:
         """The limits given that do not apply to ``method``, each with the reason."""
@@ -381,8 +382,8 @@ class Limits:
             for name in ("offset", "gain_error", "offset_drift", "offset_drift_per_degc", *NOT_APPLYING)
         )
 
-    def as_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {}
+    def as_dict(self) -> dict[str, object]:
+        out: dict[str, object] = {}
         if self.offset is not None:
             out["offset"] = [float(v) for v in self.offset]
             if np.any(self.nominal_offset != 0.0):
@@ -398,6 +399,10 @@ class Limits:
             if getattr(self, name) is not None:
                 out[name] = [float(v) for v in getattr(self, name)]
         return out
+
+    def __getitem__(self, name: str) -> object:
+        """A bound as the calibration file writes it (``verdict.limits["offset"]``: [x, y, z])."""
+        return self.as_dict()[name]
 
 
 @dataclass(frozen=True)
@@ -443,7 +448,7 @@ def verdict(
     the samples, instead. ``drift``: a thermal block's largest offset drift over its range and
     largest drift per °C, per axis (core.thermal.extremes), judged by the offset_drift limits."""
     failures: list[Finding] = _drift_failures(limits, drift)
-    a = np.linalg.inv(matrix)
+    a = np.asarray(np.linalg.inv(matrix), dtype=np.float64)
     gain = np.diag(a)
     for i, axis in enumerate(AXES):
         away = offset[i] - limits.nominal_offset[i]
@@ -556,7 +561,116 @@ def _num(value: float) -> float | int:
     return int(value) if float(value).is_integer() and abs(value) < 2**53 else float(value)
 
 
-def cross_term(a: Any, i: int, j: int) -> float:
+def cross_term(a: FloatArray, i: int, j: int) -> float:
     """A[i, j] / A[i, i], the cross-axis term; infinite where A[i, i] is 0 (a matrix that maps
     another axis onto axis i: no limit passes it)."""
     return float(a[i, j]) / float(a[i, i]) if a[i, i] else math.inf
+
+
+# -- gains in other units, and judging a calibration again --------------------------------------
+
+#: Solvers that estimate gains, each judged by check_gains.
+GAIN_SOLVERS = ("three-pose", "six-pose", "six-pose-diagonal", "six-pose-magnitude", "least-squares", "sphere")
+#: Gains this far from nominal are not a sensor's error but a units mistake (exit 2, not exit 1).
+GAIN_UNITS_TOLERANCE = 0.25
+
+
+def check_gains(gain: FloatArray, reference: float, nominal: FloatArray, *, again: bool = False) -> None:
+    """Gains judged against a nominal (a gain-error limit, or --nominal-gain) that are all more
+    than GAIN_UNITS_TOLERANCE from it, and alike: the data is in other units than the station
+    was set up for. Exit 2, naming the --reference (or --nominal-gain) the data suggests; exit 1
+    would fail good hardware on a misconfigured station. Unjudged gains are whatever scale the
+    data needs (16384 for counts into g): a gain solver corrects any units. ``again``: a
+    calibration judged after solve, which is to be solved again with that --reference."""
+    ratio = gain / nominal
+    # a units mistake scales every axis alike; one axis off (a swapped or upside-down pose, a
+    # broken axis) is the quality checks' and the limits' to judge
+    alike = bool((ratio > 0).all()) and float(ratio.max() / ratio.min()) <= 1.0 + GAIN_UNITS_TOLERANCE
+    if not alike or float(abs(ratio - 1.0).min()) <= GAIN_UNITS_TOLERANCE:
+        return
+    shown = ", ".join(f"{g:.4g}" for g in gain)
+    nominal_text = ", ".join(f"{n:g}" for n in nominal) if len(set(nominal.tolist())) > 1 else f"{nominal[0]:g}"
+    typical = float(gain.mean())
+    suggested = suggest_reference(reference * typical / float(nominal.mean()))
+    units = {1.0: "g", 9.80665: "m/s^2", 1000.0: "mg"}.get(suggested)
+    if abs(typical - 1.0) <= GAIN_UNITS_TOLERANCE:
+        hint = (
+            "the gains are near 1, as for data in the units of --reference: check --nominal-gain "
+            "(or the limits file's nominal_gain)"
+        )
+    elif units is not None and suggested != reference:
+        hint = f"the data looks like {units}: {'solve it again' if again else 'run'} with --reference {suggested:g}"
+    else:
+        hint = (
+            f"the data looks like raw counts (about {typical:.4g} per unit of --reference): give --nominal-gain "
+            f"{suggest_reference(typical):g} to judge the gains as counts per unit, or --reference "
+            f"{suggest_reference(reference * typical):g} to keep the output in counts"
+        )
+    raise InputError(
+        f"gains {shown} are {float(ratio.mean()) - 1:+.0%} from the nominal gain {nominal_text}: a units mistake?",
+        hint=hint,
+    )
+
+
+@dataclass(frozen=True)
+class Recorded:
+    """A pose as a calibration records it: its name (file, and block), face, mean (3,) and
+    standard deviation (3,), None where the record has none."""
+
+    name: str
+    face: str | None
+    mean: FloatArray
+    std: FloatArray | None
+
+
+@dataclass(frozen=True)
+class Calibrated:
+    """What judging a calibration again reads: its parameters, the poses it records (None: it
+    records none, as an imported one), its fit's largest residual and its thermal drift."""
+
+    method: str
+    reference: float
+    offset: FloatArray  # (3,) raw units
+    matrix: FloatArray  # (3, 3) M
+    gain: FloatArray  # (3,) diag(inv(M))
+    poses: Sequence[Recorded] | None
+    fit_residual: float | None = None
+    drift: Drift | None = None
+
+
+def judge_again(cal: Calibrated, given: Limits, not_applying: str) -> list[Finding]:
+    """The limits a calibration is outside of, judged afresh (``tumblecal check``) with the
+    rules solve judged it by: gains in other units are an input error (check_gains), and so
+    are limits it has nothing to be judged by (``not_applying``: why the limits given do not
+    apply to its method). The errors name no file: the caller knows it."""
+    bounds = given.for_method(cal.method)
+    judged_gain = bounds.gain_error is not None or given.nominal_gain_given
+    if cal.method in GAIN_SOLVERS and cal.reference > 0 and judged_gain:
+        check_gains(cal.gain, cal.reference, given.nominal_gain, again=True)
+    if not bounds.judges():
+        raise InputError(f"no limits to judge against: {not_applying}")
+    if cal.poses is None and (bounds.noise is not None or bounds.residual is not None):
+        raise InputError(
+            "has no poses to judge the noise and residual limits by",
+            hint="judge it by offset, gain_error and cross_axis only (a limits file without noise and residual)",
+        )
+    poses = []
+    for k, p in enumerate(cal.poses or ()):
+        if p.std is None:
+            raise InputError(f"field 'poses[{k}]' must be an object with pose, mean, std and samples")
+        fixed = corrected(p.mean, p.std, p.face, cal.offset, cal.matrix, cal.reference)
+        poses.append((p.name, p.face, fixed))
+    if cal.method in ROTATION and bounds.residual is not None and cal.fit_residual is None:
+        raise InputError(
+            "has no fit residuals to judge the residual limit by",
+            hint="judge it without the residual limit, or solve the capture again",
+        )
+    drift = None
+    if bounds.offset_drift is not None or bounds.offset_drift_per_degc is not None:
+        if cal.drift is None:
+            raise InputError(
+                "has no thermal block to judge the offset_drift limits by",
+                hint="add one with 'tumblecal thermal', or judge it without those limits",
+            )
+        drift = extremes(cal.drift)
+    return verdict(cal.method, cal.offset, cal.matrix, poses, bounds, cal.fit_residual, drift)

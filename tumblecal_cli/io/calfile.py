@@ -1,5 +1,7 @@
 """Calibration files, format version 1 (README "Calibration file"): the typed
-:class:`Calibration`, and its JSON/YAML form, the only place it is a ``dict``.
+:class:`Calibration`, and its JSON/YAML form, the only place it is a ``dict``
+(:meth:`Calibration.to_dict`, :func:`from_dict`, :func:`validate`; its parts' forms are in
+``io.calparts``).
 
 JSON by default, YAML when the path ends in ``.yaml``/``.yml`` (read with ``yaml.safe_load``
 only: a ``!!python/object`` tag is an error, never run).
@@ -9,26 +11,78 @@ from __future__ import annotations
 
 import functools
 import json
-import math
 import os
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from contextvars import ContextVar
 from dataclasses import dataclass, field, replace
 from datetime import UTC, date, datetime
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
 from tumblecal_cli.core.model import SENSORS, FloatArray, Solution, parse_label
 from tumblecal_cli.core.model import apply as apply_model
 from tumblecal_cli.errors import InputError, control_character
+from tumblecal_cli.io.calparts import (
+    GAIN_DRIFT_KINDS,
+    THERMAL_KEYS,
+    Accelerometer,
+    Covariance,
+    Doc,
+    GSensitivity,
+    Pose,
+    Residuals,
+    Rotation,
+    Segmentation,
+    Thermal,
+    Tilt,
+    Turn,
+    Unit,
+    Verdict,
+    floats,
+    is_number,
+    named,
+    number,
+    read_covariance,
+    read_g_sensitivity,
+    read_list,
+    read_pose,
+    read_residuals,
+    read_rotation,
+    read_segmentation,
+    read_tilt,
+    read_turn,
+    read_verdict,
+    rows_of,
+    same,
+    text,
+    thermal_from,
+)
 from tumblecal_cli.io.outputs import atomic_output
 from tumblecal_cli.version import __version__
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.solvers import Fit
-    from tumblecal_cli.core.thermal import Drift
+
+__all__ = [  # the parts, for code that names them as calfile's
+    "GAIN_DRIFT_KINDS",
+    "THERMAL_KEYS",
+    "Accelerometer",
+    "Covariance",
+    "GSensitivity",
+    "Pose",
+    "Residuals",
+    "Rotation",
+    "Segmentation",
+    "Thermal",
+    "Tilt",
+    "Turn",
+    "Unit",
+    "Verdict",
+    "is_number",
+    "thermal_from",
+]
 
 FORMAT = "tumblecal-calibration"
 VERSION = 1
@@ -55,109 +109,9 @@ ORDER = (
     "created",
     "tool",
 )
-
-
-@dataclass(frozen=True)
-class Unit:
-    """Who and what was calibrated (``--serial``, ``--station``, ``--operator``, ``--meta``)."""
-
-    serial: str | None = None
-    station: str | None = None
-    operator: str | None = None
-    meta: Mapping[str, str] = field(default_factory=dict)
-
-    def as_dict(self) -> dict[str, object]:
-        return {"serial": self.serial, "station": self.station, "operator": self.operator, "meta": dict(self.meta)}
-
-
-@dataclass(frozen=True)
-class Verdict:
-    """The judgement against limits: ``passed``, each failure as written (code, message, ...),
-    and the limits judged by."""
-
-    passed: bool = True
-    failures: tuple[Mapping[str, object], ...] = ()
-    limits: Mapping[str, object] = field(default_factory=dict)
-
-    def as_dict(self) -> dict[str, object]:
-        return {"pass": self.passed, "failures": [dict(f) for f in self.failures], "limits": dict(self.limits)}
-
-
-@dataclass(frozen=True, eq=False)
-class Thermal:
-    """The temperature drift (README "tumblecal thermal"): ``offset`` (3, order) raw units per °C^k
-    and ``gain`` (3, order) relative change per °C^k, k = 1..order, of d = T - ``reference_temperature``
-    with T clamped to ``range``; read from the capture's ``column``. ``gain_drift`` says per axis
-    how its gain drift is known (separate, folded into the offset drift, unobserved); ``extra``
-    keeps the block's other fields (uncertainty, order choice, sweeps) as written."""
-
-    column: str
-    reference_temperature: float
-    range: tuple[float, float]
-    offset: FloatArray
-    gain: FloatArray
-    gain_drift: tuple[str, ...] = ("separate", "separate", "separate")
-    extra: Mapping[str, object] = field(default_factory=dict)
-
-    @property
-    def order(self) -> int:
-        return int(np.asarray(self.offset).shape[1])
-
-    def drift(self) -> Drift:
-        from tumblecal_cli.core.thermal import Drift
-
-        return Drift(self.reference_temperature, self.range[0], self.range[1], self.offset, self.gain)
-
-    def as_dict(self) -> dict[str, Any]:
-        doc: dict[str, Any] = {
-            "column": self.column,
-            "reference_temperature": self.reference_temperature,
-            "range": [float(self.range[0]), float(self.range[1])],
-            "order": self.order,
-            "offset": [_floats(row) for row in self.offset],
-            "gain": [_floats(row) for row in self.gain],
-            "gain_drift": list(self.gain_drift),
-        }
-        doc.update(self.extra)
-        return doc
-
-
-THERMAL_KEYS = ("column", "reference_temperature", "range", "order", "offset", "gain", "gain_drift")
-GAIN_DRIFT_KINDS = ("separate", "folded", "unobserved")
-
-
-def thermal_from(value: Any, path: str | None) -> Thermal:
-    """The ``thermal`` block of a file, validated (every problem names the field)."""
-    if not isinstance(value, dict):
-        raise InputError("field 'thermal' must be an object (column, reference_temperature, range, ...)", file=path)
-    for key in THERMAL_KEYS:
-        if key not in value:
-            raise InputError(f"field 'thermal' has no {key!r}", file=path)
-    if not isinstance(value["column"], str) or not value["column"]:
-        raise InputError("field 'thermal.column' must be a column name", file=path)
-    t_ref = _number(value["reference_temperature"], "thermal.reference_temperature", path)
-    span = value["range"]
-    if not (isinstance(span, list) and len(span) == 2):
-        raise InputError("field 'thermal.range' must be [lowest, highest] °C", file=path)
-    low, high = (_number(v, "thermal.range", path) for v in span)
-    if low >= high:
-        raise InputError(f"field 'thermal.range' [{low:g}, {high:g}] must be [lowest, highest] °C", file=path)
-    order = value["order"]
-    if isinstance(order, bool) or order not in (1, 2, 3):
-        raise InputError("field 'thermal.order' must be 1, 2 or 3", file=path)
-    rows = {}
-    for key in ("offset", "gain"):
-        table = value[key]
-        if not (
-            isinstance(table, list) and len(table) == 3 and all(isinstance(r, list) and len(r) == order for r in table)
-        ):
-            raise InputError(f"field 'thermal.{key}' must be 3 lists of {order} numbers (one per axis)", file=path)
-        rows[key] = np.array([[_number(v, f"thermal.{key}", path) for v in row] for row in table])
-    kinds = value["gain_drift"]
-    if not (isinstance(kinds, list) and len(kinds) == 3 and all(k in GAIN_DRIFT_KINDS for k in kinds)):
-        raise InputError(f"field 'thermal.gain_drift' must be 3 of {', '.join(GAIN_DRIFT_KINDS)}", file=path)
-    extra = {k: v for k, v in value.items() if k not in THERMAL_KEYS}
-    return Thermal(value["column"], t_ref, (low, high), rows["offset"], rows["gain"], tuple(kinds), extra)
+#: The parts some methods add (README "Calibration file"), in the order they follow ``poses``
+#: when given to a calibration that was read without them.
+PARTS = ("turns", "g_sensitivity", "rotations", "covariance", "coverage", "residuals", "segmentation")
 
 
 @dataclass(frozen=True, eq=False)
@@ -166,9 +120,10 @@ class Calibration:
 
     ``offset`` (3,) is in raw units, ``matrix`` (3, 3) is M = inv(A), ``gain`` (3,) the diagonal
     of A; ``uncertainty`` holds the 1-sigma of ``offset`` and ``gain`` (and ``cross_axis`` where
-    solved). ``poses`` are the file's pose entries as written; ``fields`` every other field of
-    the file (covariance, coverage, residuals, segmentation, fields of other writers), kept in
-    its place when the file is written again.
+    solved). The other parts are typed (``io.calparts``), None (or empty) where the file has
+    none. ``fields`` holds what is not typed: the fields of other writers, and a field whose
+    value is of another kind than tumblecal writes, each as written and kept in its place
+    (``order``, the file's order of its fields) when the file is written again.
     """
 
     sensor: str
@@ -181,13 +136,20 @@ class Calibration:
     units: str | None = None
     input_units: str | None = None
     uncertainty: Mapping[str, FloatArray] = field(default_factory=dict)
-    tilt_sensitivity: Mapping[str, object] | None = None
+    tilt_sensitivity: Tilt | None = None
     thermal: Thermal | None = None
-    poses: tuple[Mapping[str, Any], ...] = ()
+    poses: tuple[Pose, ...] = ()
     unit: Unit | None = None
     verdict: Verdict | None = None
     created: str | None = None
     tool: str | None = None
+    covariance: Covariance | None = None
+    coverage: float | None = None  # 0-1, the share of directions with a sample near them
+    residuals: Residuals | None = None
+    segmentation: Segmentation | None = None
+    turns: tuple[Turn, ...] | None = None
+    g_sensitivity: GSensitivity | None = None
+    rotations: tuple[Rotation, ...] | None = None
     fields: Mapping[str, object] = field(default_factory=dict)
     order: tuple[str, ...] = ORDER  # the file's own order of its fields
     path: str | None = None  # the file it was read from
@@ -261,9 +223,13 @@ class Calibration:
         """Write atomically: JSON, or YAML when ``path`` ends in .yaml/.yml; '-' is stdout."""
         write(self, os.fspath(path))
 
-    def to_dict(self) -> dict[str, Any]:
-        """The file's document (the JSON/YAML boundary)."""
-        typed: dict[str, Any] = {
+    def _typed(self) -> dict[str, object]:
+        """Every typed field in the file's form."""
+
+        def each(parts: Sequence[Pose | Turn | Rotation] | None) -> list[dict[str, object]] | None:
+            return None if parts is None else [p.as_dict() for p in parts]
+
+        return {
             "format": FORMAT,
             "version": VERSION,
             "sensor": self.sensor,
@@ -272,19 +238,30 @@ class Calibration:
             "units": self.units,
             "input_units": self.input_units,
             "columns": list(self.columns),
-            "offset": _floats(self.offset),
-            "matrix": [_floats(row) for row in self.matrix],
-            "gain": _floats(self.gain),
+            "offset": floats(self.offset),
+            "matrix": rows_of(self.matrix),
+            "gain": floats(self.gain),
             "uncertainty": {k: _nested(v) for k, v in self.uncertainty.items()} if self.uncertainty else None,
-            "tilt_sensitivity": None if self.tilt_sensitivity is None else dict(self.tilt_sensitivity),
+            "tilt_sensitivity": None if self.tilt_sensitivity is None else self.tilt_sensitivity.as_dict(),
             "thermal": None if self.thermal is None else self.thermal.as_dict(),
-            "poses": [dict(p) for p in self.poses],
+            "poses": each(self.poses),
             "unit": None if self.unit is None else self.unit.as_dict(),
             "verdict": None if self.verdict is None else self.verdict.as_dict(),
             "created": self.created,
             "tool": self.tool,
+            "turns": each(self.turns),
+            "g_sensitivity": None if self.g_sensitivity is None else self.g_sensitivity.as_dict(),
+            "rotations": each(self.rotations),
+            "covariance": None if self.covariance is None else self.covariance.as_dict(),
+            "coverage": self.coverage,
+            "residuals": None if self.residuals is None else self.residuals.as_dict(),
+            "segmentation": None if self.segmentation is None else self.segmentation.as_dict(),
         }
-        doc: dict[str, Any] = {}
+
+    def to_dict(self) -> dict[str, Any]:  # Any: the JSON values, which a caller indexes by the format
+        """The file's document (the JSON/YAML boundary)."""
+        typed = self._typed()
+        doc: dict[str, object] = {}
         for key in self.order:
             if key in self.fields:
                 doc[key] = self.fields[key]
@@ -294,8 +271,9 @@ class Calibration:
             if key not in doc and typed[key] is not None:
                 doc[key] = typed[key]
         if "thermal" not in doc and self.thermal is not None:  # added to a file that had none: before poses
-            doc = _insert_before(doc, "poses", {"thermal": typed["thermal"]})
-        return doc
+            doc = _insert(doc, "poses", {"thermal": typed["thermal"]}, after=False)
+        added = {k: typed[k] for k in PARTS if k not in doc and typed[k] is not None}
+        return _insert(doc, "poses", added, after=True) if added else doc
 
     def with_verdict(self, verdict: Verdict) -> Calibration:
         return replace(self, verdict=verdict)
@@ -304,7 +282,7 @@ class Calibration:
         serial = f", serial={self.serial!r}" if self.serial else ""
         return (
             f"Calibration({self.sensor}, {self.method}, reference={self.reference:g}{serial}, "
-            f"offset={_floats(self.offset)}, gain={_floats(self.gain)})"
+            f"offset={floats(self.offset)}, gain={floats(self.gain)})"
         )
 
 
@@ -333,43 +311,93 @@ def _frame_columns(frame: Any, wanted: Sequence[str], path: str | None) -> list[
     return where
 
 
-def _nested(value: Any) -> Any:
+def _nested(value: FloatArray) -> list[float] | list[list[float]]:
     array = np.asarray(value, dtype=np.float64)
-    return _floats(array) if array.ndim == 1 else [_floats(row) for row in array]
+    return floats(array) if array.ndim == 1 else rows_of(array)
 
 
-def from_dict(doc: Mapping[str, Any], path: str | None = None) -> Calibration:
-    """A Calibration from a document that :func:`validate` has accepted."""
-    typed = set(ORDER)
-    unit = doc.get("unit")
-    verdict = doc.get("verdict")
+Part = TypeVar("Part")
+
+
+def from_dict(doc: Doc, path: str | None = None) -> Calibration:
+    """A Calibration from a document that :func:`validate` has accepted. A field whose typed
+    form would not write it as it was (another writer's form) is kept in ``fields``."""
+    kept = {k: v for k, v in doc.items() if k not in ORDER and k not in PARTS}
+
+    def part(key: str, reader: Callable[[object], Part | None]) -> Part | None:
+        """The field ``key`` read typed; as written in ``kept`` when it is of another kind."""
+        value = doc.get(key)
+        read = reader(value)
+        if read is None and value is not None:
+            kept[key] = value
+        return read
+
     uncertainty = doc.get("uncertainty") or {}
+    assert isinstance(uncertainty, dict)
+    poses = doc.get("poses") or []
+    assert isinstance(poses, list)
+    coverage = doc.get("coverage")
+    if coverage is not None and not same(number(coverage), coverage):
+        kept["coverage"] = coverage
+    tool = doc.get("tool")
+    if tool is not None and not isinstance(tool, str):
+        kept["tool"] = tool
+    reference, columns = doc["reference"], doc["columns"]
+    assert is_number(reference)
+    assert isinstance(columns, list)
     return Calibration(
         sensor=str(doc["sensor"]),
         method=str(doc["method"]),
-        reference=float(doc["reference"]),
-        columns=[str(c) for c in doc["columns"]],
+        reference=float(reference),
+        columns=[str(c) for c in columns],
         offset=np.array(doc["offset"], dtype=np.float64),
         matrix=np.array(doc["matrix"], dtype=np.float64),
         gain=np.array(doc["gain"], dtype=np.float64),
-        units=doc.get("units"),
-        input_units=doc.get("input_units"),
-        uncertainty={k: np.array(v, dtype=np.float64) for k, v in uncertainty.items() if v is not None},
-        tilt_sensitivity=doc.get("tilt_sensitivity"),
+        units=text(doc.get("units")),
+        input_units=text(doc.get("input_units")),
+        uncertainty={str(k): np.array(v, dtype=np.float64) for k, v in uncertainty.items() if v is not None},
+        tilt_sensitivity=part("tilt_sensitivity", _object(read_tilt)),
         thermal=None if doc.get("thermal") is None else thermal_from(doc["thermal"], path),
-        poses=tuple(doc.get("poses") or ()),
-        unit=None
-        if unit is None
-        else Unit(unit.get("serial"), unit.get("station"), unit.get("operator"), dict(unit.get("meta") or {})),
-        verdict=None
-        if verdict is None
-        else Verdict(bool(verdict["pass"]), tuple(verdict["failures"]), dict(verdict.get("limits") or {})),
+        poses=tuple(read_pose(p) for p in poses),
+        unit=_unit(doc.get("unit"), kept),
+        verdict=part("verdict", _object(read_verdict)),
         created=created_text(doc.get("created")),
-        tool=doc.get("tool"),
-        fields={k: v for k, v in doc.items() if k not in typed},
+        tool=text(tool),
+        covariance=part("covariance", _object(read_covariance)),
+        coverage=number(coverage),
+        residuals=part("residuals", _object(read_residuals)),
+        segmentation=part("segmentation", _object(read_segmentation)),
+        turns=part("turns", lambda v: read_list(v, read_turn)),
+        g_sensitivity=part("g_sensitivity", _object(read_g_sensitivity)),
+        rotations=part("rotations", lambda v: read_list(v, read_rotation)),
+        fields=kept,
         order=tuple(doc),
         path=path,
     )
+
+
+def _object(reader: Callable[[Doc], Part | None]) -> Callable[[object], Part | None]:
+    """``reader`` of a JSON object, given any value (None for one that is not an object)."""
+    return lambda value: reader(value) if isinstance(value, dict) else None
+
+
+def _unit(value: object, kept: dict[str, object]) -> Unit | None:
+    """The unit block (validated: an object with a meta object), always written with its four
+    fields; one whose values are not text (a YAML serial read as a number) is kept as written."""
+    if not isinstance(value, dict):
+        return None
+    meta = value.get("meta") or {}
+    assert isinstance(meta, dict)
+    written = {k: value.get(k) for k in ("serial", "station", "operator")} | {"meta": dict(meta)}
+    unit = Unit(
+        named(written["serial"]),
+        named(written["station"]),
+        named(written["operator"]),
+        {str(k): str(v) for k, v in meta.items()},
+    )
+    if not same(unit.as_dict(), written):
+        kept["unit"] = written
+    return unit
 
 
 def build(
@@ -380,96 +408,89 @@ def build(
     units: str | None,
     input_units: str | None,
     columns: list[str],
-    poses: list[dict[str, Any]],
+    poses: Sequence[Pose | Doc],
     fit: Fit | None = None,
     tolerance_deg: float = 1.0,
     gain_tolerance: float | None = None,
-    unit: Unit | Mapping[str, Any] | None = None,
+    unit: Unit | Doc | None = None,
     verdict: Verdict | None = None,
-    segmentation: dict[str, Any] | None = None,
+    segmentation: Segmentation | None = None,
+    turns: Sequence[Turn] | None = None,
+    g_sensitivity: GSensitivity | None = None,
+    rotations: Sequence[Rotation] | None = None,
 ) -> Calibration:
-    """The calibration document, fields in the order of README "Calibration file (format version 1)"; ``fit`` adds what
-    the solver measured beyond the parameters (tilt sensitivity, covariance, coverage, residuals);
-    ``segmentation`` how the poses were found in a continuous log (after ``poses``);
-    ``gain_tolerance`` the gain error a 1-pose up offset's tilt sensitivity allows for."""
+    """The calibration of a solution, fields in the order of README "Calibration file (format
+    version 1)"; ``fit`` adds what the solver measured beyond the parameters (tilt sensitivity,
+    covariance, coverage, residuals); ``segmentation`` how the poses were found in a continuous
+    log (after ``poses``, and after a gyroscope's ``turns`` and ``g_sensitivity`` or
+    ``rotations``); ``gain_tolerance`` the gain error a 1-pose up offset's tilt sensitivity
+    allows for. ``poses`` and ``unit`` may also be given in the file's form (objects)."""
     if units is None and sensor == "accelerometer" and reference == 1.0:
         units = "g"
-    doc = {
-        "format": FORMAT,
-        "version": VERSION,
-        "sensor": sensor,
-        "method": solution.method,
-        "reference": reference,
-        "units": units,
-        "input_units": input_units,
-        "columns": columns,
-        "offset": _floats(solution.offset),
-        "matrix": [_floats(row) for row in solution.matrix],
-        "gain": _floats(solution.gain),
-        "uncertainty": {"offset": _floats(solution.offset_se), "gain": _floats(solution.gain_se)},
-        "tilt_sensitivity": None,
-        "poses": poses,
-        "unit": dict(unit) if isinstance(unit, Mapping) else (unit or Unit()).as_dict(),
-        "verdict": (verdict or Verdict()).as_dict(),
-        "created": created(),
-        "tool": f"tumblecal {__version__}",
-    }
-    if segmentation is not None:
-        doc = _insert_after(doc, "poses", {"segmentation": segmentation})
-    if fit is None or fit.tilt is None:
-        del doc["tilt_sensitivity"]
-    else:
-        offset, gain, cross = fit.tilt
-        tilt: dict[str, Any] = {"offset": _floats(offset), "gain": _floats(gain)}
-        if fit.cross_se is not None:
-            tilt["cross_axis"] = [_floats(row) for row in cross]
-        tilt["tolerance_deg"] = tolerance_deg
-        if gain_tolerance is not None:
-            tilt["gain_tolerance"] = gain_tolerance
-        doc["tilt_sensitivity"] = tilt
+    kept: dict[str, object] = {}  # a unit given as an object, if its values are not text
+    uncertainty = {"offset": solution.offset_se, "gain": solution.gain_se}
+    tilt = covariance = residuals = None
+    coverage = None
     if fit is not None:
         if fit.cross_se is not None:
-            doc["uncertainty"] = {
-                "offset": _floats(solution.offset_se),
-                "gain": _floats(solution.gain_se),
-                "cross_axis": [_floats(row) for row in fit.cross_se],
-            }
-        extra: dict[str, Any] = {}
+            uncertainty["cross_axis"] = fit.cross_se
+        if fit.tilt is not None:
+            offset, gain, cross = fit.tilt
+            tilt = Tilt(offset, gain, None if fit.cross_se is None else cross, tolerance_deg, gain_tolerance)
         if fit.covariance is not None:
-            extra["covariance"] = {"parameters": COVARIANCE_PARAMETERS, "matrix": [_floats(r) for r in fit.covariance]}
-        if fit.coverage is not None:
-            extra["coverage"] = fit.coverage
+            covariance = Covariance(fit.covariance)
+        coverage = fit.coverage
         if fit.residuals is not None and len(fit.residuals):
             r = fit.residuals
-            extra["residuals"] = {"rms": float(np.sqrt(np.mean(r**2))), "max": float(np.abs(r).max()), "count": len(r)}
-        doc = _insert_after(doc, "poses" if "tilt_sensitivity" not in doc else "tilt_sensitivity", extra)
-    return from_dict(doc)
+            residuals = Residuals(float(np.abs(r).max()), float(np.sqrt(np.mean(r**2))), len(r))
+    given = (("covariance", covariance), ("coverage", coverage), ("residuals", residuals))
+    measured = [k for k, v in given if v is not None]
+    turned = [
+        k for k, v in (("turns", turns), ("g_sensitivity", g_sensitivity), ("rotations", rotations)) if v is not None
+    ]
+    found = ["segmentation"] if segmentation is not None else []
+    order = [*ORDER[:11], "uncertainty", *(["tilt_sensitivity", *measured] if tilt else []), "poses"]
+    order += [*turned, *found, *([] if tilt else measured)] if turned else [*([] if tilt else measured), *found]
+    return Calibration(
+        sensor=sensor,
+        method=solution.method,
+        reference=reference,
+        columns=columns,
+        offset=solution.offset,
+        matrix=solution.matrix,
+        gain=solution.gain,
+        units=units,
+        input_units=input_units,
+        uncertainty=uncertainty,
+        tilt_sensitivity=tilt,
+        poses=tuple(p if isinstance(p, Pose) else read_pose(p) for p in poses),
+        unit=unit if isinstance(unit, Unit) else _unit(unit, kept) if unit is not None else Unit(),
+        verdict=verdict or Verdict(),
+        created=created(),
+        tool=f"tumblecal {__version__}",
+        covariance=covariance,
+        coverage=coverage,
+        residuals=residuals,
+        segmentation=segmentation,
+        turns=None if turns is None else tuple(turns),
+        g_sensitivity=g_sensitivity,
+        rotations=None if rotations is None else tuple(rotations),
+        fields=kept,
+        order=(*order, "unit", "verdict", "created", "tool"),
+    )
 
 
-#: The order of the covariance's rows: the offset, then A = inv(M) row by row.
-COVARIANCE_PARAMETERS = ["offset.x", "offset.y", "offset.z"] + [f"A.{i}{j}" for i in "xyz" for j in "xyz"]
-
-
-def _insert_before(doc: dict[str, Any], key: str, extra: dict[str, Any]) -> dict[str, Any]:
-    """``doc`` with ``extra`` placed before ``key`` (at the end when ``key`` is not there)."""
+def _insert(doc: dict[str, object], key: str, extra: dict[str, object], *, after: bool) -> dict[str, object]:
+    """``doc`` with ``extra`` placed before (or ``after``) ``key`` (at the end when ``key`` is not there)."""
     if key not in doc:
         return {**doc, **extra}
-    out: dict[str, Any] = {}
+    out: dict[str, object] = {}
     for k, v in doc.items():
-        if k == key:
+        if k == key and not after:
             out.update(extra)
         out[k] = v
-    return out
-
-
-def _insert_after(doc: dict[str, Any], key: str, extra: dict[str, Any]) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for k, v in doc.items():
-        if k == key:
-            out[k] = v
+        if k == key and after:
             out.update(extra)
-        else:
-            out[k] = v
     return out
 
 
@@ -503,7 +524,7 @@ def created() -> str:
     return when.strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
-def dumps(cal: Calibration | Mapping[str, Any], path: str) -> str:
+def dumps(cal: Calibration | Doc, path: str) -> str:
     """Text of a calibration (or a document) in the format the path's suffix asks for."""
     doc = cal.to_dict() if isinstance(cal, Calibration) else dict(cal)
     if is_yaml(path):
@@ -513,7 +534,7 @@ def dumps(cal: Calibration | Mapping[str, Any], path: str) -> str:
     return _json(doc, 0) + "\n"
 
 
-def write(cal: Calibration | Mapping[str, Any], path: str) -> None:
+def write(cal: Calibration | Doc, path: str) -> None:
     """Write a calibration (or its document) atomically ('-': stdout)."""
     text = dumps(cal, path).encode()
     with atomic_output(path) as out:
@@ -537,7 +558,7 @@ def resolve(cal: Calibration | str | os.PathLike[str]) -> Calibration:
     return load(cal)
 
 
-def validate(doc: Mapping[str, Any], path: str) -> Calibration:
+def validate(doc: Doc, path: str) -> Calibration:
     """The Calibration of a document, validated as :func:`load` does."""
     if doc.get("format") != FORMAT:
         what = f"unknown format {doc['format']!r}" if "format" in doc else "missing field 'format'"
@@ -567,36 +588,7 @@ def validate(doc: Mapping[str, Any], path: str) -> Calibration:
     return from_dict(doc, path)
 
 
-@dataclass(frozen=True)
-class PoseRecord:
-    """The part of a pose entry that judging a calibration again needs."""
-
-    face: str | None
-    file: str
-    mean: FloatArray
-    std: FloatArray
-    samples: int
-
-
-def pose_records(cal: Calibration) -> list[PoseRecord]:
-    """The poses a calibration was solved from (for judging it again). ``load`` has validated
-    every entry that is there; judging also needs them to exist and to carry ``std``."""
-    value, path = list(cal.poses), cal.path
-    if not isinstance(value, list) or not value:
-        raise InputError("field 'poses' must be a non-empty list of the poses solved from", file=path)
-    out = []
-    for k, pose in enumerate(value):
-        if "std" not in pose:
-            raise InputError(f"field 'poses[{k}]' must be an object with pose, mean, std and samples", file=path)
-        mean, std = np.array(pose["mean"], dtype=np.float64), np.array(pose["std"], dtype=np.float64)
-        name = str(pose.get("file", ""))
-        if isinstance(pose.get("block"), int):  # a log's blocks share its file: named as solve names them
-            name = f"{name} block {pose['block']}"
-        out.append(PoseRecord(pose["pose"], name, mean, std, pose["samples"]))
-    return out
-
-
-def _pose_entry(pose: Mapping[str, Any], name: str, path: str) -> None:
+def _pose_entry(pose: Doc, name: str, path: str) -> None:
     """The fields of one pose entry that are there, validated (``name``: ``poses[k]``)."""
     if pose.get("pose") is not None and not (isinstance(pose["pose"], str) and _is_label(pose["pose"])):
         raise InputError(
@@ -619,7 +611,7 @@ def _is_label(text: str) -> bool:
         return False
 
 
-def _optional_fields(doc: Mapping[str, Any], path: str) -> None:
+def _optional_fields(doc: Doc, path: str) -> None:
     """Fields beyond REQUIRED that ``show`` and ``check`` read, validated where present (null: absent)."""
     if not isinstance(doc["method"], str):
         raise InputError("field 'method' must be a string", file=path)
@@ -643,7 +635,7 @@ def _optional_fields(doc: Mapping[str, Any], path: str) -> None:
     _nested_fields(doc, path)
 
 
-def _nested_fields(doc: Mapping[str, Any], path: str) -> None:
+def _nested_fields(doc: Doc, path: str) -> None:
     """residuals, unit, poses and verdict, validated where present."""
     residuals = doc.get("residuals")
     if residuals is not None:
@@ -672,7 +664,7 @@ def _nested_fields(doc: Mapping[str, Any], path: str) -> None:
     _verdict_field(doc.get("verdict"), path)
 
 
-def _verdict_field(verdict: Any, path: str) -> None:
+def _verdict_field(verdict: object, path: str) -> None:
     if verdict is not None and not (
         isinstance(verdict, dict)
         and isinstance(verdict.get("pass"), bool)
@@ -696,7 +688,7 @@ def _verdict_field(verdict: Any, path: str) -> None:
             )
 
 
-def _read_object(path: str, what: str) -> dict[str, Any]:
+def _read_object(path: str, what: str) -> dict[str, object]:
     """The JSON/YAML object in ``path`` ('-': stdin)."""
     return parse_object(read_bytes(path, what), path, what)
 
@@ -730,7 +722,7 @@ def read_bytes(path: str, what: str) -> bytes:
     return data
 
 
-def parse_object(raw: bytes, path: str, what: str, *, as_yaml: bool | None = None) -> dict[str, Any]:
+def parse_object(raw: bytes, path: str, what: str, *, as_yaml: bool | None = None) -> dict[str, object]:
     """The JSON/YAML object in ``raw`` (YAML when ``path`` ends in .yaml/.yml, or ``as_yaml``)."""
     try:
         text = raw.decode("utf-8-sig")
@@ -764,7 +756,7 @@ LIMIT_KEYS = {
 NOISE_LIMITS = ("noise_density", "bias_instability", "random_walk")
 
 
-def load_limits(path: str) -> dict[str, Any]:
+def load_limits(path: str) -> dict[str, Any]:  # Any: a float or a (3,) array, which noise's caller tells apart
     """The bounds in a limits file, validated: ``{key: float or (3,) array}``."""
     doc = _read_object(path, "limits file")
     out: dict[str, Any] = {}
@@ -784,7 +776,7 @@ def load_limits(path: str) -> dict[str, Any]:
     return out
 
 
-def limit_value(value: Any, name: str, path: str | None, *, per_axis: bool) -> Any:
+def limit_value(value: object, name: str, path: str | None, *, per_axis: bool) -> float | FloatArray:
     """A positive bound: a number, or for ``per_axis`` also a list [x, y, z] (made (3,))."""
     if per_axis and isinstance(value, list):
         array = _vector(value, name, path)
@@ -799,7 +791,7 @@ def is_yaml(path: str) -> bool:
     return path.lower().endswith((".yaml", ".yml"))
 
 
-def _parse(text: str, path: str, *, as_yaml: bool | None = None) -> Any:
+def _parse(text: str, path: str, *, as_yaml: bool | None = None) -> object:
     if as_yaml is None:
         as_yaml = is_yaml(path) or (path == "-" and not text.lstrip().startswith("{"))
     if as_yaml:
@@ -854,23 +846,13 @@ def _yaml_loader() -> Any:
     return NoAliases
 
 
-def is_number(value: Any) -> bool:
-    """A finite JSON/YAML number (not a boolean, which Python counts as an int)."""
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        return False
-    try:
-        return math.isfinite(value)
-    except OverflowError:  # an integer beyond any float (1e400 written out)
-        return False
-
-
-def _number(value: Any, name: str, path: str | None) -> float:
+def _number(value: object, name: str, path: str | None) -> float:
     if not is_number(value):
         raise InputError(f"field {name!r} must be a finite number", file=path)
     return float(value)
 
 
-def _vector(value: Any, name: str, path: str | None) -> FloatArray:
+def _vector(value: object, name: str, path: str | None) -> FloatArray:
     if not (isinstance(value, list) and len(value) == 3):
         raise InputError(f"field {name!r} must be a list of 3 numbers", file=path)
     return np.array([_number(v, name, path) for v in value])
@@ -886,17 +868,13 @@ def invertible(matrix: FloatArray, path: str, name: str = "matrix") -> FloatArra
     return matrix
 
 
-def _matrix(value: Any, name: str, path: str) -> FloatArray:
+def _matrix(value: object, name: str, path: str) -> FloatArray:
     if not (isinstance(value, list) and len(value) == 3 and all(isinstance(r, list) and len(r) == 3 for r in value)):
         raise InputError(f"field {name!r} must be a 3x3 list of numbers", file=path)
     return np.array([[_number(v, name, path) for v in row] for row in value])
 
 
-def _floats(values: FloatArray) -> list[float]:
-    return [float(v) for v in values]
-
-
-def _json(value: Any, depth: int) -> str:
+def _json(value: object, depth: int) -> str:
     """JSON with two-space indent, lists of plain values on one line (vectors, matrix rows)."""
     pad, inner = "  " * depth, "  " * (depth + 1)
     if isinstance(value, dict) and value:

@@ -675,7 +675,7 @@ def _provenance(cal: Calibration) -> list[str]:
     who = ", ".join(f"{k} {unit[k]}" for k in ("serial", "station", "operator") if unit.get(k)) or "no serial"
     verdict = cal.verdict
     judged = ""
-    if verdict is not None and (verdict.limits or not verdict.passed):
+    if verdict is not None and (verdict.limit_names or not verdict.passed):
         judged = f", verdict {'PASS' if verdict.passed else 'FAIL'}"
     units = f"{cal.input_units or 'raw units'} in, {cal.units or 'reference units'} out"
     return [

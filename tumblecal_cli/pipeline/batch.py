@@ -1,8 +1,8 @@
-"""``tumblecal batch`` and ``apply`` over many files: the units, the summary, and where they run.
+"""``tumblecal batch``: the units and the summary.
 
 A unit is a serial number and its inputs (pose files, or one log). Each unit is solved by the
 pipeline's ``solve.run``, in this process, in ``--jobs`` worker processes, or on a Dask
-cluster; its calibration is published as ``<serial>_<UTC time>.json`` next to the others (never
+cluster (``pipeline.cluster``); its calibration is published as ``<serial>_<UTC time>.json`` next to the others (never
 replacing a file, so a unit's history stays), and it becomes one row of ``summary.csv``. A unit
 that fails becomes a row with its exit status and message; it never stops the batch.
 
@@ -15,7 +15,6 @@ from __future__ import annotations
 import contextlib
 import csv
 import io
-import itertools
 import os
 import re
 import sys
@@ -26,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 from tumblecal_cli.errors import STOPS, InputError, TumblecalError, control_character
 
 if TYPE_CHECKING:
-    from tumblecal_cli.io.calfile import Calibration
+    from tumblecal_cli.io.calfile import Calibration, Pose
     from tumblecal_cli.pipeline.options import SolveOptions
 
 #: Files a unit folder's poses (or log) may be in; anything else there is left alone.
@@ -64,10 +63,6 @@ SUMMARY_COLUMNS = [
 EARLIER_COLUMNS = SUMMARY_COLUMNS[:-1]
 NUMBERS = {c for c in SUMMARY_COLUMNS if c[-2:] in ("_x", "_y", "_z")}
 VERDICTS = {0: "pass", 1: "fail", 3: "rejected", 2: "error"}
-#: Units submitted to a Dask cluster at a time (a million-unit lot is not a million futures).
-IN_FLIGHT = 1000
-#: Seconds to wait for a Dask worker, at the start and whenever no unit finishes.
-WORKERS_TIMEOUT = 10.0
 #: Exit status of the whole batch: the first of these any unit has (README "Exit status").
 PRECEDENCE = (2, 3, 1)
 
@@ -290,9 +285,9 @@ def _run_unit(unit: Unit, options: SolveOptions, out_dir: str, log: bool, token:
         return row | _failed(InputError(f"internal error: {type(err).__name__}: {err}"))
     cal, status = solved.calibration, solved.status
     failures = cal.verdict.failures if cal.verdict is not None else ()
-    codes = list(dict.fromkeys(str(f.get("code")) for f in failures))
+    codes = list(dict.fromkeys(f.code for f in failures))
     # why a unit failed its limits, as its row's message (the file holds the whole verdict)
-    messages = [f"{f.get('code')}: {f.get('message', '')}" for f in failures]
+    messages = [f"{f.code}: {f.message}" for f in failures]
     outcome = {"status": status, "verdict": VERDICTS[status], "codes": codes, "staging": staging}
     outcome["poses"] = pose_files(cal.poses)  # not a summary column: for duplicate_of
     return row | outcome | ({"message": "; ".join(messages)} if messages else {}) | _parameters(cal)
@@ -311,12 +306,11 @@ def as_found(cal: Calibration, names: Mapping[str, str]) -> Calibration:
         return cal
     from dataclasses import replace
 
-    poses = tuple(dict(p) | {"file": names.get(str(p.get("file")), p.get("file"))} for p in cal.poses)
-    fields = dict(cal.fields)
-    segmentation = fields.get("segmentation")
-    if isinstance(segmentation, Mapping) and segmentation.get("log") in names:
-        fields["segmentation"] = dict(segmentation) | {"log": names[str(segmentation["log"])]}
-    return replace(cal, poses=poses, fields=fields)
+    poses = tuple(replace(p, file=names.get(str(p.file), p.file)) for p in cal.poses)
+    segmentation = cal.segmentation
+    if segmentation is not None and segmentation.log in names:
+        segmentation = replace(segmentation, log=names[str(segmentation.log)])
+    return replace(cal, poses=poses, segmentation=segmentation)
 
 
 def _as_found_text(row: dict[str, Any], names: Mapping[str, str]) -> dict[str, Any]:
@@ -333,9 +327,9 @@ def _as_found_text(row: dict[str, Any], names: Mapping[str, str]) -> dict[str, A
     return row
 
 
-def pose_files(poses: Iterable[Mapping[str, Any]]) -> list[tuple[str, str]]:
+def pose_files(poses: Iterable[Pose]) -> list[tuple[str, str]]:
     """(sha256, file) of each pose a calibration records (a log's blocks share one)."""
-    return list(dict.fromkeys((str(p["sha256"]), str(p.get("file", ""))) for p in poses if p.get("sha256")))
+    return list(dict.fromkeys((p.sha256, p.file or "") for p in poses if p.sha256))
 
 
 def mark_duplicates(rows: list[dict[str, Any]], out_dir: str) -> list[str]:
@@ -632,128 +626,8 @@ def status(rows: Iterable[dict[str, Any]]) -> int:
     return next((s for s in PRECEDENCE if s in seen), 0)
 
 
-# -- where the work runs -----------------------------------------------------------------------
-
-
 #: The longest serial, in bytes: the calibration is named SERIAL_STAMP.json (a file name: 255).
 LONGEST_SERIAL = 200
-
-
-#: Runs ``fn(*args)`` for each args; yields (args, result) as they finish (on a cluster the
-#: result may be the exception that lost the task).
-Engine = Callable[[Callable[..., Any], list[tuple[Any, ...]]], Iterator[tuple[tuple[Any, ...], Any]]]
-
-
-def engine(jobs: int, scheduler: str | None) -> Engine:
-    """Where the work runs: here (jobs 1), in ``jobs`` processes, or on the Dask cluster at
-    ``scheduler`` (connected to at once)."""
-    if scheduler is not None:
-        return _dask(scheduler)
-    if jobs > 1:
-        return _processes(jobs)
-    return lambda fn, work: ((args, fn(*args)) for args in work)
-
-
-def _processes(jobs: int) -> Engine:
-    def run(fn: Callable[..., Any], work: list[tuple[Any, ...]]) -> Iterator[tuple[tuple[Any, ...], Any]]:
-        import multiprocessing
-        from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-
-        context = multiprocessing.get_context("forkserver")  # safe beside the progress bar's thread
-        context.set_forkserver_preload(
-            ["tumblecal_cli.pipeline.solve", "tumblecal_cli.io.readings", "tumblecal_cli.core.solvers"]
-        )
-        sent: dict[Future[Any], tuple[Any, ...]] = {}
-        with ProcessPoolExecutor(
-            max_workers=jobs, mp_context=context, initializer=_watch_parent, initargs=(os.getpid(),)
-        ) as pool:
-            try:
-                for args in work:  # keep a few units in flight per worker, not the whole lot
-                    sent[pool.submit(fn, *args)] = args
-                    if len(sent) >= 4 * jobs:
-                        done, _ = wait(sent, return_when=FIRST_COMPLETED)
-                        yield from ((sent.pop(f), f.result()) for f in done)
-                while sent:
-                    done, _ = wait(sent, return_when=FIRST_COMPLETED)
-                    yield from ((sent.pop(f), f.result()) for f in done)
-            except BaseException:  # the units running finish (milliseconds), the others are dropped
-                pool.shutdown(wait=True, cancel_futures=True)
-                raise
-
-    return run
-
-
-def _watch_parent(parent: int) -> None:
-    """In a worker process: exit when the batch that started it is gone (killed with -9, it
-    cannot shut its pool down), instead of living on with the units in flight."""
-    import threading
-    import time
-
-    from tumblecal_cli.io.outputs import alive
-
-    def watch() -> None:
-        while alive(parent):
-            time.sleep(1.0)
-        os._exit(1)
-
-    threading.Thread(target=watch, name="tumblecal-parent-watch", daemon=True).start()
-
-
-def _dask(address: str) -> Engine:
-    try:
-        import distributed
-    except ImportError:
-        raise InputError(
-            "--dask-scheduler needs Dask's distributed scheduler, which is not installed",
-            hint="pip install 'tumblecal[dask]'",
-        ) from None
-
-    try:  # at once: an unreachable cluster is an error before anything is written
-        client = distributed.Client(address, timeout="10s")
-    except (OSError, TimeoutError, ValueError) as err:
-        raise InputError(
-            f"cannot reach the Dask scheduler at {address}: {err}",
-            hint="start one with 'dask scheduler', or check the address (tcp://host:8786)",
-        ) from None
-
-    try:  # a scheduler without workers would take the units and never run them
-        client.wait_for_workers(1, timeout=WORKERS_TIMEOUT)
-    except (OSError, TimeoutError) as err:
-        client.close()
-        raise InputError(
-            f"the Dask scheduler at {address} has no workers ({err})",
-            hint="start some: dask worker ADDRESS --nworkers N --nthreads 1 (with tumblecal installed there)",
-        ) from None
-
-    def run(fn: Callable[..., Any], work: list[tuple[Any, ...]]) -> Iterator[tuple[tuple[Any, ...], Any]]:
-        with client:
-            todo = iter(work)  # a bounded number in flight: the scheduler spreads them over the workers
-            sent = {}
-            for args in itertools.islice(todo, IN_FLIGHT):
-                sent[client.submit(fn, *args, pure=False)] = args
-            while sent:
-                try:
-                    done, _ = distributed.wait(list(sent), timeout=WORKERS_TIMEOUT, return_when="FIRST_COMPLETED")
-                except TimeoutError:
-                    if not client.nthreads():  # every worker gone (one that cannot import tumblecal exits)
-                        raise InputError(
-                            f"every Dask worker at {address} is gone, with {len(sent)} units unfinished",
-                            hint="check the workers' logs (tumblecal installed there?); "
-                            "--resume continues the lot once workers are back",
-                        ) from None
-                    continue  # long units: still running
-                for future in done:
-                    args = sent.pop(future)
-                    try:  # a lost worker (KilledWorker), tumblecal missing there: that unit's error
-                        result = future.result()
-                    except Exception as err:
-                        result = err
-                    yield args, result
-                    future.release()
-                    for more in itertools.islice(todo, 1):
-                        sent[client.submit(fn, *more, pure=False)] = more
-
-    return run
 
 
 @dataclass
@@ -803,6 +677,7 @@ def run_batch(
     from concurrent.futures.process import BrokenProcessPool
 
     from tumblecal_cli.io import calfile
+    from tumblecal_cli.pipeline.cluster import engine
     from tumblecal_cli.pipeline.options import SolveOptions, checked, path_of, settings
 
     source = path_of(source, "run_batch takes a folder of units or a manifest file")
@@ -846,6 +721,7 @@ def run_batch(
         epoch = os.environ.get("SOURCE_DATE_EPOCH", "")  # the caller's, wherever the units run
         work = [(u, options, out_dir, log, token, epoch) for u in todo]
         for (unit, *_), outcome in run(run_unit, work):
+            assert isinstance(unit, Unit)
             with held_signals():  # a calibration is published with its row, or not at all
                 row = failed_row(unit, outcome) if isinstance(outcome, BaseException) else finish(outcome, out_dir)
                 if row.get("unwritten"):  # the disk refused: stop here, and leave the unit to --resume

@@ -43,65 +43,36 @@ def check(
     max_gain_error: Triplet | None = None,
     nominal_gain: Triplet | None = None,
 ) -> Checked:
-    """Judge an existing calibration file against limits again (the file is not changed)."""
-    import numpy as np
-
+    """Judge an existing calibration file against limits again (the file is not changed), by
+    the rules solve judged it by (core.gate.judge_again)."""
     from tumblecal_cli.core import gate
     from tumblecal_cli.io import calfile
     from tumblecal_cli.pipeline.options import limits as parse_limits
-    from tumblecal_cli.pipeline.solve import GAIN_SOLVERS, check_gains, limits_not_applying
+    from tumblecal_cli.pipeline.solve import limits_not_applying
 
     given = parse_limits(limits, max_offset, max_gain_error, nominal_gain)
     if not given.judges():
         raise InputError("no limits to judge against", hint="give --limits FILE, --max-offset or --max-gain-error")
     c = calfile.resolve(cal)
-    where = c.path
-    method = c.method
-    recorded = (c.verdict.limits if c.verdict is not None else {}).get("nominal_offset")
-    if recorded is not None and not any(given.nominal_offset):  # the centre solve judged it from
-        given = replace(given, nominal_offset=np.array(recorded, dtype=float))
-    bounds = given.for_method(method)
-    if method in GAIN_SOLVERS and c.reference > 0 and (bounds.gain_error is not None or given.nominal_gain_given):
-        try:  # gains in other units than the limits': exit 2, as solve says it, not "outside limits"
-            check_gains(c.gain, c.reference, given.nominal_gain)
-        except InputError as err:  # check has no --reference: the calibration is to be solved again
-            hint = (err.hint or "").replace("run with --reference", "solve it again with --reference")
-            raise InputError(err.message, file=where, hint=hint or None) from None
-    if not bounds.judges():
-        raise InputError(f"no limits to judge against: {'; '.join(limits_not_applying(given, method))}", file=where)
-    if not c.poses:  # an imported calibration: its parameters can be judged, it has no poses
-        if bounds.noise is not None or bounds.residual is not None:
-            raise InputError(
-                "has no poses to judge the noise and residual limits by",
-                file=where,
-                hint="judge it by offset, gain_error and cross_axis only (a limits file without noise and residual)",
-            )
-        records = []
-    else:
-        records = calfile.pose_records(c)
-    poses = [(p.file, p.face, gate.corrected(p.mean, p.std, p.face, c.offset, c.matrix, c.reference)) for p in records]
-    residuals = c.fields.get("residuals")
-    residual = residuals.get("max") if isinstance(residuals, dict) else None
-    if method in gate.ROTATION and bounds.residual is not None and residual is None:
-        raise InputError(
-            "has no fit residuals to judge the residual limit by",
-            file=where,
-            hint="judge it without the residual limit, or solve the capture again",
-        )
-    drift = None
-    if bounds.offset_drift is not None or bounds.offset_drift_per_degc is not None:
-        if c.thermal is None:
-            raise InputError(
-                "has no thermal block to judge the offset_drift limits by",
-                file=where,
-                hint="add one with 'tumblecal thermal', or judge it without those limits",
-            )
-        from tumblecal_cli.core.thermal import extremes
-
-        drift = extremes(c.thermal.drift())
-    failures = gate.verdict(method, c.offset, c.matrix, poses, bounds, residual, drift)
-    verdict = calfile.Verdict(not failures, tuple(f.as_dict() for f in failures), bounds.as_dict())
-    return Checked(c.with_verdict(verdict), failures, limits_not_applying(given, method))
+    if c.verdict is not None and "nominal_offset" in c.verdict.limit_names and not any(given.nominal_offset):
+        given = replace(given, nominal_offset=c.verdict.limits.nominal_offset)  # the centre solve judged it from
+    notes = limits_not_applying(given, c.method)
+    recorded = gate.Calibrated(
+        c.method,
+        c.reference,
+        c.offset,
+        c.matrix,
+        c.gain,
+        [gate.Recorded(p.name, p.face, p.mean, p.std) for p in c.poses] if c.poses else None,
+        None if c.residuals is None else c.residuals.max,
+        None if c.thermal is None else c.thermal.drift(),
+    )
+    try:
+        failures = gate.judge_again(recorded, given, "; ".join(notes))
+    except InputError as err:  # about this calibration: its file named
+        raise InputError(err.message, file=c.path, hint=err.hint) from None
+    verdict = calfile.Verdict(not failures, tuple(failures), given.for_method(c.method))
+    return Checked(c.with_verdict(verdict), failures, notes)
 
 
 class ExportKeywords(TypedDict, total=False):
@@ -198,8 +169,8 @@ def _registers(
 
     if gain_step is not None and c.method in FIXED_GAINS:
         raise InputError(f"the {c.method} solver fixes the gains: there is no gain to trim", file=c.path)
-    recorded = (c.verdict.limits if c.verdict is not None else {}).get("nominal_gain")
-    nominal = triplet(nominal_gain or ",".join(map(str, recorded or [1, 1, 1])), "--nominal-gain")  # type: ignore[call-overload]
+    recorded = c.verdict.limits.nominal_gain if c.verdict and "nominal_gain" in c.verdict.limit_names else None
+    nominal = triplet(nominal_gain or ",".join(map(str, [1, 1, 1] if recorded is None else recorded)), "--nominal-gain")
     if not (nominal > 0).all():
         raise InputError(f"--nominal-gain must be positive, got {nominal_gain}")
     rows = formats.registers(c, lsb=lsb, bits=bits, sign=register_sign, gain_step=gain_step, nominal_gain=nominal)

@@ -166,7 +166,7 @@ def correct_many(
     (``scheduler``): (capture, exit status, message) for each as it is done. A capture that
     fails is its own status and message; the others go on."""
     from tumblecal_cli.io import calfile
-    from tumblecal_cli.pipeline import batch as batches
+    from tumblecal_cli.pipeline.cluster import engine
     from tumblecal_cli.pipeline.options import keywords_known
 
     keywords_known(options, ManyKeywords, "correct_many")
@@ -195,14 +195,16 @@ def correct_many(
     if scheduler is not None:  # the workers do not share this working folder
         inputs, outputs = [os.path.abspath(c) for c in inputs], [os.path.abspath(o) for o in outputs]
         each["cal"] = [os.path.abspath(c) for c in cal]
-    run = batches.engine(1, scheduler)
+    run = engine(1, scheduler)
     made = not os.path.isdir(out_dir)
     os.makedirs(out_dir, exist_ok=True)
     try:
         for (_, name, _), outcome in run(correct_one, [(each, c, o) for c, o in zip(inputs, outputs, strict=True)]):
             if isinstance(outcome, BaseException):  # a worker lost on the cluster
-                outcome = (name, 2, f"{name}: the worker correcting it failed: {type(outcome).__name__}: {outcome}")
-            yield outcome
+                failed = f"{name}: the worker correcting it failed: {type(outcome).__name__}: {outcome}"
+                yield str(name), 2, failed
+            else:
+                yield outcome
     finally:  # a folder made for nothing (every capture failed, or Ctrl-C first) is not left behind
         if made:
             with contextlib.suppress(OSError):  # not empty: it holds what was written
@@ -235,7 +237,7 @@ def claims_once(cals: list[Calibration]) -> None:
 def refuse_failed(cal: Calibration, doing: str, command: str) -> None:
     """A calibration whose verdict failed goes nowhere without --force (apply, export)."""
     failures = cal.verdict.failures if cal.verdict is not None else ()
-    codes = ", ".join(str(f.get("code")) for f in failures if isinstance(f, dict))
+    codes = ", ".join(f.code for f in failures)
     raise InputError(
         f"this unit failed its limits ({codes or 'verdict: fail'}): refusing to {doing}",
         file=cal.path,

@@ -98,7 +98,7 @@ def entry(cal: calfile.Calibration) -> lot.Entry:
                 if i != j and a[i, i]:  # (A[i, i] 0: a matrix that maps another axis onto this one, no term)
                     values[f"cross.{row}{col}"] = float(a[i, j] / a[i, i])
     serial = cal.serial
-    imported = cal.fields.get("imported")
+    imported = cal.fields.get("imported")  # another writer's field: read as written
     # an imported calibration dates from when it was made, as its export recorded
     made = calfile.created_text(imported.get("created") if isinstance(imported, dict) else None) or cal.created
     return lot.Entry(
@@ -109,7 +109,7 @@ def entry(cal: calfile.Calibration) -> lot.Entry:
         method=cal.method,
         values=values,
         units=(f"{cal.input_units} -> " if cal.input_units else "") + str(cal.units or "no units"),
-        poses=tuple((str(p["sha256"]), str(p.get("file", ""))) for p in cal.poses if p.get("sha256")),
+        poses=tuple((p.sha256, p.file or "") for p in cal.poses if p.sha256),
     )
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -24,6 +24,8 @@ from tumblecal_cli.pipeline import logs
 from tumblecal_cli.pipeline.turns import Outcome, gyro_calibration, seconds_per_sample
 
 if TYPE_CHECKING:
+    from tumblecal_cli.core.model import FloatArray
+    from tumblecal_cli.core.segment import Block, Segmentation
     from tumblecal_cli.io.calfile import Calibration
     from tumblecal_cli.io.readings import Log
     from tumblecal_cli.pipeline.options import Settings, SolveOptions
@@ -42,10 +44,10 @@ class HandTurns:
 
     acc: Log
     gyr: Log
-    kept: list[Any]
+    kept: list[Block]
     rotations: list[core.Rotation]
-    still: Any
-    bias: Any
+    still: FloatArray  # (n, 3) the gyroscope's samples in the still blocks
+    bias: FloatArray  # (3,) their mean
     names: list[str]
 
 
@@ -103,7 +105,7 @@ def hand_turns(log: str, options: SolveOptions) -> HandTurns:
     return HandTurns(acc, gyr, kept, rots, still, bias, names)
 
 
-def _clock_integrates(seg: Any, kept: list[Any], gyr: Log, rate: float | None) -> None:
+def _clock_integrates(seg: Segmentation, kept: list[Block], gyr: Log, rate: float | None) -> None:
     """The log's clock can carry the integration of its turns: one that does not advance with
     the samples (whole seconds at 100 Hz) gave gains 1000x off with a PASS; a gap in a turn
     leaves the turn's samples out (exit 2 and 3, for solve and verify alike)."""
@@ -176,9 +178,10 @@ def from_log(log: str, options: SolveOptions, given: Settings) -> Outcome:
     return Outcome(1 if failures else 0, cal, cal, notes=notes, failures=failures)
 
 
-def _direction(accel: Calibration, mean: Any) -> Any:
+def _direction(accel: Calibration, mean: FloatArray) -> FloatArray:
     v = accel.matrix @ (mean - accel.offset)
-    return v / np.linalg.norm(v)
+    unit: FloatArray = v / np.linalg.norm(v)
+    return unit
 
 
 def _rejected(findings: list[Finding], name: str) -> CaptureRejected:
@@ -195,11 +198,11 @@ def _rejected(findings: list[Finding], name: str) -> CaptureRejected:
 
 def _calibration(
     fit: core.RotationsFit,
-    bias: Any,
-    still: Any,
+    bias: FloatArray,
+    still: FloatArray,
     acc: Log,
     gyr: Log,
-    kept: list[Any],
+    kept: list[Block],
     names: list[str],
     options: SolveOptions,
     given: Settings,
@@ -208,25 +211,28 @@ def _calibration(
     gain_se, cross_se = core.gain_se(fit.matrix, fit.matrix_cov)
     bias_se = still.std(axis=0, ddof=1) / np.sqrt(len(still))
     solution = Solution("rotations", bias, fit.matrix, bias_se, gain_se)
+    from tumblecal_cli.io import calfile
+    from tumblecal_cli.pipeline.turns import Made
+
     poses = [
-        {
-            "pose": None,
-            "file": gyr.layout.name,
-            "sha256": acc.sha256,
-            "rows": [int(gyr.rows[b.first]), int(gyr.rows[b.last])],
-            "block": b.number,
-            "samples": b.samples,
-            "mean": [float(v) for v in gyr.values[b.first : b.last + 1].mean(axis=0)],
-            "std": [float(v) for v in gyr.values[b.first : b.last + 1].std(axis=0)],
-            "accelerometer_mean": [float(v) for v in b.mean],
-        }
+        calfile.Pose(
+            face=None,
+            mean=gyr.values[b.first : b.last + 1].mean(axis=0),
+            samples=b.samples,
+            std=gyr.values[b.first : b.last + 1].std(axis=0),
+            file=gyr.layout.name,
+            sha256=acc.sha256,
+            rows=(int(gyr.rows[b.first]), int(gyr.rows[b.last])),
+            block=b.number,
+            accelerometer_mean=b.mean,
+        )
         for b in kept
     ]
-    extra = {
-        "rotations": [
-            {"between": name, "angle_deg": float(angle), "residual_deg": float(res)}
+    made = Made(
+        segmentation=calfile.Segmentation(gyr.layout.name, acc.sha256, "detector"),
+        rotations=tuple(
+            calfile.Rotation(name, float(angle), float(res))
             for name, angle, res in zip(names, fit.angle_deg, fit.residual_deg, strict=True)
-        ],
-        "segmentation": {"log": gyr.layout.name, "sha256": acc.sha256, "source": "detector"},
-    }
-    return gyro_calibration(solution, gyr, poses, fit.residual_deg, cross_se, extra, options, given)
+        ),
+    )
+    return gyro_calibration(solution, gyr, poses, fit.residual_deg, cross_se, made, options, given)

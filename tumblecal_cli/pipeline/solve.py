@@ -20,7 +20,8 @@ from tumblecal_cli.pipeline.options import path_of
 if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Corrected, Finding, Limits, PoseCheck
     from tumblecal_cli.core.model import FloatArray, PoseStats
-    from tumblecal_cli.io.calfile import Calibration
+    from tumblecal_cli.io import calfile
+    from tumblecal_cli.io.calfile import Calibration, Pose
     from tumblecal_cli.io.readings import Samples
     from tumblecal_cli.pipeline.logs import Blocks
     from tumblecal_cli.pipeline.options import Settings, SolveOptions
@@ -303,6 +304,7 @@ def named_faces(files: list[str], placed: list[str | None], *, up_given: bool = 
 def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
     """solve --log: the log's blocks, the poses they give the method, then the solve."""
     from tumblecal_cli.core import segment
+    from tumblecal_cli.io import calfile
     from tumblecal_cli.pipeline import logs
     from tumblecal_cli.pipeline.options import method_options
 
@@ -334,7 +336,21 @@ def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
         int(s.block or 0): f"used: {label}" if label else "used" for s, label in zip(samples, labels, strict=True)
     }
     method_options(name, given.reference, options.plane, options.bias_spread)
-    segmentation = {"log": data.layout.name, "sha256": data.sha256} | seg.as_dict()
+    segmentation = calfile.Segmentation(
+        data.layout.name,
+        data.sha256,
+        "detector" if seg.threshold is not None else "label column",
+        window_samples=seg.window,
+        sample_period_s=seg.period,
+        threshold=seg.threshold,
+        noise_floor=seg.noise_floor,
+        min_samples=seg.min_samples,
+        trim_samples=seg.trim,
+        centre=seg.centre,
+        blocks_found=len(seg.blocks),
+        blocks_kept=len(seg.kept),
+        gaps=len(seg.gaps),
+    )
     given = replace(given, centre=seg.centre)
     whole = [data.values if data.extremes is None else data.extremes]  # the still blocks alone: the extremes
     solved = _solve(name, labels, samples, options, given, whole=whole, notes=notes, segmentation=segmentation)
@@ -351,7 +367,7 @@ def _solve(
     *,
     whole: list[FloatArray],
     notes: list[str] | None = None,
-    segmentation: dict[str, object] | None = None,
+    segmentation: calfile.Segmentation | None = None,
     by_name: bool = False,
     labelled: bool = False,
 ) -> Solved:
@@ -417,8 +433,8 @@ def _solve(
         return Solved(3, None, error=err, samples=samples, limits=given.limits)
     solution = fit.solution
     judged = given.limits.gain_error is not None or given.limits.nominal_gain_given
-    if ref > 0 and solution.method in GAIN_SOLVERS and judged:
-        check_gains(solution.gain, ref, given.limits.nominal_gain)
+    if ref > 0 and solution.method in gate.GAIN_SOLVERS and judged:
+        gate.check_gains(solution.gain, ref, given.limits.nominal_gain)
     limits = given.limits.for_method(solution.method)
     measured = [
         gate.measure(n, f, s.values, st, checks) for n, f, s, st in zip(names, labels, samples, stats, strict=True)
@@ -467,7 +483,7 @@ def _solve(
         tolerance_deg=options.fixture_tolerance,
         gain_tolerance=options.gain_tolerance if solution.method in ONE_POSE else None,
         unit=given.unit,
-        verdict=calfile.Verdict(not failures, tuple(f.as_dict() for f in failures), limits.as_dict()),
+        verdict=calfile.Verdict(not failures, tuple(failures), limits),
         segmentation=segmentation,
     )
     read = list(dict.fromkeys(n for s in samples for n in s.layout.notes))  # how the files were read
@@ -478,7 +494,7 @@ def _solve(
         first = rejected[0]
         # the draft is never to be trusted: its verdict fails with the rejections, so apply and
         # export refuse it without --force if it is saved
-        refused = calfile.Verdict(False, tuple(f.as_dict() for f in rejected), limits.as_dict())
+        refused = calfile.Verdict(False, tuple(rejected), limits)
         solved.status, solved.calibration, solved.rejections = 3, None, rejected
         solved.draft = cal.with_verdict(refused)
         solved.error = CaptureRejected(
@@ -530,48 +546,6 @@ def _six_faces(
 
 #: The solvers without gains whose up-axis offset absorbs that axis's gain error (--gain-tolerance).
 ONE_POSE = ("one-pose", "one-pose-tilt")
-#: Solvers that estimate gains, each judged by check_gains.
-GAIN_SOLVERS = ("three-pose", "six-pose", "six-pose-diagonal", "six-pose-magnitude", "least-squares", "sphere")
-#: Gains this far from nominal are not a sensor's error but a units mistake (exit 2, not exit 1).
-GAIN_UNITS_TOLERANCE = 0.25
-
-
-def check_gains(gain: FloatArray, reference: float, nominal: FloatArray) -> None:
-    """Gains judged against a nominal (a gain-error limit, or --nominal-gain) that are all more
-    than GAIN_UNITS_TOLERANCE from it, and alike: the data is in other units than the station
-    was set up for. Exit 2, naming the --reference (or --nominal-gain) the data suggests; exit 1
-    would fail good hardware on a misconfigured station. Unjudged gains are whatever scale the
-    data needs (16384 for counts into g): a gain solver corrects any units."""
-    from tumblecal_cli.core import model
-
-    ratio = gain / nominal
-    # a units mistake scales every axis alike; one axis off (a swapped or upside-down pose, a
-    # broken axis) is the quality checks' and the limits' to judge
-    alike = bool((ratio > 0).all()) and float(ratio.max() / ratio.min()) <= 1.0 + GAIN_UNITS_TOLERANCE
-    if not alike or float(abs(ratio - 1.0).min()) <= GAIN_UNITS_TOLERANCE:
-        return
-    shown = ", ".join(f"{g:.4g}" for g in gain)
-    nominal_text = ", ".join(f"{n:g}" for n in nominal) if len(set(nominal.tolist())) > 1 else f"{nominal[0]:g}"
-    typical = float(gain.mean())
-    suggested = model.suggest_reference(reference * typical / float(nominal.mean()))
-    units = {1.0: "g", 9.80665: "m/s^2", 1000.0: "mg"}.get(suggested)
-    if abs(typical - 1.0) <= GAIN_UNITS_TOLERANCE:
-        hint = (
-            "the gains are near 1, as for data in the units of --reference: check --nominal-gain "
-            "(or the limits file's nominal_gain)"
-        )
-    elif units is not None and suggested != reference:
-        hint = f"the data looks like {units}: run with --reference {suggested:g}"
-    else:
-        hint = (
-            f"the data looks like raw counts (about {typical:.4g} per unit of --reference): give --nominal-gain "
-            f"{model.suggest_reference(typical):g} to judge the gains as counts per unit, or --reference "
-            f"{model.suggest_reference(reference * typical):g} to keep the output in counts"
-        )
-    raise InputError(
-        f"gains {shown} are {float(ratio.mean()) - 1:+.0%} from the nominal gain {nominal_text}: a units mistake?",
-        hint=hint,
-    )
 
 
 def check_units(name: str, centred: FloatArray, reference: float) -> None:
@@ -597,53 +571,45 @@ def check_units(name: str, centred: FloatArray, reference: float) -> None:
     )
 
 
-def pose_record(s: Samples, m: PoseCheck, c: Corrected) -> dict[str, object]:
+def pose_record(s: Samples, m: PoseCheck, c: Corrected) -> Pose:
     """A pose's entry in the calibration file: what it was, what it measured, how it corrects."""
-    record: dict[str, object] = {
-        "pose": m.face,
-        "file": s.layout.name,
-        "sha256": s.sha256,
-        "rows": list(s.rows),
-        **({} if s.block is None else {"block": s.block}),
-        **({} if s.times is None else {"times": list(s.times)}),
-        "samples": m.stats.samples,
-        "mean": [float(v) for v in m.stats.mean],
-        "std": [float(v) for v in m.stats.std],
-    }
-    if s.duration is not None:
-        record["duration_s"] = s.duration
-    if s.temperature is not None:
-        record["temperature"] = s.temperature
-    record["angle_deg"] = m.angle_deg
-    record["clipped"] = m.clipped
-    record["drift"] = [float(v) for v in m.drift]
-    record["norm_error"] = c.norm_error
-    record["vector_error"] = c.vector_error
-    return record
+    from tumblecal_cli.io.calfile import Pose
+
+    return Pose(
+        face=m.face,
+        mean=m.stats.mean,
+        samples=m.stats.samples,
+        std=m.stats.std,
+        file=s.layout.name,
+        sha256=s.sha256,
+        rows=s.rows,
+        block=s.block,
+        times=s.times,
+        duration_s=s.duration,
+        temperature=s.temperature,
+        angle_deg=m.angle_deg,
+        clipped=m.clipped,
+        drift=m.drift,
+        norm_error=c.norm_error,
+        vector_error=c.vector_error,
+    )
 
 
 def tilt_notes(cal: Calibration) -> list[str]:
     """A note when fixture tilt, not noise, bounds how well the parameters are known."""
     tilt, se = cal.tilt_sensitivity, cal.uncertainty
-    if not tilt or not se:
+    if tilt is None or not se:
         return []
-    tilt = dict(tilt) | {"offset": tilt_only(cal)}
-    dominated = [
-        n
-        for n in ("offset", "gain")
-        if any(t > 3 * u for t, u in zip(tilt[n], se[n], strict=True))  # type: ignore[call-overload]
-    ]
+    shifts = {"offset": tilt_only(cal), "gain": [float(v) for v in tilt.gain]}
+    dominated = [n for n in ("offset", "gain") if any(t > 3 * u for t, u in zip(shifts[n], se[n], strict=True))]
     if not dominated:
         return []
-    worst = " and ".join(
-        f"the {n}s by up to {max(tilt[n]):.2g} (noise: {max(se[n]):.2g})"  # type: ignore[call-overload]
-        for n in dominated
-    )
+    worst = " and ".join(f"the {n}s by up to {max(shifts[n]):.2g} (noise: {max(se[n]):.2g})" for n in dominated)
     advice = "level the fixture better and state how well with --fixture-tolerance"
     if cal.method in ("one-pose", "three-pose"):
         advice += ", or capture the six faces (six-pose takes offsets and gains from vertical readings only)"
-    level = tilt.get("tolerance_deg")  # a file from elsewhere may not say at what tilt
-    off = f"{level:g}° off level" if isinstance(level, int | float) else "the fixture's tilt"
+    level = tilt.tolerance_deg  # a file from elsewhere may not say at what tilt
+    off = f"{level:g}° off level" if level is not None else "the fixture's tilt"
     return [f"fixture tilt, not noise, limits this calibration: {off} moves {worst}; " + advice]
 
 
@@ -652,12 +618,13 @@ def tilt_only(cal: Calibration) -> list[float]:
     1-pose up axis (solvers.gain_error_bound): what fixture tilt alone moves them by."""
     from tumblecal_cli.core import model, solvers
 
-    tilt = cal.tilt_sensitivity or {}
-    offset = [float(v) for v in tilt.get("offset") or []]  # type: ignore[attr-defined]
-    tolerance = tilt.get("gain_tolerance")
-    face = cal.poses[0].get("pose") if cal.poses else None
-    if isinstance(tolerance, int | float) and face in model.FACES and len(offset) == 3:
-        part = solvers.gain_error_bound(cal.reference, float(tolerance))
+    tilt = cal.tilt_sensitivity
+    if tilt is None:
+        return []
+    offset = [float(v) for v in tilt.offset]
+    face = cal.poses[0].face if cal.poses else None
+    if tilt.gain_tolerance is not None and face in model.FACES:
+        part = solvers.gain_error_bound(cal.reference, tilt.gain_tolerance)
         offset = [v - abs(c) * part for v, c in zip(offset, model.FACES[face], strict=True)]
     return offset
 

@@ -179,9 +179,10 @@ def _reference_temperature(base: Calibration, given: float | None) -> float:
         if not COLDEST <= float(given) <= HOTTEST:  # nan, inf, or no temperature a sensor works at
             raise InputError(f"--reference-temperature must be in °C, from {COLDEST:g} to {HOTTEST:g}, got {given:g}")
         return float(given)
-    recorded = [p.get("temperature") for p in base.poses]
-    if recorded and all(isinstance(t, int | float) for t in recorded):
-        return float(sum(recorded)) / len(recorded)  # type: ignore[arg-type]
+    recorded = [p.temperature for p in base.poses]
+    temperatures = [t for t in recorded if t is not None]
+    if recorded and len(temperatures) == len(recorded):
+        return float(sum(temperatures)) / len(temperatures)
     raise InputError(
         "the base calibration records no temperature for its poses",
         file=base.path,

@@ -19,7 +19,8 @@ from tumblecal_cli.io import readings
 from tumblecal_cli.pipeline.options import pose_map
 
 if TYPE_CHECKING:
-    from tumblecal_cli.io.calfile import Calibration
+    from tumblecal_cli.core.model import FloatArray
+    from tumblecal_cli.io.calfile import Calibration, GSensitivity, Pose, Rotation, Segmentation, Turn
     from tumblecal_cli.io.readings import Log
     from tumblecal_cli.pipeline.options import Settings, SolveOptions
 
@@ -51,6 +52,17 @@ class Outcome:
     error: CaptureRejected | None = None
     notes: list[str] = field(default_factory=list)
     failures: list[Finding] = field(default_factory=list)  # the limits it is outside
+
+
+@dataclass(frozen=True)
+class Made:
+    """What a gyroscope's calibration from turns was made of, beside its poses: the log's
+    ``segmentation``, and its known ``turns`` and ``g_sensitivity`` or its hand ``rotations``."""
+
+    segmentation: Segmentation
+    turns: tuple[Turn, ...] | None = None
+    g_sensitivity: GSensitivity | None = None
+    rotations: tuple[Rotation, ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -260,64 +272,62 @@ def _calibration(
     options: SolveOptions,
     given: Settings,
 ) -> tuple[Calibration, list[Finding]]:
+    from tumblecal_cli.io import calfile
+
     solution = fit.solution
     poses = [
-        {
-            "pose": face,
-            "file": gyr.layout.name,
-            "sha256": gyr.sha256,
-            "rows": list(s.rows(gyr)),
-            "label": s.label,
-            "samples": len(s.index),
-            "mean": [float(v) for v in gyr.values[s.index].mean(axis=0)],
-            "std": [float(v) for v in gyr.values[s.index].std(axis=0, ddof=1)] if len(s.index) > 1 else [0.0] * 3,
-            "accelerometer_mean": [float(v) for v in acc.values[s.index].mean(axis=0)],
-        }
+        calfile.Pose(
+            face=face,
+            mean=gyr.values[s.index].mean(axis=0),
+            samples=len(s.index),
+            std=gyr.values[s.index].std(axis=0, ddof=1) if len(s.index) > 1 else np.zeros(3),
+            file=gyr.layout.name,
+            sha256=gyr.sha256,
+            rows=s.rows(gyr),
+            label=s.label,
+            accelerometer_mean=acc.values[s.index].mean(axis=0),
+        )
         for face, s in zip(faces, secs, strict=True)
     ]
     found = sections(gyr)
-    extra = {
-        "turns": [
-            {
-                "label": label,
-                "axis": axis,
-                "angle_deg": t.angle_deg,
-                "rows": list(found[label].rows(gyr)),
-                "samples": len(t.gyr),
-                "duration_s": float(t.dt.sum()),
-                "integrated": [float(v) for v in fit.integrated[:, k]],
-                "measured_deg": float(fit.measured_deg[k]),
-                "residual_deg": float(fit.residual_deg[k]),
-            }
+    made = Made(
+        segmentation=calfile.Segmentation(gyr.layout.name, gyr.sha256, "label column"),
+        turns=tuple(
+            calfile.Turn(
+                label,
+                axis,
+                t.angle_deg,
+                rows=found[label].rows(gyr),
+                samples=len(t.gyr),
+                duration_s=float(t.dt.sum()),
+                integrated=fit.integrated[:, k],
+                measured_deg=float(fit.measured_deg[k]),
+                residual_deg=float(fit.residual_deg[k]),
+            )
             for k, ((label, axis), t) in enumerate(zip(turns.items(), given_turns, strict=True))
-        ],
-        "g_sensitivity": {
-            "matrix": [[float(v) for v in row] for row in fit.g_sensitivity],
-            "units": "raw units per g; column j: gravity along +j (not applied by apply)",
-            "accelerometer": {
-                "columns": acc.layout.sensor_names,
-                "offset": [float(v) for v in fit.acc_offset],
-                "matrix": [[float(v) for v in row] for row in fit.acc_matrix],
-            },
-        },
-        "segmentation": {"log": gyr.layout.name, "sha256": gyr.sha256, "source": "label column"},
-    }
-    return gyro_calibration(solution, gyr, poses, fit.residual_deg, fit.cross_se, extra, options, given)
+        ),
+        g_sensitivity=calfile.GSensitivity(
+            fit.g_sensitivity,
+            "raw units per g; column j: gravity along +j (not applied by apply)",
+            calfile.Accelerometer(tuple(acc.layout.sensor_names), fit.acc_offset, fit.acc_matrix),
+        ),
+    )
+    return gyro_calibration(solution, gyr, poses, fit.residual_deg, fit.cross_se, made, options, given)
 
 
 def gyro_calibration(
     solution: model.Solution,
     gyr: Log,
-    poses: list[dict[str, Any]],
-    residual_deg: Any,
-    cross_se: Any,
-    extra: dict[str, Any],
+    poses: list[Pose],
+    residual_deg: FloatArray,
+    cross_se: FloatArray | None,
+    made: Made,
     options: SolveOptions,
     given: Settings,
 ) -> tuple[Calibration, list[Finding]]:
     """A gyroscope's calibration from known turns or hand turns: judged by the limits, built with
-    its ``poses`` (the still sections or blocks), and ``extra`` (the turns or rotations, the
-    segmentation) placed right after the poses; and the limits it fails."""
+    its ``poses`` (the still sections or blocks) and what it was ``made`` of (the turns or
+    rotations, the segmentation); and the limits it fails."""
     from tumblecal_cli.core import gate
     from tumblecal_cli.core.solvers import Fit
     from tumblecal_cli.io import calfile
@@ -334,11 +344,10 @@ def gyro_calibration(
         poses=poses,
         fit=Fit(solution, residuals=residual_deg, cross_se=cross_se),
         unit=given.unit,
-        verdict=calfile.Verdict(not failures, tuple(f.as_dict() for f in failures), limits.as_dict()),
+        verdict=calfile.Verdict(not failures, tuple(failures), limits),
+        segmentation=made.segmentation,
+        turns=made.turns,
+        g_sensitivity=made.g_sensitivity,
+        rotations=made.rotations,
     )
-    doc: dict[str, Any] = {}
-    for key, value in cal.to_dict().items():
-        doc[key] = value
-        if key == "poses":
-            doc.update(extra)
-    return calfile.from_dict(doc), failures
+    return cal, failures

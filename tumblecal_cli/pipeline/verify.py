@@ -95,7 +95,7 @@ def verify(
         or (c.input_units is not None and c.input_units == c.units)
         or (len(gains) == 3 and all(abs(g - 1.0) < 0.2 for g in gains))
     )
-    fitted = {str(p.get("sha256")): str(p.get("file")) for p in c.poses if p.get("sha256")}
+    fitted = {p.sha256: str(p.file) for p in c.poses if p.sha256}
     result = Verified(0, c, ref, max_norm_error, [], {})
     for path in paths:
         s = _read(path, c, spec, result.notes)
@@ -149,7 +149,7 @@ def _units(name: str, c: Calibration, raw: float, norm: float, ref: float) -> No
 
     if not ref > 0 or abs(norm - ref) <= UNITS_TOLERANCE * ref:
         return
-    made = [float(sum(v * v for v in p["mean"]) ** 0.5) for p in c.poses if isinstance(p.get("mean"), list)]
+    made = [float(sum(v * v for v in p.mean) ** 0.5) for p in c.poses]
     hint = "correct captures in the units the calibration was made from"
     if made:
         typical = sorted(made)[len(made) // 2]
