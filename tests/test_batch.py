@@ -182,7 +182,7 @@ def test_batch_internal_error_in_one_unit_is_its_row(
     solve = pipeline.run
 
     def flaky(options: Any, **kwargs: Any) -> Any:
-        if options.serial == "B":
+        if options.unit.serial == "B":
             raise RuntimeError("boom")
         return solve(options, **kwargs)
 

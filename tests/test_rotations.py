@@ -223,7 +223,7 @@ def test_xsens_hand_turns_fitted_on_one_half_judged_on_the_other(tmp_path: Path)
     cal = json.loads(out.read_text())
     assert len(cal["rotations"]) == 17
     assert cal["residuals"]["rms"] < 0.5  # measured 0.347°
-    options = SolveOptions(sensor="gyroscope", accel_cal=str(acc))
+    options = SolveOptions.of({"sensor": "gyroscope", "accel_cal": str(acc)})
     fitted, held = hand_turns(str(first), options), hand_turns(str(second), options)
     assert len(held.rotations) == 19
     scale = core.start_scale(fitted.rotations, fitted.bias)

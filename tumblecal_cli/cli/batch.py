@@ -11,8 +11,7 @@ import typer
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
 from tumblecal_cli.cli.options import STATUS_WORDS
-from tumblecal_cli.cli.solve import solve
-from tumblecal_cli.pipeline.options import SolveOptions
+from tumblecal_cli.cli.solve import OPTION_NAMES, solve, solve_options
 
 BATCH_PANEL = "Batch"
 BATCH_EXIT = """\
@@ -102,9 +101,9 @@ def _batch_options(
 
 
 def _batch_signature() -> inspect.Signature:
-    """batch takes its own options and every option of solve that SolveOptions holds, but a unit's serial."""
+    """batch takes its own options and every option of solve (solve_options), but a unit's serial."""
     own = list(inspect.signature(_batch_options, eval_str=True).parameters.values())
-    shared = SolveOptions.names()
+    shared = OPTION_NAMES
     solves = inspect.signature(solve, eval_str=True).parameters.items()
     return inspect.Signature(own + [p for n, p in solves if n in shared and n != "serial"])
 
@@ -126,7 +125,6 @@ def batch(**given: Any) -> None:
     """
 
     from tumblecal_cli.pipeline import batch as batches
-    from tumblecal_cli.pipeline.options import SolveOptions
 
     own = {name: given.pop(name) for name in list(given) if name in _BATCH_OWN}
     quiet, console = own["quiet"], render.make_console()
@@ -151,7 +149,7 @@ def batch(**given: Any) -> None:
         result = batches.run_batch(
             own["source"],
             out_dir,
-            SolveOptions.of(given),
+            solve_options(**given),
             log=own["log"],
             jobs=own["jobs"],
             resume=own["resume"],

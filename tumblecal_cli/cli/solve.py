@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import os
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -48,6 +49,7 @@ from tumblecal_cli.errors import InputError
 if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Limits
     from tumblecal_cli.io.calfile import Calibration
+    from tumblecal_cli.pipeline.options import SolveOptions
     from tumblecal_cli.pipeline.solve import Solved
 
 
@@ -299,10 +301,9 @@ def solve(
       tumblecal solve --log session.csv --rate 102.4 --reference 9.81 -o cal.json   # one continuous log
     """
 
-    given = dict(locals())
+    options = solve_options(**{name: value for name, value in locals().items() if name in OPTION_NAMES})
     from tumblecal_cli.io.outputs import check_not_input, check_writable
     from tumblecal_cli.pipeline import solve as pipeline
-    from tumblecal_cli.pipeline.options import SolveOptions
 
     inputs = [*(poses or []), *(p.partition("=")[2] for p in poses or [] if "=" in p), *([log] if log else [])]
     inputs += [limits] if limits else []
@@ -313,8 +314,98 @@ def solve(
     check_writable(output)
     if plot is not None:
         _plot_target(plot, output, json_summary, inputs)
-    solved = pipeline.run(SolveOptions.of(given), poses=poses, log=log)
+    solved = pipeline.run(options, poses=poses, log=log)
     _show(solved, output=output, json_summary=json_summary, quiet=quiet, plot=plot, plane=plane and plane.value)
+
+
+def solve_options(
+    *,
+    method: str,
+    sensor: str,
+    reference: float | None,
+    up: str | None,
+    tilt_compensate: bool,
+    bias_spread: float | None,
+    plane: str | None,
+    units: str | None,
+    input_units: str | None,
+    columns: str | None,
+    no_header: bool,
+    time_column: str | None,
+    time_unit: str,
+    rate: float | None,
+    skip_rows: int | None,
+    decimal: str | None,
+    drop_incomplete: bool,
+    window: float | None,
+    threshold: float | None,
+    min_duration: float | None,
+    trim: float | None,
+    pose_column: str | None,
+    pose_map: str | None,
+    turns: str | None,
+    turn_angle: float | None,
+    accel_cal: str | None,
+    max_noise: float | None,
+    max_tilt: float,
+    nominal_offset: str | None,
+    full_scale: float | None,
+    min_samples: int,
+    fixture_tolerance: float,
+    gain_tolerance: float,
+    no_checks: bool,
+    no_check: list[CheckName] | None,
+    limits: str | None,
+    max_offset: str | None,
+    max_gain_error: str | None,
+    nominal_gain: str | None,
+    serial: str | None = None,
+    station: str | None,
+    operator: str | None,
+    meta: list[str] | None,
+) -> SolveOptions:
+    """solve's options as the command line parsed them (batch's for every unit), grouped as the
+    pipeline takes them; a choice is its text (a StrEnum's value)."""
+    from tumblecal_cli.io.readspec import Dialect, ReadSpec, column_list
+    from tumblecal_cli.pipeline import options as opts
+
+    return opts.SolveOptions(
+        method=str(method),
+        reference=reference,
+        up=up,
+        tilt_compensate=tilt_compensate,
+        bias_spread=bias_spread,
+        plane=None if plane is None else str(plane),
+        units=units,
+        input_units=input_units,
+        read=ReadSpec(
+            sensor=str(sensor),
+            columns=column_list(columns),
+            no_header=no_header,
+            time_column=time_column,
+            time_unit=str(time_unit),
+            rate=rate,
+            dialect=Dialect(skip_rows, None if decimal is None else str(decimal), drop_incomplete),
+        ),
+        log=opts.LogOptions(window, threshold, min_duration, trim, pose_column, pose_map, turns, turn_angle, accel_cal),
+        checks=opts.CheckOptions(
+            max_noise,
+            max_tilt,
+            nominal_offset,
+            full_scale,
+            min_samples,
+            fixture_tolerance,
+            gain_tolerance,
+            no_checks,
+            tuple(str(c) for c in no_check or ()),
+        ),
+        limits=opts.LimitOptions(limits, max_offset, max_gain_error, nominal_gain),
+        unit=opts.UnitOptions(serial, station, operator, tuple(meta or ())),
+    )
+
+
+#: The parameters of solve that are its options (the rest say what to read and where to write).
+OPTION_NAMES = tuple(inspect.signature(solve_options).parameters)
 
 
 def _show(solved: Solved, *, output: str, json_summary: bool, quiet: bool, plot: str | None, plane: str | None) -> None:

@@ -19,7 +19,7 @@ import os
 import re
 import sys
 from collections.abc import Callable, Iterable, Iterator, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 from tumblecal_cli.errors import STOPS, InputError, TumblecalError, control_character
@@ -270,7 +270,7 @@ def _run_unit(unit: Unit, options: SolveOptions, out_dir: str, log: bool, token:
     if log and len(unit.inputs) != 1:
         return row | _failed(InputError(f"--log takes one log per unit; {unit.serial} has {len(unit.inputs)} files"))
     try:
-        mine = options.replace(serial=unit.serial)
+        mine = replace(options, unit=replace(options.unit, serial=unit.serial))
         solved = solve.run(mine, log=unit.inputs[0]) if log else solve.run(mine, poses=list(unit.inputs))
         if solved.error is not None:
             raise solved.error
@@ -684,7 +684,7 @@ def run_batch(
     out_dir = path_of(out_dir, "run_batch writes into a folder (out_dir)")
     if options is not None and not isinstance(options, SolveOptions | Mapping):
         raise InputError(f"run_batch's options are a SolveOptions or a mapping, not a {type(options).__name__}")
-    options = checked(options if isinstance(options, SolveOptions) else SolveOptions(**(options or {})))
+    options = checked(options if isinstance(options, SolveOptions) else SolveOptions.of(options or {}))
     if out_dir == "-":
         raise InputError("--out-dir takes a folder: the calibrations are files, not a stream on stdout")
     settings(options, log=log)  # a bad option: one error, not one per unit
@@ -693,8 +693,8 @@ def run_batch(
     if scheduler is not None:  # the workers do not share this working folder
         units = [Unit(u.serial, tuple(absolute(i) for i in u.inputs), u.problem, u.inputs) for u in units]
         out_dir = os.path.abspath(out_dir)
-        if options.limits:
-            options = options.replace(limits=os.path.abspath(options.limits))
+        if options.limits.file:
+            options = replace(options, limits=replace(options.limits, file=os.path.abspath(options.limits.file)))
     if os.path.exists(out_dir) and not os.path.isdir(out_dir):
         raise InputError("is a file, not a folder: --out-dir takes a folder", file=out_dir)
     summary_path = os.path.join(out_dir, SUMMARY)

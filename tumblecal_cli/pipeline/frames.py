@@ -33,7 +33,7 @@ def samples_of(label: str, data: Any, options: SolveOptions) -> Samples:
     try:
         if hasattr(data, "columns") and hasattr(data, "to_numpy"):
             names = [str(c) for c in data.columns]
-            triplet = sniff.sensor_triplet(names, sensor=options.sensor, columns=options.column_names, name=name)
+            triplet = sniff.sensor_triplet(names, sensor=options.read.sensor, columns=options.read.columns, name=name)
             picked = [names[i] for i in triplet]
             values = np.asarray(data.iloc[:, list(triplet)].to_numpy(dtype=np.float64, na_value=np.nan))
         else:
@@ -47,7 +47,7 @@ def samples_of(label: str, data: Any, options: SolveOptions) -> Samples:
         raise InputError("a reading that is not a finite number", file=name)
     layout = sniff.Layout(name, ",", picked, True, b"", 1, "\n")
     digest = hashlib.sha256(np.ascontiguousarray(values).tobytes()).hexdigest()
-    rate = options.rate
+    rate = options.read.rate
     duration = (len(values) / rate) if rate else None
     return readings.Samples(layout, values, (0, len(values) - 1), digest, duration)
 

@@ -10,56 +10,43 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from typing import TYPE_CHECKING, TypedDict
 
 from tumblecal_cli.errors import InputError, control_character
+from tumblecal_cli.io.readspec import Dialect, ReadSpec, column_list
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Limits
     from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfile import Unit
-    from tumblecal_cli.io.readspec import Dialect, ReadSpec
 
 #: A number, or three (X,Y,Z): text as the command line gives it, or numbers.
 Triplet = str | float | Sequence[float]
 
 
 @dataclass(frozen=True)
-class SolveOptions:
-    """solve's options (README "solve"); each the long option of the command line in snake case."""
+class LogOptions:
+    """How a continuous log is cut (solve --log): its still blocks found (``window``,
+    ``threshold``, ``min_duration``, ``trim``) or taken from a label column (``pose_column``,
+    ``pose_map``); a gyroscope's known turns (``turns``, ``turn_angle``) or hand turns
+    (``accel_cal``)."""
 
-    method: str = "auto"
-    sensor: str = "accelerometer"
-    reference: float | None = None
-    up: str | None = None
-    tilt_compensate: bool = False
-    bias_spread: float | None = None
-    plane: str | None = None
-    units: str | None = None
-    input_units: str | None = None
-    # reading the files
-    columns: str | Sequence[str] | None = None
-    no_header: bool = False
-    time_column: str | None = None
-    time_unit: str = "auto"
-    rate: float | None = None
-    skip_rows: int | None = None
-    decimal: str | None = None
-    drop_incomplete: bool = False
-    # a continuous log (solve --log)
     window: float | None = None
     threshold: float | None = None
     min_duration: float | None = None
     trim: float | None = None
     pose_column: str | None = None
     pose_map: str | Mapping[str, str] | None = None
-    # a gyroscope's known turns in a labelled log (solve --log --sensor gyroscope)
     turns: str | Mapping[str, str] | None = None
     turn_angle: float | None = None
-    # a gyroscope's hand turns between still poses (solve --log --sensor gyroscope)
     accel_cal: str | None = None
-    # quality checks (exit 3)
+
+
+@dataclass(frozen=True)
+class CheckOptions:
+    """The quality checks a capture must pass (exit 3, README "Quality checks")."""
+
     max_noise: float | None = None
     max_tilt: float = 25.0
     nominal_offset: Triplet | None = None
@@ -69,62 +56,95 @@ class SolveOptions:
     gain_tolerance: float = 0.02
     no_checks: bool = False
     no_check: Sequence[str] = ()
-    # limits (exit 1)
-    limits: str | None = None
+
+
+@dataclass(frozen=True)
+class LimitOptions:
+    """The limits a unit is judged by (exit 1): a limits ``file`` and the flags over it."""
+
+    file: str | None = None
     max_offset: Triplet | None = None
     max_gain_error: Triplet | None = None
     nominal_gain: Triplet | None = None
-    # traceability
+
+
+@dataclass(frozen=True)
+class UnitOptions:
+    """Who and what is calibrated (traceability)."""
+
     serial: str | None = None
     station: str | None = None
     operator: str | None = None
     meta: Sequence[str] | Mapping[str, str] = ()
 
+
+@dataclass(frozen=True)
+class SolveOptions:
+    """solve's options (README "solve"), grouped: how the files are ``read``, how a ``log`` is
+    cut, the ``checks`` (exit 3), the ``limits`` (exit 1) and the ``unit``; the method's own
+    options at the top. :meth:`of` takes them as the command line names them (the Python API's
+    keywords)."""
+
+    method: str = "auto"
+    reference: float | None = None
+    up: str | None = None
+    tilt_compensate: bool = False
+    bias_spread: float | None = None
+    plane: str | None = None
+    units: str | None = None
+    input_units: str | None = None
+    read: ReadSpec = field(default_factory=ReadSpec)
+    log: LogOptions = field(default_factory=LogOptions)
+    checks: CheckOptions = field(default_factory=CheckOptions)
+    limits: LimitOptions = field(default_factory=LimitOptions)
+    unit: UnitOptions = field(default_factory=UnitOptions)
+
     @classmethod
     def of(cls, given: Mapping[str, object]) -> SolveOptions:
-        """The options among ``given`` (a command's parameters: other names are left out; an
-        enum is its value). An option this class does not know is a TypeError, as for a function."""
-        names = {f.name for f in fields(cls)}
-        picked = {k: getattr(v, "value", v) for k, v in given.items() if k in names and v is not None}
-        for key in ("meta", "no_check"):  # lists of values, each an enum's or text
-            if key in picked:
-                picked[key] = [getattr(v, "value", v) for v in picked[key]]  # type: ignore[attr-defined]
-        return cls(**picked)  # type: ignore[arg-type]
+        """The options named as the command line names them (``reference=``, ``max_noise=``,
+        ``limits=`` for a limits file, ``serial=`` ...; an enum is its value). A name it does
+        not know is a TypeError, as for a function's keyword."""
+        groups: dict[str, dict[str, object]] = {g: {} for g in ("", "read", "dialect", *GROUPS)}
+        for name, value in given.items():
+            if name not in FLAT:
+                raise TypeError(f"solve() got an unexpected keyword argument {name!r}")
+            if value is None:
+                continue
+            value = getattr(value, "value", value)
+            if name in ("meta", "no_check") and isinstance(value, list | tuple):  # each an enum's or text
+                value = [getattr(v, "value", v) for v in value]
+            if name == "columns":
+                value = column_list(value)  # type: ignore[arg-type]
+            group, key = FLAT[name]
+            groups[group][key] = value
+        dialect = Dialect(**groups.pop("dialect"))  # type: ignore[arg-type]
+        read = replace(ReadSpec(), dialect=dialect, **groups.pop("read"))  # type: ignore[arg-type]
+        parts = {g: kind(**groups.pop(g)) for g, kind in GROUPS.items()}
+        return cls(**groups.pop(""), read=read, **parts)  # type: ignore[arg-type]
 
-    @classmethod
-    def names(cls) -> tuple[str, ...]:
-        return tuple(f.name for f in fields(cls))
+    def flat(self) -> dict[str, object]:
+        """Each option by the command line's name (as :meth:`of` takes them)."""
+        out: dict[str, object] = {}
+        for name, (group, key) in FLAT.items():
+            holder = self if not group else self.read.dialect if group == "dialect" else getattr(self, group)
+            out[name] = getattr(holder, key)
+        return out
 
-    def replace(self, **changes: object) -> SolveOptions:
-        return SolveOptions(**(asdict(self) | changes))
 
-    @property
-    def dialect(self) -> Dialect:
-        """How the files are written, where the sniffer should not guess (sniff.Dialect)."""
-        from tumblecal_cli.io.readspec import Dialect
-
-        return Dialect(self.skip_rows, self.decimal, self.drop_incomplete)
-
-    @property
-    def read(self) -> ReadSpec:
-        """How the pose files or the log are read (io.readspec)."""
-        from tumblecal_cli.io.readspec import ReadSpec, column_list
-
-        return ReadSpec(
-            sensor=self.sensor,
-            columns=column_list(self.columns),
-            no_header=self.no_header,
-            time_column=self.time_column,
-            time_unit=self.time_unit,
-            rate=self.rate,
-            dialect=self.dialect,
-        )
-
-    @property
-    def column_names(self) -> list[str] | None:
-        if self.columns is None or self.columns == "":
-            return None
-        return self.columns.split(",") if isinstance(self.columns, str) else [str(c) for c in self.columns]
+GROUPS: dict[str, type] = {"log": LogOptions, "checks": CheckOptions, "limits": LimitOptions, "unit": UnitOptions}
+#: Each option's name on the command line (snake case) and where SolveOptions keeps it: its
+#: group ("" the top) and its field there.
+FLAT: dict[str, tuple[str, str]] = {
+    **{f: ("", f) for f in ("method", "reference", "up", "tilt_compensate", "bias_spread", "plane", "units")},
+    "input_units": ("", "input_units"),
+    **{f: ("read", f) for f in ("sensor", "columns", "no_header", "time_column", "time_unit", "rate")},
+    **{f: ("dialect", f) for f in ("skip_rows", "decimal", "drop_incomplete")},
+    **{f.name: ("log", f.name) for f in fields(LogOptions)},
+    **{f.name: ("checks", f.name) for f in fields(CheckOptions)},
+    "limits": ("limits", "file"),
+    **{f: ("limits", f) for f in ("max_offset", "max_gain_error", "nominal_gain")},
+    **{f.name: ("unit", f.name) for f in fields(UnitOptions)},
+}
 
 
 class FileKeywords(TypedDict, total=False):
@@ -195,17 +215,8 @@ class Settings:
     pose_map: dict[str, str]
 
 
-LOG_ONLY = (
-    "window",
-    "threshold",
-    "min_duration",
-    "trim",
-    "pose_column",
-    "pose_map",
-    "turns",
-    "turn_angle",
-    "accel_cal",
-)
+#: The options only a continuous log takes (solve --log).
+LOG_ONLY = tuple(f.name for f in fields(LogOptions))
 #: The choices of the options that take one (the command line's own enums).
 CHOICES = {
     "time_unit": ("auto", "s", "ms", "us", "ns"),
@@ -236,30 +247,31 @@ def checked(options: SolveOptions) -> SolveOptions:
     from tumblecal_cli.core.methods import METHODS
     from tumblecal_cli.core.model import SENSORS
 
+    flat = options.flat()
     for name, allowed in {"method": ("auto", *METHODS), "sensor": SENSORS, **CHOICES}.items():
-        value = getattr(options, name)
+        value = flat[name]
         if value is not None and value not in allowed:
             raise InputError(f"--{name.replace('_', '-')}: {value!r} is not one of {', '.join(allowed)}")
     for name in NUMBERS:
-        value = getattr(options, name)
+        value = flat[name]
         if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)):
             raise InputError(f"--{name.replace('_', '-')} takes a number, got {value!r}")
-    options.dialect  # noqa: B018 - checks --skip-rows and --decimal
-    if isinstance(options.min_samples, bool) or not isinstance(options.min_samples, int) or options.min_samples < 1:
-        raise InputError(f"--min-samples takes a whole number of 1 or more, got {options.min_samples!r}")
-    if not 0 <= options.fixture_tolerance <= 30:
-        raise InputError(f"--fixture-tolerance is 0 to 30 degrees, got {options.fixture_tolerance:g}")
-    if not (math.isfinite(options.gain_tolerance) and 0 <= options.gain_tolerance < 1):
-        tolerance = options.gain_tolerance
+    checks = options.checks
+    if isinstance(checks.min_samples, bool) or not isinstance(checks.min_samples, int) or checks.min_samples < 1:
+        raise InputError(f"--min-samples takes a whole number of 1 or more, got {checks.min_samples!r}")
+    if not 0 <= checks.fixture_tolerance <= 30:
+        raise InputError(f"--fixture-tolerance is 0 to 30 degrees, got {checks.fixture_tolerance:g}")
+    if not (math.isfinite(checks.gain_tolerance) and 0 <= checks.gain_tolerance < 1):
+        tolerance = checks.gain_tolerance
         raise InputError(f"--gain-tolerance is a fraction from 0 to below 1 (0.02: ±2 %), got {tolerance:g}")
-    if not options.max_tilt <= 180:
-        raise InputError(f"--max-tilt is at most 180 degrees, got {options.max_tilt:g}")
-    no_check = [options.no_check] if isinstance(options.no_check, str) else list(options.no_check)
+    if not checks.max_tilt <= 180:
+        raise InputError(f"--max-tilt is at most 180 degrees, got {checks.max_tilt:g}")
+    no_check = [checks.no_check] if isinstance(checks.no_check, str) else list(checks.no_check)
     for name in no_check:
         if name not in CHECK_NAMES:
             raise InputError(f"--no-check: {name!r} is not one of {', '.join(CHECK_NAMES)}")
-    meta = [options.meta] if isinstance(options.meta, str) else options.meta
-    return replace(options, no_check=tuple(no_check), meta=meta)
+    meta = [options.unit.meta] if isinstance(options.unit.meta, str) else options.unit.meta
+    return replace(options, checks=replace(checks, no_check=tuple(no_check)), unit=replace(options.unit, meta=meta))
 
 
 def settings(options: SolveOptions, *, log: bool) -> Settings:
@@ -267,12 +279,12 @@ def settings(options: SolveOptions, *, log: bool) -> Settings:
     the method, --up, the reference, the nominal offset and the limits (``options`` as
     :func:`checked` returns them)."""
     if not log:
-        given = [f"--{name.replace('_', '-')}" for name in LOG_ONLY if getattr(options, name) is not None]
+        given = [f"--{name.replace('_', '-')}" for name in LOG_ONLY if getattr(options.log, name) is not None]
         if given:
             raise InputError(f"{given[0]} is for a continuous log (--log), not --poses files")
-    mapping = pose_map(options.pose_map)
-    who = unit_block(options.serial, options.station, options.operator, options.meta)
-    method, sensor = options.method, options.sensor
+    mapping = pose_map(options.log.pose_map)
+    who = unit_block(options.unit.serial, options.unit.station, options.unit.operator, options.unit.meta)
+    method, sensor = options.method, options.read.sensor
     chosen = "one-pose-tilt" if options.tilt_compensate and method == "auto" else method
     if options.tilt_compensate and chosen != "one-pose-tilt":
         raise InputError(f"--tilt-compensate is the one-pose-tilt method, not {chosen}")
@@ -281,9 +293,9 @@ def settings(options: SolveOptions, *, log: bool) -> Settings:
     if method == "gyro-bias" and sensor != "gyroscope":  # one error, not one per unit
         raise InputError(f"gyro-bias is a gyroscope's zero-rate bias: give --sensor gyroscope (not {sensor})")
     for option, value in (
-        ("--max-noise", options.max_noise),
-        ("--max-tilt", options.max_tilt),
-        ("--full-scale", options.full_scale),
+        ("--max-noise", options.checks.max_noise),
+        ("--max-tilt", options.checks.max_tilt),
+        ("--full-scale", options.checks.full_scale),
     ):
         if value is not None and not value > 0:
             raise InputError(f"{option} must be positive, got {value:g}")
@@ -298,9 +310,15 @@ def settings(options: SolveOptions, *, log: bool) -> Settings:
             f"--reference is a gyroscope's reading at rest, which is 0, got {ref:g}",
             hint="leave --reference out for --sensor gyroscope (its gains come from turns: --turns or --accel-cal)",
         )
-    centre = None if options.nominal_offset is None else triplet(options.nominal_offset, "--nominal-offset")
+    centre = (
+        None if options.checks.nominal_offset is None else triplet(options.checks.nominal_offset, "--nominal-offset")
+    )
     bounds = limits(
-        options.limits, options.max_offset, options.max_gain_error, options.nominal_gain, nominal_offset=centre
+        options.limits.file,
+        options.limits.max_offset,
+        options.limits.max_gain_error,
+        options.limits.nominal_gain,
+        nominal_offset=centre,
     )
     return Settings(chosen, up_face, ref, centre, bounds, who, mapping)
 
@@ -310,47 +328,51 @@ def turn_options(options: SolveOptions, *, log: bool) -> None:
     --accel-cal: its hand turns between still poses."""
     from tumblecal_cli.core.methods import TURNS
 
-    if options.accel_cal is not None or options.method == "rotations":
-        if options.accel_cal is None:
+    if options.log.accel_cal is not None or options.method == "rotations":
+        if options.log.accel_cal is None:
             raise InputError(
                 "rotations takes the gravity directions from an accelerometer calibration: give --accel-cal"
             )
-        if options.sensor != "gyroscope" or options.turns is not None or options.method not in ("auto", "rotations"):
+        if (
+            options.read.sensor != "gyroscope"
+            or options.log.turns is not None
+            or options.method not in ("auto", "rotations")
+        ):
             raise InputError(
                 "--accel-cal is for a gyroscope's hand turns: --sensor gyroscope with --log, without --turns "
                 "(method rotations)"
             )
-        if not log or options.pose_column is not None:
+        if not log or options.log.pose_column is not None:
             raise InputError(
                 "--accel-cal: the hand turns of one continuous --log, its still blocks found (no --pose-column)"
             )
         return
-    if options.turns is None and options.method not in TURNS:
-        if options.turn_angle is not None:
+    if options.log.turns is None and options.method not in TURNS:
+        if options.log.turn_angle is not None:
             raise InputError("--turn-angle is the angle of the --turns sections: give --turns too")
         return
-    if options.turns is None:
+    if options.log.turns is None:
         raise InputError(
             f"{options.method} takes the turns of a labelled log: give --turns LABEL=AXIS,... and --turn-angle",
             hint="e.g. --turns x_rot=+x,y_rot=+y,z_rot=+z --turn-angle 360",
         )
     if options.method not in ("auto", *TURNS):
         raise InputError(f"--turns is for the ferraris-turns method, not {options.method}")
-    if options.sensor != "gyroscope":
-        raise InputError(f"--turns calibrates a gyroscope: give --sensor gyroscope (not {options.sensor})")
-    if not log or options.pose_column is None:
+    if options.read.sensor != "gyroscope":
+        raise InputError(f"--turns calibrates a gyroscope: give --sensor gyroscope (not {options.read.sensor})")
+    if not log or options.log.pose_column is None:
         raise InputError(
             "--turns names sections of a labelled log: give it with --log and its label column with --pose-column",
             hint="e.g. --log session.csv --pose-column part --pose-map x_p=+x,x_a=-x,... --turns x_rot=+x,...",
         )
-    angle = options.turn_angle
+    angle = options.log.turn_angle
     if angle is None or not (math.isfinite(angle) and 0 < abs(angle) <= 3600):
         raise InputError(
             "--turn-angle: the signed angle of each turn in degrees (right-hand rule about its axis), "
             f"0 < |angle| <= 3600, got {'nothing' if angle is None else f'{angle:g}'}",
             hint="e.g. --turn-angle 360 (or -360: the sign the gyroscope reads turning, as imucal's expected_angle)",
         )
-    if not pose_map(options.turns, "--turns"):
+    if not pose_map(options.log.turns, "--turns"):
         raise InputError("--turns names no section: give LABEL=AXIS pairs, e.g. x_rot=+x,y_rot=+y,z_rot=+z")
 
 

@@ -52,18 +52,18 @@ class HandTurns:
 
 
 def hand_turns(log: str, options: SolveOptions) -> HandTurns:
-    """Segment the log by its accelerometer (``options.accel_cal`` gives the gravity directions)
+    """Segment the log by its accelerometer (``options.log.accel_cal`` gives the gravity directions)
     and read its gyroscope: the rotations between its still blocks."""
 
-    assert options.accel_cal is not None
-    accel = calfile.load(options.accel_cal)
+    assert options.log.accel_cal is not None
+    accel = calfile.load(options.log.accel_cal)
     if accel.sensor != "accelerometer":
         raise InputError(f"--accel-cal takes an accelerometer's calibration, not a {accel.sensor}'s", file=accel.path)
     settings = segment.Settings(
-        window=options.window,
-        threshold=options.threshold,
-        min_duration=options.min_duration,
-        trim=options.trim,
+        window=options.log.window,
+        threshold=options.log.threshold,
+        min_duration=options.log.min_duration,
+        trim=options.log.trim,
         max_noise=0.02,
         max_tilt_deg=180.0,  # any orientation is a pose here
         nominal_offset=accel.offset,
@@ -77,7 +77,7 @@ def hand_turns(log: str, options: SolveOptions) -> HandTurns:
         whole=True,  # the turns between the still blocks are integrated
     ) as (path, acc, seg):
         spec = replace(options.read, sensor="gyroscope")
-        gyr = readings.read_log(path, spec, use_time=options.rate is None, name=acc.layout.name)
+        gyr = readings.read_log(path, spec, use_time=options.read.rate is None, name=acc.layout.name)
     if tuple(acc.layout.sensor) == tuple(gyr.layout.sensor):  # a log of one sensor: both read the same columns
         raise InputError(
             f"the accelerometer and the gyroscope would both be read from columns "
@@ -92,8 +92,8 @@ def hand_turns(log: str, options: SolveOptions) -> HandTurns:
             file=gyr.layout.name,
         )
     kept = sorted(seg.kept, key=lambda b: b.first)
-    _clock_integrates(seg, kept, gyr, options.rate)
-    dt = seconds_per_sample(gyr, options.rate)
+    _clock_integrates(seg, kept, gyr, options.read.rate)
+    dt = seconds_per_sample(gyr, options.read.rate)
     still = np.concatenate([gyr.values[b.first : b.last + 1] for b in kept]) if kept else np.zeros((0, 3))
     bias = still.mean(axis=0) if len(still) else np.zeros(3)
     directions = [_direction(accel, acc.values[b.first : b.last + 1].mean(axis=0)) for b in kept]

@@ -81,7 +81,7 @@ def solve(poses: Poses, **options: object) -> Solved:
     """
     from tumblecal_cli.pipeline.options import SolveOptions
 
-    return run(SolveOptions(**options), poses=poses)  # type: ignore[arg-type]
+    return run(SolveOptions.of(options), poses=poses)
 
 
 def solve_log(log: str | os.PathLike[str], **options: object) -> Solved:
@@ -89,7 +89,7 @@ def solve_log(log: str | os.PathLike[str], **options: object) -> Solved:
     the still blocks are found (or taken from ``pose_column``), the best of each face used."""
     from tumblecal_cli.pipeline.options import SolveOptions
 
-    return run(SolveOptions(**options), log=log)  # type: ignore[arg-type]
+    return run(SolveOptions.of(options), log=log)
 
 
 def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.PathLike[str] | None = None) -> Solved:
@@ -107,10 +107,10 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Path
             hint="see 'tumblecal solve --help'",
         )
     given = opts.settings(options, log=path is not None)
-    if path is not None and (options.turns is not None or options.accel_cal is not None):  # a gyroscope's turns
+    if path is not None and (options.log.turns is not None or options.log.accel_cal is not None):  # a gyroscope's turns
         from tumblecal_cli.pipeline import rotations, turns
 
-        if options.turns is not None:
+        if options.log.turns is not None:
             out = turns.from_log(path, options, given)
         else:
             out = rotations.from_log(path, options, given)
@@ -184,7 +184,7 @@ def _read_poses(
     if not in_memory and sum(f == "-" for _, f in items) > 1:
         raise InputError("only one pose can be read from stdin ('-')")
     try:
-        name, order = methods.pick(given.method, [label for label, _ in items], options.sensor)
+        name, order = methods.pick(given.method, [label for label, _ in items], options.read.sensor)
     except InputError as err:
         if not placed.by_name:
             raise
@@ -311,25 +311,25 @@ def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
     if given.method != "auto":
         method_options(given.method, given.reference, options.plane, options.bias_spread)
     settings = segment.Settings(
-        window=options.window,
-        threshold=options.threshold,
-        min_duration=options.min_duration,
-        trim=options.trim,
-        max_noise=options.max_noise if options.max_noise is not None else 0.02,
-        max_tilt_deg=options.max_tilt,
+        window=options.log.window,
+        threshold=options.log.threshold,
+        min_duration=options.log.min_duration,
+        trim=options.log.trim,
+        max_noise=options.checks.max_noise if options.checks.max_noise is not None else 0.02,
+        max_tilt_deg=options.checks.max_tilt,
         nominal_offset=given.centre,
     )
     with logs.segmented(
         log,
         options.read,
-        pose_column=options.pose_column,
-        pose_map=given.pose_map if options.pose_map is not None else None,
+        pose_column=options.log.pose_column,
+        pose_map=given.pose_map if options.log.pose_map is not None else None,
         settings=settings,
     ) as (_, data, seg):
         pass  # every block is in memory: the log is not read again
     blocks = logs.Blocks(data, seg)
     try:
-        name, labels, samples, notes = logs.log_poses(data, seg, given.method, given.up, options.sensor)
+        name, labels, samples, notes = logs.log_poses(data, seg, given.method, given.up, options.read.sensor)
     except CaptureRejected as err:
         return Solved(3, None, rejections=[], error=err, blocks=blocks)
     blocks.used = {
@@ -380,16 +380,18 @@ def _solve(
     for s in samples:
         model.in_range(s.values, s.name)
     log_notes = notes or []  # how the blocks of a log were chosen, or the files labelled
-    ref, gyro = given.reference, options.sensor == "gyroscope"
-    noise = options.max_noise if options.max_noise is not None else (None if gyro else 0.02)
+    ref, gyro = given.reference, options.read.sensor == "gyroscope"
+    noise = options.checks.max_noise if options.checks.max_noise is not None else (None if gyro else 0.02)
     checks = gate.Options(
         noise_bound=None if noise is None else (noise if gyro else noise * ref),  # a gyroscope: in its units
         noise_rule="" if noise is None else (f"{noise:g}" if gyro else f"{noise:g} × reference {ref:g}"),
-        max_tilt_deg=options.max_tilt,
+        max_tilt_deg=options.checks.max_tilt,
         nominal_offset=triplet("0", "--nominal-offset") if given.centre is None else given.centre,
-        full_scale=options.full_scale,
-        min_samples=options.min_samples,
-        skip=frozenset(gate.CHECKS if options.no_checks else [c.replace("-", "_") for c in options.no_check]),
+        full_scale=options.checks.full_scale,
+        min_samples=options.checks.min_samples,
+        skip=frozenset(
+            gate.CHECKS if options.checks.no_checks else [c.replace("-", "_") for c in options.checks.no_check]
+        ),
         rails=gate.integer_rails(whole),
         faces_by_name=by_name,
         faces_labelled=labelled,
@@ -404,10 +406,10 @@ def _solve(
     try:
         told = solvers.SolverSettings(
             reference=ref,
-            tolerance_deg=options.fixture_tolerance,
+            tolerance_deg=options.checks.fixture_tolerance,
             bias_spread=options.bias_spread if options.bias_spread is not None else 0.01 * ref,
             plane=options.plane,
-            gain_tolerance=options.gain_tolerance,
+            gain_tolerance=options.checks.gain_tolerance,
         )
         fit = solvers.run(name, stats, [s.values for s in samples], labels, told, names)
     except CaptureRejected as err:
@@ -473,15 +475,15 @@ def _solve(
     )
     cal = calfile.build(
         solution,
-        sensor=options.sensor,
+        sensor=options.read.sensor,
         reference=ref,
         units=options.units,
         input_units=options.input_units,
         columns=samples[0].layout.sensor_names,
         poses=[pose_record(s, m, c) for s, m, c in zip(samples, measured, fixed, strict=True)],
         fit=fit,
-        tolerance_deg=options.fixture_tolerance,
-        gain_tolerance=options.gain_tolerance if solution.method in ONE_POSE else None,
+        tolerance_deg=options.checks.fixture_tolerance,
+        gain_tolerance=options.checks.gain_tolerance if solution.method in ONE_POSE else None,
         unit=given.unit,
         verdict=calfile.Verdict(not failures, tuple(failures), limits),
         segmentation=segmentation,

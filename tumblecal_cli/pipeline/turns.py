@@ -97,8 +97,8 @@ def _read(path: str, log: str, options: SolveOptions, sensor: str) -> Log:
     return readings.read_log(
         path,
         replace(options.read, sensor=sensor, columns=columns),
-        label_column=options.pose_column,
-        use_time=options.rate is None,
+        label_column=options.log.pose_column,
+        use_time=options.read.rate is None,
         name="<stdin>" if log == "-" else log,
         digest=sensor == "gyroscope",
     )
@@ -161,7 +161,7 @@ def _solve(acc: Log, gyr: Log, options: SolveOptions, given: Settings) -> Outcom
                     Finding(
                         "turns.faces",
                         f"ferraris-turns needs a still section on each face; none for {' '.join(missing)} "
-                        f"(labels of column {options.pose_column!r}: {shown})",
+                        f"(labels of column {options.log.pose_column!r}: {shown})",
                         len(SIX) - len(missing),
                         len(SIX),
                     )
@@ -169,7 +169,7 @@ def _solve(acc: Log, gyr: Log, options: SolveOptions, given: Settings) -> Outcom
                 name,
             ),
         )
-    wanted = pose_map(options.turns, "--turns")
+    wanted = pose_map(options.log.turns, "--turns")
     notes = [f"--turns names {label!r}, not a label of the log: left out" for label in wanted if label not in found]
     turns = {label: axis for label, axis in wanted.items() if label in found}
     axes = np.array([model.FACES[a] for a in turns.values()], dtype=np.float64).reshape(-1, 3)
@@ -192,17 +192,17 @@ def _solve(acc: Log, gyr: Log, options: SolveOptions, given: Settings) -> Outcom
                 name,
             ),
         )
-    dt = seconds_per_sample(gyr, options.rate)
+    dt = seconds_per_sample(gyr, options.read.rate)
     still_sections = [found[faces[f]] for f in SIX]
     still = core.Still([acc.values[s.index] for s in still_sections], [gyr.values[s.index] for s in still_sections])
-    angle = float(options.turn_angle or 0.0)
+    angle = float(options.log.turn_angle or 0.0)
     given_turns = [
         core.Turn(acc.values[found[label].index], gyr.values[found[label].index], axis, angle, dt[found[label].index])
         for label, axis in zip(turns, axes, strict=True)
     ]
     fit = core.ferraris(still, given_turns)
     rejections = _moved(fit, still, still_sections, options) + _implausible(fit, turns, axes, angle)
-    skip = options.no_checks or "moved" in options.no_check
+    skip = options.checks.no_checks or "moved" in options.checks.no_check
     rejections = [r for r in rejections if not (skip and r.code == "turns.moved")]
     cal, failures = _calibration(fit, acc, gyr, still_sections, list(SIX), turns, given_turns, options, given)
     if rejections:
@@ -224,7 +224,7 @@ def _face(label: str) -> str | None:
 
 def _moved(fit: core.TurnsFit, still: core.Still, secs: list[Section], options: SolveOptions) -> list[Finding]:
     """Still faces whose accelerometer (g) or calibrated gyroscope (deg/s) varies as a moving unit's."""
-    bound = options.max_noise if options.max_noise is not None else STILL_GYRO_NOISE_DPS
+    bound = options.checks.max_noise if options.checks.max_noise is not None else STILL_GYRO_NOISE_DPS
     # raw units into deg/s by the turns' median gain: a turn gone wrong does not make every face "move"
     gain = float(np.median(np.abs(fit.solution.gain)))
     out = []

@@ -226,7 +226,8 @@ def verify_rotations(
 
     from tumblecal_cli.core import rotations as core
     from tumblecal_cli.io import calfile
-    from tumblecal_cli.pipeline.options import SolveOptions, path_of
+    from tumblecal_cli.io.readspec import ReadSpec, column_list
+    from tumblecal_cli.pipeline.options import LogOptions, SolveOptions, path_of
     from tumblecal_cli.pipeline.rotations import hand_turns
 
     c = calfile.resolve(cal)
@@ -239,12 +240,10 @@ def verify_rotations(
     if rate is not None and not 0 < rate <= FASTEST:
         raise InputError(f"--rate must be a positive number of Hz up to {FASTEST:g}, got {rate:g}")
     options = SolveOptions(
-        sensor="gyroscope",
-        accel_cal=path_of(accel_cal, "--accel-cal takes a calibration file"),
-        rate=rate,
-        time_column=time_column,
-        time_unit=time_unit,
-        columns=columns,
+        read=ReadSpec(
+            sensor="gyroscope", columns=column_list(columns), time_column=time_column, time_unit=time_unit, rate=rate
+        ),
+        log=LogOptions(accel_cal=path_of(accel_cal, "--accel-cal takes a calibration file")),
     )
     turns = hand_turns(path_of(log, "verify --log takes a log file"), options)
     if not turns.rotations:

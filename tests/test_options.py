@@ -1,0 +1,66 @@
+"""solve's options, from the command line and from Python, reach the pipeline grouped the same way."""
+
+from __future__ import annotations
+
+import inspect
+
+import pytest
+
+from tumblecal_cli.cli.solve import OPTION_NAMES, solve, solve_options
+from tumblecal_cli.io.readspec import Dialect, ReadSpec
+from tumblecal_cli.pipeline.options import FLAT, CheckOptions, LimitOptions, LogOptions, SolveOptions, UnitOptions
+
+
+def test_every_option_of_solve_options_is_a_parameter_of_solve_and_of_the_python_api() -> None:
+    """The command passes its parameters to solve_options by name; the Python API's keywords are FLAT's."""
+    assert set(OPTION_NAMES) <= set(inspect.signature(solve).parameters)
+    assert set(OPTION_NAMES) == set(FLAT)
+
+
+def test_the_command_line_and_python_build_the_same_options() -> None:
+    given: dict[str, object] = {
+        "method": "six-pose",
+        "sensor": "magnetometer",
+        "reference": 48.0,
+        "columns": "mx,my,mz",
+        "no_header": True,
+        "time_unit": "ms",
+        "rate": 100.0,
+        "skip_rows": 2,
+        "decimal": ",",
+        "drop_incomplete": True,
+        "window": 0.5,
+        "pose_column": "face",
+        "max_noise": 0.01,
+        "no_check": ["moved"],
+        "limits": "limits.yaml",
+        "max_offset": "0.1",
+        "serial": "A17",
+        "meta": ["lot=7"],
+    }
+    defaults = {
+        name: p.default
+        for name, p in inspect.signature(solve).parameters.items()
+        if name in OPTION_NAMES and name not in given
+    }
+    built = solve_options(**{**{k: getattr(v, "default", v) for k, v in defaults.items()}, **given})
+    via_python = SolveOptions.of(given)
+    assert (
+        built.read
+        == via_python.read
+        == ReadSpec("magnetometer", ("mx", "my", "mz"), True, None, "ms", 100.0, Dialect(2, ",", True))
+    )
+    assert built.log == via_python.log == LogOptions(window=0.5, pose_column="face")
+    assert built.checks.max_noise == via_python.checks.max_noise == 0.01
+    assert tuple(built.checks.no_check) == tuple(via_python.checks.no_check) == ("moved",)
+    assert built.limits == via_python.limits == LimitOptions("limits.yaml", "0.1")
+    assert built.unit.serial == via_python.unit.serial == "A17"
+    assert (built.method, built.reference) == (via_python.method, via_python.reference) == ("six-pose", 48.0)
+    assert via_python.flat()["max_noise"] == 0.01
+    assert isinstance(built.checks, CheckOptions)
+    assert isinstance(built.unit, UnitOptions)
+
+
+def test_an_unknown_option_from_python_is_a_type_error() -> None:
+    with pytest.raises(TypeError, match="no_such_option"):
+        SolveOptions.of({"no_such_option": 1})
