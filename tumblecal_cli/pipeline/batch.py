@@ -20,14 +20,20 @@ import re
 import sys
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 from tumblecal_cli.errors import STOPS, InputError, TumblecalError, control_character
 
 if TYPE_CHECKING:
+    import signal
+    from types import FrameType
+
     from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfile import Calibration, Pose
     from tumblecal_cli.pipeline.options import SolveOptions
+
+#: A signal's handler, as the signal module gives and takes it.
+Handler: TypeAlias = "Callable[[int, FrameType | None], object] | int | signal.Handlers | None"
 
 #: Files a unit folder's poses (or log) may be in; anything else there is left alone.
 DATA_SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
@@ -476,10 +482,10 @@ def held_signals() -> Iterator[None]:
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    caught: list[tuple[int, Any]] = []
-    previous: dict[signal.Signals, Any] = {}
+    caught: list[tuple[int, FrameType | None]] = []
+    previous: dict[signal.Signals, Handler] = {}
 
-    def hold(number: int, frame: Any) -> None:
+    def hold(number: int, frame: FrameType | None) -> None:
         caught.append((number, frame))
 
     try:
@@ -499,7 +505,7 @@ def held_signals() -> Iterator[None]:
             signal.raise_signal(number)
 
 
-def _put_back(handlers: list[tuple[Any, Any]]) -> None:
+def _put_back(handlers: list[tuple[signal.Signals, Handler]]) -> None:
     """Each signal's handler put back, the later ones even if a stop lands after the first."""
     import signal
 
@@ -753,7 +759,7 @@ class Batched:
     summary: str
     warnings: list[str] = field(default_factory=list)  # the same pose file under two serials
 
-    def table(self) -> Any:
+    def table(self) -> Any:  # Any: a pandas DataFrame (pandas is untyped here)
         """summary.csv as a pandas DataFrame."""
         import pandas as pd
 
@@ -763,7 +769,7 @@ class Batched:
 def run_batch(
     source: str,
     out_dir: str,
-    options: SolveOptions | Mapping[str, Any] | None = None,
+    options: SolveOptions | Mapping[str, Any] | None = None,  # Any: SolveOptions' fields, checked there
     *,
     log: bool = False,
     jobs: int = 1,
@@ -824,7 +830,6 @@ def run_batch(
         epoch = os.environ.get("SOURCE_DATE_EPOCH", "")  # the caller's, wherever the units run
         work = [(u, options, out_dir, log, token, epoch) for u in todo]
         for (unit, *_), outcome in run(run_unit, work):
-            assert isinstance(unit, Unit)
             with held_signals():  # a calibration is published with its row, or not at all
                 if isinstance(outcome, BaseException):
                     row = failed_row(unit, outcome)
