@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import inspect
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
@@ -12,6 +12,11 @@ from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
 from tumblecal_cli.cli.options import STATUS_WORDS
 from tumblecal_cli.cli.solve import OPTION_NAMES, solve, solve_options
+
+if TYPE_CHECKING:
+    from rich.console import Console
+
+    from tumblecal_cli.pipeline import batch as batches
 
 BATCH_PANEL = "Batch"
 BATCH_EXIT = """\
@@ -140,8 +145,8 @@ def batch(**given: Any) -> None:
                     console.print(f"resuming: {done} of {len(plan.units)} units already done", soft_wrap=True)
             shown[:] = stack.enter_context(render.batch_progress(console, len(plan.todo), enabled=not quiet))
 
-        def unit(row: dict[str, Any]) -> None:
-            if row["status"] or not shown[0]:
+        def unit(row: batches.Row) -> None:
+            if row.status or not shown[0]:
                 render.print_unit(row, out_dir, console, quiet=quiet)
             shown[1]()
 
@@ -160,7 +165,7 @@ def batch(**given: Any) -> None:
     _show(result, console, quiet=quiet, json_summary=own["json_summary"])
 
 
-def _show(result: Any, console: Any, *, quiet: bool, json_summary: bool) -> None:
+def _show(result: batches.Batched, console: Console, *, quiet: bool, json_summary: bool) -> None:
     """The batch's counts on stderr, the --json summary on stdout; its status."""
     from tumblecal_cli.pipeline import batch as batches
 
@@ -184,14 +189,14 @@ def _show(result: Any, console: Any, *, quiet: bool, json_summary: bool) -> None
         raise typer.Exit(result.status)
 
 
-def _unit_json(row: dict[str, Any], columns: list[str]) -> dict[str, Any]:
+def _unit_json(row: batches.Row, columns: list[str]) -> dict[str, object]:
     """A unit's row of summary.csv for --json: its status a word, the number as exit_status."""
-    out: dict[str, Any] = {}
+    out: dict[str, object] = {}
     for c in columns:
         if c == "status":
-            out |= {"status": STATUS_WORDS[int(row[c])], "exit_status": int(row[c])}
+            out |= {"status": STATUS_WORDS[row.status], "exit_status": row.status}
         else:
-            out[c] = row.get(c)
+            out[c] = row.value(c)
     return out
 
 

@@ -22,6 +22,7 @@ if TYPE_CHECKING:
     from tumblecal_cli.core.segment import Segmentation
     from tumblecal_cli.io.calfile import Calibration
     from tumblecal_cli.io.readings import Log
+    from tumblecal_cli.pipeline.batch import Row
 
 
 def make_console(stderr: bool = True) -> Console:
@@ -508,21 +509,21 @@ def batch_progress(console: Console, total: int, *, enabled: bool) -> Iterator[t
         yield True, lambda: progress.advance(task)
 
 
-def print_unit(row: dict[str, Any], out_dir: str, console: Console, *, quiet: bool) -> None:
+def print_unit(row: Row, out_dir: str, console: Console, *, quiet: bool) -> None:
     """One line per unit: its verdict and file, or why it failed (``quiet``: only a unit with
     an error or a rejected capture, as ``solve -q`` still prints those)."""
-    if quiet and row["status"] not in (2, 3):
+    if quiet and row.status not in (2, 3):
         return
-    codes = f" ({', '.join(row['codes'])})" if row.get("codes") else ""
-    head = f"{row['serial']}: {row['verdict']}{codes}"
-    if row.get("file"):
-        head += f" -> {os.path.join(out_dir, row['file'])}"
-    messages = row.get("messages") or [row.get("message") or ""]
-    if len(messages) == 1 and not row.get("file"):
+    codes = f" ({', '.join(row.codes)})" if row.codes else ""
+    head = f"{row.serial}: {row.verdict}{codes}"
+    if row.file:
+        head += f" -> {os.path.join(out_dir, row.file)}"
+    messages = row.messages or [row.message or ""]
+    if len(messages) == 1 and not row.file:
         head, messages = f"{head}: {messages[0]}", []
     from tumblecal_cli.errors import one_line  # a serial or a message with a control character: escaped
 
-    for line in [head, *(f"  {m}" for m in messages if not row.get("file"))]:
+    for line in [head, *(f"  {m}" for m in messages if not row.file)]:
         console.print(one_line(line), soft_wrap=True, markup=False, highlight=False)
 
 

@@ -58,12 +58,12 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
-FloatArray = np.ndarray[Any, np.dtype[np.float64]]
-IntArray = np.ndarray[Any, np.dtype[np.int64]]
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
 
 #: Cluster sizes up to this use every overlapping term (equal to the textbook estimator).
 EXACT_MAX = 2**18

@@ -30,7 +30,6 @@ import os
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
-from typing import Any
 
 import numpy as np
 
@@ -128,7 +127,7 @@ class Duplicate:
     def serials(self) -> tuple[str, ...]:
         return tuple(serial for serial, _ in self.uses)
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> dict[str, object]:
         return {"sha256": self.sha256, "serials": list(self.serials), "files": [f for _, f in self.uses]}
 
 
@@ -176,7 +175,7 @@ def duplicate_of(found: Iterable[Duplicate]) -> dict[str, list[str]]:
 # --- statistics ---------------------------------------------------------------------------------
 
 
-def bounds(parameter: str, limits: dict[str, Any]) -> tuple[float | None, float | None]:
+def bounds(parameter: str, limits: Mapping[str, float | FloatArray]) -> tuple[float | None, float | None]:
     """(lower, upper) specification limits of a parameter from a ``calfile.load_limits`` dict,
     as ``gate.verdict`` judges a single unit: |offset − nominal| ≤ L, |gain / nominal − 1| ≤ e, |cross| ≤ L.
     (None, None) when the limits do not bound it."""
@@ -195,7 +194,7 @@ def bounds(parameter: str, limits: dict[str, Any]) -> tuple[float | None, float 
     return (None, None)
 
 
-def _axis(value: Any, axis: str) -> float:
+def _axis(value: float | FloatArray, axis: str) -> float:
     """One axis of a per-axis limit: a number, or an [x, y, z] list or (3,) array."""
     array = np.broadcast_to(np.asarray(value, dtype=np.float64), (3,))
     return float(array[AXES.index(axis)])
@@ -385,7 +384,7 @@ class Report:
         threshold = self.min_cpk
         return threshold is not None and any(row.cpk is not None and row.cpk < threshold for row in self.rows)
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> dict[str, object]:
         """JSON-ready: plain floats, ints, strings and None (NaN and infinities are None)."""
         return {
             "files": self.files,
@@ -477,7 +476,7 @@ def _cell(value: float | None) -> str:
 def summarise(
     entries: Sequence[Entry],
     unreadable: Sequence[tuple[str, str]],
-    limits: dict[str, Any],
+    limits: Mapping[str, float | FloatArray],
     *,
     max_drift: dict[str, float],
     min_cpk: float | None = None,
@@ -509,7 +508,7 @@ def summarise(
     )
 
 
-def _row(sensor: str, parameter: str, having: list[Entry], limits: dict[str, Any]) -> ParameterRow:
+def _row(sensor: str, parameter: str, having: list[Entry], limits: Mapping[str, float | FloatArray]) -> ParameterRow:
     x = np.array([e.values[parameter] for e in having])
     lower, upper = bounds(parameter, limits)
     z = robust_z(x)

@@ -34,7 +34,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -120,11 +119,12 @@ class Kept:
         return int(self.run_at[k] + index - self.run_first[k])
 
 
-def log_index(run_first: IntArray, run_at: IntArray, at: Any) -> Any:
+def log_index(run_first: IntArray, run_at: IntArray, at: IntArray | int) -> IntArray:
     """The log's index of the kept samples at positions ``at``, from where each run of them
     starts in the log (``run_first``) and among those kept (``run_at``)."""
     k = np.searchsorted(run_at, at, side="right") - 1
-    return run_first[k] + (at - run_at[k])
+    index: IntArray = run_first[k] + (at - run_at[k])
+    return index
 
 
 class _Store:

@@ -20,14 +20,14 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from tumblecal_cli.core.model import FACES, PoseStats, angle_deg, pose_stats
 
-FloatArray = np.ndarray[Any, np.dtype[np.float64]]
-IntArray = np.ndarray[Any, np.dtype[np.int64]]
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
 
 WINDOW = (0.5, 25)  # default rolling window: seconds when the time is known, else samples
 MIN_DURATION = (1.0, 50)  # default shortest block kept, the same way
@@ -133,9 +133,9 @@ class Segmentation:
             out[face] = level if level.angle_deg < longest.angle_deg - TILT_MARGIN_DEG else longest
         return out
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> dict[str, object]:
         """How the blocks were found, for the calibration file."""
-        doc: dict[str, Any] = {
+        doc: dict[str, object] = {
             "source": "detector" if self.threshold is not None else "label column",
             "window_samples": self.window,
             "sample_period_s": self.period,
@@ -276,7 +276,7 @@ def smallest(values: FloatArray, k: int, below: float = np.inf) -> float | None:
     return float(np.partition(low, k)[k]) if low.size > k else None
 
 
-def _runs(mask: np.ndarray[Any, np.dtype[np.bool_]], breaks: IntArray) -> tuple[IntArray, IntArray]:
+def _runs(mask: NDArray[np.bool_], breaks: IntArray) -> tuple[IntArray, IntArray]:
     """First and last index of each run of True in ``mask``, split before each of ``breaks``."""
     if not mask.size:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)

@@ -40,6 +40,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from tumblecal_cli.core.model import FloatArray
 
@@ -239,7 +240,7 @@ def observed(sweep: Sweep, drift: Drift, gain_scale: FloatArray) -> tuple[FloatA
 
 @dataclass(frozen=True)
 class _Cells:
-    pose: np.ndarray  # (m,) int
+    pose: NDArray[np.intp]  # (m,) int
     temp: FloatArray  # (m,) mean temperature of the cell
     value: FloatArray  # (m, 3) mean reading of the cell
     up: FloatArray  # (m, 3) the pose's face direction (zeros for a gyroscope)
@@ -267,7 +268,9 @@ def _powers(d: FloatArray, order: int) -> FloatArray:
     return np.column_stack([d ** (k + 1) for k in range(order)]) if order else np.zeros((len(d), 0))
 
 
-def _design(cells: _Cells, rows: np.ndarray, j: int, order: int, g: float, separate: bool, t_ref: float) -> FloatArray:
+def _design(
+    cells: _Cells, rows: NDArray[np.intp], j: int, order: int, g: float, separate: bool, t_ref: float
+) -> FloatArray:
     d = cells.temp[rows] - t_ref
     powers = _powers(d, order)
     parts = [powers]

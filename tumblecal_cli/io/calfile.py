@@ -20,6 +20,7 @@ from datetime import UTC, date, datetime
 from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from tumblecal_cli.core.model import SENSORS, FloatArray, Solution, parse_label
 from tumblecal_cli.core.model import apply as apply_model
@@ -63,6 +64,8 @@ from tumblecal_cli.io.outputs import atomic_output
 from tumblecal_cli.version import __version__
 
 if TYPE_CHECKING:
+    import yaml
+
     from tumblecal_cli.core.solvers import Fit
 
 __all__ = [  # the parts, for code that names them as calfile's
@@ -171,7 +174,7 @@ class Calibration:
     def serial(self) -> str | None:
         return None if self.unit is None else self.unit.serial
 
-    def apply(self, data: Any, temperature: Any = None) -> Any:
+    def apply(self, data: Any, temperature: ArrayLike | None = None) -> Any:  # Any: an ndarray or a DataFrame
         """Correct readings: an (n, 3) array gives an (n, 3) array; a pandas DataFrame gives a copy
         with the calibration's ``columns`` corrected (matched case-insensitively; other columns,
         the index and their dtypes untouched). With a ``thermal`` block each row is corrected at its
@@ -202,7 +205,7 @@ class Calibration:
             raise InputError(f"apply takes (n, 3) readings or a DataFrame, got an array of shape {values.shape}")
         return self._corrected(values, temperature)
 
-    def _corrected(self, raw: FloatArray, temperature: Any) -> FloatArray:
+    def _corrected(self, raw: FloatArray, temperature: ArrayLike | None) -> FloatArray:
         if self.thermal is None:
             return apply_model(raw, self.offset, self.matrix)
         if temperature is None:
@@ -286,7 +289,7 @@ class Calibration:
         )
 
 
-def _frame_columns(frame: Any, wanted: Sequence[str], path: str | None) -> list[int]:
+def _frame_columns(frame: Any, wanted: Sequence[str], path: str | None) -> list[int]:  # Any: a DataFrame
     """Where ``wanted`` are among the DataFrame's columns: the column of that exact name, else the
     one column of that name in another case; an error names those missing or ambiguous."""
     names = [str(c) for c in frame.columns]
@@ -829,13 +832,13 @@ def _parse(text: str, path: str, *, as_yaml: bool | None = None) -> object:
 
 
 @functools.cache
-def _yaml_loader() -> Any:
+def _yaml_loader() -> type[yaml.SafeLoader]:
     """yaml.SafeLoader that refuses aliases (``*name``): a calibration or limits file has no use
     for them, and a tree of aliases expands exponentially (a few hundred bytes can become GB)."""
     import yaml
 
     class NoAliases(yaml.SafeLoader):
-        def compose_node(self, parent: Any, index: Any) -> Any:
+        def compose_node(self, parent: yaml.Node | None, index: int) -> yaml.Node | None:
             if self.check_event(yaml.events.AliasEvent):
                 mark = self.peek_event().start_mark  # type: ignore[no-untyped-call]
                 raise yaml.composer.ComposerError(

@@ -28,9 +28,10 @@ from typing import Any
 import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
+from numpy.typing import NDArray
 
-FloatArray = np.ndarray[Any, np.dtype[np.float64]]
-IntArray = np.ndarray[Any, np.dtype[np.int64]]
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
 Correction = tuple[tuple[int, int, int], Callable[..., FloatArray]]
 
 #: Where orjson and pyarrow spell a float alike: LOW <= |x| < HIGH, and not a whole number.

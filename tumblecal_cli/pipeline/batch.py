@@ -20,13 +20,20 @@ import re
 import sys
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 from tumblecal_cli.errors import STOPS, InputError, TumblecalError, control_character
 
 if TYPE_CHECKING:
+    import signal
+    from types import FrameType
+
+    from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfile import Calibration, Pose
     from tumblecal_cli.pipeline.options import SolveOptions
+
+#: A signal's handler, as the signal module gives and takes it.
+Handler: TypeAlias = "Callable[[int, FrameType | None], object] | int | signal.Handlers | None"
 
 #: Files a unit folder's poses (or log) may be in; anything else there is left alone.
 DATA_SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
@@ -77,6 +84,87 @@ class Unit:
     #: The inputs as found, when ``inputs`` are made absolute for a cluster (:func:`absolute`): what
     #: its calibration, its row and its errors name, as a batch run here does.
     found: tuple[str, ...] = ()
+
+
+Triple = tuple[float | None, float | None, float | None]
+NONE3: Triple = (None, None, None)
+
+
+@dataclass
+class Row:
+    """A unit's row of summary.csv (SUMMARY_COLUMNS: ``offset`` is offset_x, offset_y, offset_z
+    ...), and what the batch needs of it beside: ``messages`` for people, one per line; the
+    ``staging`` file its calibration waits in; the ``poses`` (sha256, file) it records, for
+    duplicate_of; ``unwritten`` when the disk refused its calibration."""
+
+    serial: str
+    inputs: list[str] = field(default_factory=list)
+    status: int = 0
+    verdict: str | None = None
+    codes: list[str] = field(default_factory=list)
+    file: str | None = None
+    method: str | None = None
+    offset: Triple = NONE3
+    gain: Triple = NONE3
+    offset_se: Triple = NONE3
+    gain_se: Triple = NONE3
+    created: str | None = None
+    message: str | None = None
+    duplicate_of: list[str] | None = None
+    messages: list[str] | None = None
+    staging: str | None = None
+    poses: list[tuple[str, str]] | None = None
+    unwritten: bool = False
+
+    def value(self, column: str) -> object:
+        """The value of a summary column (a number column, ``offset_x``, one of its triple)."""
+        name, _, axis = column.rpartition("_")
+        if column in NUMBERS:
+            triple: Triple = getattr(self, name)
+            return triple["xyz".index(axis)]
+        return getattr(self, column)
+
+    @classmethod
+    def received(cls, fields: Mapping[str, object]) -> Row:
+        """The row :func:`run_unit` sent (its fields by name)."""
+        return cls(**fields)  # type: ignore[arg-type]  # a Row's own fields, made by vars()
+
+    @classmethod
+    def of(cls, row: Row | Mapping[str, object]) -> Row:
+        """A row given by its summary columns (a mapping, as read from summary.csv)."""
+        if isinstance(row, Row):
+            return row
+
+        def triple(name: str) -> Triple:
+            values = [row.get(f"{name}_{a}") for a in "xyz"]
+            x, y, z = (float(v) if isinstance(v, int | float | str) and v != "" else None for v in values)
+            return x, y, z
+
+        def texts(name: str) -> list[str] | None:
+            value = row.get(name)
+            return None if value is None else [str(v) for v in value] if isinstance(value, list) else [str(value)]
+
+        def text(name: str) -> str | None:
+            value = row.get(name)
+            return None if value is None else str(value)
+
+        status = row.get("status", 0)
+        return cls(
+            serial=str(row.get("serial", "")),
+            inputs=texts("inputs") or [],
+            status=int(status) if isinstance(status, int | str) else 0,
+            verdict=text("verdict"),
+            codes=texts("codes") or [],
+            file=text("file"),
+            method=text("method"),
+            offset=triple("offset"),
+            gain=triple("gain"),
+            offset_se=triple("offset_se"),
+            gain_se=triple("gain_se"),
+            created=text("created"),
+            message=text("message"),
+            duplicate_of=texts("duplicate_of"),
+        )
 
 
 # -- finding the units -------------------------------------------------------------------------
@@ -244,31 +332,35 @@ def _resolve(base: str, name: str) -> str:
 
 def run_unit(
     unit: Unit, options: SolveOptions, out_dir: str, log: bool, token: str, epoch: str | None = None
-) -> dict[str, Any]:
+) -> dict[str, object]:
     """Solve one unit as ``tumblecal solve`` does, into a hidden staging file of this batch
-    (``token``); its summary row. The parent publishes the file (:func:`finish`) as it records
-    the row, so an interrupted batch leaves no calibration without a row. Never raises for the
-    unit's own errors: they are its row's status and message. ``epoch``: the caller's
-    ``SOURCE_DATE_EPOCH`` ("" when unset), which a Dask worker's own environment does not hold."""
+    (``token``); its summary row, as plain data (it crosses from a worker process or a Dask
+    worker, whose tumblecal may be another version: :meth:`Row.received`). The parent publishes
+    the file (:func:`finish`) as it records the row, so an interrupted batch leaves no
+    calibration without a row. Never raises for the unit's own errors: they are its row's status
+    and message. ``epoch``: the caller's ``SOURCE_DATE_EPOCH`` ("" when unset), which a Dask
+    worker's own environment does not hold."""
     from tumblecal_cli.io import calfile
 
     reset = calfile.CALLER_EPOCH.set(epoch)
     try:
-        return _run_unit(unit, options, out_dir, log, token)
+        return vars(_run_unit(unit, options, out_dir, log, token))
     finally:
         calfile.CALLER_EPOCH.reset(reset)
 
 
-def _run_unit(unit: Unit, options: SolveOptions, out_dir: str, log: bool, token: str) -> dict[str, Any]:
+def _run_unit(unit: Unit, options: SolveOptions, out_dir: str, log: bool, token: str) -> Row:
+    from dataclasses import replace
+
     from tumblecal_cli.pipeline import solve
 
     staging = os.path.join(out_dir, f".{unit.serial}.{token}{STAGING}")
-    row: dict[str, Any] = {"serial": unit.serial, "inputs": list(unit.found or unit.inputs)}
+    row = Row(unit.serial, list(unit.found or unit.inputs))
     names = {_file(a): _file(f) for a, f in zip(unit.inputs, unit.found, strict=True)} if unit.found else {}
     if unit.problem is not None:
-        return row | _failed(InputError(unit.problem))
+        return _failed(row, InputError(unit.problem))
     if log and len(unit.inputs) != 1:
-        return row | _failed(InputError(f"--log takes one log per unit; {unit.serial} has {len(unit.inputs)} files"))
+        return _failed(row, InputError(f"--log takes one log per unit; {unit.serial} has {len(unit.inputs)} files"))
     try:
         mine = replace(options, unit=replace(options.unit, serial=unit.serial))
         solved = solve.run(mine, log=unit.inputs[0]) if log else solve.run(mine, poses=list(unit.inputs))
@@ -279,18 +371,38 @@ def _run_unit(unit: Unit, options: SolveOptions, out_dir: str, log: bool, token:
         solved.calibration.save(staging)
     except TumblecalError as err:
         if err.file == staging:  # its calibration could not be written (a full disk): not done
-            return row | _failed(err) | {"unwritten": True}
-        return _as_found_text(row | _failed(err), names)
+            return replace(_failed(row, err), unwritten=True)
+        return _as_found_text(_failed(row, err), names)
     except Exception as err:  # a bug: this unit's error, with what to report
-        return row | _failed(InputError(f"internal error: {type(err).__name__}: {err}"))
+        return _failed(row, InputError(f"internal error: {type(err).__name__}: {err}"))
     cal, status = solved.calibration, solved.status
     failures = cal.verdict.failures if cal.verdict is not None else ()
-    codes = list(dict.fromkeys(f.code for f in failures))
     # why a unit failed its limits, as its row's message (the file holds the whole verdict)
     messages = [f"{f.code}: {f.message}" for f in failures]
-    outcome = {"status": status, "verdict": VERDICTS[status], "codes": codes, "staging": staging}
-    outcome["poses"] = pose_files(cal.poses)  # not a summary column: for duplicate_of
-    return row | outcome | ({"message": "; ".join(messages)} if messages else {}) | _parameters(cal)
+    unc = cal.uncertainty
+    return replace(
+        row,
+        status=status,
+        verdict=VERDICTS[status],
+        codes=list(dict.fromkeys(f.code for f in failures)),
+        staging=staging,
+        poses=pose_files(cal.poses),  # not a summary column: for duplicate_of
+        message="; ".join(messages) if messages else None,
+        method=cal.method,
+        created=cal.created,
+        offset=_triple(cal.offset),
+        gain=_triple(cal.gain),
+        offset_se=_triple(unc.get("offset")),
+        gain_se=_triple(unc.get("gain")),
+    )
+
+
+def _triple(values: FloatArray | None) -> Triple:
+    """A calibration's (3,) parameter for its row (None: not solved)."""
+    if values is None:
+        return NONE3
+    x, y, z = (float(v) for v in values)
+    return x, y, z
 
 
 def _file(item: str) -> str:
@@ -313,17 +425,14 @@ def as_found(cal: Calibration, names: Mapping[str, str]) -> Calibration:
     return replace(cal, poses=poses, segmentation=segmentation)
 
 
-def _as_found_text(row: dict[str, Any], names: Mapping[str, str]) -> dict[str, Any]:
+def _as_found_text(row: Row, names: Mapping[str, str]) -> Row:
     """A failed row's messages naming the files as found (the longest path first: no path is
     replaced inside a longer one)."""
-    for key in ("message", "messages"):
-        value = row.get(key)
-        for path in sorted(names, key=len, reverse=True):
-            if isinstance(value, str):
-                value = value.replace(path, names[path])
-            elif isinstance(value, list):
-                value = [str(v).replace(path, names[path]) for v in value]
-        row[key] = value
+    message, messages = row.message, row.messages
+    for path in sorted(names, key=len, reverse=True):
+        message = None if message is None else message.replace(path, names[path])
+        messages = None if messages is None else [m.replace(path, names[path]) for m in messages]
+    row.message, row.messages = message, messages
     return row
 
 
@@ -332,7 +441,7 @@ def pose_files(poses: Iterable[Pose]) -> list[tuple[str, str]]:
     return list(dict.fromkeys((p.sha256, p.file or "") for p in poses if p.sha256))
 
 
-def mark_duplicates(rows: list[dict[str, Any]], out_dir: str) -> list[str]:
+def mark_duplicates(rows: list[Row], out_dir: str) -> list[str]:
     """Set each row's ``duplicate_of``: the other serials whose calibration records a pose file
     with the same sha256 (a copy of one unit's capture given as another's); a warning for each
     such file, naming the serials and the file. A row from an earlier run (``--resume``) has its
@@ -341,14 +450,13 @@ def mark_duplicates(rows: list[dict[str, Any]], out_dir: str) -> list[str]:
 
     records = []
     for row in rows:
-        poses = row.get("poses")
-        if poses is None and row.get("file"):
-            poses = row["poses"] = _recorded_poses(os.path.join(out_dir, str(row["file"])))
-        records += [(str(row["serial"]), sha, file) for sha, file in poses or []]
+        if row.poses is None and row.file:
+            row.poses = _recorded_poses(os.path.join(out_dir, row.file))
+        records += [(row.serial, sha, file) for sha, file in row.poses or []]
     found = lot.duplicates(records)
     others = lot.duplicate_of(found)
     for row in rows:
-        row["duplicate_of"] = others.get(str(row["serial"])) or None
+        row.duplicate_of = others.get(row.serial) or None
     return lot.duplicate_warnings(found)
 
 
@@ -374,10 +482,10 @@ def held_signals() -> Iterator[None]:
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    caught: list[tuple[int, Any]] = []
-    previous: dict[signal.Signals, Any] = {}
+    caught: list[tuple[int, FrameType | None]] = []
+    previous: dict[signal.Signals, Handler] = {}
 
-    def hold(number: int, frame: Any) -> None:
+    def hold(number: int, frame: FrameType | None) -> None:
         caught.append((number, frame))
 
     try:
@@ -397,7 +505,7 @@ def held_signals() -> Iterator[None]:
             signal.raise_signal(number)
 
 
-def _put_back(handlers: list[tuple[Any, Any]]) -> None:
+def _put_back(handlers: list[tuple[signal.Signals, Handler]]) -> None:
     """Each signal's handler put back, the later ones even if a stop lands after the first."""
     import signal
 
@@ -408,22 +516,22 @@ def _put_back(handlers: list[tuple[Any, Any]]) -> None:
             _put_back(handlers[1:])
 
 
-def finish(row: dict[str, Any], out_dir: str) -> dict[str, Any]:
+def finish(row: Row, out_dir: str) -> Row:
     """Publish a row's staged calibration under its name; the row with ``file`` set."""
-    staging = row.pop("staging", None)
+    staging, row.staging = row.staging, None
     if staging is not None:
         try:
-            row["file"] = publish(staging, out_dir, str(row["serial"]), str(row.get("created") or ""))
+            row.file = publish(staging, out_dir, row.serial, row.created or "")
         finally:
             with contextlib.suppress(OSError):
                 os.unlink(staging)
     return row
 
 
-def failed_row(unit: Unit, err: BaseException) -> dict[str, Any]:
+def failed_row(unit: Unit, err: BaseException) -> Row:
     """The row of a unit whose worker failed (a Dask worker lost, tumblecal missing there)."""
     message = f"the worker running it failed: {type(err).__name__}: {err}"
-    return {"serial": unit.serial, "inputs": list(unit.found or unit.inputs)} | _failed(InputError(message))
+    return _failed(Row(unit.serial, list(unit.found or unit.inputs)), InputError(message))
 
 
 def stale_staging(out_dir: str) -> list[str]:
@@ -471,29 +579,14 @@ def clean_staging(out_dir: str, token: str) -> None:
                     os.unlink(os.path.join(out_dir, name))
 
 
-def _failed(err: TumblecalError) -> dict[str, Any]:
-    return {
-        "status": err.exit_code,
-        "verdict": VERDICTS.get(err.exit_code, "error"),
-        "codes": list(dict.fromkeys(err.codes)),  # each once, in the order found
-        "message": "; ".join([str(err), *err.more]),
-        "messages": [str(err), *err.more],  # for people, one per line (not a summary column)
-    }
-
-
-def _parameters(cal: Calibration) -> dict[str, Any]:
-    """The key parameters of a calibration: method, offset and gain, and their 1-sigma errors."""
-    out: dict[str, Any] = {"method": cal.method, "created": cal.created}
-    unc = cal.uncertainty
-    for key, values in (
-        ("offset", cal.offset),
-        ("gain", cal.gain),
-        ("offset_se", unc.get("offset")),
-        ("gain_se", unc.get("gain")),
-    ):
-        for axis, value in zip("xyz", [None] * 3 if values is None else [float(v) for v in values], strict=True):
-            out[f"{key}_{axis}"] = value
-    return out
+def _failed(row: Row, err: TumblecalError) -> Row:
+    """``row`` as its unit's error makes it."""
+    row.status = err.exit_code
+    row.verdict = VERDICTS.get(err.exit_code, "error")
+    row.codes = list(dict.fromkeys(err.codes))  # each once, in the order found
+    row.message = "; ".join([str(err), *err.more])
+    row.messages = [str(err), *err.more]  # for people, one per line (not a summary column)
+    return row
 
 
 def publish(staging: str, out_dir: str, serial: str, created: str) -> str:
@@ -525,11 +618,11 @@ def publish(staging: str, out_dir: str, serial: str, created: str) -> str:
 FREE_TEXT = ("serial", "file")
 
 
-def cell(row: dict[str, Any], column: str) -> str:
+def cell(row: Row | Mapping[str, object], column: str) -> str:
     """A summary cell: numbers in full, lists joined, free text made safe for a spreadsheet."""
     from tumblecal_cli.io.outputs import spreadsheet_safe
 
-    value = row.get(column)
+    value = Row.of(row).value(column)
     if value is None:
         return ""
     if isinstance(value, list):
@@ -538,7 +631,7 @@ def cell(row: dict[str, Any], column: str) -> str:
     return spreadsheet_safe(text) if column in FREE_TEXT else text
 
 
-def read_summary(path: str) -> list[dict[str, Any]]:
+def read_summary(path: str) -> list[Row]:
     """The rows of an existing summary.csv (for --resume), typed as run_unit makes them."""
     from tumblecal_cli.io.outputs import unsafe
 
@@ -565,15 +658,24 @@ def read_summary(path: str) -> list[dict[str, Any]]:
                 hint="delete that line and --resume again: that unit is redone",
             )
         try:
-            row: dict[str, Any] = {
-                c: (unsafe(raw.get(c, "")) if c in FREE_TEXT else raw.get(c, "")) or None for c in SUMMARY_COLUMNS
-            }
-            row["status"] = int(raw["status"])
-            row["codes"] = [c for c in raw["codes"].split(SEPARATOR) if c]
-            row["duplicate_of"] = [c for c in (raw.get("duplicate_of") or "").split(SEPARATOR) if c] or None
-            row["inputs"] = [c for c in raw["inputs"].split(SEPARATOR) if c]
-            for c in NUMBERS:
-                row[c] = float(raw[c]) if raw[c] else None
+            cells = {c: (unsafe(raw.get(c, "")) if c in FREE_TEXT else raw.get(c, "")) or None for c in SUMMARY_COLUMNS}
+
+            row = Row(
+                serial=cells["serial"] or "",
+                inputs=[c for c in raw["inputs"].split(SEPARATOR) if c],
+                status=int(raw["status"]),
+                verdict=cells["verdict"],
+                codes=[c for c in raw["codes"].split(SEPARATOR) if c],
+                file=cells["file"],
+                method=cells["method"],
+                offset=_numbers(raw, "offset"),
+                gain=_numbers(raw, "gain"),
+                offset_se=_numbers(raw, "offset_se"),
+                gain_se=_numbers(raw, "gain_se"),
+                created=cells["created"],
+                message=cells["message"],
+                duplicate_of=[c for c in (raw.get("duplicate_of") or "").split(SEPARATOR) if c] or None,
+            )
         except (TypeError, ValueError, KeyError):
             raise InputError("a row this version did not write", file=path, line=n) from None
         out.append(row)
@@ -585,11 +687,17 @@ def read_summary(path: str) -> list[dict[str, Any]]:
     return out
 
 
+def _numbers(raw: Mapping[str, str], name: str) -> Triple:
+    """A number column's three cells (offset_x, offset_y, offset_z), empty: None."""
+    x, y, z = (float(raw[f"{name}_{a}"]) if raw[f"{name}_{a}"] else None for a in "xyz")
+    return x, y, z
+
+
 class Summary:
     """summary.csv, appended to as each unit finishes (a crash keeps what was done, for
     --resume), and rewritten sorted by serial at the end."""
 
-    def __init__(self, out_dir: str, rows: list[dict[str, Any]]) -> None:
+    def __init__(self, out_dir: str, rows: list[Row]) -> None:
         self.path = os.path.join(out_dir, SUMMARY)
         self.rows = rows
         self._file = open(self.path, "a", newline="", encoding="utf-8")  # noqa: SIM115 (closed in close)
@@ -598,7 +706,7 @@ class Summary:
             self._writer.writerow(SUMMARY_COLUMNS)
             self._file.flush()
 
-    def add(self, row: dict[str, Any]) -> None:
+    def add(self, row: Row) -> None:
         self.rows.append(row)
         self._writer.writerow([cell(row, c) for c in SUMMARY_COLUMNS])
         self._file.flush()
@@ -607,12 +715,13 @@ class Summary:
         from tumblecal_cli.io.outputs import atomic_output
 
         self._file.close()
-        self.rows.sort(key=lambda r: str(r["serial"]))
+        self.rows.sort(key=lambda r: r.serial)
         with atomic_output(self.path) as out:
             out.write(text(self.rows).encode())
 
 
-def text(rows: Iterable[dict[str, Any]]) -> str:
+def text(rows: Iterable[Row | Mapping[str, object]]) -> str:
+    """summary.csv of ``rows`` (each a Row, or its summary columns)."""
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(SUMMARY_COLUMNS)
@@ -620,9 +729,9 @@ def text(rows: Iterable[dict[str, Any]]) -> str:
     return buffer.getvalue()
 
 
-def status(rows: Iterable[dict[str, Any]]) -> int:
+def status(rows: Iterable[Row | Mapping[str, object]]) -> int:
     """The batch's exit status: 2, 3, 1 or 0, the first that any unit has."""
-    seen = {int(r["status"]) for r in rows}
+    seen = {Row.of(r).status for r in rows}
     return next((s for s in PRECEDENCE if s in seen), 0)
 
 
@@ -645,12 +754,12 @@ class Batched:
     """A batch's outcome: its exit status, the summary's rows, and the count of each verdict."""
 
     status: int
-    rows: list[dict[str, Any]]
+    rows: list[Row]
     counts: dict[str, int]
     summary: str
     warnings: list[str] = field(default_factory=list)  # the same pose file under two serials
 
-    def table(self) -> Any:
+    def table(self) -> Any:  # Any: a pandas DataFrame (pandas is untyped here)
         """summary.csv as a pandas DataFrame."""
         import pandas as pd
 
@@ -660,14 +769,14 @@ class Batched:
 def run_batch(
     source: str,
     out_dir: str,
-    options: SolveOptions | Mapping[str, Any] | None = None,
+    options: SolveOptions | Mapping[str, Any] | None = None,  # Any: SolveOptions' fields, checked there
     *,
     log: bool = False,
     jobs: int = 1,
     resume: bool = False,
     scheduler: str | None = None,
     on_start: Callable[[Plan], None] | None = None,
-    on_unit: Callable[[dict[str, Any]], None] | None = None,
+    on_unit: Callable[[Row], None] | None = None,
 ) -> Batched:
     """Calibrate every unit of ``source`` (a folder of units or a manifest CSV) as solve would
     with ``options``: each unit's calibration into ``out_dir`` as ``<serial>_<UTC time>.json``
@@ -698,7 +807,7 @@ def run_batch(
     if os.path.exists(out_dir) and not os.path.isdir(out_dir):
         raise InputError("is a file, not a folder: --out-dir takes a folder", file=out_dir)
     summary_path = os.path.join(out_dir, SUMMARY)
-    rows: list[dict[str, Any]] = []
+    rows: list[Row] = []
     if os.path.exists(summary_path):
         if not resume:
             raise InputError(
@@ -709,7 +818,7 @@ def run_batch(
         notes += repair_torn_row(summary_path)
         rows = read_summary(summary_path)
     notes += stale_staging(out_dir)
-    done = {str(r["serial"]) for r in rows}
+    done = {r.serial for r in rows}
     todo = [u for u in units if u.serial not in done]
     if on_start is not None:
         on_start(Plan(units, todo, notes, summary_path))
@@ -721,12 +830,14 @@ def run_batch(
         epoch = os.environ.get("SOURCE_DATE_EPOCH", "")  # the caller's, wherever the units run
         work = [(u, options, out_dir, log, token, epoch) for u in todo]
         for (unit, *_), outcome in run(run_unit, work):
-            assert isinstance(unit, Unit)
             with held_signals():  # a calibration is published with its row, or not at all
-                row = failed_row(unit, outcome) if isinstance(outcome, BaseException) else finish(outcome, out_dir)
-                if row.get("unwritten"):  # the disk refused: stop here, and leave the unit to --resume
+                if isinstance(outcome, BaseException):
+                    row = failed_row(unit, outcome)
+                else:
+                    row = finish(Row.received(outcome), out_dir)
+                if row.unwritten:  # the disk refused: stop here, and leave the unit to --resume
                     raise InputError(
-                        f"{row['serial']}: {row['message']}; {len(summary.rows) - len(done)} of {len(todo)} units done",
+                        f"{row.serial}: {row.message}; {len(summary.rows) - len(done)} of {len(todo)} units done",
                         hint="free some space, then run the same command with --resume: the units done are kept",
                     )
                 summary.add(row)
@@ -742,5 +853,5 @@ def run_batch(
         warnings = mark_duplicates(summary.rows, out_dir)  # before the summary is written whole
         summary.close()
         clean_staging(out_dir, token)
-    counts = {v: sum(r["verdict"] == v for r in summary.rows) for v in VERDICTS.values()}
+    counts = {v: sum(r.verdict == v for r in summary.rows) for v in VERDICTS.values()}
     return Batched(status(summary.rows), summary.rows, counts, summary_path, warnings)

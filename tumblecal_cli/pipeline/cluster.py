@@ -9,7 +9,7 @@ from __future__ import annotations
 import itertools
 import os
 from collections.abc import Callable, Iterator, Sequence
-from typing import TYPE_CHECKING, Protocol, TypeVar
+from typing import TYPE_CHECKING, Protocol, TypeVar, TypeVarTuple
 
 from tumblecal_cli.errors import InputError
 
@@ -22,7 +22,7 @@ IN_FLIGHT = 1000
 WORKERS_TIMEOUT = 10.0
 
 Result = TypeVar("Result")
-Work = tuple[object, ...]  # the arguments of one call
+Args = TypeVarTuple("Args")  # the arguments of one call
 
 
 class Engine(Protocol):
@@ -30,8 +30,8 @@ class Engine(Protocol):
     cluster the result may be the exception that lost the piece (a worker gone)."""
 
     def __call__(
-        self, fn: Callable[..., Result], work: Sequence[Work], /
-    ) -> Iterator[tuple[Work, Result | Exception]]: ...
+        self, fn: Callable[[*Args], Result], work: Sequence[tuple[*Args]], /
+    ) -> Iterator[tuple[tuple[*Args], Result | Exception]]: ...
 
 
 def engine(jobs: int, scheduler: str | None) -> Engine:
@@ -44,12 +44,16 @@ def engine(jobs: int, scheduler: str | None) -> Engine:
     return _here
 
 
-def _here(fn: Callable[..., Result], work: Sequence[Work], /) -> Iterator[tuple[Work, Result | Exception]]:
+def _here(
+    fn: Callable[[*Args], Result], work: Sequence[tuple[*Args]], /
+) -> Iterator[tuple[tuple[*Args], Result | Exception]]:
     return ((args, fn(*args)) for args in work)
 
 
 def _processes(jobs: int) -> Engine:
-    def run(fn: Callable[..., Result], work: Sequence[Work], /) -> Iterator[tuple[Work, Result | Exception]]:
+    def run(
+        fn: Callable[[*Args], Result], work: Sequence[tuple[*Args]], /
+    ) -> Iterator[tuple[tuple[*Args], Result | Exception]]:
         import multiprocessing
         from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
@@ -57,7 +61,7 @@ def _processes(jobs: int) -> Engine:
         context.set_forkserver_preload(
             ["tumblecal_cli.pipeline.solve", "tumblecal_cli.io.readings", "tumblecal_cli.core.solvers"]
         )
-        sent: dict[Future[Result], Work] = {}
+        sent: dict[Future[Result], tuple[*Args]] = {}
         with ProcessPoolExecutor(
             max_workers=jobs, mp_context=context, initializer=_watch_parent, initargs=(os.getpid(),)
         ) as pool:
@@ -119,7 +123,9 @@ def _dask(address: str) -> Engine:
             hint="start some: dask worker ADDRESS --nworkers N --nthreads 1 (with tumblecal installed there)",
         ) from None
 
-    def run(fn: Callable[..., Result], work: Sequence[Work], /) -> Iterator[tuple[Work, Result | Exception]]:
+    def run(
+        fn: Callable[[*Args], Result], work: Sequence[tuple[*Args]], /
+    ) -> Iterator[tuple[tuple[*Args], Result | Exception]]:
         with client:
             todo = iter(work)  # a bounded number in flight: the scheduler spreads them over the workers
             sent = {}  # distributed.Future (untyped: the optional extra is read as Any) -> its args

@@ -12,7 +12,7 @@ import os
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from functools import partial
-from typing import IO, TYPE_CHECKING, Any, Unpack
+from typing import IO, TYPE_CHECKING, Unpack
 
 from tumblecal_cli.errors import InputError, TumblecalError
 from tumblecal_cli.pipeline.options import FileKeywords
@@ -137,15 +137,20 @@ def expand(patterns: list[str]) -> list[str]:
     return out
 
 
-def _calibrations(cal: object) -> list[Any]:
+def _calibrations(cal: object) -> list[Calibration | str]:
     """``cal`` as a list of Calibrations and paths (one, or one per sensor)."""
     from tumblecal_cli.io.calfile import Calibration
 
     one = isinstance(cal, str | os.PathLike | Calibration)
-    given: list[Any] = [cal] if one else list(cal) if isinstance(cal, Sequence) else []
-    if not given or not all(isinstance(c, str | os.PathLike | Calibration) for c in given):
+    given: list[object] = [cal] if one else list(cal) if isinstance(cal, Sequence) else []
+    out: list[Calibration | str] = []
+    for c in given:
+        if not isinstance(c, str | os.PathLike | Calibration):
+            break
+        out.append(c if isinstance(c, Calibration) else os.fspath(c))
+    if not given or len(out) != len(given):
         raise InputError(f"correct needs a calibration (a file, or a Calibration), not {cal!r:.60}")
-    return [c if isinstance(c, Calibration) else os.fspath(c) for c in given]
+    return out
 
 
 class ManyKeywords(FileKeywords, total=False):

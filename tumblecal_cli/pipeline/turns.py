@@ -7,19 +7,20 @@ which way gravity points (the six faces, and during each turn), the gyroscope's 
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import NDArray
 
 from tumblecal_cli.core import model
 from tumblecal_cli.core import turns as core
 from tumblecal_cli.core.gate import Finding
+from tumblecal_cli.core.model import FloatArray
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import readings
 from tumblecal_cli.pipeline.options import pose_map
 
 if TYPE_CHECKING:
-    from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfile import Calibration, GSensitivity, Pose, Rotation, Segmentation, Turn
     from tumblecal_cli.io.readings import Log
     from tumblecal_cli.pipeline.options import Settings, SolveOptions
@@ -70,7 +71,7 @@ class Section:
     """All rows of one label: indices into the log's readings, and their data rows."""
 
     label: str
-    index: np.ndarray[Any, np.dtype[np.int64]]
+    index: NDArray[np.int64]
 
     def rows(self, log: Log) -> tuple[int, int]:
         return int(log.rows[self.index[0]]), int(log.rows[self.index[-1]])
@@ -114,7 +115,7 @@ def sections(log: Log) -> dict[str, Section]:
     return out
 
 
-def seconds_per_sample(log: Log, rate: float | None) -> np.ndarray[Any, np.dtype[np.float64]]:
+def seconds_per_sample(log: Log, rate: float | None) -> FloatArray:
     """The seconds each reading stands for: 1/--rate, else the time to the next reading (the
     last one the median step); without either the turns cannot be integrated (exit 2)."""
     if rate:
@@ -241,7 +242,7 @@ def _moved(fit: core.TurnsFit, still: core.Still, secs: list[Section], options: 
     return out
 
 
-def _implausible(fit: core.TurnsFit, turns: dict[str, str], axes: Any, angle: float) -> list[Finding]:
+def _implausible(fit: core.TurnsFit, turns: dict[str, str], axes: FloatArray, angle: float) -> list[Finding]:
     """Turns whose integrated angle, at the gain of all the turns, is more than 25 % from --turn-angle."""
     measured = core.plausible_angles(fit.integrated, axes, np.full(len(axes), angle))
     out = []

@@ -24,10 +24,10 @@ class Verified:
     0 within ``max_norm_error`` or none given, 1 outside it, 3 a capture that is not static)."""
 
     status: int
-    cal: Any  # the Calibration judged
+    cal: Calibration  # the Calibration judged
     reference: float
     max_norm_error: float | None
-    rows: list[dict[str, Any]]
+    rows: list[dict[str, Any]]  # Any: each capture's figures, as --json and table() give them
     overall: dict[str, float]
     rejected: list[str] = field(default_factory=list)
     failed: list[str] = field(default_factory=list)
@@ -42,7 +42,7 @@ class Verified:
             self.rejected[0], more=tuple(self.rejected[1:]), hint="capture it again holding the unit still"
         )
 
-    def table(self) -> Any:
+    def table(self) -> Any:  # Any: a pandas DataFrame (pandas is untyped here)
         """The per-capture rows as a pandas DataFrame."""
         import pandas as pd
 
@@ -59,7 +59,7 @@ class VerifyKeywords(FileKeywords, total=False):
 
 def verify(
     captures: Sequence[str | os.PathLike[str]] | str | os.PathLike[str],
-    cal: Any,
+    cal: Calibration | str | os.PathLike[str],
     **options: Unpack[VerifyKeywords],
 ) -> Verified:
     """The norm error of each static capture before and after correction with ``cal``."""
@@ -197,12 +197,12 @@ class VerifiedRotations:
     one, before and after the calibration's matrix), and the overall RMS and largest."""
 
     status: int
-    cal: Any
-    rows: list[dict[str, Any]]
+    cal: Calibration
+    rows: list[dict[str, Any]]  # Any: each rotation's figures, as --json and table() give them
     overall: dict[str, float]
     notes: list[str] = field(default_factory=list)
 
-    def table(self) -> Any:
+    def table(self) -> Any:  # Any: a pandas DataFrame (pandas is untyped here)
         import pandas as pd
 
         return pd.DataFrame(self.rows)
@@ -210,7 +210,7 @@ class VerifiedRotations:
 
 def verify_rotations(
     log: str | os.PathLike[str],
-    cal: Any,
+    cal: Calibration | str | os.PathLike[str],
     *,
     accel_cal: str | os.PathLike[str],
     rate: float | None = None,
