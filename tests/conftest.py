@@ -1,6 +1,7 @@
 """Helpers shared by the test modules: running ``tumblecal`` (in-process or as the installed
-script), the sample data's paths, the "a failed run leaves the output alone" check, and the unit
-folders that ``batch`` reads. Test modules import them with ``from tests.conftest import ...``.
+script), the sample data's paths, the "a failed run leaves the output alone" check, writing a
+test's input files, and the unit folders that ``batch`` reads. Test modules import them with
+``from tests.conftest import ...``; a helper that two modules need lives here, once.
 
 Slow tests carry ``@pytest.mark.slow`` (a whole module: ``pytestmark``): the Dask cluster, the
 real-data logs, the Monte Carlo benchmark and scatter checks, subprocesses (the installed script,
@@ -13,15 +14,18 @@ from __future__ import annotations
 
 import contextlib
 import io
+import json
 import os
 import shutil
 import subprocess
 import sys
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
+import numpy as np
 import pytest
+from numpy.typing import NDArray
 
 from tumblecal_cli.cli import main
 
@@ -91,8 +95,6 @@ def assert_one_error(
     ``json_out`` (the command had --json): stdout is the error object saying the same instead."""
     assert result.code == code, result.err
     if json_out:
-        import json
-
         doc = json.loads(result.out)
         assert (doc["status"], doc["exit_status"]) == ({2: "error", 3: "rejected"}[code], code)
         error = doc["error"]
@@ -128,6 +130,28 @@ def snapshot(folder: Path) -> dict[str, bytes]:
 
 
 # -- building inputs ------------------------------------------------------------------------
+
+
+def write(
+    path: Path,
+    content: str | bytes | Mapping[str, Any] | NDArray[Any],
+    *,
+    header: str = "t,x,y,z",
+    fmt: str | Sequence[str] = "%.6f",
+) -> Path:
+    """``content`` into ``path`` (its folder made if need be), and ``path``: text (as UTF-8) and
+    bytes byte for byte, a mapping as JSON, and a table of numbers as CSV: ``header``, then each
+    row in ``fmt`` (one format for every column, or one per column) joined by commas. A table's
+    bytes are those ``numpy.savetxt`` writes, formatted in one go rather than row by row."""
+    if isinstance(content, np.ndarray):
+        formats = [fmt] * content.shape[1] if isinstance(fmt, str) else list(fmt)
+        row = ",".join(formats) + "\n"
+        content = header + "\n" + (row * len(content)) % tuple(content.ravel().tolist())
+    elif isinstance(content, Mapping):
+        content = json.dumps(content)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(content.encode() if isinstance(content, str) else content)
+    return path
 
 
 def unit(root: Path, serial: str, kind: str) -> Path:

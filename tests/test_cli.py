@@ -37,6 +37,7 @@ from tests.conftest import (
     run_exe,
     tumblecal_exe,
     unnamed,
+    write,
 )
 from tests.conftest import run as run  # re-exported: tests/test_api.py imports run from here
 from tumblecal_cli import __version__
@@ -78,7 +79,7 @@ def write_pose(
     rng = np.random.default_rng(seed)
     values = np.asarray(mean, dtype=np.float64) + noise * rng.standard_normal((n, 3))
     data = np.column_stack([np.arange(n) / 100.0, values])
-    np.savetxt(path, data, delimiter=",", header=header, comments="", fmt=["%.2f", fmt, fmt, fmt])
+    write(path, data, header=header, fmt=["%.2f", fmt, fmt, fmt])
     written: FloatArray = np.loadtxt(path, delimiter=",", skiprows=1)[:, 1:]
     return written
 

@@ -20,11 +20,12 @@ from pathlib import Path
 
 import pytest
 
+from tests.conftest import write
 from tumblecal_cli.errors import InputError, TumblecalError
 from tumblecal_cli.io import captures, forked
 from tumblecal_cli.io.captures import open_capture
 
-from .test_splice import CASES, ROOT, _accel, lines, table, write
+from .test_splice import CASES, ROOT, _accel, lines, table
 
 BLOCK = 2048
 
@@ -90,7 +91,7 @@ def no_children_left() -> bool:
 
 @pytest.mark.parametrize("case", list(CASES))
 def test_workers_write_what_threads_write(case: str, tmp_path: Path, small_blocks: list[int]) -> None:
-    path = write(tmp_path, CASES[case]())
+    path = write(tmp_path / "c.csv", CASES[case]())
     with contextlib.suppress(TumblecalError):  # refused when opened: neither runs
         with open_capture(str(path)):
             pass
@@ -101,7 +102,7 @@ def test_workers_write_what_threads_write(case: str, tmp_path: Path, small_block
 
 
 def test_a_plain_file_is_spread_over_the_workers(tmp_path: Path, small_blocks: list[int]) -> None:
-    path = write(tmp_path, "t,ax,ay,az\n" + "\n".join(lines(table(3000))) + "\n")
+    path = write(tmp_path / "c.csv", "t,ax,ay,az\n" + "\n".join(lines(table(3000))) + "\n")
     out, error = corrected(path, None)
     assert error is None
     assert small_blocks == [3]
@@ -114,7 +115,7 @@ def test_an_error_in_a_late_block_names_its_line_after_the_blocks_before_it(
 ) -> None:
     rows = lines(table(3000))
     rows[2500] = "2.5,0.5,oops,0.5"
-    path = write(tmp_path, "t,ax,ay,az\n" + "\n".join(rows) + "\n")
+    path = write(tmp_path / "c.csv", "t,ax,ay,az\n" + "\n".join(rows) + "\n")
     out, error = corrected(path, None)
     assert small_blocks == [3]
     assert error is not None
@@ -129,7 +130,7 @@ def test_an_error_in_a_late_block_names_its_line_after_the_blocks_before_it(
 
 def test_a_line_longer_than_the_window_keeps_the_work_here(tmp_path: Path, small_blocks: list[int]) -> None:
     text = "t,ax,ay,az,note\n" + "\n".join(f"{ln},{'n' * 3000}" for ln in lines(table(20))) + "\n"
-    path = write(tmp_path, text)
+    path = write(tmp_path / "c.csv", text)
     assert forked.cuts(str(path), 16, BLOCK) is None
     (to_file, error), (to_memory, same_error) = corrected(path, None), corrected(path, io.BytesIO())
     assert error == same_error
@@ -145,7 +146,7 @@ def test_the_cuts_are_a_readers_blocks(tmp_path: Path) -> None:
     """Block by block as a reader of ``block`` bytes cuts them: whole lines, the last part line
     carried into the next read, a last line without its line end a block of its own."""
     text = ("t,ax,ay,az\n" + "\n".join(lines(table(5000))) + "\n5.000,0.1,0.2,0.3").encode()
-    path = write(tmp_path, text)
+    path = write(tmp_path / "c.csv", text)
     expected, carry, at = [], b"", 11
     with open(path, "rb") as f:
         f.seek(at)
@@ -159,7 +160,7 @@ def test_the_cuts_are_a_readers_blocks(tmp_path: Path) -> None:
 
 
 def test_a_worker_that_dies_is_an_error_not_a_hang(tmp_path: Path, small_blocks: list[int]) -> None:
-    path = write(tmp_path, "t,ax,ay,az\n" + "\n".join(lines(table(3000))) + "\n")
+    path = write(tmp_path / "c.csv", "t,ax,ay,az\n" + "\n".join(lines(table(3000))) + "\n")
 
     def render(block: bytes, at: int) -> tuple[list[object], int]:
         if at > 20_000:
@@ -174,7 +175,7 @@ def test_a_worker_that_dies_is_an_error_not_a_hang(tmp_path: Path, small_blocks:
 
 
 def test_a_workers_error_comes_back_as_it_was(tmp_path: Path, small_blocks: list[int]) -> None:
-    path = write(tmp_path, "t,ax,ay,az\n" + "\n".join(lines(table(3000))) + "\n")
+    path = write(tmp_path / "c.csv", "t,ax,ay,az\n" + "\n".join(lines(table(3000))) + "\n")
 
     def render(block: bytes, at: int) -> tuple[list[object], int]:
         if at > 20_000:

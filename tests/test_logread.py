@@ -16,7 +16,7 @@ from typing import cast
 import numpy as np
 import pytest
 
-from tests.conftest import run
+from tests.conftest import run, write
 from tumblecal_cli.core import scan as scan_core
 from tumblecal_cli.core import segment as sc
 from tumblecal_cli.io import captures, logread
@@ -37,13 +37,6 @@ def tumble(rows: int, seed: int = 2, rate: float = 1000.0, noise: float = 0.002)
     g = (1 - w) * faces[k % 6] + w * faces[(k + 1) % 6] + np.sin(np.pi * w) * 0.3 * rng.normal(size=(rows, 3))
     xyz = g + np.array([0.01, -0.02, 0.015]) + rng.normal(0, noise, size=(rows, 3))
     return np.column_stack([t, xyz])
-
-
-def write(path: Path, table: np.ndarray, header: str = "t,x,y,z", fmt: str | list[str] = "%.6f") -> Path:
-    with path.open("w") as f:
-        f.write(header + "\n")
-        np.savetxt(f, table, fmt=fmt, delimiter=",")
-    return path
 
 
 def both(path: Path, rate: float | None = None, **settings: object) -> tuple[object, object]:

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tests.conftest import IMUCAL, SAMPLE, Result, assert_untouched, precious, run, unnamed
+from tests.conftest import IMUCAL, SAMPLE, Result, assert_untouched, precious, run, unnamed, write
 from tests.synth import FloatArray, pose_samples
 from tumblecal_cli.core.model import FACES
 
@@ -76,8 +76,7 @@ def acc_values(
 
 
 def write_csv(path: Path, values: FloatArray, header: Sequence[str] = ("ax", "ay", "az"), fmt: str = "%.7f") -> Path:
-    np.savetxt(path, values, delimiter=",", header=",".join(header), comments="", fmt=fmt)
-    return path
+    return write(path, values, header=",".join(header), fmt=fmt)
 
 
 def six_faces(tmp_path: Path, **kwargs: Any) -> dict[str, Path]:
