@@ -21,7 +21,7 @@ import subprocess
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any, Literal, NamedTuple, overload
 
 import numpy as np
 import pytest
@@ -72,12 +72,51 @@ def tumblecal_exe() -> str:
     return found
 
 
+@overload
 def run_exe(
-    args: Sequence[str | Path], stdin: bytes = b"", cwd: Path | None = None
-) -> subprocess.CompletedProcess[bytes]:
-    env = {**os.environ, "NO_COLOR": "1"}
+    args: Sequence[str | Path],
+    stdin: bytes = b"",
+    cwd: Path | None = None,
+    *,
+    text: Literal[False] = False,
+    env: Mapping[str, str] | None = None,
+    timeout: float = 60,
+) -> subprocess.CompletedProcess[bytes]: ...
+
+
+@overload
+def run_exe(
+    args: Sequence[str | Path],
+    stdin: str = "",
+    cwd: Path | None = None,
+    *,
+    text: Literal[True],
+    env: Mapping[str, str] | None = None,
+    timeout: float = 60,
+) -> subprocess.CompletedProcess[str]: ...
+
+
+def run_exe(
+    args: Sequence[str | Path],
+    stdin: bytes | str | None = None,
+    cwd: Path | None = None,
+    *,
+    text: bool = False,
+    env: Mapping[str, str] | None = None,
+    timeout: float = 60,
+) -> subprocess.CompletedProcess[bytes] | subprocess.CompletedProcess[str]:
+    """``tumblecal ARGS`` as the installed script, in a subprocess: ``stdin`` its whole input
+    (never this process's), its output captured as bytes (``text``: as str), and its environment
+    this process's with NO_COLOR and ``env`` added."""
     return subprocess.run(
-        [tumblecal_exe(), *map(str, args)], input=stdin, capture_output=True, cwd=cwd, env=env, timeout=60, check=False
+        [tumblecal_exe(), *map(str, args)],
+        input=stdin if stdin is not None else ("" if text else b""),
+        capture_output=True,
+        text=text,
+        cwd=cwd,
+        env={**os.environ, "NO_COLOR": "1", **(env or {})},
+        timeout=timeout,
+        check=False,
     )
 
 
