@@ -124,6 +124,15 @@ def feed_stdin(monkeypatch: pytest.MonkeyPatch, data: bytes) -> None:
     monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(data)))
 
 
+@pytest.fixture
+def small_blocks(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Files read in blocks of the test module's ``BLOCK`` bytes (``captures.BLOCK_BYTES``): a
+    small file is many blocks, so the readers cross every kind of seam between two."""
+    from tumblecal_cli.io import captures
+
+    monkeypatch.setattr(captures, "BLOCK_BYTES", request.module.BLOCK)
+
+
 # -- checking a run -------------------------------------------------------------------------
 
 

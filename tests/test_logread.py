@@ -24,6 +24,7 @@ from tumblecal_cli.pipeline import logs
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT / "tests" / "data" / "logs"
+BLOCK = 16 << 10  # small_blocks: a small log is hundreds of blocks
 
 
 def tumble(rows: int, seed: int = 2, rate: float = 1000.0, noise: float = 0.002) -> np.ndarray:
@@ -75,12 +76,6 @@ def same(streamed: tuple[captures.Log, sc.Segmentation], whole: tuple[captures.L
     for p, q in zip(pa, pb, strict=True):
         assert (p.rows, p.duration, p.times, p.temperature) == (q.rows, q.duration, q.times, q.temperature)
         np.testing.assert_array_equal(p.values, q.values)
-
-
-@pytest.fixture
-def small_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Blocks of 16 KiB: a small log is hundreds of them, so every seam is crossed."""
-    monkeypatch.setattr(captures, "BLOCK_BYTES", 16 << 10)
 
 
 @pytest.mark.parametrize(

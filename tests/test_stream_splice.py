@@ -36,11 +36,6 @@ def piped(
     return out.getvalue(), None, notes
 
 
-@pytest.fixture
-def small_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(captures, "BLOCK_BYTES", BLOCK)
-
-
 @pytest.mark.parametrize("case", list(CASES))
 def test_stdin_spliced_is_the_general_path(case: str, monkeypatch: pytest.MonkeyPatch, small_blocks: None) -> None:
     text = CASES[case]()
