@@ -17,6 +17,7 @@ import io
 import json
 import os
 import shutil
+import struct
 import subprocess
 import sys
 from collections.abc import Mapping, Sequence
@@ -36,6 +37,7 @@ BAD = Path(__file__).resolve().parent / "data" / "bad"
 POSES_3 = [str(SAMPLE / "x.csv"), str(SAMPLE / "y.csv"), str(SAMPLE / "z.csv")]
 SIX_FACES = ("xp", "xn", "yp", "yn", "zp", "zn")
 PRECIOUS = b"an existing output that a failed run must leave alone\n"
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
 # -- running tumblecal ----------------------------------------------------------------------
@@ -120,6 +122,46 @@ def run_exe(
     )
 
 
+PROBE = """
+import json, sys
+{body}
+print(json.dumps(sorted(m for m in {watch!r} if m in sys.modules)))
+"""
+
+
+def spliced_blocks(monkeypatch: pytest.MonkeyPatch) -> list[bool]:
+    """Records, per block, whether apply's fast path (``io.splice``) took it (the general path
+    never asks)."""
+    from tumblecal_cli.io import splice
+
+    taken: list[bool] = []
+    block = splice.Splicer.block
+
+    def spy(self: splice.Splicer, buf: bytes) -> object:
+        done = block(self, buf)
+        taken.append(done is not None)
+        return done
+
+    monkeypatch.setattr(splice.Splicer, "block", spy)
+    return taken
+
+
+def imported(body: str, watch: tuple[str, ...]) -> list[str]:
+    """Which of ``watch`` are in ``sys.modules`` after running ``body`` in a fresh Python (what
+    the test process has already imported hides nothing)."""
+    done = subprocess.run(
+        [sys.executable, "-c", PROBE.format(body=body, watch=watch)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+        cwd=ROOT,
+    )
+    assert done.returncode == 0, done.stderr
+    found: list[str] = json.loads(done.stdout.splitlines()[-1])
+    return found
+
+
 def feed_stdin(monkeypatch: pytest.MonkeyPatch, data: bytes) -> None:
     monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(data)))
 
@@ -159,6 +201,15 @@ def assert_one_error(
     if hint is not None:
         assert len(hints) == 1
         assert hint in hints[0]
+
+
+def png_size(data: bytes) -> tuple[int, int]:
+    """(width, height) from a PNG's IHDR chunk, after checking the signature."""
+    assert data[:8] == PNG_SIGNATURE
+    length, kind = struct.unpack(">I4s", data[8:16])
+    assert (length, kind) == (13, b"IHDR")
+    width, height = struct.unpack(">II", data[16:24])
+    return int(width), int(height)
 
 
 def precious(path: Path) -> Path:

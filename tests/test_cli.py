@@ -34,12 +34,12 @@ from tests.conftest import (
     assert_untouched,
     feed_stdin,
     precious,
+    run,
     run_exe,
     tumblecal_exe,
     unnamed,
     write,
 )
-from tests.conftest import run as run  # re-exported: tests/test_api.py imports run from here
 from tumblecal_cli import __version__
 from tumblecal_cli.cli import main
 from tumblecal_cli.core import model as core

@@ -20,12 +20,11 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import write
+from tests.conftest import POSES_3, write
+from tests.test_splice import CASES, _accel, lines, table
 from tumblecal_cli.errors import InputError, TumblecalError
 from tumblecal_cli.io import captures, forked
 from tumblecal_cli.io.captures import open_capture
-
-from .test_splice import CASES, ROOT, _accel, lines, table
 
 BLOCK = 2048
 
@@ -198,9 +197,8 @@ def test_sigterm_leaves_no_worker_and_no_file(tmp_path: Path) -> None:
     """A station's kill in the middle of a big file: exit 130, the workers gone with it, no
     output and no temporary file."""
     cal = tmp_path / "cal.json"
-    poses = [str(ROOT / "sample_data" / f"{a}.csv") for a in "xyz"]
     tumblecal = [sys.executable, "-m", "tumblecal_cli"]
-    subprocess.run([*tumblecal, "solve", "-q", "--poses", *poses, "-o", str(cal)], check=True)
+    subprocess.run([*tumblecal, "solve", "-q", "--poses", *POSES_3, "-o", str(cal)], check=True)
     row = "0.001,0.012345,-0.023456,1.012345\n"
     big = tmp_path / "big.csv"
     big.write_text("t,ax,ay,az\n" + row * (2 * forked.MIN_BYTES // len(row)) * 4)

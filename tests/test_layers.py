@@ -7,35 +7,13 @@ not hide a dependency.
 from __future__ import annotations
 
 import functools
-import json
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
-
-PROBE = """
-import json, sys
-{body}
-print(json.dumps(sorted(m for m in {watch!r} if m in sys.modules)))
-"""
-
-
-def imported(body: str, watch: tuple[str, ...]) -> list[str]:
-    """Which of ``watch`` are in ``sys.modules`` after running ``body`` in a fresh Python."""
-    done = subprocess.run(
-        [sys.executable, "-c", PROBE.format(body=body, watch=watch)],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=False,
-        cwd=ROOT,
-    )
-    assert done.returncode == 0, done.stderr
-    found: list[str] = json.loads(done.stdout.splitlines()[-1])
-    return found
+from tests.conftest import ROOT, imported
 
 
 @pytest.mark.slow

@@ -20,13 +20,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.conftest import write
+from tests.conftest import POSES_3, spliced_blocks, write
 from tumblecal_cli.core import model
 from tumblecal_cli.errors import TumblecalError
 from tumblecal_cli.io import captures, splice
 from tumblecal_cli.io.captures import Dialect, open_capture
 
-ROOT = Path(__file__).resolve().parent.parent
 RNG = np.random.default_rng(7)
 MATRIX = np.eye(3) + RNG.normal(0, 0.02, (3, 3))
 OFFSET = RNG.normal(0, 0.05, 3)
@@ -75,20 +74,6 @@ def lines(values: np.ndarray, time: bool = True, sep: str = ",", fmt: str = "{:.
         parts = [fmt.format(v) for v in row]
         out.append(sep.join([f"{i / 1000:.3f}", *parts] if time else parts))
     return out
-
-
-def spliced_blocks(monkeypatch: pytest.MonkeyPatch) -> list[bool]:
-    """Records, per block, whether the fast path took it (the general path never asks)."""
-    taken: list[bool] = []
-    block = splice.Splicer.block
-
-    def spy(self: splice.Splicer, buf: bytes) -> object:
-        done = block(self, buf)
-        taken.append(done is not None)
-        return done
-
-    monkeypatch.setattr(splice.Splicer, "block", spy)
-    return taken
 
 
 CASES: dict[str, Callable[[], str | bytes]] = {
@@ -225,9 +210,8 @@ def test_memory_is_bounded_by_the_block_whatever_the_columns(tmp_path: Path) -> 
     """A 3 MB capture of 100,000 columns corrects in the memory of any small file (the general
     reader once took 1.25 GB for it)."""
     cal = tmp_path / "cal.json"
-    poses = [str(ROOT / "sample_data" / f"{a}.csv") for a in "xyz"]
     subprocess.run(
-        [sys.executable, "-m", "tumblecal_cli", "solve", "-q", "--poses", *poses, "-o", str(cal)], check=True
+        [sys.executable, "-m", "tumblecal_cli", "solve", "-q", "--poses", *POSES_3, "-o", str(cal)], check=True
     )
     width = 100_000
     header = ",".join(["ax", "ay", "az", *(f"c{i}" for i in range(width - 3))])
@@ -258,9 +242,8 @@ def test_apply_with_several_calibrations_writes_the_general_paths_bytes(
     from tumblecal_cli.pipeline.correct import correct
 
     cal = tmp_path / "acc.json"
-    poses = [str(ROOT / "sample_data" / f"{a}.csv") for a in "xyz"]
     subprocess.run(
-        [sys.executable, "-m", "tumblecal_cli", "solve", "-q", "--poses", *poses, "-o", str(cal)], check=True
+        [sys.executable, "-m", "tumblecal_cli", "solve", "-q", "--poses", *POSES_3, "-o", str(cal)], check=True
     )
     gyro = json.loads(cal.read_text())
     gyro["columns"], gyro["sensor"] = ["gx", "gy", "gz"], "gyroscope"
