@@ -203,6 +203,21 @@ def assert_one_error(
         assert hint in hints[0]
 
 
+def assert_usage_error(result: Result, *words: str, reported_first: bool = False) -> None:
+    """Exit 2, nothing on stdout, no traceback, exactly one ``error:`` line holding every word,
+    and on stderr nothing else but a hint (``reported_first``: the command's report too, which
+    it wrote before it stopped, as segment's table of blocks)."""
+    assert result.code == 2, result.err
+    assert result.out == ""
+    assert "Traceback" not in result.err
+    lines = result.err.splitlines()
+    errors = [ln for ln in lines if ln.startswith("error:")]
+    assert len(errors) == 1, result.err
+    assert reported_first or all(ln.startswith(("error:", "hint:")) for ln in lines), result.err
+    for word in words:
+        assert word in errors[0], errors[0]
+
+
 def png_size(data: bytes) -> tuple[int, int]:
     """(width, height) from a PNG's IHDR chunk, after checking the signature."""
     assert data[:8] == PNG_SIGNATURE

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tests.conftest import ROOT, Result, assert_untouched, feed_stdin, precious, run
+from tests.conftest import ROOT, Result, assert_untouched, assert_usage_error, feed_stdin, precious, run
 from tests.synth import FloatArray, stimulus
 from tumblecal_cli.core import segment
 from tumblecal_cli.core.model import FACES
@@ -169,17 +169,6 @@ def index_of(text: str) -> list[dict[str, str]]:
 
 def error_lines(r: Result) -> list[str]:
     return [ln for ln in r.err.splitlines() if ln.startswith("error:")]
-
-
-def assert_usage_error(r: Result, *words: str) -> None:
-    """Exit 2, nothing on stdout, no traceback, one ``error:`` line holding every word."""
-    assert r.code == 2, r.err
-    assert r.out == ""
-    assert "Traceback" not in r.err
-    errors = error_lines(r)
-    assert len(errors) == 1, r.err
-    for word in words:
-        assert word in errors[0], errors[0]
 
 
 @pytest.fixture(scope="module")
@@ -523,7 +512,12 @@ def test_segment_never_replaces_a_file_it_did_not_write(
     out.mkdir()
     (out / "xp.csv").write_text("my own +x capture\n")
     r = run(capsys, "segment", six_level_csv, "-d", out)
-    assert_usage_error(r, str(out), "--out-dir already holds xp.csv, which no earlier `tumblecal segment` wrote there")
+    assert_usage_error(
+        r,
+        str(out),
+        "--out-dir already holds xp.csv, which no earlier `tumblecal segment` wrote there",
+        reported_first=True,
+    )
     assert sorted(p.name for p in out.iterdir()) == ["xp.csv"]
     assert (out / "xp.csv").read_text() == "my own +x capture\n"
 
