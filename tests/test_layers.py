@@ -1,7 +1,9 @@
-"""The layers of README "Development": cli -> io -> core, imports flowing one way.
+"""The layers of README "Development", imports flowing one way: core <- io <- pipeline <- cli.
 
-Each check runs in a fresh interpreter, so what the test process has already imported does
-not hide a dependency.
+The cli imports the pipeline, the pipeline io (and core), io imports core, and nothing imports
+a layer above its own. The import graph is read from the package's source (its AST, imports
+inside functions too); what a command or a module loads is checked in a fresh interpreter each
+time, so what the test process has already imported does not hide a dependency.
 """
 
 from __future__ import annotations
@@ -68,8 +70,8 @@ def test_package_root_is_light() -> None:
 
 
 @pytest.mark.slow
-def test_nothing_imports_pandas() -> None:
-    """pandas is only the benchmark's baseline: a whole solve and apply run without it."""
+def test_a_solve_and_apply_run_without_pandas() -> None:
+    """pandas is the Python API's DataFrame interface only: a whole solve and apply run without it."""
     body = (
         "import contextlib, io, tempfile, os\n"
         "from tumblecal_cli.cli import main\n"

@@ -1,5 +1,6 @@
-"""Lot statistics (tumblecal_cli/lot.py): known answers for Cpk, modified z, the lot's members,
-drift, and the report's cells, from calibration files written into tmp_path."""
+"""Lot statistics (tumblecal_cli/core/lot.py; the report's files in tumblecal_cli/pipeline/report.py):
+known answers for Cpk, modified z, the lot's members, drift, and the report's cells, from
+calibration files written into tmp_path."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The PNG figures of ``solve --plot`` and ``report --plot`` (tumblecal_cli/plots.py).
+"""The PNG figures of ``solve --plot`` and ``report --plot`` (tumblecal_cli/io/plots.py).
 
 Synthetic data with a known offset and matrix: the figures must be valid PNGs of the size asked
 for, show the numbers they claim to show, be written atomically, and refuse bad input with an

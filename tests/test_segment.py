@@ -1,4 +1,4 @@
-"""Finding the static poses in one continuous log: the detector (tumblecal_cli/segment.py), the
+"""Finding the static poses in one continuous log: the detector (tumblecal_cli/core/segment.py), the
 ``segment`` command and ``solve --log`` (tumblecal_cli/cli/segment.py, tumblecal_cli/pipeline/logs.py).
 
 Every log is synthetic with a known truth: a sensor with a known offset and gain/cross-axis matrix
