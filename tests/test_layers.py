@@ -8,9 +8,11 @@ time, so what the test process has already imported does not hide a dependency.
 
 from __future__ import annotations
 
+import ast
 import functools
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -119,16 +121,20 @@ def _module_name(path: Path) -> str:
 
 
 @functools.cache
+def _trees() -> dict[Path, ast.Module]:
+    """Each source file of the package, parsed once for the tests below."""
+    return {path: ast.parse(path.read_text()) for path in PACKAGE.rglob("*.py")}
+
+
+@functools.cache
 def _imports() -> dict[str, set[str]]:
     """Each module of the package and the package's modules it imports (anywhere in it,
     inside functions and TYPE_CHECKING blocks too), resolved to modules that exist."""
-    import ast
-
-    modules = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+    modules = {_module_name(p): p for p in _trees()}
     graph: dict[str, set[str]] = {}
     for name, path in modules.items():
         found: set[str] = set()
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in ast.walk(_trees()[path]):
             targets: list[str] = []
             if isinstance(node, ast.Import):
                 targets = [a.name for a in node.names]
@@ -193,11 +199,9 @@ def test_no_import_cycle() -> None:
 
 def test_a_command_body_fits_on_a_screen() -> None:
     """Each command function: parse, one pipeline call, render; at most 40 lines of body."""
-    import ast
-
     long: list[tuple[str, int]] = []
     for path in (PACKAGE / "cli").glob("*.py"):
-        for node in ast.parse(path.read_text()).body:
+        for node in _trees()[path].body:
             if (
                 isinstance(node, ast.FunctionDef) and any("command" in ast.unparse(d) for d in node.decorator_list)
             ) or (isinstance(node, ast.FunctionDef) and node.name == "batch"):
@@ -208,19 +212,20 @@ def test_a_command_body_fits_on_a_screen() -> None:
     assert long == []
 
 
+def _import_statements(node: ast.AST, inside: bool = False) -> Iterator[tuple[ast.Import | ast.ImportFrom, bool]]:
+    """Each import statement under ``node``, and whether it is inside a function."""
+    for child in ast.iter_child_nodes(node):
+        if isinstance(child, ast.Import | ast.ImportFrom):
+            yield child, inside
+        yield from _import_statements(child, inside or isinstance(child, ast.FunctionDef))
+
+
 def test_pandas_only_inside_the_pipeline_functions() -> None:
     """pandas is the DataFrame interface's: imported inside functions of the pipeline only."""
-    import ast
-
     wrong = []
-    for path in PACKAGE.rglob("*.py"):
-        tree = ast.parse(path.read_text())
-        inside = {id(n) for f in ast.walk(tree) if isinstance(f, ast.FunctionDef) for n in ast.walk(f)}
-        for node in ast.walk(tree):
-            if isinstance(node, ast.Import | ast.ImportFrom):
-                names = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""]
-                if any(n.split(".")[0] == "pandas" for n in names) and (
-                    "pipeline" not in path.parts or id(node) not in inside
-                ):
-                    wrong.append(f"{path.relative_to(ROOT)}:{node.lineno}")
+    for path, tree in _trees().items():
+        for node, inside in _import_statements(tree):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""]
+            if any(n.split(".")[0] == "pandas" for n in names) and ("pipeline" not in path.parts or not inside):
+                wrong.append(f"{path.relative_to(ROOT)}:{node.lineno}")
     assert wrong == []
