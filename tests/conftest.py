@@ -1,6 +1,7 @@
 """Helpers shared by the test modules: running ``tumblecal`` (in-process or as the installed
-script), the sample data's paths, the "a failed run leaves the output alone" check, and the unit
-folders that ``batch`` reads. Test modules import them with ``from tests.conftest import ...``.
+script), the sample data's paths, the "a failed run leaves the output alone" check, writing a
+test's input files, and the unit folders that ``batch`` reads. Test modules import them with
+``from tests.conftest import ...``; a helper that two modules need lives here, once.
 
 Slow tests carry ``@pytest.mark.slow`` (a whole module: ``pytestmark``): the Dask cluster, the
 real-data logs, the Monte Carlo benchmark and scatter checks, subprocesses (the installed script,
@@ -13,15 +14,19 @@ from __future__ import annotations
 
 import contextlib
 import io
+import json
 import os
 import shutil
+import struct
 import subprocess
 import sys
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, Literal, NamedTuple, overload
 
+import numpy as np
 import pytest
+from numpy.typing import NDArray
 
 from tumblecal_cli.cli import main
 
@@ -32,6 +37,7 @@ BAD = Path(__file__).resolve().parent / "data" / "bad"
 POSES_3 = [str(SAMPLE / "x.csv"), str(SAMPLE / "y.csv"), str(SAMPLE / "z.csv")]
 SIX_FACES = ("xp", "xn", "yp", "yn", "zp", "zn")
 PRECIOUS = b"an existing output that a failed run must leave alone\n"
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
 # -- running tumblecal ----------------------------------------------------------------------
@@ -68,17 +74,105 @@ def tumblecal_exe() -> str:
     return found
 
 
+@overload
 def run_exe(
-    args: Sequence[str | Path], stdin: bytes = b"", cwd: Path | None = None
-) -> subprocess.CompletedProcess[bytes]:
-    env = {**os.environ, "NO_COLOR": "1"}
+    args: Sequence[str | Path],
+    stdin: bytes = b"",
+    cwd: Path | None = None,
+    *,
+    text: Literal[False] = False,
+    env: Mapping[str, str] | None = None,
+    timeout: float = 60,
+) -> subprocess.CompletedProcess[bytes]: ...
+
+
+@overload
+def run_exe(
+    args: Sequence[str | Path],
+    stdin: str = "",
+    cwd: Path | None = None,
+    *,
+    text: Literal[True],
+    env: Mapping[str, str] | None = None,
+    timeout: float = 60,
+) -> subprocess.CompletedProcess[str]: ...
+
+
+def run_exe(
+    args: Sequence[str | Path],
+    stdin: bytes | str | None = None,
+    cwd: Path | None = None,
+    *,
+    text: bool = False,
+    env: Mapping[str, str] | None = None,
+    timeout: float = 60,
+) -> subprocess.CompletedProcess[bytes] | subprocess.CompletedProcess[str]:
+    """``tumblecal ARGS`` as the installed script, in a subprocess: ``stdin`` its whole input
+    (never this process's), its output captured as bytes (``text``: as str), and its environment
+    this process's with NO_COLOR and ``env`` added."""
     return subprocess.run(
-        [tumblecal_exe(), *map(str, args)], input=stdin, capture_output=True, cwd=cwd, env=env, timeout=60, check=False
+        [tumblecal_exe(), *map(str, args)],
+        input=stdin if stdin is not None else ("" if text else b""),
+        capture_output=True,
+        text=text,
+        cwd=cwd,
+        env={**os.environ, "NO_COLOR": "1", **(env or {})},
+        timeout=timeout,
+        check=False,
     )
+
+
+PROBE = """
+import json, sys
+{body}
+print(json.dumps(sorted(m for m in {watch!r} if m in sys.modules)))
+"""
+
+
+def spliced_blocks(monkeypatch: pytest.MonkeyPatch) -> list[bool]:
+    """Records, per block, whether apply's fast path (``io.splice``) took it (the general path
+    never asks)."""
+    from tumblecal_cli.io import splice
+
+    taken: list[bool] = []
+    block = splice.Splicer.block
+
+    def spy(self: splice.Splicer, buf: bytes) -> object:
+        done = block(self, buf)
+        taken.append(done is not None)
+        return done
+
+    monkeypatch.setattr(splice.Splicer, "block", spy)
+    return taken
+
+
+def imported(body: str, watch: tuple[str, ...]) -> list[str]:
+    """Which of ``watch`` are in ``sys.modules`` after running ``body`` in a fresh Python (what
+    the test process has already imported hides nothing)."""
+    done = subprocess.run(
+        [sys.executable, "-c", PROBE.format(body=body, watch=watch)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+        cwd=ROOT,
+    )
+    assert done.returncode == 0, done.stderr
+    found: list[str] = json.loads(done.stdout.splitlines()[-1])
+    return found
 
 
 def feed_stdin(monkeypatch: pytest.MonkeyPatch, data: bytes) -> None:
     monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(data)))
+
+
+@pytest.fixture
+def small_blocks(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Files read in blocks of the test module's ``BLOCK`` bytes (``capture.BLOCK_BYTES``): a
+    small file is many blocks, so the readers cross every kind of seam between two."""
+    from tumblecal_cli.io import capture
+
+    monkeypatch.setattr(capture, "BLOCK_BYTES", request.module.BLOCK)
 
 
 # -- checking a run -------------------------------------------------------------------------
@@ -91,8 +185,6 @@ def assert_one_error(
     ``json_out`` (the command had --json): stdout is the error object saying the same instead."""
     assert result.code == code, result.err
     if json_out:
-        import json
-
         doc = json.loads(result.out)
         assert (doc["status"], doc["exit_status"]) == ({2: "error", 3: "rejected"}[code], code)
         error = doc["error"]
@@ -109,6 +201,30 @@ def assert_one_error(
     if hint is not None:
         assert len(hints) == 1
         assert hint in hints[0]
+
+
+def assert_usage_error(result: Result, *words: str, reported_first: bool = False) -> None:
+    """Exit 2, nothing on stdout, no traceback, exactly one ``error:`` line holding every word,
+    and on stderr nothing else but a hint (``reported_first``: the command's report too, which
+    it wrote before it stopped, as segment's table of blocks)."""
+    assert result.code == 2, result.err
+    assert result.out == ""
+    assert "Traceback" not in result.err
+    lines = result.err.splitlines()
+    errors = [ln for ln in lines if ln.startswith("error:")]
+    assert len(errors) == 1, result.err
+    assert reported_first or all(ln.startswith(("error:", "hint:")) for ln in lines), result.err
+    for word in words:
+        assert word in errors[0], errors[0]
+
+
+def png_size(data: bytes) -> tuple[int, int]:
+    """(width, height) from a PNG's IHDR chunk, after checking the signature."""
+    assert data[:8] == PNG_SIGNATURE
+    length, kind = struct.unpack(">I4s", data[8:16])
+    assert (length, kind) == (13, b"IHDR")
+    width, height = struct.unpack(">II", data[16:24])
+    return int(width), int(height)
 
 
 def precious(path: Path) -> Path:
@@ -128,6 +244,28 @@ def snapshot(folder: Path) -> dict[str, bytes]:
 
 
 # -- building inputs ------------------------------------------------------------------------
+
+
+def write(
+    path: Path,
+    content: str | bytes | Mapping[str, Any] | NDArray[Any],
+    *,
+    header: str = "t,x,y,z",
+    fmt: str | Sequence[str] = "%.6f",
+) -> Path:
+    """``content`` into ``path`` (its folder made if need be), and ``path``: text (as UTF-8) and
+    bytes byte for byte, a mapping as JSON, and a table of numbers as CSV: ``header``, then each
+    row in ``fmt`` (one format for every column, or one per column) joined by commas. A table's
+    bytes are those ``numpy.savetxt`` writes, formatted in one go rather than row by row."""
+    if isinstance(content, np.ndarray):
+        formats = [fmt] * content.shape[1] if isinstance(fmt, str) else list(fmt)
+        row = ",".join(formats) + "\n"
+        content = header + "\n" + (row * len(content)) % tuple(content.ravel().tolist())
+    elif isinstance(content, Mapping):
+        content = json.dumps(content)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(content.encode() if isinstance(content, str) else content)
+    return path
 
 
 def unit(root: Path, serial: str, kind: str) -> Path:

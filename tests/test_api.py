@@ -15,8 +15,7 @@ import pandas as pd
 import pytest
 
 import tumblecal_cli as tumblecal
-from tests.conftest import unnamed
-from tests.test_cli import run
+from tests.conftest import run, unnamed
 from tests.test_solvers_cli import METHOD_CASES, six_faces, write_csv
 
 ROOT = Path(__file__).resolve().parent.parent

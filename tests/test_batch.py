@@ -16,13 +16,12 @@ import os
 import shutil
 import subprocess
 import sys
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from tests.conftest import IMUCAL, SAMPLE, SIX_FACES, run, snapshot, tumblecal_exe, unit
+from tests.conftest import IMUCAL, SAMPLE, SIX_FACES, run, run_exe, snapshot, tumblecal_exe, unit
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.pipeline import batch
 
@@ -37,13 +36,6 @@ CREATED = "2023-11-14T22:13:20Z"  # and as the calibration's 'created'
 
 
 # -- helpers -------------------------------------------------------------------------------
-
-
-def run_exe(args: Sequence[str | Path], cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
-    env = {**os.environ, "NO_COLOR": "1", "SOURCE_DATE_EPOCH": EPOCH}
-    return subprocess.run(
-        [tumblecal_exe(), *map(str, args)], capture_output=True, text=True, cwd=cwd, env=env, timeout=60, check=False
-    )
 
 
 @pytest.fixture(autouse=True)
@@ -752,8 +744,10 @@ def test_batch_jobs_2_is_byte_identical_to_jobs_1(tmp_path: Path, monkeypatch: p
     scratch = tmp_path / "scratch"  # the worker pool's own temporary folder goes here, and must go
     scratch.mkdir()
     monkeypatch.setenv("TMPDIR", str(scratch))
-    one = run_exe(["batch", "units", "--out-dir", "one", "--max-offset", "0.05", "-q"], cwd=tmp_path)
-    two = run_exe(["batch", "units", "--out-dir", "two", "--max-offset", "0.05", "-q", "--jobs", "2"], cwd=tmp_path)
+    one = run_exe(["batch", "units", "--out-dir", "one", "--max-offset", "0.05", "-q"], cwd=tmp_path, text=True)
+    two = run_exe(
+        ["batch", "units", "--out-dir", "two", "--max-offset", "0.05", "-q", "--jobs", "2"], cwd=tmp_path, text=True
+    )
     assert (one.returncode, one.stdout, two.returncode, two.stdout) == (2, "", 2, "")
     # -q: only the units with an error or a rejected capture, one line each
     assert [line.split(":")[0] for line in one.stderr.splitlines()] == ["C", "D"]

@@ -34,11 +34,12 @@ from tests.conftest import (
     assert_untouched,
     feed_stdin,
     precious,
+    run,
     run_exe,
     tumblecal_exe,
     unnamed,
+    write,
 )
-from tests.conftest import run as run  # re-exported: tests/test_api.py imports run from here
 from tumblecal_cli import __version__
 from tumblecal_cli.cli import main
 from tumblecal_cli.core import model as core
@@ -78,7 +79,7 @@ def write_pose(
     rng = np.random.default_rng(seed)
     values = np.asarray(mean, dtype=np.float64) + noise * rng.standard_normal((n, 3))
     data = np.column_stack([np.arange(n) / 100.0, values])
-    np.savetxt(path, data, delimiter=",", header=header, comments="", fmt=["%.2f", fmt, fmt, fmt])
+    write(path, data, header=header, fmt=["%.2f", fmt, fmt, fmt])
     written: FloatArray = np.loadtxt(path, delimiter=",", skiprows=1)[:, 1:]
     return written
 

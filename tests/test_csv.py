@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from tests.conftest import feed_stdin
+from tests.conftest import feed_stdin, write
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import capture, rewrite, sniff
 from tumblecal_cli.io.capture import open_capture
@@ -27,12 +27,6 @@ FloatArray = NDArray[np.float64]
 DATA = Path(__file__).resolve().parent / "data"
 NCSU = DATA / "ncsu_xplus_head.csv"
 XSENS = DATA / "xsens_acc_head.txt"
-
-
-def write(tmp_path: Path, text: str | bytes, name: str = "capture.csv") -> str:
-    path = tmp_path / name
-    path.write_bytes(text.encode() if isinstance(text, str) else text)
-    return str(path)
 
 
 def one_row(header: str) -> str:
@@ -75,7 +69,7 @@ def picked(path: str, **kwargs: object) -> tuple[list[str], str | None]:
     ],
 )
 def test_one_triplet(header: str, sensor: str, expected: list[str], time: str | None, tmp_path: Path) -> None:
-    assert picked(write(tmp_path, one_row(header)), sensor=sensor) == (expected, time)
+    assert picked(str(write(tmp_path / "capture.csv", one_row(header))), sensor=sensor) == (expected, time)
 
 
 NINE = "t,acc_x,acc_y,acc_z,gyr_x,gyr_y,gyr_z,mag_x,mag_y,mag_z,temp"
@@ -99,11 +93,11 @@ NINE = "t,acc_x,acc_y,acc_z,gyr_x,gyr_y,gyr_z,mag_x,mag_y,mag_z,temp"
     ],
 )
 def test_sensor_picks_the_family(header: str, sensor: str, expected: list[str], tmp_path: Path) -> None:
-    assert picked(write(tmp_path, one_row(header)), sensor=sensor)[0] == expected
+    assert picked(str(write(tmp_path / "capture.csv", one_row(header))), sensor=sensor)[0] == expected
 
 
 def test_ambiguous_triplets_list_the_headers(tmp_path: Path) -> None:
-    path = write(tmp_path, one_row("t,x1,y1,z1,x2,y2,z2"))
+    path = str(write(tmp_path / "capture.csv", one_row("t,x1,y1,z1,x2,y2,z2")))
     with pytest.raises(InputError) as err:
         picked(path)
     assert str(err.value) == f"{path}: several accelerometer triplets could be meant: x1,y1,z1; x2,y2,z2"
@@ -113,15 +107,15 @@ def test_ambiguous_triplets_list_the_headers(tmp_path: Path) -> None:
 
 def test_another_sensors_triplet_is_never_taken(tmp_path: Path) -> None:
     """A file with only gyroscope columns has no accelerometer columns (not: gyr_* as acc)."""
-    path = write(tmp_path, one_row("t,gyr_x,gyr_y,gyr_z"))
+    path = str(write(tmp_path / "capture.csv", one_row("t,gyr_x,gyr_y,gyr_z")))
     with pytest.raises(InputError, match=r"no accelerometer x,y,z columns found \(columns: t, gyr_x, gyr_y, gyr_z\)"):
         picked(path)
     with pytest.raises(InputError, match="no magnetometer x,y,z columns"):
-        picked(write(tmp_path, one_row("t,ax,ay,az"), "acc.csv"), sensor="magnetometer")
+        picked(str(write(tmp_path / "acc.csv", one_row("t,ax,ay,az"))), sensor="magnetometer")
 
 
 def test_no_triplet(tmp_path: Path) -> None:
-    path = write(tmp_path, one_row("a,b,c,d"))
+    path = str(write(tmp_path / "capture.csv", one_row("a,b,c,d")))
     with pytest.raises(InputError) as err:
         picked(path)
     assert str(err.value) == f"{path}: no accelerometer x,y,z columns found (columns: a, b, c, d)"
@@ -137,7 +131,7 @@ def test_no_triplet(tmp_path: Path) -> None:
     ],
 )
 def test_columns_override(columns: list[str], expected: list[str], tmp_path: Path) -> None:
-    path = write(tmp_path, one_row("t,acc_x,acc_y,acc_z,acc2_x,acc2_y,acc2_z"))
+    path = str(write(tmp_path / "capture.csv", one_row("t,acc_x,acc_y,acc_z,acc2_x,acc2_y,acc2_z")))
     assert picked(path, columns=columns)[0] == expected
 
 
@@ -150,14 +144,14 @@ def test_columns_override(columns: list[str], expected: list[str], tmp_path: Pat
     ],
 )
 def test_columns_override_errors(columns: list[str], message: str, tmp_path: Path) -> None:
-    path = write(tmp_path, one_row("t,acc_x,acc_y,acc_z"))
+    path = str(write(tmp_path / "capture.csv", one_row("t,acc_x,acc_y,acc_z")))
     with pytest.raises(InputError) as err:
         picked(path, columns=columns)
     assert message in str(err.value)
 
 
 def test_prefer_is_used_when_all_present(tmp_path: Path) -> None:
-    path = write(tmp_path, one_row("t,acc_x,acc_y,acc_z,acc2_x,acc2_y,acc2_z"))
+    path = str(write(tmp_path / "capture.csv", one_row("t,acc_x,acc_y,acc_z,acc2_x,acc2_y,acc2_z")))
     assert picked(path, prefer=["acc2_x", "acc2_y", "acc2_z"])[0] == ["acc2_x", "acc2_y", "acc2_z"]
     # a calibration's columns that are not all there: detection decides (here: ambiguous)
     with pytest.raises(InputError, match="several accelerometer triplets"):
@@ -174,7 +168,7 @@ def test_prefer_is_used_when_all_present(tmp_path: Path) -> None:
 
 
 def test_headerless_three_columns(tmp_path: Path) -> None:
-    path = write(tmp_path, "0.1,0.2,0.9\n0.1,0.2,0.9\n")
+    path = str(write(tmp_path / "capture.csv", "0.1,0.2,0.9\n0.1,0.2,0.9\n"))
     with open_capture(path) as cap:
         assert cap.layout.has_header is False
         assert cap.layout.names == ["x", "y", "z"]
@@ -185,12 +179,12 @@ def test_headerless_three_columns(tmp_path: Path) -> None:
 
 
 def test_headerless_four_columns_are_t_x_y_z(tmp_path: Path) -> None:
-    path = write(tmp_path, "0.00,0.1,0.2,0.9\n0.01,0.1,0.2,0.9\n")
+    path = str(write(tmp_path / "capture.csv", "0.00,0.1,0.2,0.9\n0.01,0.1,0.2,0.9\n"))
     assert picked(path) == (["x", "y", "z"], "t")
 
 
 def test_headerless_five_columns_need_columns(tmp_path: Path) -> None:
-    path = write(tmp_path, "7,0.00,0.1,0.2,0.9\n7,0.01,0.1,0.2,0.9\n")
+    path = str(write(tmp_path / "capture.csv", "7,0.00,0.1,0.2,0.9\n7,0.01,0.1,0.2,0.9\n"))
     with pytest.raises(InputError, match=r"no accelerometer x,y,z columns found \(columns: 0, 1, 2, 3, 4\)"):
         picked(path)
     assert picked(path, columns=["2", "3", "4"], time_column="1") == (["2", "3", "4"], "1")
@@ -198,13 +192,13 @@ def test_headerless_five_columns_need_columns(tmp_path: Path) -> None:
 
 def test_no_header_option_reads_the_first_line_as_data(tmp_path: Path) -> None:
     # a first line of numbers is data anyway; --no-header says so explicitly
-    path = write(tmp_path, "1,2,3\n4,5,6\n")
+    path = str(write(tmp_path / "capture.csv", "1,2,3\n4,5,6\n"))
     assert read_samples(path, ReadSpec(no_header=True)).values.tolist() == [[1, 2, 3], [4, 5, 6]]
     assert read_samples(path).values.tolist() == [[1, 2, 3], [4, 5, 6]]
 
 
 def test_time_column_and_duration(tmp_path: Path) -> None:
-    path = write(tmp_path, "t,ax,ay,az\n" + "".join(f"{i * 10},0,0,1\n" for i in range(101)))
+    path = str(write(tmp_path / "capture.csv", "t,ax,ay,az\n" + "".join(f"{i * 10},0,0,1\n" for i in range(101))))
     assert read_samples(path, ReadSpec(time_unit="s")).duration == pytest.approx(1000.0)
     auto = read_samples(path)  # a step of 10 at a sensor's rate: milliseconds, said in a note
     assert auto.duration == pytest.approx(1.0)
@@ -217,7 +211,7 @@ def test_time_column_and_duration(tmp_path: Path) -> None:
 
 
 def test_time_column_option(tmp_path: Path) -> None:
-    path = write(tmp_path, "clock,ax,ay,az\n" + "".join(f"{i},0,0,1\n" for i in range(11)))
+    path = str(write(tmp_path / "capture.csv", "clock,ax,ay,az\n" + "".join(f"{i},0,0,1\n" for i in range(11))))
     assert read_samples(path).duration is None
     assert read_samples(path, ReadSpec(time_column="clock", time_unit="s")).duration == pytest.approx(10.0)
     with pytest.raises(InputError, match="time column 'tick' not found"):
@@ -225,14 +219,14 @@ def test_time_column_option(tmp_path: Path) -> None:
 
 
 def test_rate_gives_the_duration_without_a_time_column(tmp_path: Path) -> None:
-    path = write(tmp_path, "ax,ay,az\n" + "0,0,1\n" * 200)
+    path = str(write(tmp_path / "capture.csv", "ax,ay,az\n" + "0,0,1\n" * 200))
     assert read_samples(path, ReadSpec(rate=100.0)).duration == pytest.approx(2.0)
     assert read_samples(path).duration is None
 
 
 def test_a_time_cell_that_is_not_a_number_leaves_the_duration_unknown(tmp_path: Path) -> None:
     for cell in ("", "n/a"):
-        path = write(tmp_path, f"t,ax,ay,az\n0,1,2,3\n{cell},1,2,3\n2,1,2,3\n")
+        path = str(write(tmp_path / "capture.csv", f"t,ax,ay,az\n0,1,2,3\n{cell},1,2,3\n2,1,2,3\n"))
         s = read_samples(path)
         assert s.duration is None
         assert s.values.shape == (3, 3)
@@ -260,7 +254,7 @@ EXPECTED = [[0.5, -0.25, 1.0], [1.0, 2.0, 3.0]]
     ],
 )
 def test_delimiters_and_forms(text: str, delimiter: str | None, eol: str, tmp_path: Path) -> None:
-    path = write(tmp_path, text)
+    path = str(write(tmp_path / "capture.csv", text))
     with open_capture(path) as cap:
         assert cap.layout.delimiter == delimiter
         assert cap.layout.eol == eol
@@ -269,7 +263,7 @@ def test_delimiters_and_forms(text: str, delimiter: str | None, eol: str, tmp_pa
 
 
 def test_bom_is_kept_in_the_head(tmp_path: Path) -> None:
-    path = write(tmp_path, "\ufeff# made by a station\nt,ax,ay,az\n0,0,0,1\n")
+    path = str(write(tmp_path / "capture.csv", "\ufeff# made by a station\nt,ax,ay,az\n0,0,0,1\n"))
     with open_capture(path) as cap:
         assert cap.layout.head == "\ufeff# made by a station\nt,ax,ay,az\n".encode()
         assert cap.layout.data_line == 3
@@ -288,7 +282,7 @@ def test_comment_lines_anywhere_are_skipped(tmp_path: Path) -> None:
         "1,4,5,6\n"
         "2,7,8,9\n"
     )
-    path = write(tmp_path, text)
+    path = str(write(tmp_path / "capture.csv", text))
     s = read_samples(path)
     np.testing.assert_array_equal(s.values, [[1, 2, 3], [4, 5, 6], [7, 8, 9]])
     assert s.rows == (0, 2)
@@ -296,7 +290,7 @@ def test_comment_lines_anywhere_are_skipped(tmp_path: Path) -> None:
 
 def test_error_line_numbers_count_comments_and_blanks(tmp_path: Path) -> None:
     text = "# pre\nt,ax,ay,az\n0,1,2,3\n# one, two, three, four\n\n1,4,x,6\n"
-    path = write(tmp_path, text)
+    path = str(write(tmp_path / "capture.csv", text))
     with pytest.raises(InputError) as err:
         read_samples(path)
     assert str(err.value) == f"{path}: not a number: 'x' (line 6, column ay)"
@@ -304,14 +298,14 @@ def test_error_line_numbers_count_comments_and_blanks(tmp_path: Path) -> None:
 
 def test_interleaved_rows_with_empty_sensor_cells_are_skipped(tmp_path: Path) -> None:
     text = "t,ax,ay,az,lat\n0,,,,52.1\n1,1,2,3,\n2,,,,52.2\n3,4,5,6,\n4,,,,52.3\n"
-    s = read_samples(write(tmp_path, text), ReadSpec(time_unit="s"))
+    s = read_samples(str(write(tmp_path / "capture.csv", text)), ReadSpec(time_unit="s"))
     np.testing.assert_array_equal(s.values, [[1, 2, 3], [4, 5, 6]])
     assert s.rows == (1, 3)
     assert s.duration == pytest.approx(2.0)  # from the rows used
 
 
 def test_only_empty_sensor_rows(tmp_path: Path) -> None:
-    path = write(tmp_path, "t,ax,ay,az,lat\n0,,,,52.1\n1,,,,52.2\n")
+    path = str(write(tmp_path / "capture.csv", "t,ax,ay,az,lat\n0,,,,52.1\n1,,,,52.2\n"))
     with pytest.raises(InputError, match="no rows with sensor values"):
         read_samples(path)
 
@@ -328,7 +322,7 @@ def test_only_empty_sensor_rows(tmp_path: Path) -> None:
     ],
 )
 def test_bad_rows_name_line_and_column(row: str, message: str, tmp_path: Path) -> None:
-    path = write(tmp_path, f"t,ax,ay,az\n0,1,2,3\n{row}\n2,1,2,3\n")
+    path = str(write(tmp_path / "capture.csv", f"t,ax,ay,az\n0,1,2,3\n{row}\n2,1,2,3\n"))
     with pytest.raises(InputError) as err:
         read_samples(path)
     assert str(err.value) == f"{path}: {message}"
@@ -343,14 +337,14 @@ def test_bad_row_in_a_later_block_names_its_line(tmp_path: Path) -> None:
     lines[bad] = f"{bad},1,oops,3"
     text = "# comment\nt,ax,ay,az\n" + "\n".join(lines) + "\n"
     assert len(text) > capture.BLOCK_BYTES
-    path = write(tmp_path, text)
+    path = str(write(tmp_path / "capture.csv", text))
     with pytest.raises(InputError) as err:
         read_samples(path)
     assert str(err.value) == f"{path}: not a number: 'oops' (line {bad + 3}, column ay)"
 
 
 def test_integers_and_exponents(tmp_path: Path) -> None:
-    path = write(tmp_path, "ax,ay,az\n16384,-12,0\n1e3,-1.5E+2,2.5e-3\n")
+    path = str(write(tmp_path / "capture.csv", "ax,ay,az\n16384,-12,0\n1e3,-1.5E+2,2.5e-3\n"))
     np.testing.assert_array_equal(read_samples(path).values, [[16384, -12, 0], [1000, -150, 0.0025]])
 
 
@@ -431,7 +425,7 @@ def test_large_whitespace_file_streams_across_chunks(tmp_path: Path) -> None:
 def test_stdin_reads_and_hashes_like_the_file(rows: int, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     text = "t,ax,ay,az\n" + "".join(f"{i * 0.01:.2f},{i % 10}.5,-0.25,1.0\n" for i in range(rows))
     data = text.encode()
-    path = write(tmp_path, data)
+    path = str(write(tmp_path / "capture.csv", data))
     from_file = read_samples(path)
     feed_stdin(monkeypatch, data)
     from_stdin = read_samples("-")
@@ -466,7 +460,7 @@ def test_stdin_whitespace_hash(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) 
     ],
 )
 def test_unreadable_files(content: bytes, message: str, tmp_path: Path) -> None:
-    path = write(tmp_path, content)
+    path = str(write(tmp_path / "capture.csv", content))
     with pytest.raises(InputError) as err:
         read_samples(path)
     assert str(err.value).startswith(f"{path}: {message}")
@@ -488,7 +482,7 @@ def test_correct_stream_round_trips(tmp_path: Path) -> None:
     rng = np.random.default_rng(11)
     raw = _values(rng.normal(0, 1e3, (500, 3)).tolist())
     text = "t,ax,ay,az\n" + "".join(f"{i},{a!r},{b!r},{c!r}\n" for i, (a, b, c) in enumerate(raw.tolist()))
-    path = write(tmp_path, text)
+    path = str(write(tmp_path / "capture.csv", text))
     out = io.BytesIO()
     with open_capture(path) as cap:
         rows = rewrite.correct_stream(cap, out, lambda v: v)

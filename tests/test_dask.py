@@ -14,12 +14,12 @@ import os
 import shutil
 import subprocess
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-from tests.conftest import SAMPLE, snapshot, tumblecal_exe, unit
+from tests.conftest import SAMPLE, run_exe, snapshot, tumblecal_exe, unit
 
 distributed = pytest.importorskip("distributed")
 
@@ -31,18 +31,8 @@ STAMP = "20231114T221320Z"
 UNREACHABLE = "tcp://127.0.0.1:1"
 
 
-def command(args: Sequence[str | Path]) -> list[str]:
-    return [tumblecal_exe(), *map(str, args)]
-
-
-def environment() -> dict[str, str]:
-    return {**os.environ, "NO_COLOR": "1", "SOURCE_DATE_EPOCH": EPOCH}
-
-
-def run_exe(args: Sequence[str | Path], cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        command(args), capture_output=True, text=True, cwd=cwd, env=environment(), timeout=120, check=False
-    )
+#: added to the CLI's environment, never to the workers': their clock is theirs, the caller's setting wins
+CLI_ENV = {"SOURCE_DATE_EPOCH": EPOCH}
 
 
 def make_units(root: Path) -> Path:
@@ -87,7 +77,12 @@ def scheduler(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
 @pytest.fixture(scope="module")
 def calibration(tmp_path_factory: pytest.TempPathFactory) -> Path:
     path = tmp_path_factory.mktemp("cal") / "cal.json"
-    r = run_exe(["solve", "-q", "--poses", *(SAMPLE / f"{n}.csv" for n in "xyz"), "-o", path])
+    r = run_exe(
+        ["solve", "-q", "--poses", *(SAMPLE / f"{n}.csv" for n in "xyz"), "-o", path],
+        text=True,
+        env=CLI_ENV,
+        timeout=120,
+    )
     assert r.returncode == 0, r.stderr
     return path
 
@@ -97,9 +92,14 @@ def calibration(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_batch_on_dask_is_byte_identical_to_local(tmp_path: Path, scheduler: str) -> None:
     src = make_units(tmp_path / "units")
-    local = run_exe(["batch", src, "--out-dir", tmp_path / "local", "--max-offset", "0.05"])
+    local = run_exe(
+        ["batch", src, "--out-dir", tmp_path / "local", "--max-offset", "0.05"], text=True, env=CLI_ENV, timeout=120
+    )
     dask = run_exe(
-        ["batch", src, "--out-dir", tmp_path / "dask", "--max-offset", "0.05", "--dask-scheduler", scheduler]
+        ["batch", src, "--out-dir", tmp_path / "dask", "--max-offset", "0.05", "--dask-scheduler", scheduler],
+        text=True,
+        env=CLI_ENV,
+        timeout=120,
     )
     assert local.returncode == 2, local.stderr
     assert dask.returncode == 2, dask.stderr
@@ -119,9 +119,19 @@ def test_batch_on_dask_records_the_pose_files_as_local(tmp_path: Path, scheduler
     calibration's poses[*].file (and summary.csv's inputs and messages) name the files as a
     local batch does, relative as given."""
     make_units(tmp_path / "units")
-    local = run_exe(["batch", "units", "--out-dir", "local", "--max-offset", "0.05"], cwd=tmp_path)
+    local = run_exe(
+        ["batch", "units", "--out-dir", "local", "--max-offset", "0.05"],
+        cwd=tmp_path,
+        text=True,
+        env=CLI_ENV,
+        timeout=120,
+    )
     dask = run_exe(
-        ["batch", "units", "--out-dir", "dask", "--max-offset", "0.05", "--dask-scheduler", scheduler], cwd=tmp_path
+        ["batch", "units", "--out-dir", "dask", "--max-offset", "0.05", "--dask-scheduler", scheduler],
+        cwd=tmp_path,
+        text=True,
+        env=CLI_ENV,
+        timeout=120,
     )
     assert (local.returncode, dask.returncode) == (2, 2), dask.stderr
     for serial in "ABEF":
@@ -135,7 +145,9 @@ def test_batch_on_dask_records_the_pose_files_as_local(tmp_path: Path, scheduler
 
 def test_batch_on_dask_json_and_resume(tmp_path: Path, scheduler: str) -> None:
     src = make_units(tmp_path / "units")
-    local = run_exe(["batch", src, "--out-dir", tmp_path / "local", "--json", "-q"])
+    local = run_exe(
+        ["batch", src, "--out-dir", tmp_path / "local", "--json", "-q"], text=True, env=CLI_ENV, timeout=120
+    )
     assert local.returncode == 2, local.stderr
     # a batch that stopped after units A and C, resumed on the cluster
     out = tmp_path / "dask"
@@ -144,7 +156,12 @@ def test_batch_on_dask_json_and_resume(tmp_path: Path, scheduler: str) -> None:
     kept = [r for r in rows if r.startswith(("A,", "C,"))]
     (out / "summary.csv").write_text(header + "".join(kept))
     shutil.copy(tmp_path / "local" / f"A_{STAMP}.json", out)
-    dask = run_exe(["batch", src, "--out-dir", out, "--json", "-q", "--resume", "--dask-scheduler", scheduler])
+    dask = run_exe(
+        ["batch", src, "--out-dir", out, "--json", "-q", "--resume", "--dask-scheduler", scheduler],
+        text=True,
+        env=CLI_ENV,
+        timeout=120,
+    )
     assert dask.returncode == 2
     assert [line.split(":")[0] for line in dask.stderr.splitlines()] == ["D"]  # -q: the unit with an error
     assert dask.stdout == local.stdout.replace(str(tmp_path / "local"), str(out))
@@ -166,8 +183,10 @@ def test_dask_relative_paths_are_the_clients(what: str, tmp_path: Path, schedule
         shutil.copy(calibration, tmp_path / "cal.json")
         args = ["apply", "--cal", "cal.json", "caps/*.csv"]
         absolute = ["apply", "--cal", tmp_path / "cal.json", f"{tmp_path}/caps/*.csv"]
-    local = run_exe([*absolute, "--out-dir", "local"], cwd=tmp_path)
-    dask = run_exe([*args, "--out-dir", "dask", "--dask-scheduler", scheduler], cwd=tmp_path)
+    local = run_exe([*absolute, "--out-dir", "local"], cwd=tmp_path, text=True, env=CLI_ENV, timeout=120)
+    dask = run_exe(
+        [*args, "--out-dir", "dask", "--dask-scheduler", scheduler], cwd=tmp_path, text=True, env=CLI_ENV, timeout=120
+    )
     assert dask.returncode == local.returncode, dask.stderr
     assert snapshot(tmp_path / "dask") == snapshot(tmp_path / "local")
 
@@ -178,9 +197,14 @@ def test_dask_relative_paths_are_the_clients(what: str, tmp_path: Path, schedule
 def test_apply_glob_on_dask_is_byte_identical_to_local(tmp_path: Path, scheduler: str, calibration: Path) -> None:
     paths = make_captures(tmp_path / "caps")
     pattern = str(tmp_path / "caps" / "*.csv")
-    local = run_exe(["apply", "--cal", calibration, pattern, "--out-dir", tmp_path / "local"])
+    local = run_exe(
+        ["apply", "--cal", calibration, pattern, "--out-dir", tmp_path / "local"], text=True, env=CLI_ENV, timeout=120
+    )
     dask = run_exe(
-        ["apply", "--cal", calibration, pattern, "--out-dir", tmp_path / "dask", "--dask-scheduler", scheduler]
+        ["apply", "--cal", calibration, pattern, "--out-dir", tmp_path / "dask", "--dask-scheduler", scheduler],
+        text=True,
+        env=CLI_ENV,
+        timeout=120,
     )
     assert local.returncode == 0, local.stderr
     assert dask.returncode == 0, dask.stderr
@@ -198,7 +222,10 @@ def test_apply_on_dask_one_bad_capture(tmp_path: Path, scheduler: str, calibrati
     bad.write_text("foo,bar\n1,2\n")
     pattern = str(tmp_path / "caps" / "*.csv")
     dask = run_exe(
-        ["apply", "--cal", calibration, pattern, "--out-dir", tmp_path / "dask", "--dask-scheduler", scheduler]
+        ["apply", "--cal", calibration, pattern, "--out-dir", tmp_path / "dask", "--dask-scheduler", scheduler],
+        text=True,
+        env=CLI_ENV,
+        timeout=120,
     )
     assert dask.returncode == 2
     errors = [line for line in dask.stderr.splitlines() if line.startswith("error:")]
@@ -226,7 +253,11 @@ def unreachable(tmp_path_factory: pytest.TempPathFactory, calibration: Path) -> 
     start = time.monotonic()
     procs = {
         name: subprocess.Popen(
-            command(args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=environment()
+            [tumblecal_exe(), *map(str, args)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env={**os.environ, "NO_COLOR": "1", **CLI_ENV},
         )
         for name, args in jobs.items()
     }
@@ -262,7 +293,12 @@ def test_a_scheduler_without_workers_is_exit_2_not_a_hang(tmp_path: Path) -> Non
     try:
         src = make_units(tmp_path / "units")
         started = time.monotonic()
-        r = run_exe(["batch", src, "--out-dir", tmp_path / "out", "--dask-scheduler", cluster.scheduler_address])
+        r = run_exe(
+            ["batch", src, "--out-dir", tmp_path / "out", "--dask-scheduler", cluster.scheduler_address],
+            text=True,
+            env=CLI_ENV,
+            timeout=120,
+        )
         assert r.returncode == 2, r.stderr
         assert r.stderr.splitlines()[0].startswith(
             f"error: the Dask scheduler at {cluster.scheduler_address} has no workers"

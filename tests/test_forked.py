@@ -20,19 +20,18 @@ from pathlib import Path
 
 import pytest
 
+from tests.conftest import POSES_3, write
+from tests.test_splice import CASES, _accel, lines, table
 from tumblecal_cli.errors import InputError, TumblecalError
-from tumblecal_cli.io import capture, forked, rewrite
+from tumblecal_cli.io import forked, rewrite
 from tumblecal_cli.io.capture import open_capture
-
-from .test_splice import CASES, ROOT, _accel, lines, table, write
 
 BLOCK = 2048
 
 
 @pytest.fixture
-def small_blocks(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+def worker_counts(small_blocks: None, monkeypatch: pytest.MonkeyPatch) -> list[int]:
     """Blocks of 2 KiB, workers for any size of file, and a record of each forked run's workers."""
-    monkeypatch.setattr(capture, "BLOCK_BYTES", BLOCK)
     monkeypatch.setattr(forked, "MIN_BYTES", 0)
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1, 2})  # 3 workers, even on 2 cores
     monkeypatch.setattr(threading, "active_count", lambda: 1)  # whatever threads other tests left
@@ -89,8 +88,8 @@ def no_children_left() -> bool:
 
 
 @pytest.mark.parametrize("case", list(CASES))
-def test_workers_write_what_threads_write(case: str, tmp_path: Path, small_blocks: list[int]) -> None:
-    path = write(tmp_path, CASES[case]())
+def test_workers_write_what_threads_write(case: str, tmp_path: Path, worker_counts: list[int]) -> None:
+    path = write(tmp_path / "c.csv", CASES[case]())
     with contextlib.suppress(TumblecalError):  # refused when opened: neither runs
         with open_capture(str(path)):
             pass
@@ -100,23 +99,23 @@ def test_workers_write_what_threads_write(case: str, tmp_path: Path, small_block
     assert no_children_left()
 
 
-def test_a_plain_file_is_spread_over_the_workers(tmp_path: Path, small_blocks: list[int]) -> None:
-    path = write(tmp_path, "t,ax,ay,az\n" + "\n".join(lines(table(3000))) + "\n")
+def test_a_plain_file_is_spread_over_the_workers(tmp_path: Path, worker_counts: list[int]) -> None:
+    path = write(tmp_path / "c.csv", "t,ax,ay,az\n" + "\n".join(lines(table(3000))) + "\n")
     out, error = corrected(path, None)
     assert error is None
-    assert small_blocks == [3]
+    assert worker_counts == [3]
     assert out == corrected(path, io.BytesIO())[0]
     assert len(forked.cuts(str(path), 11, BLOCK) or []) > 30
 
 
 def test_an_error_in_a_late_block_names_its_line_after_the_blocks_before_it(
-    tmp_path: Path, small_blocks: list[int]
+    tmp_path: Path, worker_counts: list[int]
 ) -> None:
     rows = lines(table(3000))
     rows[2500] = "2.5,0.5,oops,0.5"
-    path = write(tmp_path, "t,ax,ay,az\n" + "\n".join(rows) + "\n")
+    path = write(tmp_path / "c.csv", "t,ax,ay,az\n" + "\n".join(rows) + "\n")
     out, error = corrected(path, None)
-    assert small_blocks == [3]
+    assert worker_counts == [3]
     assert error is not None
     assert "line 2502" in error
     assert "oops" in error
@@ -127,9 +126,9 @@ def test_an_error_in_a_late_block_names_its_line_after_the_blocks_before_it(
     assert no_children_left()
 
 
-def test_a_line_longer_than_the_window_keeps_the_work_here(tmp_path: Path, small_blocks: list[int]) -> None:
+def test_a_line_longer_than_the_window_keeps_the_work_here(tmp_path: Path, worker_counts: list[int]) -> None:
     text = "t,ax,ay,az,note\n" + "\n".join(f"{ln},{'n' * 3000}" for ln in lines(table(20))) + "\n"
-    path = write(tmp_path, text)
+    path = write(tmp_path / "c.csv", text)
     assert forked.cuts(str(path), 16, BLOCK) is None
     (to_file, error), (to_memory, same_error) = corrected(path, None), corrected(path, io.BytesIO())
     assert error == same_error
@@ -138,14 +137,14 @@ def test_a_line_longer_than_the_window_keeps_the_work_here(tmp_path: Path, small
     # how many rows are out before the reader stops depends on the threads' timing (the general path's way)
     for written in (to_file, to_memory):
         assert written == b"" or (written.startswith(b"t,ax,ay,az,note\n") and written.endswith(rewrite.INCOMPLETE))
-    assert small_blocks == []
+    assert worker_counts == []
 
 
 def test_the_cuts_are_a_readers_blocks(tmp_path: Path) -> None:
     """Block by block as a reader of ``block`` bytes cuts them: whole lines, the last part line
     carried into the next read, a last line without its line end a block of its own."""
     text = ("t,ax,ay,az\n" + "\n".join(lines(table(5000))) + "\n5.000,0.1,0.2,0.3").encode()
-    path = write(tmp_path, text)
+    path = write(tmp_path / "c.csv", text)
     expected, carry, at = [], b"", 11
     with open(path, "rb") as f:
         f.seek(at)
@@ -158,8 +157,8 @@ def test_the_cuts_are_a_readers_blocks(tmp_path: Path) -> None:
     assert forked.cuts(str(path), 11, 4096) == expected
 
 
-def test_a_worker_that_dies_is_an_error_not_a_hang(tmp_path: Path, small_blocks: list[int]) -> None:
-    path = write(tmp_path, "t,ax,ay,az\n" + "\n".join(lines(table(3000))) + "\n")
+def test_a_worker_that_dies_is_an_error_not_a_hang(tmp_path: Path, worker_counts: list[int]) -> None:
+    path = write(tmp_path / "c.csv", "t,ax,ay,az\n" + "\n".join(lines(table(3000))) + "\n")
 
     def render(block: bytes, at: int) -> tuple[list[object], int]:
         if at > 20_000:
@@ -173,8 +172,8 @@ def test_a_worker_that_dies_is_an_error_not_a_hang(tmp_path: Path, small_blocks:
     assert no_children_left()
 
 
-def test_a_workers_error_comes_back_as_it_was(tmp_path: Path, small_blocks: list[int]) -> None:
-    path = write(tmp_path, "t,ax,ay,az\n" + "\n".join(lines(table(3000))) + "\n")
+def test_a_workers_error_comes_back_as_it_was(tmp_path: Path, worker_counts: list[int]) -> None:
+    path = write(tmp_path / "c.csv", "t,ax,ay,az\n" + "\n".join(lines(table(3000))) + "\n")
 
     def render(block: bytes, at: int) -> tuple[list[object], int]:
         if at > 20_000:
@@ -198,9 +197,8 @@ def test_sigterm_leaves_no_worker_and_no_file(tmp_path: Path) -> None:
     """A station's kill in the middle of a big file: exit 130, the workers gone with it, no
     output and no temporary file."""
     cal = tmp_path / "cal.json"
-    poses = [str(ROOT / "sample_data" / f"{a}.csv") for a in "xyz"]
     tumblecal = [sys.executable, "-m", "tumblecal_cli"]
-    subprocess.run([*tumblecal, "solve", "-q", "--poses", *poses, "-o", str(cal)], check=True)
+    subprocess.run([*tumblecal, "solve", "-q", "--poses", *POSES_3, "-o", str(cal)], check=True)
     row = "0.001,0.012345,-0.023456,1.012345\n"
     big = tmp_path / "big.csv"
     big.write_text("t,ax,ay,az\n" + row * (2 * forked.MIN_BYTES // len(row)) * 4)

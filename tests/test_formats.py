@@ -1,4 +1,4 @@
-"""tumblecal export / import (tumblecal_cli/formats.py): firmware headers that compile and give the
+"""tumblecal export / import (tumblecal_cli/io/formats.py): firmware headers that compile and give the
 same correction, register counts that never wrap, and peer formats that round-trip to 1e-12."""
 
 from __future__ import annotations

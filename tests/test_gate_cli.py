@@ -31,6 +31,7 @@ from tests.conftest import (
     precious,
     run,
     unnamed,
+    write,
 )
 from tests.synth import FloatArray, pose_samples
 from tumblecal_cli.core import model as core
@@ -95,8 +96,7 @@ def write_capture(
     if extra is not None:
         columns.append(extra)
         formats.append("%.3f")
-    np.savetxt(path, np.column_stack(columns), delimiter=",", header=header, comments="", fmt=formats)
-    return path
+    return write(path, np.column_stack(columns), header=header, fmt=formats)
 
 
 def three_poses(folder: Path, *, n: int = 200, noise: float = 0.002) -> list[Path]:

@@ -1,41 +1,23 @@
-"""The layers of README "Development": cli -> io -> core, imports flowing one way.
+"""The layers of README "Development", imports flowing one way: core <- io <- pipeline <- cli.
 
-Each check runs in a fresh interpreter, so what the test process has already imported does
-not hide a dependency.
+The cli imports the pipeline, the pipeline io (and core), io imports core, and nothing imports
+a layer above its own. The import graph is read from the package's source (its AST, imports
+inside functions too); what a command or a module loads is checked in a fresh interpreter each
+time, so what the test process has already imported does not hide a dependency.
 """
 
 from __future__ import annotations
 
+import ast
 import functools
-import json
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
-
-PROBE = """
-import json, sys
-{body}
-print(json.dumps(sorted(m for m in {watch!r} if m in sys.modules)))
-"""
-
-
-def imported(body: str, watch: tuple[str, ...]) -> list[str]:
-    """Which of ``watch`` are in ``sys.modules`` after running ``body`` in a fresh Python."""
-    done = subprocess.run(
-        [sys.executable, "-c", PROBE.format(body=body, watch=watch)],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=False,
-        cwd=ROOT,
-    )
-    assert done.returncode == 0, done.stderr
-    found: list[str] = json.loads(done.stdout.splitlines()[-1])
-    return found
+from tests.conftest import ROOT, imported
 
 
 @pytest.mark.slow
@@ -90,8 +72,8 @@ def test_package_root_is_light() -> None:
 
 
 @pytest.mark.slow
-def test_nothing_imports_pandas() -> None:
-    """pandas is only the benchmark's baseline: a whole solve and apply run without it."""
+def test_a_solve_and_apply_run_without_pandas() -> None:
+    """pandas is the Python API's DataFrame interface only: a whole solve and apply run without it."""
     body = (
         "import contextlib, io, tempfile, os\n"
         "from tumblecal_cli.cli import main\n"
@@ -139,16 +121,20 @@ def _module_name(path: Path) -> str:
 
 
 @functools.cache
+def _trees() -> dict[Path, ast.Module]:
+    """Each source file of the package, parsed once for the tests below."""
+    return {path: ast.parse(path.read_text()) for path in PACKAGE.rglob("*.py")}
+
+
+@functools.cache
 def _imports() -> dict[str, set[str]]:
     """Each module of the package and the package's modules it imports (anywhere in it,
     inside functions and TYPE_CHECKING blocks too), resolved to modules that exist."""
-    import ast
-
-    modules = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+    modules = {_module_name(p): p for p in _trees()}
     graph: dict[str, set[str]] = {}
     for name, path in modules.items():
         found: set[str] = set()
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in ast.walk(_trees()[path]):
             targets: list[str] = []
             if isinstance(node, ast.Import):
                 targets = [a.name for a in node.names]
@@ -213,11 +199,9 @@ def test_no_import_cycle() -> None:
 
 def test_a_command_body_fits_on_a_screen() -> None:
     """Each command function: parse, one pipeline call, render; at most 40 lines of body."""
-    import ast
-
     long: list[tuple[str, int]] = []
     for path in (PACKAGE / "cli").glob("*.py"):
-        for node in ast.parse(path.read_text()).body:
+        for node in _trees()[path].body:
             if (
                 isinstance(node, ast.FunctionDef) and any("command" in ast.unparse(d) for d in node.decorator_list)
             ) or (isinstance(node, ast.FunctionDef) and node.name == "batch"):
@@ -228,19 +212,20 @@ def test_a_command_body_fits_on_a_screen() -> None:
     assert long == []
 
 
+def _import_statements(node: ast.AST, inside: bool = False) -> Iterator[tuple[ast.Import | ast.ImportFrom, bool]]:
+    """Each import statement under ``node``, and whether it is inside a function."""
+    for child in ast.iter_child_nodes(node):
+        if isinstance(child, ast.Import | ast.ImportFrom):
+            yield child, inside
+        yield from _import_statements(child, inside or isinstance(child, ast.FunctionDef))
+
+
 def test_pandas_only_inside_the_pipeline_functions() -> None:
     """pandas is the DataFrame interface's: imported inside functions of the pipeline only."""
-    import ast
-
     wrong = []
-    for path in PACKAGE.rglob("*.py"):
-        tree = ast.parse(path.read_text())
-        inside = {id(n) for f in ast.walk(tree) if isinstance(f, ast.FunctionDef) for n in ast.walk(f)}
-        for node in ast.walk(tree):
-            if isinstance(node, ast.Import | ast.ImportFrom):
-                names = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""]
-                if any(n.split(".")[0] == "pandas" for n in names) and (
-                    "pipeline" not in path.parts or id(node) not in inside
-                ):
-                    wrong.append(f"{path.relative_to(ROOT)}:{node.lineno}")
+    for path, tree in _trees().items():
+        for node, inside in _import_statements(tree):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""]
+            if any(n.split(".")[0] == "pandas" for n in names) and ("pipeline" not in path.parts or not inside):
+                wrong.append(f"{path.relative_to(ROOT)}:{node.lineno}")
     assert wrong == []

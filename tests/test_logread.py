@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import gzip
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 from typing import cast
 
 import numpy as np
 import pytest
 
-from tests.conftest import run
+from tests.conftest import run, write
 from tumblecal_cli.core import scan as scan_core
 from tumblecal_cli.core import segment as sc
 from tumblecal_cli.io import capture, logread, readings
@@ -25,6 +26,7 @@ from tumblecal_cli.pipeline import logs
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT / "tests" / "data" / "logs"
+BLOCK = 16 << 10  # small_blocks: a small log is hundreds of blocks
 
 
 def tumble(rows: int, seed: int = 2, rate: float = 1000.0, noise: float = 0.002) -> np.ndarray:
@@ -40,11 +42,17 @@ def tumble(rows: int, seed: int = 2, rate: float = 1000.0, noise: float = 0.002)
     return np.column_stack([t, xyz])
 
 
-def write(path: Path, table: np.ndarray, header: str = "t,x,y,z", fmt: str | list[str] = "%.6f") -> Path:
-    with path.open("w") as f:
-        f.write(header + "\n")
-        np.savetxt(f, table, fmt=fmt, delimiter=",")
-    return path
+@pytest.fixture(scope="module")
+def session(tmp_path_factory: pytest.TempPathFactory) -> Callable[[int], Path]:
+    """``session(rows)``: the file of ``tumble(rows)``, written once for the module (the tests
+    that take it only read it)."""
+    folder = tmp_path_factory.mktemp("sessions")
+
+    def written(rows: int) -> Path:
+        path = folder / f"session_{rows}.csv"
+        return path if path.exists() else write(path, tumble(rows))
+
+    return written
 
 
 def both(path: Path, rate: float | None = None, **settings: object) -> tuple[object, object]:
@@ -85,22 +93,15 @@ def same(streamed: tuple[readings.Log, sc.Segmentation], whole: tuple[readings.L
         np.testing.assert_array_equal(p.values, q.values)
 
 
-@pytest.fixture
-def small_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Blocks of 16 KiB: a small log is hundreds of them, so every seam is crossed."""
-    monkeypatch.setattr(capture, "BLOCK_BYTES", 16 << 10)
-
-
 @pytest.mark.parametrize(
     "settings",
     [{}, {"trim": 0.0}, {"trim": 0.4}, {"window": 0.05, "min_duration": 0.5}, {"threshold": 0.01}],
     ids=["defaults", "no-trim", "trim", "short-window", "threshold"],
 )
 def test_a_tumble_session_streamed_is_the_whole_read(
-    tmp_path: Path, small_blocks: None, settings: dict[str, float]
+    session: Callable[[int], Path], small_blocks: None, settings: dict[str, float]
 ) -> None:
-    path = write(tmp_path / "session.csv", tumble(150_000))
-    streamed, whole = both(path, **settings)
+    streamed, whole = both(session(150_000), **settings)
     assert streamed is not None
     same(streamed, whole)  # type: ignore[arg-type]
     log = streamed[0]  # type: ignore[index]
@@ -186,10 +187,11 @@ def test_real_logs_streamed_are_the_whole_read(tmp_path: Path, small_blocks: Non
     ],
     ids=["comment", "time-backwards", "ragged", "cr"],
 )
-def test_what_the_stream_does_not_take_is_read_whole(tmp_path: Path, small_blocks: None, change: object) -> None:
+def test_what_the_stream_does_not_take_is_read_whole(
+    session: Callable[[int], Path], tmp_path: Path, small_blocks: None, change: object
+) -> None:
     path = tmp_path / "log.csv"
-    write(path, tumble(30_000))
-    path.write_text(change(path.read_text()))  # type: ignore[operator]
+    path.write_text(change(session(30_000).read_text()))  # type: ignore[operator]
     assert logread.scan_log(str(path), ReadSpec(), settings=sc.Settings()) is None
 
 
@@ -206,9 +208,9 @@ def test_a_floor_that_rises_after_the_first_blocks_is_still_exact(tmp_path: Path
 
 
 def test_segment_writes_the_same_files_either_way(
-    tmp_path: Path, small_blocks: None, monkeypatch: pytest.MonkeyPatch
+    session: Callable[[int], Path], tmp_path: Path, small_blocks: None, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    path = write(tmp_path / "session.csv", tumble(130_000))
+    path = session(130_000)
     logs.segment(str(path), out_dir=str(tmp_path / "streamed"))
     monkeypatch.setattr(logread, "scan_log", lambda *a, **k: None)
     logs.segment(str(path), out_dir=str(tmp_path / "whole"))
@@ -242,7 +244,7 @@ def test_the_scan_keeps_a_bounded_share(tmp_path: Path) -> None:
 
 
 def test_a_block_file_that_cannot_be_written_leaves_the_folder_as_it_was(
-    tmp_path: Path, small_blocks: None, monkeypatch: pytest.MonkeyPatch
+    session: Callable[[int], Path], tmp_path: Path, small_blocks: None, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The block files are written on threads: a full disk in one of them is the run's error,
     and neither the others nor a staging folder stay."""
@@ -251,7 +253,7 @@ def test_a_block_file_that_cannot_be_written_leaves_the_folder_as_it_was(
 
     from tumblecal_cli.errors import InputError
 
-    path = write(tmp_path / "session.csv", tumble(130_000))
+    path = session(130_000)
     out = tmp_path / "poses"
     calls, lock = [0], threading.Lock()
     real = capture._copy_range
@@ -338,12 +340,11 @@ def test_time_steps_are_counted_exactly_however_many_kinds(kinds: int) -> None:
 
 @pytest.mark.parametrize("narrow", [0, 1 << 31], ids=["int64", "int32"])
 def test_rows_and_line_offsets_either_width(
-    tmp_path: Path, small_blocks: None, monkeypatch: pytest.MonkeyPatch, narrow: int
+    session: Callable[[int], Path], small_blocks: None, monkeypatch: pytest.MonkeyPatch, narrow: int
 ) -> None:
     """Rows and line offsets are kept as int32 for files under NARROW bytes, else int64."""
     monkeypatch.setattr(logread, "NARROW", narrow)
-    path = write(tmp_path / "session.csv", tumble(60_000))
-    streamed, whole = both(path)
+    streamed, whole = both(session(60_000))
     assert streamed is not None
     same(streamed, whole)  # type: ignore[arg-type]
     log = streamed[0]  # type: ignore[index]
@@ -440,11 +441,10 @@ def test_a_threshold_within_rounding_of_a_spread_is_the_whole_reads(tmp_path: Pa
 
 @pytest.mark.parametrize("threshold", ["0", "1e-200"])
 def test_a_threshold_of_nothing_is_the_whole_reads_exit_3(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], threshold: str
+    session: Callable[[int], Path], tmp_path: Path, capsys: pytest.CaptureFixture[str], threshold: str
 ) -> None:
     """--threshold 0 (or 1e-200) crashed the streamed read (ZeroDivisionError, OverflowError)."""
-    path = write(tmp_path / "session.csv", tumble(30_000))
-    r = run(capsys, "segment", path, "--threshold", threshold, "-d", tmp_path / "blocks")
+    r = run(capsys, "segment", session(30_000), "--threshold", threshold, "-d", tmp_path / "blocks")
     assert r.code == 3, r.err
     assert "internal error" not in r.err
     assert "nothing to calibrate from: 0 still blocks kept" in r.err

@@ -1,5 +1,6 @@
-"""Lot statistics (tumblecal_cli/lot.py): known answers for Cpk, modified z, the lot's members,
-drift, and the report's cells, from calibration files written into tmp_path."""
+"""Lot statistics (tumblecal_cli/core/lot.py; the report's files in tumblecal_cli/pipeline/report.py):
+known answers for Cpk, modified z, the lot's members, drift, and the report's cells, from
+calibration files written into tmp_path."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from tests.conftest import write
 from tumblecal_cli.core import lot
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import calfile
@@ -51,14 +53,8 @@ def document(
     return doc
 
 
-def write(path: Path, doc: dict[str, Any] | str) -> str:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(doc if isinstance(doc, str) else json.dumps(doc))
-    return str(path)
-
-
 def loaded(tmp_path: Path, name: str = "cal.json", **fields: Any) -> lot.Entry:
-    return reports.entry(calfile.load(write(tmp_path / name, document(**fields))))
+    return reports.entry(calfile.load(str(write(tmp_path / name, document(**fields)))))
 
 
 def standardised(n: int, seed: int = 1) -> np.ndarray[Any, np.dtype[np.float64]]:
@@ -155,7 +151,7 @@ def test_find_searches_folders_recursively_and_skips_hidden_names(tmp_path: Path
     write(tmp_path / "cals" / ".SN1.abc.partial.json", "{}")  # batch's staging file
     write(tmp_path / "cals" / ".hidden" / "d.json", "{}")
     write(tmp_path / "cals" / "summary.csv", "serial\n")
-    single = write(tmp_path / "other" / "one.txt", "{}")  # named explicitly: taken whatever its suffix
+    single = str(write(tmp_path / "other" / "one.txt", "{}"))  # named explicitly: taken whatever its suffix
     root = str(tmp_path / "cals")
     assert reports.find([root, single, str(tmp_path / "cals" / "b.json")]) == sorted(
         [f"{root}/a.YAML", f"{root}/b.json", f"{root}/deep/c.yml", single]
@@ -176,9 +172,9 @@ def test_find_refuses_a_folder_without_calibration_files(tmp_path: Path) -> None
 
 
 def test_load_all_collects_unreadable_files_and_goes_on(tmp_path: Path) -> None:
-    good = write(tmp_path / "SN1.json", document())
-    other = write(tmp_path / "package.json", json.dumps({"name": "not-a-calibration"}))
-    broken = write(tmp_path / "SN2.json", '{"format": ')
+    good = str(write(tmp_path / "SN1.json", document()))
+    other = str(write(tmp_path / "package.json", json.dumps({"name": "not-a-calibration"})))
+    broken = str(write(tmp_path / "SN2.json", '{"format": '))
     entries, unreadable = reports.load_all([str(tmp_path)])
     assert [e.path for e in entries] == [good]
     assert dict(unreadable) == {
@@ -230,7 +226,7 @@ def test_cross_terms_only_when_the_matrix_has_off_diagonal_terms(tmp_path: Path)
 def test_entry_reads_a_hand_written_yaml_file(tmp_path: Path) -> None:
     text = calfile.dumps(document(serial=None), "cal.yaml")
     text = text.replace("serial: null", "serial: 1234").replace("'2024-05-01T10:00:00Z'", "2024-05-01T10:00:00Z")
-    e = reports.entry(calfile.load(write(tmp_path / "cal.yaml", text)))
+    e = reports.entry(calfile.load(str(write(tmp_path / "cal.yaml", text))))
     assert (e.serial, e.created) == ("1234", "2024-05-01T10:00:00Z")  # an int serial, an unquoted timestamp
 
 
@@ -247,7 +243,7 @@ def test_bounds_from_a_limits_file(tmp_path: Path) -> None:
         tmp_path / "limits.yaml",
         "offset: [0.05, 0.06, 0.07]\ngain_error: 0.02\nnominal_gain: [2048, 2048, 1024]\ncross_axis: 0.01\n",
     )
-    limits = calfile.load_limits(path)
+    limits = calfile.load_limits(str(path))
     assert lot.bounds("offset.y", limits) == pytest.approx((-0.06, 0.06))
     assert lot.bounds("gain.z", limits) == pytest.approx((1024 * 0.98, 1024 * 1.02))
     assert lot.bounds("cross.zx", limits) == pytest.approx((-0.01, 0.01))

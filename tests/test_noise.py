@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 import yaml
 
-from tests.conftest import ROOT, feed_stdin, run
+from tests.conftest import ROOT, feed_stdin, run, write
 from tumblecal_cli.core import allan
 
 DATA = ROOT / "tests" / "data"
@@ -69,12 +69,11 @@ def curve_of(y: Any, **kwargs: Any) -> allan.Curve:
     return stream.result(RATE)
 
 
-def write(path: Path, y: Any, *, time: bool = True) -> Path:
-    t = np.arange(len(y)) / RATE
-    cols = np.column_stack([t, y]) if time else y
-    header = "t,x,y,z" if time else "x,y,z"
-    np.savetxt(path, cols, delimiter=",", header=header, comments="", fmt="%.9g")
-    return path
+def capture(path: Path, y: Any, *, time: bool = True) -> Path:
+    """``y`` written as a capture: t (seconds at RATE), x, y, z, or without ``time`` x, y, z alone."""
+    if time:
+        return write(path, np.column_stack([np.arange(len(y)) / RATE, y]), fmt="%.9g")
+    return write(path, y, header="x,y,z", fmt="%.9g")
 
 
 # -- the deviation ---------------------------------------------------------------------------
@@ -184,7 +183,7 @@ def cal_file(path: Path, sensor: str, units: str | None) -> Path:
 
 @pytest.fixture(scope="module")
 def still(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return write(tmp_path_factory.mktemp("noise") / "still.csv", simulate(20_000, 6))
+    return capture(tmp_path_factory.mktemp("noise") / "still.csv", simulate(20_000, 6))
 
 
 def test_json_shape_and_not_determined_as_null(still: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -229,7 +228,7 @@ def test_denser_taus_from_stdin_with_the_time_in_ms(
 
 
 def test_no_rate_is_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    path = write(tmp_path / "no_time.csv", simulate(500, 7), time=False)
+    path = capture(tmp_path / "no_time.csv", simulate(500, 7), time=False)
     r = run(capsys, "noise", path)
     assert r.code == 2
     assert r.err == (
@@ -263,7 +262,7 @@ def test_solve_ignores_the_noise_limits(tmp_path: Path, capsys: pytest.CaptureFi
 def test_a_step_is_exit_3_and_writes_nothing(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     y = simulate(20_000, 8)
     y[12_000:, 2] += 0.5  # 5 x the per-sample noise
-    path = write(tmp_path / "bumped.csv", y)
+    path = capture(tmp_path / "bumped.csv", y)
     kalibr, plot = tmp_path / "imu.yaml", tmp_path / "adev.png"
     cal = cal_file(tmp_path / "acc.json", "accelerometer", "g")
     r = run(capsys, "noise", path, "--cal", cal, "--kalibr", kalibr, "--plot", plot, "--json")
@@ -278,7 +277,7 @@ def test_a_step_is_exit_3_and_writes_nothing(tmp_path: Path, capsys: pytest.Capt
 def test_a_drift_far_above_the_random_walk_is_exit_3(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     y = simulate(20_000, 9)
     y[:, 0] += np.linspace(0.0, 2.0, len(y))  # a warming unit: 2 (20 x the per-sample noise) over 200 s
-    r = run(capsys, "noise", write(tmp_path / "drift.csv", y))
+    r = run(capsys, "noise", capture(tmp_path / "drift.csv", y))
     assert r.code == 3
     assert "drifts" in r.err
     assert " on x from start to end" in r.err
@@ -329,8 +328,7 @@ def test_still_noise_filtered_far_below_its_rate_is_not_moving(
     """A sensor filtered far below its rate: its block means change smoothly, by up to sqrt(12)
     of the spread within a block, which a factor of 3 took for motion (exit 3 on a still unit)."""
     y = low_passed(np.random.default_rng(12), 30_000 if rate == 100.0 else 120_000, rate, corner, poles)
-    path = tmp_path / "filtered.csv"
-    np.savetxt(path, y, delimiter=",", header="x,y,z", comments="", fmt="%.9g")
+    path = capture(tmp_path / "filtered.csv", y, time=False)
     r = run(capsys, "noise", path, "--rate", f"{rate:g}", "-q")
     assert r.code == 0, r.err
 
@@ -340,7 +338,7 @@ def test_kalibr_in_si_from_a_gyroscope_in_degrees(tmp_path: Path, capsys: pytest
     rng = np.random.default_rng(10)  # white noise 0.01 °/s/√Hz and a strong random walk 0.01 °/s²/√Hz, 2 h
     shape = (int(2 * 3600 * RATE), 3)
     y = rng.normal(0, 0.01 * math.sqrt(RATE), shape) + np.cumsum(rng.normal(0, 0.01 / math.sqrt(RATE), shape), 0)
-    path = write(tmp_path / "gyro.csv", y)
+    path = capture(tmp_path / "gyro.csv", y)
     cal = cal_file(tmp_path / "gyro.json", "gyroscope", "deg/s")
     kalibr = tmp_path / "imu.yaml"
     kalibr.write_text("rostopic: /imu0\naccelerometer_noise_density: 0.002\n")

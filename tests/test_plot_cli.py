@@ -9,9 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.conftest import run, unnamed
-from tests.test_layers import imported
-from tests.test_plots import png_size as png_header
+from tests.conftest import imported, png_size, run, unnamed
 from tests.test_solvers_cli import FIELD, magnetometer, sphere_directions, write_mag
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -20,9 +18,9 @@ THREE = [str(ROOT / "sample_data" / f"{f}.csv") for f in ("x", "y", "z")]
 LOT = ROOT / "sample_data" / "lot"
 
 
-def png_size(path: Path) -> tuple[int, int]:
-    """Width and height of a valid PNG (signature, then the IHDR chunk); decodes it as well."""
-    width, height = png_header(path.read_bytes())
+def drawn_png_size(path: Path) -> tuple[int, int]:
+    """Width and height of a valid PNG (signature, then the IHDR chunk) that decodes to a drawing."""
+    width, height = png_size(path.read_bytes())
     from matplotlib.image import imread
 
     pixels = imread(str(path))
@@ -36,7 +34,7 @@ def test_solve_plot_six_pose(tmp_path: Path, capsys: pytest.CaptureFixture[str])
     cal, png = tmp_path / "cal.json", tmp_path / "poses.png"
     code, _, err = run(capsys, "solve", "-p", *SIX, "--reference", "9.81", "-o", str(cal), "--plot", str(png), "-q")
     assert code == 0, err
-    width, height = png_size(png)
+    width, height = drawn_png_size(png)
     assert width > 300
     assert height > 300
     assert cal.exists()
@@ -50,7 +48,7 @@ def test_solve_plot_magnetometer(tmp_path: Path, capsys: pytest.CaptureFixture[s
     args = ["solve", "--sensor", "magnetometer", "--reference", str(FIELD), "-p", str(turn), "--plot", str(png)]
     code, _, err = run(capsys, *args, "-o", str(tmp_path / "cal.json"), "-q")
     assert code == 0, err
-    width, height = png_size(png)
+    width, height = drawn_png_size(png)
     assert width > height  # three planes side by side
 
 
@@ -61,7 +59,7 @@ def test_solve_plot_is_written_on_exit_1(tmp_path: Path, capsys: pytest.CaptureF
     args = ["solve", "-p", *THREE, "--max-offset", "0.001", "-o", str(tmp_path / "cal.json"), "--plot", str(png)]
     code, _, _ = run(capsys, *args, "-q")
     assert code == 1
-    png_size(png)
+    drawn_png_size(png)
 
 
 def test_solve_plot_not_written_when_rejected(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -119,7 +117,7 @@ def test_report_plot(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None
     assert code == 1  # the sample lot's outlier
     assert out.startswith("sensor,parameter,")
     assert f"wrote {png}" in err
-    width, height = png_size(png)
+    width, height = drawn_png_size(png)
     assert width > height  # six histograms, four to a row
 
 

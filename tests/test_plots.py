@@ -1,4 +1,4 @@
-"""The PNG figures of ``solve --plot`` and ``report --plot`` (tumblecal_cli/plots.py).
+"""The PNG figures of ``solve --plot`` and ``report --plot`` (tumblecal_cli/io/plots.py).
 
 Synthetic data with a known offset and matrix: the figures must be valid PNGs of the size asked
 for, show the numbers they claim to show, be written atomically, and refuse bad input with an
@@ -10,7 +10,6 @@ from __future__ import annotations
 import contextlib
 import importlib.util
 import math
-import struct
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import IO
@@ -24,7 +23,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Rectangle
 from numpy.typing import NDArray
 
-from tests.test_layers import imported
+from tests.conftest import imported, png_size
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import plots
 from tumblecal_cli.io.outputs import atomic_output
@@ -35,7 +34,6 @@ OFFSET = np.array([0.02, -0.03, 0.05])
 A = np.array([[1.01, 0.004, -0.006], [0.003, 0.98, 0.005], [-0.004, 0.002, 1.02]])  # gains 1.01/0.98/1.02
 M = np.linalg.inv(A)
 NOISE = 0.002
-PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
 def directions(n: int, seed: int = 0) -> FloatArray:
@@ -61,15 +59,6 @@ def turning(n: int, reference: float, *, plane: bool = False) -> FloatArray:
         u = directions(n, seed=2)
     raw: FloatArray = (reference * u) @ A.T + OFFSET
     return raw
-
-
-def png_size(data: bytes) -> tuple[int, int]:
-    """(width, height) from a PNG's IHDR chunk, after checking the signature."""
-    assert data[:8] == PNG_SIGNATURE
-    length, kind = struct.unpack(">I4s", data[8:16])
-    assert (length, kind) == (13, b"IHDR")
-    width, height = struct.unpack(">II", data[16:24])
-    return int(width), int(height)
 
 
 def check_png(path: Path, width: int, height: int) -> None:

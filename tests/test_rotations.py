@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tests.conftest import ROOT
+from tests.conftest import ROOT, Result
 from tests.conftest import tumblecal as run
 from tumblecal_cli.core import rotations as core
 from tumblecal_cli.io.calfile import Calibration
@@ -68,15 +68,31 @@ def accel_cal(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @pytest.fixture(scope="module")
+def gyro_cal(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The gyroscope's true calibration (A, B), for the checks that refuse a log before using one."""
+    path = tmp_path_factory.mktemp("gyro") / "gyro.json"
+    Calibration("gyroscope", "rotations", 1.0, ["gyr_x", "gyr_y", "gyr_z"], B, np.linalg.inv(A), np.diag(A)).save(path)
+    return path
+
+
+@pytest.fixture(scope="module")
 def hand_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     path = tmp_path_factory.mktemp("hand") / "hand.csv"
     synthetic_log(path, np.random.default_rng(5))
     return path
 
 
-def test_hand_turns_recover_the_known_matrix(hand_log: Path, accel_cal: Path, tmp_path: Path) -> None:
-    out = tmp_path / "gyro.json"
-    r = run("solve", "--sensor", "gyroscope", "--log", hand_log, "--accel-cal", accel_cal, "-o", out)
+@pytest.fixture(scope="module")
+def hand_cal(hand_log: Path, accel_cal: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Result, Path]:
+    """``solve --sensor gyroscope --log hand_log --accel-cal ...``, once for the module (the fit
+    takes over a second): the run and the calibration it wrote."""
+    out = tmp_path_factory.mktemp("solved") / "gyro.json"
+    return run("solve", "--sensor", "gyroscope", "--log", hand_log, "--accel-cal", accel_cal, "-o", out), out
+
+
+@pytest.mark.slow
+def test_hand_turns_recover_the_known_matrix(hand_cal: tuple[Result, Path]) -> None:
+    r, out = hand_cal
     assert r.code == 0, r.err
     doc = json.loads(out.read_text())
     assert (doc["method"], doc["sensor"], doc["units"]) == ("rotations", "gyroscope", "deg/s")
@@ -91,6 +107,7 @@ def test_hand_turns_recover_the_known_matrix(hand_log: Path, accel_cal: Path, tm
     assert "16 rotations between 17 still blocks" in r.err
 
 
+@pytest.mark.slow
 def test_rotations_about_two_axes_are_rejected(accel_cal: Path, tmp_path: Path) -> None:
     log = tmp_path / "flat.csv"
     synthetic_log(log, np.random.default_rng(6), rotations=8, axes=[(1, 0, 0), (0, 1, 0)])
@@ -109,6 +126,7 @@ def test_too_few_rotations_are_rejected(accel_cal: Path, tmp_path: Path) -> None
     assert r.err.splitlines()[0] == f"error: {log}: 3 rotations between 4 still blocks; need 6"
 
 
+@pytest.mark.slow
 def test_a_rotation_that_misses_gravity_is_rejected_naming_its_blocks(accel_cal: Path, tmp_path: Path) -> None:
     """One rotation's gyroscope readings zeroed (the samples lost): the turn is not seen."""
     log = tmp_path / "lost.csv"
@@ -236,13 +254,16 @@ def test_xsens_hand_turns_fitted_on_one_half_judged_on_the_other(tmp_path: Path)
     assert after.max() < 1.0  # measured 0.88°
 
 
-def test_verify_a_gyroscope_on_held_out_hand_turns(hand_log: Path, accel_cal: Path, tmp_path: Path) -> None:
+@pytest.mark.slow
+def test_verify_a_gyroscope_on_held_out_hand_turns(
+    hand_cal: tuple[Result, Path], accel_cal: Path, tmp_path: Path
+) -> None:
     """Fitted on one synthetic session, judged on another of the same unit: each rotation's
     gravity error before (the mean gain alone) and after (the full matrix), and the RMS."""
     import tumblecal_cli as tumblecal
 
-    cal = tmp_path / "gyro.json"
-    assert run("solve", "--sensor", "gyroscope", "--log", hand_log, "--accel-cal", accel_cal, "-o", cal, "-q").code == 0
+    solved, cal = hand_cal
+    assert solved.code == 0, solved.err
     held = tmp_path / "held.csv"
     synthetic_log(held, np.random.default_rng(9), rotations=8)
     r = run("verify", "--cal", cal, "--log", held, "--accel-cal", accel_cal, "--json")
@@ -289,20 +310,26 @@ def test_hand_turns_from_a_log_of_the_gyroscope_alone_say_so(accel_cal: Path, tm
     assert hint.startswith("hint: log both sensors")
 
 
-def test_a_clock_that_cannot_carry_the_turns_is_refused(hand_log: Path, accel_cal: Path, tmp_path: Path) -> None:
+def coarse_clock(hand_log: Path, path: Path) -> Path:
+    """``hand_log`` with its time in whole seconds: the clock stands still for 199 samples in 200."""
+    header, *lines = hand_log.read_text().splitlines()
+    rows = [ln.split(",") for ln in lines]
+    path.write_text("\n".join([header, *(",".join([f"{round(float(r[0]))}", *r[1:]]) for r in rows)]) + "\n")
+    return path
+
+
+def test_a_clock_that_cannot_carry_the_turns_is_refused(
+    hand_log: Path, accel_cal: Path, gyro_cal: Path, tmp_path: Path
+) -> None:
     """Time in whole seconds (100 Hz) solved gains 1000x off with a PASS, and verify --log
     said nothing of a frozen clock or a gap: both now refuse, solve and verify alike."""
-    lines = hand_log.read_text().splitlines()
-    header, rows = lines[0], [ln.split(",") for ln in lines[1:]]
-    coarse, gap = tmp_path / "coarse.csv", tmp_path / "gap.csv"
-    coarse.write_text("\n".join([header, *(",".join([f"{round(float(r[0]))}", *r[1:]]) for r in rows)]) + "\n")
+    coarse = coarse_clock(hand_log, tmp_path / "coarse.csv")
+    header, *lines = hand_log.read_text().splitlines()
+    rows = [ln.split(",") for ln in lines]
+    gap = tmp_path / "gap.csv"
     half = len(rows) // 2
     shifted = [",".join([f"{float(r[0]) + (3.0 if k >= half else 0.0):.6f}", *r[1:]]) for k, r in enumerate(rows)]
     gap.write_text("\n".join([header, *shifted]) + "\n")
-    good = tmp_path / "g.json"
-    assert (
-        run("solve", "--sensor", "gyroscope", "--log", hand_log, "--accel-cal", accel_cal, "-q", "-o", good).code == 0
-    )
     for log, code, said in (
         (coarse, 2, "the time column does not advance with the samples (99% of its steps are 0)"),
         (gap, 3, "spans a gap in time (after data row"),
@@ -310,10 +337,18 @@ def test_a_clock_that_cannot_carry_the_turns_is_refused(hand_log: Path, accel_ca
         solved = run(
             "solve", "--sensor", "gyroscope", "--log", log, "--accel-cal", accel_cal, "-o", tmp_path / "x.json"
         )
-        verified = run("verify", "--cal", good, "--accel-cal", accel_cal, "--log", log)
+        verified = run("verify", "--cal", gyro_cal, "--accel-cal", accel_cal, "--log", log)
         for r in (solved, verified):
             assert r.code == code, r.err
             assert said in r.err
         assert not (tmp_path / "x.json").exists()
+
+
+@pytest.mark.slow
+def test_a_clock_that_cannot_carry_the_turns_is_solved_at_the_rate_given(
+    hand_log: Path, accel_cal: Path, tmp_path: Path
+) -> None:
+    """The same log in whole seconds, solved with --rate: its turns are there to be integrated."""
+    coarse = coarse_clock(hand_log, tmp_path / "coarse.csv")
     assert run("solve", "--sensor", "gyroscope", "--log", coarse, "--accel-cal", accel_cal, "--rate", "200",
                "-q", "-o", tmp_path / "rate.json").code == 0  # fmt: skip

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tests.conftest import IMUCAL, SAMPLE, Result, assert_untouched, precious, run, unnamed
+from tests.conftest import IMUCAL, SAMPLE, Result, assert_untouched, assert_usage_error, precious, run, unnamed, write
 from tests.synth import FloatArray, pose_samples
 from tumblecal_cli.core.model import FACES
 
@@ -76,8 +76,7 @@ def acc_values(
 
 
 def write_csv(path: Path, values: FloatArray, header: Sequence[str] = ("ax", "ay", "az"), fmt: str = "%.7f") -> Path:
-    np.savetxt(path, values, delimiter=",", header=",".join(header), comments="", fmt=fmt)
-    return path
+    return write(path, values, header=",".join(header), fmt=fmt)
 
 
 def six_faces(tmp_path: Path, **kwargs: Any) -> dict[str, Path]:
@@ -112,19 +111,6 @@ def assert_rejected(r: Result, *words: str) -> None:
     assert len(errors) == 1, r.err
     for word in words:
         assert word in errors[0]
-
-
-def assert_usage_error(r: Result, *words: str) -> None:
-    """Exit 2, nothing on stdout, exactly one ``error:`` line (plus an optional hint) holding every word."""
-    assert r.code == 2, r.err
-    assert r.out == ""
-    assert "Traceback" not in r.err
-    lines = r.err.splitlines()
-    errors = [ln for ln in lines if ln.startswith("error:")]
-    assert len(errors) == 1, r.err
-    assert all(ln.startswith(("error:", "hint:")) for ln in lines), r.err
-    for word in words:
-        assert word in errors[0], errors[0]
 
 
 #: directions of 14 static poses spread over the whole sphere: the six faces and eight corners

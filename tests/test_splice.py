@@ -20,13 +20,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.conftest import POSES_3, spliced_blocks, write
 from tumblecal_cli.core import model
 from tumblecal_cli.errors import TumblecalError
 from tumblecal_cli.io import capture, rewrite, sniff, splice
 from tumblecal_cli.io.capture import open_capture
 from tumblecal_cli.io.readspec import Dialect, ReadSpec
 
-ROOT = Path(__file__).resolve().parent.parent
 RNG = np.random.default_rng(7)
 MATRIX = np.eye(3) + RNG.normal(0, 0.02, (3, 3))
 OFFSET = RNG.normal(0, 0.05, 3)
@@ -75,26 +75,6 @@ def lines(values: np.ndarray, time: bool = True, sep: str = ",", fmt: str = "{:.
         parts = [fmt.format(v) for v in row]
         out.append(sep.join([f"{i / 1000:.3f}", *parts] if time else parts))
     return out
-
-
-def write(tmp_path: Path, text: str | bytes, name: str = "c.csv") -> Path:
-    path = tmp_path / name
-    path.write_bytes(text.encode() if isinstance(text, str) else text)
-    return path
-
-
-def spliced_blocks(monkeypatch: pytest.MonkeyPatch) -> list[bool]:
-    """Records, per block, whether the fast path took it (the general path never asks)."""
-    taken: list[bool] = []
-    block = splice.Splicer.block
-
-    def spy(self: splice.Splicer, buf: bytes) -> object:
-        done = block(self, buf)
-        taken.append(done is not None)
-        return done
-
-    monkeypatch.setattr(splice.Splicer, "block", spy)
-    return taken
 
 
 CASES: dict[str, Callable[[], str | bytes]] = {
@@ -165,7 +145,7 @@ CASES: dict[str, Callable[[], str | bytes]] = {
 
 @pytest.mark.parametrize("case", list(CASES))
 def test_spliced_bytes_are_the_general_paths(case: str, tmp_path: Path) -> None:
-    path = write(tmp_path, CASES[case]())
+    path = write(tmp_path / "c.csv", CASES[case]())
     with contextlib.suppress(TumblecalError):  # refused when opened: neither path runs
         same(path)
 
@@ -175,7 +155,7 @@ def test_the_fast_path_takes_plain_files(tmp_path: Path, monkeypatch: pytest.Mon
     taken = spliced_blocks(monkeypatch)
     for case in ["plain", "crlf", "preamble", "semicolons", "decimal commas", "interleaved rows", "every scale"]:
         taken.clear()
-        same(write(tmp_path, CASES[case]()))
+        same(write(tmp_path / "c.csv", CASES[case]()))
         assert taken, case
         assert all(taken), case
 
@@ -185,7 +165,7 @@ def test_a_plain_block_after_a_bad_one_is_spliced(tmp_path: Path, monkeypatch: p
     an error far into the file names its line, as the general path does."""
     body = lines(table(120_000))
     body[60_000] = "# paused"
-    path = write(tmp_path, "t,ax,ay,az\n" + "\n".join(body) + "\n")
+    path = write(tmp_path / "c.csv", "t,ax,ay,az\n" + "\n".join(body) + "\n")
     taken = spliced_blocks(monkeypatch)
     out, error = same(path)
     assert error is None
@@ -194,7 +174,7 @@ def test_a_plain_block_after_a_bad_one_is_spliced(tmp_path: Path, monkeypatch: p
     assert taken.count(False) == 1
     body[60_000] = "60,0.5,oops,0.5"
     body[100_000] = "# again"
-    path = write(tmp_path, "t,ax,ay,az\n" + "\n".join(body) + "\n")
+    path = write(tmp_path / "c.csv", "t,ax,ay,az\n" + "\n".join(body) + "\n")
     _, error = same(path)
     assert error == f"{path}: not a number: 'oops' (line 60002, column ay)"
 
@@ -204,21 +184,21 @@ def test_several_sensors_in_one_pass(tmp_path: Path, monkeypatch: pytest.MonkeyP
     values = table(2000)
     rows = "\n".join(f"{i},{a:.6f},{b:.6f},{c:.6f},{c:.4f},{b:.4f},{a:.4f}" for i, (a, b, c) in enumerate(values))
     taken = spliced_blocks(monkeypatch)
-    same(write(tmp_path, "t,ax,ay,az,gx,gy,gz\n" + rows + "\n"), more=1)
+    same(write(tmp_path / "c.csv", "t,ax,ay,az,gx,gy,gz\n" + rows + "\n"), more=1)
     rows = "\n".join(f"{a:.6f},{c:.4f},{b:.6f},{b:.4f},{c:.6f},{a:.4f},{i}" for i, (a, b, c) in enumerate(values))
-    same(write(tmp_path, "ax,gx,ay,gy,az,gz,t\n" + rows + "\n"), more=1)
+    same(write(tmp_path / "c.csv", "ax,gx,ay,gy,az,gz,t\n" + rows + "\n"), more=1)
     assert taken == [True, True]
 
 
 def test_a_line_longer_than_a_block(tmp_path: Path) -> None:
     text = "t,ax,ay,az,note\n1,0.5,0.5,0.5,ok\n2,0.5,0.5,0.5," + "n" * (capture.BLOCK_BYTES + 10) + "\n"
-    out, _ = same(write(tmp_path, text))
+    out, _ = same(write(tmp_path / "c.csv", text))
     assert len(out) > capture.BLOCK_BYTES
 
 
 def test_dropped_last_line(tmp_path: Path) -> None:
     text = "t,ax,ay,az\n" + "\n".join(lines(table(100))) + "\n101,0.5"
-    same(write(tmp_path, text), dialect=Dialect(drop_incomplete=True))
+    same(write(tmp_path / "c.csv", text), dialect=Dialect(drop_incomplete=True))
 
 
 def test_orjson_spells_as_pyarrow_where_it_is_used() -> None:
@@ -231,15 +211,14 @@ def test_memory_is_bounded_by_the_block_whatever_the_columns(tmp_path: Path) -> 
     """A 3 MB capture of 100,000 columns corrects in the memory of any small file (the general
     reader once took 1.25 GB for it)."""
     cal = tmp_path / "cal.json"
-    poses = [str(ROOT / "sample_data" / f"{a}.csv") for a in "xyz"]
     subprocess.run(
-        [sys.executable, "-m", "tumblecal_cli", "solve", "-q", "--poses", *poses, "-o", str(cal)], check=True
+        [sys.executable, "-m", "tumblecal_cli", "solve", "-q", "--poses", *POSES_3, "-o", str(cal)], check=True
     )
     width = 100_000
     header = ",".join(["ax", "ay", "az", *(f"c{i}" for i in range(width - 3))])
     row = ",".join(["0.5", "0.25", "1.0", *("1" for _ in range(width - 3))])
-    wide = write(tmp_path, header + "\n" + (row + "\n") * 10, "wide.csv")  # 3 MB
-    small = write(tmp_path, "ax,ay,az\n0.5,0.25,1.0\n", "small.csv")
+    wide = write(tmp_path / "wide.csv", header + "\n" + (row + "\n") * 10)  # 3 MB
+    small = write(tmp_path / "small.csv", "ax,ay,az\n0.5,0.25,1.0\n")
     peaks = {}
     for path in (wide, small):
         argv = ["apply", "-q", "--cal", str(cal), str(path), "-o", f"{path}.out"]
@@ -264,16 +243,15 @@ def test_apply_with_several_calibrations_writes_the_general_paths_bytes(
     from tumblecal_cli.pipeline.correct import correct
 
     cal = tmp_path / "acc.json"
-    poses = [str(ROOT / "sample_data" / f"{a}.csv") for a in "xyz"]
     subprocess.run(
-        [sys.executable, "-m", "tumblecal_cli", "solve", "-q", "--poses", *poses, "-o", str(cal)], check=True
+        [sys.executable, "-m", "tumblecal_cli", "solve", "-q", "--poses", *POSES_3, "-o", str(cal)], check=True
     )
     gyro = json.loads(cal.read_text())
     gyro["columns"], gyro["sensor"] = ["gx", "gy", "gz"], "gyroscope"
     (tmp_path / "gyro.json").write_text(json.dumps(gyro))
     values = table(3000)
     rows = "\r\n".join(f"{i},{a:.6f},{b:.6f},{c:.6f},{c:.3f},{a:.3f},{b:.3f}" for i, (a, b, c) in enumerate(values))
-    log = write(tmp_path, "# imu 7\r\nt,ax,ay,az,gx,gy,gz\r\n" + rows + "\r\n", "imu.csv")
+    log = write(tmp_path / "imu.csv", "# imu 7\r\nt,ax,ay,az,gx,gy,gz\r\n" + rows + "\r\n")
     cals = [str(cal), str(tmp_path / "gyro.json")]
     taken = spliced_blocks(monkeypatch)
     fast = correct(str(log), cals, output=str(tmp_path / "fast.csv"))
@@ -323,7 +301,7 @@ def thermal_corrected(path: str, *, splice_on: bool) -> tuple[bytes, str | None]
 def test_a_thermal_correction_spliced_writes_the_general_paths_bytes(case: str, text: str, tmp_path: Path) -> None:
     """Each row's temperature reaches the correction on the fast path as on the general one;
     a row the fast path cannot take (no temperature, text) is the general path's error."""
-    path = str(write(tmp_path, text))
+    path = str(write(tmp_path / "c.csv", text))
     fast, general = thermal_corrected(path, splice_on=True), thermal_corrected(path, splice_on=False)
     assert fast == general, case
     assert (fast[1] is not None) == case.startswith("a "), fast[1]

@@ -12,18 +12,13 @@ import numpy as np
 import pytest
 
 import tumblecal_cli as tumblecal
-from tests.conftest import POSES_3, PRECIOUS, SAMPLE, assert_untouched, run, tumblecal_exe
+from tests.conftest import POSES_3, PRECIOUS, SAMPLE, assert_untouched, run, tumblecal_exe, write
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.readings import read_log, read_samples
 from tumblecal_cli.io.readspec import Dialect, ReadSpec
 
 DATA = Path(__file__).resolve().parent / "data"
 NCSU = DATA / "ncsu_xplus_head.csv"
-
-
-def write(path: Path, text: str) -> Path:
-    path.write_text(text)
-    return path
 
 
 def still_log(unit_step: float, header: str = "t,ax,ay,az", n: int = 200) -> str:

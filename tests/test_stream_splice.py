@@ -11,12 +11,12 @@ from pathlib import Path
 
 import pytest
 
+from tests.conftest import POSES_3, spliced_blocks
+from tests.test_splice import CASES, _accel, lines, table
 from tumblecal_cli.errors import TumblecalError
 from tumblecal_cli.io import capture, rewrite
 from tumblecal_cli.io.capture import open_capture
 from tumblecal_cli.io.readspec import Dialect, ReadSpec
-
-from .test_splice import CASES, ROOT, _accel, lines, spliced_blocks, table
 
 BLOCK = 4096
 
@@ -35,11 +35,6 @@ def piped(
     except TumblecalError as err:
         return out.getvalue(), str(err), notes
     return out.getvalue(), None, notes
-
-
-@pytest.fixture
-def small_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(capture, "BLOCK_BYTES", BLOCK)
 
 
 @pytest.mark.parametrize("case", list(CASES))
@@ -79,9 +74,8 @@ def test_a_cut_last_line_dropped_on_stdin(monkeypatch: pytest.MonkeyPatch, small
 @pytest.mark.slow
 def test_a_pipe_through_the_cli_writes_what_a_file_does(tmp_path: Path) -> None:
     cal = tmp_path / "cal.json"
-    poses = [str(ROOT / "sample_data" / f"{a}.csv") for a in "xyz"]
     tumblecal = [sys.executable, "-m", "tumblecal_cli"]
-    subprocess.run([*tumblecal, "solve", "-q", "--poses", *poses, "-o", str(cal)], check=True)
+    subprocess.run([*tumblecal, "solve", "-q", "--poses", *POSES_3, "-o", str(cal)], check=True)
     capture = tmp_path / "c.csv"
     capture.write_text("t,ax,ay,az\n" + "\n".join(lines(table(200_000))) + "\n")
     from_file = subprocess.run([*tumblecal, "apply", "-q", "--cal", str(cal), str(capture)], capture_output=True)
