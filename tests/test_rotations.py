@@ -14,7 +14,7 @@ import pytest
 
 from tests.conftest import ROOT, Result
 from tests.conftest import tumblecal as run
-from tumblecal_cli.core import rotations as core
+from tumblecal_cli.core import rotation_fit
 from tumblecal_cli.io.calfile import Calibration
 
 A = np.array([[16.4, 0.15, -0.2], [-0.1, 16.9, 0.25], [0.2, -0.12, 15.9]])  # counts per deg/s, ~1° misaligned
@@ -159,15 +159,15 @@ def test_accel_cal_options_that_cannot_work(hand_log: Path, accel_cal: Path, arg
 def test_quaternion_integration_is_exact_for_a_constant_rate() -> None:
     """90°/s about (1, 1, 0)/√2 for 1 s in 1000 steps: a 90° quaternion, whatever the step."""
     axis = np.array([1.0, 1.0, 0.0]) / np.sqrt(2)
-    q = core.integrate(np.tile(90.0 * axis, (1000, 1)), np.full(1000, 1e-3))
+    q = rotation_fit.integrate(np.tile(90.0 * axis, (1000, 1)), np.full(1000, 1e-3))
     np.testing.assert_allclose(q, [np.cos(np.pi / 4), *(np.sin(np.pi / 4) * axis)], atol=1e-12)
     # gravity along +z seen after turning the sensor 90° about +x: along +y in the sensor frame... rotated back
-    q = core.integrate(np.array([[90.0, 0.0, 0.0]]), np.array([1.0]))
-    np.testing.assert_allclose(core.rotate_into(q, np.array([0.0, 0.0, 1.0])), [0.0, 1.0, 0.0], atol=1e-12)
+    q = rotation_fit.integrate(np.array([[90.0, 0.0, 0.0]]), np.array([1.0]))
+    np.testing.assert_allclose(rotation_fit.rotate_into(q, np.array([0.0, 0.0, 1.0])), [0.0, 1.0, 0.0], atol=1e-12)
 
 
-def _session_rotations(rng: np.random.Generator, count: int, rate: float) -> tuple[list[core.Rotation], Any]:
-    """The rotations of a synthetic session straight into core.Rotation (no CSV): true gravity
+def _session_rotations(rng: np.random.Generator, count: int, rate: float) -> tuple[list[rotation_fit.Rotation], Any]:
+    """The rotations of a synthetic session straight into rotation_fit.Rotation (no CSV): true gravity
     directions, the gyroscope as in :func:`synthetic_log`."""
     body, up, rots = np.eye(3), np.array([0.0, 0.0, 1.0]), []
     still = [np.tile(B, (int(2 * rate), 1)) + rng.normal(0, 3.0, (int(2 * rate), 3))]
@@ -179,7 +179,7 @@ def _session_rotations(rng: np.random.Generator, count: int, rate: float) -> tup
         steps = int(rate)
         gyr = np.tile(A @ (np.degrees(angle) * axis) + B, (steps, 1)) + rng.normal(0, 3.0, (steps, 3))
         body = body @ _rotmat(axis, angle)
-        rots.append(core.Rotation(gyr, np.full(steps, 1.0 / steps), before, body.T @ up))
+        rots.append(rotation_fit.Rotation(gyr, np.full(steps, 1.0 / steps), before, body.T @ up))
         still.append(np.tile(B, (int(2 * rate), 1)) + rng.normal(0, 3.0, (int(2 * rate), 3)))
     return rots, np.concatenate(still).mean(axis=0)
 
@@ -191,9 +191,9 @@ def test_reported_gain_uncertainty_matches_the_spread() -> None:
     rng = np.random.default_rng(12)
     gains, ses = [], []
     for _ in range(30):
-        fit = core.fit(*_session_rotations(rng, 12, 100.0))
+        fit = rotation_fit.fit(*_session_rotations(rng, 12, 100.0))
         gains.append(np.diag(np.linalg.inv(fit.matrix)))
-        ses.append(core.gain_se(fit.matrix, fit.matrix_cov)[0])
+        ses.append(rotation_fit.gain_se(fit.matrix, fit.matrix_cov)[0])
     ratio = np.std(gains, axis=0) / np.mean(ses, axis=0)
     assert np.all((ratio > 0.6) & (ratio < 1.5)), ratio
 
@@ -244,10 +244,10 @@ def test_xsens_hand_turns_fitted_on_one_half_judged_on_the_other(tmp_path: Path)
     options = SolveOptions.of({"sensor": "gyroscope", "accel_cal": str(acc)})
     fitted, held = hand_turns(str(first), options), hand_turns(str(second), options)
     assert len(held.rotations) == 19
-    scale = core.start_scale(fitted.rotations, fitted.bias)
+    scale = rotation_fit.start_scale(fitted.rotations, fitted.bias)
     offset, matrix = np.asarray(cal["offset"]), np.asarray(cal["matrix"])
-    before = core.judged(held.rotations, offset, scale * np.eye(3))[1]
-    after = core.judged(held.rotations, offset, matrix)[1]
+    before = rotation_fit.judged(held.rotations, offset, scale * np.eye(3))[1]
+    after = rotation_fit.judged(held.rotations, offset, matrix)[1]
     rms_before, rms_after = (float(np.sqrt(np.mean(x**2))) for x in (before, after))
     assert rms_before > 3.5  # measured 4.28°
     assert rms_after < 0.7  # measured 0.57°

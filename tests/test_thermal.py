@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from tests.conftest import SAMPLE, run
-from tumblecal_cli.core import thermal as core
+from tumblecal_cli.core import drift
 from tumblecal_cli.core.model import FACES
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import calfile
@@ -56,22 +56,22 @@ def fitted(base: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-def _sweeps(seed: int) -> list[core.Sweep]:
+def _sweeps(seed: int) -> list[drift.Sweep]:
     runs = mt.chamber(seed)
-    return [core.Sweep(r[:, 1:], r[:, 0], np.array(FACES[f], dtype=float)) for f, r in runs.items()]
+    return [drift.Sweep(r[:, 1:], r[:, 0], np.array(FACES[f], dtype=float)) for f, r in runs.items()]
 
 
 # -- core: known truth --------------------------------------------------------------------------
 
 
 def test_fit_recovers_the_chamber_truth_within_a_few_standard_errors() -> None:
-    fit = core.fit(_sweeps(18), gain_scale=mt.GAIN * 1.0, t_ref=mt.T_REF, order=2)
-    drift = fit.drift
+    fit = drift.fit(_sweeps(18), gain_scale=mt.GAIN * 1.0, t_ref=mt.T_REF, order=2)
+    fitted = fit.drift
     for got, se, truth in (
-        (drift.offset[:, 0], fit.offset_se[:, 0], mt.OFFSET_DRIFT1),
-        (drift.offset[:, 1], fit.offset_se[:, 1], mt.OFFSET_DRIFT2),
-        (drift.gain[:, 0], fit.gain_se[:, 0], mt.GAIN_DRIFT1),
-        (drift.gain[:, 1], fit.gain_se[:, 1], np.zeros(3)),
+        (fitted.offset[:, 0], fit.offset_se[:, 0], mt.OFFSET_DRIFT1),
+        (fitted.offset[:, 1], fit.offset_se[:, 1], mt.OFFSET_DRIFT2),
+        (fitted.gain[:, 0], fit.gain_se[:, 0], mt.GAIN_DRIFT1),
+        (fitted.gain[:, 1], fit.gain_se[:, 1], np.zeros(3)),
     ):
         assert np.all(np.abs(got - truth) < 4 * se), (got, truth, se)
     assert fit.gain_drift == ("separate", "separate", "separate")
@@ -79,24 +79,24 @@ def test_fit_recovers_the_chamber_truth_within_a_few_standard_errors() -> None:
 
 def test_order_auto_picks_the_true_order_on_most_seeds() -> None:
     picked = [
-        core.fit(_sweeps(seed), gain_scale=mt.GAIN * 1.0, t_ref=mt.T_REF, order=None).drift.order for seed in range(10)
+        drift.fit(_sweeps(seed), gain_scale=mt.GAIN * 1.0, t_ref=mt.T_REF, order=None).drift.order for seed in range(10)
     ]
     assert picked.count(2) >= 8, picked
 
 
 def test_one_face_folds_its_vertical_axis_gain_drift_into_the_offset() -> None:
     runs = mt.chamber(3)
-    sweep = core.Sweep(runs["+z"][:, 1:], runs["+z"][:, 0], np.array(FACES["+z"], dtype=float))
-    fit = core.fit([sweep], gain_scale=mt.GAIN * 1.0, t_ref=mt.T_REF, order=2)
+    sweep = drift.Sweep(runs["+z"][:, 1:], runs["+z"][:, 0], np.array(FACES["+z"], dtype=float))
+    fit = drift.fit([sweep], gain_scale=mt.GAIN * 1.0, t_ref=mt.T_REF, order=2)
     assert fit.gain_drift == ("unobserved", "unobserved", "folded")
     # the folded z drift is offset + gain x reference: what +z reads
     assert fit.drift.offset[2, 0] == pytest.approx(mt.OFFSET_DRIFT1[2] + mt.GAIN[2] * mt.GAIN_DRIFT1[2], rel=0.05)
 
 
 def test_correct_clamps_to_the_range_and_counts_the_rows() -> None:
-    drift = core.Drift(25.0, 0.0, 50.0, np.array([[1.0], [0.0], [0.0]]), np.zeros((3, 1)))
+    model = drift.Drift(25.0, 0.0, 50.0, np.array([[1.0], [0.0], [0.0]]), np.zeros((3, 1)))
     raw = np.zeros((3, 3))
-    out, outside = core.correct(raw, np.array([25.0, 60.0, -5.0]), np.zeros(3), np.eye(3), drift)
+    out, outside = drift.correct(raw, np.array([25.0, 60.0, -5.0]), np.zeros(3), np.eye(3), model)
     assert outside == 2
     assert out[:, 0].tolist() == [0.0, -25.0, 25.0]  # at 60 °C the drift of 50 °C, at -5 that of 0 °C
 
@@ -529,10 +529,10 @@ def test_a_longer_dwell_does_not_move_the_fit() -> None:
         rng = np.random.default_rng(9)
         values = s.values[extra] + rng.normal(0.0, mt.NOISE, (len(extra), 3))
         longer.append(
-            core.Sweep(np.vstack([s.values, values]), np.concatenate([s.temperature, s.temperature[extra]]), s.up)
+            drift.Sweep(np.vstack([s.values, values]), np.concatenate([s.temperature, s.temperature[extra]]), s.up)
         )
-    one = core.fit(sweeps, gain_scale=mt.GAIN * 1.0, t_ref=mt.T_REF, order=2)
-    two = core.fit(longer, gain_scale=mt.GAIN * 1.0, t_ref=mt.T_REF, order=2)
+    one = drift.fit(sweeps, gain_scale=mt.GAIN * 1.0, t_ref=mt.T_REF, order=2)
+    two = drift.fit(longer, gain_scale=mt.GAIN * 1.0, t_ref=mt.T_REF, order=2)
     assert np.all(np.abs(two.drift.offset - one.drift.offset) < 0.5 * one.offset_se)
 
 

@@ -15,7 +15,7 @@ import pytest
 
 import tumblecal_cli as tumblecal
 from tests.conftest import tumblecal as run
-from tumblecal_cli.core import turns as core
+from tumblecal_cli.core import turn_fit
 
 DATA = Path(__file__).resolve().parent / "data"
 PINNED = json.loads((DATA / "imucal_gyro" / "ferraris_annotated.json").read_text())
@@ -93,14 +93,14 @@ def test_core_with_imucals_angle_is_imucals_matrix(session: Path) -> None:
     def part(label: str, kind: str) -> Any:
         return np.array([[float(r[f"{kind}_{a}"]) for a in "xyz"] for r in rows if r["part"] == label])
 
-    still = core.Still([part(x, "acc") for x in LABELS], [part(x, "gyr") for x in LABELS])
+    still = turn_fit.Still([part(x, "acc") for x in LABELS], [part(x, "gyr") for x in LABELS])
     turns = [
-        core.Turn(
+        turn_fit.Turn(
             part(label, "acc"), part(label, "gyr"), np.eye(3)[k], -360.0, np.full(len(part(label, "gyr")), 1 / 204.8)
         )
         for k, label in enumerate(("x_rot", "y_rot", "z_rot"))
     ]
-    fit = core.ferraris(still, turns)
+    fit = turn_fit.ferraris(still, turns)
     np.testing.assert_allclose(fit.solution.matrix, imucal_matrix(IMUCAL), rtol=1e-6, atol=1e-12)
     np.testing.assert_allclose(fit.solution.offset, IMUCAL["b_g"], rtol=1e-6)
     np.testing.assert_allclose(fit.g_sensitivity / 9.81, IMUCAL["K_ga"], rtol=1e-6)
@@ -242,7 +242,9 @@ def test_method_ferraris_turns_without_turns_is_a_usage_error(session: Path) -> 
 # -- known truth ------------------------------------------------------------------------------
 
 
-def synthetic(rng: np.random.Generator, rate: float = 200.0, noise: float = 3.0) -> tuple[core.Still, list[core.Turn]]:
+def synthetic(
+    rng: np.random.Generator, rate: float = 200.0, noise: float = 3.0
+) -> tuple[turn_fit.Still, list[turn_fit.Turn]]:
     """A Ferraris session with known A, b, G: 5-s still faces, then 360° about +x, +y, +z in 6 s."""
     still_acc, still_gyr = [], []
     for face in np.vstack([np.eye(3), -np.eye(3)])[[0, 3, 1, 4, 2, 5]]:
@@ -258,8 +260,8 @@ def synthetic(rng: np.random.Generator, rate: float = 200.0, noise: float = 3.0)
         up = np.eye(3)[k]
         acc = np.tile(ACC_A @ up + ACC_B, (n, 1)) + rng.normal(0, 2.0, (n, 3))
         gyr = omega @ A.T + B + G @ up + rng.normal(0, noise, (n, 3))
-        turns.append(core.Turn(acc, gyr, up, 360.0, np.full(n, 1 / rate)))
-    return core.Still(still_acc, still_gyr), turns
+        turns.append(turn_fit.Turn(acc, gyr, up, 360.0, np.full(n, 1 / rate)))
+    return turn_fit.Still(still_acc, still_gyr), turns
 
 
 A = np.array([[16.4, 0.15, -0.2], [-0.1, 16.9, 0.25], [0.2, -0.12, 15.9]])  # counts per deg/s, ~1° misaligned
@@ -270,7 +272,7 @@ ACC_B = np.array([-6.0, -48.0, -29.0])
 
 
 def test_known_truth_is_recovered() -> None:
-    fit = core.ferraris(*synthetic(np.random.default_rng(1)))
+    fit = turn_fit.ferraris(*synthetic(np.random.default_rng(1)))
     np.testing.assert_allclose(np.linalg.inv(fit.solution.matrix), A, atol=5 * float(fit.solution.gain_se.max()))
     assert np.all(np.abs(fit.solution.offset - B) < 5 * fit.solution.offset_se)
     np.testing.assert_allclose(fit.g_sensitivity, G, atol=0.5)
@@ -279,7 +281,7 @@ def test_known_truth_is_recovered() -> None:
 def test_reported_uncertainty_matches_the_spread() -> None:
     """Monte Carlo: the gains' spread over 200 sessions against the 1-sigma each reports."""
     rng = np.random.default_rng(2)
-    fits = [core.ferraris(*synthetic(rng, rate=100.0)) for _ in range(200)]
+    fits = [turn_fit.ferraris(*synthetic(rng, rate=100.0)) for _ in range(200)]
     gains = np.array([np.diag(np.linalg.inv(f.solution.matrix)) for f in fits])
     offsets = np.array([f.solution.offset for f in fits])
     ratio_gain = gains.std(axis=0) / np.mean([f.solution.gain_se for f in fits], axis=0)

@@ -28,8 +28,8 @@ from tumblecal_cli.version import __version__
 if TYPE_CHECKING:
     from tumblecal_cli.io.calfile import Calibration, load
     from tumblecal_cli.pipeline.batch import run_batch
-    from tumblecal_cli.pipeline.calfiles import check, export, import_peer
     from tumblecal_cli.pipeline.correct import correct
+    from tumblecal_cli.pipeline.exchange import check, export, import_peer
     from tumblecal_cli.pipeline.frames import read_capture
     from tumblecal_cli.pipeline.logs import segment
     from tumblecal_cli.pipeline.noise import Noise, noise
@@ -55,9 +55,9 @@ _HOMES = {
     "noise": "tumblecal_cli.pipeline.noise",
     "Noise": "tumblecal_cli.pipeline.noise",
     "report": "tumblecal_cli.pipeline.report",
-    "check": "tumblecal_cli.pipeline.calfiles",
-    "export": "tumblecal_cli.pipeline.calfiles",
-    "import_peer": "tumblecal_cli.pipeline.calfiles",
+    "check": "tumblecal_cli.pipeline.exchange",
+    "export": "tumblecal_cli.pipeline.exchange",
+    "import_peer": "tumblecal_cli.pipeline.exchange",
     "run_batch": "tumblecal_cli.pipeline.batch",
     "thermal": "tumblecal_cli.pipeline.thermal",
     "ThermalResult": "tumblecal_cli.pipeline.thermal",

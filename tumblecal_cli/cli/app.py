@@ -19,7 +19,7 @@ from typing import Annotated, Any
 import typer
 from typer.core import TyperCommand
 
-from tumblecal_cli.cli.options import EXIT_CODES
+from tumblecal_cli.cli.flags import EXIT_CODES
 from tumblecal_cli.errors import STOPS, Interrupted, PipeClosed, TumblecalError, one_line
 from tumblecal_cli.version import __version__
 

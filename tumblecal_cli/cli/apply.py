@@ -10,7 +10,7 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app, report
-from tumblecal_cli.cli.options import Columns, Decimal, DropIncomplete, NoHeader, Quiet, SkipRows, file_shape
+from tumblecal_cli.cli.flags import Columns, Decimal, DropIncomplete, NoHeader, Quiet, SkipRows, file_shape
 from tumblecal_cli.errors import InputError
 
 

@@ -10,7 +10,7 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
-from tumblecal_cli.cli.options import STATUS_WORDS
+from tumblecal_cli.cli.flags import STATUS_WORDS
 from tumblecal_cli.cli.solve import OPTION_NAMES, solve, solve_options
 
 if TYPE_CHECKING:

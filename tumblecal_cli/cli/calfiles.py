@@ -8,7 +8,7 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
-from tumblecal_cli.cli.options import (
+from tumblecal_cli.cli.flags import (
     REGISTERS_PANEL,
     ExportFormat,
     ImportFormat,
@@ -84,9 +84,9 @@ def check(
       tumblecal check cal.json --max-offset 0.05 --max-gain-error 0.02 --json
     """
 
-    from tumblecal_cli.pipeline import calfiles
+    from tumblecal_cli.pipeline import exchange
 
-    checked = calfiles.check(
+    checked = exchange.check(
         cal, limits=limits_file, max_offset=max_offset, max_gain_error=max_gain_error, nominal_gain=nominal_gain
     )
     if json_summary:  # the same summary as solve --json, judged afresh
@@ -183,11 +183,11 @@ def export(
     """
 
     from tumblecal_cli.io.outputs import atomic_output, check_not_input, check_writable
-    from tumblecal_cli.pipeline import calfiles
+    from tumblecal_cli.pipeline import exchange
 
     check_not_input(output, [cal])
     check_writable(output)
-    text = calfiles.export(
+    text = exchange.export(
         cal,
         fmt.value,
         prefix=prefix,
@@ -258,11 +258,11 @@ def import_(
     """
 
     from tumblecal_cli.io.outputs import check_not_input, check_writable
-    from tumblecal_cli.pipeline import calfiles
+    from tumblecal_cli.pipeline import exchange
 
     check_not_input(output, [peer_file])
     check_writable(output)
-    got = calfiles.import_peer(
+    got = exchange.import_peer(
         peer_file,
         fmt=fmt.value if fmt is not None else None,
         sensor=sensor.value if sensor else None,

@@ -9,7 +9,7 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
-from tumblecal_cli.cli.options import (
+from tumblecal_cli.cli.flags import (
     Columns,
     Decimal,
     DropIncomplete,

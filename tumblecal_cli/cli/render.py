@@ -62,14 +62,14 @@ def json_printed(reset: bool = False) -> bool:
 
 def status_word(status: int) -> str:
     """An exit status as --json says it: pass, fail, error or rejected."""
-    from tumblecal_cli.cli.options import STATUS_WORDS
+    from tumblecal_cli.cli.flags import STATUS_WORDS
 
     return STATUS_WORDS[status]
 
 
 def error_json(status: int, error: dict[str, Any]) -> None:
     """With --json, an error that ended the command (exit 2, or 3 with no summary) on stdout."""
-    from tumblecal_cli.cli.options import STATUS_WORDS
+    from tumblecal_cli.cli.flags import STATUS_WORDS
 
     print_json({"status": STATUS_WORDS.get(status, "error"), "exit_status": status, "error": error})
 
@@ -121,7 +121,7 @@ def summary(
     notes: list[str],
 ) -> dict[str, Any]:
     """The --json summary: the outcome, then the calibration's parameters and diagnostics."""
-    from tumblecal_cli.cli.options import STATUS_WORDS
+    from tumblecal_cli.cli.flags import STATUS_WORDS
 
     doc = cal.to_dict()
     head: dict[str, Any] = {

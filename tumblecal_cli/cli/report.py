@@ -8,7 +8,7 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
-from tumblecal_cli.cli.options import STATUS_WORDS, Quiet
+from tumblecal_cli.cli.flags import STATUS_WORDS, Quiet
 from tumblecal_cli.cli.solve import _plot_target
 from tumblecal_cli.errors import InputError
 

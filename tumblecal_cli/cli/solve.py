@@ -10,7 +10,7 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import ManyValuesCommand, app
-from tumblecal_cli.cli.options import (
+from tumblecal_cli.cli.flags import (
     CHECKS_PANEL,
     EXIT_CODES,
     UNIT_PANEL,

@@ -9,7 +9,7 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import LabelledItemsCommand, app
-from tumblecal_cli.cli.options import CHECKS_PANEL, Columns, JsonSummary, Quiet, SensorKind
+from tumblecal_cli.cli.flags import CHECKS_PANEL, Columns, JsonSummary, Quiet, SensorKind
 from tumblecal_cli.cli.solve import _plot_target
 
 

@@ -13,11 +13,11 @@
   with the faces they show.
 - ``scan``: the same still-block detection fed a log block by block, keeping only the still
   periods' readings.
-- ``thermal``: offset and gain drift fitted against temperature, and each row corrected at its
+- ``drift``: offset and gain drift fitted against temperature, and each row corrected at its
   own temperature.
-- ``turns``: a gyroscope's bias, g-sensitivity, scale and misalignment from known turns (the
+- ``turn_fit``: a gyroscope's bias, g-sensitivity, scale and misalignment from known turns (the
   Ferraris procedure).
-- ``rotations``: a gyroscope's scale and misalignment from hand turns between still poses,
+- ``rotation_fit``: a gyroscope's scale and misalignment from hand turns between still poses,
   gravity the reference.
 - ``allan``: the Allan deviation of a still capture, computed as it streams, and the noise
   figures read off it.

@@ -18,8 +18,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from tumblecal_cli.core.drift import Drift, extremes
 from tumblecal_cli.core.model import FACES, FloatArray, PoseStats, Solution, angle_deg, direction, suggest_reference
-from tumblecal_cli.core.thermal import Drift, extremes
 from tumblecal_cli.errors import InputError
 
 #: The quality checks, by the last part of their code (``pose.<check>``).
@@ -446,7 +446,7 @@ def verdict(
     A capture turned through many orientations (ROTATION) has no pose to read against the
     reference: its residual limit judges ``fit_residual``, the fit's largest residual over
     the samples, instead. ``drift``: a thermal block's largest offset drift over its range and
-    largest drift per °C, per axis (core.thermal.extremes), judged by the offset_drift limits."""
+    largest drift per °C, per axis (core.drift.extremes), judged by the offset_drift limits."""
     failures: list[Finding] = _drift_failures(limits, drift)
     a = np.asarray(np.linalg.inv(matrix), dtype=np.float64)
     gain = np.diag(a)

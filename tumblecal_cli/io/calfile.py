@@ -217,7 +217,7 @@ class Calibration:
         temp = np.asarray(temperature, dtype=np.float64).reshape(-1)
         if temp.shape[0] != raw.shape[0]:
             raise InputError(f"temperature has {temp.shape[0]} values for {raw.shape[0]} rows", file=self.path)
-        from tumblecal_cli.core.thermal import correct as thermal_correct
+        from tumblecal_cli.core.drift import correct as thermal_correct
 
         fixed, _ = thermal_correct(raw, temp, self.offset, self.matrix, self.thermal.drift())
         return fixed

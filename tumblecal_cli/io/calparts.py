@@ -22,7 +22,7 @@ from tumblecal_cli.core.model import FloatArray
 from tumblecal_cli.errors import InputError
 
 if TYPE_CHECKING:
-    from tumblecal_cli.core.thermal import Drift
+    from tumblecal_cli.core.drift import Drift
 
 #: A JSON/YAML object as parsed (the boundary: its values are whatever the file holds).
 Doc = Mapping[str, object]
@@ -624,7 +624,7 @@ class Thermal:
         return int(np.asarray(self.offset).shape[1])
 
     def drift(self) -> Drift:
-        from tumblecal_cli.core.thermal import Drift
+        from tumblecal_cli.core.drift import Drift
 
         return Drift(self.reference_temperature, self.range[0], self.range[1], self.offset, self.gain)
 

@@ -111,7 +111,7 @@ def c_header(cal: Calibration, *, prefix: str | None = None) -> str:
 
 def _c_thermal(cal: Calibration, name: str, upper: str) -> list[str]:
     """A thermal block in a C header: its coefficients and ``name_apply_at(raw, temp_c, out)``,
-    core.thermal.correct in C (the drift polynomials in d = clamp(T) - T_ref, Horner's rule)."""
+    core.drift.correct in C (the drift polynomials in d = clamp(T) - T_ref, Horner's rule)."""
     if cal.thermal is None:
         return []
     t = cal.thermal

@@ -303,7 +303,7 @@ def drift_figure(
 ) -> None:
     """``thermal --plot``: per axis, each sweep's observed drift against temperature (its cells,
     dots) with the fitted drift (line), and below it the residuals. ``sweeps`` are (label,
-    temperature (m,), observed (m, 3), fitted (m, 3)), core.thermal.observed."""
+    temperature (m,), observed (m, 3), fitted (m, 3)), core.drift.observed."""
 
     if not sweeps:
         raise InputError("no sweeps to plot")

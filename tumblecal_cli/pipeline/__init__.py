@@ -10,13 +10,15 @@ or return DataFrames. Its modules:
 - ``rotations``: a gyroscope's scale and misalignment from hand turns in a log (solve
   --accel-cal).
 - ``correct``: apply: captures corrected with one or more calibrations, streamed file to file.
-- ``batch``: batch, and apply over many files: the units, the summary, and where they run (in
-  process, worker processes or a Dask cluster).
+- ``batch``: batch: the units of a lot, each solved, and the summary.
+- ``cluster``: where many units or captures run: in process, in worker processes, or on a Dask
+  cluster (batch, and apply over many files).
 - ``thermal``: temperature sweeps in, a calibration with a ``thermal`` block out.
 - ``verify``: a calibration checked on static captures (a gyroscope's: on a log of hand turns)
   it was not fitted on.
 - ``noise``: the Allan deviation of a still capture and its noise figures, judged against limits
   and written as the noise model Kalibr and VINS read.
 - ``report``: a lot's calibration files found, read and summarised (``core.lot``).
-- ``calfiles``: calibration files after solve: check, export to firmware or another tool, import.
+- ``exchange``: calibration files after solve: checked again, exported to firmware or another
+  tool, imported from one.
 - ``frames``: the Python API's data in memory: DataFrames and (n, 3) arrays in, DataFrames out."""

@@ -297,7 +297,7 @@ def _correct(cal: Calibration, raw: FloatArray) -> FloatArray:
     return model.apply(raw, cal.offset, cal.matrix)
 
 
-# -- temperature: each row corrected at its own temperature (core.thermal.correct) -------------
+# -- temperature: each row corrected at its own temperature (core.drift.correct) -------------
 
 
 def _stream(
@@ -353,10 +353,10 @@ def thermal_column(layout: Layout, cals: Sequence[Calibration]) -> int | None:
 
 
 def _thermal(cal: Calibration, clamped: list[int], raw: FloatArray, temperature: FloatArray) -> FloatArray:
-    from tumblecal_cli.core import thermal
+    from tumblecal_cli.core import drift
 
     assert cal.thermal is not None
-    fixed, outside = thermal.correct(raw, temperature, cal.offset, cal.matrix, cal.thermal.drift())
+    fixed, outside = drift.correct(raw, temperature, cal.offset, cal.matrix, cal.thermal.drift())
     clamped.append(outside)  # list.append is atomic: the blocks are converted in threads
     return fixed
 

@@ -1,5 +1,5 @@
 """solve --sensor gyroscope --log LOG --accel-cal ACC: a gyroscope's scale and misalignment
-from hand turns between still poses, no labels and no known angles (core.rotations).
+from hand turns between still poses, no labels and no known angles (core.rotation_fit).
 
 The log's still blocks are found by its accelerometer columns (as ``segment`` does); the
 accelerometer calibration gives each block's gravity direction; the gyroscope's columns of the
@@ -14,8 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tumblecal_cli.core import rotations as core
-from tumblecal_cli.core import segment
+from tumblecal_cli.core import rotation_fit, segment
 from tumblecal_cli.core.gate import Finding
 from tumblecal_cli.core.model import Solution
 from tumblecal_cli.errors import CaptureRejected, InputError
@@ -45,7 +44,7 @@ class HandTurns:
     acc: Log
     gyr: Log
     kept: list[Block]
-    rotations: list[core.Rotation]
+    rotations: list[rotation_fit.Rotation]
     still: FloatArray  # (n, 3) the gyroscope's samples in the still blocks
     bias: FloatArray  # (3,) their mean
     names: list[str]
@@ -98,7 +97,7 @@ def hand_turns(log: str, options: SolveOptions) -> HandTurns:
     bias = still.mean(axis=0) if len(still) else np.zeros(3)
     directions = [_direction(accel, acc.values[b.first : b.last + 1].mean(axis=0)) for b in kept]
     rots = [
-        core.Rotation(gyr.values[a.last : b.first], dt[a.last : b.first], directions[k], directions[k + 1])
+        rotation_fit.Rotation(gyr.values[a.last : b.first], dt[a.last : b.first], directions[k], directions[k + 1])
         for k, (a, b) in enumerate(itertools.pairwise(kept))
     ]
     names = [f"block {a.number} to {b.number}" for a, b in itertools.pairwise(kept)]
@@ -144,28 +143,29 @@ def from_log(log: str, options: SolveOptions, given: Settings) -> Outcome:
         turns.names,
     )
     name = gyr.layout.name
-    if len(rots) < core.MIN_ROTATIONS:
+    if len(rots) < rotation_fit.MIN_ROTATIONS:
         finding = Finding(
             "rotations.few",
-            f"{len(rots)} rotations between {len(kept)} still blocks; need {core.MIN_ROTATIONS}",
+            f"{len(rots)} rotations between {len(kept)} still blocks; need {rotation_fit.MIN_ROTATIONS}",
             len(rots),
-            core.MIN_ROTATIONS,
+            rotation_fit.MIN_ROTATIONS,
         )
         return Outcome(3, None, rejections=[finding], error=_rejected([finding], name))
-    fit = core.fit(rots, bias)
+    fit = rotation_fit.fit(rots, bias)
     rank = int(np.linalg.matrix_rank(fit.axes * np.radians(fit.angle_deg)[:, None], tol=0.2))
     findings = []
     if rank < 3:
         findings.append(Finding("rotations.axes", f"rotations about {rank} independent axes; need 3", rank, 3))
     for label, res in zip(names, fit.residual_deg, strict=True):
-        if res > core.MAX_RESIDUAL_DEG:
+        if res > rotation_fit.MAX_RESIDUAL_DEG:
             findings.append(
                 Finding(
                     "rotations.residual",
                     f"rotation {label}: the gyroscope misses the gravity direction after it by {res:.1f}° "
-                    f"(more than {core.MAX_RESIDUAL_DEG:g}°): the unit moved in a still block, or samples are missing",
+                    f"(more than {rotation_fit.MAX_RESIDUAL_DEG:g}°): the unit moved in a still block, "
+                    "or samples are missing",
                     float(res),
-                    core.MAX_RESIDUAL_DEG,
+                    rotation_fit.MAX_RESIDUAL_DEG,
                 )
             )
     cal, failures = _calibration(fit, bias, still, acc, gyr, kept, names, options, given)
@@ -197,7 +197,7 @@ def _rejected(findings: list[Finding], name: str) -> CaptureRejected:
 
 
 def _calibration(
-    fit: core.RotationsFit,
+    fit: rotation_fit.RotationsFit,
     bias: FloatArray,
     still: FloatArray,
     acc: Log,
@@ -208,7 +208,7 @@ def _calibration(
     given: Settings,
 ) -> tuple[Calibration, list[Finding]]:
 
-    gain_se, cross_se = core.gain_se(fit.matrix, fit.matrix_cov)
+    gain_se, cross_se = rotation_fit.gain_se(fit.matrix, fit.matrix_cov)
     bias_se = still.std(axis=0, ddof=1) / np.sqrt(len(still))
     solution = Solution("rotations", bias, fit.matrix, bias_se, gain_se)
     from tumblecal_cli.io import calfile

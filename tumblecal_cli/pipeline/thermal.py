@@ -2,7 +2,7 @@
 
 The steps: read the base calibration (``io.calfile``) and each sweep with its temperature column
 (``io.readings.read_log``), refuse a temperature that cannot carry a fit (constant, noise without
-a trend, a swing too small for the order: exit 3), fit the drift (``core.thermal.fit``), judge the
+a trend, a swing too small for the order: exit 3), fit the drift (``core.drift.fit``), judge the
 sweeps with the quality checks of ``solve`` on their readings with the drift removed
 (``core.gate``: a pose that moved is exit 3), and add the block to the base calibration.
 """
@@ -17,9 +17,9 @@ from typing import TYPE_CHECKING, TypedDict, Unpack
 from tumblecal_cli.errors import CaptureRejected, InputError
 
 if TYPE_CHECKING:
+    from tumblecal_cli.core.drift import Sweep, ThermalFit
     from tumblecal_cli.core.gate import Finding
     from tumblecal_cli.core.model import FloatArray
-    from tumblecal_cli.core.thermal import Sweep, ThermalFit
     from tumblecal_cli.io.calfile import Calibration, Thermal
     from tumblecal_cli.io.readings import Log
     from tumblecal_cli.io.readspec import ReadSpec
@@ -82,7 +82,7 @@ def thermal(
     """
     import numpy as np
 
-    from tumblecal_cli.core import thermal as core
+    from tumblecal_cli.core import drift
     from tumblecal_cli.io import calfile
     from tumblecal_cli.io.readspec import ReadSpec, column_list
     from tumblecal_cli.pipeline.options import keywords_known
@@ -111,14 +111,14 @@ def thermal(
     )
     read = _read(poses, base, spec)
     _judge_temperature(read, wanted, min_swing)
-    sweeps = [core.Sweep(r.log.values, _finite(r), None if r.face is None else _up(r.face)) for r in read]
+    sweeps = [drift.Sweep(r.log.values, _finite(r), None if r.face is None else _up(r.face)) for r in read]
     gyro = base.sensor == "gyroscope"
     gain_scale = np.zeros(3) if gyro else np.abs(base.gain) * base.reference
     swing = max(r.trend[1] for r in read) - min(r.trend[0] for r in read)
-    allowed = [k for k in core.ORDERS if core.required_swing(k, min_swing) <= swing]
-    fitted = core.fit(sweeps, gain_scale=gain_scale, t_ref=t_ref, order=wanted)
+    allowed = [k for k in drift.ORDERS if drift.required_swing(k, min_swing) <= swing]
+    fitted = drift.fit(sweeps, gain_scale=gain_scale, t_ref=t_ref, order=wanted)
     if wanted is None and fitted.drift.order not in allowed:  # auto: the best order the swing allows
-        fitted = core.fit(sweeps, gain_scale=gain_scale, t_ref=t_ref, order=max(allowed))
+        fitted = drift.fit(sweeps, gain_scale=gain_scale, t_ref=t_ref, order=max(allowed))
         fitted = replace(fitted, order_auto=True)
     warnings = _checks(read, sweeps, fitted, base, max_noise, max_tilt)
     notes = []
@@ -127,7 +127,7 @@ def thermal(
             f"the reference temperature {t_ref:g} °C is outside the swept range "
             f"{fitted.drift.t_min:.1f} to {fitted.drift.t_max:.1f} °C: the drift there is clamped to the range's end"
         )
-    folded = [a for a, k in zip("xyz", fitted.gain_drift, strict=True) if k == core.FOLDED]
+    folded = [a for a, k in zip("xyz", fitted.gain_drift, strict=True) if k == drift.FOLDED]
     if folded:
         notes.append(
             f"gain drift of {', '.join(folded)} folded into its offset drift: every sweep saw "
@@ -144,20 +144,20 @@ def plot(done: ThermalResult, path: str) -> None:
     """``thermal --plot``: each axis's drift against temperature, the fit and its residuals."""
     import numpy as np
 
-    from tumblecal_cli.core import thermal as core
+    from tumblecal_cli.core import drift
     from tumblecal_cli.io import plots
 
     cal = done.calibration
     assert cal.thermal is not None
-    drift = cal.thermal.drift()
+    model = cal.thermal.drift()
     gain_scale = np.zeros(3) if cal.sensor == "gyroscope" else np.abs(cal.gain) * cal.reference
     data = []
     for r in done.sweeps:
-        sweep = core.Sweep(r.log.values, _finite(r), None if r.face is None else _up(r.face))
-        temp, seen, fitted = core.observed(sweep, drift, gain_scale)
+        sweep = drift.Sweep(r.log.values, _finite(r), None if r.face is None else _up(r.face))
+        temp, seen, fitted = drift.observed(sweep, model, gain_scale)
         label = f"{r.face} {os.path.basename(r.file)}" if r.face else os.path.basename(r.file)
         data.append((label, temp, seen, fitted))
-    title = f"{cal.sensor} temperature drift, order {drift.order}" + (f", {cal.serial}" if cal.serial else "")
+    title = f"{cal.sensor} temperature drift, order {model.order}" + (f", {cal.serial}" if cal.serial else "")
     plots.drift_figure(path, data, units=cal.input_units, title=title)
 
 
@@ -193,8 +193,7 @@ def _reference_temperature(base: Calibration, given: float | None) -> float:
 def _read(items: Sequence[str | os.PathLike[str]], base: Calibration, spec: ReadSpec) -> list[SweepRead]:
     import numpy as np
 
-    from tumblecal_cli.core import model
-    from tumblecal_cli.core import thermal as core
+    from tumblecal_cli.core import drift, model
     from tumblecal_cli.io import readings
     from tumblecal_cli.pipeline.solve import pose_items
 
@@ -219,7 +218,7 @@ def _read(items: Sequence[str | os.PathLike[str]], base: Calibration, spec: Read
                 file=log.layout.name,
                 hint="is --temperature-column the temperature, in °C?",
             )
-        out.append(SweepRead(None if gyro else face, log.layout.name, log, core.trend_range(finite)))
+        out.append(SweepRead(None if gyro else face, log.layout.name, log, drift.trend_range(finite)))
     return out
 
 
@@ -247,7 +246,7 @@ def _judge_temperature(read: list[SweepRead], order: int | None, min_swing: floa
     """Exit 3 for a temperature that cannot carry the fit: constant, noise, or too small a swing."""
     import numpy as np
 
-    from tumblecal_cli.core import thermal as core
+    from tumblecal_cli.core import drift
 
     temps = [r.log.temperature for r in read]
     lows = [float(np.nanmin(t)) for t in temps if t is not None]
@@ -262,7 +261,7 @@ def _judge_temperature(read: list[SweepRead], order: int | None, min_swing: floa
         )
     scatter = max(highs) - min(lows)
     trend = max(r.trend[1] for r in read) - min(r.trend[0] for r in read)
-    need = core.required_swing(order or 1, min_swing)
+    need = drift.required_swing(order or 1, min_swing)
     if trend < NOISE_SHARE * scatter and trend < need <= scatter:
         raise CaptureRejected(
             f"the temperature column {name!r} does not trend: its readings scatter over {scatter:.1f} °C "
@@ -291,7 +290,7 @@ def _checks(
     """solve's quality checks on each sweep with its drift removed; rejections raise (exit 3)."""
     import numpy as np
 
-    from tumblecal_cli.core import gate, model, thermal
+    from tumblecal_cli.core import drift, gate, model
 
     gyro = base.sensor == "gyroscope"
     bound = max_noise if max_noise is not None else (None if gyro else 0.02 * base.reference)
@@ -305,7 +304,7 @@ def _checks(
     gain_scale = np.zeros(3) if gyro else np.abs(base.gain) * base.reference
     poses = []
     for r, s in zip(read, sweeps, strict=True):
-        flat = thermal.detrended(s, fitted.drift, gain_scale)
+        flat = drift.detrended(s, fitted.drift, gain_scale)
         poses.append(gate.measure(r.file, r.face, flat, model.pose_stats(flat), options))
     if not gyro:
         poses = gate.orient(poses, base.offset, max_tilt)

@@ -1,6 +1,6 @@
 """solve --sensor gyroscope --log LOG --pose-column ... --turns ...: a gyroscope's bias,
 g-sensitivity, scale and misalignment from one labelled log of the Ferraris procedure
-(core.turns). The log holds both triplets on the same rows: the accelerometer's columns say
+(core.turn_fit). The log holds both triplets on the same rows: the accelerometer's columns say
 which way gravity points (the six faces, and during each turn), the gyroscope's are calibrated.
 """
 
@@ -12,8 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from tumblecal_cli.core import model
-from tumblecal_cli.core import turns as core
+from tumblecal_cli.core import model, turn_fit
 from tumblecal_cli.core.gate import Finding
 from tumblecal_cli.core.model import FloatArray
 from tumblecal_cli.errors import CaptureRejected, InputError
@@ -174,7 +173,7 @@ def _solve(acc: Log, gyr: Log, options: SolveOptions, given: Settings) -> Outcom
     notes = [f"--turns names {label!r}, not a label of the log: left out" for label in wanted if label not in found]
     turns = {label: axis for label, axis in wanted.items() if label in found}
     axes = np.array([model.FACES[a] for a in turns.values()], dtype=np.float64).reshape(-1, 3)
-    rank = core.axes_rank(axes)
+    rank = turn_fit.axes_rank(axes)
     if rank < 3:
         which = ", ".join(f"{label} ({axis})" for label, axis in turns.items()) or "none found"
         return Outcome(
@@ -195,13 +194,15 @@ def _solve(acc: Log, gyr: Log, options: SolveOptions, given: Settings) -> Outcom
         )
     dt = seconds_per_sample(gyr, options.read.rate)
     still_sections = [found[faces[f]] for f in SIX]
-    still = core.Still([acc.values[s.index] for s in still_sections], [gyr.values[s.index] for s in still_sections])
+    still = turn_fit.Still([acc.values[s.index] for s in still_sections], [gyr.values[s.index] for s in still_sections])
     angle = float(options.log.turn_angle or 0.0)
     given_turns = [
-        core.Turn(acc.values[found[label].index], gyr.values[found[label].index], axis, angle, dt[found[label].index])
+        turn_fit.Turn(
+            acc.values[found[label].index], gyr.values[found[label].index], axis, angle, dt[found[label].index]
+        )
         for label, axis in zip(turns, axes, strict=True)
     ]
-    fit = core.ferraris(still, given_turns)
+    fit = turn_fit.ferraris(still, given_turns)
     rejections = _moved(fit, still, still_sections, options) + _implausible(fit, turns, axes, angle)
     skip = options.checks.no_checks or "moved" in options.checks.no_check
     rejections = [r for r in rejections if not (skip and r.code == "turns.moved")]
@@ -223,7 +224,7 @@ def _face(label: str) -> str | None:
         return None
 
 
-def _moved(fit: core.TurnsFit, still: core.Still, secs: list[Section], options: SolveOptions) -> list[Finding]:
+def _moved(fit: turn_fit.TurnsFit, still: turn_fit.Still, secs: list[Section], options: SolveOptions) -> list[Finding]:
     """Still faces whose accelerometer (g) or calibrated gyroscope (deg/s) varies as a moving unit's."""
     bound = options.checks.max_noise if options.checks.max_noise is not None else STILL_GYRO_NOISE_DPS
     # raw units into deg/s by the turns' median gain: a turn gone wrong does not make every face "move"
@@ -242,19 +243,19 @@ def _moved(fit: core.TurnsFit, still: core.Still, secs: list[Section], options: 
     return out
 
 
-def _implausible(fit: core.TurnsFit, turns: dict[str, str], axes: FloatArray, angle: float) -> list[Finding]:
+def _implausible(fit: turn_fit.TurnsFit, turns: dict[str, str], axes: FloatArray, angle: float) -> list[Finding]:
     """Turns whose integrated angle, at the gain of all the turns, is more than 25 % from --turn-angle."""
-    measured = core.plausible_angles(fit.integrated, axes, np.full(len(axes), angle))
+    measured = turn_fit.plausible_angles(fit.integrated, axes, np.full(len(axes), angle))
     out = []
     for (label, axis), got in zip(turns.items(), measured, strict=True):
         off = abs(got - angle) / abs(angle)
-        if off > core.ANGLE_TOLERANCE:
+        if off > turn_fit.ANGLE_TOLERANCE:
             way = " (the other way round)" if got * angle < 0 else ""
             out.append(
                 Finding(
                     "turns.angle",
                     f"turn {label}: integrated {got:+.0f}° about {axis}{way} where --turn-angle gives {angle:+g}°, "
-                    f"{off:.0%} off (more than {core.ANGLE_TOLERANCE:.0%})",
+                    f"{off:.0%} off (more than {turn_fit.ANGLE_TOLERANCE:.0%})",
                     float(got),
                     angle,
                 )
@@ -263,13 +264,13 @@ def _implausible(fit: core.TurnsFit, turns: dict[str, str], axes: FloatArray, an
 
 
 def _calibration(
-    fit: core.TurnsFit,
+    fit: turn_fit.TurnsFit,
     acc: Log,
     gyr: Log,
     secs: list[Section],
     faces: list[str],
     turns: dict[str, str],
-    given_turns: list[core.Turn],
+    given_turns: list[turn_fit.Turn],
     options: SolveOptions,
     given: Settings,
 ) -> tuple[Calibration, list[Finding]]:

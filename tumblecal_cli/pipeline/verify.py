@@ -166,10 +166,10 @@ def _units(name: str, c: Calibration, raw: float, norm: float, ref: float) -> No
 
 def _read(path: str, c: Calibration, spec: ReadSpec, notes: list[str]) -> Samples:
     """A static capture's readings; with a thermal block, each row brought to T_ref at its own
-    temperature (core.thermal.at_reference), the rows outside the range noted."""
+    temperature (core.drift.at_reference), the rows outside the range noted."""
     import numpy as np
 
-    from tumblecal_cli.core import thermal
+    from tumblecal_cli.core import drift
     from tumblecal_cli.io import readings
 
     if c.thermal is None:
@@ -178,14 +178,14 @@ def _read(path: str, c: Calibration, spec: ReadSpec, notes: list[str]) -> Sample
     log = readings.read_log(path, spec, use_time=False, need_temperature=True)
     temp = log.temperature
     assert temp is not None
-    drift = c.thermal.drift()
-    outside = int(np.count_nonzero((temp < drift.t_min) | (temp > drift.t_max)))
+    model = c.thermal.drift()
+    outside = int(np.count_nonzero((temp < model.t_min) | (temp > model.t_max)))
     if outside:
         notes.append(
             f"{log.layout.name}: {outside} rows outside the calibrated temperature range "
-            f"{drift.t_min:g} to {drift.t_max:g} °C, corrected at its nearest end"
+            f"{model.t_min:g} to {model.t_max:g} °C, corrected at its nearest end"
         )
-    values = thermal.at_reference(log.values, temp, c.offset, drift)
+    values = drift.at_reference(log.values, temp, c.offset, model)
     rows = (int(log.rows[0]), int(log.rows[-1]))
     return readings.Samples(log.layout, values, rows, log.sha256, None, float(np.nanmean(temp)))
 
@@ -224,7 +224,7 @@ def verify_rotations(
     datasheet sensitivity gives; "after" is its full matrix."""
     import numpy as np
 
-    from tumblecal_cli.core import rotations as core
+    from tumblecal_cli.core import rotation_fit
     from tumblecal_cli.io import calfile
     from tumblecal_cli.io.readspec import ReadSpec, column_list
     from tumblecal_cli.pipeline.options import LogOptions, SolveOptions, path_of
@@ -254,8 +254,8 @@ def verify_rotations(
             code="rotations.few",
         )
     nominal = np.eye(3) / float(np.mean(np.abs(c.gain)))
-    _, before, _ = core.judged(turns.rotations, c.offset, nominal)
-    angles, after, _ = core.judged(turns.rotations, c.offset, c.matrix)
+    _, before, _ = rotation_fit.judged(turns.rotations, c.offset, nominal)
+    angles, after, _ = rotation_fit.judged(turns.rotations, c.offset, c.matrix)
     rows = [
         {"rotation": n, "angle_deg": float(a), "error_before_deg": float(b), "error_after_deg": float(e)}
         for n, a, b, e in zip(turns.names, angles, before, after, strict=True)
