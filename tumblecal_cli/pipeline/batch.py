@@ -17,12 +17,23 @@ import csv
 import io
 import os
 import re
+import signal
 import sys
+import threading
+import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, TypeAlias
 
+from tumblecal_cli.core import lot
+from tumblecal_cli.core.model import face_of_name
 from tumblecal_cli.errors import STOPS, InputError, TumblecalError, control_character
+from tumblecal_cli.io import calfile
+from tumblecal_cli.io.outputs import atomic_output, remove_stale, spreadsheet_safe, unsafe
+from tumblecal_cli.pipeline import solve
+from tumblecal_cli.pipeline.cluster import engine
+from tumblecal_cli.pipeline.options import SolveOptions, checked, path_of, settings
 
 if TYPE_CHECKING:
     import signal
@@ -207,7 +218,6 @@ def _face_of(path: str) -> str | None:
 
 def _face(text: str) -> str | None:
     """The face a label names (x, xp, +x, xn ...), or None."""
-    from tumblecal_cli.core.model import face_of_name
 
     return face_of_name(text)
 
@@ -340,7 +350,6 @@ def run_unit(
     calibration without a row. Never raises for the unit's own errors: they are its row's status
     and message. ``epoch``: the caller's ``SOURCE_DATE_EPOCH`` ("" when unset), which a Dask
     worker's own environment does not hold."""
-    from tumblecal_cli.io import calfile
 
     reset = calfile.CALLER_EPOCH.set(epoch)
     try:
@@ -350,9 +359,6 @@ def run_unit(
 
 
 def _run_unit(unit: Unit, options: SolveOptions, out_dir: str, log: bool, token: str) -> Row:
-    from dataclasses import replace
-
-    from tumblecal_cli.pipeline import solve
 
     staging = os.path.join(out_dir, f".{unit.serial}.{token}{STAGING}")
     row = Row(unit.serial, list(unit.found or unit.inputs))
@@ -416,7 +422,6 @@ def as_found(cal: Calibration, names: Mapping[str, str]) -> Calibration:
     cluster's worker reads absolute paths, and records the files as a batch run here would."""
     if not names:
         return cal
-    from dataclasses import replace
 
     poses = tuple(replace(p, file=names.get(str(p.file), p.file)) for p in cal.poses)
     segmentation = cal.segmentation
@@ -446,7 +451,6 @@ def mark_duplicates(rows: list[Row], out_dir: str) -> list[str]:
     with the same sha256 (a copy of one unit's capture given as another's); a warning for each
     such file, naming the serials and the file. A row from an earlier run (``--resume``) has its
     poses read back from its calibration file."""
-    from tumblecal_cli.core import lot
 
     records = []
     for row in rows:
@@ -462,7 +466,6 @@ def mark_duplicates(rows: list[Row], out_dir: str) -> list[str]:
 
 def _recorded_poses(path: str) -> list[tuple[str, str]]:
     """The (sha256, file) of the poses a published calibration records; none if it is unreadable."""
-    from tumblecal_cli.io import calfile
 
     try:
         return pose_files(calfile.load(path).poses)
@@ -476,8 +479,6 @@ def held_signals() -> Iterator[None]:
     acted: a stop between publishing a calibration and recording its row would leave a
     calibration that no row names. A block that raises ends the batch anyway: its error is the
     one told. (Outside the main thread signals are left alone.)"""
-    import signal
-    import threading
 
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -507,7 +508,6 @@ def held_signals() -> Iterator[None]:
 
 def _put_back(handlers: list[tuple[signal.Signals, Handler]]) -> None:
     """Each signal's handler put back, the later ones even if a stop lands after the first."""
-    import signal
 
     if handlers:
         try:
@@ -537,7 +537,6 @@ def failed_row(unit: Unit, err: BaseException) -> Row:
 def stale_staging(out_dir: str) -> list[str]:
     """Remove the staging files a killed batch left in ``out_dir`` (``.SERIAL.PID-NS.partial.json``
     of a process that is gone; never another name); a note when there were any."""
-    from tumblecal_cli.io.outputs import remove_stale
 
     removed = len(remove_stale(out_dir, re.compile(rf"\..+\.(\d+)-\d+{re.escape(STAGING)}")))
     return [f"removed {removed} staging file(s) a killed batch left in {out_dir}"] if removed else []
@@ -547,7 +546,6 @@ def repair_torn_row(path: str) -> list[str]:
     """A summary whose last row was cut short (a batch killed, or a disk full, while writing it)
     loses that row, so that its unit is done again; a note when it did. (Summary cells hold no
     line breaks: a row is a line.)"""
-    from tumblecal_cli.io.outputs import atomic_output
 
     try:
         with open(path, "rb") as f:
@@ -620,7 +618,6 @@ FREE_TEXT = ("serial", "file")
 
 def cell(row: Row | Mapping[str, object], column: str) -> str:
     """A summary cell: numbers in full, lists joined, free text made safe for a spreadsheet."""
-    from tumblecal_cli.io.outputs import spreadsheet_safe
 
     value = Row.of(row).value(column)
     if value is None:
@@ -633,7 +630,6 @@ def cell(row: Row | Mapping[str, object], column: str) -> str:
 
 def read_summary(path: str) -> list[Row]:
     """The rows of an existing summary.csv (for --resume), typed as run_unit makes them."""
-    from tumblecal_cli.io.outputs import unsafe
 
     try:
         with open(path, newline="", encoding="utf-8") as f:
@@ -680,8 +676,6 @@ def read_summary(path: str) -> list[Row]:
             raise InputError("a row this version did not write", file=path, line=n) from None
         out.append(row)
     if reader.fieldnames == EARLIER_COLUMNS:  # rows are appended in this version's columns from here
-        from tumblecal_cli.io.outputs import atomic_output
-
         with atomic_output(path) as target:
             target.write(text(out).encode())
     return out
@@ -712,7 +706,6 @@ class Summary:
         self._file.flush()
 
     def close(self) -> None:
-        from tumblecal_cli.io.outputs import atomic_output
 
         self._file.close()
         self.rows.sort(key=lambda r: r.serial)
@@ -782,12 +775,6 @@ def run_batch(
     with ``options``: each unit's calibration into ``out_dir`` as ``<serial>_<UTC time>.json``
     and its row into ``out_dir/summary.csv``. ``on_start`` sees the plan before any unit,
     ``on_unit`` each unit's row as it is recorded."""
-    import time
-    from concurrent.futures.process import BrokenProcessPool
-
-    from tumblecal_cli.io import calfile
-    from tumblecal_cli.pipeline.cluster import engine
-    from tumblecal_cli.pipeline.options import SolveOptions, checked, path_of, settings
 
     source = path_of(source, "run_batch takes a folder of units or a manifest file")
     out_dir = path_of(out_dir, "run_batch writes into a folder (out_dir)")

@@ -7,11 +7,16 @@ heavy is imported until an engine runs: ``distributed`` only when a scheduler is
 from __future__ import annotations
 
 import itertools
+import multiprocessing
 import os
+import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from typing import TYPE_CHECKING, Protocol, TypeVar, TypeVarTuple
 
 from tumblecal_cli.errors import InputError
+from tumblecal_cli.io.outputs import alive
 
 if TYPE_CHECKING:
     from concurrent.futures import Future
@@ -54,8 +59,6 @@ def _processes(jobs: int) -> Engine:
     def run(
         fn: Callable[[*Args], Result], work: Sequence[tuple[*Args]], /
     ) -> Iterator[tuple[tuple[*Args], Result | Exception]]:
-        import multiprocessing
-        from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
         context = multiprocessing.get_context("forkserver")  # safe beside the progress bar's thread
         context.set_forkserver_preload(
@@ -84,10 +87,6 @@ def _processes(jobs: int) -> Engine:
 def _watch_parent(parent: int) -> None:
     """In a worker process: exit when the batch that started it is gone (killed with -9, it
     cannot shut its pool down), instead of living on with the units in flight."""
-    import threading
-    import time
-
-    from tumblecal_cli.io.outputs import alive
 
     def watch() -> None:
         while alive(parent):

@@ -14,8 +14,13 @@ from dataclasses import dataclass, field, replace
 from functools import partial
 from typing import IO, TYPE_CHECKING, Unpack
 
+from tumblecal_cli.core import drift, model
 from tumblecal_cli.errors import InputError, TumblecalError
-from tumblecal_cli.pipeline.options import FileKeywords
+from tumblecal_cli.io import calfile, capture, rewrite, sniff
+from tumblecal_cli.io.calfile import Calibration
+from tumblecal_cli.io.outputs import atomic_output, check_not_input, check_writable
+from tumblecal_cli.pipeline.cluster import engine
+from tumblecal_cli.pipeline.options import FileKeywords, file_spec, keywords_known, path_of
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.model import FloatArray
@@ -52,9 +57,6 @@ def correct(
     """Correct one capture ('-': stdin) into ``output`` ('-': stdout), as ``tumblecal apply``:
     ``cal`` is one calibration (a file, or a Calibration) or several (one per sensor of the
     capture). ``on_note`` hears each note as it is found, before the capture is streamed."""
-    from tumblecal_cli.io import calfile
-    from tumblecal_cli.io.outputs import atomic_output, check_not_input, check_writable
-    from tumblecal_cli.pipeline.options import file_spec, keywords_known, path_of
 
     keywords_known(options, CorrectKeywords, "correct")
     output, force, on_note = options.get("output", "-"), options.get("force", False), options.get("on_note")
@@ -139,7 +141,6 @@ def expand(patterns: list[str]) -> list[str]:
 
 def _calibrations(cal: object) -> list[Calibration | str]:
     """``cal`` as a list of Calibrations and paths (one, or one per sensor)."""
-    from tumblecal_cli.io.calfile import Calibration
 
     one = isinstance(cal, str | os.PathLike | Calibration)
     given: list[object] = [cal] if one else list(cal) if isinstance(cal, Sequence) else []
@@ -170,9 +171,6 @@ def correct_many(
     """Correct each capture into ``out_dir`` under its own name, here or on a Dask cluster
     (``scheduler``): (capture, exit status, message) for each as it is done. A capture that
     fails is its own status and message; the others go on."""
-    from tumblecal_cli.io import calfile
-    from tumblecal_cli.pipeline.cluster import engine
-    from tumblecal_cli.pipeline.options import keywords_known
 
     keywords_known(options, ManyKeywords, "correct_many")
     if "-" in inputs:
@@ -254,7 +252,6 @@ def refuse_failed(cal: Calibration, doing: str, command: str) -> None:
 def capture_for(cal: Calibration, path: str, spec: ReadSpec) -> Iterator[Capture]:
     """A capture opened to be corrected by ``cal`` (read by ``spec``'s columns and dialect):
     one without that sensor's columns is an error naming both the capture and the calibration."""
-    from tumblecal_cli.io import capture
 
     with contextlib.ExitStack() as stack:
         try:
@@ -273,7 +270,6 @@ def capture_for(cal: Calibration, path: str, spec: ReadSpec) -> Iterator[Capture
 
 def columns_of(layout: Layout, cal: Calibration, taken: set[int]) -> tuple[int, int, int]:
     """Where a second calibration's recorded columns are in the capture (by name only)."""
-    from tumblecal_cli.io import sniff
 
     lower = [n.lower() for n in layout.names]
     missing = [n for n in cal.columns if n.lower() not in lower]
@@ -292,7 +288,6 @@ def columns_of(layout: Layout, cal: Calibration, taken: set[int]) -> tuple[int, 
 
 
 def _correct(cal: Calibration, raw: FloatArray) -> FloatArray:
-    from tumblecal_cli.core import model
 
     return model.apply(raw, cal.offset, cal.matrix)
 
@@ -309,7 +304,6 @@ def _stream(
 ) -> int:
     """Stream ``cap`` corrected into ``out``: each calibration's columns by its own correction,
     at each row's temperature where it has a thermal block (one warning for the rows clamped)."""
-    from tumblecal_cli.io import rewrite
 
     cals = [cal, *(o for _, o in more)]
     temperature = thermal_column(cap.layout, cals)
@@ -353,7 +347,6 @@ def thermal_column(layout: Layout, cals: Sequence[Calibration]) -> int | None:
 
 
 def _thermal(cal: Calibration, clamped: list[int], raw: FloatArray, temperature: FloatArray) -> FloatArray:
-    from tumblecal_cli.core import drift
 
     assert cal.thermal is not None
     fixed, outside = drift.correct(raw, temperature, cal.offset, cal.matrix, cal.thermal.drift())

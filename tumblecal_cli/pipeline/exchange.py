@@ -9,8 +9,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, TypedDict, Unpack
 
+from tumblecal_cli.core import gate
+from tumblecal_cli.core.gate import FIXED_GAINS
 from tumblecal_cli.errors import InputError, control_character
-from tumblecal_cli.pipeline.options import Triplet
+from tumblecal_cli.io import calfile, formats
+from tumblecal_cli.pipeline.correct import refuse_failed
+from tumblecal_cli.pipeline.options import Triplet, keywords_known, path_of, triplet, unit_block
+from tumblecal_cli.pipeline.options import limits as parse_limits
+from tumblecal_cli.pipeline.solve import limits_not_applying
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Finding
@@ -45,10 +51,6 @@ def check(
 ) -> Checked:
     """Judge an existing calibration file against limits again (the file is not changed), by
     the rules solve judged it by (core.gate.judge_again)."""
-    from tumblecal_cli.core import gate
-    from tumblecal_cli.io import calfile
-    from tumblecal_cli.pipeline.options import limits as parse_limits
-    from tumblecal_cli.pipeline.solve import limits_not_applying
 
     given = parse_limits(limits, max_offset, max_gain_error, nominal_gain)
     if not given.judges():
@@ -92,9 +94,6 @@ def export(cal: Calibration | str | os.PathLike[str], fmt: str, **options: Unpac
     """The text of a calibration in another format: c-header, registers, imucal-json, ros-yaml,
     matlab, or a thermal block as ardupilot or px4 parameters (README "export"); ``instance`` is
     the firmware's IMU number (ArduPilot from 1, PX4 from 0)."""
-    from tumblecal_cli.io import calfile, formats
-    from tumblecal_cli.pipeline.correct import refuse_failed
-    from tumblecal_cli.pipeline.options import keywords_known
 
     keywords_known(options, ExportKeywords, "export")
     prefix, lsb, bits = options.get("prefix"), options.get("lsb"), options.get("bits", 16)
@@ -158,14 +157,11 @@ def _registers(
     c: Calibration, lsb: float, bits: int, register_sign: str, gain_step: float | None, nominal_gain: str | None
 ) -> str:
     """export --format registers: offset (and gain trim) register counts, CSV."""
-    from tumblecal_cli.io import formats
-    from tumblecal_cli.pipeline.options import triplet
 
     if not (lsb is not None and math.isfinite(lsb) and lsb > 0):
         raise InputError(f"--lsb must be a positive number, got {lsb}")
     if gain_step is not None and not (math.isfinite(gain_step) and gain_step > 0):
         raise InputError(f"--gain-step must be a positive number, got {gain_step}")
-    from tumblecal_cli.core.gate import FIXED_GAINS
 
     if gain_step is not None and c.method in FIXED_GAINS:
         raise InputError(f"the {c.method} solver fixes the gains: there is no gain to trim", file=c.path)
@@ -196,8 +192,6 @@ def import_peer(
     serial: str | None = None,
 ) -> Imported:
     """An imucal JSON or ROS imu_calib YAML file as a tumblecal Calibration (README "import")."""
-    from tumblecal_cli.io import calfile, formats
-    from tumblecal_cli.pipeline.options import path_of, unit_block
 
     path = path_of(path, "import_peer reads a file of another tool")
     raw = calfile.read_bytes(path, "calibration file")

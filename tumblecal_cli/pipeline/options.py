@@ -13,7 +13,14 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
 from typing import TYPE_CHECKING, TypedDict
 
+import numpy as np
+
+from tumblecal_cli.core import gate, model
+from tumblecal_cli.core.methods import METHODS, TURNS
+from tumblecal_cli.core.model import SENSORS
 from tumblecal_cli.errors import InputError, control_character
+from tumblecal_cli.io import calfile
+from tumblecal_cli.io.calfile import Unit
 from tumblecal_cli.io.readspec import Dialect, ReadSpec, column_list
 
 if TYPE_CHECKING:
@@ -171,7 +178,6 @@ class ReadKeywords(FileKeywords, total=False):
 def file_spec(given: FileKeywords, prefer: Sequence[str] | None = None) -> ReadSpec:
     """The ReadSpec of a function's keyword options on a file's shape and its sensor columns
     (``prefer``: a calibration's columns); the sensor and the clock are left at their defaults."""
-    from tumblecal_cli.io.readspec import Dialect, ReadSpec, column_list
 
     return ReadSpec(
         columns=column_list(given.get("columns")),
@@ -244,8 +250,6 @@ NUMBERS = (
 def checked(options: SolveOptions) -> SolveOptions:
     """The checks the command line's parser makes, for options given in Python: each choice
     one of its own, numbers numbers, ranges kept; a lone string where a list goes is one item."""
-    from tumblecal_cli.core.methods import METHODS
-    from tumblecal_cli.core.model import SENSORS
 
     flat = options.flat()
     for name, allowed in {"method": ("auto", *METHODS), "sensor": SENSORS, **CHOICES}.items():
@@ -326,7 +330,6 @@ def settings(options: SolveOptions, *, log: bool) -> Settings:
 def turn_options(options: SolveOptions, *, log: bool) -> None:
     """--turns and --turn-angle: a gyroscope's labelled turns in one log, the angle known;
     --accel-cal: its hand turns between still poses."""
-    from tumblecal_cli.core.methods import TURNS
 
     if options.log.accel_cal is not None or options.method == "rotations":
         if options.log.accel_cal is None:
@@ -392,7 +395,6 @@ def method_options(name: str, ref: float, plane: str | None, bias_spread: float 
 
 def face(text: str, option: str) -> str:
     """A face (+x ... -z, or an alias) given to ``option``."""
-    from tumblecal_cli.core import model
 
     try:
         return model.parse_face(text)
@@ -403,7 +405,6 @@ def face(text: str, option: str) -> str:
 def pose_map(value: str | Mapping[str, str] | None, option: str = "--pose-map") -> dict[str, str]:
     """--pose-map ``x_p=+x,x_a=-x,...`` (or a mapping) as {label: face}; ``option`` names the
     option in errors (--turns takes the same LABEL=AXIS pairs)."""
-    from tumblecal_cli.core import model
 
     items = [f"{k}={v}" for k, v in value.items()] if isinstance(value, Mapping) else (value or "").split(",")
     out: dict[str, str] = {}
@@ -428,7 +429,6 @@ def pose_map(value: str | Mapping[str, str] | None, option: str = "--pose-map") 
 
 def triplet(value: Triplet, option: str) -> FloatArray:
     """A number or X,Y,Z (text as the command line gives it, a number, or three numbers), as a (3,) array."""
-    import numpy as np
 
     if isinstance(value, str):
         text = value
@@ -459,8 +459,6 @@ def limits(
 ) -> Limits:
     """The limits of a limits file, with the flags taking precedence (``nominal_offset``, solve's
     --nominal-offset: the centre of the offset limit unless the file names one)."""
-    from tumblecal_cli.core import gate
-    from tumblecal_cli.io import calfile
 
     bounds: dict[str, object] = dict(calfile.load_limits(path)) if path else {}
     for key in calfile.NOISE_LIMITS:  # a station's one limits file also bounds `tumblecal noise`
@@ -486,7 +484,6 @@ def unit_block(
     serial: str | None, station: str | None, operator: str | None, meta: Sequence[str] | Mapping[str, str]
 ) -> Unit:
     """The unit block of a calibration; --meta items are KEY=VALUE."""
-    from tumblecal_cli.io.calfile import Unit
 
     for flag, value in (("--serial", serial), ("--station", station), ("--operator", operator)):
         identifier(value, flag)

@@ -20,7 +20,7 @@ from tumblecal_cli.core.model import Solution
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import calfile, readings
 from tumblecal_cli.pipeline import logs
-from tumblecal_cli.pipeline.turns import Outcome, gyro_calibration, seconds_per_sample
+from tumblecal_cli.pipeline.turns import Made, Outcome, gyro_calibration, seconds_per_sample
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.model import FloatArray
@@ -211,8 +211,6 @@ def _calibration(
     gain_se, cross_se = rotation_fit.gain_se(fit.matrix, fit.matrix_cov)
     bias_se = still.std(axis=0, ddof=1) / np.sqrt(len(still))
     solution = Solution("rotations", bias, fit.matrix, bias_se, gain_se)
-    from tumblecal_cli.io import calfile
-    from tumblecal_cli.pipeline.turns import Made
 
     poses = [
         calfile.Pose(

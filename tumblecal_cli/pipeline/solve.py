@@ -14,8 +14,18 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
+import numpy as np
+
+from tumblecal_cli.core import gate, methods, model, segment, solvers
+from tumblecal_cli.core.gate import Finding
+from tumblecal_cli.core.model import face_of_name
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.pipeline.options import path_of
+from tumblecal_cli.io import calfile
+from tumblecal_cli.io.calfile import Pose
+from tumblecal_cli.pipeline import logs, rotations, turns
+from tumblecal_cli.pipeline import options as opts
+from tumblecal_cli.pipeline.frames import read_pose, samples_of
+from tumblecal_cli.pipeline.options import SolveOptions, method_options, path_of, triplet
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Corrected, Finding, Limits, PoseCheck
@@ -79,7 +89,6 @@ def solve(poses: Poses, **options: object) -> Solved:
     ``max_noise=``, ``limits=`` for a limits file, ``serial=`` ...; README "Using tumblecal from
     Python"). Input errors raise InputError; a rejected capture is ``status`` 3, not an error.
     """
-    from tumblecal_cli.pipeline.options import SolveOptions
 
     return run(SolveOptions.of(options), poses=poses)
 
@@ -87,14 +96,12 @@ def solve(poses: Poses, **options: object) -> Solved:
 def solve_log(log: str | os.PathLike[str], **options: object) -> Solved:
     """Solve a calibration from one continuous log ('-': stdin), as ``tumblecal solve --log``:
     the still blocks are found (or taken from ``pose_column``), the best of each face used."""
-    from tumblecal_cli.pipeline.options import SolveOptions
 
     return run(SolveOptions.of(options), log=log)
 
 
 def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.PathLike[str] | None = None) -> Solved:
     """solve and solve_log, on options already gathered (the command line and batch call this)."""
-    from tumblecal_cli.pipeline import options as opts
 
     options = opts.checked(options)
     files_or_data = None if poses is None else _poses_given(poses, options)
@@ -108,8 +115,6 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Path
         )
     given = opts.settings(options, log=path is not None)
     if path is not None and (options.log.turns is not None or options.log.accel_cal is not None):  # a gyroscope's turns
-        from tumblecal_cli.pipeline import rotations, turns
-
         if options.log.turns is not None:
             out = turns.from_log(path, options, given)
         else:
@@ -138,7 +143,6 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Path
 def _poses_given(poses: object, options: SolveOptions) -> list[str] | Mapping[str, object]:
     """poses as files (one path, or a list of items) or as data in memory (a mapping of labels to
     data, or a list of data, labelled as unlabelled files are)."""
-    from tumblecal_cli.core import methods
 
     if isinstance(poses, str | os.PathLike):
         return [os.fspath(poses)]
@@ -164,8 +168,6 @@ def _read_poses(
 ) -> tuple[str, list[str | None], list[Samples], Placed]:
     """The method, each pose's label and its samples, from files or from data in memory; and how
     the files got their faces."""
-    from tumblecal_cli.core import methods
-    from tumblecal_cli.pipeline.options import method_options
 
     if options.up is not None and len(poses) != 1:
         raise InputError(
@@ -198,7 +200,6 @@ def _read_poses(
     items = [items[k] for k in order]
     labels = [None if name in methods.ORIENTATION_FREE else label for label, _ in items]
     method_options(name, given.reference, options.plane, options.bias_spread)
-    from tumblecal_cli.pipeline.frames import read_pose, samples_of
 
     if in_memory:
         samples = [samples_of(str(label), data, options) for label, data in items]
@@ -208,7 +209,6 @@ def _read_poses(
 
 
 def _label(text: str) -> str:
-    from tumblecal_cli.core import model
 
     try:
         return model.parse_label(text)
@@ -234,7 +234,6 @@ def pose_items(items: list[str], up: str, *, up_given: bool = False) -> Placed:
     """(label, file) of each --poses item, ``FILE`` or ``LABEL=FILE``. Labels are for every file
     or for none; unlabelled files take the faces their names give (:func:`named_faces`), else
     the labels of their count (methods.default_labels)."""
-    from tumblecal_cli.core import methods, model
 
     out: list[tuple[str | None, str]] = []
     for item in items:
@@ -259,7 +258,6 @@ def pose_items(items: list[str], up: str, *, up_given: bool = False) -> Placed:
 def face_of_file(path: str) -> str | None:
     """The face a file's name gives (x.csv, xp.csv, x_p.csv, +x.csv, xn.csv ...: core.model.face_of_name
     on the name up to its first dot), or None."""
-    from tumblecal_cli.core.model import face_of_name
 
     return face_of_name(os.path.basename(path).split(".", 1)[0])
 
@@ -303,10 +301,6 @@ def named_faces(files: list[str], placed: list[str | None], *, up_given: bool = 
 
 def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
     """solve --log: the log's blocks, the poses they give the method, then the solve."""
-    from tumblecal_cli.core import segment
-    from tumblecal_cli.io import calfile
-    from tumblecal_cli.pipeline import logs
-    from tumblecal_cli.pipeline.options import method_options
 
     if given.method != "auto":
         method_options(given.method, given.reference, options.plane, options.bias_spread)
@@ -373,9 +367,6 @@ def _solve(
 ) -> Solved:
     """Average, solve, check and judge the poses; build the calibration. ``notes``: how the
     poses were chosen (a log's blocks) or labelled (by their files' names: ``by_name``)."""
-    from tumblecal_cli.core import gate, model, solvers
-    from tumblecal_cli.io import calfile
-    from tumblecal_cli.pipeline.options import triplet
 
     for s in samples:
         model.in_range(s.values, s.name)
@@ -517,10 +508,6 @@ def _six_faces(
     """Six faces: auto chooses six-pose or six-pose-magnitude by how well opposite faces agree
     (methods.auto_six) and says why in ``notes``; an explicit six-pose on faces that disagree
     gets a warning (its cross-axis terms take the tilt)."""
-    import numpy as np
-
-    from tumblecal_cli.core import methods
-    from tumblecal_cli.core.gate import Finding
 
     means = np.array([st.mean for st in stats])
     chosen, why = methods.auto_six(means)
@@ -552,7 +539,6 @@ ONE_POSE = ("one-pose", "one-pose-tilt")
 
 def check_units(name: str, centred: FloatArray, reference: float) -> None:
     """A 1-pose mean (less --nominal-offset) far from --reference in magnitude: exit 2."""
-    from tumblecal_cli.core import model
 
     suggested = model.units_mistake(centred, reference)
     if suggested is None:
@@ -575,7 +561,6 @@ def check_units(name: str, centred: FloatArray, reference: float) -> None:
 
 def pose_record(s: Samples, m: PoseCheck, c: Corrected) -> Pose:
     """A pose's entry in the calibration file: what it was, what it measured, how it corrects."""
-    from tumblecal_cli.io.calfile import Pose
 
     return Pose(
         face=m.face,
@@ -618,7 +603,6 @@ def tilt_notes(cal: Calibration) -> list[str]:
 def tilt_only(cal: Calibration) -> list[float]:
     """The tilt sensitivity of the offsets without the part a stated gain tolerance adds to a
     1-pose up axis (solvers.gain_error_bound): what fixture tilt alone moves them by."""
-    from tumblecal_cli.core import model, solvers
 
     tilt = cal.tilt_sensitivity
     if tilt is None:

@@ -14,7 +14,15 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, TypedDict, Unpack
 
+import numpy as np
+
+from tumblecal_cli.core import drift, gate, model
+from tumblecal_cli.core.model import direction
 from tumblecal_cli.errors import CaptureRejected, InputError
+from tumblecal_cli.io import calfile, plots, readings
+from tumblecal_cli.io.readspec import ReadSpec, column_list
+from tumblecal_cli.pipeline.options import keywords_known
+from tumblecal_cli.pipeline.solve import pose_items
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.drift import Sweep, ThermalFit
@@ -80,12 +88,6 @@ def thermal(
     (cross-validation over temperature). Input errors raise InputError; a sweep that cannot
     be trusted raises CaptureRejected (exit 3).
     """
-    import numpy as np
-
-    from tumblecal_cli.core import drift
-    from tumblecal_cli.io import calfile
-    from tumblecal_cli.io.readspec import ReadSpec, column_list
-    from tumblecal_cli.pipeline.options import keywords_known
 
     keywords_known(options, ThermalKeywords, "thermal")
     sensor, order, min_swing = options.get("sensor"), options.get("order", "auto"), options.get("min_swing", MIN_SWING)
@@ -142,10 +144,6 @@ def thermal(
 
 def plot(done: ThermalResult, path: str) -> None:
     """``thermal --plot``: each axis's drift against temperature, the fit and its residuals."""
-    import numpy as np
-
-    from tumblecal_cli.core import drift
-    from tumblecal_cli.io import plots
 
     cal = done.calibration
     assert cal.thermal is not None
@@ -191,11 +189,6 @@ def _reference_temperature(base: Calibration, given: float | None) -> float:
 
 
 def _read(items: Sequence[str | os.PathLike[str]], base: Calibration, spec: ReadSpec) -> list[SweepRead]:
-    import numpy as np
-
-    from tumblecal_cli.core import drift, model
-    from tumblecal_cli.io import readings
-    from tumblecal_cli.pipeline.solve import pose_items
 
     texts = [os.fspath(i) for i in items]
     if not texts:
@@ -224,7 +217,6 @@ def _read(items: Sequence[str | os.PathLike[str]], base: Calibration, spec: Read
 
 def _finite(r: SweepRead) -> FloatArray:
     """The sweep's temperatures; a NaN cell takes its neighbour's value (interpolated)."""
-    import numpy as np
 
     temp = r.log.temperature
     assert temp is not None
@@ -237,16 +229,12 @@ def _finite(r: SweepRead) -> FloatArray:
 
 
 def _up(face: str) -> FloatArray:
-    from tumblecal_cli.core.model import direction
 
     return direction(face)
 
 
 def _judge_temperature(read: list[SweepRead], order: int | None, min_swing: float) -> None:
     """Exit 3 for a temperature that cannot carry the fit: constant, noise, or too small a swing."""
-    import numpy as np
-
-    from tumblecal_cli.core import drift
 
     temps = [r.log.temperature for r in read]
     lows = [float(np.nanmin(t)) for t in temps if t is not None]
@@ -288,9 +276,6 @@ def _checks(
     max_tilt: float,
 ) -> list[Finding]:
     """solve's quality checks on each sweep with its drift removed; rejections raise (exit 3)."""
-    import numpy as np
-
-    from tumblecal_cli.core import drift, gate, model
 
     gyro = base.sensor == "gyroscope"
     bound = max_noise if max_noise is not None else (None if gyro else 0.02 * base.reference)
@@ -323,9 +308,6 @@ def _checks(
 
 
 def _block(fitted: ThermalFit, column: str, read: list[SweepRead], min_swing: float) -> Thermal:
-    import numpy as np
-
-    from tumblecal_cli.io import calfile
 
     drift = fitted.drift
     extra: dict[str, object] = {

@@ -12,11 +12,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from tumblecal_cli.core import model, turn_fit
+from tumblecal_cli.core import gate, model, turn_fit
 from tumblecal_cli.core.gate import Finding
 from tumblecal_cli.core.model import FloatArray
+from tumblecal_cli.core.solvers import Fit
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import readings
+from tumblecal_cli.io import calfile, readings
+from tumblecal_cli.pipeline.logs import read_twice
 from tumblecal_cli.pipeline.options import pose_map
 
 if TYPE_CHECKING:
@@ -78,7 +80,6 @@ class Section:
 
 def from_log(log: str, options: SolveOptions, given: Settings) -> Outcome:
     """Read the log's two triplets, take its sections by label, solve and judge the gyroscope."""
-    from tumblecal_cli.pipeline.logs import read_twice
 
     with read_twice(log) as path:
         acc, gyr = (_read(path, log, options, sensor) for sensor in ("accelerometer", "gyroscope"))
@@ -274,7 +275,6 @@ def _calibration(
     options: SolveOptions,
     given: Settings,
 ) -> tuple[Calibration, list[Finding]]:
-    from tumblecal_cli.io import calfile
 
     solution = fit.solution
     poses = [
@@ -330,9 +330,6 @@ def gyro_calibration(
     """A gyroscope's calibration from known turns or hand turns: judged by the limits, built with
     its ``poses`` (the still sections or blocks) and what it was ``made`` of (the turns or
     rotations, the segmentation); and the limits it fails."""
-    from tumblecal_cli.core import gate
-    from tumblecal_cli.core.solvers import Fit
-    from tumblecal_cli.io import calfile
 
     limits = given.limits.for_method(solution.method)
     failures = gate.verdict(solution.method, solution.offset, solution.matrix, [], limits)

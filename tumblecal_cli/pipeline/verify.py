@@ -9,8 +9,16 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Unpack
 
+import numpy as np
+
+from tumblecal_cli.core import drift, gate, model, rotation_fit
+from tumblecal_cli.core.model import UNITS_TOLERANCE
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.pipeline.options import FileKeywords
+from tumblecal_cli.io import calfile, readings
+from tumblecal_cli.io.readspec import ReadSpec, column_list
+from tumblecal_cli.pipeline.logs import FASTEST
+from tumblecal_cli.pipeline.options import FileKeywords, LogOptions, SolveOptions, file_spec, keywords_known, path_of
+from tumblecal_cli.pipeline.rotations import hand_turns
 
 if TYPE_CHECKING:
     from tumblecal_cli.io.calfile import Calibration
@@ -63,9 +71,6 @@ def verify(
     **options: Unpack[VerifyKeywords],
 ) -> Verified:
     """The norm error of each static capture before and after correction with ``cal``."""
-    from tumblecal_cli.core import gate, model
-    from tumblecal_cli.io import calfile
-    from tumblecal_cli.pipeline.options import file_spec, keywords_known, path_of
 
     keywords_known(options, VerifyKeywords, "verify")
     reference, max_norm_error = options.get("reference"), options.get("max_norm_error")
@@ -145,7 +150,6 @@ def verify(
 def _units(name: str, c: Calibration, raw: float, norm: float, ref: float) -> None:
     """A capture whose corrected magnitude is far from the reference: exit 2, with the raw
     magnitude the calibration's own poses read (it would report a -97 % error, "not judged")."""
-    from tumblecal_cli.core.model import UNITS_TOLERANCE  # as far as solve's 1-pose units check
 
     if not ref > 0 or abs(norm - ref) <= UNITS_TOLERANCE * ref:
         return
@@ -167,10 +171,6 @@ def _units(name: str, c: Calibration, raw: float, norm: float, ref: float) -> No
 def _read(path: str, c: Calibration, spec: ReadSpec, notes: list[str]) -> Samples:
     """A static capture's readings; with a thermal block, each row brought to T_ref at its own
     temperature (core.drift.at_reference), the rows outside the range noted."""
-    import numpy as np
-
-    from tumblecal_cli.core import drift
-    from tumblecal_cli.io import readings
 
     if c.thermal is None:
         return readings.read_samples(path, spec)
@@ -222,20 +222,12 @@ def verify_rotations(
     still blocks (pipeline.rotations.hand_turns, gravity from ``accel_cal``). "Before" is the
     calibration's bias and its mean gain alone (no per-axis scale, no cross-axis terms): what a
     datasheet sensitivity gives; "after" is its full matrix."""
-    import numpy as np
-
-    from tumblecal_cli.core import rotation_fit
-    from tumblecal_cli.io import calfile
-    from tumblecal_cli.io.readspec import ReadSpec, column_list
-    from tumblecal_cli.pipeline.options import LogOptions, SolveOptions, path_of
-    from tumblecal_cli.pipeline.rotations import hand_turns
 
     c = calfile.resolve(cal)
     if c.sensor != "gyroscope":
         raise InputError(
             f"--log with --accel-cal verifies a gyroscope's calibration, not the {c.sensor}'s", file=c.path
         )
-    from tumblecal_cli.pipeline.logs import FASTEST
 
     if rate is not None and not 0 < rate <= FASTEST:
         raise InputError(f"--rate must be a positive number of Hz up to {FASTEST:g}, got {rate:g}")
