@@ -40,15 +40,7 @@ def solution(offset: Any = (0.02, -0.015, 0.03), gain: Any = (1.01, 0.98, 1.02))
 
 
 def document(sol: Solution | None = None, *, sensor: str = "accelerometer", reference: float = 1.0) -> dict[str, Any]:
-    return calfile.build(
-        sol or solution(),
-        sensor=sensor,
-        reference=reference,
-        units=None,
-        input_units=None,
-        columns=["ax", "ay", "az"],
-        poses=POSES,
-    ).to_dict()
+    return calfile.build(sol or solution(), calfile.Basis(sensor, reference, ["ax", "ay", "az"]), POSES).to_dict()
 
 
 # --- round trip -----------------------------------------------------------------------------------
@@ -174,15 +166,8 @@ def test_units_default_to_g_only_for_an_accelerometer_with_reference_1(
 
 
 def test_units_given_are_kept() -> None:
-    doc = calfile.build(
-        solution(),
-        sensor="accelerometer",
-        reference=9.80665,
-        units="m/s^2",
-        input_units="counts",
-        columns=["x", "y", "z"],
-        poses=[],
-    ).to_dict()
+    basis = calfile.Basis("accelerometer", 9.80665, ["x", "y", "z"], "m/s^2", "counts")
+    doc = calfile.build(solution(), basis, []).to_dict()
     assert (doc["units"], doc["input_units"]) == ("m/s^2", "counts")
 
 

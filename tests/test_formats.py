@@ -50,12 +50,8 @@ def write_cal(
     m = np.asarray(matrix, dtype=float)
     doc = calfile.build(
         Solution(method, np.asarray(offset, dtype=float), m, np.full(3, 1e-5), np.full(3, 1e-5)),
-        sensor=sensor,
-        reference=reference,
-        units=None,
-        input_units="counts",
-        columns=["ax", "ay", "az"],
-        poses=[{"pose": "+z", "file": "z.csv", "samples": 10, "mean": [0.0, 0.0, 1.0], "std": [0.0] * 3}],
+        calfile.Basis(sensor, reference, ["ax", "ay", "az"], None, "counts"),
+        [{"pose": "+z", "file": "z.csv", "samples": 10, "mean": [0.0, 0.0, 1.0], "std": [0.0] * 3}],
         unit={"serial": serial, "station": None, "operator": None, "meta": {}},
     )
     calfile.write(doc, str(path))

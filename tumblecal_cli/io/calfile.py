@@ -403,31 +403,53 @@ def _unit(value: object, kept: dict[str, object]) -> Unit | None:
     return unit
 
 
+@dataclass(frozen=True)
+class Basis:
+    """What a calibration is of and in: the ``sensor``, the ``reference`` magnitude, the sensor
+    ``columns``, the output and input units; and the tolerances its tilt sensitivity is stated
+    for (the fixture's ``tolerance_deg``, and ``gain_tolerance``, the gain error a 1-pose up
+    offset's tilt sensitivity allows for)."""
+
+    sensor: str
+    reference: float
+    columns: Sequence[str]
+    units: str | None = None
+    input_units: str | None = None
+    tolerance_deg: float = 1.0
+    gain_tolerance: float | None = None
+
+
+@dataclass(frozen=True)
+class Made:
+    """How a calibration's poses were found and what a gyroscope turned through: the
+    ``segmentation`` of a continuous log, a gyroscope's known ``turns`` and ``g_sensitivity``,
+    or its hand ``rotations``."""
+
+    segmentation: Segmentation | None = None
+    turns: Sequence[Turn] | None = None
+    g_sensitivity: GSensitivity | None = None
+    rotations: Sequence[Rotation] | None = None
+
+
 def build(
     solution: Solution,
-    *,
-    sensor: str,
-    reference: float,
-    units: str | None,
-    input_units: str | None,
-    columns: list[str],
+    basis: Basis,
     poses: Sequence[Pose | Doc],
+    *,
     fit: Fit | None = None,
-    tolerance_deg: float = 1.0,
-    gain_tolerance: float | None = None,
     unit: Unit | Doc | None = None,
     verdict: Verdict | None = None,
-    segmentation: Segmentation | None = None,
-    turns: Sequence[Turn] | None = None,
-    g_sensitivity: GSensitivity | None = None,
-    rotations: Sequence[Rotation] | None = None,
+    made: Made | None = None,
 ) -> Calibration:
     """The calibration of a solution, fields in the order of README "Calibration file (format
     version 1)"; ``fit`` adds what the solver measured beyond the parameters (tilt sensitivity,
-    covariance, coverage, residuals); ``segmentation`` how the poses were found in a continuous
-    log (after ``poses``, and after a gyroscope's ``turns`` and ``g_sensitivity`` or
-    ``rotations``); ``gain_tolerance`` the gain error a 1-pose up offset's tilt sensitivity
-    allows for. ``poses`` and ``unit`` may also be given in the file's form (objects)."""
+    covariance, coverage, residuals); ``made`` how the poses were found in a continuous log
+    (after ``poses``, and after a gyroscope's ``turns`` and ``g_sensitivity`` or
+    ``rotations``). ``poses`` and ``unit`` may also be given in the file's form (objects)."""
+    sensor, reference, columns, units = basis.sensor, basis.reference, list(basis.columns), basis.units
+    tolerance_deg, gain_tolerance = basis.tolerance_deg, basis.gain_tolerance
+    made = made or Made()
+    segmentation, turns, g_sensitivity, rotations = made.segmentation, made.turns, made.g_sensitivity, made.rotations
     if units is None and sensor == "accelerometer" and reference == 1.0:
         units = "g"
     kept: dict[str, object] = {}  # a unit given as an object, if its values are not text
@@ -463,7 +485,7 @@ def build(
         matrix=solution.matrix,
         gain=solution.gain,
         units=units,
-        input_units=input_units,
+        input_units=basis.input_units,
         uncertainty=uncertainty,
         tilt_sensitivity=tilt,
         poses=tuple(p if isinstance(p, Pose) else read_pose(p) for p in poses),

@@ -29,7 +29,7 @@ from tumblecal_cli.pipeline.options import SolveOptions, method_options, path_of
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Corrected, Finding, Limits, PoseCheck
-    from tumblecal_cli.core.model import FloatArray, PoseStats
+    from tumblecal_cli.core.model import FloatArray, PoseStats, Solution
     from tumblecal_cli.io import calfile
     from tumblecal_cli.io.calfile import Calibration, Pose
     from tumblecal_cli.io.readings import Samples
@@ -127,17 +127,8 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Path
     assert files_or_data is not None
     name, labels, samples, placed = _read_poses(files_or_data, options, given)
     notes = [] if placed.note is None else [placed.note]
-    return _solve(
-        name,
-        labels,
-        samples,
-        options,
-        given,
-        whole=[s.values for s in samples],
-        notes=notes,
-        by_name=placed.by_name,
-        labelled=placed.labelled,
-    )
+    chosen = PoseSet(labels, samples, [s.values for s in samples], notes or [], None, placed.by_name, placed.labelled)
+    return _solve(name, chosen, options, given)
 
 
 def _poses_given(poses: object, options: SolveOptions) -> list[str] | Mapping[str, object]:
@@ -347,49 +338,38 @@ def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
     )
     given = replace(given, centre=seg.centre)
     whole = [data.values if data.extremes is None else data.extremes]  # the still blocks alone: the extremes
-    solved = _solve(name, labels, samples, options, given, whole=whole, notes=notes, segmentation=segmentation)
+    solved = _solve(name, PoseSet(labels, samples, whole, notes or [], segmentation), options, given)
     solved.blocks = blocks
     return solved
 
 
-def _solve(
-    name: str,
-    labels: list[str | None],
-    samples: list[Samples],
-    options: SolveOptions,
-    given: Settings,
-    *,
-    whole: list[FloatArray],
-    notes: list[str] | None = None,
-    segmentation: calfile.Segmentation | None = None,
-    by_name: bool = False,
-    labelled: bool = False,
-) -> Solved:
-    """Average, solve, check and judge the poses; build the calibration. ``notes``: how the
-    poses were chosen (a log's blocks) or labelled (by their files' names: ``by_name``)."""
+@dataclass(frozen=True)
+class PoseSet:
+    """The poses a solver is given: their ``labels`` and ``samples``; ``whole``, every reading
+    of the captures they came from (their integer rails are judged on it); ``notes`` on how they
+    were chosen (a log's blocks) or labelled; a log's ``segmentation``; and whether the faces
+    were told by the files' names (``by_name``) or by labels (``labelled``)."""
 
+    labels: list[str | None]
+    samples: list[Samples]
+    whole: list[FloatArray]
+    notes: list[str] = field(default_factory=list)
+    segmentation: calfile.Segmentation | None = None
+    by_name: bool = False
+    labelled: bool = False
+
+
+def _solve(name: str, poses: PoseSet, options: SolveOptions, given: Settings) -> Solved:
+    """Average, solve, check and judge the poses; build the calibration."""
+    labels, samples = poses.labels, poses.samples
     for s in samples:
         model.in_range(s.values, s.name)
-    log_notes = notes or []  # how the blocks of a log were chosen, or the files labelled
-    ref, gyro = given.reference, options.read.sensor == "gyroscope"
-    noise = options.checks.max_noise if options.checks.max_noise is not None else (None if gyro else 0.02)
-    checks = gate.Options(
-        noise_bound=None if noise is None else (noise if gyro else noise * ref),  # a gyroscope: in its units
-        noise_rule="" if noise is None else (f"{noise:g}" if gyro else f"{noise:g} × reference {ref:g}"),
-        max_tilt_deg=options.checks.max_tilt,
-        nominal_offset=triplet("0", "--nominal-offset") if given.centre is None else given.centre,
-        full_scale=options.checks.full_scale,
-        min_samples=options.checks.min_samples,
-        skip=frozenset(
-            gate.CHECKS if options.checks.no_checks else [c.replace("-", "_") for c in options.checks.no_check]
-        ),
-        rails=gate.integer_rails(whole),
-        faces_by_name=by_name,
-        faces_labelled=labelled,
-    )
+    ref = given.reference
+    checks = _gate_options(poses, options, given)
     stats = [model.pose_stats(s.values) for s in samples]
     names = [s.name for s in samples]
     tilted: list[Finding] = []
+    log_notes = list(poses.notes)  # how the blocks of a log were chosen, or the files labelled
     if name == "six-pose" and ref > 0:
         name, tilted = _six_faces(name, given.method == "auto", stats, names, log_notes)
     if name in ONE_POSE:
@@ -404,26 +384,7 @@ def _solve(
         )
         fit = solvers.run(name, stats, [s.values for s in samples], labels, told, names)
     except CaptureRejected as err:
-        if err.code == "poses.tilted" and ref > 0:  # a pose on another face than declared reads as
-            again = _solve(  # a tilt of 60°: the checks of the six-pose fit say which file and face
-                "six-pose",
-                labels,
-                samples,
-                options,
-                replace(given, method="six-pose"),
-                whole=whole,
-                notes=notes,
-                segmentation=segmentation,
-                by_name=by_name,
-                labelled=labelled,
-            )
-            if again.status == 3 and {f.code for f in again.rejections} & {"pose.orientation", "pose.upside_down"}:
-                return again
-        if by_name and err.code == "pose.upside_down":  # a three-pose gain of zero: not the files' order
-            err.hint = gate.NAMED_HINT
-        if log_notes and name == "sphere":  # auto's choice: say why, and the way back
-            err.hint = f"{err.hint + '; ' if err.hint else ''}{log_notes[0]}"
-        return Solved(3, None, error=err, samples=samples, limits=given.limits)
+        return _rejected_fit(err, name, poses, options, given)
     solution = fit.solution
     judged = given.limits.gain_error is not None or given.limits.nominal_gain_given
     if ref > 0 and solution.method in gate.GAIN_SOLVERS and judged:
@@ -435,71 +396,112 @@ def _solve(
     if ref > 0:  # a gyroscope at rest has no direction to judge
         measured = gate.orient(measured, checks.nominal_offset, checks.max_tilt_deg)
     rejected, warned = gate.check(measured, solution, checks)
-    warned += tilted
-    if "upside_down" in checks.skip and solution.method not in gate.FIXED_GAINS:  # its check off: still said
-        warned += [
-            gate.Finding(
-                "pose.upside_down",
-                f"gain {g:.4g} on {axis} is negative: this calibration mirrors {axis} (a pose upside down or "
-                "on the wrong face; the check that rejects it is off)",
-                float(g),
-                0.0,
-            )
-            for axis, g in zip("xyz", solution.gain.tolist(), strict=True)
-            if g < 0
-        ]
+    warned += tilted + _mirrored(solution, checks)
     fixed = [
         gate.corrected(st.mean, st.std, f, solution.offset, solution.matrix, ref)
         for st, f in zip(stats, labels, strict=True)
     ]
+    largest = None if fit.residuals is None or not len(fit.residuals) else float(abs(fit.residuals).max())
+    pairs = list(zip(names, labels, fixed, strict=True))
     failures = (
-        []
-        if rejected
-        else gate.verdict(
-            solution.method,
-            solution.offset,
-            solution.matrix,
-            list(zip(names, labels, fixed, strict=True)),
-            limits,
-            None if fit.residuals is None or not len(fit.residuals) else float(abs(fit.residuals).max()),
-        )
+        [] if rejected else gate.verdict(solution.method, solution.offset, solution.matrix, pairs, limits, largest)
+    )
+    basis = calfile.Basis(
+        options.read.sensor,
+        ref,
+        samples[0].layout.sensor_names,
+        options.units,
+        options.input_units,
+        tolerance_deg=options.checks.fixture_tolerance,
+        gain_tolerance=options.checks.gain_tolerance if solution.method in ONE_POSE else None,
     )
     cal = calfile.build(
         solution,
-        sensor=options.read.sensor,
-        reference=ref,
-        units=options.units,
-        input_units=options.input_units,
-        columns=samples[0].layout.sensor_names,
-        poses=[pose_record(s, m, c) for s, m, c in zip(samples, measured, fixed, strict=True)],
+        basis,
+        [pose_record(s, m, c) for s, m, c in zip(samples, measured, fixed, strict=True)],
         fit=fit,
-        tolerance_deg=options.checks.fixture_tolerance,
-        gain_tolerance=options.checks.gain_tolerance if solution.method in ONE_POSE else None,
         unit=given.unit,
         verdict=calfile.Verdict(not failures, tuple(failures), limits),
-        segmentation=segmentation,
+        made=calfile.Made(poses.segmentation),
     )
     read = list(dict.fromkeys(n for s in samples for n in s.layout.notes))  # how the files were read
     said = read + log_notes + tilt_notes(cal) + list(fit.notes)
     said += _solve_notes(stats, names, given.limits, solution.method)
     solved = Solved(0, cal, cal, [], failures, warned, said, samples=samples, limits=given.limits)
     if rejected:
-        first = rejected[0]
-        # the draft is never to be trusted: its verdict fails with the rejections, so apply and
-        # export refuse it without --force if it is saved
-        refused = calfile.Verdict(False, tuple(rejected), limits)
-        solved.status, solved.calibration, solved.rejections = 3, None, rejected
-        solved.draft = cal.with_verdict(refused)
-        solved.error = CaptureRejected(
-            first.render(),
-            hint=first.hint or REJECTION_HINTS[first.code],
-            more=tuple(f.render() for f in rejected[1:]),
-            code=first.code,
-            codes=tuple(f.code for f in rejected),
-        )
+        _reject(solved, rejected, limits)
     elif failures:
         solved.status = 1
     return solved
+
+
+def _gate_options(poses: PoseSet, options: SolveOptions, given: Settings) -> gate.Options:
+    """What the quality checks are told: the noise bound (a gyroscope's in its units, else a
+    share of the reference), the tilt, the nominal offset, the full scale, the checks turned off."""
+    ref, gyro = given.reference, options.read.sensor == "gyroscope"
+    noise = options.checks.max_noise if options.checks.max_noise is not None else (None if gyro else 0.02)
+    return gate.Options(
+        noise_bound=None if noise is None else (noise if gyro else noise * ref),  # a gyroscope: in its units
+        noise_rule="" if noise is None else (f"{noise:g}" if gyro else f"{noise:g} × reference {ref:g}"),
+        max_tilt_deg=options.checks.max_tilt,
+        nominal_offset=triplet("0", "--nominal-offset") if given.centre is None else given.centre,
+        full_scale=options.checks.full_scale,
+        min_samples=options.checks.min_samples,
+        skip=frozenset(
+            gate.CHECKS if options.checks.no_checks else [c.replace("-", "_") for c in options.checks.no_check]
+        ),
+        rails=gate.integer_rails(poses.whole),
+        faces_by_name=poses.by_name,
+        faces_labelled=poses.labelled,
+    )
+
+
+def _rejected_fit(err: CaptureRejected, name: str, poses: PoseSet, options: SolveOptions, given: Settings) -> Solved:
+    """A solver that refused the poses: a pose on another face than declared reads as a tilt of
+    60°, so the checks of the six-pose fit say which file and face, when they can; else the
+    solver's own rejection, with a hint."""
+    if err.code == "poses.tilted" and given.reference > 0:
+        again = _solve("six-pose", poses, options, replace(given, method="six-pose"))
+        if again.status == 3 and {f.code for f in again.rejections} & {"pose.orientation", "pose.upside_down"}:
+            return again
+    if poses.by_name and err.code == "pose.upside_down":  # a three-pose gain of zero: not the files' order
+        err.hint = gate.NAMED_HINT
+    if poses.notes and name == "sphere":  # auto's choice: say why, and the way back
+        err.hint = f"{err.hint + '; ' if err.hint else ''}{poses.notes[0]}"
+    return Solved(3, None, error=err, samples=poses.samples, limits=given.limits)
+
+
+def _mirrored(solution: Solution, checks: gate.Options) -> list[Finding]:
+    """With the upside-down check off, a negative gain is still said (a warning per axis)."""
+    if "upside_down" not in checks.skip or solution.method in gate.FIXED_GAINS:
+        return []
+    return [
+        gate.Finding(
+            "pose.upside_down",
+            f"gain {g:.4g} on {axis} is negative: this calibration mirrors {axis} (a pose upside down or "
+            "on the wrong face; the check that rejects it is off)",
+            float(g),
+            0.0,
+        )
+        for axis, g in zip("xyz", solution.gain.tolist(), strict=True)
+        if g < 0
+    ]
+
+
+def _reject(solved: Solved, rejected: list[Finding], limits: Limits) -> None:
+    """``solved`` rejected (exit 3): no calibration, and a draft that is never to be trusted (its
+    verdict fails with the rejections, so apply and export refuse it without --force if saved)."""
+    first = rejected[0]
+    assert solved.calibration is not None
+    solved.draft = solved.calibration.with_verdict(calfile.Verdict(False, tuple(rejected), limits))
+    solved.status, solved.calibration, solved.rejections = 3, None, rejected
+    solved.error = CaptureRejected(
+        first.render(),
+        hint=first.hint or REJECTION_HINTS[first.code],
+        more=tuple(f.render() for f in rejected[1:]),
+        code=first.code,
+        codes=tuple(f.code for f in rejected),
+    )
 
 
 def _six_faces(

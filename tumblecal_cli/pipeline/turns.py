@@ -333,20 +333,15 @@ def gyro_calibration(
 
     limits = given.limits.for_method(solution.method)
     failures = gate.verdict(solution.method, solution.offset, solution.matrix, [], limits)
+    units = options.units or "deg/s"
+    basis = calfile.Basis("gyroscope", given.reference, gyr.layout.sensor_names, units, options.input_units)
     cal = calfile.build(
         solution,
-        sensor="gyroscope",
-        reference=given.reference,
-        units=options.units or "deg/s",
-        input_units=options.input_units,
-        columns=gyr.layout.sensor_names,
-        poses=poses,
+        basis,
+        poses,
         fit=Fit(solution, residuals=residual_deg, cross_se=cross_se),
         unit=given.unit,
         verdict=calfile.Verdict(not failures, tuple(failures), limits),
-        segmentation=made.segmentation,
-        turns=made.turns,
-        g_sensitivity=made.g_sensitivity,
-        rotations=made.rotations,
+        made=calfile.Made(made.segmentation, made.turns, made.g_sensitivity, made.rotations),
     )
     return cal, failures
