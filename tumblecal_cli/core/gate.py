@@ -158,14 +158,6 @@ def check(poses: Sequence[PoseCheck], solution: Solution, options: Options) -> t
     """
     rejected: list[Finding] = []
     warned: list[Finding] = []
-
-    def judge(finding: Finding, fails: bool, narrow: bool, close: str) -> None:
-        """Reject ``finding``, or warn with the message ``close`` when it passed narrowly."""
-        if fails:
-            rejected.append(finding)
-        elif narrow:
-            warned.append(replace(finding, message=close, hint=None))
-
     declared = [p.face for p in poses]
     misread = False  # a pose is not what it claims: it spoils the solution moved and upside_down judge through
     for check_name in CHECKS:
@@ -175,92 +167,104 @@ def check(poses: Sequence[PoseCheck], solution: Solution, options: Options) -> t
         for p in poses:
             if any(r.file == p.file for r in rejected):
                 continue  # one reason per pose: the first, in the order of CHECKS
-            where = {"file": p.file, "pose": p.face}
-            if check_name == "short":
-                n, least = p.stats.samples, options.min_samples
-                judge(
-                    Finding("pose.short", f"{_samples(n)}, fewer than --min-samples {least}", n, least, **where),
-                    n < least,
-                    least > 1 and n < least / NARROW,
-                    f"only {_samples(n)}, close to --min-samples {least}",
-                )
-            elif check_name == "saturated" and p.peak_fraction is not None:
-                level = (
-                    f"{CLIP_FRACTION:.0%} of --full-scale {options.full_scale:g}"
-                    if options.full_scale
-                    else "the limit of its integer type"
-                )
-                judge(
-                    Finding(
-                        "pose.saturated",
-                        f"{_samples(p.clipped)} clipped at {level} (peak {p.peak_fraction:.0%} of that)",
-                        p.clipped,
-                        0,
-                        **where,
-                    ),
-                    p.clipped > 0,
-                    p.peak_fraction > NARROW,
-                    f"peaks at {p.peak_fraction:.0%} of {level}, close to clipping",
-                )
-            elif check_name == "orientation" and p.angle_deg is not None:
-                judge(
-                    _orientation(
-                        p,
-                        declared,
-                        options.max_tilt_deg,
-                        by_name=options.faces_by_name,
-                        labelled=options.faces_labelled,
-                    ),
-                    p.angle_deg > options.max_tilt_deg,
-                    p.angle_deg > NARROW * options.max_tilt_deg,
-                    f"{p.angle_deg:.1f}° from {p.face}, close to --max-tilt {options.max_tilt_deg:g}°",
-                )
-            elif check_name == "moved" and options.noise_bound is not None and solution.method not in ROTATION:
-                # standard deviation and drift in output units, through the solved matrix
-                std = output_std(solution.matrix, p.stats.std)
-                drift = np.abs(solution.matrix) @ np.abs(p.drift)
-                worst_std, worst_drift = int(np.argmax(std)), int(np.argmax(drift))
-                bound = options.noise_bound
-                rule = f" (--max-noise {options.noise_rule})" if options.noise_rule else " (--max-noise)"
-                if drift[worst_drift] > std[worst_std]:
-                    what = f"drifts by {drift[worst_drift]:.3g} on {AXES[worst_drift]} (first vs last third)"
-                    value = float(drift[worst_drift])
-                else:
-                    what = f"standard deviation {std[worst_std]:.3g} on {AXES[worst_std]}"
-                    value = float(std[worst_std])
-                judge(
-                    Finding("pose.moved", f"{what}, above {bound:.3g}{rule}: the unit moved", value, bound, **where),
-                    not value <= bound,  # NaN fails
-                    value > NARROW * bound,
-                    f"{what}, close to {bound:.3g}{rule}",
-                )
-            elif check_name == "upside_down" and solution.method not in FIXED_GAINS and p.face in FACES:
-                assert p.face is not None
-                axis = "xyz".index(p.face[1])
-                if p.face[0] == "+" and solution.gain[axis] <= 0:
-                    cause = (
-                        "its file misnamed"
-                        if options.faces_by_name
-                        else "its label wrong"
-                        if options.faces_labelled
-                        else "the files out of order"
-                    )
-                    rejected.append(
-                        Finding(
-                            "pose.upside_down",
-                            f"gain {solution.gain[axis]:.4g} on {p.face[1]} (mean {_vec(p.stats.mean)}): "
-                            f"its {p.face[1]} axis was not pointing up (upside down, or {cause})",
-                            float(solution.gain[axis]),
-                            0.0,
-                            hint=NAMED_HINT
-                            if options.faces_by_name
-                            else LABELLED_HINT
-                            if options.faces_labelled
-                            else None,
-                            **where,
-                        )
-                    )
+            judged = _JUDGES[check_name](p, declared, solution, options)
+            if judged is None:
+                continue
+            finding, fails, narrow, close = judged
+            if fails:
+                rejected.append(finding)
+            elif narrow:  # passed narrowly: a warning with the message ``close``
+                warned.append(replace(finding, message=close, hint=None))
     return rejected, warned
+
+
+#: A pose's finding under one check, whether it fails, whether it passed narrowly, and the
+#: warning's message then; None where the check does not apply to the pose.
+Judged = tuple[Finding, bool, bool, str] | None
+
+
+def _short(p: PoseCheck, declared: list[str | None], solution: Solution, options: Options) -> Judged:
+    n, least = p.stats.samples, options.min_samples
+    finding = Finding(
+        "pose.short", f"{_samples(n)}, fewer than --min-samples {least}", n, least, file=p.file, pose=p.face
+    )
+    return finding, n < least, least > 1 and n < least / NARROW, f"only {_samples(n)}, close to --min-samples {least}"
+
+
+def _saturated(p: PoseCheck, declared: list[str | None], solution: Solution, options: Options) -> Judged:
+    if p.peak_fraction is None:
+        return None
+    level = (
+        f"{CLIP_FRACTION:.0%} of --full-scale {options.full_scale:g}"
+        if options.full_scale
+        else "the limit of its integer type"
+    )
+    message = f"{_samples(p.clipped)} clipped at {level} (peak {p.peak_fraction:.0%} of that)"
+    finding = Finding("pose.saturated", message, p.clipped, 0, file=p.file, pose=p.face)
+    close = f"peaks at {p.peak_fraction:.0%} of {level}, close to clipping"
+    return finding, p.clipped > 0, p.peak_fraction > NARROW, close
+
+
+def _oriented(p: PoseCheck, declared: list[str | None], solution: Solution, options: Options) -> Judged:
+    if p.angle_deg is None:
+        return None
+    tilt = options.max_tilt_deg
+    finding = _orientation(p, declared, tilt, by_name=options.faces_by_name, labelled=options.faces_labelled)
+    close = f"{p.angle_deg:.1f}° from {p.face}, close to --max-tilt {tilt:g}°"
+    return finding, p.angle_deg > tilt, p.angle_deg > NARROW * tilt, close
+
+
+def _moved(p: PoseCheck, declared: list[str | None], solution: Solution, options: Options) -> Judged:
+    if options.noise_bound is None or solution.method in ROTATION:
+        return None
+    # standard deviation and drift in output units, through the solved matrix
+    std = output_std(solution.matrix, p.stats.std)
+    drift = np.abs(solution.matrix) @ np.abs(p.drift)
+    worst_std, worst_drift = int(np.argmax(std)), int(np.argmax(drift))
+    bound = options.noise_bound
+    rule = f" (--max-noise {options.noise_rule})" if options.noise_rule else " (--max-noise)"
+    if drift[worst_drift] > std[worst_std]:
+        what = f"drifts by {drift[worst_drift]:.3g} on {AXES[worst_drift]} (first vs last third)"
+        value = float(drift[worst_drift])
+    else:
+        what = f"standard deviation {std[worst_std]:.3g} on {AXES[worst_std]}"
+        value = float(std[worst_std])
+    finding = Finding(
+        "pose.moved", f"{what}, above {bound:.3g}{rule}: the unit moved", value, bound, file=p.file, pose=p.face
+    )
+    return finding, not value <= bound, value > NARROW * bound, f"{what}, close to {bound:.3g}{rule}"  # NaN fails
+
+
+def _upside_down(p: PoseCheck, declared: list[str | None], solution: Solution, options: Options) -> Judged:
+    if solution.method in FIXED_GAINS or p.face not in FACES:
+        return None
+    assert p.face is not None
+    axis = "xyz".index(p.face[1])
+    if not (p.face[0] == "+" and solution.gain[axis] <= 0):
+        return None
+    by_name, labelled = options.faces_by_name, options.faces_labelled
+    cause = "its file misnamed" if by_name else "its label wrong" if labelled else "the files out of order"
+    finding = Finding(
+        "pose.upside_down",
+        f"gain {solution.gain[axis]:.4g} on {p.face[1]} (mean {_vec(p.stats.mean)}): "
+        f"its {p.face[1]} axis was not pointing up (upside down, or {cause})",
+        float(solution.gain[axis]),
+        0.0,
+        hint=NAMED_HINT if by_name else LABELLED_HINT if labelled else None,
+        file=p.file,
+        pose=p.face,
+    )
+    return finding, True, False, ""
+
+
+#: Each check of CHECKS and how it judges one pose.
+_JUDGES = {
+    "short": _short,
+    "saturated": _saturated,
+    "orientation": _oriented,
+    "moved": _moved,
+    "upside_down": _upside_down,
+}
 
 
 def _orientation(

@@ -24,7 +24,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any, TypeAlias
+from typing import TYPE_CHECKING, Any, TypeAlias, TypedDict, Unpack
 
 from tumblecal_cli.core import lot
 from tumblecal_cli.core.model import face_of_name
@@ -33,7 +33,7 @@ from tumblecal_cli.io import calfile
 from tumblecal_cli.io.outputs import atomic_output, remove_stale, spreadsheet_safe, unsafe
 from tumblecal_cli.pipeline import solve
 from tumblecal_cli.pipeline.cluster import engine
-from tumblecal_cli.pipeline.options import SolveOptions, checked, path_of, settings
+from tumblecal_cli.pipeline.options import SolveOptions, checked, keywords_known, path_of, settings
 
 if TYPE_CHECKING:
     import signal
@@ -759,22 +759,32 @@ class Batched:
         return pd.read_csv(self.summary)
 
 
+class BatchKeywords(TypedDict, total=False):
+    """How a batch runs: each unit a ``log`` (else pose files), ``jobs`` processes at a time or
+    on the Dask cluster at ``scheduler``, ``resume`` an earlier run; ``on_start`` sees the plan,
+    ``on_unit`` each unit's row."""
+
+    log: bool
+    jobs: int
+    resume: bool
+    scheduler: str | None
+    on_start: Callable[[Plan], None] | None
+    on_unit: Callable[[Row], None] | None
+
+
 def run_batch(
     source: str,
     out_dir: str,
     options: SolveOptions | Mapping[str, Any] | None = None,  # Any: SolveOptions' fields, checked there
-    *,
-    log: bool = False,
-    jobs: int = 1,
-    resume: bool = False,
-    scheduler: str | None = None,
-    on_start: Callable[[Plan], None] | None = None,
-    on_unit: Callable[[Row], None] | None = None,
+    **how: Unpack[BatchKeywords],
 ) -> Batched:
     """Calibrate every unit of ``source`` (a folder of units or a manifest CSV) as solve would
     with ``options``: each unit's calibration into ``out_dir`` as ``<serial>_<UTC time>.json``
     and its row into ``out_dir/summary.csv``. ``on_start`` sees the plan before any unit,
     ``on_unit`` each unit's row as it is recorded."""
+    keywords_known(how, BatchKeywords, "run_batch")
+    log, jobs, resume = how.get("log", False), how.get("jobs", 1), how.get("resume", False)
+    scheduler, on_start, on_unit = how.get("scheduler"), how.get("on_start"), how.get("on_unit")
 
     source = path_of(source, "run_batch takes a folder of units or a manifest file")
     out_dir = path_of(out_dir, "run_batch writes into a folder (out_dir)")

@@ -25,7 +25,7 @@ from tumblecal_cli.pipeline.turns import Made, Outcome, gyro_calibration, second
 if TYPE_CHECKING:
     from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.core.segment import Block, Segmentation
-    from tumblecal_cli.io.calfile import Calibration
+    from tumblecal_cli.io.calfile import Calibration, Pose
     from tumblecal_cli.io.readings import Log
     from tumblecal_cli.pipeline.options import Settings, SolveOptions
 
@@ -168,7 +168,8 @@ def from_log(log: str, options: SolveOptions, given: Settings) -> Outcome:
                     rotation_fit.MAX_RESIDUAL_DEG,
                 )
             )
-    cal, failures = _calibration(fit, bias, still, acc, gyr, kept, names, options, given)
+    solution, poses, made, cross_se = _parts(fit, bias, still, acc, gyr, kept, names)
+    cal, failures = gyro_calibration(solution, gyr, poses, fit.residual_deg, cross_se, made, options, given)
     if findings:
         return Outcome(3, None, draft=cal, rejections=findings, error=_rejected(findings, name))
     notes = [
@@ -196,7 +197,7 @@ def _rejected(findings: list[Finding], name: str) -> CaptureRejected:
     )
 
 
-def _calibration(
+def _parts(
     fit: rotation_fit.RotationsFit,
     bias: FloatArray,
     still: FloatArray,
@@ -204,9 +205,9 @@ def _calibration(
     gyr: Log,
     kept: list[Block],
     names: list[str],
-    options: SolveOptions,
-    given: Settings,
-) -> tuple[Calibration, list[Finding]]:
+) -> tuple[Solution, list[Pose], Made, FloatArray | None]:
+    """The solution (the bias of the still blocks, the fitted matrix), the calibration's poses
+    (the still blocks), what it was made of (the hand rotations) and the cross terms' 1-sigma."""
 
     gain_se, cross_se = rotation_fit.gain_se(fit.matrix, fit.matrix_cov)
     bias_se = still.std(axis=0, ddof=1) / np.sqrt(len(still))
@@ -233,4 +234,4 @@ def _calibration(
             for name, angle, res in zip(names, fit.angle_deg, fit.residual_deg, strict=True)
         ),
     )
-    return gyro_calibration(solution, gyr, poses, fit.residual_deg, cross_se, made, options, given)
+    return solution, poses, made, cross_se

@@ -207,7 +207,8 @@ def _solve(acc: Log, gyr: Log, options: SolveOptions, given: Settings) -> Outcom
     rejections = _moved(fit, still, still_sections, options) + _implausible(fit, turns, axes, angle)
     skip = options.checks.no_checks or "moved" in options.checks.no_check
     rejections = [r for r in rejections if not (skip and r.code == "turns.moved")]
-    cal, failures = _calibration(fit, acc, gyr, still_sections, list(SIX), turns, given_turns, options, given)
+    poses, made = _parts(fit, acc, gyr, still_sections, list(SIX), turns, given_turns)
+    cal, failures = gyro_calibration(fit.solution, gyr, poses, fit.residual_deg, fit.cross_se, made, options, given)
     if rejections:
         return Outcome(3, None, draft=cal, rejections=rejections, error=_rejected(rejections, name), notes=notes)
     notes += [
@@ -264,7 +265,7 @@ def _implausible(fit: turn_fit.TurnsFit, turns: dict[str, str], axes: FloatArray
     return out
 
 
-def _calibration(
+def _parts(
     fit: turn_fit.TurnsFit,
     acc: Log,
     gyr: Log,
@@ -272,11 +273,10 @@ def _calibration(
     faces: list[str],
     turns: dict[str, str],
     given_turns: list[turn_fit.Turn],
-    options: SolveOptions,
-    given: Settings,
-) -> tuple[Calibration, list[Finding]]:
+) -> tuple[list[Pose], Made]:
+    """The calibration's poses (the still sections) and what it was made of (the known turns,
+    the g-sensitivity, the label column that found them)."""
 
-    solution = fit.solution
     poses = [
         calfile.Pose(
             face=face,
@@ -314,7 +314,7 @@ def _calibration(
             calfile.Accelerometer(tuple(acc.layout.sensor_names), fit.acc_offset, fit.acc_matrix),
         ),
     )
-    return gyro_calibration(solution, gyr, poses, fit.residual_deg, fit.cross_se, made, options, given)
+    return poses, made
 
 
 def gyro_calibration(
