@@ -23,6 +23,7 @@ if TYPE_CHECKING:
     from tumblecal_cli.io.calfile import Calibration
     from tumblecal_cli.io.readings import Log
     from tumblecal_cli.pipeline.batch import Row
+    from tumblecal_cli.pipeline.verify import CaptureRow
 
 
 def make_console(stderr: bool = True) -> Console:
@@ -447,7 +448,7 @@ def print_lot(result: Any, console: Console, plot: str | None, *, drift_given: b
 
 def print_verify(
     cal: Calibration,
-    rows: list[dict[str, Any]],
+    rows: list[CaptureRow],
     overall: dict[str, float],
     ref: float,
     bound: float | None,

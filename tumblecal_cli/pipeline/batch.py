@@ -24,7 +24,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any, TypeAlias, TypedDict, Unpack
+from typing import TYPE_CHECKING, TypeAlias, TypedDict, Unpack
 
 from tumblecal_cli.core import lot
 from tumblecal_cli.core.model import face_of_name
@@ -41,6 +41,7 @@ if TYPE_CHECKING:
 
     from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfile import Calibration, Pose
+    from tumblecal_cli.pipeline.frames import DataFrame
     from tumblecal_cli.pipeline.options import SolveOptions
 
 #: A signal's handler, as the signal module gives and takes it.
@@ -752,7 +753,7 @@ class Batched:
     summary: str
     warnings: list[str] = field(default_factory=list)  # the same pose file under two serials
 
-    def table(self) -> Any:  # Any: a pandas DataFrame (pandas is untyped here)
+    def table(self) -> DataFrame:
         """summary.csv as a pandas DataFrame."""
         import pandas as pd
 
@@ -775,7 +776,7 @@ class BatchKeywords(TypedDict, total=False):
 def run_batch(
     source: str,
     out_dir: str,
-    options: SolveOptions | Mapping[str, Any] | None = None,  # Any: SolveOptions' fields, checked there
+    options: SolveOptions | Mapping[str, object] | None = None,  # SolveOptions.of checks the names
     **how: Unpack[BatchKeywords],
 ) -> Batched:
     """Calibrate every unit of ``source`` (a folder of units or a manifest CSV) as solve would

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import hashlib
 import os
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 
@@ -21,8 +21,13 @@ if TYPE_CHECKING:
     from tumblecal_cli.io.readings import Samples
     from tumblecal_cli.pipeline.options import SolveOptions
 
+#: A pandas DataFrame: pandas ships no types here, so to mypy it is Any (the one place that says so).
+DataFrame: TypeAlias = Any
+#: A JSON object the Python API returns (``to_dict``): read by key, each value what README's format says.
+JSONObject: TypeAlias = dict[str, Any]
 
-def samples_of(label: str, data: Any, options: SolveOptions) -> Samples:
+
+def samples_of(label: str, data: DataFrame, options: SolveOptions) -> Samples:
     """One pose from memory: a DataFrame (its sensor columns found as a file's header would be,
     or named by ``columns``) or an (n, 3) array; named ``<label>`` in messages and the file."""
 
@@ -58,7 +63,7 @@ def read_pose(path: str, options: SolveOptions) -> Samples:
     return readings.read_samples(path, options.read)
 
 
-def read_capture(path: str | os.PathLike[str], *, no_header: bool = False) -> Any:
+def read_capture(path: str | os.PathLike[str], *, no_header: bool = False) -> DataFrame:
     """A capture as a pandas DataFrame, read by the CSV rules of the command line (delimiter,
     header, comments, BOM and line ends detected; sensor cells checked): every column, integer,
     float or text, in the file's order."""

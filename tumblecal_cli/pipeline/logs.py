@@ -15,7 +15,7 @@ import sys
 import tempfile
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Unpack
+from typing import TYPE_CHECKING, Unpack
 
 import numpy as np
 
@@ -29,6 +29,9 @@ from tumblecal_cli.io.readings import Log, Samples
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.pipeline.options import ReadKeywords, keywords_known, path_of, read_spec, triplet
 from tumblecal_cli.pipeline.options import pose_map as parse_pose_map
+
+if TYPE_CHECKING:
+    from tumblecal_cli.pipeline.frames import DataFrame
 
 #: The longest --window, --min-duration or --trim taken, in seconds (116 days: longer than a log) ...
 LONGEST = 1e7
@@ -445,7 +448,7 @@ class Segmented:
     removed: int = 0  # block files of an earlier segmentation into out_dir, removed
     stale: int = 0  # staging folders of an earlier, killed segment run into out_dir, removed
 
-    def table(self) -> Any:
+    def table(self) -> DataFrame:
         """The index as a pandas DataFrame, one row per block found, kept or dropped."""
         import pandas as pd
 

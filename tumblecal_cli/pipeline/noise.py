@@ -12,7 +12,7 @@ import math
 import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any, Unpack
+from typing import TYPE_CHECKING, Unpack
 
 import numpy as np
 import yaml
@@ -25,7 +25,10 @@ from tumblecal_cli.io.outputs import atomic_output
 from tumblecal_cli.pipeline.options import ReadKeywords, keywords_known, path_of, read_spec
 
 if TYPE_CHECKING:
+    from tumblecal_cli.core.model import FloatArray
+    from tumblecal_cli.io.calfile import Calibration
     from tumblecal_cli.io.readspec import ReadSpec
+    from tumblecal_cli.pipeline.frames import JSONObject
 
 #: Units a calibration may name, and what one of them is in SI (m/s^2 or rad/s).
 TO_SI = {
@@ -95,10 +98,10 @@ class Noise:
     units: str | None  # the data's units (the calibration's), None: raw
     choice: str  # native | datasheet | si
     figure_units: tuple[str, str, str]
-    curve: Any  # core.allan.Curve, in the data's units
-    axes: list[Any]  # core.allan.Figures per axis, in figure_units
-    limits: dict[str, Any] = field(default_factory=dict)
-    failures: list[Any] = field(default_factory=list)  # core.gate.Finding
+    curve: allan.Curve  # in the data's units
+    axes: list[allan.Figures]  # per axis, in figure_units
+    limits: dict[str, FloatArray] = field(default_factory=dict)
+    failures: list[gate.Finding] = field(default_factory=list)
     not_judged: list[str] = field(default_factory=list)
     rejected: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
@@ -116,7 +119,7 @@ class Noise:
             hint="capture it again with the unit resting still (and its temperature settled)",
         )
 
-    def verdict(self) -> dict[str, Any] | None:
+    def verdict(self) -> JSONObject | None:
         if not self.limits:
             return None
         bounds = {k: [float(x) for x in v] for k, v in self.limits.items()}
@@ -127,7 +130,7 @@ class Noise:
             "not_judged": self.not_judged,
         }
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JSONObject:
         """The --json object (README "tumblecal noise")."""
         low, high = self.curve.interval()
         curve = {"tau": [float(t) for t in self.curve.tau], "terms": [int(t) for t in self.curve.terms]}
@@ -195,8 +198,8 @@ def _finite(v: float) -> float | None:
 class NoiseKeywords(ReadKeywords, total=False):
     """noise's options beside how the capture is read (README "tumblecal noise")."""
 
-    cal: Any  # a Calibration, or its file
-    limits: str | Mapping[str, Any] | None
+    cal: Calibration | str | os.PathLike[str] | None
+    limits: str | os.PathLike[str] | Mapping[str, object] | None
     units: str | None
     per_octave: int
     progress: Callable[[int], None] | None
@@ -260,7 +263,7 @@ def noise(
     return result
 
 
-def _kalibr_units(sensor: str, cal: Any, units: str | None) -> None:
+def _kalibr_units(sensor: str, cal: Calibration | None, units: str | None) -> None:
     """Kalibr's figures are in SI: refuse a sensor it has no keys for, or units not known."""
     if sensor not in KALIBR_KEYS:
         raise InputError(f"Kalibr's noise model has no {sensor}: only an accelerometer or a gyroscope")
@@ -272,22 +275,24 @@ def _kalibr_units(sensor: str, cal: Any, units: str | None) -> None:
     factors(sensor, units, "si")
 
 
-def _limits(limits: str | Mapping[str, Any] | None) -> dict[str, Any]:
+def _limits(limits: str | os.PathLike[str] | Mapping[str, object] | None) -> dict[str, FloatArray]:
     """The noise limits of a limits file (or a mapping of them), each (3,)."""
 
     if limits is None:
         return {}
     given = calfile.load_limits(os.fspath(limits)) if isinstance(limits, str | os.PathLike) else dict(limits)
-    out = {}
+    out: dict[str, FloatArray] = {}
     for key in calfile.NOISE_LIMITS:
-        if given.get(key) is not None:
-            value = given[key]
-            array = calfile.limit_value(list(value) if not np.isscalar(value) else value, key, None, per_axis=True)
-            out[key] = array
+        value = given.get(key)
+        if value is not None:
+            listed = list(value) if isinstance(value, list | tuple | np.ndarray) else value  # [x, y, z], or one
+            out[key] = np.asarray(calfile.limit_value(listed, key, None, per_axis=True), dtype=np.float64)
     return out
 
 
-def judge(axes: list[Any], bounds: Mapping[str, Any], figure_units: tuple[str, ...]) -> tuple[list[Any], list[str]]:
+def judge(
+    axes: list[allan.Figures], bounds: Mapping[str, FloatArray], figure_units: tuple[str, ...]
+) -> tuple[list[gate.Finding], list[str]]:
     """Each figure above its limit (a failure, code ``limit.<figure>.<axis>``), and those not
     determined where a limit asks for them (not judged: said, not failed)."""
 
@@ -314,8 +319,12 @@ def judge(axes: list[Any], bounds: Mapping[str, Any], figure_units: tuple[str, .
 
 
 def _stream(
-    path: str, cal: Any, spec: ReadSpec, stream: Any, progress: Callable[[int], None] | None
-) -> tuple[Any, Any, str, list[str], float]:
+    path: str,
+    cal: Calibration | None,
+    spec: ReadSpec,
+    stream: allan.AllanStream,
+    progress: Callable[[int], None] | None,
+) -> tuple[allan.Curve, allan.StepWatch, str, list[str], float]:
     """Read the capture block by block into the Allan stream and the step watch."""
 
     rate, time_unit = spec.rate, spec.time_unit
@@ -326,7 +335,7 @@ def _stream(
                 "the sample rate is unknown: the capture has no time column", file=lay.name, hint="give --rate HZ"
             )
         hz = rate
-        watch: Any = None
+        watch: allan.StepWatch | None = None
         for first_row, cols in cap.batches(only_sensor=True):
             values, empty = cap.sensor_values(cols, first_row)
             bad = ~np.isfinite(values) & ~empty[:, None]
@@ -351,13 +360,13 @@ def _stream(
     return stream.result(hz), watch or allan.StepWatch(1), lay.name, list(lay.notes), hz
 
 
-def write_kalibr(path: str, result: Noise) -> dict[str, Any]:
+def write_kalibr(path: str, result: Noise) -> dict[str, float]:
     """Write (atomically) the noise model Kalibr's imu.yaml and VINS read, in SI. An existing
     file's other keys (the other sensor's figures, rostopic ...) are kept: run it once for the
     accelerometer and once for the gyroscope into one file."""
 
     model = result.kalibr()
-    doc: dict[str, Any] = {}
+    doc: dict[str, object] = {}
     if os.path.isfile(path):  # a file's keys are kept; a device or a pipe (/dev/null, -) is written into
         doc = calfile.parse_object(calfile.read_bytes(path, "Kalibr imu.yaml"), path, "Kalibr imu.yaml", as_yaml=True)
     old_rate = doc.get("update_rate")

@@ -7,7 +7,7 @@ import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any, Unpack
+from typing import TYPE_CHECKING, TypedDict, Unpack
 
 import numpy as np
 
@@ -24,6 +24,31 @@ if TYPE_CHECKING:
     from tumblecal_cli.io.calfile import Calibration
     from tumblecal_cli.io.readings import Samples
     from tumblecal_cli.io.readspec import ReadSpec
+    from tumblecal_cli.pipeline.frames import DataFrame
+
+
+class CaptureRow(TypedDict):
+    """A held-out capture's figures (verify's table and --json): its norm before and after
+    correction and their errors against the reference (before: None when raw and corrected
+    are in different units), the spread of the corrected readings."""
+
+    file: str
+    samples: int
+    norm_before: float
+    error_before: float | None
+    norm_after: float
+    error_after: float
+    std: list[float]
+
+
+class RotationRow(TypedDict):
+    """A held-out hand turn's figures (verify --log): its angle, and how far the gyroscope misses
+    the gravity direction after it, with the nominal gain and with the calibration."""
+
+    rotation: str
+    angle_deg: float
+    error_before_deg: float
+    error_after_deg: float
 
 
 @dataclass
@@ -35,7 +60,7 @@ class Verified:
     cal: Calibration  # the Calibration judged
     reference: float
     max_norm_error: float | None
-    rows: list[dict[str, Any]]  # Any: each capture's figures, as --json and table() give them
+    rows: list[CaptureRow]  # each capture's figures, as --json and table() give them
     overall: dict[str, float]
     rejected: list[str] = field(default_factory=list)
     failed: list[str] = field(default_factory=list)
@@ -50,7 +75,7 @@ class Verified:
             self.rejected[0], more=tuple(self.rejected[1:]), hint="capture it again holding the unit still"
         )
 
-    def table(self) -> Any:  # Any: a pandas DataFrame (pandas is untyped here)
+    def table(self) -> DataFrame:
         """The per-capture rows as a pandas DataFrame."""
         import pandas as pd
 
@@ -115,7 +140,7 @@ def verify(
         before = float((st.mean**2).sum() ** 0.5)
         fixed = gate.corrected(st.mean, st.std, None, c.offset, c.matrix, ref)  # the norm error, as solve's
         std = fixed.std
-        row: dict[str, Any] = {
+        row: CaptureRow = {
             "file": s.layout.name,
             "samples": st.samples,
             "norm_before": before,
@@ -140,7 +165,7 @@ def verify(
         "max_error": float(max(abs(e) for e in errors)),
     }
     if same_units:
-        raw_errors = [r["error_before"] for r in result.rows]
+        raw_errors = [e for r in result.rows if (e := r["error_before"]) is not None]  # each, with same_units
         result.overall["rms_error_before"] = float((sum(e * e for e in raw_errors) / len(raw_errors)) ** 0.5)
         result.overall["max_error_before"] = float(max(abs(e) for e in raw_errors))
     result.status = 3 if result.rejected else (1 if result.failed else 0)
@@ -198,11 +223,11 @@ class VerifiedRotations:
 
     status: int
     cal: Calibration
-    rows: list[dict[str, Any]]  # Any: each rotation's figures, as --json and table() give them
+    rows: list[RotationRow]  # each rotation's figures, as --json and table() give them
     overall: dict[str, float]
     notes: list[str] = field(default_factory=list)
 
-    def table(self) -> Any:  # Any: a pandas DataFrame (pandas is untyped here)
+    def table(self) -> DataFrame:
         import pandas as pd
 
         return pd.DataFrame(self.rows)
@@ -249,7 +274,7 @@ def verify_rotations(
     _, before, _ = rotation_fit.judged(turns.rotations, c.offset, nominal)
     angles, after, _ = rotation_fit.judged(turns.rotations, c.offset, c.matrix)
     rows = [
-        {"rotation": n, "angle_deg": float(a), "error_before_deg": float(b), "error_after_deg": float(e)}
+        RotationRow(rotation=n, angle_deg=float(a), error_before_deg=float(b), error_after_deg=float(e))
         for n, a, b, e in zip(turns.names, angles, before, after, strict=True)
     ]
     overall = {
