@@ -8,6 +8,7 @@ by ``io.forked`` for a large file) and hands any other block to pyarrow's reader
 
 from __future__ import annotations
 
+import functools
 import io
 import itertools
 import os
@@ -25,15 +26,15 @@ from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import capture, forked
 from tumblecal_cli.io.capture import Capture, DataStream, Source, note_dropped
 from tumblecal_cli.io.sniff import BoolArray, FloatArray, Layout, skipped
-from tumblecal_cli.io.splice import Splicer
+from tumblecal_cli.io.splice import Correct, Correction, Splicer
 
 if TYPE_CHECKING:
     from _typeshed import WriteableBuffer
 
 #: A block's result: record batches the general rules read, or a spliced block's bytes and rows.
 Item: TypeAlias = "pa.RecordBatch | tuple[memoryview, int]"
-#: A job for the pool: a function giving a block's results, and its arguments.
-Job: TypeAlias = "tuple[Callable[..., list[Item]], *tuple[object, ...]]"
+#: A job for the pool: a block's results, once called.
+Job: TypeAlias = Callable[[], list[Item]]
 #: The general rules for one block: (source, its first data row, its columns as text) -> results.
 Convert: TypeAlias = Callable[[Capture, int, list[pa.Array]], list[Item]]
 #: Where a block's results are written: the output, or a worker's ``forked.Parts``.
@@ -43,9 +44,9 @@ Sink: TypeAlias = "IO[bytes] | forked.Parts"
 def correct_stream(
     cap: Capture,
     out: IO[bytes],
-    correct: Callable[..., FloatArray],
+    correct: Correct,
     progress: Callable[[int], None] | None = None,
-    more: Sequence[tuple[tuple[int, int, int], Callable[..., FloatArray]]] = (),
+    more: Sequence[Correction] = (),
     temperature: int | None = None,
     *,
     splice: bool = True,
@@ -100,7 +101,7 @@ def correct_stream(
         elif splicer is not None:
             rows = _stream_spliced(cap, splicer, convert, write)
         else:
-            rows = _pipeline(((convert, cap, first_row, cols) for first_row, cols in cap.batches()), write)
+            rows = _pipeline((functools.partial(convert, cap, first, cols) for first, cols in cap.batches()), write)
     except InputError:
         if not head:  # rows are out (to stdout, which cannot take them back): say it is not all
             out.write(INCOMPLETE)
@@ -126,7 +127,7 @@ def _emit(items: list[Item], sink: Sink, options: pcsv.WriteOptions, lay: Layout
 
 
 def _pipeline(jobs: Iterator[Job], write: Callable[[list[Item]], int]) -> int:
-    """Run ``jobs`` (a function and its arguments) on a pool and ``write`` their results in
+    """Run ``jobs`` (each a block's work, called) on a pool and ``write`` their results in
     order: this thread reads block k+1 and writes block k-1 while the pool converts block k
     (pyarrow and numpy release the GIL). At most `ahead` blocks are in flight at once."""
     rows = 0
@@ -134,8 +135,8 @@ def _pipeline(jobs: Iterator[Job], write: Callable[[list[Item]], int]) -> int:
     ahead = workers + 2  # two blocks more than workers: a worker done early finds the next one waiting
     pending: deque[Future[list[Item]]] = deque()
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        for fn, *args in jobs:
-            pending.append(pool.submit(fn, *args))
+        for job in jobs:
+            pending.append(pool.submit(job))
             while len(pending) >= ahead or (pending and pending[0].done()):
                 rows += write(pending.popleft().result())
         while pending:
@@ -172,7 +173,7 @@ def _spliced(
 
 def splicer_for(
     cap: Capture,
-    corrections: Sequence[tuple[tuple[int, int, int], Callable[..., FloatArray]]],
+    corrections: Sequence[Correction],
     temperature: int | None = None,
     also: Sequence[int] = (),
     *,
@@ -254,7 +255,7 @@ def _stream_rest(
     write: Callable[[list[Item]], int],
 ) -> int:
     rest = _Rest(cap, _Chained(blocks), before)
-    rows = _pipeline(((convert, rest, first_row, cols) for first_row, cols in rest.batches()), write)
+    rows = _pipeline((functools.partial(convert, rest, first, cols) for first, cols in rest.batches()), write)
     note_dropped(cap)
     return rows
 
@@ -310,7 +311,7 @@ def _descriptor(out: IO[bytes]) -> bool:
 
 def _splice_jobs(
     cap: Capture,
-    corrections: Sequence[tuple[tuple[int, int, int], Callable[..., FloatArray]]],
+    corrections: Sequence[Correction],
     convert: Convert,
     temperature: int | None = None,
 ) -> tuple[Iterator[Job], Callable[[bytes, int], list[Item]]] | None:
@@ -342,9 +343,9 @@ def _splice_jobs(
                     rest.seek(at)
                     source = _Slice(cap, rest, at)
                     for first, cols in source.batches():
-                        yield convert, source, first, cols
+                        yield functools.partial(convert, source, first, cols)
                     return
-                yield spliced, block, at
+                yield functools.partial(spliced, block, at)
                 at += len(block)
 
     return jobs(), spliced

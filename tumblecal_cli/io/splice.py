@@ -38,8 +38,12 @@ IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
 Offsets = NDArray[np.int32]  # byte offsets in a block, and pyarrow's string offsets
 #: Where a correction's columns are among the sensor columns: a slice when they are next to each other.
-Columns: TypeAlias = slice | list[int]
-Correction = tuple[tuple[int, int, int], Callable[..., FloatArray]]
+Columns: TypeAlias = "slice[int, int, None] | list[int]"
+#: A correction of (n, k) readings: ``fn(values)``, or ``fn(values, temperature)`` (n,) °C when
+#: there is a temperature column: which of the two is known at run time only, hence ``...``.
+Correct: TypeAlias = Callable[..., FloatArray]
+#: The columns a correction takes (in file order), and the correction.
+Correction = tuple[tuple[int, int, int], Correct]
 
 #: Where orjson and pyarrow spell a float alike: LOW <= |x| < HIGH, and not a whole number.
 LOW, HIGH = 1e-5, 1e10
