@@ -13,7 +13,7 @@ import functools
 import os
 import re
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Annotated
 
 import typer
@@ -248,7 +248,7 @@ def main(argv: list[str] | None = None) -> int:
     return result if isinstance(result, int) else 0
 
 
-def json_error(args: list[str], status: int, error: dict[str, object]) -> None:
+def json_error(args: list[str], status: int, error: Mapping[str, object]) -> None:
     """With --json (on a command that takes it), an error that ends the command prints
     ``{"status": "error", "exit_status": 2, "error": {...}}`` on stdout, unless the command
     printed its own document first (a report of the files it could read, a rejected solve's
