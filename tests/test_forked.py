@@ -160,7 +160,7 @@ def test_the_cuts_are_a_readers_blocks(tmp_path: Path) -> None:
 def test_a_worker_that_dies_is_an_error_not_a_hang(tmp_path: Path, worker_counts: list[int]) -> None:
     path = write(tmp_path / "c.csv", "t,ax,ay,az\n" + "\n".join(lines(table(3000))) + "\n")
 
-    def render(block: bytes, at: int) -> tuple[list[object], int]:
+    def render(block: bytes, at: int) -> tuple[list[bytes], int]:
         if at > 20_000:
             os.kill(os.getpid(), signal.SIGKILL)
         return [block], block.count(b"\n")
@@ -175,7 +175,7 @@ def test_a_worker_that_dies_is_an_error_not_a_hang(tmp_path: Path, worker_counts
 def test_a_workers_error_comes_back_as_it_was(tmp_path: Path, worker_counts: list[int]) -> None:
     path = write(tmp_path / "c.csv", "t,ax,ay,az\n" + "\n".join(lines(table(3000))) + "\n")
 
-    def render(block: bytes, at: int) -> tuple[list[object], int]:
+    def render(block: bytes, at: int) -> tuple[list[bytes], int]:
         if at > 20_000:
             raise InputError("bad cell", file="c.csv", line=7, hint="fix it")
         return [block], block.count(b"\n")

@@ -84,7 +84,9 @@ def test_import_imucal_published_calibration(tmp_path: Path, capsys: pytest.Capt
     assert cal.reference == 9.81
     assert cal.to_dict()["units"] == "m/s^2"
     assert cal.columns == ["acc_x", "acc_y", "acc_z"]
-    assert cal.to_dict()["imported"]["format"] == "imucal-json"
+    imported = cal.to_dict()["imported"]
+    assert isinstance(imported, dict)
+    assert imported["format"] == "imucal-json"
     assert "reference 9.81" in err
 
 

@@ -13,8 +13,8 @@ import functools
 import os
 import re
 import sys
-from collections.abc import Iterator
-from typing import Annotated, Any
+from collections.abc import Iterator, Mapping
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from typer.core import TyperCommand
@@ -22,6 +22,13 @@ from typer.core import TyperCommand
 from tumblecal_cli.cli.flags import EXIT_CODES
 from tumblecal_cli.errors import STOPS, Interrupted, PipeClosed, TumblecalError, one_line
 from tumblecal_cli.version import __version__
+
+if TYPE_CHECKING:
+    from types import FrameType
+
+    from typer._click import Command as ClickCommand  # the click that Typer bundles (and builds on)
+    from typer._click import Context, HelpFormatter
+    from typer.models import CommandInfo
 
 # The solvers' matrices are 3x3 to 12x12: BLAS threads only cost start-up and spin (see core.model.apply).
 # Set before numpy is first imported (lazily, inside the commands); a user's own setting wins.
@@ -50,7 +57,7 @@ _state = {"debug": False}
 class Command(TyperCommand):
     """Plain help, with the options grouped under the ``rich_help_panel`` each one names."""
 
-    def format_options(self, ctx: Any, formatter: Any) -> None:
+    def format_options(self, ctx: Context, formatter: HelpFormatter) -> None:
         sections: dict[str, list[tuple[str, str]]] = {}
         for param in self.get_params(ctx):
             record = param.get_help_record(ctx)
@@ -72,7 +79,7 @@ class ManyValuesCommand(Command):
 
     many = ("--poses", "-p")
 
-    def parse_args(self, ctx: Any, args: list[str]) -> list[str]:
+    def parse_args(self, ctx: Context, args: list[str]) -> list[str]:
         out: list[str] = []
         flag: str | None = None
         for arg in args:
@@ -102,7 +109,7 @@ class LabelledItemsCommand(Command):
     """Lets positional items labelled with a '-' face (``-z=down.csv``) through: they are moved
     after a ``--``, where Click takes them as arguments, not options."""
 
-    def parse_args(self, ctx: Any, args: list[str]) -> list[str]:
+    def parse_args(self, ctx: Context, args: list[str]) -> list[str]:
         if "--" in args:
             return super().parse_args(ctx, args)
         labelled = [a for a in args if _is_labelled(a)]
@@ -142,7 +149,7 @@ def _term_as_interrupt() -> Iterator[None]:
     exit 130."""
     import signal
 
-    def interrupt(signum: int, frame: Any) -> None:
+    def interrupt(signum: int, frame: FrameType | None) -> None:
         raise Interrupted("interrupted" if signum == signal.SIGINT else f"interrupted ({signal.Signals(signum).name})")
 
     # Ctrl-C as well (Typer turns a KeyboardInterrupt into a silent status 130), and a closed
@@ -161,7 +168,7 @@ def _term_as_interrupt() -> Iterator[None]:
 
 
 @functools.cache
-def _command(name: str | None = None) -> Any:
+def _command(name: str | None = None) -> ClickCommand:
     """The click command Typer builds from the command functions' signatures: built once per
     process (it costs 20-30 ms; a batch's in-process units and the tests call main many times).
     With ``name``, a command's name, the group holds that command alone (2 ms): what a script's
@@ -175,7 +182,7 @@ def _command(name: str | None = None) -> Any:
     return typer.main.get_command(app)
 
 
-def _name(info: Any) -> str | None:
+def _name(info: CommandInfo) -> str | None:
     callback = info.callback
     return info.name or (typer.main.get_command_name(callback.__name__) if callback is not None else None)
 
@@ -241,7 +248,7 @@ def main(argv: list[str] | None = None) -> int:
     return result if isinstance(result, int) else 0
 
 
-def json_error(args: list[str], status: int, error: dict[str, Any]) -> None:
+def json_error(args: list[str], status: int, error: Mapping[str, object]) -> None:
     """With --json (on a command that takes it), an error that ends the command prints
     ``{"status": "error", "exit_status": 2, "error": {...}}`` on stdout, unless the command
     printed its own document first (a report of the files it could read, a rejected solve's
@@ -271,7 +278,7 @@ def _fields(
     line: int | None = None,
     column: int | str | None = None,
     more: tuple[str, ...] = (),
-) -> dict[str, Any]:
+) -> dict[str, object]:
     return {"file": file, "line": line, "column": column, "message": message, "hint": hint, "more": list(more)}
 
 

@@ -14,6 +14,8 @@ from tumblecal_cli.cli.flags import STATUS_WORDS
 from tumblecal_cli.cli.solve import OPTION_NAMES, solve, solve_options
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from rich.console import Console
 
     from tumblecal_cli.pipeline import batch as batches
@@ -113,7 +115,7 @@ def _batch_signature() -> inspect.Signature:
     return inspect.Signature(own + [p for n, p in solves if n in shared and n != "serial"])
 
 
-def batch(**given: Any) -> None:
+def batch(**given: Any) -> None:  # Typer passes each option by name, each of its own type
     """Calibrate many units in one run: one calibration file per unit, and a summary.
 
     Each unit is solved as 'tumblecal solve' would (every solve option below applies to all of
@@ -134,7 +136,7 @@ def batch(**given: Any) -> None:
     own = {name: given.pop(name) for name in list(given) if name in _BATCH_OWN}
     quiet, console = own["quiet"], render.make_console()
     with contextlib.ExitStack() as stack:
-        shown: list[Any] = [False, lambda: None]  # a progress bar, once the units are known
+        shown: list[tuple[bool, Callable[[], None]]] = [(False, lambda: None)]  # a bar, once the units are known
 
         def start(plan: batches.Plan) -> None:
             if not quiet:
@@ -143,12 +145,12 @@ def batch(**given: Any) -> None:
                 if len(plan.todo) < len(plan.units):
                     done = len(plan.units) - len(plan.todo)
                     console.print(f"resuming: {done} of {len(plan.units)} units already done", soft_wrap=True)
-            shown[:] = stack.enter_context(render.batch_progress(console, len(plan.todo), enabled=not quiet))
+            shown[0] = stack.enter_context(render.batch_progress(console, len(plan.todo), enabled=not quiet))
 
         def unit(row: batches.Row) -> None:
-            if row.status or not shown[0]:
+            if row.status or not shown[0][0]:
                 render.print_unit(row, out_dir, console, quiet=quiet)
-            shown[1]()
+            shown[0][1]()
 
         out_dir = own["out_dir"]
         result = batches.run_batch(

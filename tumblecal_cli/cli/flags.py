@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from enum import StrEnum
-from typing import Annotated, Any
+from typing import Annotated, TypedDict
 
 import typer
 
@@ -156,7 +156,7 @@ JsonSummary = Annotated[
 LIMITS_PANEL = "Limits (exit 1)"
 
 
-def limit_option(flag: str, metavar: str, help: str) -> Any:
+def limit_option(flag: str, metavar: str, help: str) -> object:  # Typer's OptionInfo, for Annotated
     return typer.Option(flag, metavar=metavar, help=help, rich_help_panel=LIMITS_PANEL)
 
 
@@ -201,7 +201,7 @@ UNIT_PANEL = "Traceability"
 LOG_PANEL = "Finding the still blocks of a log (segment, solve --log)"
 
 
-def log_option(flag: str, metavar: str, help: str, panel: str | None = LOG_PANEL) -> Any:
+def log_option(flag: str, metavar: str, help: str, panel: str | None = LOG_PANEL) -> object:  # as limit_option
     return typer.Option(flag, metavar=metavar, help=help, rich_help_panel=panel)
 
 
@@ -318,6 +318,14 @@ class RegisterSign(StrEnum):
 REGISTERS_PANEL = "Registers (--format registers)"
 
 
-def file_shape(skip_rows: int | None, decimal: DecimalMark | None, drop_incomplete: bool) -> dict[str, Any]:
+class FileShape(TypedDict):
+    """The pipeline's keyword arguments for the shape of a capture file (``file_shape``)."""
+
+    skip_rows: int | None
+    decimal: str | None
+    drop_incomplete: bool
+
+
+def file_shape(skip_rows: int | None, decimal: DecimalMark | None, drop_incomplete: bool) -> FileShape:
     """--skip-rows, --decimal and --drop-incomplete as the pipeline's keyword arguments."""
     return {"skip_rows": skip_rows, "decimal": decimal and decimal.value, "drop_incomplete": drop_incomplete}

@@ -8,8 +8,8 @@ import json
 import os
 import re
 import sys
-from collections.abc import Iterable, Iterator, Mapping
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from typing import TYPE_CHECKING, TypedDict
 
 from tumblecal_cli.errors import PipeClosed, TumblecalError
 
@@ -18,12 +18,14 @@ if TYPE_CHECKING:
     from rich.table import Table
 
     from tumblecal_cli.core.gate import Finding
+    from tumblecal_cli.core.lot import ParameterRow, Report
     from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.core.segment import Segmentation
     from tumblecal_cli.io.calfile import Calibration
     from tumblecal_cli.io.readings import Log
     from tumblecal_cli.pipeline.batch import Row
-    from tumblecal_cli.pipeline.verify import CaptureRow
+    from tumblecal_cli.pipeline.noise import Noise
+    from tumblecal_cli.pipeline.thermal import ThermalResult
 
 
 def make_console(stderr: bool = True) -> Console:
@@ -48,7 +50,7 @@ WIDE = 1000
 _printed = {"json": False}
 
 
-def print_json(doc: dict[str, Any]) -> None:
+def print_json(doc: Mapping[str, object]) -> None:
     _printed["json"] = True
     print_text(json.dumps(doc, indent=2, ensure_ascii=False) + "\n")
 
@@ -68,7 +70,7 @@ def status_word(status: int) -> str:
     return STATUS_WORDS[status]
 
 
-def error_json(status: int, error: dict[str, Any]) -> None:
+def error_json(status: int, error: Mapping[str, object]) -> None:
     """With --json, an error that ended the command (exit 2, or 3 with no summary) on stdout."""
     from tumblecal_cli.cli.flags import STATUS_WORDS
 
@@ -120,12 +122,12 @@ def summary(
     rejected: list[Finding],
     warned: list[Finding],
     notes: list[str],
-) -> dict[str, Any]:
+) -> dict[str, object]:
     """The --json summary: the outcome, then the calibration's parameters and diagnostics."""
     from tumblecal_cli.cli.flags import STATUS_WORDS
 
     doc = cal.to_dict()
-    head: dict[str, Any] = {
+    head: dict[str, object] = {
         "status": STATUS_WORDS[status],
         "exit_status": status,
         "file": output,
@@ -138,13 +140,13 @@ def summary(
     return head | {k: doc.get(k) for k in (*keys, "tilt_sensitivity", "poses", "unit")}
 
 
-def rejected_head(err: TumblecalError) -> dict[str, Any]:
+def rejected_head(err: TumblecalError) -> dict[str, object]:
     """The head of every summary (see _summary) for a rejection with no parameters to follow it."""
     head = {"status": "rejected", "exit_status": 3, "file": None, "rejections": [error_dict(err)]}
     return head | {"verdict": None, "warnings": [], "notes": []}
 
 
-def error_dict(err: TumblecalError) -> dict[str, Any]:
+def error_dict(err: TumblecalError) -> dict[str, object]:
     return {"code": err.code, "file": err.file, "message": err.message}
 
 
@@ -277,7 +279,7 @@ def _print_verdict(console: Console, passed: bool, limit_names: Iterable[str], f
         console.print(f"  {f.code}: {where}{f.message}", style="red", soft_wrap=True)
 
 
-def print_whole(console: Console, table: Any) -> None:
+def print_whole(console: Console, table: Table) -> None:
     """A table of numbers that never shrinks them: on a terminal too narrow for its numbers, it
     is printed wider (the terminal wraps its lines) rather than cropping digits unmarked."""
     from rich.measure import Measurement
@@ -375,7 +377,7 @@ def short_sensor(sensor: str) -> str:
     return f"{name[:3]}." + (f" ({units}" if units else "")
 
 
-def print_lot(result: Any, console: Console, plot: str | None, *, drift_given: bool) -> None:
+def print_lot(result: Report, console: Console, plot: str | None, *, drift_given: bool) -> None:
     """The lot report for people: the parameter table, outliers, drift, pose files under two
     serials, unreadable files."""
     from rich import box
@@ -386,7 +388,7 @@ def print_lot(result: Any, console: Console, plot: str | None, *, drift_given: b
     def g(v: float | None, digits: int = 4) -> str:  # compact: 80 columns hold the table
         return "" if v is None else re.sub(r"e([-+])0*(\d)", r"e\1\2", f"{v:.{digits}g}").replace("e+", "e")
 
-    def span(r: Any) -> str:
+    def span(r: ParameterRow) -> str:
         if r.lower is None and r.upper is None:
             return ""
         if r.lower is not None and r.upper is not None and r.lower == -r.upper:
@@ -448,7 +450,7 @@ def print_lot(result: Any, console: Console, plot: str | None, *, drift_given: b
 
 def print_verify(
     cal: Calibration,
-    rows: list[CaptureRow],
+    rows: Sequence[Mapping[str, object]],
     overall: dict[str, float],
     ref: float,
     bound: float | None,
@@ -472,7 +474,7 @@ def print_verify(
         before = "" if r["error_before"] is None else f"{r['error_before']:+.4g}"
         mark = "FAIL" if r["file"] in failed else ""
         table.add_row(
-            os.path.basename(r["file"]),
+            os.path.basename(str(r["file"])),
             str(r["samples"]),
             f"{r['norm_before']:.6g}",
             before,
@@ -497,7 +499,7 @@ def print_verify(
 
 
 @contextlib.contextmanager
-def batch_progress(console: Console, total: int, *, enabled: bool) -> Iterator[tuple[bool, Any]]:
+def batch_progress(console: Console, total: int, *, enabled: bool) -> Iterator[tuple[bool, Callable[[], None]]]:
     """A progress bar on stderr when it is a terminal: (shown, advance by one unit)."""
     if not (enabled and console.is_terminal and total):
         yield False, lambda: None
@@ -528,17 +530,30 @@ def print_unit(row: Row, out_dir: str, console: Console, *, quiet: bool) -> None
         console.print(one_line(line), soft_wrap=True, markup=False, highlight=False)
 
 
-def thermal_doc(done: Any) -> dict[str, Any]:
+def thermal_doc(done: ThermalResult) -> dict[str, object]:
     """The --json summary of ``tumblecal thermal``: the thermal block, the drift over the range, notes."""
+    thermal = done.calibration.thermal
+    assert thermal is not None  # what thermal() made
     return {
-        "thermal": done.calibration.thermal.as_dict(),
+        "thermal": thermal.as_dict(),
         "drift": drift_rows(done.calibration),
         "warnings": [w.as_dict() for w in done.warnings],
         "notes": done.notes,
     }
 
 
-def drift_rows(cal: Calibration) -> list[dict[str, Any]]:
+class DriftRow(TypedDict):
+    """An axis's drift over a thermal block's range (``drift_rows``)."""
+
+    axis: str
+    offset_drift: list[float]
+    offset_drift_max: float
+    offset_drift_per_degc: float
+    gain_drift: list[float]
+    gain_drift_kind: str
+
+
+def drift_rows(cal: Calibration) -> list[DriftRow]:
     """Per axis: the offset drift (raw units) and gain drift (relative) at both ends of the thermal
     range against the reference temperature, and how the gain drift is known."""
     import numpy as np
@@ -551,7 +566,7 @@ def drift_rows(cal: Calibration) -> list[dict[str, Any]]:
     grid = np.linspace(drift.t_min, drift.t_max, 201)
     off_all, _ = drift.at(grid)
     span = max(drift.t_max - drift.t_min, 1e-12)
-    rows = []
+    rows: list[DriftRow] = []
     for j, axis in enumerate("xyz"):
         worst = float(np.abs(off_all[:, j]).max())
         rows.append(
@@ -567,10 +582,12 @@ def drift_rows(cal: Calibration) -> list[dict[str, Any]]:
     return rows
 
 
-def print_thermal(done: Any, console: Console) -> None:
+def print_thermal(done: ThermalResult, console: Console) -> None:
     """``tumblecal thermal`` for people: the fit, the drift per axis over the range, notes."""
     fit = done.fit
-    drift = done.calibration.thermal.drift()
+    thermal = done.calibration.thermal
+    assert thermal is not None  # what thermal() made
+    drift = thermal.drift()
     how = "chosen by cross-validation over temperature" if fit.order_auto else "as given"
     cv = ", ".join(f"{k}: {v:.3g}" for k, v in fit.cv_error.items())
     console.print(
@@ -617,7 +634,7 @@ def print_drift(cal: Calibration, console: Console) -> None:
 
 
 @contextlib.contextmanager
-def samples_progress(console: Console, *, enabled: bool) -> Iterator[Any]:
+def samples_progress(console: Console, *, enabled: bool) -> Iterator[Callable[[int], None] | None]:
     """A count of the samples read so far on stderr when it is a terminal (a long capture takes
     a while): a callback taking that count, or None."""
     if not (enabled and console.is_terminal):
@@ -631,7 +648,7 @@ def samples_progress(console: Console, *, enabled: bool) -> Iterator[Any]:
         yield lambda n: progress.update(task, completed=n)
 
 
-def show_noise(done: Any, *, json_summary: bool, quiet: bool, plot: str | None) -> None:
+def show_noise(done: Noise, *, json_summary: bool, quiet: bool, plot: str | None) -> None:
     """noise's figures: the --plot and the --json object (not for a rejected capture: it
     writes nothing), then the table, verdict and notes for people on stderr."""
     if plot is not None and done.error is None:
@@ -670,7 +687,7 @@ def show_noise(done: Any, *, json_summary: bool, quiet: bool, plot: str | None) 
         _print_verdict(console, bool(verdict["pass"]), verdict["limits"], done.failures)
 
 
-def _noise_table(done: Any) -> tuple[Any, list[str]]:
+def _noise_table(done: Noise) -> tuple[Table, list[str]]:
     """The figures per axis (value ± its 95 % uncertainty), and a line per figure saying the
     cluster times it was read from, or why it is not determined."""
     from rich.table import Table

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import inspect
 import os
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -48,6 +48,7 @@ from tumblecal_cli.errors import InputError
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Limits
+    from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfile import Calibration
     from tumblecal_cli.pipeline.options import SolveOptions
     from tumblecal_cli.pipeline.solve import Solved
@@ -455,7 +456,7 @@ def _plot_target(plot: str, output: str, json_summary: bool, inputs: list[str]) 
     check_writable(plot, "--plot")
 
 
-def _plot_solve(plot: str, cal: Calibration, raw: list[Any], limits: Limits | None, plane: str | None) -> None:
+def _plot_solve(plot: str, cal: Calibration, raw: list[FloatArray], limits: Limits | None, plane: str | None) -> None:
     """solve --plot: the poses' norms (the figure of Sports Sensing 2023), or a magnetometer's rotation capture."""
     import numpy as np
 

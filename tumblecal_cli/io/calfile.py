@@ -17,7 +17,7 @@ from collections.abc import Callable, Mapping, Sequence
 from contextvars import ContextVar
 from dataclasses import dataclass, field, replace
 from datetime import UTC, date, datetime
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeAlias, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -86,6 +86,10 @@ __all__ = [  # the parts, for code that names them as calfile's
     "is_number",
     "thermal_from",
 ]
+
+#: A pandas DataFrame, which ``Calibration.apply`` takes and gives as well as arrays: pandas ships
+#: no types here, and io never imports it (tests/test_layers.py), so it is unchecked.
+Frame: TypeAlias = Any
 
 FORMAT = "tumblecal-calibration"
 VERSION = 1
@@ -174,7 +178,7 @@ class Calibration:
     def serial(self) -> str | None:
         return None if self.unit is None else self.unit.serial
 
-    def apply(self, data: Any, temperature: ArrayLike | None = None) -> Any:  # Any: an ndarray or a DataFrame
+    def apply(self, data: Frame, temperature: ArrayLike | None = None) -> Frame:  # an ndarray or a DataFrame
         """Correct readings: an (n, 3) array gives an (n, 3) array; a pandas DataFrame gives a copy
         with the calibration's ``columns`` corrected (matched case-insensitively; other columns,
         the index and their dtypes untouched). With a ``thermal`` block each row is corrected at its
@@ -261,7 +265,7 @@ class Calibration:
             "segmentation": None if self.segmentation is None else self.segmentation.as_dict(),
         }
 
-    def to_dict(self) -> dict[str, Any]:  # Any: the JSON values, which a caller indexes by the format
+    def to_dict(self) -> dict[str, object]:
         """The file's document (the JSON/YAML boundary)."""
         typed = self._typed()
         doc: dict[str, object] = {}
@@ -289,7 +293,7 @@ class Calibration:
         )
 
 
-def _frame_columns(frame: Any, wanted: Sequence[str], path: str | None) -> list[int]:  # Any: a DataFrame
+def _frame_columns(frame: Frame, wanted: Sequence[str], path: str | None) -> list[int]:
     """Where ``wanted`` are among the DataFrame's columns: the column of that exact name, else the
     one column of that name in another case; an error names those missing or ambiguous."""
     names = [str(c) for c in frame.columns]
@@ -781,10 +785,12 @@ LIMIT_KEYS = {
 NOISE_LIMITS = ("noise_density", "bias_instability", "random_walk")
 
 
-def load_limits(path: str) -> dict[str, Any]:  # Any: a float or a (3,) array, which noise's caller tells apart
+# untyped values: pipeline.noise and pipeline.report tell a float from a (3,) array at run time,
+# and a dict[str, float | FloatArray] would fail their type checks
+def load_limits(path: str) -> dict[str, Any]:
     """The bounds in a limits file, validated: ``{key: float or (3,) array}``."""
     doc = _read_object(path, "limits file")
-    out: dict[str, Any] = {}
+    out: dict[str, float | FloatArray] = {}
     for key, value in doc.items():
         if key == "version":
             if isinstance(value, bool) or value != 1:  # True == 1 in Python

@@ -25,7 +25,7 @@ import stat
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Protocol, TypeAlias
 
 import numpy as np
 import pyarrow as pa
@@ -55,7 +55,23 @@ from tumblecal_cli.io.sniff import (
     unit_of_name,
 )
 
+if TYPE_CHECKING:
+    from _typeshed import WriteableBuffer
+    from numpy.typing import NDArray
+
 BLOCK_BYTES = 1 << 20  # pyarrow block size when streaming: bigger blocks raise peak memory
+
+#: What a capture's data section is read from: pyarrow's own file reader (a regular file), or a
+#: file object of ours (``DataStream``; a stream's rest, ``io.rewrite``).
+Source: TypeAlias = "pa.NativeFile | io.RawIOBase"
+
+
+class Hasher(Protocol):
+    """What a capture's SHA-256 is taken with (``hashlib.sha256()``)."""
+
+    def update(self, data: bytes, /) -> None: ...
+
+    def hexdigest(self) -> str: ...
 
 
 class DataStream(io.RawIOBase):
@@ -67,7 +83,7 @@ class DataStream(io.RawIOBase):
         self,
         first: bytes,
         rest: IO[bytes],
-        hasher: Any,
+        hasher: Hasher,
         squeeze: bool,
         owns: bool = False,
         drop_last: Callable[[bytes], bool] | None = None,
@@ -102,7 +118,7 @@ class DataStream(io.RawIOBase):
             self._rest.close()
         super().close()
 
-    def readinto(self, buffer: Any) -> int:
+    def readinto(self, buffer: WriteableBuffer) -> int:
         """As much as ``buffer`` holds, unless the stream ends (see ``_Chained.readinto``: a
         read of a lone line feed would end pyarrow's reading)."""
         view = memoryview(buffer).cast("B")
@@ -120,7 +136,7 @@ class DataStream(io.RawIOBase):
 class Capture:
     """An opened capture: its layout and a one-shot stream of its data section."""
 
-    def __init__(self, layout: Layout, stream: Any, path: str | None, hasher: Any) -> None:
+    def __init__(self, layout: Layout, stream: Source, path: str | None, hasher: Hasher) -> None:
         self.layout = layout
         self._stream = stream  # pyarrow's own file reader, or a DataStream
         self._path = path  # None for stdin: no second pass is possible
@@ -152,7 +168,7 @@ class Capture:
         read = include if keys[0] in include else [keys[0], *include]  # column 0 tells comments
         bad_rows: list[str] = []
 
-        def invalid(row: Any) -> str:
+        def invalid(row: pcsv.InvalidRow) -> str:
             if skipped(row.text):
                 return "skip"
             bad_rows.append(row.text)
@@ -361,7 +377,7 @@ def open_capture(
         if f is not sys.stdin.buffer:
             f.close()
         raise
-    stream: Any
+    stream: Source
     regular = path != "-" and stat.S_ISREG(os.fstat(f.fileno()).st_mode)  # not a pipe, FIFO or device
     cut = regular and _cut_short(f, layout, consumed, dialect.drop_incomplete)
     if regular and layout.delimiter is not None and not cut:
@@ -476,7 +492,7 @@ def copy_rows(path: str, layout: Layout, spans: Sequence[tuple[int, int]], outpu
             out.write(data[starts[first] : ends[last]].data)  # the bytes themselves, no copy
 
 
-def row_offsets(data: np.ndarray[Any, np.dtype[np.uint8]], head: int) -> tuple[Any, Any]:
+def row_offsets(data: NDArray[np.uint8], head: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     """Byte offsets (start, end) of each data row of a file's bytes whose preamble and header
     take ``head`` bytes: every line that is not blank or a # comment (the reader's rules). A
     line ends at LF, CR LF or a CR alone (old Mac files, and files of mixed line ends)."""

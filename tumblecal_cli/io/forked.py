@@ -31,10 +31,13 @@ import signal
 import struct
 import sys
 import threading
-from collections.abc import Callable
-from typing import IO, Any
+from collections.abc import Callable, Sequence
+from typing import IO, TYPE_CHECKING
 
 from tumblecal_cli.errors import STOPS
+
+if TYPE_CHECKING:
+    from _typeshed import ReadableBuffer
 
 #: Below this much data a file is corrected in this process (forking costs ~10 ms a worker).
 MIN_BYTES = 16 << 20
@@ -45,7 +48,8 @@ WINDOW = 64 << 10
 
 _REPORT = struct.Struct("<qqq")  # failed (0/1), rows, bytes of the pickled error that follow
 
-Render = Callable[[bytes, int], tuple[list[Any], int]]
+#: A block's bytes and offset -> its corrected bytes, in pieces, and its rows.
+Render = Callable[[bytes, int], tuple[Sequence[bytes | memoryview], int]]
 
 
 def workers_for(path: str | None, size: int) -> int:
@@ -91,12 +95,12 @@ class Parts(io.RawIOBase):
 
     def __init__(self) -> None:
         super().__init__()
-        self.parts: list[Any] = []
+        self.parts: list[bytes | memoryview] = []
 
     def writable(self) -> bool:
         return True
 
-    def write(self, data: Any) -> int:
+    def write(self, data: ReadableBuffer) -> int:
         self.parts.append(data if isinstance(data, bytes | memoryview) else bytes(data))
         return len(self.parts[-1])
 
@@ -262,7 +266,7 @@ def _pread_exact(fd: int, size: int, at: int) -> bytes:
     return data
 
 
-def _write_all(fd: int, parts: list[Any]) -> None:
+def _write_all(fd: int, parts: Sequence[bytes | memoryview]) -> None:
     for part in parts:
         view = memoryview(part).cast("B")
         while view.nbytes:

@@ -11,8 +11,9 @@ import hashlib
 import json
 import math
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TypedDict, cast
 
 import numpy as np
 
@@ -117,7 +118,7 @@ def _c_thermal(cal: Calibration, name: str, upper: str) -> list[str]:
     t = cal.thermal
     k = t.order
 
-    def table(values: Any, what: str) -> str:
+    def table(values: FloatArray, what: str) -> str:
         return ",\n    ".join(
             "{" + ", ".join(_c_float(float(v), f"thermal.{what}", cal.path) for v in row) + "}" for row in values
         )
@@ -469,6 +470,21 @@ def matlab(cal: Calibration) -> str:
 # -- import -------------------------------------------------------------------------------
 
 
+class Record(TypedDict, total=False):
+    """What a tumblecal export records of its calibration (``record``), as ``recorded`` reads it back."""
+
+    sensor: str
+    serial: str
+    station: str
+    operator: str
+    created: str
+    method: str
+    input_units: str
+    units: str
+    reference: float
+    columns: list[str]
+
+
 @dataclass(frozen=True)
 class Peer:
     """A calibration read from another tool's file, in tumblecal's terms; what a tumblecal export
@@ -484,10 +500,10 @@ class Peer:
     columns: list[str] | None
     serial: str | None
     notes: tuple[str, ...]
-    was: dict[str, Any] = field(default_factory=dict)  # what a tumblecal export recorded (see record())
+    was: Record = field(default_factory=Record)  # what a tumblecal export recorded (see record())
 
 
-def detect(doc: dict[str, Any]) -> str | None:
+def detect(doc: Mapping[str, object]) -> str | None:
     """Which peer format a parsed file is, from its keys."""
     if "cal_type" in doc and "K_a" in doc:
         return "imucal-json"
@@ -511,7 +527,7 @@ RECORD_FIELDS: dict[str, tuple[type, ...]] = {
 }
 
 
-def record(cal: Calibration) -> dict[str, Any]:
+def record(cal: Calibration) -> dict[str, object]:
     """What an export records of the calibration for `import` to bring back: a data field of the
     peer's file (never comment text that import would have to parse)."""
     unit = (cal.unit or Unit()).as_dict()
@@ -527,14 +543,14 @@ def record(cal: Calibration) -> dict[str, Any]:
     }
 
 
-def recorded(value: object, path: str, where: str) -> dict[str, Any]:
+def recorded(value: object, path: str, where: str) -> Record:
     """The record of a tumblecal export read back from its data field ``where`` (None or absent:
     another tool's file, nothing recorded); each field validated, naming it."""
     if value is None:
-        return {}
+        return Record()
     if not isinstance(value, dict):
         raise InputError(f"field {where!r} must be an object (what a tumblecal export recorded)", file=path)
-    out: dict[str, Any] = {}
+    out: dict[str, object] = {}
     for key, kinds in RECORD_FIELDS.items():
         item = value.get(key)
         if item is None:
@@ -542,17 +558,20 @@ def recorded(value: object, path: str, where: str) -> dict[str, Any]:
         if isinstance(item, bool) or not isinstance(item, kinds):
             raise InputError(f"field '{where}.{key}' must be a {kinds[0].__name__}", file=path)
         out[key] = item
-    if "reference" in out and not (is_number(out["reference"]) and out["reference"] >= 0):
+    reference = out.get("reference")
+    if reference is not None and not (is_number(reference) and reference >= 0):
         raise InputError(f"field '{where}.reference' must be a number of 0 or more", file=path)
     if "sensor" in out and out["sensor"] not in SENSORS:
         raise InputError(f"field '{where}.sensor' must be one of {', '.join(SENSORS)}", file=path)
     columns = out.get("columns")
-    if columns is not None and not (len(columns) == 3 and all(isinstance(c, str) and c for c in columns)):
+    if columns is not None and not (
+        isinstance(columns, list) and len(columns) == 3 and all(isinstance(c, str) and c for c in columns)
+    ):
         raise InputError(f"field '{where}.columns' must be three column names", file=path)
-    return out
+    return cast(Record, out)  # each field checked against RECORD_FIELDS above
 
 
-def read_peer(doc: dict[str, Any], fmt: str, path: str, sensor: str | None) -> Peer:
+def read_peer(doc: Mapping[str, object], fmt: str, path: str, sensor: str | None) -> Peer:
     """The calibration in a parsed imucal or ROS imu_calib file; what a tumblecal export recorded
     comes from its data field (ROS: ``tumblecal``; imucal: the JSON in ``comment``), never from
     comment text. ``sensor`` None: the recorded one, else an accelerometer."""
@@ -591,7 +610,7 @@ def read_peer(doc: dict[str, Any], fmt: str, path: str, sensor: str | None) -> P
     raw_units = doc.get(f"from_{'acc' if slot == 'a' else 'gyr'}_unit")
     matrix = np.linalg.inv(r) @ np.linalg.inv(k)  # imucal: R^-1 K^-1 (raw - b)
     if was.get("sensor") != sensor:  # the record describes the other slot
-        was = {}
+        was = Record()
     raw_units = None if raw_units == "a.u." else _text(raw_units)
     return _peer(fmt, sensor, was, b, matrix, _text(units), raw_units, notes)
 
@@ -611,7 +630,7 @@ def _comment_record(comment: object) -> object:
 def _peer(
     fmt: str,
     sensor: str | None,
-    was: dict[str, Any],
+    was: Record,
     offset: FloatArray,
     matrix: FloatArray,
     units: str | None,
@@ -646,6 +665,7 @@ def imported(
     """A format-1 calibration for ``peer`` (method ``imported``; no uncertainty: the
     peer's file does not carry one)."""
     gain = np.diag(np.linalg.inv(peer.matrix))
+    was = peer.was  # the original's created and method, when recorded
     doc = {
         "format": FORMAT,
         "version": VERSION,
@@ -661,7 +681,7 @@ def imported(
         "uncertainty": None,
         "poses": [],
         "imported": {"format": peer.format, "file": path, "sha256": hashlib.sha256(raw).hexdigest()}
-        | {k: peer.was[k] for k in ("created", "method") if peer.was.get(k)},  # the original's, when recorded
+        | {k: v for k, v in (("created", was.get("created")), ("method", was.get("method"))) if v},
         "unit": unit.as_dict(),
         "created": created(),
         "tool": f"tumblecal {__version__}",
@@ -697,7 +717,7 @@ def _c_float(value: float, name: str, path: str | None) -> str:
     return (text if any(c in text for c in ".e") else text + ".0") + "f"
 
 
-def _array(value: Any, name: str, size: int, path: str) -> FloatArray:
+def _array(value: object, name: str, size: int, path: str) -> FloatArray:
     flat = np.array(value, dtype=object).ravel() if isinstance(value, list) else None
     if flat is None or flat.size != size or not all(is_number(v) for v in flat):
         shape = {3: "3 numbers", 9: "3x3 numbers"}[size]
@@ -705,5 +725,5 @@ def _array(value: Any, name: str, size: int, path: str) -> FloatArray:
     return flat.astype(np.float64)
 
 
-def _text(value: Any) -> str | None:
+def _text(value: object) -> str | None:
     return value if isinstance(value, str) else None

@@ -25,7 +25,7 @@ import os
 from collections import deque
 from collections.abc import Generator, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 
@@ -37,12 +37,20 @@ from tumblecal_cli.io import capture, readings, rewrite, sniff
 from tumblecal_cli.io.forked import cuts
 from tumblecal_cli.io.readings import Log
 from tumblecal_cli.io.readspec import ReadSpec
+from tumblecal_cli.io.splice import BoolArray, Offsets, Splicer
 
 #: Files smaller than this keep their readings' rows and line offsets as int32 (4 bytes, not 8).
 NARROW = 1 << 31
 
 #: Readings the time unit and the first period are judged from (``readings.time_scale`` reads as many).
 FIRST = 100_001
+
+
+class _Shared(TypedDict, total=False):
+    """What the threads that parse the blocks learn from the main thread as it goes."""
+
+    window: int  # the Scan's window, once known: the threads compute a block's spreads
+    odd: float  # a reading that is not a whole number, once one is found
 
 
 class _Plain(Exception):
@@ -69,14 +77,14 @@ def scan_log(
             return None
 
 
-def _same(values: Any) -> Any:
+def _same(values: FloatArray) -> FloatArray:
     return values
 
 
 def _scan(
     path: str,
     lay: sniff.Layout,
-    splicer: Any,
+    splicer: Splicer,
     where: list[int],
     settings: Settings,
     time_unit: str,
@@ -148,7 +156,9 @@ class _Block:
     """One block of the file, parsed on a worker thread: its readings (rows with sensor values)
     and what goes with them, ready for the Scan but for the data rows' offset."""
 
-    def __init__(self, parsed: Any, empty: Any, lines: Any, timed: bool, shared: dict[str, Any]) -> None:
+    def __init__(
+        self, parsed: FloatArray, empty: BoolArray, lines: Offsets | IntArray, timed: bool, shared: _Shared
+    ) -> None:
         keep = ~empty if empty.any() else None  # an interleaved logger's rows of another sensor: not readings
         self.lines = int(empty.size)  # lines in the block: all of them data rows (plain lines)
         # a time or temperature cell that is empty or not finite on any row, one without readings
@@ -185,7 +195,7 @@ class _Feeder:
         self.lay, self.settings, self.time_unit, self.rate, self.size = lay, settings, time_unit, rate, size
         self.scan: Scan | None = None
         self.first: list[_Block] = []
-        self.shared: dict[str, Any] = {}  # the window, once known: the threads compute a block's spreads
+        self.shared: _Shared = {}
         self.scale, self.zero, self.last_clock = 1.0, 0.0, -np.inf
         self.lo, self.hi = np.inf, -np.inf  # every reading's range ...
         self.odd: float | None = None  # ... and one that is not a whole number
@@ -259,7 +269,7 @@ def _capacity(first: list[_Block], size: int) -> int:
 
 
 def _blocks(
-    path: str, lay: sniff.Layout, splicer: Any, where: list[int], hasher: Any, shared: dict[str, Any]
+    path: str, lay: sniff.Layout, splicer: Splicer, where: list[int], hasher: _Digest | None, shared: _Shared
 ) -> Iterator[_Block]:
     """Each block of the file read and parsed on a pool of threads (numpy, pyarrow and the
     reads let go of the GIL), in file order, its rows numbered here; hashed here, in order."""
@@ -281,7 +291,7 @@ def _blocks(
             row = yield from _numbered(pending.popleft(), row, hasher)
 
 
-def _numbered(job: Future[tuple[_Block, bytes]], row: int, hasher: Any) -> Generator[_Block, None, int]:
+def _numbered(job: Future[tuple[_Block, bytes]], row: int, hasher: _Digest | None) -> Generator[_Block, None, int]:
     block, text = job.result()
     if hasher is not None:
         hasher.update(text)
@@ -292,7 +302,7 @@ def _numbered(job: Future[tuple[_Block, bytes]], row: int, hasher: Any) -> Gener
 
 
 def _parse(
-    splicer: Any, fd: int, at: int, length: int, where: list[int], size: int, timed: bool, shared: dict[str, Any]
+    splicer: Splicer, fd: int, at: int, length: int, where: list[int], size: int, timed: bool, shared: _Shared
 ) -> tuple[_Block, bytes]:
     text = os.pread(fd, length, at)
     if len(text) != length:

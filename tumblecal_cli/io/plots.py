@@ -14,7 +14,7 @@ import importlib.util
 import io
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -27,6 +27,8 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
     from numpy.typing import NDArray
+
+    from tumblecal_cli.core.allan import Curve, Figures
 
     FloatArray = NDArray[np.float64]
 
@@ -372,7 +374,7 @@ def _write(fig: Figure, path: str) -> None:
         out.write(buffer.getvalue())
 
 
-def _array(value: Any, what: str, shape: tuple[int, ...]) -> FloatArray:
+def _array(value: object, what: str, shape: tuple[int, ...]) -> FloatArray:
     """``value`` as a finite float array of ``shape`` (-1: any length); InputError otherwise."""
 
     try:
@@ -407,7 +409,7 @@ def _short(name: str, keep: int = 24) -> str:
     return name if len(name) <= keep else f"{name[: keep // 2 - 1]}…{name[-(keep // 2) :]}"
 
 
-def noise_figure(path: str, curve: Any, figures: list[Any], units: str | None, *, title: str = "") -> None:
+def noise_figure(path: str, curve: Curve, figures: list[Figures], units: str | None, *, title: str = "") -> None:
     """``noise --plot``: the Allan deviation of each axis on log-log axes with its 95 % band, the
     fitted -1/2 and +1/2 lines over the cluster times they were read from, and the read-off
     points (N at 1 s, the minimum 0.664 B, K at 3 s). ``curve`` a core.allan.Curve, ``figures``

@@ -8,11 +8,11 @@ temperature and a label column; ``read_samples`` is the same for a pose file.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
+from numpy.typing import NDArray
 
 from tumblecal_cli.core.scan import log_index
 from tumblecal_cli.errors import InputError
@@ -56,7 +56,7 @@ class Log:
 
     layout: Layout
     values: FloatArray  # (n, 3)
-    rows: np.ndarray[Any, np.dtype[np.int64]]  # data row (0-based) of each reading (int32 from io.logread)
+    rows: NDArray[np.int64]  # data row (0-based) of each reading (int32 from io.logread)
     clock: FloatArray | None
     labels: list[str] | None
     sha256: str
@@ -65,12 +65,12 @@ class Log:
     #: Each reading's line in the file: its first byte and the byte after its line end (a log
     #: read block by block, io.logread: its readings are those of the still periods only; int32
     #: for a file under 2 GiB, as its rows).
-    lines: np.ndarray[Any, np.dtype[np.int64]] | None = None
+    lines: NDArray[np.int64] | None = None
     #: ... and then what the whole log's readings are judged by for their integer type
     #: (gate.integer_rails): the lowest, the highest, and one that is not a whole number if any;
     extremes: FloatArray | None = None
     #: and where each run of the readings kept starts among the whole log's and among these.
-    runs: tuple[np.ndarray[Any, np.dtype[np.int64]], np.ndarray[Any, np.dtype[np.int64]]] | None = None
+    runs: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
 
     def reading(self, position: int) -> int:
         """The index among the whole log's readings of the reading at ``position`` here (the
@@ -199,7 +199,7 @@ def _require_temperature(lay: Layout) -> None:
         )
 
 
-def _temperatures(cap: Capture, temps: list[Any], mask: BoolArray) -> FloatArray | None:
+def _temperatures(cap: Capture, temps: list[FloatArray] | list[pa.Array], mask: BoolArray) -> FloatArray | None:
     """The temperature column of the rows kept: blocks already read as numbers
     (``Capture.temperature_values``), or text, where a cell that is not a number leaves the
     temperature unknown (None)."""

@@ -8,13 +8,14 @@ by ``io.forked`` for a large file) and hands any other block to pyarrow's reader
 
 from __future__ import annotations
 
+import functools
 import io
 import itertools
 import os
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, TypeAlias
 
 import numpy as np
 import pyarrow as pa
@@ -23,17 +24,29 @@ import pyarrow.csv as pcsv
 
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import capture, forked
-from tumblecal_cli.io.capture import Capture, DataStream, note_dropped
+from tumblecal_cli.io.capture import Capture, DataStream, Source, note_dropped
 from tumblecal_cli.io.sniff import BoolArray, FloatArray, Layout, skipped
-from tumblecal_cli.io.splice import Splicer
+from tumblecal_cli.io.splice import Correct, Correction, Splicer
+
+if TYPE_CHECKING:
+    from _typeshed import WriteableBuffer
+
+#: A block's result: record batches the general rules read, or a spliced block's bytes and rows.
+Item: TypeAlias = "pa.RecordBatch | tuple[memoryview, int]"
+#: A job for the pool: a block's results, once called.
+Job: TypeAlias = Callable[[], list[Item]]
+#: The general rules for one block: (source, its first data row, its columns as text) -> results.
+Convert: TypeAlias = Callable[[Capture, int, list[pa.Array]], list[Item]]
+#: Where a block's results are written: the output, or a worker's ``forked.Parts``.
+Sink: TypeAlias = "IO[bytes] | forked.Parts"
 
 
 def correct_stream(
     cap: Capture,
     out: IO[bytes],
-    correct: Callable[..., FloatArray],
+    correct: Correct,
     progress: Callable[[int], None] | None = None,
-    more: Sequence[tuple[tuple[int, int, int], Callable[..., FloatArray]]] = (),
+    more: Sequence[Correction] = (),
     temperature: int | None = None,
     *,
     splice: bool = True,
@@ -59,7 +72,7 @@ def correct_stream(
     names = [str(i) for i in range(len(lay.names))]
     corrections = [(lay.sensor, correct), *more]
 
-    def convert(source: Capture, first_row: int, cols: list[pa.Array]) -> list[Any]:
+    def convert(source: Capture, first_row: int, cols: list[pa.Array]) -> list[Item]:
         for triplet, fn in corrections:
             values, empty = source.sensor_values([cols[i] for i in triplet], first_row, triplet)
             if temperature is None:
@@ -72,10 +85,10 @@ def correct_stream(
                     cols[i] = pc.replace_substring(cols[i], ".", lay.decimal)
         return [pa.RecordBatch.from_arrays(cols, names=names)]
 
-    def emit(items: list[Any], sink: Any) -> int:
+    def emit(items: list[Item], sink: Sink) -> int:
         return _emit(items, sink, options, lay)
 
-    def write(items: list[Any]) -> int:
+    def write(items: list[Item]) -> int:
         if head:
             out.write(head.pop())
         return emit(items, out)
@@ -88,7 +101,7 @@ def correct_stream(
         elif splicer is not None:
             rows = _stream_spliced(cap, splicer, convert, write)
         else:
-            rows = _pipeline(((convert, cap, first_row, cols) for first_row, cols in cap.batches()), write)
+            rows = _pipeline((functools.partial(convert, cap, first, cols) for first, cols in cap.batches()), write)
     except InputError:
         if not head:  # rows are out (to stdout, which cannot take them back): say it is not all
             out.write(INCOMPLETE)
@@ -100,7 +113,7 @@ def correct_stream(
     return rows
 
 
-def _emit(items: list[Any], sink: Any, options: Any, lay: Layout) -> int:
+def _emit(items: list[Item], sink: Sink, options: pcsv.WriteOptions, lay: Layout) -> int:
     """Write a block's results (record batches, or spliced bytes and their number of rows) to
     ``sink``; returns the rows."""
     rows = 0
@@ -113,17 +126,17 @@ def _emit(items: list[Any], sink: Any, options: Any, lay: Layout) -> int:
     return rows
 
 
-def _pipeline(jobs: Iterator[tuple[Any, ...]], write: Callable[[list[Any]], int]) -> int:
-    """Run ``jobs`` (a function and its arguments) on a pool and ``write`` their results in
+def _pipeline(jobs: Iterator[Job], write: Callable[[list[Item]], int]) -> int:
+    """Run ``jobs`` (each a block's work, called) on a pool and ``write`` their results in
     order: this thread reads block k+1 and writes block k-1 while the pool converts block k
     (pyarrow and numpy release the GIL). At most `ahead` blocks are in flight at once."""
     rows = 0
     workers = max(2, os.cpu_count() or 1)
     ahead = workers + 2  # two blocks more than workers: a worker done early finds the next one waiting
-    pending: deque[Future[list[Any]]] = deque()
+    pending: deque[Future[list[Item]]] = deque()
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        for fn, *args in jobs:
-            pending.append(pool.submit(fn, *args))
+        for job in jobs:
+            pending.append(pool.submit(job))
             while len(pending) >= ahead or (pending and pending[0].done()):
                 rows += write(pending.popleft().result())
         while pending:
@@ -133,10 +146,10 @@ def _pipeline(jobs: Iterator[tuple[Any, ...]], write: Callable[[list[Any]], int]
 
 def _spliced(
     cap: Capture,
-    jobs: Iterator[tuple[Any, ...]],
-    spliced: Callable[[bytes, int], list[Any]],
-    write: Callable[[list[Any]], int],
-    emit: Callable[[list[Any], Any], int],
+    jobs: Iterator[Job],
+    spliced: Callable[[bytes, int], list[Item]],
+    write: Callable[[list[Item]], int],
+    emit: Callable[[list[Item], Sink], int],
     out: IO[bytes],
     head: list[bytes],
 ) -> int:
@@ -151,7 +164,7 @@ def _spliced(
     if not blocks:
         return _pipeline(jobs, write)
 
-    def render(block: bytes, at: int) -> tuple[list[Any], int]:  # in a worker: the block's bytes
+    def render(block: bytes, at: int) -> tuple[list[bytes | memoryview], int]:  # in a worker: the block's bytes
         sink = forked.Parts()
         return sink.parts, emit(spliced(block, at), sink)
 
@@ -160,12 +173,12 @@ def _spliced(
 
 def splicer_for(
     cap: Capture,
-    corrections: Sequence[tuple[tuple[int, int, int], Callable[..., FloatArray]]],
+    corrections: Sequence[Correction],
     temperature: int | None = None,
     also: Sequence[int] = (),
     *,
     stream: bool = False,
-) -> Any | None:
+) -> Splicer | None:
     """An ``io.splice.Splicer`` for ``cap`` (its arguments), when its lines can be spliced: a
     one-character delimiter, LF or CRLF line ends, and read as a regular file by pyarrow (or,
     with ``stream``, as a stream: stdin, a pipe); else None (whitespace-separated, CR line ends,
@@ -181,16 +194,14 @@ def splicer_for(
     return Splicer(len(lay.names), lay.delimiter, lay.eol, lay.decimal, corrections, temperature, also)
 
 
-def _stream_spliced(
-    cap: Capture, splicer: Any, convert: Callable[[Capture, int, list[pa.Array]], list[Any]], write: Callable[..., int]
-) -> int:
+def _stream_spliced(cap: Capture, splicer: Splicer, convert: Convert, write: Callable[[list[Item]], int]) -> int:
     """A stream's blocks of plain lines spliced on threads, in order, until one is not plain:
     from there on (that block, the ones read after it, the rest of the stream) the general
     rules, whose messages count data rows from the stream's first ("data row N": a stream has
     no second pass to find line numbers). Returns the rows written."""
     rows = 0
     workers = max(2, os.cpu_count() or 1)
-    pending: deque[tuple[Future[Any] | None, bytes]] = deque()
+    pending: deque[tuple[Future[tuple[memoryview, int] | None] | None, bytes]] = deque()
     blocks = _stream_blocks(cap._stream)
 
     def general(text: bytes, rows: int) -> int:  # the general rules from ``text`` on
@@ -218,7 +229,7 @@ def _stream_spliced(
     return rows
 
 
-def _stream_blocks(stream: Any) -> Iterator[tuple[bytes, bool]]:
+def _stream_blocks(stream: Source | IO[bytes]) -> Iterator[tuple[bytes, bool]]:
     """A stream's bytes as blocks of whole lines (the last may lack its line end), each with
     whether it may be spliced: not a line longer than a block (the general reader says so)."""
     carry = b""
@@ -240,11 +251,11 @@ def _stream_rest(
     cap: Capture,
     blocks: Iterator[bytes],
     before: int,
-    convert: Callable[[Capture, int, list[pa.Array]], list[Any]],
-    write: Callable[..., int],
+    convert: Convert,
+    write: Callable[[list[Item]], int],
 ) -> int:
     rest = _Rest(cap, _Chained(blocks), before)
-    rows = _pipeline(((convert, rest, first_row, cols) for first_row, cols in rest.batches()), write)
+    rows = _pipeline((functools.partial(convert, rest, first, cols) for first, cols in rest.batches()), write)
     note_dropped(cap)
     return rows
 
@@ -259,7 +270,7 @@ class _Chained(io.RawIOBase):
     def readable(self) -> bool:
         return True
 
-    def readinto(self, buffer: Any) -> int:
+    def readinto(self, buffer: WriteableBuffer) -> int:
         """As much as ``buffer`` holds, across blocks: pyarrow's streaming reader takes a read
         that is a lone line feed (the end of a CRLF cut at a block's last byte) for the end of
         the data, and drops what follows without a word (pyarrow 26)."""
@@ -281,7 +292,7 @@ class _Chained(io.RawIOBase):
 class _Rest(Capture):
     """The rest of a stream after ``before`` data rows were spliced: its messages count from the first."""
 
-    def __init__(self, cap: Capture, stream: Any, before: int) -> None:
+    def __init__(self, cap: Capture, stream: Source, before: int) -> None:
         super().__init__(cap.layout, stream, None, cap._hasher)
         self._before = before
 
@@ -300,10 +311,10 @@ def _descriptor(out: IO[bytes]) -> bool:
 
 def _splice_jobs(
     cap: Capture,
-    corrections: Sequence[tuple[tuple[int, int, int], Callable[..., FloatArray]]],
-    convert: Callable[[Capture, int, list[pa.Array]], list[Any]],
+    corrections: Sequence[Correction],
+    convert: Convert,
     temperature: int | None = None,
-) -> tuple[Iterator[tuple[Any, ...]], Callable[[bytes, int], list[Any]]] | None:
+) -> tuple[Iterator[Job], Callable[[bytes, int], list[Item]]] | None:
     """The jobs that correct a regular file block by block, spliced where its lines are plain
     (``io.splice``), else by the general rules, and the function of a block's job
     (``spliced(block, at)``); None when the file is not one to splice (a stream,
@@ -313,16 +324,16 @@ def _splice_jobs(
         return None
     lay, path = cap.layout, cap._path
 
-    def general(source: _Slice) -> list[Any]:
+    def general(source: _Slice) -> list[Item]:
         return [item for first, cols in source.batches() for item in convert(source, first, cols)]
 
-    def spliced(block: bytes, at: int) -> list[Any]:
+    def spliced(block: bytes, at: int) -> list[Item]:
         done = splicer.block(block)
         if done is not None:
             return [done]
         return general(_Slice(cap, pa.BufferReader(block), at))
 
-    def jobs() -> Iterator[tuple[Any, ...]]:
+    def jobs() -> Iterator[Job]:
         at = len(lay.head)
         with open(path, "rb") as f:
             f.seek(at)
@@ -332,9 +343,9 @@ def _splice_jobs(
                     rest.seek(at)
                     source = _Slice(cap, rest, at)
                     for first, cols in source.batches():
-                        yield convert, source, first, cols
+                        yield functools.partial(convert, source, first, cols)
                     return
-                yield spliced, block, at
+                yield functools.partial(spliced, block, at)
                 at += len(block)
 
     return jobs(), spliced
@@ -344,7 +355,7 @@ class _Slice(Capture):
     """Part of a capture's data section, from byte ``at`` of the file, read by the general
     rules: its errors name the file's lines."""
 
-    def __init__(self, cap: Capture, stream: Any, at: int) -> None:
+    def __init__(self, cap: Capture, stream: Source, at: int) -> None:
         super().__init__(cap.layout, stream, cap._path, cap._hasher)
         self._at = at
 
@@ -380,7 +391,7 @@ def _arrow_floats(values: FloatArray, null: BoolArray) -> pa.Array:
     return pa.Array.from_buffers(pa.float64(), len(values), [validity, data])
 
 
-def _write_batch(batch: pa.RecordBatch, out: IO[bytes], options: Any, lay: Layout) -> int:
+def _write_batch(batch: pa.RecordBatch, out: Sink, options: pcsv.WriteOptions, lay: Layout) -> int:
     try:
         pcsv.write_csv(batch, out, options)
     except pa.ArrowInvalid:  # a text cell holds a quote: pyarrow will not write it unquoted
@@ -388,6 +399,6 @@ def _write_batch(batch: pa.RecordBatch, out: IO[bytes], options: Any, lay: Layou
     return int(batch.num_rows)
 
 
-def _write_plain(batch: pa.RecordBatch, out: IO[bytes], delimiter: str, eol: str) -> None:
+def _write_plain(batch: pa.RecordBatch, out: Sink, delimiter: str, eol: str) -> None:
     columns = [[("" if v is None else v) for v in c.to_pylist()] for c in batch.columns]
     out.write("".join(delimiter.join(row) + eol for row in zip(*columns, strict=True)).encode())

@@ -12,9 +12,9 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.readspec import Dialect
@@ -78,10 +78,10 @@ COMMA_NUMBER = re.compile(r"^\s*[+-]?\d*,\d+(?:[eE][+-]?\d+)?\s*$")
 MAX_PREAMBLE = 20  # metadata lines a station may write before its header
 
 
-FloatArray = np.ndarray[Any, np.dtype[np.float64]]
+FloatArray = NDArray[np.float64]
 
 
-BoolArray = np.ndarray[Any, np.dtype[np.bool_]]
+BoolArray = NDArray[np.bool_]
 
 
 @dataclass

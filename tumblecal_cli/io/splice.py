@@ -23,16 +23,27 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, TypeAlias
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 from numpy.typing import NDArray
 
+if TYPE_CHECKING:
+    from _typeshed import ReadableBuffer
+
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
-Correction = tuple[tuple[int, int, int], Callable[..., FloatArray]]
+BoolArray = NDArray[np.bool_]
+Offsets = NDArray[np.int32]  # byte offsets in a block, and pyarrow's string offsets
+#: Where a correction's columns are among the sensor columns: a slice when they are next to each other.
+Columns: TypeAlias = "slice[int, int, None] | list[int]"
+#: A correction of (n, k) readings: ``fn(values)``, or ``fn(values, temperature)`` (n,) °C when
+#: there is a temperature column: which of the two is known at run time only, hence ``...``.
+Correct: TypeAlias = Callable[..., FloatArray]
+#: The columns a correction takes (in file order), and the correction.
+Correction = tuple[tuple[int, int, int], Correct]
 
 #: Where orjson and pyarrow spell a float alike: LOW <= |x| < HIGH, and not a whole number.
 LOW, HIGH = 1e-5, 1e10
@@ -80,7 +91,7 @@ class Splicer:
             else:
                 self.runs.append((j, j))
 
-    def block(self, buf: bytes) -> tuple[Any, int] | None:
+    def block(self, buf: bytes) -> tuple[memoryview, int] | None:
         """(the corrected bytes, the number of rows) of ``buf``, whole lines; None when a line
         is not plain (the general reader takes the block)."""
         if not buf.endswith(b"\n"):  # the file's last line, without its line end
@@ -114,7 +125,7 @@ class Splicer:
         groups = self.runs if skip else [(j, j) for j in range(s)]
         return _splice(buf, cells, parts, bounds, skip, groups), n
 
-    def read(self, buf: bytes) -> tuple[FloatArray, Any, IntArray] | None:
+    def read(self, buf: bytes) -> tuple[FloatArray, BoolArray, IntArray] | None:
         """The parsed columns of ``buf``'s lines (n, len(self.parsed), NaN where a cell is
         empty), whether each line's sensor cells are all empty (n,), and where each line ends
         (its line feed's offset); None when a line is not plain, or some of a sensor's cells of
@@ -132,7 +143,7 @@ class Splicer:
             return None
         return values, empty.all(axis=1), newline
 
-    def _cells(self, buf: bytes) -> tuple[Any, IntArray] | None:
+    def _cells(self, buf: bytes) -> tuple[Offsets, IntArray] | None:
         """Each line's parsed cells (n, 2 x parsed): start and end offsets in ``buf``, cell by
         cell, and each line's line feed; None when a line is not plain."""
         if b"#" in buf or not _utf8(buf):
@@ -165,7 +176,7 @@ class Splicer:
             cells[:, 2 * j + 1] = at[:, c] if c < k else ends
         return cells, newline
 
-    def _parse(self, buf: bytes, cells: Any, blank: Any, empty: Any) -> FloatArray | None:
+    def _parse(self, buf: bytes, cells: Offsets, blank: BoolArray, empty: BoolArray) -> FloatArray | None:
         """The parsed cells as floats (n, parsed columns): NaN where ``blank``; None when some
         of a row's cells of one sensor are ``empty`` and some not, or a cell is not a number."""
         n, s = blank.shape
@@ -193,7 +204,7 @@ class Splicer:
             values = np.where(blank, np.nan, values)
         return values
 
-    def _format(self, values: FloatArray, empty: Any) -> tuple[list[Any], IntArray, int]:
+    def _format(self, values: FloatArray, empty: BoolArray) -> tuple[list[ReadableBuffer], Offsets | IntArray, int]:
         """The text of ``values`` (empty where ``empty``) as pyarrow spells them: (the parts of
         a buffer, and value v's offsets in it: ``bounds[v] + skip`` to ``bounds[v + 1]``). With
         ``skip`` 1 the values are one delimiter apart (orjson's text), with 0 back to back."""
@@ -211,7 +222,9 @@ class Splicer:
         data = text.buffers()[2]  # None when every value is empty
         return [data] if data is not None else [], _offsets(text), 0
 
-    def _format_orjson(self, values: FloatArray, empty: Any, wrong: Any) -> tuple[list[Any], IntArray, int]:
+    def _format_orjson(
+        self, values: FloatArray, empty: BoolArray, wrong: IntArray
+    ) -> tuple[list[ReadableBuffer], IntArray, int]:
         import orjson
 
         text = orjson.dumps(values, option=orjson.OPT_SERIALIZE_NUMPY)  # b"[v,v,v,...]"
@@ -219,7 +232,7 @@ class Splicer:
         commas[0] = 0
         commas[-1] = len(text) - 1
         commas[1:-1] = np.flatnonzero(np.frombuffer(text, dtype=np.uint8) == 44)
-        parts: list[Any] = [text]
+        parts: list[ReadableBuffer] = [text]
         if wrong.size:  # pyarrow's spelling (or nothing) in place of orjson's
             spelled = _arrow_floats(values[wrong], empty[wrong])
             right = [(s or "").encode() for s in pc.cast(spelled, pa.string()).to_pylist()]
@@ -238,11 +251,18 @@ class Splicer:
             if self.decimal != ".":
                 chars[chars == 46] = ord(self.decimal)
             chars[commas[1:-1]] = self.delimiter
-            parts = [chars]
+            parts = [chars.data]  # its bytes, no copy
         return parts, commas, 1
 
 
-def _splice(buf: bytes, cells: Any, parts: list[Any], bounds: Any, skip: int, groups: list[tuple[int, int]]) -> Any:
+def _splice(
+    buf: bytes,
+    cells: Offsets,
+    parts: list[ReadableBuffer],
+    bounds: Offsets | IntArray,
+    skip: int,
+    groups: list[tuple[int, int]],
+) -> memoryview:
     """``buf`` with each line's sensor cells (``cells``, n x 2s offsets) replaced by their new
     text (value v of the buffer ``parts`` joined: ``bounds[v] + skip`` to ``bounds[v + 1]``):
     the bytes themselves. Each of ``groups`` (first cell, last cell) is one piece."""
@@ -267,15 +287,15 @@ def _splice(buf: bytes, cells: Any, parts: list[Any], bounds: Any, skip: int, gr
     return memoryview(out.buffers()[2])[at[0] : at[-1]]
 
 
-def _as_slice(where: list[int]) -> Any:
+def _as_slice(where: list[int]) -> Columns:
     """Positions a, a+1, a+2 as a slice (a view, not a copy, of the values), else as they are."""
     return slice(where[0], where[-1] + 1) if where == list(range(where[0], where[-1] + 1)) else where
 
 
-_BITS: list[Any] = [pa.py_buffer(b"\x55" * (1 << 18))]
+_BITS: list[pa.Buffer] = [pa.py_buffer(b"\x55" * (1 << 18))]
 
 
-def _every_other_bit(n: int) -> Any:
+def _every_other_bit(n: int) -> pa.Buffer:
     """A validity bitmap of n values, every other one valid (0, 2, 4, ...)."""
     if (n + 7) // 8 > _BITS[0].size:
         _BITS[0] = pa.py_buffer(b"\x55" * (n // 4 + 1))
@@ -292,18 +312,18 @@ def _every_other(n: int) -> IntArray:
     return _EVEN[0][:n]
 
 
-def _ints(values: Any) -> pa.Array:
+def _ints(values: IntArray) -> pa.Array:
     """An int64 arrow array of ``values`` (``pa.array`` would import pandas where it is installed)."""
     data = np.ascontiguousarray(values, dtype=np.int64)
     return pa.Array.from_buffers(pa.int64(), len(data), [None, pa.py_buffer(data)])
 
 
-def _strings(data: Any, offsets: Any) -> pa.Array:
+def _strings(data: bytes, offsets: Offsets) -> pa.Array:
     """A string array over ``data`` whose values are between consecutive ``offsets`` (no copy)."""
     return pa.Array.from_buffers(pa.string(), len(offsets) - 1, [None, pa.py_buffer(offsets), pa.py_buffer(data)])
 
 
-def _offsets(text: pa.Array) -> Any:
+def _offsets(text: pa.Array) -> Offsets:
     return np.frombuffer(text.buffers()[1], dtype=np.int32, count=len(text) + 1, offset=text.offset * 4)
 
 
@@ -313,7 +333,7 @@ def _floats(arr: pa.Array) -> FloatArray:
     return np.frombuffer(arr.buffers()[1], dtype=np.float64, count=len(arr), offset=arr.offset * 8)
 
 
-def _arrow_floats(values: FloatArray, null: Any) -> pa.Array:
+def _arrow_floats(values: FloatArray, null: BoolArray) -> pa.Array:
     validity = pa.py_buffer(np.packbits(~null, bitorder="little")) if null.any() else None
     data = pa.py_buffer(np.ascontiguousarray(values, dtype=np.float64))
     return pa.Array.from_buffers(pa.float64(), len(values), [validity, data])

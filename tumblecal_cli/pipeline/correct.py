@@ -28,6 +28,7 @@ if TYPE_CHECKING:
     from tumblecal_cli.io.capture import Capture
     from tumblecal_cli.io.readspec import ReadSpec
     from tumblecal_cli.io.sniff import Layout
+    from tumblecal_cli.io.splice import Correct
 
 
 @dataclass
@@ -308,7 +309,7 @@ def _stream(
     cals = [cal, *(o for _, o in more)]
     temperature = thermal_column(cap.layout, cals)
     clamped: list[int] = []  # rows outside a thermal block's range, per block of rows
-    fixes: list[Callable[..., FloatArray]] = []
+    fixes: list[Correct] = []
     for x in cals:
         if x.thermal is not None:
             fixes.append(partial(_thermal, x, clamped))
