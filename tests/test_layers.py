@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import ast
 import functools
+import re
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -227,3 +228,79 @@ def test_pandas_only_inside_the_pipeline_functions() -> None:
             if any(n.split(".")[0] == "pandas" for n in names) and ("pipeline" not in path.parts or not inside):
                 wrong.append(f"{path.relative_to(ROOT)}:{node.lineno}")
     assert wrong == []
+
+
+# -- the shape of the code: what a reader can rely on (README "Development") -----------------
+
+LAYERS = ("core", "io", "pipeline")
+#: Imported where they are used, never at a module's top: optional extras and the heavy
+#: libraries only some calls need (pandas: the DataFrame interface; PyYAML: YAML files; orjson:
+#: guarded, apply's fast writer; ctypes: glibc's malloc tuning).
+LAZY = ("pandas", "matplotlib", "dask", "distributed", "yaml", "orjson", "ctypes")
+
+
+def _functions() -> list[tuple[Path, ast.FunctionDef | ast.AsyncFunctionDef]]:
+    out = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                out.append((path, node))
+    return out
+
+
+def _where(path: Path, node: ast.AST) -> str:
+    return f"{path.relative_to(ROOT)}:{getattr(node, 'name', '')}"
+
+
+def test_no_function_outside_the_cli_takes_more_than_8_parameters() -> None:
+    wrong = []
+    for path, fn in _functions():
+        if "cli" in path.relative_to(PACKAGE).parts[:1]:
+            continue
+        a = fn.args
+        names = [*a.posonlyargs, *a.args, *a.kwonlyargs]
+        count = len(names) + (a.vararg is not None) + (a.kwarg is not None)
+        count -= bool(names) and names[0].arg in ("self", "cls")
+        if count > 8:
+            wrong.append((_where(path, fn), count))
+    assert wrong == []
+
+
+def test_no_module_over_900_lines_and_no_function_body_over_80() -> None:
+    big = [(str(p.relative_to(ROOT)), n) for p in PACKAGE.rglob("*.py") if (n := len(p.read_text().splitlines())) > 900]
+    long = []
+    for path, fn in _functions():
+        body = fn.body[1:] if len(fn.body) > 1 and isinstance(fn.body[0], ast.Expr) else fn.body
+        lines = (body[-1].end_lineno or 0) - body[0].lineno + 1
+        if lines > 80:
+            long.append((_where(path, fn), lines))
+    assert (big, long) == ([], [])
+
+
+def test_any_is_rare() -> None:
+    """``Any`` only at a boundary (a JSON document, a third-party object), each with a reason."""
+    count = sum(len(re.findall(r"\bAny\b", p.read_text())) for p in PACKAGE.rglob("*.py"))
+    assert count <= 60
+
+
+def test_imports_at_the_top_of_core_io_and_pipeline() -> None:
+    """numpy and the package's own modules are imported at a module's top; only LAZY inside functions."""
+    wrong = []
+    for path, fn in _functions():
+        if path.relative_to(PACKAGE).parts[0] not in LAYERS:
+            continue
+        for node in ast.walk(fn):
+            if isinstance(node, ast.Import | ast.ImportFrom):
+                names = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""]
+                if not all(n.split(".")[0] in LAZY for n in names):
+                    wrong.append(f"{_where(path, fn)}: {ast.unparse(node)}")
+    assert wrong == []
+
+
+def test_module_names_are_unique_across_core_io_and_pipeline() -> None:
+    seen: dict[str, list[str]] = {}
+    for layer in LAYERS:
+        for path in (PACKAGE / layer).glob("*.py"):
+            if path.stem != "__init__":
+                seen.setdefault(path.stem, []).append(layer)
+    assert {name: layers for name, layers in seen.items() if len(layers) > 1} == {}

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from tests.conftest import write
 from tumblecal_cli.core import lot
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import calfile
+from tumblecal_cli.io import calfile, limitfile
 from tumblecal_cli.pipeline import report as reports
 
 Vec = tuple[float, float, float]
@@ -243,7 +243,7 @@ def test_bounds_from_a_limits_file(tmp_path: Path) -> None:
         tmp_path / "limits.yaml",
         "offset: [0.05, 0.06, 0.07]\ngain_error: 0.02\nnominal_gain: [2048, 2048, 1024]\ncross_axis: 0.01\n",
     )
-    limits = calfile.load_limits(str(path))
+    limits = limitfile.load_limits(str(path))
     assert lot.bounds("offset.y", limits) == pytest.approx((-0.06, 0.06))
     assert lot.bounds("gain.z", limits) == pytest.approx((1024 * 0.98, 1024 * 1.02))
     assert lot.bounds("cross.zx", limits) == pytest.approx((-0.01, 0.01))

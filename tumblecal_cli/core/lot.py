@@ -176,7 +176,7 @@ def duplicate_of(found: Iterable[Duplicate]) -> dict[str, list[str]]:
 
 
 def bounds(parameter: str, limits: Mapping[str, float | FloatArray]) -> tuple[float | None, float | None]:
-    """(lower, upper) specification limits of a parameter from a ``calfile.load_limits`` dict,
+    """(lower, upper) specification limits of a parameter from a ``limitfile.load_limits`` dict,
     as ``gate.verdict`` judges a single unit: |offset − nominal| ≤ L, |gain / nominal − 1| ≤ e, |cross| ≤ L.
     (None, None) when the limits do not bound it."""
     family, _, name = parameter.partition(".")
@@ -482,7 +482,7 @@ def summarise(
     min_cpk: float | None = None,
 ) -> Report:
     """The lot report: statistics over the latest calibration of each unit (module docstring),
-    bounded by ``limits`` (a ``calfile.load_limits`` dict, possibly empty), and the drift of every
+    bounded by ``limits`` (a ``limitfile.load_limits`` dict, possibly empty), and the drift of every
     re-calibrated unit against ``max_drift`` (``parse_max_drift``).
 
     Calibrations of one sensor in different units (counts to g beside m/s² to m/s²) are not

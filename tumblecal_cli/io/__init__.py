@@ -14,8 +14,11 @@
 - ``forked``: apply's blocks corrected by forked worker processes, one per core.
 - ``logread``: a long log read block by block into the streaming still-block detector
   (``core.scan``), for segment and solve --log.
-- ``calfile``: the typed Calibration and its JSON/YAML form (README "Calibration file"); limits
-  files.
+- ``calfile``: the typed Calibration and its JSON/YAML form (README "Calibration file").
+- ``calparts``: its typed parts (poses, verdict, tilt sensitivity, residuals, thermal ...), each
+  read from and written to its field.
+- ``documents``: a JSON or YAML document read safely (size, encoding, duplicate keys, aliases).
+- ``limitfile``: limits files: the bounds a unit is judged by.
 - ``formats``: a calibration in other tools' terms (firmware, imucal, ROS, MATLAB, ArduPilot,
   PX4) for export, and imucal/ROS files read back for import.
 - ``outputs``: atomic writes, '-' for stdout, and the rule that no command writes onto an input.

@@ -9,10 +9,8 @@ only: a ``!!python/object`` tag is an error, never run).
 
 from __future__ import annotations
 
-import functools
 import json
 import os
-import sys
 from collections.abc import Callable, Mapping, Sequence
 from contextvars import ContextVar
 from dataclasses import dataclass, field, replace
@@ -22,6 +20,7 @@ from typing import TYPE_CHECKING, Any, TypeAlias, TypeVar
 import numpy as np
 from numpy.typing import ArrayLike
 
+from tumblecal_cli.core.drift import correct as thermal_correct
 from tumblecal_cli.core.model import SENSORS, FloatArray, Solution, parse_label
 from tumblecal_cli.core.model import apply as apply_model
 from tumblecal_cli.errors import InputError, control_character
@@ -60,12 +59,11 @@ from tumblecal_cli.io.calparts import (
     text,
     thermal_from,
 )
+from tumblecal_cli.io.documents import is_yaml, read_object
 from tumblecal_cli.io.outputs import atomic_output
 from tumblecal_cli.version import __version__
 
 if TYPE_CHECKING:
-    import yaml
-
     from tumblecal_cli.core.solvers import Fit
 
 __all__ = [  # the parts, for code that names them as calfile's
@@ -221,7 +219,6 @@ class Calibration:
         temp = np.asarray(temperature, dtype=np.float64).reshape(-1)
         if temp.shape[0] != raw.shape[0]:
             raise InputError(f"temperature has {temp.shape[0]} values for {raw.shape[0]} rows", file=self.path)
-        from tumblecal_cli.core.drift import correct as thermal_correct
 
         fixed, _ = thermal_correct(raw, temp, self.offset, self.matrix, self.thermal.drift())
         return fixed
@@ -575,7 +572,7 @@ def load(path: str | os.PathLike[str]) -> Calibration:
     if not isinstance(path, str | os.PathLike):
         raise InputError(f"load takes a calibration file's path, not a {type(path).__name__}")
     name = os.fspath(path)
-    return validate(_read_object(name, "calibration file"), name)
+    return validate(read_object(name, "calibration file"), name)
 
 
 def resolve(cal: Calibration | str | os.PathLike[str]) -> Calibration:
@@ -610,9 +607,9 @@ def validate(doc: Doc, path: str) -> Calibration:
         raise InputError("field 'columns' must be a list of three column names", file=path)
     if len({c.strip().lower() for c in columns}) != 3:  # one column corrected twice, another not at all
         raise InputError(f"field 'columns' must name three different columns, got {', '.join(columns)}", file=path)
-    _vector(doc["gain"], "gain", path)  # required by the contract, so validated like offset
+    vector_field(doc["gain"], "gain", path)  # required by the contract, so validated like offset
     _optional_fields(doc, path)
-    _vector(doc["offset"], "offset", path)
+    vector_field(doc["offset"], "offset", path)
     invertible(_matrix(doc["matrix"], "matrix", path), path)
     return from_dict(doc, path)
 
@@ -628,9 +625,9 @@ def _pose_entry(pose: Doc, name: str, path: str) -> None:
         raise InputError(f"field '{name}.samples' must be a positive integer", file=path)
     for key in ("mean", "std"):
         if key in pose:
-            _vector(pose[key], f"{name}.{key}", path)
+            vector_field(pose[key], f"{name}.{key}", path)
     if pose.get("angle_deg") is not None:
-        _number(pose["angle_deg"], f"{name}.angle_deg", path)
+        number_field(pose["angle_deg"], f"{name}.angle_deg", path)
 
 
 def _is_label(text: str) -> bool:
@@ -644,7 +641,7 @@ def _optional_fields(doc: Doc, path: str) -> None:
     """Fields beyond REQUIRED that ``show`` and ``check`` read, validated where present (null: absent)."""
     if not isinstance(doc["method"], str):
         raise InputError("field 'method' must be a string", file=path)
-    reference = _number(doc["reference"], "reference", path)
+    reference = number_field(doc["reference"], "reference", path)
     if reference < 0 or (reference == 0 and doc["sensor"] != "gyroscope"):
         raise InputError(f"field 'reference' must be positive (0 only for a gyroscope), got {reference:g}", file=path)
     for name in ("units", "input_units"):
@@ -656,11 +653,11 @@ def _optional_fields(doc: Doc, path: str) -> None:
             continue
         if not (isinstance(value, dict) and "offset" in value and "gain" in value):
             raise InputError(f"field {block!r} must be an object with 'offset' and 'gain'", file=path)
-        _vector(value["offset"], f"{block}.offset", path)
-        _vector(value["gain"], f"{block}.gain", path)
+        vector_field(value["offset"], f"{block}.offset", path)
+        vector_field(value["gain"], f"{block}.gain", path)
         for key in ("tolerance_deg", "gain_tolerance"):
             if value.get(key) is not None:
-                _number(value[key], f"{block}.{key}", path)
+                number_field(value[key], f"{block}.{key}", path)
     _nested_fields(doc, path)
 
 
@@ -672,7 +669,7 @@ def _nested_fields(doc: Doc, path: str) -> None:
             raise InputError("field 'residuals' must be an object with rms, max and count", file=path)
         for key in ("rms", "max"):
             if key in residuals:
-                _number(residuals[key], f"residuals.{key}", path)
+                number_field(residuals[key], f"residuals.{key}", path)
     unit = doc.get("unit")
     if unit is not None and not isinstance(unit, dict):
         raise InputError("field 'unit' must be an object (serial, station, operator, meta)", file=path)
@@ -717,176 +714,16 @@ def _verdict_field(verdict: object, path: str) -> None:
             )
 
 
-def _read_object(path: str, what: str) -> dict[str, object]:
-    """The JSON/YAML object in ``path`` ('-': stdin)."""
-    return parse_object(read_bytes(path, what), path, what)
-
-
-#: The most a calibration, limits or peer file may hold: they are kilobytes (a calibration with
-#: ten thousand poses is 6 MB); a larger one is the wrong file (a capture, a device, /dev/zero).
-MAX_BYTES = 16 * 1024 * 1024
-
-
-def read_bytes(path: str, what: str) -> bytes:
-    """The bytes of ``path`` ('-': stdin), at most MAX_BYTES; a missing or unreadable file, or
-    one too large to be a {what}, is one error naming it."""
-    try:
-        if path == "-":  # '-' means stdin wherever a path is taken (README option tables)
-            data = sys.stdin.buffer.read(MAX_BYTES + 1)
-        else:
-            with open(path, "rb") as f:
-                data = f.read(MAX_BYTES + 1)
-    except FileNotFoundError:
-        raise InputError(f"no such {what}", file=path) from None
-    except IsADirectoryError:
-        raise InputError(f"is a directory, not a {what}", file=path) from None
-    except OSError as err:
-        raise InputError(f"cannot read: {err.strerror}", file=path) from None
-    if len(data) > MAX_BYTES:
-        raise InputError(
-            f"holds more than {MAX_BYTES // (1024 * 1024)} MB: too large for a {what} (they are kilobytes)",
-            file=path,
-            hint=f"is this the {what} you meant?",
-        )
-    return data
-
-
-def parse_object(raw: bytes, path: str, what: str, *, as_yaml: bool | None = None) -> dict[str, object]:
-    """The JSON/YAML object in ``raw`` (YAML when ``path`` ends in .yaml/.yml, or ``as_yaml``)."""
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise InputError(f"not a {what}: not UTF-8 text", file=path) from None
-    if not text.strip():
-        raise InputError(f"empty {what}", file=path)
-    doc = _parse(text, path, as_yaml=as_yaml)
-    if not isinstance(doc, dict):
-        raise InputError(f"not a {what}: expected a JSON/YAML object at the top", file=path)
-    return doc
-
-
-#: Keys of a limits file (README "Limits"); a number, or [x, y, z] where marked per axis.
-LIMIT_KEYS = {
-    "offset": "per axis",
-    "gain_error": "per axis",
-    "nominal_gain": "per axis",
-    "cross_axis": "one",
-    "noise": "one",
-    "residual": "one",
-    "nominal_offset": "per axis",  # the offset a good unit has (unsigned counts: 32768); any number
-    # `tumblecal noise`'s figures, in the units it reports them in (solve and report ignore them)
-    "noise_density": "per axis",
-    "bias_instability": "per axis",
-    "random_walk": "per axis",
-    "offset_drift": "per axis",  # a thermal block's largest offset drift over its range, raw units
-    "offset_drift_per_degc": "per axis",  # ... and per °C
-}
-#: The limits only `tumblecal noise` judges.
-NOISE_LIMITS = ("noise_density", "bias_instability", "random_walk")
-
-
-# untyped values: pipeline.noise and pipeline.report tell a float from a (3,) array at run time,
-# and a dict[str, float | FloatArray] would fail their type checks
-def load_limits(path: str) -> dict[str, Any]:
-    """The bounds in a limits file, validated: ``{key: float or (3,) array}``."""
-    doc = _read_object(path, "limits file")
-    out: dict[str, float | FloatArray] = {}
-    for key, value in doc.items():
-        if key == "version":
-            if isinstance(value, bool) or value != 1:  # True == 1 in Python
-                raise InputError(f"unsupported limits version {value!r} (this tumblecal reads version 1)", file=path)
-            continue
-        if key == "format":
-            raise InputError(f"a {value} file, not a limits file", file=path, hint="see README: Limits and the verdict")
-        if key not in LIMIT_KEYS:
-            raise InputError(f"unknown limit {key!r} (known: {', '.join(LIMIT_KEYS)})", file=path)
-        if key == "nominal_offset":  # not a bound: a centre, which may be 0 or negative
-            out[key] = _vector(value, key, path) if isinstance(value, list) else np.full(3, _number(value, key, path))
-            continue
-        out[key] = limit_value(value, key, path, per_axis=LIMIT_KEYS[key] == "per axis")
-    return out
-
-
-def limit_value(value: object, name: str, path: str | None, *, per_axis: bool) -> float | FloatArray:
-    """A positive bound: a number, or for ``per_axis`` also a list [x, y, z] (made (3,))."""
-    if per_axis and isinstance(value, list):
-        array = _vector(value, name, path)
-    else:
-        array = np.full(3, _number(value, name, path))
-    if (array <= 0).any():
-        raise InputError(f"{'limit' if path else 'option'} {name!r} must be positive, got {value!r}", file=path)
-    return array if per_axis else float(array[0])
-
-
-def is_yaml(path: str) -> bool:
-    return path.lower().endswith((".yaml", ".yml"))
-
-
-def _parse(text: str, path: str, *, as_yaml: bool | None = None) -> object:
-    if as_yaml is None:
-        as_yaml = is_yaml(path) or (path == "-" and not text.lstrip().startswith("{"))
-    if as_yaml:
-        import yaml
-
-        try:
-            return yaml.load(text, Loader=_yaml_loader())  # a SafeLoader that also refuses aliases
-        except RecursionError:
-            raise InputError("not a calibration: its YAML is nested too deeply to read", file=path) from None
-        except yaml.YAMLError as err:
-            mark = getattr(err, "problem_mark", None)
-            problem = getattr(err, "problem", None) or str(err).splitlines()[0]
-            raise InputError(
-                f"not valid YAML: {problem}",
-                file=path,
-                line=mark.line + 1 if mark else None,
-                column=mark.column + 1 if mark else None,
-            ) from None
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError as err:
-        first = text.lstrip("\ufeff").split("\n", 1)[0].strip()
-        if first.startswith("serial,status,"):  # batch's summary.csv, given where its calibrations go
-            folder = os.path.dirname(path) or "."
-            raise InputError(
-                "a batch summary (CSV), not a calibration",
-                file=path,
-                hint=f"give the calibrations: their folder ({folder}) or its *.json files",
-            ) from None
-        raise InputError(f"not valid JSON: {err.msg}", file=path, line=err.lineno, column=err.colno) from None
-    except RecursionError:
-        raise InputError("not a calibration: its JSON is nested too deeply to read", file=path) from None
-    except ValueError as err:  # an integer of more digits than Python converts (4300)
-        raise InputError(f"not valid JSON: {err}", file=path) from None
-
-
-@functools.cache
-def _yaml_loader() -> type[yaml.SafeLoader]:
-    """yaml.SafeLoader that refuses aliases (``*name``): a calibration or limits file has no use
-    for them, and a tree of aliases expands exponentially (a few hundred bytes can become GB)."""
-    import yaml
-
-    class NoAliases(yaml.SafeLoader):
-        def compose_node(self, parent: yaml.Node | None, index: int) -> yaml.Node | None:
-            if self.check_event(yaml.events.AliasEvent):
-                mark = self.peek_event().start_mark  # type: ignore[no-untyped-call]
-                raise yaml.composer.ComposerError(
-                    None, None, "an alias (*name): tumblecal's files are read without them", mark
-                )
-            return super().compose_node(parent, index)
-
-    return NoAliases
-
-
-def _number(value: object, name: str, path: str | None) -> float:
+def number_field(value: object, name: str, path: str | None) -> float:
     if not is_number(value):
         raise InputError(f"field {name!r} must be a finite number", file=path)
     return float(value)
 
 
-def _vector(value: object, name: str, path: str | None) -> FloatArray:
+def vector_field(value: object, name: str, path: str | None) -> FloatArray:
     if not (isinstance(value, list) and len(value) == 3):
         raise InputError(f"field {name!r} must be a list of 3 numbers", file=path)
-    return np.array([_number(v, name, path) for v in value])
+    return np.array([number_field(v, name, path) for v in value])
 
 
 def invertible(matrix: FloatArray, path: str, name: str = "matrix") -> FloatArray:
@@ -902,7 +739,7 @@ def invertible(matrix: FloatArray, path: str, name: str = "matrix") -> FloatArra
 def _matrix(value: object, name: str, path: str) -> FloatArray:
     if not (isinstance(value, list) and len(value) == 3 and all(isinstance(r, list) and len(r) == 3 for r in value)):
         raise InputError(f"field {name!r} must be a 3x3 list of numbers", file=path)
-    return np.array([[_number(v, name, path) for v in row] for row in value])
+    return np.array([[number_field(v, name, path) for v in row] for row in value])
 
 
 def _json(value: object, depth: int) -> str:

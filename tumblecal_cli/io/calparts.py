@@ -13,16 +13,14 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, TypeGuard, TypeVar
+from typing import TypeGuard, TypeVar
 
 import numpy as np
 
+from tumblecal_cli.core.drift import Drift
 from tumblecal_cli.core.gate import Finding, Limits
 from tumblecal_cli.core.model import FloatArray
 from tumblecal_cli.errors import InputError
-
-if TYPE_CHECKING:
-    from tumblecal_cli.core.drift import Drift
 
 #: A JSON/YAML object as parsed (the boundary: its values are whatever the file holds).
 Doc = Mapping[str, object]
@@ -624,7 +622,6 @@ class Thermal:
         return int(np.asarray(self.offset).shape[1])
 
     def drift(self) -> Drift:
-        from tumblecal_cli.core.drift import Drift
 
         return Drift(self.reference_temperature, self.range[0], self.range[1], self.offset, self.gain)
 

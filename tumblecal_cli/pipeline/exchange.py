@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, TypedDict, Unpack
 from tumblecal_cli.core import gate
 from tumblecal_cli.core.gate import FIXED_GAINS
 from tumblecal_cli.errors import InputError, control_character
-from tumblecal_cli.io import calfile, formats
+from tumblecal_cli.io import calfile, documents, formats
 from tumblecal_cli.pipeline.correct import refuse_failed
 from tumblecal_cli.pipeline.options import Triplet, keywords_known, path_of, triplet, unit_block
 from tumblecal_cli.pipeline.options import limits as parse_limits
@@ -194,9 +194,9 @@ def import_peer(
     """An imucal JSON or ROS imu_calib YAML file as a tumblecal Calibration (README "import")."""
 
     path = path_of(path, "import_peer reads a file of another tool")
-    raw = calfile.read_bytes(path, "calibration file")
+    raw = documents.read_bytes(path, "calibration file")
     as_yaml = not path.lower().endswith(".json") and raw.lstrip()[:1] != b"{"  # ROS files are YAML, any name
-    doc = calfile.parse_object(raw, path, "calibration file", as_yaml=as_yaml)
+    doc = documents.parse_object(raw, path, "calibration file", as_yaml=as_yaml)
     found = formats.detect(doc)
     name = fmt if fmt is not None else found
     if name is None or (found is not None and found != name):

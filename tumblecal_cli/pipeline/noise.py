@@ -20,7 +20,7 @@ import yaml
 from tumblecal_cli.core import allan, gate
 from tumblecal_cli.core.model import apply
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import calfile, capture, readings, sniff
+from tumblecal_cli.io import calfile, capture, documents, limitfile, readings, sniff
 from tumblecal_cli.io.outputs import atomic_output
 from tumblecal_cli.pipeline.options import ReadKeywords, keywords_known, path_of, read_spec
 
@@ -280,13 +280,13 @@ def _limits(limits: str | os.PathLike[str] | Mapping[str, object] | None) -> dic
 
     if limits is None:
         return {}
-    given = calfile.load_limits(os.fspath(limits)) if isinstance(limits, str | os.PathLike) else dict(limits)
+    given = limitfile.load_limits(os.fspath(limits)) if isinstance(limits, str | os.PathLike) else dict(limits)
     out: dict[str, FloatArray] = {}
-    for key in calfile.NOISE_LIMITS:
+    for key in limitfile.NOISE_LIMITS:
         value = given.get(key)
         if value is not None:
             listed = list(value) if isinstance(value, list | tuple | np.ndarray) else value  # [x, y, z], or one
-            out[key] = np.asarray(calfile.limit_value(listed, key, None, per_axis=True), dtype=np.float64)
+            out[key] = np.asarray(limitfile.limit_value(listed, key, None, per_axis=True), dtype=np.float64)
     return out
 
 
@@ -368,7 +368,9 @@ def write_kalibr(path: str, result: Noise) -> dict[str, float]:
     model = result.kalibr()
     doc: dict[str, object] = {}
     if os.path.isfile(path):  # a file's keys are kept; a device or a pipe (/dev/null, -) is written into
-        doc = calfile.parse_object(calfile.read_bytes(path, "Kalibr imu.yaml"), path, "Kalibr imu.yaml", as_yaml=True)
+        doc = documents.parse_object(
+            documents.read_bytes(path, "Kalibr imu.yaml"), path, "Kalibr imu.yaml", as_yaml=True
+        )
     old_rate = doc.get("update_rate")
     if isinstance(old_rate, int | float) and abs(float(old_rate) - result.rate) > 1e-6 * result.rate:
         raise InputError(

@@ -19,7 +19,7 @@ from tumblecal_cli.core import gate, model
 from tumblecal_cli.core.methods import METHODS, TURNS
 from tumblecal_cli.core.model import SENSORS
 from tumblecal_cli.errors import InputError, control_character
-from tumblecal_cli.io import calfile
+from tumblecal_cli.io import limitfile
 from tumblecal_cli.io.calfile import Unit
 from tumblecal_cli.io.readspec import Dialect, ReadSpec, column_list
 
@@ -460,8 +460,8 @@ def limits(
     """The limits of a limits file, with the flags taking precedence (``nominal_offset``, solve's
     --nominal-offset: the centre of the offset limit unless the file names one)."""
 
-    bounds: dict[str, object] = dict(calfile.load_limits(path)) if path else {}
-    for key in calfile.NOISE_LIMITS:  # a station's one limits file also bounds `tumblecal noise`
+    bounds: dict[str, object] = dict(limitfile.load_limits(path)) if path else {}
+    for key in limitfile.NOISE_LIMITS:  # a station's one limits file also bounds `tumblecal noise`
         bounds.pop(key, None)
     if nominal_offset is not None:
         bounds.setdefault("nominal_offset", nominal_offset)

@@ -10,9 +10,9 @@ import numpy as np
 
 from tumblecal_cli.core import gate, lot
 from tumblecal_cli.errors import InputError, TumblecalError
-from tumblecal_cli.io import calfile
+from tumblecal_cli.io import calfile, limitfile
 
-#: Suffixes of calibration files a folder is searched for (case-insensitive, as calfile.is_yaml).
+#: Suffixes of calibration files a folder is searched for (case-insensitive, as documents.is_yaml).
 SUFFIXES = (".json", ".yaml", ".yml")
 
 
@@ -22,7 +22,7 @@ class Reported:
 
     result: lot.Report
     entries: list[lot.Entry]
-    limits: dict[str, object]
+    limits: Mapping[str, object]
     files: list[str]
 
     @property
@@ -46,7 +46,7 @@ def report(
     if min_cpk is not None and limits is None:
         raise InputError("--min-cpk needs --limits: Cpk is measured against the limits")
     drift_limits = lot.parse_max_drift(max_drift)
-    bounds = calfile.load_limits(limits) if limits else {}
+    bounds = limitfile.load_limits(limits) if limits else {}
     if not isinstance(paths, str | os.PathLike | Sequence):
         raise InputError(f"report takes calibration files (one, or a list), not a {type(paths).__name__}")
     given = [paths] if isinstance(paths, str | os.PathLike) else list(paths)
