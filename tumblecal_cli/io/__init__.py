@@ -6,6 +6,8 @@
   mark, and which columns hold the sensor triplet, the time and the temperature.
 - ``capture``: a CSV capture streamed through pyarrow with every cell's text kept, and its
   errors located by line and column (README "CSV captures").
+- ``sources``: where a reader of another kind of file (a binary log) plugs in: a ``Reader``
+  claims a file and gives its readings as a ``Table``; every command then takes it.
 - ``readings``: pose files and whole logs read into memory (``Samples``, ``Log``), with their
   clock's unit judged.
 - ``rewrite``: apply's streaming writer: a capture written again with its sensor columns

@@ -7,7 +7,7 @@ temperature and a label column; ``read_samples`` is the same for a pose file.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pyarrow as pa
@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 
 from tumblecal_cli.core.scan import log_index
 from tumblecal_cli.errors import InputError
+from tumblecal_cli.io import sources
 from tumblecal_cli.io.capture import Capture, open_capture, to_floats
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.io.sniff import (
@@ -28,6 +29,7 @@ from tumblecal_cli.io.sniff import (
     Layout,
     quoted,
 )
+from tumblecal_cli.io.sources import Table
 
 
 @dataclass(frozen=True)
@@ -135,6 +137,11 @@ def read_log(
     there and hold a number on every row with sensor values (an error names the line and
     column)."""
     spec = spec or ReadSpec()
+    reader = sources.reader_for(path)
+    if reader is not None:  # a source beside CSV (io.sources)
+        table = reader.read(path, spec, label_column)
+        log = from_table(table, name or path, spec, use_time=use_time, need_temperature=need_temperature)
+        return log if digest else replace(log, sha256="")
     time_unit = spec.time_unit
     with open_capture(path, spec, name=name, extra=label_column) as cap:
         lay = cap.layout
@@ -188,6 +195,46 @@ def read_log(
                 raise
             scale = TIME_SCALE[lay.time_unit or "s"]  # the time column is not used (--rate): no judgement
     return Log(lay, values if every else values[mask], used, t, text, sha256, temperature, scale)
+
+
+def from_table(table: Table, name: str, spec: ReadSpec, *, use_time: bool, need_temperature: bool) -> Log:
+    """The Log of a source a reader of another kind read (io.sources): its readings judged as a
+    CSV's are (finite numbers; a clock that never goes back, its unit judged; a temperature on
+    every row where one is needed), each problem named by the file and the reading's row."""
+    names = [*table.names]
+    time = temperature = extra = None
+    if table.clock is not None:
+        time, names = len(names), [*names, "time"]
+    if table.temperature is not None:
+        temperature, names = len(names), [*names, "temperature"]
+    if table.labels is not None:
+        extra, names = len(names), [*names, "label"]
+    lay = Layout(name, ",", names, True, b"", 1, "\n", (0, 1, 2), time, temperature, extra, list(table.notes))
+    lay.time_unit = table.time_unit
+    values = table.values
+    if len(values) == 0:
+        raise InputError("no rows with sensor values", file=name, hint=f"columns read: {', '.join(table.names)}")
+    bad = np.flatnonzero(~np.isfinite(values).all(axis=1))
+    if bad.size:
+        raise InputError(f"reading {int(bad[0]) + 1} ({table.names[0]}...) is not a finite number", file=name)
+    if need_temperature:
+        _require_temperature(lay)
+        assert table.temperature is not None
+        hot = np.flatnonzero(~np.isfinite(table.temperature))
+        if hot.size:
+            raise InputError(f"reading {int(hot[0]) + 1} has no temperature", file=name)
+    clock = None if table.clock is None else np.asarray(table.clock, dtype=np.float64)
+    scale = TIME_SCALE[table.time_unit]
+    if clock is not None and use_time:
+        back = np.flatnonzero(np.diff(clock) < 0)
+        if back.size or not np.isfinite(clock).all():
+            at = int(back[0]) + 2 if back.size else int(np.flatnonzero(~np.isfinite(clock))[0]) + 1
+            raise InputError(
+                f"the clock goes back or is not a number at reading {at}", file=name, hint="give --rate HZ"
+            )
+        scale = time_scale(lay, clock, spec.time_unit)
+    rows = np.arange(len(values), dtype=np.int64)
+    return Log(lay, values, rows, clock, table.labels, table.sha256, table.temperature, scale)
 
 
 def _require_temperature(lay: Layout) -> None:

@@ -23,7 +23,7 @@ from tumblecal_cli.core import methods, model, solvers
 from tumblecal_cli.core import segment as seg_core
 from tumblecal_cli.core.segment import Block, Segmentation
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import capture, logread, readings
+from tumblecal_cli.io import capture, logread, readings, sources
 from tumblecal_cli.io.outputs import WRITE_ERRORS, atomic_output, remove_stale
 from tumblecal_cli.io.readings import Log, Samples
 from tumblecal_cli.io.readspec import ReadSpec
@@ -84,7 +84,8 @@ def segmented(
     if rate is not None and not 0 < rate <= FASTEST:
         raise InputError(f"--rate must be a positive number of Hz up to {FASTEST:g}, got {rate:g}")
     with read_twice(log) as path:  # a pipe or FIFO is read once: kept for a second read
-        if pose_column is None and not whole:  # block by block, the still periods kept (io.logread)
+        streamed = pose_column is None and not whole and sources.reader_for(path) is None
+        if streamed:  # a CSV log block by block, the still periods kept (io.logread)
             name = "<stdin>" if log == "-" else log
             scanned = logread.scan_log(path, spec, settings=settings, name=name, digest=digest)
             if scanned is not None:

@@ -20,13 +20,14 @@ import yaml
 from tumblecal_cli.core import allan, gate
 from tumblecal_cli.core.model import apply
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import calfile, capture, documents, limitfile, readings, sniff
+from tumblecal_cli.io import calfile, capture, documents, limitfile, readings, sniff, sources
 from tumblecal_cli.io.outputs import atomic_output
 from tumblecal_cli.pipeline.options import ReadKeywords, keywords_known, path_of, read_spec
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfile import Calibration
+    from tumblecal_cli.io.readings import Log
     from tumblecal_cli.io.readspec import ReadSpec
     from tumblecal_cli.pipeline.frames import JSONObject
 
@@ -325,9 +326,16 @@ def _stream(
     stream: allan.AllanStream,
     progress: Callable[[int], None] | None,
 ) -> tuple[allan.Curve, allan.StepWatch, str, list[str], float]:
-    """Read the capture block by block into the Allan stream and the step watch."""
-
+    """Read the capture block by block into the Allan stream and the step watch (a source
+    beside CSV, io.sources: read whole, then fed the same way)."""
     rate, time_unit = spec.rate, spec.time_unit
+    feed = _Feed(cal, stream, progress)
+    if sources.reader_for(path) is not None:
+        log = readings.read_log(path, spec, use_time=rate is None)
+        known = rate if rate is not None else _log_rate(log)
+        for first in range(0, len(log.values), 1 << 16):
+            feed.add(log.values[first : first + (1 << 16)], known)
+        return stream.result(known), feed.watch or allan.StepWatch(1), log.layout.name, list(log.layout.notes), known
     with capture.open_capture(path, spec) as cap:
         lay = cap.layout
         if rate is None and lay.time is None:
@@ -335,7 +343,6 @@ def _stream(
                 "the sample rate is unknown: the capture has no time column", file=lay.name, hint="give --rate HZ"
             )
         hz = rate
-        watch: allan.StepWatch | None = None
         for first_row, cols in cap.batches(only_sensor=True):
             values, empty = cap.sensor_values(cols, first_row)
             bad = ~np.isfinite(values) & ~empty[:, None]
@@ -346,18 +353,45 @@ def _stream(
                 values = values[~empty]
             if hz is None and values.shape[0] > 1:
                 hz = readings.block_rate(cap, cols[3], empty, time_unit)
-            if cal is not None:
-                values = apply(values, cal.offset, cal.matrix)
-            if watch is None and hz is not None:
-                watch = allan.StepWatch(max(16, 2 ** round(math.log2(max(hz, 1.0)))))  # about a second
-            stream.add(values)
-            if watch is not None:
-                watch.add(values)
-            if progress is not None:
-                progress(stream.n)
+            feed.add(values, hz)
     if hz is None:
         raise InputError("the sample rate is unknown", file=lay.name, hint="give --rate HZ")
-    return stream.result(hz), watch or allan.StepWatch(1), lay.name, list(lay.notes), hz
+    return stream.result(hz), feed.watch or allan.StepWatch(1), lay.name, list(lay.notes), hz
+
+
+@dataclass
+class _Feed:
+    """Readings into the Allan stream and the step watch (made once the rate is known: about a
+    second of samples a step), corrected by ``cal`` first when one is given."""
+
+    cal: Calibration | None
+    stream: allan.AllanStream
+    progress: Callable[[int], None] | None
+    watch: allan.StepWatch | None = None
+
+    def add(self, values: FloatArray, hz: float | None) -> None:
+        if self.cal is not None:
+            values = apply(values, self.cal.offset, self.cal.matrix)
+        if self.watch is None and hz is not None:
+            self.watch = allan.StepWatch(max(16, 2 ** round(math.log2(max(hz, 1.0)))))  # about a second
+        self.stream.add(values)
+        if self.watch is not None:
+            self.watch.add(values)
+        if self.progress is not None:
+            self.progress(self.stream.n)
+
+
+def _log_rate(log: Log) -> float:
+    """Samples per second of a log read whole: its clock's median step (to 9 digits)."""
+    seconds = log.seconds()
+    if seconds is None:
+        raise InputError(
+            "the sample rate is unknown: the log has no clock", file=log.layout.name, hint="give --rate HZ"
+        )
+    step = float(np.median(np.diff(seconds))) if seconds.size > 1 else 0.0
+    if not step > 0:
+        raise InputError("the time column does not advance", file=log.layout.name, hint="give --rate HZ")
+    return float(f"{1.0 / step:.9g}")
 
 
 def write_kalibr(path: str, result: Noise) -> dict[str, float]:
