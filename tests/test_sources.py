@@ -97,3 +97,18 @@ def test_a_file_no_reader_claims_is_read_as_csv(tmp_path: Path, npz_reader: None
     assert sources.reader_for(csv) is None
     assert sources.reader_for("-") is None
     assert isinstance(sources.reader_for(str(tmp_path / "log.npz")), NpzReader)
+
+
+@pytest.mark.slow
+def test_segment_writes_a_reader_s_blocks_as_csv_that_solve_reads_back(tmp_path: Path, npz_reader: None) -> None:
+    _, npz = both(tmp_path, *tumble(30_000))
+    done = tumblecal.segment(npz, out_dir=str(tmp_path / "blocks"))
+    files = sorted((tmp_path / "blocks").glob("*.csv"))
+    assert len(files) == 7  # six blocks and segments.csv
+    first = next(f for f in files if f.name != "segments.csv")
+    assert first.read_text().splitlines()[0] == "acc_x,acc_y,acc_z,time,temperature"
+    poses = [
+        f"{face}={tmp_path / 'blocks' / name}"
+        for name, face in zip(done.files.values(), ("+x", "-x", "+y", "-y", "+z", "-z"), strict=True)
+    ]
+    assert tumblecal.solve(poses).status == 0

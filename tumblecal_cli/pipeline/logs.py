@@ -526,6 +526,24 @@ def segment(
     return result
 
 
+def _table_blocks(data: Log, spans: list[tuple[int, int]], outputs: list[str]) -> None:
+    """Each block of a log read from a source beside CSV (io.sources) as a CSV of its readings:
+    the sensor triplet, and the time, temperature and label where the log has them (floats
+    written as their shortest round-trip text)."""
+    columns: list[list[str]] = [[repr(float(v)) for v in data.values[:, j]] for j in range(3)]
+    if data.clock is not None:
+        columns.append([repr(float(v)) for v in data.clock])
+    if data.temperature is not None:
+        columns.append([repr(float(v)) for v in data.temperature])
+    if data.labels is not None:
+        columns.append([label.replace(",", " ") for label in data.labels])
+    header = ",".join(data.layout.names) + "\n"
+    for (first, last), output in zip(spans, outputs, strict=True):
+        rows = zip(*(c[first : last + 1] for c in columns), strict=True)
+        with atomic_output(output) as out:
+            out.write((header + "".join(",".join(row) + "\n" for row in rows)).encode())
+
+
 def _write_blocks(log: str, path: str, found: Blocks, files: dict[int, str], index: str, out_dir: str) -> int:
     """Each kept block into ``out_dir`` and the index beside them; the number of an earlier
     segmentation's block files removed."""
@@ -567,6 +585,8 @@ def _write_blocks(log: str, path: str, found: Blocks, files: dict[int, str], ind
         if data.lines is not None:  # where each block's lines are in the file: copied as they are
             spans = [(int(data.lines[b.first, 0]), int(data.lines[b.last, 1])) for b in kept]
             capture.copy_bytes(path, data.layout, spans, outputs)
+        elif sources.reader_for(path) is not None:  # a source beside CSV: each block's readings as a CSV
+            _table_blocks(data, [(b.first, b.last) for b in kept], outputs)
         else:
             spans = [(int(data.rows[b.first]), int(data.rows[b.last])) for b in kept]
             capture.copy_rows(path, data.layout, spans, outputs)
