@@ -379,6 +379,13 @@ class Limits:
             if method in methods and getattr(self, name) is not None
         }
 
+    def not_applying_notes(self, method: str) -> list[str]:
+        """A note for each limit given that does not apply to ``method`` (NOT_APPLYING)."""
+        return [
+            f"the {method} solver {why}, so the {name.replace('_', '-')} limit does not apply"
+            for name, why in self.not_applying(method).items()
+        ]
+
     def judges(self) -> bool:
         """Whether any bound is set (a nominal gain alone judges nothing)."""
         return any(

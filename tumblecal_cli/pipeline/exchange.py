@@ -16,7 +16,6 @@ from tumblecal_cli.io import calfile, documents, formats
 from tumblecal_cli.pipeline.correct import refuse_failed
 from tumblecal_cli.pipeline.options import Triplet, keywords_known, path_of, triplet, unit_block
 from tumblecal_cli.pipeline.options import limits as parse_limits
-from tumblecal_cli.pipeline.solve import limits_not_applying
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Finding
@@ -58,7 +57,7 @@ def check(
     c = calfile.resolve(cal)
     if c.verdict is not None and "nominal_offset" in c.verdict.limit_names and not any(given.nominal_offset):
         given = replace(given, nominal_offset=c.verdict.limits.nominal_offset)  # the centre solve judged it from
-    notes = limits_not_applying(given, c.method)
+    notes = given.not_applying_notes(c.method)
     recorded = gate.Calibrated(
         c.method,
         c.reference,

@@ -632,13 +632,5 @@ def _solve_notes(stats: list[PoseStats], names: list[str], limits: Limits, metho
         notes[2:] = [
             f"{len(few) - 2} more poses have fewer than 3 samples (noise unknown): {few[2][0]} ... {few[-1][0]}"
         ]
-    notes += limits_not_applying(limits, method)
+    notes += limits.not_applying_notes(method)
     return notes
-
-
-def limits_not_applying(limits: Limits, method: str) -> list[str]:
-    """Notes for the limits given that do not apply to a method (gate.NOT_APPLYING)."""
-    return [
-        f"the {method} solver {why}, so the {name.replace('_', '-')} limit does not apply"
-        for name, why in limits.not_applying(method).items()
-    ]
