@@ -107,6 +107,7 @@ def test_a_tumble_session_streamed_is_the_whole_read(
     assert log.values.shape[0] < 0.9 * whole[0].values.shape[0]  # type: ignore[index]  # the turns are not kept
 
 
+@pytest.mark.slow
 def test_gaps_a_rate_and_interleaved_rows(
     tmp_path: Path, small_blocks: None, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -194,6 +195,7 @@ def test_what_the_stream_does_not_take_is_read_whole(
     assert logread.scan_log(str(path), settings=sc.Settings()) is None
 
 
+@pytest.mark.slow
 def test_a_floor_that_rises_after_the_first_blocks_is_still_exact(tmp_path: Path, small_blocks: None) -> None:
     """A quiet start and a noisy rest: the bound set early would miss the later still samples,
     so the scan says it cannot finish (or finishes exactly): never a different answer."""
@@ -206,6 +208,7 @@ def test_a_floor_that_rises_after_the_first_blocks_is_still_exact(tmp_path: Path
         same(streamed, whole)  # type: ignore[arg-type]
 
 
+@pytest.mark.slow
 def test_segment_writes_the_same_files_either_way(
     session: Callable[[int], Path], tmp_path: Path, small_blocks: None, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -352,7 +355,9 @@ def test_rows_and_line_offsets_either_width(
     assert log.lines.dtype == log.rows.dtype
 
 
-@pytest.mark.parametrize("noise", [0.0, 1e-7], ids=["noise-free", "1e-7 g"])
+@pytest.mark.parametrize(
+    "noise", [pytest.param(0.0, id="noise-free"), pytest.param(1e-7, id="1e-7 g", marks=pytest.mark.slow)]
+)
 def test_a_noise_free_or_very_quiet_log_keeps_whole_faces_either_way(
     tmp_path: Path, small_blocks: None, noise: float
 ) -> None:
