@@ -1,7 +1,9 @@
 """Helpers shared by the test modules: running ``tumblecal`` (in-process or as the installed
-script), the sample data's paths, the "a failed run leaves the output alone" check, writing a
-test's input files, and the unit folders that ``batch`` reads. Test modules import them with
-``from tests.conftest import ...``; a helper that two modules need lives here, once.
+script) and probing what a fresh interpreter imports, the sample data's paths, reading in small
+blocks, the checks of a run's output (one error line, a PNG's size, the "a failed run leaves
+the output alone" check), writing a test's input files, and the unit folders that ``batch``
+reads. Test modules import them with ``from tests.conftest import ...`` (``small_blocks`` is a
+fixture); a helper that two modules need lives here, once.
 
 Slow tests carry ``@pytest.mark.slow`` (a whole module: ``pytestmark``): the Dask cluster, the
 real-data logs, the Monte Carlo benchmark and scatter checks, subprocesses (the installed script,
@@ -129,23 +131,6 @@ print(json.dumps(sorted(m for m in {watch!r} if m in sys.modules)))
 """
 
 
-def spliced_blocks(monkeypatch: pytest.MonkeyPatch) -> list[bool]:
-    """Records, per block, whether apply's fast path (``io.splice``) took it (the general path
-    never asks)."""
-    from tumblecal_cli.io import splice
-
-    taken: list[bool] = []
-    block = splice.Splicer.block
-
-    def spy(self: splice.Splicer, buf: bytes) -> object:
-        done = block(self, buf)
-        taken.append(done is not None)
-        return done
-
-    monkeypatch.setattr(splice.Splicer, "block", spy)
-    return taken
-
-
 def imported(body: str, watch: tuple[str, ...]) -> list[str]:
     """Which of ``watch`` are in ``sys.modules`` after running ``body`` in a fresh Python (what
     the test process has already imported hides nothing)."""
@@ -166,6 +151,9 @@ def feed_stdin(monkeypatch: pytest.MonkeyPatch, data: bytes) -> None:
     monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(data)))
 
 
+# -- reading in small blocks ---------------------------------------------------------------
+
+
 @pytest.fixture
 def small_blocks(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> None:
     """Files read in blocks of the test module's ``BLOCK`` bytes (``capture.BLOCK_BYTES``): a
@@ -173,6 +161,23 @@ def small_blocks(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch
     from tumblecal_cli.io import capture
 
     monkeypatch.setattr(capture, "BLOCK_BYTES", request.module.BLOCK)
+
+
+def spliced_blocks(monkeypatch: pytest.MonkeyPatch) -> list[bool]:
+    """Records, per block, whether apply's fast path (``io.splice``) took it (the general path
+    never asks)."""
+    from tumblecal_cli.io import splice
+
+    taken: list[bool] = []
+    block = splice.Splicer.block
+
+    def spy(self: splice.Splicer, buf: bytes) -> object:
+        done = block(self, buf)
+        taken.append(done is not None)
+        return done
+
+    monkeypatch.setattr(splice.Splicer, "block", spy)
+    return taken
 
 
 # -- checking a run -------------------------------------------------------------------------

@@ -9,6 +9,7 @@ empty folder of their own, so a relative path cannot be found there by chance. T
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import shutil
@@ -21,9 +22,11 @@ import pytest
 
 from tests.conftest import SAMPLE, run_exe, snapshot, tumblecal_exe, unit
 
-distributed = pytest.importorskip("distributed")
-
-pytestmark = pytest.mark.slow
+# distributed is imported where a cluster is made: importing it here cost every run, the fast tier too
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.skipif(importlib.util.find_spec("distributed") is None, reason="distributed is not installed"),
+]
 
 LIMITS = SAMPLE / "limits.yaml"
 EPOCH = "1700000000"
@@ -56,6 +59,8 @@ def make_captures(folder: Path) -> list[Path]:
 
 @pytest.fixture(scope="module")
 def scheduler(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    import distributed
+
     home = tmp_path_factory.mktemp("dask_workers")
     with pytest.MonkeyPatch.context() as env:
         env.delenv("SOURCE_DATE_EPOCH", raising=False)  # the workers' clock is theirs; the caller's setting wins
@@ -289,6 +294,8 @@ def test_unreachable_scheduler_leaves_no_summary(unreachable: dict[str, tuple[in
 def test_a_scheduler_without_workers_is_exit_2_not_a_hang(tmp_path: Path) -> None:
     """The scheduler would accept the units and never run them: after 10 s with no worker,
     a clear error, and nothing written."""
+    import distributed
+
     cluster = distributed.LocalCluster(n_workers=0, processes=True, dashboard_address=":0")
     try:
         src = make_units(tmp_path / "units")

@@ -318,6 +318,7 @@ def test_a_fifo_is_read_once_and_never_blocks(command: str, tmp_path: Path) -> N
         assert (tmp_path / "poses" / "segments.csv").exists()
 
 
+@pytest.mark.slow
 def test_apply_to_stdout_that_fails_part_way_ends_its_output_as_incomplete(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -698,6 +699,7 @@ def test_an_output_name_that_is_no_file_name(
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
 def test_show_onto_a_full_disk_names_stdout() -> None:
     """It said 'error: No space left on device', naming nothing."""
@@ -793,6 +795,7 @@ def test_an_output_that_is_a_symbolic_link_loop(tmp_path: Path, capsys: pytest.C
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "b"]
 
 
+@pytest.mark.slow
 def test_data_for_a_closed_stderr_is_an_error() -> None:
     """-o /dev/stderr with stderr closed (2>&-) dropped the calibration, exit 0."""
     done = subprocess.run(

@@ -317,7 +317,7 @@ def low_passed(rng: np.random.Generator, n: int, rate: float, corner: float, pol
 @pytest.mark.parametrize(
     ("rate", "corner", "poles"),
     [
-        pytest.param(1000.0, 1.0, 1, id="1-Hz-at-1-kHz"),
+        pytest.param(1000.0, 1.0, 1, id="1-Hz-at-1-kHz", marks=pytest.mark.slow),
         pytest.param(100.0, 0.2, 2, id="two-poles-0.2-Hz"),  # 3.0 of the noise within a block
         pytest.param(100.0, 0.05, 2, id="two-poles-0.05-Hz"),  # 4-5
     ],

@@ -71,7 +71,8 @@ def accel_cal(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def gyro_cal(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The gyroscope's true calibration (A, B), for the checks that refuse a log before using one."""
     path = tmp_path_factory.mktemp("gyro") / "gyro.json"
-    Calibration("gyroscope", "rotations", 1.0, ["gyr_x", "gyr_y", "gyr_z"], B, np.linalg.inv(A), np.diag(A)).save(path)
+    columns = ["gyr_x", "gyr_y", "gyr_z"]
+    Calibration("gyroscope", "rotations", 1.0, columns, B, np.linalg.inv(A), np.diag(A), units="deg/s").save(path)
     return path
 
 

@@ -975,6 +975,7 @@ def _arrays(rng: np.random.Generator) -> Iterator[FloatArray]:
         yield tricked
 
 
+@pytest.mark.slow
 def test_smallest_is_the_kth_of_those_under_the_bound_whatever_their_order() -> None:
     rng = np.random.default_rng(7)
     for values in _arrays(rng):

@@ -160,6 +160,7 @@ def test_the_fast_path_takes_plain_files(tmp_path: Path, monkeypatch: pytest.Mon
         assert all(taken), case
 
 
+@pytest.mark.slow
 def test_a_plain_block_after_a_bad_one_is_spliced(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Files bigger than a block: a comment in one block hands that block back, not the file;
     an error far into the file names its line, as the general path does."""
