@@ -1659,3 +1659,34 @@ def test_check_of_a_log_calibration_names_each_block(tmp_path: Path, capsys: pyt
     solved = [ln for ln in run(capsys, "check", cal, "--limits", limits).err.splitlines() if "limit.noise" in ln]
     assert len(solved) == 6
     assert all(re.match(rf"  limit\.noise: {re.escape(str(log))} block \d+: noise ", ln) for ln in solved), solved
+
+
+@pytest.mark.parametrize("centre", [0.5, "0.5", [0.5, 0.5]])
+def test_check_refuses_a_recorded_nominal_offset_that_is_not_three_numbers(
+    centre: object, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A hand-edited centre was judged as 0 (a PASS against the wrong centre): now exit 2 naming the field."""
+    cal = tmp_path / "cal.json"
+    poses = [str(SAMPLE / f"{a}.csv") for a in "xyz"]
+    assert (
+        run(capsys, "solve", "--poses", *poses, "--nominal-offset", "0.02", "--max-offset", "0.1", "-o", cal).code == 0
+    )
+    doc = json.loads(cal.read_text())
+    doc["verdict"]["limits"]["nominal_offset"] = centre
+    cal.write_text(json.dumps(doc))
+    r = run(capsys, "check", cal, "--max-offset", "0.1")
+    assert r.code == 2, r.err
+    assert "verdict.limits.nominal_offset' must be 3 numbers" in r.err
+    assert "internal error" not in r.err
+
+
+def test_a_six_pose_retry_after_auto_keeps_auto_s_note(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Files named for faces, two swapped: auto's choice of six-pose-magnitude is said with the rejection."""
+    folder = tmp_path / "swap"
+    folder.mkdir()
+    for name, source in {"x": "x", "xn": "y", "y": "xn", "yn": "yn", "z": "z", "zn": "zn"}.items():
+        (folder / f"{name}.csv").write_bytes((SAMPLE / f"{source}.csv").read_bytes())
+    order = ["zn", "z", "yn", "y", "xn", "x"]
+    r = run(capsys, "solve", "--poses", *(str(folder / f"{n}.csv") for n in order), "-o", tmp_path / "o.json")
+    assert r.code == 3, r.err
+    assert "auto chose six-pose-magnitude" in r.err

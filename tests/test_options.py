@@ -7,6 +7,7 @@ import inspect
 import pytest
 
 from tumblecal_cli.cli.solve import OPTION_NAMES, solve, solve_options
+from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.readspec import Dialect, ReadSpec
 from tumblecal_cli.pipeline.options import FLAT, CheckOptions, LimitOptions, LogOptions, SolveOptions, UnitOptions
 
@@ -64,3 +65,26 @@ def test_the_command_line_and_python_build_the_same_options() -> None:
 def test_an_unknown_option_from_python_is_a_type_error() -> None:
     with pytest.raises(TypeError, match="no_such_option"):
         SolveOptions.of({"no_such_option": 1})
+
+
+@pytest.mark.parametrize(
+    ("given", "message"),
+    [
+        ({"min_samples": None}, "--min-samples takes a whole number of 1 or more, got None"),
+        ({"decimal": "x"}, "--decimal: 'x' is not one of ., ,"),
+        ({"method": "bogus", "skip_rows": -1}, "--method: 'bogus' is not one of"),
+        ({"sensor": "bogus", "skip_rows": True}, "--sensor: 'bogus' is not one of"),
+    ],
+)
+def test_options_from_python_are_judged_as_before_in_the_same_order(given: dict[str, object], message: str) -> None:
+    """An explicit None is given, not the default; a choice is judged before the file's shape."""
+    from tumblecal_cli.pipeline.options import checked
+
+    with pytest.raises(InputError) as err:
+        checked(SolveOptions.of(given))
+    assert err.value.message.startswith(message)
+
+
+def test_an_unknown_option_names_the_options_class_as_python_did() -> None:
+    with pytest.raises(TypeError, match=r"^SolveOptions.__init__\(\) got an unexpected keyword argument 'foo'$"):
+        SolveOptions.of({"foo": 1})

@@ -40,7 +40,7 @@ def show(
     import numpy as np
 
     from tumblecal_cli.io import calfile
-    from tumblecal_cli.pipeline.solve import tilt_notes
+    from tumblecal_cli.pipeline.exchange import tilt_notes
 
     c = calfile.load(cal)
     if json_out:

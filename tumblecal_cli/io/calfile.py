@@ -751,3 +751,14 @@ def _json(value: object, depth: int) -> str:
     if isinstance(value, list) and value and not all(isinstance(v, int | float | str | None) for v in value):
         return "[\n" + ",\n".join(inner + _json(v, depth + 1) for v in value) + f"\n{pad}]"
     return json.dumps(value, ensure_ascii=False, separators=(", ", ": "))
+
+
+def refuse_failed(cal: Calibration, doing: str, command: str) -> None:
+    """A calibration whose verdict failed goes nowhere without --force (apply, export)."""
+    failures = cal.verdict.failures if cal.verdict is not None else ()
+    codes = ", ".join(f.code for f in failures)
+    raise InputError(
+        f"this unit failed its limits ({codes or 'verdict: fail'}): refusing to {doing}",
+        file=cal.path,
+        hint=f"pass --force to {command} it anyway",
+    )

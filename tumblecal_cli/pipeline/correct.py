@@ -81,7 +81,7 @@ def correct(
 
     for c in cals:
         if c.failed and not force:
-            refuse_failed(c, "correct with it", "apply")
+            calfile.refuse_failed(c, "correct with it", "apply")
         if c.failed:
             note(f"{c.path}: this unit failed its limits; correcting with it as --force asks")
     spec = file_spec(options)
@@ -236,17 +236,6 @@ def claims_once(cals: list[Calibration]) -> None:
                     f"{a.path} and {b.path} both calibrate column{'s' if len(shared) > 1 else ''} {', '.join(shared)}",
                     hint="give one calibration per sensor",
                 )
-
-
-def refuse_failed(cal: Calibration, doing: str, command: str) -> None:
-    """A calibration whose verdict failed goes nowhere without --force (apply, export)."""
-    failures = cal.verdict.failures if cal.verdict is not None else ()
-    codes = ", ".join(f.code for f in failures)
-    raise InputError(
-        f"this unit failed its limits ({codes or 'verdict: fail'}): refusing to {doing}",
-        file=cal.path,
-        hint=f"pass --force to {command} it anyway",
-    )
 
 
 @contextlib.contextmanager

@@ -9,11 +9,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, TypedDict, Unpack
 
-from tumblecal_cli.core import gate
+from tumblecal_cli.core import gate, model, solvers
 from tumblecal_cli.core.gate import FIXED_GAINS
 from tumblecal_cli.errors import InputError, control_character
 from tumblecal_cli.io import calfile, documents, formats
-from tumblecal_cli.pipeline.correct import refuse_failed
 from tumblecal_cli.pipeline.options import Triplet, keywords_known, path_of, triplet, unit_block
 from tumblecal_cli.pipeline.options import limits as parse_limits
 
@@ -56,6 +55,7 @@ def check(
         raise InputError("no limits to judge against", hint="give --limits FILE, --max-offset or --max-gain-error")
     c = calfile.resolve(cal)
     if c.verdict is not None and "nominal_offset" in c.verdict.limit_names and not any(given.nominal_offset):
+        _recorded_centre(c)
         given = replace(given, nominal_offset=c.verdict.limits.nominal_offset)  # the centre solve judged it from
     notes = given.not_applying_notes(c.method)
     recorded = gate.Calibrated(
@@ -74,6 +74,20 @@ def check(
         raise InputError(err.message, file=c.path, hint=err.hint) from None
     verdict = calfile.Verdict(not failures, tuple(failures), given.for_method(c.method))
     return Checked(c.with_verdict(verdict), failures, notes)
+
+
+def _recorded_centre(c: Calibration) -> None:
+    """The nominal offset a verdict records is what check judges the offsets from again: one that
+    is not three numbers (a hand edit) is an error, not a centre of zero."""
+    assert c.verdict is not None
+    written = c.verdict.as_dict()["limits"]
+    centre = written.get("nominal_offset") if isinstance(written, dict) else None
+    if not (isinstance(centre, list) and len(centre) == 3 and all(map(calfile.is_number, centre))):
+        raise InputError(
+            f"field 'verdict.limits.nominal_offset' must be 3 numbers (the centre the offsets were judged from), "
+            f"got {centre!r}",
+            file=c.path,
+        )
 
 
 class ExportKeywords(TypedDict, total=False):
@@ -106,7 +120,7 @@ def export(cal: Calibration | str | os.PathLike[str], fmt: str, **options: Unpac
         raise InputError(f"--instance for {fmt} is {first} to {first + 2}, got {instance}")
     c = calfile.resolve(cal)
     if c.failed and not force:
-        refuse_failed(c, "export it", "export")
+        calfile.refuse_failed(c, "export it", "export")
     if fmt == "registers":
         assert lsb is not None
         return _registers(c, lsb, bits, register_sign, gain_step, nominal_gain)
@@ -246,3 +260,36 @@ def _peer_reference(peer: Peer, path: str) -> float:
         file=path,
         hint="give --reference, the stimulus magnitude in the output units",
     )
+
+
+def tilt_notes(cal: Calibration) -> list[str]:
+    """A note when fixture tilt, not noise, bounds how well the parameters are known."""
+    tilt, se = cal.tilt_sensitivity, cal.uncertainty
+    if tilt is None or not se:
+        return []
+    shifts = {"offset": tilt_only(cal), "gain": [float(v) for v in tilt.gain]}
+    dominated = [n for n in ("offset", "gain") if any(t > 3 * u for t, u in zip(shifts[n], se[n], strict=True))]
+    if not dominated:
+        return []
+    worst = " and ".join(f"the {n}s by up to {max(shifts[n]):.2g} (noise: {max(se[n]):.2g})" for n in dominated)
+    advice = "level the fixture better and state how well with --fixture-tolerance"
+    if cal.method in ("one-pose", "three-pose"):
+        advice += ", or capture the six faces (six-pose takes offsets and gains from vertical readings only)"
+    level = tilt.tolerance_deg  # a file from elsewhere may not say at what tilt
+    off = f"{level:g}° off level" if level is not None else "the fixture's tilt"
+    return [f"fixture tilt, not noise, limits this calibration: {off} moves {worst}; " + advice]
+
+
+def tilt_only(cal: Calibration) -> list[float]:
+    """The tilt sensitivity of the offsets without the part a stated gain tolerance adds to a
+    1-pose up axis (solvers.gain_error_bound): what fixture tilt alone moves them by."""
+
+    tilt = cal.tilt_sensitivity
+    if tilt is None:
+        return []
+    offset = [float(v) for v in tilt.offset]
+    face = cal.poses[0].face if cal.poses else None
+    if tilt.gain_tolerance is not None and face in model.FACES:
+        part = solvers.gain_error_bound(cal.reference, tilt.gain_tolerance)
+        offset = [v - abs(c) * part for v, c in zip(offset, model.FACES[face], strict=True)]
+    return offset

@@ -112,11 +112,11 @@ class SolveOptions:
         ``limits=`` for a limits file, ``serial=`` ...; an enum is its value). A name it does
         not know is a TypeError, as for a function's keyword."""
         groups: dict[str, dict[str, object]] = {g: {} for g in ("", "read", "dialect", *GROUPS)}
-        for name, value in given.items():
+        for name in given:
             if name not in FLAT:
-                raise TypeError(f"solve() got an unexpected keyword argument {name!r}")
-            if value is None:
-                continue
+                raise TypeError(f"SolveOptions.__init__() got an unexpected keyword argument {name!r}")
+        choices_and_numbers(given)  # before a Dialect judges --skip-rows and --decimal, as checked() does
+        for name, value in given.items():
             value = getattr(value, "value", value)
             if name in ("meta", "no_check") and isinstance(value, list | tuple):  # each an enum's or text
                 value = [getattr(v, "value", v) for v in value]
@@ -247,19 +247,24 @@ NUMBERS = (
 )
 
 
+def choices_and_numbers(given: Mapping[str, object]) -> None:
+    """Each choice one of its own, each number a number, among the options ``given`` by the
+    command line's names (the checks the parser makes)."""
+    for name, allowed in {"method": ("auto", *METHODS), "sensor": SENSORS, **CHOICES}.items():
+        value = given.get(name)
+        if value is not None and value not in allowed:
+            raise InputError(f"--{name.replace('_', '-')}: {value!r} is not one of {', '.join(allowed)}")
+    for name in NUMBERS:
+        value = given.get(name)
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)):
+            raise InputError(f"--{name.replace('_', '-')} takes a number, got {value!r}")
+
+
 def checked(options: SolveOptions) -> SolveOptions:
     """The checks the command line's parser makes, for options given in Python: each choice
     one of its own, numbers numbers, ranges kept; a lone string where a list goes is one item."""
 
-    flat = options.flat()
-    for name, allowed in {"method": ("auto", *METHODS), "sensor": SENSORS, **CHOICES}.items():
-        value = flat[name]
-        if value is not None and value not in allowed:
-            raise InputError(f"--{name.replace('_', '-')}: {value!r} is not one of {', '.join(allowed)}")
-    for name in NUMBERS:
-        value = flat[name]
-        if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)):
-            raise InputError(f"--{name.replace('_', '-')} takes a number, got {value!r}")
+    choices_and_numbers(options.flat())
     checks = options.checks
     if isinstance(checks.min_samples, bool) or not isinstance(checks.min_samples, int) or checks.min_samples < 1:
         raise InputError(f"--min-samples takes a whole number of 1 or more, got {checks.min_samples!r}")

@@ -24,6 +24,7 @@ from tumblecal_cli.io import calfile
 from tumblecal_cli.io.calfile import Pose
 from tumblecal_cli.pipeline import logs, rotations, turns
 from tumblecal_cli.pipeline import options as opts
+from tumblecal_cli.pipeline.exchange import tilt_notes
 from tumblecal_cli.pipeline.frames import read_pose, samples_of
 from tumblecal_cli.pipeline.options import SolveOptions, method_options, path_of, triplet
 
@@ -384,7 +385,7 @@ def _solve(name: str, poses: PoseSet, options: SolveOptions, given: Settings) ->
         )
         fit = solvers.run(name, stats, [s.values for s in samples], labels, told, names)
     except CaptureRejected as err:
-        return _rejected_fit(err, name, poses, options, given)
+        return _rejected_fit(err, name, replace(poses, notes=log_notes), options, given)  # with auto's note
     solution = fit.solution
     judged = given.limits.gain_error is not None or given.limits.nominal_gain_given
     if ref > 0 and solution.method in gate.GAIN_SOLVERS and judged:
@@ -582,39 +583,6 @@ def pose_record(s: Samples, m: PoseCheck, c: Corrected) -> Pose:
         norm_error=c.norm_error,
         vector_error=c.vector_error,
     )
-
-
-def tilt_notes(cal: Calibration) -> list[str]:
-    """A note when fixture tilt, not noise, bounds how well the parameters are known."""
-    tilt, se = cal.tilt_sensitivity, cal.uncertainty
-    if tilt is None or not se:
-        return []
-    shifts = {"offset": tilt_only(cal), "gain": [float(v) for v in tilt.gain]}
-    dominated = [n for n in ("offset", "gain") if any(t > 3 * u for t, u in zip(shifts[n], se[n], strict=True))]
-    if not dominated:
-        return []
-    worst = " and ".join(f"the {n}s by up to {max(shifts[n]):.2g} (noise: {max(se[n]):.2g})" for n in dominated)
-    advice = "level the fixture better and state how well with --fixture-tolerance"
-    if cal.method in ("one-pose", "three-pose"):
-        advice += ", or capture the six faces (six-pose takes offsets and gains from vertical readings only)"
-    level = tilt.tolerance_deg  # a file from elsewhere may not say at what tilt
-    off = f"{level:g}° off level" if level is not None else "the fixture's tilt"
-    return [f"fixture tilt, not noise, limits this calibration: {off} moves {worst}; " + advice]
-
-
-def tilt_only(cal: Calibration) -> list[float]:
-    """The tilt sensitivity of the offsets without the part a stated gain tolerance adds to a
-    1-pose up axis (solvers.gain_error_bound): what fixture tilt alone moves them by."""
-
-    tilt = cal.tilt_sensitivity
-    if tilt is None:
-        return []
-    offset = [float(v) for v in tilt.offset]
-    face = cal.poses[0].face if cal.poses else None
-    if tilt.gain_tolerance is not None and face in model.FACES:
-        part = solvers.gain_error_bound(cal.reference, tilt.gain_tolerance)
-        offset = [v - abs(c) * part for v, c in zip(offset, model.FACES[face], strict=True)]
-    return offset
 
 
 def _solve_notes(stats: list[PoseStats], names: list[str], limits: Limits, method: str) -> list[str]:
