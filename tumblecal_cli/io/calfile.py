@@ -58,6 +58,7 @@ from tumblecal_cli.io.calparts import (
     same,
     text,
     thermal_from,
+    unit_fields,
 )
 from tumblecal_cli.io.documents import is_yaml, read_object
 from tumblecal_cli.io.outputs import atomic_output
@@ -679,6 +680,7 @@ def _nested_fields(doc: Doc, path: str) -> None:
         value = (unit or {}).get(key)
         if isinstance(value, str) and control_character(value):
             raise InputError(f"field 'unit.{key}' holds a control character: {value!r}", file=path)
+    unit_fields(unit, path)  # text, as every export writes it and import reads it back
     poses = doc.get("poses")
     if poses is not None:
         if not isinstance(poses, list):

@@ -20,7 +20,7 @@ import numpy as np
 from tumblecal_cli.core.drift import Drift
 from tumblecal_cli.core.gate import Finding, Limits
 from tumblecal_cli.core.model import FloatArray
-from tumblecal_cli.errors import InputError
+from tumblecal_cli.errors import InputError, control_character
 
 #: A JSON/YAML object as parsed (the boundary: its values are whatever the file holds).
 Doc = Mapping[str, object]
@@ -518,6 +518,45 @@ class Unit:
 
     def as_dict(self) -> dict[str, object]:
         return {"serial": self.serial, "station": self.station, "operator": self.operator, "meta": dict(self.meta)}
+
+
+def unit_fields(unit: object, path: str) -> None:
+    """The unit block's values are text, as ``--serial``, ``--station``, ``--operator`` and
+    ``--meta`` write them, so that every export can write them and ``import`` read them back:
+    serial, station and operator a string or null, each meta KEY: VALUE a string. A whole number
+    is read as its text (a hand-written YAML ``serial: 1234``); a list, an object, true/false, a
+    decimal number (YAML's ``1.50`` is 1.5: its text is lost), a control character or text that
+    is not Unicode (a lone surrogate, ``"\\ud800"`` in JSON) is an error naming the field."""
+    if not isinstance(unit, dict):
+        return
+    for key in ("serial", "station", "operator"):
+        if unit.get(key) is not None:
+            _unit_text(unit[key], f"field 'unit.{key}'", path)
+    meta = unit.get("meta") or {}
+    for key, value in meta.items() if isinstance(meta, dict) else ():
+        _unit_text(key, "a key of field 'unit.meta'", path)
+        _unit_text(value, f"field 'unit.meta.{str(key)[:40]}'", path)
+
+
+ONE_LINE = (
+    "a serial, station, operator or meta value is one line of text (in YAML, quote one that looks like another kind)"
+)
+
+
+def _unit_text(value: object, name: str, path: str) -> None:
+    """``value`` (``name`` says where it is) as text, or an error naming it."""
+    if isinstance(value, bool) or not isinstance(value, str | int):
+        kind = {bool: "true/false", float: "a decimal number", list: "a list", dict: "an object"}
+        what = "null" if value is None else kind.get(type(value), type(value).__name__)
+        raise InputError(f"{name} must be text, not {what}", file=path, hint=ONE_LINE)
+    text = str(value)
+    if bad := control_character(text):
+        raise InputError(f"{name} holds a control character: {bad!r}", file=path)
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError as err:
+        half = text[err.start : err.end]
+        raise InputError(f"{name} is not Unicode text: {half!r} is half of a surrogate pair", file=path) from None
 
 
 @dataclass(frozen=True, eq=False)

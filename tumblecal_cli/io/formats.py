@@ -65,9 +65,9 @@ def c_header(cal: Calibration, *, prefix: str | None = None) -> str:
         for i, row in enumerate(cal.matrix)
     )
     lines = [
-        f"/* {_comment(cal.sensor)} calibration, written by tumblecal {__version__} from {_comment(cal.path)}",
+        f"/* {_c_comment(cal.sensor)} calibration, written by tumblecal {__version__} from {_c_comment(str(cal.path))}",
         " *",
-        *[f" * {line}" for line in _provenance(cal)],
+        *[f" * {_c_comment(line)}" for line in _provenance(cal)],
         " *",
         " * Model: corrected = M * (raw - offset), axes in the order x, y, z:",
         " *   corrected[i] = M[i][0]*(raw[0] - offset[0]) + M[i][1]*(raw[1] - offset[1])",
@@ -445,7 +445,7 @@ def ros_yaml(cal: Calibration) -> str:
         *[f"# {line}" for line in _provenance(cal)],
         f"SM: [{', '.join(repr(float(v)) for v in cal.matrix.ravel())}]",
         f"bias: [{', '.join(repr(float(v)) for v in bias)}]",
-        f"tumblecal: {json.dumps(record(cal))}",  # JSON is YAML: what import brings back (imu_calib ignores it)
+        f"tumblecal: {_yaml_flow(record(cal))}",  # JSON is YAML: what import brings back (imu_calib ignores it)
     ]
     return "\n".join(lines) + "\n"
 
@@ -706,8 +706,33 @@ def _provenance(cal: Calibration) -> list[str]:
 
 
 def _comment(text: object) -> str:
-    """Text safe inside a C, YAML or MATLAB comment: one line, no comment terminator."""
-    return re.sub(r"[\x00-\x1f\x7f]", " ", str(text)).replace("*/", "* /")
+    """Text safe inside a YAML, MATLAB or parameter file's comment: one line. C0 and C1 controls
+    and Unicode's line and paragraph separators become spaces (YAML 1.1 breaks a line at NEL,
+    U+2028 and U+2029: what followed would be read as data), and so do U+FFFE and U+FFFF (a YAML
+    reader refuses the whole file for one) and lone surrogates (half of a pair: no file holds one)."""
+    return re.sub(r"[\x00-\x1f\x7f-\x9f\u2028\u2029\ud800-\udfff\ufffe\uffff]", " ", str(text)).replace("*/", "* /")
+
+
+def _c_comment(text: str) -> str:
+    """Text safe inside a C block comment for any compiler and flags: ASCII only (each other
+    character written as ``\\uXXXX`` or ``\\UXXXXXXXX``, a backslash as ``\\\\``), and no ``/*``,
+    ``*/`` or ``??`` (a trigraph in C99: ``??/`` is a backslash) left in it: a space goes between
+    the two characters. gcc -std=c99 -Wall -Wextra -Werror -pedantic compiles it for any text."""
+    text = _comment(text).replace("\\", "\\\\")
+    text = "".join(
+        c if " " <= c <= "~" else f"\\u{ord(c):04x}" if ord(c) < 0x10000 else f"\\U{ord(c):08x}" for c in text
+    )
+    return re.sub(r"(/(?=\*)|\*(?=/)|\?(?=\?))", r"\1 ", text)
+
+
+def _yaml_flow(value: object) -> str:
+    """``value`` as JSON that YAML reads back as the same value: JSON's ``\\ud83d\\ude00`` (a
+    pair of surrogates for one character beyond the BMP) YAML reads as two halves, so every
+    character that is not printable ASCII is written as YAML's ``\\uXXXX`` or ``\\UXXXXXXXX``
+    (only JSON's strings hold such characters, JSON having escaped those below a space: the
+    escapes are in double-quoted scalars)."""
+    text = json.dumps(value, ensure_ascii=False)
+    return "".join(c if ord(c) < 0x7F else f"\\u{ord(c):04x}" if ord(c) < 0x10000 else f"\\U{ord(c):08x}" for c in text)
 
 
 def _c_float(value: float, name: str, path: str | None) -> str:

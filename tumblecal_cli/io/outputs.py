@@ -90,20 +90,29 @@ def check_writable(output: str, flag: str = "-o") -> None:
 
 
 @contextlib.contextmanager
-def atomic_output(path: str) -> Iterator[IO[bytes]]:
+def atomic_output(path: str, *, exclusive: bool = False) -> Iterator[IO[bytes]]:
     """A binary stream for ``path`` ('-': stdout). A file appears (or is replaced) only when
     the block finishes without an error; on an error the old file is left as it was.
 
     A path that is not a regular file (``/dev/null``, ``/dev/stdout``, a named pipe) is written
     into as it is: replacing it would put a file where a device was. A symbolic link to a file
-    keeps its link: the file it points to is what is replaced."""
-    stream = _stream_for(path)
+    keeps its link: the file it points to is what is replaced.
+
+    ``exclusive``: nothing is ever replaced. A name that is taken (by anything: a file, a link, a
+    device), when the block starts or by the time it ends, is an error naming it, and is left as
+    it is: the check and the publish are one step (a hard link, which fails on a taken name), so
+    two runs writing one name cannot both succeed."""
+    if exclusive and path != "-":
+        _named(path, "the output")
+        if os.path.lexists(path):
+            raise _taken(path)
+    stream = _stream_for(path) if not exclusive or path == "-" else None
     if stream is not None:
         with stream as out:
             yield out
         return
     _named(path, "the output")
-    path = _target(path) if os.path.islink(path) else path
+    path = _target(path) if os.path.islink(path) and not exclusive else path
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
         raise InputError("the output folder does not exist", file=path, hint=_make_it(folder))
@@ -132,7 +141,10 @@ def atomic_output(path: str) -> Iterator[IO[bytes]]:
             if err.errno not in WRITE_ERRORS:
                 raise
             raise InputError(f"cannot write: {err.strerror}", file=path) from None
-        _publish(tmp, path)
+        if exclusive:
+            _publish_new(tmp, path)
+        else:
+            _publish(tmp, path)
     except BaseException:
         if tmp:
             with contextlib.suppress(OSError):
@@ -194,6 +206,51 @@ def _publish(tmp: str, path: str) -> None:
     except OSError as err:  # the name's, not the temporary file's
         raise InputError(f"cannot write: {err.strerror}", file=path) from None
 
+
+def _publish_new(tmp: str, path: str) -> None:
+    """The temporary file ``tmp``, whole, under the name ``path`` only if no file has it: a hard
+    link fails on a taken name (the check and the publish in one step), then the temporary name
+    goes. Where a file system has no hard links, an exclusive create of ``path`` claims the name
+    first and the temporary file is renamed over that claim."""
+    try:
+        os.link(tmp, path, follow_symlinks=False)
+    except FileExistsError:
+        raise _taken(path) from None
+    except OSError as err:
+        if err.errno not in _NO_LINKS:
+            raise InputError(f"cannot write: {err.strerror}", file=path) from None
+        _claim(path)
+        try:
+            _publish(tmp, path)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.unlink(path)  # the empty claim: this process's own
+            raise
+        return
+    with contextlib.suppress(FileNotFoundError):
+        os.unlink(tmp)
+
+
+def _claim(path: str) -> None:
+    """``path`` made, empty, by this process alone (it was free): or an error naming it."""
+    try:
+        os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666))
+    except FileExistsError:
+        raise _taken(path) from None
+    except OSError as err:
+        raise InputError(f"cannot write: {err.strerror}", file=path) from None
+
+
+def _taken(path: str) -> InputError:
+    return InputError(
+        "already exists: never replaced (another run may be writing the same name)",
+        file=path,
+        hint="write into a new or empty folder",
+    )
+
+
+#: What os.link says on a file system without hard links (FAT, some network and FUSE mounts).
+_NO_LINKS = frozenset({errno.EPERM, errno.EOPNOTSUPP, errno.ENOTSUP, errno.ENOSYS, errno.EMLINK})
 
 #: The bytes of an output's name its temporary file's name keeps (a name of 255 bytes is allowed,
 #: and the temporary file's adds its own 20).

@@ -47,6 +47,7 @@ class CorrectKeywords(FileKeywords, total=False):
 
     output: str | os.PathLike[str]
     force: bool
+    exclusive: bool
     on_note: Callable[[str], None] | None
 
 
@@ -57,7 +58,9 @@ def correct(
 ) -> Applied:
     """Correct one capture ('-': stdin) into ``output`` ('-': stdout), as ``tumblecal apply``:
     ``cal`` is one calibration (a file, or a Calibration) or several (one per sensor of the
-    capture). ``on_note`` hears each note as it is found, before the capture is streamed."""
+    capture). ``on_note`` hears each note as it is found, before the capture is streamed.
+    ``exclusive``: an ``output`` that exists, or appears while the capture is corrected, is an
+    error and is left as it is (``--out-dir`` never replaces a file)."""
 
     keywords_known(options, CorrectKeywords, "correct")
     output, force, on_note = options.get("output", "-"), options.get("force", False), options.get("on_note")
@@ -117,7 +120,7 @@ def correct(
                     hint="a calibration corrects three sensor columns: check its 'columns' field",
                 )
         said = len(cap.layout.notes)
-        with atomic_output(output) as out:
+        with atomic_output(output, exclusive=options.get("exclusive", False)) as out:
             rows = _stream(cap, out, c, more, note)
         for text in cap.layout.notes[said:]:  # found while reading (a cut last line dropped)
             note(text)
@@ -195,7 +198,9 @@ def correct_many(
         if path == "-":
             raise InputError("--cal - is read once: with several captures give the calibration as a file")
         calfile.load(path)
-    each: dict[str, object] = {"cal": list(cal), **options}
+    # never replaced: a file that appears after the check above (another run correcting a capture
+    # of the same name into this folder) is this capture's error, checked as it is published
+    each: dict[str, object] = {"cal": list(cal), **options, "exclusive": True}
     if scheduler is not None:  # the workers do not share this working folder
         inputs, outputs = [os.path.abspath(c) for c in inputs], [os.path.abspath(o) for o in outputs]
         each["cal"] = [os.path.abspath(c) for c in cal]
