@@ -6,6 +6,8 @@ from __future__ import annotations
 import csv
 import gzip
 import json
+import re
+import shutil
 import subprocess
 from pathlib import Path
 
@@ -804,3 +806,86 @@ def test_data_for_a_closed_stderr_is_an_error() -> None:
         check=False,
     )
     assert (done.returncode, done.stdout) == (2, b"")
+
+
+# -- what summary.csv and segments.csv say, and what --resume trusts -------------------------
+
+#: What a spreadsheet takes for the start of a formula: = + - @, a tab or a carriage return, and
+#: the full-width = + - @ (some input paths fold them to ASCII).
+FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r", "\uff1d", "\uff0b", "\uff0d", "\uff20")
+PLAIN_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+
+
+def formula_cells(path: Path) -> list[tuple[int, str, str]]:
+    """(line, column, cell) of every cell of a CSV file that a spreadsheet would take for a
+    formula (a plain number, -0.01, is a number)."""
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    return [
+        (n, c, v)
+        for n, row in enumerate(rows, 2)
+        for c, v in row.items()
+        if v.startswith(FORMULA_STARTS) and not PLAIN_NUMBER.fullmatch(v)
+    ]
+
+
+def test_formulas_in_summary_csv_inputs_message_and_duplicate_of_are_text(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A manifest cell ``=cmd|calc!A0`` (a file by that name), a missing ``=HYPERLINK(...)``, a
+    clean unit's labelled inputs (``+x=x.csv``) and a duplicate's serial: each text cell that a
+    spreadsheet would take for a formula is written with a leading ' (before: only serial and
+    file were), and --resume reads the summary back as it was written."""
+    monkeypatch.chdir(tmp_path)
+    shutil.copy(SAMPLE / "x.csv", tmp_path / "=cmd|calc!A0")
+    for name in ("x.csv", "y.csv", "z.csv"):
+        shutil.copy(SAMPLE / name, tmp_path / name)
+    with open("lot.csv", "w", newline="", encoding="utf-8") as f:
+        csv.writer(f).writerows(
+            [
+                ["serial", "first", "second", "third"],
+                ["SN1", "=cmd|calc!A0", "y.csv", "z.csv"],
+                ["SN2", '=HYPERLINK("http://x")', "y.csv", "z.csv"],
+                ["-SN3", "+x=x.csv", "+y=y.csv", "+z=z.csv"],
+            ]
+        )
+    r = run(capsys, "batch", "lot.csv", "--out-dir", "cals", "-q")
+    assert r.code == 2, r.err
+    summary = tmp_path / "cals" / "summary.csv"
+    assert formula_cells(summary) == []
+    with open(summary, newline="", encoding="utf-8") as f:
+        rows = {row["serial"]: row for row in csv.DictReader(f)}
+    assert rows["SN1"]["inputs"] == "'=cmd|calc!A0;y.csv;z.csv"
+    assert rows["SN2"]["message"] == '\'=HYPERLINK("http://x"): no such file'
+    assert rows["'-SN3"]["inputs"] == "'+x=x.csv;+y=y.csv;+z=z.csv"
+    assert rows["SN1"]["duplicate_of"] == "'-SN3"
+    assert float(rows["SN1"]["offset_y"]) < 0  # a negative number stays a number
+    written = summary.read_bytes()
+    r = run(capsys, "batch", "lot.csv", "--out-dir", "cals", "--resume")
+    assert r.code == 2, r.err
+    assert "resuming: 3 of 3 units already done" in r.err
+    assert summary.read_bytes() == written  # read back as written, written again the same
+
+
+def test_a_formula_in_a_logs_label_column_is_text_in_segments_csv(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """segments.csv (in --out-dir, or on stdout) wrote a label cell ``=1+1`` and the faces
+    ``+x``, ``-x`` as they were: formulas to a spreadsheet."""
+    from tests.test_segment import POSE_MAP, ROTATION, SIX, log_text, six_poses, synth_log
+    from tumblecal_cli.io.outputs import unsafe
+
+    src = tmp_path / "labelled.csv"
+    src.write_text(log_text(synth_log(six_poses(), seed=5), with_labels=True).replace(f",{ROTATION}\n", ",=1+1\n"))
+    out = tmp_path / "poses"
+    r = run(capsys, "segment", src, "--pose-column", "part", "--pose-map", POSE_MAP, "-d", out)
+    assert r.code == 0, r.err
+    index = out / "segments.csv"
+    assert formula_cells(index) == []
+    with open(index, newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    assert {row["label"] for row in rows if row["status"] == "dropped"} == {"'=1+1"}
+    assert [unsafe(row["face"]) for row in rows if row["status"] == "kept"] == list(SIX)
+    r = run(capsys, "segment", src, "--pose-column", "part", "--pose-map", POSE_MAP)
+    assert r.code == 0, r.err
+    assert r.out == index.read_text()

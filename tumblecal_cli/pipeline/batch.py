@@ -33,6 +33,7 @@ from tumblecal_cli.io import calfile
 from tumblecal_cli.io.outputs import remove_stale
 from tumblecal_cli.pipeline import solve
 from tumblecal_cli.pipeline.cluster import engine
+from tumblecal_cli.pipeline.frames import written_table
 from tumblecal_cli.pipeline.options import SolveOptions, checked, keywords_known, path_of, settings
 from tumblecal_cli.pipeline.summary import (
     LONGEST_SERIAL,
@@ -502,10 +503,10 @@ class Batched:
     warnings: list[str] = field(default_factory=list)  # the same pose file under two serials
 
     def table(self) -> DataFrame:
-        """summary.csv as a pandas DataFrame."""
-        import pandas as pd
-
-        return pd.read_csv(self.summary)
+        """summary.csv as a pandas DataFrame (its text as the units gave it: a serial ``=1+1``,
+        not the ``'=1+1`` that keeps a spreadsheet from taking it for a formula)."""
+        with open(self.summary, encoding="utf-8", newline="") as f:
+            return written_table(f.read())
 
 
 class BatchKeywords(TypedDict, total=False):

@@ -131,20 +131,17 @@ class Row:
         )
 
 
-#: The summary's cells whose text starts with what a station chose (the serial).
-FREE_TEXT = ("serial", "file")
-
-
 def cell(row: Row | Mapping[str, object], column: str) -> str:
-    """A summary cell: numbers in full, lists joined, free text made safe for a spreadsheet."""
+    """A summary cell: numbers in full, lists joined, and any text a spreadsheet would take for a
+    formula (a serial ``=1+1``, a file named ``=cmd|...`` in ``inputs`` or ``message``, the
+    labelled inputs ``+x=x.csv``) with a leading ``'``; :func:`read_summary` takes it off."""
 
     value = Row.of(row).value(column)
     if value is None:
         return ""
     if isinstance(value, list):
-        return SEPARATOR.join(str(v) for v in value)
-    text = repr(value) if isinstance(value, float) else str(value)
-    return spreadsheet_safe(text) if column in FREE_TEXT else text
+        return spreadsheet_safe(SEPARATOR.join(str(v) for v in value))
+    return spreadsheet_safe(repr(value) if isinstance(value, float) else str(value))
 
 
 def read_summary(path: str) -> list[Row]:
@@ -173,23 +170,22 @@ def read_summary(path: str) -> list[Row]:
                 hint="delete that line and --resume again: that unit is redone",
             )
         try:
-            cells = {c: (unsafe(raw.get(c, "")) if c in FREE_TEXT else raw.get(c, "")) or None for c in SUMMARY_COLUMNS}
-
+            cells = {c: unsafe(raw.get(c) or "") for c in SUMMARY_COLUMNS}  # each as it was written
             row = Row(
-                serial=cells["serial"] or "",
-                inputs=[c for c in raw["inputs"].split(SEPARATOR) if c],
-                status=int(raw["status"]),
-                verdict=cells["verdict"],
-                codes=[c for c in raw["codes"].split(SEPARATOR) if c],
-                file=cells["file"],
-                method=cells["method"],
-                offset=_numbers(raw, "offset"),
-                gain=_numbers(raw, "gain"),
-                offset_se=_numbers(raw, "offset_se"),
-                gain_se=_numbers(raw, "gain_se"),
-                created=cells["created"],
-                message=cells["message"],
-                duplicate_of=[c for c in (raw.get("duplicate_of") or "").split(SEPARATOR) if c] or None,
+                serial=cells["serial"],
+                inputs=[c for c in cells["inputs"].split(SEPARATOR) if c],
+                status=int(cells["status"]),
+                verdict=cells["verdict"] or None,
+                codes=[c for c in cells["codes"].split(SEPARATOR) if c],
+                file=cells["file"] or None,
+                method=cells["method"] or None,
+                offset=_numbers(cells, "offset"),
+                gain=_numbers(cells, "gain"),
+                offset_se=_numbers(cells, "offset_se"),
+                gain_se=_numbers(cells, "gain_se"),
+                created=cells["created"] or None,
+                message=cells["message"] or None,
+                duplicate_of=[c for c in cells["duplicate_of"].split(SEPARATOR) if c] or None,
             )
         except (TypeError, ValueError, KeyError):
             raise InputError("a row this version did not write", file=path, line=n) from None
