@@ -499,6 +499,7 @@ def test_batch_resume_repairs_a_last_row_cut_short(tmp_path: Path, capsys: pytes
     for torn in ("B,0,pa", "B,0,pa\n"):
         out = tmp_path / f"out{len(torn)}"
         out.mkdir()
+        shutil.copy(full / cal_name("A"), out / cal_name("A"))  # the calibration its row names
         (out / "summary.csv").write_text(header + row_a + torn)
         r = run(capsys, "batch", src, "--out-dir", out, "--resume")
         assert r.code == 0, r.err

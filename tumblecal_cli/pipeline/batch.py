@@ -21,7 +21,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, TypeAlias, TypedDict, Unpack
@@ -43,8 +43,8 @@ from tumblecal_cli.pipeline.summary import (
     Row,
     Summary,
     Triple,
+    pose_files,
     read_summary,
-    repair_torn_row,
     status,
 )
 
@@ -53,7 +53,7 @@ if TYPE_CHECKING:
     from types import FrameType
 
     from tumblecal_cli.core.model import FloatArray
-    from tumblecal_cli.io.calfile import Calibration, Pose
+    from tumblecal_cli.io.calfile import Calibration
     from tumblecal_cli.pipeline.frames import DataFrame
     from tumblecal_cli.pipeline.options import SolveOptions
 
@@ -340,11 +340,6 @@ def _as_found_text(row: Row, names: Mapping[str, str]) -> Row:
     return row
 
 
-def pose_files(poses: Iterable[Pose]) -> list[tuple[str, str]]:
-    """(sha256, file) of each pose a calibration records (a log's blocks share one)."""
-    return list(dict.fromkeys((p.sha256, p.file or "") for p in poses if p.sha256))
-
-
 def mark_duplicates(rows: list[Row], out_dir: str) -> list[str]:
     """Set each row's ``duplicate_of``: the other serials whose calibration records a pose file
     with the same sha256 (a copy of one unit's capture given as another's); a warning for each
@@ -562,8 +557,8 @@ def run_batch(
                 file=summary_path,
                 hint="--resume continues it; or use another --out-dir",
             )
-        notes += repair_torn_row(summary_path)
-        rows = read_summary(summary_path)
+        rows, repaired = read_summary(summary_path)
+        notes += repaired
     notes += stale_staging(out_dir)
     done = {r.serial for r in rows}
     todo = [u for u in units if u.serial not in done]
