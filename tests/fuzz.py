@@ -50,6 +50,14 @@ NASTY = [
     "!!python/object:os.system",
     "[[[[",
     "{",
+    '=HYPERLINK("http://x")',
+    "+x",
+    "@SUM(1)",
+    "\uff1d1+1",
+    "99",
+    "banana",
+    "../../../../etc/passwd",
+    "/etc/passwd",
 ]
 
 
@@ -107,7 +115,28 @@ def seeds(folder: Path) -> dict[str, tuple[bytes, list[list[str]]]]:
         "limits.yaml": ((SAMPLE / "limits.yaml").read_bytes(), [["check", "{cal}", "--limits", "{f}"]]),
         "ros.yaml": ((folder / "ros.yaml").read_bytes(), [["import", "{f}", "-o", "{out}"]]),
         "log.csv": (_tumble_log(), [["segment", "{f}"], ["solve", "--log", "{f}", "-o", "{out}"]]),
+        "cals/summary.csv": (
+            _summary(folder),
+            [["batch", str(folder / "units"), "-d", str(folder / "cals"), "--resume"]],
+        ),
     }
+
+
+def _summary(folder: Path) -> bytes:
+    """A batch's summary.csv (units A, B and C of the sample poses, C's +x and +y swapped: a
+    rejected unit), in ``folder/cals`` beside the calibrations it names: --resume reads it back."""
+    import shutil
+
+    from tumblecal_cli.cli import main
+
+    for serial, (x, y) in {"A": ("x", "y"), "B": ("x", "y"), "C": ("y", "x")}.items():
+        unit = folder / "units" / serial
+        unit.mkdir(parents=True)
+        for face, name in (("x", x), ("y", y), ("z", "z")):
+            shutil.copy(SAMPLE / f"{name}.csv", unit / f"{face}.csv")
+    with contextlib.redirect_stderr(io.StringIO()):
+        assert main(["batch", str(folder / "units"), "-d", str(folder / "cals"), "-q"]) == 3
+    return (folder / "cals" / "summary.csv").read_bytes()
 
 
 def _tumble_log() -> bytes:
@@ -130,7 +159,7 @@ def one(folder: Path, name: str, data: bytes, command: list[str]) -> str | None:
     """Run one case; what is wrong with it, or None."""
     from tumblecal_cli.cli import main
 
-    target = folder / name
+    target = folder / name  # (cals/summary.csv: in the batch's folder)
     target.write_bytes(data)
     out = folder / "out.txt"
     out.write_bytes(b"precious\n")
@@ -150,7 +179,10 @@ def one(folder: Path, name: str, data: bytes, command: list[str]) -> str | None:
     if "internal error" in text or "Traceback" in text:
         return text.strip().splitlines()[0]
     errors = [line for line in text.splitlines() if line.startswith("error:")]
-    if code in (2, 3) and not errors:
+    # a batch's status is its units' (a rejected unit kept from the summary is 3): its own error
+    # line is needed only for a 2 no unit's "A: error: ..." line explains
+    units = command[0] == "batch" and (code != 2 or any(": error:" in line for line in text.splitlines()))
+    if code in (2, 3) and not errors and not units:
         return f"exit {code} with no error line"
     if code in (2, 3) and out.read_bytes() != b"precious\n":
         return f"exit {code} but the output was changed"
@@ -182,7 +214,7 @@ def main() -> int:
                 failures += 1
                 keep = ROOT / "fuzz-failures"
                 keep.mkdir(exist_ok=True)
-                (keep / f"case{case:05d}-{name}").write_bytes(data)
+                (keep / f"case{case:05d}-{name.replace('/', '-')}").write_bytes(data)
                 print(f"case {case} ({name}, {' '.join(command)}): {wrong}")
     took = time.monotonic() - started
     print(f"{given.cases} cases, seed {given.seed}: {failures} failed, {took:.0f} s")

@@ -23,7 +23,9 @@ import pytest
 
 from tests.conftest import IMUCAL, SAMPLE, SIX_FACES, run, run_exe, snapshot, tumblecal_exe, unit
 from tumblecal_cli.errors import InputError
+from tumblecal_cli.io.outputs import unsafe
 from tumblecal_cli.pipeline import batch
+from tumblecal_cli.pipeline import summary as summaries
 
 LIMITS = SAMPLE / "limits.yaml"
 SESSION = IMUCAL / "session_every4th.csv"
@@ -50,10 +52,12 @@ def units(root: Path, kinds: dict[str, str]) -> Path:
 
 
 def read_rows(path: Path) -> list[dict[str, str]]:
+    """summary.csv's rows, each cell as it was before a leading ' kept a spreadsheet from taking
+    it for a formula (labelled inputs, +x=x.csv, are written '+x=x.csv)."""
     with open(path, newline="", encoding="utf-8") as f:
         reader = csv.DictReader(f)
-        assert reader.fieldnames == batch.SUMMARY_COLUMNS
-        return list(reader)
+        assert reader.fieldnames == summaries.SUMMARY_COLUMNS
+        return [{column: unsafe(cell) for column, cell in row.items()} for row in reader]
 
 
 def by_serial(path: Path) -> dict[str, dict[str, str]]:
@@ -96,7 +100,7 @@ def test_batch_mixed_units_one_row_each(tmp_path: Path, capsys: pytest.CaptureFi
     assert (b2["status"], b2["verdict"], b2["codes"], b2["file"]) == ("3", "rejected", "pose.orientation", "")
     assert "declared +y but reads like +x" in b2["message"]
     assert str(src / "B2" / "y.csv") in b2["message"]
-    assert all(b2[c] == "" for c in batch.NUMBERS)
+    assert all(b2[c] == "" for c in summaries.NUMBERS)
 
     c3 = got["C3"]
     assert (c3["status"], c3["verdict"], c3["codes"], c3["file"]) == ("2", "error", "", "")
@@ -149,8 +153,8 @@ def test_status_precedence_over_every_combination() -> None:
         for combo in itertools.combinations_with_replacement([0, 1, 2, 3], n):
             rows: list[dict[str, Any]] = [{"status": s} for s in combo]
             expected = 2 if 2 in combo else 3 if 3 in combo else 1 if 1 in combo else 0
-            assert batch.status(rows) == expected, combo
-            assert batch.status(reversed(rows)) == expected, combo
+            assert summaries.status(rows) == expected, combo
+            assert summaries.status(reversed(rows)) == expected, combo
 
 
 def test_batch_limits_failure_still_writes_the_calibration(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -431,7 +435,7 @@ def test_batch_resume_keeps_rows_as_they_were(tmp_path: Path, capsys: pytest.Cap
     out.mkdir()
     row: dict[str, Any] = {"serial": "A", "status": 3, "verdict": "rejected", "codes": ["pose.moved"]}
     row["message"] = "rejected by yesterday's run"
-    (out / "summary.csv").write_text(batch.text([row]))
+    (out / "summary.csv").write_text(summaries.text([row]))
 
     r = run(capsys, "batch", src, "--out-dir", out, "--resume", "-q")
     assert r.code == 3, r.err  # the kept row's status counts
@@ -463,7 +467,7 @@ def test_batch_resume_twice_killed_during_the_first_unit(
     src = units(tmp_path / "units", {"A": "good", "B": "good"})
     out = tmp_path / "out"
     out.mkdir()
-    header = ",".join(batch.SUMMARY_COLUMNS) + "\n"
+    header = ",".join(summaries.SUMMARY_COLUMNS) + "\n"
     (out / "summary.csv").write_text(header)  # what a batch killed before its first unit finished leaves
 
     seen: list[str] = []
@@ -495,6 +499,7 @@ def test_batch_resume_repairs_a_last_row_cut_short(tmp_path: Path, capsys: pytes
     for torn in ("B,0,pa", "B,0,pa\n"):
         out = tmp_path / f"out{len(torn)}"
         out.mkdir()
+        shutil.copy(full / cal_name("A"), out / cal_name("A"))  # the calibration its row names
         (out / "summary.csv").write_text(header + row_a + torn)
         r = run(capsys, "batch", src, "--out-dir", out, "--resume")
         assert r.code == 0, r.err
@@ -528,12 +533,13 @@ def test_batch_json_matches_summary_csv(tmp_path: Path, capsys: pytest.CaptureFi
     rows = read_rows(out / "summary.csv")
     assert [u["serial"] for u in doc["units"]] == [row["serial"] for row in rows]
     for u, row in zip(doc["units"], rows, strict=True):
-        assert list(u) == ["serial", "status", "exit_status", *batch.SUMMARY_COLUMNS[2:]]
+        assert list(u) == ["serial", "status", "exit_status", *summaries.SUMMARY_COLUMNS[2:]]
         # the status a word, as every --json gives it; summary.csv's number beside it
         assert (u["status"], u["exit_status"]) == (row["verdict"], int(row["status"]))
         assert isinstance(u["codes"], list)
-        assert {c: batch.cell(u | {"status": u["exit_status"]}, c) for c in batch.SUMMARY_COLUMNS} == row
-        for c in batch.NUMBERS:  # numbers as numbers, equal to the CSV's text read back
+        cells = {c: summaries.cell(u | {"status": u["exit_status"]}, c) for c in summaries.SUMMARY_COLUMNS}
+        assert {c: unsafe(text) for c, text in cells.items()} == row  # (read_rows takes off a formula's ')
+        for c in summaries.NUMBERS:  # numbers as numbers, equal to the CSV's text read back
             assert u[c] is None if row[c] == "" else u[c] == float(row[c])
     assert doc["counts"] == {v: sum(row["verdict"] == v for row in rows) for v in doc["counts"]}
     [failed] = [row for row in rows if row["verdict"] == "fail"]  # why: its limit failures, in its message
@@ -1320,7 +1326,7 @@ def test_batch_resume_flags_a_duplicate_of_a_unit_done_before(
     assert run(capsys, "batch", src, "--out-dir", out, "-q").code == 0
     summary = out / "summary.csv"
     earlier = [line.rsplit(",", 1)[0] for line in summary.read_text().splitlines()]  # without duplicate_of
-    assert earlier[0] == ",".join(batch.SUMMARY_COLUMNS[:-1])
+    assert earlier[0] == ",".join(summaries.SUMMARY_COLUMNS[:-1])
     summary.write_text("\n".join(earlier) + "\n")
     unit(src, "B", "good")
     r = run(capsys, "batch", src, "--out-dir", out, "--resume")

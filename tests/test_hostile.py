@@ -6,12 +6,15 @@ from __future__ import annotations
 import csv
 import gzip
 import json
+import re
+import shutil
 import subprocess
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
-from tests.conftest import POSES_3, ROOT, SAMPLE, precious, run, tumblecal_exe, unit
+from tests.conftest import POSES_3, ROOT, SAMPLE, precious, run, snapshot, tumblecal_exe, unit
 
 #: A tree of YAML aliases, 10 wide and 8 deep: 10^8 strings once expanded (GB of memory).
 ALIAS_BOMB = "\n".join(
@@ -804,3 +807,234 @@ def test_data_for_a_closed_stderr_is_an_error() -> None:
         check=False,
     )
     assert (done.returncode, done.stdout) == (2, b"")
+
+
+# -- what summary.csv and segments.csv say, and what --resume trusts -------------------------
+
+#: What a spreadsheet takes for the start of a formula: = + - @, a tab or a carriage return, and
+#: the full-width = + - @ (some input paths fold them to ASCII).
+FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r", "\uff1d", "\uff0b", "\uff0d", "\uff20")
+PLAIN_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+
+
+def formula_cells(path: Path) -> list[tuple[int, str, str]]:
+    """(line, column, cell) of every cell of a CSV file that a spreadsheet would take for a
+    formula (a plain number, -0.01, is a number)."""
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    return [
+        (n, c, v)
+        for n, row in enumerate(rows, 2)
+        for c, v in row.items()
+        if v.startswith(FORMULA_STARTS) and not PLAIN_NUMBER.fullmatch(v)
+    ]
+
+
+def test_formulas_in_summary_csv_inputs_message_and_duplicate_of_are_text(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A manifest cell ``=cmd|calc!A0`` (a file by that name), a missing ``=HYPERLINK(...)``, a
+    clean unit's labelled inputs (``+x=x.csv``) and a duplicate's serial: each text cell that a
+    spreadsheet would take for a formula is written with a leading ' (before: only serial and
+    file were), and --resume reads the summary back as it was written."""
+    monkeypatch.chdir(tmp_path)
+    shutil.copy(SAMPLE / "x.csv", tmp_path / "=cmd|calc!A0")
+    for name in ("x.csv", "y.csv", "z.csv"):
+        shutil.copy(SAMPLE / name, tmp_path / name)
+    with open("lot.csv", "w", newline="", encoding="utf-8") as f:
+        csv.writer(f).writerows(
+            [
+                ["serial", "first", "second", "third"],
+                ["SN1", "=cmd|calc!A0", "y.csv", "z.csv"],
+                ["SN2", '=HYPERLINK("http://x")', "y.csv", "z.csv"],
+                ["-SN3", "+x=x.csv", "+y=y.csv", "+z=z.csv"],
+            ]
+        )
+    r = run(capsys, "batch", "lot.csv", "--out-dir", "cals", "-q")
+    assert r.code == 2, r.err
+    summary = tmp_path / "cals" / "summary.csv"
+    assert formula_cells(summary) == []
+    with open(summary, newline="", encoding="utf-8") as f:
+        rows = {row["serial"]: row for row in csv.DictReader(f)}
+    assert rows["SN1"]["inputs"] == "'=cmd|calc!A0;y.csv;z.csv"
+    assert rows["SN2"]["message"] == '\'=HYPERLINK("http://x"): no such file'
+    assert rows["'-SN3"]["inputs"] == "'+x=x.csv;+y=y.csv;+z=z.csv"
+    assert rows["SN1"]["duplicate_of"] == "'-SN3"
+    assert float(rows["SN1"]["offset_y"]) < 0  # a negative number stays a number
+    written = summary.read_bytes()
+    r = run(capsys, "batch", "lot.csv", "--out-dir", "cals", "--resume")
+    assert r.code == 2, r.err
+    assert "resuming: 3 of 3 units already done" in r.err
+    assert summary.read_bytes() == written  # read back as written, written again the same
+
+
+def test_a_formula_in_a_logs_label_column_is_text_in_segments_csv(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """segments.csv (in --out-dir, or on stdout) wrote a label cell ``=1+1`` and the faces
+    ``+x``, ``-x`` as they were: formulas to a spreadsheet."""
+    from tests.test_segment import POSE_MAP, ROTATION, SIX, log_text, six_poses, synth_log
+    from tumblecal_cli.io.outputs import unsafe
+
+    src = tmp_path / "labelled.csv"
+    src.write_text(log_text(synth_log(six_poses(), seed=5), with_labels=True).replace(f",{ROTATION}\n", ",=1+1\n"))
+    out = tmp_path / "poses"
+    r = run(capsys, "segment", src, "--pose-column", "part", "--pose-map", POSE_MAP, "-d", out)
+    assert r.code == 0, r.err
+    index = out / "segments.csv"
+    assert formula_cells(index) == []
+    with open(index, newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    assert {row["label"] for row in rows if row["status"] == "dropped"} == {"'=1+1"}
+    assert [unsafe(row["face"]) for row in rows if row["status"] == "kept"] == list(SIX)
+    r = run(capsys, "segment", src, "--pose-column", "part", "--pose-map", POSE_MAP)
+    assert r.code == 0, r.err
+    assert r.out == index.read_text()
+
+
+#: The time of the lot the tamperings start from (SOURCE_DATE_EPOCH), as a calibration's name has it.
+EPOCH, STAMP = "1700000000", "20231114T221320Z"
+#: The summary's columns by name (the rows below: header, A good, B good, C rejected).
+COLUMN = {"serial": 0, "status": 1, "verdict": 2, "codes": 3, "file": 4, "method": 5}
+
+
+def cells(*edits: tuple[int, str, str]) -> Callable[[list[list[str]], Path], None]:
+    """A tampering that sets cells: (row, column, text)."""
+
+    def edit(rows: list[list[str]], out: Path) -> None:
+        for row, column, text in edits:
+            rows[row][COLUMN[column]] = text.format(stamp=STAMP)
+
+    return edit
+
+
+def a_file_linked_out(rows: list[list[str]], out: Path) -> None:
+    (out / "A_20991231T000000Z.json").symlink_to("/etc/passwd")
+    rows[1][COLUMN["file"]] = "A_20991231T000000Z.json"
+
+
+def a_file_of_bs(rows: list[list[str]], out: Path) -> None:
+    shutil.copy(out / rows[2][COLUMN["file"]], out / "A_20991231T000000Z.json")
+    rows[1][COLUMN["file"]] = "A_20991231T000000Z.json"
+
+
+def a_file_gone(rows: list[list[str]], out: Path) -> None:
+    (out / rows[1][COLUMN["file"]]).unlink()
+
+
+def a_file_not_a_calibration(rows: list[list[str]], out: Path) -> None:
+    (out / rows[1][COLUMN["file"]]).write_text("[1, 2]\n")
+
+
+def a_row_twice(rows: list[list[str]], out: Path) -> None:
+    rows.append(list(rows[1]))
+
+
+def a_code_not_a_code_and_a_row_cut_short(rows: list[list[str]], out: Path) -> None:
+    rows[3][COLUMN["codes"]] = "=cmd|calc!A0"
+    rows.append(["D", "0", "pa"])
+
+
+#: Each tampering --resume refuses: (the edit, the error's text, its line and column).
+TAMPERED: dict[str, tuple[Callable[[list[list[str]], Path], None], str, int, int]] = {
+    "status-99": (cells((1, "status", "99")), "status '99' is not one tumblecal writes (0, 1, 2 or 3)", 2, 2),
+    "verdict-banana": (cells((2, "verdict", "banana")), "verdict 'banana' is not status 0's (pass)", 3, 3),
+    "verdict-of-another-status": (cells((3, "verdict", "pass")), "verdict 'pass' is not status 3's (rejected)", 4, 3),
+    "code-not-a-code": (
+        cells((3, "codes", "pose.orientation;rm -rf /")),
+        "code 'rm -rf /' is not one tumblecal writes",
+        4,
+        4,
+    ),
+    "file-outside-the-folder": (
+        cells((1, "file", "../../../../etc/passwd")),
+        "file '../../../../etc/passwd' is not a calibration this batch wrote (A_<UTC time>.json in this folder)",
+        2,
+        5,
+    ),
+    "file-absolute": (
+        cells((1, "file", "/etc/passwd")),
+        "file '/etc/passwd' is not a calibration this batch wrote (A_<UTC time>.json in this folder)",
+        2,
+        5,
+    ),
+    "file-a-link-out": (
+        a_file_linked_out,
+        "file 'A_20991231T000000Z.json' is a symbolic link, not a calibration this batch wrote",
+        2,
+        5,
+    ),
+    "file-of-another-serial": (a_file_of_bs, "A_20991231T000000Z.json is the calibration of B, not of A", 2, 5),
+    "file-gone": (a_file_gone, "file 'A_{stamp}.json' is not in the folder (the unit's calibration is gone)", 2, 5),
+    "file-not-a-calibration": (
+        a_file_not_a_calibration,
+        "A_{stamp}.json: not a calibration file: expected a JSON/YAML object at the top",
+        2,
+        5,
+    ),
+    "pass-without-a-file": (
+        cells((1, "file", "")),
+        "status 0 (pass) names its calibration in 'file': this row names none",
+        2,
+        5,
+    ),
+    "rejected-with-a-file": (
+        cells((3, "file", "A_{stamp}.json")),
+        "status 3 (rejected) has no calibration: this row names A_{stamp}.json",
+        4,
+        5,
+    ),
+    "method-not-its-calibrations": (
+        cells((1, "method", "six-pose")),
+        "method 'six-pose' is not its calibration's (three-pose)",
+        2,
+        6,
+    ),
+    "status-not-its-calibrations": (
+        cells((1, "status", "1"), (1, "verdict", "fail")),
+        "status 1 (fail) is not its calibration's verdict (pass)",
+        2,
+        2,
+    ),
+    "code-not-a-code-then-a-row-cut-short": (
+        a_code_not_a_code_and_a_row_cut_short,
+        "code '=cmd|calc!A0' is not one tumblecal writes",
+        4,
+        4,
+    ),
+    "serial-twice": (a_row_twice, "serial A is also on line 2", 5, 1),
+    "serial-a-path": (cells((3, "serial", "../C")), "serial '../C' cannot name a unit", 4, 1),
+}
+
+
+@pytest.mark.parametrize("tampering", list(TAMPERED))
+def test_batch_resume_refuses_a_summary_row_it_could_not_have_written(
+    tampering: str, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A status 99, a verdict 'banana', a file ../../../../etc/passwd or /etc/passwd (opened),
+    a calibration of another serial ...: --resume kept such a row as done and went on, its
+    status counted as written. Now exit 2 naming the summary's line and cell, and nothing is
+    touched (not even a last row cut short, which a trusted summary loses)."""
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", EPOCH)
+    src = tmp_path / "units"
+    for serial, kind in (("A", "good"), ("B", "good"), ("C", "rejected")):
+        unit(src, serial, kind)
+    out = tmp_path / "cals"
+    assert run(capsys, "batch", src, "--out-dir", out, "-q").code == 3
+    summary = out / "summary.csv"
+    with open(summary, newline="", encoding="utf-8") as f:
+        rows = list(csv.reader(f))
+    edit, message, line, column = TAMPERED[tampering]
+    edit(rows, out)
+    with open(summary, "w", newline="", encoding="utf-8") as f:
+        csv.writer(f, lineterminator="\n").writerows(rows)
+    before = snapshot(out)
+    r = run(capsys, "batch", src, "--out-dir", out, "--resume")
+    assert r.code == 2, r.err
+    lines = r.err.splitlines()
+    assert lines[0] == f"error: {summary}: {message.format(stamp=STAMP)} (line {line}, column {column})", r.err
+    hint = (
+        "hint: --resume trusts only what a batch wrote: check that row; delete it and --resume again to redo its unit"
+    )
+    assert lines[1:] == [hint]
+    assert snapshot(out) == before

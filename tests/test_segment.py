@@ -29,6 +29,7 @@ from tests.conftest import ROOT, Result, assert_untouched, assert_usage_error, f
 from tests.synth import FloatArray, stimulus
 from tumblecal_cli.core import segment
 from tumblecal_cli.core.model import FACES
+from tumblecal_cli.io.outputs import unsafe
 from tumblecal_cli.pipeline.logs import INDEX_COLUMNS
 
 #: the truth of the synthetic sensor: raw counts = A g + OFFSET + noise, |g| = 1 (an unsigned 16-bit ADC)
@@ -162,9 +163,11 @@ def assert_found(seg: segment.Segmentation, log: SynthLog, *, coverage: float = 
 
 
 def index_of(text: str) -> list[dict[str, str]]:
+    """segments.csv's rows, each cell as it was before a leading ' kept a spreadsheet from taking
+    it for a formula (a face +x is written '+x)."""
     reader = csv.DictReader(io.StringIO(text))
     assert reader.fieldnames == INDEX_COLUMNS
-    return list(reader)
+    return [{column: unsafe(cell) for column, cell in row.items()} for row in reader]
 
 
 def error_lines(r: Result) -> list[str]:

@@ -20,6 +20,7 @@ import pytest
 
 from tests.conftest import tumblecal
 from tests.test_solvers_realdata import SESSION_FACES
+from tumblecal_cli.io.outputs import unsafe
 
 pytestmark = pytest.mark.slow
 
@@ -48,10 +49,11 @@ def unpacked(tmp_path: Path, name: str) -> Path:
 
 
 def segments(log: Path, *options: str) -> list[dict[str, str]]:
-    """``tumblecal segment LOG`` (exit 0): the index it prints, one dict per block."""
+    """``tumblecal segment LOG`` (exit 0): the index it prints, one dict per block (each cell
+    without the ' that keeps a spreadsheet from taking a face, +x, for a formula)."""
     r = tumblecal("segment", log, "--quiet", *options)
     assert r.code == 0, r.err
-    return list(csv.DictReader(r.out.splitlines()))
+    return [{column: unsafe(cell) for column, cell in row.items()} for row in csv.DictReader(r.out.splitlines())]
 
 
 def kept(index: list[dict[str, str]]) -> list[dict[str, str]]:

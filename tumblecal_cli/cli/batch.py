@@ -19,6 +19,7 @@ if TYPE_CHECKING:
     from rich.console import Console
 
     from tumblecal_cli.pipeline import batch as batches
+    from tumblecal_cli.pipeline import summary as summaries
 
 BATCH_PANEL = "Batch"
 BATCH_EXIT = """\
@@ -147,7 +148,7 @@ def batch(**given: Any) -> None:  # Typer passes each option by name, each of it
                     console.print(f"resuming: {done} of {len(plan.units)} units already done", soft_wrap=True)
             shown[0] = stack.enter_context(render.batch_progress(console, len(plan.todo), enabled=not quiet))
 
-        def unit(row: batches.Row) -> None:
+        def unit(row: summaries.Row) -> None:
             if row.status or not shown[0][0]:
                 render.print_unit(row, out_dir, console, quiet=quiet)
             shown[0][1]()
@@ -169,7 +170,7 @@ def batch(**given: Any) -> None:  # Typer passes each option by name, each of it
 
 def _show(result: batches.Batched, console: Console, *, quiet: bool, json_summary: bool) -> None:
     """The batch's counts on stderr, the --json summary on stdout; its status."""
-    from tumblecal_cli.pipeline import batch as batches
+    from tumblecal_cli.pipeline import summary as summaries
 
     if not quiet:
         for warning in result.warnings:
@@ -182,7 +183,7 @@ def _show(result: batches.Batched, console: Console, *, quiet: bool, json_summar
             highlight=False,
         )
     if json_summary:  # each status a word, as every --json says it, its number beside it
-        table = [_unit_json(r, batches.SUMMARY_COLUMNS) for r in result.rows]
+        table = [_unit_json(r, summaries.SUMMARY_COLUMNS) for r in result.rows]
         head = {"status": STATUS_WORDS[result.status], "exit_status": result.status}
         render.print_json(
             head | {"counts": result.counts, "summary": result.summary, "warnings": result.warnings, "units": table}
@@ -191,7 +192,7 @@ def _show(result: batches.Batched, console: Console, *, quiet: bool, json_summar
         raise typer.Exit(result.status)
 
 
-def _unit_json(row: batches.Row, columns: list[str]) -> dict[str, object]:
+def _unit_json(row: summaries.Row, columns: list[str]) -> dict[str, object]:
     """A unit's row of summary.csv for --json: its status a word, the number as exit_status."""
     out: dict[str, object] = {}
     for c in columns:

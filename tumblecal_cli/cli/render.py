@@ -23,8 +23,8 @@ if TYPE_CHECKING:
     from tumblecal_cli.core.segment import Segmentation
     from tumblecal_cli.io.calfile import Calibration
     from tumblecal_cli.io.readings import Log
-    from tumblecal_cli.pipeline.batch import Row
     from tumblecal_cli.pipeline.noise import Noise
+    from tumblecal_cli.pipeline.summary import Row
     from tumblecal_cli.pipeline.thermal import ThermalResult
 
 

@@ -20,25 +20,27 @@ from tumblecal_cli.errors import InputError, PipeClosed
 WRITE_ERRORS = (errno.ENOSPC, errno.EFBIG, errno.EDQUOT)
 
 
-#: A text cell starting with one of these is a formula to a spreadsheet (CSV injection).
-FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
+#: A text cell starting with one of these is a formula to a spreadsheet (CSV injection): OWASP's
+#: = + - @, tab and carriage return, and their full-width forms (an input method, or a
+#: spreadsheet's own clean-up, can fold ＝ into =: a ' costs nothing on cells no station writes).
+FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r", "\uff1d", "\uff0b", "\uff0d", "\uff20")
+#: A number as tumblecal writes one (-0.01, 1e-05, -inf): a spreadsheet's number, not a formula.
+_NUMBER = re.compile(r"[+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|inf|nan)")
 
 
 def spreadsheet_safe(cell: str) -> str:
     """A CSV cell a spreadsheet shows as text: one that would start a formula gets a leading
-    ``'`` (OWASP's advice); numbers, negative ones included, are left as they are."""
-    if not cell.startswith(FORMULA_STARTS):
+    ``'`` (OWASP's advice); numbers, negative ones included, are left as they are. A cell that
+    already starts with ``'`` before such a start gets one more, so that :func:`unsafe` gives
+    back exactly the cell it was."""
+    if not cell.lstrip("'").startswith(FORMULA_STARTS) or _NUMBER.fullmatch(cell):
         return cell
-    try:
-        float(cell)
-    except ValueError:
-        return "'" + cell
-    return cell
+    return "'" + cell
 
 
 def unsafe(cell: str) -> str:
     """The cell :func:`spreadsheet_safe` was given."""
-    return cell[1:] if cell.startswith("'") and cell[1:].startswith(FORMULA_STARTS) else cell
+    return cell[1:] if cell.startswith("'") and cell.lstrip("'").startswith(FORMULA_STARTS) else cell
 
 
 def check_not_input(output: str, inputs: Iterable[str], flag: str = "-o") -> None:

@@ -21,7 +21,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, TypeAlias, TypedDict, Unpack
@@ -30,17 +30,30 @@ from tumblecal_cli.core import lot
 from tumblecal_cli.core.model import face_of_name
 from tumblecal_cli.errors import STOPS, InputError, TumblecalError, control_character
 from tumblecal_cli.io import calfile
-from tumblecal_cli.io.outputs import atomic_output, remove_stale, spreadsheet_safe, unsafe
+from tumblecal_cli.io.outputs import remove_stale
 from tumblecal_cli.pipeline import solve
 from tumblecal_cli.pipeline.cluster import engine
+from tumblecal_cli.pipeline.frames import written_table
 from tumblecal_cli.pipeline.options import SolveOptions, checked, keywords_known, path_of, settings
+from tumblecal_cli.pipeline.summary import (
+    LONGEST_SERIAL,
+    NONE3,
+    SUMMARY,
+    VERDICTS,
+    Row,
+    Summary,
+    Triple,
+    pose_files,
+    read_summary,
+    status,
+)
 
 if TYPE_CHECKING:
     import signal
     from types import FrameType
 
     from tumblecal_cli.core.model import FloatArray
-    from tumblecal_cli.io.calfile import Calibration, Pose
+    from tumblecal_cli.io.calfile import Calibration
     from tumblecal_cli.pipeline.frames import DataFrame
     from tumblecal_cli.pipeline.options import SolveOptions
 
@@ -49,41 +62,7 @@ Handler: TypeAlias = "Callable[[int, FrameType | None], object] | int | signal.H
 
 #: Files a unit folder's poses (or log) may be in; anything else there is left alone.
 DATA_SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
-SUMMARY = "summary.csv"
 STAGING = ".partial.json"
-#: Lists in a summary cell (a unit's codes, its input files) are joined with this.
-SEPARATOR = ";"
-#: The columns of summary.csv, in order (README: batch).
-SUMMARY_COLUMNS = [
-    "serial",
-    "status",
-    "verdict",
-    "codes",
-    "file",
-    "method",
-    "offset_x",
-    "offset_y",
-    "offset_z",
-    "gain_x",
-    "gain_y",
-    "gain_z",
-    "offset_se_x",
-    "offset_se_y",
-    "offset_se_z",
-    "gain_se_x",
-    "gain_se_y",
-    "gain_se_z",
-    "created",
-    "inputs",
-    "message",
-    "duplicate_of",
-]
-#: The columns of a summary an earlier version wrote (before duplicate_of): --resume takes it.
-EARLIER_COLUMNS = SUMMARY_COLUMNS[:-1]
-NUMBERS = {c for c in SUMMARY_COLUMNS if c[-2:] in ("_x", "_y", "_z")}
-VERDICTS = {0: "pass", 1: "fail", 3: "rejected", 2: "error"}
-#: Exit status of the whole batch: the first of these any unit has (README "Exit status").
-PRECEDENCE = (2, 3, 1)
 
 
 @dataclass(frozen=True)
@@ -96,87 +75,6 @@ class Unit:
     #: The inputs as found, when ``inputs`` are made absolute for a cluster (:func:`absolute`): what
     #: its calibration, its row and its errors name, as a batch run here does.
     found: tuple[str, ...] = ()
-
-
-Triple = tuple[float | None, float | None, float | None]
-NONE3: Triple = (None, None, None)
-
-
-@dataclass
-class Row:
-    """A unit's row of summary.csv (SUMMARY_COLUMNS: ``offset`` is offset_x, offset_y, offset_z
-    ...), and what the batch needs of it beside: ``messages`` for people, one per line; the
-    ``staging`` file its calibration waits in; the ``poses`` (sha256, file) it records, for
-    duplicate_of; ``unwritten`` when the disk refused its calibration."""
-
-    serial: str
-    inputs: list[str] = field(default_factory=list)
-    status: int = 0
-    verdict: str | None = None
-    codes: list[str] = field(default_factory=list)
-    file: str | None = None
-    method: str | None = None
-    offset: Triple = NONE3
-    gain: Triple = NONE3
-    offset_se: Triple = NONE3
-    gain_se: Triple = NONE3
-    created: str | None = None
-    message: str | None = None
-    duplicate_of: list[str] | None = None
-    messages: list[str] | None = None
-    staging: str | None = None
-    poses: list[tuple[str, str]] | None = None
-    unwritten: bool = False
-
-    def value(self, column: str) -> object:
-        """The value of a summary column (a number column, ``offset_x``, one of its triple)."""
-        name, _, axis = column.rpartition("_")
-        if column in NUMBERS:
-            triple: Triple = getattr(self, name)
-            return triple["xyz".index(axis)]
-        return getattr(self, column)
-
-    @classmethod
-    def received(cls, fields: Mapping[str, object]) -> Row:
-        """The row :func:`run_unit` sent (its fields by name)."""
-        return cls(**fields)  # type: ignore[arg-type]  # a Row's own fields, made by vars()
-
-    @classmethod
-    def of(cls, row: Row | Mapping[str, object]) -> Row:
-        """A row given by its summary columns (a mapping, as read from summary.csv)."""
-        if isinstance(row, Row):
-            return row
-
-        def triple(name: str) -> Triple:
-            values = [row.get(f"{name}_{a}") for a in "xyz"]
-            x, y, z = (float(v) if isinstance(v, int | float | str) and v != "" else None for v in values)
-            return x, y, z
-
-        def texts(name: str) -> list[str] | None:
-            value = row.get(name)
-            return None if value is None else [str(v) for v in value] if isinstance(value, list) else [str(value)]
-
-        def text(name: str) -> str | None:
-            value = row.get(name)
-            return None if value is None else str(value)
-
-        status = row.get("status", 0)
-        return cls(
-            serial=str(row.get("serial", "")),
-            inputs=texts("inputs") or [],
-            status=int(status) if isinstance(status, int | str) else 0,
-            verdict=text("verdict"),
-            codes=texts("codes") or [],
-            file=text("file"),
-            method=text("method"),
-            offset=triple("offset"),
-            gain=triple("gain"),
-            offset_se=triple("offset_se"),
-            gain_se=triple("gain_se"),
-            created=text("created"),
-            message=text("message"),
-            duplicate_of=texts("duplicate_of"),
-        )
 
 
 # -- finding the units -------------------------------------------------------------------------
@@ -442,11 +340,6 @@ def _as_found_text(row: Row, names: Mapping[str, str]) -> Row:
     return row
 
 
-def pose_files(poses: Iterable[Pose]) -> list[tuple[str, str]]:
-    """(sha256, file) of each pose a calibration records (a log's blocks share one)."""
-    return list(dict.fromkeys((p.sha256, p.file or "") for p in poses if p.sha256))
-
-
 def mark_duplicates(rows: list[Row], out_dir: str) -> list[str]:
     """Set each row's ``duplicate_of``: the other serials whose calibration records a pose file
     with the same sha256 (a copy of one unit's capture given as another's); a warning for each
@@ -543,32 +436,6 @@ def stale_staging(out_dir: str) -> list[str]:
     return [f"removed {removed} staging file(s) a killed batch left in {out_dir}"] if removed else []
 
 
-def repair_torn_row(path: str) -> list[str]:
-    """A summary whose last row was cut short (a batch killed, or a disk full, while writing it)
-    loses that row, so that its unit is done again; a note when it did. (Summary cells hold no
-    line breaks: a row is a line.)"""
-
-    try:
-        with open(path, "rb") as f:
-            data = f.read()
-    except OSError:
-        return []  # read_summary says what is wrong
-    whole = data.endswith(b"\n")
-    lines = data.split(b"\n")[:-1] if whole else data.split(b"\n")
-    header = lines[0].decode("utf-8", "replace") if lines else ""
-    if len(lines) < 2 or header not in (",".join(SUMMARY_COLUMNS), ",".join(EARLIER_COLUMNS)):
-        return []  # a header alone, or not a summary of ours: read_summary judges it
-    try:
-        cells = len(next(csv.reader([lines[-1].decode("utf-8")]), []))
-    except (UnicodeDecodeError, csv.Error):
-        cells = 0
-    if whole and cells == header.count(",") + 1:
-        return []
-    with atomic_output(path) as out:
-        out.write(data[: len(data) - len(lines[-1]) - (1 if whole else 0)])
-    return [f"{path}: its last row was cut short (a batch stopped while writing it): dropped, that unit is done again"]
-
-
 def clean_staging(out_dir: str, token: str) -> None:
     """Remove this batch's staging files that no row published (an interrupted batch)."""
     with contextlib.suppress(OSError):
@@ -610,129 +477,6 @@ def publish(staging: str, out_dir: str, serial: str, created: str) -> str:
     raise InputError(f"too many calibrations of {serial} at {created}", file=out_dir)
 
 
-# -- the summary -------------------------------------------------------------------------------
-
-
-#: The summary's cells whose text starts with what a station chose (the serial).
-FREE_TEXT = ("serial", "file")
-
-
-def cell(row: Row | Mapping[str, object], column: str) -> str:
-    """A summary cell: numbers in full, lists joined, free text made safe for a spreadsheet."""
-
-    value = Row.of(row).value(column)
-    if value is None:
-        return ""
-    if isinstance(value, list):
-        return SEPARATOR.join(str(v) for v in value)
-    text = repr(value) if isinstance(value, float) else str(value)
-    return spreadsheet_safe(text) if column in FREE_TEXT else text
-
-
-def read_summary(path: str) -> list[Row]:
-    """The rows of an existing summary.csv (for --resume), typed as run_unit makes them."""
-
-    try:
-        with open(path, newline="", encoding="utf-8") as f:
-            reader = csv.DictReader(f)
-            if reader.fieldnames not in (SUMMARY_COLUMNS, EARLIER_COLUMNS):
-                raise InputError(
-                    "not a tumblecal batch summary (its header differs)",
-                    file=path,
-                    line=1,
-                    hint="use another --out-dir",
-                )
-            rows = list(reader)
-    except (OSError, UnicodeDecodeError, csv.Error) as err:
-        raise InputError(f"cannot read the summary: {err}", file=path) from None
-    out = []
-    for n, raw in enumerate(rows, 2):
-        if None in raw.values() or None in raw:  # fewer or more cells than the header
-            raise InputError(
-                "a row with the wrong number of cells (a batch killed while writing it?)",
-                file=path,
-                line=n,
-                hint="delete that line and --resume again: that unit is redone",
-            )
-        try:
-            cells = {c: (unsafe(raw.get(c, "")) if c in FREE_TEXT else raw.get(c, "")) or None for c in SUMMARY_COLUMNS}
-
-            row = Row(
-                serial=cells["serial"] or "",
-                inputs=[c for c in raw["inputs"].split(SEPARATOR) if c],
-                status=int(raw["status"]),
-                verdict=cells["verdict"],
-                codes=[c for c in raw["codes"].split(SEPARATOR) if c],
-                file=cells["file"],
-                method=cells["method"],
-                offset=_numbers(raw, "offset"),
-                gain=_numbers(raw, "gain"),
-                offset_se=_numbers(raw, "offset_se"),
-                gain_se=_numbers(raw, "gain_se"),
-                created=cells["created"],
-                message=cells["message"],
-                duplicate_of=[c for c in (raw.get("duplicate_of") or "").split(SEPARATOR) if c] or None,
-            )
-        except (TypeError, ValueError, KeyError):
-            raise InputError("a row this version did not write", file=path, line=n) from None
-        out.append(row)
-    if reader.fieldnames == EARLIER_COLUMNS:  # rows are appended in this version's columns from here
-        with atomic_output(path) as target:
-            target.write(text(out).encode())
-    return out
-
-
-def _numbers(raw: Mapping[str, str], name: str) -> Triple:
-    """A number column's three cells (offset_x, offset_y, offset_z), empty: None."""
-    x, y, z = (float(raw[f"{name}_{a}"]) if raw[f"{name}_{a}"] else None for a in "xyz")
-    return x, y, z
-
-
-class Summary:
-    """summary.csv, appended to as each unit finishes (a crash keeps what was done, for
-    --resume), and rewritten sorted by serial at the end."""
-
-    def __init__(self, out_dir: str, rows: list[Row]) -> None:
-        self.path = os.path.join(out_dir, SUMMARY)
-        self.rows = rows
-        self._file = open(self.path, "a", newline="", encoding="utf-8")  # noqa: SIM115 (closed in close)
-        self._writer = csv.writer(self._file, lineterminator="\n")
-        if self._file.tell() == 0:  # a new file (a resumed one has its header, rows or not)
-            self._writer.writerow(SUMMARY_COLUMNS)
-            self._file.flush()
-
-    def add(self, row: Row) -> None:
-        self.rows.append(row)
-        self._writer.writerow([cell(row, c) for c in SUMMARY_COLUMNS])
-        self._file.flush()
-
-    def close(self) -> None:
-
-        self._file.close()
-        self.rows.sort(key=lambda r: r.serial)
-        with atomic_output(self.path) as out:
-            out.write(text(self.rows).encode())
-
-
-def text(rows: Iterable[Row | Mapping[str, object]]) -> str:
-    """summary.csv of ``rows`` (each a Row, or its summary columns)."""
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(SUMMARY_COLUMNS)
-    writer.writerows([cell(r, c) for c in SUMMARY_COLUMNS] for r in rows)
-    return buffer.getvalue()
-
-
-def status(rows: Iterable[Row | Mapping[str, object]]) -> int:
-    """The batch's exit status: 2, 3, 1 or 0, the first that any unit has."""
-    seen = {Row.of(r).status for r in rows}
-    return next((s for s in PRECEDENCE if s in seen), 0)
-
-
-#: The longest serial, in bytes: the calibration is named SERIAL_STAMP.json (a file name: 255).
-LONGEST_SERIAL = 200
-
-
 @dataclass
 class Plan:
     """What a batch is about to do: its units, those done already (``--resume``), and notes."""
@@ -754,10 +498,10 @@ class Batched:
     warnings: list[str] = field(default_factory=list)  # the same pose file under two serials
 
     def table(self) -> DataFrame:
-        """summary.csv as a pandas DataFrame."""
-        import pandas as pd
-
-        return pd.read_csv(self.summary)
+        """summary.csv as a pandas DataFrame (its text as the units gave it: a serial ``=1+1``,
+        not the ``'=1+1`` that keeps a spreadsheet from taking it for a formula)."""
+        with open(self.summary, encoding="utf-8", newline="") as f:
+            return written_table(f.read())
 
 
 class BatchKeywords(TypedDict, total=False):
@@ -813,8 +557,8 @@ def run_batch(
                 file=summary_path,
                 hint="--resume continues it; or use another --out-dir",
             )
-        notes += repair_torn_row(summary_path)
-        rows = read_summary(summary_path)
+        rows, repaired = read_summary(summary_path)
+        notes += repaired
     notes += stale_staging(out_dir)
     done = {r.serial for r in rows}
     todo = [u for u in units if u.serial not in done]

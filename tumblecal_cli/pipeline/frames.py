@@ -7,6 +7,7 @@ through its own methods.
 from __future__ import annotations
 
 import hashlib
+import io
 import os
 from typing import TYPE_CHECKING, Any, TypeAlias
 
@@ -14,6 +15,7 @@ import numpy as np
 
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import capture, readings, sniff
+from tumblecal_cli.io.outputs import unsafe
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.pipeline.options import path_of
 
@@ -72,3 +74,16 @@ def read_capture(path: str | os.PathLike[str], *, no_header: bool = False) -> Da
     path = path_of(path, "read_capture reads a capture file")
     _, names, columns = capture.read_table(path, ReadSpec(no_header=no_header))
     return pd.DataFrame({name: col.to_pandas() for name, col in zip(names, columns, strict=True)})
+
+
+def written_table(text: str) -> DataFrame:
+    """The text of a CSV table tumblecal wrote (summary.csv, segments.csv) as a pandas DataFrame,
+    each text cell as it was before its leading ``'`` kept a spreadsheet from taking it for a
+    formula."""
+    import pandas as pd
+
+    frame = pd.read_csv(io.StringIO(text))
+    for column in frame.columns:
+        if not pd.api.types.is_numeric_dtype(frame[column]):
+            frame[column] = frame[column].map(lambda v: unsafe(v) if isinstance(v, str) else v)
+    return frame

@@ -24,9 +24,10 @@ from tumblecal_cli.core import segment as seg_core
 from tumblecal_cli.core.segment import Block, Segmentation
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import capture, logread, readings, sources
-from tumblecal_cli.io.outputs import WRITE_ERRORS, atomic_output, remove_stale
+from tumblecal_cli.io.outputs import WRITE_ERRORS, atomic_output, remove_stale, spreadsheet_safe, unsafe
 from tumblecal_cli.io.readings import Log, Samples
 from tumblecal_cli.io.readspec import ReadSpec
+from tumblecal_cli.pipeline.frames import written_table
 from tumblecal_cli.pipeline.options import ReadKeywords, keywords_known, path_of, read_spec, triplet
 from tumblecal_cli.pipeline.options import pose_map as parse_pose_map
 
@@ -360,7 +361,8 @@ INDEX_COLUMNS = [
 
 
 def index_rows(log: Log, seg: Segmentation, files: dict[int, str]) -> list[list[str]]:
-    """segments.csv: one row per block found, kept or dropped."""
+    """segments.csv: one row per block found, kept or dropped (each cell as :func:`index_cells`
+    writes it)."""
     rows = []
     for b in seg.blocks:
         times = ["", ""] if log.clock is None else [repr(float(log.clock[b.first])), repr(float(log.clock[b.last]))]
@@ -384,6 +386,12 @@ def index_rows(log: Log, seg: Segmentation, files: dict[int, str]) -> list[list[
             ]
         )
     return rows
+
+
+def index_cells(rows: list[list[str]]) -> list[list[str]]:
+    """segments.csv's cells as a spreadsheet shows them safely: a face (``+x``, ``-y``) or a
+    label column's text (``=1+1``) would start a formula, and is written with a leading ``'``."""
+    return [[spreadsheet_safe(c) for c in row] for row in rows]
 
 
 @contextlib.contextmanager
@@ -427,7 +435,7 @@ def earlier_run(out_dir: str) -> tuple[bool, set[str]]:
     try:
         with open(index, newline="", encoding="utf-8") as f:
             reader = csv.DictReader(f)
-            names = {row.get("file") or "" for row in reader}
+            names = {unsafe(row.get("file") or "") for row in reader}
             ours = reader.fieldnames == INDEX_COLUMNS
     except (OSError, UnicodeDecodeError, csv.Error):
         return False, set()
@@ -450,10 +458,10 @@ class Segmented:
     stale: int = 0  # staging folders of an earlier, killed segment run into out_dir, removed
 
     def table(self) -> DataFrame:
-        """The index as a pandas DataFrame, one row per block found, kept or dropped."""
-        import pandas as pd
-
-        return pd.read_csv(io.StringIO(self.index))
+        """The index as a pandas DataFrame, one row per block found, kept or dropped (its faces
+        and labels as found: ``+x``, not the ``'+x`` that keeps a spreadsheet from taking it for
+        a formula)."""
+        return written_table(self.index)
 
 
 class SegmentKeywords(ReadKeywords, total=False):
@@ -518,7 +526,7 @@ def segment(
         text = io.StringIO()
         writer = csv.writer(text, lineterminator="\n")
         writer.writerow(INDEX_COLUMNS)
-        writer.writerows(index_rows(data, seg, files))
+        writer.writerows(index_cells(index_rows(data, seg, files)))
         result = Segmented(found, files, text.getvalue(), out_dir)
         if out_dir is not None:
             result.stale = stale_staging(out_dir)
