@@ -445,6 +445,78 @@ def test_batch_workers_exit_when_the_batch_is_killed(tmp_path: Path) -> None:
     assert ours() == []
 
 
+def _marked(mark: str) -> dict[int, int]:
+    """The processes whose environment holds TUMBLECAL_TEST_MARK=mark (this test's own), each
+    with its parent's pid."""
+    import os
+
+    found = {}
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            environ = Path(f"/proc/{pid}/environ").read_bytes()
+            stat = Path(f"/proc/{pid}/stat").read_text()
+        except OSError:
+            continue
+        if f"TUMBLECAL_TEST_MARK={mark}".encode() in environ.split(b"\0"):
+            found[int(pid)] = int(stat.rsplit(")", 1)[1].split()[1])  # after "pid (name) state"
+    return found
+
+
+@pytest.mark.slow
+def test_a_killed_batch_does_not_hang_a_caller_reading_its_output(tmp_path: Path) -> None:
+    """subprocess.run(capture_output=True) reads the output to its end before it reaps: a
+    `batch --jobs 2` killed with -9 is a zombie until then, and its workers, fork server and
+    resource tracker must see it gone all the same and let go of the caller's pipes (before: the
+    caller still waited after 25 s in 11 of 14 tries). The pool's folder in $TMPDIR, which a
+    kill -9 leaves, is removed by the next run."""
+    import os
+    import signal
+    import threading
+    import time
+    import uuid
+
+    src = tmp_path / "units"
+    for k in range(60):
+        unit(src, f"U{k:03d}", "good")
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    command = [tumblecal_exe(), "batch", str(src), "--jobs", "2", "-q", "--out-dir"]
+    for attempt in range(3):
+        mark = uuid.uuid4().hex
+        killed: list[float] = []
+
+        def kill_once_the_workers_run(mark: str = mark, killed: list[float] = killed) -> None:
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline:
+                found = _marked(mark)
+                batch = [pid for pid, parent in found.items() if parent == os.getpid()]
+                if batch and len(found) >= 4:  # the batch, its resource tracker, fork server and a worker
+                    os.kill(batch[0], signal.SIGKILL)
+                    killed.append(time.monotonic())
+                    return
+                time.sleep(0.02)
+
+        killer = threading.Thread(target=kill_once_the_workers_run, daemon=True)
+        killer.start()
+        env = {**os.environ, "TUMBLECAL_TEST_MARK": mark, "TMPDIR": str(scratch)}
+        try:
+            subprocess.run([*command, str(tmp_path / f"cals{attempt}")], env=env, capture_output=True, timeout=20)
+            returned = time.monotonic()
+        except subprocess.TimeoutExpired:
+            returned = float("inf")
+        finally:
+            killer.join()
+            for pid in _marked(mark):  # what this test started and is still there
+                os.kill(pid, signal.SIGKILL)
+        assert killed, "the batch's workers never ran"
+        assert returned - killed[0] < 10, f"try {attempt + 1}: the caller still waits, 10 s after the kill"
+    left = [p.name for p in scratch.iterdir() if p.name.startswith("pymp-")]
+    assert left  # what the kills left
+    done = subprocess.run([*command, str(tmp_path / "again")], env={**os.environ, "TMPDIR": str(scratch)}, timeout=60)
+    assert done.returncode == 0
+    assert [p.name for p in scratch.iterdir() if p.name.startswith("pymp-")] == []
+
+
 def test_a_name_with_a_line_break_cannot_split_an_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     cal = tmp_path / "cal.json"
     assert run(capsys, "solve", "--poses", *POSES_3, "-o", cal).code == 0
