@@ -517,6 +517,34 @@ def test_a_killed_batch_does_not_hang_a_caller_reading_its_output(tmp_path: Path
     assert [p.name for p in scratch.iterdir() if p.name.startswith("pymp-")] == []
 
 
+def test_only_the_pool_folders_of_killed_batches_are_removed(tmp_path: Path) -> None:
+    """A pool folder is removed when it is marked as a tumblecal pool's and its process is gone;
+    never one of a running process, this one's, one without the mark, or a file."""
+    import os
+
+    from tumblecal_cli.pipeline.cluster import remove_stale_pools
+
+    marks = {
+        "pymp-dead0000": 4194305,
+        "pymp-live0000": os.getppid(),
+        "pymp-mine0000": os.getpid(),
+        "pymp-other000": None,
+    }
+    for name, pid in marks.items():
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "listener-abc").write_text("")
+        if pid is not None:
+            (tmp_path / name / f"tumblecal-{pid}").write_text("")
+    (tmp_path / "pymp-file").write_text("")
+    assert remove_stale_pools(str(tmp_path)) == ["pymp-dead0000"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "pymp-file",
+        "pymp-live0000",
+        "pymp-mine0000",
+        "pymp-other000",
+    ]
+
+
 def test_a_name_with_a_line_break_cannot_split_an_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     cal = tmp_path / "cal.json"
     assert run(capsys, "solve", "--poses", *POSES_3, "-o", cal).code == 0

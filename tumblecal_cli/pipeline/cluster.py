@@ -151,26 +151,33 @@ POOL_MARK = re.compile(r"tumblecal-(\d+)")
 
 
 def _pool_folder() -> None:
-    """Mark this process's multiprocessing folder as a tumblecal pool's, and remove the ones that
-    pools of processes now gone left (killed with -9, a process cannot remove its own): only
-    folders of this user's with that mark, none of a process still running, none of another
-    program's."""
+    """Mark this process's multiprocessing folder as a tumblecal pool's, and remove the ones of
+    pools whose process is gone (:func:`remove_stale_pools`)."""
     mine = multiprocessing.util.get_temp_dir()
     with contextlib.suppress(OSError), open(os.path.join(mine, f"tumblecal-{os.getpid()}"), "a"):
         pass
-    parent = os.path.dirname(mine)
+    remove_stale_pools(os.path.dirname(mine))
+
+
+def remove_stale_pools(folder: str) -> list[str]:
+    """Remove the multiprocessing folders (``pymp-*``) in ``folder`` that pools of processes now
+    gone left (killed with -9, a process cannot remove its own): only this user's, marked as a
+    tumblecal pool's, none of a process still running, none of another program's. The names removed."""
+    removed = []
     with contextlib.suppress(OSError):
-        for entry in os.listdir(parent):
-            path = os.path.join(parent, entry)
-            if not entry.startswith("pymp-") or path == mine:
+        for entry in os.listdir(folder):
+            path = os.path.join(folder, entry)
+            if not entry.startswith("pymp-"):
                 continue
             with contextlib.suppress(OSError):
                 found = os.lstat(path)
                 if not stat.S_ISDIR(found.st_mode) or found.st_uid != os.getuid():
                     continue
                 pids = [int(m.group(1)) for m in map(POOL_MARK.fullmatch, os.listdir(path)) if m is not None]
-                if pids and not any(alive(pid) for pid in pids):
+                if pids and not any(pid == os.getpid() or alive(pid) for pid in pids):
                     shutil.rmtree(path)
+                    removed.append(entry)
+    return removed
 
 
 def _dask(address: str) -> Engine:
