@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import csv
 import gzip
+import io
 import json
 import subprocess
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -543,6 +545,144 @@ def test_only_the_pool_folders_of_killed_batches_are_removed(tmp_path: Path) -> 
         "pymp-mine0000",
         "pymp-other000",
     ]
+
+
+#: Streams that never end, as a program's output: random bytes, and `yes` (one column of y).
+ENDLESS = {
+    "random": "import os, sys\nwhile True: sys.stdout.buffer.write(os.urandom(1 << 16))",
+    "yes": "import sys\nwhile True: sys.stdout.buffer.write(b'y\\n' * (1 << 15))",
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("command", "stream", "first"),
+    [
+        (["segment", "/dev/urandom"], None, "error: /dev/urandom: binary data, not a CSV text file"),
+        (
+            ["solve", "--log", "/dev/urandom", "-o", "{out}"],
+            None,
+            "error: /dev/urandom: binary data, not a CSV text file",
+        ),
+        (["segment", "-"], "random", "error: <stdin>: binary data, not a CSV text file"),
+        (["solve", "--log", "-", "-o", "{out}"], "yes", "error: <stdin>: only one column: no delimiter found"),
+    ],
+    ids=["segment-urandom", "solve-log-urandom", "segment-stdin-random", "solve-log-stdin-yes"],
+)
+def test_an_endless_stream_is_refused_at_once_not_spooled(
+    command: list[str], stream: str | None, first: str, tmp_path: Path
+) -> None:
+    """A log from a pipe or a device is copied to $TMPDIR for a second read: the copy checks what
+    it copies as the CSV reader does, and stops at the first block of what no reader takes
+    (before: it filled $TMPDIR at ~100 MB/s, for ever)."""
+    import os
+    import sys
+    import time
+
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    out = tmp_path / "cal.json"
+    feeder = subprocess.Popen([sys.executable, "-c", ENDLESS[stream]], stdout=subprocess.PIPE) if stream else None
+    started = time.monotonic()
+    try:
+        r = subprocess.run(
+            [tumblecal_exe(), *(a.replace("{out}", str(out)) for a in command)],
+            stdin=feeder.stdout if feeder else subprocess.DEVNULL,
+            capture_output=True,
+            env={**os.environ, "TMPDIR": str(scratch)},
+            timeout=10,
+        )
+    finally:
+        if feeder:
+            feeder.kill()
+            feeder.wait()
+            assert feeder.stdout is not None
+            feeder.stdout.close()
+    assert time.monotonic() - started < 5
+    assert r.returncode == 2
+    lines = r.stderr.decode().splitlines()
+    assert lines[0] == first
+    assert all(ln.startswith("hint: ") for ln in lines[1:]), lines
+    assert r.stdout == b""
+    assert list(scratch.iterdir()) == []
+    assert not out.exists()
+
+
+class _EndlessLog(io.RawIOBase):
+    """A log on stdin that never ends: a header, then the same row."""
+
+    def __init__(self) -> None:
+        self.head = b"t,ax,ay,az\n"
+        self.row = b"0.01,0.001,-0.002,1.003\n"
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer: Any) -> int:
+        view = memoryview(buffer).cast("B")
+        data = self.head + self.row * (len(view) // len(self.row) + 1)
+        self.head = b""
+        view[:] = data[: len(view)]
+        return len(view)
+
+
+@pytest.mark.parametrize(
+    "command", [["segment", "-"], ["solve", "--log", "-", "-o", "{out}"]], ids=["segment", "solve"]
+)
+def test_a_log_on_stdin_longer_than_max_spool_is_exit_2(
+    command: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import sys
+    import tempfile
+
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
+    monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BufferedReader(_EndlessLog())))
+    out = tmp_path / "cal.json"
+    r = run(capsys, *(a.replace("{out}", str(out)) for a in command), "--max-spool", "2M")
+    assert r.code == 2
+    assert r.err.splitlines() == [
+        "error: <stdin>: more than --max-spool 2M to keep for a second read: an endless stream?",
+        f"hint: a log from stdin or a pipe is copied to $TMPDIR ({scratch}) to be read twice: "
+        "save it to a file and give its name, or raise --max-spool",
+    ]
+    assert list(scratch.iterdir()) == []
+    assert not out.exists()
+
+
+@pytest.mark.slow
+def test_the_copy_of_a_log_a_killed_run_left_is_removed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import os
+    import tempfile
+
+    from tests.conftest import feed_stdin
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    stale = tmp_path / "tumblecal-4194305-0123abcd.csv"  # a pid above Linux's largest
+    live = tmp_path / f"tumblecal-{os.getppid()}-0123abcd.csv"
+    other = tmp_path / "tumblecal-notes.csv"
+    for path in (stale, live, other):
+        path.write_text("t,x,y,z\n")
+    feed_stdin(monkeypatch, (SAMPLE / "imucal" / "session_every4th.csv").read_bytes())
+    r = run(capsys, "segment", "-", "--rate", "25.6")
+    assert r.code == 0, r.err
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([live.name, other.name])
+
+
+@pytest.mark.parametrize(
+    ("given", "error"),
+    [
+        ("lots", "--max-spool takes a size: bytes, or with K, M, G or T (500M, 4G), got 'lots'"),
+        ("0", "--max-spool must be more than 0 bytes, got 0"),
+    ],
+)
+def test_max_spool_that_is_not_a_size_is_exit_2(given: str, error: str, capsys: pytest.CaptureFixture[str]) -> None:
+    r = run(capsys, "segment", str(SAMPLE / "x.csv"), "--max-spool", given)
+    assert r.code == 2
+    assert r.err.splitlines() == [f"error: {error}"]
 
 
 def test_a_name_with_a_line_break_cannot_split_an_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
