@@ -651,6 +651,30 @@ def test_a_log_on_stdin_longer_than_max_spool_is_exit_2(
     assert not out.exists()
 
 
+def test_a_log_on_stdin_longer_than_the_room_in_tmpdir_is_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Without --max-spool, the copy stops short of filling $TMPDIR: at its free space less a
+    margin (a tenth of it here)."""
+    import shutil
+    import sys
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    monkeypatch.setattr(shutil, "disk_usage", lambda path: shutil._ntuple_diskusage(100 << 20, 97 << 20, 3 << 20))
+    monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BufferedReader(_EndlessLog())))
+    r = run(capsys, "segment", "-")
+    assert r.code == 2
+    assert r.err.splitlines()[0] == (
+        "error: <stdin>: more than 2.7M to keep for a second read "
+        "(--max-spool's default: the free space in $TMPDIR less a margin): an endless stream?"
+    )
+    assert r.err.splitlines()[1].endswith(
+        "save it to a file and give its name, or set TMPDIR to a folder with more room"
+    )
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.slow
 def test_the_copy_of_a_log_a_killed_run_left_is_removed(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch

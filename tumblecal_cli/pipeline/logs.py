@@ -399,7 +399,8 @@ def index_rows(log: Log, seg: Segmentation, files: dict[int, str]) -> list[list[
 
 
 #: The most of a log from stdin or a pipe copied to $TMPDIR for a second read, unless --max-spool
-#: says otherwise; less when $TMPDIR has less room than that, SPOOL_MARGIN kept free.
+#: says otherwise; less when $TMPDIR has less room than that: its free space less a margin,
+#: SPOOL_MARGIN or a tenth of the free space, whichever is less (the disk is not filled up).
 MAX_SPOOL = 4 << 30
 SPOOL_MARGIN = 256 << 20
 #: A copy of a log read twice: ``tumblecal-PID-XXXXXXXX.csv`` in $TMPDIR.
@@ -415,7 +416,7 @@ def read_twice(log: str, spec: ReadSpec | None = None, max_spool: int | str | No
     The copy checks what it copies as it goes: its first block as the CSV reader would with
     ``spec`` (a first line over 1 MB, binary data: refused at once, not copied to the end of an
     endless stream), and its size, up to ``max_spool`` bytes (a size: 500M, 4G; None: MAX_SPOOL,
-    or the room in $TMPDIR less SPOOL_MARGIN if that is less). Beyond it: exit 2."""
+    or the room in $TMPDIR less a margin if that is less). Beyond it: exit 2."""
     limit = size_option(max_spool, "--max-spool")
     if log != "-" and capture.is_regular(log):
         yield log
@@ -484,25 +485,29 @@ class _Bounded:
 
 
 def _default_spool(folder: str) -> int:
-    """MAX_SPOOL, or the room in ``folder`` less SPOOL_MARGIN when that is less."""
+    """MAX_SPOOL, or the room in ``folder`` less a margin when that is less."""
     try:
         free = shutil.disk_usage(folder).free
     except OSError:
         return MAX_SPOOL
-    return max(0, min(MAX_SPOOL, free - SPOOL_MARGIN))
+    return max(0, min(MAX_SPOOL, free - min(SPOOL_MARGIN, free // 10)))
 
 
 def _spool_error(name: str, folder: str, bound: int, *, given: bool) -> InputError:
     """The log goes on past the bound of its copy."""
+    size, other = size_text(bound), "raise --max-spool"
     if given:
-        what, other = f"--max-spool {size_text(bound)}", "raise --max-spool"
+        what = f"more than --max-spool {size} to keep for a second read"
     elif bound < MAX_SPOOL:
-        what = f"{size_text(bound)}, the room in $TMPDIR less {size_text(SPOOL_MARGIN)} (--max-spool's default)"
+        what = (
+            f"more than {size} to keep for a second read "
+            "(--max-spool's default: the free space in $TMPDIR less a margin)"
+        )
         other = "set TMPDIR to a folder with more room"
     else:
-        what, other = f"{size_text(bound)} (--max-spool's default)", "raise --max-spool"
+        what = f"more than {size} to keep for a second read (--max-spool's default)"
     return InputError(
-        f"more than {what} to keep for a second read: an endless stream?",
+        f"{what}: an endless stream?",
         file=name,
         hint=f"a log from stdin or a pipe is copied to $TMPDIR ({folder}) to be read twice: "
         f"save it to a file and give its name, or {other}",
