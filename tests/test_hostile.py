@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import csv
 import gzip
+import io
 import json
 import re
 import shutil
 import subprocess
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -446,6 +448,268 @@ def test_batch_workers_exit_when_the_batch_is_killed(tmp_path: Path) -> None:
     while ours() and time.monotonic() < deadline:
         time.sleep(0.2)
     assert ours() == []
+
+
+def _marked(mark: str) -> dict[int, int]:
+    """The processes whose environment holds TUMBLECAL_TEST_MARK=mark (this test's own), each
+    with its parent's pid."""
+    import os
+
+    found = {}
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            environ = Path(f"/proc/{pid}/environ").read_bytes()
+            stat = Path(f"/proc/{pid}/stat").read_text()
+        except OSError:
+            continue
+        if f"TUMBLECAL_TEST_MARK={mark}".encode() in environ.split(b"\0"):
+            found[int(pid)] = int(stat.rsplit(")", 1)[1].split()[1])  # after "pid (name) state"
+    return found
+
+
+@pytest.mark.slow
+def test_a_killed_batch_does_not_hang_a_caller_reading_its_output(tmp_path: Path) -> None:
+    """subprocess.run(capture_output=True) reads the output to its end before it reaps: a
+    `batch --jobs 2` killed with -9 is a zombie until then, and its workers, fork server and
+    resource tracker must see it gone all the same and let go of the caller's pipes (before: the
+    caller still waited after 25 s in 11 of 14 tries). The pool's folder in $TMPDIR, which a
+    kill -9 leaves, is removed by the next run."""
+    import os
+    import signal
+    import threading
+    import time
+    import uuid
+
+    src = tmp_path / "units"
+    for k in range(60):
+        unit(src, f"U{k:03d}", "good")
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    command = [tumblecal_exe(), "batch", str(src), "--jobs", "2", "-q", "--out-dir"]
+    for attempt in range(3):
+        mark = uuid.uuid4().hex
+        killed: list[float] = []
+
+        def kill_once_the_workers_run(mark: str = mark, killed: list[float] = killed) -> None:
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline:
+                found = _marked(mark)
+                batch = [pid for pid, parent in found.items() if parent == os.getpid()]
+                if batch and len(found) >= 4:  # the batch, its resource tracker, fork server and a worker
+                    os.kill(batch[0], signal.SIGKILL)
+                    killed.append(time.monotonic())
+                    return
+                time.sleep(0.02)
+
+        killer = threading.Thread(target=kill_once_the_workers_run, daemon=True)
+        killer.start()
+        env = {**os.environ, "TUMBLECAL_TEST_MARK": mark, "TMPDIR": str(scratch)}
+        try:
+            subprocess.run([*command, str(tmp_path / f"cals{attempt}")], env=env, capture_output=True, timeout=20)
+            returned = time.monotonic()
+        except subprocess.TimeoutExpired:
+            returned = float("inf")
+        finally:
+            killer.join()
+            for pid in _marked(mark):  # what this test started and is still there
+                os.kill(pid, signal.SIGKILL)
+        assert killed, "the batch's workers never ran"
+        assert returned - killed[0] < 10, f"try {attempt + 1}: the caller still waits, 10 s after the kill"
+    left = [p.name for p in scratch.iterdir() if p.name.startswith("pymp-")]
+    assert left  # what the kills left
+    done = subprocess.run([*command, str(tmp_path / "again")], env={**os.environ, "TMPDIR": str(scratch)}, timeout=60)
+    assert done.returncode == 0
+    assert [p.name for p in scratch.iterdir() if p.name.startswith("pymp-")] == []
+
+
+def test_only_the_pool_folders_of_killed_batches_are_removed(tmp_path: Path) -> None:
+    """A pool folder is removed when it is marked as a tumblecal pool's and its process is gone;
+    never one of a running process, this one's, one without the mark, or a file."""
+    import os
+
+    from tumblecal_cli.pipeline.cluster import remove_stale_pools
+
+    marks = {
+        "pymp-dead0000": 4194305,
+        "pymp-live0000": os.getppid(),
+        "pymp-mine0000": os.getpid(),
+        "pymp-other000": None,
+    }
+    for name, pid in marks.items():
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "listener-abc").write_text("")
+        if pid is not None:
+            (tmp_path / name / f"tumblecal-{pid}").write_text("")
+    (tmp_path / "pymp-file").write_text("")
+    assert remove_stale_pools(str(tmp_path)) == ["pymp-dead0000"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "pymp-file",
+        "pymp-live0000",
+        "pymp-mine0000",
+        "pymp-other000",
+    ]
+
+
+#: Streams that never end, as a program's output: random bytes, and `yes` (one column of y).
+ENDLESS = {
+    "random": "import os, sys\nwhile True: sys.stdout.buffer.write(os.urandom(1 << 16))",
+    "yes": "import sys\nwhile True: sys.stdout.buffer.write(b'y\\n' * (1 << 15))",
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("command", "stream", "first"),
+    [
+        (["segment", "/dev/urandom"], None, "error: /dev/urandom: binary data, not a CSV text file"),
+        (
+            ["solve", "--log", "/dev/urandom", "-o", "{out}"],
+            None,
+            "error: /dev/urandom: binary data, not a CSV text file",
+        ),
+        (["segment", "-"], "random", "error: <stdin>: binary data, not a CSV text file"),
+        (["solve", "--log", "-", "-o", "{out}"], "yes", "error: <stdin>: only one column: no delimiter found"),
+    ],
+    ids=["segment-urandom", "solve-log-urandom", "segment-stdin-random", "solve-log-stdin-yes"],
+)
+def test_an_endless_stream_is_refused_at_once_not_spooled(
+    command: list[str], stream: str | None, first: str, tmp_path: Path
+) -> None:
+    """A log from a pipe or a device is copied to $TMPDIR for a second read: the copy checks what
+    it copies as the CSV reader does, and stops at the first block of what no reader takes
+    (before: it filled $TMPDIR at ~100 MB/s, for ever)."""
+    import os
+    import sys
+    import time
+
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    out = tmp_path / "cal.json"
+    feeder = subprocess.Popen([sys.executable, "-c", ENDLESS[stream]], stdout=subprocess.PIPE) if stream else None
+    started = time.monotonic()
+    try:
+        r = subprocess.run(
+            [tumblecal_exe(), *(a.replace("{out}", str(out)) for a in command)],
+            stdin=feeder.stdout if feeder else subprocess.DEVNULL,
+            capture_output=True,
+            env={**os.environ, "TMPDIR": str(scratch)},
+            timeout=10,
+        )
+    finally:
+        if feeder:
+            feeder.kill()
+            feeder.wait()
+            assert feeder.stdout is not None
+            feeder.stdout.close()
+    assert time.monotonic() - started < 5
+    assert r.returncode == 2
+    lines = r.stderr.decode().splitlines()
+    assert lines[0] == first
+    assert all(ln.startswith("hint: ") for ln in lines[1:]), lines
+    assert r.stdout == b""
+    assert list(scratch.iterdir()) == []
+    assert not out.exists()
+
+
+class _EndlessLog(io.RawIOBase):
+    """A log on stdin that never ends: a header, then the same row."""
+
+    def __init__(self) -> None:
+        self.head = b"t,ax,ay,az\n"
+        self.row = b"0.01,0.001,-0.002,1.003\n"
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer: Any) -> int:
+        view = memoryview(buffer).cast("B")
+        data = self.head + self.row * (len(view) // len(self.row) + 1)
+        self.head = b""
+        view[:] = data[: len(view)]
+        return len(view)
+
+
+@pytest.mark.parametrize(
+    "command", [["segment", "-"], ["solve", "--log", "-", "-o", "{out}"]], ids=["segment", "solve"]
+)
+def test_a_log_on_stdin_longer_than_max_spool_is_exit_2(
+    command: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import sys
+    import tempfile
+
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
+    monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BufferedReader(_EndlessLog())))
+    out = tmp_path / "cal.json"
+    r = run(capsys, *(a.replace("{out}", str(out)) for a in command), "--max-spool", "2M")
+    assert r.code == 2
+    assert r.err.splitlines() == [
+        "error: <stdin>: more than --max-spool 2M to keep for a second read: an endless stream?",
+        f"hint: a log from stdin or a pipe is copied to $TMPDIR ({scratch}) to be read twice: "
+        "save it to a file and give its name, or raise --max-spool",
+    ]
+    assert list(scratch.iterdir()) == []
+    assert not out.exists()
+
+
+def test_a_log_on_stdin_longer_than_the_room_in_tmpdir_is_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Without --max-spool, the copy stops short of filling $TMPDIR: at its free space less a
+    margin (a tenth of it here)."""
+    import shutil
+    import sys
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    monkeypatch.setattr(shutil, "disk_usage", lambda path: shutil._ntuple_diskusage(100 << 20, 97 << 20, 3 << 20))
+    monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BufferedReader(_EndlessLog())))
+    r = run(capsys, "segment", "-")
+    assert r.code == 2
+    assert r.err.splitlines()[0] == (
+        "error: <stdin>: more than 2.7M to keep for a second read "
+        "(--max-spool's default: the free space in $TMPDIR less a margin): an endless stream?"
+    )
+    assert r.err.splitlines()[1].endswith(
+        "save it to a file and give its name, or set TMPDIR to a folder with more room"
+    )
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.slow
+def test_the_copy_of_a_log_a_killed_run_left_is_removed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import os
+    import tempfile
+
+    from tests.conftest import feed_stdin
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    stale = tmp_path / "tumblecal-4194305-0123abcd.csv"  # a pid above Linux's largest
+    live = tmp_path / f"tumblecal-{os.getppid()}-0123abcd.csv"
+    other = tmp_path / "tumblecal-notes.csv"
+    for path in (stale, live, other):
+        path.write_text("t,x,y,z\n")
+    feed_stdin(monkeypatch, (SAMPLE / "imucal" / "session_every4th.csv").read_bytes())
+    r = run(capsys, "segment", "-", "--rate", "25.6")
+    assert r.code == 0, r.err
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([live.name, other.name])
+
+
+@pytest.mark.parametrize(
+    ("given", "error"),
+    [
+        ("lots", "--max-spool takes a size: bytes, or with K, M, G or T (500M, 4G), got 'lots'"),
+        ("0", "--max-spool must be more than 0 bytes, got 0"),
+    ],
+)
+def test_max_spool_that_is_not_a_size_is_exit_2(given: str, error: str, capsys: pytest.CaptureFixture[str]) -> None:
+    r = run(capsys, "segment", str(SAMPLE / "x.csv"), "--max-spool", given)
+    assert r.code == 2
+    assert r.err.splitlines() == [f"error: {error}"]
 
 
 def test_a_name_with_a_line_break_cannot_split_an_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

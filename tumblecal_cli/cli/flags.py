@@ -294,6 +294,17 @@ PoseMap = Annotated[
     ),
 ]
 
+MaxSpool = Annotated[
+    str | None,
+    log_option(
+        "--max-spool",
+        "SIZE",
+        "A log from stdin or a pipe (it cannot be read twice) is copied to $TMPDIR: stop with exit 2 when the "
+        "copy would grow past SIZE, in bytes or with K, M, G or T (500M, 4G). A log in a file is not copied. "
+        "[default: 4G, or the free space in $TMPDIR less a margin (256M, or a tenth of it) when that is less]",
+    ),
+]
+
 
 class ExportFormat(StrEnum):
     c_header = "c-header"

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -12,6 +12,7 @@ from tumblecal_cli.cli.flags import (
     Columns,
     Decimal,
     DropIncomplete,
+    MaxSpool,
     MinDuration,
     NoHeader,
     PoseColumn,
@@ -30,6 +31,9 @@ from tumblecal_cli.cli.flags import (
     file_shape,
     log_option,
 )
+
+if TYPE_CHECKING:
+    from tumblecal_cli.pipeline.logs import Segmented
 
 SEGMENT_EXIT = """\
 Exit status: 0 blocks found and written; 2 usage or input error (bad file or option, a time
@@ -66,6 +70,7 @@ def segment(
     trim: Trim = None,
     pose_column: PoseColumn = None,
     pose_map: PoseMap = None,
+    max_spool: MaxSpool = None,
     max_noise: Annotated[
         float,
         log_option(
@@ -131,16 +136,22 @@ def segment(
         max_noise=max_noise,
         max_tilt=max_tilt,
         nominal_offset=nominal_offset,
+        max_spool=max_spool,
     )
     if out_dir is None:
         render.print_text(done.index)
-        return
-    if done.stale and not quiet:
-        render.make_console().print(
+    elif not quiet:
+        _written(done, out_dir)
+
+
+def _written(done: Segmented, out_dir: str) -> None:
+    """What segment --out-dir wrote, and removed."""
+    console = render.make_console()
+    if done.stale:
+        console.print(
             f"note: removed {done.stale} staging folder(s) an earlier, interrupted segment run left in {out_dir}",
             soft_wrap=True,
         )
-    if not quiet:
-        gone = f"; removed {done.removed} block files of the earlier segmentation" if done.removed else ""
-        kept = len(done.blocks.seg.kept)
-        render.make_console().print(f"wrote {kept} block files and segments.csv to {out_dir}{gone}", soft_wrap=True)
+    gone = f"; removed {done.removed} block files of the earlier segmentation" if done.removed else ""
+    kept = len(done.blocks.seg.kept)
+    console.print(f"wrote {kept} block files and segments.csv to {out_dir}{gone}", soft_wrap=True)

@@ -23,6 +23,7 @@ from tumblecal_cli.cli.flags import (
     LimitsFile,
     MaxGainError,
     MaxOffset,
+    MaxSpool,
     MethodName,
     MinDuration,
     NoHeader,
@@ -89,6 +90,7 @@ def solve(
     turns: Turns = None,
     turn_angle: TurnAngle = None,
     accel_cal: AccelCal = None,
+    max_spool: MaxSpool = None,
     output: Annotated[
         str,
         typer.Option(
@@ -347,6 +349,7 @@ def solve_options(
     turns: str | None,
     turn_angle: float | None,
     accel_cal: str | None,
+    max_spool: str | None,
     max_noise: float | None,
     max_tilt: float,
     nominal_offset: str | None,
@@ -388,7 +391,9 @@ def solve_options(
             rate=rate,
             dialect=Dialect(skip_rows, None if decimal is None else str(decimal), drop_incomplete),
         ),
-        log=opts.LogOptions(window, threshold, min_duration, trim, pose_column, pose_map, turns, turn_angle, accel_cal),
+        log=opts.LogOptions(
+            window, threshold, min_duration, trim, pose_column, pose_map, turns, turn_angle, accel_cal, max_spool
+        ),
         checks=opts.CheckOptions(
             max_noise,
             max_tilt,

@@ -6,13 +6,20 @@ heavy is imported until an engine runs: ``distributed`` only when a scheduler is
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import multiprocessing
+import multiprocessing.util
 import os
+import re
+import shutil
+import stat
+import sys
 import threading
-import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from multiprocessing import forkserver
+from multiprocessing.connection import Connection
 from typing import TYPE_CHECKING, Protocol, TypeVar, TypeVarTuple
 
 from tumblecal_cli.errors import InputError
@@ -62,38 +69,115 @@ def _processes(jobs: int) -> Engine:
 
         context = multiprocessing.get_context("forkserver")  # safe beside the progress bar's thread
         context.set_forkserver_preload(
-            ["tumblecal_cli.pipeline.solve", "tumblecal_cli.io.readings", "tumblecal_cli.core.solvers"]
+            [__name__, "tumblecal_cli.pipeline.solve", "tumblecal_cli.io.readings", "tumblecal_cli.core.solvers"]
         )
+        _pool_folder()
+        # this process's end, as the workers see it: the pipe's writing end closes with it, however
+        # it ends (a kill -9 too), and whether or not its caller has reaped it yet
+        gone, here = context.Pipe(duplex=False)
         sent: dict[Future[Result], tuple[*Args]] = {}
-        with ProcessPoolExecutor(
-            max_workers=jobs, mp_context=context, initializer=_watch_parent, initargs=(os.getpid(),)
-        ) as pool:
-            try:
-                for args in work:  # keep a few pieces in flight per worker, not the whole lot
-                    sent[pool.submit(fn, *args)] = args
-                    if len(sent) >= 4 * jobs:
+        try:
+            with ProcessPoolExecutor(
+                max_workers=jobs, mp_context=context, initializer=_watch_parent, initargs=(gone,)
+            ) as pool:
+                try:
+                    for args in work:  # keep a few pieces in flight per worker, not the whole lot
+                        sent[pool.submit(fn, *args)] = args
+                        if len(sent) >= 4 * jobs:
+                            done, _ = wait(sent, return_when=FIRST_COMPLETED)
+                            yield from ((sent.pop(f), f.result()) for f in done)
+                    while sent:
                         done, _ = wait(sent, return_when=FIRST_COMPLETED)
                         yield from ((sent.pop(f), f.result()) for f in done)
-                while sent:
-                    done, _ = wait(sent, return_when=FIRST_COMPLETED)
-                    yield from ((sent.pop(f), f.result()) for f in done)
-            except BaseException:  # the pieces running finish (milliseconds), the others are dropped
-                pool.shutdown(wait=True, cancel_futures=True)
-                raise
+                except BaseException:  # the pieces running finish (milliseconds), the others are dropped
+                    pool.shutdown(wait=True, cancel_futures=True)
+                    raise
+        finally:  # the workers have exited: none is told to go
+            here.close()
+            gone.close()
 
     return run
 
 
-def _watch_parent(parent: int) -> None:
-    """In a worker process: exit when the batch that started it is gone (killed with -9, it
-    cannot shut its pool down), instead of living on with the units in flight."""
+def _watch_parent(gone: Connection[object, object]) -> None:
+    """In a worker process: hold none of the caller's pipes, and exit when the process that
+    started the pool is gone (killed with -9, it cannot shut its pool down), instead of living
+    on with the units in flight.
+
+    A check of its pid would not do: a process killed while its caller reads its output to the
+    end before reaping it (``subprocess.run(capture_output=True)``) is a zombie, which a signal 0
+    still finds, and the caller would wait for the pipes this worker holds, for ever. The end of
+    the pipe ``gone`` reads is the process's own: it closes when the process ends."""
+    _hold_no_pipes()
 
     def watch() -> None:
-        while alive(parent):
-            time.sleep(1.0)
+        with contextlib.suppress(EOFError, OSError):
+            while True:  # nothing is ever sent: this returns at the end of the pipe
+                gone.recv_bytes()
         os._exit(1)
 
     threading.Thread(target=watch, name="tumblecal-parent-watch", daemon=True).start()
+
+
+def _hold_no_pipes() -> None:
+    """This process's stdin, stdout and stderr onto /dev/null: a helper process of the pool holds
+    none of the caller's pipes, which a caller reads until every holder has closed them."""
+    null = os.open(os.devnull, os.O_RDWR)
+    for fd in (0, 1, 2):
+        if fd != null:
+            os.dup2(null, fd)
+    if null > 2:
+        os.close(null)
+
+
+def _in_fork_server() -> bool:
+    """Whether this module is being imported by multiprocessing's fork server, as its preload:
+    the server's own code is on the stack."""
+    frame = sys._getframe()
+    while frame is not None:
+        if frame.f_code is forkserver.main.__code__:
+            return True
+        frame = frame.f_back  # type: ignore[assignment]
+    return False
+
+
+if _in_fork_server():  # the fork server outlives a killed pool as long as its workers do: it holds no pipe either
+    _hold_no_pipes()
+
+
+#: The file that marks a multiprocessing folder (``pymp-*`` in $TMPDIR, where the fork server's
+#: socket is) as a tumblecal pool's: the pid of the process whose pool it is.
+POOL_MARK = re.compile(r"tumblecal-(\d+)")
+
+
+def _pool_folder() -> None:
+    """Mark this process's multiprocessing folder as a tumblecal pool's, and remove the ones of
+    pools whose process is gone (:func:`remove_stale_pools`)."""
+    mine = multiprocessing.util.get_temp_dir()
+    with contextlib.suppress(OSError), open(os.path.join(mine, f"tumblecal-{os.getpid()}"), "a"):
+        pass
+    remove_stale_pools(os.path.dirname(mine))
+
+
+def remove_stale_pools(folder: str) -> list[str]:
+    """Remove the multiprocessing folders (``pymp-*``) in ``folder`` that pools of processes now
+    gone left (killed with -9, a process cannot remove its own): only this user's, marked as a
+    tumblecal pool's, none of a process still running, none of another program's. The names removed."""
+    removed = []
+    with contextlib.suppress(OSError):
+        for entry in os.listdir(folder):
+            path = os.path.join(folder, entry)
+            if not entry.startswith("pymp-"):
+                continue
+            with contextlib.suppress(OSError):
+                found = os.lstat(path)
+                if not stat.S_ISDIR(found.st_mode) or found.st_uid != os.getuid():
+                    continue
+                pids = [int(m.group(1)) for m in map(POOL_MARK.fullmatch, os.listdir(path)) if m is not None]
+                if pids and not any(pid == os.getpid() or alive(pid) for pid in pids):
+                    shutil.rmtree(path)
+                    removed.append(entry)
+    return removed
 
 
 def _dask(address: str) -> Engine:

@@ -15,7 +15,7 @@ import sys
 import tempfile
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Unpack
+from typing import IO, TYPE_CHECKING, Unpack
 
 import numpy as np
 
@@ -27,8 +27,17 @@ from tumblecal_cli.io import capture, logread, readings, sources
 from tumblecal_cli.io.outputs import WRITE_ERRORS, atomic_output, remove_stale, spreadsheet_safe, unsafe
 from tumblecal_cli.io.readings import Log, Samples
 from tumblecal_cli.io.readspec import ReadSpec
+from tumblecal_cli.io.sniff import HEAD_BYTES, sniff
 from tumblecal_cli.pipeline.frames import written_table
-from tumblecal_cli.pipeline.options import ReadKeywords, keywords_known, path_of, read_spec, triplet
+from tumblecal_cli.pipeline.options import (
+    ReadKeywords,
+    keywords_known,
+    path_of,
+    read_spec,
+    size_option,
+    size_text,
+    triplet,
+)
 from tumblecal_cli.pipeline.options import pose_map as parse_pose_map
 
 if TYPE_CHECKING:
@@ -59,9 +68,11 @@ def segmented(
     settings: seg_core.Settings,
     digest: bool = True,
     whole: bool = False,
+    max_spool: int | str | None = None,
 ) -> Iterator[tuple[str, Log, Segmentation]]:
     """Read a log ('-': stdin, kept in a temporary file until the block ends, for a second
-    read) and find its blocks: (the path to read it again, readings.Log, segment.Segmentation).
+    read, up to ``max_spool`` bytes: read_twice) and find its blocks: (the path to read it
+    again, readings.Log, segment.Segmentation).
 
     The Log holds the readings of the still periods only (io.logread) unless ``whole`` asks for
     every one (hand turns integrate what lies between), or the log must be read whole anyway
@@ -84,7 +95,8 @@ def segmented(
         raise InputError(f"--threshold must be a number from 0 up, got {settings.threshold:g}")
     if rate is not None and not 0 < rate <= FASTEST:
         raise InputError(f"--rate must be a positive number of Hz up to {FASTEST:g}, got {rate:g}")
-    with read_twice(log) as path:  # a pipe or FIFO is read once: kept for a second read
+    size_option(max_spool, "--max-spool")
+    with read_twice(log, spec, max_spool) as path:  # a pipe or FIFO is read once: kept for a second read
         streamed = pose_column is None and not whole and sources.reader_for(path) is None
         if streamed:  # a CSV log block by block, the still periods kept (io.logread)
             name = "<stdin>" if log == "-" else log
@@ -394,15 +406,31 @@ def index_cells(rows: list[list[str]]) -> list[list[str]]:
     return [[spreadsheet_safe(c) for c in row] for row in rows]
 
 
+#: The most of a log from stdin or a pipe copied to $TMPDIR for a second read, unless --max-spool
+#: says otherwise; less when $TMPDIR has less room than that: its free space less a margin,
+#: SPOOL_MARGIN or a tenth of the free space, whichever is less (the disk is not filled up).
+MAX_SPOOL = 4 << 30
+SPOOL_MARGIN = 256 << 20
+#: A copy of a log read twice: ``tumblecal-PID-XXXXXXXX.csv`` in $TMPDIR.
+SPOOL = re.compile(r"tumblecal-(\d+)-[0-9a-f]{8}\.csv")
+
+
 @contextlib.contextmanager
-def read_twice(log: str) -> Iterator[str]:
+def read_twice(log: str, spec: ReadSpec | None = None, max_spool: int | str | None = None) -> Iterator[str]:
     """The log as a file to read twice (to find the blocks, then to copy them): itself when it
-    is a regular file, else (stdin '-', a pipe, a FIFO) a copy in $TMPDIR, removed however the
-    block ends. The copy is named before it is made, inside the try that removes it."""
+    is a regular file, else (stdin '-', a pipe, a FIFO, a device) a copy in $TMPDIR, removed
+    however the block ends. The copy is named before it is made, inside the try that removes it.
+
+    The copy checks what it copies as it goes: its first block as the CSV reader would with
+    ``spec`` (a first line over 1 MB, binary data: refused at once, not copied to the end of an
+    endless stream), and its size, up to ``max_spool`` bytes (a size: 500M, 4G; None: MAX_SPOOL,
+    or the room in $TMPDIR less a margin if that is less). Beyond it: exit 2."""
+    limit = size_option(max_spool, "--max-spool")
     if log != "-" and capture.is_regular(log):
         yield log
         return
     folder = tempfile.gettempdir()
+    remove_stale(folder, SPOOL)  # the copies of runs killed with -9
     room = "set TMPDIR to a folder with room for the log"
     tmp = os.path.join(folder, f"tumblecal-{os.getpid()}-{secrets.token_hex(4)}.csv")
     try:
@@ -413,10 +441,10 @@ def read_twice(log: str) -> Iterator[str]:
         try:
             with out:  # (its close writes the last bytes: inside, so a full disk is caught as well)
                 if log == "-":
-                    shutil.copyfileobj(sys.stdin.buffer, out)
+                    _spool(sys.stdin.buffer, out, log, spec or ReadSpec(), limit)
                 else:
                     with open(log, "rb") as f:
-                        shutil.copyfileobj(f, out)
+                        _spool(f, out, log, spec or ReadSpec(), limit)
         except OSError as err:
             if err.errno not in WRITE_ERRORS:  # the temporary folder's, not stdout's
                 raise
@@ -425,6 +453,73 @@ def read_twice(log: str) -> Iterator[str]:
     finally:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
+
+
+def _spool(source: IO[bytes], out: IO[bytes], log: str, spec: ReadSpec, limit: int | None) -> None:
+    """Copy ``source`` into ``out`` (a file in $TMPDIR), checking it as it goes (read_twice)."""
+    name = "<stdin>" if log == "-" else log
+    first = b""
+    while len(first) < HEAD_BYTES:  # the block the CSV reader sniffs (a pipe gives what it has)
+        more = source.read(HEAD_BYTES - len(first))
+        if not more:
+            break
+        first += more
+    if sources.reader_for(out.name, lambda _: first[: sources.HEAD]) is None:  # read as CSV: checked as one
+        sniff(name, first, at_eof=len(first) < HEAD_BYTES, no_header=spec.no_header, dialect=spec.dialect)
+    folder = os.path.dirname(out.name)
+    bound = limit if limit is not None else _default_spool(folder)
+
+    def beyond() -> InputError:
+        return _spool_error(name, folder, bound, given=limit is not None)
+
+    if len(first) > bound:
+        raise beyond()
+    out.write(first)
+    shutil.copyfileobj(_Bounded(source, bound - len(first), beyond), out)
+
+
+class _Bounded:
+    """A stream read up to ``left`` more bytes: one more is ``error()``."""
+
+    def __init__(self, source: IO[bytes], left: int, error: Callable[[], InputError]) -> None:
+        self.source, self.left, self.error = source, left, error
+
+    def read(self, size: int = -1) -> bytes:
+        data = self.source.read(size)
+        self.left -= len(data)
+        if self.left < 0:
+            raise self.error()
+        return data
+
+
+def _default_spool(folder: str) -> int:
+    """MAX_SPOOL, or the room in ``folder`` less a margin when that is less."""
+    try:
+        free = shutil.disk_usage(folder).free
+    except OSError:
+        return MAX_SPOOL
+    return max(0, min(MAX_SPOOL, free - min(SPOOL_MARGIN, free // 10)))
+
+
+def _spool_error(name: str, folder: str, bound: int, *, given: bool) -> InputError:
+    """The log goes on past the bound of its copy."""
+    size, other = size_text(bound), "raise --max-spool"
+    if given:
+        what = f"more than --max-spool {size} to keep for a second read"
+    elif bound < MAX_SPOOL:
+        what = (
+            f"more than {size} to keep for a second read "
+            "(--max-spool's default: the free space in $TMPDIR less a margin)"
+        )
+        other = "set TMPDIR to a folder with more room"
+    else:
+        what = f"more than {size} to keep for a second read (--max-spool's default)"
+    return InputError(
+        f"{what}: an endless stream?",
+        file=name,
+        hint=f"a log from stdin or a pipe is copied to $TMPDIR ({folder}) to be read twice: "
+        f"save it to a file and give its name, or {other}",
+    )
 
 
 def earlier_run(out_dir: str) -> tuple[bool, set[str]]:
@@ -476,6 +571,7 @@ class SegmentKeywords(ReadKeywords, total=False):
     max_noise: float
     max_tilt: float
     nominal_offset: str | float | list[float] | None
+    max_spool: int | str | None
 
 
 def segment(
@@ -496,6 +592,7 @@ def segment(
     nominal_offset = options.get("nominal_offset")
     if out_dir is not None:
         out_dir = path_of(out_dir, "out_dir is a folder's path")
+    size_option(options.get("max_spool"), "--max-spool")
     for option, value in (("--max-noise", max_noise), ("--max-tilt", max_tilt)):
         if not value > 0:
             raise InputError(f"{option} must be positive, got {value:g}")
@@ -517,6 +614,7 @@ def segment(
         pose_map=options.get("pose_map"),
         settings=settings,
         digest=False,  # the block files are copies; nothing records the log's hash
+        max_spool=options.get("max_spool"),
     ) as (path, data, seg):
         found = Blocks(data, seg)
         files = block_files(seg)

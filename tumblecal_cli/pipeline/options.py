@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
 from typing import TYPE_CHECKING, TypedDict
@@ -37,7 +38,8 @@ class LogOptions:
     """How a continuous log is cut (solve --log): its still blocks found (``window``,
     ``threshold``, ``min_duration``, ``trim``) or taken from a label column (``pose_column``,
     ``pose_map``); a gyroscope's known turns (``turns``, ``turn_angle``) or hand turns
-    (``accel_cal``)."""
+    (``accel_cal``); the most of a log from stdin or a pipe kept for its second read
+    (``max_spool``, a size: bytes or ``"500M"``; None: ``logs.MAX_SPOOL`` or the room in $TMPDIR)."""
 
     window: float | None = None
     threshold: float | None = None
@@ -48,6 +50,7 @@ class LogOptions:
     turns: str | Mapping[str, str] | None = None
     turn_angle: float | None = None
     accel_cal: str | None = None
+    max_spool: int | str | None = None
 
 
 @dataclass(frozen=True)
@@ -198,6 +201,36 @@ def read_spec(given: ReadKeywords, prefer: Sequence[str] | None = None) -> ReadS
     )
 
 
+#: The units a size may be given in (--max-spool 500M): powers of 1024.
+SIZE_UNITS = {"": 1, "k": 1 << 10, "m": 1 << 20, "g": 1 << 30, "t": 1 << 40}
+
+
+def size_option(value: int | str | None, flag: str) -> int | None:
+    """A size option (``flag``) in bytes: a whole number of bytes, or text with a unit: ``500M``,
+    ``4G``, ``1.5GB`` (K, M, G, T: powers of 1024). None stays None."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | str):
+        raise InputError(f"{flag} takes a size: bytes, or with K, M, G or T (500M, 4G), got {value!r}")
+    if isinstance(value, str):
+        found = re.fullmatch(r"\s*(\d+(?:\.\d*)?|\.\d+)\s*([kmgt]?)(?:i?b)?\s*", value, re.IGNORECASE)
+        if found is None:
+            raise InputError(f"{flag} takes a size: bytes, or with K, M, G or T (500M, 4G), got {value!r}")
+        value = int(float(found.group(1)) * SIZE_UNITS[found.group(2).lower()])
+    if value <= 0:
+        raise InputError(f"{flag} must be more than 0 bytes, got {value}")
+    return value
+
+
+def size_text(size: int) -> str:
+    """A size as :func:`size_option` takes it, to three digits: 2M, 4G, 1.5G, 812 bytes."""
+    for unit in "TGMK":
+        if size >= SIZE_UNITS[unit.lower()]:
+            value = size / SIZE_UNITS[unit.lower()]
+            return f"{value:.3g}{unit}" if value < 100 else f"{value:.0f}{unit}"
+    return f"{size} bytes"
+
+
 def keywords_known(given: Mapping[str, object], known: type, function: str) -> None:
     """A keyword that ``known`` (a TypedDict) does not hold is a TypeError, as Python says it of
     a function's unknown keyword."""
@@ -292,6 +325,7 @@ def settings(options: SolveOptions, *, log: bool) -> Settings:
         if given:
             raise InputError(f"{given[0]} is for a continuous log (--log), not --poses files")
     mapping = pose_map(options.log.pose_map)
+    size_option(options.log.max_spool, "--max-spool")
     who = unit_block(options.unit.serial, options.unit.station, options.unit.operator, options.unit.meta)
     method, sensor = options.method, options.read.sensor
     chosen = "one-pose-tilt" if options.tilt_compensate and method == "auto" else method

@@ -74,6 +74,7 @@ def hand_turns(log: str, options: SolveOptions) -> HandTurns:
         pose_map=None,
         settings=settings,
         whole=True,  # the turns between the still blocks are integrated
+        max_spool=options.log.max_spool,
     ) as (path, acc, seg):
         spec = replace(options.read, sensor="gyroscope")
         gyr = readings.read_log(path, spec, use_time=options.read.rate is None, name=acc.layout.name)

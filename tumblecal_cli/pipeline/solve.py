@@ -311,6 +311,7 @@ def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
         pose_column=options.log.pose_column,
         pose_map=given.pose_map if options.log.pose_map is not None else None,
         settings=settings,
+        max_spool=options.log.max_spool,
     ) as (_, data, seg):
         pass  # every block is in memory: the log is not read again
     blocks = logs.Blocks(data, seg)

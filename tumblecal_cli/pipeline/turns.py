@@ -81,7 +81,7 @@ class Section:
 def from_log(log: str, options: SolveOptions, given: Settings) -> Outcome:
     """Read the log's two triplets, take its sections by label, solve and judge the gyroscope."""
 
-    with read_twice(log) as path:
+    with read_twice(log, options.read, options.log.max_spool) as path:
         acc, gyr = (_read(path, log, options, sensor) for sensor in ("accelerometer", "gyroscope"))
     if not np.array_equal(acc.rows, gyr.rows):
         raise InputError(
