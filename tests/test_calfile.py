@@ -316,8 +316,9 @@ def test_load_never_runs_yaml_python_tags(tmp_path: Path, monkeypatch: pytest.Mo
         path.write_text(valid_text(path).replace("sensor: accelerometer", f"sensor: {payload}"), encoding="utf-8")
     rejects(
         path,
-        r"not valid YAML: could not determine a constructor for the tag "
-        r"'tag:yaml.org,2002:python/object/apply:os.system' \(line \d+, column \d+\)",
+        ("the document" if where == "top" else "field 'sensor'")
+        + r" is of the tag !!python/object/apply:os.system: tumblecal reads JSON's values only "
+        r"\(text, numbers, true/false, null, lists, objects\) \(line \d+, column \d+\)",
     )
     assert not (tmp_path / "PWNED").exists()
 
