@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from tests.conftest import POSES_3, SAMPLE, Result, assert_one_error, precious, run
@@ -174,3 +175,35 @@ def test_yaml_numbers_still_read_as_numbers() -> None:
         b"a: 1\nb: -0.5\nc: 1.0e-3\nd: 0x10\ne: .inf\nf: true\ng: ~\nh: 1_000\n", "x.yaml", "file"
     )
     assert doc == {"a": 1, "b": -0.5, "c": 1e-3, "d": 16, "e": float("inf"), "f": True, "g": None, "h": 1000}
+
+
+@pytest.mark.parametrize("command", ["segment", "solve"])
+def test_a_time_column_of_steps_of_1e_300_is_one_error(
+    command: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: 'internal error: OverflowError: Python int too large to convert to C long' (a
+    window of 0.5 s was 5e299 samples)."""
+    log = tmp_path / "log.csv"
+    rows = [f"{k * 1e-300!r},0.01,0.02,{1 + 0.001 * (k % 7 - 3) / 3:.4f}" for k in range(120)]
+    log.write_text("t,ax,ay,az\n" + "\n".join(rows) + "\n", encoding="utf-8")
+    args: list[str | Path] = (
+        ["segment", log] if command == "segment" else ["solve", "--log", log, "-o", tmp_path / "cal.json"]
+    )
+    assert_one_error(
+        run(capsys, *args),
+        f"{log}: time column 't' advances 1e-300 per sample: a sample every 1e-300 s, faster than any sensor's "
+        "clock (up to 1e+09 Hz)",
+        hint="give --time-unit s, ms, us or ns",
+    )
+    assert not (tmp_path / "cal.json").exists()
+
+
+def test_a_segmentation_window_of_more_samples_than_any_log_is_an_input_error() -> None:
+    """The same clock reached past the time unit's judgement (which reads the first 100,000
+    steps): the window sizing refuses it rather than overflowing."""
+    from tumblecal_cli.core.segment import detect
+    from tumblecal_cli.errors import InputError
+
+    values = np.tile([0.01, 0.02, 1.0], (50, 1))
+    with pytest.raises(InputError, match=r"^a sample every 1e-300 s: 0\.5 s would be 5e\+299 samples"):
+        detect(values, times=np.arange(50, dtype=np.float64) * 1e-300)
