@@ -207,3 +207,21 @@ def test_a_segmentation_window_of_more_samples_than_any_log_is_an_input_error() 
     values = np.tile([0.01, 0.02, 1.0], (50, 1))
     with pytest.raises(InputError, match=r"^a sample every 1e-300 s: 0\.5 s would be 5e\+299 samples"):
         detect(values, times=np.arange(50, dtype=np.float64) * 1e-300)
+
+
+@pytest.mark.parametrize("command", ["show", "check"])
+def test_column_names_with_control_characters_reach_no_terminal_raw(
+    command: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: a column named 'a<ESC>[31mx' coloured the rest of the terminal red; now it is
+    escaped as a serial or file name is ('a\\x1b[31mx'); C1's CSI too."""
+    cal = edited(solved(tmp_path, capsys, "cal.json"), '"ax"', '"a\\u001b[31mx"')
+    edited(cal, '"ay"', '"a\\u009b31my"')
+    args: list[str | Path] = ["show", cal] if command == "show" else ["check", cal, "--max-offset", "1e-9"]
+    r = run(capsys, *args)
+    assert r.code == (0 if command == "show" else 1), r.err
+    shown = r.out + r.err
+    assert "\x1b" not in shown
+    assert "\x9b" not in shown
+    assert "a\\x1b[31mx" in shown
+    assert "a\\x9b31my" in shown
