@@ -225,3 +225,27 @@ def test_column_names_with_control_characters_reach_no_terminal_raw(
     assert "\x9b" not in shown
     assert "a\\x1b[31mx" in shown
     assert "a\\x9b31my" in shown
+
+
+def _manifest(path: Path, serials: list[str]) -> Path:
+    rows = ["serial,x,y,z", *(f"{s},{','.join(POSES_3)}" for s in serials)]
+    path.write_text("\n".join(rows) + "\n", encoding="utf-8")
+    return path
+
+
+def test_a_look_alike_serial_is_a_duplicate_in_batch(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """SN + KELVIN SIGN (U+212A) beside SNK: before, two units (two files a reader, or a disk
+    that normalises names, takes for one)."""
+    manifest = _manifest(tmp_path / "lot.csv", ["SNK", "SN\u212a"])
+    r = run(capsys, "batch", manifest, "--out-dir", tmp_path / "out")
+    assert_one_error(
+        r, f"{manifest}: serial 'SN\\u212a' is 'SNK' in look-alike characters: it is also on line 2 (line 3, column 1)"
+    )
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_serial_in_look_alike_characters_is_noted(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    manifest = _manifest(tmp_path / "lot.csv", ["SN\u212a"])
+    r = run(capsys, "batch", manifest, "--out-dir", tmp_path / "out")
+    assert r.code == 0, r.err
+    assert f"note: {manifest}: serial 'SN\\u212a' on line 2 is written in look-alike characters of SNK" in r.err
