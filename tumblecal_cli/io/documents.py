@@ -126,8 +126,10 @@ def _unique_keys(pairs: list[tuple[str, object]]) -> dict[str, object]:
     doc = dict(pairs)
     if len(doc) < len(pairs):
         seen: set[str] = set()
-        twice = next(k for k, _ in pairs if k in seen or seen.add(k))  # type: ignore[func-returns-value]
-        raise _Refused(f"key {twice!r} is given twice in one object: which one is meant?")
+        for key, _ in pairs:
+            if key in seen:
+                raise _Refused(f"key {key!r} is given twice in one object: which one is meant?")
+            seen.add(key)
     return doc
 
 
