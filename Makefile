@@ -30,11 +30,15 @@ demo: $(VENV)/.installed
 # pytest keeps its rewritten test modules as bytecode even where the environment turns that off
 PYTEST := env -u PYTHONDONTWRITEBYTECODE $(BIN)/pytest
 
+# `make test` tries the same Hypothesis examples on every run (the ci profile, tests/conftest.py);
+# `make check` random ones (dev), a failing one printed with the blob that replays it
+HYPOTHESIS_PROFILE ?= ci
+
 test: $(VENV)/.installed
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy
-	$(PYTEST) -q; status=$$?; [ $$status -eq 0 ] || [ $$status -eq 5 ]
+	HYPOTHESIS_PROFILE=$(HYPOTHESIS_PROFILE) $(PYTEST) -q; status=$$?; [ $$status -eq 0 ] || [ $$status -eq 5 ]
 
 # the fast tier while working: lint, format, types and the tests not marked slow (under 30 s); `make test` runs all
 check: $(VENV)/.installed

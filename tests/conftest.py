@@ -28,6 +28,7 @@ from typing import Any, Literal, NamedTuple, overload
 
 import numpy as np
 import pytest
+from hypothesis import settings
 from numpy.typing import NDArray
 
 from tumblecal_cli.cli import main
@@ -40,6 +41,18 @@ POSES_3 = [str(SAMPLE / "x.csv"), str(SAMPLE / "y.csv"), str(SAMPLE / "z.csv")]
 SIX_FACES = ("xp", "xn", "yp", "yn", "zp", "zn")
 PRECIOUS = b"an existing output that a failed run must leave alone\n"
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+# -- Hypothesis: the same examples on every CI run, a failing one printed whole -------------------
+
+#: ``ci``: each test's examples follow from the test itself (derandomize), with no example
+#: database, so a CI run is repeated exactly by the next. ``dev`` (the default): random
+#: examples, as Hypothesis finds more with them. Both print a failing example's
+#: ``@reproduce_failure`` blob, which replays it exactly. HYPOTHESIS_PROFILE picks one (CI set:
+#: ``ci``). Set before the test modules import, so their ``@settings`` inherit it.
+settings.register_profile("ci", derandomize=True, database=None, print_blob=True)
+settings.register_profile("dev", print_blob=True)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE") or ("ci" if os.environ.get("CI") else "dev"))
 
 
 # -- running tumblecal ----------------------------------------------------------------------

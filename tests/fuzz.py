@@ -58,6 +58,13 @@ NASTY = [
     "banana",
     "../../../../etc/passwd",
     "/etc/passwd",
+    "!!binary aGk=",
+    "!!set {a}",
+    "!!timestamp 2024-05-01",
+    "1:00",
+    "0042",
+    "\\udc00",
+    '"offset": [1e9, 1e9, 1e9], ',
 ]
 
 
@@ -109,9 +116,18 @@ def seeds(folder: Path) -> dict[str, tuple[bytes, list[list[str]]]]:
         "capture.csv": ((SAMPLE / "capture.csv").read_bytes()[:4000], [capture, ["verify", "--cal", "{cal}", "{f}"]]),
         "cal.json": (
             cal.read_bytes(),
-            [["show", "{f}"], ["check", "{f}", "--max-offset", "1"], ["export", "{f}", "--format", "c-header"]],
+            [
+                ["show", "{f}"],
+                ["show", "--json", "{f}"],
+                ["check", "{f}", "--max-offset", "1"],
+                ["export", "{f}", "--format", "c-header"],
+                ["export", "{f}", "--format", "imucal-json"],
+            ],
         ),
-        "cal.yaml": (yaml_text.encode(), [["show", "{f}"], ["apply", "--cal", "{f}", str(SAMPLE / "x.csv")]]),
+        "cal.yaml": (
+            yaml_text.encode(),
+            [["show", "{f}"], ["show", "--json", "{f}"], ["apply", "--cal", "{f}", str(SAMPLE / "x.csv")]],
+        ),
         "limits.yaml": ((SAMPLE / "limits.yaml").read_bytes(), [["check", "{cal}", "--limits", "{f}"]]),
         "ros.yaml": ((folder / "ros.yaml").read_bytes(), [["import", "{f}", "-o", "{out}"]]),
         "log.csv": (_tumble_log(), [["segment", "{f}"], ["solve", "--log", "{f}", "-o", "{out}"]]),

@@ -9,6 +9,7 @@ import json
 import os
 import re
 import sys
+import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
@@ -48,8 +49,21 @@ def document(sol: Solution | None = None, *, sensor: str = "accelerometer", refe
 
 @pytest.fixture(scope="module")
 def outdir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A module-scoped folder: Hypothesis runs many examples per test call, so no tmp_path."""
+    """A module-scoped folder: Hypothesis runs many examples per test call, so no tmp_path.
+    Each example makes a folder of its own in it (``one_example``)."""
     return tmp_path_factory.mktemp("roundtrip")
+
+
+@contextlib.contextmanager
+def one_example(outdir: Path) -> Iterator[Path]:
+    """A fresh folder in ``outdir`` for one Hypothesis example (no file of an earlier example,
+    or of a replay, is ever read in its place), and ``created`` fixed for the example (the
+    clock and the caller's SOURCE_DATE_EPOCH, whatever it holds, play no part)."""
+    epoch = calfile.CALLER_EPOCH.set("1700000000")
+    try:
+        yield Path(tempfile.mkdtemp(dir=outdir))
+    finally:
+        calfile.CALLER_EPOCH.reset(epoch)
 
 
 finite = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False)
@@ -70,10 +84,11 @@ def test_round_trip_keeps_offset_and_matrix_exactly(
     sol = Solution(
         method="least-squares", offset=np.array(offset), matrix=m, offset_se=np.zeros(3), gain_se=np.zeros(3)
     )
-    doc = document(sol)
-    path = str(outdir / f"cal{suffix}")
-    calfile.write(doc, path)
-    loaded = calfile.load(path)
+    with one_example(outdir) as folder:
+        doc = document(sol)
+        path = str(folder / f"cal{suffix}")
+        calfile.write(doc, path)
+        loaded = calfile.load(path)
 
     assert loaded.offset.tolist() == list(offset)  # exact, not approximately
     assert loaded.matrix.tolist() == m.tolist()
@@ -316,8 +331,9 @@ def test_load_never_runs_yaml_python_tags(tmp_path: Path, monkeypatch: pytest.Mo
         path.write_text(valid_text(path).replace("sensor: accelerometer", f"sensor: {payload}"), encoding="utf-8")
     rejects(
         path,
-        r"not valid YAML: could not determine a constructor for the tag "
-        r"'tag:yaml.org,2002:python/object/apply:os.system' \(line \d+, column \d+\)",
+        ("the document" if where == "top" else "field 'sensor'")
+        + r" is of the tag !!python/object/apply:os.system: tumblecal reads JSON's values only "
+        r"\(text, numbers, true/false, null, lists, objects\) \(line \d+, column \d+\)",
     )
     assert not (tmp_path / "PWNED").exists()
 

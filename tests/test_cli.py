@@ -873,8 +873,8 @@ def test_apply_yaml_python_tag_is_refused_not_run(
     r = run(capsys, "apply", "--cal", bad, SAMPLE / "capture.csv")
     assert_one_error(
         r,
-        f"{bad}: not valid YAML: could not determine a constructor for the tag "
-        "'tag:yaml.org,2002:python/object/apply:os.system' (line 3, column 9)",
+        f"{bad}: field 'sensor' is of the tag !!python/object/apply:os.system: tumblecal reads JSON's values only "
+        "(text, numbers, true/false, null, lists, objects) (line 3, column 9)",
     )
     assert not (tmp_path / "pwned.txt").exists()
     assert list(tmp_path.iterdir()) == []

@@ -734,6 +734,15 @@ CALIBRATIONS = [
     "int_5000_digits.json",
     "int_beyond_float.json",
     "columns_with_line_breaks.json",
+    "int_5000_digits.yaml",
+    "yaml_binary_serial.yaml",
+    "yaml_set_field.yaml",
+    "yaml_timestamp_field.yaml",
+    "yaml_omap_field.yaml",
+    "yaml_duplicate_offset.yaml",
+    "yaml_sexagesimal_reference.yaml",
+    "json_lone_surrogates.json",
+    "json_duplicate_offset.json",
 ]
 CASES = [
     *(
@@ -741,6 +750,7 @@ CASES = [
         for name in CALIBRATIONS
         for command in (
             ["show", "{f}"],
+            ["show", "--json", "{f}"],
             ["check", "{f}", "--max-offset", "1"],
             ["export", "{f}", "--format", "c-header", "-o", "{out}"],
             ["apply", "--cal", "{f}", str(SAMPLE / "capture.csv"), "-o", "{out}"],
@@ -761,6 +771,8 @@ CASES = [
             ["verify", "--cal", "{cal}", "{f}"],
         )
     ),
+    pytest.param("log_time_steps_1e-300.csv", ["segment", "{f}"]),
+    pytest.param("log_time_steps_1e-300.csv", ["solve", "--log", "{f}", "-o", "{out}"]),
 ]
 
 

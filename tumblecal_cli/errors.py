@@ -81,8 +81,9 @@ class Interrupted(BaseException):
 #: mask while apply forks its workers): Ctrl-C, a station's or scheduler's kill, a closed terminal.
 STOPS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
-#: Characters that end a line for a terminal or for str.splitlines, and the rest of C0: escaped.
-_BREAKS = {c: repr(chr(c))[1:-1] for c in [*range(32), 127, 0x85, 0x2028, 0x2029] if chr(c) != "\t"}
+#: Characters that end a line for a terminal or for str.splitlines, and the rest of C0 and C1 (ESC
+#: and CSI start a terminal's control sequences): escaped.
+_BREAKS = {c: repr(chr(c))[1:-1] for c in [*range(32), *range(127, 160), 0x2028, 0x2029] if chr(c) != "\t"}
 
 
 def control_character(text: str) -> str | None:

@@ -21,6 +21,7 @@ from tumblecal_cli.cli.flags import (
     RegisterSign,
     SensorKind,
 )
+from tumblecal_cli.errors import one_line
 
 
 @app.command(
@@ -58,7 +59,7 @@ def show(
     ]
     for key, value in facts:
         if value:
-            console.print(f"{key + ':':<12} {value}", soft_wrap=True)
+            console.print(f"{key + ':':<12} {one_line(value)}", soft_wrap=True)  # a field with an ESC: escaped
     if np.count_nonzero(c.matrix - np.diag(np.diag(c.matrix))):
         console.print("matrix M (corrected = M (raw - offset)):")
         for row in c.matrix:

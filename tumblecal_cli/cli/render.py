@@ -11,7 +11,7 @@ import sys
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, TypedDict
 
-from tumblecal_cli.errors import PipeClosed, TumblecalError
+from tumblecal_cli.errors import PipeClosed, TumblecalError, one_line
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -213,7 +213,7 @@ def _axes_table(cal: Calibration) -> Table:
     )
     fixed = cal.method in FIXED_GAINS
     # numbers never wrap or shrink; a long column or file name is what gives way on a narrow terminal
-    axes = Table(title=f"{cal.method} calibration", title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
+    axes = Table(title=f"{one_line(cal.method)} calibration", title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
     for name in ("axis", "column", "offset", "± 1σ", "± tilt", "gain", "± 1σ", "± tilt"):
         text = name in ("axis", "column")
         axes.add_column(
@@ -225,7 +225,7 @@ def _axes_table(cal: Calibration) -> Table:
             overflow="fold",  # a long column name folds onto a second line rather than losing its end
         )
     for i, axis in enumerate("xyz"):
-        cells = [axis, cal.columns[i]]
+        cells = [axis, one_line(cal.columns[i])]  # a column named with an ESC or a line break: escaped
         for name, values in (("offset", cal.offset), ("gain", cal.gain)):
             if name == "gain" and fixed:
                 cells += [_g(float(values[i])), "fixed", ""]
@@ -252,7 +252,7 @@ def _poses_table(cal: Calibration) -> Table:
             overflow="fold",
         )
     for p in cal.poses:
-        name = os.path.basename(p.file or "") + (f" #{p.block}" if p.block is not None else "")
+        name = one_line(os.path.basename(p.file or "")) + (f" #{p.block}" if p.block is not None else "")
         poses.add_row(
             p.face or "?",
             name,
@@ -276,7 +276,7 @@ def _print_verdict(console: Console, passed: bool, limit_names: Iterable[str], f
     console.print(f"verdict: FAIL ({limits})", style="bold red", soft_wrap=True)
     for f in failures:
         where = f"{f.file}: " if f.file else ""
-        console.print(f"  {f.code}: {where}{f.message}", style="red", soft_wrap=True)
+        console.print(one_line(f"  {f.code}: {where}{f.message}"), style="red", soft_wrap=True)
 
 
 def print_whole(console: Console, table: Table) -> None:
@@ -524,8 +524,6 @@ def print_unit(row: Row, out_dir: str, console: Console, *, quiet: bool) -> None
     messages = row.messages or [row.message or ""]
     if len(messages) == 1 and not row.file:
         head, messages = f"{head}: {messages[0]}", []
-    from tumblecal_cli.errors import one_line  # a serial or a message with a control character: escaped
-
     for line in [head, *(f"  {m}" for m in messages if not row.file)]:
         console.print(one_line(line), soft_wrap=True, markup=False, highlight=False)
 

@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tumblecal_cli.core.model import FACES, PoseStats, angle_deg, pose_stats
+from tumblecal_cli.errors import InputError
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -291,10 +292,22 @@ def _runs(mask: NDArray[np.bool_], breaks: IntArray) -> tuple[IntArray, IntArray
     return starts.astype(np.int64), ends.astype(np.int64)
 
 
+#: More samples than any log holds: a window or duration longer is a clock that is wrong.
+MOST_SAMPLES = 2.0**53
+
+
 def _in_samples(value: float | None, default: tuple[float, int], period: float | None, floor: int) -> int:
     if value is None:
         value = default[0] if period else default[1]
-    return max(floor, round(value / period) if period else round(value))
+    samples = value / period if period else value
+    if not samples <= MOST_SAMPLES:  # a clock of steps of 1e-300 s: windows no integer holds
+        raise InputError(
+            f"a sample every {period:.3g} s: {value:g} s would be {samples:.3g} samples (the log's clock is wrong)"
+            if period
+            else f"a window of {samples:.3g} samples: more than any log holds",
+            hint="give the time column's unit (--time-unit ms, us or ns) or the sample rate (--rate HZ)",
+        )
+    return max(floor, round(samples))
 
 
 def detect(

@@ -278,16 +278,15 @@ def time_scale(layout: Layout, clock: FloatArray, unit: str) -> float:
     """Seconds per unit of a log's time column: ``unit`` (--time-unit) when given; with "auto",
     the unit its name gives (``timestamp_ms``) unless its spacing contradicts it, else the unit of
     an epoch clock (1.7e18: ns), else the unit its spacing implies (a median step under 0.2: s;
-    to 200: ms; to 2e5: µs; to 2e8: ns: each unit right from 5 Hz to 5 kHz), with a note."""
+    to 200: ms; to 2e5: µs; to 2e8: ns: each unit right from 5 Hz to 5 kHz), with a note. A clock
+    that then advances less than 1/FASTEST s a sample is an error, whichever the unit."""
+    step = _step(clock)
     if unit != "auto":
-        return TIME_SCALE[unit]
+        return _not_too_fast(layout, step, TIME_SCALE[unit])
     assert layout.time is not None
     column, named = layout.names[layout.time], layout.time_unit
-    d = np.diff(clock[:100_001])
-    d = d[d > 0]
-    if d.size == 0:  # one reading, or a clock that never moves: nothing to judge by
+    if step is None:  # one reading, or a clock that never moves: nothing to judge by
         return TIME_SCALE[named or "s"]
-    step = float(np.median(d))
     spaced = _epoch_unit(float(clock[0]), step) or next(
         (u for u, top in (("s", 0.2), ("ms", 200.0), ("us", 2e5), ("ns", 2e8)) if step <= top), None
     )
@@ -314,7 +313,33 @@ def time_scale(layout: Layout, clock: FloatArray, unit: str) -> float:
             f"{layout.name}: time column {column!r} read in {UNIT_WORDS[spaced]}: it advances {step:g} per sample "
             f"({rate:.4g} Hz); if it is not, give --time-unit"
         )
-    return TIME_SCALE[spaced]
+    return _not_too_fast(layout, step, TIME_SCALE[spaced])
+
+
+#: The most samples a second a sensor's log is read at (as --rate's bound): a faster clock is
+#: a wrong one, and its windows would be more samples than any integer holds.
+FASTEST = 1e9
+
+
+def _step(clock: FloatArray) -> float | None:
+    """The median of the first 100,000 positive steps of a clock (None: it never moves)."""
+    d = np.diff(clock[:100_001])
+    d = d[d > 0]
+    return float(np.median(d)) if d.size else None
+
+
+def _not_too_fast(layout: Layout, step: float | None, scale: float) -> float:
+    """``scale``, unless the clock then advances less than 1/FASTEST s per sample (a time column
+    of steps of 1e-300: windows of 5e299 samples)."""
+    if step is not None and step * scale < 1 / FASTEST:
+        column = layout.names[layout.time] if layout.time is not None else "time"
+        raise InputError(
+            f"time column {column!r} advances {step:g} per sample: a sample every {step * scale:.3g} s, "
+            f"faster than any sensor's clock (up to {FASTEST:g} Hz)",
+            file=layout.name,
+            hint="give --time-unit s, ms, us or ns (or --rate HZ to use the sample rate instead)",
+        )
+    return scale
 
 
 def block_rate(cap: Capture, column: pa.Array, empty: BoolArray, unit: str) -> float:

@@ -21,6 +21,7 @@ import signal
 import sys
 import threading
 import time
+import unicodedata
 from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field, replace
@@ -186,7 +187,8 @@ def _manifest_units(path: str, *, log: bool) -> tuple[list[Unit], list[str]]:
     header = [_face(h.strip()) for h in lines[0][1]]
     base = "" if path == "-" else os.path.dirname(path)
     units: list[Unit] = []
-    where: dict[str, int] = {}
+    where: dict[str, tuple[int, str]] = {}
+    notes: list[str] = []
     for n, row in lines[1:]:
         serial = row[0].strip()
         if not serial or "/" in serial or "\\" in serial or serial.startswith("."):
@@ -200,9 +202,14 @@ def _manifest_units(path: str, *, log: bool) -> tuple[list[Unit], list[str]]:
                 line=n,
                 column=1,
             )
-        if serial in where:
-            raise InputError(f"serial {serial} is also on line {where[serial]}", file=path, line=n, column=1)
-        where[serial] = n
+        alike = unicodedata.normalize("NFKC", serial)  # SN + KELVIN SIGN is SNK to a reader (and to some disks)
+        if alike in where:
+            line, other = where[alike]
+            said = serial if other == serial else f"{serial!a} is {other!a} in look-alike characters: it"
+            raise InputError(f"serial {said} is also on line {line}", file=path, line=n, column=1)
+        if alike != serial:
+            notes.append(f"{path}: serial {serial!a} on line {n} is written in look-alike characters of {alike}")
+        where[alike] = (n, serial)
         items: list[str] = []
         for k, cell in enumerate(row[1:], 1):
             cell = cell.strip()
@@ -216,7 +223,7 @@ def _manifest_units(path: str, *, log: bool) -> tuple[list[Unit], list[str]]:
                 items.append(f"{face}={_resolve(base, cell)}" if face else _resolve(base, cell))
         problem = None if items else f"no files on its row of the manifest (line {n})"  # that unit's error
         units.append(Unit(serial, tuple(items), problem))
-    return units, []
+    return units, notes
 
 
 def absolute(item: str) -> str:
