@@ -315,7 +315,12 @@ def test_a_fifo_is_read_once_and_never_blocks(command: str, tmp_path: Path) -> N
         else:
             done = run_exe(["segment", fifo, "--out-dir", tmp_path / "poses", "-q"])
     finally:
-        writer.wait(timeout=60)
+        try:
+            writer.wait(timeout=60)
+        finally:  # a run that never opened the pipe leaves its writer blocked: not for ever
+            if writer.poll() is None:
+                writer.kill()
+                writer.wait()
     assert done.returncode == 0, done.stderr
     if command == "solve":
         assert json.loads((tmp_path / "cal.json").read_text())["poses"][0]["file"] == str(fifo)
