@@ -19,7 +19,16 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from tumblecal_cli.core.drift import Drift, extremes
-from tumblecal_cli.core.model import FACES, FloatArray, PoseStats, Solution, angle_deg, direction, suggest_reference
+from tumblecal_cli.core.model import (
+    FACES,
+    FloatArray,
+    PoseStats,
+    Solution,
+    angle_deg,
+    chunks,
+    direction,
+    suggest_reference,
+)
 from tumblecal_cli.errors import InputError
 
 #: The quality checks, by the last part of their code (``pose.<check>``).
@@ -318,7 +327,7 @@ def integer_rails(captures: Sequence[FloatArray]) -> Rails | None:
     hi = max(float(c.max()) for c in captures)
     if lo < -32768 or hi > 65535 or (lo < 0 and hi > 32767):
         return None
-    if not all(np.array_equal(c, np.round(c)) for c in captures):
+    if not all(np.array_equal(part, np.round(part)) for c in captures for part in chunks(c)):
         return None
     if hi > 32767:  # unsigned: 0 and 65535 are the rails, the middle is 32768
         return 0.0, 65535.0, 32768.0
@@ -335,14 +344,20 @@ def _clipping(values: FloatArray, full_scale: float | None, rails: Rails | None)
         return 0, None
     if full_scale:
         level = CLIP_FRACTION * full_scale
-        peak = np.abs(values).max(axis=1)
-        return int((peak >= level).sum()), float(peak.max() / level)
+        clipped, top = 0, 0.0
+        for c in chunks(values):  # a chunk at a time: no temporary as large as the capture
+            peak = np.abs(c).max(axis=1)
+            clipped += int((peak >= level).sum())
+            top = max(top, float(peak.max()))
+        return clipped, float(top / level)
     if rails is None:
         return 0, None
     low_rail, high_rail, mid = rails
-    at_rail = ((values <= low_rail) | (values >= high_rail)).any(axis=1)
-    peak = float(np.abs(values - mid).max() / (high_rail - mid))
-    return int(at_rail.sum()), peak
+    clipped, top = 0, 0.0
+    for c in chunks(values):
+        clipped += int(((c <= low_rail) | (c >= high_rail)).any(axis=1).sum())
+        top = max(top, float(np.abs(c - mid).max()))
+    return clipped, float(top / (high_rail - mid))
 
 
 # -- limits and the verdict ----------------------------------------------------------------

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -125,8 +125,24 @@ def pose_stats(samples: FloatArray) -> PoseStats:
     n = int(samples.shape[0])
     if n == 0:
         raise InputError("no samples in this pose")
-    std = samples.std(axis=0, ddof=1) if n > 1 else np.zeros(3)
-    return PoseStats(mean=samples.mean(axis=0), std=std, samples=n)
+    mean = samples.mean(axis=0)
+    if n == 1:
+        return PoseStats(mean=mean, std=np.zeros(3), samples=n)
+    # numpy's std(ddof=1), a chunk at a time: no temporary as large as the capture (the same
+    # digits up to CHUNK readings, the last digit or so beyond)
+    m2 = sum((np.square(c - mean).sum(axis=0) for c in chunks(samples)), np.zeros(3))
+    return PoseStats(mean=mean, std=np.sqrt(m2 / (n - 1)), samples=n)
+
+
+#: Readings a statistic over a whole capture works through at a time: its temporaries stay
+#: this small however long the capture.
+CHUNK = 1 << 16
+
+
+def chunks(values: FloatArray) -> Iterator[FloatArray]:
+    """``values`` (n, ...) in consecutive slices of at most CHUNK rows (views, not copies)."""
+    for start in range(0, len(values), CHUNK):
+        yield values[start : start + CHUNK]
 
 
 @dataclass(frozen=True)
@@ -251,7 +267,10 @@ MAX_READING = 1e150
 def in_range(values: FloatArray, name: str) -> None:
     """Readings beyond MAX_READING (1e200 in a capture) overflow the statistics: an input error
     naming ``name``. NaN (an empty reading) is left to the caller."""
-    largest = float(np.nanmax(np.abs(values))) if values.size and not np.isnan(values).all() else 0.0
+    largest = 0.0  # the largest |reading| not NaN, a chunk at a time
+    for c in chunks(values):
+        size = np.abs(c[~np.isnan(c)])
+        largest = max(largest, float(size.max())) if size.size else largest
     if not largest <= MAX_READING:
         raise InputError(
             f"a reading of {largest:.3g} is beyond what tumblecal computes with (|reading| <= {MAX_READING:g})",

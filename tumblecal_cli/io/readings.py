@@ -7,6 +7,7 @@ temperature and a label column; ``read_samples`` is the same for a pose file.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -17,7 +18,7 @@ from numpy.typing import NDArray
 from tumblecal_cli.core.scan import log_index
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import sources
-from tumblecal_cli.io.capture import Capture, open_capture, to_floats
+from tumblecal_cli.io.capture import BLOCK_BYTES, Capture, open_capture, to_floats
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.io.sniff import (
     NUMBER,
@@ -147,42 +148,41 @@ def read_log(
         lay = cap.layout
         if need_temperature:
             _require_temperature(lay)
-        blocks, keep, times, temps, labels = [], [], [], [], []
+        readings = _Readings(_file_bytes(path))
+        keep, times, temps, labels = [], [], [], []
+        floats: list[FloatArray] | None = []  # the time column as numbers, when it is not judged
         for first_row, cols in cap.batches(only_sensor=True):
             values, empty = cap.sensor_values(cols, first_row)
             bad = ~np.isfinite(values) & ~empty[:, None]
             if bad.any():  # nan/inf would poison the pose mean (apply passes them through)
                 i, j = (int(k[0]) for k in np.nonzero(bad))
                 raise cap._locate(first_row + i, j, f"not a finite number: {quoted(cols[j][i].as_py())}")
-            blocks.append(values)
+            readings.add(values)
             keep.append(~empty)
             k = 3
-            if lay.time is not None:
+            if lay.time is not None and use_time:
                 times.append((first_row, cols[k]))
-                k += 1
+            elif lay.time is not None and floats is not None:
+                floats = _as_floats(cap, cols[k], floats)
+            k += lay.time is not None
             if lay.temperature is not None:
                 temps.append(cap.temperature_values(cols[k], first_row, empty) if need_temperature else cols[k])
                 k += 1
             if lay.extra is not None:
                 labels.extend(cols[k].to_pylist())
-        values = np.concatenate(blocks) if len(blocks) > 1 else blocks[0] if blocks else np.empty((0, 3))
+        values = readings.done()
         mask = np.concatenate(keep) if keep else np.zeros(0, dtype=bool)
         every = bool(mask.all())  # no empty rows (the usual case): no copies to drop them
-        used = np.flatnonzero(mask).astype(np.int64)
+        used = np.flatnonzero(mask).astype(np.int64, copy=False)  # (intp: no copy on 64-bit)
         if used.size == 0:
             raise InputError(
                 "no rows with sensor values", file=lay.name, hint=f"columns read: {', '.join(lay.sensor_names)}"
             )
         t = None
-        if times and use_time:
+        if times:
             t = _times(cap, times, None if every else mask)
-        elif times:
-            try:
-                t = np.concatenate([to_floats(pc.cast(cap.pointed(c), pa.float64(), safe=False)) for _, c in times])[
-                    mask
-                ]
-            except pa.ArrowInvalid:  # a time cell that is not a number: the duration is unknown
-                t = None
+        elif lay.time is not None and floats:  # None: a time cell that is not a number, the duration unknown
+            t = np.concatenate(floats)[mask]
         temperature = _temperatures(cap, temps, mask) if temps else None
         text = None if lay.extra is None else [str(labels[i] or "").strip() for i in used]
         sha256 = cap.sha256() if digest else ""
@@ -195,6 +195,51 @@ def read_log(
                 raise
             scale = TIME_SCALE[lay.time_unit or "s"]  # the time column is not used (--rate): no judgement
     return Log(lay, values if every else values[mask], used, t, text, sha256, temperature, scale)
+
+
+def _file_bytes(path: str) -> int | None:
+    """The size of a regular file (None: stdin, a pipe, or not a file here)."""
+    try:
+        return os.path.getsize(path) if path != "-" and os.path.isfile(path) else None
+    except OSError:
+        return None
+
+
+class _Readings:
+    """A capture's readings as its blocks are read, in one buffer (not a list of blocks joined
+    at the end: that held every reading twice). A regular file's buffer is sized from its first
+    block's rows per byte, with room to spare that costs nothing until it is written; it grows
+    by half when that was too little (a stream's, from its first block on)."""
+
+    def __init__(self, size: int | None) -> None:
+        self.size = size
+        self.buffer: FloatArray = np.empty((0, 3))
+        self.count = 0
+
+    def add(self, values: FloatArray) -> None:
+        end = self.count + len(values)
+        if end > len(self.buffer):
+            guess = end + end // 2
+            if self.count == 0 and self.size is not None:
+                guess = max(guess, int(len(values) * 1.5 * (self.size / BLOCK_BYTES + 1)))
+            grown = np.empty((guess, 3))
+            grown[: self.count] = self.buffer[: self.count]
+            self.buffer = grown
+        self.buffer[self.count : end] = values
+        self.count = end
+
+    def done(self) -> FloatArray:
+        return self.buffer[: self.count]
+
+
+def _as_floats(cap: Capture, column: pa.Array, floats: list[FloatArray]) -> list[FloatArray] | None:
+    """``floats`` with one more block of a time column that is not judged (--rate), read as
+    numbers; None once a cell is not a number (the duration is then unknown)."""
+    try:
+        floats.append(to_floats(pc.cast(cap.pointed(column), pa.float64(), safe=False)))
+    except pa.ArrowInvalid:
+        return None
+    return floats
 
 
 def from_table(table: Table, name: str, spec: ReadSpec, *, use_time: bool, need_temperature: bool) -> Log:
