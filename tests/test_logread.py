@@ -94,6 +94,7 @@ def same(streamed: tuple[readings.Log, sc.Segmentation], whole: tuple[readings.L
         np.testing.assert_array_equal(p.values, q.values)
 
 
+@pytest.mark.slow  # 150,000 rows read both ways, five times (the fast tier: test_rows_and_line_offsets_either_width)
 @pytest.mark.parametrize(
     "settings",
     [{}, {"trim": 0.0}, {"trim": 0.4}, {"window": 0.05, "min_duration": 0.5}, {"threshold": 0.01}],
@@ -247,6 +248,7 @@ def test_the_scan_keeps_a_bounded_share(tmp_path: Path) -> None:
     assert kept.values.shape[0] < 0.5 * n
 
 
+@pytest.mark.slow
 def test_a_block_file_that_cannot_be_written_leaves_the_folder_as_it_was(
     session: Callable[[int], Path], tmp_path: Path, small_blocks: None, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -357,9 +359,8 @@ def test_rows_and_line_offsets_either_width(
     assert log.lines.dtype == log.rows.dtype
 
 
-@pytest.mark.parametrize(
-    "noise", [pytest.param(0.0, id="noise-free"), pytest.param(1e-7, id="1e-7 g", marks=pytest.mark.slow)]
-)
+@pytest.mark.slow
+@pytest.mark.parametrize("noise", [0.0, 1e-7], ids=["noise-free", "1e-7 g"])
 def test_a_noise_free_or_very_quiet_log_keeps_whole_faces_either_way(
     tmp_path: Path, small_blocks: None, noise: float
 ) -> None:

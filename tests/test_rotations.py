@@ -283,6 +283,7 @@ def test_verify_log_needs_a_gyroscope_calibration(hand_log: Path, accel_cal: Pat
     assert "verifies a gyroscope's calibration, not the accelerometer's" in r.err
 
 
+@pytest.mark.slow
 def test_hand_turns_from_a_log_of_the_gyroscope_alone_say_so(accel_cal: Path, tmp_path: Path) -> None:
     """Xsens's real gyroscope log (t and three columns): the accelerometer was read from the
     gyroscope's own columns, and the answer was '0 rotations between 0 still blocks' or
