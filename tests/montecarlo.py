@@ -44,8 +44,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tumblecal_cli.core import methods, solvers
 from tumblecal_cli.core import model as core
-from tumblecal_cli.core import solvers
 from tumblecal_cli.core.model import FloatArray, PoseStats, Solution
 
 SIGMA = 0.01  # raw units, 1 sigma per sample
@@ -192,7 +192,7 @@ def label(u: FloatArray) -> str:
 
 
 def cases(reference: float = REFERENCE) -> list[Case]:
-    six = np.array([core.FACES[f] for f in solvers.SIX_FACES])
+    six = np.array([core.FACES[f] for f in methods.SIX_FACES])
     three = np.array([core.FACES[f] for f in ("+x", "+y", "+z")])
     tetra = np.array([(1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1)]) / math.sqrt(3.0)
     ls_directions = np.vstack([six, tetra])
@@ -353,7 +353,7 @@ def benchmark(trials: int = TRIALS, seed: int = SEED) -> list[Row]:
 
 def identifiability_notes() -> list[str]:
     """What the tilt model can and cannot identify when the cross-axis terms are free as well."""
-    six = np.array([core.FACES[f] for f in solvers.SIX_FACES])
+    six = np.array([core.FACES[f] for f in methods.SIX_FACES])
     notes = []
     for what, a in (("cross-axis terms", np.diag(TRUE_GAIN) + TRUE_CROSS), ("diagonal A", np.diag(TRUE_GAIN))):
         model = Model("tilt", ALL, angles=True)

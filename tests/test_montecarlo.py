@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from tests import montecarlo as mc
+from tumblecal_cli.core import methods
 from tumblecal_cli.core import model as core
-from tumblecal_cli.core import solvers
 
-SIX = np.array([core.FACES[f] for f in solvers.SIX_FACES])
+SIX = np.array([core.FACES[f] for f in methods.SIX_FACES])
 THREE = np.array([core.FACES[f] for f in ("+x", "+y", "+z")])
 # deliberately not the benchmark's values, so that every factor of σ, n and reference shows
 SIGMA, N, REF = 0.03, 50, 2.5

@@ -26,7 +26,7 @@ from tumblecal_cli.errors import CaptureRejected, InputError
 
 ROOT = Path(__file__).resolve().parent.parent
 G = 9.80665  # m/s^2 per g
-SIX = solvers.SIX_FACES
+SIX = methods.SIX_FACES
 THREE = methods.THREE_FACES
 K = 5.0  # |estimate - truth| < K sigma
 

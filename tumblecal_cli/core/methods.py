@@ -21,15 +21,6 @@ SIX_FACES = ("+x", "-x", "+y", "-y", "+z", "-z")
 #: The sphere fit needs this many poses: 9 parameters, and some residual to judge the fit by.
 SPHERE_MIN_POSES = 12
 LEAST_SQUARES_MIN_POSES = 5
-#: A face with no sample within this angle leaves the orientation-free fits undetermined.
-FACE_COVERAGE_DEG = 60.0
-#: Coverage: the share of these 26 directions (a cube's faces, edges, corners) with a sample
-#: within COVERAGE_CAP_DEG.
-_CUBE = np.array([(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1) if (i, j, k) != (0, 0, 0)])
-CUBE_DIRECTIONS = _CUBE / np.linalg.norm(_CUBE, axis=1)[:, None]
-COVERAGE_CAP_DEG = 45.0
-
-Params = tuple[FloatArray, FloatArray]  # (b, A)
 
 
 @dataclass(frozen=True)

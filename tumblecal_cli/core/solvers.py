@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from tumblecal_cli.core.methods import SIX_POSE, THREE_FACES, face_evidence
+from tumblecal_cli.core.methods import SIX_FACES, SIX_POSE, THREE_FACES, face_evidence
 from tumblecal_cli.core.model import (
     FACES,
     FloatArray,
@@ -40,10 +40,6 @@ from tumblecal_cli.core.model import (
 )
 from tumblecal_cli.errors import CaptureRejected, InputError
 
-SIX_FACES = ("+x", "-x", "+y", "-y", "+z", "-z")
-#: The sphere fit needs this many poses: 9 parameters, and some residual to judge the fit by.
-SPHERE_MIN_POSES = 12
-LEAST_SQUARES_MIN_POSES = 5
 #: A face with no sample within this angle leaves the orientation-free fits undetermined.
 FACE_COVERAGE_DEG = 60.0
 #: Coverage: the share of these 26 directions (a cube's faces, edges, corners) with a sample

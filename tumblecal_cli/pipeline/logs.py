@@ -265,10 +265,10 @@ def log_poses(
     best, kept = seg.best(), seg.kept
     notes: list[str] = []
     labels: list[str | None]
-    many = len(kept) >= solvers.SPHERE_MIN_POSES
+    many = len(kept) >= methods.SPHERE_MIN_POSES
     if method == "auto" and many:
-        six = set(best) >= set(solvers.SIX_FACES)
-        ev = methods.face_evidence(np.array([best[f].mean for f in solvers.SIX_FACES])) if six else None
+        six = set(best) >= set(methods.SIX_FACES)
+        ev = methods.face_evidence(np.array([best[f].mean for f in methods.SIX_FACES])) if six else None
         directions = np.array([b.mean - seg.centre for b in kept])
         directions /= np.maximum(np.linalg.norm(directions, axis=1), 1e-300)[:, None]
         fits = solvers.distinct_directions(directions) >= solvers.SPHERE_MIN_DIRECTIONS
@@ -305,20 +305,20 @@ def log_poses(
 def _wanted(method: str, up: str, best: Mapping[str, Block]) -> list[str]:
     """The faces a face solver takes from a log (auto: six, five or +x +y +z)."""
     if method == "auto":
-        return list(solvers.SIX_FACES if len(best) == 6 else best if len(best) == 5 else methods.THREE_FACES)
+        return list(methods.SIX_FACES if len(best) == 6 else best if len(best) == 5 else methods.THREE_FACES)
     if method in ("one-pose", "one-pose-tilt"):
         return [up]
     if method == "three-pose":
         return list(methods.THREE_FACES)
     if method in methods.SIX_POSE:
-        return list(solvers.SIX_FACES)
+        return list(methods.SIX_FACES)
     return list(best)
 
 
 def _face_blocks(log: Log, seg: Segmentation, method: str, wanted: list[str], best: Mapping[str, Block]) -> list[Block]:
     """The best block of each wanted face, or exit 3 naming what is missing."""
     absent = [f for f in wanted if f not in best]
-    if absent or len(wanted) < (solvers.LEAST_SQUARES_MIN_POSES if method == "least-squares" else 1):
+    if absent or len(wanted) < (methods.LEAST_SQUARES_MIN_POSES if method == "least-squares" else 1):
         faces = " ".join(best) or "none"
         need = {
             "auto": "+x +y +z, five faces or all six (or 12 blocks for the sphere fit)",
@@ -332,7 +332,7 @@ def _face_blocks(log: Log, seg: Segmentation, method: str, wanted: list[str], be
                 if seg.threshold is None  # a labelled log
                 else "rest the unit on each missing face for --min-duration; `tumblecal segment` lists every block"
             ),
-            more=tuple(seg_core.missing(seg, absent or [f for f in solvers.SIX_FACES if f not in best])),
+            more=tuple(seg_core.missing(seg, absent or [f for f in methods.SIX_FACES if f not in best])),
             code="log.faces",
         )
     return [best[f] for f in wanted]
