@@ -397,10 +397,16 @@ def block_rate(cap: Capture, column: pa.Array, empty: BoolArray, unit: str) -> f
             "the time column holds a cell that is not a number", file=cap.layout.name, hint="give --rate HZ"
         ) from None
     clock = clock[~empty] if empty.any() else clock
-    step = float(np.median(np.diff(clock))) * time_scale(cap.layout, clock, unit) if clock.size > 1 else 0.0
+    return median_rate(clock, time_scale(cap.layout, clock, unit) if clock.size > 1 else 1.0, cap.layout.name)
+
+
+def median_rate(clock: FloatArray, scale: float, name: str) -> float:
+    """Samples per second from a clock (``scale`` seconds a unit): its median step, to 9 digits
+    (the median step's float noise, not the rate's)."""
+    step = float(np.median(np.diff(clock))) * scale if clock.size > 1 else 0.0
     if not step > 0:
-        raise InputError("the time column does not advance", file=cap.layout.name, hint="give --rate HZ")
-    return float(f"{1.0 / step:.9g}")  # the median step's float noise, not the rate's
+        raise InputError("the time column does not advance", file=name, hint="give --rate HZ")
+    return float(f"{1.0 / step:.9g}")
 
 
 def _times(cap: Capture, times: list[tuple[int, pa.Array]], mask: BoolArray | None) -> FloatArray:

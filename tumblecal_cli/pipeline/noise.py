@@ -382,16 +382,12 @@ class _Feed:
 
 
 def _log_rate(log: Log) -> float:
-    """Samples per second of a log read whole: its clock's median step (to 9 digits)."""
-    seconds = log.seconds()
-    if seconds is None:
+    """Samples per second of a log read whole, as a CSV's first block gives it (readings.median_rate)."""
+    if log.clock is None:
         raise InputError(
             "the sample rate is unknown: the log has no clock", file=log.layout.name, hint="give --rate HZ"
         )
-    step = float(np.median(np.diff(seconds))) if seconds.size > 1 else 0.0
-    if not step > 0:
-        raise InputError("the time column does not advance", file=log.layout.name, hint="give --rate HZ")
-    return float(f"{1.0 / step:.9g}")
+    return readings.median_rate(log.clock, log.scale, log.layout.name)
 
 
 def write_kalibr(path: str, result: Noise) -> dict[str, float]:
