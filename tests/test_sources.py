@@ -14,7 +14,7 @@ from tests.conftest import ROOT, write
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import sources
 from tumblecal_cli.io.readspec import ReadSpec
-from tumblecal_cli.io.sources import Table
+from tumblecal_cli.io.sources import Stream, Table
 
 
 class NpzReader:
@@ -22,6 +22,10 @@ class NpzReader:
 
     def claims(self, path: str, head: bytes) -> bool:
         return path.endswith(".npz") and head.startswith(b"PK")
+
+    def streams(self, path: str) -> list[Stream]:
+        with np.load(path) as data:
+            return [Stream("acc", None, "accelerometer", len(data["acc"]), None, "g", corrected=False)]
 
     def read(self, path: str, spec: ReadSpec, label_column: str | None) -> Table:
         with np.load(path) as data:

@@ -45,7 +45,8 @@ class ReadSpec:
     gyroscope, magnetometer) names the triplet found by its column names unless ``columns``
     gives it; ``time_column`` and ``time_unit`` the clock (``rate`` in Hz when the clock is not
     to be used); ``temperature_column`` the temperature (else one of the usual names);
-    ``prefer`` a calibration's recorded columns, used when a file has them all."""
+    ``prefer`` a calibration's recorded columns, used when a file has them all; ``stream``
+    the stream of a log that holds several (``--stream NAME[:INSTANCE]``, io.sources)."""
 
     sensor: str = "accelerometer"
     columns: tuple[str, ...] | None = None
@@ -56,6 +57,7 @@ class ReadSpec:
     dialect: Dialect = field(default_factory=Dialect)
     temperature_column: str | None = None
     prefer: tuple[str, ...] | None = None
+    stream: str | None = None
 
     def __post_init__(self) -> None:  # a list given in Python is kept as a tuple (a frozen value)
         for name in ("columns", "prefer"):

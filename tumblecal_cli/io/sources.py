@@ -36,6 +36,9 @@ class Table:
     labels: list[str] | None = None
     sha256: str = ""
     notes: tuple[str, ...] = field(default_factory=tuple)
+    #: the source says these readings were already corrected by a calibration (an autopilot's
+    #: calibrated stream): a fit of them calibrates the residual, not the sensor
+    corrected: bool = False
 
     def __post_init__(self) -> None:
         values = np.asarray(self.values, dtype=np.float64)
@@ -48,12 +51,37 @@ class Table:
         object.__setattr__(self, "values", values)
 
 
+@dataclass(frozen=True)
+class Stream:
+    """One stream a log holds (``tumblecal logs``): its ``name`` and ``instance`` (what
+    ``--stream NAME[:INSTANCE]`` picks), the ``sensor`` it carries, its ``rows`` and ``rate`` (Hz,
+    None when unknown), its ``units``, whether it is ``corrected`` by the autopilot and ``how``
+    that is told (the field, parameter or convention, with its source)."""
+
+    name: str
+    instance: int | None
+    sensor: str
+    rows: int
+    rate: float | None
+    units: str
+    corrected: bool
+    how: str = ""
+
+    @property
+    def key(self) -> str:
+        """What ``--stream`` takes to pick this stream."""
+        return self.name if self.instance is None else f"{self.name}:{self.instance}"
+
+
 class Reader(Protocol):
-    """A kind of source: whether it ``claims`` a file (by its name or its first bytes), and the
-    readings of the sensor and stream ``spec`` names in it (``label_column``: a text column
-    to read beside them, when the source has one). Errors are InputErrors naming the file."""
+    """A kind of source: whether it ``claims`` a file (by its name or its first bytes), the
+    ``streams`` it holds, and the readings of the sensor and stream ``spec`` names in it
+    (``spec.stream``; ``label_column``: a text column to read beside them, when the source has
+    one). Errors are InputErrors naming the file."""
 
     def claims(self, path: str, head: bytes) -> bool: ...
+
+    def streams(self, path: str) -> list[Stream]: ...
 
     def read(self, path: str, spec: ReadSpec, label_column: str | None) -> Table: ...
 
