@@ -81,8 +81,10 @@ def test_a_still_capture_from_another_reader_has_the_noise_of_its_csv(tmp_path: 
     csv, npz = both(tmp_path, still[:, 0], still[:, 1:])
     a, b = tumblecal.noise(csv), tumblecal.noise(npz)
     assert (b.rate, b.samples) == (a.rate, a.samples) == (100.0, 5000)
+    assert (a.units, b.units) == (None, "g")  # the stream's units: its figures in µg, as a calibration's in g
     for x, y in zip(a.axes, b.axes, strict=True):
-        assert y.noise_density.value == pytest.approx(x.noise_density.value, rel=1e-12)
+        assert x.noise_density.value is not None
+        assert y.noise_density.value == pytest.approx(x.noise_density.value * 1e6, rel=1e-12)
     assert b.notes == ["npz: acc"]
 
 

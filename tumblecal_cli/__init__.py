@@ -27,6 +27,7 @@ from tumblecal_cli.version import __version__
 
 if TYPE_CHECKING:
     from tumblecal_cli.io.calfile import Calibration, load
+    from tumblecal_cli.io.sources import streams
     from tumblecal_cli.pipeline.batch import run_batch
     from tumblecal_cli.pipeline.correct import correct
     from tumblecal_cli.pipeline.exchange import check, export, import_peer
@@ -43,6 +44,7 @@ if TYPE_CHECKING:
 _HOMES = {
     "Calibration": "tumblecal_cli.io.calfile",
     "load": "tumblecal_cli.io.calfile",
+    "streams": "tumblecal_cli.io.sources",
     "solve": "tumblecal_cli.pipeline.solve",
     "solve_log": "tumblecal_cli.pipeline.solve",
     "Solved": "tumblecal_cli.pipeline.solve",
@@ -85,6 +87,7 @@ __all__ = [
     "segment",
     "solve",
     "solve_log",
+    "streams",
     "thermal",
     "verify",
     "verify_rotations",

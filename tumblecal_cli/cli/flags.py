@@ -112,6 +112,38 @@ Rate = Annotated[
 
 Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing on stderr unless there is an error.")]
 
+StreamOption = Annotated[
+    str | None,
+    typer.Option(
+        "--stream",
+        metavar="NAME[:INSTANCE]",
+        help="A log's stream, where it holds several: sensor_accel:1 in a PX4 ULog (`tumblecal logs FILE` lists "
+        "them). A stream that carries several sensors (sensor_combined) gives the one --sensor names. "
+        "[default: the log's one raw stream of --sensor]",
+    ),
+]
+
+AllowCorrected = Annotated[
+    bool,
+    typer.Option(
+        "--allow-corrected",
+        help="Read a stream the autopilot has already corrected (PX4's sensor_combined, vehicle_imu): refused "
+        "without it, as a fit of it calibrates the residual, not the sensor.",
+    ),
+]
+
+
+class Source(TypedDict):
+    """The pipeline's keyword arguments for a log's stream (``source``)."""
+
+    stream: str | None
+    allow_corrected: bool
+
+
+def source(stream: str | None, allow_corrected: bool) -> Source:
+    """--stream and --allow-corrected as the pipeline's keyword arguments."""
+    return {"stream": stream, "allow_corrected": allow_corrected}
+
 
 class MethodName(StrEnum):
     auto = "auto"

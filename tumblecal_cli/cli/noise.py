@@ -10,6 +10,7 @@ import typer
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
 from tumblecal_cli.cli.flags import (
+    AllowCorrected,
     Columns,
     Decimal,
     DropIncomplete,
@@ -19,11 +20,13 @@ from tumblecal_cli.cli.flags import (
     Sensor,
     SensorKind,
     SkipRows,
+    StreamOption,
     TimeColumn,
     TimeUnit,
     TimeUnitOption,
     file_shape,
     limit_option,
+    source,
 )
 from tumblecal_cli.errors import InputError
 
@@ -44,6 +47,8 @@ def noise(
     capture: Annotated[str, typer.Argument(metavar="CAPTURE", help="A capture of one still pose; '-' reads stdin.")],
     rate: Rate = None,
     sensor: Sensor = SensorKind.accelerometer,
+    stream: StreamOption = None,
+    allow_corrected: AllowCorrected = False,
     cal: Annotated[
         str | None,
         typer.Option("--cal", "-c", metavar="FILE", help="Correct with this calibration: figures in its units."),
@@ -110,6 +115,7 @@ def noise(
             time_column=time_column,
             time_unit=time_unit.value,
             **file_shape(skip_rows, decimal, drop_incomplete),
+            **source(stream, allow_corrected),
             progress=progress,
             kalibr=kalibr is not None,
         )

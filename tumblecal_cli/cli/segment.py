@@ -9,6 +9,7 @@ import typer
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
 from tumblecal_cli.cli.flags import (
+    AllowCorrected,
     Columns,
     Decimal,
     DropIncomplete,
@@ -22,6 +23,7 @@ from tumblecal_cli.cli.flags import (
     Sensor,
     SensorKind,
     SkipRows,
+    StreamOption,
     Threshold,
     TimeColumn,
     TimeUnit,
@@ -30,6 +32,7 @@ from tumblecal_cli.cli.flags import (
     Window,
     file_shape,
     log_option,
+    source,
 )
 
 if TYPE_CHECKING:
@@ -56,6 +59,8 @@ def segment(
         ),
     ] = None,
     sensor: Sensor = SensorKind.accelerometer,
+    stream: StreamOption = None,
+    allow_corrected: AllowCorrected = False,
     columns: Columns = None,
     no_header: NoHeader = False,
     time_column: TimeColumn = None,
@@ -127,6 +132,7 @@ def segment(
         time_unit=time_unit.value,
         rate=rate,
         **file_shape(skip_rows, decimal, drop_incomplete),
+        **source(stream, allow_corrected),
         window=window,
         threshold=threshold,
         min_duration=min_duration,

@@ -15,6 +15,7 @@ from tumblecal_cli.cli.flags import (
     EXIT_CODES,
     UNIT_PANEL,
     AccelCal,
+    AllowCorrected,
     CheckName,
     Columns,
     Decimal,
@@ -36,6 +37,7 @@ from tumblecal_cli.cli.flags import (
     Sensor,
     SensorKind,
     SkipRows,
+    StreamOption,
     Threshold,
     TimeColumn,
     TimeUnit,
@@ -132,6 +134,8 @@ def solve(
         ),
     ] = MethodName.auto,
     sensor: Sensor = SensorKind.accelerometer,
+    stream: StreamOption = None,
+    allow_corrected: AllowCorrected = False,
     tilt_compensate: Annotated[
         bool,
         typer.Option(
@@ -337,6 +341,8 @@ def solve_options(
     time_column: str | None,
     time_unit: str,
     rate: float | None,
+    stream: str | None,
+    allow_corrected: bool,
     skip_rows: int | None,
     decimal: str | None,
     drop_incomplete: bool,
@@ -390,6 +396,8 @@ def solve_options(
             time_unit=str(time_unit),
             rate=rate,
             dialect=Dialect(skip_rows, None if decimal is None else str(decimal), drop_incomplete),
+            stream=stream,
+            allow_corrected=allow_corrected,
         ),
         log=opts.LogOptions(
             window, threshold, min_duration, trim, pose_column, pose_map, turns, turn_angle, accel_cal, max_spool

@@ -9,7 +9,16 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import LabelledItemsCommand, app
-from tumblecal_cli.cli.flags import CHECKS_PANEL, Columns, JsonSummary, Quiet, SensorKind
+from tumblecal_cli.cli.flags import (
+    CHECKS_PANEL,
+    AllowCorrected,
+    Columns,
+    JsonSummary,
+    Quiet,
+    SensorKind,
+    StreamOption,
+    source,
+)
 from tumblecal_cli.cli.solve import _plot_target
 
 
@@ -88,6 +97,8 @@ def thermal(
             "bias from still captures in any pose). [default: the calibration's]",
         ),
     ] = None,
+    stream: StreamOption = None,
+    allow_corrected: AllowCorrected = False,
     plot: Annotated[
         str | None,
         typer.Option(
@@ -127,6 +138,7 @@ def thermal(
         max_noise=max_noise,
         columns=columns.split(",") if columns else None,
         sensor=sensor and sensor.value,
+        **source(stream, allow_corrected),
     )
     if plot is not None:  # drawn before the calibration is written: a failure leaves nothing behind
         pipeline.plot(done, plot)

@@ -8,7 +8,19 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
-from tumblecal_cli.cli.flags import Columns, Decimal, DropIncomplete, NoHeader, Quiet, SkipRows, file_shape
+from tumblecal_cli.cli.flags import (
+    AllowCorrected,
+    Columns,
+    Decimal,
+    DropIncomplete,
+    NoHeader,
+    Quiet,
+    SkipRows,
+    Source,
+    StreamOption,
+    file_shape,
+    source,
+)
 
 
 @app.command(
@@ -67,6 +79,8 @@ def verify(
         typer.Option("--rate", metavar="HZ", help="With --log: the sample rate, if it has no time column."),
     ] = None,
     columns: Columns = None,
+    stream: StreamOption = None,
+    allow_corrected: AllowCorrected = False,
     no_header: NoHeader = False,
     skip_rows: SkipRows = None,
     decimal: Decimal = None,
@@ -88,7 +102,8 @@ def verify(
     from tumblecal_cli.pipeline import verify as pipeline
 
     if log is not None or accel_cal is not None:
-        return _rotations(cal, log, accel_cal, rate, columns, captures_, json_summary=json_summary, quiet=quiet)
+        found = source(stream, allow_corrected)
+        return _rotations(cal, log, accel_cal, rate, columns, captures_, found, json_summary=json_summary, quiet=quiet)
     done = pipeline.verify(
         captures_ or [],
         cal,
@@ -98,6 +113,7 @@ def verify(
         columns=columns,
         no_header=no_header,
         **file_shape(skip_rows, decimal, drop_incomplete),
+        **source(stream, allow_corrected),
     )
     if json_summary:
         render.print_json(
@@ -131,6 +147,7 @@ def _rotations(
     rate: float | None,
     columns: str | None,
     captures_: list[str] | None,
+    given: Source,
     *,
     json_summary: bool,
     quiet: bool,
@@ -141,7 +158,7 @@ def _rotations(
 
     if log is None or accel_cal is None or captures_:
         raise InputError("a gyroscope is verified on one --log of hand turns with --accel-cal (and no captures)")
-    done = pipeline.verify_rotations(log, cal, accel_cal=accel_cal, rate=rate, columns=columns)
+    done = pipeline.verify_rotations(log, cal, accel_cal=accel_cal, rate=rate, columns=columns, **given)
     if json_summary:
         render.print_json({"status": "pass", "exit_status": 0, "cal": cal, "rotations": done.rows, **done.overall})
     if not quiet:

@@ -33,6 +33,7 @@ import pyarrow.compute as pc
 import pyarrow.csv as pcsv
 
 from tumblecal_cli.errors import InputError
+from tumblecal_cli.io import sources
 from tumblecal_cli.io.outputs import atomic_output
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.io.sniff import (
@@ -349,6 +350,12 @@ def open_capture(
     sensor, columns, prefer, time_column = spec.sensor, spec.columns, spec.prefer, spec.time_column
     temperature_column, dialect = spec.temperature_column, spec.dialect
     name = name or ("<stdin>" if path == "-" else path)
+    if spec.stream is not None:
+        raise InputError(
+            f"--stream {spec.stream}: this file is read as a CSV capture, whose one stream is its columns",
+            file=name,
+            hint=f"--stream picks a stream of a log ({sources.kinds()}); --columns and --sensor pick a CSV's",
+        )
     try:
         f: IO[bytes] = sys.stdin.buffer if path == "-" else open(path, "rb")  # noqa: SIM115
     except FileNotFoundError:

@@ -246,6 +246,8 @@ def from_table(table: Table, name: str, spec: ReadSpec, *, use_time: bool, need_
     """The Log of a source a reader of another kind read (io.sources): its readings judged as a
     CSV's are (finite numbers; a clock that never goes back, its unit judged; a temperature on
     every row where one is needed), each problem named by the file and the reading's row."""
+    if table.corrected and not spec.allow_corrected:
+        raise _corrected(table, name)
     names = [*table.names]
     time = temperature = extra = None
     if table.clock is not None:
@@ -280,6 +282,19 @@ def from_table(table: Table, name: str, spec: ReadSpec, *, use_time: bool, need_
         scale = time_scale(lay, clock, spec.time_unit)
     rows = np.arange(len(values), dtype=np.int64)
     return Log(lay, values, rows, clock, table.labels, table.sha256, table.temperature, scale)
+
+
+def _corrected(table: Table, name: str) -> InputError:
+    """The refusal of a stream the autopilot already corrected, and how that is told."""
+    stream = table.stream
+    what = "these readings are" if stream is None else f"{stream.key} ({stream.sensor}) is"
+    how = "" if stream is None or not stream.how else f" ({stream.how})"
+    return InputError(
+        f"{what} already corrected by the autopilot{how}: a fit of it calibrates the residual, not the sensor",
+        file=name,
+        hint="read a raw stream (tumblecal logs FILE lists them: --stream NAME:INSTANCE), "
+        "or give --allow-corrected to fit the residual all the same",
+    )
 
 
 def _require_temperature(lay: Layout) -> None:

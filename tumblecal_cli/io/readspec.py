@@ -46,7 +46,9 @@ class ReadSpec:
     gives it; ``time_column`` and ``time_unit`` the clock (``rate`` in Hz when the clock is not
     to be used); ``temperature_column`` the temperature (else one of the usual names);
     ``prefer`` a calibration's recorded columns, used when a file has them all; ``stream``
-    the stream of a log that holds several (``--stream NAME[:INSTANCE]``, io.sources)."""
+    the stream of a log that holds several (``--stream NAME[:INSTANCE]``, io.sources), and
+    ``allow_corrected`` whether a stream the autopilot already corrected may be read (a fit of
+    it calibrates the residual, not the sensor: refused without it)."""
 
     sensor: str = "accelerometer"
     columns: tuple[str, ...] | None = None
@@ -58,6 +60,7 @@ class ReadSpec:
     temperature_column: str | None = None
     prefer: tuple[str, ...] | None = None
     stream: str | None = None
+    allow_corrected: bool = False
 
     def __post_init__(self) -> None:  # a list given in Python is kept as a tuple (a frozen value)
         for name in ("columns", "prefer"):

@@ -10,13 +10,15 @@ its clock and temperature as it judges a CSV's, and names it in every message.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import importlib
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Protocol, cast
 
 import numpy as np
 
 from tumblecal_cli.core.model import FloatArray
+from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.readspec import ReadSpec
 
 
@@ -39,6 +41,9 @@ class Table:
     #: the source says these readings were already corrected by a calibration (an autopilot's
     #: calibrated stream): a fit of them calibrates the residual, not the sensor
     corrected: bool = False
+    #: the stream of the source they are (a log's: what --stream picked, and how its
+    #: correction is told), for the messages about it
+    stream: Stream | None = None
 
     def __post_init__(self) -> None:
         values = np.asarray(self.values, dtype=np.float64)
@@ -86,8 +91,53 @@ class Reader(Protocol):
     def read(self, path: str, spec: ReadSpec, label_column: str | None) -> Table: ...
 
 
+@dataclass(frozen=True)
+class Lazy:
+    """A reader registered by its module's name (``module.READER``), imported only when a file it
+    claims is read: ``tumblecal --help`` and the commands on CSV pay nothing for it. It claims a
+    file by its first bytes (``magic``) or by ``claim`` (a function of the path and those bytes:
+    a bag that is a folder). ``kind`` names the files in messages; ``extra`` is the pip extra that
+    installs the packages in ``needs``: without them, reading such a file is exit 2 saying
+    ``pip install 'tumblecal[extra]'``."""
+
+    kind: str
+    module: str
+    magic: tuple[bytes, ...] = ()
+    claim: Callable[[str, bytes], bool] | None = None
+    extra: str | None = None
+    needs: tuple[str, ...] = ()
+
+    def claims(self, path: str, head: bytes) -> bool:
+        if self.claim is not None:
+            return self.claim(path, head)
+        return any(head.startswith(m) for m in self.magic)
+
+    def streams(self, path: str) -> list[Stream]:
+        return self.load(path).streams(path)
+
+    def read(self, path: str, spec: ReadSpec, label_column: str | None) -> Table:
+        return self.load(path).read(path, spec, label_column)
+
+    def load(self, path: str) -> Reader:
+        """The reader itself, its module imported now (an extra not installed: exit 2)."""
+        try:
+            module = importlib.import_module(self.module)
+        except ModuleNotFoundError as err:
+            missing = (err.name or "").partition(".")[0]
+            if missing not in self.needs:
+                raise
+            raise InputError(
+                f"reading a {self.kind} needs the {missing} package, which is not installed",
+                file=path,
+                hint=f"pip install 'tumblecal[{self.extra}]'",
+            ) from None
+        return cast("Reader", module.READER)
+
+
 #: The readers of sources beside CSV, asked in order; a file none claims is read as CSV.
-READERS: list[Reader] = []
+READERS: list[Reader] = [
+    Lazy("PX4 ULog", "tumblecal_cli.io.ulog", magic=(b"ULog\x01\x12\x35",)),
+]
 #: How much of a file a reader is shown to claim it.
 HEAD = 64
 
@@ -98,6 +148,8 @@ def reader_for(path: str, opener: Callable[[str], bytes] | None = None) -> Reade
         return None
     try:
         head = opener(path) if opener is not None else _head(path)
+    except IsADirectoryError:
+        head = b""  # a folder: a reader may claim it by name (a ROS 2 bag), else the CSV reader says what it is
     except OSError:
         return None  # the CSV reader opens it and says what is wrong
     return next((r for r in READERS if r.claims(path, head)), None)
@@ -106,3 +158,89 @@ def reader_for(path: str, opener: Callable[[str], bytes] | None = None) -> Reade
 def _head(path: str) -> bytes:
     with open(path, "rb") as f:
         return f.read(HEAD)
+
+
+def kinds() -> str:
+    """The kinds of source the readers read, for messages: "PX4 ULog, ..."."""
+    return ", ".join(getattr(r, "kind", type(r).__name__) for r in READERS)
+
+
+def streams(path: str) -> list[Stream]:
+    """The streams of the log ``path`` (``tumblecal logs``): an InputError when no reader claims it."""
+    reader = reader_for(path)
+    if reader is None:
+        raise InputError(
+            f"not a log of a kind tumblecal reads by streams ({kinds()})",
+            file=path,
+            hint="a CSV capture is read as it is: its columns are its one stream (--columns, --sensor)",
+        )
+    return reader.streams(path)
+
+
+def stream_of(path: str, spec: ReadSpec) -> Stream | None:
+    """The stream of ``path`` that ``spec`` reads (None: a CSV capture, or stdin)."""
+    reader = reader_for(path)
+    return None if reader is None else pick(path, reader.streams(path), spec)
+
+
+def parse_stream(text: str) -> tuple[str, int | None]:
+    """``--stream NAME[:INSTANCE]`` as (name, instance): ``sensor_accel:1``, ``IMU:0``, ``/imu/data``."""
+    name, colon, number = text.strip().rpartition(":")
+    if colon and number.isdigit() and name:
+        return name, int(number)
+    if not text.strip():
+        raise InputError("--stream takes NAME or NAME:INSTANCE, e.g. sensor_accel:1 (tumblecal logs FILE lists them)")
+    return text.strip(), None
+
+
+def pick(path: str, found: Sequence[Stream], spec: ReadSpec) -> Stream:
+    """The stream of ``found`` (a log's) that ``spec`` asks for: ``spec.stream``'s, of
+    ``spec.sensor`` (a stream carrying several sensors gives the one --sensor names); without
+    --stream the log's one raw stream of that sensor with samples (or its one stream, raw or
+    not). None, or several: an InputError listing them and the --stream that picks each."""
+    sensor = spec.sensor
+    if spec.stream is None:
+        mine = [s for s in found if s.sensor == sensor and s.rows > 0]
+        raw = [s for s in mine if not s.corrected]
+        chosen = raw or mine
+        if len(chosen) == 1:
+            return chosen[0]
+        if not chosen:
+            raise InputError(
+                f"the log holds no {sensor} stream with samples",
+                file=path,
+                hint=_listing(found, None) + " (tumblecal logs FILE); --sensor picks another sensor",
+            )
+        raise InputError(
+            f"the log holds {len(chosen)} {'raw ' if raw else ''}{sensor} streams: "
+            f"{', '.join(s.key for s in chosen)}; give one with --stream",
+            file=path,
+            hint=f"e.g. --stream {chosen[0].key}; tumblecal logs FILE lists them with their rows and rates",
+        )
+    name, instance = parse_stream(spec.stream)
+    named = [s for s in found if s.name == name and (instance is None or s.instance == instance)]
+    if not named:
+        raise InputError(f"the log has no stream {spec.stream}", file=path, hint=_listing(found, None))
+    fitting = [s for s in named if s.sensor == sensor]
+    if not fitting:
+        carried = ", ".join(sorted({s.sensor for s in named}))
+        raise InputError(
+            f"{spec.stream} carries {carried}, not the {sensor}",
+            file=path,
+            hint=f"give --sensor {named[0].sensor}, or a stream of the {sensor}: " + _listing(found, sensor),
+        )
+    if len(fitting) > 1:
+        raise InputError(
+            f"{spec.stream} has {len(fitting)} instances: {', '.join(s.key for s in fitting)}; name one",
+            file=path,
+            hint=f"e.g. --stream {fitting[0].key}",
+        )
+    if fitting[0].rows == 0:
+        raise InputError(f"{fitting[0].key} has no samples in this log", file=path, hint=_listing(found, sensor))
+    return fitting[0]
+
+
+def _listing(found: Sequence[Stream], sensor: str | None) -> str:
+    """The --stream of each stream with samples (of ``sensor``, or all)."""
+    keys = dict.fromkeys(s.key for s in found if s.rows > 0 and (sensor is None or s.sensor == sensor))
+    return "its streams: " + (", ".join(keys) if keys else "none with samples")

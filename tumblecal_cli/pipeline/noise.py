@@ -227,8 +227,8 @@ def noise(
     if not 1 <= per_octave <= 64:
         raise InputError(f"--taus must be 1 to 64 points per octave, got {per_octave}")
     c = calfile.resolve(cal) if cal is not None else None
-    data_units = c.units if c is not None else None
     kind = c.sensor if c is not None else options.get("sensor", "accelerometer")
+    data_units = c.units if c is not None else _stream_units(path, replace(read_spec(options), sensor=kind))
     if units is not None and units not in UNIT_CHOICES:
         raise InputError(f"--units must be one of {', '.join(UNIT_CHOICES)}, got {units!r}")
     if units in ("datasheet", "si") and c is None:
@@ -262,6 +262,12 @@ def noise(
             result.short = err
     result.status = 3 if result.error else 1 if result.failures else 0
     return result
+
+
+def _stream_units(path: str, spec: ReadSpec) -> str | None:
+    """The units of a log's stream (a PX4 ULog's m/s^2 or rad/s: io.sources), None for a CSV."""
+    stream = sources.stream_of(path, spec)
+    return None if stream is None else stream.units
 
 
 def _kalibr_units(sensor: str, cal: Calibration | None, units: str | None) -> None:

@@ -148,6 +148,7 @@ FLAT: dict[str, tuple[str, str]] = {
     **{f: ("", f) for f in ("method", "reference", "up", "tilt_compensate", "bias_spread", "plane", "units")},
     "input_units": ("", "input_units"),
     **{f: ("read", f) for f in ("sensor", "columns", "no_header", "time_column", "time_unit", "rate")},
+    **{f: ("read", f) for f in ("stream", "allow_corrected")},
     **{f: ("dialect", f) for f in ("skip_rows", "decimal", "drop_incomplete")},
     **{f.name: ("log", f.name) for f in fields(LogOptions)},
     **{f.name: ("checks", f.name) for f in fields(CheckOptions)},
@@ -169,7 +170,15 @@ class FileKeywords(TypedDict, total=False):
     drop_incomplete: bool
 
 
-class ReadKeywords(FileKeywords, total=False):
+class StreamKeywords(TypedDict, total=False):
+    """Which stream of a log (a PX4 ULog's ``sensor_accel:1``: ``--stream``), and whether one the
+    autopilot already corrected may be read (``--allow-corrected``; io.sources)."""
+
+    stream: str | None
+    allow_corrected: bool
+
+
+class ReadKeywords(FileKeywords, StreamKeywords, total=False):
     """... and the sensor and the clock: all a ``ReadSpec`` holds (``read_spec`` makes one)."""
 
     sensor: str
@@ -198,6 +207,8 @@ def read_spec(given: ReadKeywords, prefer: Sequence[str] | None = None) -> ReadS
         time_column=given.get("time_column"),
         time_unit=given.get("time_unit", "auto"),
         rate=given.get("rate"),
+        stream=given.get("stream"),
+        allow_corrected=given.get("allow_corrected", False),
     )
 
 

@@ -20,7 +20,7 @@ from tumblecal_cli.core import gate, methods, model, segment, solvers
 from tumblecal_cli.core.gate import Finding
 from tumblecal_cli.core.model import face_of_name
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import calfile
+from tumblecal_cli.io import calfile, sources
 from tumblecal_cli.io.calfile import Pose
 from tumblecal_cli.pipeline import logs, rotations, turns
 from tumblecal_cli.pipeline import options as opts
@@ -114,22 +114,49 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Path
             "give the pose files with --poses, or one continuous log with --log" + (", not both" if poses else ""),
             hint="see 'tumblecal solve --help'",
         )
+    note = None
+    if path is not None:
+        options, note = _stream_units(path, options)
     given = opts.settings(options, log=path is not None)
     if path is not None and (options.log.turns is not None or options.log.accel_cal is not None):  # a gyroscope's turns
         if options.log.turns is not None:
             out = turns.from_log(path, options, given)
         else:
             out = rotations.from_log(path, options, given)
+        notes = [*([note] if note else []), *out.notes]
         return Solved(
-            out.status, out.calibration, out.draft, out.rejections, out.failures, error=out.error, notes=out.notes
+            out.status, out.calibration, out.draft, out.rejections, out.failures, error=out.error, notes=notes
         )
     if path is not None:
-        return _from_log(path, options, given)
+        solved = _from_log(path, options, given)
+        solved.notes[:0] = [note] if note else []
+        return solved
     assert files_or_data is not None
     name, labels, samples, placed = _read_poses(files_or_data, options, given)
     notes = [] if placed.note is None else [placed.note]
     chosen = PoseSet(labels, samples, [s.values for s in samples], notes or [], None, placed.by_name, placed.labelled)
     return _solve(name, chosen, options, given)
+
+
+#: Standard gravity (m/s^2): the reference of an accelerometer read in m/s^2 (PX4's CONSTANTS_ONE_G).
+STANDARD_GRAVITY = 9.80665
+
+
+def _stream_units(path: str, options: SolveOptions) -> tuple[SolveOptions, str | None]:
+    """The units of a log's stream (a PX4 ULog's: m/s^2, rad/s, gauss) as --input-units, unless
+    given; an accelerometer in m/s^2 with no --reference is solved against standard gravity, so
+    that the calibration corrects to m/s^2 as the autopilot does (a note says so)."""
+    stream = sources.stream_of(path, options.read)
+    if stream is None:
+        return options, None
+    reference, units, note = options.reference, options.units, None
+    if options.read.sensor == "accelerometer" and stream.units == "m/s^2" and reference is None:
+        reference, units = STANDARD_GRAVITY, units or "m/s^2"
+        note = (
+            f"{stream.key} is in m/s^2: solved against standard gravity, --reference {STANDARD_GRAVITY:g}, "
+            "corrected output in m/s^2 (give --reference 1 for g)"
+        )
+    return replace(options, reference=reference, units=units, input_units=options.input_units or stream.units), note
 
 
 def _poses_given(poses: object, options: SolveOptions) -> list[str] | Mapping[str, object]:

@@ -74,6 +74,8 @@ class ThermalKeywords(TypedDict, total=False):
     max_tilt: float
     columns: str | Sequence[str] | None
     sensor: str | None
+    stream: str | None
+    allow_corrected: bool
 
 
 def thermal(
@@ -110,6 +112,8 @@ def thermal(
         columns=column_list(options.get("columns")),
         temperature_column=options.get("temperature_column"),
         prefer=tuple(base.columns),
+        stream=options.get("stream"),
+        allow_corrected=options.get("allow_corrected", False),
     )
     read = _read(poses, base, spec)
     _judge_temperature(read, wanted, min_swing)

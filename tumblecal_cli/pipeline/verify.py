@@ -17,7 +17,15 @@ from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import calfile, readings
 from tumblecal_cli.io.readspec import ReadSpec, column_list
 from tumblecal_cli.pipeline.logs import FASTEST
-from tumblecal_cli.pipeline.options import FileKeywords, LogOptions, SolveOptions, file_spec, keywords_known, path_of
+from tumblecal_cli.pipeline.options import (
+    FileKeywords,
+    LogOptions,
+    SolveOptions,
+    StreamKeywords,
+    file_spec,
+    keywords_known,
+    path_of,
+)
 from tumblecal_cli.pipeline.rotations import hand_turns
 
 if TYPE_CHECKING:
@@ -82,7 +90,7 @@ class Verified:
         return pd.DataFrame(self.rows)
 
 
-class VerifyKeywords(FileKeywords, total=False):
+class VerifyKeywords(FileKeywords, StreamKeywords, total=False):
     """verify's options beside the captures' shape (README "tumblecal verify")."""
 
     reference: float | None
@@ -116,7 +124,12 @@ def verify(
         )
     if max_norm_error is not None and not max_norm_error > 0:
         raise InputError(f"--max-norm-error must be positive, got {max_norm_error:g}")
-    spec = replace(file_spec(options, prefer=c.columns), sensor=c.sensor)
+    spec = replace(
+        file_spec(options, prefer=c.columns),
+        sensor=c.sensor,
+        stream=options.get("stream"),
+        allow_corrected=options.get("allow_corrected", False),
+    )
     # raw and corrected share units, so "before" means something: fixed gains, the same unit
     # labels, or gains within 20 % of 1 (data already in g, m/s^2 ...: counts are far from it)
     gains = [float(g) for g in c.gain]
@@ -242,6 +255,7 @@ def verify_rotations(
     time_column: str | None = None,
     time_unit: str = "auto",
     columns: str | Sequence[str] | None = None,
+    **source: Unpack[StreamKeywords],
 ) -> VerifiedRotations:
     """A gyroscope calibration judged on a log it was not fitted on: the rotations between its
     still blocks (pipeline.rotations.hand_turns, gravity from ``accel_cal``). "Before" is the
@@ -258,7 +272,13 @@ def verify_rotations(
         raise InputError(f"--rate must be a positive number of Hz up to {FASTEST:g}, got {rate:g}")
     options = SolveOptions(
         read=ReadSpec(
-            sensor="gyroscope", columns=column_list(columns), time_column=time_column, time_unit=time_unit, rate=rate
+            sensor="gyroscope",
+            columns=column_list(columns),
+            time_column=time_column,
+            time_unit=time_unit,
+            rate=rate,
+            stream=source.get("stream"),
+            allow_corrected=source.get("allow_corrected", False),
         ),
         log=LogOptions(accel_cal=path_of(accel_cal, "--accel-cal takes a calibration file")),
     )
