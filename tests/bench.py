@@ -17,8 +17,10 @@ five runs each, taking turns; elsewhere the best of a few runs.
     batch, 200 units    vs  a shell loop calling `tumblecal solve` per unit (target: 20x the units/s)
     noise, 10M samples  vs  pandas.read_csv + allantools.oadev per axis (octave taus), the same file
     noise peak memory   10M samples / 2.5M samples  (streaming: ~1, not ~4)
+    ULog stream, 100 MB vs pyulog.ULog(f, message_name_filter_list=["sensor_accel"]), the same log
+                           (sensor_accel and sensor_gyro, two instances each, 1 kHz); peak memory
 
-`python tests/bench.py noise` runs the noise lines alone.
+`python tests/bench.py noise` runs the noise lines alone, `python tests/bench.py ulog` the ULog one.
 """
 
 from __future__ import annotations
@@ -288,8 +290,97 @@ def bench_logs(folder: Path) -> list[tuple[str, float, float, str]]:
     return found
 
 
+#: Reading one stream of a ULog, as tumblecal does and as PX4's parser does: python -c X log.ulg
+ULOG_OURS = """
+import sys
+from tumblecal_cli.io import readings
+from tumblecal_cli.io.readspec import ReadSpec
+log = readings.read_log(sys.argv[1], ReadSpec(stream="sensor_accel:0"))
+assert len(log.values) > 0
+print(next(line for line in open("/proc/self/status") if line.startswith("VmHWM")))
+"""
+ULOG_PYULOG = """
+import sys
+import numpy as np
+from pyulog import ULog
+data = ULog(sys.argv[1], message_name_filter_list=["sensor_accel"]).get_dataset("sensor_accel", 0).data
+values = np.column_stack([data["x"], data["y"], data["z"]]).astype(float)
+print(next(line for line in open("/proc/self/status") if line.startswith("VmHWM")))
+"""
+#: PX4 1.12's sensor_accel and sensor_gyro formats (tests/ulog_writer.py, from a real log).
+ULOG_FORMATS = {
+    "sensor_accel": "uint64_t timestamp;uint64_t timestamp_sample;uint32_t device_id;float x;float y;float z;"
+    "float temperature;uint32_t error_count;uint8_t[3] clip_counter;uint8_t samples;uint8_t[4] _padding0;",
+    "sensor_gyro": "uint64_t timestamp;uint64_t timestamp_sample;uint32_t device_id;float x;float y;float z;"
+    "float temperature;uint32_t error_count;uint8_t samples;uint8_t[7] _padding0;",
+}
+
+
+def write_ulog(path: Path, rows: int) -> None:
+    """A PX4 ULog of ``rows`` samples of sensor_accel and sensor_gyro, two instances each at 1 kHz,
+    in time order, a sync marker every 1000 samples (the format of tests/ulog_writer.py)."""
+    import struct
+
+    def message(kind: str, body: bytes) -> bytes:
+        return struct.pack("<HB", len(body), ord(kind)) + body
+
+    head = b"ULog\x01\x12\x35\x01" + bytes(8) + message("B", bytes(40))
+    head += b"".join(message("F", f"{name}:{fmt}".encode()) for name, fmt in ULOG_FORMATS.items())
+    streams = [("sensor_accel", 0), ("sensor_accel", 1), ("sensor_gyro", 0), ("sensor_gyro", 1)]
+    head += b"".join(message("A", struct.pack("<BH", i, 20 + k) + n.encode()) for k, (n, i) in enumerate(streams))
+    rng = np.random.default_rng(1)
+    t = np.arange(rows, dtype=np.uint64) * 1000 + 10_000_000
+    parts = []
+    for k, (name, _) in enumerate(streams):
+        tail = 4 if name == "sensor_accel" else 1  # the trailing padding is not logged
+        fields = [("size", "<u2"), ("kind", "u1"), ("id", "<u2"), ("t", "<u8"), ("ts", "<u8"), ("dev", "<u4")]
+        layout = np.dtype([*fields, ("xyz", "<f4", 3), ("temp", "<f4"), ("err", "<u4"), ("tail", "u1", tail)])
+        one = np.zeros(rows, dtype=layout)
+        one["size"], one["kind"], one["id"] = layout.itemsize - 3, ord("D"), 20 + k
+        one["t"], one["ts"], one["temp"] = t + 3 * k + 150, t + 3 * k, 30.0
+        one["xyz"] = rng.normal(0, 0.05, (rows, 3)) + np.array([0.0, 0.0, -9.81])
+        parts.append(one.view(np.uint8).reshape(rows, -1))
+    body = np.concatenate(parts, axis=1)
+    sync = message("S", b"\x2f\x73\x13\x20\x25\x0c\xbb\x12")
+    with open(path, "wb") as f:
+        f.write(head)
+        for i in range(0, rows, 1000):
+            f.write(body[i : i + 1000].tobytes() + sync)
+
+
+def _peak(argv: list[str], repeat: int = 3) -> tuple[float, float]:
+    """Best wall time of ``argv`` and the peak memory it prints (its VmHWM, MiB: a child's
+    ru_maxrss starts at its parent's size, which here holds the log it wrote)."""
+    best, peak = float("inf"), 0.0
+    for _ in range(repeat):
+        start = time.perf_counter()
+        done = subprocess.run(argv, capture_output=True, text=True, check=True)
+        best = min(best, time.perf_counter() - start)
+        peak = max(peak, int(done.stdout.split()[-2]) / 1024)
+    return best, peak
+
+
+def bench_ulog(folder: Path) -> list[tuple[str, float, float, str]]:
+    """Reading one stream of a 100 MB ULog against pyulog loading that topic, each a fresh process."""
+    log = folder / "log100M.ulg"
+    write_ulog(log, 510_000)
+    size = log.stat().st_size / 1e6
+    ours, rss = _peak([sys.executable, "-c", ULOG_OURS, str(log)])
+    base, base_rss = _peak([sys.executable, "-c", ULOG_PYULOG, str(log)])
+    logs, _ = run([*TUMBLECAL, "logs", str(log)], repeat=2)
+    note = f"{size / ours:.0f} MB/s; peak {rss:.0f} MiB, pyulog {base_rss:.0f} MiB; tumblecal logs {logs:.2f} s"
+    log.unlink()
+    return [(f"ULog stream, {size:.0f} MB", ours, base, note)]
+
+
 def main() -> None:
     rows: list[tuple[str, float, float, str]] = []
+    if sys.argv[1:] == ["ulog"]:
+        with tempfile.TemporaryDirectory() as tmp:
+            rows = bench_ulog(Path(tmp))
+        for what, ours, base, note in rows:
+            print(f"{what:<28} {ours:>9.2f}s {base:>9.2f}s {ours / base:>6.2f}x  {note}")
+        return
     if sys.argv[1:] == ["noise"]:
         with tempfile.TemporaryDirectory() as tmp:
             rows, peak = bench_noise(Path(tmp))
@@ -372,6 +463,7 @@ def main() -> None:
             rows.append((f"batch 200 units, --jobs {jobs}", ours, base, f"{base / ours:.0f}x the units/s of the loop"))
         noise_rows, noise_memory = bench_noise(folder)
         rows += noise_rows
+        rows += bench_ulog(folder)
     machine = f"{platform.node()} ({os.cpu_count()} cores, Python {platform.python_version()})"
     print(f"tumblecal bench, {date.today()}, {machine}")
     print(f"{'what':<28} {'tumblecal':>10} {'baseline':>10} {'ratio':>7}  notes")
@@ -387,6 +479,7 @@ def main() -> None:
     print("           segment, solve --log vs python -c 'import pandas; pandas.read_csv(f)' of the same log")
     print("           batch vs a bash loop of 'tumblecal solve' per unit (200 units x 3 poses x 1000 samples)")
     print("           noise vs pandas.read_csv + allantools.oadev of each axis (octave taus), the same file")
+    print("           ULog stream vs pyulog.ULog(f, message_name_filter_list=['sensor_accel']) of the same log")
 
 
 if __name__ == "__main__":

@@ -443,3 +443,29 @@ def test_the_installed_command_lists_solves_and_verifies_a_ulog(logs: dict[str, 
     done = run_exe(["verify", "--cal", cal, logs["auterion_esc_status"]], text=True)
     assert done.returncode == 2
     assert "calibrates the residual, not the sensor" in done.stderr
+
+
+@pytest.mark.slow
+def test_thermal_fits_a_drift_from_ulog_sweeps_with_their_temperature_field(tmp_path: Path) -> None:
+    """sensor_accel's temperature field is the temperature column: +z and -z sweeps from 10 to
+    40 °C with an x offset drift of 0.002 m/s^2/°C give it back."""
+    log, _ = session(tmp_path)
+    base = tumblecal.solve_log(log).calibration
+    assert base is not None
+    n = 20_000
+    t = np.arange(n, dtype=np.int64) * 2000 + 1_000_000
+    temp = 10 + 30 * np.arange(n) / n
+    rng = np.random.default_rng(2)
+    sweeps = []
+    for face, sign in (("+z", 1.0), ("-z", -1.0)):
+        xyz = np.column_stack(
+            [0.01 * G + 0.002 * (temp - 25), np.full(n, -0.02 * G), np.full(n, sign * 1.02 * G + 0.015 * G)]
+        )
+        xyz = xyz + rng.normal(0, 0.01, (n, 3))
+        path = ulog_writer.write(tmp_path / f"{face[1]}{face[0]}.ulg", t, xyz, ulog_writer.float32(temp))
+        sweeps.append(f"{face}={path}")
+    done = tumblecal.thermal(sweeps, base)
+    assert done.calibration.thermal is not None
+    assert done.fit.drift.order == 1
+    assert done.fit.drift.offset[0][0] == pytest.approx(0.002, abs=1e-4)
+    assert done.calibration.thermal.column == "temperature"
