@@ -112,10 +112,10 @@ def write(cal: Calibration, fmt: str, instance: int | None) -> ParamFile:
 
 @dataclass(frozen=True)
 class Mapped:
-    """A calibration in a firmware's units and terms: ``offset`` (the firmware's sign), ``held``
-    the matrix it applies (diagonal, symmetric, or the identity), ``units`` its units and
-    ``reference`` the stimulus in them; ``lost`` what it cannot hold, ``notes`` how the units
-    were taken."""
+    """A calibration in a firmware's units and terms: ``offset`` b and ``held`` the matrix the
+    firmware applies (diagonal, symmetric, or the identity) in ``units``, ``reference`` the
+    stimulus in them; ``lost`` what it cannot hold (a comment and a warning), ``notes`` how the
+    raw units were taken (a comment and a note), ``conversion`` the factors (a comment)."""
 
     offset: FloatArray
     held: FloatArray
@@ -312,7 +312,7 @@ def _ardupilot(cal: Calibration, n: int) -> ParamFile:
         ]
     head = [
         f"ArduPilot {cal.sensor} calibration of {'compass' if cal.sensor == 'magnetometer' else 'IMU'} {n}, "
-        f"written by tumblecal {__version__} from {cal.path or '-'}",
+        f"written by tumblecal {__version__}{_source(cal)}",
         f"{formula}, in {m.units}",
         *_provenance(cal),
         *_says(m),
@@ -355,7 +355,7 @@ def _px4(cal: Calibration, n: int) -> ParamFile:
             params, {f"{head}XSCALE": (0.1, 3.0), f"{head}YSCALE": (0.1, 3.0), f"{head}ZSCALE": (0.1, 3.0)}, "PX4"
         )
     text = [
-        f"PX4 {cal.sensor} calibration of slot {n}, written by tumblecal {__version__} from {cal.path or '-'}",
+        f"PX4 {cal.sensor} calibration of slot {n}, written by tumblecal {__version__}{_source(cal)}",
         f"{formula}, in {m.units}",
         *_provenance(cal),
         *_says(m),
@@ -372,6 +372,10 @@ def _px4(cal: Calibration, n: int) -> ParamFile:
 
 
 # -- shared -------------------------------------------------------------------------------------
+
+
+def _source(cal: Calibration) -> str:
+    return f" from {cal.path}" if cal.path else ""
 
 
 def _axes(prefix: str, values: FloatArray) -> list[tuple[str, float]]:
@@ -489,7 +493,8 @@ def _ardupilot_thermal(cal: Calibration, instance: int, lost: list[str]) -> str:
             [
                 f"ArduPilot temperature calibration of IMU {instance} ({cal.sensor}), "
                 f"written by tumblecal {__version__}",
-                f"from {cal.path}: offset drift in {units} per degC^k x 1e6, about 35 degC, subtracted",
+                f"from {cal.path or 'a calibration'}: offset drift in {units} per degC^k x 1e6, "
+                "about 35 degC, subtracted",
                 *lost,
             ]
         ),
@@ -523,7 +528,7 @@ def _px4_thermal(cal: Calibration, instance: int, lost: list[str]) -> str:
         *comments(
             [
                 f"PX4 thermal compensation of {cal.sensor} {instance}, written by tumblecal {__version__}",
-                f"from {cal.path}: offset drift in {units} per degC^k, subtracted",
+                f"from {cal.path or 'a calibration'}: offset drift in {units} per degC^k, subtracted",
                 f"set {head}ID to the sensor's device id ({cal_name}{instance}_ID): tumblecal does not know it",
                 *lost,
             ]
