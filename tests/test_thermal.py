@@ -404,12 +404,14 @@ def test_export_px4_reproduces_the_drift_through_its_own_formula(
     assert np.allclose(offset, _drift_ms2(calfile.load(fitted), temps), atol=1e-6)
 
 
-def test_export_firmware_formats_need_a_thermal_block_and_known_units(
+def test_export_firmware_formats_write_the_thermal_block_where_there_is_one_and_need_known_units(
     base: Path, fitted: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    code, _, err = run(capsys, "export", base, "--format", "px4")
-    assert code == 2
-    assert "has no thermal block" in err
+    code, out, _ = run(capsys, "export", base, "--format", "px4")  # no block: the offsets and scales
+    assert code == 0
+    assert "CAL_ACC0_XOFF" in out
+    assert "TC_A0_X1_0" not in out
+    assert "TC_A0_X1_0" in run(capsys, "export", fitted, "--format", "px4").out
     doc = json.loads(fitted.read_text())
     doc["units"] = "counts"
     odd = tmp_path / "odd.json"

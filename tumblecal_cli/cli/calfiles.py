@@ -107,8 +107,9 @@ def export(
             "--format",
             "-f",
             help="c-header: C99/C++ header for firmware; registers: offset (and gain trim) register counts, CSV; "
-            "imucal-json, ros-yaml, matlab: the peer tools' own files; ardupilot, px4: a thermal block as "
-            "INS_TCAL or TC_A/TC_G parameters (README: export).",
+            "imucal-json, ros-yaml, matlab: the peer tools' own files; ardupilot, px4: the autopilot's parameters "
+            "(a .parm file of INS_ACC/INS_GYR/COMPASS_, a QGroundControl .params file of CAL_ACC/CAL_GYRO/CAL_MAG; "
+            "a thermal block as INS_TCAL or TC_A/TC_G) (README: export).",
         ),
     ],
     output: Annotated[
@@ -169,7 +170,8 @@ def export(
         typer.Option(
             "--instance",
             metavar="N",
-            help="ardupilot, px4: the IMU the parameters are for (INS_TCAL<N>, 1-3; TC_A<N>/TC_G<N>, 0-2). "
+            help="ardupilot, px4: the sensor the parameters are for, in the firmware's numbering (ArduPilot 1-3: "
+            "INS_ACC<N>, COMPASS_OFS<N>, INS_TCAL<N>; PX4 0-3: CAL_ACC<N>, CAL_MAG<N>; TC_A<N>/TC_G<N>, 0-2). "
             "[default: the first]",
         ),
     ] = None,
@@ -180,7 +182,9 @@ def export(
       tumblecal export cal.json --format c-header -o imu_cal.h
       tumblecal export cal.json --format registers --lsb 0.98 --bits 16
       tumblecal export cal.json --format imucal-json -o imucal_cal.json
-      tumblecal export cal-thermal.json --format ardupilot -o tcal.param
+      tumblecal export cal.json --format ardupilot -o accel.parm
+      tumblecal export mag.json --format px4 --instance 1 -o mag.params
+      tumblecal export cal-thermal.json --format ardupilot -o tcal.parm
     """
 
     from tumblecal_cli.io.outputs import atomic_output, check_not_input, check_writable
@@ -188,7 +192,7 @@ def export(
 
     check_not_input(output, [cal])
     check_writable(output)
-    text = exchange.export(
+    done = exchange.exported(
         cal,
         fmt.value,
         prefix=prefix,
@@ -201,7 +205,9 @@ def export(
         instance=instance,
     )
     with atomic_output(output) as out:
-        out.write(text.encode())
+        out.write(done.text.encode())
+    for note in done.notes:
+        render.say(render.note_line(note))
 
 
 @app.command("import", cls=Command, epilog="Exit status: 0 written; 2 usage or input error.")

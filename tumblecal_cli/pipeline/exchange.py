@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, TypedDict, Unpack
 from tumblecal_cli.core import gate, model, solvers
 from tumblecal_cli.core.gate import FIXED_GAINS
 from tumblecal_cli.errors import InputError, control_character
-from tumblecal_cli.io import calfile, documents, formats
+from tumblecal_cli.io import calfile, documents, formats, paramfile
 from tumblecal_cli.pipeline.options import Triplet, keywords_known, path_of, triplet, unit_block
 from tumblecal_cli.pipeline.options import limits as parse_limits
 
@@ -105,34 +105,48 @@ class ExportKeywords(TypedDict, total=False):
 
 def export(cal: Calibration | str | os.PathLike[str], fmt: str, **options: Unpack[ExportKeywords]) -> str:
     """The text of a calibration in another format: c-header, registers, imucal-json, ros-yaml,
-    matlab, or a thermal block as ardupilot or px4 parameters (README "export"); ``instance`` is
-    the firmware's IMU number (ArduPilot from 1, PX4 from 0)."""
+    matlab, or ardupilot or px4 parameters (its offsets and scales, or its thermal block) (README
+    "export"); ``instance`` is the firmware's number (ArduPilot from 1, PX4 from 0). What an
+    autopilot cannot hold is said in the text's comments; :func:`exported` gives it apart too."""
+
+    return exported(cal, fmt, **options).text
+
+
+@dataclass(frozen=True)
+class Exported:
+    """An export's text, and its notes for people (a warning starts with ``warning: ``): what an
+    autopilot's parameters cannot hold, a value outside the firmware's range."""
+
+    text: str
+    notes: tuple[str, ...] = ()
+
+
+def exported(cal: Calibration | str | os.PathLike[str], fmt: str, **options: Unpack[ExportKeywords]) -> Exported:
+    """:func:`export`, with the notes the command prints on stderr."""
 
     keywords_known(options, ExportKeywords, "export")
     prefix, lsb, bits = options.get("prefix"), options.get("lsb"), options.get("bits", 16)
     register_sign, gain_step = options.get("register_sign", "subtract"), options.get("gain_step")
     nominal_gain, force, instance = options.get("nominal_gain"), options.get("force", False), options.get("instance")
     _export_options(fmt, prefix, lsb, bits, register_sign, gain_step, nominal_gain)
-    if instance is not None and fmt not in ("ardupilot", "px4"):
+    if instance is not None and fmt not in paramfile.FIRMWARES:
         raise InputError("--instance is for --format ardupilot and px4")
-    first = 1 if fmt == "ardupilot" else 0
-    if instance is not None and not first <= instance <= first + 2:
-        raise InputError(f"--instance for {fmt} is {first} to {first + 2}, got {instance}")
     c = calfile.resolve(cal)
     if c.failed and not force:
         calfile.refuse_failed(c, "export it", "export")
+    if fmt in paramfile.FIRMWARES:
+        written = paramfile.write(c, fmt, instance)
+        return Exported(written.text, written.notes)
     if fmt == "registers":
         assert lsb is not None
-        return _registers(c, lsb, bits, register_sign, gain_step, nominal_gain)
+        return Exported(_registers(c, lsb, bits, register_sign, gain_step, nominal_gain))
     writers = {
         "c-header": lambda: formats.c_header(c, prefix=prefix),
         "imucal-json": lambda: formats.imucal_json(c),
         "ros-yaml": lambda: formats.ros_yaml(c),
         "matlab": lambda: formats.matlab(c),
-        "ardupilot": lambda: formats.ardupilot_params(c, first if instance is None else instance),
-        "px4": lambda: formats.px4_params(c, first if instance is None else instance),
     }
-    return writers[fmt]()
+    return Exported(writers[fmt]())
 
 
 def _export_options(
