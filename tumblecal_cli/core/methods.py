@@ -20,7 +20,9 @@ from tumblecal_cli.errors import InputError
 SIX_FACES = ("+x", "-x", "+y", "-y", "+z", "-z")
 #: The sphere fit needs this many poses: 9 parameters, and some residual to judge the fit by.
 SPHERE_MIN_POSES = 12
-LEAST_SQUARES_MIN_POSES = 5
+#: Four poses whose directions are not in one plane determine the 12 parameters (exactly: no
+#: residual is left to judge the fit by); a fifth leaves one.
+LEAST_SQUARES_MIN_POSES = 4
 
 
 @dataclass(frozen=True)
@@ -122,6 +124,36 @@ ORIENTATION_FREE = ("sphere", "minmax", "ellipsoid", "gyro-bias")
 THREE_FACES = ("+x", "+y", "+z")
 
 
+def per_axis(labels: Sequence[str | None]) -> list[int] | None:
+    """The order that puts one face per axis in the order x, y, z (any signs: ``-z -x +y`` is
+    ``[1, 2, 0]``), or None when ``labels`` are not three faces on three different axes."""
+    if len(labels) != 3 or not all(label in FACES for label in labels):
+        return None
+    axes = [str(label)[1] for label in labels]
+    if sorted(axes) != ["x", "y", "z"]:
+        return None
+    return [axes.index(a) for a in "xyz"]
+
+
+def absent_axes(labels: Sequence[str | None]) -> list[str]:
+    """The axes on which no label is a face (neither its + nor its - face)."""
+    return [a for a in "xyz" if not any(label in (f"+{a}", f"-{a}") for label in labels)]
+
+
+def missing_faces_error(labels: Sequence[str | None], what: str = "--poses") -> InputError:
+    """The usage error of faces that leave an axis without a face: its offset or its gain has
+    nothing to come from (``no face on the y axis: add +y or -y``)."""
+    absent = absent_axes(labels)
+    axes = " and ".join(absent)
+    adds = ", and ".join(f"+{a} or -{a}" for a in absent)
+    given = " ".join(str(label) for label in labels)
+    return InputError(
+        f"{what}: no face on the {axes} ax{'es' if len(absent) > 1 else 'is'}: add {adds} (faces given: {given})",
+        hint="every axis needs a pose with it pointing up or down: one face per axis solves as three-pose "
+        "(e.g. --poses -z=a.csv -x=b.csv +y=c.csv), four or more as least-squares",
+    )
+
+
 def default_labels(count: int, up: str) -> list[str | None]:
     """Labels of unlabelled pose files: 1 -> ``up``, 3 -> +x +y +z, 6 -> +x -x +y -y +z -z, in
     that order; any other count has none (for the orientation-free solvers)."""
@@ -156,8 +188,17 @@ def pick(method: str, labels: Sequence[str | None], sensor: str) -> tuple[str, l
                 f"{method} takes a pose on a face (the axis up), not the direction {labels[0]}",
                 hint="label it with a face (+z=z.csv) or give the face with --up",
             )
-    elif method in ("three-pose", *SIX_POSE):
-        wanted = THREE_FACES if method == "three-pose" else SIX_FACES
+    elif method == "three-pose":
+        three = per_axis(labels)
+        if three is None:
+            given = " ".join(str(x) for x in labels) if any(labels) else f"{n} unlabelled files"
+            raise InputError(
+                f"three-pose takes 3 pose files, one face per axis (+x or -x, +y or -y, +z or -z); got {given}",
+                hint="label each file with the face that was up, e.g. --poses -z=a.csv -x=b.csv +y=c.csv (see --help)",
+            )
+        order = three
+    elif method in SIX_POSE:
+        wanted = SIX_FACES
         if sorted(str(x) for x in labels) != sorted(wanted):
             given = " ".join(str(x) for x in labels) if any(labels) else f"{n} unlabelled files"
             raise InputError(
@@ -172,6 +213,8 @@ def pick(method: str, labels: Sequence[str | None], sensor: str) -> tuple[str, l
                 + (f"(a face or a direction X,Y,Z each), got {n}" if all(labels) else f"got {n} unlabelled"),
                 hint="label each file: --poses +x=a.csv 0.707,0,0.707=b.csv ...",
             )
+        if all(x in FACES for x in labels) and absent_axes(labels):
+            raise missing_faces_error(labels, method)
     elif method == "sphere" and n < SPHERE_MIN_POSES:
         raise InputError(
             f"sphere takes {SPHERE_MIN_POSES} or more static pose files (9 parameters, and a residual "
@@ -190,10 +233,13 @@ def _auto(labels: Sequence[str | None], sensor: str) -> str:
     faces = sorted(str(x) for x in labels)
     if n == 1:
         return "one-pose"
-    if faces == sorted(THREE_FACES):
-        return "three-pose"
-    if faces == sorted(SIX_FACES):
-        return "six-pose"
+    if all(label in FACES for label in labels):  # faces only: each axis needs one
+        if absent_axes(labels):
+            raise missing_faces_error(labels)
+        if n == 3:  # one per axis, any signs
+            return "three-pose"
+        if faces == sorted(SIX_FACES):
+            return "six-pose"
     if all(labels) and n >= LEAST_SQUARES_MIN_POSES:
         return "least-squares"
     if not any(labels) and n >= SPHERE_MIN_POSES:
