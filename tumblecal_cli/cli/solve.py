@@ -161,6 +161,16 @@ def solve(
     input_units: Annotated[
         str | None, typer.Option("--input-units", metavar="TEXT", help="Label of the raw units, e.g. counts.")
     ] = None,
+    rows_are_poses: Annotated[
+        bool | None,
+        typer.Option(
+            "--rows-are-poses/--no-rows-are-poses",
+            help="Each row of the pose file(s) is one pose (a table of averaged orientations, one row each). "
+            "Without either, one unlabelled file with no time column whose rows turn from one to the next "
+            "by more than 10° is taken so, with a note. [default: by the rows]",
+            show_default=False,
+        ),
+    ] = None,
     columns: Columns = None,
     no_header: NoHeader = False,
     time_column: TimeColumn = None,
@@ -333,6 +343,7 @@ def solve_options(
     plane: str | None,
     units: str | None,
     input_units: str | None,
+    rows_are_poses: bool | None = None,
     columns: str | None,
     no_header: bool,
     time_column: str | None,
@@ -383,6 +394,7 @@ def solve_options(
         plane=None if plane is None else str(plane),
         units=units,
         input_units=input_units,
+        rows_are_poses=rows_are_poses,
         read=ReadSpec(
             sensor=str(sensor),
             columns=column_list(columns),

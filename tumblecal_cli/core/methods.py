@@ -154,6 +154,51 @@ def missing_faces_error(labels: Sequence[str | None], what: str = "--poses") -> 
     )
 
 
+#: A table of orientations: rows further apart than this point different ways (as
+#: solvers.DISTINCT_DEG: the sphere fit counts directions by the same angle).
+TABLE_STEP_DEG = 10.0
+#: ... and its rows point in at least this many directions that far apart.
+TABLE_DIRECTIONS = 3
+#: The rows judged: the first this many (a table of averaged orientations is short; a capture
+#: longer than this has shown what it is long before).
+TABLE_HEAD = 4096
+
+
+def orientation_table(values: FloatArray, centre: FloatArray) -> str | None:
+    """Why the rows of one capture (``values``, (n, 3), less ``centre``: the nominal offset)
+    are separate orientations, one averaged reading each, or None.
+
+    A pose file's rows are one vector plus noise; a log's consecutive samples, at any rate that
+    follows motion, differ by noise or by a small part of a turn. A table of orientations turns
+    from each row to the next: it is one when at least half of the steps between consecutive
+    rows turn the direction by more than TABLE_STEP_DEG, and the rows point in at least
+    TABLE_DIRECTIONS directions that far apart. Judged on the first TABLE_HEAD rows."""
+    head = values[:TABLE_HEAD] - centre
+    with np.errstate(over="ignore", invalid="ignore"):  # readings near 1e308: not a table to judge
+        norms = np.linalg.norm(head, axis=1)
+    if len(head) < TABLE_DIRECTIONS or not np.all(np.isfinite(norms) & (norms > 0)):
+        return None
+    unit = head / norms[:, None]
+    cos = np.clip((unit[1:] * unit[:-1]).sum(axis=1), -1.0, 1.0)
+    steps = np.degrees(np.arccos(cos))
+    median = float(np.median(steps))
+    if median <= TABLE_STEP_DEG:
+        return None
+    limit = math.cos(math.radians(TABLE_STEP_DEG))
+    kept: list[FloatArray] = []
+    for u in unit:
+        if all(float(u @ k) < limit for k in kept):
+            kept.append(u)
+            if len(kept) >= TABLE_DIRECTIONS:
+                break
+    if len(kept) < TABLE_DIRECTIONS:
+        return None
+    return (
+        f"its rows point in different directions (from one row to the next by {median:.0f}° in the median, "
+        f"more than {TABLE_STEP_DEG:g}°)"
+    )
+
+
 def default_labels(count: int, up: str) -> list[str | None]:
     """Labels of unlabelled pose files: 1 -> ``up``, 3 -> +x +y +z, 6 -> +x -x +y -y +z -z, in
     that order; any other count has none (for the orientation-free solvers)."""
