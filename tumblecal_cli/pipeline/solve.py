@@ -396,7 +396,7 @@ def _solve(name: str, poses: PoseSet, options: SolveOptions, given: Settings) ->
     if name == "six-pose" and ref > 0:
         name, tilted = _six_faces(name, given.method == "auto", stats, names, log_notes)
     if name in ONE_POSE:
-        check_units(names[0], stats[0].mean - checks.nominal_offset, ref, samples[0].values - checks.nominal_offset)
+        check_units(names[0], stats[0].mean - checks.nominal_offset, ref, samples[0].values, checks.nominal_offset)
     try:
         told = solvers.SolverSettings(
             reference=ref,
@@ -566,16 +566,20 @@ ONE_POSE = ("one-pose", "one-pose-tilt")
 SHARED_DIRECTION = 0.8
 
 
-def check_units(name: str, centred: FloatArray, reference: float, rows: FloatArray | None = None) -> None:
+def check_units(
+    name: str, centred: FloatArray, reference: float, rows: FloatArray | None = None, centre: float | FloatArray = 0.0
+) -> None:
     """A 1-pose mean (less --nominal-offset) far from --reference in magnitude: exit 2, with the
     reference the data suggests; but never from a mean over rows that point different ways
-    (``rows``, less the offset: a table of orientations, a log), which is said instead."""
+    (``rows``, less ``centre``: a table of orientations, a log), which is said instead. A row's
+    magnitude is judged on the first rows (methods.TABLE_HEAD): it is the same in any orientation."""
 
     suggested = model.units_mistake(centred, reference)
     if suggested is None:
         return
     magnitude = float((centred**2).sum() ** 0.5)
-    typical = 0.0 if rows is None else float(np.median(np.linalg.norm(rows[: methods.TABLE_HEAD], axis=1)))
+    head = None if rows is None else rows[: methods.TABLE_HEAD] - centre
+    typical = 0.0 if head is None else float(np.median(np.linalg.norm(head, axis=1)))
     if magnitude < SHARED_DIRECTION * typical:
         raise InputError(
             f"its rows point in different directions: their mean reads {magnitude:.4g} in magnitude, "
