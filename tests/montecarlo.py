@@ -14,7 +14,7 @@ Each pose mean is drawn directly from N(A v_k + b, σ²/n): the same distributio
 samples of σ white noise, at a fraction of the cost. The parameters of each model:
 
 - ``rigid``: every pose's direction ``u_k`` is known exactly. one-pose: b (A = I); three-pose
-  and six-pose-diagonal: b and diag(A); six-pose and least-squares: b and all of A.
+  (+x +y +z, and -x +y -z) and six-pose-diagonal: b and diag(A); six-pose and least-squares: b and all of A.
 - ``tilt``: each pose's direction is known only up to a small unknown fixture tilt, two nuisance
   angles per pose (first order: ``d m_k / dδ = A · reference · w`` for the two unit vectors ``w``
   perpendicular to ``u_k``). This is the model the six-pose (Ferraris) solver is built for: it
@@ -194,6 +194,7 @@ def label(u: FloatArray) -> str:
 def cases(reference: float = REFERENCE) -> list[Case]:
     six = np.array([core.FACES[f] for f in methods.SIX_FACES])
     three = np.array([core.FACES[f] for f in ("+x", "+y", "+z")])
+    mixed = np.array([core.FACES[f] for f in ("-x", "+y", "-z")])
     tetra = np.array([(1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1)]) / math.sqrt(3.0)
     ls_directions = np.vstack([six, tetra])
     ls_names = [label(u) for u in ls_directions]
@@ -271,6 +272,14 @@ def cases(reference: float = REFERENCE) -> list[Case]:
             ),
             (Check("offset", OFFSET, free), Check("gain", GAIN, free), Check("cross", UPPER_CROSS, free)),
             SPHERE_TOLERANCE,
+        ),
+        Case(
+            "three-pose -x +y -z",  # one face per axis, mixed signs (last: the others keep their seeds)
+            mixed,
+            diagonal,
+            lambda p: core.solve_three_pose(p, reference, faces=("-x", "+y", "-z")),
+            (Check("offset", OFFSET, rigid_bg), Check("gain", GAIN, rigid_bg)),
+            LINEAR_TOLERANCE,
         ),
     ]
 

@@ -1041,7 +1041,7 @@ def test_batch_folder_of_labelled_and_unlabelled_names_is_that_units_error(
     assert r.code == 2
     row = {row["serial"]: row for row in read_rows(tmp_path / "out" / "summary.csv")}["M"]
     assert (row["status"], row["verdict"]) == ("2", "error")
-    assert row["message"].startswith("--poses: no solver takes the labels +x +z")  # b.csv is not a pose
+    assert row["message"].startswith("--poses: no face on the y axis: add +y or -y (faces given: +x +z)")  # b.csv
     assert f"note: {mixed}: b.csv ignored (not named by a face like the unit's other files)" in r.err
 
 

@@ -224,7 +224,7 @@ def test_solve_wrong_number_of_pose_files(files: list[str], tmp_path: Path, caps
     assert_one_error(
         r,
         f"--poses: no solver takes {len(files)} unlabelled files: give 1 (one-pose), 3 (+x +y +z), "
-        "6 (+x -x +y -y +z -z), 12+ unlabelled (sphere) or 5+ labelled (least-squares)",
+        "6 (+x -x +y -y +z -z), 12+ unlabelled (sphere) or 4+ labelled (least-squares)",
         hint="label a file with its face or direction: --poses +x=a.csv -x=b.csv 0.707,0,0.707=c.csv",
     )
     assert_untouched(out)
@@ -239,10 +239,10 @@ def test_solve_wrong_number_of_files_named_for_faces_says_the_names_gave_them(
     r = run(capsys, "solve", "--poses", *POSES_3[:2], "-o", out)
     assert_one_error(
         r,
-        "--poses: no solver takes the labels +x +y: give 1 (one-pose), 3 (+x +y +z), "
-        "6 (+x -x +y -y +z -z), 12+ unlabelled (sphere) or 5+ labelled (least-squares)",
-        hint="the files' names gave the faces (x.csv +x, y.csv +y); "
-        "label a file with its face or direction: --poses +x=a.csv -x=b.csv 0.707,0,0.707=c.csv",
+        "--poses: no face on the z axis: add +z or -z (faces given: +x +y)",
+        hint="the files' names gave the faces (x.csv +x, y.csv +y); every axis needs a pose with it pointing "
+        "up or down: one face per axis solves as three-pose (e.g. --poses -z=a.csv -x=b.csv +y=c.csv), "
+        "four or more as least-squares",
     )
     assert_untouched(out)
 

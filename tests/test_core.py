@@ -137,6 +137,51 @@ def test_three_pose_standard_errors_match_the_scatter() -> None:
     assert_within_se(gains.mean(axis=0), truth.gain, gains.std(axis=0, ddof=1) / math.sqrt(400))
 
 
+MIXED = (("-x", "+y", "-z"), ("-x", "-y", "-z"), ("+x", "-y", "+z"))
+
+
+@pytest.mark.parametrize("faces", MIXED, ids=["-x+y-z", "-x-y-z", "+x-y+z"])
+@pytest.mark.parametrize("units", list(UNIT_SYSTEMS))
+def test_three_pose_of_mixed_signs_recovers_truth_within_noise(units: str, faces: tuple[str, ...]) -> None:
+    """One face per axis of either sign (a driver that reads -1 g up gives -x -y -z): the same
+    offsets as +x +y +z, each gain from its face's sign, the same 1-sigma."""
+    truth = UNIT_SYSTEMS[units]
+    n = 2000
+    sol = core.solve_three_pose(capture(np.random.default_rng(0), truth, faces, n), truth.reference, faces=faces)
+    assert_within_se(sol.offset, truth.offset, sol.offset_se)
+    assert_within_se(sol.gain, truth.gain, sol.gain_se)
+    assert np.all(sol.gain > 0)
+    mean_se = truth.noise / math.sqrt(n)
+    np.testing.assert_allclose(sol.offset_se, mean_se * math.sqrt(2) / 2, rtol=0.10)
+    np.testing.assert_allclose(sol.gain_se, mean_se * math.sqrt(1.5) / truth.reference, rtol=0.10)
+
+
+def test_three_pose_of_plus_faces_is_unchanged_by_naming_them() -> None:
+    """faces=+x +y +z is the default, bit for bit (calibration files compare equal)."""
+    poses = capture(np.random.default_rng(11), UNIT_SYSTEMS["counts->g"], THREE, 50)
+    plain, named = core.solve_three_pose(poses, 1.0), core.solve_three_pose(poses, 1.0, faces=THREE)
+    for field in ("offset", "matrix", "offset_se", "gain_se"):
+        assert getattr(plain, field).tobytes() == getattr(named, field).tobytes()
+
+
+@pytest.mark.parametrize("faces", MIXED[:2], ids=["-x+y-z", "-x-y-z"])
+def test_three_pose_of_mixed_signs_z_scores(faces: tuple[str, ...]) -> None:
+    """Over 2000 captures the errors over their stated 1-sigma (z-scores) have mean 0 and RMS 1:
+    the stated uncertainty of mixed signs is the honest one, not a copy of the + faces' formula
+    that happens to pass on them."""
+    truth = UNIT_SYSTEMS["counts->g"]
+    rng = np.random.default_rng(12)
+    z = []
+    for _ in range(2000):
+        sol = core.solve_three_pose(capture(rng, truth, faces, 16), truth.reference, faces=faces)
+        errors = np.concatenate([sol.offset - truth.offset, sol.gain - truth.gain])
+        z.append(errors / np.concatenate([sol.offset_se, sol.gain_se]))
+    scores = np.array(z)
+    rms = np.sqrt((scores**2).mean(axis=0))
+    assert np.all((rms > 0.9) & (rms < 1.1)), rms  # RMS of 2000 z-scores: 1 ± 0.016 (1 sigma) and the se's own scatter
+    assert np.all(np.abs(scores.mean(axis=0)) < 0.1), scores.mean(axis=0)  # unbiased: 1/sqrt(2000) = 0.022
+
+
 def test_one_pose_standard_errors_match_the_scatter() -> None:
     truth = ONE_POSE_UNITS["g"]
     rng = np.random.default_rng(4)

@@ -134,6 +134,7 @@ def test_benchmark_1000_trials(capsys: pytest.CaptureFixture[str]) -> None:
     status = mc.main([])
     out = capsys.readouterr().out
     assert status == 0, out
-    for solver in ("one-pose", "three-pose", "six-pose", "six-pose-diagonal", "least-squares", "sphere"):
+    for solver in ("one-pose", "three-pose", "three-pose -x +y -z", "six-pose", "six-pose-diagonal", "least-squares"):
         assert f"\n{solver} " in out
+    assert "\nsphere " in out
     assert "FAIL" not in out

@@ -767,6 +767,24 @@ def test_solve_log_auto_three_faces_is_three_pose(tmp_path: Path, capsys: pytest
     assert doc["method"] == "three-pose"
 
 
+def test_solve_log_auto_one_face_per_axis_of_mixed_signs_is_three_pose(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A log of -z -x +y (a driver that reads -1 g up, placed as it reads): three-pose on those
+    faces, not exit 3 for want of +x and +z."""
+    src = write_log(tmp_path / "three.csv", synth_log([Pose("-z"), Pose("-x"), Pose("+y")], seed=9))
+    out = tmp_path / "cal.json"
+    r = run(capsys, "solve", "--log", src, *CENTRE_OPTION, "-o", out)
+    assert r.code == 0, r.err
+    doc = json.loads(out.read_text())
+    assert doc["method"] == "three-pose"
+    assert [p["pose"] for p in doc["poses"]] == ["-x", "+y", "-z"]
+    assert np.all(np.array(doc["gain"]) > 3900)  # each gain with its face's sign
+    r = run(capsys, "solve", "--log", src, *CENTRE_OPTION, "--method", "three-pose", "-o", out)
+    assert r.code == 0, r.err
+    assert [p["pose"] for p in json.loads(out.read_text())["poses"]] == ["-x", "+y", "-z"]
+
+
 def test_solve_log_auto_five_faces_is_least_squares(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     src = write_log(tmp_path / "five.csv", synth_log(six_poses()[:5], seed=8))
     out = tmp_path / "cal.json"

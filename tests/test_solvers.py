@@ -781,6 +781,10 @@ DIAG = ["0.707107,0,0.707107", "-0.707107,0.707107,0"]
         (["+x", "-x", "+y", "-y", *DIAG[:1]], "accelerometer", "least-squares"),
         ([*SIX, *DIAG], "accelerometer", "least-squares"),
         (["+x", "+y", "+z", "+x", "+y", "+z"], "accelerometer", "least-squares"),  # undetermined: solver's call
+        (["-x", "+y", "-z"], "accelerometer", "three-pose"),  # one face per axis, any signs
+        (["-x", "-y", "-z"], "accelerometer", "three-pose"),
+        (["+x", "-x", "+y", "+z"], "accelerometer", "least-squares"),  # four faces: 12 readings, 12 parameters
+        (["-x", "+y", "-z", "+z"], "accelerometer", "least-squares"),
         ([None] * 12, "accelerometer", "sphere"),
         ([None] * 20, "accelerometer", "sphere"),
         ([None] * 3, "magnetometer", "ellipsoid"),
@@ -813,20 +817,39 @@ def test_pick_puts_shuffled_faces_in_the_solver_order(method: str, labels: list[
     assert [labels[k] for k in order] == list(wanted)
 
 
+@pytest.mark.parametrize("method", ["auto", "three-pose"])
+@pytest.mark.parametrize(
+    ("labels", "ordered"),
+    [(["-z", "-x", "+y"], ["-x", "+y", "-z"]), (["+y", "-z", "+x"], ["+x", "+y", "-z"]), (["-x", "-y", "-z"], None)],
+)
+def test_pick_takes_one_face_per_axis_of_either_sign_in_axis_order(
+    method: str, labels: list[str], ordered: list[str] | None
+) -> None:
+    """A driver that reads -1 g on the axis pointing up gives -z -x +y: three-pose, x y z order."""
+    got, order = methods.pick(method, labels, "accelerometer")
+    assert got == "three-pose"
+    assert [labels[k] for k in order] == (ordered or labels)
+
+
 @pytest.mark.parametrize(
     ("method", "labels", "message"),
     [
         ("one-pose", ["+x", "+y"], r"^one-pose takes 1 pose file, got 2$"),
         ("one-pose-tilt", [None], r"^one-pose-tilt needs the face pointing up"),
         ("one-pose", ["0.707107,0,0.707107"], r"^one-pose takes a pose on a face \(the axis up\), not the direction"),
-        ("three-pose", ["+x", "+y"], r"^three-pose takes 3 pose files, one per face \+x \+y \+z; got \+x \+y"),
-        ("three-pose", ["+x", "+y", "-z"], r"^three-pose takes 3 pose files.*; got \+x \+y -z"),
+        ("three-pose", ["+x", "+y"], r"^three-pose takes 3 pose files, one face per axis \(\+x or -x, .*got \+x \+y$"),
+        ("three-pose", ["+x", "-x", "+z"], r"^three-pose takes 3 pose files.*; got \+x -x \+z"),
         ("six-pose", list(SIX[:5]), r"^six-pose takes 6 pose files, one per face \+x -x \+y -y \+z -z"),
         ("six-pose-diagonal", [None] * 6, r"^six-pose-diagonal takes 6 pose files.*; got 6 unlabelled files"),
-        ("least-squares", ["+x", "-x", "+y", "+z"], r"^least-squares takes 5 or more labelled pose files .*got 4$"),
-        ("least-squares", ["+x", "-x", "+y", "+z", None], r"^least-squares takes 5 .*got 5 unlabelled$"),
+        ("least-squares", ["+x", "-x", "+y"], r"^least-squares takes 4 or more labelled pose files .*got 3$"),
+        ("least-squares", ["+x", "-x", "+y", "+z", None], r"^least-squares takes 4 .*got 5 unlabelled$"),
+        ("least-squares", ["+x", "-x", "+y", "-y"], r"^least-squares: no face on the z axis: add \+z or -z"),
         ("sphere", [None] * 11, r"^sphere takes 12 or more static pose files .* got 11"),
-        ("auto", ["+x", "+y"], r"^--poses: no solver takes the labels \+x \+y: give"),
+        ("auto", ["+x", "+y"], r"^--poses: no face on the z axis: add \+z or -z \(faces given: \+x \+y\)$"),
+        ("auto", ["+z", "-z"], r"^--poses: no face on the x and y axes: add \+x or -x, and \+y or -y"),
+        ("auto", ["+x", "-x", "+y", "-y"], r"^--poses: no face on the z axis: add \+z or -z"),
+        ("auto", ["+x", "0.707107,0,0.707107"], r"^--poses: no solver takes the labels \+x 0.707107,0,0.707107: give"),
+        ("three-pose", ["-x", "+y", "+y"], r"^three-pose takes 3 pose files, one face per axis .*got -x \+y \+y$"),
         ("auto", [None] * 7, r"^--poses: no solver takes 7 unlabelled files"),
         ("auto", ["+x", None, "+z", "-z", "+y"], r"^--poses: no solver takes 5 unlabelled files"),
     ],

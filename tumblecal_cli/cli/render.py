@@ -8,6 +8,7 @@ import json
 import os
 import re
 import sys
+from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, TypedDict
 
@@ -251,8 +252,12 @@ def _poses_table(cal: Calibration) -> Table:
             max_width=14 if text else None,  # a long file name folds, the numbers stay whole
             overflow="fold",
         )
+    shared = Counter(p.file for p in cal.poses)
     for p in cal.poses:
         name = one_line(os.path.basename(p.file or "")) + (f" #{p.block}" if p.block is not None else "")
+        row = p.block is None and p.rows is not None and p.rows[0] == p.rows[1] and shared[p.file] > 1
+        if row:  # one row of a table of orientations (the note names its file): one line, no std
+            name = f"row {p.rows[0] + 1}"  # type: ignore[index]
         poses.add_row(
             p.face or "?",
             name,
@@ -261,7 +266,7 @@ def _poses_table(cal: Calibration) -> Table:
             "mean",
             *(_g(float(v)) for v in p.mean),
         )
-        if p.std is not None:  # a field of every file tumblecal writes; other writers may leave it out
+        if p.std is not None and not row:  # a field of every file tumblecal writes; other writers may leave it out
             poses.add_row("", "", "", "", "std", *(f"{v:.3g}" for v in p.std), end_section=True)
     return poses
 

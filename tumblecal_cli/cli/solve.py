@@ -126,9 +126,10 @@ def solve(
         typer.Option(
             "--method",
             "-m",
-            help="The solver (README: Choosing a solver). auto: one-pose for 1 file, three-pose for +x +y +z; "
-            "for the six faces six-pose when opposite faces agree on their axis within 1.5° (a fixture), else "
-            "six-pose-magnitude (placed by hand); least-squares for 5+ labelled, sphere for 12+ unlabelled; "
+            help="The solver (README: Choosing a solver). auto: one-pose for 1 file, three-pose for one face per "
+            "axis (+x +y +z, or -z -x +y ...); for the six faces six-pose when opposite faces agree on their axis "
+            "within 1.5° (a fixture), else six-pose-magnitude (placed by hand); least-squares for 4+ labelled, "
+            "sphere for 12+ unlabelled; "
             "ellipsoid for a magnetometer, gyro-bias for a gyroscope (ferraris-turns with --turns). "
             "The summary says why.",
         ),
@@ -163,6 +164,16 @@ def solve(
     ] = None,
     input_units: Annotated[
         str | None, typer.Option("--input-units", metavar="TEXT", help="Label of the raw units, e.g. counts.")
+    ] = None,
+    rows_are_poses: Annotated[
+        bool | None,
+        typer.Option(
+            "--rows-are-poses/--no-rows-are-poses",
+            help="Each row of the pose file(s) is one pose (a table of averaged orientations, one row each). "
+            "Without either, one unlabelled file with no time column whose rows turn from one to the next "
+            "by more than 10° is taken so, with a note. [default: by the rows]",
+            show_default=False,
+        ),
     ] = None,
     columns: Columns = None,
     no_header: NoHeader = False,
@@ -336,6 +347,7 @@ def solve_options(
     plane: str | None,
     units: str | None,
     input_units: str | None,
+    rows_are_poses: bool | None = None,
     columns: str | None,
     no_header: bool,
     time_column: str | None,
@@ -388,6 +400,7 @@ def solve_options(
         plane=None if plane is None else str(plane),
         units=units,
         input_units=input_units,
+        rows_are_poses=rows_are_poses,
         read=ReadSpec(
             sensor=str(sensor),
             columns=column_list(columns),

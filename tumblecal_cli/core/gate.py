@@ -249,14 +249,16 @@ def _upside_down(p: PoseCheck, declared: list[str | None], solution: Solution, o
         return None
     assert p.face is not None
     axis = "xyz".index(p.face[1])
-    if not (p.face[0] == "+" and solution.gain[axis] <= 0):
+    alone = f"+{p.face[1]}" not in declared  # a - face without its + face (three-pose of mixed signs)
+    if not ((p.face[0] == "+" or alone) and solution.gain[axis] <= 0):
         return None
     by_name, labelled = options.faces_by_name, options.faces_labelled
     cause = "its file misnamed" if by_name else "its label wrong" if labelled else "the files out of order"
+    way = "up" if p.face[0] == "+" else "down"
     finding = Finding(
         "pose.upside_down",
         f"gain {solution.gain[axis]:.4g} on {p.face[1]} (mean {_vec(p.stats.mean)}): "
-        f"its {p.face[1]} axis was not pointing up (upside down, or {cause})",
+        f"its {p.face[1]} axis was not pointing {way} (upside down, or {cause})",
         float(solution.gain[axis]),
         0.0,
         hint=NAMED_HINT if by_name else LABELLED_HINT if labelled else None,
@@ -298,8 +300,9 @@ def _orientation(
             return Finding("pose.orientation", text, p.angle_deg, max_tilt, hint=hint, **where)
         elif p.looks_like == ("-" if p.face[0] == "+" else "+") + p.face[1]:
             text += ": upside down"
+            way = "up" if p.face[0] == "+" else "down"
             hint = (
-                f"turn the unit over so that its {p.face[1]} axis points up (a sensor that reads -1 g "
+                f"turn the unit over so that its {p.face[1]} axis points {way} (a sensor that reads -1 g "
                 "on the axis pointing up is declared as the opposite face)"
             )
             return Finding("pose.upside_down", text, p.angle_deg, max_tilt, hint=hint, **where)

@@ -20,7 +20,9 @@ from tumblecal_cli.errors import InputError
 SIX_FACES = ("+x", "-x", "+y", "-y", "+z", "-z")
 #: The sphere fit needs this many poses: 9 parameters, and some residual to judge the fit by.
 SPHERE_MIN_POSES = 12
-LEAST_SQUARES_MIN_POSES = 5
+#: Four poses whose directions are not in one plane determine the 12 parameters (exactly: no
+#: residual is left to judge the fit by); a fifth leaves one.
+LEAST_SQUARES_MIN_POSES = 4
 
 
 @dataclass(frozen=True)
@@ -122,6 +124,81 @@ ORIENTATION_FREE = ("sphere", "minmax", "ellipsoid", "gyro-bias")
 THREE_FACES = ("+x", "+y", "+z")
 
 
+def per_axis(labels: Sequence[str | None]) -> list[int] | None:
+    """The order that puts one face per axis in the order x, y, z (any signs: ``-z -x +y`` is
+    ``[1, 2, 0]``), or None when ``labels`` are not three faces on three different axes."""
+    if len(labels) != 3 or not all(label in FACES for label in labels):
+        return None
+    axes = [str(label)[1] for label in labels]
+    if sorted(axes) != ["x", "y", "z"]:
+        return None
+    return [axes.index(a) for a in "xyz"]
+
+
+def absent_axes(labels: Sequence[str | None]) -> list[str]:
+    """The axes on which no label is a face (neither its + nor its - face)."""
+    return [a for a in "xyz" if not any(label in (f"+{a}", f"-{a}") for label in labels)]
+
+
+def missing_faces_error(labels: Sequence[str | None], what: str = "--poses") -> InputError:
+    """The usage error of faces that leave an axis without a face: its offset or its gain has
+    nothing to come from (``no face on the y axis: add +y or -y``)."""
+    absent = absent_axes(labels)
+    axes = " and ".join(absent)
+    adds = ", and ".join(f"+{a} or -{a}" for a in absent)
+    given = " ".join(str(label) for label in labels)
+    return InputError(
+        f"{what}: no face on the {axes} ax{'es' if len(absent) > 1 else 'is'}: add {adds} (faces given: {given})",
+        hint="every axis needs a pose with it pointing up or down: one face per axis solves as three-pose "
+        "(e.g. --poses -z=a.csv -x=b.csv +y=c.csv), four or more as least-squares",
+    )
+
+
+#: A table of orientations: rows further apart than this point different ways (as
+#: solvers.DISTINCT_DEG: the sphere fit counts directions by the same angle).
+TABLE_STEP_DEG = 10.0
+#: ... and its rows point in at least this many directions that far apart.
+TABLE_DIRECTIONS = 3
+#: The rows judged: the first this many (a table of averaged orientations is short; a capture
+#: longer than this has shown what it is long before).
+TABLE_HEAD = 4096
+
+
+def orientation_table(values: FloatArray, centre: FloatArray) -> str | None:
+    """Why the rows of one capture (``values``, (n, 3), less ``centre``: the nominal offset)
+    are separate orientations, one averaged reading each, or None.
+
+    A pose file's rows are one vector plus noise; a log's consecutive samples, at any rate that
+    follows motion, differ by noise or by a small part of a turn. A table of orientations turns
+    from each row to the next: it is one when at least half of the steps between consecutive
+    rows turn the direction by more than TABLE_STEP_DEG, and the rows point in at least
+    TABLE_DIRECTIONS directions that far apart. Judged on the first TABLE_HEAD rows."""
+    head = values[:TABLE_HEAD] - centre
+    with np.errstate(over="ignore", invalid="ignore"):  # readings near 1e308: not a table to judge
+        norms = np.linalg.norm(head, axis=1)
+    if len(head) < TABLE_DIRECTIONS or not np.all(np.isfinite(norms) & (norms > 0)):
+        return None
+    unit = head / norms[:, None]
+    cos = np.clip((unit[1:] * unit[:-1]).sum(axis=1), -1.0, 1.0)
+    steps = np.degrees(np.arccos(cos))
+    median = float(np.median(steps))
+    if median <= TABLE_STEP_DEG:
+        return None
+    limit = math.cos(math.radians(TABLE_STEP_DEG))
+    kept: list[FloatArray] = []
+    for u in unit:
+        if all(float(u @ k) < limit for k in kept):
+            kept.append(u)
+            if len(kept) >= TABLE_DIRECTIONS:
+                break
+    if len(kept) < TABLE_DIRECTIONS:
+        return None
+    return (
+        f"its rows point in different directions (from one row to the next by {median:.0f}° in the median, "
+        f"more than {TABLE_STEP_DEG:g}°)"
+    )
+
+
 def default_labels(count: int, up: str) -> list[str | None]:
     """Labels of unlabelled pose files: 1 -> ``up``, 3 -> +x +y +z, 6 -> +x -x +y -y +z -z, in
     that order; any other count has none (for the orientation-free solvers)."""
@@ -156,8 +233,17 @@ def pick(method: str, labels: Sequence[str | None], sensor: str) -> tuple[str, l
                 f"{method} takes a pose on a face (the axis up), not the direction {labels[0]}",
                 hint="label it with a face (+z=z.csv) or give the face with --up",
             )
-    elif method in ("three-pose", *SIX_POSE):
-        wanted = THREE_FACES if method == "three-pose" else SIX_FACES
+    elif method == "three-pose":
+        three = per_axis(labels)
+        if three is None:
+            given = " ".join(str(x) for x in labels) if any(labels) else f"{n} unlabelled files"
+            raise InputError(
+                f"three-pose takes 3 pose files, one face per axis (+x or -x, +y or -y, +z or -z); got {given}",
+                hint="label each file with the face that was up, e.g. --poses -z=a.csv -x=b.csv +y=c.csv (see --help)",
+            )
+        order = three
+    elif method in SIX_POSE:
+        wanted = SIX_FACES
         if sorted(str(x) for x in labels) != sorted(wanted):
             given = " ".join(str(x) for x in labels) if any(labels) else f"{n} unlabelled files"
             raise InputError(
@@ -172,6 +258,8 @@ def pick(method: str, labels: Sequence[str | None], sensor: str) -> tuple[str, l
                 + (f"(a face or a direction X,Y,Z each), got {n}" if all(labels) else f"got {n} unlabelled"),
                 hint="label each file: --poses +x=a.csv 0.707,0,0.707=b.csv ...",
             )
+        if all(x in FACES for x in labels) and absent_axes(labels):
+            raise missing_faces_error(labels, method)
     elif method == "sphere" and n < SPHERE_MIN_POSES:
         raise InputError(
             f"sphere takes {SPHERE_MIN_POSES} or more static pose files (9 parameters, and a residual "
@@ -190,10 +278,13 @@ def _auto(labels: Sequence[str | None], sensor: str) -> str:
     faces = sorted(str(x) for x in labels)
     if n == 1:
         return "one-pose"
-    if faces == sorted(THREE_FACES):
-        return "three-pose"
-    if faces == sorted(SIX_FACES):
-        return "six-pose"
+    if all(label in FACES for label in labels):  # faces only: each axis needs one
+        if absent_axes(labels):
+            raise missing_faces_error(labels)
+        if n == 3:  # one per axis, any signs
+            return "three-pose"
+        if faces == sorted(SIX_FACES):
+            return "six-pose"
     if all(labels) and n >= LEAST_SQUARES_MIN_POSES:
         return "least-squares"
     if not any(labels) and n >= SPHERE_MIN_POSES:

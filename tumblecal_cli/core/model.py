@@ -180,9 +180,12 @@ def solve_one_pose(pose: PoseStats, up: str, reference: float) -> Solution:
 
 
 def solve_three_pose(
-    poses: Sequence[PoseStats], reference: float, names: Sequence[str] = ("+x", "+y", "+z")
+    poses: Sequence[PoseStats],
+    reference: float,
+    names: Sequence[str] = ("+x", "+y", "+z"),
+    faces: Sequence[str] = ("+x", "+y", "+z"),
 ) -> Solution:
-    """3-pose tumble: per-axis offset and gain from the +x, +y, +z poses (Vitali 2018, "3 姿勢").
+    """3-pose tumble: per-axis offset and gain from one pose per axis (Vitali 2018, "3 姿勢").
 
     With ``m[k]`` the mean of pose k (k = 0, 1, 2 for +x, +y, +z), Vitali 2018 averages, for each
     axis, the two poses where that axis is horizontal::
@@ -193,6 +196,11 @@ def solve_three_pose(
     and corrects by subtracting the offset and dividing by the gain, so ``M = diag(1 / gain)``.
     The offsets come from horizontal readings, so they shift to first order with fixture tilt
     (Vitali 2018, notes; README "Poses, signs and --reference").
+
+    ``faces``: the face of each pose, one per axis in the order x, y, z, of either sign. On a
+    ``-`` face the axis reads ``offset - gain·reference`` (the model ``raw = A v + b`` with
+    ``v = -reference·e_i``), so its gain is the same difference with its sign turned; the offsets,
+    and every 1-sigma, are those of the ``+`` faces.
     """
     if reference <= 0:
         raise InputError("the 3-pose solver needs a positive --reference (the stimulus magnitude)")
@@ -209,12 +217,14 @@ def solve_three_pose(
         offset_se[axis] = 0.5 * math.hypot(*se[horizontal, axis])
         # Vitali 2018: Xgain = AccX1 - Xofs, scaled to raw units per output unit
         gain[axis] = (means[axis, axis] - offset[axis]) / reference
+        if faces[axis][0] == "-":  # the -x pose reads Xofs - Xgain
+            gain[axis] = -gain[axis]
         gain_se[axis] = math.sqrt(se[axis, axis] ** 2 + offset_se[axis] ** 2) / reference
     for axis, g in enumerate(gain):
         if not g:  # a negative gain is judged by the gate (pose.upside_down); zero has no inverse
             ax = "xyz"[axis]
             raise CaptureRejected(
-                f"the +{ax} pose reads the same on {ax} as the poses where {ax} is horizontal "
+                f"the {faces[axis]} pose reads the same on {ax} as the poses where {ax} is horizontal "
                 f"(mean {_fmt(means[axis])}): its gain on {ax} cannot be determined",
                 file=names[axis],
                 hint="give the files in the order +x +y +z, each with that axis pointing up",

@@ -124,7 +124,7 @@ def _six_pose_magnitude(means: FloatArray, reference: float) -> Params:
 
 
 def _least_squares(means: FloatArray, directions: FloatArray, reference: float) -> Params:
-    """ST AN4508: the 12-parameter linear fit ``[v 1]·W = raw`` over N >= 5 poses.
+    """ST AN4508: the 12-parameter linear fit ``[v 1]·W = raw`` over N >= 4 poses.
 
     AN4508 writes the fit in the correcting direction (true = W·[raw 1]); here it is written in
     the measuring one, ``raw_k = A v_k + b`` with ``v_k = reference·u_k``, so that the least
@@ -291,7 +291,7 @@ def six_pose(poses: Sequence[PoseStats], reference: float, tolerance_deg: float,
 def least_squares(
     poses: Sequence[PoseStats], directions: FloatArray, reference: float, tolerance_deg: float, names: Sequence[str]
 ) -> Fit:
-    """N >= 5 poses with known directions (unit vectors); see :func:`_least_squares`."""
+    """N >= 4 poses with known directions (unit vectors) not in one plane; see :func:`_least_squares`."""
     if design_rank(directions) < 4:
         raise CaptureRejected(
             f"the {len(directions)} pose directions do not determine an offset and a full matrix "
@@ -307,6 +307,12 @@ def least_squares(
     raw_residuals = np.array([p.mean for p in poses]) - (
         reference * directions @ np.linalg.inv(fit.solution.matrix).T + fit.solution.offset
     )
+    if len(directions) == 4:  # 12 readings, 12 parameters: every pose fitted exactly
+        note = (
+            "4 poses determine the 12 parameters exactly: no residual is left to judge the fit by, "
+            "and the cross-axis terms take any tilt of the poses (a fifth pose leaves a residual)"
+        )
+        return replace(fit, notes=(note,))
     worst = int(np.argmax(np.linalg.norm(raw_residuals, axis=1)))
     size = float(np.linalg.norm(raw_residuals[worst]))
     note = f"largest residual: {names[worst]}, {size:.3g} raw units from its fitted reading"
@@ -711,8 +717,9 @@ def run(
     if method == "one-pose-tilt":
         return one_pose_tilt(stats[0], str(labels[0]), reference, tolerance_deg, bias_spread, gain_tolerance)
     if method == "three-pose":
-        three = solve_three_pose(stats, reference, names=names)
-        offset_tilt, gain_tilt = tilt_sensitivity(method, three.gain, reference, THREE_FACES, tolerance_deg)
+        faces = [str(x) for x in labels] if all(x in FACES for x in labels) else list(THREE_FACES)
+        three = solve_three_pose(stats, reference, names=names, faces=faces)
+        offset_tilt, gain_tilt = tilt_sensitivity(method, three.gain, reference, faces, tolerance_deg)
         residuals = _norm_residuals(np.array([p.mean for p in stats]), three.offset, three.matrix, reference)
         return Fit(solution=three, residuals=residuals, tilt=(offset_tilt, gain_tilt, np.zeros((3, 3))))
     if method in SIX_POSE:

@@ -45,10 +45,14 @@ class Samples:
     temperature: float | None = None  # mean of the temperature column, if there is one
     block: int | None = None  # the block's number, for a pose cut from a log
     times: tuple[float, float] | None = None  # a block's first and last time, when the log has them
+    row: bool = False  # one row of a table of orientations (its data row: rows[0])
 
     @property
     def name(self) -> str:
-        """How messages name this pose: its file, and its block when cut from a log."""
+        """How messages name this pose: its file, and its block when cut from a log (its row,
+        counted from 1, when it is one row of a table)."""
+        if self.row:
+            return f"{self.layout.name} row {self.rows[0] + 1}"
         return self.layout.name if self.block is None else f"{self.layout.name} block {self.block}"
 
 

@@ -303,16 +303,22 @@ def log_poses(
 
 
 def _wanted(method: str, up: str, best: Mapping[str, Block]) -> list[str]:
-    """The faces a face solver takes from a log (auto: six, five or +x +y +z)."""
+    """The faces a face solver takes from a log (auto: six, five or one per axis)."""
     if method == "auto":
-        return list(methods.SIX_FACES if len(best) == 6 else best if len(best) == 5 else methods.THREE_FACES)
+        return list(methods.SIX_FACES if len(best) == 6 else best if len(best) == 5 else _per_axis(best))
     if method in ("one-pose", "one-pose-tilt"):
         return [up]
     if method == "three-pose":
-        return list(methods.THREE_FACES)
+        return _per_axis(best)
     if method in methods.SIX_POSE:
         return list(methods.SIX_FACES)
     return list(best)
+
+
+def _per_axis(best: Mapping[str, Block]) -> list[str]:
+    """One face per axis for three-pose: the + face where the log has it, else the - face
+    (a sensor that reads -1 g up gives -x -y -z blocks), else + (missing: _face_blocks says so)."""
+    return [f"-{a}" if f"+{a}" not in best and f"-{a}" in best else f"+{a}" for a in "xyz"]
 
 
 def _face_blocks(log: Log, seg: Segmentation, method: str, wanted: list[str], best: Mapping[str, Block]) -> list[Block]:
@@ -321,8 +327,8 @@ def _face_blocks(log: Log, seg: Segmentation, method: str, wanted: list[str], be
     if absent or len(wanted) < (methods.LEAST_SQUARES_MIN_POSES if method == "least-squares" else 1):
         faces = " ".join(best) or "none"
         need = {
-            "auto": "+x +y +z, five faces or all six (or 12 blocks for the sphere fit)",
-            "least-squares": "five faces or more",
+            "auto": "one face per axis, five faces or all six (or 12 blocks for the sphere fit)",
+            "least-squares": "four faces or more",
         }.get(method, " ".join(wanted))
         raise CaptureRejected(
             f"not the faces {method} needs ({need}); faces found: {faces}",

@@ -103,6 +103,7 @@ class SolveOptions:
     plane: str | None = None
     units: str | None = None
     input_units: str | None = None
+    rows_are_poses: bool | None = None  # each row of the capture a pose (None: when it looks so)
     read: ReadSpec = field(default_factory=ReadSpec)
     log: LogOptions = field(default_factory=LogOptions)
     checks: CheckOptions = field(default_factory=CheckOptions)
@@ -147,6 +148,7 @@ GROUPS: dict[str, type] = {"log": LogOptions, "checks": CheckOptions, "limits": 
 FLAT: dict[str, tuple[str, str]] = {
     **{f: ("", f) for f in ("method", "reference", "up", "tilt_compensate", "bias_spread", "plane", "units")},
     "input_units": ("", "input_units"),
+    "rows_are_poses": ("", "rows_are_poses"),
     **{f: ("read", f) for f in ("sensor", "columns", "no_header", "time_column", "time_unit", "rate")},
     **{f: ("read", f) for f in ("stream", "allow_corrected")},
     **{f: ("dialect", f) for f in ("skip_rows", "decimal", "drop_incomplete")},
@@ -309,6 +311,8 @@ def checked(options: SolveOptions) -> SolveOptions:
     one of its own, numbers numbers, ranges kept; a lone string where a list goes is one item."""
 
     choices_and_numbers(options.flat())
+    if options.rows_are_poses is not None and not isinstance(options.rows_are_poses, bool):
+        raise InputError(f"rows_are_poses is True, False or None (decide by the rows), got {options.rows_are_poses!r}")
     checks = options.checks
     if isinstance(checks.min_samples, bool) or not isinstance(checks.min_samples, int) or checks.min_samples < 1:
         raise InputError(f"--min-samples takes a whole number of 1 or more, got {checks.min_samples!r}")

@@ -22,7 +22,7 @@ from tumblecal_cli.core.model import face_of_name
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import calfile, sources
 from tumblecal_cli.io.calfile import Pose
-from tumblecal_cli.pipeline import logs, rotations, turns
+from tumblecal_cli.pipeline import logs, rotations, tables, turns
 from tumblecal_cli.pipeline import options as opts
 from tumblecal_cli.pipeline.exchange import tilt_notes
 from tumblecal_cli.pipeline.frames import read_pose, samples_of
@@ -77,8 +77,8 @@ class Solved:
 
 
 #: Pose captures: files (one path, or a list of ``FILE`` / ``LABEL=FILE`` items), or data in
-#: memory (a mapping of labels to DataFrames or (n, 3) arrays, or a list of them).
-Poses = str | os.PathLike[str] | Sequence[object] | Mapping[str, object]
+#: memory (a mapping of labels to DataFrames or (n, 3) arrays, a list of them, or one alone).
+Poses = str | os.PathLike[str] | Sequence[object] | Mapping[str, object] | model.FloatArray
 
 
 def solve(poses: Poses, **options: object) -> Solved:
@@ -132,7 +132,10 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Path
         solved.notes[:0] = [note] if note else []
         return solved
     assert files_or_data is not None
-    name, labels, samples, placed = _read_poses(files_or_data, options, given)
+    table, read = tables.take(poses, options, given)
+    if table is not None:
+        return _solve(*_table_poses(table, options, given), options, given)
+    name, labels, samples, placed = _read_poses(files_or_data, options, given, read)
     notes = [] if placed.note is None else [placed.note]
     chosen = PoseSet(labels, samples, [s.values for s in samples], notes or [], None, placed.by_name, placed.labelled)
     return _solve(name, chosen, options, given)
@@ -159,6 +162,21 @@ def _stream_units(path: str, options: SolveOptions) -> tuple[SolveOptions, str |
     return replace(options, reference=reference, units=units, input_units=options.input_units or stream.units), note
 
 
+def _table_poses(table: tables.Table, options: SolveOptions, given: Settings) -> tuple[str, PoseSet]:
+    """The method and the poses of a table's rows: labelled as that many unlabelled files are
+    (3: +x +y +z, 6: the six faces, in order; else none: sphere for 12 or more)."""
+    labels = methods.default_labels(len(table.rows), given.up)
+    try:
+        name, order = methods.pick(given.method, labels, options.read.sensor)
+    except InputError as err:
+        why = f"the table's {len(table.rows)} rows are {len(table.rows)} poses"
+        raise InputError(err.message, file=err.file, hint=f"{why}; {err.hint}" if err.hint else why) from None
+    method_options(name, given.reference, options.plane, options.bias_spread)
+    rows = [table.rows[k] for k in order]
+    labels = [None if name in methods.ORIENTATION_FREE else labels[k] for k in order]
+    return name, PoseSet(labels, rows, [s.values for s in rows], [table.note], table=True)
+
+
 def _poses_given(poses: object, options: SolveOptions) -> list[str] | Mapping[str, object]:
     """poses as files (one path, or a list of items) or as data in memory (a mapping of labels to
     data, or a list of data, labelled as unlabelled files are)."""
@@ -167,6 +185,8 @@ def _poses_given(poses: object, options: SolveOptions) -> list[str] | Mapping[st
         return [os.fspath(poses)]
     if isinstance(poses, Mapping):
         return poses
+    if hasattr(poses, "shape") or hasattr(poses, "columns"):  # one capture in memory: an array or a DataFrame
+        poses = [poses]
     if not isinstance(poses, Sequence):
         raise InputError(
             f"poses are files, a list of data or a mapping of labels to data, not a {type(poses).__name__}"
@@ -183,10 +203,10 @@ def _poses_given(poses: object, options: SolveOptions) -> list[str] | Mapping[st
 
 
 def _read_poses(
-    poses: list[str] | Mapping[str, object], options: SolveOptions, given: Settings
+    poses: list[str] | Mapping[str, object], options: SolveOptions, given: Settings, read: Samples | None = None
 ) -> tuple[str, list[str | None], list[Samples], Placed]:
     """The method, each pose's label and its samples, from files or from data in memory; and how
-    the files got their faces."""
+    the files got their faces. ``read``: the one pose file, read already."""
 
     if options.up is not None and len(poses) != 1:
         raise InputError(
@@ -223,7 +243,7 @@ def _read_poses(
     if in_memory:
         samples = [samples_of(str(label), data, options) for label, data in items]
     else:
-        samples = [read_pose(str(f), options) for _, f in items]
+        samples = [read if read is not None else read_pose(str(f), options) for _, f in items]
     return name, labels, samples, placed
 
 
@@ -386,6 +406,7 @@ class PoseSet:
     segmentation: calfile.Segmentation | None = None
     by_name: bool = False
     labelled: bool = False
+    table: bool = False  # the rows of a table of orientations, one reading each
 
 
 def _solve(name: str, poses: PoseSet, options: SolveOptions, given: Settings) -> Solved:
@@ -402,7 +423,7 @@ def _solve(name: str, poses: PoseSet, options: SolveOptions, given: Settings) ->
     if name == "six-pose" and ref > 0:
         name, tilted = _six_faces(name, given.method == "auto", stats, names, log_notes)
     if name in ONE_POSE:
-        check_units(names[0], stats[0].mean - checks.nominal_offset, ref)
+        check_units(names[0], stats[0].mean - checks.nominal_offset, ref, samples[0].values, checks.nominal_offset)
     try:
         told = solvers.SolverSettings(
             reference=ref,
@@ -455,7 +476,7 @@ def _solve(name: str, poses: PoseSet, options: SolveOptions, given: Settings) ->
     )
     read = list(dict.fromkeys(n for s in samples for n in s.layout.notes))  # how the files were read
     said = read + log_notes + tilt_notes(cal) + list(fit.notes)
-    said += _solve_notes(stats, names, given.limits, solution.method)
+    said += _solve_notes(stats, names, given.limits, solution.method, table=poses.table)
     solved = Solved(0, cal, cal, [], failures, warned, said, samples=samples, limits=given.limits)
     if rejected:
         _reject(solved, rejected, limits)
@@ -475,7 +496,7 @@ def _gate_options(poses: PoseSet, options: SolveOptions, given: Settings) -> gat
         max_tilt_deg=options.checks.max_tilt,
         nominal_offset=triplet("0", "--nominal-offset") if given.centre is None else given.centre,
         full_scale=options.checks.full_scale,
-        min_samples=options.checks.min_samples,
+        min_samples=1 if poses.table else options.checks.min_samples,  # a table's row is one averaged reading
         skip=frozenset(
             gate.CHECKS if options.checks.no_checks else [c.replace("-", "_") for c in options.checks.no_check]
         ),
@@ -568,13 +589,32 @@ def _six_faces(
 ONE_POSE = ("one-pose", "one-pose-tilt")
 
 
-def check_units(name: str, centred: FloatArray, reference: float) -> None:
-    """A 1-pose mean (less --nominal-offset) far from --reference in magnitude: exit 2."""
+#: A mean shorter than this share of its rows' magnitude is a mean over different orientations.
+SHARED_DIRECTION = 0.8
+
+
+def check_units(
+    name: str, centred: FloatArray, reference: float, rows: FloatArray | None = None, centre: float | FloatArray = 0.0
+) -> None:
+    """A 1-pose mean (less --nominal-offset) far from --reference in magnitude: exit 2, with the
+    reference the data suggests; but never from a mean over rows that point different ways
+    (``rows``, less ``centre``: a table of orientations, a log), which is said instead. A row's
+    magnitude is judged on the first rows (methods.TABLE_HEAD): it is the same in any orientation."""
 
     suggested = model.units_mistake(centred, reference)
     if suggested is None:
         return
     magnitude = float((centred**2).sum() ** 0.5)
+    head = None if rows is None else rows[: methods.TABLE_HEAD] - centre
+    typical = 0.0 if head is None else float(np.median(np.linalg.norm(head, axis=1)))
+    if magnitude < SHARED_DIRECTION * typical:
+        raise InputError(
+            f"its rows point in different directions: their mean reads {magnitude:.4g} in magnitude, "
+            f"a row {typical:.4g} (the median): not one pose",
+            file=name,
+            hint="a table of orientations, one row each: solve it with --rows-are-poses; "
+            "a log of still poses: solve --log",
+        )
     if suggested == 0:
         raise InputError(
             f"the pose reads {magnitude:.4g} in magnitude but --reference is {reference:g}",
@@ -613,12 +653,20 @@ def pose_record(s: Samples, m: PoseCheck, c: Corrected) -> Pose:
     )
 
 
-def _solve_notes(stats: list[PoseStats], names: list[str], limits: Limits, method: str) -> list[str]:
+def _solve_notes(
+    stats: list[PoseStats], names: list[str], limits: Limits, method: str, *, table: bool = False
+) -> list[str]:
     """What a person should know about how far the result can be trusted."""
     few = [(os.path.basename(name), st.samples) for name, st in zip(names, stats, strict=True) if st.samples < 3]
     effect = (
         "the uncertainty comes from the fit's residuals instead" if method == "sphere" else "its uncertainty reads 0"
     )
+    if table:  # every pose one reading: said once
+        effect = effect.replace("its uncertainty", "the uncertainty")
+        return [
+            f"one reading per pose: the noise of each is unknown, so {effect}, and the moved check cannot judge them",
+            *limits.not_applying_notes(method),
+        ]
     notes = [
         f"{name} has {n} sample{'s' if n > 1 else ''}: its noise is unknown, "
         f"so {effect} and the moved check cannot judge it"
