@@ -42,8 +42,8 @@ SPREAD_FACTOR = 2.0
 MARGIN = 0.1
 #: The shortest mean an end is judged by (fewer samples: a single outlier decides).
 SHORTEST = 4
-#: The most pairs of means (and samples of a block's middle) the noise is measured from: more
-#: cost time and tell nothing new.
+#: The most pairs of means (and samples of a block's middle), and the most blocks, the noise is
+#: measured from: more cost time and tell nothing new.
 PAIRS = 4096
 BLOCKS = 256
 #: 1.4826: the median absolute deviation of a normal variable over its standard deviation.
@@ -173,7 +173,8 @@ def _cut(block: FloatArray, bounds: list[tuple[int, FloatArray]], margin: int) -
         head = _first_still(block, level, bounds)
         tail = _first_still(block[::-1], level, bounds)
         head, tail = (x + margin if x else 0 for x in (head, tail))
-        if head + tail >= len(block):
+        if head + tail >= len(block):  # nothing left
+            head = min(head, len(block))
             return head, len(block) - head
         level = block[head : len(block) - tail].mean(axis=0)
     return head, tail
