@@ -1,20 +1,22 @@
 """solve --sensor gyroscope --log LOG --accel-cal ACC: a gyroscope's scale and misalignment
 from hand turns between still poses, no labels and no known angles (core.rotation_fit).
 
-The log's still blocks are found by its accelerometer columns (as ``segment`` does); the
-accelerometer calibration gives each block's gravity direction; the gyroscope's columns of the
-same rows are integrated over each rotation between consecutive kept blocks.
+The log's still blocks are found by its accelerometer columns (as ``segment`` does) and cut to
+where the gyroscope is still too (core.stillness: a hand's smooth start and stop turns the unit
+too little for the accelerometer to see); the accelerometer calibration gives each block's
+gravity direction; the gyroscope's columns of the same rows are integrated over each rotation
+between consecutive kept blocks.
 """
 
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tumblecal_cli.core import rotation_fit, segment
+from tumblecal_cli.core import rotation_fit, segment, stillness
 from tumblecal_cli.core.gate import Finding
 from tumblecal_cli.core.model import Solution
 from tumblecal_cli.errors import CaptureRejected, InputError
@@ -38,8 +40,9 @@ HINTS = {
 
 @dataclass
 class HandTurns:
-    """A log's kept still blocks (in time order), the rotations between consecutive ones, the
-    gyroscope's still samples and their mean (the bias), and how messages name each rotation."""
+    """A log's kept still blocks (in time order, cut to where the gyroscope is still), the
+    rotations between consecutive ones, the gyroscope's still samples, their mean (the bias) and
+    its 1-sigma, how messages name each rotation, and notes on the blocks the gyroscope cut."""
 
     acc: Log
     gyr: Log
@@ -48,6 +51,8 @@ class HandTurns:
     still: FloatArray  # (n, 3) the gyroscope's samples in the still blocks
     bias: FloatArray  # (3,) their mean
     names: list[str]
+    bias_se: FloatArray = field(default_factory=lambda: np.zeros(3))  # (3,) batch means (core.stillness.bias)
+    notes: list[str] = field(default_factory=list)
 
 
 def hand_turns(log: str, options: SolveOptions) -> HandTurns:
@@ -58,15 +63,7 @@ def hand_turns(log: str, options: SolveOptions) -> HandTurns:
     accel = calfile.load(options.log.accel_cal)
     if accel.sensor != "accelerometer":
         raise InputError(f"--accel-cal takes an accelerometer's calibration, not a {accel.sensor}'s", file=accel.path)
-    settings = segment.Settings(
-        window=options.log.window,
-        threshold=options.log.threshold,
-        min_duration=options.log.min_duration,
-        trim=options.log.trim,
-        max_noise=0.02,
-        max_tilt_deg=180.0,  # any orientation is a pose here
-        nominal_offset=accel.offset,
-    )
+    settings = block_settings(options, accel.offset)
     with logs.segmented(
         log,
         replace(options.read, sensor="accelerometer", columns=None),
@@ -91,18 +88,62 @@ def hand_turns(log: str, options: SolveOptions) -> HandTurns:
             "the accelerometer and the gyroscope are not read on the same rows (an interleaved log?)",
             file=gyr.layout.name,
         )
-    kept = sorted(seg.kept, key=lambda b: b.first)
+    kept, notes = gyro_still(seg, acc.values, gyr.values)
     _clock_integrates(seg, kept, gyr, options.read.rate)
     dt = seconds_per_sample(gyr, options.read.rate)
     still = np.concatenate([gyr.values[b.first : b.last + 1] for b in kept]) if kept else np.zeros((0, 3))
-    bias = still.mean(axis=0) if len(still) else np.zeros(3)
+    bias, bias_se = stillness.bias(gyr.values, [(b.first, b.last) for b in kept], seg.window)
     directions = [_direction(accel, acc.values[b.first : b.last + 1].mean(axis=0)) for b in kept]
     rots = [
         rotation_fit.Rotation(gyr.values[a.last : b.first], dt[a.last : b.first], directions[k], directions[k + 1])
         for k, (a, b) in enumerate(itertools.pairwise(kept))
     ]
     names = [f"block {a.number} to {b.number}" for a, b in itertools.pairwise(kept)]
-    return HandTurns(acc, gyr, kept, rots, still, bias, names)
+    return HandTurns(acc, gyr, kept, rots, still, bias, names, bias_se, notes)
+
+
+def block_settings(options: SolveOptions, nominal_offset: FloatArray) -> segment.Settings:
+    """How the accelerometer's still blocks are found: as ``segment`` finds them (its
+    ``--window`` ...), in any orientation, about the accelerometer calibration's offset."""
+    return segment.Settings(
+        window=options.log.window,
+        threshold=options.log.threshold,
+        min_duration=options.log.min_duration,
+        trim=options.log.trim,
+        max_noise=0.02,
+        max_tilt_deg=180.0,  # any orientation is a pose here
+        nominal_offset=nominal_offset,
+    )
+
+
+def gyro_still(seg: Segmentation, acc: FloatArray, gyr: FloatArray) -> tuple[list[Block], list[str]]:
+    """The accelerometer's kept blocks, in time order, cut to where the gyroscope (``gyr``, the
+    same rows as ``acc``) is still (core.stillness; the accelerometer's mean and spread over
+    what is left), those it finds no still part in left out; and notes on what it cut."""
+    blocks = sorted(seg.kept, key=lambda b: b.first)
+    found = stillness.still(gyr, [(b.first, b.last) for b in blocks], seg.window, seg.min_samples)
+    kept, notes = [], []
+    for block, span, why in zip(blocks, found.spans, found.why, strict=True):
+        if span is None:
+            notes.append(f"still block {block.number} left out: {why} (the accelerometer saw it still)")
+            continue
+        first, last = span
+        if (first, last) != (block.first, block.last):
+            part = acc[first : last + 1]
+            duration = None if seg.period is None else (last - first + 1) * seg.period
+            mean, std = part.mean(axis=0), part.std(axis=0)
+            block = replace(block, first=first, last=last, mean=mean, std=std, duration=duration)
+        kept.append(block)
+    trimmed = sum(head + tail for head, tail in found.cut)
+    if trimmed:
+        ends = sum(1 for head, tail in found.cut if head + tail)
+        amount = f"{trimmed * seg.period:.3g} s" if seg.period else f"{trimmed} samples"
+        notes.insert(
+            0,
+            f"the gyroscope was still turning at the ends of {ends} of {len(blocks)} still blocks "
+            f"(too slowly for the accelerometer): {amount} cut in all",
+        )
+    return kept, notes
 
 
 def _clock_integrates(seg: Segmentation, kept: list[Block], gyr: Log, rate: float | None) -> None:
@@ -134,15 +175,7 @@ def _clock_integrates(seg: Segmentation, kept: list[Block], gyr: Log, rate: floa
 def from_log(log: str, options: SolveOptions, given: Settings) -> Outcome:
     """The rotations of the log (:func:`hand_turns`), M fitted over them, the checks."""
     turns = hand_turns(log, options)
-    acc, gyr, kept, rots, still, bias, names = (
-        turns.acc,
-        turns.gyr,
-        turns.kept,
-        turns.rotations,
-        turns.still,
-        turns.bias,
-        turns.names,
-    )
+    acc, gyr, kept, rots, bias, names = (turns.acc, turns.gyr, turns.kept, turns.rotations, turns.bias, turns.names)
     name = gyr.layout.name
     if len(rots) < rotation_fit.MIN_ROTATIONS:
         finding = Finding(
@@ -169,13 +202,14 @@ def from_log(log: str, options: SolveOptions, given: Settings) -> Outcome:
                     rotation_fit.MAX_RESIDUAL_DEG,
                 )
             )
-    solution, poses, made, cross_se = _parts(fit, bias, still, acc, gyr, kept, names)
+    solution, poses, made, cross_se = _parts(fit, bias, turns.bias_se, acc, gyr, kept, names)
     cal, failures = gyro_calibration(solution, gyr, poses, fit.residual_deg, cross_se, made, options, given)
     if findings:
         return Outcome(3, None, draft=cal, rejections=findings, error=_rejected(findings, name))
     notes = [
+        *turns.notes,
         f"{len(rots)} rotations between {len(kept)} still blocks: residual RMS "
-        f"{float(np.sqrt(np.mean(fit.residual_deg**2))):.3g}°, largest {float(fit.residual_deg.max()):.3g}°"
+        f"{float(np.sqrt(np.mean(fit.residual_deg**2))):.3g}°, largest {float(fit.residual_deg.max()):.3g}°",
     ]
     return Outcome(1 if failures else 0, cal, cal, notes=notes, failures=failures)
 
@@ -201,7 +235,7 @@ def _rejected(findings: list[Finding], name: str) -> CaptureRejected:
 def _parts(
     fit: rotation_fit.RotationsFit,
     bias: FloatArray,
-    still: FloatArray,
+    bias_se: FloatArray,
     acc: Log,
     gyr: Log,
     kept: list[Block],
@@ -211,7 +245,6 @@ def _parts(
     (the still blocks), what it was made of (the hand rotations) and the cross terms' 1-sigma."""
 
     gain_se, cross_se = rotation_fit.gain_se(fit.matrix, fit.matrix_cov)
-    bias_se = still.std(axis=0, ddof=1) / np.sqrt(len(still))
     solution = Solution("rotations", bias, fit.matrix, bias_se, gain_se)
 
     poses = [

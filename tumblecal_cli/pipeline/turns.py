@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from tumblecal_cli.core import gate, model, turn_fit
+from tumblecal_cli.core import gate, model, segment, stillness, turn_fit
 from tumblecal_cli.core.gate import Finding
 from tumblecal_cli.core.model import FloatArray
 from tumblecal_cli.core.solvers import Fit
@@ -194,7 +194,8 @@ def _solve(acc: Log, gyr: Log, options: SolveOptions, given: Settings) -> Outcom
             ),
         )
     dt = seconds_per_sample(gyr, options.read.rate)
-    still_sections = [found[faces[f]] for f in SIX]
+    still_sections, cut, restless = gyro_still([found[faces[f]] for f in SIX], gyr.values, dt, options.log.window)
+    notes += cut
     still = turn_fit.Still([acc.values[s.index] for s in still_sections], [gyr.values[s.index] for s in still_sections])
     angle = float(options.log.turn_angle or 0.0)
     given_turns = [
@@ -204,7 +205,7 @@ def _solve(acc: Log, gyr: Log, options: SolveOptions, given: Settings) -> Outcom
         for label, axis in zip(turns, axes, strict=True)
     ]
     fit = turn_fit.ferraris(still, given_turns)
-    rejections = _moved(fit, still, still_sections, options) + _implausible(fit, turns, axes, angle)
+    rejections = _moved(fit, still, still_sections, options, restless) + _implausible(fit, turns, axes, angle)
     skip = options.checks.no_checks or "moved" in options.checks.no_check
     rejections = [r for r in rejections if not (skip and r.code == "turns.moved")]
     poses, made = _parts(fit, acc, gyr, still_sections, list(SIX), turns, given_turns)
@@ -219,6 +220,46 @@ def _solve(acc: Log, gyr: Log, options: SolveOptions, given: Settings) -> Outcom
     return Outcome(1 if failures else 0, cal, cal, notes=notes, failures=failures)
 
 
+def gyro_still(
+    sections: list[Section], gyr: FloatArray, dt: FloatArray, window_s: float | None
+) -> tuple[list[Section], list[str], dict[str, Finding]]:
+    """Each still face's rows cut to where the gyroscope is still (core.stillness): a label set a
+    little before the unit came to rest, or after it was lifted, holds the slow end of a move,
+    which the gyroscope reads (and the bias and g-sensitivity with it). Notes on what was cut,
+    and a finding for each face where the gyroscope is not still: it never rests a window long
+    (its rows are then kept whole), or it spreads more than ``SPREAD_FACTOR`` times its noise
+    at rest (the faces' median), for :func:`_moved` to judge."""
+    period = float(np.median(dt)) if len(dt) else 0.0
+    seconds = window_s if window_s is not None else segment.WINDOW[0]
+    window = max(2, round(seconds / period)) if period > 0 else segment.WINDOW[1]
+    runs = [np.split(s.index, np.flatnonzero(np.diff(s.index) > 1) + 1) for s in sections]
+    spans = [(int(r[0]), int(r[-1])) for rs in runs for r in rs]
+    found = stillness.still(gyr, spans, window, window)
+    out, notes, restless, first = [], [], {}, 0
+    for section, rs in zip(sections, runs, strict=True):
+        last, first = first, first + len(rs)
+        kept = list(zip(found.parts[last:first], found.cut[last:first], strict=True))
+        index = [np.arange(p[0], p[1] + 1) for p, _ in kept if p is not None]
+        said = f"still section {section.label} moved: its gyroscope "
+        if not index:
+            what = f"is never at rest for {seconds:g} s (its rate stays beyond its noise)"
+            restless[section.label] = Finding("turns.moved", said + what, 0.0, seconds)
+            out.append(section)
+            continue
+        spread = float((gyr[np.concatenate(index)].std(axis=0) / np.maximum(found.noise, 1e-300)).max())
+        if spread > stillness.SPREAD_FACTOR:
+            what = f"spreads {spread:.3g} times its noise at rest on the other faces"
+            restless[section.label] = Finding("turns.moved", said + what, spread, stillness.SPREAD_FACTOR)
+        head, tail = sum(c[0] for _, c in kept), sum(c[1] for _, c in kept)
+        if head or tail:
+            notes.append(
+                f"still section {section.label}: {head} samples cut at its start and {tail} at its end, "
+                "where the gyroscope was turning"
+            )
+        out.append(Section(section.label, np.concatenate(index).astype(np.int64)))
+    return out, notes, restless
+
+
 def _face(label: str) -> str | None:
     try:
         return model.parse_face(label)
@@ -226,8 +267,15 @@ def _face(label: str) -> str | None:
         return None
 
 
-def _moved(fit: turn_fit.TurnsFit, still: turn_fit.Still, secs: list[Section], options: SolveOptions) -> list[Finding]:
-    """Still faces whose accelerometer (g) or calibrated gyroscope (deg/s) varies as a moving unit's."""
+def _moved(
+    fit: turn_fit.TurnsFit,
+    still: turn_fit.Still,
+    secs: list[Section],
+    options: SolveOptions,
+    restless: dict[str, Finding],
+) -> list[Finding]:
+    """Still faces whose accelerometer (g) or calibrated gyroscope (deg/s) varies as a moving
+    unit's, or where the gyroscope is not still (``restless``: :func:`gyro_still`'s findings)."""
     bound = options.checks.max_noise if options.checks.max_noise is not None else STILL_GYRO_NOISE_DPS
     # raw units into deg/s by the turns' median gain: a turn gone wrong does not make every face "move"
     gain = float(np.median(np.abs(fit.solution.gain)))
@@ -242,6 +290,8 @@ def _moved(fit: turn_fit.TurnsFit, still: turn_fit.Still, secs: list[Section], o
             what = f"its accelerometer varies {acc_std:.3g} g (1-sigma), above {STILL_ACC_NOISE_G:g}"
             bound_g = STILL_ACC_NOISE_G
             out.append(Finding("turns.moved", f"still section {section.label} moved: {what}", acc_std, bound_g))
+        elif section.label in restless:
+            out.append(restless[section.label])
     return out
 
 
