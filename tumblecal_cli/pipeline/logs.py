@@ -584,7 +584,7 @@ def segment(
     """Find the still blocks of a continuous log ('-': stdin), and with ``out_dir`` write each
     kept block as a CSV of its own (the log's header and rows, unchanged) and segments.csv, the
     index. ``on_blocks`` sees the blocks as soon as they are found, before they are judged
-    (fewer than two kept is exit 3) or written."""
+    (none kept is exit 3; whether the faces kept are enough is solve's to judge) or written."""
 
     keywords_known(options, SegmentKeywords, "segment")
     log = path_of(log, "segment reads a log file ('-': stdin)")
@@ -620,7 +620,7 @@ def segment(
         files = block_files(seg)
         if on_blocks is not None:
             on_blocks(found, files)
-        enough_blocks(data, seg, 2)
+        enough_blocks(data, seg, 1)
         text = io.StringIO()
         writer = csv.writer(text, lineterminator="\n")
         writer.writerow(INDEX_COLUMNS)
