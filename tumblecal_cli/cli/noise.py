@@ -13,12 +13,14 @@ from tumblecal_cli.cli.flags import (
     Columns,
     Decimal,
     DropIncomplete,
+    End,
     NoHeader,
     Quiet,
     Rate,
     Sensor,
     SensorKind,
     SkipRows,
+    Start,
     TimeColumn,
     TimeUnit,
     TimeUnitOption,
@@ -80,6 +82,8 @@ def noise(
     skip_rows: SkipRows = None,
     decimal: Decimal = None,
     drop_incomplete: DropIncomplete = False,
+    start: Start = None,
+    end: End = None,
     quiet: Quiet = False,
 ) -> None:
     """Allan deviation of a still capture (overlapping, octave cluster times, with its confidence
@@ -110,6 +114,8 @@ def noise(
             time_column=time_column,
             time_unit=time_unit.value,
             **file_shape(skip_rows, decimal, drop_incomplete),
+            start=start,
+            end=end,
             progress=progress,
             kalibr=kalibr is not None,
         )

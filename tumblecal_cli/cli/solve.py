@@ -19,6 +19,7 @@ from tumblecal_cli.cli.flags import (
     Columns,
     Decimal,
     DropIncomplete,
+    End,
     JsonSummary,
     LimitsFile,
     MaxGainError,
@@ -36,6 +37,7 @@ from tumblecal_cli.cli.flags import (
     Sensor,
     SensorKind,
     SkipRows,
+    Start,
     Threshold,
     TimeColumn,
     TimeUnit,
@@ -168,6 +170,8 @@ def solve(
     skip_rows: SkipRows = None,
     decimal: Decimal = None,
     drop_incomplete: DropIncomplete = False,
+    start: Start = None,
+    end: End = None,
     json_summary: JsonSummary = False,
     quiet: Quiet = False,
     plot: Annotated[
@@ -367,6 +371,8 @@ def solve_options(
     station: str | None,
     operator: str | None,
     meta: list[str] | None,
+    start: str | None = None,
+    end: str | None = None,
 ) -> SolveOptions:
     """solve's options as the command line parsed them (batch's for every unit), grouped as the
     pipeline takes them; a choice is its text (a StrEnum's value)."""
@@ -390,6 +396,8 @@ def solve_options(
             time_unit=str(time_unit),
             rate=rate,
             dialect=Dialect(skip_rows, None if decimal is None else str(decimal), drop_incomplete),
+            start=start,
+            end=end,
         ),
         log=opts.LogOptions(
             window, threshold, min_duration, trim, pose_column, pose_map, turns, turn_angle, accel_cal, max_spool

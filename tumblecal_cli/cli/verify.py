@@ -8,7 +8,18 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
-from tumblecal_cli.cli.flags import Columns, Decimal, DropIncomplete, NoHeader, Quiet, SkipRows, file_shape
+from tumblecal_cli.cli.flags import (
+    Columns,
+    Decimal,
+    DropIncomplete,
+    End,
+    NoHeader,
+    Quiet,
+    SkipRows,
+    Start,
+    file_shape,
+)
+from tumblecal_cli.errors import InputError
 
 
 @app.command(
@@ -64,13 +75,19 @@ def verify(
     ] = None,
     rate: Annotated[
         float | None,
-        typer.Option("--rate", metavar="HZ", help="With --log: the sample rate, if it has no time column."),
+        typer.Option(
+            "--rate",
+            metavar="HZ",
+            help="The sample rate, for a log (--log) or captures without a time column (--start/--end in seconds).",
+        ),
     ] = None,
     columns: Columns = None,
     no_header: NoHeader = False,
     skip_rows: SkipRows = None,
     decimal: Decimal = None,
     drop_incomplete: DropIncomplete = False,
+    start: Start = None,
+    end: End = None,
     json_summary: Annotated[
         bool, typer.Option("--json", help="Print the per-capture and overall figures on stdout as JSON.")
     ] = False,
@@ -88,7 +105,7 @@ def verify(
     from tumblecal_cli.pipeline import verify as pipeline
 
     if log is not None or accel_cal is not None:
-        return _rotations(cal, log, accel_cal, rate, columns, captures_, json_summary=json_summary, quiet=quiet)
+        return _rotations(cal, log, accel_cal, rate, columns, captures_, json_summary, quiet, (start, end))
     done = pipeline.verify(
         captures_ or [],
         cal,
@@ -98,6 +115,9 @@ def verify(
         columns=columns,
         no_header=no_header,
         **file_shape(skip_rows, decimal, drop_incomplete),
+        start=start,
+        end=end,
+        rate=rate,
     )
     if json_summary:
         render.print_json(
@@ -131,12 +151,13 @@ def _rotations(
     rate: float | None,
     columns: str | None,
     captures_: list[str] | None,
-    *,
     json_summary: bool,
     quiet: bool,
+    part: tuple[str | None, str | None],
 ) -> None:
     """verify --log LOG --accel-cal ACC: a gyroscope calibration on held-out hand turns."""
-    from tumblecal_cli.errors import InputError
+    if part != (None, None):
+        raise InputError("--start/--end pick a part of static captures, not of a --log of hand turns")
     from tumblecal_cli.pipeline import verify as pipeline
 
     if log is None or accel_cal is None or captures_:

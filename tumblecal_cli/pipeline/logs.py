@@ -98,6 +98,7 @@ def segmented(
     size_option(max_spool, "--max-spool")
     with read_twice(log, spec, max_spool) as path:  # a pipe or FIFO is read once: kept for a second read
         streamed = pose_column is None and not whole and sources.reader_for(path) is None
+        streamed = streamed and spec.span() == (None, None)  # --start/--end: read whole, then cut (readings.in_span)
         if streamed:  # a CSV log block by block, the still periods kept (io.logread)
             name = "<stdin>" if log == "-" else log
             scanned = logread.scan_log(path, spec, settings=settings, name=name, digest=digest)

@@ -148,6 +148,7 @@ FLAT: dict[str, tuple[str, str]] = {
     **{f: ("", f) for f in ("method", "reference", "up", "tilt_compensate", "bias_spread", "plane", "units")},
     "input_units": ("", "input_units"),
     **{f: ("read", f) for f in ("sensor", "columns", "no_header", "time_column", "time_unit", "rate")},
+    **{f: ("read", f) for f in ("start", "end")},
     **{f: ("dialect", f) for f in ("skip_rows", "decimal", "drop_incomplete")},
     **{f.name: ("log", f.name) for f in fields(LogOptions)},
     **{f.name: ("checks", f.name) for f in fields(CheckOptions)},
@@ -176,6 +177,8 @@ class ReadKeywords(FileKeywords, total=False):
     time_column: str | None
     time_unit: str
     rate: float | None
+    start: str | float | None
+    end: str | float | None
 
 
 def file_spec(given: FileKeywords, prefer: Sequence[str] | None = None) -> ReadSpec:
@@ -198,6 +201,8 @@ def read_spec(given: ReadKeywords, prefer: Sequence[str] | None = None) -> ReadS
         time_column=given.get("time_column"),
         time_unit=given.get("time_unit", "auto"),
         rate=given.get("rate"),
+        start=given.get("start"),
+        end=given.get("end"),
     )
 
 
