@@ -273,6 +273,16 @@ def solve(
             rich_help_panel=CHECKS_PANEL,
         ),
     ] = None,
+    no_trim: Annotated[
+        bool,
+        typer.Option(
+            "--no-trim",
+            help="Judge each pose file whole. Without it, a file rejected as moved (the unit placed or lifted "
+            "while it logged) is solved from its one still run, with a note naming its rows; still runs in two "
+            "orientations are exit 3.",
+            rich_help_panel=CHECKS_PANEL,
+        ),
+    ] = False,
     # -- limits (exit 1) --
     limits: LimitsFile = None,
     max_offset: MaxOffset = None,
@@ -373,6 +383,7 @@ def solve_options(
     meta: list[str] | None,
     start: str | None = None,
     end: str | None = None,
+    no_trim: bool = False,
 ) -> SolveOptions:
     """solve's options as the command line parsed them (batch's for every unit), grouped as the
     pipeline takes them; a choice is its text (a StrEnum's value)."""
@@ -412,6 +423,7 @@ def solve_options(
             gain_tolerance,
             no_checks,
             tuple(str(c) for c in no_check or ()),
+            no_trim,
         ),
         limits=opts.LimitOptions(limits, max_offset, max_gain_error, nominal_gain),
         unit=opts.UnitOptions(serial, station, operator, tuple(meta or ())),

@@ -66,6 +66,7 @@ class CheckOptions:
     gain_tolerance: float = 0.02
     no_checks: bool = False
     no_check: Sequence[str] = ()
+    no_trim: bool = False  # a pose file that moved is rejected whole, not solved from its still run
 
 
 @dataclass(frozen=True)
