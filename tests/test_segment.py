@@ -815,8 +815,11 @@ def moving_log(still_poses: int) -> SynthLog:
     return synth_log([Pose(f, hold=HOLD if k < still_poses else 0) for k, f in enumerate(faces)], seed=10)
 
 
-@pytest.mark.parametrize("still_poses", [0, 1], ids=["no-still-block", "one-still-block"])
-@pytest.mark.parametrize("command", ["segment", "solve"])
+@pytest.mark.parametrize(
+    ("command", "still_poses"),
+    [("segment", 0), ("solve", 0), ("solve", 1)],
+    ids=["segment-no-still-block", "solve-no-still-block", "solve-one-still-block"],
+)
 def test_nothing_to_calibrate_from(
     command: str, still_poses: int, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -840,6 +843,26 @@ def test_nothing_to_calibrate_from(
     assert_untouched(index)
     assert_untouched(cal)
     assert [p.name for p in out_dir.iterdir()] == ["segments.csv"]
+
+
+def test_segment_writes_a_lone_block_whatever_its_face(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """segment cuts what there is: one still block is written, exit 0 (it was exit 3 "nothing to
+    calibrate from: 1 still block kept", with a hint for each of the five faces never held);
+    whether its faces are enough is for solve to judge."""
+    src = write_log(tmp_path / "moving.csv", moving_log(1))
+    out_dir = tmp_path / "poses"
+    r = run(capsys, "segment", src, "-d", out_dir, *CENTRE_OPTION)
+    assert r.code == 0, r.err
+    assert sorted(p.name for p in out_dir.iterdir()) == ["segments.csv", "xp.csv"]
+    assert "wrote 1 block file and segments.csv" in r.err
+    assert "faces: +x" in r.err
+    assert "hint:" not in r.err  # no "no -x block: no still period faces -x" for faces never held
+    with (out_dir / "xp.csv").open() as f:
+        rows = list(csv.reader(f))
+    with (out_dir / "segments.csv").open() as f:
+        index = list(csv.DictReader(f))
+    assert [row["status"] for row in index] == ["kept"]
+    assert len(rows) - 1 == int(index[0]["last_row"]) - int(index[0]["first_row"]) + 1
 
 
 def test_nothing_to_calibrate_from_json_code(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -145,6 +145,27 @@ def source(stream: str | None, allow_corrected: bool) -> Source:
     return {"stream": stream, "allow_corrected": allow_corrected}
 
 
+Start = Annotated[
+    str | None,
+    typer.Option(
+        "--start",
+        metavar="S|Nr",
+        help="Read from here on: seconds from the capture's first reading (by its time column, or --rate), or "
+        "a 0-based data row with an r (1200r: the rows the notes and a calibration's poses give). [default: "
+        "the first reading]",
+    ),
+]
+
+End = Annotated[
+    str | None,
+    typer.Option(
+        "--end",
+        metavar="S|Nr",
+        help="Read up to here, this reading included: seconds or a data row, as --start. [default: the last reading]",
+    ),
+]
+
+
 class MethodName(StrEnum):
     auto = "auto"
     one_pose = "one-pose"

@@ -14,12 +14,14 @@ from tumblecal_cli.cli.flags import (
     Columns,
     Decimal,
     DropIncomplete,
+    End,
     NoHeader,
     Quiet,
     Rate,
     Sensor,
     SensorKind,
     SkipRows,
+    Start,
     StreamOption,
     TimeColumn,
     TimeUnit,
@@ -85,6 +87,8 @@ def noise(
     skip_rows: SkipRows = None,
     decimal: Decimal = None,
     drop_incomplete: DropIncomplete = False,
+    start: Start = None,
+    end: End = None,
     quiet: Quiet = False,
 ) -> None:
     """Allan deviation of a still capture (overlapping, octave cluster times, with its confidence
@@ -116,6 +120,8 @@ def noise(
             time_unit=time_unit.value,
             **file_shape(skip_rows, decimal, drop_incomplete),
             **source(stream, allow_corrected),
+            start=start,
+            end=end,
             progress=progress,
             kalibr=kalibr is not None,
         )

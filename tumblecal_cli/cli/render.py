@@ -308,7 +308,8 @@ def print_blocks(
 ) -> None:
     """The blocks for people (the kept ones; ``everything``: the dropped too), how they were
     found, and a hint for each face without a block; ``notes``: first how the log was read
-    (solve says that in its summary instead)."""
+    (solve says that in its summary instead), and hints only for the faces a block was found
+    near (segment cuts what there is: a face never held is no news there)."""
     from rich import box
     from rich.table import Table
 
@@ -368,7 +369,8 @@ def print_blocks(
         )
     best = seg.best()
     console.print(f"faces: {' '.join(f for f in core.FACES if f in best) or 'none'}", soft_wrap=True)
-    for hint in segment.missing(seg, list(core.FACES)):
+    faces = [f for f in core.FACES if not notes or any(b.nearest == f for b in seg.blocks)]
+    for hint in segment.missing(seg, faces):
         console.print(f"hint: {hint}", soft_wrap=True)
 
 

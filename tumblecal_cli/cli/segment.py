@@ -13,6 +13,7 @@ from tumblecal_cli.cli.flags import (
     Columns,
     Decimal,
     DropIncomplete,
+    End,
     MaxSpool,
     MinDuration,
     NoHeader,
@@ -23,6 +24,7 @@ from tumblecal_cli.cli.flags import (
     Sensor,
     SensorKind,
     SkipRows,
+    Start,
     StreamOption,
     Threshold,
     TimeColumn,
@@ -39,9 +41,9 @@ if TYPE_CHECKING:
     from tumblecal_cli.pipeline.logs import Segmented
 
 SEGMENT_EXIT = """\
-Exit status: 0 blocks found and written; 2 usage or input error (bad file or option, a time
-column that goes backwards); 3 nothing to calibrate from (fewer than two still blocks kept).
-Nothing is written on 2 or 3."""
+Exit status: 0 blocks found and written (whatever faces they show: solve judges whether they are
+enough); 2 usage or input error (bad file or option, a time column that goes backwards); 3 no
+still block kept. Nothing is written on 2 or 3."""
 
 
 @app.command(cls=Command, epilog=SEGMENT_EXIT)
@@ -69,6 +71,8 @@ def segment(
     skip_rows: SkipRows = None,
     decimal: Decimal = None,
     drop_incomplete: DropIncomplete = False,
+    start: Start = None,
+    end: End = None,
     window: Window = None,
     threshold: Threshold = None,
     min_duration: MinDuration = None,
@@ -133,6 +137,8 @@ def segment(
         rate=rate,
         **file_shape(skip_rows, decimal, drop_incomplete),
         **source(stream, allow_corrected),
+        start=start,
+        end=end,
         window=window,
         threshold=threshold,
         min_duration=min_duration,
@@ -160,4 +166,4 @@ def _written(done: Segmented, out_dir: str) -> None:
         )
     gone = f"; removed {done.removed} block files of the earlier segmentation" if done.removed else ""
     kept = len(done.blocks.seg.kept)
-    console.print(f"wrote {kept} block files and segments.csv to {out_dir}{gone}", soft_wrap=True)
+    console.print(f"wrote {render.count(kept, 'block file')} and segments.csv to {out_dir}{gone}", soft_wrap=True)

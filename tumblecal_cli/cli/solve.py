@@ -20,6 +20,7 @@ from tumblecal_cli.cli.flags import (
     Columns,
     Decimal,
     DropIncomplete,
+    End,
     JsonSummary,
     LimitsFile,
     MaxGainError,
@@ -37,6 +38,7 @@ from tumblecal_cli.cli.flags import (
     Sensor,
     SensorKind,
     SkipRows,
+    Start,
     StreamOption,
     Threshold,
     TimeColumn,
@@ -183,6 +185,8 @@ def solve(
     skip_rows: SkipRows = None,
     decimal: Decimal = None,
     drop_incomplete: DropIncomplete = False,
+    start: Start = None,
+    end: End = None,
     json_summary: JsonSummary = False,
     quiet: Quiet = False,
     plot: Annotated[
@@ -284,6 +288,16 @@ def solve(
             rich_help_panel=CHECKS_PANEL,
         ),
     ] = None,
+    no_trim: Annotated[
+        bool,
+        typer.Option(
+            "--no-trim",
+            help="Judge each pose file whole. Without it, a file rejected as moved (the unit placed or lifted "
+            "while it logged) is solved from its one still run, with a note naming its rows; still runs in two "
+            "orientations are exit 3.",
+            rich_help_panel=CHECKS_PANEL,
+        ),
+    ] = False,
     # -- limits (exit 1) --
     limits: LimitsFile = None,
     max_offset: MaxOffset = None,
@@ -385,6 +399,9 @@ def solve_options(
     station: str | None,
     operator: str | None,
     meta: list[str] | None,
+    start: str | None = None,
+    end: str | None = None,
+    no_trim: bool = False,
 ) -> SolveOptions:
     """solve's options as the command line parsed them (batch's for every unit), grouped as the
     pipeline takes them; a choice is its text (a StrEnum's value)."""
@@ -411,6 +428,8 @@ def solve_options(
             dialect=Dialect(skip_rows, None if decimal is None else str(decimal), drop_incomplete),
             stream=stream,
             allow_corrected=allow_corrected,
+            start=start,
+            end=end,
         ),
         log=opts.LogOptions(
             window, threshold, min_duration, trim, pose_column, pose_map, turns, turn_angle, accel_cal, max_spool
@@ -425,6 +444,7 @@ def solve_options(
             gain_tolerance,
             no_checks,
             tuple(str(c) for c in no_check or ()),
+            no_trim,
         ),
         limits=opts.LimitOptions(limits, max_offset, max_gain_error, nominal_gain),
         unit=opts.UnitOptions(serial, station, operator, tuple(meta or ())),

@@ -13,14 +13,17 @@ from tumblecal_cli.cli.flags import (
     Columns,
     Decimal,
     DropIncomplete,
+    End,
     NoHeader,
     Quiet,
     SkipRows,
     Source,
+    Start,
     StreamOption,
     file_shape,
     source,
 )
+from tumblecal_cli.errors import InputError
 
 
 @app.command(
@@ -76,7 +79,11 @@ def verify(
     ] = None,
     rate: Annotated[
         float | None,
-        typer.Option("--rate", metavar="HZ", help="With --log: the sample rate, if it has no time column."),
+        typer.Option(
+            "--rate",
+            metavar="HZ",
+            help="The sample rate, for a log (--log) or captures without a time column (--start/--end in seconds).",
+        ),
     ] = None,
     columns: Columns = None,
     stream: StreamOption = None,
@@ -85,6 +92,8 @@ def verify(
     skip_rows: SkipRows = None,
     decimal: Decimal = None,
     drop_incomplete: DropIncomplete = False,
+    start: Start = None,
+    end: End = None,
     json_summary: Annotated[
         bool, typer.Option("--json", help="Print the per-capture and overall figures on stdout as JSON.")
     ] = False,
@@ -103,7 +112,18 @@ def verify(
 
     if log is not None or accel_cal is not None:
         found = source(stream, allow_corrected)
-        return _rotations(cal, log, accel_cal, rate, columns, captures_, found, json_summary=json_summary, quiet=quiet)
+        return _rotations(
+            cal,
+            log,
+            accel_cal,
+            rate,
+            columns,
+            captures_,
+            found,
+            json_summary=json_summary,
+            quiet=quiet,
+            part=(start, end),
+        )
     done = pipeline.verify(
         captures_ or [],
         cal,
@@ -114,6 +134,9 @@ def verify(
         no_header=no_header,
         **file_shape(skip_rows, decimal, drop_incomplete),
         **source(stream, allow_corrected),
+        start=start,
+        end=end,
+        rate=rate,
     )
     if json_summary:
         render.print_json(
@@ -151,9 +174,11 @@ def _rotations(
     *,
     json_summary: bool,
     quiet: bool,
+    part: tuple[str | None, str | None],
 ) -> None:
     """verify --log LOG --accel-cal ACC: a gyroscope calibration on held-out hand turns."""
-    from tumblecal_cli.errors import InputError
+    if part != (None, None):
+        raise InputError("--start/--end pick a part of static captures, not of a --log of hand turns")
     from tumblecal_cli.pipeline import verify as pipeline
 
     if log is None or accel_cal is None or captures_:

@@ -19,7 +19,7 @@ from tumblecal_cli.core.scan import log_index
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import sources
 from tumblecal_cli.io.capture import BLOCK_BYTES, Capture, open_capture, to_floats
-from tumblecal_cli.io.readspec import ReadSpec
+from tumblecal_cli.io.readspec import Bound, ReadSpec
 from tumblecal_cli.io.sniff import (
     NUMBER,
     TEMPERATURE_NAMES,
@@ -46,6 +46,9 @@ class Samples:
     block: int | None = None  # the block's number, for a pose cut from a log
     times: tuple[float, float] | None = None  # a block's first and last time, when the log has them
     row: bool = False  # one row of a table of orientations (its data row: rows[0])
+    #: The capture these readings are (a pose file read whole, or its part from --start to --end):
+    #: its rows and clock, for a part of it (a pose file's still run: pipeline.trimming).
+    log: Log | None = None
 
     @property
     def name(self) -> str:
@@ -78,6 +81,8 @@ class Log:
     extremes: FloatArray | None = None
     #: and where each run of the readings kept starts among the whole log's and among these.
     runs: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
+    #: Seconds from the capture's first reading to the first one here (a part read from --start).
+    first_s: float = 0.0
 
     def reading(self, position: int) -> int:
         """The index among the whole log's readings of the reading at ``position`` here (the
@@ -121,7 +126,11 @@ def read_samples(path: str, spec: ReadSpec | None = None) -> Samples:
         duration = (used[-1] - used[0] + 1) / rate
     temp = log.temperature
     temperature = float(temp.mean()) if temp is not None and np.isfinite(temp).all() else None
-    return Samples(log.layout, log.values, (int(used[0]), int(used[-1])), log.sha256, duration, temperature)
+    part = t is not None and spec.span() != (None, None)  # --start/--end: the times of the part, as a block's
+    times = (float(t[0]), float(t[-1])) if part and t is not None else None
+    return Samples(
+        log.layout, log.values, (int(used[0]), int(used[-1])), log.sha256, duration, temperature, times=times, log=log
+    )
 
 
 def read_log(
@@ -146,7 +155,7 @@ def read_log(
     if reader is not None:  # a source beside CSV (io.sources)
         table = reader.read(path, spec, label_column)
         log = from_table(table, name or path, spec, use_time=use_time, need_temperature=need_temperature)
-        return log if digest else replace(log, sha256="")
+        return in_span(log if digest else replace(log, sha256=""), spec)
     time_unit = spec.time_unit
     with open_capture(path, spec, name=name, extra=label_column) as cap:
         lay = cap.layout
@@ -198,7 +207,63 @@ def read_log(
             if use_time:
                 raise
             scale = TIME_SCALE[lay.time_unit or "s"]  # the time column is not used (--rate): no judgement
-    return Log(lay, values if every else values[mask], used, t, text, sha256, temperature, scale)
+    return in_span(Log(lay, values if every else values[mask], used, t, text, sha256, temperature, scale), spec)
+
+
+def in_span(log: Log, spec: ReadSpec) -> Log:
+    """The readings of ``log`` from --start to --end (``spec.span``), both included, with a note
+    saying which; the log itself when neither is given. Seconds count from the capture's first
+    reading, by --rate when given, else by the time column. A part that holds no reading, or
+    seconds with neither a time column nor a rate, is an InputError naming the flag."""
+    start, end = spec.span()
+    if start is None and end is None:
+        return log
+    n, name = len(log.values), log.layout.name
+    seconds = np.arange(n) / spec.rate if spec.rate else log.seconds()
+
+    def where(b: Bound, after: bool) -> BoolArray:  # the readings at or after (before) the bound
+        if b.row:
+            return log.rows >= b.value if after else log.rows <= b.value
+        if seconds is None:
+            row = b.text.rstrip("sS")
+            raise InputError(
+                f"{b.flag} {b.text}: seconds need a time column or --rate",
+                file=name,
+                hint=f"give --rate HZ, or a data row ({row}r is data row {row})",
+            )
+        return seconds >= b.value if after else seconds <= b.value
+
+    def at(i: int, j: int | None = None) -> str:  # a reading, or readings i to j, as a person finds them
+        rows = f"{int(log.rows[i])}" + ("" if j is None else f"-{int(log.rows[j])}")
+        if seconds is None:
+            return rows
+        return f"{rows} ({float(seconds[i]):.4g}" + ("" if j is None else f"-{float(seconds[j]):.4g}") + " s)"
+
+    first, last = 0, n - 1
+    if start is not None:
+        after = where(start, True)
+        if not after.any():
+            raise InputError(f"--start {start.text} is past the capture's last reading, row {at(n - 1)}", file=name)
+        first = int(np.argmax(after))
+    if end is not None:
+        before = where(end, False)
+        if not before.any():
+            raise InputError(f"--end {end.text} is before the capture's first reading, row {at(0)}", file=name)
+        last = n - 1 - int(np.argmax(before[::-1]))
+    if last < first:
+        told = " and ".join(f"{b.flag} {b.text}" for b in (start, end) if b is not None)
+        raise InputError(f"{told} hold no reading", file=name)
+    log.layout.notes.append(f"{name}: --start/--end: read rows {at(first, last)} of {at(0, n - 1)}")
+    part = slice(first, last + 1)
+    return replace(
+        log,
+        values=log.values[part],
+        rows=log.rows[part],
+        clock=None if log.clock is None else log.clock[part],
+        labels=None if log.labels is None else log.labels[part],
+        temperature=None if log.temperature is None else log.temperature[part],
+        first_s=log.first_s + (0.0 if seconds is None else float(seconds[first])),
+    )
 
 
 def _file_bytes(path: str) -> int | None:

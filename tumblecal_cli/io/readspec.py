@@ -11,6 +11,8 @@ value and ignores what does not apply to it (``no_header``, ``dialect``).
 
 from __future__ import annotations
 
+import math
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -48,7 +50,9 @@ class ReadSpec:
     ``prefer`` a calibration's recorded columns, used when a file has them all; ``stream``
     the stream of a log that holds several (``--stream NAME[:INSTANCE]``, io.sources), and
     ``allow_corrected`` whether a stream the autopilot already corrected may be read (a fit of
-    it calibrates the residual, not the sensor: refused without it)."""
+    it calibrates the residual, not the sensor: refused without it); ``start`` and
+    ``end`` the part of the capture to read (--start/--end: :func:`bound`; None: its first or
+    last reading)."""
 
     sensor: str = "accelerometer"
     columns: tuple[str, ...] | None = None
@@ -61,12 +65,62 @@ class ReadSpec:
     prefer: tuple[str, ...] | None = None
     stream: str | None = None
     allow_corrected: bool = False
+    start: str | float | None = None
+    end: str | float | None = None
 
     def __post_init__(self) -> None:  # a list given in Python is kept as a tuple (a frozen value)
         for name in ("columns", "prefer"):
             value = getattr(self, name)
             if value is not None and not isinstance(value, tuple):
                 object.__setattr__(self, name, tuple(value))
+        self.span()  # --start/--end judged before any file is read
+
+    def span(self) -> tuple[Bound | None, Bound | None]:
+        """--start and --end as :class:`Bound` (None where not given); a start that is not before
+        the end (both seconds, or both rows) is an InputError."""
+        start, end = bound(self.start, "--start"), bound(self.end, "--end")
+        if start is not None and end is not None and start.row == end.row and not start.value < end.value:
+            raise InputError(
+                f"--start {start.text} is not before --end {end.text}",
+                hint="--start is the first reading to use, --end the last (seconds, or data rows such as 1200r)",
+            )
+        return start, end
+
+
+@dataclass(frozen=True)
+class Bound:
+    """One end of the part of a capture read (--start, --end): ``value`` seconds from the
+    capture's first reading, or with ``row`` a 0-based data row (the rows a calibration's poses
+    record); ``text`` as given, for messages."""
+
+    value: float
+    row: bool
+    flag: str
+    text: str
+
+
+#: --start/--end: seconds (an optional ``s``), or a data row (a whole number and ``r``).
+BOUND = re.compile(r"\s*(?P<number>[0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*(?P<unit>[sSrR]?)\s*")
+
+
+def bound(value: str | float | None, flag: str) -> Bound | None:
+    """``value`` of ``flag`` (--start, --end) as a Bound: a number is seconds from the capture's
+    first reading (its time column, or --rate); text is seconds (``2.5``, ``2.5s``) or, with an
+    ``r``, a 0-based data row (``1200r``). Anything else is one InputError naming the flag."""
+    if value is None:
+        return None
+    usage = "seconds from the capture's first reading (2.5) or a 0-based data row (1200r)"
+    if isinstance(value, bool) or not isinstance(value, int | float | str):
+        raise InputError(f"{flag} takes {usage}, not a {type(value).__name__}")
+    text = value if isinstance(value, str) else f"{value:g}"
+    found = BOUND.fullmatch(value) if isinstance(value, str) else None
+    if isinstance(value, str) and found is None:
+        raise InputError(f"{flag} {value!r}: give {usage}")
+    number = float(found.group("number")) if found is not None else float(value)
+    row = found is not None and found.group("unit") in ("r", "R")
+    if not (math.isfinite(number) and number >= 0) or (row and not number.is_integer()):
+        raise InputError(f"{flag} {text}: give {usage}")
+    return Bound(number, row, flag, text.strip())
 
 
 def column_list(value: str | Sequence[str] | None) -> tuple[str, ...] | None:

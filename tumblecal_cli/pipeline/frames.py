@@ -54,9 +54,12 @@ def samples_of(label: str, data: DataFrame, options: SolveOptions) -> Samples:
         raise InputError("a reading that is not a finite number", file=name)
     layout = sniff.Layout(name, ",", picked, True, b"", 1, "\n")
     digest = hashlib.sha256(np.ascontiguousarray(values).tobytes()).hexdigest()
+    rows = np.arange(len(values), dtype=np.int64)
+    log = readings.in_span(readings.Log(layout, values, rows, None, None, digest), options.read)  # --start/--end
     rate = options.read.rate
-    duration = (len(values) / rate) if rate else None
-    return readings.Samples(layout, values, (0, len(values) - 1), digest, duration)
+    duration = (len(log.values) / rate) if rate else None
+    first, last = int(log.rows[0]), int(log.rows[-1])
+    return readings.Samples(layout, log.values, (first, last), digest, duration, log=log)
 
 
 def read_pose(path: str, options: SolveOptions) -> Samples:

@@ -98,6 +98,7 @@ def segmented(
     size_option(max_spool, "--max-spool")
     with read_twice(log, spec, max_spool) as path:  # a pipe or FIFO is read once: kept for a second read
         streamed = pose_column is None and not whole and sources.reader_for(path) is None
+        streamed = streamed and spec.span() == (None, None)  # --start/--end: read whole, then cut (readings.in_span)
         if streamed:  # a CSV log block by block, the still periods kept (io.logread)
             name = "<stdin>" if log == "-" else log
             scanned = logread.scan_log(path, spec, settings=settings, name=name, digest=digest)
@@ -590,7 +591,7 @@ def segment(
     """Find the still blocks of a continuous log ('-': stdin), and with ``out_dir`` write each
     kept block as a CSV of its own (the log's header and rows, unchanged) and segments.csv, the
     index. ``on_blocks`` sees the blocks as soon as they are found, before they are judged
-    (fewer than two kept is exit 3) or written."""
+    (none kept is exit 3; whether the faces kept are enough is solve's to judge) or written."""
 
     keywords_known(options, SegmentKeywords, "segment")
     log = path_of(log, "segment reads a log file ('-': stdin)")
@@ -626,7 +627,7 @@ def segment(
         files = block_files(seg)
         if on_blocks is not None:
             on_blocks(found, files)
-        enough_blocks(data, seg, 2)
+        enough_blocks(data, seg, 1)
         text = io.StringIO()
         writer = csv.writer(text, lineterminator="\n")
         writer.writerow(INDEX_COLUMNS)

@@ -336,7 +336,7 @@ def _stream(
     beside CSV, io.sources: read whole, then fed the same way)."""
     rate, time_unit = spec.rate, spec.time_unit
     feed = _Feed(cal, stream, progress)
-    if sources.reader_for(path) is not None:
+    if sources.reader_for(path) is not None or spec.span() != (None, None):  # (--start/--end: readings.in_span)
         log = readings.read_log(path, spec, use_time=rate is None)
         known = rate if rate is not None else _log_rate(log)
         for first in range(0, len(log.values), 1 << 16):

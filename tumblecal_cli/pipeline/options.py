@@ -66,6 +66,7 @@ class CheckOptions:
     gain_tolerance: float = 0.02
     no_checks: bool = False
     no_check: Sequence[str] = ()
+    no_trim: bool = False  # a pose file that moved is rejected whole, not solved from its still run
 
 
 @dataclass(frozen=True)
@@ -151,6 +152,7 @@ FLAT: dict[str, tuple[str, str]] = {
     "rows_are_poses": ("", "rows_are_poses"),
     **{f: ("read", f) for f in ("sensor", "columns", "no_header", "time_column", "time_unit", "rate")},
     **{f: ("read", f) for f in ("stream", "allow_corrected")},
+    **{f: ("read", f) for f in ("start", "end")},
     **{f: ("dialect", f) for f in ("skip_rows", "decimal", "drop_incomplete")},
     **{f.name: ("log", f.name) for f in fields(LogOptions)},
     **{f.name: ("checks", f.name) for f in fields(CheckOptions)},
@@ -187,6 +189,8 @@ class ReadKeywords(FileKeywords, StreamKeywords, total=False):
     time_column: str | None
     time_unit: str
     rate: float | None
+    start: str | float | None
+    end: str | float | None
 
 
 def file_spec(given: FileKeywords, prefer: Sequence[str] | None = None) -> ReadSpec:
@@ -211,6 +215,8 @@ def read_spec(given: ReadKeywords, prefer: Sequence[str] | None = None) -> ReadS
         rate=given.get("rate"),
         stream=given.get("stream"),
         allow_corrected=given.get("allow_corrected", False),
+        start=given.get("start"),
+        end=given.get("end"),
     )
 
 

@@ -22,7 +22,7 @@ from tumblecal_cli.core.model import face_of_name
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import calfile, sources
 from tumblecal_cli.io.calfile import Pose
-from tumblecal_cli.pipeline import logs, rotations, tables, turns
+from tumblecal_cli.pipeline import logs, rotations, tables, trimming, turns
 from tumblecal_cli.pipeline import options as opts
 from tumblecal_cli.pipeline.exchange import tilt_notes
 from tumblecal_cli.pipeline.frames import read_pose, samples_of
@@ -138,7 +138,29 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Path
     name, labels, samples, placed = _read_poses(files_or_data, options, given, read)
     notes = [] if placed.note is None else [placed.note]
     chosen = PoseSet(labels, samples, [s.values for s in samples], notes or [], None, placed.by_name, placed.labelled)
-    return _solve(name, chosen, options, given)
+    return _solve_trimmed(name, chosen, options, given)
+
+
+def _solve_trimmed(name: str, poses: PoseSet, options: SolveOptions, given: Settings) -> Solved:
+    """_solve; and when the files as a whole are rejected (exit 3, or exit 2 from a check that
+    reads their means, such as one-pose's units) and some moved, _solve again on the still run
+    of each that moved (pipeline.trimming), with a note naming its rows: a file that passes
+    whole is solved as it always was."""
+    try:
+        solved, failed = _solve(name, poses, options, given), None
+    except InputError as err:  # a units "mistake" may be the mean of a pose and its handling
+        solved, failed = None, err
+    trimmed = None
+    if (solved is None or solved.status == 3) and trimming.applies(name, options, given):
+        trimmed = trimming.still_runs(poses.samples, options, given)
+    if trimmed is None:
+        if failed is not None:
+            raise failed
+        assert solved is not None
+        return solved
+    if trimmed.error is not None:
+        return Solved(3, None, error=trimmed.error, notes=trimmed.notes, samples=poses.samples, limits=given.limits)
+    return _solve(name, replace(poses, samples=trimmed.samples, notes=[*poses.notes, *trimmed.notes]), options, given)
 
 
 #: Standard gravity (m/s^2): the reference of an accelerometer read in m/s^2 (PX4's CONSTANTS_ONE_G).

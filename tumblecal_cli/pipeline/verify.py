@@ -96,6 +96,9 @@ class VerifyKeywords(FileKeywords, StreamKeywords, total=False):
     reference: float | None
     max_norm_error: float | None
     max_noise: float
+    start: str | float | None
+    end: str | float | None
+    rate: float | None
 
 
 def verify(
@@ -124,12 +127,7 @@ def verify(
         )
     if max_norm_error is not None and not max_norm_error > 0:
         raise InputError(f"--max-norm-error must be positive, got {max_norm_error:g}")
-    spec = replace(
-        file_spec(options, prefer=c.columns),
-        sensor=c.sensor,
-        stream=options.get("stream"),
-        allow_corrected=options.get("allow_corrected", False),
-    )
+    spec = _spec(options, c)
     # raw and corrected share units, so "before" means something: fixed gains, the same unit
     # labels, or gains within 20 % of 1 (data already in g, m/s^2 ...: counts are far from it)
     gains = [float(g) for g in c.gain]
@@ -183,6 +181,23 @@ def verify(
         result.overall["max_error_before"] = float(max(abs(e) for e in raw_errors))
     result.status = 3 if result.rejected else (1 if result.failed else 0)
     return result
+
+
+def _spec(options: VerifyKeywords, c: Calibration) -> ReadSpec:
+    """How verify reads its captures: their shape, the calibration's sensor and columns, and the
+    part of each (--start/--end; --rate gives its seconds when a capture has no time column)."""
+    rate = options.get("rate")
+    if rate is not None and not 0 < rate <= FASTEST:
+        raise InputError(f"--rate must be a positive number of Hz up to {FASTEST:g}, got {rate:g}")
+    return replace(
+        file_spec(options, prefer=c.columns),
+        sensor=c.sensor,
+        rate=rate,
+        start=options.get("start"),
+        end=options.get("end"),
+        stream=options.get("stream"),
+        allow_corrected=options.get("allow_corrected", False),
+    )
 
 
 def _units(name: str, c: Calibration, raw: float, norm: float, ref: float) -> None:
