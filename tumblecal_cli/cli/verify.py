@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -24,6 +24,10 @@ from tumblecal_cli.cli.flags import (
     source,
 )
 from tumblecal_cli.errors import InputError
+
+if TYPE_CHECKING:
+    from tumblecal_cli.pipeline.frames import JSONObject
+    from tumblecal_cli.pipeline.verify import Verified
 
 
 @app.command(
@@ -110,20 +114,10 @@ def verify(
 
     from tumblecal_cli.pipeline import verify as pipeline
 
+    found = source(stream, allow_corrected)
     if log is not None or accel_cal is not None:
-        found = source(stream, allow_corrected)
-        return _rotations(
-            cal,
-            log,
-            accel_cal,
-            rate,
-            columns,
-            captures_,
-            found,
-            json_summary=json_summary,
-            quiet=quiet,
-            part=(start, end),
-        )
+        where = (log, accel_cal, rate, columns, captures_, found, (start, end))
+        return _rotations(cal, *where, json_summary=json_summary, quiet=quiet)
     done = pipeline.verify(
         captures_ or [],
         cal,
@@ -133,26 +127,13 @@ def verify(
         columns=columns,
         no_header=no_header,
         **file_shape(skip_rows, decimal, drop_incomplete),
-        **source(stream, allow_corrected),
+        **found,
         start=start,
         end=end,
         rate=rate,
     )
     if json_summary:
-        render.print_json(
-            {
-                "status": render.status_word(done.status),
-                "exit_status": done.status,
-                "cal": cal,
-                "reference": done.reference,
-                "max_norm_error": max_norm_error,
-                "captures": done.rows,
-                **done.overall,
-                "rejections": done.rejected,
-                "failed": done.failed,
-                "notes": done.notes,
-            }
-        )
+        render.print_json(_summary(done, cal, max_norm_error))
     if not quiet:
         render.print_verify(done.cal, done.rows, done.overall, done.reference, max_norm_error, done.failed)
         for note in done.notes:
@@ -163,6 +144,22 @@ def verify(
         raise typer.Exit(done.status)
 
 
+def _summary(done: Verified, cal: str, max_norm_error: float | None) -> JSONObject:
+    """verify --json: the per-capture and overall figures."""
+    return {
+        "status": render.status_word(done.status),
+        "exit_status": done.status,
+        "cal": cal,
+        "reference": done.reference,
+        "max_norm_error": max_norm_error,
+        "captures": done.rows,
+        **done.overall,
+        "rejections": done.rejected,
+        "failed": done.failed,
+        "notes": done.notes,
+    }
+
+
 def _rotations(
     cal: str,
     log: str | None,
@@ -171,10 +168,10 @@ def _rotations(
     columns: str | None,
     captures_: list[str] | None,
     given: Source,
+    part: tuple[str | None, str | None],
     *,
     json_summary: bool,
     quiet: bool,
-    part: tuple[str | None, str | None],
 ) -> None:
     """verify --log LOG --accel-cal ACC: a gyroscope calibration on held-out hand turns."""
     if part != (None, None):

@@ -113,7 +113,8 @@ def _still_run(log: Log, options: SolveOptions, centre: FloatArray, max_noise: f
         "a pose file holds one pose",
         file=log.layout.name,
         hint="give the rows of the pose with --start and --end (e.g. "
-        f"--start {int(log.rows[run.first])}r --end {int(log.rows[run.last])}r), or capture each pose in a file",
+        f"--start {int(log.rows[run.first])}r --end {int(log.rows[run.last])}r), or capture each pose in a file; "
+        "a log of several poses: solve --log FILE",
         code="pose.turned",
     )
 
