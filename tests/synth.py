@@ -68,3 +68,42 @@ def pose_samples(
     ideal = a @ stimulus(face_vector, reference, tilt_deg) + np.asarray(offset, dtype=np.float64)
     raw: FloatArray = ideal + rng.normal(0.0, noise, size=(n, 3))
     return raw
+
+
+def hand_turned(
+    rng: np.random.Generator,
+    n: int,
+    *,
+    avoid: ArrayLike = (0.0, 0.0, 1.0),
+    cap_deg: float = 0.0,
+    rate: float = 50.0,
+    speed: float = 1.5,
+) -> FloatArray:
+    """(n, 3) unit directions of a steady field in the frame of a unit turned by hand: a smooth
+    walk over the sphere (angular speed about ``speed`` rad/s at ``rate`` Hz, its velocity an
+    Ornstein-Uhlenbeck process with a 0.7 s memory), which bounces off the cap of half-angle
+    ``cap_deg`` around ``avoid`` (0: the whole sphere), as a user who never turns that face
+    towards the field. The walk starts at the cap's opposite."""
+    axis = np.asarray(avoid, dtype=np.float64)
+    axis /= np.linalg.norm(axis)
+    edge = math.cos(math.radians(cap_deg)) if cap_deg > 0 else 2.0
+    dt, tau = 1.0 / rate, 0.7
+    kick = speed * math.sqrt(2.0 * dt / tau)
+    u, v = -axis.copy(), np.zeros(3)
+    out = np.empty((n, 3))
+    for k, step in enumerate(rng.standard_normal((n, 3))):
+        v += -v * dt / tau + kick * step
+        v -= (v @ u) * u  # tangent to the sphere
+        nxt = u + v * dt
+        nxt /= np.linalg.norm(nxt)
+        if nxt @ axis > edge:  # at the cap's rim: turn back
+            towards = axis - (axis @ u) * u
+            towards /= max(float(np.linalg.norm(towards)), 1e-12)
+            v -= 2.0 * max(float(v @ towards), 0.0) * towards
+            nxt = u + v * dt
+            nxt /= np.linalg.norm(nxt)
+            if nxt @ axis > edge:
+                nxt = u
+        u = nxt
+        out[k] = u
+    return out

@@ -471,7 +471,7 @@ def test_no_check_needs_a_known_check(tmp_path: Path, capsys: pytest.CaptureFixt
     assert_one_error(
         r,
         "Invalid value for '--no-check': 'noise' is not one of 'moved', 'orientation', 'saturated', "
-        "'short', 'upside-down'.",
+        "'short', 'upside-down', 'coverage'.",
         hint="see 'tumblecal solve --help'",
     )
     assert_untouched(out)
@@ -1440,7 +1440,11 @@ def test_solve_help_lists_the_gate_options(capsys: pytest.CaptureFixture[str]) -
     listed = set(re.findall(r"^\s+(?:-\w, )?(--[\w-]+)", r.out, flags=re.MULTILINE))
     assert set(SOLVE_OPTIONS) <= listed
     text = " ".join(r.out.split())
-    for words in ("Quality checks (exit 3)", "Limits (exit 1)", "moved, orientation, saturated, short or upside-down"):
+    for words in (
+        "Quality checks (exit 3)",
+        "Limits (exit 1)",
+        "moved, orientation, saturated, short, upside-down or coverage",
+    ):
         assert words in text
 
 

@@ -195,6 +195,7 @@ class CheckName(StrEnum):
     saturated = "saturated"
     short = "short"
     upside_down = "upside-down"
+    coverage = "coverage"
 
 
 JsonSummary = Annotated[

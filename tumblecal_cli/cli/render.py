@@ -171,7 +171,7 @@ def print_summary(cal: Calibration, console: Console, warned: list[Finding], not
         )
         console.print(f"cross-axis terms (A = M⁻¹, each over its row's gain): {terms}", soft_wrap=True)
     if cal.coverage is not None:
-        console.print(f"coverage: {cal.coverage:.0%} of the sphere's directions", soft_wrap=True)
+        console.print(f"coverage: {cal.coverage:.0%} of the sphere's directions{_gaps(cal)}", soft_wrap=True)
     if tilt is not None and tilt.tolerance_deg is not None:
         console.print(f"± tilt: worst-case shift if each pose is {tilt.tolerance_deg:g}° off level", soft_wrap=True)
     if tilt is not None and tilt.gain_tolerance is not None:
@@ -182,6 +182,15 @@ def print_summary(cal: Calibration, console: Console, warned: list[Finding], not
         console.print(f"note: {note}", soft_wrap=True)
     if judged and cal.verdict is not None:
         _print_verdict(console, cal.verdict.passed, cal.verdict.limit_names, cal.verdict.failures)
+
+
+def _gaps(cal: Calibration) -> str:
+    """The directions coverage misses, farthest first: ", nothing within 57° of +z, 48° of +x+z"."""
+    gaps = [g for g in cal.coverage_gaps or () if g.direction is not None and g.nearest_deg is not None]
+    if not gaps:
+        return ""
+    shown = ", ".join(f"{g.nearest_deg:.0f}° of {g.direction}" for g in gaps[:4])
+    return f", nothing within {shown}{f' and {len(gaps) - 4} more' if len(gaps) > 4 else ''}"
 
 
 def _gain_tolerance_line(cal: Calibration, tolerance: float) -> str:

@@ -284,7 +284,7 @@ def solve(
         typer.Option(
             "--no-check",
             metavar="CHECK",
-            help="Turn one check off: moved, orientation, saturated, short or upside-down (repeatable).",
+            help="Turn one check off: moved, orientation, saturated, short, upside-down or coverage (repeatable).",
             rich_help_panel=CHECKS_PANEL,
         ),
     ] = None,

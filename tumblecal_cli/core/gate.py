@@ -23,6 +23,7 @@ from tumblecal_cli.core.model import (
     FACES,
     FloatArray,
     PoseStats,
+    Reach,
     Solution,
     angle_deg,
     chunks,
@@ -33,6 +34,16 @@ from tumblecal_cli.errors import InputError
 
 #: The quality checks, by the last part of their code (``pose.<check>``).
 CHECKS = ("short", "saturated", "orientation", "moved", "upside_down")
+#: The checks of a whole fit, not of each pose (``--no-check`` names them too).
+FIT_CHECKS = ("coverage",)
+#: The coverage check: a capture turned through many orientations must come within this angle
+#: of every face. Past 45° (where solvers.coverage stops counting a face as covered) the ellipsoid
+#: fit extrapolates: in a 50 µT field disturbed by 1 µT that changes within a second, its
+#: correction along a face 57° from the nearest sample is off twice as much as along a reached
+#: face (tests/test_mag_coverage.py). Min/max's offset is off by R(1 − cos θ)/2
+#: (solvers.minmax_bias): 3 % of the field at 20°.
+ELLIPSOID_REACH_DEG = 45.0
+MINMAX_REACH_DEG = 20.0
 #: A value past this fraction of its bound (still inside it) is a narrow pass: a warning.
 NARROW = 0.8
 #: With ``--full-scale V``, a sample at or above this fraction of V counts as clipped.
@@ -276,6 +287,63 @@ _JUDGES = {
     "moved": _moved,
     "upside_down": _upside_down,
 }
+
+
+def beyond(faces: dict[str, float], within_deg: float) -> str:
+    """The faces farther than ``within_deg`` from every sample, for a message:
+    "nothing within 45° of +z (nearest 57°) or of -x (nearest 50°)"."""
+    far = sorted(((f, a) for f, a in faces.items() if a > within_deg), key=lambda g: -g[1])
+    each = " or of ".join(f"{f} (nearest {a:.0f}°)" for f, a in far)
+    return f"nothing within {within_deg:.0f}° of {each}"
+
+
+def turn_hint(faces: dict[str, float], within_deg: float) -> str:
+    """What to do about the faces of a turned capture that no sample comes within ``within_deg`` of."""
+    far = [f for f, a in sorted(faces.items(), key=lambda g: -g[1]) if a > within_deg]
+    which = f"its {far[0]} axis points" if len(far) == 1 else f"each of its {' and '.join(far)} axes has pointed"
+    return f"turn the unit until {which} along the field (north, and down in the northern hemisphere) while capturing"
+
+
+def check_coverage(
+    reach: Reach | None, method: str, cover: float | None, skip: frozenset[str], file: str | None = None
+) -> tuple[list[Finding], list[Finding]]:
+    """(rejections, warnings) of the coverage check on a turned capture (``reach`` of the
+    ellipsoid or 3-D min/max fit; None for the other methods): a face no sample comes within
+    ELLIPSOID_REACH_DEG (min/max: MINMAX_REACH_DEG) of, said with min/max's bias on its axis.
+    With the check off (``"coverage"`` in ``skip``) it is a warning instead."""
+    if reach is None:
+        return [], []
+    within = MINMAX_REACH_DEG if method == "minmax" else ELLIPSOID_REACH_DEG
+    far = {f: a for f, a in reach.faces.items() if a > within}
+    if not far:
+        return [], []
+    what = f"coverage {cover:.0%}: " if cover is not None else ""
+    what += beyond(reach.faces, within)
+    ways = [turn_hint(reach.faces, within)]
+    if method == "minmax":
+        axes = sorted({f[1] for f in far})
+        what += ", so " + "; ".join(_minmax_shift(reach, axis, within) for axis in axes)
+        if max(far.values()) <= ELLIPSOID_REACH_DEG:
+            ways.append(f"drop --method minmax (the ellipsoid fit takes faces up to {ELLIPSOID_REACH_DEG:.0f}° away)")
+    else:
+        what += ": the ellipsoid fit extrapolates there"
+    hint = f"{', '.join(ways)}, or keep this fit with --no-check coverage"
+    finding = Finding("poses.coverage", what, max(far.values()), within, file=file, hint=hint)
+    return ([], [finding]) if "coverage" in skip else ([finding], [])
+
+
+def _minmax_shift(reach: Reach, axis: str, within: float) -> str:
+    """How far min/max's offset on ``axis`` is moved by the faces of that axis its samples miss."""
+    assert reach.bias is not None
+    assert reach.radius is not None
+    i = AXES.index(axis)
+    bias, radius = float(reach.bias[i]), float(reach.radius[i])
+    plus, minus = reach.faces[f"+{axis}"], reach.faces[f"-{axis}"]
+    if min(plus, minus) <= within:  # one side missed: R (cos θ+ - cos θ-) / 2 is about this
+        why = f"R(1 − cos θ)/2 with R {radius:.3g}, θ {max(plus, minus):.0f}°"
+    else:
+        why = f"R(cos θ+ − cos θ−)/2 with R {radius:.3g}, θ+ {plus:.0f}°, θ− {minus:.0f}°"
+    return f"min/max's {axis} offset may be about {abs(bias):.3g} too {'low' if bias < 0 else 'high'} ({why})"
 
 
 def _orientation(

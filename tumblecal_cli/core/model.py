@@ -161,6 +161,20 @@ class Solution:
         return np.diag(np.linalg.inv(self.matrix)).copy()
 
 
+@dataclass(frozen=True)
+class Reach:
+    """How near a capture turned through many orientations comes to each direction: ``faces``,
+    the angle (degrees) from each face to its nearest sample; ``gaps``, the directions of
+    ``solvers.coverage`` with no sample within COVERAGE_CAP_DEG and their nearest angle, farthest
+    first; for min/max, ``bias``, how far the faces its samples do not reach move each offset
+    (signed, raw units: ``solvers.minmax_bias``), and ``radius``, the field's radius along each axis."""
+
+    faces: dict[str, float]
+    gaps: tuple[tuple[str, float], ...] = ()
+    bias: FloatArray | None = None
+    radius: FloatArray | None = None
+
+
 def solve_one_pose(pose: PoseStats, up: str, reference: float) -> Solution:
     """1-pose tumble: offsets only, gains fixed at 1 (Vitali 2018, "1 姿勢タンブル較正").
 

@@ -27,11 +27,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from tumblecal_cli.core.gate import beyond, turn_hint
 from tumblecal_cli.core.methods import SIX_FACES, SIX_POSE, THREE_FACES, face_evidence
 from tumblecal_cli.core.model import (
     FACES,
     FloatArray,
     PoseStats,
+    Reach,
     Solution,
     direction,
     solve_one_pose,
@@ -47,6 +49,8 @@ FACE_COVERAGE_DEG = 60.0
 _CUBE = np.array([(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1) if (i, j, k) != (0, 0, 0)])
 CUBE_DIRECTIONS = _CUBE / np.linalg.norm(_CUBE, axis=1)[:, None]
 COVERAGE_CAP_DEG = 45.0
+#: How coverage names its directions: "+z", "+x+z", "-x+y+z".
+CUBE_NAMES = tuple("".join(f"{'+' if c > 0 else '-'}{a}" for c, a in zip(v, "xyz", strict=True) if c) for v in _CUBE)
 
 Params = tuple[FloatArray, FloatArray]  # (b, A)
 
@@ -62,6 +66,7 @@ class Fit:
     cross_se: FloatArray | None = None  # (3, 3) 1-sigma of A's off-diagonal terms (0 on the diagonal)
     tilt: tuple[FloatArray, FloatArray, FloatArray] | None = None  # offset, gain, cross-axis shifts
     notes: tuple[str, ...] = ()
+    reach: Reach | None = None  # a turned capture's (ellipsoid, 3-D min/max): how near it comes to each direction
 
 
 # -- six-pose -------------------------------------------------------------------------------
@@ -429,17 +434,61 @@ def coverage(directions: FloatArray) -> float:
     return float((cos - 1e-12 <= CUBE_DIRECTIONS @ directions.T).any(axis=1).mean())
 
 
+def reach(directions: FloatArray) -> Reach:
+    """How near the unit ``directions`` come to each face and to each direction of :func:`coverage`."""
+    nearest = np.degrees(np.arccos(np.clip((CUBE_DIRECTIONS @ directions.T).max(axis=1), -1.0, 1.0)))
+    faces = {name: float(a) for name, a in zip(CUBE_NAMES, nearest, strict=True) if len(name) == 2}
+    cos = math.cos(math.radians(COVERAGE_CAP_DEG))
+    missing = np.cos(np.radians(nearest)) < cos - 1e-12  # as coverage() counts them
+    gaps = sorted(((CUBE_NAMES[k], float(nearest[k])) for k in np.flatnonzero(missing)), key=lambda g: -g[1])
+    return Reach({f: faces[f] for f in FACES}, tuple(gaps))
+
+
 def _refuse_poor_coverage(directions: FloatArray, what: str) -> None:
     missing = missing_faces(directions)
+    if missing and what == "samples":  # a turned capture: each face it misses, and which way to turn
+        faces = dict(missing)
+        raise CaptureRejected(
+            f"the samples do not cover enough directions to determine the parameters: "
+            f"{beyond(faces, FACE_COVERAGE_DEG)}",
+            hint=turn_hint(faces, FACE_COVERAGE_DEG),
+            code="poses.coverage",
+        )
     if missing:
         face, angle = missing[0]
         others = "".join(f", {f} ({a:.0f}°)" for f, a in missing[1:])
         raise CaptureRejected(
             f"the {what} do not cover enough directions to determine the parameters: nothing within "
             f"{FACE_COVERAGE_DEG:.0f}° of {face} (nearest {angle:.0f}°){' or of ' + others[2:] if others else ''}",
-            hint=f"add captures with {face} pointing {'up' if what == 'poses' else 'along the field'}",
+            hint=f"add captures with {face} pointing up",
             code="poses.coverage",
         )
+
+
+def covered(reached: Reach) -> float:
+    """:func:`coverage` of the directions ``reached`` was measured on."""
+    return (len(CUBE_NAMES) - len(reached.gaps)) / len(CUBE_NAMES)
+
+
+def sphere_centre(points: FloatArray) -> FloatArray:
+    """The centre of the sphere nearest the points: ``|p - c|^2 = r^2`` is linear in ``c`` and
+    ``r^2 - |c|^2``, fitted by least squares. A capture that misses a cap of the sphere moves
+    min/max's midpoint into the gap (the magcal failure) but not this centre, so the directions
+    around it say how far the samples are from the missing face."""
+    centre0 = points.mean(axis=0)
+    p = points - centre0
+    design = np.column_stack([2.0 * p, np.ones(len(p))])
+    coef, *_ = np.linalg.lstsq(design, (p * p).sum(axis=1), rcond=None)
+    out: FloatArray = centre0 + coef[:3]
+    return out
+
+
+def _directions(points: FloatArray, centre: FloatArray) -> FloatArray:
+    around = points - centre
+    norms = np.linalg.norm(around, axis=1)
+    keep = norms > 0
+    out: FloatArray = around[keep] / norms[keep, None]
+    return out
 
 
 def sphere(points: FloatArray, stderr: FloatArray | None, reference: float, *, what: str = "poses") -> Fit:
@@ -455,29 +504,17 @@ def sphere(points: FloatArray, stderr: FloatArray | None, reference: float, *, w
     ellipsoid = stderr is None
     if reference <= 0:
         raise InputError(f"the {'ellipsoid' if ellipsoid else 'sphere'} fit needs a positive --reference")
-    rough = points - 0.5 * (points.max(axis=0) + points.min(axis=0))
-    norms = np.linalg.norm(rough, axis=1)
-    _refuse_poor_coverage(rough[norms > 0] / norms[norms > 0, None], what)
-    if not ellipsoid:
-        distinct = distinct_directions(rough[norms > 0] / norms[norms > 0, None])
-        if distinct < SPHERE_MIN_DIRECTIONS:
-            raise CaptureRejected(
-                f"{len(points)} {what}, {distinct} distinct directions (more than {DISTINCT_DEG:g}° apart); "
-                f"the sphere needs {SPHERE_MIN_DIRECTIONS}+ to determine its 9 parameters",
-                hint="capture orientations between the faces (edges, corners), or label the six faces and "
-                "use a face solver",
-                code="poses.undetermined",
-            )
+    rough = _sphere_precheck(points, what, ellipsoid=ellipsoid)
     fitted = _fit_sphere(points, reference)
     if fitted is None:
-        raise CaptureRejected(
-            f"the {what} do not lie on an ellipsoid: the orientation-free fit has no solution",
-            hint="check that every capture is static and of the same sensor",
-            code="poses.undetermined",
-        )
+        raise _no_ellipsoid(rough, what)
     theta, jac = fitted
     b, m = theta[:3], _upper(theta)
-    directions = (points - b) @ m.T
+    symmetric = m
+    if ellipsoid:  # soft iron is symmetric (it does not rotate the field): M = sqrt(M^T M), |M x| alike
+        w, v = np.linalg.eigh(m.T @ m)
+        symmetric = (v * np.sqrt(w)) @ v.T
+    directions = (points - b) @ (symmetric if ellipsoid else m).T  # in the corrected frame
     directions /= np.linalg.norm(directions, axis=1)[:, None]
     _refuse_poor_coverage(directions, what)
     residuals = _norm_residuals(points, b, m, reference)
@@ -492,9 +529,8 @@ def sphere(points: FloatArray, stderr: FloatArray | None, reference: float, *, w
     js = jac / scale
     jtj_inv = np.linalg.pinv(js.T @ js) / np.outer(scale, scale)
     cov_theta = jtj_inv @ (jac.T * noise) @ jac @ jtj_inv
-    if ellipsoid:  # soft iron is symmetric (it does not rotate the field): M = sqrt(M^T M)
-        w, v = np.linalg.eigh(m.T @ m)
-        m = (v * np.sqrt(w)) @ v.T
+    if ellipsoid:
+        m = symmetric
     cov = _theta_to_params(theta, cov_theta, symmetric=ellipsoid)
     sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     a_sd = sd[3:].reshape(3, 3)
@@ -506,13 +542,60 @@ def sphere(points: FloatArray, stderr: FloatArray | None, reference: float, *, w
         gain_se=np.diag(a_sd).copy(),
     )
     rms = float(np.sqrt(np.mean(residuals**2)))
+    reached = reach(directions) if ellipsoid else None
     return Fit(
         solution=solution,
         residuals=residuals,
-        coverage=coverage(directions),
+        coverage=coverage(directions) if reached is None else covered(reached),
         covariance=cov,
         cross_se=a_sd - np.diag(np.diag(a_sd)),
         notes=(f"residual RMS {rms:.3g} over {len(points)} {what} ({dof} degrees of freedom)",),
+        reach=reached,
+    )
+
+
+def _sphere_precheck(points: FloatArray, what: str, *, ellipsoid: bool) -> FloatArray:
+    """Refuse what the sphere (or ellipsoid) fit cannot determine before fitting it: a face with
+    nothing near it, too few distinct pose directions. Returns the directions judged, around
+    min/max's midpoint for poses and around :func:`sphere_centre` for a turned capture's samples."""
+    centre = sphere_centre(points) if ellipsoid else 0.5 * (points.max(axis=0) + points.min(axis=0))
+    rough = _directions(points, centre)
+    _refuse_poor_coverage(rough, what)
+    if not ellipsoid:
+        distinct = distinct_directions(rough)
+        if distinct < SPHERE_MIN_DIRECTIONS:
+            raise CaptureRejected(
+                f"{len(points)} {what}, {distinct} distinct directions (more than {DISTINCT_DEG:g}° apart); "
+                f"the sphere needs {SPHERE_MIN_DIRECTIONS}+ to determine its 9 parameters",
+                hint="capture orientations between the faces (edges, corners), or label the six faces and "
+                "use a face solver",
+                code="poses.undetermined",
+            )
+    return rough
+
+
+def _no_ellipsoid(rough: FloatArray, what: str) -> CaptureRejected:
+    """The fit found no ellipsoid. Static poses that do not lie on one moved or mix sensors; a
+    turned capture (a magnetometer's: it is meant to move) that leaves a face with no sample
+    within COVERAGE_CAP_DEG is named for that face and the way to turn, which is the usual cause."""
+    if what != "samples":
+        return CaptureRejected(
+            f"the {what} do not lie on an ellipsoid: the orientation-free fit has no solution",
+            hint="check that every capture is static and of the same sensor",
+            code="poses.undetermined",
+        )
+    faces = reach(rough).faces
+    if max(faces.values()) > COVERAGE_CAP_DEG:
+        return CaptureRejected(
+            f"the samples do not lie on an ellipsoid the fit can find, and they leave a face uncovered: "
+            f"{beyond(faces, COVERAGE_CAP_DEG)}",
+            hint=turn_hint(faces, COVERAGE_CAP_DEG),
+            code="poses.coverage",
+        )
+    return CaptureRejected(
+        "the samples do not lie on an ellipsoid: the orientation-free fit has no solution",
+        hint="check that the capture is of one sensor, turned in a steady field away from iron and magnets",
+        code="poses.undetermined",
     )
 
 
@@ -608,49 +691,27 @@ def minmax(samples: FloatArray, plane: str | None = None) -> Fit:
     axes in the plane are determined; the third keeps offset 0. The 1-sigma of each offset is
     that of a midpoint of two samples, ``σ/√2``, with ``σ`` the sample noise estimated from
     successive differences (``std(diff)/√2``), which a slow rotation leaves nearly untouched.
+    In 3-D its :class:`Reach` says how near the samples come to each face and the bias the faces
+    they miss put in the offsets (:func:`minmax_bias`), for the coverage check (core.gate).
     """
     lo, hi = samples.min(axis=0), samples.max(axis=0)
     offset = 0.5 * (lo + hi)  # Okasho n.d.: (max + min) / 2
     noise = np.diff(samples, axis=0).std(axis=0) / math.sqrt(2.0) if len(samples) > 2 else np.zeros(3)
     offset_se = noise / math.sqrt(2.0)
     axes = [i for i in range(3) if plane is None or "xyz"[i] in plane]
-    centred = samples - offset
+    reached = None
     if plane is None:
         # judged around the ellipsoid's centre: around the min/max one, a capture that misses a
         # cap of the sphere looks whole (the midpoint moves into the gap: the magcal failure)
         start = _ellipsoid_start(samples, 1.0)
-        around = samples - (start[0] if start is not None else offset)
-        norms = np.linalg.norm(around, axis=1)
-        keep = norms > 0
-        directions = around[keep] / norms[keep, None]
+        directions = _directions(samples, start[0] if start is not None else sphere_centre(samples))
         _refuse_poor_coverage(directions, "samples")
-        cover = coverage(directions)
+        reached = reach(directions)
+        cover = covered(reached)
+        bias, radius = minmax_bias(lo, hi, reached.faces)
+        reached = replace(reached, bias=bias, radius=radius)
     else:
-        i, j = axes
-        span = hi - lo
-        if not span[i] >= PLANE_SPAN * span[j] or not span[j] >= PLANE_SPAN * span[i]:
-            # a circle in the plane spans both of its axes alike (soft iron rarely 2:1); an axis
-            # that hardly moved was not in the plane, and its noise would pass the gap test
-            flat = "xyz"[i] if span[i] < span[j] else "xyz"[j]
-            turned = "".join(sorted("xyz"[k] for k in np.argsort(span)[-2:]))
-            raise CaptureRejected(
-                f"the samples did not turn in the {plane} plane: {flat} spans {min(span[i], span[j]):.3g} "
-                f"against {max(span[i], span[j]):.3g} (spans x {span[0]:.3g}, y {span[1]:.3g}, z {span[2]:.3g}); "
-                f"it looks like the {turned} plane",
-                hint=f"give --plane {turned}, or turn the unit a full circle in the {plane} plane",
-                code="poses.coverage",
-            )
-        angles = np.arctan2(centred[:, j], centred[:, i])
-        bins = np.unique(np.floor((angles + math.pi) / (2 * math.pi) * 12).astype(int) % 12)
-        cover = len(bins) / 12
-        gap = _largest_gap_deg(angles)
-        if gap > 90.0:
-            raise CaptureRejected(
-                f"the samples do not go round the {plane} plane: a gap of {gap:.0f}° with no sample "
-                "(min/max needs each in-plane axis seen pointing both ways)",
-                hint=f"turn the unit a full circle in the {plane} plane",
-                code="poses.coverage",
-            )
+        cover = _plane_coverage(samples - offset, lo, hi, plane)
     for k in range(3):
         if k not in axes:
             offset[k], offset_se[k] = 0.0, 0.0
@@ -660,7 +721,53 @@ def minmax(samples: FloatArray, plane: str | None = None) -> Fit:
         if plane is None
         else (f"2-D min/max in the {plane} plane: the {'xyz'[3 - sum(axes)]} offset is not determined (0)",)
     )
-    return Fit(solution=solution, coverage=cover, notes=notes)
+    return Fit(solution=solution, coverage=cover, notes=notes, reach=reached)
+
+
+def minmax_bias(lo: FloatArray, hi: FloatArray, faces: dict[str, float]) -> tuple[FloatArray, FloatArray]:
+    """How far min/max's offsets are moved by faces its samples do not reach, and the field's
+    radius along each axis (raw units).
+
+    An axis whose ``+`` face is ``θ+`` from the nearest sample reads at most ``b + R cos θ+``
+    (not ``b + R``), and at least ``b - R cos θ-``: its midpoint is off by
+    ``R (cos θ+ - cos θ-) / 2``: for a missing cap of half-angle θ around the ``+`` face (the
+    ``-`` one reached), ``-R (1 - cos θ) / 2``, the offset too low. ``R`` is the radius these
+    extremes imply, ``(max - min) / (cos θ+ + cos θ-)``."""
+    plus = np.cos(np.radians([faces[f"+{a}"] for a in "xyz"]))
+    minus = np.cos(np.radians([faces[f"-{a}"] for a in "xyz"]))
+    radius: FloatArray = (hi - lo) / np.maximum(plus + minus, 1e-12)
+    bias: FloatArray = radius * (plus - minus) / 2.0
+    return bias, radius
+
+
+def _plane_coverage(centred: FloatArray, lo: FloatArray, hi: FloatArray, plane: str) -> float:
+    """2-D min/max: refuse a capture that did not turn in ``plane`` or did not go round it; its
+    coverage is the share of 12 sectors of the plane with a sample."""
+    i, j = ("xyz".index(plane[0]), "xyz".index(plane[1]))
+    span = hi - lo
+    if not span[i] >= PLANE_SPAN * span[j] or not span[j] >= PLANE_SPAN * span[i]:
+        # a circle in the plane spans both of its axes alike (soft iron rarely 2:1); an axis
+        # that hardly moved was not in the plane, and its noise would pass the gap test
+        flat = "xyz"[i] if span[i] < span[j] else "xyz"[j]
+        turned = "".join(sorted("xyz"[k] for k in np.argsort(span)[-2:]))
+        raise CaptureRejected(
+            f"the samples did not turn in the {plane} plane: {flat} spans {min(span[i], span[j]):.3g} "
+            f"against {max(span[i], span[j]):.3g} (spans x {span[0]:.3g}, y {span[1]:.3g}, z {span[2]:.3g}); "
+            f"it looks like the {turned} plane",
+            hint=f"give --plane {turned}, or turn the unit a full circle in the {plane} plane",
+            code="poses.coverage",
+        )
+    angles = np.arctan2(centred[:, j], centred[:, i])
+    bins = np.unique(np.floor((angles + math.pi) / (2 * math.pi) * 12).astype(int) % 12)
+    gap = _largest_gap_deg(angles)
+    if gap > 90.0:
+        raise CaptureRejected(
+            f"the samples do not go round the {plane} plane: a gap of {gap:.0f}° with no sample "
+            "(min/max needs each in-plane axis seen pointing both ways)",
+            hint=f"turn the unit a full circle in the {plane} plane",
+            code="poses.coverage",
+        )
+    return len(bins) / 12
 
 
 def _largest_gap_deg(angles: FloatArray) -> float:

@@ -30,6 +30,7 @@ from tumblecal_cli.io.calparts import (
     Accelerometer,
     Covariance,
     Doc,
+    Gap,
     GSensitivity,
     Pose,
     Residuals,
@@ -46,6 +47,7 @@ from tumblecal_cli.io.calparts import (
     number,
     read_covariance,
     read_g_sensitivity,
+    read_gap,
     read_list,
     read_pose,
     read_residuals,
@@ -73,6 +75,7 @@ __all__ = [  # the parts, for code that names them as calfile's
     "Accelerometer",
     "Covariance",
     "GSensitivity",
+    "Gap",
     "Pose",
     "Residuals",
     "Rotation",
@@ -117,7 +120,7 @@ ORDER = (
 )
 #: The parts some methods add (README "Calibration file"), in the order they follow ``poses``
 #: when given to a calibration that was read without them.
-PARTS = ("turns", "g_sensitivity", "rotations", "covariance", "coverage", "residuals", "segmentation")
+PARTS = ("turns", "g_sensitivity", "rotations", "covariance", "coverage", "coverage_gaps", "residuals", "segmentation")
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,6 +154,7 @@ class Calibration:
     tool: str | None = None
     covariance: Covariance | None = None
     coverage: float | None = None  # 0-1, the share of directions with a sample near them
+    coverage_gaps: tuple[Gap, ...] | None = None  # the directions without (a turned capture's)
     residuals: Residuals | None = None
     segmentation: Segmentation | None = None
     turns: tuple[Turn, ...] | None = None
@@ -231,7 +235,7 @@ class Calibration:
     def _typed(self) -> dict[str, object]:
         """Every typed field in the file's form."""
 
-        def each(parts: Sequence[Pose | Turn | Rotation] | None) -> list[dict[str, object]] | None:
+        def each(parts: Sequence[Pose | Turn | Rotation | Gap] | None) -> list[dict[str, object]] | None:
             return None if parts is None else [p.as_dict() for p in parts]
 
         return {
@@ -259,6 +263,7 @@ class Calibration:
             "rotations": each(self.rotations),
             "covariance": None if self.covariance is None else self.covariance.as_dict(),
             "coverage": self.coverage,
+            "coverage_gaps": each(self.coverage_gaps),
             "residuals": None if self.residuals is None else self.residuals.as_dict(),
             "segmentation": None if self.segmentation is None else self.segmentation.as_dict(),
         }
@@ -370,6 +375,7 @@ def from_dict(doc: Doc, path: str | None = None) -> Calibration:
         tool=text(tool),
         covariance=part("covariance", _object(read_covariance)),
         coverage=number(coverage),
+        coverage_gaps=part("coverage_gaps", lambda v: read_list(v, read_gap)),
         residuals=part("residuals", _object(read_residuals)),
         segmentation=part("segmentation", _object(read_segmentation)),
         turns=part("turns", lambda v: read_list(v, read_turn)),
@@ -457,7 +463,7 @@ def build(
     kept: dict[str, object] = {}  # a unit given as an object, if its values are not text
     uncertainty = {"offset": solution.offset_se, "gain": solution.gain_se}
     tilt = covariance = residuals = None
-    coverage = None
+    coverage = gaps = None
     if fit is not None:
         if fit.cross_se is not None:
             uncertainty["cross_axis"] = fit.cross_se
@@ -467,10 +473,12 @@ def build(
         if fit.covariance is not None:
             covariance = Covariance(fit.covariance)
         coverage = fit.coverage
+        if fit.reach is not None and fit.reach.gaps:
+            gaps = tuple(Gap(name, round(angle, 1)) for name, angle in fit.reach.gaps)
         if fit.residuals is not None and len(fit.residuals):
             r = fit.residuals
             residuals = Residuals(float(np.abs(r).max()), float(np.sqrt(np.mean(r**2))), len(r))
-    given = (("covariance", covariance), ("coverage", coverage), ("residuals", residuals))
+    given = (("covariance", covariance), ("coverage", coverage), ("coverage_gaps", gaps), ("residuals", residuals))
     measured = [k for k, v in given if v is not None]
     turned = [
         k for k, v in (("turns", turns), ("g_sensitivity", g_sensitivity), ("rotations", rotations)) if v is not None
@@ -497,6 +505,7 @@ def build(
         tool=f"tumblecal {__version__}",
         covariance=covariance,
         coverage=coverage,
+        coverage_gaps=gaps,
         residuals=residuals,
         segmentation=segmentation,
         turns=None if turns is None else tuple(turns),

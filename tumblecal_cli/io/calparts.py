@@ -300,6 +300,22 @@ def read_residuals(raw: Doc) -> Residuals:
     return as_read(Residuals(number(raw.get("max")), number(raw.get("rms")), whole(raw.get("count"))), raw)
 
 
+@dataclass(frozen=True)
+class Gap(Part):
+    """``coverage_gaps[]``: a direction of ``coverage`` (``+z``, ``+x+z``, ``-x+y+z``) with no
+    sample within 45°, and the angle to its nearest sample."""
+
+    direction: str | None
+    nearest_deg: float | None
+
+    def typed(self) -> dict[str, object]:
+        return {"direction": self.direction, "nearest_deg": self.nearest_deg}
+
+
+def read_gap(raw: Doc) -> Gap:
+    return as_read(Gap(text(raw.get("direction")), number(raw.get("nearest_deg"))), raw)
+
+
 #: The order of the covariance's rows: the offset, then A = inv(M) row by row.
 COVARIANCE_PARAMETERS = ("offset.x", "offset.y", "offset.z", *(f"A.{i}{j}" for i in "xyz" for j in "xyz"))
 

@@ -281,7 +281,7 @@ CHOICES = {
     "decimal": (".", ","),
     "plane": ("xy", "xz", "yz"),
 }
-CHECK_NAMES = ("moved", "orientation", "saturated", "short", "upside-down")
+CHECK_NAMES = ("moved", "orientation", "saturated", "short", "upside-down", "coverage")
 NUMBERS = (
     "reference",
     "bias_spread",

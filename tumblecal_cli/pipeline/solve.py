@@ -440,6 +440,7 @@ def _solve(name: str, poses: PoseSet, options: SolveOptions, given: Settings) ->
     checks = _gate_options(poses, options, given)
     stats = [model.pose_stats(s.values) for s in samples]
     names = [s.name for s in samples]
+    one = names[0] if len(names) == 1 else None  # the capture a finding on the whole fit is about
     tilted: list[Finding] = []
     log_notes = list(poses.notes)  # how the blocks of a log were chosen, or the files labelled
     if name == "six-pose" and ref > 0:
@@ -468,7 +469,8 @@ def _solve(name: str, poses: PoseSet, options: SolveOptions, given: Settings) ->
     if ref > 0:  # a gyroscope at rest has no direction to judge
         measured = gate.orient(measured, checks.nominal_offset, checks.max_tilt_deg)
     rejected, warned = gate.check(measured, solution, checks)
-    warned += tilted + _mirrored(solution, checks)
+    rejected_cover, warned_cover = gate.check_coverage(fit.reach, solution.method, fit.coverage, checks.skip, one)
+    rejected, warned = rejected + rejected_cover, warned + warned_cover + tilted + _mirrored(solution, checks)
     fixed = [
         gate.corrected(st.mean, st.std, f, solution.offset, solution.matrix, ref)
         for st, f in zip(stats, labels, strict=True)
@@ -520,7 +522,9 @@ def _gate_options(poses: PoseSet, options: SolveOptions, given: Settings) -> gat
         full_scale=options.checks.full_scale,
         min_samples=1 if poses.table else options.checks.min_samples,  # a table's row is one averaged reading
         skip=frozenset(
-            gate.CHECKS if options.checks.no_checks else [c.replace("-", "_") for c in options.checks.no_check]
+            (*gate.CHECKS, *gate.FIT_CHECKS)
+            if options.checks.no_checks
+            else [c.replace("-", "_") for c in options.checks.no_check]
         ),
         rails=gate.integer_rails(poses.whole),
         faces_by_name=poses.by_name,
