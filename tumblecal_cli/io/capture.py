@@ -45,6 +45,7 @@ from tumblecal_cli.io.sniff import (
     BoolArray,
     FloatArray,
     Layout,
+    bare,
     column_index,
     no_column_twice,
     pick_columns,
@@ -211,12 +212,14 @@ class Capture:
         empty = np.zeros((n, 3), dtype=bool)
         for j, text in enumerate(columns[:3]):
             text = self.pointed(text)
+            if starts_quoted(text):
+                text = unquote(text)
             try:
                 values[:, j] = to_floats(pc.cast(text, pa.float64()))
                 continue
             except pa.ArrowInvalid:
                 pass
-            text = pc.utf8_trim_whitespace(text)
+            text = unquote(text)  # (and trimmed)
             is_empty = pc.equal(pc.utf8_length(text), 0)
             bad = pc.and_(pc.invert(is_empty), pc.invert(pc.match_substring_regex(text, NUMBER)))
             if pc.any(bad).as_py():
@@ -257,7 +260,7 @@ class Capture:
         with contextlib.suppress(pa.ArrowInvalid):  # every cell a number (the usual case): one cast
             return to_floats(pc.cast(self.pointed(text), pa.float64()))
         where = (lay.temperature, lay.temperature, lay.temperature)
-        trimmed = pc.utf8_trim_whitespace(self.pointed(text))
+        trimmed = pc.utf8_trim_whitespace(unquote(self.pointed(text)))
         blank = to_bools(pc.equal(pc.utf8_length(trimmed), 0))
         missing = blank & ~empty
         if missing.any():
@@ -402,7 +405,7 @@ def _incomplete(layout: Layout, line: bytes) -> bool:
     cells = split_fields(text, layout.delimiter)
     if len(cells) < len(layout.names):
         return True
-    sensor = [cells[i].strip().replace(layout.decimal, ".") for i in layout.sensor]
+    sensor = [bare(cells[i]).replace(layout.decimal, ".") for i in layout.sensor]
     return any(not re.match(NUMBER, c) for c in sensor) and not all(not c for c in sensor)
 
 
@@ -528,6 +531,31 @@ def note_dropped(cap: Capture) -> None:
             cap.layout.notes.append(note)
 
 
+def unquote(text: pa.Array) -> pa.Array:
+    """Text cells without the blanks around them, and a cell in double quotes (``"1.5"``: some
+    loggers and spreadsheet exports quote every cell) as the text inside (sniff.bare)."""
+    trimmed = pc.utf8_trim_whitespace(text)
+    quoted = pc.and_(pc.starts_with(trimmed, '"'), pc.ends_with(trimmed, '"'))
+    quoted = pc.and_(quoted, pc.greater_equal(pc.binary_length(trimmed), 2))
+    return pc.if_else(quoted, pc.utf8_trim_whitespace(pc.utf8_slice_codeunits(trimmed, 1, -1)), trimmed)
+
+
+def cast_floats(text: pa.Array, *, safe: bool = True) -> pa.Array:
+    """Number cells as float64, quoted ones (``"1.5"``) too: ArrowInvalid when a cell is not one."""
+    if starts_quoted(text):
+        text = unquote(text)
+    try:
+        return pc.cast(text, pa.float64(), safe=safe)
+    except pa.ArrowInvalid:
+        return pc.cast(unquote(text), pa.float64(), safe=safe)
+
+
+def starts_quoted(text: pa.Array) -> bool:
+    """Whether a column's first cell is in double quotes: then its others are too, as a rule (a
+    cast that fails costs 30 times one that does not: the quotes are taken off first)."""
+    return len(text) > 0 and str(text[0].as_py() or "").lstrip().startswith('"')
+
+
 def to_floats(arr: pa.Array) -> FloatArray:
     """A float64 arrow array without nulls as a numpy array (zero copy)."""
     if len(arr) == 0:
@@ -570,7 +598,7 @@ def read_table(path: str, spec: ReadSpec | None = None) -> tuple[Layout, list[st
     out: list[pa.Array] = []
     for chunks in parts:
         text = pa.chunked_array(chunks, type=pa.string()).combine_chunks() if chunks else pa.array([], pa.string())
-        trimmed = pc.utf8_trim_whitespace(cap.pointed(text))
+        trimmed = pc.utf8_trim_whitespace(unquote(cap.pointed(text)))
         for kind in (pa.int64(), pa.float64()):
             try:
                 out.append(pc.cast(pc.if_else(pc.equal(trimmed, ""), None, trimmed), kind))

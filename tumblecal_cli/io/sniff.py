@@ -229,7 +229,7 @@ def _decimal(layout: Layout, rows: Sequence[str], given: str | None) -> str:
         )
     if given is not None or layout.delimiter == ",":
         return given or "."
-    cells = [c for ln in rows for c in split_fields(ln, layout.delimiter)]
+    cells = [bare(c) for ln in rows for c in split_fields(ln, layout.delimiter)]
     commas = [c for c in cells if "," in c]
     if commas and all(COMMA_NUMBER.match(c) for c in commas) and not any("." in c for c in cells):
         layout.notes.append(f"{layout.name}: numbers with a decimal comma (e.g. {commas[0].strip()!r}) read as such")
@@ -252,10 +252,17 @@ def _detect_delimiter(lines: Sequence[str]) -> str | None:
     if best and best[2] == ",":  # 0,01;1,0;-0,5: the commas are decimal marks of a ; or tab separated file
         for cand in ("\t", ";"):
             if len({ln.count(cand) for ln in lines}) == 1 and lines[0].count(cand) >= 2:
-                cells = [c for ln in lines for c in ln.split(cand) if "," in c]
+                cells = [bare(c) for ln in lines for c in ln.split(cand) if "," in c]
                 if all(COMMA_NUMBER.match(c) for c in cells):
                     return cand
     return best[2] if best else None
+
+
+def bare(cell: str) -> str:
+    """A cell's text without the blanks around it and the double quotes around those: some
+    loggers and spreadsheet exports write every cell in quotes (``"1.033358"``)."""
+    text = cell.strip()
+    return text[1:-1].strip() if len(text) >= 2 and text[0] == text[-1] == '"' else text
 
 
 def skipped(line: str) -> bool:
