@@ -33,6 +33,7 @@ import pyarrow.compute as pc
 import pyarrow.csv as pcsv
 
 from tumblecal_cli.errors import InputError
+from tumblecal_cli.io import compressed
 from tumblecal_cli.io.outputs import atomic_output
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.io.sniff import (
@@ -294,8 +295,8 @@ class Capture:
         """(line number, text) of each data line of the file, skipping blanks and comments."""
         assert self._path is not None
         lay = self.layout
-        with open(self._path, "rb") as f:
-            f.seek(len(lay.head))
+        with compressed.open_data(self._path, lay.name) as f:
+            f.read(len(lay.head))
             for offset, raw in enumerate(f):
                 text = raw.decode("utf-8", errors="replace").rstrip("\r\n")
                 if not skipped(text):
@@ -352,17 +353,7 @@ def open_capture(
     sensor, columns, prefer, time_column = spec.sensor, spec.columns, spec.prefer, spec.time_column
     temperature_column, dialect = spec.temperature_column, spec.dialect
     name = name or ("<stdin>" if path == "-" else path)
-    try:
-        f: IO[bytes] = sys.stdin.buffer if path == "-" else open(path, "rb")  # noqa: SIM115
-    except FileNotFoundError:
-        raise InputError("no such file", file=name) from None
-    except IsADirectoryError:
-        raise InputError("is a directory, not a CSV file", file=name) from None
-    except OSError as err:
-        raise InputError(f"cannot open: {err.strerror}", file=name) from None
-    hasher = hashlib.sha256()
-    first = f.read(HEAD_BYTES)
-    hasher.update(first)
+    f, first, hasher, kind, regular = _opened(path, name)
     try:
         layout, consumed = sniff(name, first, at_eof=len(first) < HEAD_BYTES, no_header=spec.no_header, dialect=dialect)
         layout.sensor, layout.time = pick_columns(layout, sensor, columns, prefer, time_column)
@@ -381,9 +372,9 @@ def open_capture(
             f.close()
         raise
     stream: Source
-    regular = path != "-" and stat.S_ISREG(os.fstat(f.fileno()).st_mode)  # not a pipe, FIFO or device
-    cut = regular and _cut_short(f, layout, consumed, dialect.drop_incomplete)
-    if regular and layout.delimiter is not None and not cut:
+    plain = regular and kind is None  # (a compressed file is read as a stream of its data)
+    cut = plain and _cut_short(f, layout, consumed, dialect.drop_incomplete)
+    if plain and layout.delimiter is not None and not cut:
         # a regular file: pyarrow reads it natively from the end of the header (1.7x faster)
         f.close()
         stream = pa.OSFile(path)
@@ -391,8 +382,55 @@ def open_capture(
     else:
         drop = functools.partial(_incomplete, layout) if dialect.drop_incomplete else None
         squeeze = layout.delimiter is None
-        stream = DataStream(first[consumed:], f, hasher, squeeze=squeeze, owns=path != "-", drop_last=drop)
+        read = hasher if kind is None else _Unhashed()  # (compressed: its bytes are hashed, not its data)
+        owns = path != "-" or kind is not None
+        stream = DataStream(first[consumed:], f, read, squeeze=squeeze, owns=owns, drop_last=drop)
+    layout.compression = kind
     return Capture(layout, stream, path if regular else None, hasher)  # a pipe is read once
+
+
+class _Unhashed:
+    """What a compressed capture's data is hashed with: nothing (its file's bytes are hashed)."""
+
+    def update(self, data: bytes, /) -> None:
+        pass
+
+    def hexdigest(self) -> str:
+        return ""
+
+
+def _opened(path: str, name: str) -> tuple[IO[bytes], bytes, Hasher, str | None, bool]:
+    """``path`` ('-': stdin) opened: (the file, its first block, the hash of the bytes read, its
+    compression or None, whether it is a regular file). A compressed file is its decompressed
+    data from here on (a stream's bytes hashed as the decompressor reads them)."""
+    try:
+        f: IO[bytes] = sys.stdin.buffer if path == "-" else open(path, "rb")  # noqa: SIM115
+    except FileNotFoundError:
+        raise InputError("no such file", file=name) from None
+    except IsADirectoryError:
+        raise InputError("is a directory, not a CSV file", file=name) from None
+    except OSError as err:
+        raise InputError(f"cannot open: {err.strerror}", file=name) from None
+    hasher = hashlib.sha256()
+    first = f.read(HEAD_BYTES)
+    hasher.update(first)
+    regular = path != "-" and stat.S_ISREG(os.fstat(f.fileno()).st_mode)  # not a pipe, FIFO or device
+    kind = compressed.kind_of(first)
+    if kind is None:
+        return f, first, hasher, kind, regular
+    if regular:
+        f.seek(0)
+        raw = f
+    else:
+        raw = io.BufferedReader(compressed.Replay(first, f, hasher.update))
+    data = compressed.reader(kind, raw, name)
+    try:
+        first = data.read(HEAD_BYTES)
+    except InputError:
+        if f is not sys.stdin.buffer:
+            data.close()
+        raise
+    return data, first, hasher, kind, regular
 
 
 def _incomplete(layout: Layout, line: bytes) -> bool:
@@ -487,7 +525,10 @@ def copy_rows(path: str, layout: Layout, spans: Sequence[tuple[int, int]], outpu
     """Write data rows ``first``..``last`` of each span to its output file, byte for byte, after
     the file's own preamble and header: each block a capture on its own. Atomic per file."""
 
-    data = np.fromfile(path, dtype=np.uint8)
+    if layout.compression is None:
+        data = np.fromfile(path, dtype=np.uint8)
+    else:  # the lines of its data
+        data = np.frombuffer(compressed.read_all(path), dtype=np.uint8)
     starts, ends = row_offsets(data, len(layout.head))
     for (first, last), output in zip(spans, outputs, strict=True):
         with atomic_output(output) as out:

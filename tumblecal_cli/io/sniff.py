@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tumblecal_cli.errors import InputError
+from tumblecal_cli.io import compressed
 from tumblecal_cli.io.readspec import Dialect
 
 HEAD_BYTES = 1 << 20  # the sniffer looks at this much of the file
@@ -103,6 +104,7 @@ class Layout:
     decimal: str = "."  # the decimal mark of the file's numbers ("," in European exports)
     time_unit: str | None = None  # the unit the time column's name gives (timestamp_ms), if any
     incomplete: bytes | None = None  # the last line, when it is cut short and dropped (--drop-incomplete)
+    compression: str | None = None  # gzip, bzip2, xz or zstd: the file's data read decompressed (io.compressed)
 
     @property
     def sensor_names(self) -> list[str]:
@@ -120,7 +122,7 @@ def sniff(name: str, first: bytes, *, at_eof: bool, no_header: bool, dialect: Di
             hint="is this a CSV capture?",
         )
     if b"\0" in first[:65536]:
-        raise InputError("binary data, not a CSV text file", file=name)
+        raise InputError("binary data, not a CSV text file", file=name, hint=compressed.binary_hint(name, first))
     bom = 3 if first.startswith(b"\xef\xbb\xbf") else 0
     try:
         # a multi-byte character may be cut at the end of the block: decode whole lines only

@@ -18,6 +18,7 @@ from tumblecal_cli.core import drift, model
 from tumblecal_cli.errors import InputError, TumblecalError
 from tumblecal_cli.io import calfile, capture, rewrite, sniff
 from tumblecal_cli.io.calfile import Calibration
+from tumblecal_cli.io.compressed import writing
 from tumblecal_cli.io.outputs import atomic_output, check_not_input, check_writable
 from tumblecal_cli.pipeline.cluster import engine
 from tumblecal_cli.pipeline.options import FileKeywords, file_spec, keywords_known, path_of
@@ -120,8 +121,8 @@ def correct(
                     hint="a calibration corrects three sensor columns: check its 'columns' field",
                 )
         said = len(cap.layout.notes)
-        with atomic_output(output, exclusive=options.get("exclusive", False)) as out:
-            rows = _stream(cap, out, c, more, note)
+        with atomic_output(output, exclusive=options.get("exclusive", False)) as out, writing(output, out) as sink:
+            rows = _stream(cap, sink, c, more, note)  # compressed when the output's name ends .gz, .bz2 ...
         for text in cap.layout.notes[said:]:  # found while reading (a cut last line dropped)
             note(text)
         used = [n for t in [cap.layout.sensor, *(t for t, _ in more)] for n in (cap.layout.names[i] for i in t)]

@@ -23,7 +23,7 @@ from tumblecal_cli.core import methods, model, solvers
 from tumblecal_cli.core import segment as seg_core
 from tumblecal_cli.core.segment import Block, Segmentation
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import capture, logread, readings, sources
+from tumblecal_cli.io import capture, compressed, logread, readings, sources
 from tumblecal_cli.io.outputs import WRITE_ERRORS, atomic_output, remove_stale, spreadsheet_safe, unsafe
 from tumblecal_cli.io.readings import Log, Samples
 from tumblecal_cli.io.readspec import ReadSpec
@@ -464,7 +464,8 @@ def _spool(source: IO[bytes], out: IO[bytes], log: str, spec: ReadSpec, limit: i
         if not more:
             break
         first += more
-    if sources.reader_for(out.name, lambda _: first[: sources.HEAD]) is None:  # read as CSV: checked as one
+    plain = compressed.kind_of(first) is None  # (compressed: its data is checked as it is read)
+    if plain and sources.reader_for(out.name, lambda _: first[: sources.HEAD]) is None:  # read as CSV: checked as one
         sniff(name, first, at_eof=len(first) < HEAD_BYTES, no_header=spec.no_header, dialect=spec.dialect)
     folder = os.path.dirname(out.name)
     bound = limit if limit is not None else _default_spool(folder)
