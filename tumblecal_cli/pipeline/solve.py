@@ -428,7 +428,7 @@ def _solve(name: str, poses: PoseSet, options: SolveOptions, given: Settings) ->
     )
     read = list(dict.fromkeys(n for s in samples for n in s.layout.notes))  # how the files were read
     said = read + log_notes + tilt_notes(cal) + list(fit.notes)
-    said += _solve_notes(stats, names, given.limits, solution.method)
+    said += _solve_notes(stats, names, given.limits, solution.method) + _units_notes(solution, options, ref)
     solved = Solved(0, cal, cal, [], failures, warned, said, samples=samples, limits=given.limits)
     if rejected:
         _reject(solved, rejected, limits)
@@ -584,6 +584,18 @@ def pose_record(s: Samples, m: PoseCheck, c: Corrected) -> Pose:
         norm_error=c.norm_error,
         vector_error=c.vector_error,
     )
+
+
+def _units_notes(solution: Solution, options: SolveOptions, reference: float) -> list[str]:
+    """An accelerometer's gains that change its data's units from m/s^2 into g (or back) without
+    a word of units from the user (--units, --input-units): one note (gate.units_note). Judged
+    gains that are a units mistake are an error instead (gate.check_gains)."""
+    if options.read.sensor != "accelerometer" or solution.method not in gate.GAIN_SOLVERS:
+        return []
+    if options.units is not None or options.input_units is not None:
+        return []
+    note = gate.units_note(solution.gain, reference)
+    return [] if note is None else [note]
 
 
 def _solve_notes(stats: list[PoseStats], names: list[str], limits: Limits, method: str) -> list[str]:
