@@ -270,7 +270,7 @@ def from_table(table: Table, name: str, spec: ReadSpec, *, use_time: bool, need_
         if hot.size:
             raise InputError(f"reading {int(hot[0]) + 1} has no temperature", file=name)
     clock = None if table.clock is None else np.asarray(table.clock, dtype=np.float64)
-    scale = TIME_SCALE[table.time_unit]
+    scale = TIME_SCALE[table.time_unit or "s"]
     if clock is not None and use_time:
         back = np.flatnonzero(np.diff(clock) < 0)
         if back.size or not np.isfinite(clock).all():

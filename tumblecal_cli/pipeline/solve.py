@@ -25,7 +25,7 @@ from tumblecal_cli.io.calfile import Pose
 from tumblecal_cli.pipeline import logs, rotations, turns
 from tumblecal_cli.pipeline import options as opts
 from tumblecal_cli.pipeline.exchange import tilt_notes
-from tumblecal_cli.pipeline.frames import read_pose, samples_of
+from tumblecal_cli.pipeline.frames import in_memory, read_pose, samples_of
 from tumblecal_cli.pipeline.options import SolveOptions, method_options, path_of, triplet
 
 if TYPE_CHECKING:
@@ -34,6 +34,7 @@ if TYPE_CHECKING:
     from tumblecal_cli.io import calfile
     from tumblecal_cli.io.calfile import Calibration, Pose
     from tumblecal_cli.io.readings import Samples
+    from tumblecal_cli.pipeline.frames import DataFrame
     from tumblecal_cli.pipeline.logs import Blocks
     from tumblecal_cli.pipeline.options import Settings, SolveOptions
 
@@ -94,11 +95,15 @@ def solve(poses: Poses, **options: object) -> Solved:
     return run(SolveOptions.of(options), poses=poses)
 
 
-def solve_log(log: str | os.PathLike[str], **options: object) -> Solved:
+def solve_log(log: str | os.PathLike[str] | DataFrame, **options: object) -> Solved:
     """Solve a calibration from one continuous log ('-': stdin), as ``tumblecal solve --log``:
-    the still blocks are found (or taken from ``pose_column``), the best of each face used."""
+    the still blocks are found (or taken from ``pose_column``), the best of each face used.
+    ``log`` may be its data in memory: a DataFrame, or an (n, 3) array (``rate=`` gives its
+    clock; (n, 4): t, x, y, z), read as its file would be."""
 
-    return run(SolveOptions.of(options), log=log)
+    told = SolveOptions.of(options)
+    with in_memory(log, "solve_log takes a log: a file, a DataFrame or an (n, 3) array") as path:
+        return run(told, log=path)
 
 
 def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.PathLike[str] | None = None) -> Solved:
