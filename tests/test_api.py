@@ -261,14 +261,14 @@ def test_paths_single_paths_and_calibrations_are_taken_where_a_file_is(tmp_path:
     assert list(tumblecal.read_capture(SAMPLE / "x.csv").columns) == ["t", "ax", "ay", "az"]
 
 
-def test_data_where_a_file_goes_is_an_input_error(tmp_path: Path) -> None:
+def test_data_that_cannot_be_read_is_an_input_error(tmp_path: Path) -> None:
     frame = tumblecal.read_capture(SAMPLE / "z.csv")
     cal = tumblecal.solve([SAMPLE / f"{a}.csv" for a in "xyz"]).calibration
     assert cal is not None
     for call in (
-        lambda: tumblecal.solve_log(frame),
-        lambda: tumblecal.verify([frame], cal),
-        lambda: tumblecal.correct(frame, cal),
+        lambda: tumblecal.solve_log(frame.drop(columns="az")),
+        lambda: tumblecal.verify([frame.assign(ay="a")], cal),
+        lambda: tumblecal.correct(frame.rename(columns={"ax": "a"}), cal),
         lambda: tumblecal.verify([], cal),
         lambda: tumblecal.solve({"+z": frame.assign(ax="a")}),
         lambda: cal.apply({"ax": [1.0]}),
@@ -278,6 +278,138 @@ def test_data_where_a_file_goes_is_an_input_error(tmp_path: Path) -> None:
             call()
     three = [tumblecal.read_capture(SAMPLE / f"{a}.csv") for a in "xyz"]
     assert tumblecal.solve(three).status == 0  # a list of data: labelled as three files are, +x +y +z
+
+
+# -- data in memory where a capture goes: every function that reads one ------------------------
+
+SESSION = SAMPLE / "imucal" / "session_every4th.csv"  # real, m/s^2, 25.6 Hz as kept here
+STILL = ROOT / "tests" / "data" / "xsens_acc_still.txt"  # real, still, headerless: t, x, y, z
+ACC = ["acc_x", "acc_y", "acc_z"]
+
+
+def _same_calibration(a: tumblecal.Solved, b: tumblecal.Solved) -> None:
+    assert a.calibration is not None
+    assert b.calibration is not None
+    assert a.calibration.method == b.calibration.method
+    np.testing.assert_allclose(a.calibration.offset, b.calibration.offset, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(a.calibration.matrix, b.calibration.matrix, rtol=0, atol=1e-12)
+
+
+def test_solve_log_takes_a_dataframe_or_an_array() -> None:
+    by_file = tumblecal.solve_log(SESSION, rate=25.6, reference=9.81)
+    frame = tumblecal.read_capture(SESSION)
+    by_frame = tumblecal.solve_log(frame, rate=25.6, reference=9.81)
+    _same_calibration(by_frame, by_file)
+    assert by_frame.calibration is not None
+    assert by_frame.calibration.columns == ACC
+    assert by_frame.calibration.poses[0].file == "<DataFrame>"
+    _same_calibration(tumblecal.solve_log(frame[ACC].to_numpy(), rate=25.6, reference=9.81), by_file)
+    timed = frame.assign(t=frame["n_samples"] / 102.4)  # (every 4th sample of 102.4 Hz) a clock, as in a file
+    _same_calibration(tumblecal.solve_log(timed, reference=9.81), by_file)
+
+
+def test_segment_takes_a_dataframe_or_an_array_with_a_rate(tmp_path: Path) -> None:
+    by_file = tumblecal.segment(SESSION, rate=25.6, out_dir=tmp_path / "file")
+    frame = tumblecal.read_capture(SESSION)
+    pd.testing.assert_frame_equal(tumblecal.segment(frame, rate=25.6).table(), by_file.table())
+    pd.testing.assert_frame_equal(tumblecal.segment(frame[ACC].to_numpy(), rate=25.6).table(), by_file.table())
+    written = tumblecal.segment(frame, rate=25.6, out_dir=tmp_path / "frame")
+    assert sorted(p.name for p in (tmp_path / "frame").iterdir()) == sorted(
+        p.name for p in (tmp_path / "file").iterdir()
+    )
+    for name in written.files.values():  # each block: the same readings (written as CSVs of the readings)
+        mine, theirs = (
+            tumblecal.read_capture(tmp_path / "frame" / name),
+            tumblecal.read_capture(tmp_path / "file" / name),
+        )
+        np.testing.assert_array_equal(mine[ACC].to_numpy(), theirs[ACC].to_numpy())
+    again = tumblecal.segment(frame, rate=25.6, out_dir=tmp_path / "frame")  # a second run replaces the first
+    assert again.removed == 0
+
+
+def test_noise_takes_a_dataframe_or_an_array() -> None:
+    by_file = tumblecal.noise(STILL, no_header=True)
+    frame = tumblecal.read_capture(STILL, no_header=True)
+    assert list(frame.columns) == ["t", "x", "y", "z"]
+    for data, options in ((frame, {}), (frame.to_numpy(), {}), (frame[["x", "y", "z"]].to_numpy(), {"rate": 100.0})):
+        got = tumblecal.noise(data, **options)  # type: ignore[arg-type]
+        assert (got.rate, got.samples, got.status) == (by_file.rate, by_file.samples, by_file.status)
+        np.testing.assert_allclose(got.curve.adev, by_file.curve.adev, rtol=1e-12, atol=0)
+    with pytest.raises(tumblecal.InputError, match=r"<array>: the sample rate is unknown"):
+        tumblecal.noise(frame[["x", "y", "z"]].to_numpy())
+
+
+def test_verify_takes_dataframes_and_arrays() -> None:
+    poses = [SAMPLE / f"{a}.csv" for a in "xyz"]
+    cal = tumblecal.solve(poses).calibration
+    assert cal is not None
+    by_file = tumblecal.verify(poses, cal).table()
+    frames = [tumblecal.read_capture(p) for p in poses]
+    mixed = tumblecal.verify([frames[0], frames[1][["ax", "ay", "az"]].to_numpy(), poses[2]], cal).table()
+    assert mixed["file"].tolist() == ["<DataFrame>", "<array>", str(poses[2])]
+    pd.testing.assert_frame_equal(mixed.drop(columns="file"), by_file.drop(columns="file"))
+    one = tumblecal.verify(frames[0], cal)
+    assert one.rows[0]["norm_after"] == by_file["norm_after"][0]
+
+
+def test_correct_takes_a_dataframe_or_an_array(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cal_path = tmp_path / "cal.json"
+    assert run(capsys, "solve", "--poses", *(SAMPLE / f"{a}.csv" for a in "xyz"), "-o", cal_path).code == 0
+    assert run(capsys, "apply", "--cal", cal_path, SAMPLE / "capture.csv", "-o", tmp_path / "cmd.csv").code == 0
+    by_command = tumblecal.read_capture(tmp_path / "cmd.csv")
+    frame = tumblecal.read_capture(SAMPLE / "capture.csv")
+    done = tumblecal.correct(frame, cal_path)
+    assert (done.capture, done.rows, done.columns, done.output) == ("<DataFrame>", 3000, ["ax", "ay", "az"], "")
+    pd.testing.assert_frame_equal(done.data, by_command)
+    arr = tumblecal.correct(frame[["ax", "ay", "az"]].to_numpy(), cal_path)
+    np.testing.assert_array_equal(arr.data, by_command[["ax", "ay", "az"]].to_numpy())
+    written = tumblecal.correct(frame, cal_path, output=tmp_path / "out.csv.gz")
+    assert written.output == str(tmp_path / "out.csv.gz")
+    pd.testing.assert_frame_equal(tumblecal.read_capture(tmp_path / "out.csv.gz"), by_command)
+    with pytest.raises(tumblecal.InputError, match="has no columns ax, ay, az"):
+        tumblecal.correct(frame.rename(columns={"ax": "a", "ay": "b", "az": "c"}), cal_path)
+
+
+@pytest.mark.parametrize(
+    ("data", "said"),
+    [
+        pytest.param(
+            lambda f: f.assign(acc_y=["abc", *f["acc_y"][1:]]),
+            "<DataFrame>: not a number: 'abc' (row 0, column acc_y)",
+            id="text",
+        ),
+        pytest.param(
+            lambda f: f.drop(columns="acc_z"),
+            "<DataFrame>: no accelerometer x,y,z columns found (columns: n_samples, gyr_x, gyr_y, gyr_z, acc_x, acc_y)",
+            id="missing",
+        ),
+        pytest.param(
+            lambda f: f.assign(acc_x=[None, *f["acc_x"][1:]]),
+            "<DataFrame>: empty sensor cell in a row whose other sensor cells are filled (row 0, column acc_x)",
+            id="partly-empty",
+        ),
+        pytest.param(
+            lambda f: f[["acc_x", "acc_y"]].to_numpy(),
+            "<array>: an array of readings is (n, 3): x, y, z, or (n, 4): t, x, y, z; got shape (2594, 2)",
+            id="array-shape",
+        ),
+    ],
+)
+def test_bad_data_in_memory_is_named_as_a_bad_file_is(data: Any, said: str) -> None:
+    frame = tumblecal.read_capture(SESSION)
+    for call in (tumblecal.solve_log, tumblecal.segment, tumblecal.noise):
+        with pytest.raises(tumblecal.InputError) as err:
+            call(data(frame), rate=25.6)
+        assert str(err.value) == said
+
+
+def test_rows_without_readings_are_left_out_as_a_file_s_are() -> None:
+    """All three sensor cells NaN: an interleaved log's row of another sensor, skipped."""
+    frame = tumblecal.read_capture(SESSION)
+    gaps = frame.copy()
+    gaps.loc[::7, ACC] = np.nan
+    by_frame = tumblecal.segment(gaps, rate=25.6)
+    assert len(by_frame.blocks.log.values) == len(frame) - len(frame[::7])
 
 
 def test_a_calibration_built_by_hand_applies() -> None:
@@ -309,8 +441,12 @@ POSES = [str(SAMPLE / f"{a}.csv") for a in "xyz"]
         ),
         pytest.param(lambda: tumblecal.read_capture(A_LIST), "not a list", id="read-list"),
         pytest.param(
-            lambda: tumblecal.segment(NOTHING), "segment reads a log file ('-': stdin), not a NoneType", id="segment"
+            lambda: tumblecal.segment(NOTHING),
+            "segment reads a log: a file ('-': stdin), a DataFrame or an (n, 3) array, not a NoneType",
+            id="segment",
         ),
+        pytest.param(lambda: tumblecal.noise(A_NUMBER), "noise reads a still capture: a file, a DataFrame", id="noise"),
+        pytest.param(lambda: tumblecal.solve_log(A_NUMBER), "solve_log takes a log: a file, a DataFrame", id="log"),
         pytest.param(lambda: tumblecal.import_peer(NOTHING), "import_peer reads a file of another tool", id="import"),
         pytest.param(lambda: tumblecal.run_batch(str(SAMPLE / "lot.csv"), NOTHING), "writes into a folder", id="batch"),
         pytest.param(

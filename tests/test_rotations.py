@@ -354,3 +354,21 @@ def test_a_clock_that_cannot_carry_the_turns_is_solved_at_the_rate_given(
     coarse = coarse_clock(hand_log, tmp_path / "coarse.csv")
     assert run("solve", "--sensor", "gyroscope", "--log", coarse, "--accel-cal", accel_cal, "--rate", "200",
                "-q", "-o", tmp_path / "rate.json").code == 0  # fmt: skip
+
+
+@pytest.mark.slow
+def test_hand_turns_from_a_dataframe_solve_and_verify_as_the_file(
+    hand_log: Path, hand_cal: tuple[Result, Path], accel_cal: Path
+) -> None:
+    """solve_log and verify_rotations take the log's data in memory: the accelerometer's and the
+    gyroscope's columns are found in one DataFrame as in one file."""
+    import tumblecal_cli as tumblecal
+
+    frame = tumblecal.read_capture(hand_log)
+    solved = tumblecal.solve_log(frame, sensor="gyroscope", accel_cal=accel_cal)
+    assert solved.calibration is not None
+    by_file = tumblecal.load(hand_cal[1])
+    np.testing.assert_allclose(solved.calibration.matrix, by_file.matrix, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(solved.calibration.offset, by_file.offset, rtol=0, atol=1e-12)
+    done = tumblecal.verify_rotations(frame, hand_cal[1], accel_cal=accel_cal)
+    assert done.overall == tumblecal.verify_rotations(hand_log, hand_cal[1], accel_cal=accel_cal).overall

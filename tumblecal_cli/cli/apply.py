@@ -39,7 +39,14 @@ def apply(
         ),
     ] = ...,  # type: ignore[assignment]
     output: Annotated[
-        str, typer.Option("--output", "-o", metavar="FILE", help="Corrected capture; '-' (the default) is stdout.")
+        str,
+        typer.Option(
+            "--output",
+            "-o",
+            metavar="FILE",
+            help="Corrected capture; '-' (the default) is stdout. A name ending .gz, .bz2, .xz or .zst is "
+            "written compressed.",
+        ),
     ] = "-",
     columns: Columns = None,
     no_header: NoHeader = False,

@@ -709,6 +709,34 @@ def check_gains(gain: FloatArray, reference: float, nominal: FloatArray, *, agai
     )
 
 
+#: Standard gravity in m/s^2: an accelerometer's gains this near it (or its inverse) are the
+#: data's units changed from m/s^2 into g (or back), not the sensor's own.
+STANDARD_GRAVITY = 9.80665
+#: How near: local gravity (9.78 to 9.83 m/s^2) and a sensor's gain error of a few % within it.
+UNITS_NOTE_TOLERANCE = 0.05
+
+
+def units_note(gain: FloatArray, reference: float) -> str | None:
+    """The note for gains that all sit near 9.81 with a reference of 1 (data in m/s^2 corrected
+    into g) or near 1/9.81 with a reference near 9.81 (data in g corrected into m/s^2): a units
+    change the station may not have meant, that no limit judged (check_gains: unjudged gains
+    are whatever scale the data needs). None for any other gains: data in the reference's units
+    (gains near 1), counts (16384), mg (1000)."""
+    gravity = STANDARD_GRAVITY
+    near_gravity = abs(reference / gravity - 1.0) <= 0.01
+    for expected, meant, other, ref_meant in ((gravity, "m/s^2", "g", 1.0), (1.0 / gravity, "g", "m/s^2", gravity)):
+        if not (reference == 1.0 if ref_meant == 1.0 else near_gravity):
+            continue
+        if bool((abs(gain / expected - 1.0) <= UNITS_NOTE_TOLERANCE).all()):
+            shown = ", ".join(f"{g:.4g}" for g in gain)
+            again = f"--reference {gravity:g} --units m/s^2" if meant == "m/s^2" else "--reference 1"
+            return (
+                f"the gains ({shown}) are about {expected:.3g}: the data looks like {meant}, corrected into {other} "
+                f"as --reference {reference:g} asks; for corrected data in {meant}, run with {again}"
+            )
+    return None
+
+
 @dataclass(frozen=True)
 class Recorded:
     """A pose as a calibration records it: its name (file, and block), face, mean (3,) and

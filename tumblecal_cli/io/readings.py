@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from tumblecal_cli.core.scan import log_index
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import sources
-from tumblecal_cli.io.capture import BLOCK_BYTES, Capture, open_capture, to_floats
+from tumblecal_cli.io.capture import BLOCK_BYTES, Capture, cast_floats, open_capture, to_floats, unquote
 from tumblecal_cli.io.readspec import Bound, ReadSpec
 from tumblecal_cli.io.sniff import (
     NUMBER,
@@ -28,6 +28,7 @@ from tumblecal_cli.io.sniff import (
     BoolArray,
     FloatArray,
     Layout,
+    bare,
     quoted,
 )
 from tumblecal_cli.io.sources import Table
@@ -197,7 +198,7 @@ def read_log(
         elif lay.time is not None and floats:  # None: a time cell that is not a number, the duration unknown
             t = np.concatenate(floats)[mask]
         temperature = _temperatures(cap, temps, mask) if temps else None
-        text = None if lay.extra is None else [str(labels[i] or "").strip() for i in used]
+        text = None if lay.extra is None else [bare(str(labels[i] or "")) for i in used]
         sha256 = cap.sha256() if digest else ""
     scale = TIME_SCALE.get(time_unit, 1.0)
     if t is not None:
@@ -305,7 +306,7 @@ def _as_floats(cap: Capture, column: pa.Array, floats: list[FloatArray]) -> list
     """``floats`` with one more block of a time column that is not judged (--rate), read as
     numbers; None once a cell is not a number (the duration is then unknown)."""
     try:
-        floats.append(to_floats(pc.cast(cap.pointed(column), pa.float64(), safe=False)))
+        floats.append(to_floats(cast_floats(cap.pointed(column), safe=False)))
     except pa.ArrowInvalid:
         return None
     return floats
@@ -340,7 +341,7 @@ def from_table(table: Table, name: str, spec: ReadSpec, *, use_time: bool, need_
         if hot.size:
             raise InputError(f"reading {int(hot[0]) + 1} has no temperature", file=name)
     clock = None if table.clock is None else np.asarray(table.clock, dtype=np.float64)
-    scale = TIME_SCALE[table.time_unit]
+    scale = TIME_SCALE[table.time_unit or "s"]
     if clock is not None and use_time:
         back = np.flatnonzero(np.diff(clock) < 0)
         if back.size or not np.isfinite(clock).all():
@@ -383,7 +384,7 @@ def _temperatures(cap: Capture, temps: list[FloatArray] | list[pa.Array], mask: 
         out: FloatArray = np.concatenate(temps)[mask]
         return out
     try:
-        floats = [to_floats(pc.cast(cap.pointed(c), pa.float64(), safe=False)) for c in temps]
+        floats = [to_floats(cast_floats(cap.pointed(c), safe=False)) for c in temps]
     except pa.ArrowInvalid:
         return None
     found: FloatArray = np.concatenate(floats)[mask]
@@ -475,7 +476,7 @@ def block_rate(cap: Capture, column: pa.Array, empty: BoolArray, unit: str) -> f
     """Samples per second from one block's time column (its median step, in the unit
     ``time_scale`` finds), to 9 digits: a still capture's rate when no --rate is given."""
     try:
-        clock = to_floats(pc.cast(cap.pointed(column), pa.float64()))
+        clock = to_floats(cast_floats(cap.pointed(column)))
     except pa.ArrowInvalid:
         raise InputError(
             "the time column holds a cell that is not a number", file=cap.layout.name, hint="give --rate HZ"
@@ -503,9 +504,9 @@ def _times(cap: Capture, times: list[tuple[int, pa.Array]], mask: BoolArray | No
     for first_row, text in times:
         text = cap.pointed(text)
         try:
-            parts.append(to_floats(pc.cast(text, pa.float64())))
+            parts.append(to_floats(cast_floats(text)))
         except pa.ArrowInvalid:
-            ok = pc.match_substring_regex(pc.utf8_trim_whitespace(text), NUMBER)
+            ok = pc.match_substring_regex(pc.utf8_trim_whitespace(unquote(text)), NUMBER)
             i = int(pc.index(ok, False).as_py())
             line = cap._line_of_row(first_row + i)
             raise InputError(

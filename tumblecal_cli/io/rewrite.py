@@ -181,13 +181,13 @@ def splicer_for(
 ) -> Splicer | None:
     """An ``io.splice.Splicer`` for ``cap`` (its arguments), when its lines can be spliced: a
     one-character delimiter, LF or CRLF line ends, and read as a regular file by pyarrow (or,
-    with ``stream``, as a stream: stdin, a pipe); else None (whitespace-separated, CR line ends,
-    a cut last line left out: the general rules)."""
+    with ``stream``, as a stream: stdin, a pipe, a compressed file's data); else None
+    (whitespace-separated, CR line ends, a cut last line left out: the general rules)."""
 
     lay = cap.layout
     if lay.delimiter is None or len(lay.delimiter) != 1 or lay.eol not in ("\n", "\r\n"):
         return None
-    if stream and (cap._path is not None or not isinstance(cap._stream, DataStream)):
+    if stream and ((cap._path is not None and lay.compression is None) or not isinstance(cap._stream, DataStream)):
         return None
     if not stream and (cap._path is None or not isinstance(cap._stream, pa.OSFile)):
         return None
@@ -293,7 +293,7 @@ class _Rest(Capture):
     """The rest of a stream after ``before`` data rows were spliced: its messages count from the first."""
 
     def __init__(self, cap: Capture, stream: Source, before: int) -> None:
-        super().__init__(cap.layout, stream, None, cap._hasher)
+        super().__init__(cap.layout, stream, cap._path, cap._hasher)  # (a path: a compressed file's)
         self._before = before
 
     def _locate(self, row: int, sensor_j: int, what: str, triplet: tuple[int, int, int] | None = None) -> InputError:

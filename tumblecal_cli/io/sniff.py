@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tumblecal_cli.errors import InputError
+from tumblecal_cli.io import compressed
 from tumblecal_cli.io.readspec import Dialect
 
 HEAD_BYTES = 1 << 20  # the sniffer looks at this much of the file
@@ -103,6 +104,7 @@ class Layout:
     decimal: str = "."  # the decimal mark of the file's numbers ("," in European exports)
     time_unit: str | None = None  # the unit the time column's name gives (timestamp_ms), if any
     incomplete: bytes | None = None  # the last line, when it is cut short and dropped (--drop-incomplete)
+    compression: str | None = None  # gzip, bzip2, xz or zstd: the file's data read decompressed (io.compressed)
 
     @property
     def sensor_names(self) -> list[str]:
@@ -120,7 +122,7 @@ def sniff(name: str, first: bytes, *, at_eof: bool, no_header: bool, dialect: Di
             hint="is this a CSV capture?",
         )
     if b"\0" in first[:65536]:
-        raise InputError("binary data, not a CSV text file", file=name)
+        raise InputError("binary data, not a CSV text file", file=name, hint=compressed.binary_hint(name, first))
     bom = 3 if first.startswith(b"\xef\xbb\xbf") else 0
     try:
         # a multi-byte character may be cut at the end of the block: decode whole lines only
@@ -229,7 +231,7 @@ def _decimal(layout: Layout, rows: Sequence[str], given: str | None) -> str:
         )
     if given is not None or layout.delimiter == ",":
         return given or "."
-    cells = [c for ln in rows for c in split_fields(ln, layout.delimiter)]
+    cells = [bare(c) for ln in rows for c in split_fields(ln, layout.delimiter)]
     commas = [c for c in cells if "," in c]
     if commas and all(COMMA_NUMBER.match(c) for c in commas) and not any("." in c for c in cells):
         layout.notes.append(f"{layout.name}: numbers with a decimal comma (e.g. {commas[0].strip()!r}) read as such")
@@ -252,10 +254,17 @@ def _detect_delimiter(lines: Sequence[str]) -> str | None:
     if best and best[2] == ",":  # 0,01;1,0;-0,5: the commas are decimal marks of a ; or tab separated file
         for cand in ("\t", ";"):
             if len({ln.count(cand) for ln in lines}) == 1 and lines[0].count(cand) >= 2:
-                cells = [c for ln in lines for c in ln.split(cand) if "," in c]
+                cells = [bare(c) for ln in lines for c in ln.split(cand) if "," in c]
                 if all(COMMA_NUMBER.match(c) for c in cells):
                     return cand
     return best[2] if best else None
+
+
+def bare(cell: str) -> str:
+    """A cell's text without the blanks around it and the double quotes around those: some
+    loggers and spreadsheet exports write every cell in quotes (``"1.033358"``)."""
+    text = cell.strip()
+    return text[1:-1].strip() if len(text) >= 2 and text[0] == text[-1] == '"' else text
 
 
 def skipped(line: str) -> bool:

@@ -33,7 +33,7 @@ class Table:
     names: tuple[str, str, str]
     values: FloatArray
     clock: FloatArray | None = None
-    time_unit: str = "s"
+    time_unit: str | None = "s"  # None: not known, judged as a CSV's time column is (readings.time_scale)
     temperature: FloatArray | None = None
     labels: list[str] | None = None
     sha256: str = ""
@@ -140,10 +140,33 @@ READERS: list[Reader] = [
 ]
 #: How much of a file a reader is shown to claim it.
 HEAD = 64
+#: Readings in memory (the Python API's DataFrames and arrays) are a source too: each held here
+#: under a name in angle brackets (``<DataFrame>``) for the length of one call, with what makes
+#: its table for a spec (the sensor and columns it asks for) and a label column
+#: (pipeline.frames.in_memory). No file is opened for these names.
+MEMORY: dict[str, Callable[[ReadSpec, str | None], Table]] = {}
+
+
+class _InMemory:
+    """The Reader of the names in MEMORY."""
+
+    def claims(self, path: str, head: bytes) -> bool:
+        return path in MEMORY
+
+    def streams(self, path: str) -> list[Stream]:
+        return []  # its columns are its one stream, as a CSV's
+
+    def read(self, path: str, spec: ReadSpec, label_column: str | None) -> Table:
+        return MEMORY[path](spec, label_column)
+
+
+IN_MEMORY = _InMemory()
 
 
 def reader_for(path: str, opener: Callable[[str], bytes] | None = None) -> Reader | None:
     """The reader that claims ``path`` (None: a CSV capture, or stdin: CSV is what a pipe holds)."""
+    if path in MEMORY:
+        return IN_MEMORY
     if path == "-" or not READERS:
         return None
     try:
@@ -180,7 +203,7 @@ def streams(path: str) -> list[Stream]:
 def stream_of(path: str, spec: ReadSpec) -> Stream | None:
     """The stream of ``path`` that ``spec`` reads (None: a CSV capture, or stdin)."""
     reader = reader_for(path)
-    return None if reader is None else pick(path, reader.streams(path), spec)
+    return None if reader is None or reader is IN_MEMORY else pick(path, reader.streams(path), spec)
 
 
 def parse_stream(text: str) -> tuple[str, int | None]:

@@ -9,9 +9,10 @@ number of columns.
 
 It takes a block only when every line is plain: the header's number of delimiters on every
 line, one line ending throughout (the file's), no ``#``, valid UTF-8, sensor cells that are
-numbers or all empty in a row. ``Splicer.block`` returns None for anything else, and the
-caller reads that block by the general rules (``rewrite.correct_stream``), which also make
-every error message: what this path writes is what the general path writes, byte for byte.
+numbers (``1.5`` or ``"1.5"``) or all empty in a row. ``Splicer.block`` returns None for
+anything else, and the caller reads that block by the general rules (``rewrite.correct_stream``),
+which also make every error message: what this path writes is what the general path writes,
+byte for byte.
 
 Floats are spelled as pyarrow's cast spells them (shortest round-trip digits; ``1e-7``,
 ``1e+10``, ``0.00001``, ``2``). orjson spells them alike wherever 1e-5 <= |x| < 1e10 and x is
@@ -191,6 +192,8 @@ class Splicer:
             bits = pa.py_buffer(np.packbits(valid, bitorder="little"))
         else:
             bits = _every_other_bit(2 * m - 1)
+        if b'"' in buf:  # numbers in double quotes ("1.5"): the text inside them is parsed
+            cells = _inside_quotes(buf, cells)
         # cell, gap, cell, gap ...: the gaps null, so that the cast parses the cells alone, in place
         pieces = pa.Array.from_buffers(pa.string(), 2 * m - 1, [bits, pa.py_buffer(cells.ravel()), pa.py_buffer(buf)])
         if self.decimal != ".":
@@ -285,6 +288,19 @@ def _splice(
     out = pc.take(whole, _ints(order))
     at = _offsets(out)
     return memoryview(out.buffers()[2])[at[0] : at[-1]]
+
+
+def _inside_quotes(buf: bytes, cells: Offsets) -> Offsets:
+    """The cells' offsets (n, 2 x parsed), a cell in double quotes (``"1.5"``) taken as the text
+    inside them (to parse: the new text replaces the whole cell, its quotes too)."""
+    data = np.frombuffer(buf, dtype=np.uint8)
+    start, end = cells[:, 0::2], cells[:, 1::2]
+    last = len(buf) - 1
+    quoted = (end - start >= 2) & (data[np.minimum(start, last)] == 34) & (data[np.maximum(end - 1, 0)] == 34)
+    inside = cells.copy()
+    inside[:, 0::2] += quoted
+    inside[:, 1::2] -= quoted
+    return inside
 
 
 def _as_slice(where: list[int]) -> Columns:

@@ -7,19 +7,27 @@ sensor columns become ``M (raw - offset)`` (``core.model.apply``).
 from __future__ import annotations
 
 import contextlib
+import csv
 import glob
+import io
 import os
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from functools import partial
 from typing import IO, TYPE_CHECKING, Unpack
 
+import numpy as np
+import pyarrow as pa
+import pyarrow.csv as pcsv
+
 from tumblecal_cli.core import drift, model
 from tumblecal_cli.errors import InputError, TumblecalError
 from tumblecal_cli.io import calfile, capture, rewrite, sniff
 from tumblecal_cli.io.calfile import Calibration
+from tumblecal_cli.io.compressed import writing
 from tumblecal_cli.io.outputs import atomic_output, check_not_input, check_writable
 from tumblecal_cli.pipeline.cluster import engine
+from tumblecal_cli.pipeline.frames import is_data
 from tumblecal_cli.pipeline.options import FileKeywords, file_spec, keywords_known, path_of
 
 if TYPE_CHECKING:
@@ -29,6 +37,7 @@ if TYPE_CHECKING:
     from tumblecal_cli.io.readspec import ReadSpec
     from tumblecal_cli.io.sniff import Layout
     from tumblecal_cli.io.splice import Correct
+    from tumblecal_cli.pipeline.frames import DataFrame
 
 
 @dataclass
@@ -38,8 +47,9 @@ class Applied:
     capture: str
     rows: int
     columns: list[str]
-    output: str
+    output: str  # "" when none was written (data in memory: its corrected copy is ``data``)
     notes: list[str] = field(default_factory=list)
+    data: DataFrame = None  # the corrected DataFrame or array, for data in memory
 
 
 class CorrectKeywords(FileKeywords, total=False):
@@ -52,7 +62,7 @@ class CorrectKeywords(FileKeywords, total=False):
 
 
 def correct(
-    capture: str | os.PathLike[str],
+    capture: str | os.PathLike[str] | DataFrame,
     cal: Calibration | str | os.PathLike[str] | Sequence[Calibration | str | os.PathLike[str]],
     **options: Unpack[CorrectKeywords],
 ) -> Applied:
@@ -60,11 +70,15 @@ def correct(
     ``cal`` is one calibration (a file, or a Calibration) or several (one per sensor of the
     capture). ``on_note`` hears each note as it is found, before the capture is streamed.
     ``exclusive``: an ``output`` that exists, or appears while the capture is corrected, is an
-    error and is left as it is (``--out-dir`` never replaces a file)."""
+    error and is left as it is (``--out-dir`` never replaces a file). ``capture`` may be data in
+    memory, a DataFrame or an (n, 3) array: ``Applied.data`` is it corrected (written as a CSV to
+    ``output`` only when one is named)."""
 
     keywords_known(options, CorrectKeywords, "correct")
     output, force, on_note = options.get("output", "-"), options.get("force", False), options.get("on_note")
-    capture = path_of(capture, "correct streams a capture file (data in memory: Calibration.apply)")
+    if is_data(capture):
+        return _correct_data(capture, cal, options)
+    capture = path_of(capture, "correct takes a capture: a file, a DataFrame or an (n, 3) array")
     paths = _calibrations(cal)
     if "-" in paths and capture == "-":
         raise InputError("--cal - and the capture cannot both be read from stdin", hint="give the capture as a file")
@@ -82,11 +96,7 @@ def correct(
         if on_note is not None:
             on_note(text)
 
-    for c in cals:
-        if c.failed and not force:
-            calfile.refuse_failed(c, "correct with it", "apply")
-        if c.failed:
-            note(f"{c.path}: this unit failed its limits; correcting with it as --force asks")
+    trusted(cals, force, note)
     spec = file_spec(options)
     picked = spec.columns
     if picked and len(cals) > 1:
@@ -120,12 +130,56 @@ def correct(
                     hint="a calibration corrects three sensor columns: check its 'columns' field",
                 )
         said = len(cap.layout.notes)
-        with atomic_output(output, exclusive=options.get("exclusive", False)) as out:
-            rows = _stream(cap, out, c, more, note)
+        with atomic_output(output, exclusive=options.get("exclusive", False)) as out, writing(output, out) as sink:
+            rows = _stream(cap, sink, c, more, note)  # compressed when the output's name ends .gz, .bz2 ...
         for text in cap.layout.notes[said:]:  # found while reading (a cut last line dropped)
             note(text)
         used = [n for t in [cap.layout.sensor, *(t for t, _ in more)] for n in (cap.layout.names[i] for i in t)]
     return Applied(cap.layout.name, rows, used, output, notes)
+
+
+def trusted(cals: list[Calibration], force: bool, note: Callable[[str], None]) -> None:
+    """A calibration whose unit failed its limits is refused, unless ``force`` (then a note)."""
+    for c in cals:
+        if c.failed and not force:
+            calfile.refuse_failed(c, "correct with it", "apply")
+        if c.failed:
+            note(f"{c.path}: this unit failed its limits; correcting with it as --force asks")
+
+
+def _correct_data(data: DataFrame, cal: object, options: CorrectKeywords) -> Applied:
+    """correct on data in memory: its corrected copy in ``Applied.data`` (a DataFrame's other
+    columns, index and dtypes untouched: Calibration.apply, each calibration its own columns),
+    written as a CSV to ``output`` too when one is named (atomically; compressed by its name)."""
+    cals = [calfile.resolve(path) for path in _calibrations(cal)]
+    claims_once(cals)
+    notes: list[str] = []
+    on_note = options.get("on_note")
+
+    def note(text: str) -> None:
+        notes.append(text)
+        if on_note is not None:
+            on_note(text)
+
+    trusted(cals, options.get("force", False), note)
+    array = isinstance(data, np.ndarray)
+    if array and len(cals) > 1:
+        raise InputError("an array holds one sensor's readings: correct it with one calibration")
+    fixed = data
+    for c in cals:
+        fixed = c.apply(fixed)
+    output = os.fspath(options.get("output", "-"))
+    if output != "-":  # (for data in memory '-' is no file: the corrected data is returned)
+        check_writable(output)
+        table = pa.table({n: fixed[:, j] for j, n in enumerate("xyz")}) if array else pa.Table.from_pandas(fixed)
+        header = io.StringIO()
+        csv.writer(header, lineterminator="\n").writerow(table.column_names)  # (pyarrow would quote every name)
+        with atomic_output(output, exclusive=options.get("exclusive", False)) as out, writing(output, out) as sink:
+            sink.write(header.getvalue().encode())
+            pcsv.write_csv(table, sink, pcsv.WriteOptions(include_header=False))
+    name = "<array>" if array else "<DataFrame>"
+    written = "" if output == "-" else output
+    return Applied(name, len(fixed), [n for c in cals for n in c.columns], written, notes, data=fixed)
 
 
 def expand(patterns: list[str]) -> list[str]:

@@ -6,20 +6,26 @@ through its own methods.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import io
+import itertools
 import os
+import threading
+from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import capture, readings, sniff
+from tumblecal_cli.io import capture, readings, sniff, sources
 from tumblecal_cli.io.outputs import unsafe
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.pipeline.options import path_of
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from tumblecal_cli.io.readings import Samples
     from tumblecal_cli.pipeline.options import SolveOptions
 
@@ -27,6 +33,140 @@ if TYPE_CHECKING:
 DataFrame: TypeAlias = Any
 #: A JSON object the Python API returns (``to_dict``): read by key, each value what README's format says.
 JSONObject: TypeAlias = dict[str, Any]
+
+
+def is_data(value: object) -> bool:
+    """Whether ``value`` is readings in memory: a DataFrame (duck-typed: pandas is not imported
+    for it) or a numpy array."""
+    return isinstance(value, np.ndarray) or (hasattr(value, "columns") and hasattr(value, "iloc"))
+
+
+_HELD = threading.Lock()  # (names are taken and given back from any thread: batch, Dask workers)
+
+
+@contextlib.contextmanager
+def in_memory(data: object, what: str) -> Iterator[str]:
+    """``data`` where a capture's path goes, for the block: a path (text or os.PathLike) as it is;
+    a DataFrame or an (n, k) array held as a source (io.sources.MEMORY) under ``<DataFrame>`` or
+    ``<array>`` (``<DataFrame 2>`` ... when that is taken), read by the CSV rules (``table_of``);
+    anything else an InputError saying ``what``."""
+    if not is_data(data):
+        yield path_of(data, what)
+        return
+    kind = "array" if isinstance(data, np.ndarray) else "DataFrame"
+    with _HELD:
+        name = next(n for k in itertools.count(1) if (n := f"<{kind}{f' {k}' if k > 1 else ''}>") not in sources.MEMORY)
+        sources.MEMORY[name] = _maker(data, name)
+    try:
+        yield name
+    finally:
+        with _HELD:
+            del sources.MEMORY[name]
+
+
+def _maker(data: DataFrame, name: str) -> Callable[[ReadSpec, str | None], sources.Table]:
+    def make(spec: ReadSpec, label_column: str | None) -> sources.Table:
+        return table_of(data, name, spec, label_column)
+
+    return make
+
+
+def table_of(data: DataFrame, name: str, spec: ReadSpec, label_column: str | None = None) -> sources.Table:
+    """The readings of a DataFrame (or an (n, k) array) by the rules a file's are read by: the
+    sensor columns found by their names as a header's are (an array's: 3 columns are x, y, z, 4
+    are t, x, y, z, as a headerless file's), the time, temperature and label columns likewise;
+    rows whose sensor cells are all NaN left out (an empty row of an interleaved log). A cell
+    that is not a number, or a row with some sensor cells empty, is an InputError naming its
+    row and column; ``name`` is how messages name the data."""
+    frame = not isinstance(data, np.ndarray)
+    if frame:
+        names, index = [str(c) for c in data.columns], data.index
+    else:
+        k = data.shape[1] if data.ndim == 2 else 0
+        if k not in (3, 4) and not spec.columns:
+            raise InputError(
+                f"an array of readings is (n, 3): x, y, z, or (n, 4): t, x, y, z; got shape {data.shape}",
+                file=name,
+                hint="name its sensor columns by their indices: columns='0,1,2'",
+            )
+        names, index = (
+            ["x", "y", "z"] if k == 3 else ["t", "x", "y", "z"] if k == 4 else [str(j) for j in range(k)],
+            None,
+        )
+    lay = sniff.Layout(name, ",", names, frame, b"", 1, "\n")
+    lay.sensor, lay.time = sniff.pick_columns(lay, spec.sensor, spec.columns, spec.prefer, spec.time_column)
+    if spec.temperature_column is not None:
+        lay.temperature = sniff.column_index(lay, spec.temperature_column, "--temperature-column")
+    else:
+        lay.temperature = next((j for j, n in enumerate(names) if n.lower() in sniff.TEMPERATURE_NAMES), None)
+    if label_column is not None:
+        lay.extra = sniff.column_index(lay, label_column, "column")
+    sniff.no_column_twice(lay, spec.sensor, spec.columns, spec.prefer, spec.time_column, spec.temperature_column)
+
+    def column(j: int) -> DataFrame:  # a Series, or an array's column
+        return data.iloc[:, j] if frame else data[:, j]
+
+    values = np.column_stack([numbers(column(j), names[j], name, index) for j in lay.sensor])
+    blank = np.isnan(values)
+    kept = ~blank.all(axis=1)
+    partly = np.flatnonzero(blank.any(axis=1) & kept)
+    if partly.size:
+        i = int(partly[0])
+        j = lay.sensor[int(np.argmax(blank[i]))]
+        where = f"row {index[i]!r}" if index is not None else f"row {i}"
+        raise InputError(
+            f"empty sensor cell in a row whose other sensor cells are filled ({where}, column {names[j]})", file=name
+        )
+
+    def other(j: int | None) -> sniff.FloatArray | None:
+        return None if j is None else numbers(column(j), names[j], name, index)[kept]
+
+    labels = None
+    if lay.extra is not None:
+        cells = list(column(lay.extra))
+        labels = ["" if _missing(cells[i]) else sniff.bare(str(cells[i])) for i in np.flatnonzero(kept)]
+    values = values[kept]
+    return sources.Table(
+        (names[lay.sensor[0]], names[lay.sensor[1]], names[lay.sensor[2]]),
+        values,
+        clock=other(lay.time),
+        time_unit=None if lay.time is None else sniff.unit_of_name(names[lay.time]),
+        temperature=other(lay.temperature),
+        labels=labels,
+        sha256=hashlib.sha256(np.ascontiguousarray(values).tobytes()).hexdigest(),
+    )
+
+
+def numbers(cells: DataFrame, column: str, name: str, index: DataFrame = None) -> sniff.FloatArray:
+    """A DataFrame's column (or an array's) as float64, NaN where it is empty: a cell that is not a
+    number is an InputError naming it, its row (``index``: the DataFrame's) and ``column``."""
+    out: sniff.FloatArray
+    try:
+        if hasattr(cells, "to_numpy"):
+            out = np.asarray(cells.to_numpy(dtype=np.float64, na_value=np.nan), dtype=np.float64)
+        else:
+            out = np.asarray(cells, dtype=np.float64)
+        return out
+    except (TypeError, ValueError):
+        pass
+    listed = list(cells.tolist())
+    for i, cell in enumerate(listed):
+        try:
+            float(cell)
+        except (TypeError, ValueError):
+            if _missing(cell):
+                continue
+            where = f"row {index[i]!r}" if index is not None else f"row {i}"
+            raise InputError(f"not a number: {sniff.quoted(cell)} ({where}, column {column})", file=name) from None
+    raise InputError(f"not numbers (column {column})", file=name)
+
+
+def _missing(cell: object) -> bool:
+    """Whether a cell is empty: None, NaN, pandas.NA (whose comparisons are NA: no truth value)."""
+    try:
+        return bool(cell is None or cell != cell)
+    except TypeError:
+        return True
 
 
 def samples_of(label: str, data: DataFrame, options: SolveOptions) -> Samples:
@@ -42,7 +182,7 @@ def samples_of(label: str, data: DataFrame, options: SolveOptions) -> Samples:
             names = [str(c) for c in data.columns]
             triplet = sniff.sensor_triplet(names, sensor=options.read.sensor, columns=options.read.columns, name=name)
             picked = [names[i] for i in triplet]
-            values = np.asarray(data.iloc[:, list(triplet)].to_numpy(dtype=np.float64, na_value=np.nan))
+            values = np.column_stack([numbers(data.iloc[:, i], names[i], name, data.index) for i in triplet])
         else:
             values = np.asarray(data, dtype=np.float64)
     except (TypeError, ValueError) as err:

@@ -23,12 +23,12 @@ from tumblecal_cli.core import methods, model, solvers
 from tumblecal_cli.core import segment as seg_core
 from tumblecal_cli.core.segment import Block, Segmentation
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import capture, logread, readings, sources
+from tumblecal_cli.io import capture, compressed, logread, readings, sources
 from tumblecal_cli.io.outputs import WRITE_ERRORS, atomic_output, remove_stale, spreadsheet_safe, unsafe
 from tumblecal_cli.io.readings import Log, Samples
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.io.sniff import HEAD_BYTES, sniff
-from tumblecal_cli.pipeline.frames import written_table
+from tumblecal_cli.pipeline.frames import in_memory, written_table
 from tumblecal_cli.pipeline.options import (
     ReadKeywords,
     keywords_known,
@@ -471,7 +471,8 @@ def _spool(source: IO[bytes], out: IO[bytes], log: str, spec: ReadSpec, limit: i
         if not more:
             break
         first += more
-    if sources.reader_for(out.name, lambda _: first[: sources.HEAD]) is None:  # read as CSV: checked as one
+    plain = compressed.kind_of(first) is None  # (compressed: its data is checked as it is read)
+    if plain and sources.reader_for(out.name, lambda _: first[: sources.HEAD]) is None:  # read as CSV: checked as one
         sniff(name, first, at_eof=len(first) < HEAD_BYTES, no_header=spec.no_header, dialect=spec.dialect)
     folder = os.path.dirname(out.name)
     bound = limit if limit is not None else _default_spool(folder)
@@ -582,19 +583,31 @@ class SegmentKeywords(ReadKeywords, total=False):
 
 
 def segment(
-    log: str,
+    log: str | os.PathLike[str] | DataFrame,
     *,
-    out_dir: str | None = None,
+    out_dir: str | os.PathLike[str] | None = None,
     on_blocks: Callable[[Blocks, dict[int, str]], None] | None = None,
     **options: Unpack[SegmentKeywords],
 ) -> Segmented:
     """Find the still blocks of a continuous log ('-': stdin), and with ``out_dir`` write each
     kept block as a CSV of its own (the log's header and rows, unchanged) and segments.csv, the
     index. ``on_blocks`` sees the blocks as soon as they are found, before they are judged
-    (none kept is exit 3; whether the faces kept are enough is solve's to judge) or written."""
+    (none kept is exit 3; whether the faces kept are enough is solve's to judge) or written.
+    ``log`` may be its data in memory: a DataFrame, or an (n, 3) array (``rate=`` gives its
+    clock; (n, 4): t, x, y, z), whose blocks are written as CSVs of their readings."""
 
     keywords_known(options, SegmentKeywords, "segment")
-    log = path_of(log, "segment reads a log file ('-': stdin)")
+    with in_memory(log, "segment reads a log: a file ('-': stdin), a DataFrame or an (n, 3) array") as path:
+        return _segment(path, out_dir, on_blocks, options)
+
+
+def _segment(
+    log: str,
+    out_dir: str | os.PathLike[str] | None,
+    on_blocks: Callable[[Blocks, dict[int, str]], None] | None,
+    options: SegmentKeywords,
+) -> Segmented:
+    """segment on a log's path (or the name its data in memory is held under)."""
     max_noise, max_tilt = options.get("max_noise", 0.02), options.get("max_tilt", 25.0)
     nominal_offset = options.get("nominal_offset")
     if out_dir is not None:
@@ -663,8 +676,7 @@ def _write_blocks(log: str, path: str, found: Blocks, files: dict[int, str], ind
     data, seg = found.log, found.seg
     if log != "-":
         for f in [*files.values(), "segments.csv"]:
-            check_path = os.path.join(out_dir, f)
-            if os.path.exists(check_path) and os.path.samefile(check_path, log):
+            if _same_file(os.path.join(out_dir, f), log):
                 raise InputError(f"--out-dir would overwrite the input with {f}", file=log)
     ours, listed = earlier_run(out_dir)
     foreign = [
@@ -681,7 +693,7 @@ def _write_blocks(log: str, path: str, found: Blocks, files: dict[int, str], ind
     earlier = {
         name
         for name in listed - set(files.values())
-        if log == "-" or not os.path.samefile(os.path.join(out_dir, name), log)  # never the log itself
+        if not _same_file(os.path.join(out_dir, name), log)  # never the log itself
     }
     created = not os.path.isdir(out_dir)
     os.makedirs(out_dir, exist_ok=True)
@@ -717,6 +729,14 @@ def _write_blocks(log: str, path: str, found: Blocks, files: dict[int, str], ind
         with contextlib.suppress(FileNotFoundError):
             os.unlink(os.path.join(out_dir, name))
     return len(earlier)
+
+
+def _same_file(path: str, log: str) -> bool:
+    """Whether ``path`` is the log's file (stdin, or data in memory, is no file)."""
+    try:
+        return log != "-" and os.path.samefile(path, log)
+    except OSError:
+        return False
 
 
 #: The name a segment run's staging folder starts with (inside --out-dir).

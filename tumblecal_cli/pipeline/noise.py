@@ -22,14 +22,15 @@ from tumblecal_cli.core.model import apply
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import calfile, capture, documents, limitfile, readings, sniff, sources
 from tumblecal_cli.io.outputs import atomic_output
-from tumblecal_cli.pipeline.options import ReadKeywords, keywords_known, path_of, read_spec
+from tumblecal_cli.pipeline.frames import in_memory
+from tumblecal_cli.pipeline.options import ReadKeywords, keywords_known, read_spec
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfile import Calibration
     from tumblecal_cli.io.readings import Log
     from tumblecal_cli.io.readspec import ReadSpec
-    from tumblecal_cli.pipeline.frames import JSONObject
+    from tumblecal_cli.pipeline.frames import DataFrame, JSONObject
 
 #: Units a calibration may name, and what one of them is in SI (m/s^2 or rad/s).
 TO_SI = {
@@ -208,12 +209,20 @@ class NoiseKeywords(ReadKeywords, total=False):
 
 
 def noise(
-    capture: str | os.PathLike[str],
+    capture: str | os.PathLike[str] | DataFrame,
     **options: Unpack[NoiseKeywords],
 ) -> Noise:
-    """The Allan deviation of a still capture and its noise figures (README "tumblecal noise")."""
+    """The Allan deviation of a still capture and its noise figures (README "tumblecal noise").
+    ``capture`` may be its data in memory: a DataFrame (its time column gives the rate), or an
+    (n, 3) array with ``rate=`` ((n, 4): t, x, y, z), read as its file would be."""
 
     keywords_known(options, NoiseKeywords, "noise")
+    with in_memory(capture, "noise reads a still capture: a file, a DataFrame or an (n, 3) array") as path:
+        return _noise(path, options)
+
+
+def _noise(path: str, options: NoiseKeywords) -> Noise:
+    """noise on a capture's path (or the name its data in memory is held under)."""
     rate, cal, units, kalibr = (
         options.get("rate"),
         options.get("cal"),
@@ -221,7 +230,6 @@ def noise(
         options.get("kalibr", False),
     )
     per_octave = options.get("per_octave", 1)
-    path = path_of(capture, "noise reads a still capture from a file")
     if rate is not None and not (math.isfinite(rate) and rate > 0):
         raise InputError(f"--rate must be a positive number of Hz, got {rate:g}")
     if not 1 <= per_octave <= 64:

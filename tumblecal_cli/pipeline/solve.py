@@ -25,7 +25,7 @@ from tumblecal_cli.io.calfile import Pose
 from tumblecal_cli.pipeline import logs, rotations, tables, trimming, turns
 from tumblecal_cli.pipeline import options as opts
 from tumblecal_cli.pipeline.exchange import tilt_notes
-from tumblecal_cli.pipeline.frames import read_pose, samples_of
+from tumblecal_cli.pipeline.frames import in_memory, read_pose, samples_of
 from tumblecal_cli.pipeline.options import SolveOptions, method_options, path_of, triplet
 
 if TYPE_CHECKING:
@@ -34,6 +34,7 @@ if TYPE_CHECKING:
     from tumblecal_cli.io import calfile
     from tumblecal_cli.io.calfile import Calibration, Pose
     from tumblecal_cli.io.readings import Samples
+    from tumblecal_cli.pipeline.frames import DataFrame
     from tumblecal_cli.pipeline.logs import Blocks
     from tumblecal_cli.pipeline.options import Settings, SolveOptions
 
@@ -94,11 +95,15 @@ def solve(poses: Poses, **options: object) -> Solved:
     return run(SolveOptions.of(options), poses=poses)
 
 
-def solve_log(log: str | os.PathLike[str], **options: object) -> Solved:
+def solve_log(log: str | os.PathLike[str] | DataFrame, **options: object) -> Solved:
     """Solve a calibration from one continuous log ('-': stdin), as ``tumblecal solve --log``:
-    the still blocks are found (or taken from ``pose_column``), the best of each face used."""
+    the still blocks are found (or taken from ``pose_column``), the best of each face used.
+    ``log`` may be its data in memory: a DataFrame, or an (n, 3) array (``rate=`` gives its
+    clock; (n, 4): t, x, y, z), read as its file would be."""
 
-    return run(SolveOptions.of(options), log=log)
+    told = SolveOptions.of(options)
+    with in_memory(log, "solve_log takes a log: a file, a DataFrame or an (n, 3) array") as path:
+        return run(told, log=path)
 
 
 def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.PathLike[str] | None = None) -> Solved:
@@ -500,7 +505,9 @@ def _solve(name: str, poses: PoseSet, options: SolveOptions, given: Settings) ->
     )
     read = list(dict.fromkeys(n for s in samples for n in s.layout.notes))  # how the files were read
     said = read + log_notes + tilt_notes(cal) + list(fit.notes)
-    said += _solve_notes(stats, names, given.limits, solution.method, table=poses.table)
+    said += _solve_notes(stats, names, given.limits, solution.method, table=poses.table) + _units_notes(
+        solution, options, ref
+    )
     solved = Solved(0, cal, cal, [], failures, warned, said, samples=samples, limits=given.limits)
     if rejected:
         _reject(solved, rejected, limits)
@@ -677,6 +684,18 @@ def pose_record(s: Samples, m: PoseCheck, c: Corrected) -> Pose:
         norm_error=c.norm_error,
         vector_error=c.vector_error,
     )
+
+
+def _units_notes(solution: Solution, options: SolveOptions, reference: float) -> list[str]:
+    """An accelerometer's gains that change its data's units from m/s^2 into g (or back) without
+    a word of units from the user (--units, --input-units): one note (gate.units_note). Judged
+    gains that are a units mistake are an error instead (gate.check_gains)."""
+    if options.read.sensor != "accelerometer" or solution.method not in gate.GAIN_SOLVERS:
+        return []
+    if options.units is not None or options.input_units is not None:
+        return []
+    note = gate.units_note(solution.gain, reference)
+    return [] if note is None else [note]
 
 
 def _solve_notes(

@@ -3,6 +3,7 @@ calibration model in Sports Sensing 2023: the norm of each corrected mean agains
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 from collections.abc import Sequence
@@ -16,6 +17,7 @@ from tumblecal_cli.core.model import UNITS_TOLERANCE
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import calfile, readings
 from tumblecal_cli.io.readspec import ReadSpec, column_list
+from tumblecal_cli.pipeline.frames import in_memory, is_data
 from tumblecal_cli.pipeline.logs import FASTEST
 from tumblecal_cli.pipeline.options import (
     FileKeywords,
@@ -102,19 +104,33 @@ class VerifyKeywords(FileKeywords, StreamKeywords, total=False):
 
 
 def verify(
-    captures: Sequence[str | os.PathLike[str]] | str | os.PathLike[str],
+    captures: Sequence[str | os.PathLike[str] | DataFrame] | str | os.PathLike[str] | DataFrame,
     cal: Calibration | str | os.PathLike[str],
     **options: Unpack[VerifyKeywords],
 ) -> Verified:
-    """The norm error of each static capture before and after correction with ``cal``."""
+    """The norm error of each static capture before and after correction with ``cal``. A capture
+    may be its data in memory: a DataFrame, or an (n, 3) array, read as its file would be."""
 
     keywords_known(options, VerifyKeywords, "verify")
+    given: list[object]
+    if isinstance(captures, str | os.PathLike) or is_data(captures):
+        given = [captures]
+    elif isinstance(captures, Sequence):
+        given = list(captures)
+    else:
+        raise InputError(
+            f"verify takes capture files (one, or a list) or their data (DataFrames, arrays), "
+            f"not a {type(captures).__name__}"
+        )
+    with contextlib.ExitStack() as held:  # data in memory: a source for the length of the call
+        what = "verify reads static captures: files, DataFrames or (n, 3) arrays"
+        return _verify([held.enter_context(in_memory(c, what)) for c in given], cal, options)
+
+
+def _verify(paths: list[str], cal: Calibration | str | os.PathLike[str], options: VerifyKeywords) -> Verified:
+    """verify on the captures' paths (or the names their data in memory is held under)."""
     reference, max_norm_error = options.get("reference"), options.get("max_norm_error")
     max_noise = options.get("max_noise", 0.02)
-    if not isinstance(captures, str | os.PathLike | Sequence):
-        raise InputError(f"verify takes capture files (one, or a list), not a {type(captures).__name__}")
-    given = [captures] if isinstance(captures, str | os.PathLike) else list(captures)
-    paths = [path_of(c, "verify reads static captures from files") for c in given]
     if not paths:
         raise InputError("verify needs one static capture or more")
     if sum(f == "-" for f in paths) + (cal == "-") > 1:
@@ -262,7 +278,7 @@ class VerifiedRotations:
 
 
 def verify_rotations(
-    log: str | os.PathLike[str],
+    log: str | os.PathLike[str] | DataFrame,
     cal: Calibration | str | os.PathLike[str],
     *,
     accel_cal: str | os.PathLike[str],
@@ -297,7 +313,8 @@ def verify_rotations(
         ),
         log=LogOptions(accel_cal=path_of(accel_cal, "--accel-cal takes a calibration file")),
     )
-    turns = hand_turns(path_of(log, "verify --log takes a log file"), options)
+    with in_memory(log, "verify --log takes a log: a file, a DataFrame or an array") as path:
+        turns = hand_turns(path, options)
     if not turns.rotations:
         raise CaptureRejected(
             f"no rotation between still blocks ({len(turns.kept)} kept)",

@@ -1,0 +1,111 @@
+"""Data in m/s^2 solved with the default --reference 1 (gains of about 9.81, corrected output in
+g) gets one note naming --reference 9.80665 --units m/s^2; data in g solved with --reference
+9.81 the note the other way. Data in the reference's units, counts, or a station that said
+its units gets none (README "Poses, signs and --reference")."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+import tumblecal_cli as tumblecal
+from tests.conftest import IMUCAL, POSES_3, SIX_FACES, assert_one_error, run
+
+#: imucal's Ferraris session: a real accelerometer's log in m/s^2 (not calibrated), 25.6 Hz as kept here.
+SESSION = IMUCAL / "session_every4th.csv"
+MS2_NOTE = (
+    "the data looks like m/s^2, corrected into g as --reference 1 asks; "
+    "for corrected data in m/s^2, run with --reference 9.80665 --units m/s^2"
+)
+G_NOTE = (
+    "the data looks like g, corrected into m/s^2 as --reference 9.81 asks; "
+    "for corrected data in g, run with --reference 1"
+)
+
+
+def notes(err: str) -> list[str]:
+    return [ln for ln in err.splitlines() if ln.startswith("note: the gains")]
+
+
+@pytest.fixture(scope="module")
+def ms2_faces(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The session's best block of each face as a pose file of its own (segment's xp.csv ...)."""
+    folder = tmp_path_factory.mktemp("faces")
+    done = tumblecal.segment(str(SESSION), rate=25.6, out_dir=str(folder))
+    assert done.out_dir is not None
+    return {name: folder / f"{name}.csv" for name in SIX_FACES}
+
+
+def test_a_log_in_m_s2_solved_into_g_gets_one_note(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    r = run(capsys, "solve", "--log", SESSION, "--rate", "25.6", "-o", tmp_path / "cal.json", "--json")
+    assert r.code == 0, r.err
+    said = notes(r.err)
+    assert len(said) == 1, r.err
+    assert said[0].startswith("note: the gains (9.")
+    assert said[0].endswith(MS2_NOTE)
+    assert [n for n in json.loads(r.out)["notes"] if n.startswith("the gains")] == [said[0].removeprefix("note: ")]
+    solved = tumblecal.solve_log(SESSION, rate=25.6)
+    assert [n for n in solved.notes if MS2_NOTE in n] == [said[0].removeprefix("note: ")]
+
+
+@pytest.mark.parametrize("faces", [("xp", "yp", "zp"), SIX_FACES], ids=["three-pose", "six-pose"])
+def test_pose_files_in_m_s2_get_the_note(
+    faces: tuple[str, ...], ms2_faces: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    r = run(capsys, "solve", "--poses", *(ms2_faces[f] for f in faces), "-o", tmp_path / "cal.json")
+    assert r.code == 0, r.err
+    assert len(notes(r.err)) == 1, r.err
+    assert notes(r.err)[0].endswith(MS2_NOTE)
+    assert tumblecal.load(tmp_path / "cal.json").method == ("three-pose" if len(faces) == 3 else "six-pose")
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        pytest.param(["--reference", "9.81"], id="m/s^2 with --reference 9.81"),
+        pytest.param(["--units", "g"], id="m/s^2 into g, said with --units"),
+        pytest.param(["--input-units", "m/s^2"], id="m/s^2 into g, said with --input-units"),
+    ],
+)
+def test_no_note_when_the_units_are_meant(args: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    r = run(capsys, "solve", "--log", SESSION, "--rate", "25.6", *args, "-o", tmp_path / "cal.json")
+    assert r.code == 0, r.err
+    assert notes(r.err) == []
+
+
+@pytest.mark.parametrize(
+    "poses",
+    [
+        pytest.param(POSES_3, id="g"),
+        pytest.param([str(IMUCAL / f"{f}.csv") for f in SIX_FACES], id="counts"),
+    ],
+)
+def test_no_note_on_data_in_g_or_counts(poses: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    r = run(capsys, "solve", "--poses", *poses, "-o", tmp_path / "cal.json")
+    assert r.code == 0, r.err
+    assert notes(r.err) == []
+
+
+def test_g_data_solved_into_m_s2_gets_the_note_the_other_way(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    r = run(capsys, "solve", "--poses", *POSES_3, "--reference", "9.81", "-o", tmp_path / "cal.json")
+    assert r.code == 0, r.err
+    assert len(notes(r.err)) == 1
+    assert notes(r.err)[0].startswith("note: the gains (0.10")
+    assert notes(r.err)[0].endswith(G_NOTE)
+    r = run(capsys, "solve", "--poses", *POSES_3, "--reference", "9.81", "--units", "m/s^2", "-o", tmp_path / "c.json")
+    assert notes(r.err) == []
+
+
+def test_judged_gains_in_other_units_are_still_an_error(
+    ms2_faces: dict[str, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """With a gain limit the gains are judged: m/s^2 against a nominal 1 is exit 2 (gate.check_gains)."""
+    r = run(capsys, "solve", "--poses", *ms2_faces.values(), "--max-gain-error", "0.05")
+    assert_one_error(
+        r, r.err.splitlines()[0].removeprefix("error: "), hint="the data looks like m/s^2: run with --reference 9.80665"
+    )
+    assert "a units mistake?" in r.err
