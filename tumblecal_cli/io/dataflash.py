@@ -7,8 +7,8 @@ it the same way): messages back to back, each the header bytes ``0xA3 0x95``, a 
 (type 0x80, 89 bytes) defines a type: its ``Type``, ``Length`` (the whole message's), ``Name``
 (4 chars), ``Format`` (one character a field: ``b B h H i I q Q`` integers, ``f d g`` floats,
 ``c C e E`` integers in hundredths, ``L`` a latitude in 1e-7 degrees, ``n N Z`` text of 4, 16
-and 64 bytes, ``M`` a flight mode byte, ``a`` 32 int16) and ``Columns``. The text form (Mission
-Planner's ``.log``, pymavlink's DFReader_text) is one message a line: ``NAME, value, ...``, the
+and 64 bytes, ``M`` a flight mode byte, ``a`` 32 int16) and ``Columns``. The text form (``.log``,
+as pymavlink's DFReader_text reads it) is one message a line: ``NAME, value, ...``, the
 ``FMT`` lines first; io.dftext reads it into the same index.
 
 Read here: ``IMU`` (accelerometer and gyroscope, with the IMU's temperature ``T``), ``ACC`` and

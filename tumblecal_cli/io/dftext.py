@@ -1,5 +1,5 @@
-"""ArduPilot DataFlash logs in their text form (``.log``: Mission Planner's, and what pymavlink's
-DFReader_text reads): one message a line, ``NAME, value, value, ...``, each message type defined
+"""ArduPilot DataFlash logs in their text form (``.log``, as pymavlink's DFReader_text reads it):
+one message a line, ``NAME, value, value, ...``, each message type defined
 first by an ``FMT`` line (``FMT, 128, 89, FMT, BBnNZ, Type,Length,Name,Format,Columns``; the
 columns after the fifth comma), values as the binary form's after its scales (hundredths,
 1e-7). Read into io.dataflash's index, so that the streams and their reading are the binary
