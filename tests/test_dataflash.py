@@ -6,6 +6,7 @@ are cut, corrupt or odd."""
 
 from __future__ import annotations
 
+import contextlib
 import gzip
 import json
 from pathlib import Path
@@ -500,6 +501,52 @@ def test_a_timestamp_that_jumps_back_once_is_skipped_and_twice_over_is_exit_2(tm
     assert cli("noise", path, "--rate", "500").code == 0
 
 
+def test_a_corrupt_float_is_one_line_not_a_warning(tmp_path: Path) -> None:
+    """A sample whose AccX has a signalling NaN's bits (a corrupt message whose header survived)."""
+    path, data, _ = still(tmp_path)
+    start = imu_at(data, len(data) // 2)
+    at, row = start + 3 + 8 + 1 + 12, data[:start].count(writer.HEAD + bytes([IMU])) + 1  # its AccX
+    broken = rewrite(path, data[:at] + b"\x01\x00\x80\x7f" + data[at + 4 :])
+    code, out, err = cli("solve", "--log", broken, "-o", tmp_path / "c.json")
+    assert (code, out) == (2, "")
+    assert err.splitlines()[0] == f"error: {broken}: reading {row} (acc_x...) is not a finite number"
+
+
+@pytest.mark.parametrize("form", ["bin", "log"])
+def test_mutated_logs_end_in_a_documented_way(tmp_path: Path, form: str) -> None:
+    """Seeded mutations of a small log (bytes changed, inserted, cut, moved): each read lists
+    its streams and reads them, or is an InputError; never another exception or a warning."""
+    import random
+
+    t = np.arange(300, dtype=np.int64) * 2000 + 1_000_000
+    good = writer.write(tmp_path / "good.bin", t, np.tile([0.0, 0.0, G], (300, 1)), instances=2)
+    base = (good if form == "bin" else writer.text_of(good, tmp_path / "good.log")).read_bytes()
+    rng = random.Random(7)
+    for _ in range(60):
+        data = bytearray(base)
+        for _ in range(rng.randint(1, 5)):
+            i, n = rng.randrange(len(data)), rng.randint(1, 80)
+            choice = rng.randrange(4)
+            if choice == 0:
+                data[i] = rng.randrange(256)
+            elif choice == 1:
+                data[i:i] = rng.randbytes(n)
+            elif choice == 2:
+                del data[i : i + n]
+            else:
+                data[i:i] = data[rng.randrange(len(data)) :][:n]
+        path = rewrite(tmp_path / f"case.{form}", bytes(data))
+        reader = sources.reader_for(path)
+        if reader is None:
+            continue  # the first line or bytes were hit: read as a CSV (its reader is fuzzed apart)
+        try:
+            for stream in reader.streams(path):
+                with contextlib.suppress(InputError):
+                    readings.read_log(path, ReadSpec(sensor=stream.sensor, stream=stream.key, allow_corrected=True))
+        except InputError:
+            pass
+
+
 def test_a_log_with_no_sensor_stream_and_one_with_a_label_column(tmp_path: Path) -> None:
     bare = write(tmp_path / "bare.bin", writer.header(writer.identity(1)))
     code, out, _ = cli("logs", bare)
@@ -545,3 +592,29 @@ def test_the_installed_command_lists_solves_and_verifies_a_dataflash_log(logs: d
     done = run_exe(["verify", "--cal", cal, logs["spark404_copter"], "--stream", "IMU:0"], text=True)
     assert done.returncode == 2
     assert "calibrates the residual, not the sensor" in done.stderr
+
+
+@pytest.mark.slow
+def test_thermal_fits_a_drift_from_dataflash_sweeps_with_the_imu_s_temperature(tmp_path: Path) -> None:
+    """IMU's T is the temperature column: +z and -z sweeps from 10 to 40 °C with an x offset
+    drift of 0.002 m/s^2/°C give it back."""
+    log, _ = session(tmp_path)
+    base = tumblecal.solve_log(log).calibration
+    assert base is not None
+    n = 20_000
+    t = np.arange(n, dtype=np.int64) * 2000 + 1_000_000
+    temp = 10 + 30 * np.arange(n) / n
+    rng = np.random.default_rng(2)
+    sweeps = []
+    for face, sign in (("+z", 1.0), ("-z", -1.0)):
+        xyz = np.column_stack(
+            [0.01 * G + 0.002 * (temp - 25), np.full(n, -0.02 * G), np.full(n, sign * 1.02 * G + 0.015 * G)]
+        )
+        xyz = xyz + rng.normal(0, 0.01, (n, 3))
+        path = writer.write(tmp_path / f"{face[1]}{face[0]}.bin", t, xyz, writer.float32(temp))
+        sweeps.append(f"{face}={path}")
+    done = tumblecal.thermal(sweeps, base)
+    assert done.calibration.thermal is not None
+    assert done.fit.drift.order == 1
+    assert done.fit.drift.offset[0][0] == pytest.approx(0.002, abs=1e-4)
+    assert done.calibration.thermal.column == "temperature"

@@ -48,8 +48,9 @@ def gather(
                 raise InputError("the log changed while it was read", file=path)
             view = np.ndarray((len(chunk) - span + 1,), dtype=record, buffer=chunk, strides=(1,))
             rows = view[places[i:j] - start]
-            for n in names:
-                out[n][i:j] = rows[n]
+            with np.errstate(invalid="ignore"):  # a signalling NaN's bits (a corrupt float) read as NaN
+                for n in names:
+                    out[n][i:j] = rows[n]
             i = j
     return out
 
