@@ -21,7 +21,7 @@ from tests.conftest import ROOT, imported, run_exe, write
 from tests.conftest import tumblecal as cli
 from tests.test_sources import tumble
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import dataflash, readings, sources
+from tumblecal_cli.io import dataflash, dftext, readings, sources
 from tumblecal_cli.io.readspec import ReadSpec
 
 DATA = ROOT / "tests" / "data" / "ardupilot"
@@ -346,6 +346,20 @@ def test_a_text_log_reads_its_lines_and_skips_what_does_not_parse(tmp_path: Path
     )
     assert "skipped lines of a message type no FMT line defines (XKF1 x1)" in notes
     assert "IMU:0: 2 lines that do not parse skipped" in notes
+
+
+def test_a_text_line_longer_than_a_read_is_skipped_and_the_rest_read(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A "line" with no end for more than a read's bytes (binary garbage in a text log) is one
+    line that does not parse, not the rest of the log held in memory."""
+    monkeypatch.setattr(dftext, "CHUNK", 256)
+    lines = TEXT.splitlines()
+    body = "\n".join([*lines[:10], "IMU, " + "9" * 1000, *lines[10:12]]) + "\n"
+    path = write(tmp_path / "long.log", body.encode())
+    found = dftext.walk(str(path))
+    assert [len(s.places) for s in found.sources] == [2]
+    assert "skipped 1 lines whose fields do not parse" in found.notes
 
 
 # -- a synthetic session in the real format --------------------------------------------------

@@ -33,6 +33,7 @@ class _Walk:
     places: dict[tuple[str, int], list[int]] = field(default_factory=dict)
     params: dict[str, tuple[float, float]] = field(default_factory=dict)
     unknown: dict[str, int] = field(default_factory=dict)
+    streams: dict[str, tuple[str, int | None] | None] = field(default_factory=dict)
     bad: int = 0
     notes: list[str] = field(default_factory=list)
 
@@ -49,7 +50,7 @@ class _Walk:
             self.unknown[name] = self.unknown.get(name, 0) + 1
         elif name == "PARM":
             self.param(fmt, text)
-        elif (stream := named(name)) is not None:
+        elif (stream := self.streams.setdefault(name, named(name))) is not None:
             instance = stream[1]
             if instance is None:
                 instance = self.instance(fmt, text)
@@ -96,17 +97,26 @@ def walk(path: str) -> Index:
     """Every line of the text log read once; the wanted messages' lines placed."""
     digest = hashlib.sha256()
     state = _Walk()
-    base, carry = 0, b""
+    base, carry, skip = 0, b"", False
     with open(path, "rb") as f:
         while block := f.read(CHUNK):
             digest.update(block)
             buf = carry + block if carry else block
-            end = buf.rfind(b"\n") + 1
-            at = base
-            for text in buf[:end].split(b"\n")[:-1]:
+            start = 0
+            if skip:  # in a "line" longer than any log's: up to its end
+                start = buf.find(b"\n") + 1
+                if start == 0:
+                    carry, base = b"", base + len(buf)
+                    continue
+                skip = False
+            end = max(buf.rfind(b"\n") + 1, start)
+            at = base + start
+            for text in buf[start:end].split(b"\n")[:-1]:
                 state.line(text, at)
                 at += len(text) + 1
             carry, base = buf[end:], base + end
+            if len(carry) > CHUNK:
+                state.bad, skip, carry, base = state.bad + 1, True, b"", base + len(carry)
     if carry.strip():
         state.notes.append(
             f"the log ends mid-line (its last {len(carry)} bytes, from byte {base}, with no line end): cut short, "
