@@ -19,12 +19,13 @@ ArduPilot had corrected them is told by the calibration in force, from the log's
 messages (``_state``).
 
 The log is walked once (``index``): the header bytes are found a chunk at a time with numpy,
-and the messages are stepped from one to the next by their lengths (one Python step a message),
+and the messages are followed from one to the next by their lengths (each message's successor
+found with numpy; one Python step a run of messages that follow each other, a handful a log),
 keeping the places of the wanted types only; a stream's fields are then gathered with numpy a
 chunk at a time, so the whole log is never in memory. What ArduPilot's parsers recover from is
 skipped with a note: a log cut short mid-message, bytes that are no message (a corrupt stretch,
 a message of a type no ``FMT`` defines) up to the next header of a known type, as pymavlink's
-DFReader does, garbage or zeros at the end, a sample whose clock goes back.
+DFReader does, garbage, zeros or erased flash at the end, a lone sample whose clock goes back.
 """
 
 from __future__ import annotations
