@@ -19,8 +19,11 @@ five runs each, taking turns; elsewhere the best of a few runs.
     noise peak memory   10M samples / 2.5M samples  (streaming: ~1, not ~4)
     ULog stream, 100 MB vs pyulog.ULog(f, message_name_filter_list=["sensor_accel"]), the same log
                            (sensor_accel and sensor_gyro, two instances each, 1 kHz); peak memory
+    DataFlash stream, 100 MB  vs pymavlink's DFReader_binary(f) and recv_match(type="IMU"), the
+                           same log (IMU, ACC and GYR, two instances each, 1 kHz); peak memory
 
-`python tests/bench.py noise` runs the noise lines alone, `python tests/bench.py ulog` the ULog one.
+`python tests/bench.py noise` runs the noise lines alone, `python tests/bench.py ulog` the ULog one,
+`python tests/bench.py dataflash` the DataFlash one.
 """
 
 from __future__ import annotations
@@ -373,11 +376,61 @@ def bench_ulog(folder: Path) -> list[tuple[str, float, float, str]]:
     return [(f"ULog stream, {size:.0f} MB", ours, base, note)]
 
 
+#: Reading one stream of a DataFlash log, as tumblecal does and as pymavlink does: python -c X log.bin
+DATAFLASH_OURS = ULOG_OURS.replace('stream="sensor_accel:0"', 'stream="IMU:0"')
+DATAFLASH_PYMAVLINK = """
+import sys
+import numpy as np
+from pymavlink import DFReader
+with DFReader.DFReader_binary(sys.argv[1]) as log:
+    rows = []
+    while (m := log.recv_match(type="IMU")) is not None:
+        if m.I == 0:
+            rows.append((m.TimeUS, m.AccX, m.AccY, m.AccZ, m.T))
+values = np.array(rows)
+print(next(line for line in open("/proc/self/status") if line.startswith("VmHWM")))
+"""
+
+
+def write_dataflash(path: Path, rows: int) -> None:
+    """An ArduPilot DataFlash log of ``rows`` time steps of IMU, ACC and GYR, two instances each
+    at 1 kHz (the format of tests/dataflash_writer.py, INS_ACC* at their defaults: raw)."""
+    sys.path.insert(0, str(ROOT))
+    from tests import dataflash_writer as writer
+
+    t = np.arange(rows, dtype=np.int64) * 1000 + 10_000_000
+    rng = np.random.default_rng(1)
+    acc = rng.normal(0, 0.05, (rows, 3)) + np.array([0.0, 0.0, -9.81])
+    gyr = rng.normal(0, 0.01, (rows, 3))
+    parts = []
+    for k in range(2):
+        parts.append(writer.imu(t + 3 * k, acc, np.full(rows, 30.0), k, gyr))
+        xyz = {"AccX": acc[:, 0], "AccY": acc[:, 1], "AccZ": acc[:, 2]}
+        parts.append(writer.records("ACC", rows, TimeUS=t + 3 * k + 100, I=k, SampleUS=t + 3 * k, **xyz))
+        xyz = {"GyrX": gyr[:, 0], "GyrY": gyr[:, 1], "GyrZ": gyr[:, 2]}
+        parts.append(writer.records("GYR", rows, TimeUS=t + 3 * k + 100, I=k, SampleUS=t + 3 * k, **xyz))
+    path.write_bytes(writer.header(writer.identity(2), 9_000_000) + writer.frames(parts))
+
+
+def bench_dataflash(folder: Path) -> list[tuple[str, float, float, str]]:
+    """Reading one stream of a 100 MB DataFlash log against pymavlink reading that message type,
+    each a fresh process (pymavlink once: it takes a minute or more)."""
+    log = folder / "log100M.bin"
+    write_dataflash(log, 424_000)
+    size = log.stat().st_size / 1e6
+    ours, rss = _peak([sys.executable, "-c", DATAFLASH_OURS, str(log)])
+    base, base_rss = _peak([sys.executable, "-c", DATAFLASH_PYMAVLINK, str(log)], repeat=1)
+    logs, _ = run([*TUMBLECAL, "logs", str(log)], repeat=2)
+    note = f"{size / ours:.0f} MB/s; peak {rss:.0f} MiB, pymavlink {base_rss:.0f} MiB; tumblecal logs {logs:.2f} s"
+    log.unlink()
+    return [(f"DataFlash stream, {size:.0f} MB", ours, base, note)]
+
+
 def main() -> None:
     rows: list[tuple[str, float, float, str]] = []
-    if sys.argv[1:] == ["ulog"]:
+    if sys.argv[1:] in (["ulog"], ["dataflash"]):
         with tempfile.TemporaryDirectory() as tmp:
-            rows = bench_ulog(Path(tmp))
+            rows = (bench_ulog if sys.argv[1] == "ulog" else bench_dataflash)(Path(tmp))
         for what, ours, base, note in rows:
             print(f"{what:<28} {ours:>9.2f}s {base:>9.2f}s {ours / base:>6.2f}x  {note}")
         return
@@ -464,6 +517,7 @@ def main() -> None:
         noise_rows, noise_memory = bench_noise(folder)
         rows += noise_rows
         rows += bench_ulog(folder)
+        rows += bench_dataflash(folder)
     machine = f"{platform.node()} ({os.cpu_count()} cores, Python {platform.python_version()})"
     print(f"tumblecal bench, {date.today()}, {machine}")
     print(f"{'what':<28} {'tumblecal':>10} {'baseline':>10} {'ratio':>7}  notes")
@@ -480,6 +534,7 @@ def main() -> None:
     print("           batch vs a bash loop of 'tumblecal solve' per unit (200 units x 3 poses x 1000 samples)")
     print("           noise vs pandas.read_csv + allantools.oadev of each axis (octave taus), the same file")
     print("           ULog stream vs pyulog.ULog(f, message_name_filter_list=['sensor_accel']) of the same log")
+    print("           DataFlash stream vs pymavlink DFReader_binary(f) and recv_match(type='IMU') of the same log")
 
 
 if __name__ == "__main__":

@@ -19,7 +19,12 @@ if TYPE_CHECKING:
     epilog="Exit status: 0 listed; 2 not a log of a kind tumblecal reads by streams, or one it cannot read.",
 )
 def logs(
-    log: Annotated[str, typer.Argument(metavar="FILE", help="A log: a PX4 ULog (.ulg).")],
+    log: Annotated[
+        str,
+        typer.Argument(
+            metavar="FILE", help="A log: a PX4 ULog (.ulg), an ArduPilot DataFlash log (.bin, or its text form .log)."
+        ),
+    ],
     json_summary: Annotated[bool, typer.Option("--json", help="Print the streams on stdout as JSON.")] = False,
 ) -> None:
     """List the streams of a log: each one's --stream, sensor, rows, rate, units, and whether the
@@ -29,6 +34,7 @@ def logs(
     \b
       tumblecal logs flight.ulg
       tumblecal solve --log flight.ulg --stream sensor_accel:0 -o cal.json
+      tumblecal noise 00000042.BIN --stream IMU:1
     """
     from tumblecal_cli.io import sources
 

@@ -134,9 +134,16 @@ class Lazy:
         return cast("Reader", module.READER)
 
 
+def dataflash_text(path: str, head: bytes) -> bool:
+    """An ArduPilot DataFlash log in its text form: its first line an FMT line."""
+    return head.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"FMT,")
+
+
 #: The readers of sources beside CSV, asked in order; a file none claims is read as CSV.
 READERS: list[Reader] = [
     Lazy("PX4 ULog", "tumblecal_cli.io.ulog", magic=(b"ULog\x01\x12\x35",)),
+    Lazy("ArduPilot DataFlash log", "tumblecal_cli.io.dataflash", magic=(b"\xa3\x95\x80",)),
+    Lazy("ArduPilot DataFlash text log", "tumblecal_cli.io.dftext", claim=dataflash_text),
 ]
 #: How much of a file a reader is shown to claim it.
 HEAD = 64

@@ -31,15 +31,13 @@ from dataclasses import dataclass, field
 from typing import BinaryIO
 
 import numpy as np
-from numpy.typing import NDArray
 
-from tumblecal_cli.core.model import FloatArray
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import sources
+from tumblecal_cli.io.logfields import NAMES, forward, gather
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.io.sources import Stream, Table
 
-BoolArray = NDArray[np.bool_]
 MAGIC = b"ULog\x01\x12\x35"
 SYNC = b"\x2f\x73\x13\x20\x25\x0c\xbb\x12"
 #: The message types of the format; any other is skipped (a newer logger's) or corrupt.
@@ -49,8 +47,6 @@ CHUNK = 1 << 22
 #: A header PX4's parser takes as corrupt: type 0, size 0, or a body over 10000 bytes (pyulog
 #: core.py, _check_packet_corruption).
 BIGGEST = 10_000
-#: A clock that goes back this often is not a stray sample but two sessions (exit 2).
-BACK_SHARE = 0.01
 
 _TYPES = {
     "int8_t": "i1",
@@ -119,12 +115,6 @@ TOPICS: dict[str, tuple[Part, ...]] = {
         Part("accelerometer", _fields("delta_velocity"), "m/s^2", per="delta_velocity_dt"),
         Part("gyroscope", _fields("delta_angle"), "rad/s", per="delta_angle_dt"),
     ),
-}
-#: The columns a calibration records for each sensor (what a segment's block CSV is headed by).
-NAMES = {
-    "accelerometer": ("acc_x", "acc_y", "acc_z"),
-    "gyroscope": ("gyr_x", "gyr_y", "gyr_z"),
-    "magnetometer": ("mag_x", "mag_y", "mag_z"),
 }
 
 
@@ -455,7 +445,7 @@ def streams_of(path: str, found: Index) -> list[Stream]:
         places = np.frombuffer(topic.places, dtype=np.int64)
         rate = None
         if len(places) > 1:
-            ends = _gather(path, places[[0, -1]], topic.layout, [_clock(topic)])[_clock(topic)]
+            ends = gather(path, places[[0, -1]], topic.layout.fields, [_clock(topic)])[_clock(topic)]
             span = float(ends[1] - ends[0]) * 1e-6
             rate = (len(places) - 1) / span if span > 0 else None
         corrected, how = _corrected(topic)
@@ -479,7 +469,7 @@ def read_stream(path: str, spec: ReadSpec, label_column: str | None) -> Table:
     names = [*part.fields, _clock(topic), *(f for f in (part.relative, part.per) if f)]
     if "temperature" in topic.layout.fields:
         names.append("temperature")
-    data = _gather(path, np.frombuffer(topic.places, dtype=np.int64), topic.layout, names)
+    data = gather(path, np.frombuffer(topic.places, dtype=np.int64), topic.layout.fields, names)
     values = np.column_stack([data[f] for f in part.fields])
     clock = data[_clock(topic)]
     temperature = data.get("temperature")
@@ -497,7 +487,7 @@ def read_stream(path: str, spec: ReadSpec, label_column: str | None) -> Table:
         what = "an invalid relative timestamp" if part.relative else "no integration time"
         notes.append(f"{path}: {chosen.key}: {int((~keep).sum())} samples with {what} skipped")
     if spec.rate is None:
-        keep &= _forward(path, chosen.key, clock, keep, notes)
+        keep &= forward(path, chosen.key, clock, keep, notes)
     if not keep.all():
         values, clock = values[keep], clock[keep]
         temperature = None if temperature is None else temperature[keep]
@@ -515,64 +505,3 @@ def read_stream(path: str, spec: ReadSpec, label_column: str | None) -> Table:
         corrected=chosen.corrected,
         stream=chosen,
     )
-
-
-def _forward(path: str, key: str, clock: FloatArray, keep: BoolArray, notes: list[str]) -> BoolArray:
-    """The samples to keep so that the clock never goes back: a lone sample out of order (a
-    corrupt one: its clock before its neighbours', or after both) is skipped with a note; a
-    clock that goes back more often than that, or for good (two sessions), is exit 2."""
-    t = clock[keep]
-    where = np.flatnonzero(keep)
-    back = np.flatnonzero(np.diff(t) < 0)
-    if back.size == 0:
-        return np.ones(len(clock), dtype=bool)
-    drop = []
-    for j in back + 1:  # t[j] < t[j - 1]: drop t[j - 1] if it is the odd one (a spike), else t[j]
-        spike = t[j] >= t[j - 2] if j >= 2 else not (len(t) > 2 and t[2] >= t[0])
-        drop.append(j - 1 if spike else j)
-    mask = np.ones(len(t), dtype=bool)
-    mask[drop] = False
-    steps = np.diff(t[mask])
-    if (steps < 0).any() or len(drop) > max(1, BACK_SHARE * len(t)):
-        k = int(back[0]) + 1
-        raise InputError(
-            f"{key}: the timestamps go back at sample {int(where[k]) + 1} ({t[k] * 1e-6:.6f} s after "
-            f"{t[k - 1] * 1e-6:.6f} s), {len(back)} times in {len(t)} samples: not a stray corrupt sample",
-            file=path,
-            hint="give --rate HZ to read the samples by their rate instead of their timestamps",
-        )
-    notes.append(
-        f"{path}: {key}: {len(drop)} samples whose timestamp went back skipped (a corrupt sample; the first at "
-        f"sample {int(where[drop[0]]) + 1})"
-    )
-    out = np.ones(len(clock), dtype=bool)
-    out[where[~mask]] = False
-    return out
-
-
-def _gather(path: str, places: NDArray[np.int64], layout: Layout, names: list[str]) -> dict[str, FloatArray]:
-    """The fields ``names`` of the samples whose bodies start at ``places`` (sorted), read a chunk
-    of the log at a time: a record view at every byte of the chunk, indexed by the places; each
-    field as float64 (exact for every type a topic's field has but a 64-bit integer past 2**53,
-    which no timestamp in µs reaches)."""
-    offsets = [layout.fields[n][1] for n in names]
-    span = max(o + np.dtype(layout.fields[n][0]).itemsize for n, o in zip(names, offsets, strict=True))
-    record = np.dtype(
-        {"names": names, "formats": [layout.fields[n][0] for n in names], "offsets": offsets, "itemsize": span}
-    )
-    out = {n: np.empty(len(places)) for n in names}
-    with open(path, "rb") as f:
-        i = 0
-        while i < len(places):
-            start = int(places[i])
-            j = max(int(np.searchsorted(places, start + CHUNK - span, side="right")), i + 1)
-            f.seek(start)
-            chunk = f.read(int(places[j - 1]) + span - start)
-            if len(chunk) < int(places[j - 1]) + span - start:
-                raise InputError("the log changed while it was read", file=path)
-            view = np.ndarray((len(chunk) - span + 1,), dtype=record, buffer=chunk, strides=(1,))
-            rows = view[places[i:j] - start]
-            for n in names:
-                out[n][i:j] = rows[n]
-            i = j
-    return out
