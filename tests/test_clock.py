@@ -17,7 +17,7 @@ import pytest
 
 from tests.conftest import run, write
 from tests.conftest import tumblecal as run_cli
-from tumblecal_cli.core import clock, segment
+from tumblecal_cli.core import allan, clock, segment
 from tumblecal_cli.io import logread, readspec
 from tumblecal_cli.io.outputs import unsafe
 
@@ -121,6 +121,130 @@ def test_a_streamed_clock_counts_as_one_read_whole() -> None:
     assert (more.steps, more.gaps) == (whole.steps, whole.gaps)
     assert more.mean == pytest.approx(whole.mean, rel=1e-12)
     assert more.jitter == pytest.approx(whole.jitter, rel=1e-9)
+
+
+# -- the Allan deviation across a gap ---------------------------------------------------------
+
+
+def test_no_cluster_spans_a_gap() -> None:
+    """Two runs of samples: each cluster's terms are those of each run, pooled (SP 1065 eq. 11
+    over each run), and each point's EDF that of the pooled terms."""
+    rng = np.random.default_rng(7)
+    y = rng.normal(0, 1, (30_000, 3)) + np.cumsum(rng.normal(0, 0.01, (30_000, 3)), axis=0)
+    cut = 12_345
+    stream = allan.AllanStream()
+    stream.add(y[:cut])
+    stream.restart()
+    for first in range(cut, len(y), 7919):
+        stream.add(y[first : first + 7919])
+    curve = stream.result(100.0)
+    for k, m in enumerate(curve.m.tolist()):
+        sums, terms = np.zeros(3), 0
+        for run_ in (y[:cut], y[cut:]):
+            s = np.concatenate([np.zeros((1, 3)), np.cumsum(run_ - y[:cut].mean(axis=0), axis=0)])
+            d = s[2 * m :] - 2 * s[m:-m] + s[: -2 * m]
+            sums += (d * d).sum(axis=0)
+            terms += max(0, d.shape[0])
+        np.testing.assert_allclose(curve.adev[k], np.sqrt(sums / (2 * m * m * terms)), rtol=1e-9)
+        assert curve.terms[k] == terms
+    assert curve.points is not None
+    np.testing.assert_array_equal(curve.points, curve.terms + 2 * curve.m)
+    whole = allan.AllanStream()
+    whole.add(y)
+    assert whole.result(100.0).points is None  # one run: its EDF as before
+
+
+# -- noise ------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def serial_capture(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A still gyroscope (white noise of DENSITY) at a true 99.3 Hz, stamped on arrival."""
+    rng = np.random.default_rng(1)
+    t = arrival_stamps(np.arange(SAMPLES) / TRUE_RATE)
+    y = rng.normal(0, DENSITY * np.sqrt(TRUE_RATE), (SAMPLES, 3))
+    return write(tmp_path_factory.mktemp("serial") / "mpu6050.csv", np.column_stack([t, y]), header="t,gx,gy,gz")
+
+
+@pytest.mark.slow
+def test_noise_of_a_bursty_capture_is_read_at_its_true_rate(
+    serial_capture: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """It read "65067 samples at 437 Hz" before, every figure √(437/99.3) off, without a word."""
+    r = run(capsys, "noise", serial_capture, "--sensor", "gyroscope", "--json")
+    assert r.code == 0, r.err
+    doc = json.loads(r.out)
+    assert doc["rate"] == pytest.approx(TRUE_RATE, rel=2e-4)
+    for axis in "xyz":
+        assert doc["axes"][axis]["noise_density"]["value"] == pytest.approx(DENSITY, rel=0.03)
+    timing = doc["clock"]
+    assert (timing["bursty"], timing["from"], timing["gaps"]) == (True, "mean step", 0)
+    assert timing["rate"] == doc["rate"]
+    assert timing["median_step_s"] < 0.003
+    assert timing["mean_step_s"] == pytest.approx(1 / TRUE_RATE, rel=2e-4)
+    assert 0.005 < timing["jitter_s"] < 0.05  # bursts and pauses: far from a regular clock's
+    lines = r.err.splitlines()
+    assert lines[0] == f"{serial_capture}: 65067 samples at {doc['rate']:g} Hz (655.3 s)"
+    notes = [line for line in lines if line.startswith(f"note: {serial_capture}: the time column's steps are bursty")]
+    assert len(notes) == 1
+    assert ", mean 10.1 ms; the rate used is 99.3" in notes[0]
+    assert "--rate HZ" in notes[0]
+    assert doc["notes"] == [notes[0].removeprefix("note: ")]
+
+
+def test_noise_of_a_bursty_capture_at_the_rate_given_says_nothing_of_its_clock(
+    serial_capture: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    r = run(capsys, "noise", serial_capture, "--sensor", "gyroscope", "--rate", "99.3", "--json", "-q")
+    doc = json.loads(r.out)
+    assert (doc["rate"], doc["clock"], doc["notes"]) == (99.3, None, [])
+
+
+def test_noise_reports_a_gap_and_no_cluster_spans_it(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A logger that paused ten minutes: the gap is named (the data row before it), the rate is
+    the samples' and the deviation that of the two runs, not of samples 10 min apart."""
+    rng = np.random.default_rng(2)
+    t = np.arange(20_000) / 100.0
+    t[10_000:] += 600.0
+    y = np.round(rng.normal(0, 0.1, (20_000, 3)), 6)  # as written
+    y[10_000:] += 0.05  # the unit settled a little while the logger was off: a step across the gap
+    path = write(tmp_path / "paused.csv", np.column_stack([t, y]))
+    r = run(capsys, "noise", path, "--json")
+    assert r.code == 0, r.err
+    doc = json.loads(r.out)
+    assert doc["rate"] == 100.0
+    assert (doc["clock"]["gaps"], doc["clock"]["gap_s"]) == (1, pytest.approx(600.01))
+    said = f"{path}: 1 gap in time (the first after data row 9999), 600 s in all (a step over 0.03 s): "
+    assert [n for n in doc["notes"] if n.startswith(said)] == doc["notes"]
+    assert f"note: {said}" in r.err
+    stream = allan.AllanStream()
+    stream.add(y[:10_000])
+    stream.restart()
+    stream.add(y[10_000:])
+    expected = stream.result(100.0)
+    np.testing.assert_allclose(doc["adev"]["x"], expected.adev[:, 0], rtol=1e-12)
+    assert doc["adev"]["terms"] == expected.terms.tolist()
+    assert max(doc["adev"]["tau"]) < 100.0 / 2  # no cluster longer than half a run
+
+
+def test_noise_of_a_regular_capture_says_nothing_of_its_clock(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    rng = np.random.default_rng(3)
+    t = np.arange(20_000) / 100.0
+    t[::5] += 3e-4  # a sample in five stamped late: steps of 10.3 and 9.7 ms among the 10 ms
+    t[7::50] += 0.002  # ... and now and then one 2 ms late
+    path = write(tmp_path / "still.csv", np.column_stack([t, rng.normal(0, 0.1, (20_000, 3))]))
+    r = run(capsys, "noise", path, "--json")
+    doc = json.loads(r.out)
+    assert doc["rate"] == 100.0  # the median step's, as ever
+    assert (doc["clock"]["bursty"], doc["clock"]["from"], doc["clock"]["gaps"], doc["notes"]) == (
+        False,
+        "median step",
+        0,
+        [],
+    )
+    assert "note:" not in r.err
 
 
 # -- segment and solve --log ------------------------------------------------------------------

@@ -24,6 +24,12 @@ overlapping Allan variance at ``tau = m tau0`` is (SP 1065 eq. 11, the phase for
   estimate's spread is the overlapping one's to well under a percent; its value is no longer
   the textbook sum, and tests check it against it to a few percent.
 
+**Gaps.** A capture whose clock has a gap (``core.clock``: the logger paused) is fed as runs
+of samples (``restart`` between): each cluster's terms lie within one run, the sum above taken
+over each run and the runs' terms pooled, so that no term spans time the samples do not cover.
+A point's EDF is then that of ``terms + 2m`` phase points (one run's count, the pooled terms
+as if from one run: fewer terms, a wider interval).
+
 The data's first-block mean is removed before the sum (the variance does not change: a
 constant adds a straight line to S, which the second difference cancels) so that S stays small
 and the differences keep their digits on a day-long capture.
@@ -127,6 +133,8 @@ class AllanStream:
         self, per_octave: int = 1, *, exact_max: int = EXACT_MAX, window: int = WINDOW, largest: int = 2**40
     ) -> None:
         self.sizes = cluster_sizes(per_octave, largest, exact_max, window)
+        self.strides = np.array([stride(m, exact_max, window) for m in self.sizes], dtype=np.int64)
+        self.runs = 1  # runs of samples between gaps in time (restart)
         self.exact = [m for m in self.sizes if stride(m, exact_max, window) == 1]
         self.strided = [_Strided(m, stride(m, exact_max, window)) for m in self.sizes if m not in self.exact]
         self.keep = 2 * max(self.exact)  # history rows the exact sizes need
@@ -144,6 +152,15 @@ class AllanStream:
         """Feed the next samples, (b, 3), in order."""
         for first in range(0, samples.shape[0], CHUNK):
             self._add(np.asarray(samples[first : first + CHUNK], dtype=np.float64))
+
+    def restart(self) -> None:
+        """The samples fed next follow a gap in time: no cluster spans it (module docstring)."""
+        self.buffer[0] = 0.0  # S starts again (a constant added to S changes no term)
+        self.filled = 1
+        self.start = 0
+        for s in self.strided:
+            s.tail = np.zeros((1, 3))
+        self.runs += 1
 
     def _add(self, y: FloatArray) -> None:
         c = y.shape[0]
@@ -188,7 +205,10 @@ class AllanStream:
         used = self.terms > 0
         m = np.array(self.sizes, dtype=np.int64)[used]
         var = self.sums[used] / (2.0 * (m.astype(np.float64) ** 2)[:, None] * self.terms[used][:, None])
-        return Curve(rate=rate, samples=self.n, m=m, adev=np.sqrt(var), terms=self.terms[used].copy())
+        points = None
+        if self.runs > 1:  # the phase points each size's pooled terms stand for (one run: n + 1)
+            points = self.terms[used] * self.strides[used] + 2 * m
+        return Curve(rate=rate, samples=self.n, m=m, adev=np.sqrt(var), terms=self.terms[used].copy(), points=points)
 
 
 def oadev(samples: FloatArray, m: Sequence[int]) -> FloatArray:
@@ -265,6 +285,7 @@ class Curve:
     m: IntArray
     adev: FloatArray
     terms: IntArray
+    points: IntArray | None = None  # phase points per size, for its EDF (None: samples + 1; gaps: module docstring)
 
     @property
     def tau(self) -> FloatArray:
@@ -284,8 +305,9 @@ class Curve:
     def edf(self) -> FloatArray:
         """(k, 3) equivalent degrees of freedom of each point."""
         slopes = self.slopes()
+        points = [self.samples + 1] * len(self.m) if self.points is None else [int(p) for p in self.points]
         return np.array(
-            [[edf(self.samples + 1, int(m), float(slopes[k, j])) for j in range(3)] for k, m in enumerate(self.m)]
+            [[edf(points[k], int(m), float(slopes[k, j])) for j in range(3)] for k, m in enumerate(self.m)]
         ).reshape(len(self.m), 3)
 
     def interval(self, level: float = LEVEL) -> tuple[FloatArray, FloatArray]:
