@@ -7,6 +7,7 @@ median step, as it always was (its calibrations stay byte for byte the same)."""
 from __future__ import annotations
 
 import csv
+import gzip
 import io
 import json
 from pathlib import Path
@@ -321,3 +322,65 @@ def test_solve_log_records_a_bursty_clock_in_the_calibration(tmp_path: Path) -> 
     r = run_cli("solve", "--log", regular, "-o", tmp_path / "regular.json")
     assert r.code == 0, r.err
     assert "clock" not in json.loads((tmp_path / "regular.json").read_text())["segmentation"]
+
+
+# -- known turns ------------------------------------------------------------------------------
+
+
+FACE_MAP = "x_p=+x,x_a=-x,y_p=+y,y_a=-y,z_p=+z,z_a=-z"
+TURNS = "x_rot=+x,y_rot=+y,z_rot=+z"
+
+
+@pytest.fixture(scope="module")
+def stamped_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """imucal's annotated session (204.8 Hz, no time column) with a time column stamped on
+    arrival, as a serial link would."""
+    lines = gzip.decompress((DATA / "logs" / "imucal_annotated_session.csv.gz").read_bytes()).decode().splitlines()
+    true = np.arange(len(lines) - 1) / 204.8
+    stamps = arrival_stamps(true, seed=9)
+    path = tmp_path_factory.mktemp("turns") / "stamped.csv"
+    body = [f"t,{lines[0]}"] + [f"{s:.6f},{line}" for s, line in zip(stamps, lines[1:], strict=True)]
+    path.write_text("\n".join(body) + "\n")
+    return path
+
+
+def solve_turns(log: Path, out: Path, *extra: str) -> Any:
+    return run_cli(
+        "solve", "--sensor", "gyroscope", "--log", log, "--pose-column", "part", "--pose-map", FACE_MAP,
+        "--turns", TURNS, "--turn-angle", "360", "--columns", "gyr_x,gyr_y,gyr_z", "-o", out, *extra,
+    )  # fmt: skip
+
+
+@pytest.mark.slow
+def test_known_turns_on_a_bursty_clock_integrate_by_the_sample_count(stamped_session: Path, tmp_path: Path) -> None:
+    """Each reading stands for the mean period, not for the time to the next arrival (a reading
+    before a pause would stand for the whole pause): the calibration is the one at the true
+    rate, to the rate's own error."""
+    log = stamped_session
+    at_rate = solve_turns(log, tmp_path / "rate.json", "--rate", "204.8")
+    stamped = solve_turns(log, tmp_path / "stamped.json")
+    assert (at_rate.code, stamped.code) == (0, 0), stamped.err
+    a = json.loads((tmp_path / "rate.json").read_text())
+    b = json.loads((tmp_path / "stamped.json").read_text())
+    np.testing.assert_allclose(b["matrix"], a["matrix"], rtol=1e-3, atol=1e-5)
+    np.testing.assert_allclose(b["offset"], a["offset"], rtol=1e-9)
+    assert "steps are bursty" in stamped.err
+
+
+@pytest.mark.slow
+def test_a_known_turn_across_a_gap_is_refused(stamped_session: Path, tmp_path: Path) -> None:
+    log = stamped_session
+    header, *rows = log.read_text().splitlines()
+    turn = [k for k, row in enumerate(rows) if row.split(",")[1] == "y_rot"]
+    middle = turn[len(turn) // 2]
+    shifted = [
+        ",".join([f"{float(row.split(',')[0]) + (30.0 if k >= middle else 0.0):.6f}", *row.split(",")[1:]])
+        for k, row in enumerate(rows)
+    ]
+    gapped = tmp_path / "gapped.csv"
+    gapped.write_text("\n".join([header, *shifted]) + "\n")
+    out = tmp_path / "x.json"
+    r = solve_turns(gapped, out)
+    assert r.code == 3, r.err
+    assert f"error: {gapped}: turn y_rot spans a gap in time (after data row {middle - 1})" in r.err
+    assert not out.exists()

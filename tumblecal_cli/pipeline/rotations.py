@@ -93,7 +93,7 @@ def hand_turns(log: str, options: SolveOptions) -> HandTurns:
         )
     kept = sorted(seg.kept, key=lambda b: b.first)
     _clock_integrates(seg, kept, gyr, options.read.rate)
-    dt = seconds_per_sample(gyr, options.read.rate)
+    dt = seconds_per_sample(gyr, options.read.rate, seg.clock)
     still = np.concatenate([gyr.values[b.first : b.last + 1] for b in kept]) if kept else np.zeros((0, 3))
     bias = still.mean(axis=0) if len(still) else np.zeros(3)
     directions = [_direction(accel, acc.values[b.first : b.last + 1].mean(axis=0)) for b in kept]
