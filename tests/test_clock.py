@@ -384,3 +384,29 @@ def test_a_known_turn_across_a_gap_is_refused(stamped_session: Path, tmp_path: P
     assert r.code == 3, r.err
     assert f"error: {gapped}: turn y_rot spans a gap in time (after data row {middle - 1})" in r.err
     assert not out.exists()
+
+
+@pytest.mark.slow
+def test_hand_turns_on_a_bursty_clock_integrate_by_the_sample_count(tmp_path: Path) -> None:
+    """Hand turns between still poses (rotations), stamped on arrival: solved as at the true
+    times (before: refused, its repeated stamps taken for a clock coarser than the samples)."""
+    from tests.test_rotations import ACC_A, ACC_B, synthetic_log
+    from tumblecal_cli.io.calfile import Calibration
+
+    acc = tmp_path / "acc.json"
+    Calibration(
+        "accelerometer", "six-pose", 1.0, ["acc_x", "acc_y", "acc_z"], ACC_B, np.linalg.inv(ACC_A), np.diag(ACC_A)
+    ).save(acc)
+    regular = tmp_path / "hand.csv"
+    synthetic_log(regular, np.random.default_rng(5), rate=100.0)
+    header, *rows = regular.read_text().splitlines()
+    stamps = arrival_stamps(np.array([float(row.split(",", 1)[0]) for row in rows]), seed=3)
+    bursty = tmp_path / "hand_bursty.csv"
+    lines = [f"{s:.6f},{row.split(',', 1)[1]}" for s, row in zip(stamps, rows, strict=True)]
+    bursty.write_text("\n".join([header, *lines]) + "\n")
+    gains = []
+    for log in (regular, bursty):
+        r = run_cli("solve", "--sensor", "gyroscope", "--log", log, "--accel-cal", acc, "-o", tmp_path / "g.json")
+        assert r.code == 0, r.err
+        gains.append(np.linalg.inv(np.array(json.loads((tmp_path / "g.json").read_text())["matrix"])))
+    np.testing.assert_allclose(gains[1], gains[0], rtol=1e-3, atol=2e-3)  # the rate's own error: 50 s of arrivals

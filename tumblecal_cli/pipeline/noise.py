@@ -460,7 +460,7 @@ class _Timer:
             k = self.clock.gaps
             out.append(
                 f"{self.name}: {k} gap{'s' if k > 1 else ''} in time{after}, {self.clock.gap_seconds:.3g} s in all "
-                f"(a step over {self.clock.bound:.3g} s): no cluster spans one, and the rate leaves them out"
+                f"(a step over {self.clock.bound:.3g} s): no cluster of the deviation spans one"
             )
         return out
 
