@@ -16,11 +16,13 @@ figures of the whole log are only known at its end, and each is kept exact:
   kept with their spreads. The bound starts infinite and falls to ``BOUND_FACTOR`` times the
   threshold the log so far gives, each time the log has doubled; every spread below the lowest
   bound used is among those kept, so the percentile is exact when it is below that bound;
-- the gaps: every step over half a gap of the first blocks' period, judged at the end.
+- the gaps: every step over half a gap of the first blocks' period, judged at the end;
+- whether the clock is bursty (``core.clock``): the time of every WINDOW-th sample.
 
 ``finish`` returns None when the log broke an assumption: its threshold came out above a bound
 used earlier, its period differs from the first blocks' enough to change the window, its
-steps are too many kinds to count, or a spread lies on the threshold (within ``TIE``, or
+steps are too many kinds to count, its clock is bursty (the whole read takes its period from
+the mean step and its gaps by its pauses), or a spread lies on the threshold (within ``TIE``, or
 ``ROUNDING`` times (range / threshold)^2 where that is more: a quantised log's spreads take a
 few exact values, and one can be the threshold itself; a quiet log's spreads are summed from
 other stretches here than in the whole read; either way rounding alone would say which side).
@@ -37,6 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tumblecal_cli.core import clock
 from tumblecal_cli.core.segment import (
     FLOOR_FACTOR,
     FLOOR_PERCENTILE,
@@ -229,6 +232,7 @@ class Scan:
         #: after finish: the ints of the sample before each gap of the segmentation (k, ints columns)
         self.before_gaps: IntArray = np.zeros((0, 0), dtype=np.int64)
         self.counted = True  # the steps could be counted (not too many kinds)
+        self.every: list[FloatArray] = []  # the time of every clock.WINDOW-th sample (core.clock)
 
     def feed(
         self,
@@ -285,6 +289,7 @@ class Scan:
         else:
             steps, offset = np.diff(seconds, prepend=self.last_second), self.n
         self.last_second = float(seconds[-1])
+        self.every.append(seconds[(-self.n) % clock.WINDOW :: clock.WINDOW].copy())
         if self.counted:
             _count(steps, self.steps)
             self.counted = len(self.steps) <= MAX_STEPS
@@ -363,6 +368,8 @@ class Scan:
         period = self._period()
         if period is False or (period != self.period and not self._same_windows(period)):
             return None
+        if period and self.every and self._bursty(period):
+            return None
         floor = None
         threshold = self.settings.threshold
         span = float((self.hi - self.lo).max())  # the readings' range
@@ -416,6 +423,12 @@ class Scan:
         total = int(counts.sum())
         k = min(total - 1, max(0, round(0.5 * (total - 1))))
         return float(kinds[int(np.searchsorted(np.cumsum(counts), k + 1))])
+
+    def _bursty(self, median: float) -> bool:
+        """Whether the whole log's clock is bursty, as ``core.clock.judge`` judges it."""
+        spans = np.diff(np.concatenate(self.every))
+        zero = self.steps.get(0.0, 0) / max(1, sum(self.steps.values()))
+        return clock.classify(median, clock.local_step(spans), zero)
 
     def _same_windows(self, period: float | None) -> bool:
         """Whether the whole log's period gives the windows its first blocks' did."""

@@ -24,6 +24,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from tumblecal_cli.core import clock
+from tumblecal_cli.core.clock import Clock
 from tumblecal_cli.core.model import FACES, PoseStats, angle_deg, pose_stats
 from tumblecal_cli.errors import InputError
 
@@ -34,7 +36,7 @@ WINDOW = (0.5, 25)  # default rolling window: seconds when the time is known, el
 MIN_DURATION = (1.0, 50)  # default shortest block kept, the same way
 FLOOR_PERCENTILE = 10.0
 FLOOR_FACTOR = 3.0
-GAP_FACTOR = 3.0  # a time step this many times the typical one is a gap
+GAP_FACTOR = clock.GAP_FACTOR  # a time step this many times the typical one is a gap (core.clock)
 SHORT, NOISY, DRIFTING, UNMAPPED = "too short", "too noisy", "drifting", "not a pose label"
 #: A block whose mean is this many times noisier than the longest block of its face still
 #: competes to be its face's block (white noise: a quarter of the samples).
@@ -105,6 +107,7 @@ class Segmentation:
     zero_steps: float = 0.0  # the share of time steps that are 0: a clock coarser than the samples, or stopped
     mean_step: float | None = None  # the mean of the time steps no longer than a gap (beside the median, period)
     warnings: list[str] = field(default_factory=list)  # for people: how the log's time was read
+    clock: Clock | None = None  # what the time column says (core.clock), when the period is taken from it
 
     @property
     def kept(self) -> list[Block]:
@@ -160,6 +163,24 @@ def sample_period(times: FloatArray | None, rate: float | None) -> float | None:
     if times is not None and times.size > 1:
         return _quantile(np.diff(times), 0.5)
     return 1.0 / rate if rate else None
+
+
+def clock_of(times: FloatArray | None) -> tuple[Clock | None, IntArray]:
+    """The clock of a log's ``times`` (seconds; core.clock: its median step by nearest rank, as
+    ``sample_period``), and the index of each sample that follows a gap; None without two times."""
+    if times is None or times.size < 2:
+        return None, np.zeros(0, dtype=np.int64)
+    steps = np.diff(times)
+    found, at = clock.judge(steps, _quantile(steps, 0.5))
+    return found, at + 1
+
+
+def _timing(times: FloatArray | None, rate: float | None) -> tuple[Clock | None, float | None, IntArray]:
+    """The clock, the seconds per sample (the clock's period, else 1/rate, else unknown) and the gaps."""
+    found, breaks = clock_of(times)
+    if found is not None:
+        return found, found.period, breaks
+    return None, (1.0 / rate if rate else None), breaks
 
 
 def gaps(times: FloatArray | None, period: float | None) -> IntArray:
@@ -314,7 +335,7 @@ def detect(
     values: FloatArray, times: FloatArray | None = None, rate: float | None = None, settings: Settings = Settings()
 ) -> Segmentation:
     """Find, judge and label the still blocks of an (n, 3) log (``times`` in seconds)."""
-    period = sample_period(times, rate)
+    found, period, breaks = _timing(times, rate)
     window = _in_samples(settings.window, WINDOW, period, 2)
     min_samples = _in_samples(settings.min_duration, MIN_DURATION, period, 1)
     trim = window // 2 if settings.trim is None else _in_samples(settings.trim, (0.0, 0), period, 0)
@@ -326,7 +347,6 @@ def detect(
         scale = float(np.ptp(values[::16], axis=0).max()) or 1.0  # every 16th: a scale, not an exact range
         # quantised readings of a quiet sensor can have no spread at all: still is then "exactly level"
         threshold = FLOOR_FACTOR * floor if floor > 1e-9 * scale else 1e-6 * scale
-    breaks = gaps(times, period)
     starts, ends = _runs(spread < threshold, breaks)
     # the still period reaches half a window past the still centres, less the trim at each end
     reach = window // 2
@@ -347,6 +367,7 @@ def detect(
         np.zeros(3),
         settings.max_tilt_deg,
         [int(g) for g in breaks],
+        clock=found,
     )
     return _judge(seg, values, spans, settings)
 
@@ -369,7 +390,7 @@ def from_labels(
         firsts = np.concatenate([[0], change])
         lasts = np.concatenate([change - 1, [text.size - 1]])
         spans = [(int(a), int(b)) for a, b in zip(firsts, lasts, strict=True) if str(text[a]).strip()]
-    period = sample_period(times, rate)
+    found, period, _ = _timing(times, rate)
     seg = Segmentation(
         [],
         0,
@@ -380,6 +401,7 @@ def from_labels(
         0,
         np.zeros(3),
         settings.max_tilt_deg,
+        clock=found,
     )
     names = {a: str(text[a]).strip() for a, _ in spans}
     return _judge(seg, values, spans, settings, {a: mapping.get(names[a]) for a, _ in spans}, names)

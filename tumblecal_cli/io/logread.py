@@ -13,8 +13,9 @@ file again.
 Anything else returns None before anything is said or written, and the caller reads the log
 whole, by the general rules: a stream, whitespace or CR line ends, a line that is not plain
 (a comment, a blank line, a cell that is not a number, a partly empty reading), time that goes
-backwards or is not a number, a reading that is not finite or too large, a label column, or
-a log ``Scan`` cannot finish (its docstring). Every error message and every figure of those
+backwards or is not a number, a clock stamped in bursts (core.clock: its first readings' say
+so here, the whole log's ``Scan``), a reading that is not finite or too large, a label column,
+or a log ``Scan`` cannot finish (its docstring). Every error message and every figure of those
 logs is therefore the general path's own.
 """
 
@@ -31,7 +32,15 @@ import numpy as np
 
 from tumblecal_cli.core import model
 from tumblecal_cli.core.scan import Scan
-from tumblecal_cli.core.segment import FloatArray, IntArray, Segmentation, Settings, sample_period, window_spread
+from tumblecal_cli.core.segment import (
+    FloatArray,
+    IntArray,
+    Segmentation,
+    Settings,
+    clock_of,
+    sample_period,
+    window_spread,
+)
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import capture, readings, rewrite, sniff
 from tumblecal_cli.io.forked import cuts
@@ -239,6 +248,9 @@ class _Feeder:
                     raise _Plain from None  # the general path raises it, with everything before it said
                 self.scale = sniff.TIME_SCALE[lay.time_unit or "s"]
             seconds = None if self.rate else (clock - self.zero) * self.scale
+            found = clock_of(seconds)[0]
+            if found is not None and found.bursty:
+                raise _Plain  # stamped on arrival: the whole read takes the period from its mean step (core.clock)
         capacity = _capacity(self.first, self.size)
         scan = self.scan = Scan(sample_period(seconds, self.rate), self.settings, capacity=capacity)
         self.shared["window"] = scan.window

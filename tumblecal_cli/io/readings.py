@@ -472,26 +472,30 @@ def _not_too_fast(layout: Layout, step: float | None, scale: float) -> float:
     return scale
 
 
-def block_rate(cap: Capture, column: pa.Array, empty: BoolArray, unit: str) -> float:
-    """Samples per second from one block's time column (its median step, in the unit
-    ``time_scale`` finds), to 9 digits: a still capture's rate when no --rate is given."""
+def block_times(cap: Capture, first_row: int, column: pa.Array, empty: BoolArray) -> FloatArray:
+    """One block's time column as numbers, on the rows with sensor values (a capture streamed
+    block by block: its clock, core.clock)."""
+    clock = _time_numbers(cap, first_row, column)
+    return clock[~empty] if empty.any() else clock
+
+
+def _time_numbers(cap: Capture, first_row: int, text: pa.Array) -> FloatArray:
+    """One block's time cells as numbers, else an error naming the line of the first that is not."""
+    lay = cap.layout
+    assert lay.time is not None
+    text = cap.pointed(text)
     try:
-        clock = to_floats(cast_floats(cap.pointed(column)))
+        return to_floats(cast_floats(text))
     except pa.ArrowInvalid:
+        ok = pc.match_substring_regex(pc.utf8_trim_whitespace(unquote(text)), NUMBER)
+        i = int(pc.index(ok, False).as_py())
         raise InputError(
-            "the time column holds a cell that is not a number", file=cap.layout.name, hint="give --rate HZ"
+            f"time is not a number: {quoted(text[i].as_py())}",
+            file=lay.name,
+            line=cap._line_of_row(first_row + i),
+            column=lay.names[lay.time],
+            hint="give the sample rate with --rate HZ instead of the time column (--time-column to pick another)",
         ) from None
-    clock = clock[~empty] if empty.any() else clock
-    return median_rate(clock, time_scale(cap.layout, clock, unit) if clock.size > 1 else 1.0, cap.layout.name)
-
-
-def median_rate(clock: FloatArray, scale: float, name: str) -> float:
-    """Samples per second from a clock (``scale`` seconds a unit): its median step, to 9 digits
-    (the median step's float noise, not the rate's)."""
-    step = float(np.median(np.diff(clock))) * scale if clock.size > 1 else 0.0
-    if not step > 0:
-        raise InputError("the time column does not advance", file=name, hint="give --rate HZ")
-    return float(f"{1.0 / step:.9g}")
 
 
 def _times(cap: Capture, times: list[tuple[int, pa.Array]], mask: BoolArray | None) -> FloatArray:
@@ -500,23 +504,7 @@ def _times(cap: Capture, times: list[tuple[int, pa.Array]], mask: BoolArray | No
     interleaved logger stamps each sensor's rows with its own clock."""
     lay = cap.layout
     assert lay.time is not None
-    parts = []
-    for first_row, text in times:
-        text = cap.pointed(text)
-        try:
-            parts.append(to_floats(cast_floats(text)))
-        except pa.ArrowInvalid:
-            ok = pc.match_substring_regex(pc.utf8_trim_whitespace(unquote(text)), NUMBER)
-            i = int(pc.index(ok, False).as_py())
-            line = cap._line_of_row(first_row + i)
-            raise InputError(
-                f"time is not a number: {quoted(text[i].as_py())}",
-                file=lay.name,
-                line=line,
-                column=lay.names[lay.time],
-                hint="give the sample rate with --rate HZ instead of the time column (--time-column to pick another)",
-            ) from None
-    t = np.concatenate(parts)
+    t = np.concatenate([_time_numbers(cap, first_row, text) for first_row, text in times])
     rows = np.arange(t.size) if mask is None else np.flatnonzero(mask)
     t = t if mask is None else t[mask]
     back = np.flatnonzero(np.diff(t) < 0)

@@ -19,7 +19,7 @@ from typing import IO, TYPE_CHECKING, Unpack
 
 import numpy as np
 
-from tumblecal_cli.core import methods, model, solvers
+from tumblecal_cli.core import clock, methods, model, solvers
 from tumblecal_cli.core import segment as seg_core
 from tumblecal_cli.core.segment import Block, Segmentation
 from tumblecal_cli.errors import CaptureRejected, InputError
@@ -118,11 +118,10 @@ def segmented(
         yield path, data, find_blocks(data, rate, pose_column, pose_map, settings)
 
 
-#: More time steps of 0 than this share, and steps shorter on average than the median one by
-#: more than SHORTFALL (a logger that stamps on arrival repeats a stamp now and then, and its
-#: steps still average the median), and the clock is not the samples': a warning names --rate.
-ZERO_STEPS = 0.01
-SHORTFALL = 0.05
+#: A clock with more time steps of 0 than this share, and steps shorter on average than the
+#: median one by more than SHORTFALL, is not the samples' (core.clock.coarse): a warning names --rate.
+ZERO_STEPS = clock.ZERO_STEPS
+SHORTFALL = clock.SHORTFALL
 
 
 def coarse_clock(seg: Segmentation) -> bool:
@@ -151,7 +150,9 @@ def find_blocks(
     if seconds is not None and seconds.size > 1:
         steps = np.diff(seconds)
         seg.zero_steps = int(np.count_nonzero(steps == 0)) / steps.size
-        if seg.period:
+        if seg.clock is not None and seg.clock.bursty:  # its steps that are not gaps: those over 3 periods too
+            seg.mean_step = seg.clock.mean
+        elif seg.period:
             seg.mean_step = float(steps[(steps >= 0) & (steps <= seg_core.GAP_FACTOR * seg.period)].mean())
     return review(log, seg, rate, settings)
 
@@ -175,6 +176,9 @@ def review(log: Log, seg: Segmentation, rate: float | None, settings: seg_core.S
             "or one that stops): the period, gaps and durations taken from it are not the samples'; "
             "give the sample rate with --rate HZ"
         )
+    said = None if seg.clock is None or not seconds else clock.note(seg.clock, name, None)
+    if said is not None and said not in log.layout.notes:  # how the log was read: said with its other notes
+        log.layout.notes.append(said)
     if seg.period is None and (settings.window is not None or settings.min_duration is not None) and not rate:
         seg.warnings.append(f"{name}: no time column and no --rate: --window and --min-duration are in samples")
     tiny = sum(b.samples <= 2 for b in seg.blocks)

@@ -8,6 +8,7 @@ memory does not grow with its length, so a day at 200 Hz (17M rows) runs in a fe
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 from collections.abc import Callable, Mapping
@@ -16,8 +17,10 @@ from typing import TYPE_CHECKING, Unpack
 
 import numpy as np
 import yaml
+from numpy.typing import NDArray
 
-from tumblecal_cli.core import allan, gate
+from tumblecal_cli.core import allan, clock, gate
+from tumblecal_cli.core.clock import Clock
 from tumblecal_cli.core.model import apply
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import calfile, capture, documents, limitfile, readings, sniff, sources
@@ -28,7 +31,6 @@ from tumblecal_cli.pipeline.options import ReadKeywords, keywords_known, read_sp
 if TYPE_CHECKING:
     from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfile import Calibration
-    from tumblecal_cli.io.readings import Log
     from tumblecal_cli.io.readspec import ReadSpec
     from tumblecal_cli.pipeline.frames import DataFrame, JSONObject
 
@@ -108,6 +110,7 @@ class Noise:
     rejected: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     short: CaptureRejected | None = None  # --kalibr asked for a figure the capture does not show
+    clock: Clock | None = None  # the time column's (core.clock); None: --rate
 
     @property
     def error(self) -> CaptureRejected | None:
@@ -166,6 +169,7 @@ class Noise:
             "rate": self.rate,
             "samples": self.samples,
             "units": self.units,
+            "clock": None if self.clock is None else clock.as_dict(self.clock),
             "adev": curve,
             "axes": axes,
             "verdict": self.verdict(),
@@ -249,7 +253,7 @@ def _noise(path: str, options: NoiseKeywords) -> Noise:
     bounds = _limits(options.get("limits"))
     spec = replace(read_spec(options, prefer=None if c is None else c.columns), sensor=kind)
     loaded = _stream(path, c, spec, allan.AllanStream(per_octave), options.get("progress"))
-    curve, watch, name, notes, hz = loaded
+    curve, watch, name, notes, hz = loaded.curve, loaded.watch, loaded.name, loaded.notes, loaded.hz
     if curve.samples < 2:
         raise InputError(f"{curve.samples} sample: an Allan deviation needs many", file=name)
     names = UNIT_NAMES.get(choice) or UNIT_NAMES[(choice, kind)]
@@ -259,7 +263,7 @@ def _noise(path: str, options: NoiseKeywords) -> Noise:
         for f in allan.figures(curve)
     ]
     result = Noise(0, name, kind, hz, curve.samples, data_units, choice, figure_units, curve, axes, bounds)  # type: ignore[arg-type]
-    result.notes = notes
+    result.notes, result.clock = notes, loaded.clock
     result.rejected = [f"{name}: {m.message()}" for m in watch.verdict()]
     if not result.rejected:
         result.failures, result.not_judged = judge(axes, bounds, figure_units)
@@ -339,24 +343,33 @@ def _stream(
     spec: ReadSpec,
     stream: allan.AllanStream,
     progress: Callable[[int], None] | None,
-) -> tuple[allan.Curve, allan.StepWatch, str, list[str], float]:
-    """Read the capture block by block into the Allan stream and the step watch (a source
-    beside CSV, io.sources: read whole, then fed the same way)."""
+) -> _Streamed:
+    """Read the capture block by block into the Allan stream and the step watch, its clock
+    judged as it goes (``_Timer``; a source beside CSV, io.sources: read whole, then fed the
+    same way)."""
     rate, time_unit = spec.rate, spec.time_unit
     feed = _Feed(cal, stream, progress)
     if sources.reader_for(path) is not None or spec.span() != (None, None):  # (--start/--end: readings.in_span)
         log = readings.read_log(path, spec, use_time=rate is None)
-        known = rate if rate is not None else _log_rate(log)
+        lay = log.layout
+        if rate is None and log.clock is None:
+            raise InputError("the sample rate is unknown: the log has no clock", file=lay.name, hint="give --rate HZ")
+        timer = None if rate is not None or log.clock is None else _Timer(lay.name, log.scale)
+        gaps = np.zeros(0, dtype=np.int64)
+        if timer is not None and log.clock is not None:  # judged whole: its median step, as a CSV's first block's
+            gaps = timer.add(log.clock, log.rows)
         for first in range(0, len(log.values), 1 << 16):
-            feed.add(log.values[first : first + (1 << 16)], known)
-        return stream.result(known), feed.watch or allan.StepWatch(1), log.layout.name, list(log.layout.notes), known
+            block = log.values[first : first + (1 << 16)]
+            inside = gaps[(gaps >= first) & (gaps < first + len(block))] - first
+            feed.add(block, rate or (timer.hz if timer else None), inside)
+        return _streamed(stream, feed, lay, rate, timer)
     with capture.open_capture(path, spec) as cap:
         lay = cap.layout
         if rate is None and lay.time is None:
             raise InputError(
                 "the sample rate is unknown: the capture has no time column", file=lay.name, hint="give --rate HZ"
             )
-        hz = rate
+        timer = None if rate is not None else _Timer(lay.name, time_unit=time_unit, cap=cap)
         for first_row, cols in cap.batches(only_sensor=True):
             values, empty = cap.sensor_values(cols, first_row)
             bad = ~np.isfinite(values) & ~empty[:, None]
@@ -365,43 +378,135 @@ def _stream(
                 raise cap._locate(first_row + i, j, f"not a finite number: {sniff.quoted(cols[j][i].as_py())}")
             if empty.any():
                 values = values[~empty]
-            if hz is None and values.shape[0] > 1:
-                hz = readings.block_rate(cap, cols[3], empty, time_unit)
-            feed.add(values, hz)
+            found: NDArray[np.int64] | None = None
+            if timer is not None and values.shape[0]:
+                rows = first_row + (np.flatnonzero(~empty) if empty.any() else np.arange(values.shape[0]))
+                found = timer.add(readings.block_times(cap, first_row, cols[3], empty), rows)
+            feed.add(values, rate or (timer.hz if timer else None), found)
+    return _streamed(stream, feed, lay, rate, timer)
+
+
+@dataclass
+class _Streamed:
+    """What reading a capture gave: the curve, the step watch, the file's name and notes, the
+    rate and the clock it came from (None: --rate)."""
+
+    curve: allan.Curve
+    watch: allan.StepWatch
+    name: str
+    notes: list[str]
+    hz: float
+    clock: Clock | None
+
+
+def _streamed(
+    stream: allan.AllanStream, feed: _Feed, lay: sniff.Layout, rate: float | None, timer: _Timer | None
+) -> _Streamed:
+    """The curve at the rate (--rate, else the clock's), and the notes on how the capture was read."""
+    notes = list(lay.notes)
+    hz = rate
+    if timer is not None:
+        hz = timer.rate()
+        notes += timer.notes()
     if hz is None:
         raise InputError("the sample rate is unknown", file=lay.name, hint="give --rate HZ")
-    return stream.result(hz), feed.watch or allan.StepWatch(1), lay.name, list(lay.notes), hz
+    clocked = None if timer is None else timer.clock
+    return _Streamed(stream.result(hz), feed.watch or allan.StepWatch(1), lay.name, notes, hz, clocked)
+
+
+@dataclass
+class _Timer:
+    """A capture's clock, block by block (core.clock): judged by the first steps, its unit
+    (``readings.time_scale``) by the first block; the gaps in each block found, and counted."""
+
+    name: str
+    scale: float | None = None
+    time_unit: str = "auto"
+    cap: capture.Capture | None = None
+    clock: Clock | None = None
+    hz: float | None = None  # the first steps' rate: the watch's block length, and a regular clock's rate
+    last: float | None = None  # the last time seen, in the clock's own unit
+    last_row: int = -1  # ... and its data row
+    first_gap: int | None = None  # the data row before the first gap
+
+    def add(self, t: FloatArray, rows: NDArray[np.int64]) -> NDArray[np.int64]:
+        """The position among ``t`` of each sample after a gap (``rows``: their data rows)."""
+        if t.size == 0:
+            return np.zeros(0, dtype=np.int64)
+        joined = t if self.last is None else np.concatenate([[self.last], t])
+        shift = 1 if self.last is None else 0  # steps[k] ends at t[k + shift]
+        before = self.last_row
+        self.last, self.last_row = float(t[-1]), int(rows[t.size - 1])
+        if joined.size < 2:
+            return np.zeros(0, dtype=np.int64)
+        raw = np.diff(joined)
+        if self.clock is None:
+            if self.scale is None:  # the unit, by the first block's steps (a note when it is not named)
+                assert self.cap is not None
+                self.scale = readings.time_scale(self.cap.layout, joined, self.time_unit)
+            median = float(np.median(raw)) * self.scale  # the median step, as the rate always was
+            if not median > 0:
+                raise InputError("the time column does not advance", file=self.name, hint="give --rate HZ")
+            self.clock, at = clock.judge(raw * self.scale, median)
+            self.hz = clock.rate_of(self.clock)
+        else:
+            self.clock, at = self.clock.tally(raw * self.scale)
+        at = at + shift
+        if at.size and self.first_gap is None:
+            self.first_gap = int(rows[at[0] - 1]) if at[0] > 0 else before
+        return at
+
+    def rate(self) -> float | None:
+        """A regular clock's rate is its first steps' median (as it always was); a bursty one's,
+        the mean of all its steps that are not gaps (core.clock)."""
+        if self.clock is None or not self.clock.bursty:
+            return self.hz
+        return clock.rate_of(self.clock)
+
+    def notes(self) -> list[str]:
+        """How the clock was read: bursty (both steps, the rate used), and its gaps."""
+        out = []
+        if self.clock is not None:
+            said = clock.note(self.clock, self.name, None)
+            out += [said] if said else []
+        if self.clock is not None and self.clock.gaps:
+            after = f" (the first after data row {self.first_gap})" if self.first_gap is not None else ""
+            k = self.clock.gaps
+            out.append(
+                f"{self.name}: {k} gap{'s' if k > 1 else ''} in time{after}, {self.clock.gap_seconds:.3g} s in all "
+                f"(a step over {self.clock.bound:.3g} s): no cluster of the deviation spans one"
+            )
+        return out
 
 
 @dataclass
 class _Feed:
     """Readings into the Allan stream and the step watch (made once the rate is known: about a
-    second of samples a step), corrected by ``cal`` first when one is given."""
+    second of samples a step), corrected by ``cal`` first when one is given; a gap in time
+    starts a new run of the stream (no cluster spans it)."""
 
     cal: Calibration | None
     stream: allan.AllanStream
     progress: Callable[[int], None] | None
     watch: allan.StepWatch | None = None
 
-    def add(self, values: FloatArray, hz: float | None) -> None:
+    def add(self, values: FloatArray, hz: float | None, gaps: NDArray[np.int64] | None = None) -> None:
         if self.cal is not None:
             values = apply(values, self.cal.offset, self.cal.matrix)
         if self.watch is None and hz is not None:
             self.watch = allan.StepWatch(max(16, 2 ** round(math.log2(max(hz, 1.0)))))  # about a second
-        self.stream.add(values)
+        cuts = [0, *(int(g) for g in gaps), values.shape[0]] if gaps is not None and gaps.size else None
+        if cuts is None:
+            self.stream.add(values)
+        else:
+            for k, (a, b) in enumerate(itertools.pairwise(cuts)):
+                if k:
+                    self.stream.restart()
+                self.stream.add(values[a:b])
         if self.watch is not None:
             self.watch.add(values)
         if self.progress is not None:
             self.progress(self.stream.n)
-
-
-def _log_rate(log: Log) -> float:
-    """Samples per second of a log read whole, as a CSV's first block gives it (readings.median_rate)."""
-    if log.clock is None:
-        raise InputError(
-            "the sample rate is unknown: the log has no clock", file=log.layout.name, hint="give --rate HZ"
-        )
-    return readings.median_rate(log.clock, log.scale, log.layout.name)
 
 
 def write_kalibr(path: str, result: Noise) -> dict[str, float]:

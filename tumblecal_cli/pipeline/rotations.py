@@ -90,7 +90,7 @@ def hand_turns(log: str, options: SolveOptions) -> HandTurns:
         )
     kept, notes = gyro_still(seg, acc.values, gyr.values)
     _clock_integrates(seg, kept, gyr, options.read.rate)
-    dt = seconds_per_sample(gyr, options.read.rate)
+    dt = seconds_per_sample(gyr, options.read.rate, seg.clock)
     still = np.concatenate([gyr.values[b.first : b.last + 1] for b in kept]) if kept else np.zeros((0, 3))
     bias, bias_se = stillness.bias(gyr.values, [(b.first, b.last) for b in kept], seg.window)
     directions = [_direction(accel, acc.values[b.first : b.last + 1].mean(axis=0)) for b in kept]

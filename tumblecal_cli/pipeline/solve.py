@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tumblecal_cli.core import gate, methods, model, segment, solvers
+from tumblecal_cli.core import clock, gate, methods, model, segment, solvers
 from tumblecal_cli.core.gate import Finding
 from tumblecal_cli.core.model import face_of_name
 from tumblecal_cli.errors import CaptureRejected, InputError
@@ -411,6 +411,8 @@ def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
         blocks_found=len(seg.blocks),
         blocks_kept=len(seg.kept),
         gaps=len(seg.gaps),
+        # a bursty clock's rate is its mean step's (core.clock): said with its steps and jitter
+        extra={"clock": clock.as_dict(seg.clock)} if seg.clock is not None and seg.clock.bursty else {},
     )
     given = replace(given, centre=seg.centre)
     whole = [data.values if data.extremes is None else data.extremes]  # the still blocks alone: the extremes

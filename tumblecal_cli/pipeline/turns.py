@@ -12,7 +12,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from tumblecal_cli.core import gate, model, segment, stillness, turn_fit
+from tumblecal_cli.core import clock, gate, model, segment, stillness, turn_fit
+from tumblecal_cli.core.clock import Clock
 from tumblecal_cli.core.gate import Finding
 from tumblecal_cli.core.model import FloatArray
 from tumblecal_cli.core.solvers import Fit
@@ -39,6 +40,7 @@ HINTS = {
     "turns.axes": "turn the unit about each of its three axes, and name each turn's section with --turns",
     "turns.angle": "check --turn-angle and its sign (right-hand rule about the named axis), and each turn's axis",
     "turns.moved": "hold the unit still on each face, or raise --max-noise (deg/s of the calibrated gyroscope)",
+    "turns.gap": "log without gaps, or leave that turn out of --turns",
 }
 
 
@@ -115,9 +117,15 @@ def sections(log: Log) -> dict[str, Section]:
     return out
 
 
-def seconds_per_sample(log: Log, rate: float | None) -> FloatArray:
+def seconds_per_sample(log: Log, rate: float | None, found: Clock | None = None) -> FloatArray:
     """The seconds each reading stands for: 1/--rate, else the time to the next reading (the
-    last one the median step); without either the turns cannot be integrated (exit 2)."""
+    last one the median step); without either the turns cannot be integrated (exit 2).
+
+    A clock stamped on arrival in bursts (core.clock; ``found``, else judged here) says when a
+    reading reached the host, not when it was taken: a reading just before a pause would stand
+    for the whole pause and the rest of its burst for almost nothing, so each stands for the
+    clock's mean period instead (the sample count at the mean rate, which is what the samples
+    were taken at)."""
     if rate:
         return np.full(len(log.values), 1.0 / rate)
     t = log.seconds()
@@ -127,8 +135,40 @@ def seconds_per_sample(log: Log, rate: float | None) -> FloatArray:
             file=log.layout.name,
             hint="give the sample rate with --rate HZ (or the time column with --time-column)",
         )
-    step = np.diff(t)
-    return np.append(step, np.median(step) if step.size else 0.0)
+    found, gaps = (found, None) if found is not None else segment.clock_of(t)
+    if found is not None and found.bursty:
+        return np.full(len(log.values), found.period)
+    step = np.append(np.diff(t), np.median(np.diff(t)) if t.size > 1 else 0.0)
+    if found is not None and found.gaps:  # the reading before a gap stands for one period, not the gap
+        gaps = segment.clock_of(t)[1] if gaps is None else gaps
+        step[gaps - 1] = found.period
+    return step
+
+
+def gapped(turns: dict[str, Section], log: Log, rate: float | None) -> tuple[list[Finding], list[str], Clock | None]:
+    """Each turn whose samples span a gap in time (core.clock: its samples are not all there, and
+    the gap is never integrated over), a note on a bursty clock, and the clock (None: --rate, or
+    no time column)."""
+    if rate:
+        return [], [], None
+    t = log.seconds()
+    found, gaps = segment.clock_of(t)
+    said = None if found is None else clock.note(found, log.layout.name, None)
+    out = []
+    for label, section in turns.items():
+        inside = gaps[np.isin(gaps - 1, section.index) & np.isin(gaps, section.index)]
+        if inside.size:
+            row = int(log.rows[inside[0] - 1])
+            out.append(
+                Finding(
+                    "turns.gap",
+                    f"turn {label} spans a gap in time (after data row {row}): "
+                    "its samples are not all there to integrate",
+                    int(inside.size),
+                    0,
+                )
+            )
+    return out, [said] if said else [], found
 
 
 def _rejected(findings: list[Finding], name: str) -> CaptureRejected:
@@ -193,7 +233,11 @@ def _solve(acc: Log, gyr: Log, options: SolveOptions, given: Settings) -> Outcom
                 name,
             ),
         )
-    dt = seconds_per_sample(gyr, options.read.rate)
+    spans, said, timed = gapped({label: found[label] for label in turns}, gyr, options.read.rate)
+    notes += said
+    if spans:
+        return Outcome(3, None, rejections=spans, error=_rejected(spans, name), notes=notes)
+    dt = seconds_per_sample(gyr, options.read.rate, timed)
     still_sections, cut, restless = gyro_still([found[faces[f]] for f in SIX], gyr.values, dt, options.log.window)
     notes += cut
     still = turn_fit.Still([acc.values[s.index] for s in still_sections], [gyr.values[s.index] for s in still_sections])
