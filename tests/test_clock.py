@@ -68,6 +68,25 @@ def test_a_bursty_clock_is_read_at_the_rate_its_samples_cover() -> None:
     assert "--rate" in said
 
 
+@pytest.mark.parametrize("samples", [100, 300, 500])
+def test_a_short_bursty_clock_is_bursty_too(samples: int) -> None:
+    """A capture of a few seconds (or the part --start/--end pick) is too short for windows of
+    64 steps: judged on shorter windows, not taken as regular for its length alone."""
+    steps = steps_of(arrival_stamps(np.arange(samples) / TRUE_RATE, seed=samples))
+    found, _ = clock.judge(steps, float(np.median(steps)))
+    assert found.bursty
+    assert 1 / found.period == pytest.approx(TRUE_RATE, rel=0.03)
+
+
+@pytest.mark.parametrize("samples", [64, 100, 500])
+def test_a_short_regular_clock_stays_regular(samples: int) -> None:
+    rng = np.random.default_rng(samples)
+    steps = steps_of(np.sort(np.arange(samples) / 200.0 + rng.normal(0, 2e-4, samples)))
+    found, _ = clock.judge(steps, float(np.median(steps)))
+    assert not found.bursty
+    assert found.period == float(np.median(steps))
+
+
 def test_a_regular_clock_keeps_its_median_step_exactly() -> None:
     rng = np.random.default_rng(3)
     t = np.arange(50_000) / 200.0 + rng.normal(0, 2e-4, 50_000)  # 4 % of a period of jitter

@@ -11,7 +11,7 @@ Part of the core layer (README "Development"). The rules (README "CSV captures",
   of ``WINDOW`` steps, of each window's mean step: a window holds many bursts, so bursts average
   out, and a gap (the logger paused) moves only the one window it falls in. A clock whose median
   and local mean differ by more than ``DISAGREE`` is bursty; otherwise it is regular. A clock too
-  short for ``MIN_WINDOWS`` windows, or a coarse one (steps of 0, ``coarse``: a clock ticking
+  short for ``MIN_WINDOWS`` windows of ``SHORT_WINDOW`` steps, or a coarse one (steps of 0, ``coarse``: a clock ticking
   slower than the samples, which callers name with its own warning) is taken as regular.
 - **gaps.** A step over ``GAP_FACTOR`` median steps on a regular clock (segment's rule, kept:
   its blocks never span one); on a bursty clock a step over ``BURSTY_GAP_FACTOR`` times its
@@ -47,6 +47,11 @@ IntArray = NDArray[np.int64]
 #: Steps per window of the local mean step, and the fewest windows that judge a clock bursty.
 WINDOW = 64
 MIN_WINDOWS = 8
+#: A log too short for MIN_WINDOWS windows of WINDOW steps (a capture of a few seconds, or the
+#: part --start/--end pick) is judged on MIN_WINDOWS windows as long as it has steps for, each of
+#: SHORT_WINDOW steps at least (a burst is a handful of samples), so that it is not taken as
+#: regular for its length alone; fewer steps than one window of that: regular.
+SHORT_WINDOW = 8
 #: The median step and the local mean step differ by more than this (of the local mean): bursty.
 DISAGREE = 0.10
 #: A step this many median steps is a gap on a regular clock ...
@@ -164,6 +169,9 @@ def judge(steps: FloatArray, median: float) -> tuple[Clock, IntArray]:
     ``median`` (the caller's rule), with those steps counted, and the position of each gap
     among them."""
     local = local_step(window_spans(steps))
+    if local is None and steps.size >= MIN_WINDOWS * SHORT_WINDOW:
+        width = steps.size // MIN_WINDOWS
+        local = float(np.median(steps[: MIN_WINDOWS * width].reshape(MIN_WINDOWS, width).sum(axis=1))) / width
     zero_share = float(np.count_nonzero(steps == 0)) / steps.size if steps.size else 0.0
     bursty = classify(median, local, zero_share)
     base = Clock(median, local if local is not None else median, bursty, bound_of(steps, median, local, bursty))

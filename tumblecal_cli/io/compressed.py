@@ -26,6 +26,7 @@ from typing import IO, TYPE_CHECKING
 import pyarrow as pa
 
 from tumblecal_cli.errors import InputError
+from tumblecal_cli.io import sources
 
 if TYPE_CHECKING:
     from _typeshed import ReadableBuffer, WriteableBuffer
@@ -72,6 +73,11 @@ def binary_hint(name: str, head: bytes) -> str:
         if head.startswith(magic):
             return f"it is {what}: {todo.replace('FILE', name)}"
     said = named(name)
+    log = next((r.kind for r in sources.READERS if isinstance(r, sources.Lazy) and r.claims(name, head)), None)
+    if log is not None and said is not None:  # what a compressed file holds: logs are read whole, uncompressed
+        return f"it is a {said}-compressed {log}: decompress it first, and give the log itself"
+    if log is not None:
+        return f"it is a {log}: solve --log, segment, noise, thermal and verify read it; this command reads CSV"
     if said is not None:
         return f"it is named like {said} data but does not start like it: is the file whole?"
     return "is this a CSV capture? (gzip, bzip2, xz and zstd captures are read as they are)"

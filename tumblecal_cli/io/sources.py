@@ -11,6 +11,7 @@ its clock and temperature as it judges a CSV's, and names it in every message.
 from __future__ import annotations
 
 import importlib
+import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol, cast
@@ -197,7 +198,11 @@ def kinds() -> str:
 
 def streams(path: str) -> list[Stream]:
     """The streams of the log ``path`` (``tumblecal logs``): an InputError when no reader claims it."""
+    if path != "-" and not os.path.exists(path):
+        raise InputError("no such file", file=path)
     reader = reader_for(path)
+    if reader is None and os.path.isdir(path):
+        raise InputError(f"is a directory, not a log ({kinds()})", file=path)
     if reader is None:
         raise InputError(
             f"not a log of a kind tumblecal reads by streams ({kinds()})",

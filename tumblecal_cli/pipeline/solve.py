@@ -9,6 +9,7 @@ command line renders a :class:`Solved`, and ``Solved.calibration.save`` writes i
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -72,6 +73,13 @@ class Solved:
     samples: list[Samples] = field(default_factory=list)  # the poses as read (raw units)
     limits: Limits | None = None  # the limits given (before the method's own applied)
 
+    def __post_init__(self) -> None:  # a rejection that is no check's finding is said in rejections too
+        e = self.error
+        if self.status == 3 and not self.rejections and e is not None:
+            self.rejections = [
+                Finding(e.code or "capture.rejected", e.message, math.nan, math.nan, e.file, hint=e.hint)
+            ]
+
     @property
     def passed(self) -> bool:
         return self.status == 0
@@ -120,8 +128,9 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Path
             hint="see 'tumblecal solve --help'",
         )
     note = None
-    if path is not None:
-        options, note = _stream_units(path, options)
+    first = path if path is not None else _first_file(files_or_data)
+    if first is not None:  # pose files of a log's stream read in its units as a log is
+        options, note = _stream_units(first, options)
     given = opts.settings(options, log=path is not None)
     if path is not None and (options.log.turns is not None or options.log.accel_cal is not None):  # a gyroscope's turns
         if options.log.turns is not None:
@@ -142,6 +151,7 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Path
         return _solve(*_table_poses(table, options, given), options, given)
     name, labels, samples, placed = _read_poses(files_or_data, options, given, read)
     notes = [] if placed.note is None else [placed.note]
+    notes[:0] = [note] if note else []
     chosen = PoseSet(labels, samples, [s.values for s in samples], notes or [], None, placed.by_name, placed.labelled)
     return _solve_trimmed(name, chosen, options, given)
 
@@ -170,6 +180,16 @@ def _solve_trimmed(name: str, poses: PoseSet, options: SolveOptions, given: Sett
 
 #: Standard gravity (m/s^2): the reference of an accelerometer read in m/s^2 (PX4's CONSTANTS_ONE_G).
 STANDARD_GRAVITY = 9.80665
+
+
+def _first_file(given: list[str] | Mapping[str, object] | None) -> str | None:
+    """The first pose file named by a path (None: data in memory only)."""
+    items = list(given.values()) if isinstance(given, Mapping) else list(given or [])
+    paths = [str(p) for p in items if isinstance(p, (str, os.PathLike))]
+    if not paths:
+        return None
+    first = paths[0]  # a LABEL=FILE of the command line: its file
+    return first.partition("=")[2] if "=" in first and not os.path.exists(first) else first
 
 
 def _stream_units(path: str, options: SolveOptions) -> tuple[SolveOptions, str | None]:
