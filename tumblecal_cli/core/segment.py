@@ -508,15 +508,18 @@ def rough_centre(means: FloatArray, max_tilt_deg: float) -> FloatArray:
     ordered = np.sort(means, axis=0)
     median = (ordered[(len(means) - 1) // 2] + ordered[len(means) // 2]) / 2
     candidates = [(ordered[-1] + ordered[0]) / 2, median, np.zeros(means.shape[1])]
-    best: tuple[int, FloatArray] | None = None
+    best: tuple[int, float, FloatArray] | None = None
     for centre in candidates:
         norms = np.linalg.norm(means - centre, axis=1)
         if float(norms.min()) <= 0.1 * float(norms.max()):
             continue  # a block at the centre itself: no direction to judge
-        labelled = sum(_nearest_face(m - centre)[1] <= max_tilt_deg for m in means)
-        if best is None or labelled > best[0]:
-            best = (labelled, centre)
-    return candidates[0] if best is None else best[1]
+        tilts = [_nearest_face(m - centre)[1] for m in means]
+        labelled, tilt = sum(t <= max_tilt_deg for t in tilts), float(sum(tilts))
+        # as many labelled: the centre that puts them nearer their faces (two blocks of one face
+        # 4 degrees apart have their midpoint between them, which tilts each 12 degrees onto +-y)
+        if best is None or labelled > best[0] or (labelled == best[0] and tilt < best[1] - 1e-9):
+            best = (labelled, tilt, centre)
+    return candidates[0] if best is None else best[2]
 
 
 def _nearest_face(v: FloatArray) -> tuple[str, float, float]:
