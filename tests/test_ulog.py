@@ -206,7 +206,7 @@ def test_stream_on_a_csv_and_logs_on_a_csv_are_exit_2(tmp_path: Path) -> None:
     assert "--stream sensor_accel:0: this file is read as a CSV capture" in err
     code, _, err = cli("logs", csv)
     assert code == 2
-    assert err.startswith(f"error: {csv}: not a log of a kind tumblecal reads by streams (PX4 ULog)")
+    assert err.startswith(f"error: {csv}: not a log of a kind tumblecal reads by streams (PX4 ULog, ")
 
 
 def test_a_log_whose_reader_needs_an_extra_not_installed_is_exit_2_naming_it(
@@ -219,7 +219,7 @@ def test_a_log_whose_reader_needs_an_extra_not_installed_is_exit_2_naming_it(
     entry = sources.Lazy(
         "ROS bag", "fake_bag_reader", magic=(b"#ROSBAG V2.0\n",), extra="ros", needs=("rosbags_not_installed_here",)
     )
-    monkeypatch.setattr(sources, "READERS", [*sources.READERS, entry])
+    monkeypatch.setattr(sources, "READERS", [entry, *sources.READERS])
     bag = write(tmp_path / "test.bag", b"#ROSBAG V2.0\n" + bytes(100))
     commands: list[list[str | Path]] = [
         ["logs", bag],

@@ -11,6 +11,7 @@ its clock and temperature as it judges a CSV's, and names it in every message.
 from __future__ import annotations
 
 import importlib
+import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol, cast
@@ -134,9 +135,24 @@ class Lazy:
         return cast("Reader", module.READER)
 
 
+def ros_claim(path: str, head: bytes) -> bool:
+    """A ROS 1 bag or an MCAP file by its first bytes, a ROS 2 bag's sqlite3 file (``.db3``), or a
+    ROS 2 bag's folder (its metadata.yaml, or the .db3 or .mcap files of a recording cut short)."""
+    if head.startswith((b"#ROSBAG V", b"\x89MCAP0\r\n")):
+        return True
+    if head or not os.path.isdir(path):
+        return head.startswith(b"SQLite format 3\x00") and path.endswith(".db3")
+    try:
+        names = os.listdir(path)
+    except OSError:
+        return False
+    return "metadata.yaml" in names or any(n.endswith((".db3", ".mcap")) for n in names)
+
+
 #: The readers of sources beside CSV, asked in order; a file none claims is read as CSV.
 READERS: list[Reader] = [
     Lazy("PX4 ULog", "tumblecal_cli.io.ulog", magic=(b"ULog\x01\x12\x35",)),
+    Lazy("ROS bag or MCAP file", "tumblecal_cli.io.ros", claim=ros_claim, extra="ros", needs=("rosbags",)),
 ]
 #: How much of a file a reader is shown to claim it.
 HEAD = 64

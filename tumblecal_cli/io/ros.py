@@ -1,0 +1,551 @@
+"""ROS bags and MCAP: the ``sensor_msgs/Imu`` and ``sensor_msgs/MagneticField`` topics of a ROS 1
+bag (``.bag``), a ROS 2 bag (a folder of ``metadata.yaml`` and sqlite3 ``.db3`` or ``.mcap``
+files) or a plain MCAP file (ROS 2 messages), as io.sources streams.
+
+The bag is opened with rosbags (the ``[ros]`` extra, Apache-2.0, no ROS install), which hands over
+each message of the topics read as its serialized bytes; the messages are then decoded here with
+numpy a batch at a time (``decode``), not one by one with rosbags' deserializer: an Imu message
+is a header (stamp, then the frame_id string) and a fixed block of float64s after it, so one
+record view over a batch's bytes reads every message's stamp, string length and values at once.
+ROS 1 messages are packed little-endian; ROS 2 messages are CDR (a 4-byte encapsulation header,
+little- or big-endian, each float64 aligned to 8 bytes from after that header). Only the decoded
+numbers of the IMU topics are kept: the bag is never in memory whole.
+
+Time is the header stamp (``sec`` + ``nanosec``, ns); a topic whose stamps are all zero (a driver
+that never set them) is read by the bag's record time, with a note. Raw or corrected: ROS messages
+carry no flag, so the topic's name tells (``judged``, with the conventions it follows).
+What rosbags cannot read (a bag cut short, a damaged chunk) is one InputError naming the file,
+or, when some messages were read before it, a note saying where the reading stopped.
+"""
+
+from __future__ import annotations
+
+import array
+import hashlib
+import os
+import re
+from collections.abc import Collection, Iterator
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+from rosbags.interfaces import Connection
+from rosbags.rosbag1 import Reader as Reader1
+from rosbags.rosbag2 import Reader as Reader2
+
+from tumblecal_cli.core.model import FloatArray
+from tumblecal_cli.errors import InputError
+from tumblecal_cli.io import sources
+from tumblecal_cli.io.readspec import ReadSpec
+from tumblecal_cli.io.sources import Stream, Table
+
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
+IMU = "sensor_msgs/msg/Imu"
+MAG = "sensor_msgs/msg/MagneticField"
+ROS1_MAGIC = b"#ROSBAG V"
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+#: Bytes of messages gathered before a batch is decoded.
+BATCH = 1 << 22
+#: A clock that goes back this often is not a stray message but two sessions (exit 2).
+BACK_SHARE = 0.01
+
+
+@dataclass(frozen=True)
+class Part:
+    """One sensor a message type carries: the offset of its three float64s after the header."""
+
+    sensor: str
+    offset: int
+    units: str
+
+
+#: The message types read, the sensors each carries, and the bytes after the header (the
+#: fixed block: Imu's orientation, angular velocity and linear acceleration with their
+#: covariances; MagneticField's field and its covariance).
+TYPES: dict[str, tuple[tuple[Part, ...], int]] = {
+    IMU: ((Part("accelerometer", 200, "m/s^2"), Part("gyroscope", 104, "rad/s")), 296),
+    MAG: ((Part("magnetometer", 0, "T"),), 96),
+}
+#: The columns a calibration records for each sensor.
+NAMES = {
+    "accelerometer": ("acc_x", "acc_y", "acc_z"),
+    "gyroscope": ("gyr_x", "gyr_y", "gyr_z"),
+    "magnetometer": ("mag_x", "mag_y", "mag_z"),
+}
+
+_RAW = (
+    "raw: named so (imu/data_raw is what imu_tools' filters, imu_filter_madgwick and imu_complementary_filter, "
+    "read; REP-145 puts raw data in an imu_raw namespace)"
+)
+_DATA = (
+    "corrected: imu/data is what imu_tools' filters publish from imu/data_raw, the gyroscope less the bias they "
+    "estimate (imu_complementary_filter: complementary_filter_ros.cpp, publish, do_bias_estimation on by default); "
+    "REP-145 names it the consolidated data of attitude estimation"
+)
+_NAMED = (
+    "corrected: named so (imu_calib's apply_calib publishes 'corrected'; REP-145's imu_unbiased and "
+    "imu_compensated namespaces)"
+)
+_UNTOLD = (
+    "raw: its name does not say (no 'raw', not imu/data), and REP-145 asks drivers to publish readings as the "
+    "device reports them"
+)
+_CORRECTED_WORDS = frozenset({"corrected", "calibrated", "calib", "filtered", "unbiased", "compensated"})
+
+
+def judged(topic: str) -> tuple[bool, str]:
+    """Whether a topic's readings were already corrected, told by its name (ROS has no flag),
+    and how that is told: a name with the word ``raw`` is raw; ``imu/data`` (any namespace
+    ending in ``imu``) or a name saying corrected, calibrated, filtered, unbiased or compensated
+    is corrected; any other name is read as raw (with a note when read)."""
+    words = set(re.split(r"[/_\-.]+", topic.lower()))
+    parts = [p for p in topic.lower().split("/") if p]
+    if "raw" in words:
+        return False, _RAW
+    if words & _CORRECTED_WORDS:
+        return True, _NAMED
+    if len(parts) >= 2 and parts[-1] == "data" and parts[-2].endswith("imu"):
+        return True, _DATA
+    return False, _UNTOLD
+
+
+class _Source(Protocol):
+    """What this reader uses of a rosbags reader (rosbag1.Reader and rosbag2's storage readers)."""
+
+    @property
+    def connections(self) -> list[Connection]: ...
+
+    def open(self) -> None: ...
+
+    def close(self) -> None: ...
+
+    def messages(self, connections: Collection[Connection], /) -> Iterator[tuple[Connection, int, bytes]]: ...
+
+
+@dataclass
+class Topic:
+    """One topic of a type read: its name and type, the messages the bag says it holds, and
+    those decoded: header stamps and record times (ns), the values (``(n, 3)`` per sensor)."""
+
+    name: str
+    msgtype: str
+    count: int
+    stamps: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    received: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    values: dict[str, FloatArray] = field(default_factory=dict)
+    odd: int = 0  # messages not of the type's layout (skipped)
+
+
+@dataclass
+class Index:
+    """A bag read once: its kind, the topics of the types read, the others (name, type), its
+    sha256, and the notes of what could not be read."""
+
+    kind: str
+    topics: list[Topic]
+    others: list[tuple[str, str]]
+    sha256: str
+    notes: list[str]
+
+
+#: The bags read (a command lists a bag's streams, then reads one: one pass for both).
+_CACHE: list[tuple[tuple[object, ...], Index]] = []
+
+
+class RosReader:
+    """io.sources' Reader of ROS 1 and ROS 2 bags and MCAP files."""
+
+    def claims(self, path: str, head: bytes) -> bool:
+        return sources.ros_claim(path, head)
+
+    def streams(self, path: str) -> list[Stream]:
+        return streams_of(index(path))
+
+    def read(self, path: str, spec: ReadSpec, label_column: str | None) -> Table:
+        return read_stream(path, spec, label_column)
+
+
+READER = RosReader()
+
+
+def index(path: str) -> Index:
+    """``path`` read once (kept while its files' sizes and times are the same)."""
+    key = _key(path)
+    for known, found in _CACHE:
+        if known == key:
+            return found
+    found = _read_bag(path)
+    _CACHE[:] = [(key, found)]
+    return found
+
+
+def _key(path: str) -> tuple[object, ...]:
+    names = sorted(os.listdir(path)) if os.path.isdir(path) else [""]
+    stats = [os.stat(os.path.join(path, n)) if n else os.stat(path) for n in names]
+    return (
+        os.path.realpath(path),
+        *((n, s.st_size, s.st_mtime_ns, s.st_ino) for n, s in zip(names, stats, strict=True)),
+    )
+
+
+def _kind(path: str) -> str:
+    if os.path.isdir(path):
+        return "ROS 2 bag"
+    with open(path, "rb") as f:
+        head = f.read(16)
+    return "ROS 1 bag" if head.startswith(ROS1_MAGIC) else "MCAP file" if head.startswith(MCAP_MAGIC) else "ROS 2 bag"
+
+
+def _files(path: str) -> list[Path]:
+    """A bag's files, in order (what its sha256 is of)."""
+    if not os.path.isdir(path):
+        return [Path(path)]
+    return sorted(p for p in Path(path).iterdir() if p.is_file() and p.suffix in (".yaml", ".db3", ".mcap"))
+
+
+def _sources(path: str, kind: str, notes: list[str]) -> list[_Source]:
+    """The rosbags readers of a bag: a ROS 1 bag's, a ROS 2 bag folder's (its storage files read
+    directly when it has no metadata.yaml), an MCAP or sqlite3 file's (chosen by its bytes, not
+    its name)."""
+    plugins = Reader2.STORAGE_PLUGINS
+    if kind == "ROS 1 bag":
+        return [Reader1(path)]
+    if kind == "MCAP file":
+        return [plugins[".mcap"](Path(path))]
+    if not os.path.isdir(path):
+        return [plugins[".db3"](Path(path))]
+    if os.path.exists(os.path.join(path, "metadata.yaml")):
+        return [plugins["dir"](Path(path))]
+    stored = [p for p in _files(path) if p.suffix in (".db3", ".mcap")]
+    if not stored:
+        raise InputError("a folder with neither metadata.yaml nor .db3 or .mcap files: not a ROS 2 bag", file=path)
+    notes.append(
+        f"{path}: no metadata.yaml (a recording cut short?): read its {', '.join(p.name for p in stored)} directly, "
+        "as ros2 bag reindex would"
+    )
+    return [plugins[p.suffix](p) for p in stored]
+
+
+def _damaged(path: str, kind: str, err: BaseException) -> InputError:
+    """rosbags' error (or a decompressor's, or a failed assertion in its reader) as one line."""
+    text = str(err).strip() or type(err).__name__
+    hint = "check that the file is whole (its size, a copy that finished)"
+    if "not indexed" in text or "index looks damaged" in text:
+        hint = "the recording was cut short: rosbag reindex FILE (ROS 1) rebuilds its index"
+    elif "end magic" in text or "Truncated" in text:
+        hint = "the file was cut short: mcap recover FILE -o FIXED.mcap (the MCAP command line tool) rewrites it whole"
+    elif "Profile is not ros2" in text:
+        hint = "an MCAP file of ROS 1 messages: convert it to a ROS 2 bag (rosbags-convert) or to a ROS 1 bag"
+    return InputError(f"cannot read this {kind}: {text}", file=path, hint=hint)
+
+
+def _read_bag(path: str) -> Index:
+    """Every message of the IMU and magnetometer topics of ``path`` decoded, a batch at a time."""
+    kind, notes = _kind(path), list[str]()
+    readers = _sources(path, kind, notes)
+    topics: dict[str, Topic] = {}
+    others: dict[str, str] = {}
+    for reader in readers:
+        try:
+            reader.open()
+        except Exception as err:  # rosbags' own errors, and what its decompressors raise
+            raise _damaged(path, kind, err) from None
+        try:
+            wanted = [c for c in reader.connections if c.msgtype in TYPES]
+            for c in reader.connections:
+                if c.msgtype in TYPES:
+                    topic = topics.setdefault(c.topic, Topic(c.topic, c.msgtype, 0))
+                    topic.count += c.msgcount
+                else:
+                    others.setdefault(c.topic, c.msgtype)
+            if wanted:
+                _gather(path, kind, reader.messages(wanted), topics, notes)
+        finally:
+            reader.close()
+    ordered = sorted(topics.values(), key=lambda t: t.name)
+    return Index(kind, ordered, sorted(others.items()), _sha256(_files(path)), notes)
+
+
+def _sha256(files: list[Path]) -> str:
+    """The sha256 of the bag's bytes: its file's, or its folder's files' one after another."""
+    digest = hashlib.sha256()
+    for part in files:
+        with open(part, "rb") as f:
+            while block := f.read(1 << 20):
+                digest.update(block)
+    return digest.hexdigest()
+
+
+class _Batch:
+    """The messages of one topic gathered since its last decode: their bytes, sizes and record
+    times, and what has been decoded so far."""
+
+    def __init__(self, topic: Topic, cdr: bool) -> None:
+        self.topic, self.cdr = topic, cdr
+        self.buf = bytearray()
+        self.sizes: array.array[int] = array.array("q")
+        self.times: array.array[int] = array.array("q")
+        self.done: list[tuple[IntArray, IntArray, FloatArray, BoolArray]] = []
+
+    def flush(self) -> None:
+        if not self.sizes:
+            return
+        parts, tail = TYPES[self.topic.msgtype]
+        sizes = np.frombuffer(self.sizes, dtype=np.int64)
+        stamps, values, ok = decode(bytes(self.buf), sizes, self.cdr, tail, tuple(p.offset for p in parts))
+        self.done.append((stamps, np.frombuffer(self.times, dtype=np.int64).copy(), values, ok))
+        self.buf, self.sizes, self.times = bytearray(), array.array("q"), array.array("q")
+
+    def finish(self) -> None:
+        """The decoded messages into the topic (those not of the layout counted and left out)."""
+        self.flush()
+        topic, parts = self.topic, TYPES[self.topic.msgtype][0]
+        if not self.done:
+            return
+        ok = np.concatenate([d[3] for d in self.done])
+        topic.odd += int((~ok).sum())
+        topic.stamps = np.concatenate([d[0] for d in self.done])[ok]
+        topic.received = np.concatenate([d[1] for d in self.done])[ok]
+        values = np.concatenate([d[2] for d in self.done])[ok]
+        topic.values = {p.sensor: values[:, 3 * k : 3 * k + 3] for k, p in enumerate(parts)}
+        self.done = []
+
+
+def _gather(
+    path: str, kind: str, messages: Iterator[tuple[Connection, int, bytes]], topics: dict[str, Topic], notes: list[str]
+) -> None:
+    """The messages rosbags yields, gathered per topic and decoded a batch at a time. An error
+    of rosbags' part way through keeps what was read before it, with a note; before any, exit 2."""
+    cdr = kind != "ROS 1 bag"
+    batches = {name: _Batch(topic, cdr) for name, topic in topics.items()}
+    read = 0
+    try:
+        for conn, t, data in messages:
+            batch = batches[conn.topic]
+            batch.buf += data
+            batch.sizes.append(len(data))
+            batch.times.append(t)
+            read += 1
+            if len(batch.buf) >= BATCH:
+                batch.flush()
+    except Exception as err:  # rosbags' own errors, and what its decompressors raise
+        if read == 0:
+            raise _damaged(path, kind, err) from None
+        text = str(err).strip() or type(err).__name__
+        notes.append(
+            f"{path}: the {kind} cannot be read past its first {read} messages of the IMU topics ({text}): "
+            "read up to there"
+        )
+    for batch in batches.values():
+        batch.finish()
+
+
+def _view(padded: bytes, dtype: np.dtype[np.void] | np.dtype[np.uint16]) -> NDArray[np.void]:
+    """A record of ``dtype`` at every byte of ``padded`` (indexed by where the messages start)."""
+    return np.ndarray((len(padded) - dtype.itemsize + 1,), dtype=dtype, buffer=padded, strides=(1,))
+
+
+def decode(
+    buf: bytes, sizes: IntArray, cdr: bool, tail: int, offsets: tuple[int, ...]
+) -> tuple[IntArray, FloatArray, BoolArray]:
+    """The header stamps (ns), the float64 triplets at ``offsets`` after the header (``(n,
+    3 * len(offsets))``) and whether each message is of the layout, of the messages packed in
+    ``buf`` (``sizes`` bytes each): ROS 1 (``seq``, ``sec``, ``nsec``, the frame_id's length and
+    bytes, then the block) or CDR (the encapsulation, ``sec``, ``nanosec``, the frame_id's length
+    and bytes with its NUL, then the block from the next multiple of 8 after the encapsulation:
+    0x0001 little-endian, 0x0000 big-endian). A message is of the layout when its size is its
+    header's and the ``tail`` bytes of the block."""
+    n = len(sizes)
+    starts = np.zeros(n, dtype=np.int64)
+    np.cumsum(sizes[:-1], out=starts[1:])
+    padded = bytes(buf) + bytes(max(offsets) + 40)  # a record view reaches past the last message
+    stamps = np.zeros(n, dtype=np.int64)
+    values = np.full((n, 3 * len(offsets)), np.nan)
+    ok = np.zeros(n, dtype=bool)
+    whole = sizes >= 16
+    groups = [("<", whole)]
+    if cdr:
+        encapsulation = _view(padded, np.dtype(">u2"))[starts]
+        groups = [("<", whole & (encapsulation == 1)), (">", whole & (encapsulation == 0))]
+    for order, rows in groups:
+        if rows.any():
+            where = np.flatnonzero(rows)
+            good, stamp, found = _decode(padded, starts[where], sizes[where], (order, cdr, tail), offsets)
+            stamps[where[good]], values[where[good]], ok[where[good]] = stamp, found, True
+    return stamps, values, ok
+
+
+def _decode(
+    padded: bytes, starts: IntArray, sizes: IntArray, how: tuple[str, bool, int], offsets: tuple[int, ...]
+) -> tuple[BoolArray, IntArray, FloatArray]:
+    """decode's messages of one byte order: which are of the layout, their stamps and values."""
+    order, cdr, tail = how
+    head = np.dtype(
+        {
+            "names": ["sec", "nsec", "length"],
+            "formats": [order + ("i4" if cdr else "u4"), order + "u4", order + "u4"],
+            "offsets": [4, 8, 12],
+            "itemsize": 16,
+        }
+    )
+    h = _view(padded, head)[starts]
+    length = h["length"].astype(np.int64)
+    at = starts + (4 + ((12 + length + 7) & ~7) if cdr else 16 + length)
+    good = (length < sizes) & (at - starts + tail == sizes)
+    names = [f"v{k}" for k in range(len(offsets))]
+    block = np.dtype(
+        {
+            "names": names,
+            "formats": [(order + "f8", (3,))] * len(offsets),
+            "offsets": list(offsets),
+            "itemsize": max(offsets) + 24,
+        }
+    )
+    v = _view(padded, block)[at[good]]
+    stamps = h["sec"][good].astype(np.int64) * 1_000_000_000 + h["nsec"][good].astype(np.int64)
+    return good, stamps, np.column_stack([v[name] for name in names]).astype(np.float64)
+
+
+def _clock(topic: Topic) -> IntArray:
+    """A topic's time: its header stamps, or its record times when the stamps are all zero."""
+    return topic.received if len(topic.stamps) and not topic.stamps.any() else topic.stamps
+
+
+def streams_of(found: Index) -> list[Stream]:
+    """Each topic's sensors: rows, mean rate (from its first and last time), units, and whether
+    it was corrected (told by its name)."""
+    out = []
+    for topic in found.topics:
+        clock, rate = _clock(topic), None
+        if len(clock) > 1 and clock[-1] > clock[0]:
+            rate = (len(clock) - 1) / (float(clock[-1] - clock[0]) * 1e-9)
+        corrected, how = judged(topic.name)
+        for part in TYPES[topic.msgtype][0]:
+            out.append(Stream(topic.name, None, part.sensor, len(clock), rate, part.units, corrected, how))
+    return out
+
+
+def _listing(found: Index) -> str:
+    """The bag's topics: those read, and the others with their types."""
+    read = [t.name for t in found.topics if len(t.stamps)]
+    others = [f"{name} ({kind})" for name, kind in found.others]
+    return (
+        "its IMU topics: "
+        + (", ".join(read) or "none")
+        + ("; its other topics: " + ", ".join(others) if others else "")
+    )
+
+
+def _asked(path: str, found: Index, spec: ReadSpec) -> ReadSpec:
+    """``spec`` with ``--stream`` as the bag names the topic (a leading / added where it has
+    none); a topic of another type, a bag without IMU topics, or a topic none of whose messages
+    is of its type's layout: an InputError naming them."""
+    names = {t.name: t for t in found.topics}
+    if spec.stream is not None:
+        name = spec.stream.strip()
+        if name not in names and name not in dict(found.others) and "/" + name in {*names, *dict(found.others)}:
+            name = "/" + name
+            spec = replace(spec, stream=name)
+        if name in dict(found.others):
+            raise InputError(
+                f"{name} is a {dict(found.others)[name]} topic: tumblecal reads {IMU} and {MAG}",
+                file=path,
+                hint=_listing(found),
+            )
+        topic = names.get(name)
+        if topic is not None and topic.odd and not len(topic.stamps):
+            raise InputError(
+                f"none of the {topic.odd} messages of {name} has the layout of {topic.msgtype} "
+                "(a type of the same name defined otherwise?)",
+                file=path,
+            )
+    if not found.topics:
+        raise InputError(f"the {found.kind} has no {IMU} or {MAG} topic", file=path, hint=_listing(found))
+    return spec
+
+
+def read_stream(path: str, spec: ReadSpec, label_column: str | None) -> Table:
+    """The readings of the topic ``spec`` names (or the bag's one topic of ``spec.sensor``)."""
+    if label_column is not None:
+        raise InputError(
+            f"a ROS bag has no label column ({label_column!r}): its still blocks are found by the detector",
+            file=path,
+            hint="leave --pose-column out",
+        )
+    found = index(path)
+    spec = _asked(path, found, spec)
+    chosen = sources.pick(path, streams_of(found), spec)
+    topic = next(t for t in found.topics if t.name == chosen.name)
+    values, clock = topic.values[chosen.sensor], _clock(topic)
+    notes = list(found.notes)
+    if topic.odd:
+        notes.append(
+            f"{path}: {topic.name}: {topic.odd} messages not of the layout of {topic.msgtype} skipped (corrupt?)"
+        )
+    keep = np.ones(len(clock), dtype=bool)
+    if clock is topic.received:
+        notes.append(f"{path}: {topic.name}: every header stamp is zero: read by the bag's record times instead")
+    elif not (clock > 0).all():
+        keep &= clock > 0
+        notes.append(f"{path}: {topic.name}: {int((~keep).sum())} messages with a zero header stamp skipped")
+    if spec.rate is None:
+        keep &= _forward(path, topic.name, clock, keep, notes)
+    if not keep.all():
+        values, clock = values[keep], clock[keep]
+    if chosen.how == _UNTOLD:
+        notes.append(
+            f"{path}: {topic.name} read as raw: its name does not say whether a filter or a calibration had "
+            "corrected it (imu/data_raw is raw, imu/data corrected); if one had, --stream a raw topic"
+        )
+    how = "corrected, by its name" if chosen.corrected else "raw"
+    stamps = "record times" if clock is topic.received else "header stamps"
+    notes.insert(
+        0, f"{path}: read {topic.name} ({chosen.sensor}, {len(values)} samples, {chosen.units}, {how}; {stamps})"
+    )
+    return Table(
+        NAMES[chosen.sensor],
+        np.ascontiguousarray(values),
+        clock.astype(np.float64),
+        "ns",
+        None,
+        None,
+        found.sha256,
+        tuple(notes),
+        corrected=chosen.corrected,
+        stream=chosen,
+    )
+
+
+def _forward(path: str, key: str, clock: IntArray, keep: BoolArray, notes: list[str]) -> BoolArray:
+    """The messages to keep so that the clock never goes back: a lone message out of order (its
+    stamp before its neighbours', or after both) is skipped with a note; a clock that goes back
+    more often than that, or for good (two sessions, a simulation restarted), is exit 2."""
+    t = clock[keep]
+    where = np.flatnonzero(keep)
+    back = np.flatnonzero(np.diff(t) < 0)
+    if back.size == 0:
+        return np.ones(len(clock), dtype=bool)
+    drop = []
+    for j in back + 1:  # t[j] < t[j - 1]: drop t[j - 1] if it is the odd one (a spike), else t[j]
+        spike = t[j] >= t[j - 2] if j >= 2 else not (len(t) > 2 and t[2] >= t[0])
+        drop.append(j - 1 if spike else j)
+    mask = np.ones(len(t), dtype=bool)
+    mask[drop] = False
+    if (np.diff(t[mask]) < 0).any() or len(drop) > max(1, BACK_SHARE * len(t)):
+        k = int(back[0]) + 1
+        raise InputError(
+            f"{key}: the header stamps go back at message {int(where[k]) + 1} ({t[k] * 1e-9:.6f} s after "
+            f"{t[k - 1] * 1e-9:.6f} s), {len(back)} times in {len(t)} messages: not a stray corrupt message",
+            file=path,
+            hint="give --rate HZ to read the messages by their rate instead of their stamps",
+        )
+    notes.append(
+        f"{path}: {key}: {len(drop)} messages whose header stamp went back skipped (the first at message "
+        f"{int(where[drop[0]]) + 1})"
+    )
+    out = np.ones(len(clock), dtype=bool)
+    out[where[~mask]] = False
+    return out
