@@ -167,6 +167,12 @@ class RosReader:
     def read(self, path: str, spec: ReadSpec, label_column: str | None) -> Table:
         return read_stream(path, spec, label_column)
 
+    def pick(self, path: str, spec: ReadSpec) -> Stream:
+        """The stream ``spec`` reads (io.sources.stream_of), saying what a --stream that names no
+        IMU topic names."""
+        found = index(path)
+        return sources.pick(path, streams_of(found), _asked(path, found, spec))
+
 
 READER = RosReader()
 
@@ -231,7 +237,7 @@ def _sources(path: str, kind: str, notes: list[str]) -> list[_Source]:
 
 def _damaged(path: str, kind: str, err: BaseException) -> InputError:
     """rosbags' error (or a decompressor's, or a failed assertion in its reader) as one line."""
-    text = str(err).strip() or type(err).__name__
+    text = re.sub(r"\('(.*)',\)", r"\1", str(err).strip()) or type(err).__name__  # rosbags quotes its args
     hint = "check that the file is whole (its size, a copy that finished)"
     if "not indexed" in text or "index looks damaged" in text:
         hint = "the recording was cut short: rosbag reindex FILE (ROS 1) rebuilds its index"
@@ -476,8 +482,7 @@ def read_stream(path: str, spec: ReadSpec, label_column: str | None) -> Table:
             hint="leave --pose-column out",
         )
     found = index(path)
-    spec = _asked(path, found, spec)
-    chosen = sources.pick(path, streams_of(found), spec)
+    chosen = READER.pick(path, spec)
     topic = next(t for t in found.topics if t.name == chosen.name)
     values, clock = topic.values[chosen.sensor], _clock(topic)
     notes = list(found.notes)

@@ -194,9 +194,13 @@ def streams(path: str) -> list[Stream]:
 
 
 def stream_of(path: str, spec: ReadSpec) -> Stream | None:
-    """The stream of ``path`` that ``spec`` reads (None: a CSV capture, or stdin)."""
+    """The stream of ``path`` that ``spec`` reads (None: a CSV capture, or stdin): the reader's own
+    ``pick(path, spec)`` where it has one (to say more of what --stream names), else ``pick``."""
     reader = reader_for(path)
-    return None if reader is None else pick(path, reader.streams(path), spec)
+    if reader is None:
+        return None
+    own = getattr(reader.load(path) if isinstance(reader, Lazy) else reader, "pick", None)
+    return cast("Stream", own(path, spec)) if own is not None else pick(path, reader.streams(path), spec)
 
 
 def parse_stream(text: str) -> tuple[str, int | None]:
