@@ -491,7 +491,8 @@ def read_stream(path: str, spec: ReadSpec, label_column: str | None) -> Table:
             f"{path}: {topic.name}: {topic.odd} messages not of the layout of {topic.msgtype} skipped (corrupt?)"
         )
     keep = np.ones(len(clock), dtype=bool)
-    if clock is topic.received:
+    by_record = clock is topic.received
+    if by_record:
         notes.append(f"{path}: {topic.name}: every header stamp is zero: read by the bag's record times instead")
     elif not (clock > 0).all():
         keep &= clock > 0
@@ -506,15 +507,18 @@ def read_stream(path: str, spec: ReadSpec, label_column: str | None) -> Table:
             "corrected it (imu/data_raw is raw, imu/data corrected); if one had, --stream a raw topic"
         )
     how = "corrected, by its name" if chosen.corrected else "raw"
-    stamps = "record times" if clock is topic.received else "header stamps"
+    stamps = "record times" if by_record else "header stamps"
+    first = int(clock[0]) if len(clock) else 0
     notes.insert(
-        0, f"{path}: read {topic.name} ({chosen.sensor}, {len(values)} samples, {chosen.units}, {how}; {stamps})"
+        0,
+        f"{path}: read {topic.name} ({chosen.sensor}, {len(values)} samples, {chosen.units}, {how}; time in s from "
+        f"its first {stamps[:-1]}, {first // 1_000_000_000}.{first % 1_000_000_000:09d} s)",
     )
     return Table(
         NAMES[chosen.sensor],
         np.ascontiguousarray(values),
-        clock.astype(np.float64),
-        "ns",
+        (clock - first).astype(np.float64) / 1e9,  # exact to the ns for 104 days; an epoch in ns is not
+        "s",
         None,
         None,
         found.sha256,
