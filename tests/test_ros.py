@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
+from rosbags.rosbag2 import StoragePlugin
+from rosbags.rosbag2 import Writer as Writer2
 
 import tumblecal_cli as tumblecal
 from tests import ros_writer
@@ -253,6 +255,49 @@ def test_several_topics_and_no_stream_is_exit_2_listing_them(tmp_path: Path) -> 
     assert f"{path}: 1000 samples at 200 Hz (5 s)" in err
 
 
+def test_a_command_opens_the_bag_once_and_decodes_only_the_topic_it_reads(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = bag(tmp_path, "ros1", {"/imu/data_raw": still(), "/imu2/data_raw": still(seed=2)})
+    opened: list[str] = []
+    real = ros._sources
+
+    def sources_of(path: str, kind: str, notes: list[str]) -> list[ros._Source]:
+        opened.append(path)
+        return real(path, kind, notes)
+
+    monkeypatch.setattr(ros, "_sources", sources_of)
+    code, _, err = cli("noise", path, "--stream", "/imu2/data_raw")  # picks the stream, then reads it
+    assert code == 0, err
+    assert opened == [path]
+    found = ros.index(path)
+    assert [(t.name, t.decoded) for t in found.topics] == [("/imu/data_raw", False), ("/imu2/data_raw", True)]
+    listed = tumblecal.streams(path)  # the listing decodes the rest (for their rates), in one more pass
+    assert opened == [path, path]
+    assert [(s.key, s.rows, round(s.rate or 0)) for s in listed if s.sensor == "gyroscope"] == [
+        ("/imu/data_raw", 1000, 200),
+        ("/imu2/data_raw", 1000, 200),
+    ]
+    assert len(readings.read_log(path, ReadSpec(stream="/imu/data_raw")).values) == 1000
+    assert len(opened) == 2
+
+
+def test_a_topic_none_of_whose_messages_is_of_its_type_s_layout_is_exit_2(tmp_path: Path) -> None:
+    path = tmp_path / "odd"
+    with Writer2(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:  # MagneticField bytes typed Imu
+        c = writer.add_connection("/imu/data_raw", ros_writer.IMU, typestore=ros_writer.ROS2)
+        for k in range(10):
+            writer.write(
+                c, EPOCH + k, ros_writer.serialize(ros_writer.ROS2, ros_writer.MAG, EPOCH + k, "m", (1, 2, 3), ())
+            )
+    code, _, err = cli("noise", path)
+    assert code == 2
+    assert err.splitlines()[0] == (
+        f"error: {path}: none of the 10 messages of /imu/data_raw could be read: none is of the layout of "
+        "sensor_msgs/msg/Imu (a type of the same name defined otherwise?)"
+    )
+
+
 def test_a_magnetometer_topic_in_tesla(tmp_path: Path) -> None:
     rng = np.random.default_rng(4)
     field = rng.normal(0, 3e-5, (400, 3))
@@ -311,7 +356,7 @@ def test_a_damaged_chunk_is_read_up_to_with_a_note_and_the_first_one_is_exit_2(t
     broken = write(tmp_path / "broken.bag", data[: later + 100] + bytes(40) + data[later + 140 :])
     log = readings.read_log(str(broken), ReadSpec(allow_corrected=True))
     assert 0 < len(log.values) < 360
-    note = f"{broken}: the ROS 1 bag cannot be read past its first {len(log.values)} messages of the IMU topics"
+    note = f"{broken}: the ROS 1 bag cannot be read past its first {len(log.values)} messages of /imu/data"
     assert any(n.startswith(note) and n.endswith("read up to there") for n in log.layout.notes), log.layout.notes
     first = data.index(b"BZh")
     broken = write(tmp_path / "first.bag", data[: first + 100] + bytes(40) + data[first + 140 :])

@@ -117,8 +117,9 @@ StreamOption = Annotated[
     typer.Option(
         "--stream",
         metavar="NAME[:INSTANCE]",
-        help="A log's stream, where it holds several: sensor_accel:1 in a PX4 ULog (`tumblecal logs FILE` lists "
-        "them). A stream that carries several sensors (sensor_combined) gives the one --sensor names. "
+        help="A log's stream, where it holds several: sensor_accel:1 in a PX4 ULog, /imu/data_raw in a ROS bag "
+        "(`tumblecal logs FILE` lists them). A stream that carries several sensors (sensor_combined, a bag's "
+        "Imu topic) gives the one --sensor names. "
         "[default: the log's one raw stream of --sensor]",
     ),
 ]
@@ -127,7 +128,8 @@ AllowCorrected = Annotated[
     bool,
     typer.Option(
         "--allow-corrected",
-        help="Read a stream the autopilot has already corrected (PX4's sensor_combined, vehicle_imu): refused "
+        help="Read a stream the autopilot has already corrected (PX4's sensor_combined, vehicle_imu; a bag's "
+        "imu/data): refused "
         "without it, as a fit of it calibrates the residual, not the sensor.",
     ),
 ]

@@ -19,7 +19,12 @@ if TYPE_CHECKING:
     epilog="Exit status: 0 listed; 2 not a log of a kind tumblecal reads by streams, or one it cannot read.",
 )
 def logs(
-    log: Annotated[str, typer.Argument(metavar="FILE", help="A log: a PX4 ULog (.ulg).")],
+    log: Annotated[
+        str,
+        typer.Argument(
+            metavar="FILE", help="A log: a PX4 ULog (.ulg), a ROS bag (.bag, a ROS 2 bag's folder) or an MCAP file."
+        ),
+    ],
     json_summary: Annotated[bool, typer.Option("--json", help="Print the streams on stdout as JSON.")] = False,
 ) -> None:
     """List the streams of a log: each one's --stream, sensor, rows, rate, units, and whether the

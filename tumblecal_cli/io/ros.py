@@ -21,10 +21,11 @@ or, when some messages were read before it, a note saying where the reading stop
 from __future__ import annotations
 
 import array
+import contextlib
 import hashlib
 import os
 import re
-from collections.abc import Collection, Iterator
+from collections.abc import Callable, Collection, Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Protocol
@@ -76,22 +77,18 @@ NAMES = {
     "magnetometer": ("mag_x", "mag_y", "mag_z"),
 }
 
-_RAW = (
-    "raw: named so (imu/data_raw is what imu_tools' filters, imu_filter_madgwick and imu_complementary_filter, "
-    "read; REP-145 puts raw data in an imu_raw namespace)"
-)
+_RAW = "raw: named so (imu/data_raw: what imu_tools' filters read; REP-145's imu_raw namespace)"
 _DATA = (
-    "corrected: imu/data is what imu_tools' filters publish from imu/data_raw, the gyroscope less the bias they "
-    "estimate (imu_complementary_filter: complementary_filter_ros.cpp, publish, do_bias_estimation on by default); "
-    "REP-145 names it the consolidated data of attitude estimation"
+    "corrected: imu/data is what imu_tools' filters publish from imu/data_raw, the gyroscope less their bias "
+    "estimate by default (imu_complementary_filter, complementary_filter_ros.cpp: publish)"
 )
 _NAMED = (
-    "corrected: named so (imu_calib's apply_calib publishes 'corrected'; REP-145's imu_unbiased and "
-    "imu_compensated namespaces)"
+    "corrected: named so (imu_calib's apply_calib publishes 'corrected'; REP-145's imu_unbiased, imu_compensated "
+    "namespaces)"
 )
 _UNTOLD = (
-    "raw: its name does not say (no 'raw', not imu/data), and REP-145 asks drivers to publish readings as the "
-    "device reports them"
+    "raw: its name does not say (no 'raw', not imu/data); REP-145 asks drivers to publish readings as the device "
+    "reports them"
 )
 _CORRECTED_WORDS = frozenset({"corrected", "calibrated", "calib", "filtered", "unbiased", "compensated"})
 
@@ -137,21 +134,25 @@ class Topic:
     received: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     values: dict[str, FloatArray] = field(default_factory=dict)
     odd: int = 0  # messages not of the type's layout (skipped)
+    decoded: bool = False
 
 
 @dataclass
 class Index:
-    """A bag read once: its kind, the topics of the types read, the others (name, type), its
-    sha256, and the notes of what could not be read."""
+    """A bag opened: its kind, the topics of the types read (those decoded so far), the others
+    (name, type), the notes of what could not be read, and its sha256 once asked for."""
 
     kind: str
     topics: list[Topic]
     others: list[tuple[str, str]]
-    sha256: str
     notes: list[str]
+    sha256: str = ""
+
+    def topic(self, name: str) -> Topic:
+        return next(t for t in self.topics if t.name == name)
 
 
-#: The bags read (a command lists a bag's streams, then reads one: one pass for both).
+#: The bag last opened (a command picks a bag's stream, then reads it: one pass for both).
 _CACHE: list[tuple[tuple[object, ...], Index]] = []
 
 
@@ -162,30 +163,69 @@ class RosReader:
         return sources.ros_claim(path, head)
 
     def streams(self, path: str) -> list[Stream]:
-        return streams_of(index(path))
+        return streams_of(index(path, lambda found: [t.name for t in found.topics]))
 
     def read(self, path: str, spec: ReadSpec, label_column: str | None) -> Table:
         return read_stream(path, spec, label_column)
 
     def pick(self, path: str, spec: ReadSpec) -> Stream:
         """The stream ``spec`` reads (io.sources.stream_of), saying what a --stream that names no
-        IMU topic names."""
-        found = index(path)
-        return sources.pick(path, streams_of(found), _asked(path, found, spec))
+        IMU topic names; its topic decoded now, in the same pass (it is read next)."""
+        chosen: list[Stream] = []
+
+        def choose(found: Index) -> list[str]:
+            chosen.append(sources.pick(path, streams_of(found, decoded=False), _asked(path, found, spec)))
+            return [chosen[-1].name]
+
+        index(path, choose)
+        return chosen[-1]
 
 
 READER = RosReader()
 
 
-def index(path: str) -> Index:
-    """``path`` read once (kept while its files' sizes and times are the same)."""
+def index(path: str, choose: Callable[[Index], Collection[str]] = lambda found: ()) -> Index:
+    """``path`` opened, with the topics ``choose`` names (of its topics) decoded, in one pass
+    over the bag; kept while its files' sizes and times are the same, and opened again only
+    for topics not decoded yet."""
     key = _key(path)
-    for known, found in _CACHE:
-        if known == key:
-            return found
-    found = _read_bag(path)
+    found = next((f for k, f in _CACHE if k == key), None)
+    if found is not None and all(found.topic(n).decoded for n in choose(found)):
+        return found
+    kind = _kind(path)
+    notes = [] if found is None else found.notes
+    with contextlib.ExitStack() as stack:
+        readers = _sources(path, kind, notes)
+        for reader in readers:
+            try:
+                reader.open()
+            except Exception as err:  # rosbags' own errors, and what its decompressors raise
+                raise _damaged(path, kind, err) from None
+            stack.callback(reader.close)
+        found = found or _summary(kind, readers, notes)
+        names = {n for n in choose(found) if not found.topic(n).decoded}
+        for reader in readers:
+            wanted = [c for c in reader.connections if c.topic in names and c.msgtype in TYPES]
+            if wanted:
+                _gather(path, kind, reader.messages(wanted), [found.topic(n) for n in sorted(names)], notes)
+        for name in names:
+            found.topic(name).decoded = True
     _CACHE[:] = [(key, found)]
     return found
+
+
+def _summary(kind: str, readers: list[_Source], notes: list[str]) -> Index:
+    """The topics of an opened bag, and the messages each holds (as the bag says)."""
+    topics: dict[str, Topic] = {}
+    others: dict[str, str] = {}
+    for reader in readers:
+        for c in reader.connections:
+            if c.msgtype in TYPES:
+                topic = topics.setdefault(c.topic, Topic(c.topic, c.msgtype, 0))
+                topic.count += c.msgcount
+            else:
+                others.setdefault(c.topic, c.msgtype)
+    return Index(kind, sorted(topics.values(), key=lambda t: t.name), sorted(others.items()), notes)
 
 
 def _key(path: str) -> tuple[object, ...]:
@@ -248,33 +288,6 @@ def _damaged(path: str, kind: str, err: BaseException) -> InputError:
     return InputError(f"cannot read this {kind}: {text}", file=path, hint=hint)
 
 
-def _read_bag(path: str) -> Index:
-    """Every message of the IMU and magnetometer topics of ``path`` decoded, a batch at a time."""
-    kind, notes = _kind(path), list[str]()
-    readers = _sources(path, kind, notes)
-    topics: dict[str, Topic] = {}
-    others: dict[str, str] = {}
-    for reader in readers:
-        try:
-            reader.open()
-        except Exception as err:  # rosbags' own errors, and what its decompressors raise
-            raise _damaged(path, kind, err) from None
-        try:
-            wanted = [c for c in reader.connections if c.msgtype in TYPES]
-            for c in reader.connections:
-                if c.msgtype in TYPES:
-                    topic = topics.setdefault(c.topic, Topic(c.topic, c.msgtype, 0))
-                    topic.count += c.msgcount
-                else:
-                    others.setdefault(c.topic, c.msgtype)
-            if wanted:
-                _gather(path, kind, reader.messages(wanted), topics, notes)
-        finally:
-            reader.close()
-    ordered = sorted(topics.values(), key=lambda t: t.name)
-    return Index(kind, ordered, sorted(others.items()), _sha256(_files(path)), notes)
-
-
 def _sha256(files: list[Path]) -> str:
     """The sha256 of the bag's bytes: its file's, or its folder's files' one after another."""
     digest = hashlib.sha256()
@@ -321,12 +334,12 @@ class _Batch:
 
 
 def _gather(
-    path: str, kind: str, messages: Iterator[tuple[Connection, int, bytes]], topics: dict[str, Topic], notes: list[str]
+    path: str, kind: str, messages: Iterator[tuple[Connection, int, bytes]], topics: list[Topic], notes: list[str]
 ) -> None:
     """The messages rosbags yields, gathered per topic and decoded a batch at a time. An error
     of rosbags' part way through keeps what was read before it, with a note; before any, exit 2."""
     cdr = kind != "ROS 1 bag"
-    batches = {name: _Batch(topic, cdr) for name, topic in topics.items()}
+    batches = {topic.name: _Batch(topic, cdr) for topic in topics}
     read = 0
     try:
         for conn, t, data in messages:
@@ -342,7 +355,7 @@ def _gather(
             raise _damaged(path, kind, err) from None
         text = str(err).strip() or type(err).__name__
         notes.append(
-            f"{path}: the {kind} cannot be read past its first {read} messages of the IMU topics ({text}): "
+            f"{path}: the {kind} cannot be read past its first {read} messages of {', '.join(batches)} ({text}): "
             "read up to there"
         )
     for batch in batches.values():
@@ -420,23 +433,26 @@ def _clock(topic: Topic) -> IntArray:
     return topic.received if len(topic.stamps) and not topic.stamps.any() else topic.stamps
 
 
-def streams_of(found: Index) -> list[Stream]:
-    """Each topic's sensors: rows, mean rate (from its first and last time), units, and whether
-    it was corrected (told by its name)."""
+def streams_of(found: Index, decoded: bool = True) -> list[Stream]:
+    """Each topic's sensors: rows (those decoded, or with ``decoded`` off as the bag counts them:
+    what a stream is picked by, whatever has been decoded so far), mean rate (from its first and
+    last time; None for a topic not decoded), units, and whether it was corrected (told by its
+    name)."""
     out = []
     for topic in found.topics:
         clock, rate = _clock(topic), None
         if len(clock) > 1 and clock[-1] > clock[0]:
             rate = (len(clock) - 1) / (float(clock[-1] - clock[0]) * 1e-9)
+        rows = len(clock) if topic.decoded and decoded else topic.count
         corrected, how = judged(topic.name)
         for part in TYPES[topic.msgtype][0]:
-            out.append(Stream(topic.name, None, part.sensor, len(clock), rate, part.units, corrected, how))
+            out.append(Stream(topic.name, None, part.sensor, rows, rate, part.units, corrected, how))
     return out
 
 
 def _listing(found: Index) -> str:
     """The bag's topics: those read, and the others with their types."""
-    read = [t.name for t in found.topics if len(t.stamps)]
+    read = [t.name for t in found.topics if (len(t.stamps) if t.decoded else t.count)]
     others = [f"{name} ({kind})" for name, kind in found.others]
     return (
         "its IMU topics: "
@@ -447,8 +463,7 @@ def _listing(found: Index) -> str:
 
 def _asked(path: str, found: Index, spec: ReadSpec) -> ReadSpec:
     """``spec`` with ``--stream`` as the bag names the topic (a leading / added where it has
-    none); a topic of another type, a bag without IMU topics, or a topic none of whose messages
-    is of its type's layout: an InputError naming them."""
+    none); a topic of another type, or a bag without IMU topics: an InputError naming them."""
     names = {t.name: t for t in found.topics}
     if spec.stream is not None:
         name = spec.stream.strip()
@@ -460,13 +475,6 @@ def _asked(path: str, found: Index, spec: ReadSpec) -> ReadSpec:
                 f"{name} is a {dict(found.others)[name]} topic: tumblecal reads {IMU} and {MAG}",
                 file=path,
                 hint=_listing(found),
-            )
-        topic = names.get(name)
-        if topic is not None and topic.odd and not len(topic.stamps):
-            raise InputError(
-                f"none of the {topic.odd} messages of {name} has the layout of {topic.msgtype} "
-                "(a type of the same name defined otherwise?)",
-                file=path,
             )
     if not found.topics:
         raise InputError(f"the {found.kind} has no {IMU} or {MAG} topic", file=path, hint=_listing(found))
@@ -481,9 +489,17 @@ def read_stream(path: str, spec: ReadSpec, label_column: str | None) -> Table:
             file=path,
             hint="leave --pose-column out",
         )
-    found = index(path)
     chosen = READER.pick(path, spec)
-    topic = next(t for t in found.topics if t.name == chosen.name)
+    found = index(path)
+    topic = found.topic(chosen.name)
+    if not len(topic.stamps):
+        why = f"of the layout of {topic.msgtype} (a type of the same name defined otherwise?)" if topic.odd else ""
+        raise InputError(
+            f"none of the {topic.count} messages of {topic.name} could be read" + (f": none is {why}" if why else ""),
+            file=path,
+            hint=" ".join(found.notes) or None,
+        )
+    found.sha256 = found.sha256 or _sha256(_files(path))
     values, clock = topic.values[chosen.sensor], _clock(topic)
     notes = list(found.notes)
     if topic.odd:
