@@ -9,11 +9,13 @@ is a header (stamp, then the frame_id string) and a fixed block of float64s afte
 record view over a batch's bytes reads every message's stamp, string length and values at once.
 ROS 1 messages are packed little-endian; ROS 2 messages are CDR (a 4-byte encapsulation header,
 little- or big-endian, each float64 aligned to 8 bytes from after that header). Only the decoded
-numbers of the IMU topics are kept: the bag is never in memory whole.
+numbers are kept: the bag is never in memory whole. A command picks its topic by the bag's own
+message counts and decodes that topic alone, in the same pass; a listing decodes them all.
 
-Time is the header stamp (``sec`` + ``nanosec``, ns); a topic whose stamps are all zero (a driver
-that never set them) is read by the bag's record time, with a note. Raw or corrected: ROS messages
-carry no flag, so the topic's name tells (``judged``, with the conventions it follows).
+Time is the header stamp (``sec`` + ``nanosec``), in seconds from the topic's first stamp (epoch
+nanoseconds as float64 would lose 256 ns); a topic whose stamps are all zero (a driver that never
+set them) is read by the bag's record time, with a note. Raw or corrected: ROS messages carry no
+flag, so the topic's name tells (``judged``, with the conventions it follows).
 What rosbags cannot read (a bag cut short, a damaged chunk) is one InputError naming the file,
 or, when some messages were read before it, a note saying where the reading stopped.
 """
@@ -341,23 +343,27 @@ def _gather(
     cdr = kind != "ROS 1 bag"
     batches = {topic.name: _Batch(topic, cdr) for topic in topics}
     read = 0
-    try:
-        for conn, t, data in messages:
-            batch = batches[conn.topic]
-            batch.buf += data
-            batch.sizes.append(len(data))
-            batch.times.append(t)
-            read += 1
-            if len(batch.buf) >= BATCH:
-                batch.flush()
-    except Exception as err:  # rosbags' own errors, and what its decompressors raise
-        if read == 0:
-            raise _damaged(path, kind, err) from None
-        text = str(err).strip() or type(err).__name__
-        notes.append(
-            f"{path}: the {kind} cannot be read past its first {read} messages of {', '.join(batches)} ({text}): "
-            "read up to there"
-        )
+    while True:
+        try:
+            conn, t, data = next(messages)
+        except StopIteration:
+            break
+        except Exception as err:  # rosbags' own errors, and what its decompressors raise (not this loop's)
+            if read == 0:
+                raise _damaged(path, kind, err) from None
+            text = str(err).strip() or type(err).__name__
+            notes.append(
+                f"{path}: the {kind} cannot be read past its first {read} messages of {', '.join(batches)} ({text}): "
+                "read up to there"
+            )
+            break
+        batch = batches[conn.topic]
+        batch.buf += data
+        batch.sizes.append(len(data))
+        batch.times.append(t)
+        read += 1
+        if len(batch.buf) >= BATCH:
+            batch.flush()
     for batch in batches.values():
         batch.finish()
 
