@@ -60,10 +60,11 @@ def serialize(store: Typestore, msgtype: str, stamp: int, frame: str, xyz: objec
     return bytes(data)
 
 
-def write(path: Path, kind: str, topics: Mapping[str, Messages], *, odometry: bool = True) -> Path:
-    """``topics`` written as a ``kind`` bag at ``path`` (ros1: a .bag file; sqlite3, mcap: a
-    ROS 2 bag folder; plain: an MCAP file), every message in record-time order; with
-    ``odometry`` an empty-bodied nav_msgs/Odometry topic beside them (a type not read)."""
+def write(path: Path, kind: str, topics: Mapping[str, Messages], *, odometry: bool = True, lz4: bool = False) -> Path:
+    """``topics`` written as a ``kind`` bag at ``path`` (ros1: a .bag file, its chunks lz4
+    compressed with ``lz4``; sqlite3, mcap: a ROS 2 bag folder; plain: an MCAP file), every
+    message in record-time order; with ``odometry`` an empty-bodied nav_msgs/Odometry topic
+    beside them (a type not read)."""
     store = ROS1 if kind == "ros1" else ROS2
     rows = []
     for name, m in topics.items():
@@ -78,7 +79,11 @@ def write(path: Path, kind: str, topics: Mapping[str, Messages], *, odometry: bo
     if odometry:
         types["/odom"] = ODOM
     if kind == "ros1":
-        with Writer1(path) as w1:
+        w1 = Writer1(path)
+        if lz4:
+            w1.set_compression(Writer1.CompressionFormat.LZ4)
+            w1.chunk_threshold = 1 << 14
+        with w1:
             c1 = {name: w1.add_connection(name, msgtype, typestore=ROS1) for name, msgtype in types.items()}
             for t, name, data in rows:
                 w1.write(c1[name], t, data)

@@ -6,6 +6,7 @@ does, and the bags that are cut, damaged or odd."""
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import sys
 from pathlib import Path
@@ -328,16 +329,56 @@ def test_big_endian_cdr_messages_decode_as_rosbags_reads_them() -> None:
 # -- bags cut short, damaged, odd ------------------------------------------------------------
 
 
-def test_a_ros1_bag_cut_short_is_exit_2_saying_how_to_rebuild_its_index(tmp_path: Path) -> None:
+def test_a_ros1_bag_cut_short_is_read_up_to_the_cut_as_rosbag_reindex_would(tmp_path: Path) -> None:
+    """A recording cut short has no index (rosbag writes it last): its records are read one after
+    another, up to where the file ends."""
+    whole = readings.read_log(str(TEST1), ReadSpec(allow_corrected=True))
     cut = write(tmp_path / "cut.bag", TEST1.read_bytes()[:30_000])
-    commands: list[list[str | Path]] = [["logs", cut], ["solve", "--log", cut, "-o", tmp_path / "c.json"]]
-    for command in commands:
-        code, out, err = cli(*command)
-        assert (code, out) == (2, "")
-        assert err.splitlines() == [
-            f"error: {cut}: cannot read this ROS 1 bag: Bag index looks damaged: Header could not be read from file.",
-            "hint: the recording was cut short: rosbag reindex FILE (ROS 1) rebuilds its index",
-        ]
+    log = readings.read_log(str(cut), ReadSpec(allow_corrected=True))
+    assert len(log.values) == 195
+    np.testing.assert_array_equal(log.values, whole.values[:195])
+    np.testing.assert_array_equal(log.clock, whole.clock[:195])  # type: ignore[index]
+    assert (
+        f"{cut}: the ROS 1 bag has no index (a recording cut short?): its records read one after another, up to "
+        "byte 29925, where it is cut short, as rosbag reindex would"
+    ) in log.layout.notes
+    code, out, _ = cli("logs", cut)
+    assert code == 0
+    assert out.splitlines()[1].split()[:3] == ["/imu/data", "accelerometer", "195"]
+    data = TEST1.read_bytes()  # the index position left at zero, as rosbag record leaves it until it closes
+    at = data.index(b"index_pos=") + len(b"index_pos=")
+    unindexed = write(tmp_path / "unindexed.bag", data[:at] + bytes(8) + data[at + 8 :])
+    log = readings.read_log(str(unindexed), ReadSpec(allow_corrected=True))
+    np.testing.assert_array_equal(log.values, whole.values)
+    assert log.layout.notes[-1].endswith("its records read one after another, as rosbag reindex would")
+    first = data.index(b"BZh")  # and a damaged chunk in one: read up to it
+    broken = write(
+        tmp_path / "broken.bag", data[:at] + bytes(8) + data[at + 8 : first + 100] + bytes(40) + data[first + 140 :]
+    )
+    code, _, err = cli("noise", broken, "--allow-corrected")  # the first chunk: no connection before it
+    assert code == 2
+    found = re.fullmatch(
+        rf"error: {re.escape(str(broken))}: cannot read this ROS 1 bag: it has no index, and no connection record up "
+        r"to the chunk at byte (\d+), which cannot be read \(Invalid data stream\)",
+        err.splitlines()[0],
+    )
+    assert found is not None
+    assert first - 100 < int(found[1]) < first  # the chunk record's header, just before its bz2 data
+    code, _, err = cli("logs", write(tmp_path / "garbage.bag", b"#ROSBAG V2.0\n" + bytes(range(256)) * 4))
+    assert code == 2
+    assert "cannot read this ROS 1 bag: Header could not be read from file." in err
+
+
+def test_a_ros1_bag_of_lz4_chunks_without_its_index_reads_as_with_it(tmp_path: Path) -> None:
+    path = Path(bag(tmp_path, "ros1", {"/imu/data_raw": still(2000)}, lz4=True))
+    indexed = readings.read_log(str(path), ReadSpec())
+    data = path.read_bytes()
+    at = data.index(b"index_pos=") + len(b"index_pos=")
+    write(path, data[:at] + bytes(8) + data[at + 8 :])
+    log = readings.read_log(str(path), ReadSpec())
+    np.testing.assert_array_equal(log.values, indexed.values)
+    np.testing.assert_array_equal(log.clock, indexed.clock)
+    assert any("has no index" in n for n in log.layout.notes)
 
 
 def test_an_mcap_file_cut_short_is_exit_2_saying_how_to_recover_it(tmp_path: Path) -> None:

@@ -16,25 +16,31 @@ Time is the header stamp (``sec`` + ``nanosec``), in seconds from the topic's fi
 nanoseconds as float64 would lose 256 ns); a topic whose stamps are all zero (a driver that never
 set them) is read by the bag's record time, with a note. Raw or corrected: ROS messages carry no
 flag, so the topic's name tells (``judged``, with the conventions it follows).
-What rosbags cannot read (a bag cut short, a damaged chunk) is one InputError naming the file,
-or, when some messages were read before it, a note saying where the reading stopped.
+A ROS 1 bag cut short has no index (rosbag writes it last): its records are walked one after
+another (``Unindexed``), as rosbag reindex does, up to the cut, with a note. What rosbags cannot
+read otherwise (an MCAP file cut short, a damaged chunk) is one InputError naming the file, or,
+when some messages were read before it, a note saying where the reading stopped.
 """
 
 from __future__ import annotations
 
 import array
+import bz2
 import contextlib
 import hashlib
+import mmap
 import os
 import re
+import struct
 from collections.abc import Callable, Collection, Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Protocol
 
+import lz4.frame  # type: ignore[import-untyped]  # rosbags' own dependency (ROS 1 bags' lz4 chunks)
 import numpy as np
 from numpy.typing import NDArray
-from rosbags.interfaces import Connection
+from rosbags.interfaces import Connection, ConnectionExtRosbag1, MessageDefinition, MessageDefinitionFormat
 from rosbags.rosbag1 import Reader as Reader1
 from rosbags.rosbag2 import Reader as Reader2
 
@@ -154,6 +160,114 @@ class Index:
         return next(t for t in self.topics if t.name == name)
 
 
+class Unindexed:
+    """A ROS 1 bag without its index (a recording cut short: rosbag writes the index last), read
+    as rosbag reindex reads it: its records one after another (the file mapped, not read whole),
+    each chunk decompressed, the connections taken as they come; the walk stops where the file
+    is cut, or at a chunk that does not decompress (``stop``: why, for the note)."""
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+        self.connections: list[Connection] = []
+        self.stop = ""
+        self._map: mmap.mmap | None = None
+
+    def open(self) -> None:
+        with open(self.path, "rb") as f:
+            self._map = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
+        counts: dict[int, int] = {}
+        found: dict[int, Connection] = {}
+        for fields, data in self._walk():
+            op = fields.get("op", b"\0")[0]
+            if op == 7:  # a connection
+                conn = struct.unpack("<I", fields["conn"])[0]
+                found.setdefault(conn, self._connection(conn, fields, data))
+            elif op == 2:  # a message
+                conn = struct.unpack("<I", fields["conn"])[0]
+                counts[conn] = counts.get(conn, 0) + 1
+        self.connections = [c._replace(msgcount=counts.get(k, 0)) for k, c in sorted(found.items())]
+
+    def close(self) -> None:
+        if self._map is not None:
+            self._map.close()
+            self._map = None
+
+    def messages(self, connections: Collection[Connection], /) -> Iterator[tuple[Connection, int, bytes]]:
+        wanted = {c.id: c for c in connections}
+        for fields, data in self._walk():
+            if fields.get("op", b"\0")[0] == 2 and (c := wanted.get(struct.unpack("<I", fields["conn"])[0])):
+                sec, nsec = struct.unpack("<II", fields["time"])
+                yield c, sec * 1_000_000_000 + nsec, data
+
+    def _connection(self, conn: int, fields: dict[str, bytes], data: bytes) -> Connection:
+        header = dict(_fields(data, 0, len(data)))
+        kind = header.get("type", b"").decode("utf-8", "replace")
+        package, _, name = kind.partition("/")
+        msgtype = f"{package}/msg/{name}" if "/msg/" not in kind and name else kind
+        text = header.get("message_definition", b"").decode("utf-8", "replace")
+        return Connection(
+            conn,
+            fields.get("topic", b"").decode("utf-8", "replace"),
+            msgtype,
+            MessageDefinition(MessageDefinitionFormat.MSG, text),
+            header.get("md5sum", b"").decode("ascii", "replace"),
+            0,
+            ConnectionExtRosbag1(None, None),
+            self,
+        )
+
+    def _walk(self) -> Iterator[tuple[dict[str, bytes], bytes]]:
+        """The bag's records and those of its chunks (decompressed), as (header fields, data)."""
+        assert self._map is not None
+        top, self.stop = self._map, ""
+        for fields, data, at in _records(top, top.find(b"\n") + 1, len(top)):
+            if fields is None:
+                self.stop = f"up to byte {at}, where it is cut short"
+                return
+            if fields.get("op", b"\0")[0] != 5:
+                yield fields, data
+                continue
+            how = fields.get("compression", b"none").decode("ascii", "replace")
+            try:
+                chunk = _DECOMPRESS[how](data)
+            except Exception as err:  # bz2's, lz4's: a damaged chunk, or a compression ROS 1 bags do not have
+                self.stop = f"up to the chunk at byte {at}, which cannot be read ({str(err) or type(err).__name__})"
+                return
+            for inner, body, _ in _records(chunk, 0, len(chunk)):
+                if inner is not None:
+                    yield inner, body
+
+
+def _lz4(data: bytes) -> bytes:
+    out: bytes = lz4.frame.decompress(data)
+    return out
+
+
+_DECOMPRESS: dict[str, Callable[[bytes], bytes]] = {"none": bytes, "bz2": bz2.decompress, "lz4": _lz4}
+
+
+def _fields(buf: bytes | mmap.mmap, at: int, end: int) -> Iterator[tuple[str, bytes]]:
+    """A ROS 1 record header's fields (each a length, then name=value)."""
+    while at + 4 <= end:
+        (size,) = struct.unpack_from("<I", buf, at)
+        name, _, value = buf[at + 4 : min(at + 4 + size, end)].partition(b"=")
+        yield name.decode("ascii", "replace"), value
+        at += 4 + size
+
+
+def _records(buf: bytes | mmap.mmap, at: int, end: int) -> Iterator[tuple[dict[str, bytes] | None, bytes, int]]:
+    """The ROS 1 records of ``buf`` from ``at`` (a header length and header, a data length and
+    data), each as (header fields, data, its byte); one cut short ends them as (None, b"", its byte)."""
+    while at < end:
+        body = at + 4 + (struct.unpack_from("<I", buf, at)[0] if at + 4 <= end else end)
+        size = struct.unpack_from("<I", buf, body)[0] if body + 4 <= end else end
+        if body + 4 + size > end:
+            yield None, b"", at
+            return
+        yield dict(_fields(buf, at + 4, body)), buf[body + 4 : body + 4 + size], at
+        at = body + 4 + size
+
+
 #: The bag last opened (a command picks a bag's stream, then reads it: one pass for both).
 _CACHE: list[tuple[tuple[object, ...], Index]] = []
 
@@ -197,12 +311,8 @@ def index(path: str, choose: Callable[[Index], Collection[str]] = lambda found: 
     kind = _kind(path)
     notes = [] if found is None else found.notes
     with contextlib.ExitStack() as stack:
-        readers = _sources(path, kind, notes)
+        readers = [_opened(path, kind, reader, notes) for reader in _sources(path, kind, notes)]
         for reader in readers:
-            try:
-                reader.open()
-            except Exception as err:  # rosbags' own errors, and what its decompressors raise
-                raise _damaged(path, kind, err) from None
             stack.callback(reader.close)
         found = found or _summary(kind, readers, notes)
         names = {n for n in choose(found) if not found.topic(n).decoded}
@@ -214,6 +324,32 @@ def index(path: str, choose: Callable[[Index], Collection[str]] = lambda found: 
             found.topic(name).decoded = True
     _CACHE[:] = [(key, found)]
     return found
+
+
+def _opened(path: str, kind: str, reader: _Source, notes: list[str]) -> _Source:
+    """``reader`` opened; a ROS 1 bag without its index (a recording cut short) walked instead,
+    with a note. What cannot be opened: exit 2."""
+    try:
+        reader.open()
+        return reader
+    except Exception as err:  # rosbags' own errors, and what its decompressors raise
+        if kind != "ROS 1 bag" or not re.search("not indexed|index looks damaged", str(err)):
+            raise _damaged(path, kind, err) from None
+    walked = Unindexed(path)
+    walked.open()
+    if not walked.connections:
+        walked.close()
+        raise InputError(
+            f"cannot read this ROS 1 bag: it has no index, and no connection record {walked.stop or 'before its end'}",
+            file=path,
+            hint="check that the file is whole (its size, a copy that finished)",
+        )
+    notes.append(
+        f"{path}: the ROS 1 bag has no index (a recording cut short?): its records read one after another"
+        + (f", {walked.stop}" if walked.stop else "")
+        + ", as rosbag reindex would"
+    )
+    return walked
 
 
 def _summary(kind: str, readers: list[_Source], notes: list[str]) -> Index:
@@ -281,9 +417,7 @@ def _damaged(path: str, kind: str, err: BaseException) -> InputError:
     """rosbags' error (or a decompressor's, or a failed assertion in its reader) as one line."""
     text = re.sub(r"\('(.*)',\)", r"\1", str(err).strip()) or type(err).__name__  # rosbags quotes its args
     hint = "check that the file is whole (its size, a copy that finished)"
-    if "not indexed" in text or "index looks damaged" in text:
-        hint = "the recording was cut short: rosbag reindex FILE (ROS 1) rebuilds its index"
-    elif "end magic" in text or "Truncated" in text:
+    if "end magic" in text or "Truncated" in text:
         hint = "the file was cut short: mcap recover FILE -o FIXED.mcap (the MCAP command line tool) rewrites it whole"
     elif "Profile is not ros2" in text:
         hint = "an MCAP file of ROS 1 messages: convert it to a ROS 2 bag (rosbags-convert) or to a ROS 1 bag"
