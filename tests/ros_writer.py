@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 from rosbags.rosbag1 import Writer as Writer1
-from rosbags.rosbag2 import StoragePlugin
+from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin
 from rosbags.rosbag2 import Writer as Writer2
 from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.store import Typestore
@@ -60,11 +60,13 @@ def serialize(store: Typestore, msgtype: str, stamp: int, frame: str, xyz: objec
     return bytes(data)
 
 
-def write(path: Path, kind: str, topics: Mapping[str, Messages], *, odometry: bool = True, lz4: bool = False) -> Path:
-    """``topics`` written as a ``kind`` bag at ``path`` (ros1: a .bag file, its chunks lz4
-    compressed with ``lz4``; sqlite3, mcap: a ROS 2 bag folder; plain: an MCAP file), every
-    message in record-time order; with ``odometry`` an empty-bodied nav_msgs/Odometry topic
-    beside them (a type not read)."""
+def write(
+    path: Path, kind: str, topics: Mapping[str, Messages], *, odometry: bool = True, compressed: bool = False
+) -> Path:
+    """``topics`` written as a ``kind`` bag at ``path`` (ros1: a .bag file; sqlite3, mcap: a ROS 2
+    bag folder; plain: an MCAP file), every message in record-time order; ``compressed``: a ROS 1
+    bag's chunks lz4 (16 KiB), an MCAP file's chunks zstd; with ``odometry`` an empty-bodied
+    nav_msgs/Odometry topic beside them (a type not read)."""
     store = ROS1 if kind == "ros1" else ROS2
     rows = []
     for name, m in topics.items():
@@ -80,7 +82,7 @@ def write(path: Path, kind: str, topics: Mapping[str, Messages], *, odometry: bo
         types["/odom"] = ODOM
     if kind == "ros1":
         w1 = Writer1(path)
-        if lz4:
+        if compressed:
             w1.set_compression(Writer1.CompressionFormat.LZ4)
             w1.chunk_threshold = 1 << 14
         with w1:
@@ -90,7 +92,10 @@ def write(path: Path, kind: str, topics: Mapping[str, Messages], *, odometry: bo
         return path
     folder = path.with_suffix("") if kind == "plain" else path
     storage = StoragePlugin.SQLITE3 if kind == "sqlite3" else StoragePlugin.MCAP
-    with Writer2(folder, version=9, storage_plugin=storage) as w2:
+    w2 = Writer2(folder, version=9, storage_plugin=storage)
+    if compressed:
+        w2.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+    with w2:
         c2 = {name: w2.add_connection(name, msgtype, typestore=ROS2) for name, msgtype in types.items()}
         for t, name, data in rows:
             w2.write(c2[name], t, data)

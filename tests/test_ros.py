@@ -358,8 +358,8 @@ def test_a_ros1_bag_cut_short_is_read_up_to_the_cut_as_rosbag_reindex_would(tmp_
     code, _, err = cli("noise", broken, "--allow-corrected")  # the first chunk: no connection before it
     assert code == 2
     found = re.fullmatch(
-        rf"error: {re.escape(str(broken))}: cannot read this ROS 1 bag: it has no index, and no connection record up "
-        r"to the chunk at byte (\d+), which cannot be read \(Invalid data stream\)",
+        rf"error: {re.escape(str(broken))}: the ROS 1 bag has no index, and no connection record up to the chunk at "
+        r"byte (\d+), which cannot be read \(Invalid data stream\): nothing to read",
         err.splitlines()[0],
     )
     assert found is not None
@@ -370,7 +370,7 @@ def test_a_ros1_bag_cut_short_is_read_up_to_the_cut_as_rosbag_reindex_would(tmp_
 
 
 def test_a_ros1_bag_of_lz4_chunks_without_its_index_reads_as_with_it(tmp_path: Path) -> None:
-    path = Path(bag(tmp_path, "ros1", {"/imu/data_raw": still(2000)}, lz4=True))
+    path = Path(bag(tmp_path, "ros1", {"/imu/data_raw": still(2000)}, compressed=True))
     indexed = readings.read_log(str(path), ReadSpec())
     data = path.read_bytes()
     at = data.index(b"index_pos=") + len(b"index_pos=")
@@ -381,14 +381,41 @@ def test_a_ros1_bag_of_lz4_chunks_without_its_index_reads_as_with_it(tmp_path: P
     assert any("has no index" in n for n in log.layout.notes)
 
 
-def test_an_mcap_file_cut_short_is_exit_2_saying_how_to_recover_it(tmp_path: Path) -> None:
-    cut = write(tmp_path / "cut.mcap", MCAP_FILE.read_bytes()[:100_000])
+@pytest.mark.slow
+def test_a_ros2_recording_cut_short_is_read_up_to_the_cut_as_mcap_recover_would(tmp_path: Path) -> None:
+    """A ROS 2 recording stopped by a power loss: no metadata.yaml, and its MCAP file without the
+    summary and footer written last: its whole chunks are read, with notes."""
+    folder = Path(bag(tmp_path, "mcap", {"/imu/data_raw": still(8000)}, compressed=True))  # 4 zstd chunks
+    whole = readings.read_log(str(folder), ReadSpec())
+    (folder / "metadata.yaml").unlink()
+    mcap = next(folder.glob("*.mcap"))
+    data = mcap.read_bytes()
+    write(mcap, data[: len(data) * 3 // 4])
+    log = readings.read_log(str(folder), ReadSpec())
+    assert 3000 < len(log.values) < 8000
+    np.testing.assert_array_equal(log.values, whole.values[: len(log.values)])
+    np.testing.assert_array_equal(log.clock, whole.clock[: len(log.values)])  # type: ignore[index]
+    assert any("no metadata.yaml (a recording cut short?)" in n for n in log.layout.notes)
+    note = f"{folder}: its {mcap.name} has no summary (a recording cut short?): its records read one after another, "
+    assert any(
+        n.startswith(note) and n.endswith("where it is cut short, as mcap recover would") for n in log.layout.notes
+    )
+
+
+def test_an_mcap_file_cut_in_its_first_chunk_is_exit_2(tmp_path: Path) -> None:
+    cut = write(tmp_path / "cut.mcap", MCAP_FILE.read_bytes()[:100_000])  # one chunk of 240 kB: nothing whole
     code, out, err = cli("noise", cut)
     assert (code, out) == (2, "")
     assert err.splitlines() == [
-        f"error: {cut}: cannot read this MCAP file: File end magic is invalid.",
-        "hint: the file was cut short: mcap recover FILE -o FIXED.mcap (the MCAP command line tool) rewrites it whole",
+        f"error: {cut}: the MCAP file has no summary, and no channel record up to byte 43, where it is cut short: "
+        "nothing to read",
+        "hint: check that the file is whole (its size, a copy that finished)",
     ]
+    code, _, err = cli("logs", write(tmp_path / "tiny.mcap", MCAP_FILE.read_bytes()[:12]))
+    assert code == 2
+    assert err.splitlines()[1] == (
+        "hint: the file was cut short: mcap recover FILE -o FIXED.mcap (the MCAP command line tool) rewrites it whole"
+    )
 
 
 def test_a_damaged_chunk_is_read_up_to_with_a_note_and_the_first_one_is_exit_2(tmp_path: Path) -> None:

@@ -16,10 +16,11 @@ Time is the header stamp (``sec`` + ``nanosec``), in seconds from the topic's fi
 nanoseconds as float64 would lose 256 ns); a topic whose stamps are all zero (a driver that never
 set them) is read by the bag's record time, with a note. Raw or corrected: ROS messages carry no
 flag, so the topic's name tells (``judged``, with the conventions it follows).
-A ROS 1 bag cut short has no index (rosbag writes it last): its records are walked one after
-another (``Unindexed``), as rosbag reindex does, up to the cut, with a note. What rosbags cannot
-read otherwise (an MCAP file cut short, a damaged chunk) is one InputError naming the file, or,
-when some messages were read before it, a note saying where the reading stopped.
+A recording cut short has no index (ROS 1: rosbag writes it last) or no summary (MCAP): its
+records are walked one after another (``Unindexed``, ``Unfinished``), as rosbag reindex and mcap
+recover do, up to the cut, with a note. What rosbags cannot read otherwise (a damaged chunk) is
+one InputError naming the file, or, when some messages were read before it, a note saying where
+the reading stopped.
 """
 
 from __future__ import annotations
@@ -40,9 +41,16 @@ from typing import Protocol
 import lz4.frame  # type: ignore[import-untyped]  # rosbags' own dependency (ROS 1 bags' lz4 chunks)
 import numpy as np
 from numpy.typing import NDArray
-from rosbags.interfaces import Connection, ConnectionExtRosbag1, MessageDefinition, MessageDefinitionFormat
+from rosbags.interfaces import (
+    Connection,
+    ConnectionExtRosbag1,
+    ConnectionExtRosbag2,
+    MessageDefinition,
+    MessageDefinitionFormat,
+)
 from rosbags.rosbag1 import Reader as Reader1
 from rosbags.rosbag2 import Reader as Reader2
+from rosbags.rosbag2.storage_mcap import DECOMPRESSORS
 
 from tumblecal_cli.core.model import FloatArray
 from tumblecal_cli.errors import InputError
@@ -238,6 +246,102 @@ class Unindexed:
                     yield inner, body
 
 
+class Unfinished:
+    """An MCAP file without its summary and footer (a ROS 2 recording cut short: they are written
+    last), read as mcap recover reads it: its records one after another (the file mapped), each
+    chunk decompressed, schemas and channels taken as they come, up to where the file is cut or a
+    chunk cannot be read (``stop``: why, for the note). Channels of CDR messages only."""
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+        self.connections: list[Connection] = []
+        self.stop = ""
+        self._map: mmap.mmap | None = None
+
+    def open(self) -> None:
+        with open(self.path, "rb") as f:
+            self._map = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
+        schemas: dict[int, str] = {}
+        found: dict[int, Connection] = {}
+        counts: dict[int, int] = {}
+        for op, body in self._walk():
+            if op == 3:  # a schema: id, name
+                schemas[struct.unpack_from("<H", body)[0]] = _string(body, 2)[0]
+            elif op == 4:  # a channel: id, schema id, topic, message encoding
+                key, schema = struct.unpack_from("<HH", body)
+                topic, at = _string(body, 4)
+                encoding = _string(body, at)[0]
+                if encoding == "cdr" and key not in found:
+                    found[key] = Connection(
+                        key,
+                        topic,
+                        schemas.get(schema, ""),
+                        MessageDefinition(MessageDefinitionFormat.NONE, ""),
+                        "",
+                        0,
+                        ConnectionExtRosbag2("cdr", []),
+                        self,
+                    )
+            elif op == 5:
+                key = struct.unpack_from("<H", body)[0]
+                counts[key] = counts.get(key, 0) + 1
+        self.connections = [c._replace(msgcount=counts.get(k, 0)) for k, c in sorted(found.items())]
+
+    def close(self) -> None:
+        if self._map is not None:
+            self._map.close()
+            self._map = None
+
+    def messages(self, connections: Collection[Connection], /) -> Iterator[tuple[Connection, int, bytes]]:
+        wanted = {c.id: c for c in connections}
+        for op, body in self._walk():
+            if op == 5 and (c := wanted.get(struct.unpack_from("<H", body)[0])):
+                yield c, struct.unpack_from("<Q", body, 6)[0], body[22:]
+
+    def _walk(self) -> Iterator[tuple[int, bytes]]:
+        """The file's records and those of its chunks (decompressed), as (opcode, content)."""
+        assert self._map is not None
+        top, self.stop = self._map, ""
+        for op, body, at in _mcap_records(top, len(MCAP_MAGIC), len(top)):
+            if op is None:
+                self.stop = f"up to byte {at}, where it is cut short"
+                return
+            if op in (2, 15):  # the footer, the end of the data: the file is whole after all
+                return
+            if op != 6:
+                yield op, body
+                continue
+            size = struct.unpack_from("<Q", body, 16)[0]
+            how, after = _string(body, 28)
+            length = struct.unpack_from("<Q", body, after)[0]
+            try:
+                chunk = DECOMPRESSORS[how](body[after + 8 : after + 8 + length], size)
+            except Exception as err:  # lz4's, zstd's: a damaged chunk; or a compression not known
+                self.stop = f"up to the chunk at byte {at}, which cannot be read ({str(err) or type(err).__name__})"
+                return
+            for inner, content, _ in _mcap_records(chunk, 0, len(chunk)):
+                if inner is not None:
+                    yield inner, content
+
+
+def _string(body: bytes, at: int) -> tuple[str, int]:
+    """An MCAP string (a length, then UTF-8) at ``at``, and where it ends."""
+    (size,) = struct.unpack_from("<I", body, at)
+    return body[at + 4 : at + 4 + size].decode("utf-8", "replace"), at + 4 + size
+
+
+def _mcap_records(buf: bytes | mmap.mmap, at: int, end: int) -> Iterator[tuple[int | None, bytes, int]]:
+    """The MCAP records of ``buf`` from ``at`` (an opcode, a length, the content), each as
+    (opcode, content, its byte); one cut short ends them as (None, b"", its byte)."""
+    while at < end:
+        size = struct.unpack_from("<Q", buf, at + 1)[0] if at + 9 <= end else end
+        if at + 9 + size > end:
+            yield None, b"", at
+            return
+        yield buf[at], buf[at + 9 : at + 9 + size], at
+        at += 9 + size
+
+
 def _lz4(data: bytes) -> bytes:
     out: bytes = lz4.frame.decompress(data)
     return out
@@ -333,21 +437,28 @@ def _opened(path: str, kind: str, reader: _Source, notes: list[str]) -> _Source:
         reader.open()
         return reader
     except Exception as err:  # rosbags' own errors, and what its decompressors raise
-        if kind != "ROS 1 bag" or not re.search("not indexed|index looks damaged", str(err)):
+        mcap = isinstance(reader, Reader2.STORAGE_PLUGINS[".mcap"])
+        if kind == "ROS 1 bag" and re.search("not indexed|index looks damaged", str(err)):
+            walked: Unindexed | Unfinished = Unindexed(path)
+            what, record, tool = "the ROS 1 bag has no index", "connection", "rosbag reindex"
+        elif mcap and re.search("end magic|footer|summary", str(err)):
+            walked = Unfinished(str(getattr(reader, "path", path)))
+            file = "the MCAP file" if kind == "MCAP file" else f"its {Path(walked.path).name}"
+            what, record, tool = f"{file} has no summary", "channel", "mcap recover"
+        else:
             raise _damaged(path, kind, err) from None
-    walked = Unindexed(path)
     walked.open()
     if not walked.connections:
         walked.close()
         raise InputError(
-            f"cannot read this ROS 1 bag: it has no index, and no connection record {walked.stop or 'before its end'}",
+            f"{what}, and no {record} record {walked.stop or 'before its end'}: nothing to read",
             file=path,
             hint="check that the file is whole (its size, a copy that finished)",
         )
     notes.append(
-        f"{path}: the ROS 1 bag has no index (a recording cut short?): its records read one after another"
+        f"{path}: {what} (a recording cut short?): its records read one after another"
         + (f", {walked.stop}" if walked.stop else "")
-        + ", as rosbag reindex would"
+        + f", as {tool} would"
     )
     return walked
 
