@@ -22,9 +22,11 @@ from tests import ros_writer
 from tests.conftest import ROOT, imported, run_exe, write
 from tests.conftest import tumblecal as cli
 from tests.ros_writer import Messages
+from tests.test_rotations import ACC_A, ACC_B, synthetic_log
 from tests.test_sources import tumble
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import readings, ros, sources
+from tumblecal_cli.io.calfile import Calibration
 from tumblecal_cli.io.readspec import ReadSpec
 
 DATA = ROOT / "tests" / "data" / "ros"
@@ -239,6 +241,29 @@ def test_a_six_face_session_in_each_kind_of_bag_solves_as_its_csv_does(tmp_path:
         assert [p.times for p in b.poses] == [p.times for p in a.poses]
         assert from_bag.notes[0].startswith("/imu/data_raw is in m/s^2: solved against standard gravity")
     assert np.allclose(a.gain, [1.01, 0.99, 1.02], atol=2e-3)
+
+
+@pytest.mark.slow
+def test_hand_turns_in_a_bag_s_imu_topic_solve_as_their_csv_does(tmp_path: Path) -> None:
+    """solve --sensor gyroscope --accel-cal reads both sensors of one Imu topic, on the same rows."""
+    csv = tmp_path / "hand.csv"
+    synthetic_log(csv, np.random.default_rng(5))
+    table = np.loadtxt(csv, delimiter=",", skiprows=1)
+    stamps = EPOCH + np.round(table[:, 0] * 1e9).astype(np.int64)
+    path = bag(tmp_path, "ros1", {"/imu/data_raw": Messages(stamps, table[:, 1:4], table[:, 4:7])})
+    acc = tmp_path / "acc.json"
+    Calibration(
+        "accelerometer", "six-pose", 1.0, ["acc_x", "acc_y", "acc_z"], ACC_B, np.linalg.inv(ACC_A), np.diag(ACC_A)
+    ).save(acc)
+    from_csv, from_bag = tmp_path / "csv.json", tmp_path / "bag.json"
+    for log, out in ((csv, from_csv), (path, from_bag)):
+        code, _, err = cli("solve", "--sensor", "gyroscope", "--log", log, "--accel-cal", acc, "-o", out)
+        assert code == 0, err
+    a, b = tumblecal.load(str(from_csv)), tumblecal.load(str(from_bag))
+    assert b.method == a.method == "rotations"
+    np.testing.assert_allclose(b.offset, a.offset, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(b.matrix, a.matrix, rtol=1e-9, atol=0)
+    assert b.input_units == "rad/s"
 
 
 @pytest.mark.slow

@@ -78,7 +78,7 @@ def hand_turns(log: str, options: SolveOptions) -> HandTurns:
     ) as (path, acc, seg):
         spec = replace(options.read, sensor="gyroscope")
         gyr = readings.read_log(path, spec, use_time=options.read.rate is None, name=acc.layout.name)
-    if tuple(acc.layout.sensor) == tuple(gyr.layout.sensor):  # a log of one sensor: both read the same columns
+    if acc.layout.sensor_names == gyr.layout.sensor_names:  # a log of one sensor: both read the same columns
         raise InputError(
             f"the accelerometer and the gyroscope would both be read from columns "
             f"{', '.join(acc.layout.sensor_names)}: --accel-cal needs a log with both sensors' columns",
