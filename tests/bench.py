@@ -22,8 +22,11 @@ five runs each, taking turns; elsewhere the best of a few runs.
     DataFlash stream, 100 MB  vs pymavlink's DFReader_binary(f) and recv_match(type="IMU"), the
                            same log (IMU, ACC and GYR, two instances each, 1 kHz); peak memory
 
+    ROS bag stream, 100 MB  vs  rosbags' AnyReader and deserialize of that topic, the same bag (a ROS 1
+                           bag, and a ROS 2 bag in MCAP storage: two Imu topics at 1 kHz); peak memory
+
 `python tests/bench.py noise` runs the noise lines alone, `python tests/bench.py ulog` the ULog one,
-`python tests/bench.py dataflash` the DataFlash one.
+`python tests/bench.py dataflash` the DataFlash one, `python tests/bench.py ros` the ROS ones.
 """
 
 from __future__ import annotations
@@ -391,6 +394,25 @@ values = np.array(rows)
 print(next(line for line in open("/proc/self/status") if line.startswith("VmHWM")))
 """
 
+#: Reading one topic of a ROS bag, as tumblecal does and as rosbags' own reader does: python -c X bag
+ROS_OURS = ULOG_OURS.replace("sensor_accel:0", "/imu/data_raw")
+ROS_ROSBAGS = """
+import sys
+from pathlib import Path
+import numpy as np
+from rosbags.highlevel import AnyReader
+with AnyReader([Path(sys.argv[1])]) as reader:
+    found = [c for c in reader.connections if c.topic == "/imu/data_raw"]
+    rows = []
+    for c, _, data in reader.messages(connections=found):
+        m = reader.deserialize(data, c.msgtype)
+        a = m.linear_acceleration
+        rows.append((m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, a.x, a.y, a.z))
+values = np.array(rows)
+assert len(values) > 0
+print(next(line for line in open("/proc/self/status") if line.startswith("VmHWM")))
+"""
+
 
 def write_dataflash(path: Path, rows: int) -> None:
     """An ArduPilot DataFlash log of ``rows`` time steps of IMU, ACC and GYR, two instances each
@@ -426,11 +448,75 @@ def bench_dataflash(folder: Path) -> list[tuple[str, float, float, str]]:
     return [(f"DataFlash stream, {size:.0f} MB", ours, base, note)]
 
 
+def write_bag(path: Path, kind: str, rows: int) -> None:
+    """A bag (kind ros1: a ROS 1 bag; mcap: a ROS 2 bag in MCAP storage) of two sensor_msgs/Imu
+    topics at 1 kHz, ``rows`` messages each, in time order: messages laid out with numpy as each
+    ROS version serializes them (a frame_id of 8 characters) and written by rosbags' writers."""
+    from rosbags.rosbag1 import Writer as Writer1
+    from rosbags.rosbag2 import StoragePlugin
+    from rosbags.rosbag2 import Writer as Writer2
+    from rosbags.typesys import Stores, get_typestore
+
+    cdr = kind != "ros1"
+    head = [("enc", "<u4")] if cdr else [("seq", "<u4")]
+    frame = [("frame", "S9"), ("pad", "S3")] if cdr else [("frame", "S8")]
+    layout = np.dtype([*head, ("sec", "<u4"), ("nsec", "<u4"), ("length", "<u4"), *frame, ("block", "<f8", 37)])
+    rng = np.random.default_rng(2)
+    t = np.arange(rows, dtype=np.int64) * 1_000_000 + 1_700_000_000_000_000_000
+    topics = ["/imu/data_raw", "/imu2/data_raw"]
+    msgs = []
+    for k in range(len(topics)):
+        one = np.zeros(rows, dtype=layout)
+        one[head[0][0]] = 0x100 if cdr else np.arange(rows)
+        one["sec"], one["nsec"] = np.divmod(t + k * 1000, 1_000_000_000)
+        one["length"], one["frame"] = (9, b"imu_link") if cdr else (8, b"imu_link")
+        one["block"][:, 25:28] = rng.normal(0, 0.05, (rows, 3)) + np.array([0.0, 0.0, 9.81])
+        one["block"][:, 13:16] = rng.normal(0, 0.001, (rows, 3))
+        msgs.append(one.view(np.uint8).reshape(rows, -1))
+    size = layout.itemsize
+    if not cdr:
+        w1 = Writer1(path)
+        with w1:
+            conns = [
+                w1.add_connection(n, "sensor_msgs/msg/Imu", typestore=get_typestore(Stores.ROS1_NOETIC)) for n in topics
+            ]
+            for i in range(rows):
+                for k, c in enumerate(conns):
+                    w1.write(c, int(t[i]) + k * 1000, msgs[k][i].tobytes())
+        return
+    with Writer2(path, version=9, storage_plugin=StoragePlugin.MCAP) as w2:
+        store = get_typestore(Stores.ROS2_HUMBLE)
+        conns2 = [w2.add_connection(n, "sensor_msgs/msg/Imu", typestore=store) for n in topics]
+        for i in range(rows):
+            for k, c2 in enumerate(conns2):
+                w2.write(c2, int(t[i]) + k * 1000, msgs[k][i].tobytes()[:size])
+
+
+def bench_ros(folder: Path) -> list[tuple[str, float, float, str]]:
+    """Reading one topic of a 100 MB bag (ROS 1, ROS 2 in MCAP) against rosbags' AnyReader and
+    deserialize of that topic, each a fresh process."""
+    import shutil
+
+    found = []
+    for kind, what in (("ros1", "ROS 1 bag"), ("mcap", "ROS 2 MCAP bag")):
+        bag = folder / ("bag100M.bag" if kind == "ros1" else "bag100M")
+        write_bag(bag, kind, 155_000)
+        size = sum(p.stat().st_size for p in ([bag] if bag.is_file() else bag.iterdir())) / 1e6
+        ours, rss = _peak([sys.executable, "-c", ROS_OURS, str(bag)])
+        base, base_rss = _peak([sys.executable, "-c", ROS_ROSBAGS, str(bag)])
+        logs, _ = run([*TUMBLECAL, "logs", str(bag)], repeat=2)
+        note = f"{size / ours:.0f} MB/s; peak {rss:.0f} MiB, rosbags {base_rss:.0f} MiB; tumblecal logs {logs:.2f} s"
+        found.append((f"{what} stream, {size:.0f} MB", ours, base, note))
+        shutil.rmtree(bag) if bag.is_dir() else bag.unlink()
+    return found
+
+
 def main() -> None:
     rows: list[tuple[str, float, float, str]] = []
-    if sys.argv[1:] in (["ulog"], ["dataflash"]):
+    if sys.argv[1:] in (["ulog"], ["dataflash"], ["ros"]):
         with tempfile.TemporaryDirectory() as tmp:
-            rows = (bench_ulog if sys.argv[1] == "ulog" else bench_dataflash)(Path(tmp))
+            bench = {"ulog": bench_ulog, "dataflash": bench_dataflash, "ros": bench_ros}[sys.argv[1]]
+            rows = bench(Path(tmp))
         for what, ours, base, note in rows:
             print(f"{what:<28} {ours:>9.2f}s {base:>9.2f}s {ours / base:>6.2f}x  {note}")
         return
@@ -518,6 +604,7 @@ def main() -> None:
         rows += noise_rows
         rows += bench_ulog(folder)
         rows += bench_dataflash(folder)
+        rows += bench_ros(folder)
     machine = f"{platform.node()} ({os.cpu_count()} cores, Python {platform.python_version()})"
     print(f"tumblecal bench, {date.today()}, {machine}")
     print(f"{'what':<28} {'tumblecal':>10} {'baseline':>10} {'ratio':>7}  notes")
@@ -535,6 +622,7 @@ def main() -> None:
     print("           noise vs pandas.read_csv + allantools.oadev of each axis (octave taus), the same file")
     print("           ULog stream vs pyulog.ULog(f, message_name_filter_list=['sensor_accel']) of the same log")
     print("           DataFlash stream vs pymavlink DFReader_binary(f) and recv_match(type='IMU') of the same log")
+    print("           ROS bag stream vs rosbags' AnyReader.messages + deserialize of that topic, the same bag")
 
 
 if __name__ == "__main__":

@@ -219,7 +219,7 @@ def test_a_log_whose_reader_needs_an_extra_not_installed_is_exit_2_naming_it(
     entry = sources.Lazy(
         "ROS bag", "fake_bag_reader", magic=(b"#ROSBAG V2.0\n",), extra="ros", needs=("rosbags_not_installed_here",)
     )
-    monkeypatch.setattr(sources, "READERS", [*sources.READERS, entry])
+    monkeypatch.setattr(sources, "READERS", [entry, *sources.READERS])
     bag = write(tmp_path / "test.bag", b"#ROSBAG V2.0\n" + bytes(100))
     commands: list[list[str | Path]] = [
         ["logs", bag],

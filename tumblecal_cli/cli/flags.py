@@ -118,8 +118,8 @@ StreamOption = Annotated[
         "--stream",
         metavar="NAME[:INSTANCE]",
         help="A log's stream, where it holds several: sensor_accel:1 in a PX4 ULog, IMU:1 in an ArduPilot DataFlash "
-        "log (`tumblecal logs FILE` lists them). A stream that carries several sensors (sensor_combined, IMU) "
-        "gives the one --sensor names. "
+        "log, /imu/data_raw in a ROS bag (`tumblecal logs FILE` lists them). A stream that carries several sensors "
+        "(sensor_combined, IMU, a bag's Imu topic) gives the one --sensor names. "
         "[default: the log's one raw stream of --sensor]",
     ),
 ]
@@ -129,7 +129,7 @@ AllowCorrected = Annotated[
     typer.Option(
         "--allow-corrected",
         help="Read a stream the autopilot has already corrected (PX4's sensor_combined, vehicle_imu; ArduPilot's "
-        "IMU, ACC, GYR and MAG unless the log's PARM holds no calibration): refused "
+        "IMU, ACC, GYR and MAG unless the log's PARM holds no calibration; a bag's imu/data): refused "
         "without it, as a fit of it calibrates the residual, not the sensor.",
     ),
 ]

@@ -22,7 +22,9 @@ def logs(
     log: Annotated[
         str,
         typer.Argument(
-            metavar="FILE", help="A log: a PX4 ULog (.ulg), an ArduPilot DataFlash log (.bin, or its text form .log)."
+            metavar="FILE",
+            help="A log: a PX4 ULog (.ulg), an ArduPilot DataFlash log (.bin, or its text form .log), a ROS bag (.bag, "
+            "a ROS 2 bag's folder) or an MCAP file.",
         ),
     ],
     json_summary: Annotated[bool, typer.Option("--json", help="Print the streams on stdout as JSON.")] = False,

@@ -140,11 +140,26 @@ def dataflash_text(path: str, head: bytes) -> bool:
     return head.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"FMT,")
 
 
+def ros_claim(path: str, head: bytes) -> bool:
+    """A ROS 1 bag or an MCAP file by its first bytes, a ROS 2 bag's sqlite3 file (``.db3``), or a
+    ROS 2 bag's folder (its metadata.yaml, or the .db3 or .mcap files of a recording cut short)."""
+    if head.startswith((b"#ROSBAG V", b"\x89MCAP0\r\n")):
+        return True
+    if head or not os.path.isdir(path):
+        return head.startswith(b"SQLite format 3\x00") and path.endswith(".db3")
+    try:
+        names = os.listdir(path)
+    except OSError:
+        return False
+    return "metadata.yaml" in names or any(n.endswith((".db3", ".mcap")) for n in names)
+
+
 #: The readers of sources beside CSV, asked in order; a file none claims is read as CSV.
 READERS: list[Reader] = [
     Lazy("PX4 ULog", "tumblecal_cli.io.ulog", magic=(b"ULog\x01\x12\x35",)),
     Lazy("ArduPilot DataFlash log", "tumblecal_cli.io.dataflash", magic=(b"\xa3\x95\x80",)),
     Lazy("ArduPilot DataFlash text log", "tumblecal_cli.io.dftext", claim=dataflash_text),
+    Lazy("ROS bag or MCAP file", "tumblecal_cli.io.ros", claim=ros_claim, extra="ros", needs=("rosbags",)),
 ]
 #: How much of a file a reader is shown to claim it.
 HEAD = 64
@@ -213,9 +228,13 @@ def streams(path: str) -> list[Stream]:
 
 
 def stream_of(path: str, spec: ReadSpec) -> Stream | None:
-    """The stream of ``path`` that ``spec`` reads (None: a CSV capture, or stdin)."""
+    """The stream of ``path`` that ``spec`` reads (None: a CSV capture, or stdin): the reader's own
+    ``pick(path, spec)`` where it has one (to say more of what --stream names), else ``pick``."""
     reader = reader_for(path)
-    return None if reader is None or reader is IN_MEMORY else pick(path, reader.streams(path), spec)
+    if reader is None or reader is IN_MEMORY:
+        return None
+    own = getattr(reader.load(path) if isinstance(reader, Lazy) else reader, "pick", None)
+    return cast("Stream", own(path, spec)) if own is not None else pick(path, reader.streams(path), spec)
 
 
 def parse_stream(text: str) -> tuple[str, int | None]:

@@ -437,7 +437,7 @@ def read_twice(log: str, spec: ReadSpec | None = None, max_spool: int | str | No
     endless stream), and its size, up to ``max_spool`` bytes (a size: 500M, 4G; None: MAX_SPOOL,
     or the room in $TMPDIR less a margin if that is less). Beyond it: exit 2."""
     limit = size_option(max_spool, "--max-spool")
-    if log != "-" and capture.is_regular(log):
+    if log != "-" and (capture.is_regular(log) or os.path.isdir(log)):  # a folder: a ROS 2 bag's (io.sources)
         yield log
         return
     folder = tempfile.gettempdir()
