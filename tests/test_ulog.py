@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import gzip
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -469,3 +470,106 @@ def test_thermal_fits_a_drift_from_ulog_sweeps_with_their_temperature_field(tmp_
     assert done.fit.drift.order == 1
     assert done.fit.drift.offset[0][0] == pytest.approx(0.002, abs=1e-4)
     assert done.calibration.thermal.column == "temperature"
+
+
+def paired_log(tmp_path: Path, rate: float = 1000.0) -> tuple[Path, Path, Path]:
+    """A hand-turns session (tests/test_rotations.py's) as CSV and as a ULog: sensor_gyro:0 at
+    ``rate`` and sensor_accel:0 at the same rate stamped 0.3 ms later; and the accelerometer's
+    calibration the turns take."""
+    from tests.test_rotations import ACC_A, ACC_B, synthetic_log
+
+    csv = tmp_path / "hand.csv"
+    synthetic_log(csv, np.random.default_rng(5), rate=rate)
+    table = np.loadtxt(csv, delimiter=",", skiprows=1)
+    t = 1_000_000 + np.round(table[:, 0] * 1e6).astype(np.int64)
+    log = ulog_writer.write_streams(
+        tmp_path / "hand.ulg",
+        [("sensor_gyro", 0, t, table[:, 4:7]), ("sensor_accel", 0, t + 300, table[:, 1:4])],
+    )
+    acc = tmp_path / "acc.json"
+    columns = ["acc_x", "acc_y", "acc_z"]
+    tumblecal.Calibration("accelerometer", "six-pose", 1.0, columns, ACC_B, np.linalg.inv(ACC_A), np.diag(ACC_A)).save(
+        acc
+    )
+    return csv, log, acc
+
+
+@pytest.mark.slow
+def test_hand_turns_from_sensor_gyro_and_sensor_accel_solve_and_verify_as_their_csv_does(tmp_path: Path) -> None:
+    """The gyroscope's stream and its instance's accelerometer, 0.3 ms apart, put on the same rows:
+    the truth recovered as from the CSV (both sensors on one row), by the command and the API."""
+    from tests.test_rotations import A, B
+
+    csv, log, acc = paired_log(tmp_path)
+    assert {d.name for d in ULog(str(log)).data_list} == {"sensor_gyro", "sensor_accel"}
+    solved = {}
+    for source in (csv, log):
+        out = tmp_path / f"{source.suffix[1:]}.json"
+        code, _, err = cli("solve", "--sensor", "gyroscope", "--log", source, "--accel-cal", acc, "-o", out)
+        assert code == 0, err
+        got = solved[source.suffix] = tumblecal.load(str(out))
+        a = np.linalg.inv(got.matrix)  # counts per deg/s
+        assert np.abs(a - A).max() < 0.02, source  # 0.1 % of the gain, as the CSV path's test
+        assert np.all(np.abs(got.offset - B) < 5 * np.asarray(got.uncertainty["offset"])), source
+        assert len(got.rotations or ()) == 16
+    assert "the accelerometer is sensor_accel:0 (the instance of sensor_gyro:0), resampled onto its" in err
+    assert "sensor_gyro:0: 1 samples outside sensor_accel:0's time span dropped" in err
+    by_api = tumblecal.solve_log(log, sensor="gyroscope", accel_cal=acc).calibration
+    assert by_api is not None
+    np.testing.assert_allclose(by_api.matrix, solved[".ulg"].matrix, rtol=1e-12)
+    cal = tmp_path / "ulg.json"
+    code, text, err = cli("verify", "--cal", cal, "--log", log, "--accel-cal", acc, "--json")
+    assert code == 0, err
+    doc = json.loads(text)
+    assert len(doc["rotations"]) == 16
+    assert doc["rms_error_after_deg"] < 0.1 < doc["rms_error_before_deg"]
+    done = tumblecal.verify_rotations(log, cal, accel_cal=acc)
+    assert done.overall == {k: v for k, v in doc.items() if k.endswith("_deg")}
+
+
+def pair(tmp_path: Path, acc_step_us: int = 1000, acc_share: float = 1.0, instance: int = 0) -> Path:
+    """sensor_gyro:0 at 1 kHz for 2 s and sensor_accel:``instance`` every ``acc_step_us`` over
+    the first ``acc_share`` of it."""
+    rng = np.random.default_rng(3)
+    t = 1_000_000 + np.arange(2000, dtype=np.int64) * 1000
+    ta = 1_000_000 + np.arange(0, int(2_000_000 * acc_share), acc_step_us, dtype=np.int64) + 300
+    streams = [("sensor_gyro", 0, t, rng.normal(0, 0.01, (len(t), 3)))]
+    streams.append(("sensor_accel", instance, ta, rng.normal(0, 0.01, (len(ta), 3)) + np.array([0, 0, G])))
+    return ulog_writer.write_streams(tmp_path / "pair.ulg", streams)
+
+
+def test_a_paired_read_puts_the_accelerometer_on_the_gyroscope_s_samples(tmp_path: Path) -> None:
+    log = pair(tmp_path)
+    spec = ReadSpec(sensor="accelerometer", paired=True)
+    acc, gyr = readings.read_log(str(log), spec), readings.read_log(str(log), replace(spec, sensor="gyroscope"))
+    assert len(acc.values) == len(gyr.values) == 1999  # the first gyroscope sample is before the accelerometer's
+    np.testing.assert_array_equal(acc.clock, gyr.clock)
+    raw = readings.read_log(str(log), ReadSpec())  # not paired: the accelerometer's own samples
+    assert raw.clock is not None
+    assert acc.clock is not None
+    np.testing.assert_allclose(acc.values[0], raw.values[0] * 0.3 + raw.values[1] * 0.7, rtol=1e-12)
+    assert acc.clock[0] == raw.clock[0] + 700
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"acc_step_us": 10_000}, "sensor_accel:0 is logged at 100 Hz, under 25% of sensor_gyro:0's 1000 Hz"),
+        ({"acc_share": 0.3}, "sensor_accel:0 and sensor_gyro:0 overlap on 30% of the gyroscope's samples"),
+        ({"instance": 1}, "sensor_gyro:0 has no sensor_accel:0 beside it with samples"),
+    ],
+)
+def test_a_pairing_that_cannot_carry_the_turns_is_exit_2(
+    tmp_path: Path, kwargs: dict[str, float], message: str
+) -> None:
+    log = pair(tmp_path, **kwargs)  # type: ignore[arg-type]
+    acc = tmp_path / "acc.json"
+    tumblecal.Calibration(
+        "accelerometer", "six-pose", G, ["acc_x", "acc_y", "acc_z"], np.zeros(3), np.eye(3), np.ones(3)
+    ).save(acc)
+    out_file = tmp_path / "g.json"
+    code, out, err = cli("solve", "--sensor", "gyroscope", "--log", log, "--accel-cal", acc, "-o", out_file)
+    assert (code, out) == (2, "")
+    assert message in err
+    assert "Traceback" not in err
+    assert not out_file.exists()

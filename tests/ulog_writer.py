@@ -108,3 +108,18 @@ def write(
 def float32(values: NDArray[np.float64]) -> NDArray[np.float64]:
     """``values`` as a ULog holds them (float32), back in float64: what a CSV must hold to match."""
     return values.astype(np.float32).astype(np.float64)
+
+
+def write_streams(path: Path, streams: Sequence[tuple[str, int, NDArray[np.int64], NDArray[np.float64]]]) -> Path:
+    """A ULog of several topic instances, each (``sensor_accel`` or ``sensor_gyro``, instance,
+    stamps in µs, readings), their samples merged in time order (a logger writes each as it comes)."""
+    names = tuple(dict.fromkeys(name for name, _, _, _ in streams))
+    parts = [header(int(min(t[0] for _, _, t, _ in streams)) - 1000), definitions(names)]
+    parts += [subscribe(10 + k, name, instance) for k, (name, instance, _, _) in enumerate(streams)]
+    stamps, messages = [], []
+    for k, (name, _, t_us, xyz) in enumerate(streams):
+        stamps.append(t_us)
+        messages += samples(10 + k, name, t_us, xyz, np.full(len(t_us), 25.0))
+    order = np.argsort(np.concatenate(stamps), kind="stable")
+    path.write_bytes(b"".join(parts + [messages[i] for i in order]))
+    return path

@@ -52,7 +52,9 @@ class ReadSpec:
     ``allow_corrected`` whether a stream the autopilot already corrected may be read (a fit of
     it calibrates the residual, not the sensor: refused without it); ``start`` and
     ``end`` the part of the capture to read (--start/--end: :func:`bound`; None: its first or
-    last reading)."""
+    last reading); ``paired`` that the accelerometer and the gyroscope are read as one log's rows
+    (the turns pipelines): a log that holds them in separate streams gives the gyroscope stream's
+    samples and its instance's accelerometer resampled onto them (io.ulog)."""
 
     sensor: str = "accelerometer"
     columns: tuple[str, ...] | None = None
@@ -67,6 +69,7 @@ class ReadSpec:
     allow_corrected: bool = False
     start: str | float | None = None
     end: str | float | None = None
+    paired: bool = False
 
     def __post_init__(self) -> None:  # a list given in Python is kept as a tuple (a frozen value)
         for name in ("columns", "prefer"):

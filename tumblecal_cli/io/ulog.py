@@ -27,7 +27,7 @@ import array
 import hashlib
 import os
 import struct
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import BinaryIO
 
 import numpy as np
@@ -47,6 +47,11 @@ CHUNK = 1 << 22
 #: A header PX4's parser takes as corrupt: type 0, size 0, or a body over 10000 bytes (pyulog
 #: core.py, _check_packet_corruption).
 BIGGEST = 10_000
+#: A gyroscope's turns read beside its instance's sensor_accel (ReadSpec.paired): the accelerometer's
+#: rate at least this share of the gyroscope's, and the gyroscope's samples in its time span at least
+#: this share (else exit 2).
+PAIR_RATE = 0.25
+PAIR_OVERLAP = 0.5
 
 _TYPES = {
     "int8_t": "i1",
@@ -455,7 +460,9 @@ def streams_of(path: str, found: Index) -> list[Stream]:
 
 
 def read_stream(path: str, spec: ReadSpec, label_column: str | None) -> Table:
-    """The readings of the stream ``spec`` names (or the log's one stream of ``spec.sensor``)."""
+    """The readings of the stream ``spec`` names (or the log's one stream of ``spec.sensor``);
+    with ``spec.paired`` and a ``sensor_gyro`` stream for the gyroscope, either sensor on the
+    gyroscope's samples (:func:`paired`)."""
     if label_column is not None:
         raise InputError(
             f"a PX4 ULog has no label column ({label_column!r}): its still blocks are found by the detector",
@@ -463,7 +470,65 @@ def read_stream(path: str, spec: ReadSpec, label_column: str | None) -> Table:
             hint="leave --pose-column out",
         )
     found = index(path)
-    chosen = sources.pick(path, streams_of(path, found), spec)
+    listed = streams_of(path, found)
+    if spec.paired:
+        gyro = sources.pick(path, listed, replace(spec, sensor="gyroscope"))
+        if gyro.name == "sensor_gyro":
+            return paired(path, found, listed, spec, gyro)
+    return _table(path, found, sources.pick(path, listed, spec), spec.rate is None)
+
+
+def paired(path: str, found: Index, listed: list[Stream], spec: ReadSpec, gyro: Stream) -> Table:
+    """``spec.sensor`` of the turns pipelines' one log of both sensors: ``gyro``'s samples, and
+    ``sensor_accel`` of the same instance resampled onto their timestamps by linear
+    interpolation. Gyroscope samples outside the accelerometer's time span are dropped (a note);
+    an accelerometer under ``PAIR_RATE`` of the gyroscope's rate, or streams that overlap on under
+    ``PAIR_OVERLAP`` of the gyroscope's samples, is exit 2."""
+    key = f"sensor_accel:{gyro.instance}"
+    acc = next((s for s in listed if s.key == key and s.rows > 1), None)
+    if acc is None:
+        raise InputError(
+            f"{gyro.key} has no {key} beside it with samples: the turns take the accelerometer of the "
+            "gyroscope's instance",
+            file=path,
+            hint="--stream sensor_gyro:N picks a gyroscope whose instance has both (tumblecal logs FILE lists them)",
+        )
+    g, a = _table(path, found, gyro, True), _table(path, found, acc, True)
+    assert g.clock is not None
+    assert a.clock is not None
+    if not (acc.rate and gyro.rate and acc.rate >= PAIR_RATE * gyro.rate):
+        raise InputError(
+            f"{acc.key} is logged at {acc.rate or 0:.4g} Hz, under {PAIR_RATE:.0%} of {gyro.key}'s "
+            f"{gyro.rate or 0:.4g} Hz: too slow to put on the gyroscope's samples",
+            file=path,
+            hint="log sensor_accel at the gyroscope's rate (the logger's high-rate IMU profile)",
+        )
+    inside = (g.clock >= a.clock[0]) & (g.clock <= a.clock[-1])
+    if inside.mean() < PAIR_OVERLAP:
+        raise InputError(
+            f"{acc.key} and {gyro.key} overlap on {inside.mean():.0%} of the gyroscope's samples "
+            f"(under {PAIR_OVERLAP:.0%}): they are not one session",
+            file=path,
+            hint="give --stream sensor_gyro:N of an instance whose accelerometer was logged over the same time",
+        )
+    clock = g.clock[inside]
+    notes = [*g.notes, *(n for n in a.notes if n not in g.notes)]
+    if not inside.all():
+        notes.append(f"{path}: {gyro.key}: {int((~inside).sum())} samples outside {acc.key}'s time span dropped")
+    notes.append(
+        f"{path}: the accelerometer is {acc.key} (the instance of {gyro.key}), resampled onto its "
+        f"{len(clock)} timestamps by linear interpolation"
+    )
+    if spec.sensor == "gyroscope":
+        hot = None if g.temperature is None else g.temperature[inside]
+        return replace(g, values=g.values[inside], clock=clock, temperature=hot, notes=tuple(notes))
+    values = np.column_stack([np.interp(clock, a.clock, a.values[:, k]) for k in range(3)])
+    hot = None if a.temperature is None else np.interp(clock, a.clock, a.temperature)
+    return replace(a, values=values, clock=clock, temperature=hot, notes=tuple(notes))
+
+
+def _table(path: str, found: Index, chosen: Stream, check_clock: bool) -> Table:
+    """The readings of the stream ``chosen``; ``check_clock``: samples whose clock goes back dropped."""
     topic = next(t for t in found.topics if (t.name, t.instance) == (chosen.name, chosen.instance))
     part = next(p for p in _parts(topic) if p.sensor == chosen.sensor)
     names = [*part.fields, _clock(topic), *(f for f in (part.relative, part.per) if f)]
@@ -486,7 +551,7 @@ def read_stream(path: str, spec: ReadSpec, label_column: str | None) -> Table:
     if not keep.all():
         what = "an invalid relative timestamp" if part.relative else "no integration time"
         notes.append(f"{path}: {chosen.key}: {int((~keep).sum())} samples with {what} skipped")
-    if spec.rate is None:
+    if check_clock:
         keep &= forward(path, chosen.key, clock, keep, notes)
     if not keep.all():
         values, clock = values[keep], clock[keep]

@@ -66,14 +66,14 @@ def hand_turns(log: str, options: SolveOptions) -> HandTurns:
     settings = block_settings(options, accel.offset)
     with logs.segmented(
         log,
-        replace(options.read, sensor="accelerometer", columns=None),
+        replace(options.read, sensor="accelerometer", columns=None, paired=True),
         pose_column=None,
         pose_map=None,
         settings=settings,
         whole=True,  # the turns between the still blocks are integrated
         max_spool=options.log.max_spool,
     ) as (path, acc, seg):
-        spec = replace(options.read, sensor="gyroscope")
+        spec = replace(options.read, sensor="gyroscope", paired=True)
         gyr = readings.read_log(path, spec, use_time=options.read.rate is None, name=acc.layout.name)
     if acc.layout.sensor_names == gyr.layout.sensor_names:  # a log of one sensor: both read the same columns
         raise InputError(
@@ -207,6 +207,7 @@ def from_log(log: str, options: SolveOptions, given: Settings) -> Outcome:
     if findings:
         return Outcome(3, None, draft=cal, rejections=findings, error=_rejected(findings, name))
     notes = [
+        *dict.fromkeys([*acc.layout.notes, *gyr.layout.notes]),  # how the log was read (a ULog's pairing)
         *turns.notes,
         f"{len(rots)} rotations between {len(kept)} still blocks: residual RMS "
         f"{float(np.sqrt(np.mean(fit.residual_deg**2))):.3g}°, largest {float(fit.residual_deg.max()):.3g}°",
