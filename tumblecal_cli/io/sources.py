@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import stat
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol, cast
@@ -192,6 +193,8 @@ def reader_for(path: str, opener: Callable[[str], bytes] | None = None) -> Reade
         return IN_MEMORY
     if path == "-" or not READERS:
         return None
+    if opener is None and _stream_like(path):
+        return None  # a pipe is read once, by the CSV reader: a look at its head would take it
     try:
         head = opener(path) if opener is not None else _head(path)
     except IsADirectoryError:
@@ -199,6 +202,15 @@ def reader_for(path: str, opener: Callable[[str], bytes] | None = None) -> Reade
     except OSError:
         return None  # the CSV reader opens it and says what is wrong
     return next((r for r in READERS if r.claims(path, head)), None)
+
+
+def _stream_like(path: str) -> bool:
+    """Whether ``path`` is a named pipe or a device (read once, as stdin is), not a file."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return False
+    return stat.S_ISFIFO(mode) or stat.S_ISCHR(mode) or stat.S_ISSOCK(mode)
 
 
 def _head(path: str) -> bytes:
