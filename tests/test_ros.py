@@ -503,7 +503,8 @@ def test_a_stamp_that_jumps_back_once_is_skipped_and_a_clock_restarted_is_exit_2
     log = readings.read_log(path, ReadSpec())
     assert len(log.values) == 1999
     assert any(
-        "1 messages whose header stamp went back skipped (the first at message 701)" in n for n in log.layout.notes
+        "1 messages whose header stamp went back skipped (a corrupt message; the first at message 701)" in n
+        for n in log.layout.notes
     )
     twice = still(2000)
     twice.received = twice.stamps + 2_000_000

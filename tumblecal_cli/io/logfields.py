@@ -12,6 +12,8 @@ from numpy.typing import NDArray
 from tumblecal_cli.core.model import FloatArray
 from tumblecal_cli.errors import InputError
 
+IntArray = NDArray[np.int64]
+
 BoolArray = NDArray[np.bool_]
 #: Bytes read at a time.
 CHUNK = 1 << 22
@@ -56,12 +58,20 @@ def gather(
 
 
 def forward(
-    path: str, key: str, clock: FloatArray, keep: BoolArray, notes: list[str], per_second: float = 1e6
+    path: str,
+    key: str,
+    clock: FloatArray | IntArray,
+    keep: BoolArray,
+    notes: list[str],
+    per_second: float = 1e6,
+    words: tuple[str, str] = ("sample", "timestamp"),
 ) -> BoolArray:
     """The samples to keep so that the clock (``per_second`` ticks a second) never goes back: a
     lone sample out of order (a corrupt one: its clock before its neighbours', or after both) is
     skipped with a note; a clock that goes back more often than that, or for good (two
-    sessions), is exit 2."""
+    sessions, a simulation restarted), is exit 2. ``words``: what a sample and its stamp are
+    called in the messages (a bag's: message, header stamp)."""
+    one, stamp = words
     t = clock[keep]
     where = np.flatnonzero(keep)
     back = np.flatnonzero(np.diff(t) < 0)
@@ -77,14 +87,14 @@ def forward(
     if (steps < 0).any() or len(drop) > max(1, BACK_SHARE * len(t)):
         k = int(back[0]) + 1
         raise InputError(
-            f"{key}: the timestamps go back at sample {int(where[k]) + 1} ({t[k] / per_second:.6f} s after "
-            f"{t[k - 1] / per_second:.6f} s), {len(back)} times in {len(t)} samples: not a stray corrupt sample",
+            f"{key}: the {stamp}s go back at {one} {int(where[k]) + 1} ({t[k] / per_second:.6f} s after "
+            f"{t[k - 1] / per_second:.6f} s), {len(back)} times in {len(t)} {one}s: not a stray corrupt {one}",
             file=path,
-            hint="give --rate HZ to read the samples by their rate instead of their timestamps",
+            hint=f"give --rate HZ to read the {one}s by their rate instead of their {stamp}s",
         )
     notes.append(
-        f"{path}: {key}: {len(drop)} samples whose timestamp went back skipped (a corrupt sample; the first at "
-        f"sample {int(where[drop[0]]) + 1})"
+        f"{path}: {key}: {len(drop)} {one}s whose {stamp} went back skipped (a corrupt {one}; the first at "
+        f"{one} {int(where[drop[0]]) + 1})"
     )
     out = np.ones(len(clock), dtype=bool)
     out[where[~mask]] = False

@@ -54,7 +54,7 @@ from rosbags.rosbag2.storage_mcap import DECOMPRESSORS
 
 from tumblecal_cli.core.model import FloatArray
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import sources
+from tumblecal_cli.io import logfields, sources
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.io.sources import Stream, Table
 
@@ -765,7 +765,7 @@ def read_stream(path: str, spec: ReadSpec, label_column: str | None) -> Table:
         keep &= clock > 0
         notes.append(f"{path}: {topic.name}: {int((~keep).sum())} messages with a zero header stamp skipped")
     if spec.rate is None:
-        keep &= _forward(path, topic.name, clock, keep, notes)
+        keep &= logfields.forward(path, topic.name, clock, keep, notes, 1e9, ("message", "header stamp"))
     if not keep.all():
         values, clock = values[keep], clock[keep]
     if chosen.how == _UNTOLD:
@@ -793,35 +793,3 @@ def read_stream(path: str, spec: ReadSpec, label_column: str | None) -> Table:
         corrected=chosen.corrected,
         stream=chosen,
     )
-
-
-def _forward(path: str, key: str, clock: IntArray, keep: BoolArray, notes: list[str]) -> BoolArray:
-    """The messages to keep so that the clock never goes back: a lone message out of order (its
-    stamp before its neighbours', or after both) is skipped with a note; a clock that goes back
-    more often than that, or for good (two sessions, a simulation restarted), is exit 2."""
-    t = clock[keep]
-    where = np.flatnonzero(keep)
-    back = np.flatnonzero(np.diff(t) < 0)
-    if back.size == 0:
-        return np.ones(len(clock), dtype=bool)
-    drop = []
-    for j in back + 1:  # t[j] < t[j - 1]: drop t[j - 1] if it is the odd one (a spike), else t[j]
-        spike = t[j] >= t[j - 2] if j >= 2 else not (len(t) > 2 and t[2] >= t[0])
-        drop.append(j - 1 if spike else j)
-    mask = np.ones(len(t), dtype=bool)
-    mask[drop] = False
-    if (np.diff(t[mask]) < 0).any() or len(drop) > max(1, BACK_SHARE * len(t)):
-        k = int(back[0]) + 1
-        raise InputError(
-            f"{key}: the header stamps go back at message {int(where[k]) + 1} ({t[k] * 1e-9:.6f} s after "
-            f"{t[k - 1] * 1e-9:.6f} s), {len(back)} times in {len(t)} messages: not a stray corrupt message",
-            file=path,
-            hint="give --rate HZ to read the messages by their rate instead of their stamps",
-        )
-    notes.append(
-        f"{path}: {key}: {len(drop)} messages whose header stamp went back skipped (the first at message "
-        f"{int(where[drop[0]]) + 1})"
-    )
-    out = np.ones(len(clock), dtype=bool)
-    out[where[~mask]] = False
-    return out
