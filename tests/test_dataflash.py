@@ -190,7 +190,8 @@ def test_a_corrected_stream_is_refused_unless_allowed(logs: dict[str, Path], tmp
     code, _, err = cli("solve", "--log", log, "--stream", "IMU:0", "-o", tmp_path / "cal.json")
     assert code == 2
     line = err.splitlines()[0]
-    assert line.startswith(f"error: {log}: IMU:0 (accelerometer) is already corrected by the autopilot (corrected: ")
+    said = "IMU:0 (accelerometer) is already corrected before it was logged (corrected: "
+    assert line.startswith(f"error: {log}: {said}")
     assert "_rotate_and_correct_accel" in line
     assert line.endswith("a fit of it calibrates the residual, not the sensor")
     assert "--allow-corrected" in err

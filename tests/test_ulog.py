@@ -156,7 +156,7 @@ def test_a_corrected_stream_is_refused_unless_allowed(logs: dict[str, Path], tmp
     code, _, err = cli("solve", "--log", log, "-o", tmp_path / "cal.json")
     assert code == 2
     line = err.splitlines()[0]
-    assert line.startswith(f"error: {log}: sensor_combined:0 (accelerometer) is already corrected by the autopilot")
+    assert line.startswith(f"error: {log}: sensor_combined:0 (accelerometer) is already corrected before it was logged")
     assert "msg/SensorCombined.msg" in line
     assert line.endswith("a fit of it calibrates the residual, not the sensor")
     assert "--allow-corrected" in err

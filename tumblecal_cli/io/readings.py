@@ -355,12 +355,12 @@ def from_table(table: Table, name: str, spec: ReadSpec, *, use_time: bool, need_
 
 
 def _corrected(table: Table, name: str) -> InputError:
-    """The refusal of a stream the autopilot already corrected, and how that is told."""
+    """The refusal of a stream corrected before it was logged (by an autopilot, a filter), and how that is told."""
     stream = table.stream
     what = "these readings are" if stream is None else f"{stream.key} ({stream.sensor}) is"
     how = "" if stream is None or not stream.how else f" ({stream.how})"
     return InputError(
-        f"{what} already corrected by the autopilot{how}: a fit of it calibrates the residual, not the sensor",
+        f"{what} already corrected before it was logged{how}: a fit of it calibrates the residual, not the sensor",
         file=name,
         hint="read a raw stream (tumblecal logs FILE lists them: --stream NAME:INSTANCE), "
         "or give --allow-corrected to fit the residual all the same",
