@@ -209,3 +209,24 @@ def test_table_uncertainty_from_the_residuals_matches_the_scatter() -> None:
     rms = np.sqrt((scores**2).mean(axis=0))
     assert np.all((rms > 0.85) & (rms < 1.2)), rms
     assert np.all(np.abs(scores.mean(axis=0)) < 0.2), scores.mean(axis=0)
+
+
+def test_verify_judges_each_row_of_a_table_held_out(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The held-out check of a table (fit on 24 rows, judge the 25 others) from the command
+    line: each row a capture of its own, recognised as solve recognises a table, and the
+    norm before calibration is each row's, not a mean's over orientations."""
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "--poses", ORIENT24, "-o", cal, "-q").code == 0
+    lines = [",".join(str(float(v)) for v in r) for r in held_out_of_24()]
+    others = write(tmp_path / "held.csv", "ax,ay,az\n" + "\n".join(lines) + "\n")
+    r = run(capsys, "verify", "--cal", cal, others, "--json")
+    assert r.code == 0, r.err
+    found = json.loads(r.out)
+    assert len(found["captures"]) == 25
+    assert found["captures"][0]["file"] == f"{others} row 0"
+    assert found["rms_error"] < 0.002 < found["rms_error_before"]  # 1 g to 0.0012 after, 0.016 before
+    assert "each of its 25 rows is judged as a capture of its own" in r.err
+    whole = run(capsys, "verify", "--cal", cal, others, "--no-rows-are-poses")
+    assert whole.code == 3  # one capture over 25 orientations: not static
+    api = tumblecal.verify(str(others), str(cal), rows_are_poses=True)
+    assert [row["file"] for row in api.rows] == [f"{others} row {k}" for k in range(25)]

@@ -12,8 +12,8 @@ from typing import TYPE_CHECKING, TypedDict, Unpack
 
 import numpy as np
 
-from tumblecal_cli.core import drift, gate, model, rotation_fit
-from tumblecal_cli.core.model import UNITS_TOLERANCE
+from tumblecal_cli.core import drift, gate, methods, model, rotation_fit
+from tumblecal_cli.core.model import UNITS_TOLERANCE, FloatArray
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import calfile, readings
 from tumblecal_cli.io.readspec import ReadSpec, column_list
@@ -101,6 +101,19 @@ class VerifyKeywords(FileKeywords, StreamKeywords, total=False):
     start: str | float | None
     end: str | float | None
     rate: float | None
+    rows_are_poses: bool | None
+
+
+@dataclass(frozen=True)
+class _Judge:
+    """What each capture is judged by: the calibration, the reference, whether raw and corrected
+    share units, and the limits (--max-noise, --max-norm-error)."""
+
+    cal: Calibration
+    reference: float
+    same_units: bool
+    max_noise: float
+    max_norm_error: float | None
 
 
 def verify(
@@ -154,6 +167,7 @@ def _verify(paths: list[str], cal: Calibration | str | os.PathLike[str], options
     )
     fitted = {p.sha256: str(p.file) for p in c.poses if p.sha256}
     result = Verified(0, c, ref, max_norm_error, [], {})
+    judge = _Judge(c, ref, same_units, max_noise, max_norm_error)
     for path in paths:
         s = _read(path, c, spec, result.notes)
         result.notes += s.layout.notes
@@ -163,29 +177,8 @@ def _verify(paths: list[str], cal: Calibration | str | os.PathLike[str], options
                 f"{s.layout.name}: the calibration was fitted on this capture ({fitted[s.sha256]}): "
                 "it reads the reference by construction, a self-check rather than a verification"
             )
-        st = model.pose_stats(s.values)
-        before = float((st.mean**2).sum() ** 0.5)
-        fixed = gate.corrected(st.mean, st.std, None, c.offset, c.matrix, ref)  # the norm error, as solve's
-        std = fixed.std
-        row: CaptureRow = {
-            "file": s.layout.name,
-            "samples": st.samples,
-            "norm_before": before,
-            "error_before": before - ref if same_units else None,
-            "norm_after": fixed.norm_error + ref,
-            "error_after": fixed.norm_error,
-            "std": [float(v) for v in std],
-        }
-        result.rows.append(row)
-        if max_noise > 0 and ref > 0 and float(std.max()) > max_noise * ref:
-            result.rejected.append(
-                f"{s.layout.name}: standard deviation {float(std.max()):.3g} is above --max-noise "
-                f"({max_noise * ref:.3g}): not a static capture"
-            )
-            continue
-        _units(s.layout.name, c, before, fixed.norm_error + ref, ref)  # a static capture: its magnitude judged
-        if max_norm_error is not None and not abs(row["error_after"]) <= max_norm_error:
-            result.failed.append(row["file"])
+        for name, values in _poses(s, c, options.get("rows_are_poses"), result.notes):
+            _check(result, name, values, judge)
     errors = [r["error_after"] for r in result.rows]
     result.overall = {
         "rms_error": float((sum(e * e for e in errors) / len(errors)) ** 0.5),
@@ -197,6 +190,52 @@ def _verify(paths: list[str], cal: Calibration | str | os.PathLike[str], options
         result.overall["max_error_before"] = float(max(abs(e) for e in raw_errors))
     result.status = 3 if result.rejected else (1 if result.failed else 0)
     return result
+
+
+def _poses(s: Samples, c: Calibration, rows: bool | None, notes: list[str]) -> list[tuple[str, FloatArray]]:
+    """A capture as the poses it holds: itself, or each of its rows where they are separate
+    orientations (a table, one averaged reading each: --rows-are-poses, or recognised as solve
+    recognises one when it has no time column), with a note."""
+    name = s.layout.name
+    why = None
+    if rows is None and s.layout.time is None and c.sensor != "gyroscope":
+        why = methods.orientation_table(s.values, np.asarray(c.offset, dtype=float))
+    if not (rows or why):
+        return [(name, s.values)]
+    notes.append(
+        f"{name}: {why or 'its rows are poses (--rows-are-poses)'}: each of its {len(s.values)} rows is judged "
+        "as a capture of its own (--no-rows-are-poses judges the file as one)"
+    )
+    return [(f"{name} row {k}", s.values[k : k + 1]) for k in range(len(s.values))]
+
+
+def _check(result: Verified, name: str, values: FloatArray, judge: _Judge) -> None:
+    """One capture's norm before and after correction, in ``result``: a row, and a rejection
+    (not static) or a failure (past --max-norm-error) where it has one."""
+    c, ref = judge.cal, judge.reference
+    st = model.pose_stats(values)
+    before = float((st.mean**2).sum() ** 0.5)
+    fixed = gate.corrected(st.mean, st.std, None, c.offset, c.matrix, ref)  # the norm error, as solve's
+    std = fixed.std
+    row: CaptureRow = {
+        "file": name,
+        "samples": st.samples,
+        "norm_before": before,
+        "error_before": before - ref if judge.same_units else None,
+        "norm_after": fixed.norm_error + ref,
+        "error_after": fixed.norm_error,
+        "std": [float(v) for v in std],
+    }
+    result.rows.append(row)
+    if judge.max_noise > 0 and ref > 0 and float(std.max()) > judge.max_noise * ref:
+        result.rejected.append(
+            f"{name}: standard deviation {float(std.max()):.3g} is above --max-noise "
+            f"({judge.max_noise * ref:.3g}): not a static capture"
+        )
+        return
+    _units(name, c, before, fixed.norm_error + ref, ref)  # a static capture: its magnitude judged
+    if judge.max_norm_error is not None and not abs(row["error_after"]) <= judge.max_norm_error:
+        result.failed.append(row["file"])
 
 
 def _spec(options: VerifyKeywords, c: Calibration) -> ReadSpec:
