@@ -230,3 +230,12 @@ def test_verify_judges_each_row_of_a_table_held_out(tmp_path: Path, capsys: pyte
     assert whole.code == 3  # one capture over 25 orientations: not static
     api = tumblecal.verify(str(others), str(cal), rows_are_poses=True)
     assert [row["file"] for row in api.rows] == [f"{others} row {k}" for k in range(25)]
+
+
+def test_a_noisy_still_capture_is_not_a_table() -> None:
+    """Noise of 0.2 g turns consecutive rows by 15 degrees, but they all point one way."""
+    from tumblecal_cli.core import methods
+
+    noisy = np.tile([0.0, 0.0, 1.0], (500, 1)) + np.random.default_rng(301).normal(0, 0.2, (500, 3))
+    assert methods.orientation_table(noisy, np.zeros(3)) is None
+    assert methods.orientation_table(rows(ORIENT49), np.zeros(3)) is not None

@@ -164,6 +164,11 @@ TABLE_DIRECTIONS = 3
 TABLE_HEAD = 4096
 
 
+#: The length of the mean of a table's row directions is at most this: rows about one direction
+#: (a still capture with noise of 0.2 g: about 0.98) are not a table of orientations (+x +y +z: 0.58).
+TABLE_CLUSTERED = 0.9
+
+
 def orientation_table(values: FloatArray, centre: FloatArray) -> str | None:
     """Why the rows of one capture (``values``, (n, 3), less ``centre``: the nominal offset)
     are separate orientations, one averaged reading each, or None.
@@ -179,6 +184,8 @@ def orientation_table(values: FloatArray, centre: FloatArray) -> str | None:
     if len(head) < TABLE_DIRECTIONS or not np.all(np.isfinite(norms) & (norms > 0)):
         return None
     unit = head / norms[:, None]
+    if float(np.linalg.norm(unit.mean(axis=0))) > TABLE_CLUSTERED:
+        return None  # one direction with noise (a noisy still capture), not many orientations
     cos = np.clip((unit[1:] * unit[:-1]).sum(axis=1), -1.0, 1.0)
     steps = np.degrees(np.arccos(cos))
     median = float(np.median(steps))
