@@ -147,6 +147,17 @@ def source(stream: str | None, allow_corrected: bool) -> Source:
     return {"stream": stream, "allow_corrected": allow_corrected}
 
 
+RowsArePoses = Annotated[
+    bool | None,
+    typer.Option(
+        "--rows-are-poses/--no-rows-are-poses",
+        help="Each row of the file is one pose (a table of averaged orientations, one row each). Without either, "
+        "an unlabelled file with no time column whose rows turn from one to the next by more than 10° is taken "
+        "so, with a note. [default: by the rows]",
+        show_default=False,
+    ),
+]
+
 Start = Annotated[
     str | None,
     typer.Option(

@@ -35,6 +35,7 @@ from tumblecal_cli.cli.flags import (
     PoseMap,
     Quiet,
     Rate,
+    RowsArePoses,
     Sensor,
     SensorKind,
     SkipRows,
@@ -167,16 +168,7 @@ def solve(
     input_units: Annotated[
         str | None, typer.Option("--input-units", metavar="TEXT", help="Label of the raw units, e.g. counts.")
     ] = None,
-    rows_are_poses: Annotated[
-        bool | None,
-        typer.Option(
-            "--rows-are-poses/--no-rows-are-poses",
-            help="Each row of the pose file(s) is one pose (a table of averaged orientations, one row each). "
-            "Without either, one unlabelled file with no time column whose rows turn from one to the next "
-            "by more than 10° is taken so, with a note. [default: by the rows]",
-            show_default=False,
-        ),
-    ] = None,
+    rows_are_poses: RowsArePoses = None,
     columns: Columns = None,
     no_header: NoHeader = False,
     time_column: TimeColumn = None,

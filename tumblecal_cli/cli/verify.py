@@ -16,6 +16,7 @@ from tumblecal_cli.cli.flags import (
     End,
     NoHeader,
     Quiet,
+    RowsArePoses,
     SkipRows,
     Source,
     Start,
@@ -98,16 +99,7 @@ def verify(
     drop_incomplete: DropIncomplete = False,
     start: Start = None,
     end: End = None,
-    rows_are_poses: Annotated[
-        bool | None,
-        typer.Option(
-            "--rows-are-poses/--no-rows-are-poses",
-            help="Each row of a capture is one pose (a table of averaged orientations), each judged on its own. "
-            "Without either, a capture with no time column whose rows turn from one to the next by more than "
-            "10° is taken so, with a note. [default: by the rows]",
-            show_default=False,
-        ),
-    ] = None,
+    rows_are_poses: RowsArePoses = None,
     json_summary: Annotated[
         bool, typer.Option("--json", help="Print the per-capture and overall figures on stdout as JSON.")
     ] = False,

@@ -217,19 +217,26 @@ def _lost(sensor: str, fmt: str, loss: Loss, at: tuple[str, float]) -> str:
     return f"{' and '.join(parts)} NOT written ({NAMES[fmt]} has one scale per axis)"
 
 
+def _corrected_units(cal: Calibration, fmt: str, solve: str) -> str:
+    """The calibration's corrected units, one the firmware's units convert from, else an
+    InputError saying to ``solve`` (the calibration, or its base) with --units naming them."""
+    units = (cal.units or "").strip()
+    if units not in TABLES[cal.sensor]:
+        raise InputError(
+            f"--format {fmt} writes {FIRMWARE_UNITS[fmt, cal.sensor][0]}: the calibration's corrected units are "
+            f"{cal.units!r}, not one of {', '.join(TABLES[cal.sensor])}",
+            file=cal.path,
+            hint=f"{solve} with --units naming them (and --reference in them)",
+        )
+    return units
+
+
 def _factors(cal: Calibration, fmt: str) -> tuple[float, float, list[str]]:
     """k_in and k_out, the factors from the calibration's raw and corrected units to the
     firmware's; a note when the raw units are not recorded and taken as the corrected ones."""
     units, scale = FIRMWARE_UNITS[fmt, cal.sensor]
     table = TABLES[cal.sensor]
-    out = (cal.units or "").strip()
-    if out not in table:
-        raise InputError(
-            f"--format {fmt} writes {units}: the calibration's corrected units are {cal.units!r}, "
-            f"not one of {', '.join(table)}",
-            file=cal.path,
-            hint="solve with --units naming them (and --reference in them)",
-        )
+    out = _corrected_units(cal, fmt, "solve")
     raw = (cal.input_units or "").strip()
     if raw:
         if raw not in table:
@@ -431,14 +438,7 @@ def firmware_drift(cal: Calibration, fmt: str) -> tuple[FloatArray, str]:
         raise InputError(f"--format {fmt} takes an accelerometer's or a gyroscope's thermal block", file=cal.path)
     name, _ = FIRMWARE_UNITS[fmt, cal.sensor]
     factors = TABLES[cal.sensor]
-    units = (cal.units or "").strip()
-    if units not in factors:
-        raise InputError(
-            f"--format {fmt} writes {name}: the calibration's corrected units are {cal.units!r}, "
-            f"not one of {', '.join(factors)}",
-            file=cal.path,
-            hint="solve the base calibration with --units naming them (and --reference in them)",
-        )
+    units = _corrected_units(cal, fmt, "solve the base calibration")
     coeffs: FloatArray = factors[units] * (cal.matrix @ np.asarray(cal.thermal.offset, dtype=np.float64))
     return coeffs, name
 

@@ -168,11 +168,9 @@ class Index:
         return next(t for t in self.topics if t.name == name)
 
 
-class Unindexed:
-    """A ROS 1 bag without its index (a recording cut short: rosbag writes the index last), read
-    as rosbag reindex reads it: its records one after another (the file mapped, not read whole),
-    each chunk decompressed, the connections taken as they come; the walk stops where the file
-    is cut, or at a chunk that does not decompress (``stop``: why, for the note)."""
+class _Mapped:
+    """A recording read record by record from the file mapped (not read whole): its path, the
+    connections found, why the walk stopped early (``stop``, for the note), and the map."""
 
     def __init__(self, path: str) -> None:
         self.path = path
@@ -180,9 +178,24 @@ class Unindexed:
         self.stop = ""
         self._map: mmap.mmap | None = None
 
-    def open(self) -> None:
+    def _open_map(self) -> None:
         with open(self.path, "rb") as f:
             self._map = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
+
+    def close(self) -> None:
+        if self._map is not None:
+            self._map.close()
+            self._map = None
+
+
+class Unindexed(_Mapped):
+    """A ROS 1 bag without its index (a recording cut short: rosbag writes the index last), read
+    as rosbag reindex reads it: its records one after another (the file mapped, not read whole),
+    each chunk decompressed, the connections taken as they come; the walk stops where the file
+    is cut, or at a chunk that does not decompress (``stop``: why, for the note)."""
+
+    def open(self) -> None:
+        self._open_map()
         counts: dict[int, int] = {}
         found: dict[int, Connection] = {}
         for fields, data in self._walk():
@@ -194,11 +207,6 @@ class Unindexed:
                 conn = struct.unpack("<I", fields["conn"])[0]
                 counts[conn] = counts.get(conn, 0) + 1
         self.connections = [c._replace(msgcount=counts.get(k, 0)) for k, c in sorted(found.items())]
-
-    def close(self) -> None:
-        if self._map is not None:
-            self._map.close()
-            self._map = None
 
     def messages(self, connections: Collection[Connection], /) -> Iterator[tuple[Connection, int, bytes]]:
         wanted = {c.id: c for c in connections}
@@ -246,21 +254,14 @@ class Unindexed:
                     yield inner, body
 
 
-class Unfinished:
+class Unfinished(_Mapped):
     """An MCAP file without its summary and footer (a ROS 2 recording cut short: they are written
     last), read as mcap recover reads it: its records one after another (the file mapped), each
     chunk decompressed, schemas and channels taken as they come, up to where the file is cut or a
     chunk cannot be read (``stop``: why, for the note). Channels of CDR messages only."""
 
-    def __init__(self, path: str) -> None:
-        self.path = path
-        self.connections: list[Connection] = []
-        self.stop = ""
-        self._map: mmap.mmap | None = None
-
     def open(self) -> None:
-        with open(self.path, "rb") as f:
-            self._map = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
+        self._open_map()
         schemas: dict[int, str] = {}
         found: dict[int, Connection] = {}
         counts: dict[int, int] = {}
@@ -286,11 +287,6 @@ class Unfinished:
                 key = struct.unpack_from("<H", body)[0]
                 counts[key] = counts.get(key, 0) + 1
         self.connections = [c._replace(msgcount=counts.get(k, 0)) for k, c in sorted(found.items())]
-
-    def close(self) -> None:
-        if self._map is not None:
-            self._map.close()
-            self._map = None
 
     def messages(self, connections: Collection[Connection], /) -> Iterator[tuple[Connection, int, bytes]]:
         wanted = {c.id: c for c in connections}
