@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from tests.ulog_writer import float32 as float32  # values as a log holds them (float32)
+
 HEAD = b"\xa3\x95"
 #: Each message type written: its id, format and columns (as ArduPilot 4.x logs them).
 TYPES = {
@@ -116,11 +118,6 @@ def identity(instances: int = 3) -> dict[str, float]:
             out |= {f"INS_ACC{n}OFFS_{axis}": 0.0, f"INS_ACC{n}SCAL_{axis}": 1.0, f"INS_GYR{n}OFFS_{axis}": 0.0}
             out |= {f"COMPASS_OFS{n}_{axis}": 0.0, f"COMPASS_DIA{n}_{axis}": 1.0, f"COMPASS_ODI{n}_{axis}": 0.0}
     return out
-
-
-def float32(values: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``values`` as a log holds them (float32), back in float64: what a CSV must hold to match."""
-    return values.astype(np.float32).astype(np.float64)
 
 
 def text_of(binary: Path, out: Path, delimiter: str = ", ") -> Path:

@@ -20,6 +20,7 @@ from tests import dataflash_writer as writer
 from tests.conftest import ROOT, imported, run_exe, write
 from tests.conftest import tumblecal as cli
 from tests.test_sources import tumble
+from tests.test_ulog import thermal_sweeps
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import dataflash, dftext, readings, sources
 from tumblecal_cli.io.readspec import ReadSpec
@@ -616,19 +617,7 @@ def test_thermal_fits_a_drift_from_dataflash_sweeps_with_the_imu_s_temperature(t
     log, _ = session(tmp_path)
     base = tumblecal.solve_log(log).calibration
     assert base is not None
-    n = 20_000
-    t = np.arange(n, dtype=np.int64) * 2000 + 1_000_000
-    temp = 10 + 30 * np.arange(n) / n
-    rng = np.random.default_rng(2)
-    sweeps = []
-    for face, sign in (("+z", 1.0), ("-z", -1.0)):
-        xyz = np.column_stack(
-            [0.01 * G + 0.002 * (temp - 25), np.full(n, -0.02 * G), np.full(n, sign * 1.02 * G + 0.015 * G)]
-        )
-        xyz = xyz + rng.normal(0, 0.01, (n, 3))
-        path = writer.write(tmp_path / f"{face[1]}{face[0]}.bin", t, xyz, writer.float32(temp))
-        sweeps.append(f"{face}={path}")
-    done = tumblecal.thermal(sweeps, base)
+    done = tumblecal.thermal(thermal_sweeps(tmp_path, writer.write, ".bin"), base)
     assert done.calibration.thermal is not None
     assert done.fit.drift.order == 1
     assert done.fit.drift.offset[0][0] == pytest.approx(0.002, abs=1e-4)

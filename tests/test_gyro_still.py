@@ -158,15 +158,9 @@ def test_xsens_halves_agree_on_the_bias_within_its_uncertainty(tmp_path: Path) -
     by 2.96, 2.23, 0.44 counts. The noise within the blocks (0.2 counts each) made that 10-14
     sigma; the blocks' scatter (this gyroscope reads 5-7 counts more or less with its
     orientation) makes it 1.6, 1.0, 0.2."""
-    from tests.test_rotations import _xsens_merged
+    from tests.test_rotations import _xsens_halves
 
-    lines, merged = _xsens_merged(tmp_path)
-    acc = tmp_path / "acc.json"
-    assert run("solve", "--log", merged, "--method", "sphere", "-o", acc, "-q").code == 0
-    half = len(lines) // 2
-    first, second = tmp_path / "first.csv", tmp_path / "second.csv"
-    first.write_text("\n".join(lines[:half]) + "\n")
-    second.write_text("\n".join([lines[0], *lines[half:]]) + "\n")
+    acc, first, second = _xsens_halves(tmp_path)
     options = SolveOptions.of({"sensor": "gyroscope", "accel_cal": str(acc)})
     a, b = rotations.hand_turns(str(first), options), rotations.hand_turns(str(second), options)
     assert a.notes == b.notes == []  # nothing cut: its blocks are still for the gyroscope too

@@ -222,13 +222,9 @@ def _xsens_merged(tmp_path: Path) -> tuple[list[str], Path]:
     return lines, path
 
 
-@pytest.mark.slow
-def test_xsens_hand_turns_fitted_on_one_half_judged_on_the_other(tmp_path: Path) -> None:
-    """The gyroscope misses gravity after each held-out rotation by 0.57° RMS (measured; 0.88°
-    at most), against 4.28° (8.6°) with the best single sensitivity and the same bias."""
-    from tumblecal_cli.pipeline.options import SolveOptions
-    from tumblecal_cli.pipeline.rotations import hand_turns
-
+def _xsens_halves(tmp_path: Path) -> tuple[Path, Path, Path]:
+    """The accelerometer calibration of imu_tk's Xsens log (sphere, the whole log) and its two
+    halves as logs of their own (each with the header)."""
     lines, merged = _xsens_merged(tmp_path)
     acc = tmp_path / "acc.json"
     assert run("solve", "--log", merged, "--method", "sphere", "-o", acc, "-q").code == 0
@@ -236,6 +232,17 @@ def test_xsens_hand_turns_fitted_on_one_half_judged_on_the_other(tmp_path: Path)
     first, second = tmp_path / "first.csv", tmp_path / "second.csv"
     first.write_text("\n".join(lines[:half]) + "\n")
     second.write_text("\n".join([lines[0], *lines[half:]]) + "\n")
+    return acc, first, second
+
+
+@pytest.mark.slow
+def test_xsens_hand_turns_fitted_on_one_half_judged_on_the_other(tmp_path: Path) -> None:
+    """The gyroscope misses gravity after each held-out rotation by 0.57° RMS (measured; 0.88°
+    at most), against 4.28° (8.6°) with the best single sensitivity and the same bias."""
+    from tumblecal_cli.pipeline.options import SolveOptions
+    from tumblecal_cli.pipeline.rotations import hand_turns
+
+    acc, first, second = _xsens_halves(tmp_path)
     out = tmp_path / "gyro.json"
     r = run("solve", "--sensor", "gyroscope", "--log", first, "--accel-cal", acc, "-o", out, "-q")
     assert r.code == 0, r.err

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import gzip
 import json
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
@@ -446,13 +447,10 @@ def test_the_installed_command_lists_solves_and_verifies_a_ulog(logs: dict[str, 
     assert "calibrates the residual, not the sensor" in done.stderr
 
 
-@pytest.mark.slow
-def test_thermal_fits_a_drift_from_ulog_sweeps_with_their_temperature_field(tmp_path: Path) -> None:
-    """sensor_accel's temperature field is the temperature column: +z and -z sweeps from 10 to
-    40 °C with an x offset drift of 0.002 m/s^2/°C give it back."""
-    log, _ = session(tmp_path)
-    base = tumblecal.solve_log(log).calibration
-    assert base is not None
+def thermal_sweeps(tmp_path: Path, write: Callable[..., Path], suffix: str) -> list[str]:
+    """+z and -z sweeps from 10 to 40 °C with an x offset drift of 0.002 m/s^2/°C, each written
+    by ``write(path, t_us, xyz, temperature)`` as a log named ``z+SUFFIX``, ``z-SUFFIX``: the
+    thermal command's FACE=FILE arguments."""
     n = 20_000
     t = np.arange(n, dtype=np.int64) * 2000 + 1_000_000
     temp = 10 + 30 * np.arange(n) / n
@@ -463,9 +461,19 @@ def test_thermal_fits_a_drift_from_ulog_sweeps_with_their_temperature_field(tmp_
             [0.01 * G + 0.002 * (temp - 25), np.full(n, -0.02 * G), np.full(n, sign * 1.02 * G + 0.015 * G)]
         )
         xyz = xyz + rng.normal(0, 0.01, (n, 3))
-        path = ulog_writer.write(tmp_path / f"{face[1]}{face[0]}.ulg", t, xyz, ulog_writer.float32(temp))
+        path = write(tmp_path / f"{face[1]}{face[0]}{suffix}", t, xyz, ulog_writer.float32(temp))
         sweeps.append(f"{face}={path}")
-    done = tumblecal.thermal(sweeps, base)
+    return sweeps
+
+
+@pytest.mark.slow
+def test_thermal_fits_a_drift_from_ulog_sweeps_with_their_temperature_field(tmp_path: Path) -> None:
+    """sensor_accel's temperature field is the temperature column: +z and -z sweeps from 10 to
+    40 °C with an x offset drift of 0.002 m/s^2/°C give it back."""
+    log, _ = session(tmp_path)
+    base = tumblecal.solve_log(log).calibration
+    assert base is not None
+    done = tumblecal.thermal(thermal_sweeps(tmp_path, ulog_writer.write, ".ulg"), base)
     assert done.calibration.thermal is not None
     assert done.fit.drift.order == 1
     assert done.fit.drift.offset[0][0] == pytest.approx(0.002, abs=1e-4)
