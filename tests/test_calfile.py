@@ -1,4 +1,4 @@
-"""Calibration files (tumblecal_cli/io/calfile.py, README "Calibration file (format version 1)"): round trip,
+"""Calibration files (tumblecal_cli/io/calfile.py, docs/reference/calibration-file.md): round trip,
 contract, rejects, atomicity."""
 
 from __future__ import annotations
@@ -110,7 +110,7 @@ def test_load_reads_stdin_for_dash(monkeypatch: pytest.MonkeyPatch) -> None:
     assert calfile.load("-").offset.tolist() == [0.02, -0.015, 0.03]
 
 
-# --- the contract of README "Calibration file (format version 1)" -------------------------------------
+# --- the contract of docs/reference/calibration-file.md -------------------------------------
 
 FIELDS = [
     "format",
@@ -138,7 +138,7 @@ def test_written_json_has_every_version_1_field(tmp_path: Path) -> None:
     calfile.write(document(), str(path))
     doc = json.loads(path.read_text(encoding="utf-8"))
 
-    assert list(doc) == FIELDS  # in the order of README "Calibration file (format version 1)"
+    assert list(doc) == FIELDS  # in the order of docs/reference/calibration-file.md
     assert doc["format"] == "tumblecal-calibration"
     assert doc["version"] == 1
     assert doc["sensor"] == "accelerometer"

@@ -109,7 +109,7 @@ def export(
             help="c-header: C99/C++ header for firmware; registers: offset (and gain trim) register counts, CSV; "
             "imucal-json, ros-yaml, matlab: the peer tools' own files; ardupilot, px4: the autopilot's parameters "
             "(a .parm file of INS_ACC/INS_GYR/COMPASS_, a QGroundControl .params file of CAL_ACC/CAL_GYRO/CAL_MAG; "
-            "a thermal block as INS_TCAL or TC_A/TC_G) (README: export).",
+            "a thermal block as INS_TCAL or TC_A/TC_G) (docs/commands/export-import.md).",
         ),
     ],
     output: Annotated[

@@ -232,7 +232,7 @@ LimitsFile = Annotated[
     limit_option(
         "--limits",
         "FILE",
-        "Limits file (YAML/JSON: offset, gain_error, nominal_gain, cross_axis, noise, residual; see README).",
+        "Limits file (YAML/JSON: offset, gain_error, cross_axis, noise, residual...: docs/production-test.md).",
     ),
 ]
 

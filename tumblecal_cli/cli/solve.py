@@ -129,7 +129,7 @@ def solve(
         typer.Option(
             "--method",
             "-m",
-            help="The solver (README: Choosing a solver). auto: one-pose for 1 file, three-pose for one face per "
+            help="The solver (docs/commands/solve.md). auto: one-pose for 1 file, three-pose for one face per "
             "axis (+x +y +z, or -z -x +y ...); for the six faces six-pose when opposite faces agree on their axis "
             "within 1.5° (a fixture), else six-pose-magnitude (placed by hand); least-squares for 4+ labelled, "
             "sphere for 12+ unlabelled; "

@@ -26,7 +26,7 @@ def read_bytes(path: str, what: str) -> bytes:
     """The bytes of ``path`` ('-': stdin), at most MAX_BYTES; a missing or unreadable file, or
     one too large to be a {what}, is one error naming it."""
     try:
-        if path == "-":  # '-' means stdin wherever a path is taken (README option tables)
+        if path == "-":  # '-' means stdin wherever a path is taken (docs/ option tables)
             data = sys.stdin.buffer.read(MAX_BYTES + 1)
         else:
             with open(path, "rb") as f:

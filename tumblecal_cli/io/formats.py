@@ -1,8 +1,8 @@
 """A calibration in other tools' terms: firmware (C header, offset registers), imucal, ROS
 imu_calib and MATLAB (``tumblecal export``), and imucal/ROS files read back (``tumblecal import``).
 
-Every mapping starts from tumblecal's model (README "Poses, signs and --reference"): ``corrected = M (raw - b)``,
-``A = M^-1``. Each peer's own equation is quoted where it is used; README "export" writes them out.
+Every mapping starts from tumblecal's model (docs/reference/model.md): ``corrected = M (raw - b)``,
+``A = M^-1``. Each peer's own equation is quoted where it is used; docs/commands/export-import.md writes them out.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ SHORT = {"accelerometer": "accel", "magnetometer": "mag", "gyroscope": "gyro"}
 
 
 def a_matrix(cal: Calibration) -> FloatArray:
-    """A = M^-1: raw = A v + b (README "Poses, signs and --reference")."""
+    """A = M^-1: raw = A v + b (docs/reference/model.md)."""
     return np.asarray(np.linalg.inv(cal.matrix), dtype=np.float64)
 
 
@@ -125,7 +125,7 @@ def _c_thermal(cal: Calibration, name: str, upper: str) -> list[str]:
 
     limits = (("T_REF", t.reference_temperature), ("T_MIN", t.range[0]), ("T_MAX", t.range[1]))
     return [
-        f'/* Temperature drift (README "tumblecal thermal"), order {k}, in d = clamp(T) - T_REF, degC:',
+        f"/* Temperature drift (docs/commands/thermal.md), order {k}, in d = clamp(T) - T_REF, degC:",
         " *   offset_drift[i] = sum_k OFFSET_DRIFT[i][k-1] d^k  (raw units)",
         " *   gain_drift[i]   = sum_k GAIN_DRIFT[i][k-1] d^k    (relative)",
         " *   corrected = M * ((raw - offset - offset_drift) / (1 + gain_drift)) */",
@@ -382,7 +382,7 @@ def detect(doc: Mapping[str, object]) -> str | None:
     return None
 
 
-#: The fields of the record an export carries in a data field (README "export"), and their types.
+#: The fields of the record an export carries in a data field (docs/commands/export-import.md), and their types.
 RECORD_FIELDS: dict[str, tuple[type, ...]] = {
     "sensor": (str,),
     "serial": (str,),

@@ -572,7 +572,7 @@ class Segmented:
 
 
 class SegmentKeywords(ReadKeywords, total=False):
-    """segment's options beside how the log is read (README "tumblecal segment")."""
+    """segment's options beside how the log is read (docs/commands/segment.md)."""
 
     window: float | None
     threshold: float | None

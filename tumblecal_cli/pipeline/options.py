@@ -55,7 +55,7 @@ class LogOptions:
 
 @dataclass(frozen=True)
 class CheckOptions:
-    """The quality checks a capture must pass (exit 3, README "Quality checks")."""
+    """The quality checks a capture must pass (exit 3, docs/production-test.md)."""
 
     max_noise: float | None = None
     max_tilt: float = 25.0
@@ -91,7 +91,7 @@ class UnitOptions:
 
 @dataclass(frozen=True)
 class SolveOptions:
-    """solve's options (README "solve"), grouped: how the files are ``read``, how a ``log`` is
+    """solve's options (docs/commands/solve.md), grouped: how the files are ``read``, how a ``log`` is
     cut, the ``checks`` (exit 3), the ``limits`` (exit 1) and the ``unit``; the method's own
     options at the top. :meth:`of` takes them as the command line names them (the Python API's
     keywords)."""

@@ -96,7 +96,7 @@ def solve(poses: Poses, **options: object) -> Solved:
     ``poses``: the items of ``--poses`` (``FILE`` or ``LABEL=FILE``), or a mapping of labels
     (faces such as ``"+x"``, or ``"X,Y,Z"`` directions) to DataFrames or (n, 3) arrays.
     ``options``: solve's long options in snake case (``reference=``, ``method=``,
-    ``max_noise=``, ``limits=`` for a limits file, ``serial=`` ...; README "Using tumblecal from
+    ``max_noise=``, ``limits=`` for a limits file, ``serial=`` ...; docs/python.md
     Python"). Input errors raise InputError; a rejected capture is ``status`` 3, not an error.
     """
 

@@ -93,7 +93,7 @@ class Verified:
 
 
 class VerifyKeywords(FileKeywords, StreamKeywords, total=False):
-    """verify's options beside the captures' shape (README "tumblecal verify")."""
+    """verify's options beside the captures' shape (docs/commands/verify.md)."""
 
     reference: float | None
     max_norm_error: float | None
