@@ -20,6 +20,7 @@ import numpy as np
 from tumblecal_cli.core.model import SENSORS, FloatArray
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.calfile import FORMAT, VERSION, Calibration, Unit, created, from_dict, invertible, is_number
+from tumblecal_cli.io.documents import parse_object
 from tumblecal_cli.version import __version__
 
 EXPORTS = ("c-header", "registers", "imucal-json", "ros-yaml", "matlab", "ardupilot", "px4")
@@ -463,7 +464,7 @@ def read_peer(doc: Mapping[str, object], fmt: str, path: str, sensor: str | None
     version = doc.get("_format_version")
     if version not in IMUCAL_VERSIONS:
         raise InputError(f"imucal format version {version!r} is not one tumblecal reads (1.0.0, 2.0.0)", file=path)
-    was = recorded(_comment_record(doc.get("comment")), path, "comment.tumblecal")
+    was = recorded(_comment_record(doc.get("comment"), path), path, "comment.tumblecal")
     sensor = sensor or was.get("sensor") or "accelerometer"
     if sensor == "magnetometer":
         raise InputError("an imucal file holds an accelerometer and a gyroscope, not a magnetometer", file=path)
@@ -485,16 +486,19 @@ def read_peer(doc: Mapping[str, object], fmt: str, path: str, sensor: str | None
     return _peer(fmt, sensor, was, b, matrix, _text(units), raw_units, notes)
 
 
-def _comment_record(comment: object) -> object:
+def _comment_record(comment: object, path: str) -> object:
     """An imucal file's ``comment`` holds a tumblecal export's record as JSON (imucal takes no
-    fields of its own beyond its format's, and keeps ``comment`` as it is); another text: none."""
+    fields of its own beyond its format's, and keeps ``comment`` as it is); another text: none.
+    A record that is JSON is read by the rules of a calibration file (no key twice, no lone
+    surrogate, no integer past Python's limit): refused there, it is refused here."""
     if not isinstance(comment, str) or not comment.lstrip().startswith("{"):
         return None
     try:
-        doc = json.loads(comment)
-    except ValueError:
-        return None
-    return doc.get("tumblecal") if isinstance(doc, dict) else None
+        json.loads(comment)
+    except (ValueError, RecursionError):
+        return None  # a person's note that starts with a brace
+    doc = parse_object(comment.encode("utf-8", "surrogatepass"), path, "tumblecal record in its comment", as_yaml=False)
+    return doc.get("tumblecal")
 
 
 def _peer(
