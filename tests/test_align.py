@@ -164,13 +164,15 @@ def mag_log(path: Path, rng: np.random.Generator, k: int = 10) -> Path:
             t += 0.01
         for s in np.linspace(0, 1, 60):  # a turn: moving readings
             v = (1 - s) * (a @ UP) + s * (b @ UP) + rng.normal(size=3) * 0.2
-            rows.append([t, *v, *((1 - s) * (a @ FIELD) + s * (b @ FIELD))])
+            f = (1 - s) * (a @ FIELD) + s * (b @ FIELD)
+            rows.append([t, *v, *((f / np.linalg.norm(f)) @ TRUE + rng.normal(size=3) * 0.005)])
             t += 0.01
     text = "t,ax,ay,az,mx,my,mz\n" + "\n".join(",".join(f"{v:.6f}" for v in r) for r in rows) + "\n"
     path.write_text(text)
     return path
 
 
+@pytest.mark.slow
 def test_align_finds_the_magnetometers_rotation_in_a_log(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     log = mag_log(tmp_path / "both.csv", np.random.default_rng(2))
     acc = cal_file(tmp_path / "acc.json", "accelerometer", ["ax", "ay", "az"])
@@ -309,3 +311,48 @@ def test_real_ckexplorer_log_has_a_small_rotation(tmp_path: Path, capsys: pytest
     assert doc["angle_deg"] < 1.5
     assert 0.05 < doc["angle_sigma_deg"] < 1.0
     assert doc["dip_spread_deg"]["after"] < 2.0
+
+
+def test_aligned_magnetometer_calibration_reads_in_the_accelerometers_axes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--aligned-mag: the rotation in the matrix, recorded in the file, told by show; apply then
+    gives readings whose angle to gravity is the same in every block."""
+    log = mag_log(tmp_path / "both.csv", np.random.default_rng(2))
+    acc = cal_file(tmp_path / "acc.json", "accelerometer", ["ax", "ay", "az"])
+    mag = cal_file(tmp_path / "mag.json", "magnetometer", ["mx", "my", "mz"])
+    out = tmp_path / "mag-aligned.json"
+    code, _, err = run(capsys, "align", "--accel-cal", acc, "--mag-cal", mag, log, "-o", tmp_path / "a.json",
+                       "--aligned-mag", out)  # fmt: skip
+    assert code == 0, err
+    cal = calfile.load(out)
+    assert np.linalg.norm(error_deg(cal.matrix, TRUE)) < 0.05  # M' = R M, M = I
+    record = cal.fields["alignment"]
+    assert isinstance(record, dict)
+    assert record["to"] == str(acc)
+    code, shown, _ = run(capsys, "show", out)
+    assert code == 0
+    assert "aligned:     rotated 3.0" in shown or "aligned:     rotated 2.99" in shown
+
+
+@pytest.mark.slow
+def test_solve_align_to_rotates_a_magnetometers_matrix(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = mag_log(tmp_path / "both.csv", np.random.default_rng(2), k=24)
+    acc = cal_file(tmp_path / "acc.json", "accelerometer", ["ax", "ay", "az"])
+    plain, turned = tmp_path / "mag.json", tmp_path / "mag-aligned.json"
+    args: list[str | Path] = ["solve", "--sensor", "magnetometer", "--method", "ellipsoid", "--poses", log]
+    assert run(capsys, *args, "-o", plain).code == 0
+    code, _, err = run(capsys, *args, "--align-to", acc, "-o", turned)
+    assert code == 0, err
+    assert "note: aligned to" in err
+    rotation = calfile.load(turned).matrix @ np.linalg.inv(calfile.load(plain).matrix)
+    assert np.linalg.norm(error_deg(rotation, TRUE)) < 0.1
+
+
+def test_solve_align_to_is_for_a_magnetometer(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = mag_log(tmp_path / "both.csv", np.random.default_rng(2), k=3)
+    acc = cal_file(tmp_path / "acc.json", "accelerometer", ["ax", "ay", "az"])
+    out = tmp_path / "cal.json"
+    result = run(capsys, "solve", "--method", "ellipsoid", "--poses", log, "--align-to", acc, "-o", out)
+    assert_one_error(result, "--align-to aligns a magnetometer's axes to an accelerometer's, not a accelerometer's")
+    assert not out.exists()

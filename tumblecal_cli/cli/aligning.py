@@ -84,6 +84,15 @@ def align(
         str | None,
         typer.Option("--output", "-o", metavar="FILE", help="Write the alignment (JSON) here. [default: stdout]"),
     ] = None,
+    aligned_mag: Annotated[
+        str | None,
+        typer.Option(
+            "--aligned-mag",
+            metavar="FILE",
+            help="Write the magnetometer's calibration with the rotation in its matrix (corrected readings in the "
+            "accelerometer's axes) here.",
+        ),
+    ] = None,
     json_summary: JsonSummary = False,
 ) -> None:
     """The rotation between two sensors' axes from the still blocks of a log, with its uncertainty.
@@ -94,7 +103,7 @@ def align(
     and how far their corrected readings differ (limits file: imu_consistency).
 
     \b
-      tumblecal align --accel-cal acc.json --mag-cal mag.json session.csv -o align.json
+      tumblecal align --accel-cal acc.json --mag-cal mag.json session.csv -o align.json --aligned-mag mag-aligned.json
       tumblecal align flight.ulg --limits limits.yaml
       tumblecal align flight.ulg --stream sensor_accel:0 --stream sensor_accel:2 --cal a0.json --cal a2.json
     """
@@ -107,6 +116,8 @@ def align(
     request = alignment.AlignRequest(logs, spec, settings, accel_cal, mag_cal, stream or [], cal or [], limits_file)
     done = alignment.run(request)
     status = 1 if isinstance(done, alignment.ImusAligned) and done.failures else 0
+    if aligned_mag is not None:
+        alignment.write_aligned(done, aligned_mag)
     if output is not None or not json_summary:
         alignment.write(done, output or "-")
     if json_summary:

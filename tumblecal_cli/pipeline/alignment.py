@@ -16,6 +16,7 @@ their own, over the same span of time).
 from __future__ import annotations
 
 import json
+import os
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
@@ -58,6 +59,8 @@ class MagAligned:
     blocks: int
     orientations: int
     notes: list[str] = field(default_factory=list)
+    mag: Calibration | None = None  # the magnetometer's calibration, as given
+    accel_cal: str | None = None  # the accelerometer calibration's file
 
     def as_dict(self) -> dict[str, object]:
         r, fit = self.fit.rotation, self.fit
@@ -182,15 +185,16 @@ def _calibration(path: str, sensor: str, flag: str) -> Calibration:
 def mag_to_accel(
     log: str,
     accel_cal: str,
-    mag_cal: str,
+    mag_cal: str | Calibration,
     spec: ReadSpec,
     settings: segment.Settings,
     max_spool: int | str | None = None,
 ) -> MagAligned:
     """The rotation of the magnetometer's axes onto the accelerometer's from ``log`` (both
-    sensors' columns on the same rows), each corrected by its calibration."""
+    sensors' columns on the same rows), each corrected by its calibration (the magnetometer's
+    a file, or one just solved)."""
     accel = _calibration(accel_cal, "accelerometer", "--accel-cal")
-    mag = _calibration(mag_cal, "magnetometer", "--mag-cal")
+    mag = _calibration(mag_cal, "magnetometer", "--mag-cal") if isinstance(mag_cal, str) else mag_cal
     acc_spec = replace(spec, sensor="accelerometer", columns=None, prefer=tuple(accel.columns))
     with logs.segmented(
         log, acc_spec, pose_column=None, pose_map=None, settings=_settings(settings, accel.offset), whole=True,
@@ -221,7 +225,59 @@ def mag_to_accel(
     fit = align.mag_to_accel(g.values, m.values, g.direction_sigma, m.direction_sigma)
     _observable(fit.rotation, name, "the field's east-west direction did not turn through three axes")
     notes = [f"still blocks dropped: {seg.dropped_counts()}"] if seg.dropped_counts() else []
-    return MagAligned(name, acc.sha256, fit, len(kept), seen, notes)
+    return MagAligned(name, acc.sha256, fit, len(kept), seen, notes, mag, accel_cal)
+
+
+def source_of(sensor: str, given: object) -> str:
+    """The one capture ``solve --align-to`` aligns on: the log, or the one pose file (a
+    magnetometer turned through many orientations, the accelerometer's columns beside its own)."""
+    if sensor != "magnetometer":
+        raise InputError(f"--align-to aligns a magnetometer's axes to an accelerometer's, not a {sensor}'s")
+    items = [given] if isinstance(given, str | os.PathLike) else given
+    if not isinstance(items, list | tuple) or len(items) != 1 or not isinstance(items[0], str | os.PathLike):
+        raise InputError(
+            "--align-to takes one capture with both sensors' columns (--log LOG, or --poses FILE)",
+            hint="or align a calibration afterwards: tumblecal align --accel-cal ACC --mag-cal MAG LOG",
+        )
+    return os.fspath(items[0])
+
+
+def solved_note(done: MagAligned) -> str:
+    """What solve --align-to tells people."""
+    r, fit = done.fit.rotation, done.fit
+    return (
+        f"aligned to {done.accel_cal} from {done.blocks} still blocks: rotated {r.angle_deg:.3f}° ± "
+        f"{r.angle_sigma_deg:.3f}°, dip {fit.dip_deg:.2f}° ± {fit.dip_sigma_deg:.2f}°, heading error removed up to "
+        f"{float(np.abs(fit.heading_error).max()):.2f}°"
+    )
+
+
+def aligned(done: MagAligned) -> Calibration:
+    """The magnetometer's calibration with the rotation in its matrix (``M' = R M``: corrected
+    readings in the accelerometer's axes) and an ``alignment`` field saying so."""
+    mag = done.mag
+    assert mag is not None
+    r = done.fit.rotation
+    matrix = r.matrix @ mag.matrix
+    record = {
+        "to": done.accel_cal,
+        "log": done.log,
+        "sha256": done.sha256,
+        "rotation": [[float(v) for v in row] for row in r.matrix],
+        "angle_deg": r.angle_deg,
+        "angle_sigma_deg": r.angle_sigma_deg,
+        "dip_deg": done.fit.dip_deg,
+        "dip_sigma_deg": done.fit.dip_sigma_deg,
+        "heading_error_deg": float(np.abs(done.fit.heading_error).max()),
+    }
+    order = mag.order if "alignment" in mag.order else (*mag.order, "alignment")
+    return replace(
+        mag,
+        matrix=matrix,
+        gain=np.diag(np.linalg.inv(matrix)).copy(),
+        fields={**mag.fields, "alignment": record},
+        order=order,
+    )
 
 
 def _observable(fit: align.Fitted, name: str, why: str) -> None:
@@ -412,6 +468,13 @@ def run(request: AlignRequest) -> MagAligned | ImusAligned:
 def document(done: MagAligned | ImusAligned) -> dict[str, object]:
     """The alignment as the file ``align -o`` writes (and ``--json`` prints, with the status)."""
     return {"format": FORMAT, "version": VERSION, **done.as_dict(), "notes": list(done.notes)}
+
+
+def write_aligned(done: MagAligned | ImusAligned, path: str) -> None:
+    """The magnetometer's aligned calibration (:func:`aligned`) into ``path``."""
+    if not isinstance(done, MagAligned):
+        raise InputError("--aligned-mag writes a magnetometer's calibration: give --accel-cal and --mag-cal")
+    calfile.write(aligned(done), path)
 
 
 def write(done: MagAligned | ImusAligned, path: str) -> None:
