@@ -4,6 +4,7 @@ blocks (core.align, pipeline.alignment, cli.aligning)."""
 
 from __future__ import annotations
 
+import gzip
 import json
 from pathlib import Path
 
@@ -15,9 +16,10 @@ from tests.ulog_writer import write_streams
 from tumblecal_cli.core import align
 from tumblecal_cli.io import calfile
 
-REAL = Path("/work/shared/realdata")
-CKEXPLORER = REAL / "ckexplorer_acc_mag" / "raw"
-PX4_TAGGED = REAL / "px4_pyulog" / "sample_logging_tagged_and_default_params.ulg"
+DATA = Path(__file__).parent / "data"
+CK_ACC_LOG = DATA / "logs" / "ckexplorer_acc_log.csv"  # the accelerometer alone, paused in many orientations
+CK_BOTH_LOG = DATA / "logs" / "ckexplorer_acc_mag_log.csv.gz"  # accelerometer and magnetometer, tumbled
+PX4_SMALL = DATA / "px4" / "pyulog_sample_log_small.ulg.gz"  # PX4's sample: three raw sensor_accel
 
 UP = np.array([0.0, 0.0, 1.0])
 DIP = np.radians(60.0)
@@ -275,23 +277,25 @@ def test_align_of_one_imu_is_refused(tmp_path: Path, capsys: pytest.CaptureFixtu
 
 
 @pytest.mark.slow
-def test_real_px4_imus_agree_within_pxs_own_limit(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_real_px4_imus_judged_by_pxs_own_limit(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """PX4's sample log: three raw sensor_accel streams at 1 Hz on the ground (one orientation):
-    the rotation about gravity is not determined; their readings agree to about 0.02 m/s²
-    (PX4's own arming check, COM_ARM_IMU_ACC, allows 0.7)."""
-    limits = tmp_path / "limits.yaml"
-    limits.write_text("imu_consistency: 0.7\n")
-    code, out, err = run(
-        capsys, "align", PX4_TAGGED, "--window", "3", "--min-duration", "5", "--limits", limits, "--json"
-    )
-    assert code == 0, err
-    doc = json.loads(out)
-    assert doc["orientations"] == 1
-    assert doc["units"] == "m/s^2"
-    for p in doc["imus"]:
-        assert "rotation" not in p
-        assert 0.005 < p["consistency"] < 0.05
-    assert "rotation not determined" in err
+    the rotation about gravity is not determined; uncalibrated, the second differs from the first
+    by 0.36 m/s² RMS, inside PX4's own arming limit (COM_ARM_IMU_ACC, 0.7 m/s² by default) and
+    outside a tighter one."""
+    log = tmp_path / "sample_log_small.ulg"
+    log.write_bytes(gzip.decompress(PX4_SMALL.read_bytes()))
+    for bound, status in ((0.7, 0), (0.2, 1)):
+        limits = tmp_path / "limits.yaml"
+        limits.write_text(f"imu_consistency: {bound}\n")
+        code, out, err = run(capsys, "align", log, "--window", "3", "--min-duration", "4", "--limits", limits, "--json")
+        assert code == status, err
+        doc = json.loads(out)
+        assert (doc["orientations"], doc["units"]) == (1, "m/s^2")
+        assert [p["stream"] for p in doc["imus"]] == ["sensor_accel:1", "sensor_accel:2"]
+        assert [round(p["consistency"], 2) for p in doc["imus"]] == [0.36, 0.08]
+        assert all("rotation" not in p for p in doc["imus"])
+        assert "rotation not determined" in err
+    assert [f["code"] for f in doc["verdict"]["failures"]] == ["limit.imu_consistency.1"]
 
 
 @pytest.mark.slow
@@ -299,17 +303,19 @@ def test_real_ckexplorer_log_has_a_small_rotation(tmp_path: Path, capsys: pytest
     """ckexplorer's log (a tumble by hand with short pauses): the rotation is below a degree and
     known to a few tenths, the dip the same in every block to about a degree."""
     acc, mag = tmp_path / "acc.json", tmp_path / "mag.json"
-    assert run(capsys, "solve", "--log", CKEXPLORER / "acc_log.csv", "-o", acc).code == 0
-    solved = run(capsys, "solve", "--sensor", "magnetometer", "--method", "ellipsoid", "--poses",
-                 CKEXPLORER / "acc_mag_log.csv", "-o", mag)  # fmt: skip
+    assert run(capsys, "solve", "--log", CK_ACC_LOG, "-o", acc).code == 0
+    solved = run(
+        capsys, "solve", "--sensor", "magnetometer", "--method", "ellipsoid", "--poses", CK_BOTH_LOG, "-o", mag
+    )
     assert solved.code == 0
     args = ["--window", "10", "--min-duration", "10", "--max-noise", "0.1", "--json"]
-    code, out, err = run(capsys, "align", "--accel-cal", acc, "--mag-cal", mag, CKEXPLORER / "acc_mag_log.csv", *args)
+    code, out, err = run(capsys, "align", "--accel-cal", acc, "--mag-cal", mag, CK_BOTH_LOG, *args)
     assert code == 0, err
     doc = json.loads(out)
-    assert doc["blocks"] >= 30
-    assert doc["angle_deg"] < 1.5
-    assert 0.05 < doc["angle_sigma_deg"] < 1.0
+    assert doc["blocks"] == 43
+    assert doc["angle_deg"] == pytest.approx(0.42, abs=0.01)
+    assert doc["angle_sigma_deg"] == pytest.approx(0.35, abs=0.01)
+    assert doc["dip_deg"] == pytest.approx(-18.4, abs=0.05)
     assert doc["dip_spread_deg"]["after"] < 2.0
 
 
