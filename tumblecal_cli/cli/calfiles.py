@@ -64,6 +64,9 @@ def show(
         console.print("matrix M (corrected = M (raw - offset)):")
         for row in c.matrix:
             console.print("  " + "  ".join(f"{v:>14.6g}" for v in row))
+    aligned = c.fields.get("alignment")
+    if isinstance(aligned, dict):  # tumblecal align --aligned-mag
+        console.print(f"{'aligned:':<12} {one_line(render.alignment_line(aligned))}", soft_wrap=True)
     notes = tilt_notes(c) if c.tilt_sensitivity and c.uncertainty else []
     render.print_summary(c, console, [], notes, judged=True)
 

@@ -304,6 +304,17 @@ AccelCal = Annotated[
     ),
 ]
 
+AlignTo = Annotated[
+    str | None,
+    log_option(
+        "--align-to",
+        "ACCEL_CAL",
+        "A magnetometer's capture that holds the accelerometer's columns too: rotate the magnetometer's axes "
+        "onto those of this accelerometer calibration (its matrix times the rotation `tumblecal align` finds "
+        "from the still blocks), and report the heading error that removes.",
+    ),
+]
+
 Window = Annotated[
     float | None,
     log_option(

@@ -25,11 +25,15 @@ LIMIT_KEYS = {
     "random_walk": "per axis",
     "offset_drift": "per axis",  # a thermal block's largest offset drift over its range, raw units
     "offset_drift_per_degc": "per axis",  # ... and per °C
+    # `tumblecal align`'s: the RMS difference of two IMUs' corrected readings, their units
+    "imu_consistency": "one",
 }
 
 
 #: The limits only `tumblecal noise` judges.
 NOISE_LIMITS = ("noise_density", "bias_instability", "random_walk")
+#: The limits only `tumblecal align` judges.
+ALIGN_LIMITS = ("imu_consistency",)
 
 
 def load_limits(path: str) -> dict[str, float | FloatArray]:
