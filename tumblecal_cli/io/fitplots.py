@@ -144,11 +144,14 @@ def poses_figure(
     fig = _figure(width=min(16.0, max(9.0, 4.0 + 0.25 * n)), height=8.0, title=title)
     grid = fig.add_gridspec(2, 2, height_ratios=[3, 2.4], width_ratios=[3, 2])
     ticks = [p.name for p in poses]
-    _after_axes(fig.add_subplot(grid[0, :]), res, scale, bounds.residual, ticks)
-    _before_axes(fig.add_subplot(grid[1, 0]), raw, scale.coarser(raw * scale.factor), before.label, ticks)
+    exact = bool(np.all(np.abs(res.mean) <= 1e-7 * max(ref, 1.0)))  # as many parameters as readings
+    _after_axes(fig.add_subplot(grid[0, :]), res, scale, bounds.residual, ticks, exact=exact, ref=ref)
+    right = faced or ref > 0  # a gyroscope at rest: no direction to draw
+    below = fig.add_subplot(grid[1, 0] if right else grid[1, :])
+    _before_axes(below, raw, scale.coarser(raw * scale.factor), before.label, ticks)
     if faced:
         _tilt_axes(fig.add_subplot(grid[1, 1]), poses, bounds, ticks)
-    else:
+    elif right:
         corrected = (means - b) @ m.T
         _sphere_axes(fig, fig.add_subplot(grid[1, 1], projection="3d"), corrected, res.mean * scale.factor, scale)
     _write(fig, path)
@@ -212,7 +215,9 @@ def _limit_lines(ax: Axes, limit: float | None, factor: float, unit: str, what: 
     ax.set_ylim(min(low, -v - pad), max(high, v + pad))
 
 
-def _after_axes(ax: Axes, res: _Residuals, scale: Scale, limit: float | None, ticks: list[str]) -> None:
+def _after_axes(
+    ax: Axes, res: _Residuals, scale: Scale, limit: float | None, ticks: list[str], *, exact: bool, ref: float
+) -> None:
     x = np.arange(len(ticks), dtype=np.float64)
     f = scale.factor
     ax.axhline(0.0, color="black", linewidth=0.8)
@@ -235,10 +240,12 @@ def _after_axes(ax: Axes, res: _Residuals, scale: Scale, limit: float | None, ti
     _limit_lines(ax, limit, f, scale.unit, "residual limit")
     rms = float(np.sqrt(np.mean(res.mean**2))) * f
     worst = float(np.max(np.abs(res.mean))) * f
-    ax.set_title(
-        f"after calibration: |corrected| − reference per pose (RMS {rms:.3g}, largest {worst:.3g} {scale.unit})",
-        fontsize="medium",
-    )
+    what = "|corrected| − reference" if ref > 0 else "|corrected|"
+    if exact:  # a solver with as many parameters as readings: the spread is what is left to see
+        figures = "0 by construction, an exact fit: check it with verify"
+    else:
+        figures = f"RMS {rms:.3g}, largest {worst:.3g} {scale.unit}"
+    ax.set_title(f"after calibration: {what} per pose ({figures})", fontsize="medium")
     ax.set_ylabel(f"residual ({scale.unit})")
     ax.grid(axis="y", alpha=0.3)
     ax.legend(fontsize="small", loc="best")
