@@ -368,3 +368,43 @@ def test_segment_figure_of_a_log_without_time(figures: list[Figure]) -> None:
     faces = [t.get_text() for t in top.texts]
     assert faces == ["+z", "+x"]
     assert xdata(top.get_lines()[0]).max() == len(data) - 1
+
+
+def test_an_exact_fit_says_so_and_a_gyroscope_has_no_sphere(figures: list[Figure]) -> None:
+    """Three poses, three gains and three offsets: the residuals are 0 by construction, which the
+    title says (only verify judges such a fit). A gyroscope at rest (reference 0) has no
+    direction: no tilt and no sphere panel, "before" takes the row."""
+    rng = np.random.default_rng(9)
+    gains = np.array([1.01, 0.98, 1.02])
+    poses = []
+    for face in ("+x", "+y", "+z"):
+        mean = OFFSET + gains * np.asarray(AXIS[face], dtype=np.float64)  # no cross terms: three poses fit exactly
+        samples = mean + rng.normal(0.0, 0.002, (400, 3))
+        poses.append(fitplots.PoseData(face, mean, samples - samples.mean(axis=0) + mean, face, 0.5))
+    exact = plots.Fitted(OFFSET, np.diag(1 / gains), 1.0, "g")
+    before = fitplots.Before(np.zeros(3), 1.0, "raw")
+    fitplots.poses_figure("unused.png", poses, exact, fitplots.Bounds(), before)
+    still = [fitplots.PoseData("still.csv", np.array([3.0, -2.0, 5.0]), rng.normal([3.0, -2.0, 5.0], 0.1, (500, 3)))]
+    gyro = plots.Fitted(np.array([3.0, -2.0, 5.0]), np.eye(3), 0.0, "dps")
+    fitplots.poses_figure("unused.png", still, gyro, fitplots.Bounds(), before, sensor="gyroscope")
+    three, gyroscope = figures
+    assert "0 by construction" in three.axes[0].get_title()
+    assert np.max(np.abs(means_of(three.axes[0]))) < 1e-9
+    after, raw = gyroscope.axes
+    assert after.get_title().startswith("after calibration: |corrected| per pose")
+    assert after.get_ylabel() == "residual (dps)"
+    spec = raw.get_subplotspec()
+    assert spec is not None
+    assert spec.colspan == range(2)  # the whole row
+    assert "0 by construction" in after.get_title()  # the bias is the mean: an exact fit too
+
+
+@pytest.mark.slow
+def test_segment_from_python_draws_the_plot(tmp_path: Path) -> None:
+    import tumblecal_cli as tumblecal
+
+    png = tmp_path / "blocks.png"
+    done = tumblecal.segment(str(SESSION_LOG), rate=102.4, plot=str(png))
+    assert len(done.blocks.seg.kept) == 13
+    width, height = png_size(png.read_bytes())
+    assert (width, height) == (1400, 700)

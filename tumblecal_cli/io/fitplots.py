@@ -417,8 +417,9 @@ def segment_figure(
     top.set_xlim(float(t[0]), float(t[-1]) if n > 1 else float(t[0]) + 1.0)
     low, high = top.get_ylim()
     top.set_ylim(low, high + 0.14 * (high - low))  # room for the labels above the data
+    half = float(np.median(np.diff(t))) / 2 if n > 1 else 0.5  # a reading stands for its sample period
     for block in seg.blocks:
-        _shade(top, bottom, block, t, files.get(block.number))
+        _shade((top, bottom), block, t, half, files.get(block.number))
     kept = len(seg.kept)
     top.set_title(
         f"{len(seg.blocks)} still blocks, {kept} kept"
@@ -452,12 +453,13 @@ def _segment_legend(fig: Figure, seg: Segmentation) -> None:
     fig.legend(handles=handles, loc="outside lower center", ncols=len(handles), fontsize="small", frameon=False)
 
 
-def _shade(top: Axes, bottom: Axes, block: Block, t: FloatArray, file: str | None) -> None:
+def _shade(axes: tuple[Axes, Axes], block: Block, t: FloatArray, half: float, file: str | None) -> None:
     """A block's span on both axes; a kept block labelled at the top with its face (? where it
     rests on none) and, where there is room, the file it goes to."""
     from matplotlib.transforms import blended_transform_factory
 
-    first, last = float(t[block.first]), float(t[min(block.last, t.size - 1)])
+    top, bottom = axes
+    first, last = float(t[block.first]) - half, float(t[min(block.last, t.size - 1)]) + half
     colour, alpha = (_KEPT, 0.18) if block.kept else (_DROPPED, 0.45)
     for ax in (top, bottom):
         ax.axvspan(first, last, color=colour, alpha=alpha, linewidth=0)
@@ -466,7 +468,8 @@ def _shade(top: Axes, bottom: Axes, block: Block, t: FloatArray, file: str | Non
     low, high = top.get_xlim()
     room = (last - first) / (high - low) * _PLOT_PIXELS  # the block's width in pixels, about
     where = blended_transform_factory(top.transData, top.transAxes)
-    middle = (first + last) / 2
+    pad = 0.012 * (high - low)  # a label at the log's very edge stays whole
+    middle = min(max((first + last) / 2, low + pad), high - pad)
     face = block.face or "?"
     top.text(middle, 0.985, face, transform=where, ha="center", va="top", fontsize="small", fontweight="bold")
     name = (file or "").removesuffix(".csv")
