@@ -270,6 +270,10 @@ def test_verify_plot_writes_a_png_on_exit_1_and_nothing_on_bad_paths(
     code, _, err = run(capsys, *args, "--json", "--plot", "-")
     assert code == 2
     assert "--plot - would share stdout with the data" in err
+    code, _, err = run(capsys, "verify", "--cal", hassan_cal, "--log", HASSAN / "orient31.csv", "--accel-cal",
+                       hassan_cal, "--plot", png)  # fmt: skip
+    assert code == 2
+    assert "--plot draws the errors of static captures, not of a --log of hand turns" in err
 
 
 def test_verify_plot_not_written_when_a_capture_moves(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:

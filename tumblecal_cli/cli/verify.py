@@ -129,7 +129,9 @@ def verify(
 
     found = source(stream, allow_corrected)
     if plot is not None:
-        _plot_target(plot, "-", json_summary, [*(captures_ or []), cal, *(p for p in (log, accel_cal) if p)])
+        if log is not None or accel_cal is not None:
+            raise InputError("--plot draws the errors of static captures, not of a --log of hand turns")
+        _plot_target(plot, "-", json_summary, [*(captures_ or []), cal])
     if log is not None or accel_cal is not None:
         where = (log, accel_cal, rate, columns, captures_, found, (start, end))
         return _rotations(cal, *where, json_summary=json_summary, quiet=quiet)
