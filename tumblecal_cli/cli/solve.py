@@ -54,9 +54,6 @@ from tumblecal_cli.cli.flags import (
 from tumblecal_cli.errors import InputError
 
 if TYPE_CHECKING:
-    from tumblecal_cli.core.gate import Limits
-    from tumblecal_cli.core.model import FloatArray
-    from tumblecal_cli.io.calfile import Calibration
     from tumblecal_cli.pipeline.options import SolveOptions
     from tumblecal_cli.pipeline.solve import Solved
 
@@ -480,7 +477,9 @@ def _show(solved: Solved, *, output: str, json_summary: bool, quiet: bool, plot:
             )
         raise solved.error
     if plot is not None:  # drawn before the calibration is written: a failure leaves nothing behind
-        _plot_solve(plot, cal, [s.values for s in solved.samples], solved.limits, plane)
+        from tumblecal_cli.pipeline import plotting
+
+        plotting.solve_plot(plot, solved, plane)
     cal.save(output)
     if not quiet:
         render.print_summary(cal, console, solved.warnings, solved.notes, judged=True)
@@ -506,43 +505,3 @@ def _plot_target(plot: str, output: str, json_summary: bool, inputs: list[str]) 
         raise InputError("--plot and -o name the same file", file=plot)
     check_not_input(plot, inputs, "--plot")
     check_writable(plot, "--plot")
-
-
-def _plot_solve(plot: str, cal: Calibration, raw: list[FloatArray], limits: Limits | None, plane: str | None) -> None:
-    """solve --plot: the poses' norms (the figure of Sports Sensing 2023), or a magnetometer's rotation capture."""
-    import numpy as np
-
-    from tumblecal_cli.core import methods
-    from tumblecal_cli.core.gate import FIXED_GAINS
-    from tumblecal_cli.io import plots
-
-    title = f"{cal.sensor}, {cal.method}" + (f", {cal.serial}" if cal.serial else "")
-    if cal.method in methods.ROTATION:
-        plots.rotation_figure(
-            plot, np.concatenate(raw), cal.offset, cal.matrix, cal.reference, units=cal.units, title=title, plane=plane
-        )
-        return
-    assert limits is not None
-    if limits.nominal_gain_given:  # --nominal-gain or the limits file
-        nominal = float(np.mean(limits.nominal_gain))
-    else:  # else "before" is scaled by the mean solved gain: its shape, not its units
-        nominal = 1.0 if cal.method in FIXED_GAINS else float(np.mean(cal.gain))
-    names = [  # a log's blocks by number (they share the file), pose files by name
-        " ".join(
-            [
-                *([p.face] if p.face else []),
-                f"block {p.block}" if p.block is not None else os.path.basename(str(p.file)),
-            ]
-        )
-        for p in cal.poses
-    ]
-    means = np.array([p.mean for p in cal.poses], dtype=np.float64)
-    plots.poses_figure(
-        plot,
-        names,
-        means,
-        plots.Fitted(cal.offset, cal.matrix, cal.reference, cal.units),
-        nominal_gain=nominal,
-        nominal_offset=limits.nominal_offset,  # --nominal-offset: unsigned counts' zero
-        title=title,
-    )

@@ -23,7 +23,7 @@ from tumblecal_cli.core import clock, methods, model, solvers
 from tumblecal_cli.core import segment as seg_core
 from tumblecal_cli.core.segment import Block, Segmentation
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import capture, compressed, logread, readings, sources
+from tumblecal_cli.io import capture, compressed, fitplots, logread, readings, sources
 from tumblecal_cli.io.outputs import WRITE_ERRORS, atomic_output, remove_stale, spreadsheet_safe, unsafe
 from tumblecal_cli.io.readings import Log, Samples, check_rate
 from tumblecal_cli.io.readspec import ReadSpec
@@ -582,6 +582,7 @@ class SegmentKeywords(ReadKeywords, total=False):
     max_tilt: float
     nominal_offset: str | float | list[float] | None
     max_spool: int | str | None
+    plot: str | None  # segment --plot: a PNG of the log with its blocks (needs tumblecal[plot])
 
 
 def segment(
@@ -636,6 +637,7 @@ def _segment(
         pose_map=options.get("pose_map"),
         settings=settings,
         digest=False,  # the block files are copies; nothing records the log's hash
+        whole=options.get("plot") is not None,  # a figure draws every reading, not the still ones only
         max_spool=options.get("max_spool"),
     ) as (path, data, seg):
         found = Blocks(data, seg)
@@ -643,6 +645,9 @@ def _segment(
         if on_blocks is not None:
             on_blocks(found, files)
         enough_blocks(data, seg, 1)
+        if (plot := options.get("plot")) is not None:  # drawn before any block file is written
+            clock = None if data.clock is None else (data.clock - data.clock[0]) * data.scale
+            fitplots.segment_figure(plot, data.values, clock, seg, files, title=data.layout.name)
         text = io.StringIO()
         writer = csv.writer(text, lineterminator="\n")
         writer.writerow(INDEX_COLUMNS)
