@@ -137,7 +137,8 @@ def test_a_long_pose_from_stdin_compressed_or_quoted_is_summed_as_in_memory(
     )
     _same(capsys, monkeypatch, tmp_path, "solve", "--poses", quoted, y, z)
     data = x.read_bytes()
-    whole, summed = [], []
+    whole: list[object] = []
+    summed: list[object] = []
     for target, rows in ((whole, 10**9), (summed, 30)):
         with monkeypatch.context() as m:
             m.setattr(capture, "BLOCK_BYTES", BLOCK)
@@ -166,3 +167,23 @@ def test_running_sums_match_the_two_pass_statistics_of_the_readings() -> None:
     assert np.allclose(summary.drift(), drift, rtol=0, atol=1e-10)
     assert (summary.low, summary.high) == (float(values.min()), float(values.max()))
     assert summary.at_level(1e4 - 3, 1e4 + 3) == int(((values <= 1e4 - 3) | (values >= 1e4 + 3)).any(axis=1).sum())
+
+
+def test_a_long_pose_with_no_room_for_its_readings_is_one_error(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """A $TMPDIR that cannot take the readings: exit 2 naming the pose file and the folder."""
+    import tempfile
+
+    from tests.conftest import assert_one_error
+
+    missing = tmp_path / "gone"
+    monkeypatch.setattr(tempfile, "tempdir", str(missing))
+    monkeypatch.setattr(posefile, "SUMMED_ROWS", 30)
+    x = SAMPLE / "x.csv"
+    r = run(capsys, "verify", "-c", ROOT / "sample_data" / "lot" / _first_cal(), x)
+    assert_one_error(
+        r,
+        f"{x}: its readings are kept in {missing} as it is read (a long pose file): No such file or directory",
+        hint="set TMPDIR to a folder with room",
+    )

@@ -39,7 +39,8 @@ class _Column(Generic[N]):
     """One column of a capture's kept rows: in memory, until ``spill`` puts what it holds (and
     all that comes after) in an unnamed file on disk."""
 
-    def __init__(self, dtype: type[N], width: int = 0) -> None:
+    def __init__(self, name: str, dtype: type[N], width: int = 0) -> None:
+        self.name = name  # the pose file's, for an error
         self.dtype: type[N] = dtype
         self.width = width
         self.parts: list[NDArray[N]] = []
@@ -52,12 +53,15 @@ class _Column(Generic[N]):
         if self.file is None:
             self.parts.append(part)
         else:
-            self.file.write(part.tobytes())
+            _write(self.file, part, self.name)
 
     def spill(self) -> None:
-        self.file = tempfile.TemporaryFile(prefix="tumblecal-pose-")  # noqa: SIM115 (kept open: written as read)
+        try:
+            self.file = tempfile.TemporaryFile(prefix="tumblecal-pose-")  # noqa: SIM115 (kept open: written as read)
+        except OSError as err:
+            raise _no_room(err, self.name) from None
         for part in self.parts:
-            self.file.write(part.tobytes())
+            _write(self.file, part, self.name)
         self.parts = []
 
     def done(self) -> NDArray[N]:
@@ -66,7 +70,7 @@ class _Column(Generic[N]):
             if not self.parts:
                 return np.empty(shape, dtype=self.dtype)
             return np.concatenate(self.parts) if len(self.parts) > 1 else self.parts[0]
-        self.file.flush()
+        _write(self.file, None, self.name)
         if not self.count:
             self.file.close()
             return np.empty(shape, dtype=self.dtype)
@@ -75,13 +79,33 @@ class _Column(Generic[N]):
         return mapped
 
 
+def _write(file: IO[bytes], part: NDArray[N] | None, name: str) -> None:
+    """``part`` written to ``file`` (None: what is written flushed)."""
+    try:
+        if part is None:
+            file.flush()
+        else:
+            file.write(part.tobytes())
+    except OSError as err:
+        raise _no_room(err, name) from None
+
+
+def _no_room(err: OSError, name: str) -> InputError:
+    """A long pose's readings that cannot be kept on disk (a full or read-only $TMPDIR)."""
+    return InputError(
+        f"its readings are kept in {tempfile.gettempdir()} as it is read (a long pose file): {err.strerror or err}",
+        file=name,
+        hint="free some space there, or set TMPDIR to a folder with room (about the pose file's size)",
+    )
+
+
 class _Read:
     """What ``read`` gathers, block by block."""
 
-    def __init__(self, timed: bool, warm: bool) -> None:
-        self.values, self.rows = _Column(np.float64, 3), _Column(np.int64)
-        self.clock: _Column[np.float64] | None = _Column(np.float64) if timed else None
-        self.temps: _Column[np.float64] | None = _Column(np.float64) if warm else None
+    def __init__(self, name: str, timed: bool, warm: bool) -> None:
+        self.values, self.rows = _Column(name, np.float64, 3), _Column(name, np.int64)
+        self.clock: _Column[np.float64] | None = _Column(name, np.float64) if timed else None
+        self.temps: _Column[np.float64] | None = _Column(name, np.float64) if warm else None
         self.summary = Summary()
         self.temp_sum = 0.0
         self.seen = 0  # data rows read, kept or not
@@ -135,7 +159,7 @@ def read(path: str, spec: ReadSpec | None = None) -> Samples:
         return read_samples(path, spec)
     with open_capture(path, spec) as cap:
         lay = cap.layout
-        got = _Read(lay.time is not None, lay.temperature is not None)
+        got = _Read(lay.name, lay.time is not None, lay.temperature is not None)
         for first_row, cols in cap.batches(only_sensor=True):
             values, empty = cap.sensor_values(cols, first_row)
             bad = ~np.isfinite(values) & ~empty[:, None]
