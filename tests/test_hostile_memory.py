@@ -48,7 +48,9 @@ def test_solve_memory_grows_by_no_more_than_the_readings_with_the_capture(tmp_pa
     """A pose file's readings were held twice while read (a list of blocks, then their join),
     with their row numbers copied and whole-capture temporaries in the statistics and checks:
     85 bytes of memory a row between these two sizes (1.47 GB at 20M rows); now about 54 (34
-    at 20M rows: 0.85 GB), the readings (24 bytes a row) and their row numbers (8) held once."""
+    at 20M rows: 0.85 GB), the readings (24 bytes a row) and their row numbers (8) held once;
+    and since a pose file past 262,144 readings is summed as it is read, about none
+    (test_pose_file_memory_is_flat_in_rows)."""
     small, large = 100_000, 2_100_000
     low = _solve_peak(_pose_file(tmp_path / "small.csv", small), tmp_path / "small.json")
     high = _solve_peak(_pose_file(tmp_path / "large.csv", large), tmp_path / "large.json")
