@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from tumblecal_cli.core.running import Summary
 from tumblecal_cli.errors import CaptureRejected, InputError
 
 FloatArray = NDArray[np.float64]
@@ -120,8 +121,13 @@ class PoseStats:
         return self.std / math.sqrt(self.samples)
 
 
-def pose_stats(samples: FloatArray) -> PoseStats:
-    """Mean, standard deviation and count of an (n, 3) block of readings (n >= 1)."""
+def pose_stats(samples: FloatArray | Summary) -> PoseStats:
+    """Mean, standard deviation and count of an (n, 3) block of readings (n >= 1), or of a long
+    pose's running sums (core.running)."""
+    if isinstance(samples, Summary):
+        if not samples.count:
+            raise InputError("no samples in this pose")
+        return PoseStats(np.sum(samples.sums, axis=0) / samples.count, samples.std, samples.count)
     n = int(samples.shape[0])
     if n == 0:
         raise InputError("no samples in this pose")
@@ -288,11 +294,11 @@ def tilt_sensitivity(
 MAX_READING = 1e150
 
 
-def in_range(values: FloatArray, name: str) -> None:
+def in_range(values: FloatArray | Summary, name: str) -> None:
     """Readings beyond MAX_READING (1e200 in a capture) overflow the statistics: an input error
     naming ``name``. NaN (an empty reading) is left to the caller."""
-    largest = 0.0  # the largest |reading| not NaN, a chunk at a time
-    for c in chunks(values):
+    largest = values.largest if isinstance(values, Summary) else 0.0  # the largest |reading| not NaN
+    for c in () if isinstance(values, Summary) else chunks(values):  # a chunk at a time
         size = np.abs(c[~np.isnan(c)])
         largest = max(largest, float(size.max())) if size.size else largest
     if not largest <= MAX_READING:

@@ -32,6 +32,7 @@ from tumblecal_cli.pipeline.options import SolveOptions, method_options, path_of
 if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Corrected, Finding, Limits, PoseCheck
     from tumblecal_cli.core.model import FloatArray, PoseStats, Solution
+    from tumblecal_cli.core.running import Summary
     from tumblecal_cli.io import calfile
     from tumblecal_cli.io.calfile import Calibration, Pose
     from tumblecal_cli.io.readings import Samples
@@ -171,7 +172,7 @@ def _run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Pat
     name, labels, samples, placed = _read_poses(files_or_data, options, given, read)
     notes = [] if placed.note is None else [placed.note]
     notes[:0] = [note] if note else []
-    chosen = PoseSet(labels, samples, [s.values for s in samples], notes or [], None, placed.by_name, placed.labelled)
+    chosen = PoseSet(labels, samples, [s.readings for s in samples], notes or [], None, placed.by_name, placed.labelled)
     return _solve_trimmed(name, chosen, options, given)
 
 
@@ -454,7 +455,7 @@ def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
         extra={"clock": clock.as_dict(seg.clock)} if seg.clock is not None and seg.clock.bursty else {},
     )
     given = replace(given, centre=seg.centre)
-    whole = [data.values if data.extremes is None else data.extremes]  # the still blocks alone: the extremes
+    whole: list[FloatArray | Summary] = [data.values if data.extremes is None else data.extremes]  # the extremes
     solved = _solve(name, PoseSet(labels, samples, whole, notes or [], segmentation), options, given)
     solved.blocks = blocks
     return solved
@@ -469,7 +470,7 @@ class PoseSet:
 
     labels: list[str | None]
     samples: list[Samples]
-    whole: list[FloatArray]
+    whole: list[FloatArray | Summary]
     notes: list[str] = field(default_factory=list)
     segmentation: calfile.Segmentation | None = None
     by_name: bool = False
@@ -481,10 +482,10 @@ def _solve(name: str, poses: PoseSet, options: SolveOptions, given: Settings) ->
     """Average, solve, check and judge the poses; build the calibration."""
     labels, samples = poses.labels, poses.samples
     for s in samples:
-        model.in_range(s.values, s.name)
+        model.in_range(s.readings, s.name)
     ref = given.reference
     checks = _gate_options(poses, options, given)
-    stats = [model.pose_stats(s.values) for s in samples]
+    stats = [model.pose_stats(s.readings) for s in samples]
     names = [s.name for s in samples]
     one = names[0] if len(names) == 1 else None  # the capture a finding on the whole fit is about
     tilted: list[Finding] = []
@@ -510,7 +511,7 @@ def _solve(name: str, poses: PoseSet, options: SolveOptions, given: Settings) ->
         gate.check_gains(solution.gain, ref, given.limits.nominal_gain)
     limits = given.limits.for_method(solution.method)
     measured = [
-        gate.measure(n, f, s.values, st, checks) for n, f, s, st in zip(names, labels, samples, stats, strict=True)
+        gate.measure(n, f, s.readings, st, checks) for n, f, s, st in zip(names, labels, samples, stats, strict=True)
     ]
     if ref > 0:  # a gyroscope at rest has no direction to judge
         measured = gate.orient(measured, checks.nominal_offset, checks.max_tilt_deg)
