@@ -13,6 +13,7 @@ import gzip
 import json
 import math
 import re
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -187,3 +188,24 @@ def test_a_long_pose_with_no_room_for_its_readings_is_one_error(
         f"{x}: its readings are kept in {missing} as it is read (a long pose file): No such file or directory",
         hint="set TMPDIR to a folder with room",
     )
+
+
+def test_a_pose_file_past_the_room_in_tmpdir_ends_as_an_endless_stream(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """The readings a long pose keeps on disk are bounded as segment's spool is (at most 4 GiB,
+    never the disk's last margin): an endless stdin ends in exit 2, not a full $TMPDIR."""
+    from tests.conftest import assert_one_error
+
+    monkeypatch.setattr(posefile, "SUMMED_ROWS", 30)
+    monkeypatch.setattr(posefile, "spool_room", lambda _folder: 10_000)
+    x = SAMPLE / "x.csv"
+    out = tmp_path / "cal.json"
+    r = run(capsys, "solve", "--poses", x, SAMPLE / "y.csv", SAMPLE / "z.csv", "-o", out)
+    assert_one_error(
+        r,
+        f"{x}: more than 0 MiB of readings to keep in {tempfile.gettempdir()} (at most 4 GiB, and the free space "
+        "there less a margin): an endless stream?",
+        hint="give a pose file of fewer rows",
+    )
+    assert not out.exists()

@@ -28,6 +28,23 @@ FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r", "\uff1d", "\uff0b", "\uff0d", 
 _NUMBER = re.compile(r"[+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|inf|nan)")
 
 
+#: The most a run keeps in $TMPDIR to read again (a log from stdin or a pipe, unless --max-spool
+#: says otherwise; a long pose file's readings); less when $TMPDIR has less room than that: its
+#: free space less a margin, SPOOL_MARGIN or a tenth of the free space, whichever is less (the
+#: disk is not filled up).
+MAX_SPOOL = 4 << 30
+SPOOL_MARGIN = 256 << 20
+
+
+def spool_room(folder: str) -> int:
+    """MAX_SPOOL, or the room in ``folder`` less a margin when that is less."""
+    try:
+        free = shutil.disk_usage(folder).free
+    except OSError:
+        return MAX_SPOOL
+    return max(0, min(MAX_SPOOL, free - min(SPOOL_MARGIN, free // 10)))
+
+
 def spreadsheet_safe(cell: str) -> str:
     """A CSV cell a spreadsheet shows as text: one that would start a formula gets a leading
     ``'`` (OWASP's advice); numbers, negative ones included, are left as they are. A cell that

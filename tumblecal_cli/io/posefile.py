@@ -24,6 +24,7 @@ from tumblecal_cli.core.running import Summary
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import sources
 from tumblecal_cli.io.capture import Capture, cast_floats, open_capture, to_floats
+from tumblecal_cli.io.outputs import spool_room
 from tumblecal_cli.io.readings import Log, Samples, read_samples, time_scale
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.io.sniff import TIME_SCALE, FloatArray, Layout, quoted
@@ -35,12 +36,36 @@ SUMMED_ROWS = 1 << 18
 N = TypeVar("N", np.float64, np.int64)
 
 
+class _Room:
+    """What a pose file may keep in $TMPDIR, all its columns together: outputs.spool_room when
+    the first column spills (at most 4 GiB, and never the disk's last margin), so that an endless
+    stdin ends with an error, not a full disk."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self.bound: int | None = None
+        self.used = 0
+
+    def take(self, size: int) -> None:
+        if self.bound is None:
+            self.bound = spool_room(tempfile.gettempdir())
+        self.used += size
+        if self.used > self.bound:
+            raise InputError(
+                f"more than {self.bound / 2**20:.0f} MiB of readings to keep in {tempfile.gettempdir()} "
+                "(at most 4 GiB, and the free space there less a margin): an endless stream?",
+                file=self.name,
+                hint="give a pose file of fewer rows (a pose needs seconds, not hours) or a TMPDIR with room",
+            )
+
+
 class _Column(Generic[N]):
     """One column of a capture's kept rows: in memory, until ``spill`` puts what it holds (and
     all that comes after) in an unnamed file on disk."""
 
-    def __init__(self, name: str, dtype: type[N], width: int = 0) -> None:
-        self.name = name  # the pose file's, for an error
+    def __init__(self, room: _Room, dtype: type[N], width: int = 0) -> None:
+        self.room = room
+        self.name = room.name  # the pose file's, for an error
         self.dtype: type[N] = dtype
         self.width = width
         self.parts: list[NDArray[N]] = []
@@ -53,7 +78,7 @@ class _Column(Generic[N]):
         if self.file is None:
             self.parts.append(part)
         else:
-            _write(self.file, part, self.name)
+            _write(self.file, part, self.room)
 
     def spill(self) -> None:
         try:
@@ -61,7 +86,7 @@ class _Column(Generic[N]):
         except OSError as err:
             raise _no_room(err, self.name) from None
         for part in self.parts:
-            _write(self.file, part, self.name)
+            _write(self.file, part, self.room)
         self.parts = []
 
     def done(self) -> NDArray[N]:
@@ -70,7 +95,7 @@ class _Column(Generic[N]):
             if not self.parts:
                 return np.empty(shape, dtype=self.dtype)
             return np.concatenate(self.parts) if len(self.parts) > 1 else self.parts[0]
-        _write(self.file, None, self.name)
+        _write(self.file, None, self.room)
         if not self.count:
             self.file.close()
             return np.empty(shape, dtype=self.dtype)
@@ -79,15 +104,16 @@ class _Column(Generic[N]):
         return mapped
 
 
-def _write(file: IO[bytes], part: NDArray[N] | None, name: str) -> None:
-    """``part`` written to ``file`` (None: what is written flushed)."""
+def _write(file: IO[bytes], part: NDArray[N] | None, room: _Room) -> None:
+    """``part`` written to ``file`` (None: what is written flushed), within ``room``."""
     try:
         if part is None:
             file.flush()
         else:
+            room.take(part.nbytes)
             file.write(part.tobytes())
     except OSError as err:
-        raise _no_room(err, name) from None
+        raise _no_room(err, room.name) from None
 
 
 def _no_room(err: OSError, name: str) -> InputError:
@@ -103,12 +129,18 @@ class _Read:
     """What ``read`` gathers, block by block."""
 
     def __init__(self, name: str, timed: bool, warm: bool) -> None:
-        self.values, self.rows = _Column(name, np.float64, 3), _Column(name, np.int64)
-        self.clock: _Column[np.float64] | None = _Column(name, np.float64) if timed else None
-        self.temps: _Column[np.float64] | None = _Column(name, np.float64) if warm else None
+        room = _Room(name)
+        self.values, self.rows = _Column(room, np.float64, 3), _Column(room, np.int64)
+        self.clock: _Column[np.float64] | None = _Column(room, np.float64) if timed else None
+        self.temps: _Column[np.float64] | None = _Column(room, np.float64) if warm else None
         self.summary = Summary()
         self.temp_sum = 0.0
         self.seen = 0  # data rows read, kept or not
+
+    def close(self) -> None:
+        for c in self.columns():
+            if c.file is not None:
+                c.file.close()
 
     def columns(self) -> list[_Column[np.float64] | _Column[np.int64]]:
         return [c for c in (self.values, self.rows, self.clock, self.temps) if c is not None]
@@ -160,13 +192,17 @@ def read(path: str, spec: ReadSpec | None = None) -> Samples:
     with open_capture(path, spec) as cap:
         lay = cap.layout
         got = _Read(lay.name, lay.time is not None, lay.temperature is not None)
-        for first_row, cols in cap.batches(only_sensor=True):
-            values, empty = cap.sensor_values(cols, first_row)
-            bad = ~np.isfinite(values) & ~empty[:, None]
-            if bad.any():  # nan/inf would poison the pose mean (apply passes them through)
-                i, j = (int(k[0]) for k in np.nonzero(bad))
-                raise cap._locate(first_row + i, j, f"not a finite number: {quoted(cols[j][i].as_py())}")
-            got.add(cap, cols, values, ~empty)
+        try:
+            for first_row, cols in cap.batches(only_sensor=True):
+                values, empty = cap.sensor_values(cols, first_row)
+                bad = ~np.isfinite(values) & ~empty[:, None]
+                if bad.any():  # nan/inf would poison the pose mean (apply passes them through)
+                    i, j = (int(k[0]) for k in np.nonzero(bad))
+                    raise cap._locate(first_row + i, j, f"not a finite number: {quoted(cols[j][i].as_py())}")
+                got.add(cap, cols, values, ~empty)
+        except BaseException:
+            got.close()  # the files of what was kept: an error (or ^C) ends the read
+            raise
         if got.values.count == 0:
             raise InputError(
                 "no rows with sensor values", file=lay.name, hint=f"columns read: {', '.join(lay.sensor_names)}"

@@ -24,7 +24,15 @@ from tumblecal_cli.core import segment as seg_core
 from tumblecal_cli.core.segment import Block, Segmentation
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import capture, compressed, fitplots, logread, readings, sources
-from tumblecal_cli.io.outputs import WRITE_ERRORS, atomic_output, remove_stale, spreadsheet_safe, unsafe
+from tumblecal_cli.io.outputs import (
+    MAX_SPOOL,
+    WRITE_ERRORS,
+    atomic_output,
+    remove_stale,
+    spool_room,
+    spreadsheet_safe,
+    unsafe,
+)
 from tumblecal_cli.io.readings import Log, Samples, check_rate
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.io.sniff import HEAD_BYTES, sniff
@@ -415,11 +423,6 @@ def index_cells(rows: list[list[str]]) -> list[list[str]]:
     return [[spreadsheet_safe(c) for c in row] for row in rows]
 
 
-#: The most of a log from stdin or a pipe copied to $TMPDIR for a second read, unless --max-spool
-#: says otherwise; less when $TMPDIR has less room than that: its free space less a margin,
-#: SPOOL_MARGIN or a tenth of the free space, whichever is less (the disk is not filled up).
-MAX_SPOOL = 4 << 30
-SPOOL_MARGIN = 256 << 20
 #: A copy of a log read twice: ``tumblecal-PID-XXXXXXXX.csv`` in $TMPDIR.
 SPOOL = re.compile(r"tumblecal-(\d+)-[0-9a-f]{8}\.csv")
 
@@ -477,7 +480,7 @@ def _spool(source: IO[bytes], out: IO[bytes], log: str, spec: ReadSpec, limit: i
     if plain and sources.reader_for(out.name, lambda _: first[: sources.HEAD]) is None:  # read as CSV: checked as one
         sniff(name, first, at_eof=len(first) < HEAD_BYTES, no_header=spec.no_header, dialect=spec.dialect)
     folder = os.path.dirname(out.name)
-    bound = limit if limit is not None else _default_spool(folder)
+    bound = limit if limit is not None else spool_room(folder)
 
     def beyond() -> InputError:
         return _spool_error(name, folder, bound, given=limit is not None)
@@ -500,15 +503,6 @@ class _Bounded:
         if self.left < 0:
             raise self.error()
         return data
-
-
-def _default_spool(folder: str) -> int:
-    """MAX_SPOOL, or the room in ``folder`` less a margin when that is less."""
-    try:
-        free = shutil.disk_usage(folder).free
-    except OSError:
-        return MAX_SPOOL
-    return max(0, min(MAX_SPOOL, free - min(SPOOL_MARGIN, free // 10)))
 
 
 def _spool_error(name: str, folder: str, bound: int, *, given: bool) -> InputError:

@@ -39,7 +39,7 @@ class LogOptions:
     ``threshold``, ``min_duration``, ``trim``) or taken from a label column (``pose_column``,
     ``pose_map``); a gyroscope's known turns (``turns``, ``turn_angle``) or hand turns
     (``accel_cal``); the most of a log from stdin or a pipe kept for its second read
-    (``max_spool``, a size: bytes or ``"500M"``; None: ``logs.MAX_SPOOL`` or the room in $TMPDIR);
+    (``max_spool``, a size: bytes or ``"500M"``; None: ``outputs.MAX_SPOOL`` or the room in $TMPDIR);
     a magnetometer's alignment to an accelerometer calibration's axes (``align_to``,
     pipeline.alignment)."""
 
