@@ -1,0 +1,210 @@
+"""current: magnetometer logs with a motor-current column in, a calibration with a ``current``
+block out (docs/current.md).
+
+The steps: read the base calibration (``io.calfile``: a magnetometer's) and each log with its
+current column (``io.readings.read_log``, the column read as text and then as numbers here, so
+that a cell that is not one is named with its line), refuse a current that never changes or too
+few readings (exit 3), fit the offset per ampere (``core.current_fit.fit``: one slope, each log its
+own reading at 0 A), and add the block to the base calibration.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, TypedDict, Unpack
+
+import numpy as np
+
+from tumblecal_cli.core import current_fit as core
+from tumblecal_cli.core import model
+from tumblecal_cli.errors import CaptureRejected, InputError
+from tumblecal_cli.io import calfile, readings
+from tumblecal_cli.io.readspec import ReadSpec, column_list
+from tumblecal_cli.pipeline.options import keywords_known
+
+if TYPE_CHECKING:
+    from tumblecal_cli.core.current_fit import CurrentFit, IntArray
+    from tumblecal_cli.core.model import FloatArray
+    from tumblecal_cli.io.calfile import Calibration, Current
+    from tumblecal_cli.io.readings import Log
+
+#: Below this share of the field's variation explained, the fit is said to be doubtful.
+DOUBTFUL = 0.5
+
+
+@dataclass
+class LogRead:
+    """One log as read: its file, the log, and its current (A) per reading."""
+
+    file: str
+    log: Log
+    current: FloatArray
+
+
+@dataclass
+class CurrentResult:
+    """The outcome of :func:`current`: the calibration with its ``current`` block, the fit, the
+    logs read, and what a person should know (``notes``; ``warnings``, lines of their own)."""
+
+    calibration: Calibration
+    fit: CurrentFit
+    logs: list[LogRead]
+    warnings: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+
+class CurrentKeywords(TypedDict, total=False):
+    """current's options (docs/current.md): the command line's long options in snake case."""
+
+    current_column: str | None
+    columns: str | Sequence[str] | None
+    sensor: str | None
+    stream: str | None
+    allow_corrected: bool
+
+
+def current(
+    logs: Sequence[str | os.PathLike[str]],
+    cal: Calibration | str | os.PathLike[str],
+    **options: Unpack[CurrentKeywords],
+) -> CurrentResult:
+    """Fit a magnetometer's offset per ampere of motor current from logs with a current column,
+    as ``tumblecal current``. Input errors raise InputError (exit 2); a current that never changes
+    or too few readings raise CaptureRejected (exit 3)."""
+
+    keywords_known(options, CurrentKeywords, "current")
+    base = calfile.resolve(cal)
+    sensor, column = options.get("sensor"), options.get("current_column")
+    if base.sensor != "magnetometer" or sensor not in (None, "magnetometer"):
+        raise InputError(
+            f"current compensation is a magnetometer's, and this calibration is of a {base.sensor}"
+            + (f" (--sensor {sensor})" if sensor not in (None, base.sensor) else ""),
+            file=base.path,
+            hint="give the magnetometer's calibration with --cal",
+        )
+    if not column:
+        raise InputError("give the current column: --current-column NAME", hint="see 'tumblecal current --help'")
+    spec = ReadSpec(
+        sensor=base.sensor,
+        columns=column_list(options.get("columns")),
+        prefer=tuple(base.columns),
+        stream=options.get("stream"),
+        allow_corrected=options.get("allow_corrected", False),
+    )
+    paths = [os.fspath(p) for p in logs]
+    if not paths:
+        raise InputError("give the logs: one or more FILE", hint="see 'tumblecal current --help'")
+    read = [_read(p, spec, column) for p in paths]
+    values = np.concatenate([r.log.values for r in read])
+    amperes = np.concatenate([r.current for r in read])
+    group = np.concatenate([np.full(len(r.current), k, dtype=np.int64) for k, r in enumerate(read)])
+    _judge(read, amperes, group, column)
+    fitted = core.fit(values, amperes, group)
+    block = _block(fitted, column, read, base)
+    out = replace(base, current=block)
+    return CurrentResult(out, fitted, read, *_said(fitted, base))
+
+
+def _read(path: str, spec: ReadSpec, column: str) -> LogRead:
+    """A log and its current column as numbers: a cell that is not one names its line."""
+
+    try:
+        log = readings.read_log(path, spec, label_column=column, use_time=False)
+    except InputError as err:
+        if not err.message.startswith(f"column {column!r} not found"):
+            raise
+        raise InputError(
+            f"--current-column {err.message.removeprefix('column ')}",
+            file=err.file,
+            hint="name the column of the motor current in amperes (its header, or its 0-based index)",
+        ) from None
+    model.in_range(log.values, log.layout.name)
+    text = log.labels or []
+    amperes = np.empty(len(text))
+    for i, cell in enumerate(text):
+        try:
+            amperes[i] = float(cell)
+        except (TypeError, ValueError):
+            amperes[i] = np.nan
+        if not np.isfinite(amperes[i]):
+            raise InputError(
+                f"current is not a finite number: {str(cell).strip()!r}",
+                file=log.layout.name,
+                line=log.layout.data_line + int(log.rows[i]),
+                column=column,
+                hint="every row with magnetometer readings needs its current in amperes",
+            )
+    return LogRead(log.layout.name, log, amperes)
+
+
+def _judge(read: list[LogRead], amperes: FloatArray, group: IntArray, column: str) -> None:
+    """Exit 3 for a current that cannot carry a fit: too few readings, or one that never changes."""
+
+    if len(amperes) < core.MIN_SAMPLES + len(read):
+        raise CaptureRejected(
+            f"{len(amperes)} readings: a fit of the offset per ampere needs at least {core.MIN_SAMPLES + len(read)}",
+            file=read[0].file,
+            code="current.short",
+            hint="log the magnetometer longer while the motors run up",
+        )
+    if core.spread(amperes, group) == 0:
+        value = f" at {amperes[0]:g} A" if float(amperes.min()) == float(amperes.max()) else ""
+        raise CaptureRejected(
+            f"the current column {column!r} never changes{value} within a log: "
+            "nothing to fit an offset per ampere against",
+            file=read[0].file,
+            code="current.constant",
+            hint="log the vehicle still while the motors run from idle to full throttle",
+        )
+
+
+def _block(fitted: CurrentFit, column: str, read: list[LogRead], base: Calibration) -> Current:
+
+    corrected = base.matrix @ fitted.per_amp
+    extra: dict[str, object] = {
+        "uncertainty": {"per_amp": [float(v) for v in fitted.per_amp_se]},
+        "per_amp_corrected": [float(v) for v in corrected],
+        "explained": [float(v) for v in fitted.explained],
+        "explained_total": fitted.explained_total,
+        "residual_rms": [float(v) for v in fitted.residual_rms],
+        "logs": [
+            {
+                "file": r.file,
+                "sha256": r.log.sha256,
+                "samples": len(r.current),
+                "current": [float(r.current.min()), float(r.current.max())],
+                "at_zero": [float(v) for v in fitted.at_zero[k]],
+            }
+            for k, r in enumerate(read)
+        ],
+    }
+    return calfile.Current(column, fitted.per_amp, fitted.span, extra)
+
+
+def interference(cal: Calibration) -> float | None:
+    """The field's change at the largest current fitted, as a share of ``reference`` (ArduPilot's
+    compassmot reports the same, as a percentage); None without a block or a reference."""
+
+    block = cal.current
+    if block is None or not cal.reference:
+        return None
+    largest = max(abs(block.range[0]), abs(block.range[1]))
+    return float(np.linalg.norm(cal.matrix @ block.per_amp)) * largest / cal.reference
+
+
+def _said(fitted: CurrentFit, base: Calibration) -> tuple[list[str], list[str]]:
+    warnings, notes = [], []
+    if fitted.explained_total < DOUBTFUL:
+        warnings.append(
+            f"warning: the current explains only {fitted.explained_total:.0%} of the field's variation: "
+            "did the vehicle move or turn while the current changed? (hold it still, in one attitude)"
+        )
+    low, high = fitted.span
+    if low > 0.25 * high:
+        notes.append(
+            f"the current ran from {low:.3g} to {high:.3g} A: a log that starts at idle (near 0 A) pins the "
+            "reading at 0 A down best"
+        )
+    return warnings, notes
