@@ -17,6 +17,7 @@ from tumblecal_cli.core import current_fit
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import calfile
 
+DATA = Path(__file__).resolve().parent / "data" / "ardupilot"
 #: A compass's truth, in gauss: its offset, its correction M (not symmetric: a small rotation
 #: that ArduPilot's and PX4's symmetric matrices drop), the offset per ampere, the noise.
 OFFSET = np.array([0.12, -0.05, 0.21])
@@ -81,6 +82,50 @@ def test_truth_is_recovered_within_its_stated_uncertainty() -> None:
         assert abs(z.mean()) < 0.1
         assert 0.9 < z.std() < 1.1
         assert np.mean(np.abs(z) > 3) < 0.01
+
+
+@pytest.mark.slow
+def test_noise_that_follows_itself_widens_the_uncertainty_to_match() -> None:
+    """AR(1) noise (r = 0.8, a swaying vehicle): the 1-sigma, widened by sqrt((1 + r) / (1 - r)),
+    still covers the errors (z within ±3); unwidened it would be 3 times too small."""
+    rng = np.random.default_rng(5)
+    z, r, n = [], [], 600
+    for _ in range(300):
+        current = np.r_[np.linspace(0, 40, n // 2), np.linspace(40, 0, n // 2)]
+        noise, step = np.zeros((n, 3)), rng.normal(0, SIGMA, (n, 3))
+        for i in range(1, n):
+            noise[i] = 0.8 * noise[i - 1] + step[i]
+        fit = current_fit.fit(OFFSET + np.outer(current, PER_AMP) + noise, current)
+        z.append((fit.per_amp - PER_AMP) / fit.per_amp_se)
+        r.append(fit.autocorrelation)
+    assert np.mean(r) == pytest.approx(0.8, abs=0.03)
+    scores = np.array(z).ravel()
+    assert abs(scores.mean()) < 0.15
+    assert 0.85 < scores.std() < 1.2
+    assert np.mean(np.abs(scores) > 3) < 0.01
+
+
+def test_a_real_flight_log_is_fitted_and_warned_of(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """spark404's ArduCopter log (MAG and CURR, 51 s in flight, tests/data/ardupilot): the vehicle
+    sways and turns, so the current explains little of the field, and the slope is not known
+    better than its (widened) uncertainty says: docs/current.md shows this run."""
+    code, _, err = run(
+        capsys,
+        "current",
+        DATA / "spark404_mag_curr.csv",
+        "--cal",
+        DATA / "spark404_mag_as_logged.json",
+        "--current-column",
+        "Curr",
+        "-o",
+        tmp_path / "c.json",
+    )
+    assert code == 0, err
+    block = json.loads((tmp_path / "c.json").read_text())["current"]
+    np.testing.assert_allclose(block["per_amp"], [2.439, -0.899, 0.489], atol=1e-3)
+    np.testing.assert_allclose(block["uncertainty"]["per_amp"], [4.3, 0.84, 0.59], rtol=0.02)
+    assert block["explained_total"] == pytest.approx(0.064, abs=1e-3)
+    assert "warning: the current explains only 6% of the field's variation" in err
 
 
 def test_explained_share_is_the_current_s_over_the_noise() -> None:

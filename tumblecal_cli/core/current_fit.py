@@ -5,7 +5,11 @@ current drawn: ``raw(t) = b0 + k I(t) + noise`` per axis, b0 the reading at 0 A 
 the Earth's field in that attitude), k (3,) raw units per ampere. ``fit`` estimates k and b0 by
 least squares, with 1-sigma uncertainties from the residuals (the textbook straight line:
 se(k) = s / sqrt(Sxx), se(b0) = s sqrt(1/n + mean(I)^2 / Sxx), s^2 = RSS / (n - 2), Sxx the sum
-of squares of the current about its mean), and the share of the field's variation the current
+of squares of the current about its mean; residuals that follow one another (a vehicle that
+sways, a field that wanders) carry less information than as many independent ones, so each axis's
+1-sigma is widened by sqrt((1 + r) / (1 - r)), r the lag-1 autocorrelation of its residuals
+within each log, floored at 0: the effective number of readings of an AR(1) series,
+n (1 - r) / (1 + r)), and the share of the field's variation the current
 explains (R^2 = 1 - RSS / TSS).
 
 ``correct`` is what apply does with it: ``corrected = M (raw - offset - k I)`` (README
@@ -34,7 +38,8 @@ class CurrentFit:
     ``per_amp_se``; ``at_zero`` (g, 3) each log's reading at 0 A with ``at_zero_se``;
     ``explained`` (3,) the share of each axis's variation (about each log's mean) the current
     explains and ``explained_total`` that of the field's (all axes); ``residual_rms`` (3,) raw
-    units; ``samples``; ``span`` the lowest and highest current (A)."""
+    units; ``autocorrelation`` (3,) r of each axis's residuals (the 1-sigma widened for it);
+    ``samples``; ``span`` the lowest and highest current (A)."""
 
     per_amp: FloatArray
     per_amp_se: FloatArray
@@ -43,6 +48,7 @@ class CurrentFit:
     explained: FloatArray
     explained_total: float
     residual_rms: FloatArray
+    autocorrelation: FloatArray
     samples: int
     span: tuple[float, float]
 
@@ -66,7 +72,10 @@ def fit(values: FloatArray, current: FloatArray, group: IntArray | None = None) 
     resid = dy - np.outer(dx, k)
     rss, tss = (resid**2).sum(axis=0), (dy**2).sum(axis=0)
     n = len(x)
-    s2 = rss / (n - count - 1)
+    same_log = g[1:] == g[:-1]  # neighbours in one log
+    lagged = (resid[1:] * resid[:-1])[same_log].sum(axis=0)
+    r = np.clip(np.where(rss > 0, lagged / np.where(rss > 0, rss, 1), 0.0), 0.0, 0.99)
+    s2 = rss / (n - count - 1) * (1 + r) / (1 - r)
     explained = np.where(tss > 0, 1 - rss / np.where(tss > 0, tss, 1), 0.0)
     return CurrentFit(
         per_amp=k,
@@ -76,6 +85,7 @@ def fit(values: FloatArray, current: FloatArray, group: IntArray | None = None) 
         explained=explained,
         explained_total=float(1 - rss.sum() / tss.sum()) if tss.sum() > 0 else 0.0,
         residual_rms=np.sqrt(rss / n),
+        autocorrelation=r,
         samples=n,
         span=(float(x.min()), float(x.max())),
     )

@@ -169,6 +169,7 @@ def _block(fitted: CurrentFit, column: str, read: list[LogRead], base: Calibrati
         "explained": [float(v) for v in fitted.explained],
         "explained_total": fitted.explained_total,
         "residual_rms": [float(v) for v in fitted.residual_rms],
+        "autocorrelation": [float(v) for v in fitted.autocorrelation],
         "logs": [
             {
                 "file": r.file,
