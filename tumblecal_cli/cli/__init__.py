@@ -22,6 +22,7 @@ COMMANDS = (
     "segment",
     "noise",
     "streams",
+    "aligning",
     "batch",
 )
 for _name in COMMANDS:

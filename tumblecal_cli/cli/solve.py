@@ -15,6 +15,7 @@ from tumblecal_cli.cli.flags import (
     EXIT_CODES,
     UNIT_PANEL,
     AccelCal,
+    AlignTo,
     AllowCorrected,
     CheckName,
     Columns,
@@ -96,6 +97,7 @@ def solve(
     turn_angle: TurnAngle = None,
     accel_cal: AccelCal = None,
     max_spool: MaxSpool = None,
+    align_to: AlignTo = None,
     output: Annotated[
         str,
         typer.Option(
@@ -129,7 +131,7 @@ def solve(
         typer.Option(
             "--method",
             "-m",
-            help="The solver (README: Choosing a solver). auto: one-pose for 1 file, three-pose for one face per "
+            help="The solver (docs/commands/solve.md). auto: one-pose for 1 file, three-pose for one face per "
             "axis (+x +y +z, or -z -x +y ...); for the six faces six-pose when opposite faces agree on their axis "
             "within 1.5° (a fixture), else six-pose-magnitude (placed by hand); least-squares for 4+ labelled, "
             "sphere for 12+ unlabelled; "
@@ -332,6 +334,7 @@ def solve(
     inputs = [*(poses or []), *(p.partition("=")[2] for p in poses or [] if "=" in p), *([log] if log else [])]
     inputs += [limits] if limits else []
     inputs += [accel_cal] if accel_cal else []
+    inputs += [align_to] if align_to else []
     if json_summary and output == "-" and (poses or log):
         raise InputError("--json prints the summary on stdout, so the calibration needs -o FILE")
     check_not_input(output, inputs)
@@ -394,6 +397,7 @@ def solve_options(
     start: str | None = None,
     end: str | None = None,
     no_trim: bool = False,
+    align_to: str | None = None,
 ) -> SolveOptions:
     """solve's options as the command line parsed them (batch's for every unit), grouped as the
     pipeline takes them; a choice is its text (a StrEnum's value)."""
@@ -424,7 +428,17 @@ def solve_options(
             end=end,
         ),
         log=opts.LogOptions(
-            window, threshold, min_duration, trim, pose_column, pose_map, turns, turn_angle, accel_cal, max_spool
+            window,
+            threshold,
+            min_duration,
+            trim,
+            pose_column,
+            pose_map,
+            turns,
+            turn_angle,
+            accel_cal,
+            max_spool,
+            align_to,
         ),
         checks=opts.CheckOptions(
             max_noise,

@@ -5,7 +5,7 @@ Figures are drawn on a bare ``matplotlib.figure.Figure`` (no pyplot, no global b
 rendered to memory, and only then written with :func:`tumblecal_cli.io.outputs.atomic_output`: bad
 input raises :class:`InputError` before any file is touched. The same call gives the same bytes.
 
-Model (README "Calibration file"): ``corrected = M·(raw − offset)``, ``A = M⁻¹``.
+Model (docs/reference/calibration-file.md): ``corrected = M·(raw − offset)``, ``A = M⁻¹``.
 """
 
 from __future__ import annotations
