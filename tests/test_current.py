@@ -5,6 +5,7 @@ firmware's correction, written out here as its source has it)."""
 
 from __future__ import annotations
 
+import gzip
 import json
 from pathlib import Path
 
@@ -293,6 +294,18 @@ def test_a_nan_current_is_exit_2_naming_its_line(tmp_path: Path, capsys: pytest.
     log.write_text("\n".join(lines) + "\n")
     result = _bad(tmp_path, capsys, log, "--current-column", "curr_a")
     assert_one_error(result, f"{log}: current is not a finite number: 'nan' (line 11, column curr_a)", hint="amperes")
+
+
+def test_a_dataflash_log_is_exit_2_saying_to_write_a_csv(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = tmp_path / "copter.bin"
+    log.write_bytes(gzip.decompress((DATA / "spark404_copter.bin.gz").read_bytes()))
+    result = _bad(tmp_path, capsys, log, "--current-column", "Curr")
+    assert_one_error(
+        result,
+        f"{log}: an ArduPilot DataFlash log's current is in a message of its own, on its own clock: "
+        "current reads CSV logs",
+        hint="to a CSV",
+    )
 
 
 def test_an_accelerometer_calibration_is_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -113,6 +113,13 @@ def _read(path: str, spec: ReadSpec, column: str) -> LogRead:
     try:
         log = readings.read_log(path, spec, label_column=column, use_time=False)
     except InputError as err:
+        if "has no label column" in err.message:  # a log of a flight controller: its current is another message's
+            kind = err.message.split(" has no label column")[0]
+            raise InputError(
+                f"{kind}'s current is in a message of its own, on its own clock: current reads CSV logs",
+                file=err.file,
+                hint="write the magnetometer's readings with the current beside each row to a CSV (docs/current.md)",
+            ) from None
         if not err.message.startswith(f"column {column!r} not found"):
             raise
         raise InputError(
