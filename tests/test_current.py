@@ -129,6 +129,23 @@ def test_a_real_flight_log_is_fitted_and_warned_of(tmp_path: Path, capsys: pytes
     assert "warning: the current explains only 6% of the field's variation" in err
 
 
+@pytest.mark.slow
+def test_interference_is_within_its_stated_uncertainty() -> None:
+    """Monte Carlo: the field's change at the largest current over the reference, and its
+    1-sigma (first order through |M k|), z within ±3."""
+    z = []
+    for seed in range(400):
+        raw, current = _runup(20_000 + seed, 300)
+        fit = current_fit.fit(raw, current)
+        value, sigma = current_fit.interference(fit, M, 0.5)
+        truth = np.linalg.norm(M @ PER_AMP) * max(abs(fit.span[0]), abs(fit.span[1])) / 0.5
+        z.append((value - truth) / sigma)
+    scores = np.array(z)
+    assert abs(scores.mean()) < 0.15
+    assert 0.85 < scores.std() < 1.15
+    assert np.mean(np.abs(scores) > 3) < 0.01
+
+
 def test_explained_share_is_the_current_s_over_the_noise() -> None:
     """R² per axis is k² var(I) / (k² var(I) + σ²), to the scatter of one run."""
     raw, current = _runup(7, 4000)
@@ -251,6 +268,42 @@ def test_a_vehicle_that_turned_is_warned_of(tmp_path: Path) -> None:
         [_write(tmp_path / "a.csv", raw, current)], _base(tmp_path / "mag.json"), current_column="curr_a"
     )
     assert any("did the vehicle move" in w for w in done.warnings)
+
+
+@pytest.mark.parametrize(("bound", "code"), [(0.9, 0), (0.3, 1)])
+def test_the_limits_file_judges_the_interference(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], bound: float, code: int
+) -> None:
+    """current_interference (a share of the reference): above it exit 1, the calibration written."""
+    raw, current = _runup(14)
+    log = _write(tmp_path / "runup.csv", raw, current)
+    limits = tmp_path / "limits.yaml"
+    limits.write_text(f"current_interference: {bound}\n")
+    out = tmp_path / "c.json"
+    args: list[str | Path] = ["current", log, "--cal", _base(tmp_path / "mag.json"), "--current-column", "curr_a"]
+    result = run(capsys, *args, "--limits", limits, "-o", out, "--json", "-q")
+    assert result.code == code, result.err
+    assert out.exists()
+    doc = json.loads(result.out)
+    assert (doc["status"], doc["exit_status"]) == (("pass", 0) if code == 0 else ("fail", 1))
+    assert doc["verdict"]["pass"] is (code == 0)
+    truth = np.linalg.norm(M @ PER_AMP) * current.max() / 0.5  # |M k| I_max / reference
+    assert doc["interference"] == pytest.approx(truth, abs=3 * doc["interference_sigma"])
+    assert 0 < doc["interference_sigma"] < 0.01
+    if code:
+        assert doc["verdict"]["failures"][0]["code"] == "limit.current_interference"
+    result = run(capsys, "current", *args[1:], "--limits", limits, "-o", out)
+    assert f"verdict: {'PASS' if code == 0 else 'FAIL'} (limit: current_interference {bound:g})" in result.err
+
+
+def test_solve_takes_a_limits_file_with_current_interference(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    limits = tmp_path / "limits.yaml"
+    limits.write_text("offset: 0.2\ncurrent_interference: 0.3\n")
+    poses = [str(Path(__file__).resolve().parent.parent / "sample_data" / f"{a}.csv") for a in "xyz"]
+    code, _, err = run(capsys, "solve", "--poses", *poses, "--limits", limits, "-o", tmp_path / "cal.json", "-q")
+    assert code == 0, err
 
 
 # -- bad input: one line, exit 2 or 3, nothing written ------------------------------------------

@@ -9,7 +9,7 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import app
-from tumblecal_cli.cli.flags import AllowCorrected, Columns, JsonSummary, Quiet, StreamOption, source
+from tumblecal_cli.cli.flags import AllowCorrected, Columns, JsonSummary, LimitsFile, Quiet, StreamOption, source
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -18,7 +18,8 @@ if TYPE_CHECKING:
 
 
 @app.command(
-    epilog="Exit status: 0 written; 2 usage or input error (not a magnetometer's calibration, no such current "
+    epilog="Exit status: 0 written; 1 written, but the field's change at the largest current is above the limits "
+    "file's current_interference; 2 usage or input error (not a magnetometer's calibration, no such current "
     "column, a current cell that is not a number); 3 a current that never changes within a log, or too few "
     "readings. Nothing is written on 2 or 3.",
 )
@@ -41,6 +42,7 @@ def current(
     output: Annotated[
         str, typer.Option("--output", "-o", metavar="FILE", help="The calibration with its current block; '-' stdout.")
     ] = "-",
+    limits: LimitsFile = None,
     columns: Columns = None,
     stream: StreamOption = None,
     allow_corrected: AllowCorrected = False,
@@ -67,25 +69,36 @@ def current(
         cal,
         current_column=current_column,
         columns=columns.split(",") if columns else None,
+        limits=limits,
         **source(stream, allow_corrected),
     )
     done.calibration.save(output)
     if json_summary:
-        render.print_json({"status": "pass", "exit_status": 0, **current_doc(done)})
+        render.print_json(
+            {"status": "fail" if done.status else "pass", "exit_status": done.status, **current_doc(done)}
+        )
     if not quiet:
         print_current(done, render.make_console())
+    if done.status:
+        raise typer.Exit(done.status)
 
 
 def current_doc(done: CurrentResult) -> dict[str, object]:
     """The --json summary of ``tumblecal current``: the block, the field's change at the largest
     current as a share of the reference, warnings and notes."""
-    from tumblecal_cli.pipeline.current import interference
-
     block = done.calibration.current
     assert block is not None  # what current() made
     return {
         "current": block.as_dict(),
-        "interference": interference(done.calibration),
+        "interference": done.interference[0],
+        "interference_sigma": done.interference[1],
+        "verdict": None
+        if done.limit is None
+        else {
+            "pass": not done.failures,
+            "failures": [f.as_dict() for f in done.failures],
+            "limits": {"current_interference": done.limit},
+        },
         "warnings": done.warnings,
         "notes": done.notes,
     }
@@ -108,3 +121,7 @@ def print_current(done: CurrentResult, console: Console) -> None:
         console.print(line, style="yellow", soft_wrap=True)
     for note in done.notes:
         console.print(f"note: {note}", soft_wrap=True)
+    if done.limit is not None:
+        word = "FAIL" if done.failures else "PASS"
+        said = "".join(f": {f.message}" for f in done.failures)
+        console.print(f"verdict: {word} (limit: current_interference {done.limit:g}){said}", soft_wrap=True)

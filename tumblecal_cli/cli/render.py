@@ -571,7 +571,9 @@ def current_line(cal: Calibration) -> str:
     per_amp = float(np.linalg.norm(cal.matrix @ block.per_amp))
     largest = max(abs(block.range[0]), abs(block.range[1]))
     units = cal.units or "output units"
-    share = f", {per_amp * largest / cal.reference:.1%} of the reference" if cal.reference else ""
+    sigma = block.extra.get("interference_sigma")
+    plus = f" ± {sigma:.1%}" if isinstance(sigma, float) else ""
+    share = f", {per_amp * largest / cal.reference:.1%}{plus} of the reference" if cal.reference else ""
     explained = block.extra.get("explained_total")
     said = f"; the current explained {explained:.1%} of the field's variation" if isinstance(explained, float) else ""
     return (

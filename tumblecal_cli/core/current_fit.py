@@ -103,6 +103,19 @@ def spread(current: FloatArray, group: IntArray | None = None) -> float:
     return float(np.sqrt(np.mean((x - mean[g]) ** 2)))
 
 
+def interference(fit: CurrentFit, matrix: FloatArray, reference: float) -> tuple[float, float]:
+    """The corrected field's change at the largest current fitted over ``reference`` (ArduPilot's
+    compassmot reports it as a percentage), and its 1-sigma to first order: with v = M k and
+    g = M^T v / |v| the gradient of |v|, sigma = sqrt(sum_j (g_j se(k_j))^2) * I_max / reference."""
+
+    largest = max(abs(fit.span[0]), abs(fit.span[1]))
+    moved = np.asarray(matrix, dtype=np.float64) @ fit.per_amp
+    length = float(np.linalg.norm(moved))
+    gradient = np.asarray(matrix, dtype=np.float64).T @ moved / length if length > 0 else np.zeros(3)
+    sigma = float(np.sqrt(np.sum((gradient * fit.per_amp_se) ** 2)))
+    return length * largest / reference, sigma * largest / reference
+
+
 def correct(
     raw: FloatArray, current: FloatArray, offset: FloatArray, matrix: FloatArray, per_amp: FloatArray
 ) -> FloatArray:

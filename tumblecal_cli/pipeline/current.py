@@ -19,8 +19,9 @@ import numpy as np
 
 from tumblecal_cli.core import current_fit as core
 from tumblecal_cli.core import model
+from tumblecal_cli.core.gate import Finding
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import calfile, readings
+from tumblecal_cli.io import calfile, limitfile, readings
 from tumblecal_cli.io.readspec import ReadSpec, column_list
 from tumblecal_cli.pipeline.options import keywords_known
 
@@ -53,6 +54,16 @@ class CurrentResult:
     logs: list[LogRead]
     warnings: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    #: The corrected field's change at the largest current over the reference, and its 1-sigma.
+    interference: tuple[float, float] = (0.0, 0.0)
+    #: The limits file's ``current_interference`` (None: not judged), and what it failed.
+    limit: float | None = None
+    failures: list[Finding] = field(default_factory=list)
+
+    @property
+    def status(self) -> int:
+        """1 when the interference is above its limit, else 0 (the calibration is written either way)."""
+        return 1 if self.failures else 0
 
 
 class CurrentKeywords(TypedDict, total=False):
@@ -63,6 +74,7 @@ class CurrentKeywords(TypedDict, total=False):
     sensor: str | None
     stream: str | None
     allow_corrected: bool
+    limits: str | os.PathLike[str] | None
 
 
 def current(
@@ -72,7 +84,8 @@ def current(
 ) -> CurrentResult:
     """Fit a magnetometer's offset per ampere of motor current from logs with a current column,
     as ``tumblecal current``. Input errors raise InputError (exit 2); a current that never changes
-    or too few readings raise CaptureRejected (exit 3)."""
+    or too few readings raise CaptureRejected (exit 3). ``limits``: a limits file whose
+    ``current_interference`` judges the field's change at the largest current (``status`` 1)."""
 
     keywords_known(options, CurrentKeywords, "current")
     base = calfile.resolve(cal)
@@ -102,9 +115,29 @@ def current(
     group = np.concatenate([np.full(len(r.current), k, dtype=np.int64) for k, r in enumerate(read)])
     _judge(read, amperes, group, column)
     fitted = core.fit(values, amperes, group)
-    block = _block(fitted, column, read, base)
-    out = replace(base, current=block)
-    return CurrentResult(out, fitted, read, *_said(fitted, base))
+    share = core.interference(fitted, base.matrix, base.reference) if base.reference else (0.0, 0.0)
+    block = _block(fitted, column, read, base, share)
+    limit = _limit(options.get("limits"))
+    failures = []
+    if limit is not None and not share[0] <= limit:
+        failures.append(
+            Finding(
+                "limit.current_interference",
+                f"at {max(map(abs, fitted.span)):.3g} A the field moves {share[0]:.1%} of the reference, "
+                f"above {limit:.1%}",
+                share[0],
+                limit,
+            )
+        )
+    said = _said(fitted, base)
+    return CurrentResult(replace(base, current=block), fitted, read, *said, share, limit, failures)
+
+
+def _limit(path: str | os.PathLike[str] | None) -> float | None:
+    if path is None:
+        return None
+    value = limitfile.load_limits(os.fspath(path)).get("current_interference")
+    return None if value is None else float(np.asarray(value).ravel()[0])
 
 
 def _read(path: str, spec: ReadSpec, column: str) -> LogRead:
@@ -167,7 +200,9 @@ def _judge(read: list[LogRead], amperes: FloatArray, group: IntArray, column: st
         )
 
 
-def _block(fitted: CurrentFit, column: str, read: list[LogRead], base: Calibration) -> Current:
+def _block(
+    fitted: CurrentFit, column: str, read: list[LogRead], base: Calibration, share: tuple[float, float]
+) -> Current:
 
     corrected = base.matrix @ fitted.per_amp
     extra: dict[str, object] = {
@@ -177,6 +212,8 @@ def _block(fitted: CurrentFit, column: str, read: list[LogRead], base: Calibrati
         "explained_total": fitted.explained_total,
         "residual_rms": [float(v) for v in fitted.residual_rms],
         "autocorrelation": [float(v) for v in fitted.autocorrelation],
+        "interference": share[0],
+        "interference_sigma": share[1],
         "logs": [
             {
                 "file": r.file,
@@ -189,17 +226,6 @@ def _block(fitted: CurrentFit, column: str, read: list[LogRead], base: Calibrati
         ],
     }
     return calfile.Current(column, fitted.per_amp, fitted.span, extra)
-
-
-def interference(cal: Calibration) -> float | None:
-    """The field's change at the largest current fitted, as a share of ``reference`` (ArduPilot's
-    compassmot reports the same, as a percentage); None without a block or a reference."""
-
-    block = cal.current
-    if block is None or not cal.reference:
-        return None
-    largest = max(abs(block.range[0]), abs(block.range[1]))
-    return float(np.linalg.norm(cal.matrix @ block.per_amp)) * largest / cal.reference
 
 
 def _said(fitted: CurrentFit, base: Calibration) -> tuple[list[str], list[str]]:
