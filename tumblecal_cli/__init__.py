@@ -30,6 +30,7 @@ if TYPE_CHECKING:
     from tumblecal_cli.io.sources import streams
     from tumblecal_cli.pipeline.batch import run_batch
     from tumblecal_cli.pipeline.correct import correct
+    from tumblecal_cli.pipeline.current import CurrentResult, current
     from tumblecal_cli.pipeline.exchange import check, export, import_peer
     from tumblecal_cli.pipeline.frames import read_capture
     from tumblecal_cli.pipeline.logs import segment
@@ -63,11 +64,14 @@ _HOMES = {
     "run_batch": "tumblecal_cli.pipeline.batch",
     "thermal": "tumblecal_cli.pipeline.thermal",
     "ThermalResult": "tumblecal_cli.pipeline.thermal",
+    "current": "tumblecal_cli.pipeline.current",
+    "CurrentResult": "tumblecal_cli.pipeline.current",
 }
 
 __all__ = [
     "Calibration",
     "CaptureRejected",
+    "CurrentResult",
     "InputError",
     "Noise",
     "SolveOptions",
@@ -77,6 +81,7 @@ __all__ = [
     "__version__",
     "check",
     "correct",
+    "current",
     "export",
     "import_peer",
     "load",

@@ -15,6 +15,7 @@ COMMANDS = (
     "solve",
     "apply",
     "thermal",
+    "current",
     "calfiles",
     "report",
     "verify",

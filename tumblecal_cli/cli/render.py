@@ -174,6 +174,8 @@ def print_summary(cal: Calibration, console: Console, warned: list[Finding], not
         print_whole(console, _poses_table(cal))
     if cal.thermal is not None:
         print_drift(cal, console)
+    if cal.current is not None:
+        console.print(current_line(cal), soft_wrap=True)
     if any(cal.matrix[i][j] for i in range(3) for j in range(3) if i != j):
         import numpy as np
 
@@ -556,6 +558,28 @@ def print_unit(row: Row, out_dir: str, console: Console, *, quiet: bool) -> None
         head, messages = f"{head}: {messages[0]}", []
     for line in [head, *(f"  {m}" for m in messages if not row.file)]:
         console.print(one_line(line), soft_wrap=True, markup=False, highlight=False)
+
+
+def current_line(cal: Calibration) -> str:
+    """A current block for people (docs/current.md): the corrected field's change per ampere, at
+    the largest current fitted and as a share of the reference, and what share of the field's
+    variation the current explained."""
+    import numpy as np
+
+    block = cal.current
+    assert block is not None
+    per_amp = float(np.linalg.norm(cal.matrix @ block.per_amp))
+    largest = max(abs(block.range[0]), abs(block.range[1]))
+    units = cal.units or "output units"
+    sigma = block.extra.get("interference_sigma")
+    plus = f" ± {sigma:.1%}" if isinstance(sigma, float) else ""
+    share = f", {per_amp * largest / cal.reference:.1%}{plus} of the reference" if cal.reference else ""
+    explained = block.extra.get("explained_total")
+    said = f"; the current explained {explained:.1%} of the field's variation" if isinstance(explained, float) else ""
+    return (
+        f"current ({block.column!r}): the field moves {per_amp:.3g} {units}/A, "
+        f"{per_amp * largest:.3g} {units} at {largest:.3g} A{share}{said}"
+    )
 
 
 def thermal_doc(done: ThermalResult) -> dict[str, object]:

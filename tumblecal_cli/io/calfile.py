@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any, TypeAlias, TypeVar
 import numpy as np
 from numpy.typing import ArrayLike
 
+from tumblecal_cli.core.current_fit import correct as current_correct
 from tumblecal_cli.core.drift import correct as thermal_correct
 from tumblecal_cli.core.model import SENSORS, FloatArray, Solution, parse_label
 from tumblecal_cli.core.model import apply as apply_model
@@ -29,6 +30,7 @@ from tumblecal_cli.io.calparts import (
     THERMAL_KEYS,
     Accelerometer,
     Covariance,
+    Current,
     Doc,
     Gap,
     GSensitivity,
@@ -41,6 +43,7 @@ from tumblecal_cli.io.calparts import (
     Turn,
     Unit,
     Verdict,
+    current_from,
     floats,
     is_number,
     named,
@@ -74,6 +77,7 @@ __all__ = [  # the parts, for code that names them as calfile's
     "THERMAL_KEYS",
     "Accelerometer",
     "Covariance",
+    "Current",
     "GSensitivity",
     "Gap",
     "Pose",
@@ -112,6 +116,7 @@ ORDER = (
     "uncertainty",
     "tilt_sensitivity",
     "thermal",
+    "current",
     "poses",
     "unit",
     "verdict",
@@ -147,6 +152,7 @@ class Calibration:
     uncertainty: Mapping[str, FloatArray] = field(default_factory=dict)
     tilt_sensitivity: Tilt | None = None
     thermal: Thermal | None = None
+    current: Current | None = None  # a magnetometer's offset per ampere (docs/current.md)
     poses: tuple[Pose, ...] = ()
     unit: Unit | None = None
     verdict: Verdict | None = None
@@ -186,7 +192,9 @@ class Calibration:
         with the calibration's ``columns`` corrected (matched case-insensitively; other columns,
         the index and their dtypes untouched). With a ``thermal`` block each row is corrected at its
         own temperature: the DataFrame's ``thermal.column``, or ``temperature`` (n,) °C given with
-        an array (clamped to the calibrated range)."""
+        an array (clamped to the calibrated range). With a ``current`` block each row is corrected
+        at its own current the same way: the DataFrame's ``current.column``, or ``temperature``
+        given with an array holds the (n,) amperes."""
         if hasattr(data, "columns") and hasattr(data, "loc"):  # a DataFrame, without importing pandas
             where = _frame_columns(data, self.columns, self.path)
             out = data.copy()
@@ -194,12 +202,13 @@ class Calibration:
                 raw = np.asarray(data.iloc[:, where].to_numpy(dtype=np.float64, na_value=np.nan))
             except (TypeError, ValueError) as err:
                 raise InputError(f"the DataFrame's {', '.join(self.columns)} are not numbers ({err})") from None
-            if self.thermal is not None and temperature is None:
-                (at,) = _frame_columns(data, [self.thermal.column], self.path)
+            per_row = self.thermal or self.current
+            if per_row is not None and temperature is None:
+                (at,) = _frame_columns(data, [per_row.column], self.path)
                 try:
                     temperature = data.iloc[:, at].to_numpy(dtype=np.float64, na_value=np.nan)
                 except (TypeError, ValueError) as err:
-                    raise InputError(f"the DataFrame's {self.thermal.column} is not numbers ({err})") from None
+                    raise InputError(f"the DataFrame's {per_row.column} is not numbers ({err})") from None
             fixed = self._corrected(raw, temperature)
             for k, position in enumerate(where):
                 out.isetitem(position, fixed[:, k])
@@ -213,6 +222,8 @@ class Calibration:
         return self._corrected(values, temperature)
 
     def _corrected(self, raw: FloatArray, temperature: ArrayLike | None) -> FloatArray:
+        if self.current is not None:
+            return self._at_current(raw, temperature, self.current)
         if self.thermal is None:
             return apply_model(raw, self.offset, self.matrix)
         if temperature is None:
@@ -227,6 +238,18 @@ class Calibration:
 
         fixed, _ = thermal_correct(raw, temp, self.offset, self.matrix, self.thermal.drift())
         return fixed
+
+    def _at_current(self, raw: FloatArray, amperes: ArrayLike | None, block: Current) -> FloatArray:
+        if amperes is None:
+            raise InputError(
+                f"this calibration corrects each row at its motor current: give temperature= (n,) amperes "
+                f"(its column {block.column!r})",
+                file=self.path,
+            )
+        current = np.asarray(amperes, dtype=np.float64).reshape(-1)
+        if current.shape[0] != raw.shape[0]:
+            raise InputError(f"the current has {current.shape[0]} values for {raw.shape[0]} rows", file=self.path)
+        return current_correct(raw, current, self.offset, self.matrix, block.per_amp)
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write atomically: JSON, or YAML when ``path`` ends in .yaml/.yml; '-' is stdout."""
@@ -253,6 +276,7 @@ class Calibration:
             "uncertainty": {k: _nested(v) for k, v in self.uncertainty.items()} if self.uncertainty else None,
             "tilt_sensitivity": None if self.tilt_sensitivity is None else self.tilt_sensitivity.as_dict(),
             "thermal": None if self.thermal is None else self.thermal.as_dict(),
+            "current": None if self.current is None else self.current.as_dict(),
             "poses": each(self.poses),
             "unit": None if self.unit is None else self.unit.as_dict(),
             "verdict": None if self.verdict is None else self.verdict.as_dict(),
@@ -280,8 +304,9 @@ class Calibration:
         for key in ("unit", "verdict"):  # given since the file was read (a verdict judged afresh)
             if key not in doc and typed[key] is not None:
                 doc[key] = typed[key]
-        if "thermal" not in doc and self.thermal is not None:  # added to a file that had none: before poses
-            doc = _insert(doc, "poses", {"thermal": typed["thermal"]}, after=False)
+        for block in ("thermal", "current"):  # added to a file that had none: before poses
+            if block not in doc and typed[block] is not None:
+                doc = _insert(doc, "poses", {block: typed[block]}, after=False)
         added = {k: typed[k] for k in PARTS if k not in doc and typed[k] is not None}
         return _insert(doc, "poses", added, after=True) if added else doc
 
@@ -368,6 +393,7 @@ def from_dict(doc: Doc, path: str | None = None) -> Calibration:
         uncertainty={str(k): np.array(v, dtype=np.float64) for k, v in uncertainty.items() if v is not None},
         tilt_sensitivity=part("tilt_sensitivity", _object(read_tilt)),
         thermal=None if doc.get("thermal") is None else thermal_from(doc["thermal"], path),
+        current=_current(doc, path),
         poses=tuple(read_pose(p) for p in poses),
         unit=_unit(doc.get("unit"), kept),
         verdict=part("verdict", _object(read_verdict)),
@@ -385,6 +411,15 @@ def from_dict(doc: Doc, path: str | None = None) -> Calibration:
         order=tuple(doc),
         path=path,
     )
+
+
+def _current(doc: Doc, path: str | None) -> Current | None:
+    """The ``current`` block, of a magnetometer without a ``thermal`` block (apply reads one per-row column)."""
+    if doc.get("current") is None:
+        return None
+    if doc["sensor"] != "magnetometer" or doc.get("thermal") is not None:
+        raise InputError("field 'current' belongs to a magnetometer's calibration without a 'thermal' block", file=path)
+    return current_from(doc["current"], path)
 
 
 def _object(reader: Callable[[Doc], Part | None]) -> Callable[[object], Part | None]:

@@ -737,3 +737,54 @@ def checked_number(value: object, name: str, path: str | None) -> float:
     if not is_number(value):
         raise InputError(f"field {name!r} must be a finite number", file=path)
     return float(value)
+
+
+# -- the current block ------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class Current:
+    """Current compensation (docs/current.md): ``per_amp`` (3,) the offset's change per ampere,
+    raw units per A, of the current read from the capture's ``column``; apply corrects
+    ``M (raw - offset - per_amp I)``. ``range`` the lowest and highest current fitted (A);
+    ``extra`` keeps the block's other fields (uncertainty, explained share, logs) as written."""
+
+    column: str
+    per_amp: FloatArray
+    range: tuple[float, float]
+    extra: Mapping[str, object] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, object]:
+        doc: dict[str, object] = {
+            "column": self.column,
+            "per_amp": floats(self.per_amp),
+            "range": [float(self.range[0]), float(self.range[1])],
+        }
+        doc.update(self.extra)
+        return doc
+
+
+CURRENT_KEYS = ("column", "per_amp", "range")
+
+
+def current_from(value: object, path: str | None) -> Current:
+    """The ``current`` block of a file, validated (every problem names the field)."""
+    if not isinstance(value, dict):
+        raise InputError("field 'current' must be an object (column, per_amp, range, ...)", file=path)
+    for key in CURRENT_KEYS:
+        if key not in value:
+            raise InputError(f"field 'current' has no {key!r}", file=path)
+    column = value["column"]
+    if not isinstance(column, str) or not column:
+        raise InputError("field 'current.column' must be a column name", file=path)
+    per_amp = value["per_amp"]
+    if not (isinstance(per_amp, list) and len(per_amp) == 3):
+        raise InputError("field 'current.per_amp' must be a list of 3 numbers (raw units per ampere)", file=path)
+    span = value["range"]
+    if not (isinstance(span, list) and len(span) == 2):
+        raise InputError("field 'current.range' must be [lowest, highest] amperes", file=path)
+    low, high = (checked_number(v, "current.range", path) for v in span)
+    if low >= high:
+        raise InputError(f"field 'current.range' [{low:g}, {high:g}] must be [lowest, highest] amperes", file=path)
+    extra = {k: v for k, v in value.items() if k not in CURRENT_KEYS}
+    return Current(column, np.array([checked_number(v, "current.per_amp", path) for v in per_amp]), (low, high), extra)

@@ -255,7 +255,7 @@ class Capture:
             i = int(np.argmax(odd))
             where = (self.layout.temperature or 0,) * 3
             cell = quoted(str(text[i].as_py()))
-            raise self._locate(first_row + i, 0, f"temperature is not a finite number: {cell}", where)
+            raise self._locate(first_row + i, 0, f"{self.layout.per_row} is not a finite number: {cell}", where)
         return values
 
     def _temperatures(self, text: pa.Array, first_row: int, empty: BoolArray) -> FloatArray:
@@ -269,7 +269,7 @@ class Capture:
         missing = blank & ~empty
         if missing.any():
             i = int(np.argmax(missing))
-            raise self._locate(first_row + i, 0, "empty temperature cell in a row with sensor values", where)
+            raise self._locate(first_row + i, 0, f"empty {lay.per_row} cell in a row with sensor values", where)
         try:
             return to_floats(pc.cast(pc.replace_substring_regex(trimmed, "^$", "nan"), pa.float64()))
         except pa.ArrowInvalid:
@@ -278,7 +278,7 @@ class Capture:
             )
             i = int(pc.index(bad, True).as_py()) if pc.any(bad).as_py() else 0
             cell = str(text[i].as_py())
-            raise self._locate(first_row + i, 0, f"temperature is not a number: {quoted(cell)}", where) from None
+            raise self._locate(first_row + i, 0, f"{lay.per_row} is not a number: {quoted(cell)}", where) from None
 
     def pointed(self, text: pa.Array) -> pa.Array:
         """Number cells with a decimal point (a decimal comma file's cells with it replaced)."""

@@ -27,6 +27,8 @@ LIMIT_KEYS = {
     "offset_drift_per_degc": "per axis",  # ... and per °C
     # `tumblecal align`'s: the RMS difference of two IMUs' corrected readings, their units
     "imu_consistency": "one",
+    # `tumblecal current`'s: the field's change at the largest current, a share of the reference
+    "current_interference": "one",
 }
 
 
@@ -34,6 +36,8 @@ LIMIT_KEYS = {
 NOISE_LIMITS = ("noise_density", "bias_instability", "random_walk")
 #: The limits only `tumblecal align` judges.
 ALIGN_LIMITS = ("imu_consistency",)
+#: The limits only `tumblecal current` judges.
+CURRENT_LIMITS = ("current_interference",)
 
 
 def load_limits(path: str) -> dict[str, float | FloatArray]:

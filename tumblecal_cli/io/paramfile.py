@@ -306,6 +306,7 @@ def _ardupilot(cal: Calibration, n: int) -> ParamFile:
             *_axes(f"COMPASS_DIA{s}_", np.diag(held)),
             *_axes(f"COMPASS_ODI{s}_", np.array([held[0, 1], held[0, 2], held[1, 2]])),
             (f"COMPASS_SCALE{s}", 1.0),
+            *_motor(cal, m, f"COMPASS_MOT{s}_"),
         ]
         length = float(np.linalg.norm(m.offset))
         if length > COMPASS_OFFS_MAX:
@@ -317,6 +318,12 @@ def _ardupilot(cal: Calibration, n: int) -> ParamFile:
             f"ArduPilot uses them for the compass whose id is COMPASS_DEV_ID{s}; COMPASS_SCALE{s} is 1, "
             "DIA/ODI hold the scales (older firmware has no COMPASS_SCALE: a loader may call it unknown)"
         ]
+        if cal.current is not None:
+            formula += f", plus COMPASS_MOT{s} * current (A) after DIA/ODI"
+            usage.append(
+                f"COMPASS_MOTCT 2: the motor offset COMPASS_MOT{s} (mGauss/A) times the battery monitor's current "
+                "(AP_Compass_Backend::correct_field); COMPASS_MOTCT applies to every compass"
+            )
     head = [
         f"ArduPilot {cal.sensor} calibration of {'compass' if cal.sensor == 'magnetometer' else 'IMU'} {n}, "
         f"written by tumblecal {__version__}{_source(cal)}",
@@ -352,6 +359,16 @@ def _px4(cal: Calibration, n: int) -> ParamFile:
         params += [
             (f"{head}{a}ODIAG", float(v)) for a, v in zip("XYZ", (held[0, 1], held[0, 2], held[1, 2]), strict=True)
         ]
+        if cal.current is not None:
+            formula = (
+                f"corrected = S (raw + {head}xCOMP * current (kA) - {head}xOFF), S symmetric: xSCALE diagonal, "
+                "XODIAG S01, YODIAG S02, ZODIAG S12"
+            )
+            params += [(f"{head}{a}COMP", v) for a, v in _motor(cal, m, "")]
+            notes.append(
+                "CAL_MAG_COMP_TYP 2: power compensation by battery_status instance 0's current_a / 1000 (kA) "
+                "(VehicleMagnetometer.cpp); it applies to every magnetometer slot"
+            )
     else:
         formula = f"corrected = raw - {head}xOFF"
         notes.append(
@@ -375,7 +392,28 @@ def _px4(cal: Calibration, n: int) -> ParamFile:
     lines = comments(text + [x.removeprefix("warning: ") for x in notes if x not in m.notes])
     lines.append("# Vehicle-Id\tComponent-Id\tName\tValue\tType")
     lines += [f"1\t1\t{name}\t{_value(value, name, cal.path)}\t9" for name, value in params]
+    if cal.current is not None:  # int32 (type 6): 2, the current of battery instance 0
+        lines.append("1\t1\tCAL_MAG_COMP_TYP\t2\t6")
     return ParamFile("\n".join(lines) + "\n", _with_loss(m, notes))
+
+
+# -- current compensation (docs/current.md) ---------------------------------------------------
+
+
+def _motor(cal: Calibration, m: Mapped, prefix: str) -> list[tuple[str, float]]:
+    """A current block's parameters: ArduPilot's ``COMPASS_MOT`` (``prefix`` COMPASS_MOT<n>_,
+    mGauss/A), added to the corrected field (``mag = DIA/ODI (raw + OFS); mag += MOT * current``,
+    AP_Compass_Backend::correct_field), so ``-P k`` with P the matrix it holds; PX4's
+    ``CAL_MAG<n>_xCOMP`` (``prefix`` ""; gauss/kA) added to the raw reading before its offset
+    (``Correct``: ``S ((raw + power * COMP) - OFF)``, power = current_a * 0.001), so ``-1000 k``.
+    ArduPilot's ``COMPASS_MOTCT`` 2 (current) is one line of its own. Nothing without a block."""
+    if cal.current is None:
+        return []
+    k_in, _, _ = _factors(cal, "ardupilot" if prefix else "px4")
+    per_amp = k_in * np.asarray(cal.current.per_amp, dtype=np.float64)  # firmware raw units per ampere
+    if prefix:
+        return [("COMPASS_MOTCT", 2.0), *_axes(prefix, -(m.held @ per_amp))]
+    return list(zip("XYZ", (float(v) for v in -1000.0 * per_amp), strict=True))
 
 
 # -- shared -------------------------------------------------------------------------------------

@@ -98,13 +98,14 @@ class Layout:
     eol: str
     sensor: tuple[int, int, int] = (0, 1, 2)
     time: int | None = None
-    temperature: int | None = None
+    temperature: int | None = None  # (or the column a current block corrects with: see ``per_row``)
     extra: int | None = None  # one more column read as text (a log's label column)
     notes: list[str] = field(default_factory=list)  # things a person should be told
     decimal: str = "."  # the decimal mark of the file's numbers ("," in European exports)
     time_unit: str | None = None  # the unit the time column's name gives (timestamp_ms), if any
     incomplete: bytes | None = None  # the last line, when it is cut short and dropped (--drop-incomplete)
     compression: str | None = None  # gzip, bzip2, xz or zstd: the file's data read decompressed (io.compressed)
+    per_row: str = "temperature"  # what the ``temperature`` column holds, as messages name it
 
     @property
     def sensor_names(self) -> list[str]:

@@ -14,6 +14,8 @@ or return DataFrames. Its modules:
 - ``cluster``: where many units or captures run: in process, in worker processes, or on a Dask
   cluster (batch, and apply over many files).
 - ``thermal``: temperature sweeps in, a calibration with a ``thermal`` block out.
+- ``current``: magnetometer logs with a motor-current column in, a calibration with a
+  ``current`` block (its offset per ampere) out.
 - ``verify``: a calibration checked on static captures (a gyroscope's: on a log of hand turns)
   it was not fitted on.
 - ``noise``: the Allan deviation of a still capture and its noise figures, judged against limits

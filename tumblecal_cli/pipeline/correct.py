@@ -20,7 +20,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.csv as pcsv
 
-from tumblecal_cli.core import drift, model
+from tumblecal_cli.core import current_fit, drift, model
 from tumblecal_cli.errors import InputError, TumblecalError
 from tumblecal_cli.io import calfile, capture, rewrite, sniff
 from tumblecal_cli.io.calfile import Calibration
@@ -361,6 +361,8 @@ def _stream(
     for x in cals:
         if x.thermal is not None:
             fixes.append(partial(_thermal, x, clamped))
+        elif x.current is not None:
+            fixes.append(partial(_at_current, x))
         elif temperature is not None:
             fixes.append(partial(_ignore_temperature, partial(_correct, x)))
         else:
@@ -373,9 +375,19 @@ def _stream(
 
 
 def thermal_column(layout: Layout, cals: Sequence[Calibration]) -> int | None:
-    """The capture's temperature column for the calibrations with a ``thermal`` block (None when
-    none has one); a capture without it is an error naming the column."""
+    """The capture's temperature column for the calibrations with a ``thermal`` block (or its
+    current column for those with a ``current`` block; None when none has either); a capture
+    without it is an error naming the column."""
     names = {x.thermal.column for x in cals if x.thermal is not None}
+    amperes = {x.current.column for x in cals if x.current is not None}
+    if names and amperes:
+        raise InputError(
+            "one calibration corrects at each row's temperature, another at its current: apply reads one such column",
+            file=layout.name,
+            hint="correct the capture with each of them in its own run",
+        )
+    if amperes:
+        return _current_column(layout, amperes)
     if not names:
         return None
     if len(names) > 1:
@@ -393,6 +405,31 @@ def thermal_column(layout: Layout, cals: Sequence[Calibration]) -> int | None:
         )
     layout.temperature = lower.index(name.lower())
     return layout.temperature
+
+
+def _current_column(layout: Layout, names: set[str]) -> int:
+    """The capture's current column (docs/current.md), read where apply reads a temperature."""
+    if len(names) > 1:
+        raise InputError(
+            f"the calibrations read their currents from different columns: {', '.join(sorted(names))}",
+            file=layout.name,
+        )
+    (name,) = names
+    lower = [n.lower() for n in layout.names]
+    if name.lower() not in lower:
+        raise InputError(
+            f"the capture has no current column {name!r}, which the calibration's current block corrects with",
+            file=layout.name,
+            hint=f"columns: {', '.join(layout.names)}",
+        )
+    layout.temperature, layout.per_row = lower.index(name.lower()), "current"
+    return layout.temperature
+
+
+def _at_current(cal: Calibration, raw: FloatArray, amperes: FloatArray) -> FloatArray:
+
+    assert cal.current is not None
+    return current_fit.correct(raw, amperes, cal.offset, cal.matrix, cal.current.per_amp)
 
 
 def _thermal(cal: Calibration, clamped: list[int], raw: FloatArray, temperature: FloatArray) -> FloatArray:

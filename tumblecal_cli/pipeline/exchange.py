@@ -137,6 +137,11 @@ def exported(cal: Calibration | str | os.PathLike[str], fmt: str, **options: Unp
     if fmt in paramfile.FIRMWARES:
         written = paramfile.write(c, fmt, instance)
         return Exported(written.text, written.notes)
+    if c.current is not None:  # docs/current.md: the firmware parameters hold it, these formats do not
+        c = replace(c, current=None)
+        note = f"warning: the current block (offset per ampere) is NOT written: --format {fmt} holds none"
+        inner = exported(c, fmt, **options)
+        return replace(inner, notes=(note, *inner.notes))
     if fmt == "registers":
         assert lsb is not None
         return Exported(_registers(c, lsb, bits, register_sign, gain_step, nominal_gain))

@@ -531,7 +531,7 @@ def limits(
     --nominal-offset: the centre of the offset limit unless the file names one)."""
 
     bounds: dict[str, object] = dict(limitfile.load_limits(path)) if path else {}
-    for key in (*limitfile.NOISE_LIMITS, *limitfile.ALIGN_LIMITS):  # ... also bounds `noise` and `align`
+    for key in (*limitfile.NOISE_LIMITS, *limitfile.ALIGN_LIMITS, *limitfile.CURRENT_LIMITS):  # ... and theirs
         bounds.pop(key, None)
     if nominal_offset is not None:
         bounds.setdefault("nominal_offset", nominal_offset)
