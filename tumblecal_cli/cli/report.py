@@ -52,6 +52,15 @@ def report(
         float | None,
         typer.Option("--min-cpk", metavar="C", help="Flag a parameter whose Cpk is below C (1.33 is usual)."),
     ] = None,
+    outlier_alpha: Annotated[
+        float,
+        typer.Option(
+            "--outlier-alpha",
+            metavar="P",
+            help="Lot-wide false-alarm rate of the outlier flags: the chance that a lot of good units gets any "
+            "flag (between 0 and 1). Smaller lots than the rule can judge get none (docs/lot-report.md).",
+        ),
+    ] = 0.005,  # core.outliers.OUTLIER_ALPHA (not imported here: --help loads no numpy)
     json_out: Annotated[
         bool, typer.Option("--json", help="Print the whole report as JSON on stdout instead of the CSV table.")
     ] = False,
@@ -67,7 +76,8 @@ def report(
 
     The lot is the latest calibration of each serial (unit.serial; files without one count
     once each); a serial calibrated more than once also gets the change since its previous
-    calibration (by created). Outliers: |robust z| > 4 (median absolute deviation).
+    calibration (by created). Outliers: a unit far from the others for a lot-wide false-alarm
+    rate of --outlier-alpha (the report says the rule it used).
     CSV (or --json) on stdout, tables on stderr.
 
     \b
@@ -82,7 +92,9 @@ def report(
         from tumblecal_cli.io import plots
 
         plots.require()
-    reported = pipeline.report(paths, limits=limits_file, max_drift=max_drift, min_cpk=min_cpk)
+    reported = pipeline.report(
+        paths, limits=limits_file, max_drift=max_drift, min_cpk=min_cpk, outlier_alpha=outlier_alpha
+    )
     result = reported.result
     if plot is not None:
         _plot_target(plot, "-", False, [*reported.files, *([limits_file] if limits_file else [])])

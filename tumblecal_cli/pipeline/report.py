@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tumblecal_cli.core import gate, lot
+from tumblecal_cli.core import gate, lot, outliers
 from tumblecal_cli.errors import InputError, TumblecalError
 from tumblecal_cli.io import calfile, limitfile
 
@@ -37,10 +37,13 @@ def report(
     limits: str | None = None,
     max_drift: str | Mapping[str, float] | None = None,
     min_cpk: float | None = None,
+    outlier_alpha: float = outliers.OUTLIER_ALPHA,
 ) -> Reported:
     """Statistics of the calibration files in ``paths`` (files, or folders searched for
     *.json and *.yaml): per parameter count, mean, std, min/max, Cpk against ``limits`` (a limits
-    file), outliers, and drift beyond ``max_drift`` (``offset=0.01,gain=0.002``)."""
+    file), outliers at the lot-wide false-alarm rate ``outlier_alpha`` (``core.outliers``), and
+    drift beyond ``max_drift`` (``offset=0.01,gain=0.002``)."""
+    outliers.check_alpha(outlier_alpha)
     if min_cpk is not None and not (np.isfinite(min_cpk) and min_cpk > 0):
         raise InputError(f"--min-cpk must be a positive number, got {min_cpk}")
     if min_cpk is not None and limits is None:
@@ -52,7 +55,9 @@ def report(
     given = [paths] if isinstance(paths, str | os.PathLike) else list(paths)
     found = find([os.fspath(p) for p in given], skip=limits)
     entries, unreadable = _load(found)
-    result = lot.summarise(entries, unreadable, bounds, max_drift=drift_limits, min_cpk=min_cpk)
+    result = lot.summarise(
+        entries, unreadable, bounds, max_drift=drift_limits, min_cpk=min_cpk, outlier_alpha=outlier_alpha
+    )
     return Reported(result, entries, bounds, found)
 
 
