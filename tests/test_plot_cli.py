@@ -134,7 +134,7 @@ def test_solve_without_plot_does_not_import_matplotlib(tmp_path: Path) -> None:
         "from tumblecal_cli.cli import main\n"
         "with contextlib.redirect_stderr(io.StringIO()):\n"
         f"    assert main(['solve', '--poses', *{THREE!r}, '-o', {str(tmp_path / 'c.json')!r}]) == 0\n"
-        f"    assert main(['report', {str(LOT)!r}, '--json']) == 1\n"
+        f"    assert main(['report', {str(LOT)!r}, '--json', '--outlier-alpha', '0.05']) == 1\n"
     )
     assert (
         imported(

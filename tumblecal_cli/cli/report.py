@@ -70,6 +70,16 @@ def report(
             "--plot", metavar="PNG", help="Also draw a histogram per parameter, with its limits (needs [plot])."
         ),
     ] = None,
+    html: Annotated[
+        str | None,
+        typer.Option(
+            "--html",
+            metavar="FILE.html",
+            help="Also write the report as one self-contained web page: verdict, yield, Cpk with its interval, "
+            "the distributions, the units to look at and why, stations and operators, a link to each "
+            "calibration (needs [plot]).",
+        ),
+    ] = None,
     quiet: Quiet = False,
 ) -> None:
     """Statistics of a production lot: per parameter count, mean, std, min/max, Cpk, outliers, drift.
@@ -84,28 +94,28 @@ def report(
       tumblecal report cals/ --limits limits.yaml
       tumblecal report lot1/ lot2/ --max-drift offset=0.01,gain=0.002 --json
       tumblecal report cals/ --limits limits.yaml --plot lot.png
+      tumblecal report cals/ --limits limits.yaml --html lot.html
     """
 
     from tumblecal_cli.pipeline import report as pipeline
 
-    if plot is not None:
-        from tumblecal_cli.io import plots
-
-        plots.require()
+    _early_checks(plot, html)
     reported = pipeline.report(
         paths, limits=limits_file, max_drift=max_drift, min_cpk=min_cpk, outlier_alpha=outlier_alpha
     )
     result = reported.result
-    if plot is not None:
-        _plot_target(plot, "-", False, [*reported.files, *([limits_file] if limits_file else [])])
+    _late_checks(plot, html, [*reported.files, *([limits_file] if limits_file else [])])
     if json_out:
         render.print_json({"status": STATUS_WORDS[reported.status], "exit_status": reported.status} | result.as_dict())
     else:
         render.print_csv(result.csv_rows())
     if plot is not None and not result.unreadable:  # exit 2 writes no file
         _plot_lot(plot, reported)
+    if html is not None and not result.unreadable:
+        pipeline.write_html(reported, html, limits=limits_file, drift_given=bool(max_drift))
     if not quiet:
-        render.print_lot(result, render.make_console(), plot, drift_given=bool(max_drift))
+        written = ", ".join(p for p in (plot, html) if p is not None) or None
+        render.print_lot(result, render.make_console(), written, drift_given=bool(max_drift))
     if result.unreadable:  # an error line per file, after the report of the rest
         (first, why), rest = result.unreadable[0], result.unreadable[1:]
         raise InputError(
@@ -118,24 +128,48 @@ def report(
         raise typer.Exit(1)
 
 
-def _plot_lot(plot: str, reported: Reported) -> None:
-    """report --plot: a histogram per parameter of the lot, with its limits."""
-    import numpy as np
-
-    from tumblecal_cli.core import lot
+def _early_checks(plot: str | None, html: str | None) -> None:
+    """Before any work: matplotlib for --plot and --html, and an --html that can be written."""
+    if plot is None and html is None:
+        return
     from tumblecal_cli.io import plots
 
-    result, members = reported.result, lot.lot(reported.entries)
-    several = len({r.sensor for r in result.rows}) != 1
-    histograms = [
-        plots.Histogram(
-            f"{row.sensor} {row.parameter}" if several else f"{row.parameter}",
-            np.array(
-                [e.values[row.parameter] for e in members if e.sensor == row.sensor and row.parameter in e.values]
-            ),
-            row.lower,
-            row.upper,
-        )
-        for row in result.rows
-    ]
-    plots.lot_figure(plot, histograms, title=f"{result.units} units, {result.files} files")
+    plots.require()
+    if html is None:
+        return
+    import os
+    import tempfile
+
+    from tumblecal_cli.io.outputs import check_writable
+
+    check_writable(html, "--html")
+    if not html.lower().endswith((".html", ".htm")):
+        raise InputError("--html writes a web page: give a file name ending in .html", file=html)
+    folder = os.path.dirname(os.path.abspath(html))
+    try:  # a folder that cannot be written into (read-only, /proc): found now, not after the report
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as err:
+        raise InputError(f"cannot write into {folder}: {err.strerror}", file=html) from None
+
+
+def _late_checks(plot: str | None, html: str | None, inputs: list[str]) -> None:
+    """Once the inputs are known: no output onto an input, and not both onto one file."""
+    from tumblecal_cli.io.outputs import check_not_input
+
+    if plot is not None:
+        _plot_target(plot, "-", False, inputs)
+    if html is not None:
+        check_not_input(html, inputs, "--html")
+        if plot is not None and plot == html:
+            raise InputError("--plot and --html name the same file", file=html)
+
+
+def _plot_lot(plot: str, reported: Reported) -> None:
+    """report --plot: a histogram per parameter of the lot, with its limits and marked units."""
+    from tumblecal_cli.io import plots
+    from tumblecal_cli.pipeline import report as pipeline
+
+    plots.lot_figure(
+        plot, pipeline.histograms(reported), title=f"{reported.result.units} units, {reported.result.files} files"
+    )

@@ -86,6 +86,9 @@ class Entry:
     values: dict[str, float]
     units: str = ""  # "[input units -> ]output units", to keep calibrations of other units apart
     poses: tuple[tuple[str, str], ...] = ()  # (sha256, file) of each pose file it was solved from
+    station: str | None = None
+    operator: str | None = None
+    passed: bool | None = None  # the calibration's own verdict (None: it has none)
 
 
 def _when(e: Entry) -> tuple[int, float, str, str]:
