@@ -5,10 +5,13 @@ gains, cross terms). "A unit 6σ off": its figure lies exactly 6 σ from the pop
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from tests.conftest import run
+from tests.lotgen import write_lot
 from tests.test_report_cli import LOT
 from tumblecal_cli.core import outliers
 
@@ -98,3 +101,14 @@ def test_outlier_alpha_out_of_range_is_one_line_and_exit_2(alpha: str, capsys: p
     assert err.startswith("error: --outlier-alpha must be a probability between 0 and 1")
     assert len([line for line in err.splitlines() if line.startswith("error")]) == 1
     assert "Traceback" not in err
+
+
+def test_a_lot_of_eight_good_units_is_in_order(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The lot that had two units flagged (a 2.6σ offset, a cross term of pure noise) and exit 1:
+    8 units are too few to judge, and the report says so."""
+    write_lot(tmp_path, n=8, seed=3)  # no unit planted below SN0013
+    code, out, err = run(capsys, "report", str(tmp_path))
+    assert code == 0, err
+    assert "outliers: not judged (8 units; 46 needed to catch 6σ 95% of the time)" in err
+    assert {line.split(",")[10] for line in out.splitlines()[1:]} == {""}
+    assert "lot: in order" in err

@@ -29,8 +29,8 @@ def test_report_csv_on_stdout_table_on_stderr(capsys: pytest.CaptureFixture[str]
     code, out, err = run(capsys, "report", str(LOT), "--limits", str(LIMITS))
     assert code == 1, err  # SN0013 is outside the limits
     assert rows(out)["offset.x"]["outliers"] == ""
-    assert rows(out)["offset.x"]["outlier_rule"] == "not judged: 30 units < 34"
-    assert "outliers: not judged (30 units; 34 needed to catch 6σ 95% of the time)" in err
+    assert rows(out)["offset.x"]["outlier_rule"] == "not judged: 30 units < 36"
+    assert "outliers: not judged (30 units; 36 needed to catch 6σ 95% of the time)" in err
     code, out, err = run(capsys, "report", str(LOT), "--limits", str(LIMITS), "--outlier-alpha", "0.05")
     table = rows(out)
     assert code == 1, err  # SN0013 is an outlier

@@ -230,10 +230,15 @@ class OutlierRule:  # (frozen, with a cached_property: min_units is worked out o
         """The |t| limit of a figure of n units none of which is set aside (None: not judged)."""
         return self.limit(n - 2.0) if n >= self.min_units else None
 
+    def needed(self, units: int) -> int:
+        """The fewest units a lot with as many figures as this one (tests / units) needs to be
+        judged: ``smallest_lot`` (``min_units`` is for this lot's own number of judgements)."""
+        return smallest_lot(max(1, round(self.tests / max(units, 1))), self.alpha)
+
     def cell(self, n: int, limit: float | None) -> str:
         """The rule a figure of n units was judged by, for a CSV cell (no commas)."""
         if limit is None:
-            return f"not judged: {n} units < {self.min_units}"
+            return f"not judged: {n} units < {self.needed(n)}"
         return f"|t|>{limit:.3g} (alpha {self.alpha:g} over {self.tests})"
 
     def describe(self, units: int | None = None) -> str:
@@ -241,7 +246,7 @@ class OutlierRule:  # (frozen, with a cached_property: min_units is worked out o
         the lot is too small to be judged."""
         if units is not None and units < self.min_units:
             return (
-                f"outliers: not judged ({units} units; {self.min_units} needed to catch "
+                f"outliers: not judged ({units} units; {self.needed(units)} needed to catch "
                 f"{DETECT_SIGMA:g}σ {DETECT_POWER:.0%} of the time)"
             )
         limit = f" > {self.limit(units - 2.0):.3g}" if units is not None else ""
@@ -255,5 +260,5 @@ class OutlierRule:  # (frozen, with a cached_property: min_units is worked out o
             "tests": self.tests,
             "per_test": self.per_test,
             "screen_z": SCREEN_Z,
-            "min_units": self.min_units,
+            "min_units": self.min_units,  # at this lot's number of judgements
         }
