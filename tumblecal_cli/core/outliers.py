@@ -140,13 +140,18 @@ def t_quantile(p: float, df: float) -> float:
     return high
 
 
+@functools.lru_cache(maxsize=64)
 def smallest_lot(figures: int, alpha: float = OUTLIER_ALPHA) -> int:
     """The fewest units a lot of ``figures`` figures per unit needs for its outliers to be judged
-    (n ≥ ``OutlierRule(alpha, figures·n).min_units``; more figures, more judgements, more units)."""
-    n = MIN_UNITS
-    while n < OutlierRule(alpha, figures * n).min_units:
-        n += 1
-    return n
+    (n ≥ ``OutlierRule(alpha, figures·n).min_units``; more figures, more judgements, more units:
+    the condition holds from some n on, found by bisection)."""
+    low, high = MIN_UNITS, MIN_UNITS
+    while high < OutlierRule(alpha, figures * high).min_units:
+        low, high = high + 1, high * 2
+    while low < high:
+        middle = (low + high) // 2
+        low, high = (middle + 1, high) if middle < OutlierRule(alpha, figures * middle).min_units else (low, middle)
+    return high
 
 
 def check_alpha(alpha: float) -> float:
