@@ -276,3 +276,28 @@ def test_the_page_in_a_headless_browser(page: Path, tmp_path: Path) -> None:
     assert probe["errors"] == []
     assert len(probe["figures"]) == 12
     assert all(f["width"] > 100 and f["height"] > 50 and f["drawn"] > 20 for f in probe["figures"])
+
+
+def test_no_page_when_a_file_cannot_be_read(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    folder = tmp_path / "cals"
+    write_lot(folder, n=10)
+    (folder / "broken.json").write_text('{"format": "tumblecal-calibration",')
+    out = tmp_path / "lot.html"
+    code, _, err = run(capsys, "report", str(folder), "--html", str(out))
+    assert code == 2
+    assert "not valid JSON" in err
+    assert not out.exists()
+
+
+def test_a_serial_cannot_put_markup_in_the_page(tmp_path: Path) -> None:
+    folder = tmp_path / "cals"
+    (path, *_) = write_lot(folder, n=40)
+    doc = json.loads(path.read_text())
+    doc["unit"]["serial"] = '<script>alert("x")</script>'
+    doc["offset"][0] = 0.5  # an outlier: named in the figure, the table and the list
+    path.write_text(json.dumps(doc))
+    out = tmp_path / "lot.html"
+    reports.write_html(reports.report([str(folder)]), str(out))
+    text = out.read_text(encoding="utf-8")
+    assert "<script" not in text
+    assert "&lt;script&gt;alert(&quot;x&quot;)&lt;/script&gt;" in text
