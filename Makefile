@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 TC := $(BIN)/tumblecal
 
-.PHONY: demo test check fuzz bench montecarlo docs transcripts clean
+.PHONY: demo test check fuzz bench montecarlo docs transcripts clean browser
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -34,7 +34,16 @@ PYTEST := env -u PYTHONDONTWRITEBYTECODE $(BIN)/pytest
 # `make check` random ones (dev), a failing one printed with the blob that replays it
 HYPOTHESIS_PROFILE ?= ci
 
-test: $(VENV)/.installed
+# report --html is tested in a headless Chromium: installed from Debian's packages where it is
+# missing and apt-get can (as root); without it that one test is skipped, saying why
+browser:
+	@command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || \
+	{ command -v apt-get >/dev/null 2>&1 && [ "$$(id -u)" = 0 ] && \
+	  { DEBIAN_FRONTEND=noninteractive apt-get install -y -q chromium >/dev/null 2>&1 || \
+	    { apt-get update -q >/dev/null 2>&1 && DEBIAN_FRONTEND=noninteractive apt-get install -y -q chromium >/dev/null 2>&1; }; } || \
+	  echo "chromium not installed: the browser test of report --html will be skipped"; }
+
+test: $(VENV)/.installed browser
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy

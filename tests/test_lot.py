@@ -350,10 +350,13 @@ def test_parse_max_drift_refuses_bad_forms_with_a_hint(text: str, message: str) 
 # --- the report ----------------------------------------------------------------------------------
 
 
+SPREAD = [0.010, 0.011, 0.009, 0.012, 0.008, 0.010, 0.060, 0.011, 0.009, 0.010] + [0.008, 0.012, 0.010] * 10
+
+
 def lot_folder(tmp_path: Path) -> list[lot.Entry]:
-    """Twelve units whose offset.x spreads by a few mg, one unit (SN7) far off, and SN3 twice."""
-    spread = [0.010, 0.011, 0.009, 0.012, 0.008, 0.010, 0.060, 0.011, 0.009, 0.010, 0.012, 0.008]
-    for k, x in enumerate(spread, start=1):
+    """Forty units (enough to judge outliers) whose offset.x spreads by a few mg, one unit (SN7) far
+    off, and SN3 twice."""
+    for k, x in enumerate(SPREAD, start=1):
         write(tmp_path / f"SN{k}.json", document(serial=f"SN{k}", offset=(x, 0.0, 0.0)))
     write(tmp_path / "SN3_old.json", document(serial="SN3", created="2024-04-01T00:00:00Z", offset=(-0.02, 0.0, 0.0)))
     entries, unreadable = reports.load_all([str(tmp_path)])
@@ -364,31 +367,33 @@ def lot_folder(tmp_path: Path) -> list[lot.Entry]:
 def test_the_report_finds_the_outlier_and_its_csv_cells(tmp_path: Path) -> None:
     limits = {"offset": np.full(3, 0.05), "gain_error": np.full(3, 0.02)}
     report = lot.summarise(lot_folder(tmp_path), [], limits, max_drift={"offset": 0.01})
-    assert (report.files, report.units) == (13, 12)
+    assert (report.files, report.units) == (41, 40)
     row = report.rows[0]
     assert (row.sensor, row.parameter, row.count, row.lower, row.upper) == (
         "accelerometer",
         "offset.x",
-        12,
+        40,
         -0.05,
         0.05,
     )
-    [(unit, value, z)] = row.outliers
+    [(unit, value, t)] = row.outliers
     assert (unit, value) == ("SN7", 0.06)
-    assert z == pytest.approx(0.6745 * (0.06 - 0.01) / 0.001)
+    others = np.array([x for x in SPREAD if x != 0.06])
+    assert t == pytest.approx((0.06 - others.mean()) / (others.std(ddof=1) * math.sqrt(1 + 1 / 39)))
     assert report.needs_attention
     header, rows = report.csv_rows()
     assert ",".join(header) == (
-        "sensor,parameter,count,mean,std,min,max,lower,upper,cpk,outliers,drift_flagged,outside"
+        "sensor,parameter,count,mean,std,min,max,lower,upper,cpk,outliers,drift_flagged,outside,outlier_rule,cpk_low,cpk_high"
     )
     assert len(rows) == len(report.rows) == 6
     cells = dict(zip(header, rows[0], strict=True))
-    assert cells["count"] == "12"
+    assert cells["count"] == "40"
     assert cells["mean"] == repr(row.mean)
     assert float(cells["mean"]) == row.mean  # full precision
     assert (cells["min"], cells["max"], cells["lower"], cells["upper"]) == ("0.008", "0.06", "-0.05", "0.05")
     assert cells["cpk"] == repr(row.cpk)
-    assert cells["outliers"] == f"SN7={z:.1f}" == "SN7=33.7"
+    assert cells["outliers"] == f"SN7={t:.1f}" == "SN7=31.7"
+    assert cells["outlier_rule"] == f"|t|>{row.outlier_limit:.3g} (alpha 0.005 over 240)"
     assert cells["drift_flagged"] == "SN3"  # -0.02 → 0.009: moved 0.029 > 0.01
     assert cells["outside"] == "SN7"  # 0.06 > 0.05
     y = dict(zip(header, rows[1], strict=True))
@@ -396,7 +401,7 @@ def test_the_report_finds_the_outlier_and_its_csv_cells(tmp_path: Path) -> None:
 
 
 def test_outliers_without_a_serial_are_named_by_their_file(tmp_path: Path) -> None:
-    for k in range(10):
+    for k in range(40):
         write(tmp_path / f"u{k}.json", document(serial=None, offset=(0.01 + 0.001 * (k % 3), 0, 0)))
     write(tmp_path / "odd.json", document(serial=None, offset=(0.5, 0, 0)))
     entries, _ = reports.load_all([str(tmp_path)])
@@ -423,10 +428,12 @@ def test_as_dict_is_plain_json(tmp_path: Path) -> None:
     report = lot.summarise(entries, unreadable, {"cross_axis": 0.01}, max_drift={"gain": 0.002}, min_cpk=1.33)
     text = json.dumps(report.as_dict(), allow_nan=False)  # no numpy types, no NaN
     back = json.loads(text)
-    assert (back["files"], back["units"], back["min_cpk"], back["needs_attention"]) == (14, 12, 1.33, True)
+    assert (back["files"], back["units"], back["min_cpk"], back["needs_attention"]) == (42, 40, 1.33, True)
     assert back["parameters"][0]["outliers"] == [
-        {"unit": "SN7", "value": 0.06, "z": pytest.approx(33.725)},
+        {"unit": "SN7", "value": 0.06, "t": pytest.approx(31.73, abs=0.005)},
     ]
+    assert back["outlier_rule"]["alpha"] == 0.005
+    assert back["outlier_rule"]["tests"] == 240
     assert back["parameters"][0]["cpk"] is None  # no offset limit given
     assert {d["serial"] for d in back["drift"]} == {"SN3"}
     assert back["unreadable"] == [{"file": unreadable[0][0], "error": "not valid JSON"}]
@@ -446,3 +453,21 @@ def test_sigterm_while_loading_stops_the_report(monkeypatch: pytest.MonkeyPatch,
     monkeypatch.setattr(calfile, "load", interrupted)
     with pytest.raises(Interrupted):
         reports.load_all([str(tmp_path)])
+
+
+def test_cpk_interval_is_bissells_and_covers_the_true_cpk() -> None:
+    low, high = lot.cpk_interval(1.33, 30)
+    half = 1.959964 * math.sqrt(1 / 270 + 1.33**2 / 58)
+    assert low == pytest.approx(1.33 - half)
+    assert high == pytest.approx(1.33 + half)
+    assert lot.cpk_interval(None, 30) == (None, None)
+    # coverage: lots of 50 units, N(0, 1) against limits ±4 (true Cpk 4/3)
+    x = np.random.default_rng(3).standard_normal((2000, 50))
+    covered = 0
+    for sample in x:
+        value = lot.cpk(sample, -4.0, 4.0)
+        lo, hi = lot.cpk_interval(value, 50)
+        assert lo is not None
+        assert hi is not None
+        covered += lo <= 4 / 3 <= hi
+    assert covered / 2000 == pytest.approx(0.95, abs=0.02)

@@ -113,7 +113,7 @@ def test_plot_without_matplotlib_is_one_clear_error(
 @pytest.mark.slow
 def test_report_plot(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     png = tmp_path / "lot.png"
-    code, out, err = run(capsys, "report", str(LOT), "--plot", str(png))
+    code, out, err = run(capsys, "report", str(LOT), "--plot", str(png), "--outlier-alpha", "0.05")
     assert code == 1  # the sample lot's outlier
     assert out.startswith("sensor,parameter,")
     assert f"wrote {png}" in err
@@ -134,7 +134,7 @@ def test_solve_without_plot_does_not_import_matplotlib(tmp_path: Path) -> None:
         "from tumblecal_cli.cli import main\n"
         "with contextlib.redirect_stderr(io.StringIO()):\n"
         f"    assert main(['solve', '--poses', *{THREE!r}, '-o', {str(tmp_path / 'c.json')!r}]) == 0\n"
-        f"    assert main(['report', {str(LOT)!r}, '--json']) == 1\n"
+        f"    assert main(['report', {str(LOT)!r}, '--json', '--outlier-alpha', '0.05']) == 1\n"
     )
     assert (
         imported(

@@ -25,9 +25,16 @@ def rows(out: str) -> dict[str, dict[str, str]]:
 
 
 def test_report_csv_on_stdout_table_on_stderr(capsys: pytest.CaptureFixture[str]) -> None:
+    # 30 units are too few to judge outliers at the default --outlier-alpha (docs/lot-report.md)
     code, out, err = run(capsys, "report", str(LOT), "--limits", str(LIMITS))
+    assert code == 1, err  # SN0013 is outside the limits
+    assert rows(out)["offset.x"]["outliers"] == ""
+    assert rows(out)["offset.x"]["outlier_rule"] == "not judged: 30 units < 36"
+    assert "outliers: not judged (30 units; 36 needed to catch 6σ 95% of the time)" in err
+    code, out, err = run(capsys, "report", str(LOT), "--limits", str(LIMITS), "--outlier-alpha", "0.05")
     table = rows(out)
     assert code == 1, err  # SN0013 is an outlier
+    assert table["offset.x"]["outlier_rule"] == "|t|>4.14 (alpha 0.05 over 180)"
     assert list(table) == ["offset.x", "offset.y", "offset.z", "gain.x", "gain.y", "gain.z"]
     x = table["offset.x"]
     assert x["count"] == "30"  # 31 files, SN0007 counted once
@@ -94,7 +101,7 @@ def test_report_unreadable_file_is_exit_2_after_the_report(tmp_path: Path, capsy
 
 
 def test_report_json_needing_attention_is_fail(capsys: pytest.CaptureFixture[str]) -> None:
-    r = run(capsys, "report", str(LOT), "--json")  # the lot has an outlier
+    r = run(capsys, "report", str(LOT), "--json", "--outlier-alpha", "0.05")  # the lot has an outlier
     assert r.code == 1
     doc = json.loads(r.out)
     assert list(doc)[:2] == ["status", "exit_status"]
@@ -160,10 +167,10 @@ def test_report_csv_quotes_odd_serials(tmp_path: Path, capsys: pytest.CaptureFix
     shutil.copytree(LOT, lot)
     odd = lot / "SN0013_20261121T090000Z.json"
     odd.write_text(odd.read_text().replace('"SN0013"', '"SN,13 \\"x\\""'))
-    code, out, _ = run(capsys, "report", str(lot))
+    code, out, _ = run(capsys, "report", str(lot), "--outlier-alpha", "0.05")
     assert code == 1
     parsed = list(csv.reader(io.StringIO(out)))
-    assert {len(r) for r in parsed} == {13}
+    assert {len(r) for r in parsed} == {16}
     assert rows(out)["offset.x"]["outliers"].startswith('SN,13 "x"=')
 
 

@@ -454,7 +454,8 @@ def print_lot(result: Report, console: Console, plot: str | None, *, drift_given
         if r.outside:
             console.print(f"outside the limits: {r.parameter}: {', '.join(r.outside)}", style="red", soft_wrap=True)
         for unit, value, z in r.outliers:
-            console.print(f"outlier: {unit}: {r.parameter} {g(value)} (robust z {z:+.1f})", style="red", soft_wrap=True)
+            console.print(f"outlier: {unit}: {r.parameter} {g(value)} (t {z:+.1f})", style="red", soft_wrap=True)
+    console.print(result.outlier_text, soft_wrap=True)
     changed = {d.serial for d in result.drift}
     flagged = [d for d in result.drift if d.flagged]
     if changed:

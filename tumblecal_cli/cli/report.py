@@ -52,6 +52,15 @@ def report(
         float | None,
         typer.Option("--min-cpk", metavar="C", help="Flag a parameter whose Cpk is below C (1.33 is usual)."),
     ] = None,
+    outlier_alpha: Annotated[
+        float,
+        typer.Option(
+            "--outlier-alpha",
+            metavar="P",
+            help="Lot-wide false-alarm rate of the outlier flags: the chance that a lot of good units gets any "
+            "flag (between 0 and 1). Smaller lots than the rule can judge get none (docs/lot-report.md).",
+        ),
+    ] = 0.005,  # core.outliers.OUTLIER_ALPHA (not imported here: --help loads no numpy)
     json_out: Annotated[
         bool, typer.Option("--json", help="Print the whole report as JSON on stdout instead of the CSV table.")
     ] = False,
@@ -61,39 +70,52 @@ def report(
             "--plot", metavar="PNG", help="Also draw a histogram per parameter, with its limits (needs [plot])."
         ),
     ] = None,
+    html: Annotated[
+        str | None,
+        typer.Option(
+            "--html",
+            metavar="FILE.html",
+            help="Also write the report as one self-contained web page: verdict, yield, Cpk with its interval, "
+            "the distributions, the units to look at and why, stations and operators, a link to each "
+            "calibration (needs [plot]).",
+        ),
+    ] = None,
     quiet: Quiet = False,
 ) -> None:
     """Statistics of a production lot: per parameter count, mean, std, min/max, Cpk, outliers, drift.
 
     The lot is the latest calibration of each serial (unit.serial; files without one count
     once each); a serial calibrated more than once also gets the change since its previous
-    calibration (by created). Outliers: |robust z| > 4 (median absolute deviation).
+    calibration (by created). Outliers: a unit far from the others for a lot-wide false-alarm
+    rate of --outlier-alpha (the report says the rule it used).
     CSV (or --json) on stdout, tables on stderr.
 
     \b
       tumblecal report cals/ --limits limits.yaml
       tumblecal report lot1/ lot2/ --max-drift offset=0.01,gain=0.002 --json
       tumblecal report cals/ --limits limits.yaml --plot lot.png
+      tumblecal report cals/ --limits limits.yaml --html lot.html
     """
 
     from tumblecal_cli.pipeline import report as pipeline
 
-    if plot is not None:
-        from tumblecal_cli.io import plots
-
-        plots.require()
-    reported = pipeline.report(paths, limits=limits_file, max_drift=max_drift, min_cpk=min_cpk)
+    _early_checks(plot, html)
+    reported = pipeline.report(
+        paths, limits=limits_file, max_drift=max_drift, min_cpk=min_cpk, outlier_alpha=outlier_alpha
+    )
     result = reported.result
-    if plot is not None:
-        _plot_target(plot, "-", False, [*reported.files, *([limits_file] if limits_file else [])])
+    _late_checks(plot, html, [*reported.files, *([limits_file] if limits_file else [])])
     if json_out:
         render.print_json({"status": STATUS_WORDS[reported.status], "exit_status": reported.status} | result.as_dict())
     else:
         render.print_csv(result.csv_rows())
     if plot is not None and not result.unreadable:  # exit 2 writes no file
         _plot_lot(plot, reported)
+    if html is not None and not result.unreadable:
+        pipeline.write_html(reported, html, limits=limits_file, drift_given=bool(max_drift))
     if not quiet:
-        render.print_lot(result, render.make_console(), plot, drift_given=bool(max_drift))
+        written = ", ".join(p for p in (plot, html) if p is not None) or None
+        render.print_lot(result, render.make_console(), written, drift_given=bool(max_drift))
     if result.unreadable:  # an error line per file, after the report of the rest
         (first, why), rest = result.unreadable[0], result.unreadable[1:]
         raise InputError(
@@ -106,24 +128,48 @@ def report(
         raise typer.Exit(1)
 
 
-def _plot_lot(plot: str, reported: Reported) -> None:
-    """report --plot: a histogram per parameter of the lot, with its limits."""
-    import numpy as np
-
-    from tumblecal_cli.core import lot
+def _early_checks(plot: str | None, html: str | None) -> None:
+    """Before any work: matplotlib for --plot and --html, and an --html that can be written."""
+    if plot is None and html is None:
+        return
     from tumblecal_cli.io import plots
 
-    result, members = reported.result, lot.lot(reported.entries)
-    several = len({r.sensor for r in result.rows}) != 1
-    histograms = [
-        plots.Histogram(
-            f"{row.sensor} {row.parameter}" if several else f"{row.parameter}",
-            np.array(
-                [e.values[row.parameter] for e in members if e.sensor == row.sensor and row.parameter in e.values]
-            ),
-            row.lower,
-            row.upper,
-        )
-        for row in result.rows
-    ]
-    plots.lot_figure(plot, histograms, title=f"{result.units} units, {result.files} files")
+    plots.require()
+    if html is None:
+        return
+    import os
+    import tempfile
+
+    from tumblecal_cli.io.outputs import check_writable
+
+    check_writable(html, "--html")
+    if not html.lower().endswith((".html", ".htm")):
+        raise InputError("--html writes a web page: give a file name ending in .html", file=html)
+    folder = os.path.dirname(os.path.abspath(html))
+    try:  # a folder that cannot be written into (read-only, /proc): found now, not after the report
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as err:
+        raise InputError(f"cannot write into {folder}: {err.strerror}", file=html) from None
+
+
+def _late_checks(plot: str | None, html: str | None, inputs: list[str]) -> None:
+    """Once the inputs are known: no output onto an input, and not both onto one file."""
+    from tumblecal_cli.io.outputs import check_not_input
+
+    if plot is not None:
+        _plot_target(plot, "-", False, inputs)
+    if html is not None:
+        check_not_input(html, inputs, "--html")
+        if plot is not None and plot == html:
+            raise InputError("--plot and --html name the same file", file=html)
+
+
+def _plot_lot(plot: str, reported: Reported) -> None:
+    """report --plot: a histogram per parameter of the lot, with its limits and marked units."""
+    from tumblecal_cli.io import plots
+    from tumblecal_cli.pipeline import report as pipeline
+
+    plots.lot_figure(
+        plot, pipeline.histograms(reported), title=f"{reported.result.units} units, {reported.result.files} files"
+    )

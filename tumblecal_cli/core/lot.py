@@ -34,6 +34,7 @@ from datetime import UTC, datetime
 import numpy as np
 
 from tumblecal_cli.core.model import SENSORS, FloatArray
+from tumblecal_cli.core.outliers import OUTLIER_ALPHA, OutlierRule, check_alpha
 from tumblecal_cli.errors import InputError
 
 AXES = "xyz"
@@ -64,6 +65,9 @@ CSV_HEADER = [
     "outliers",
     "drift_flagged",
     "outside",
+    "outlier_rule",
+    "cpk_low",
+    "cpk_high",
 ]
 
 
@@ -82,6 +86,9 @@ class Entry:
     values: dict[str, float]
     units: str = ""  # "[input units -> ]output units", to keep calibrations of other units apart
     poses: tuple[tuple[str, str], ...] = ()  # (sha256, file) of each pose file it was solved from
+    station: str | None = None
+    operator: str | None = None
+    passed: bool | None = None  # the calibration's own verdict (None: it has none)
 
 
 def _when(e: Entry) -> tuple[int, float, str, str]:
@@ -224,6 +231,17 @@ def cpk(values: Sequence[float] | FloatArray, lower: float | None, upper: float 
     return min(sides)
 
 
+def cpk_interval(value: float | None, n: int, z: float = 1.959964) -> tuple[float | None, float | None]:
+    """Two-sided confidence interval of Cpk from n values (95 % with the default z): Bissell 1990's
+    normal approximation, Cpk ± z·√(1/(9n) + Cpk²/(2(n − 1))). (None, None) without a Cpk."""
+    # Source: Bissell 1990, "How reliable is your capability index?", Applied Statistics 39(3),
+    # eq. for the standard error of Ĉpk (normal data; good from about n = 30, rough below).
+    if value is None or n < 2:
+        return (None, None)
+    half = z * math.sqrt(1.0 / (9.0 * n) + value * value / (2.0 * (n - 1.0)))
+    return (value - half, value + half)
+
+
 def robust_z(values: Sequence[float] | FloatArray) -> FloatArray:
     """Modified z-score of each value: 0.6745·(x − median) / MAD. When MAD is 0 (more than half
     the values equal), (x − median) / (1.253314·MeanAD) with MeanAD the mean absolute deviation
@@ -250,7 +268,9 @@ def robust_z(values: Sequence[float] | FloatArray) -> FloatArray:
 @dataclass(frozen=True)
 class ParameterRow:
     """Statistics of one parameter of one sensor over the lot. ``outliers``: (serial, or the file's
-    name when it has none; value; modified z) with |z| > OUTLIER_Z, largest |z| first."""
+    name when it has none; value; t against the other units) flagged by the report's
+    ``OutlierRule``, largest |t| first; ``outlier_limit`` the |t| beyond which a unit is flagged
+    (None: the figure has too few units to be judged)."""
 
     sensor: str
     parameter: str
@@ -264,6 +284,9 @@ class ParameterRow:
     cpk: float | None
     outliers: list[tuple[str, float, float]]
     outside: list[str] = field(default_factory=list)  # units whose value is beyond a limit
+    outlier_limit: float | None = None
+    cpk_low: float | None = None  # 95 % confidence interval of cpk (cpk_interval)
+    cpk_high: float | None = None
 
 
 @dataclass(frozen=True)
@@ -372,6 +395,7 @@ class Report:
     unreadable: list[tuple[str, str]]
     min_cpk: float | None = None
     duplicates: list[Duplicate] = field(default_factory=list)
+    outlier_rule: OutlierRule = field(default_factory=OutlierRule)
 
     @property
     def needs_attention(self) -> bool:
@@ -384,6 +408,11 @@ class Report:
         threshold = self.min_cpk
         return threshold is not None and any(row.cpk is not None and row.cpk < threshold for row in self.rows)
 
+    @property
+    def outlier_text(self) -> str:
+        """The outlier rule this report used, in one sentence."""
+        return self.outlier_rule.describe(max((row.count for row in self.rows), default=0))
+
     def as_dict(self) -> dict[str, object]:
         """JSON-ready: plain floats, ints, strings and None (NaN and infinities are None)."""
         return {
@@ -391,6 +420,7 @@ class Report:
             "units": self.units,
             "min_cpk": _plain(self.min_cpk),
             "needs_attention": self.needs_attention,
+            "outlier_rule": self.outlier_rule.as_dict() | {"text": self.outlier_text},
             "parameters": [
                 {
                     "sensor": row.sensor,
@@ -403,7 +433,9 @@ class Report:
                     "lower": _plain(row.lower),
                     "upper": _plain(row.upper),
                     "cpk": _plain(row.cpk),
-                    "outliers": [{"unit": u, "value": _plain(v), "z": _plain(z)} for u, v, z in row.outliers],
+                    "cpk_interval": [_plain(row.cpk_low), _plain(row.cpk_high)],
+                    "outliers": [{"unit": u, "value": _plain(v), "t": _plain(z)} for u, v, z in row.outliers],
+                    "outlier_limit": _plain(row.outlier_limit),
                     "outside": list(row.outside),
                 }
                 for row in self.rows
@@ -431,8 +463,8 @@ class Report:
     def csv_rows(self) -> tuple[list[str], list[list[str]]]:
         """(header, rows) of the report as CSV text cells: one row per sensor and parameter;
         numbers at full precision (``repr``), an empty cell for none; ``outliers`` as
-        ``SN1=5.2;SN7=-4.4`` (unit=modified z), ``drift_flagged`` the serials whose drift of that
-        parameter is flagged."""
+        ``SN1=5.2;SN7=-4.4`` (unit=t against the other units), ``drift_flagged`` the serials whose
+        drift of that parameter is flagged, ``outlier_rule`` the rule that figure was judged by."""
         flagged: dict[tuple[str, str], list[str]] = {}
         for d in self.drift:
             if d.flagged:
@@ -448,6 +480,9 @@ class Report:
                     ";".join(f"{unit}={z:.1f}" for unit, _, z in row.outliers),
                     ";".join(flagged.get((row.sensor, row.parameter), [])),
                     ";".join(row.outside),
+                    self.outlier_rule.cell(row.count, row.outlier_limit),
+                    _cell(row.cpk_low),
+                    _cell(row.cpk_high),
                 ]
             )
         return list(CSV_HEADER), rows
@@ -480,23 +515,30 @@ def summarise(
     *,
     max_drift: dict[str, float],
     min_cpk: float | None = None,
+    outlier_alpha: float = OUTLIER_ALPHA,
 ) -> Report:
     """The lot report: statistics over the latest calibration of each unit (module docstring),
     bounded by ``limits`` (a ``limitfile.load_limits`` dict, possibly empty), and the drift of every
     re-calibrated unit against ``max_drift`` (``parse_max_drift``).
 
     Calibrations of one sensor in different units (counts to g beside m/s² to m/s²) are not
-    one population: each kind is reported apart, as "accelerometer (m/s^2)"."""
+    one population: each kind is reported apart, as "accelerometer (m/s^2)".
+
+    Outliers: ``outliers.OutlierRule`` at the lot-wide false-alarm rate ``outlier_alpha``, over
+    every unit of every figure of the report."""
+    check_alpha(outlier_alpha)
     members = split_by_units(lot(entries))  # the latest of each unit first: a unit counts once
     order = {sensor: k for k, sensor in enumerate(SENSORS)}
     sensors = sorted({e.sensor for e in members}, key=lambda s: (order.get(s, len(order)), s))
-    rows = []
+    figures = []
     for sensor in sensors:
         group = [e for e in members if e.sensor == sensor]
         for parameter in PARAMETERS:
             having = [e for e in group if parameter in e.values]
             if having:
-                rows.append(_row(sensor, parameter, having, limits))
+                figures.append((sensor, parameter, having))
+    rule = OutlierRule(outlier_alpha, sum(len(having) for _, _, having in figures))
+    rows = [_row(sensor, parameter, having, limits, rule) for sensor, parameter, having in figures]
     return Report(
         files=len(entries) + len(unreadable),
         units=len(members),
@@ -505,17 +547,20 @@ def summarise(
         unreadable=list(unreadable),
         min_cpk=min_cpk,
         duplicates=duplicates((e.serial, sha, file) for e in entries for sha, file in e.poses),
+        outlier_rule=rule,
     )
 
 
-def _row(sensor: str, parameter: str, having: list[Entry], limits: Mapping[str, float | FloatArray]) -> ParameterRow:
+def _row(
+    sensor: str, parameter: str, having: list[Entry], limits: Mapping[str, float | FloatArray], rule: OutlierRule
+) -> ParameterRow:
     x = np.array([e.values[parameter] for e in having])
     lower, upper = bounds(parameter, limits)
-    z = robust_z(x)
+    flagged, t = rule.flags(x)
     outliers = [
-        (e.serial if e.serial is not None else os.path.basename(e.path), float(v), float(zi))
-        for e, v, zi in zip(having, x, z, strict=True)
-        if abs(zi) > OUTLIER_Z
+        (e.serial if e.serial is not None else os.path.basename(e.path), float(v), float(ti))
+        for e, v, ti, flag in zip(having, x, t, flagged, strict=True)
+        if flag
     ]
     outliers.sort(key=lambda o: (-abs(o[2]), o[0]))
     outside = sorted(
@@ -523,6 +568,8 @@ def _row(sensor: str, parameter: str, having: list[Entry], limits: Mapping[str, 
         for e, v in zip(having, x, strict=True)
         if (lower is not None and v < lower) or (upper is not None and v > upper)
     )
+    capability = cpk(x, lower, upper)
+    low, high = cpk_interval(capability, len(x))
     return ParameterRow(
         sensor=sensor,
         parameter=parameter,
@@ -533,7 +580,10 @@ def _row(sensor: str, parameter: str, having: list[Entry], limits: Mapping[str, 
         max=float(np.max(x)),
         lower=lower,
         upper=upper,
-        cpk=cpk(x, lower, upper),
+        cpk=capability,
         outliers=outliers,
         outside=outside,
+        outlier_limit=rule.figure_limit(len(x)),
+        cpk_low=low,
+        cpk_high=high,
     )

@@ -14,6 +14,7 @@ from __future__ import annotations
 import importlib.util
 import io
 import math
+import re
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -50,14 +51,26 @@ def require() -> None:
 
 
 @dataclass(frozen=True)
+class Mark:
+    """A unit a lot figure names: ``kind`` "outside" (beyond a limit: fails), "outlier", or
+    "both"."""
+
+    name: str
+    value: float
+    kind: str
+
+
+@dataclass(frozen=True)
 class Histogram:
-    """One parameter over a lot: its values, and the limits it is judged against (None: none)."""
+    """One parameter over a lot: its values, and the limits it is judged against (None: none);
+    ``marks``: the units to name on it (failing ones and outliers)."""
 
     name: str
     values: FloatArray  # (n,)
     lower: float | None
     upper: float | None
     label: str = ""  # x-axis label, e.g. the units
+    marks: tuple[Mark, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -195,10 +208,52 @@ def _turn_residuals(ax: Axes, corrected: FloatArray, ref: float, plane: str | No
 
 def lot_figure(path: str, histograms: list[Histogram], *, title: str = "") -> None:
     """One histogram per parameter (≤ 4 columns): the mean as a solid line, the limits as red
-    dashed lines, the x range widened to show them."""
+    dashed lines, failing units (red) and outliers (orange) marked above the bars and named. The
+    x range is the data's: a limit far beyond it (a cross-axis limit of 0.01 over terms of 1e-4)
+    is an arrow at the edge with its value, so the bars do not collapse to a line."""
     from matplotlib.lines import Line2D
-    from matplotlib.ticker import MaxNLocator
 
+    checked = _checked(histograms)
+    ncols = min(4, len(checked))
+    nrows = math.ceil(len(checked) / ncols)
+    fig = _figure(width=3.4 * ncols + 0.6, height=2.6 * nrows + 0.8, title=title)
+    grid = fig.add_gridspec(nrows, ncols)
+    for k, (h, values, limits) in enumerate(checked):
+        _draw_histogram(fig.add_subplot(grid[k // ncols, k % ncols]), h, values, limits)
+    handles = [Line2D([], [], color="black", linewidth=1.5, label="mean")]
+    if any(limits for _, _, limits in checked):  # no "limit" entry for a figure without any
+        handles.append(Line2D([], [], color=_FIT, linestyle="--", linewidth=1.5, label="limit"))
+    for kind, (color, label) in _MARKS.items():
+        if any(_colour(m.kind) == kind for h, _, _ in checked for m in h.marks):
+            handles.append(Line2D([], [], color=color, marker="v", linestyle="", label=label))
+    fig.legend(handles=handles, loc="outside lower center", ncols=len(handles), fontsize="small", frameon=False)
+    _write(fig, path)
+
+
+def lot_panels_svg(histograms: list[Histogram]) -> list[str]:
+    """Each histogram of :func:`lot_figure` as its own SVG document (text paths, no fonts, ids
+    unique to each panel), to be inlined in an HTML page."""
+    import matplotlib
+
+    out = []
+    for k, (h, values, limits) in enumerate(_checked(histograms)):
+        fig = _figure(width=4.2, height=3.0, title="")
+        _draw_histogram(fig.add_subplot(), h, values, limits)
+        buffer = io.StringIO()
+        with matplotlib.rc_context({"svg.fonttype": "path", "svg.hashsalt": f"lot-panel-{k}"}):
+            fig.savefig(buffer, format="svg", metadata={"Date": None, "Creator": None})
+        text = buffer.getvalue()
+        text = text[text.index("<svg") :]  # no XML declaration or DOCTYPE inside HTML
+        # ids unique in the page: each panel's own (glyphs, clip paths, groups), and the references to them
+        text = re.sub(r'(\sid="|href="#|url\(#)(?=[^"\)])', rf"\g<1>lot{k}-", text)
+        out.append(text)
+    return out
+
+
+_MARKS = {"outside": (_FIT, "outside a limit (fails)"), "outlier": (_OUTLINE, "outlier")}
+
+
+def _checked(histograms: list[Histogram]) -> list[tuple[Histogram, FloatArray, list[float]]]:
     if not histograms:
         raise InputError("no parameters to plot")
     checked = []
@@ -209,43 +264,93 @@ def lot_figure(path: str, histograms: list[Histogram], *, title: str = "") -> No
         limits = [_number(v, f"{h.name} limit") for v in (h.lower, h.upper) if v is not None]
         if h.lower is not None and h.upper is not None and h.lower > h.upper:
             raise InputError(f"{h.name}: lower limit {h.lower:g} is above upper limit {h.upper:g}")
+        for m in h.marks:
+            _number(m.value, f"{h.name} mark {m.name}")
         checked.append((h, values, limits))
+    return checked
 
-    ncols = min(4, len(checked))
-    nrows = math.ceil(len(checked) / ncols)
-    fig = _figure(width=3.4 * ncols + 0.6, height=2.6 * nrows + 0.8, title=title)
-    grid = fig.add_gridspec(nrows, ncols)
-    for k, (h, values, limits) in enumerate(checked):
-        ax = fig.add_subplot(grid[k // ncols, k % ncols])
-        lo, hi = float(values.min()), float(values.max())
-        edges = np.linspace(lo, hi, _bins(values) + 1)
-        shown = [lo, hi, *limits]
-        if hi == lo:  # all values equal: a thin bar in the middle of a span set by the limits or the value
-            span = (max(shown) - min(shown)) or 0.1 * abs(lo) or 1.0
-            edges = np.array([lo - span / 40, lo + span / 40])
-            if not limits:
-                shown += [lo - span / 2, lo + span / 2]
-        ax.hist(values, bins=[float(e) for e in edges], color=_AFTER, alpha=0.75)
-        ax.axvline(float(values.mean()), color="black", linewidth=1.5)
-        for limit in limits:
-            ax.axvline(limit, color=_FIT, linestyle="--", linewidth=1.5)
-        left, right = min([float(edges[0]), *shown]), max([float(edges[-1]), *shown])
-        pad = 0.05 * (right - left)
-        ax.set_xlim(left - pad, right + pad)
-        outside = int(np.sum(values < h.lower)) if h.lower is not None else 0
-        outside += int(np.sum(values > h.upper)) if h.upper is not None else 0
-        count = f"n={values.size}" + (f", {outside} outside" if outside else "")
-        ax.set_title(f"{h.name} ({count})", fontsize="medium")
-        if h.label:
-            ax.set_xlabel(h.label)
-        ax.xaxis.set_major_locator(MaxNLocator(nbins=4))
-        ax.yaxis.set_major_locator(MaxNLocator(integer=True, nbins=4))
-        ax.tick_params(labelsize="small")
-    handles = [Line2D([], [], color="black", linewidth=1.5, label="mean")]
-    if any(limits for _, _, limits in checked):  # no "limit" entry for a figure without any
-        handles.append(Line2D([], [], color=_FIT, linestyle="--", linewidth=1.5, label="limit"))
-    fig.legend(handles=handles, loc="outside lower center", ncols=2, fontsize="small", frameon=False)
-    _write(fig, path)
+
+def _draw_histogram(ax: Axes, h: Histogram, values: FloatArray, limits: list[float]) -> None:
+    from matplotlib.ticker import MaxNLocator
+
+    lo, hi = float(values.min()), float(values.max())
+    span = hi - lo or 0.1 * abs(lo) or 1.0
+    # drawn in place when the data keep ≥ 1/3 of the axis (or all values are equal: no scale of their own)
+    near = [v for v in limits if lo - span <= v <= hi + span or hi == lo]
+    shown = [lo, hi, *near]
+    edges = np.linspace(lo, hi, _bins(values) + 1)
+    if hi == lo:  # all values equal: a thin bar in the middle of a span set by the limits or the value
+        wide = (max(shown) - min(shown)) or span
+        edges = np.array([lo - wide / 40, lo + wide / 40])
+        if not near:
+            shown += [lo - wide / 2, lo + wide / 2]
+    counts, _, _ = ax.hist(values, bins=[float(e) for e in edges], color=_AFTER, alpha=0.75)
+    ax.axvline(float(values.mean()), color="black", linewidth=1.5)
+    for limit in near:
+        ax.axvline(limit, color=_FIT, linestyle="--", linewidth=1.5)
+    left, right = min([float(edges[0]), *shown]), max([float(edges[-1]), *shown])
+    pad = 0.06 * (right - left)
+    ax.set_xlim(left - pad, right + pad)
+    top = max(float(np.max(counts)), 1.0)
+    ax.set_ylim(0, top * (1.45 if h.marks else 1.3 if len(near) < len(limits) else 1.1))
+    for limit in limits:
+        if limit not in near:  # off scale: an arrow at the edge it lies beyond, with its value
+            right_side = limit > hi
+            value = f"{limit:.3g}".replace("-", "−")
+            ax.annotate(
+                f"limit {value} →" if right_side else f"← limit {value}",
+                xy=(1.0 if right_side else 0.0, 0.92),
+                xycoords="axes fraction",
+                ha="right" if right_side else "left",
+                fontsize="x-small",
+                color=_FIT,
+            )
+    _draw_marks(ax, h.marks, top)
+    outside = int(np.sum(values < h.lower)) if h.lower is not None else 0
+    outside += int(np.sum(values > h.upper)) if h.upper is not None else 0
+    flagged = sum(1 for m in h.marks if m.kind in ("outlier", "both"))
+    count = f"n={values.size}" + (f", {outside} outside" if outside else "")
+    count += f", {flagged} outlier{'s' if flagged > 1 else ''}" if flagged else ""
+    ax.set_title(f"{h.name} ({count})", fontsize="medium")
+    if h.label:
+        ax.set_xlabel(h.label)
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=4))
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True, nbins=4))
+    ax.tick_params(labelsize="small")
+
+
+def _colour(kind: str) -> str:
+    """A failing unit is drawn as failing, whether or not it is also an outlier."""
+    return "outlier" if kind == "outlier" else "outside"
+
+
+def _draw_marks(ax: Axes, marks: tuple[Mark, ...], top: float, named: int = 6) -> None:
+    """A triangle above the bars at each marked unit, the first ``named`` of them labelled."""
+    for kind, (color, _) in _MARKS.items():
+        xs = [m.value for m in marks if _colour(m.kind) == kind]
+        if xs:
+            ax.scatter(xs, [top * 1.12] * len(xs), marker="v", color=color, s=36, zorder=3, clip_on=False)
+    left, right = ax.get_xlim()
+    for k, m in enumerate(sorted(marks, key=lambda m: m.value)[:named]):
+        where = (m.value - left) / (right - left)
+        ax.annotate(
+            _short(m.name, 14),
+            xy=(m.value, top * 1.16),
+            xytext=(0, 2 + 7 * (k % 2)),  # alternate heights: neighbours do not overprint
+            textcoords="offset points",
+            ha="right" if where > 0.85 else "left" if where < 0.15 else "center",  # inside the axes
+            fontsize="x-small",
+            color=_MARKS[_colour(m.kind)][0],
+        )
+    if len(marks) > named:
+        ax.annotate(
+            f"+{len(marks) - named} more",
+            xy=(0.99, 0.99),
+            xycoords="axes fraction",
+            ha="right",
+            va="top",
+            fontsize="x-small",
+        )
 
 
 def drift_figure(

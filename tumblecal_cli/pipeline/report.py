@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import os
+import urllib.parse
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from tumblecal_cli.core import gate, lot
+from tumblecal_cli.core import gate, lot, outliers
 from tumblecal_cli.errors import InputError, TumblecalError
-from tumblecal_cli.io import calfile, limitfile
+from tumblecal_cli.io import calfile, limitfile, lothtml, plots
+from tumblecal_cli.version import __version__
 
 #: Suffixes of calibration files a folder is searched for (case-insensitive, as documents.is_yaml).
 SUFFIXES = (".json", ".yaml", ".yml")
@@ -37,10 +39,13 @@ def report(
     limits: str | None = None,
     max_drift: str | Mapping[str, float] | None = None,
     min_cpk: float | None = None,
+    outlier_alpha: float = outliers.OUTLIER_ALPHA,
 ) -> Reported:
     """Statistics of the calibration files in ``paths`` (files, or folders searched for
     *.json and *.yaml): per parameter count, mean, std, min/max, Cpk against ``limits`` (a limits
-    file), outliers, and drift beyond ``max_drift`` (``offset=0.01,gain=0.002``)."""
+    file), outliers at the lot-wide false-alarm rate ``outlier_alpha`` (``core.outliers``), and
+    drift beyond ``max_drift`` (``offset=0.01,gain=0.002``)."""
+    outliers.check_alpha(outlier_alpha)
     if min_cpk is not None and not (np.isfinite(min_cpk) and min_cpk > 0):
         raise InputError(f"--min-cpk must be a positive number, got {min_cpk}")
     if min_cpk is not None and limits is None:
@@ -52,8 +57,98 @@ def report(
     given = [paths] if isinstance(paths, str | os.PathLike) else list(paths)
     found = find([os.fspath(p) for p in given], skip=limits)
     entries, unreadable = _load(found)
-    result = lot.summarise(entries, unreadable, bounds, max_drift=drift_limits, min_cpk=min_cpk)
+    result = lot.summarise(
+        entries, unreadable, bounds, max_drift=drift_limits, min_cpk=min_cpk, outlier_alpha=outlier_alpha
+    )
     return Reported(result, entries, bounds, found)
+
+
+def unit_name(e: lot.Entry) -> str:
+    """How the report names a unit: its serial, or its file's name when it has none."""
+    return e.serial if e.serial is not None else os.path.basename(e.path)
+
+
+def histograms(reported: Reported) -> list[plots.Histogram]:
+    """One histogram per row of the report: the lot's values of that parameter, its limits, and
+    its failing units and outliers marked by name."""
+    result, members = reported.result, lot.split_by_units(lot.lot(reported.entries))
+    several = len({r.sensor for r in result.rows}) != 1
+    out = []
+    for row in result.rows:
+        having = [e for e in members if e.sensor == row.sensor and row.parameter in e.values]
+        flagged = {unit for unit, _, _ in row.outliers}
+        outside = set(row.outside)
+        kinds = {(True, True): "both", (True, False): "outside", (False, True): "outlier"}
+        marks = tuple(
+            plots.Mark(unit_name(e), e.values[row.parameter], kinds[unit_name(e) in outside, unit_name(e) in flagged])
+            for e in having
+            if unit_name(e) in outside or unit_name(e) in flagged
+        )
+        name = f"{row.sensor} {row.parameter}" if several else row.parameter
+        values = np.array([e.values[row.parameter] for e in having])
+        out.append(plots.Histogram(name, values, row.lower, row.upper, marks=marks))
+    return out
+
+
+def write_html(reported: Reported, path: str, *, limits: str | None = None, drift_given: bool = False) -> None:
+    """``report --html``: the lot report as one self-contained page (``io.lothtml``), its figures
+    drawn by matplotlib (the ``[plot]`` extra), each unit linked to its calibration file."""
+    panels = plots.lot_panels_svg(histograms(reported)) if reported.result.rows else []
+    names = [f"{row.sensor} {row.parameter}" for row in reported.result.rows]
+    several = len({row.sensor for row in reported.result.rows}) > 1
+    page = lothtml.Page(
+        report=reported.result,
+        units=unit_lines(reported, os.path.dirname(os.path.abspath(path))),
+        panels=[(name if several else name.split(" ", 1)[1], svg) for name, svg in zip(names, panels, strict=True)],
+        limits=os.path.basename(limits) if limits else None,
+        tool=f"tumblecal {__version__}",
+        drift_given=drift_given,
+    )
+    lothtml.write(path, page)
+
+
+def unit_lines(reported: Reported, folder: str) -> list[lothtml.UnitLine]:
+    """Each unit of the lot with why it fails or needs a look, linked relative to ``folder``."""
+    result = reported.result
+    failing: dict[tuple[str, str], list[str]] = {}
+    flagged: dict[tuple[str, str], list[str]] = {}
+    members = lot.split_by_units(lot.lot(reported.entries))
+    for row in result.rows:
+        where = f"outside {row.lower:.4g} … {row.upper:.4g}" if row.lower is not None and row.upper is not None else ""
+        for e in members:
+            if e.sensor == row.sensor and unit_name(e) in row.outside:
+                value = e.values[row.parameter]
+                failing.setdefault((e.sensor, unit_name(e)), []).append(f"{row.parameter} {value:.4g} {where}".strip())
+        for unit, value, t in row.outliers:
+            limit = f" (limit {row.outlier_limit:.3g})" if row.outlier_limit is not None else ""
+            flagged.setdefault((row.sensor, unit), []).append(
+                f"{row.parameter} {value:.4g}: an outlier, t {t:+.1f} against the other units{limit}"
+            )
+    drifted = {(d.sensor, d.serial): d for d in result.drift if d.flagged}
+    shared = lot.duplicate_of(result.duplicates)
+    lines = []
+    for e in members:
+        key = (e.sensor, unit_name(e))
+        why = list(failing.get(key, []))
+        if e.passed is False:
+            why.append("failed its limits when it was calibrated (its verdict)")
+        look = list(flagged.get(key, []))
+        if key in drifted and e.serial is not None:
+            d = drifted[key]
+            look.append(f"{d.parameter} changed {d.change:+.4g} since {d.previous_created or d.previous}")
+        if e.serial in shared:
+            look.append(f"shares a pose file with {', '.join(shared[e.serial])}")
+        link = (
+            None
+            if e.path == "-"
+            else urllib.parse.quote(os.path.relpath(os.path.abspath(e.path), folder).replace(os.sep, "/"))
+        )
+        lines.append(
+            lothtml.UnitLine(
+                unit_name(e), e.created, e.sensor, e.method, e.station, e.operator, link, tuple(why), tuple(look)
+            )
+        )
+    return lines
 
 
 def find(paths: list[str], skip: str | None = None) -> list[str]:
@@ -110,6 +205,9 @@ def entry(cal: calfile.Calibration) -> lot.Entry:
         values=values,
         units=(f"{cal.input_units} -> " if cal.input_units else "") + str(cal.units or "no units"),
         poses=tuple((p.sha256, p.file or "") for p in cal.poses if p.sha256),
+        station=cal.unit.station if cal.unit is not None else None,
+        operator=cal.unit.operator if cal.unit is not None else None,
+        passed=cal.verdict.passed if cal.verdict is not None else None,
     )
 
 
