@@ -105,6 +105,9 @@ class SolveOptions:
     units: str | None = None
     input_units: str | None = None
     rows_are_poses: bool | None = None  # each row of the capture a pose (None: when it looks so)
+    location: str | None = None  # LAT,LON[,HEIGHT_M]: the reference from the place (pipeline.places)
+    gravity: float | None = None  # local gravity in m/s^2, given
+    date: str | None = None  # YYYY-MM-DD: a magnetometer's Earth field on that day
     read: ReadSpec = field(default_factory=ReadSpec)
     log: LogOptions = field(default_factory=LogOptions)
     checks: CheckOptions = field(default_factory=CheckOptions)
@@ -150,6 +153,7 @@ FLAT: dict[str, tuple[str, str]] = {
     **{f: ("", f) for f in ("method", "reference", "up", "tilt_compensate", "bias_spread", "plane", "units")},
     "input_units": ("", "input_units"),
     "rows_are_poses": ("", "rows_are_poses"),
+    **{f: ("", f) for f in ("location", "gravity", "date")},
     **{f: ("read", f) for f in ("sensor", "columns", "no_header", "time_column", "time_unit", "rate")},
     **{f: ("read", f) for f in ("stream", "allow_corrected")},
     **{f: ("read", f) for f in ("start", "end")},
@@ -284,6 +288,7 @@ CHOICES = {
 CHECK_NAMES = ("moved", "orientation", "saturated", "short", "upside-down", "coverage")
 NUMBERS = (
     "reference",
+    "gravity",
     "bias_spread",
     "rate",
     "window",

@@ -23,7 +23,7 @@ from tumblecal_cli.core.model import face_of_name
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import calfile, sources
 from tumblecal_cli.io.calfile import Pose
-from tumblecal_cli.pipeline import logs, rotations, tables, trimming, turns
+from tumblecal_cli.pipeline import logs, places, rotations, tables, trimming, turns
 from tumblecal_cli.pipeline import options as opts
 from tumblecal_cli.pipeline.exchange import tilt_notes
 from tumblecal_cli.pipeline.frames import in_memory, read_pose, samples_of
@@ -131,6 +131,20 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Path
     first = path if path is not None else _first_file(files_or_data)
     if first is not None:  # pose files of a log's stream read in its units as a log is
         options, note = _stream_units(first, options)
+    options, source = places.resolve(options, options.input_units)
+    solved = _run(options, files_or_data, path, note, poses)
+    solved.calibration, solved.draft = places.stamp(solved.calibration, source), places.stamp(solved.draft, source)
+    return solved
+
+
+def _run(
+    options: SolveOptions,
+    files_or_data: list[str] | Mapping[str, object] | None,
+    path: str | None,
+    note: str | None,
+    poses: Poses | None,
+) -> Solved:
+    """run, its options resolved."""
     given = opts.settings(options, log=path is not None)
     if path is not None and (options.log.turns is not None or options.log.accel_cal is not None):  # a gyroscope's turns
         if options.log.turns is not None:
@@ -200,7 +214,8 @@ def _stream_units(path: str, options: SolveOptions) -> tuple[SolveOptions, str |
     if stream is None:
         return options, None
     reference, units, note = options.reference, options.units, None
-    if options.read.sensor == "accelerometer" and stream.units == "m/s^2" and reference is None:
+    local = options.location is not None or options.gravity is not None  # pipeline.places sets it
+    if options.read.sensor == "accelerometer" and stream.units == "m/s^2" and reference is None and not local:
         reference, units = STANDARD_GRAVITY, units or "m/s^2"
         note = (
             f"{stream.key} is in m/s^2: solved against standard gravity, --reference {STANDARD_GRAVITY:g}, "
