@@ -184,6 +184,36 @@ def magnetic_field(latitude: float, longitude: float, height: float, year: float
     )
 
 
+# -- the dip angle ------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Dip:
+    """The angle between gravity and the field in each still block (degrees), their ``mean``,
+    ``spread`` (sample standard deviation; 0 for one block) and ``uncertainty`` (1 sigma of the
+    mean, spread / sqrt(n): the blocks' scatter, which holds the noise and what the calibration
+    leaves in each orientation)."""
+
+    angles: FloatArray
+    mean: float
+    spread: float
+    uncertainty: float
+
+
+def dip(up: FloatArray, field: FloatArray) -> Dip:
+    """The dip angle of each block from the accelerometer's reading at rest (``up`` (n, 3): it
+    reads +1 g upwards, so gravity is -up) and the magnetometer's (``field`` (n, 3)), both
+    calibrated and in the same axes: the angle between gravity and the field, which is the same
+    in every orientation, 90 - inclination (WMM2025 report Eq. 19: I = atan(Z / H))."""
+
+    down = -up / np.linalg.norm(up, axis=1, keepdims=True)
+    towards = field / np.linalg.norm(field, axis=1, keepdims=True)
+    angles = np.degrees(np.arccos(np.clip(np.sum(down * towards, axis=1), -1.0, 1.0)))
+    n = len(angles)
+    spread = float(np.std(angles, ddof=1)) if n > 1 else 0.0
+    return Dip(angles, float(np.mean(angles)), spread, spread / math.sqrt(n) if n > 1 else math.nan)
+
+
 #: WMM.COF of WMM2025 as published by NOAA NCEI (public domain): epoch, model, release date; then
 #: n, m, g, h (nT), g-dot, h-dot (nT/year); closed by two lines of 9s.
 WMM_COF = """\

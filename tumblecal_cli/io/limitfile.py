@@ -25,6 +25,7 @@ LIMIT_KEYS = {
     "random_walk": "per axis",
     "offset_drift": "per axis",  # a thermal block's largest offset drift over its range, raw units
     "offset_drift_per_degc": "per axis",  # ... and per °C
+    "dip_angle": "one",  # degrees: a magnetometer's still blocks' dip angle from the model's (docs/real-world.md)
 }
 
 

@@ -396,6 +396,13 @@ def turn_options(options: SolveOptions, *, log: bool) -> None:
     """--turns and --turn-angle: a gyroscope's labelled turns in one log, the angle known;
     --accel-cal: its hand turns between still poses."""
 
+    if options.log.accel_cal is not None and options.read.sensor == "magnetometer":  # its dip check
+        if not log or options.log.pose_column is not None or options.log.turns is not None:
+            raise InputError(
+                "--accel-cal: a magnetometer's dip check takes one continuous --log with both sensors, its still "
+                "blocks found (no --pose-column)"
+            )
+        return
     if options.log.accel_cal is not None or options.method == "rotations":
         if options.log.accel_cal is None:
             raise InputError(

@@ -210,13 +210,18 @@ def stamp(cal: Calibration | None, source: Source | None) -> Calibration | None:
         return cal
     order = list(cal.order)
     if source.key not in order:
-        at = order.index("input_units") + 1 if "input_units" in order else len(order)
-        order.insert(at, source.key)
+        after = [order.index(k) for k in ("input_units", "gravity", "earth_field") if k in order]
+        order.insert(max(after) + 1 if after else len(order), source.key)
     return replace(cal, fields={**cal.fields, source.key: dict(source.part)}, order=tuple(order))
 
 
 def lines_of(cal: Calibration) -> list[str]:
-    """The lines a summary shows of where the reference came from (none: typed by hand)."""
+    """The lines a summary shows of where the reference came from (none: typed by hand) and of
+    the dip check."""
+    return [*_reference_lines(cal), *_dip_lines(cal.fields.get("dip"))]
+
+
+def _reference_lines(cal: Calibration) -> list[str]:
     part = cal.fields.get("gravity")
     if isinstance(part, Mapping) and isinstance(part.get("value_m_s2"), float | int):
         at = "" if part.get("latitude") is None else f" at {part.get('latitude')}, {part.get('longitude')}, "
@@ -232,3 +237,17 @@ def lines_of(cal: Calibration) -> list[str]:
             f"inclination {part.get('inclination_deg')}°, declination {part.get('declination_deg')}°"
         ]
     return []
+
+
+def _dip_lines(part: object) -> list[str]:
+    """The summary's line of a calibration's ``dip`` part (pipeline.maglog)."""
+    if not isinstance(part, Mapping) or not isinstance(part.get("mean_deg"), float | int):
+        return []
+    line = (
+        f"dip angle (gravity to field): {part['mean_deg']:.2f}° ± {part.get('uncertainty_deg')}° over "
+        f"{part.get('blocks')} still blocks, spread {part.get('spread_deg')}°"
+    )
+    model, difference = part.get("model_deg"), part.get("difference_deg")
+    if isinstance(model, float | int) and isinstance(difference, float | int):
+        line += f"; the model's {model:.2f}° ({difference:+.2f}°)"
+    return [line]
