@@ -214,3 +214,18 @@ def test_a_log_of_one_sensor_is_exit_2(capsys: pytest.CaptureFixture[str], tmp_p
     log = write(tmp_path / "acc.csv", data[:, :4], header="t,x,y,z", fmt="%.5f")
     r = run(capsys, "solve", "--sensor", "magnetometer", "--log", log, "-o", tmp_path / "m.json")
     assert_usage_error(r, "both sensors")
+
+
+def test_check_judges_the_dip_angles_a_file_records_again(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    log = write_log(tmp_path / "both.csv", both_sensors_log(np.random.default_rng(11), detour=True))
+    out = tmp_path / "mag.json"
+    args = ("solve", "--sensor", "magnetometer", "--log", log, "-o", out, "--location", PLACE, "--date", DAY)
+    assert run(capsys, *args, "--accel-cal", accel_cal(tmp_path, capsys)).code == 0
+    assert run(capsys, "check", out, "--limits", write(tmp_path / "loose.yaml", "dip_angle: 1\n")).code == 0
+    r = run(capsys, "check", out, "--limits", write(tmp_path / "tight.yaml", "dip_angle: 0.001\n"), "--json")
+    assert r.code == 1, r.err
+    assert [f["code"] for f in json.loads(r.out)["verdict"]["failures"]] == ["limit.dip_angle"]
+    plain = tmp_path / "plain.json"
+    assert run(capsys, *args[:6], plain, *args[7:]).code == 0
+    r = run(capsys, "check", plain, "--limits", tmp_path / "loose.yaml")
+    assert_usage_error(r, "has no dip angles to judge the dip_angle limit by")

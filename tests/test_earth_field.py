@@ -169,3 +169,19 @@ def test_bad_fields_are_one_line_exit_2_and_nothing_written(
     r = run(capsys, "solve", "--sensor", "magnetometer", "-p", capture(tmp_path, 50.0), *args, "-o", out)
     assert_usage_error(r, *words)
     assert_untouched(out)
+
+
+def test_verify_a_magnetometer_against_the_field_of_a_place_and_day(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    f = earth.magnetic_field(52.2053, 0.1218, 16.0, earth.decimal_year(2026, 11, 27))
+    cal = tmp_path / "mag.json"
+    path = capture(tmp_path, f.total / 1000)
+    assert run(capsys, "solve", "--sensor", "magnetometer", "-p", path, "-o", cal, "--reference", "50").code == 0
+    doc = json.loads(cal.read_text())
+    doc["units"] = "uT"
+    cal.write_text(json.dumps(doc))
+    raw = np.linalg.inv(np.array(doc["matrix"])) @ np.array([0.3, -0.2, 0.93]) * f.total / 1000 + doc["offset"]
+    still = write(tmp_path / "still.csv", raw + np.random.default_rng(1).normal(0, 0.05, (200, 3)), header="mx,my,mz")
+    r = run(capsys, "verify", "--cal", cal, still, "--location", PLACE, "--date", DAY, "--json")
+    assert json.loads(r.out).get("reference") == pytest.approx(f.total / 1000, rel=1e-12), r.out + r.err

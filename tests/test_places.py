@@ -133,3 +133,17 @@ def test_batch_solves_every_unit_against_local_gravity(capsys: pytest.CaptureFix
     doc = json.loads(written.read_text())
     assert doc["reference"] == pytest.approx(earth.normal_gravity(-33.9, 40.0) / 9.80665, rel=1e-12)
     assert doc["gravity"]["latitude"] == -33.9
+
+
+def test_the_python_api_takes_the_place_as_the_command_line_does(tmp_path: Path) -> None:
+    import tumblecal_cli as tumblecal
+
+    solved = tumblecal.solve(POSES_3, location="-33.9,18.4,40")
+    assert solved.calibration is not None
+    assert solved.calibration.reference == pytest.approx(earth.normal_gravity(-33.9, 40.0) / 9.80665, rel=1e-12)
+    assert solved.calibration.fields["gravity"]["latitude"] == -33.9  # type: ignore[index]
+    solved.calibration.save(tmp_path / "cal.json")
+    done = tumblecal.verify(POSES_3[0], str(tmp_path / "cal.json"), gravity=9.8)
+    assert done.reference == pytest.approx(9.8 / 9.80665, rel=1e-12)
+    again = tumblecal.load(tmp_path / "cal.json")
+    assert again.fields["gravity"] == solved.calibration.fields["gravity"]  # read back and kept
