@@ -185,3 +185,14 @@ def test_verify_a_magnetometer_against_the_field_of_a_place_and_day(
     still = write(tmp_path / "still.csv", raw + np.random.default_rng(1).normal(0, 0.05, (200, 3)), header="mx,my,mz")
     r = run(capsys, "verify", "--cal", cal, still, "--location", PLACE, "--date", DAY, "--json")
     assert json.loads(r.out).get("reference") == pytest.approx(f.total / 1000, rel=1e-12), r.out + r.err
+
+
+@pytest.mark.parametrize("latitude", [90.0, -90.0, 89.9999999, -89.99999])
+def test_wmm_at_the_poles_agrees_with_pygeomag(latitude: float) -> None:
+    """At a pole the east component is a 0/0 (m P / cos of the latitude): it stays finite and right."""
+    pygeomag = pytest.importorskip("pygeomag")
+    theirs = pygeomag.GeoMag(coefficients_file="wmm/WMM_2025.COF").calculate(
+        glat=latitude, glon=30.0, alt=0.0, time=2026.5
+    )
+    ours = earth.magnetic_field(latitude, 30.0, 0.0, 2026.5)
+    assert (ours.north, ours.east, ours.down) == pytest.approx((theirs.x, theirs.y, theirs.z), abs=1e-3)

@@ -108,11 +108,10 @@ def _coefficients() -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     return g, h, gdot, hdot
 
 
-def _legendre(theta: float) -> tuple[FloatArray, FloatArray]:
-    """Schmidt semi-normalised associated Legendre functions P[n, m] of cos(theta) to degree 12
-    and their derivatives dP/dtheta (WMM2025 report Eqs. 12-13, by the standard recursions in n
-    and on the diagonal; differentiated term by term so the poles need no division)."""
-    x, s = math.cos(theta), math.sin(theta)
+def _legendre(x: float, s: float) -> tuple[FloatArray, FloatArray]:
+    """Schmidt semi-normalised associated Legendre functions P[n, m] of x = cos(theta) to degree
+    12 and their derivatives dP/dtheta (s = sin(theta); WMM2025 report Eqs. 12-13, by the standard
+    recursions in n and on the diagonal; differentiated term by term so the poles need no division)."""
     p, dp = np.zeros((13, 13)), np.zeros((13, 13))
     p[0, 0] = 1.0
     for n in range(1, 13):
@@ -154,11 +153,12 @@ def magnetic_field(latitude: float, longitude: float, height: float, year: float
     p_axis = (n_radius + height) * math.cos(phi)
     z_axis = (n_radius * (1 - WGS84_E2) + height) * math.sin(phi)
     r = math.hypot(p_axis, z_axis)
-    phi_c = math.asin(z_axis / r)
+    phi_c = math.atan2(z_axis, p_axis)
+    sin_c, cos_c = z_axis / r, p_axis / r  # cos(theta), sin(theta) of the colatitude, to full precision
     g0, h0, gdot, hdot = _COEFFICIENTS
     dt = year - WMM_SPAN[0]
     g, h = g0 + dt * gdot, h0 + dt * hdot  # Eq. 9
-    p, dp = _legendre(math.pi / 2 - phi_c)
+    p, dp = _legendre(sin_c, cos_c)
     n = np.arange(13)[:, None]
     m = np.arange(13)[None, :]
     scale = (WMM_RADIUS / r) ** (n + 2)
@@ -166,8 +166,8 @@ def magnetic_field(latitude: float, longitude: float, height: float, year: float
     along = g * cos_m + h * sin_m
     across = g * sin_m - h * cos_m
     x_c = float(np.sum(scale * along * dp))  # Eq. 10: -dP/dphi' = dP/dtheta
-    cos_c = max(math.cos(phi_c), 1e-12)
-    y_c = float(np.sum(scale * m * across * p)) / cos_c  # Eq. 11
+    # Eq. 11: P[n, m] holds cos_c^m, so m P / cos_c stays finite at the poles (cos_c ~ 1e-17 there)
+    y_c = float(np.sum(scale * m * across * p)) / cos_c
     z_c = -float(np.sum(scale * (n + 1) * along * p))  # Eq. 12
     turn = phi_c - phi  # Eq. 17: into the ellipsoidal frame
     north = x_c * math.cos(turn) - z_c * math.sin(turn)
