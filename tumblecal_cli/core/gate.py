@@ -1,6 +1,6 @@
 """The production-test gate: quality checks on each pose, limits, and the verdict. numpy only.
 
-Part of the core layer (README "Development"): pure functions on numbers, no files, no terminal.
+Part of the core layer (docs/development.md): pure functions on numbers, no files, no terminal.
 
 - A **rejection** (exit 3) says the capture cannot be trusted: a pose moved, is not the pose it
   claims, clipped, is too short, or solves to a gain that is not positive.
@@ -141,7 +141,7 @@ def orient(poses: Sequence[PoseCheck], nominal_offset: FloatArray, max_tilt_deg:
     """Give each pose its direction, angle from its face and nearest face.
 
     The centre removed from each mean is ``nominal_offset``, except on an axis where both of its
-    faces were captured and agree: there the midpoint of the two (README "Poses, signs and --reference": opposite
+    faces were captured and agree: there the midpoint of the two (docs/reference/model.md: opposite
     faces cancel the offset). They agree when their difference points along that axis (either
     way: a swapped pair has the same midpoint) within ``max_tilt_deg``; a pair that does not
     (one of them is some other pose) would move the
@@ -516,7 +516,7 @@ def corrected(
     mean: FloatArray, std: FloatArray, face: str | None, offset: FloatArray, matrix: FloatArray, reference: float
 ) -> Corrected:
     """How a pose (its mean and standard deviation) reads once corrected, against the reference."""
-    c = matrix @ (mean - offset)  # README "Poses, signs and --reference": corrected = M (raw - b)
+    c = matrix @ (mean - offset)  # docs/reference/model.md: corrected = M (raw - b)
     return Corrected(
         norm_error=float(np.linalg.norm(c) - reference),
         vector_error=None if face is None else float(np.linalg.norm(c - reference * direction(face))),
@@ -648,7 +648,7 @@ def dip_failures(limits: Limits, angles: FloatArray, model: float | None) -> lis
 
 
 def _drift_failures(limits: Limits, drift: tuple[FloatArray, FloatArray] | None) -> list[Finding]:
-    """The offset-drift limits (README "tumblecal thermal"): over the range, and per °C."""
+    """The offset-drift limits (docs/commands/thermal.md): over the range, and per °C."""
     out: list[Finding] = []
     if drift is None:
         return out

@@ -1,12 +1,12 @@
 """The numeric core: pose statistics, the tumble solvers, and apply. numpy only.
 
-Measurement model (README "Poses, signs and --reference")::
+Measurement model (docs/reference/model.md)::
 
     raw = A @ v + b + noise        v: true stimulus in the sensor frame, |v| = reference
     corrected = M @ (raw - b)      M = inv(A)
 
 ``b`` (offset) is in raw units; ``A`` has the gains on its diagonal. Every formula cites its
-source by author and year, listed in README "Sources": Vitali 2018 is ST's design tip "1-point /
+source by author and year, listed in docs/sources.md: Vitali 2018 is ST's design tip "1-point /
 3-point tumble sensor calibration", cited below by its equations and sections.
 
 Nothing here reads files or talks to a terminal; errors carry no file name unless the caller
@@ -36,7 +36,7 @@ FACES: dict[str, tuple[float, float, float]] = {
     "+z": (0.0, 0.0, 1.0),
     "-z": (0.0, 0.0, -1.0),
 }
-#: Script-friendly aliases (README "Poses, signs and --reference"): xp = +x, xn = -x, ...
+#: Script-friendly aliases (docs/reference/model.md): xp = +x, xn = -x, ...
 FACE_ALIASES = {f"{axis}{s}": f"{sign}{axis}" for axis in "xyz" for s, sign in (("p", "+"), ("n", "-"))}
 
 #: The sensors tumblecal calibrates, in the order reports list them.
@@ -209,7 +209,7 @@ def solve_three_pose(
 
     and corrects by subtracting the offset and dividing by the gain, so ``M = diag(1 / gain)``.
     The offsets come from horizontal readings, so they shift to first order with fixture tilt
-    (Vitali 2018, notes; README "Poses, signs and --reference").
+    (Vitali 2018, notes; docs/reference/model.md).
 
     ``faces``: the face of each pose, one per axis in the order x, y, z, of either sign. On a
     ``-`` face the axis reads ``offset - gain·reference`` (the model ``raw = A v + b`` with
@@ -307,7 +307,7 @@ def units_mistake(mean: FloatArray, reference: float) -> float | None:
     """The reference the data suggests when |mean| is far from ``reference``, else None.
 
     Only meaningful for solvers without gains (1-pose), where the output keeps the raw units
-    (README "Poses, signs and --reference"). Offsets are a few percent of full scale, so a magnitude more than
+    (docs/reference/model.md). Offsets are a few percent of full scale, so a magnitude more than
     ``UNITS_TOLERANCE`` away from ``reference`` means the data is in other units.
     """
     magnitude = float(np.linalg.norm(mean))

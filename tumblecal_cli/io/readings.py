@@ -451,6 +451,12 @@ def time_scale(layout: Layout, clock: FloatArray, unit: str) -> float:
 FASTEST = 1e9
 
 
+def check_rate(rate: float | None) -> None:
+    """A --rate given is a positive number of Hz up to FASTEST; None is no rate given."""
+    if rate is not None and not 0 < rate <= FASTEST:
+        raise InputError(f"--rate must be a positive number of Hz up to {FASTEST:g}, got {rate:g}")
+
+
 def _step(clock: FloatArray) -> float | None:
     """The median of the first 100,000 positive steps of a clock (None: it never moves)."""
     d = np.diff(clock[:100_001])

@@ -31,7 +31,7 @@ if TYPE_CHECKING:
 
 #: A pandas DataFrame: pandas ships no types here, so to mypy it is Any (the one place that says so).
 DataFrame: TypeAlias = Any
-#: A JSON object the Python API returns (``to_dict``): read by key, each value what README's format says.
+#: A JSON object the Python API returns (``to_dict``): read by key, each value as the calibration file has it.
 JSONObject: TypeAlias = dict[str, Any]
 
 

@@ -23,7 +23,7 @@ from tumblecal_cli.core.model import face_of_name
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import calfile, sources
 from tumblecal_cli.io.calfile import Pose
-from tumblecal_cli.pipeline import logs, maglog, places, rotations, tables, trimming, turns
+from tumblecal_cli.pipeline import alignment, logs, maglog, places, rotations, tables, trimming, turns
 from tumblecal_cli.pipeline import options as opts
 from tumblecal_cli.pipeline.exchange import tilt_notes
 from tumblecal_cli.pipeline.frames import in_memory, read_pose, samples_of
@@ -97,7 +97,7 @@ def solve(poses: Poses, **options: object) -> Solved:
     ``poses``: the items of ``--poses`` (``FILE`` or ``LABEL=FILE``), or a mapping of labels
     (faces such as ``"+x"``, or ``"X,Y,Z"`` directions) to DataFrames or (n, 3) arrays.
     ``options``: solve's long options in snake case (``reference=``, ``method=``,
-    ``max_noise=``, ``limits=`` for a limits file, ``serial=`` ...; README "Using tumblecal from
+    ``max_noise=``, ``limits=`` for a limits file, ``serial=`` ...; docs/python.md
     Python"). Input errors raise InputError; a rejected capture is ``status`` 3, not an error.
     """
 
@@ -116,8 +116,31 @@ def solve_log(log: str | os.PathLike[str] | DataFrame, **options: object) -> Sol
 
 
 def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.PathLike[str] | None = None) -> Solved:
-    """solve and solve_log, on options already gathered (the command line and batch call this)."""
+    """solve and solve_log, on options already gathered (the command line and batch call this);
+    a magnetometer's with ``align_to`` then rotated onto that accelerometer's axes."""
 
+    accel = options.log.align_to
+    if accel is None:
+        return _placed_run(options, poses=poses, log=log)
+    source = alignment.source_of(options.read.sensor, log if log is not None else poses)
+    solved = _placed_run(options, poses=poses, log=log)
+    if solved.calibration is not None:
+        settings = segment.Settings(
+            options.log.window, options.log.threshold, options.log.min_duration, options.log.trim
+        )
+        if options.checks.max_noise is not None:
+            settings = replace(settings, max_noise=options.checks.max_noise)
+        done = alignment.mag_to_accel(source, accel, solved.calibration, options.read, settings)
+        solved.calibration = alignment.aligned(done)
+        solved.notes.append(alignment.solved_note(done))
+    return solved
+
+
+def _placed_run(
+    options: SolveOptions, *, poses: Poses | None = None, log: str | os.PathLike[str] | None = None
+) -> Solved:
+    """run before any alignment: the reference of --location, --gravity and --date resolved
+    (pipeline.places), the solve, and where the reference came from written beside it."""
     options = opts.checked(options)
     files_or_data = None if poses is None else _poses_given(poses, options)
     path = (

@@ -19,7 +19,6 @@ from tumblecal_cli.io import calfile, readings
 from tumblecal_cli.io.readspec import ReadSpec, column_list
 from tumblecal_cli.pipeline import places
 from tumblecal_cli.pipeline.frames import in_memory, is_data
-from tumblecal_cli.pipeline.logs import FASTEST
 from tumblecal_cli.pipeline.options import (
     FileKeywords,
     LogOptions,
@@ -94,7 +93,7 @@ class Verified:
 
 
 class VerifyKeywords(FileKeywords, StreamKeywords, total=False):
-    """verify's options beside the captures' shape (README "tumblecal verify")."""
+    """verify's options beside the captures' shape (docs/commands/verify.md)."""
 
     reference: float | None
     location: str | None
@@ -251,8 +250,7 @@ def _spec(options: VerifyKeywords, c: Calibration) -> ReadSpec:
     """How verify reads its captures: their shape, the calibration's sensor and columns, and the
     part of each (--start/--end; --rate gives its seconds when a capture has no time column)."""
     rate = options.get("rate")
-    if rate is not None and not 0 < rate <= FASTEST:
-        raise InputError(f"--rate must be a positive number of Hz up to {FASTEST:g}, got {rate:g}")
+    readings.check_rate(rate)
     return replace(
         file_spec(options, prefer=c.columns),
         sensor=c.sensor,
@@ -347,8 +345,7 @@ def verify_rotations(
             f"--log with --accel-cal verifies a gyroscope's calibration, not the {c.sensor}'s", file=c.path
         )
 
-    if rate is not None and not 0 < rate <= FASTEST:
-        raise InputError(f"--rate must be a positive number of Hz up to {FASTEST:g}, got {rate:g}")
+    readings.check_rate(rate)
     options = SolveOptions(
         read=ReadSpec(
             sensor="gyroscope",
