@@ -147,6 +147,37 @@ def source(stream: str | None, allow_corrected: bool) -> Source:
     return {"stream": stream, "allow_corrected": allow_corrected}
 
 
+Location = Annotated[
+    str | None,
+    typer.Option(
+        "--location",
+        metavar="LAT,LON[,HEIGHT_M]",
+        help="Where the unit was calibrated (degrees north, east; metres above the WGS-84 ellipsoid): the "
+        "reference becomes local gravity (WGS-84 normal gravity) in g or m/s^2, or with --date a magnetometer's "
+        "Earth field (World Magnetic Model WMM2025) in uT or gauss. Instead of --reference.",
+    ),
+]
+
+Gravity = Annotated[
+    float | None,
+    typer.Option(
+        "--gravity",
+        metavar="M/S2",
+        help="Local gravity as measured, in m/s^2: the reference in the calibration's units (g or m/s^2). "
+        "Instead of --reference and --location.",
+    ),
+]
+
+Date = Annotated[
+    str | None,
+    typer.Option(
+        "--date",
+        metavar="YYYY-MM-DD",
+        help="With --location, the day a magnetometer was logged: the Earth's field of that day (WMM2025: "
+        "2025-01-01 to 2029-12-31).",
+    ),
+]
+
 RowsArePoses = Annotated[
     bool | None,
     typer.Option(

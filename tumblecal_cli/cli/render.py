@@ -152,7 +152,8 @@ def summary(
         "notes": notes,
     }
     keys = ("sensor", "method", "reference", "units", "columns", "offset", "matrix", "gain", "uncertainty")
-    return head | {k: doc.get(k) for k in (*keys, "tilt_sensitivity", "poses", "unit")}
+    placed = [k for k in ("gravity", "earth_field", "dip") if k in doc]  # pipeline.places
+    return head | {k: doc.get(k) for k in (*keys, *placed, "tilt_sensitivity", "poses", "unit")}
 
 
 def rejected_head(err: TumblecalError) -> dict[str, object]:
@@ -188,6 +189,8 @@ def print_summary(cal: Calibration, console: Console, warned: list[Finding], not
         console.print(f"cross-axis terms (A = M⁻¹, each over its row's gain): {terms}", soft_wrap=True)
     if cal.coverage is not None:
         console.print(f"coverage: {cal.coverage:.0%} of the sphere's directions{_gaps(cal)}", soft_wrap=True)
+    for line in _place_lines(cal):
+        console.print(line, soft_wrap=True, markup=False)
     if tilt is not None and tilt.tolerance_deg is not None:
         console.print(f"± tilt: worst-case shift if each pose is {tilt.tolerance_deg:g}° off level", soft_wrap=True)
     if tilt is not None and tilt.gain_tolerance is not None:
@@ -198,6 +201,15 @@ def print_summary(cal: Calibration, console: Console, warned: list[Finding], not
         console.print(f"note: {note}", soft_wrap=True)
     if judged and cal.verdict is not None:
         _print_verdict(console, cal.verdict.passed, cal.verdict.limit_names, cal.verdict.failures)
+
+
+def _place_lines(cal: Calibration) -> list[str]:
+    """Where the reference came from (local gravity, the Earth's field) and the dip check."""
+    if not any(k in cal.fields for k in ("gravity", "earth_field", "dip")):
+        return []
+    from tumblecal_cli.pipeline import places
+
+    return places.lines_of(cal)
 
 
 def _gaps(cal: Calibration) -> str:

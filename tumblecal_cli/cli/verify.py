@@ -11,9 +11,12 @@ from tumblecal_cli.cli.app import Command, app
 from tumblecal_cli.cli.flags import (
     AllowCorrected,
     Columns,
+    Date,
     Decimal,
     DropIncomplete,
     End,
+    Gravity,
+    Location,
     NoHeader,
     Quiet,
     RowsArePoses,
@@ -101,6 +104,9 @@ def verify(
     start: Start = None,
     end: End = None,
     rows_are_poses: RowsArePoses = None,
+    location: Location = None,
+    gravity: Gravity = None,
+    date: Date = None,
     json_summary: Annotated[
         bool, typer.Option("--json", help="Print the per-capture and overall figures on stdout as JSON.")
     ] = False,
@@ -139,6 +145,9 @@ def verify(
         captures_ or [],
         cal,
         reference=reference,
+        location=location,
+        gravity=gravity,
+        date=date,
         max_norm_error=max_norm_error,
         max_noise=max_noise,
         columns=columns,

@@ -474,6 +474,7 @@ class Limits:
         None  # (3,) bound on |offset(T) - offset(T_ref)| over the thermal range, raw units
     )
     offset_drift_per_degc: FloatArray | None = None  # (3,) bound on |d offset / dT|, raw units per °C
+    dip_angle: float | None = None  # degrees: bound on each still block's dip angle from the model's (or their mean)
 
     def for_method(self, method: str) -> Limits:
         """The limits that apply to a method (NOT_APPLYING: no gain limit where the gains are
@@ -500,7 +501,7 @@ class Limits:
         """Whether any bound is set (a nominal gain alone judges nothing)."""
         return any(
             getattr(self, name) is not None
-            for name in ("offset", "gain_error", "offset_drift", "offset_drift_per_degc", *NOT_APPLYING)
+            for name in ("offset", "gain_error", "offset_drift", "offset_drift_per_degc", "dip_angle", *NOT_APPLYING)
         )
 
     def as_dict(self) -> dict[str, object]:
@@ -513,7 +514,7 @@ class Limits:
             out["gain_error"] = [float(v) for v in self.gain_error]
         if self.gain_error is not None or np.any(self.nominal_gain != 1.0):  # given: export's gain trim reads it
             out["nominal_gain"] = [float(v) for v in self.nominal_gain]
-        for name in ("cross_axis", "noise", "residual"):
+        for name in ("cross_axis", "noise", "residual", "dip_angle"):
             if getattr(self, name) is not None:
                 out[name] = float(getattr(self, name))
         for name in ("offset_drift", "offset_drift_per_degc"):
@@ -644,6 +645,30 @@ def verdict(
                 )
             )
     return failures
+
+
+def dip_failures(limits: Limits, angles: FloatArray, model: float | None) -> list[Finding]:
+    """The dip_angle limit (docs/real-world.md): each still block's angle between gravity and the
+    field (degrees) against the model's, 90 - inclination (their mean where no model is given):
+    a field bent by steel or a motor, or a magnetometer turned against the accelerometer, fails."""
+    if limits.dip_angle is None or not len(angles):
+        return []
+    centre = float(np.mean(angles)) if model is None else model
+    k = int(np.argmax(np.abs(angles - centre)))
+    away = float(angles[k] - centre)
+    if abs(away) <= limits.dip_angle:
+        return []
+    against = f"the model's {model:.2f}°" if model is not None else f"their mean {centre:.2f}°"
+    return [
+        Finding(
+            "limit.dip_angle",
+            f"the dip angle of still block {k + 1} of {len(angles)} is {angles[k]:.2f}°, {away:+.2f}° from {against}, "
+            f"outside ±{limits.dip_angle:g}°",
+            away,
+            limits.dip_angle,
+            hint="calibrate away from steel, motors and cables, or check the accelerometer calibration",
+        )
+    ]
 
 
 def _drift_failures(limits: Limits, drift: tuple[FloatArray, FloatArray] | None) -> list[Finding]:

@@ -650,6 +650,7 @@ def read_limits(raw: Doc) -> Limits:
         residual=number(raw.get("residual")),
         offset_drift=triple("offset_drift"),
         offset_drift_per_degc=triple("offset_drift_per_degc"),
+        dip_angle=number(raw.get("dip_angle")),
     )
 
 

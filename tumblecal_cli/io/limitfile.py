@@ -29,6 +29,7 @@ LIMIT_KEYS = {
     "imu_consistency": "one",
     # `tumblecal current`'s: the field's change at the largest current, a share of the reference
     "current_interference": "one",
+    "dip_angle": "one",  # degrees: a magnetometer's still blocks' dip angle from the model's (docs/real-world.md)
 }
 
 

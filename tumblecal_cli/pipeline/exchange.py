@@ -9,6 +9,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, TypedDict, Unpack
 
+import numpy as np
+
 from tumblecal_cli.core import gate, model, solvers
 from tumblecal_cli.core.gate import FIXED_GAINS
 from tumblecal_cli.errors import InputError, control_character
@@ -17,7 +19,7 @@ from tumblecal_cli.pipeline.options import Triplet, keywords_known, path_of, tri
 from tumblecal_cli.pipeline.options import limits as parse_limits
 
 if TYPE_CHECKING:
-    from tumblecal_cli.core.gate import Finding
+    from tumblecal_cli.core.gate import Finding, Limits
     from tumblecal_cli.io.calfile import Calibration
     from tumblecal_cli.io.formats import Peer
 
@@ -72,8 +74,28 @@ def check(
         failures = gate.judge_again(recorded, given, "; ".join(notes))
     except InputError as err:  # about this calibration: its file named
         raise InputError(err.message, file=c.path, hint=err.hint) from None
+    failures += _dip_again(c, given)
     verdict = calfile.Verdict(not failures, tuple(failures), given.for_method(c.method))
     return Checked(c.with_verdict(verdict), failures, notes)
+
+
+def _dip_again(c: Calibration, given: Limits) -> list[Finding]:
+    """The dip_angle limit judged again on the still blocks' dip angles the file records (its
+    ``dip`` part, pipeline.maglog); a limit with no such part to judge is an input error."""
+    if given.dip_angle is None:
+        return []
+    dip = c.fields.get("dip")
+    angles = dip.get("angles_deg") if isinstance(dip, dict) else None
+    if not (isinstance(angles, list) and angles and all(map(calfile.is_number, angles))):
+        raise InputError(
+            "has no dip angles to judge the dip_angle limit by",
+            file=c.path,
+            hint="a magnetometer solved from a --log with --accel-cal has them; judge it without dip_angle",
+        )
+    assert isinstance(dip, dict)
+    model = dip.get("model_deg")
+    centre = float(model) if calfile.is_number(model) else None
+    return gate.dip_failures(given, np.array(angles, dtype=np.float64), centre)
 
 
 def _recorded_centre(c: Calibration) -> None:

@@ -108,6 +108,9 @@ class SolveOptions:
     units: str | None = None
     input_units: str | None = None
     rows_are_poses: bool | None = None  # each row of the capture a pose (None: when it looks so)
+    location: str | None = None  # LAT,LON[,HEIGHT_M]: the reference from the place (pipeline.places)
+    gravity: float | None = None  # local gravity in m/s^2, given
+    date: str | None = None  # YYYY-MM-DD: a magnetometer's Earth field on that day
     read: ReadSpec = field(default_factory=ReadSpec)
     log: LogOptions = field(default_factory=LogOptions)
     checks: CheckOptions = field(default_factory=CheckOptions)
@@ -153,6 +156,7 @@ FLAT: dict[str, tuple[str, str]] = {
     **{f: ("", f) for f in ("method", "reference", "up", "tilt_compensate", "bias_spread", "plane", "units")},
     "input_units": ("", "input_units"),
     "rows_are_poses": ("", "rows_are_poses"),
+    **{f: ("", f) for f in ("location", "gravity", "date")},
     **{f: ("read", f) for f in ("sensor", "columns", "no_header", "time_column", "time_unit", "rate")},
     **{f: ("read", f) for f in ("stream", "allow_corrected")},
     **{f: ("read", f) for f in ("start", "end")},
@@ -289,6 +293,7 @@ CHOICES = {
 CHECK_NAMES = ("moved", "orientation", "saturated", "short", "upside-down", "coverage")
 NUMBERS = (
     "reference",
+    "gravity",
     "bias_spread",
     "rate",
     "window",
@@ -401,6 +406,13 @@ def turn_options(options: SolveOptions, *, log: bool) -> None:
     """--turns and --turn-angle: a gyroscope's labelled turns in one log, the angle known;
     --accel-cal: its hand turns between still poses."""
 
+    if options.log.accel_cal is not None and options.read.sensor == "magnetometer":  # its dip check
+        if not log or options.log.pose_column is not None or options.log.turns is not None:
+            raise InputError(
+                "--accel-cal: a magnetometer's dip check takes one continuous --log with both sensors, its still "
+                "blocks found (no --pose-column)"
+            )
+        return
     if options.log.accel_cal is not None or options.method == "rotations":
         if options.log.accel_cal is None:
             raise InputError(

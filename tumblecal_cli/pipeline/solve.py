@@ -23,7 +23,7 @@ from tumblecal_cli.core.model import face_of_name
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import calfile, sources
 from tumblecal_cli.io.calfile import Pose
-from tumblecal_cli.pipeline import alignment, logs, rotations, tables, trimming, turns
+from tumblecal_cli.pipeline import alignment, logs, maglog, places, rotations, tables, trimming, turns
 from tumblecal_cli.pipeline import options as opts
 from tumblecal_cli.pipeline.exchange import tilt_notes
 from tumblecal_cli.pipeline.frames import in_memory, read_pose, samples_of
@@ -33,9 +33,10 @@ if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Corrected, Finding, Limits, PoseCheck
     from tumblecal_cli.core.model import FloatArray, PoseStats, Solution
     from tumblecal_cli.core.running import Summary
+    from tumblecal_cli.core.segment import Segmentation
     from tumblecal_cli.io import calfile
     from tumblecal_cli.io.calfile import Calibration, Pose
-    from tumblecal_cli.io.readings import Samples
+    from tumblecal_cli.io.readings import Log, Samples
     from tumblecal_cli.pipeline.frames import DataFrame
     from tumblecal_cli.pipeline.logs import Blocks
     from tumblecal_cli.pipeline.options import Settings, SolveOptions
@@ -121,9 +122,9 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Path
 
     accel = options.log.align_to
     if accel is None:
-        return _run(options, poses=poses, log=log)
+        return _placed_run(options, poses=poses, log=log)
     source = alignment.source_of(options.read.sensor, log if log is not None else poses)
-    solved = _run(options, poses=poses, log=log)
+    solved = _placed_run(options, poses=poses, log=log)
     if solved.calibration is not None:
         settings = segment.Settings(
             options.log.window, options.log.threshold, options.log.min_duration, options.log.trim
@@ -136,7 +137,11 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Path
     return solved
 
 
-def _run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.PathLike[str] | None = None) -> Solved:
+def _placed_run(
+    options: SolveOptions, *, poses: Poses | None = None, log: str | os.PathLike[str] | None = None
+) -> Solved:
+    """run before any alignment: the reference of --location, --gravity and --date resolved
+    (pipeline.places), the solve, and where the reference came from written beside it."""
     options = opts.checked(options)
     files_or_data = None if poses is None else _poses_given(poses, options)
     path = (
@@ -151,7 +156,26 @@ def _run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Pat
     first = path if path is not None else _first_file(files_or_data)
     if first is not None:  # pose files of a log's stream read in its units as a log is
         options, note = _stream_units(first, options)
+    options, source = places.resolve(options, options.input_units)
+    solved = _run(options, (files_or_data, poses), path, note, source)
+    solved.calibration, solved.draft = places.stamp(solved.calibration, source), places.stamp(solved.draft, source)
+    return solved
+
+
+def _run(
+    options: SolveOptions,
+    given_poses: tuple[list[str] | Mapping[str, object] | None, Poses | None],
+    path: str | None,
+    note: str | None,
+    source: places.Source | None,
+) -> Solved:
+    """run, its options resolved: ``given_poses`` the pose files or data (as read, and as given)."""
+    files_or_data, poses = given_poses
     given = opts.settings(options, log=path is not None)
+    if path is not None and options.read.sensor == "magnetometer":
+        solved = _mag_from_log(path, options, given, source)
+        solved.notes[:0] = [note] if note else []
+        return solved
     if path is not None and (options.log.turns is not None or options.log.accel_cal is not None):  # a gyroscope's turns
         if options.log.turns is not None:
             out = turns.from_log(path, options, given)
@@ -220,7 +244,8 @@ def _stream_units(path: str, options: SolveOptions) -> tuple[SolveOptions, str |
     if stream is None:
         return options, None
     reference, units, note = options.reference, options.units, None
-    if options.read.sensor == "accelerometer" and stream.units == "m/s^2" and reference is None:
+    local = options.location is not None or options.gravity is not None  # pipeline.places sets it
+    if options.read.sensor == "accelerometer" and stream.units == "m/s^2" and reference is None and not local:
         reference, units = STANDARD_GRAVITY, units or "m/s^2"
         note = (
             f"{stream.key} is in m/s^2: solved against standard gravity, --reference {STANDARD_GRAVITY:g}, "
@@ -437,7 +462,17 @@ def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
         int(s.block or 0): f"used: {label}" if label else "used" for s, label in zip(samples, labels, strict=True)
     }
     method_options(name, given.reference, options.plane, options.bias_spread)
-    segmentation = calfile.Segmentation(
+    segmentation = _segmentation(data, seg)
+    given = replace(given, centre=seg.centre)
+    whole: list[FloatArray | Summary] = [data.values if data.extremes is None else data.extremes]  # the extremes
+    solved = _solve(name, PoseSet(labels, samples, whole, notes or [], segmentation), options, given)
+    solved.blocks = blocks
+    return solved
+
+
+def _segmentation(data: Log, seg: Segmentation) -> calfile.Segmentation:
+    """How the poses were found in a continuous log (the file's ``segmentation``)."""
+    return calfile.Segmentation(
         data.layout.name,
         data.sha256,
         "detector" if seg.threshold is not None else "label column",
@@ -454,10 +489,31 @@ def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
         # a bursty clock's rate is its mean step's (core.clock): said with its steps and jitter
         extra={"clock": clock.as_dict(seg.clock)} if seg.clock is not None and seg.clock.bursty else {},
     )
-    given = replace(given, centre=seg.centre)
-    whole: list[FloatArray | Summary] = [data.values if data.extremes is None else data.extremes]  # the extremes
-    solved = _solve(name, PoseSet(labels, samples, whole, notes or [], segmentation), options, given)
-    solved.blocks = blocks
+
+
+def _mag_from_log(path: str, options: SolveOptions, given: Settings, source: places.Source | None) -> Solved:
+    """solve --sensor magnetometer --log: the ellipsoid fit to the magnetometer's samples of the
+    still blocks its accelerometer finds (pipeline.maglog), and their dip check."""
+    found = maglog.read(path, options)
+    name, _ = methods.pick(given.method, [None] * len(found.samples), "magnetometer")
+    method_options(name, given.reference, options.plane, options.bias_spread)
+    labels: list[str | None] = [None] * len(found.samples)
+    poses = PoseSet(labels, found.samples, [found.mag.values], found.notes, _segmentation(found.acc, found.seg))
+    solved = _solve(name, poses, options, given)
+    solved.blocks = logs.Blocks(found.acc, found.seg)
+    solved.blocks.used = {b.number: "used" for b in found.blocks}
+    cal = places.stamp(solved.calibration, source)
+    checked = None if cal is None else maglog.dip_check(found, cal, given.limits)
+    if cal is not None and checked is not None:
+        part, failures = checked
+        cal = places.stamp(cal, places.Source("dip", part))
+        assert cal is not None
+        if failures:
+            verdict = cal.verdict or calfile.Verdict(limits=given.limits)
+            cal = cal.with_verdict(replace(verdict, passed=False, failures=(*verdict.failures, *failures)))
+            solved.failures += failures
+            solved.status = solved.status or 1
+    solved.calibration = cal
     return solved
 
 

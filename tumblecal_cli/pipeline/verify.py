@@ -17,6 +17,7 @@ from tumblecal_cli.core.model import UNITS_TOLERANCE, FloatArray
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import calfile, posefile, readings
 from tumblecal_cli.io.readspec import ReadSpec, column_list
+from tumblecal_cli.pipeline import places
 from tumblecal_cli.pipeline.frames import in_memory, is_data
 from tumblecal_cli.pipeline.options import (
     FileKeywords,
@@ -96,6 +97,9 @@ class VerifyKeywords(FileKeywords, StreamKeywords, total=False):
     """verify's options beside the captures' shape (docs/commands/verify.md)."""
 
     reference: float | None
+    location: str | None
+    gravity: float | None
+    date: str | None
     max_norm_error: float | None
     max_noise: float
     start: str | float | None
@@ -149,7 +153,12 @@ def _verify(paths: list[str], cal: Calibration | str | os.PathLike[str], options
     if sum(f == "-" for f in paths) + (cal == "-") > 1:
         raise InputError("only one file can be read from stdin ('-')")
     c = calfile.resolve(cal)
+    units = c.units or ("g" if c.sensor == "accelerometer" and c.reference == 1 else None)
+    where = (options.get("location"), options.get("gravity"), options.get("date"))
+    local = places.local_reference(places.Asked(c.sensor, units, None, *where, reference=reference))
     ref = c.reference if reference is None else reference
+    if local is not None:
+        ref = local[0]
     if not math.isfinite(ref) or ref < 0 or (ref == 0 and c.sensor != "gyroscope"):
         raise InputError(
             f"--reference must be a positive number, got {ref:g}", hint="0 only for a gyroscope's calibration"
