@@ -119,17 +119,15 @@ def _batch_signature() -> inspect.Signature:
 def batch(**given: Any) -> None:  # Typer passes each option by name, each of its own type
     """Calibrate many units in one run: one calibration file per unit, and a summary.
 
-    Each unit is solved as 'tumblecal solve' would (every solve option below applies to all of
-    them), its calibration written to DIR/<serial>_<UTC time>.json, and its outcome added to
-    DIR/summary.csv: serial, status, verdict, codes, file, method, offset, gain, their 1-sigma
-    uncertainties, inputs, the message of a unit that failed, and duplicate_of: the other
-    serials whose calibration records the same pose file (by sha256), each also a warning.
-
     \b
       tumblecal batch units/ --out-dir cals/ --limits limits.yaml --jobs 2
       tumblecal batch manifest.csv --out-dir cals/ --reference 9.81
       tumblecal batch logs/ --log --rate 100 --out-dir cals/ --resume
-      tumblecal batch units/ --out-dir /shared/cals --dask-scheduler tcp://scheduler:8786
+      tumblecal batch units/ -d /shared/cals --dask-scheduler tcp://sched:8786
+
+    Each unit is solved as 'tumblecal solve' would (every solve option applies to all of them),
+    its calibration written to DIR/<serial>_<UTC time>.json and its outcome added to
+    DIR/summary.csv (README: batch), with a warning for serials that share a pose file.
     """
 
     from tumblecal_cli.pipeline import batch as batches

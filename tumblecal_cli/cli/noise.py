@@ -98,7 +98,7 @@ def noise(
 
     \b
       tumblecal noise still.csv --rate 100
-      tumblecal noise gyro.csv --sensor gyroscope --cal gyro.json --limits limits.yaml --json
+      tumblecal noise gyro.csv --sensor gyroscope --cal gyro.json --limits l.yaml
       tumblecal noise acc.csv --cal acc.json --kalibr imu.yaml --plot adev.png
     """
 
