@@ -270,3 +270,23 @@ def test_every_help_starts_with_examples(
     options = next(i for i, line in enumerate(got) if line.startswith(("Options", "Arguments")))
     assert any(line.strip().startswith(f"tumblecal {command}") for line in got[:options])
     assert len(got) < 100
+
+
+def test_verify_on_a_moving_capture_prints_the_rejection_alone(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "--poses", *POSES_3, "-o", cal).code == 0
+    r = run(capsys, "verify", "--cal", cal, SAMPLE / "capture.csv", SAMPLE / "x.csv")
+    assert r.code == 3, r.err
+    assert all(line.startswith(("error: ", "hint: ")) for line in lines(r.err)), r.err
+
+
+def test_noise_says_where_figures_were_read_only_under_verbose(capsys: pytest.CaptureFixture[str]) -> None:
+    still = Path(__file__).resolve().parent / "data" / "xsens_acc_still.txt"
+    plain = run(capsys, "noise", still, "--no-header")
+    assert plain.code == 0, plain.err
+    assert "τ =" not in plain.err
+    assert "bias instability: xyz not determined" in plain.err  # why a figure is missing: always
+    verbose = run(capsys, "noise", still, "--no-header", "-v")
+    assert "noise density: x τ = 0.01–20.5 s" in verbose.err

@@ -140,7 +140,7 @@ def batch(**given: Any) -> None:  # Typer passes each option by name, each of it
         def start(plan: batches.Plan) -> None:
             if not quiet:
                 for note in plan.notes:
-                    console.print(f"note: {note}", soft_wrap=True, markup=False)
+                    render.tell(console, f"note: {note}")
                 if len(plan.todo) < len(plan.units):
                     done = len(plan.units) - len(plan.todo)
                     console.print(f"resuming: {done} of {len(plan.units)} units already done", soft_wrap=True)
@@ -172,7 +172,7 @@ def _show(result: batches.Batched, console: Console, *, quiet: bool, json_summar
 
     if not quiet:
         for warning in result.warnings:
-            console.print(f"warning: {warning}", style="red", soft_wrap=True, markup=False, highlight=False)
+            render.tell(console, f"warning: {warning}", style="red")
         said = ", ".join(f"{n} {v}" for v, n in result.counts.items() if n)
         console.print(
             f"{len(result.rows)} unit{'s' if len(result.rows) != 1 else ''}: {said} -> {result.summary}",

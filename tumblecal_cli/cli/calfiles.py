@@ -281,7 +281,7 @@ def import_(
     if not quiet:
         console = render.make_console()
         for note in got.notes:
-            console.print(f"note: {note}", soft_wrap=True)
+            render.tell(console, f"note: {note}")
         console.print(
             f"imported {got.format} {got.calibration.sensor} calibration, reference {got.calibration.reference:g}"
             + (f": wrote {output}" if output != "-" else ""),

@@ -713,9 +713,9 @@ def print_thermal(done: ThermalResult, console: Console) -> None:
     )
     print_drift(done.calibration, console)
     for w in done.warnings:
-        console.print(f"warning: {w.render()} ({w.code})", style="yellow", soft_wrap=True)
+        tell(console, f"warning: {w.render()} ({w.code})", style="yellow")
     for note in done.notes:
-        console.print(f"note: {note}", soft_wrap=True)
+        tell(console, f"note: {note}")
 
 
 def print_drift(cal: Calibration, console: Console) -> None:
@@ -764,9 +764,11 @@ def samples_progress(console: Console, *, enabled: bool) -> Iterator[Callable[[i
         yield lambda n: progress.update(task, completed=n)
 
 
-def show_noise(done: Noise, *, json_summary: bool, quiet: bool, plot: str | None) -> None:
+def show_noise(done: Noise, *, json_summary: bool, shown: Shown, plot: str | None) -> None:
     """noise's figures: the --plot and the --json object (not for a rejected capture: it
-    writes nothing), then the table, verdict and notes for people on stderr."""
+    writes nothing), then the table, why a figure is not determined (-v: the cluster times
+    each was read at), verdict and notes for people on stderr."""
+    quiet = shown.quiet
     if plot is not None and done.error is None:
         from tumblecal_cli.core import allan
         from tumblecal_cli.io import plots
@@ -785,7 +787,8 @@ def show_noise(done: Noise, *, json_summary: bool, quiet: bool, plot: str | None
     table, lines = _noise_table(done)
     print_whole(console, table)
     for line in lines:
-        tell(console, line)
+        if shown.verbose or "not determined" in line:
+            tell(console, line)
     for note in done.notes:
         tell(console, f"note: {note}")
     verdict = done.verdict()
@@ -795,10 +798,10 @@ def show_noise(done: Noise, *, json_summary: bool, quiet: bool, plot: str | None
             name, _, axis = item.partition(".")
             unjudged.setdefault(name, []).append(axis)
         for name, axes in unjudged.items():
-            console.print(
+            tell(
+                console,
                 f"warning: {name} has a limit but is not determined on {', '.join(axes)}: not judged there",
                 style="yellow",
-                soft_wrap=True,
             )
         _print_verdict(console, bool(verdict["pass"]), verdict["limits"], done.failures)
 

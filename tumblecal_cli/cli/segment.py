@@ -167,9 +167,9 @@ def _written(done: Segmented, out_dir: str) -> None:
     """What segment --out-dir wrote, and removed."""
     console = render.make_console()
     if done.stale:
-        console.print(
+        render.tell(
+            console,
             f"note: removed {done.stale} staging folder(s) an earlier, interrupted segment run left in {out_dir}",
-            soft_wrap=True,
         )
     gone = f"; removed {done.removed} block files of the earlier segmentation" if done.removed else ""
     kept = len(done.blocks.seg.kept)
