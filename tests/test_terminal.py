@@ -290,3 +290,18 @@ def test_noise_says_where_figures_were_read_only_under_verbose(capsys: pytest.Ca
     assert "bias instability: xyz not determined" in plain.err  # why a figure is missing: always
     verbose = run(capsys, "noise", still, "--no-header", "-v")
     assert "noise density: x τ = 0.01–20.5 s" in verbose.err
+
+
+def test_verify_shortens_a_long_capture_name_in_the_middle(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "--poses", *POSES_3, "-o", cal).code == 0
+    long = tmp_path / "a_very_long_capture_name_from_the_station_x.csv"
+    long.write_bytes((SAMPLE / "x.csv").read_bytes())
+    monkeypatch.setenv("COLUMNS", "60")
+    r = run(capsys, "verify", "--cal", cal, long, SAMPLE / "y.csv")
+    assert r.code == 0, r.err
+    row = next(line for line in lines(r.err) if line.lstrip().startswith("a_very"))
+    assert row.split()[0] == "a_very…x.csv"
+    assert "FAIL" not in r.err.split("\n")[2]  # no empty verdict column without a limit

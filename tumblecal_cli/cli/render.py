@@ -345,6 +345,10 @@ def middle(name: str, width: int) -> str:
     return name[: width - 1 - tail] + "…" + name[len(name) - tail :]
 
 
+#: The fewest characters a name is shortened to (``xsens…txt #1``): enough to tell names apart.
+SHORTEST = 12
+
+
 def print_fitted(console: Console, build: Callable[[int | None], Table], names: Sequence[str]) -> None:
     """A table whose ``names`` (a column of file or column names) give way first on a terminal
     too narrow for it: ``build(limit)`` makes the table with each name at most ``limit``
@@ -357,8 +361,8 @@ def print_fitted(console: Console, build: Callable[[int | None], Table], names: 
 
     table = build(None)
     longest = max((len(n) for n in names), default=0)
-    if natural(table) > console.width and longest > 6:
-        table = build(max(6, longest - (natural(table) - console.width)))
+    if natural(table) > console.width and longest > SHORTEST:
+        table = build(max(SHORTEST, longest - (natural(table) - console.width)))
     width = console.width
     console.width = max(width, natural(table))  # what the names cannot give: the terminal wraps it
     try:
@@ -579,28 +583,32 @@ def print_verify(
 
     console = make_console()
     units = f" {cal.units}" if cal.units else ""
-    table = Table(
-        title=f"{cal.method} calibration on {len(rows)} capture{'s' if len(rows) > 1 else ''}, "
-        f"reference {ref:g}{units}",
-        title_justify="left",
-        box=box.SIMPLE_HEAD,
-        pad_edge=False,
-    )
-    for name in ("file", "n", "|mean| raw", "error", "|corrected|", "error", ""):
-        table.add_column(name, justify="left" if name in ("file", "") else "right", no_wrap=name != "file")
-    for r in rows:
-        before = "" if r["error_before"] is None else f"{r['error_before']:+.4g}"
-        mark = "FAIL" if r["file"] in failed else ""
-        table.add_row(
-            os.path.basename(str(r["file"])),
-            str(r["samples"]),
-            f"{r['norm_before']:.6g}",
-            before,
-            f"{r['norm_after']:.6g}",
-            f"{r['error_after']:+.4g}",
-            mark,
+    names = [one_line(os.path.basename(str(r["file"]))) for r in rows]
+
+    def build(limit: int | None) -> Table:  # a long file name shortened in the middle (print_fitted)
+        table = Table(
+            title=f"{cal.method} calibration on {len(rows)} capture{'s' if len(rows) > 1 else ''}, "
+            f"reference {ref:g}{units}",
+            title_justify="left",
+            box=box.SIMPLE_HEAD,
+            pad_edge=False,
         )
-    console.print(table)
+        for name in ("file", "n", "|mean| raw", "error", "|corrected|", "error", *([""] if failed else [])):
+            table.add_column(name, justify="left" if name in ("file", "") else "right", no_wrap=True)
+        for r, name in zip(rows, names, strict=True):
+            before = "" if r["error_before"] is None else f"{r['error_before']:+.4g}"
+            table.add_row(
+                name if limit is None else middle(name, limit),
+                str(r["samples"]),
+                f"{r['norm_before']:.6g}",
+                before,
+                f"{r['norm_after']:.6g}",
+                f"{r['error_after']:+.4g}",
+                *(["FAIL" if r["file"] in failed else ""] if failed else []),
+            )
+        return table
+
+    print_fitted(console, build, names)
     judged = f", limit ±{bound:g}" if bound is not None else ""
     verdict = "FAIL" if failed else "PASS" if bound is not None else "not judged"
     if "rms_error_before" in overall:
