@@ -305,3 +305,14 @@ def test_verify_shortens_a_long_capture_name_in_the_middle(
     row = next(line for line in lines(r.err) if line.lstrip().startswith("a_very"))
     assert row.split()[0] == "a_very…x.csv"
     assert "FAIL" not in r.err.split("\n")[2]  # no empty verdict column without a limit
+
+
+def test_check_prints_the_poses_only_under_verbose(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    cal = tmp_path / "cal.json"
+    assert run(capsys, "solve", "--poses", *POSES_3, "-o", cal).code == 0
+    plain = run(capsys, "check", cal, "--max-offset", "0.05")
+    assert plain.code == 0, plain.err
+    assert "poses" not in plain.err.split()
+    assert "verdict: PASS (limits: offset)" in plain.err
+    verbose = run(capsys, "check", cal, "--max-offset", "0.05", "-v")
+    assert "poses" in verbose.err.split()

@@ -20,6 +20,7 @@ from tumblecal_cli.cli.flags import (
     Quiet,
     RegisterSign,
     SensorKind,
+    Verbose,
 )
 from tumblecal_cli.errors import one_line
 
@@ -77,6 +78,7 @@ def check(
     nominal_gain: NominalGain = None,
     json_summary: JsonSummary = False,
     quiet: Quiet = False,
+    verbose: Verbose = False,
 ) -> None:
     """Judge an existing calibration against limits again (the file is not changed).
 
@@ -93,7 +95,8 @@ def check(
     if json_summary:  # the same summary as solve --json, judged afresh
         render.print_json(render.summary(checked.calibration, checked.status, cal, [], [], checked.notes))
     if not quiet:
-        render.print_summary(checked.calibration, render.make_console(), [], checked.notes, judged=True)
+        console = render.make_console()
+        render.print_summary(checked.calibration, console, [], checked.notes, judged=True, verbose=verbose)
     if checked.status:
         raise typer.Exit(checked.status)
 
