@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 TC := $(BIN)/tumblecal
 
-.PHONY: demo test check fuzz bench montecarlo clean
+.PHONY: demo test check fuzz bench montecarlo docs transcripts clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -15,7 +15,7 @@ $(VENV)/.installed: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	touch $@
 
-# The README's "Quick start" transcript is this target's output (tests/test_readme.py checks it).
+# The README's "Quick start" transcript is this target's output (tests/test_docs.py checks it).
 DEMO_COMMANDS := \
 	"tumblecal solve --poses sample_data/x.csv sample_data/y.csv sample_data/z.csv --limits sample_data/limits.yaml --serial demo-0001 -o demo/cal.json" \
 	"tumblecal apply --cal demo/cal.json sample_data/capture.csv -o demo/corrected.csv" \
@@ -59,9 +59,18 @@ bench: $(VENV)/.installed
 	$(BIN)/python -m pip install --quiet polars
 	$(BIN)/python tests/bench.py
 
-# each solver's RMS error over 1000 synthetic captures against its Cramér–Rao bound (README: Accuracy)
+# each solver's RMS error over 1000 synthetic captures against its Cramér–Rao bound (docs/accuracy.md)
 montecarlo: $(VENV)/.installed
 	$(BIN)/python tests/montecarlo.py
 
+# the docs/ pages as a site in site/ (--strict: a broken link or anchor fails; tests/test_docs.py builds it too)
+docs: $(VENV)/.installed
+	$(BIN)/mkdocs build --strict
+
+# after a change meant to alter what commands print: rerun every console session of README.md and
+# docs/ and write the new output into the pages (read the diff: it is what users will see)
+transcripts: $(VENV)/.installed
+	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python tests/transcripts.py --update
+
 clean:
-	rm -rf $(VENV) demo .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) demo site .pytest_cache .mypy_cache .ruff_cache

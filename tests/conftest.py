@@ -7,7 +7,7 @@ fixture); a helper that two modules need lives here, once.
 
 Slow tests carry ``@pytest.mark.slow`` (a whole module: ``pytestmark``): the Dask cluster, the
 real-data logs, the Monte Carlo benchmark and scatter checks, subprocesses (the installed script,
-pools, signals, gcc, the README's shell sessions), PNG rendering, and the slowest tests (over about
+pools, signals, gcc, the docs' shell sessions), PNG rendering, and the slowest tests (over about
 0.25 s on a 2-core machine). ``pytest -m "not slow"`` (``make check``) is the fast
 tier, under 30 s; ``pytest`` (``make test``) runs everything.
 """

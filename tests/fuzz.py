@@ -22,6 +22,7 @@ import shutil
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -113,6 +114,15 @@ def seeds(folder: Path) -> dict[str, tuple[bytes, list[list[str]]]]:
     capture = ["apply", "--cal", "{cal}", "{f}", "-o", "{out}"]
     return {
         "pose.csv": ((SAMPLE / "x.csv").read_bytes(), [["solve", "--poses", "{f}", "-o", "{out}"], capture]),
+        # a long pose file, summed as it is read (io.posefile): here past SUMMED_ROWS at 64 rows
+        LONG_POSE: (
+            (SAMPLE / "x.csv").read_bytes(),
+            [
+                ["solve", "--poses", "{f}", "-o", "{out}"],
+                ["solve", "--poses", "{f}", str(SAMPLE / "y.csv"), str(SAMPLE / "z.csv"), "-o", "{out}"],
+                ["verify", "--cal", "{cal}", "{f}"],
+            ],
+        ),
         "capture.csv": ((SAMPLE / "capture.csv").read_bytes()[:4000], [capture, ["verify", "--cal", "{cal}", "{f}"]]),
         "cal.json": (
             cal.read_bytes(),
@@ -171,9 +181,25 @@ def _tumble_log() -> bytes:
     return ("t,x,y,z\n" + "\n".join(lines) + "\n").encode()
 
 
+#: The kind whose pose files are read as long ones: summed in blocks of a few rows.
+LONG_POSE = "long_pose.csv"
+
+
 def one(folder: Path, name: str, data: bytes, command: list[str]) -> str | None:
     """Run one case; what is wrong with it, or None."""
+    from unittest import mock
+
     from tumblecal_cli.cli import main
+    from tumblecal_cli.io import capture as reader
+    from tumblecal_cli.io import posefile
+
+    if name == LONG_POSE:
+        with mock.patch.object(posefile, "SUMMED_ROWS", 64), mock.patch.object(reader, "BLOCK_BYTES", 2048):
+            return _one(folder, name, data, command, main)
+    return _one(folder, name, data, command, main)
+
+
+def _one(folder: Path, name: str, data: bytes, command: list[str], main: Callable[[list[str]], int]) -> str | None:
 
     target = folder / name  # (cals/summary.csv: in the batch's folder)
     target.write_bytes(data)

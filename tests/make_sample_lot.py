@@ -1,5 +1,5 @@
 """Regenerate sample_data/lot/: a synthetic production lot of 30 three-pose calibrations for the
-README's `tumblecal report` transcript (run from the repo root: python tests/make_sample_lot.py).
+`tumblecal report` transcript of docs/commands/report.md (run from the repo root: python tests/make_sample_lot.py).
 
 Known truth: offsets ~ N(0, 0.01) g, gains ~ N(1, 0.004), noise 0.002 g, 200 samples per pose;
 SN0013's x offset is 0.07 g (an outlier, outside the 0.05 limit); SN0007 is calibrated again a

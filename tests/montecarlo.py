@@ -5,7 +5,7 @@
 Not a test (pytest does not collect it; tests/test_montecarlo.py runs it). For each solver a fixed
 truth ``(b, A)`` is captured ``--trials`` times with white Gaussian noise, solved with the solver's
 public function, and each parameter's RMS error over the trials is divided by its Cramér–Rao
-standard deviation, computed here from the Fisher information of the model (README "Poses, signs and --reference")::
+standard deviation, computed here from the Fisher information of the model (docs/reference/model.md)::
 
     m_k = A · reference · u_k + b + e_k,    e_k ~ N(0, σ²/n · I)        (pose means, k = 1..N)
     CRB = inv(Jᵀ Σ⁻¹ J),                    J = d(all m_k) / d(parameters)

@@ -1,4 +1,4 @@
-"""The real-data figures of ``tests/test_solvers_realdata.py`` as a markdown table (for the README).
+"""The real-data figures of ``tests/test_solvers_realdata.py`` as a markdown table (for docs/accuracy.md).
 
     .venv/bin/python tests/realdata_figures.py [--detail]
 

@@ -1,4 +1,4 @@
-"""Synthetic tumble captures with a known truth (the measurement model of README "Poses, signs and --reference").
+"""Synthetic tumble captures with a known truth (the measurement model of docs/reference/model.md).
 
     raw = A · v + b + noise,   A = diag(gain) + cross,   |v| = reference
 

@@ -1,4 +1,4 @@
-"""The Python API (README "Using tumblecal from Python"): each solver through ``tumblecal.solve``
+"""The Python API (docs/python.md): each solver through ``tumblecal.solve``
 gives what ``tumblecal solve`` writes; ``Calibration.apply`` on arrays and DataFrames gives what
 ``tumblecal apply`` writes; data in memory solves as its files do; errors are the exception family."""
 

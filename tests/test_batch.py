@@ -29,7 +29,7 @@ from tumblecal_cli.pipeline import summary as summaries
 
 LIMITS = SAMPLE / "limits.yaml"
 SESSION = IMUCAL / "session_every4th.csv"
-#: README 'segment': the imucal session's still blocks need these
+#: docs/commands/segment.md: the imucal session's still blocks need these
 LOG_OPTIONS = ("--rate", "25.6", "--reference", "9.81")
 
 EPOCH = "1700000000"

@@ -1,4 +1,4 @@
-"""Calibration files (tumblecal_cli/io/calfile.py, README "Calibration file (format version 1)"): round trip,
+"""Calibration files (tumblecal_cli/io/calfile.py, docs/reference/calibration-file.md): round trip,
 contract, rejects, atomicity."""
 
 from __future__ import annotations
@@ -110,7 +110,7 @@ def test_load_reads_stdin_for_dash(monkeypatch: pytest.MonkeyPatch) -> None:
     assert calfile.load("-").offset.tolist() == [0.02, -0.015, 0.03]
 
 
-# --- the contract of README "Calibration file (format version 1)" -------------------------------------
+# --- the contract of docs/reference/calibration-file.md -------------------------------------
 
 FIELDS = [
     "format",
@@ -138,7 +138,7 @@ def test_written_json_has_every_version_1_field(tmp_path: Path) -> None:
     calfile.write(document(), str(path))
     doc = json.loads(path.read_text(encoding="utf-8"))
 
-    assert list(doc) == FIELDS  # in the order of README "Calibration file (format version 1)"
+    assert list(doc) == FIELDS  # in the order of docs/reference/calibration-file.md
     assert doc["format"] == "tumblecal-calibration"
     assert doc["version"] == 1
     assert doc["sensor"] == "accelerometer"
@@ -317,7 +317,8 @@ def test_load_rejects_non_finite_numbers(tmp_path: Path, line: str, replacement:
     i = next(i for i, text in enumerate(lines) if text.lstrip().startswith(line))
     lines[i] = lines[i][: len(lines[i]) - len(lines[i].lstrip())] + replacement
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    rejects(path, re.escape(f"field '{field}' must be a finite number"))
+    # refused where it is read, with its place: the element, the line and the column
+    rejects(path, re.escape(f"field '{field}") + r"(\[\d\])*' must be a finite number \(.*\) \(line \d+, column \d+\)")
 
 
 @pytest.mark.parametrize("where", ["top", "field"])
@@ -435,3 +436,15 @@ def test_show_of_a_file_whose_tilt_block_states_no_tolerance(
     code, out, err = run(capsys, "show", cal)  # show's summary is its output: stdout
     assert code == 0, err
     assert "fixture tilt, not noise, limits this calibration: the fixture's tilt moves the offsets" in out
+
+
+@pytest.mark.parametrize(
+    ("text", "name"), [('"note": NaN', "x.json"), ('"note": -Infinity', "x.json"), ("note: .nan", "x.yaml")]
+)
+def test_a_number_json_has_no_form_for_is_refused(tmp_path: Path, text: str, name: str) -> None:
+    """NaN or Infinity in any field (here one tumblecal does not know, which it keeps) was read and
+    then written by `show --json` as a NaN no JSON reader takes: one clear line, exit 2."""
+    path = tmp_path / name
+    path.write_text(f"{{{text}}}\n" if name.endswith(".json") else f"{text}\n")
+    with pytest.raises(InputError, match=r"(NaN|Infinity|\.nan)"):
+        calfile.load(str(path))

@@ -1,5 +1,5 @@
-"""Citations a reader can follow: the package and the README cite their sources by author and
-year ("Vitali 2018", "Tedaldi et al. 2014"), each such citation is a key of README "Sources",
+"""Citations a reader can follow: the package and the docs cite their sources by author and
+year ("Vitali 2018", "Tedaldi et al. 2014"), each such citation is a key of docs/sources.md,
 and none uses the private names the project's source documents once had here (the word "seed"
 and a three-digit number), which nobody reading a clone can resolve."""
 
@@ -10,7 +10,9 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGE = ROOT / "tumblecal_cli"
-README = (ROOT / "README.md").read_text(encoding="utf-8")
+SOURCES = (ROOT / "docs" / "sources.md").read_text(encoding="utf-8")
+#: README.md and every page of docs/ but the sources page itself
+PAGES = [ROOT / "README.md", *sorted(p for p in (ROOT / "docs").rglob("*.md") if p.name != "sources.md")]
 
 #: The old private names, in any of the spellings they had: one or several, with a space, a
 #: hyphen or a backtick before the number, or as the start of a file name.
@@ -25,17 +27,9 @@ _YEAR = r"(?:(?:19|20)\d\d|n\.d\.)"
 CITATION = re.compile(rf"\b{_NAME}(?: et al\.|(?:, {_NAME})*,? (?:and|&) {_NAME})? (?:{_YEAR}|\({_YEAR}\))")
 
 
-def section(title: str) -> tuple[int, int]:
-    """Where the README's ``## title`` section starts and ends."""
-    start = README.index(f"\n## {title}\n")
-    end = README.find("\n## ", start + 1)
-    return start, len(README) if end == -1 else end
-
-
 def source_keys() -> list[str]:
-    """The first cell of each row of README "Sources"' tables, their header rows left out."""
-    start, end = section("Sources")
-    lines = README[start:end].splitlines()
+    """The first cell of each row of docs/sources.md's tables, their header rows left out."""
+    lines = SOURCES.splitlines()
     keys = []
     for line, following in zip(lines, [*lines[1:], ""], strict=True):
         if line.startswith("| ") and not following.startswith("|---"):
@@ -50,10 +44,9 @@ def prose(text: str) -> str:
 
 
 def texts() -> dict[str, str]:
-    """Every module of the package, and the README without its "Sources" section, as prose."""
+    """Every module of the package, README.md and the docs pages but docs/sources.md, as prose."""
     found = {str(path.relative_to(ROOT)): prose(path.read_text(encoding="utf-8")) for path in PACKAGE.rglob("*.py")}
-    start, end = section("Sources")
-    found["README.md"] = prose(README[:start] + README[end:])
+    found.update({str(path.relative_to(ROOT)): prose(path.read_text(encoding="utf-8")) for path in PAGES})
     return dict(sorted(found.items()))
 
 
@@ -64,7 +57,7 @@ def key_of(text: str, match: re.Match[str], keys: list[str]) -> str | None:
 
 
 def test_no_private_document_names() -> None:
-    paths = [*sorted(PACKAGE.rglob("*.py")), ROOT / "README.md"]
+    paths = [*sorted(PACKAGE.rglob("*.py")), *PAGES, ROOT / "docs" / "sources.md"]
     found = [
         f"{path.relative_to(ROOT)}:{number}: {line.strip()}"
         for path in paths

@@ -1,4 +1,4 @@
-"""CLI tests: exit status, stdout and stderr checked separately (README "Exit status").
+"""CLI tests: exit status, stdout and stderr checked separately (docs/reference/exit-status.md).
 
 Most tests call ``tumblecal_cli.cli.main`` in-process (fast); a few run the installed
 ``tumblecal`` script and ``python -m tumblecal_cli`` as subprocesses, for stdin piping and the

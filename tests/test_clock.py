@@ -1,4 +1,4 @@
-"""The sample rate from a log's time column (core.clock, README "CSV captures"): a clock stamped
+"""The sample rate from a log's time column (core.clock, docs/reference/csv.md): a clock stamped
 on arrival in bursts (a sensor read over a serial link: a few samples a couple of milliseconds
 apart, then a pause) is read at the rate its samples cover, with a note naming both steps and
 --rate; a gap is reported and never averaged or integrated over; a regular clock's rate is its

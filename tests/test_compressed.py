@@ -1,4 +1,4 @@
-"""Compressed captures (README "CSV captures"): gzip, bzip2, xz and zstd files read by every
+"""Compressed captures (docs/reference/csv.md): gzip, bzip2, xz and zstd files read by every
 command as the plain file is (known by their first bytes, whatever their names); ``apply -o``
 writes compressed when the name ends so; a corrupt one is one error line naming the file."""
 

@@ -194,7 +194,7 @@ def test_one_pose_standard_errors_match_the_scatter() -> None:
 
 
 def test_three_pose_offsets_shift_to_first_order_with_fixture_tilt() -> None:
-    """Vitali 2018 notes / README "Poses, signs and --reference": 3-pose offsets come from horizontal readings.
+    """Vitali 2018 notes / docs/reference/model.md: 3-pose offsets come from horizontal readings.
 
     In tests/synth.py each pose leans towards the next axis (+x towards +y, +y towards +z, +z
     towards +x), so each axis is tilted into in exactly one of its two horizontal poses, and

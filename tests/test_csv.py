@@ -1,4 +1,4 @@
-"""Capture reading (README "CSV captures"): layout sniffing, column detection, streaming.
+"""Capture reading (docs/reference/csv.md): layout sniffing, column detection, streaming.
 
 Unit tests of ``capture.open_capture`` / ``readings.read_samples``; the CLI tests check the
 same rules end to end.

@@ -643,3 +643,27 @@ def test_import_option_errors(capsys: pytest.CaptureFixture[str], args: list[str
     code, out, err = run(capsys, "import", str(IMUCAL_CAL), *args)
     assert (code, out) == (2, "")
     assert message in err
+
+
+def test_imucal_comment_record_is_read_by_calibration_rules(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The record an export leaves in an imucal file's comment is JSON: a key given twice there is
+    refused as in a calibration file (it was read last-wins), while a person's note that only
+    starts with a brace is still no record."""
+    rng = np.random.default_rng(3)
+    offset, m = random_cal(rng)
+    cal = write_cal(tmp_path / "cal.json", offset, m, reference=1.0)
+    peer = tmp_path / "peer.json"
+    assert run(capsys, "export", str(cal), "--format", "imucal-json", "-o", str(peer))[0] == 0
+    doc = json.loads(peer.read_text())
+    record = json.loads(doc["comment"])
+    doc["comment"] = json.dumps(record)[:-1] + ', "tumblecal": {"reference": 9.81}}'  # the key again
+    peer.write_text(json.dumps(doc))
+    code, out, err = run(capsys, "import", str(peer), "-o", str(tmp_path / "back.json"))
+    assert (code, out) == (2, "")
+    assert err.startswith(f"error: {peer}: ")
+    assert "tumblecal" in err.splitlines()[0]
+    assert "Traceback" not in err
+    assert not (tmp_path / "back.json").exists()
+    doc["comment"] = "{not json, a person's note}"
+    peer.write_text(json.dumps(doc))
+    assert run(capsys, "import", str(peer), "-o", str(tmp_path / "back.json"))[0] == 0

@@ -1,5 +1,5 @@
 """CLI tests of the production-test gate: quality checks (exit 3), limits (exit 1), --json,
-traceability, ``show``, ``check`` and the gate's effect on ``apply`` (README "Exit status").
+traceability, ``show``, ``check`` and the gate's effect on ``apply`` (docs/reference/exit-status.md).
 
 Poses are synthetic with a known truth (tests/synth.py, the sample set's offset and gain), written
 to tmp_path; bad limits files live in tests/data/bad/. Every run is in-process.
@@ -715,7 +715,7 @@ BAD_LIMITS = [
     pytest.param(
         "limits_unknown_key.yaml",
         "unknown limit 'gain' (known: offset, gain_error, nominal_gain, cross_axis, noise, residual, nominal_offset, "
-        "noise_density, bias_instability, random_walk, offset_drift, offset_drift_per_degc)",
+        "noise_density, bias_instability, random_walk, offset_drift, offset_drift_per_degc, imu_consistency)",
         id="unknown-key",
     ),
     pytest.param("limits_negative_offset.yaml", "limit 'offset' must be positive, got -0.05", id="negative"),
@@ -1648,7 +1648,7 @@ def test_a_calibration_given_as_limits(tmp_path: Path, capsys: pytest.CaptureFix
     cal = tmp_path / "cal.json"
     solved(capsys, cal)
     r = solve(capsys, "-p", *POSES_3, "--limits", cal, "-o", tmp_path / "other.json")
-    assert_one_error(r, f"{cal}: a tumblecal-calibration file, not a limits file", hint="Limits and the verdict")
+    assert_one_error(r, f"{cal}: a tumblecal-calibration file, not a limits file", hint="docs/production-test.md")
 
 
 def test_check_of_a_log_calibration_names_each_block(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -3,7 +3,7 @@ real defects (a pose on the opposite face, a range too small for the pose) are c
 
 Data: ``sample_data/imucal`` (imucal, MIT; raw counts, about 2040-2110 per g) and
 ``tests/data/ncsu_xplus_head.csv`` (NCSU AirBrakes MicroStrain 3DM-CX5 at rest, MIT); see the
-README next to each.
+docs next to each.
 """
 
 from __future__ import annotations

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from tests.conftest import POSES_3, SAMPLE, Result, assert_one_error, precious, run
+from tumblecal_cli.errors import InputError
 
 KEEP = " (text, numbers, true/false, null, lists, objects)"
 
@@ -168,13 +169,14 @@ def test_a_yaml_serial_reads_as_it_looks(
 
 
 def test_yaml_numbers_still_read_as_numbers() -> None:
-    """What YAML 1.1 reads as a number and looks like one still is one: 1, -0.5, 1.0e-3, 0x10, .inf."""
+    """What YAML 1.1 reads as a number and looks like one still is one: 1, -0.5, 1.0e-3, 0x10; .inf
+    and .nan are refused, as NaN and Infinity are in JSON: no export could write them."""
     from tumblecal_cli.io import documents
 
-    doc = documents.parse_object(
-        b"a: 1\nb: -0.5\nc: 1.0e-3\nd: 0x10\ne: .inf\nf: true\ng: ~\nh: 1_000\n", "x.yaml", "file"
-    )
-    assert doc == {"a": 1, "b": -0.5, "c": 1e-3, "d": 16, "e": float("inf"), "f": True, "g": None, "h": 1000}
+    doc = documents.parse_object(b"a: 1\nb: -0.5\nc: 1.0e-3\nd: 0x10\nf: true\ng: ~\nh: 1_000\n", "x.yaml", "file")
+    assert doc == {"a": 1, "b": -0.5, "c": 1e-3, "d": 16, "f": True, "g": None, "h": 1000}
+    with pytest.raises(InputError, match=r"field 'e' must be a finite number \(\.inf"):
+        documents.parse_object(b"a: 1\ne: .inf\n", "x.yaml", "file")
 
 
 @pytest.mark.parametrize("command", ["segment", "solve"])

@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.conftest import assert_one_error, run
+
 #: Runs the command given after it and prints its peak resident memory (KiB on Linux): a fresh
 #: process each time, so the children's peak is that command's alone.
 PEAK = (
@@ -46,9 +48,80 @@ def test_solve_memory_grows_by_no_more_than_the_readings_with_the_capture(tmp_pa
     """A pose file's readings were held twice while read (a list of blocks, then their join),
     with their row numbers copied and whole-capture temporaries in the statistics and checks:
     85 bytes of memory a row between these two sizes (1.47 GB at 20M rows); now about 54 (34
-    at 20M rows: 0.85 GB), the readings (24 bytes a row) and their row numbers (8) held once."""
+    at 20M rows: 0.85 GB), the readings (24 bytes a row) and their row numbers (8) held once;
+    and since a pose file past 262,144 readings is summed as it is read, about none
+    (test_pose_file_memory_is_flat_in_rows)."""
     small, large = 100_000, 2_100_000
     low = _solve_peak(_pose_file(tmp_path / "small.csv", small), tmp_path / "small.json")
     high = _solve_peak(_pose_file(tmp_path / "large.csv", large), tmp_path / "large.json")
     per_row = (high - low) / (large - small)
     assert per_row < 65, f"{per_row:.1f} bytes of memory a row"
+
+
+def _still_pose(path: Path, rows: int) -> Path:
+    """A still +z pose at 1 kHz: t,ax,ay,az, noise 2 mg, written by pyarrow (millions of rows
+    in seconds)."""
+    import pyarrow as pa
+    import pyarrow.csv as pcsv
+
+    rng = np.random.default_rng(5)
+    path.write_text("t,ax,ay,az\n")
+    with path.open("ab") as f:
+        for start in range(0, rows, 1_000_000):
+            k = min(1_000_000, rows - start)
+            v = 0.02 + 0.002 * rng.standard_normal((k, 3))
+            v[:, 2] += 1.0
+            cols = [pa.array(np.arange(start, start + k) / 1000.0)]
+            cols += [pa.array(np.round(v[:, j], 6)).cast(pa.decimal128(9, 6), safe=False) for j in range(3)]
+            table = pa.table(cols, names=["t", "ax", "ay", "az"])
+            pcsv.write_csv(table, f, pcsv.WriteOptions(include_header=False, quoting_style="none"))
+    return path
+
+
+def _peak(*args: str | Path) -> int:
+    """Peak resident bytes of ``tumblecal ARGS`` (which must exit 0)."""
+    command = [sys.executable, "-c", PEAK, sys.executable, "-m", "tumblecal_cli", *map(str, args)]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=900, check=True)
+    code, peak = done.stdout.split()
+    assert code == "0"
+    return int(peak) * 1024
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(sys.platform != "linux", reason="ru_maxrss is in KiB on Linux")
+def test_pose_file_memory_is_flat_in_rows(tmp_path: Path) -> None:
+    """solve and verify held a pose file's every reading, row number and time: 603 MB at 5M
+    rows, 1.08 GiB at 10M. A pose is judged by running sums (core.running) and its readings kept
+    on disk: a pose file of 8M rows takes no more than 1.3 times the memory of one of 1M (by
+    hand, three poses of 20M rows: 1.04-1.12 times three of 1M for solve, 0.98 for verify)."""
+    small = _still_pose(tmp_path / "small.csv", 1_000_000)
+    large = _still_pose(tmp_path / "large.csv", 8_000_000)
+    base = _peak("solve", "--poses", small, "-o", tmp_path / "small.json")
+    solved = _peak("solve", "--poses", large, "-o", tmp_path / "large.json")
+    verified = _peak("verify", "-c", tmp_path / "small.json", large)
+    assert solved <= 1.3 * base, f"solve: {solved / 2**20:.0f} MiB at 8M rows, {base / 2**20:.0f} MiB at 1M"
+    assert verified <= 1.3 * base, f"verify: {verified / 2**20:.0f} MiB at 8M rows, {base / 2**20:.0f} MiB at 1M"
+
+
+@pytest.mark.slow
+def test_manifest_of_100000_pose_columns_is_refused_not_held(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A 600 KB manifest whose one row lists 100,000 pose files reached 1.14 GB and grew, every
+    pose held until the unit was solved: a unit is at most 1,000 files (batch.UNIT_FILES), and
+    a row beyond it is exit 2 naming the manifest and its line, before any file is read; a
+    manifest over 16 MiB (batch.MANIFEST_BYTES, read whole) likewise."""
+    for name in "xyz":
+        (tmp_path / f"{name}.csv").write_text("ax,ay,az\n0,0,1\n")
+    manifest = tmp_path / "lot.csv"
+    manifest.write_text("serial\nSN1,x.csv,y.csv,z.csv\nSN2," + ",".join(["x.csv", "y.csv", "z.csv"] * 33_334) + "\n")
+    r = run(capsys, "batch", manifest, "--out-dir", tmp_path / "out")
+    assert_one_error(
+        r,
+        f"{manifest}: 100,002 files on the row of 'SN2': a unit is at most 1,000 pose files, "
+        "solved together, each held in memory until the unit is (line 3)",
+    )
+    assert not (tmp_path / "out").exists()
+    manifest.write_bytes(b"serial\n" + b"SN1,x.csv,y.csv,z.csv\n" * 800_000)  # 17.6 MB
+    r = run(capsys, "batch", manifest, "--out-dir", tmp_path / "out")
+    assert_one_error(r, f"{manifest}: the manifest is larger than 16 MiB: a batch reads it whole")

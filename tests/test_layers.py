@@ -1,4 +1,4 @@
-"""The layers of README "Development", imports flowing one way: core <- io <- pipeline <- cli.
+"""The layers of docs/development.md, imports flowing one way: core <- io <- pipeline <- cli.
 
 The cli imports the pipeline, the pipeline io (and core), io imports core, and nothing imports
 a layer above its own. The import graph is read from the package's source (its AST, imports
@@ -230,7 +230,7 @@ def test_pandas_only_inside_the_pipeline_functions() -> None:
     assert wrong == []
 
 
-# -- the shape of the code: what a reader can rely on (README "Development") -----------------
+# -- the shape of the code: what a reader can rely on (docs/development.md) -----------------
 
 LAYERS = ("core", "io", "pipeline")
 #: Imported where they are used, never at a module's top: optional extras and the heavy

@@ -91,6 +91,11 @@ def distance_to_polyline(points: FloatArray, curve: FloatArray) -> FloatArray:
     return distance
 
 
+def small_figure(path: str) -> None:
+    """A small figure of one histogram (400×340 pixels), for the tests of how figures are written."""
+    plots.lot_figure(path, [plots.Histogram("gain", np.array([0.99, 1.0, 1.01]), 0.97, 1.03)])
+
+
 @pytest.fixture
 def figures(monkeypatch: pytest.MonkeyPatch) -> list[Figure]:
     """The figures the plot functions would write, kept instead of rendered (fast, inspectable)."""
@@ -103,18 +108,12 @@ def figures(monkeypatch: pytest.MonkeyPatch) -> list[Figure]:
 
 
 @pytest.mark.slow
-def test_poses_figure_is_a_png_of_the_right_size(tmp_path: Path) -> None:
-    path = tmp_path / "poses.png"
-    names = ["+x", "-x", "+y", "-y", "+z", "-z"]
-    plots.poses_figure(str(path), names, pose_means(6), plots.Fitted(OFFSET, M, 1.0, units="g"), title="six poses")
-    check_png(path, 700, 640)
-
-
-@pytest.mark.slow
 def test_rotation_figure_is_a_png_of_the_right_size(tmp_path: Path) -> None:
     path = tmp_path / "rotation.png"
-    plots.rotation_figure(str(path), turning(1500, 50.0), OFFSET, M, 50.0, units="uT", title="magnetometer")
-    check_png(path, 1200, 800)
+    plots.rotation_figure(
+        str(path), turning(1500, 50.0), plots.Fitted(OFFSET, M, 50.0, units="uT"), title="magnetometer"
+    )
+    check_png(path, 1200, 1050)
 
 
 @pytest.mark.slow
@@ -136,70 +135,27 @@ def test_lot_figure_is_a_png_of_the_right_size(tmp_path: Path) -> None:
 def test_same_call_same_bytes(tmp_path: Path) -> None:
     first, second = tmp_path / "a.png", tmp_path / "b.png"
     for path in (first, second):
-        plots.poses_figure(str(path), ["a", "b", "c"], pose_means(3), plots.Fitted(OFFSET, M, 1.0))
+        small_figure(str(path))
     assert first.read_bytes() == second.read_bytes()
     assert b"Software" not in first.read_bytes()
 
 
 @pytest.mark.slow
 def test_dash_writes_the_png_to_stdout(capsysbinary: pytest.CaptureFixture[bytes]) -> None:
-    plots.poses_figure("-", ["a", "b", "c"], pose_means(3), plots.Fitted(OFFSET, M, 1.0))
+    small_figure("-")
     out = capsysbinary.readouterr().out
-    assert png_size(out) == (700, 640)
+    assert png_size(out) == (400, 340)
 
 
 # --- what the figures show ---------------------------------------------------------------------
 
 
-@pytest.mark.slow
-def test_poses_figure_shows_norms_before_and_after(figures: list[Figure]) -> None:
-    gain = 16384.0  # raw counts, corrected in g
-    means = pose_means(60) * gain
-    names = [f"session_2026_11_21_pose_{i:02d}.csv" for i in range(60)]
-    plots.poses_figure(
-        "unused.png", names, means, plots.Fitted(OFFSET * gain, M / gain, 1.0, units="g"), nominal_gain=gain
-    )
-    (fig,) = figures
-    top, bottom = fig.axes
-    reference, before, after = top.get_lines()
-    assert ydata(reference).tolist() == [1.0, 1.0]
-    np.testing.assert_allclose(ydata(before), np.linalg.norm(means, axis=1) / gain)
-    corrected = np.linalg.norm((means - OFFSET * gain) @ (M / gain).T, axis=1)
-    np.testing.assert_allclose(ydata(after), corrected)
-    assert np.all(np.abs(corrected - 1.0) < 6 * NOISE)  # the calibration fits, the raw norms do not
-    assert np.max(np.abs(ydata(before) - 1.0)) > 0.02
-    bars = heights(bottom)
-    assert len(bars) == 120
-    np.testing.assert_allclose(bars[60:], corrected - 1.0)
-    assert top.get_ylabel() == "norm (g)"
-    assert bottom.get_ylabel() == "norm − reference (g)"
-    labels = bottom.get_xticklabels()
-    assert len(labels) == 60
-    assert all(label.get_rotation() == 90 for label in labels)
-    assert labels[7].get_text().endswith("pose_07.csv")
-
-
-def test_poses_figure_before_is_centred_on_the_nominal_offset(figures: list[Figure]) -> None:
-    """Unsigned counts sit around 32768: "before" is |mean − nominal offset| / nominal gain, not
-    a norm of 14 g that hides the residual bars."""
-    gain, zero = 16384.0, np.full(3, 32768.0)
-    means = pose_means(12) * gain + zero
-    plots.poses_figure(
-        "unused.png", [f"p{i}" for i in range(12)], means, plots.Fitted(OFFSET * gain + zero, M / gain, 1.0),
-        nominal_gain=gain, nominal_offset=zero,
-    )  # fmt: skip
-    (fig,) = figures
-    _reference, before, _after = fig.axes[0].get_lines()
-    np.testing.assert_allclose(ydata(before), np.linalg.norm(means - zero, axis=1) / gain)
-    assert np.all(np.abs(ydata(before) - 1.0) < 0.2)
-
-
 def test_rotation_figure_ellipse_lies_on_a_plane_capture(figures: list[Figure]) -> None:
     raw = turning(20000, 50.0, plane=True)
-    plots.rotation_figure("unused.png", raw, OFFSET, M, 50.0, units="uT")
+    plots.rotation_figure("unused.png", raw, plots.Fitted(OFFSET, M, 50.0, units="uT"))
     (fig,) = figures
-    assert len(fig.axes) == 6
-    assert all(ax.get_aspect() == 1.0 for ax in fig.axes)
+    assert len(fig.axes) == 7  # three planes raw and corrected, and the residuals
+    assert all(ax.get_aspect() == 1.0 for ax in fig.axes[:6])
     xy_raw, xy_corrected = fig.axes[0], fig.axes[1]
     samples, _outline, ellipse, _offset = xy_raw.get_lines()
     shown = np.column_stack([xdata(samples), ydata(samples)])
@@ -218,10 +174,12 @@ def test_rotation_figure_of_a_one_plane_capture_draws_that_plane_at_its_own_radi
     heading = np.linspace(0.0, 4 * math.pi, n)
     field = 50.0 * np.stack([0.5 * np.cos(heading), 0.5 * np.sin(heading), np.full(n, math.sqrt(0.75))], axis=1)
     offset = np.array([12.0, -7.0, 0.0])
-    plots.rotation_figure("unused.png", field + offset, offset, np.eye(3), 50.0, units="uT", plane="xy")
+    plots.rotation_figure("unused.png", field + offset, plots.Fitted(offset, np.eye(3), 50.0, units="uT"), plane="xy")
     (fig,) = figures
-    assert len(fig.axes) == 2
-    raw_axes, corrected_axes = fig.axes
+    assert len(fig.axes) == 3
+    raw_axes, corrected_axes, residuals = fig.axes
+    dots, _zero = residuals.get_lines()
+    np.testing.assert_allclose(ydata(dots), 0.0, atol=1e-9)  # the in-plane norm is the 25 uT circle's
     assert "xy plane" in raw_axes.get_title()
     _dots, circle, _origin = corrected_axes.get_lines()
     np.testing.assert_allclose(np.hypot(xdata(circle), ydata(circle)), 25.0, rtol=1e-9)
@@ -229,11 +187,32 @@ def test_rotation_figure_of_a_one_plane_capture_draws_that_plane_at_its_own_radi
     assert "circle of radius 25 uT (the field's part in the xy plane)" in labels
 
 
+def test_rotation_figure_residuals_are_in_percent_with_the_limit(figures: list[Figure]) -> None:
+    """The residual of each sample after calibration, on its own axes in % of the reference (a
+    1 % error is invisible on the circle of radius 50), and ±the residual limit dashed."""
+    raw = turning(3000, 50.0)
+    scale = 1.0 + 0.01 * np.sin(np.arange(3000) / 50.0)  # the norm wanders by ±1 %
+    corrupted = (raw - OFFSET) * scale[:, None] + OFFSET
+    plots.rotation_figure("unused.png", corrupted, plots.Fitted(OFFSET, M, 50.0, units="uT"), limit=0.75)
+    (fig,) = figures
+    residuals = fig.axes[6]
+    dots = residuals.get_lines()[1]
+    shown = ydata(dots)
+    assert len(shown) == 3000
+    np.testing.assert_allclose(shown, (scale - 1.0) * 100.0, atol=1e-9)
+    limits = sorted(float(ydata(line)[0]) for line in residuals.get_lines()[2:])
+    assert limits == pytest.approx([-1.5, 1.5])  # 0.75 uT of 50: 1.5 %
+    low, high = residuals.get_ylim()
+    assert low < min(shown.min(), -1.5)
+    assert high > max(shown.max(), 1.5)
+    assert residuals.get_ylabel() == "residual (% of reference)"
+
+
 @pytest.mark.slow
 def test_rotation_figure_outline_bounds_a_sphere_capture(figures: list[Figure]) -> None:
-    plots.rotation_figure("unused.png", turning(3000, 1.0), OFFSET, M, 1.0)
+    plots.rotation_figure("unused.png", turning(3000, 1.0), plots.Fitted(OFFSET, M, 1.0))
     (fig,) = figures
-    for ax in fig.axes[0::2]:  # top row: raw
+    for ax in fig.axes[0:6:2]:  # top row: raw
         samples, outline, _ellipse, _offset = ax.get_lines()
         points = np.column_stack([xdata(samples), ydata(samples)])
         rim = np.column_stack([xdata(outline), ydata(outline)])
@@ -283,51 +262,25 @@ def test_lot_figure_twenty_parameters_in_four_columns(figures: list[Figure]) -> 
 
 BAD_INPUTS: list[tuple[str, Callable[[str], None], str]] = [
     (
-        "poses-nan",
-        lambda p: plots.poses_figure(p, ["a", "b"], np.full((2, 3), np.nan), plots.Fitted(OFFSET, M, 1.0)),
-        "raw_means has 6 of 6 values that are not finite",
-    ),
-    (
-        "poses-shape",
-        lambda p: plots.poses_figure(p, ["a", "b"], np.ones((2, 2)), plots.Fitted(OFFSET, M, 1.0)),
-        "raw_means has shape 2×2, expected n×3",
-    ),
-    (
-        "poses-names",
-        lambda p: plots.poses_figure(p, ["a"], pose_means(2), plots.Fitted(OFFSET, M, 1.0)),
-        "1 pose names for 2 pose means",
-    ),
-    (
-        "poses-none",
-        lambda p: plots.poses_figure(p, [], np.empty((0, 3)), plots.Fitted(OFFSET, M, 1.0)),
-        "no poses to plot",
-    ),
-    (
-        "poses-matrix",
-        lambda p: plots.poses_figure(p, ["a"], pose_means(1), plots.Fitted(OFFSET, np.eye(2), 1.0)),
-        "matrix has shape 2×2, expected 3×3",
-    ),
-    (
-        "poses-gain",
-        lambda p: plots.poses_figure(p, ["a"], pose_means(1), plots.Fitted(OFFSET, M, 1.0), nominal_gain=0.0),
-        "nominal_gain must be positive",
-    ),
-    (
         "rotation-nan",
-        lambda p: plots.rotation_figure(p, np.full((10, 3), np.nan), OFFSET, M, 1.0),
+        lambda p: plots.rotation_figure(p, np.full((10, 3), np.nan), plots.Fitted(OFFSET, M, 1.0)),
         "raw samples has 30 of 30 values that are not finite",
     ),
     (
         "rotation-singular",
-        lambda p: plots.rotation_figure(p, turning(10, 1.0), OFFSET, np.zeros((3, 3)), 1.0),
+        lambda p: plots.rotation_figure(p, turning(10, 1.0), plots.Fitted(OFFSET, np.zeros((3, 3)), 1.0)),
         "the calibration matrix is singular",
     ),
     (
         "rotation-reference",
-        lambda p: plots.rotation_figure(p, turning(10, 1.0), OFFSET, M, 0.0),
+        lambda p: plots.rotation_figure(p, turning(10, 1.0), plots.Fitted(OFFSET, M, 0.0)),
         "reference must be positive",
     ),
-    ("rotation-empty", lambda p: plots.rotation_figure(p, np.empty((0, 3)), OFFSET, M, 1.0), "no samples to plot"),
+    (
+        "rotation-empty",
+        lambda p: plots.rotation_figure(p, np.empty((0, 3)), plots.Fitted(OFFSET, M, 1.0)),
+        "no samples to plot",
+    ),
     ("lot-empty", lambda p: plots.lot_figure(p, []), "no parameters to plot"),
     (
         "lot-nan",
@@ -361,7 +314,7 @@ BAD_INPUTS: list[tuple[str, Callable[[str], None], str]] = [
 def good_png(tmp_path_factory: pytest.TempPathFactory) -> bytes:
     """A good figure, rendered once for the module."""
     path = tmp_path_factory.mktemp("good") / "figure.png"
-    plots.poses_figure(str(path), ["a", "b", "c"], pose_means(3), plots.Fitted(OFFSET, M, 1.0))
+    small_figure(str(path))
     return path.read_bytes()
 
 
@@ -392,7 +345,7 @@ def test_failed_render_leaves_the_old_file(good_file: Path, monkeypatch: pytest.
     before = good_file.read_bytes()
     monkeypatch.setattr(Figure, "savefig", broken)
     with pytest.raises(RuntimeError, match="renderer failed"):
-        plots.poses_figure(str(good_file), ["a"], pose_means(1), plots.Fitted(OFFSET, M, 1.0))
+        small_figure(str(good_file))
     assert good_file.read_bytes() == before
     assert [p.name for p in good_file.parent.iterdir()] == [good_file.name]
 
@@ -417,7 +370,7 @@ def test_failed_write_leaves_the_old_file(good_file: Path, monkeypatch: pytest.M
     before = good_file.read_bytes()
     monkeypatch.setattr(plots, "atomic_output", failing)
     with pytest.raises(InputError, match=f"{good_file}: cannot write: No space left on device"):
-        plots.poses_figure(str(good_file), ["a", "b"], pose_means(2), plots.Fitted(OFFSET, M, 2.0))
+        small_figure(str(good_file))
     assert good_file.read_bytes() == before
     assert [p.name for p in good_file.parent.iterdir()] == [good_file.name]
 
@@ -425,7 +378,7 @@ def test_failed_write_leaves_the_old_file(good_file: Path, monkeypatch: pytest.M
 @pytest.mark.slow
 def test_missing_output_folder_is_an_input_error(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="the output folder does not exist"):
-        plots.poses_figure(str(tmp_path / "nowhere" / "f.png"), ["a"], pose_means(1), plots.Fitted(OFFSET, M, 1.0))
+        small_figure(str(tmp_path / "nowhere" / "f.png"))
 
 
 # --- the optional extra -------------------------------------------------------------------------

@@ -1,5 +1,5 @@
 """Numbers in double quotes (``"1.033358"``, as some loggers and spreadsheet exports write every
-cell) read as numbers (README "CSV captures"): in pose files, logs and apply's input, from the
+cell) read as numbers (docs/reference/csv.md): in pose files, logs and apply's input, from the
 command line and from Python, with and without a header, through every reader of a capture
 (the general one, apply's splicing one, the streaming log reader, stdin)."""
 
@@ -122,7 +122,7 @@ def test_a_quoted_label_column_reads_its_labels(tmp_path: Path) -> None:
 def test_apply_corrects_quoted_numbers(which: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """Sensor cells in quotes: the output is the plain file's, byte for byte. Every cell in
     quotes: the same corrected numbers; the other cells (and the header) keep their quotes, as
-    apply copies every byte but the sensor cells' (README "tumblecal apply")."""
+    apply copies every byte but the sensor cells' (docs/commands/apply.md)."""
     cal = tmp_path / "cal.json"
     assert run(capsys, "solve", "--poses", *POSES_3, "-o", cal).code == 0
     source = SAMPLE / "capture.csv"

@@ -1,6 +1,6 @@
 """Known-answer tests of the solvers beyond 1- and 3-pose (tumblecal_cli/core/solvers.py).
 
-Every synthetic capture here follows README "Poses, signs and --reference", ``raw = A·v + b + noise`` with a known
+Every synthetic capture here follows docs/reference/model.md, ``raw = A·v + b + noise`` with a known
 ``A`` (gains and cross-axis terms), ``b``, noise and fixture tilt; each solver must recover the
 truth within the 1-sigma it reports (|estimate − truth| < 5σ), and where the 1-sigma has a closed
 form (noise/√n through the solver's formula) the reported one must match it. The last tests pin

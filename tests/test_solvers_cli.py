@@ -1,6 +1,6 @@
 """End-to-end CLI tests of issue 4: pose labels, the solvers behind --method, the calibration
 file's new fields, magnetometer and gyroscope calibration, ``apply`` with several --cal and
-``verify`` (README "Poses, signs and --reference", "Calibration file (format version 1)" and
+``verify`` (docs/reference/model.md, "Calibration file (format version 1)" and
 "Exit status").
 
 Every capture is synthetic with a known truth (tests/synth.py), written to tmp_path, except the

@@ -286,7 +286,7 @@ IMUCAL_FACES = FaceSet(
 def test_imucal_least_squares_on_five_faces_predicts_the_sixth(tmp_path: Path) -> None:
     """Each face left out is read within 0.12 m/s^2 (11 mg) of 9.81. The y faces are the worst:
     without one of them, the y offset comes only from the four poses where y is horizontal, whose
-    y readings a tilt of the fixture moves to first order (README "Poses, signs and --reference"): without -y it is
+    y readings a tilt of the fixture moves to first order (docs/reference/model.md): without -y it is
     -59.8 counts, against -48.3 from the two vertical readings (six-pose), 0.055 m/s^2 apart."""
     h = leave_one_face_out(tmp_path, IMUCAL_FACES)
     errors = dict(zip(h.captures, h.after, strict=True))

@@ -1,4 +1,4 @@
-"""Part of a capture (README "CSV captures"): ``--start``/``--end`` read only the readings from
+"""Part of a capture (docs/reference/csv.md): ``--start``/``--end`` read only the readings from
 one to the other, in seconds from the capture's first reading or as 0-based data rows (``1200r``),
 in ``solve`` (pose files, data in memory, ``--log``), ``noise``, ``verify`` and ``segment``, on the
 command line and in the Python API; a bad one is exit 2 naming the flag.

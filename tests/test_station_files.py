@@ -1,4 +1,4 @@
-"""Captures as test stations write them (README "CSV captures"): time columns in ms/µs/ns (from
+"""Captures as test stations write them (docs/reference/csv.md): time columns in ms/µs/ns (from
 the name or the spacing), a metadata preamble before the header, decimal commas, and a last line
 cut short by a logger stopped mid-write. Each on a file of that shape, through the reader, the
 command line and the Python API."""

@@ -1,7 +1,7 @@
 """Data in m/s^2 solved with the default --reference 1 (gains of about 9.81, corrected output in
 g) gets one note naming --reference 9.80665 --units m/s^2; data in g solved with --reference
 9.81 the note the other way. Data in the reference's units, counts, or a station that said
-its units gets none (README "Poses, signs and --reference")."""
+its units gets none (docs/reference/model.md)."""
 
 from __future__ import annotations
 

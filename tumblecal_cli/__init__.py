@@ -1,6 +1,6 @@
 """tumblecal: calibrate 3-axis sensors from static tumble poses and correct captures.
 
-The Python API (README "Using tumblecal from Python")::
+The Python API (docs/python.md)::
 
     import tumblecal_cli as tumblecal
 

@@ -1,4 +1,4 @@
-"""The one exception family. Each error knows its exit status (README "Exit status")."""
+"""The one exception family. Each error knows its exit status (docs/reference/exit-status.md)."""
 
 from __future__ import annotations
 

@@ -11,7 +11,19 @@ import importlib
 from tumblecal_cli.cli.app import app, main, main_exit
 
 #: The command modules, in the order `tumblecal --help` lists their commands (registration order).
-COMMANDS = ("solve", "apply", "thermal", "calfiles", "report", "verify", "segment", "noise", "streams", "batch")
+COMMANDS = (
+    "solve",
+    "apply",
+    "thermal",
+    "calfiles",
+    "report",
+    "verify",
+    "segment",
+    "noise",
+    "streams",
+    "aligning",
+    "batch",
+)
 for _name in COMMANDS:
     importlib.import_module(f"tumblecal_cli.cli.{_name}")
 

@@ -73,7 +73,7 @@ def apply(
             "--dask-scheduler",
             metavar="ADDRESS",
             help="With --out-dir: correct the captures on a Dask distributed cluster, tcp://host:8786 "
-            "(README: Dask). The captures, --cal and DIR must be at the same paths on every worker.",
+            "(docs/commands/batch.md). The captures, --cal and DIR must be at the same paths on every worker.",
         ),
     ] = None,
     quiet: Quiet = False,

@@ -85,7 +85,7 @@ def _batch_options(
         typer.Option(
             "--dask-scheduler",
             metavar="ADDRESS",
-            help="Run the units on a Dask distributed cluster, tcp://host:8786 (README: Dask). Needs "
+            help="Run the units on a Dask distributed cluster, tcp://host:8786 (docs/commands/batch.md). Needs "
             "'tumblecal[dask]' here and on the workers, and UNITS and DIR at the same paths on every worker.",
             rich_help_panel=BATCH_PANEL,
         ),

@@ -65,6 +65,9 @@ def show(
         console.print("matrix M (corrected = M (raw - offset)):")
         for row in c.matrix:
             console.print("  " + "  ".join(f"{v:>14.6g}" for v in row))
+    aligned = c.fields.get("alignment")
+    if isinstance(aligned, dict):  # tumblecal align --aligned-mag
+        console.print(f"{'aligned:':<12} {one_line(render.alignment_line(aligned))}", soft_wrap=True)
     notes = tilt_notes(c) if c.tilt_sensitivity and c.uncertainty else []
     render.print_summary(c, console, [], notes, judged=True)
 
@@ -112,7 +115,7 @@ def export(
             help="c-header: C99/C++ header for firmware; registers: offset (and gain trim) register counts, CSV; "
             "imucal-json, ros-yaml, matlab: the peer tools' own files; ardupilot, px4: the autopilot's parameters "
             "(a .parm file of INS_ACC/INS_GYR/COMPASS_, a QGroundControl .params file of CAL_ACC/CAL_GYRO/CAL_MAG; "
-            "a thermal block as INS_TCAL or TC_A/TC_G) (README: export).",
+            "a thermal block as INS_TCAL or TC_A/TC_G) (docs/commands/export-import.md).",
         ),
     ],
     output: Annotated[

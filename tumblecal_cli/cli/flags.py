@@ -258,7 +258,7 @@ LimitsFile = Annotated[
     limit_option(
         "--limits",
         "FILE",
-        "Limits file (YAML/JSON: offset, gain_error, nominal_gain, cross_axis, noise, residual; see README).",
+        "Limits file (YAML/JSON: offset, gain_error, cross_axis, noise, residual...: docs/production-test.md).",
     ),
 ]
 
@@ -329,6 +329,17 @@ AccelCal = Annotated[
         "A gyroscope's hand turns (method rotations, with --sensor gyroscope and --log): the accelerometer "
         "calibration that gives each still block's gravity direction; the gyroscope is integrated over each "
         "rotation between still blocks. No labels, no known angles.",
+    ),
+]
+
+AlignTo = Annotated[
+    str | None,
+    log_option(
+        "--align-to",
+        "ACCEL_CAL",
+        "A magnetometer's capture that holds the accelerometer's columns too: rotate the magnetometer's axes "
+        "onto those of this accelerometer calibration (its matrix times the rotation `tumblecal align` finds "
+        "from the still blocks), and report the heading error that removes.",
     ),
 ]
 

@@ -100,6 +100,20 @@ def print_csv(table: tuple[list[str], list[list[str]]]) -> None:
         out.write(text.getvalue().encode())
 
 
+def alignment_line(record: Mapping[str, object]) -> str:
+    """A calibration's ``alignment`` field (tumblecal align --aligned-mag) for people."""
+
+    def number(key: str) -> float:
+        value = record.get(key)
+        return float(value) if isinstance(value, int | float) else float("nan")
+
+    return (
+        f"rotated {number('angle_deg'):.3f}° ± {number('angle_sigma_deg'):.3f}° onto the axes of {record.get('to')}; "
+        f"dip {number('dip_deg'):.2f}° ± {number('dip_sigma_deg'):.2f}°; heading error removed up to "
+        f"{number('heading_error_deg'):.2f}°"
+    )
+
+
 def note_line(note: str) -> str:
     """A note as printed: ``note: ...``, or a warning as it is (it starts with ``warning:``)."""
     return note if note.startswith("warning: ") else f"note: {note}"

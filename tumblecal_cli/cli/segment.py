@@ -37,9 +37,12 @@ from tumblecal_cli.cli.flags import (
     log_option,
     source,
 )
+from tumblecal_cli.cli.solve import _plot_target
 
 if TYPE_CHECKING:
-    from tumblecal_cli.pipeline.logs import Segmented
+    from collections.abc import Callable
+
+    from tumblecal_cli.pipeline.logs import Blocks, Segmented
 
 SEGMENT_EXIT = """\
 Exit status: 0 blocks found and written (whatever faces they show: solve judges whether they are
@@ -109,6 +112,15 @@ def segment(
             "[default: the per-axis midpoint of the block means]",
         ),
     ] = None,
+    plot: Annotated[
+        str | None,
+        typer.Option(
+            "--plot",
+            metavar="PNG",
+            help="Draw the log with its still blocks shaded and labelled by face, and the rolling standard "
+            "deviation with the threshold (reads the whole log into memory); needs tumblecal[plot].",
+        ),
+    ] = None,
     verbose: Annotated[bool, typer.Option("--verbose", "-v", help="List the dropped blocks too.")] = False,
     quiet: Quiet = False,
 ) -> None:
@@ -122,20 +134,18 @@ def segment(
       tumblecal segment session.csv --out-dir poses/
       tumblecal solve --poses poses/[xyz][pn].csv -o cal.json
       tumblecal segment session.csv --rate 102.4 > segments.csv   # the index only
-      tumblecal segment a.csv --pose-column part --pose-map x_p=+x,... -d poses/
+      tumblecal segment session.csv --plot blocks.png -d poses/    # and a picture
     """
 
     from tumblecal_cli.pipeline import logs
 
-    def show(found: logs.Blocks, files: dict[int, str]) -> None:
-        if not quiet:  # "-> xp.csv" only where it is written; the index alone names the file each would go to
-            shown = {n: f"-> {f}" if out_dir is not None else f"kept ({f})" for n, f in files.items()}
-            render.print_blocks(found.log, found.seg, render.make_console(), used=shown, everything=verbose, notes=True)
-
+    if plot is not None:
+        _plot_target(plot, out_dir or "-", False, [log])
     done = logs.segment(
         log,
         out_dir=out_dir,
-        on_blocks=show,
+        on_blocks=None if quiet else _shower(out_dir is not None, verbose),
+        plot=plot,
         sensor=sensor.value,
         columns=columns,
         no_header=no_header,
@@ -161,6 +171,17 @@ def segment(
         render.print_text(done.index)
     elif not quiet:
         _written(done, out_dir)
+
+
+def _shower(writes: bool, verbose: bool) -> Callable[[Blocks, dict[int, str]], None]:
+    """The blocks as they are found: "-> xp.csv" only where it is written; the index alone
+    names the file each would go to."""
+
+    def show(found: Blocks, files: dict[int, str]) -> None:
+        shown = {n: f"-> {f}" if writes else f"kept ({f})" for n, f in files.items()}
+        render.print_blocks(found.log, found.seg, render.make_console(), used=shown, everything=verbose, notes=True)
+
+    return show
 
 
 def _written(done: Segmented, out_dir: str) -> None:

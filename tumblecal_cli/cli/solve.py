@@ -16,6 +16,7 @@ from tumblecal_cli.cli.flags import (
     SOLVER_PANEL,
     UNIT_PANEL,
     AccelCal,
+    AlignTo,
     AllowCorrected,
     CheckName,
     Columns,
@@ -55,9 +56,6 @@ from tumblecal_cli.cli.flags import (
 from tumblecal_cli.errors import InputError
 
 if TYPE_CHECKING:
-    from tumblecal_cli.core.gate import Limits
-    from tumblecal_cli.core.model import FloatArray
-    from tumblecal_cli.io.calfile import Calibration
     from tumblecal_cli.pipeline.options import SolveOptions
     from tumblecal_cli.pipeline.solve import Solved
 
@@ -97,6 +95,7 @@ def solve(
     turn_angle: TurnAngle = None,
     accel_cal: AccelCal = None,
     max_spool: MaxSpool = None,
+    align_to: AlignTo = None,
     output: Annotated[
         str,
         typer.Option(
@@ -131,7 +130,7 @@ def solve(
             "--method",
             "-m",
             metavar="NAME",
-            help="The solver: auto (the summary says what it chose and why: README, Choosing a solver), "
+            help="The solver: auto (the summary says what it chose and why: docs/commands/solve.md), "
             "one-pose, one-pose-tilt, three-pose, six-pose, six-pose-diagonal, six-pose-magnitude, least-squares, "
             "sphere, minmax, ellipsoid, gyro-bias, ferraris-turns, rotations.",
         ),
@@ -346,6 +345,7 @@ def solve(
     inputs = [*(poses or []), *(p.partition("=")[2] for p in poses or [] if "=" in p), *([log] if log else [])]
     inputs += [limits] if limits else []
     inputs += [accel_cal] if accel_cal else []
+    inputs += [align_to] if align_to else []
     if json_summary and output == "-" and (poses or log):
         raise InputError("--json prints the summary on stdout, so the calibration needs -o FILE")
     check_not_input(output, inputs)
@@ -409,6 +409,7 @@ def solve_options(
     start: str | None = None,
     end: str | None = None,
     no_trim: bool = False,
+    align_to: str | None = None,
 ) -> SolveOptions:
     """solve's options as the command line parsed them (batch's for every unit), grouped as the
     pipeline takes them; a choice is its text (a StrEnum's value)."""
@@ -439,7 +440,17 @@ def solve_options(
             end=end,
         ),
         log=opts.LogOptions(
-            window, threshold, min_duration, trim, pose_column, pose_map, turns, turn_angle, accel_cal, max_spool
+            window,
+            threshold,
+            min_duration,
+            trim,
+            pose_column,
+            pose_map,
+            turns,
+            turn_angle,
+            accel_cal,
+            max_spool,
+            align_to,
         ),
         checks=opts.CheckOptions(
             max_noise,
@@ -486,7 +497,9 @@ def _show(
             )
         raise solved.error
     if plot is not None:  # drawn before the calibration is written: a failure leaves nothing behind
-        _plot_solve(plot, cal, [s.values for s in solved.samples], solved.limits, plane)
+        from tumblecal_cli.pipeline import plotting
+
+        plotting.solve_plot(plot, solved, plane)
     cal.save(output)
     if not quiet:
         render.print_summary(cal, console, solved.warnings, solved.notes, judged=True, verbose=verbose)
@@ -512,43 +525,3 @@ def _plot_target(plot: str, output: str, json_summary: bool, inputs: list[str]) 
         raise InputError("--plot and -o name the same file", file=plot)
     check_not_input(plot, inputs, "--plot")
     check_writable(plot, "--plot")
-
-
-def _plot_solve(plot: str, cal: Calibration, raw: list[FloatArray], limits: Limits | None, plane: str | None) -> None:
-    """solve --plot: the poses' norms (the figure of Sports Sensing 2023), or a magnetometer's rotation capture."""
-    import numpy as np
-
-    from tumblecal_cli.core import methods
-    from tumblecal_cli.core.gate import FIXED_GAINS
-    from tumblecal_cli.io import plots
-
-    title = f"{cal.sensor}, {cal.method}" + (f", {cal.serial}" if cal.serial else "")
-    if cal.method in methods.ROTATION:
-        plots.rotation_figure(
-            plot, np.concatenate(raw), cal.offset, cal.matrix, cal.reference, units=cal.units, title=title, plane=plane
-        )
-        return
-    assert limits is not None
-    if limits.nominal_gain_given:  # --nominal-gain or the limits file
-        nominal = float(np.mean(limits.nominal_gain))
-    else:  # else "before" is scaled by the mean solved gain: its shape, not its units
-        nominal = 1.0 if cal.method in FIXED_GAINS else float(np.mean(cal.gain))
-    names = [  # a log's blocks by number (they share the file), pose files by name
-        " ".join(
-            [
-                *([p.face] if p.face else []),
-                f"block {p.block}" if p.block is not None else os.path.basename(str(p.file)),
-            ]
-        )
-        for p in cal.poses
-    ]
-    means = np.array([p.mean for p in cal.poses], dtype=np.float64)
-    plots.poses_figure(
-        plot,
-        names,
-        means,
-        plots.Fitted(cal.offset, cal.matrix, cal.reference, cal.units),
-        nominal_gain=nominal,
-        nominal_offset=limits.nominal_offset,  # --nominal-offset: unsigned counts' zero
-        title=title,
-    )

@@ -24,6 +24,7 @@ from tumblecal_cli.cli.flags import (
     file_shape,
     source,
 )
+from tumblecal_cli.cli.solve import _plot_target
 from tumblecal_cli.errors import InputError
 
 if TYPE_CHECKING:
@@ -103,6 +104,15 @@ def verify(
     json_summary: Annotated[
         bool, typer.Option("--json", help="Print the per-capture and overall figures on stdout as JSON.")
     ] = False,
+    plot: Annotated[
+        str | None,
+        typer.Option(
+            "--plot",
+            metavar="PNG",
+            help="Draw each capture's norm error after calibration with --max-norm-error, and before it; "
+            "needs tumblecal[plot].",
+        ),
+    ] = None,
     quiet: Quiet = False,
 ) -> None:
     """Check a calibration on static captures it was not fitted on: the norm of each mean, before
@@ -112,11 +122,16 @@ def verify(
     \b
       tumblecal verify --cal cal.json check1.csv check2.csv check3.csv
       tumblecal verify --cal cal.json tilted/*.csv --max-norm-error 0.005 --json
+      tumblecal verify --cal cal.json tilted/*.csv --max-norm-error 0.005 --plot verify.png
     """
 
     from tumblecal_cli.pipeline import verify as pipeline
 
     found = source(stream, allow_corrected)
+    if plot is not None:
+        if log is not None or accel_cal is not None:
+            raise InputError("--plot draws the errors of static captures, not of a --log of hand turns")
+        _plot_target(plot, "-", json_summary, [*(captures_ or []), cal])
     if log is not None or accel_cal is not None:
         where = (log, accel_cal, rate, columns, captures_, found, (start, end))
         return _rotations(cal, *where, json_summary=json_summary, quiet=quiet)
@@ -143,8 +158,18 @@ def verify(
             render.tell(render.make_console(), f"note: {note}")
     if done.error is not None:
         raise done.error
+    if plot is not None:  # exit 0 and 1: the errors are what the figure shows
+        _plot_verify(plot, done, quiet=quiet)
     if done.status:
         raise typer.Exit(done.status)
+
+
+def _plot_verify(plot: str, done: Verified, *, quiet: bool) -> None:
+    from tumblecal_cli.pipeline import plotting
+
+    plotting.verify_plot(plot, done)
+    if plot != "-" and not quiet:
+        render.make_console().print(f"wrote {plot}", soft_wrap=True, markup=False)
 
 
 def _summary(done: Verified, cal: str, max_norm_error: float | None) -> JSONObject:

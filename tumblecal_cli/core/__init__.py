@@ -1,5 +1,5 @@
 """The numeric core, numpy only: no files, no terminal, no pandas; every formula cites its source
-(README "Sources"). Its modules:
+(docs/sources.md). Its modules:
 
 - ``model``: faces and pose labels, pose statistics, the measurement model, the 1- and 3-pose
   solvers, tilt sensitivity, and apply (``M (raw - b)``).

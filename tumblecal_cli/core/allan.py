@@ -1,9 +1,9 @@
 """Allan deviation of a still capture, and the noise figures read off it. numpy only.
 
-Part of the core layer (README "Development"): pure numbers, no files, no terminal. Sources:
+Part of the core layer (docs/development.md): pure numbers, no files, no terminal. Sources:
 IEEE Std 952-1997 (Annex C, "Allan variance method of data reduction", cited as IEEE 952 C),
 and Riley 2008, "Handbook of Frequency Stability Analysis", NIST SP 1065 (cited as SP 1065).
-Every work cited here is listed in README "Sources".
+Every work cited here is listed in docs/sources.md.
 
 **The deviation.** A sensor's rate-like output ``y`` (one sample every ``tau0``) is integrated
 to ``S_k = sum_{j<k} y_j`` (``S_0 = 0``, N = n + 1 points: the "phase" of SP 1065), and the

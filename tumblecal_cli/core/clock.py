@@ -1,7 +1,7 @@
 """A log's clock: the seconds per sample its time column gives, its gaps, and whether it was
 stamped on arrival, in bursts. numpy only.
 
-Part of the core layer (README "Development"). The rules (README "CSV captures", *Sample rate*):
+Part of the core layer (docs/development.md). The rules (docs/reference/csv.md, *Sample rate*):
 
 - **steps**: the differences of consecutive times, in seconds.
 - **regular or bursty.** A logger that stamps samples as they reach the host (a sensor read over

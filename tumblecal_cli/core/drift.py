@@ -1,7 +1,7 @@
 """Temperature drift: fit offset and gain drift against temperature, and correct each row at its
 own temperature. numpy only.
 
-Model (README "tumblecal thermal"), per axis j, with d = T - T_ref::
+Model (docs/commands/thermal.md), per axis j, with d = T - T_ref::
 
     offset_j(T) = b_j + sum_k beta_jk d^k                      k = 1..order, raw units
     gain_j(T)   = g_j (1 + sum_k gamma_jk d^k)                 relative change of A's row j
@@ -12,7 +12,7 @@ constant term: the drift is zero at T_ref. Scaling row j of A by (1 + Gamma_j) i
 ``inv(diag(1 + Gamma) A) = M diag(1 / (1 + Gamma))``, the last line. The offset-drift form is the one
 ArduPilot and PX4 use for their own thermal calibrations (a polynomial of order 3 at most in the
 temperature difference from a reference, ``AP_InertialSensor_tempcal.cpp`` ``polynomial_eval``;
-PX4 ``TemperatureCompensation.cpp`` ``calc_thermal_offsets_3D``: README "Sources"), and like both,
+PX4 ``TemperatureCompensation.cpp`` ``calc_thermal_offsets_3D``: docs/sources.md), and like both,
 a temperature outside the calibrated range is clamped to its nearest end, never extrapolated.
 
 Fit. A still pose with face direction u (|u| = 1) reads on axis j, as the temperature changes,

@@ -1,6 +1,6 @@
 """The production-test gate: quality checks on each pose, limits, and the verdict. numpy only.
 
-Part of the core layer (README "Development"): pure functions on numbers, no files, no terminal.
+Part of the core layer (docs/development.md): pure functions on numbers, no files, no terminal.
 
 - A **rejection** (exit 3) says the capture cannot be trusted: a pose moved, is not the pose it
   claims, clipped, is too short, or solves to a gain that is not positive.
@@ -30,6 +30,7 @@ from tumblecal_cli.core.model import (
     direction,
     suggest_reference,
 )
+from tumblecal_cli.core.running import Summary
 from tumblecal_cli.errors import InputError
 
 #: The quality checks, by the last part of their code (``pose.<check>``).
@@ -128,8 +129,12 @@ class Options:
     faces_labelled: bool = False  # ... or from the labels given (+x=FILE): the labels to blame
 
 
-def measure(file: str, face: str | None, values: FloatArray, stats: PoseStats, options: Options) -> PoseCheck:
-    """The per-pose measurements the checks need (the direction comes later, from orient())."""
+def measure(file: str, face: str | None, values: FloatArray | Summary, stats: PoseStats, options: Options) -> PoseCheck:
+    """The per-pose measurements the checks need (the direction comes later, from orient());
+    of a long pose, from its running sums (core.running)."""
+    if isinstance(values, Summary):
+        clipped, peak = _clipping(values, options.full_scale, options.rails)
+        return PoseCheck(file, face, stats, None, None, clipped, peak, values.drift(), np.zeros(3))
     n = values.shape[0]
     third = n // 3
     drift = values[-third:].mean(axis=0) - values[:third].mean(axis=0) if third else np.zeros(3)
@@ -141,7 +146,7 @@ def orient(poses: Sequence[PoseCheck], nominal_offset: FloatArray, max_tilt_deg:
     """Give each pose its direction, angle from its face and nearest face.
 
     The centre removed from each mean is ``nominal_offset``, except on an axis where both of its
-    faces were captured and agree: there the midpoint of the two (README "Poses, signs and --reference": opposite
+    faces were captured and agree: there the midpoint of the two (docs/reference/model.md: opposite
     faces cancel the offset). They agree when their difference points along that axis (either
     way: a swapped pair has the same midpoint) within ``max_tilt_deg``; a pair that does not
     (one of them is some other pose) would move the
@@ -385,32 +390,37 @@ def _orientation(
     return Finding("pose.orientation", text, p.angle_deg, max_tilt, **where)
 
 
-def integer_rails(captures: Sequence[FloatArray]) -> Rails | None:
+def integer_rails(captures: Sequence[FloatArray | Summary]) -> Rails | None:
     """The limits of the 16-bit integer type that holds every sample of a unit's captures:
     signed (-32768, 32767) unless some value needs the unsigned range (0, 65535). Judged over
     all the captures together, so a pose of an unsigned ADC whose values all happen to sit
     below 32768 is not taken for a signed one at its rail. None: not integers, or no 16-bit
     type holds them all (no known limit)."""
-    captures = [c for c in captures if c.size]
-    if not captures:
+    summed = [c for c in captures if isinstance(c, Summary) and c.count]
+    arrays = [c for c in captures if not isinstance(c, Summary) and c.size]
+    if not arrays and not summed:
         return None
-    lo = min(float(c.min()) for c in captures)
-    hi = max(float(c.max()) for c in captures)
+    lo = min([float(c.min()) for c in arrays] + [c.low for c in summed])
+    hi = max([float(c.max()) for c in arrays] + [c.high for c in summed])
     if lo < -32768 or hi > 65535 or (lo < 0 and hi > 32767):
         return None
-    if not all(np.array_equal(part, np.round(part)) for c in captures for part in chunks(c)):
+    if not all(c.whole for c in summed):
+        return None
+    if not all(np.array_equal(part, np.round(part)) for c in arrays for part in chunks(c)):
         return None
     if hi > 32767:  # unsigned: 0 and 65535 are the rails, the middle is 32768
         return 0.0, 65535.0, 32768.0
     return -32768.0, 32767.0, 0.0
 
 
-def _clipping(values: FloatArray, full_scale: float | None, rails: Rails | None) -> tuple[int, float | None]:
+def _clipping(values: FloatArray | Summary, full_scale: float | None, rails: Rails | None) -> tuple[int, float | None]:
     """(samples at the clip level, peak |value| as a fraction of that level).
 
     With a full scale V, the level is ``CLIP_FRACTION·V``; without, the rails of the integer
     type (integer_rails). Other data has no known limit.
     """
+    if isinstance(values, Summary):
+        return _summed_clipping(values, full_scale, rails)
     if values.size == 0:
         return 0, None
     if full_scale:
@@ -429,6 +439,20 @@ def _clipping(values: FloatArray, full_scale: float | None, rails: Rails | None)
         clipped += int(((c <= low_rail) | (c >= high_rail)).any(axis=1).sum())
         top = max(top, float(np.abs(c - mid).max()))
     return clipped, float(top / (high_rail - mid))
+
+
+def _summed_clipping(values: Summary, full_scale: float | None, rails: Rails | None) -> tuple[int, float | None]:
+    """_clipping of a long pose's running sums: the blocks that reach the level read again."""
+    if not values.count:
+        return 0, None
+    if full_scale:
+        level = CLIP_FRACTION * full_scale
+        return values.at_level(-level, level), float(values.largest / level)
+    if rails is None:
+        return 0, None
+    low_rail, high_rail, mid = rails
+    top = max(values.high - mid, mid - values.low)
+    return values.at_level(low_rail, high_rail), float(top / (high_rail - mid))
 
 
 # -- limits and the verdict ----------------------------------------------------------------
@@ -515,7 +539,7 @@ def corrected(
     mean: FloatArray, std: FloatArray, face: str | None, offset: FloatArray, matrix: FloatArray, reference: float
 ) -> Corrected:
     """How a pose (its mean and standard deviation) reads once corrected, against the reference."""
-    c = matrix @ (mean - offset)  # README "Poses, signs and --reference": corrected = M (raw - b)
+    c = matrix @ (mean - offset)  # docs/reference/model.md: corrected = M (raw - b)
     return Corrected(
         norm_error=float(np.linalg.norm(c) - reference),
         vector_error=None if face is None else float(np.linalg.norm(c - reference * direction(face))),
@@ -623,7 +647,7 @@ def verdict(
 
 
 def _drift_failures(limits: Limits, drift: tuple[FloatArray, FloatArray] | None) -> list[Finding]:
-    """The offset-drift limits (README "tumblecal thermal"): over the range, and per °C."""
+    """The offset-drift limits (docs/commands/thermal.md): over the range, and per °C."""
     out: list[Finding] = []
     if drift is None:
         return out

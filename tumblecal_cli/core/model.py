@@ -1,12 +1,12 @@
 """The numeric core: pose statistics, the tumble solvers, and apply. numpy only.
 
-Measurement model (README "Poses, signs and --reference")::
+Measurement model (docs/reference/model.md)::
 
     raw = A @ v + b + noise        v: true stimulus in the sensor frame, |v| = reference
     corrected = M @ (raw - b)      M = inv(A)
 
 ``b`` (offset) is in raw units; ``A`` has the gains on its diagonal. Every formula cites its
-source by author and year, listed in README "Sources": Vitali 2018 is ST's design tip "1-point /
+source by author and year, listed in docs/sources.md: Vitali 2018 is ST's design tip "1-point /
 3-point tumble sensor calibration", cited below by its equations and sections.
 
 Nothing here reads files or talks to a terminal; errors carry no file name unless the caller
@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from tumblecal_cli.core.running import Summary
 from tumblecal_cli.errors import CaptureRejected, InputError
 
 FloatArray = NDArray[np.float64]
@@ -36,7 +37,7 @@ FACES: dict[str, tuple[float, float, float]] = {
     "+z": (0.0, 0.0, 1.0),
     "-z": (0.0, 0.0, -1.0),
 }
-#: Script-friendly aliases (README "Poses, signs and --reference"): xp = +x, xn = -x, ...
+#: Script-friendly aliases (docs/reference/model.md): xp = +x, xn = -x, ...
 FACE_ALIASES = {f"{axis}{s}": f"{sign}{axis}" for axis in "xyz" for s, sign in (("p", "+"), ("n", "-"))}
 
 #: The sensors tumblecal calibrates, in the order reports list them.
@@ -120,8 +121,13 @@ class PoseStats:
         return self.std / math.sqrt(self.samples)
 
 
-def pose_stats(samples: FloatArray) -> PoseStats:
-    """Mean, standard deviation and count of an (n, 3) block of readings (n >= 1)."""
+def pose_stats(samples: FloatArray | Summary) -> PoseStats:
+    """Mean, standard deviation and count of an (n, 3) block of readings (n >= 1), or of a long
+    pose's running sums (core.running)."""
+    if isinstance(samples, Summary):
+        if not samples.count:
+            raise InputError("no samples in this pose")
+        return PoseStats(np.sum(samples.sums, axis=0) / samples.count, samples.std, samples.count)
     n = int(samples.shape[0])
     if n == 0:
         raise InputError("no samples in this pose")
@@ -209,7 +215,7 @@ def solve_three_pose(
 
     and corrects by subtracting the offset and dividing by the gain, so ``M = diag(1 / gain)``.
     The offsets come from horizontal readings, so they shift to first order with fixture tilt
-    (Vitali 2018, notes; README "Poses, signs and --reference").
+    (Vitali 2018, notes; docs/reference/model.md).
 
     ``faces``: the face of each pose, one per axis in the order x, y, z, of either sign. On a
     ``-`` face the axis reads ``offset - gain·reference`` (the model ``raw = A v + b`` with
@@ -288,11 +294,11 @@ def tilt_sensitivity(
 MAX_READING = 1e150
 
 
-def in_range(values: FloatArray, name: str) -> None:
+def in_range(values: FloatArray | Summary, name: str) -> None:
     """Readings beyond MAX_READING (1e200 in a capture) overflow the statistics: an input error
     naming ``name``. NaN (an empty reading) is left to the caller."""
-    largest = 0.0  # the largest |reading| not NaN, a chunk at a time
-    for c in chunks(values):
+    largest = values.largest if isinstance(values, Summary) else 0.0  # the largest |reading| not NaN
+    for c in () if isinstance(values, Summary) else chunks(values):  # a chunk at a time
         size = np.abs(c[~np.isnan(c)])
         largest = max(largest, float(size.max())) if size.size else largest
     if not largest <= MAX_READING:
@@ -307,7 +313,7 @@ def units_mistake(mean: FloatArray, reference: float) -> float | None:
     """The reference the data suggests when |mean| is far from ``reference``, else None.
 
     Only meaningful for solvers without gains (1-pose), where the output keeps the raw units
-    (README "Poses, signs and --reference"). Offsets are a few percent of full scale, so a magnitude more than
+    (docs/reference/model.md). Offsets are a few percent of full scale, so a magnitude more than
     ``UNITS_TOLERANCE`` away from ``reference`` means the data is in other units.
     """
     magnitude = float(np.linalg.norm(mean))

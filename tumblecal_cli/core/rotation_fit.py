@@ -1,7 +1,7 @@
 """Gyroscope scale and misalignment from hand turns between still poses, gravity the reference.
 numpy only.
 
-Tedaldi et al. 2014 (README "Sources"), sect. III-C: between two still
+Tedaldi et al. 2014 (docs/sources.md), sect. III-C: between two still
 poses the gyroscope, integrated, must carry the gravity direction measured before onto the one
 measured after. In tumblecal's model ``ω = M (raw - b)`` (deg/s), each rotation's quaternion is
 the ordered product of the per-sample rotations ``exp(ω dt / 2)`` (body frame, right-multiplied:

@@ -9,7 +9,7 @@ time, so the quietest tenth of the windows is sensor noise and nothing else (imu
 asks for a long still start to measure it, the source of its "not enough intervals").
 
 A run of still samples is a *block*, never across a gap in time. Each block is then judged as
-the quality checks judge a pose file (README "Quality checks (exit 3)", core/gate.py): too short, too noisy or
+the quality checks judge a pose file (docs/production-test.md, core/gate.py): too short, too noisy or
 drifting relative to its own magnitude drops it. Its label is the face nearest its direction
 after removing a rough centre (the nominal offset, else the per-axis midpoint of the block
 means: an unsigned ADC's counts sit near 32768), when that face is within ``max_tilt_deg``.

@@ -1,8 +1,8 @@
 """The solvers beyond 1- and 3-pose: six-pose (with and without cross-axis terms), N-pose least
 squares, the orientation-free sphere fit, tilt-compensated 1-pose, magnetometer min/max and
-ellipsoid, gyroscope bias. numpy only (the core layer, README "Development").
+ellipsoid, gyroscope bias. numpy only (the core layer, docs/development.md).
 
-Every solver works in the model of README "Poses, signs and --reference", ``raw = A v + b``, ``corrected =
+Every solver works in the model of docs/reference/model.md, ``raw = A v + b``, ``corrected =
 M (raw - b)``, ``M = inv(A)``, and returns a :class:`~tumblecal_cli.core.model.Solution`. The
 solvers fitted to pose means share one propagation (:func:`_propagate`): the parameters
 ``(b, A)`` are functions of the means, so their covariance is ``J diag(se^2) J^T`` with ``J``
@@ -11,7 +11,7 @@ under fixture tilt comes from the same ``J`` (Vitali 2018 notes, Ding and Uchida
 horizontal reading moves by ``gain·reference·sin θ``, the vertical one by
 ``gain·reference·(1 - cos θ)``).
 
-Sources cited below (README "Sources"): Vitali 2018 (ST design tip on tumble calibration,
+Sources cited below (docs/sources.md): Vitali 2018 (ST design tip on tumble calibration,
 pointing to ST DT0053 for the 6-point and N-point forms), Sports Sensing 2023 (the
 ``T·S·(a + o)`` model, judged by the norm of many static poses), Okasho n.d. (magnetometer hard
 iron by min/max), Ding and Uchida 2012 (patent CN102313822, bias with an assumed attitude);
@@ -621,7 +621,7 @@ def _theta_to_params(theta: FloatArray, cov_theta: FloatArray, *, symmetric: boo
 def gain_error_bound(reference: float, gain_tolerance: float) -> float:
     """How far a 1-pose up-axis offset is off for an up-axis gain error of up to ``gain_tolerance``.
 
-    With ``raw = A·v + b`` (README "Poses, signs and --reference") and the up axis's gain
+    With ``raw = A·v + b`` (docs/reference/model.md) and the up axis's gain
     ``1 + ε``, that axis reads ``(1 + ε)·reference + b``; the 1-pose solver fixes the gain at 1
     (Vitali 2018 eqs. 1-3, ``offset = mean - v``), so its up offset is ``b + ε·reference``: a 1 %
     gain error moves it by 0.01 × reference. One pose cannot tell the two apart, so the bound is

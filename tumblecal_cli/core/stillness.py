@@ -4,7 +4,7 @@ down to the samples the gyroscope itself sees at rest. numpy only.
 A hand starts and stops a turn smoothly (the rate rises and falls as ``sin²``): its first and
 last tenths of a second turn the unit by hundredths of a degree, which the accelerometer cannot
 tell from its noise, while the gyroscope reads degrees per second there. Left in a still block
-they move its mean, the gyroscope's bias, by many times its standard error (README "A gyroscope
+they move its mean, the gyroscope's bias, by many times its standard error (docs/gyroscopes.md, "A gyroscope
 from hand turns").
 
 Each block's ends are cut until the gyroscope there reads its level within its own noise at

@@ -1,10 +1,10 @@
 """Gyroscope scale and misalignment from known turns: the Ferraris procedure. numpy only.
 
-Ferraris et al. 1995 (README "Sources"), in the form imucal's
+Ferraris et al. 1995 (docs/sources.md), in the form imucal's
 ``FerrarisCalibration`` implements (its ``compute``, equation by equation): the unit rests on
 its six faces (the gyroscope's zero-rate bias and, against gravity, its g-sensitivity), then
 turns through a known angle about each of its axes (the integrated rate gives the gyroscope's
-scale and misalignment). In tumblecal's model (README "Poses, signs and --reference")::
+scale and misalignment). In tumblecal's model (docs/reference/model.md)::
 
     raw = A ω + b + G a + noise       ω: true rate (deg/s), a: gravity in the sensor frame (g)
     corrected = M (raw - b)           M = inv(A)

@@ -5,7 +5,7 @@
 - ``sniff``: a CSV capture's layout decided from its head: delimiter, header, preamble, decimal
   mark, and which columns hold the sensor triplet, the time and the temperature.
 - ``capture``: a CSV capture streamed through pyarrow with every cell's text kept, and its
-  errors located by line and column (README "CSV captures").
+  errors located by line and column (docs/reference/csv.md).
 - ``sources``: where a reader of another kind of file (a binary log) plugs in: a ``Reader``
   claims a file and gives its readings as a ``Table``; every command then takes it.
 - ``readings``: pose files and whole logs read into memory (``Samples``, ``Log``), with their
@@ -16,7 +16,7 @@
 - ``forked``: apply's blocks corrected by forked worker processes, one per core.
 - ``logread``: a long log read block by block into the streaming still-block detector
   (``core.scan``), for segment and solve --log.
-- ``calfile``: the typed Calibration and its JSON/YAML form (README "Calibration file").
+- ``calfile``: the typed Calibration and its JSON/YAML form (docs/reference/calibration-file.md).
 - ``calparts``: its typed parts (poses, verdict, tilt sensitivity, residuals, thermal ...), each
   read from and written to its field.
 - ``documents``: a JSON or YAML document read safely (size, encoding, duplicate keys, aliases).

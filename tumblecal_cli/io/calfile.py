@@ -1,4 +1,4 @@
-"""Calibration files, format version 1 (README "Calibration file"): the typed
+"""Calibration files, format version 1 (docs/reference/calibration-file.md): the typed
 :class:`Calibration`, and its JSON/YAML form, the only place it is a ``dict``
 (:meth:`Calibration.to_dict`, :func:`from_dict`, :func:`validate`; its parts' forms are in
 ``io.calparts``).
@@ -96,7 +96,7 @@ Frame: TypeAlias = Any
 FORMAT = "tumblecal-calibration"
 VERSION = 1
 REQUIRED = ("format", "version", "sensor", "method", "reference", "columns", "offset", "matrix", "gain")
-#: The fields of the contract, in the file's order (README "Calibration file").
+#: The fields of the contract, in the file's order (docs/reference/calibration-file.md).
 ORDER = (
     "format",
     "version",
@@ -118,7 +118,7 @@ ORDER = (
     "created",
     "tool",
 )
-#: The parts some methods add (README "Calibration file"), in the order they follow ``poses``
+#: The parts some methods add (docs/reference/calibration-file.md), in the order they follow ``poses``
 #: when given to a calibration that was read without them.
 PARTS = ("turns", "g_sensitivity", "rotations", "covariance", "coverage", "coverage_gaps", "residuals", "segmentation")
 
@@ -449,8 +449,8 @@ def build(
     verdict: Verdict | None = None,
     made: Made | None = None,
 ) -> Calibration:
-    """The calibration of a solution, fields in the order of README "Calibration file (format
-    version 1)"; ``fit`` adds what the solver measured beyond the parameters (tilt sensitivity,
+    """The calibration of a solution, fields in the order of docs/reference/calibration-file.md
+    (format version 1); ``fit`` adds what the solver measured beyond the parameters (tilt sensitivity,
     covariance, coverage, residuals); ``made`` how the poses were found in a continuous log
     (after ``poses``, and after a gyroscope's ``turns`` and ``g_sensitivity`` or
     ``rotations``). ``poses`` and ``unit`` may also be given in the file's form (objects)."""

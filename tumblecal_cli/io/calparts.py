@@ -1,4 +1,4 @@
-"""The typed parts of a calibration file (README "Calibration file"): its poses, tilt
+"""The typed parts of a calibration file (docs/reference/calibration-file.md): its poses, tilt
 sensitivity, residuals, covariance, segmentation, hand or known turns, unit, verdict and thermal
 block, each a frozen dataclass with its JSON/YAML form (``as_dict``) and its reader (``read_*``).
 
@@ -149,7 +149,7 @@ def optional(typed: dict[str, object], *names: str) -> dict[str, object]:
 
 @dataclass(frozen=True, eq=False)
 class Pose(Part):
-    """A pose the calibration was solved from (README "Calibration file": ``poses[]``): its face
+    """A pose the calibration was solved from (docs/reference/calibration-file.md: ``poses[]``): its face
     (``pose``), where it was read from, its statistics, and how it reads once corrected. Fields
     that are None are absent from the entry, except those tumblecal writes as null (the
     orientation-dependent ones: ``angle_deg``, ``vector_error``) where ``keys`` has them."""
@@ -340,7 +340,7 @@ def read_covariance(raw: Doc) -> Covariance | None:
 
 @dataclass(frozen=True, eq=False)
 class Segmentation(Part):
-    """``segmentation``: how the poses were found in a continuous log (README "Calibration file"):
+    """``segmentation``: how the poses were found in a continuous log (docs/reference/calibration-file.md):
     the ``log``, its ``sha256``, the ``source`` of the blocks (``detector`` or ``label column``)
     and, where the detector ran, its settings and counts."""
 
@@ -658,7 +658,7 @@ def read_limits(raw: Doc) -> Limits:
 
 @dataclass(frozen=True, eq=False)
 class Thermal:
-    """The temperature drift (README "tumblecal thermal"): ``offset`` (3, order) raw units per °C^k
+    """The temperature drift (docs/commands/thermal.md): ``offset`` (3, order) raw units per °C^k
     and ``gain`` (3, order) relative change per °C^k, k = 1..order, of d = T - ``reference_temperature``
     with T clamped to ``range``; read from the capture's ``column``. ``gain_drift`` says per axis
     how its gain drift is known (separate, folded into the offset drift, unobserved); ``extra``

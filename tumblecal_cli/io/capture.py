@@ -1,4 +1,4 @@
-"""A capture opened for streaming: one set of rules, one engine (README "CSV captures").
+"""A capture opened for streaming: one set of rules, one engine (docs/reference/csv.md).
 
 1. ``open_capture`` reads the first block itself and lets ``io.sniff`` decide the layout and
    the sensor and time columns.
@@ -12,7 +12,7 @@ A compressed capture (gzip, bzip2, xz, zstd: ``io.compressed``, known by its fir
 read as a stream of its data, as stdin is; a second pass (an error's line) decompresses again.
 
 pyarrow is the engine because it streams, imports in 0.2 s (pandas takes 0.45 s here) and
-writes floats as their shortest round-trip text; README "Dependencies" has the measurements.
+writes floats as their shortest round-trip text; README "Dependencies, and why" has the measurements.
 Also here: copying byte ranges of a capture into new files (segment's blocks).
 """
 

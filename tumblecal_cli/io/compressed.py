@@ -1,5 +1,5 @@
 """Compressed captures: gzip, bzip2, xz and Zstandard, read as they are, and written when an
-output's name ends so (README "CSV captures").
+output's name ends so (docs/reference/csv.md).
 
 A capture is known compressed by its first bytes (its format's magic number), whatever its
 name: ``capture.csv.gz`` holding plain text reads as text, a gzip named ``capture.csv`` as the

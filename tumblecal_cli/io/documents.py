@@ -26,7 +26,7 @@ def read_bytes(path: str, what: str) -> bytes:
     """The bytes of ``path`` ('-': stdin), at most MAX_BYTES; a missing or unreadable file, or
     one too large to be a {what}, is one error naming it."""
     try:
-        if path == "-":  # '-' means stdin wherever a path is taken (README option tables)
+        if path == "-":  # '-' means stdin wherever a path is taken (docs/ option tables)
             data = sys.stdin.buffer.read(MAX_BYTES + 1)
         else:
             with open(path, "rb") as f:
@@ -86,7 +86,7 @@ def _parse(text: str, path: str, *, as_yaml: bool | None = None) -> object:
                 column=mark.column + 1 if mark else None,
             ) from None
     try:
-        doc = json.loads(text, object_pairs_hook=_unique_keys)
+        doc = json.loads(text, object_pairs_hook=_unique_keys, parse_constant=_not_a_json_number)
         _no_lone_surrogates(doc)
         return doc
     except _Refused as err:
@@ -131,6 +131,12 @@ def _unique_keys(pairs: list[tuple[str, object]]) -> dict[str, object]:
                 raise _Refused(f"key {key!r} is given twice in one object: which one is meant?")
             seen.add(key)
     return doc
+
+
+def _not_a_json_number(name: str) -> object:
+    """NaN, Infinity or -Infinity, which Python's json reads but JSON has no form for: refused, as
+    a file holding one could be read here but written by no export and read by no other tool."""
+    raise _Refused(f"every number must be finite ({name}: JSON has no form for it): write a number or leave it out")
 
 
 #: Half a UTF-16 surrogate pair: JSON's "\udc00" and YAML's "\udc00" escapes decode to one, which
@@ -219,6 +225,8 @@ def _refuse(node: yaml.Node, where: str, *, key: bool = False) -> None:
         raise _Refused(problem, *_place(node))
     if node.tag in (_TAG + "int", _TAG + "float") and ":" in node.value:  # !!int 1:00 (text without the tag)
         raise _Refused(f"{what} is a base-60 number ({node.value}): write it in decimal", *_place(node))
+    if node.tag == _TAG + "float" and re.fullmatch(r"[-+]?\.(?:inf|Inf|INF|nan|NaN|NAN)", node.value):
+        raise _Refused(f"{what} must be a finite number ({node.value}: JSON has no form for it)", *_place(node))
     if node.tag == _TAG + "int":
         digits, most = sum(c.isdigit() for c in node.value), sys.get_int_max_str_digits()
         if digits > most > 0:

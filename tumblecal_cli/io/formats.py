@@ -1,8 +1,8 @@
 """A calibration in other tools' terms: firmware (C header, offset registers), imucal, ROS
 imu_calib and MATLAB (``tumblecal export``), and imucal/ROS files read back (``tumblecal import``).
 
-Every mapping starts from tumblecal's model (README "Poses, signs and --reference"): ``corrected = M (raw - b)``,
-``A = M^-1``. Each peer's own equation is quoted where it is used; README "export" writes them out.
+Every mapping starts from tumblecal's model (docs/reference/model.md): ``corrected = M (raw - b)``,
+``A = M^-1``. Each peer's own equation is quoted where it is used; docs/commands/export-import.md writes them out.
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ import numpy as np
 from tumblecal_cli.core.model import SENSORS, FloatArray
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.calfile import FORMAT, VERSION, Calibration, Unit, created, from_dict, invertible, is_number
+from tumblecal_cli.io.documents import parse_object
 from tumblecal_cli.version import __version__
 
 EXPORTS = ("c-header", "registers", "imucal-json", "ros-yaml", "matlab", "ardupilot", "px4")
@@ -33,7 +34,7 @@ SHORT = {"accelerometer": "accel", "magnetometer": "mag", "gyroscope": "gyro"}
 
 
 def a_matrix(cal: Calibration) -> FloatArray:
-    """A = M^-1: raw = A v + b (README "Poses, signs and --reference")."""
+    """A = M^-1: raw = A v + b (docs/reference/model.md)."""
     return np.asarray(np.linalg.inv(cal.matrix), dtype=np.float64)
 
 
@@ -125,7 +126,7 @@ def _c_thermal(cal: Calibration, name: str, upper: str) -> list[str]:
 
     limits = (("T_REF", t.reference_temperature), ("T_MIN", t.range[0]), ("T_MAX", t.range[1]))
     return [
-        f'/* Temperature drift (README "tumblecal thermal"), order {k}, in d = clamp(T) - T_REF, degC:',
+        f"/* Temperature drift (docs/commands/thermal.md), order {k}, in d = clamp(T) - T_REF, degC:",
         " *   offset_drift[i] = sum_k OFFSET_DRIFT[i][k-1] d^k  (raw units)",
         " *   gain_drift[i]   = sum_k GAIN_DRIFT[i][k-1] d^k    (relative)",
         " *   corrected = M * ((raw - offset - offset_drift) / (1 + gain_drift)) */",
@@ -382,7 +383,7 @@ def detect(doc: Mapping[str, object]) -> str | None:
     return None
 
 
-#: The fields of the record an export carries in a data field (README "export"), and their types.
+#: The fields of the record an export carries in a data field (docs/commands/export-import.md), and their types.
 RECORD_FIELDS: dict[str, tuple[type, ...]] = {
     "sensor": (str,),
     "serial": (str,),
@@ -463,7 +464,7 @@ def read_peer(doc: Mapping[str, object], fmt: str, path: str, sensor: str | None
     version = doc.get("_format_version")
     if version not in IMUCAL_VERSIONS:
         raise InputError(f"imucal format version {version!r} is not one tumblecal reads (1.0.0, 2.0.0)", file=path)
-    was = recorded(_comment_record(doc.get("comment")), path, "comment.tumblecal")
+    was = recorded(_comment_record(doc.get("comment"), path), path, "comment.tumblecal")
     sensor = sensor or was.get("sensor") or "accelerometer"
     if sensor == "magnetometer":
         raise InputError("an imucal file holds an accelerometer and a gyroscope, not a magnetometer", file=path)
@@ -485,16 +486,19 @@ def read_peer(doc: Mapping[str, object], fmt: str, path: str, sensor: str | None
     return _peer(fmt, sensor, was, b, matrix, _text(units), raw_units, notes)
 
 
-def _comment_record(comment: object) -> object:
+def _comment_record(comment: object, path: str) -> object:
     """An imucal file's ``comment`` holds a tumblecal export's record as JSON (imucal takes no
-    fields of its own beyond its format's, and keeps ``comment`` as it is); another text: none."""
+    fields of its own beyond its format's, and keeps ``comment`` as it is); another text: none.
+    A record that is JSON is read by the rules of a calibration file (no key twice, no lone
+    surrogate, no integer past Python's limit): refused there, it is refused here."""
     if not isinstance(comment, str) or not comment.lstrip().startswith("{"):
         return None
     try:
-        doc = json.loads(comment)
-    except ValueError:
-        return None
-    return doc.get("tumblecal") if isinstance(doc, dict) else None
+        json.loads(comment)
+    except (ValueError, RecursionError):
+        return None  # a person's note that starts with a brace
+    doc = parse_object(comment.encode("utf-8", "surrogatepass"), path, "tumblecal record in its comment", as_yaml=False)
+    return doc.get("tumblecal")
 
 
 def _peer(

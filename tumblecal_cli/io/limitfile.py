@@ -1,4 +1,4 @@
-"""Limits files (README "Limits and the verdict"): the bounds a unit is judged by, read from
+"""Limits files (docs/production-test.md): the bounds a unit is judged by, read from
 YAML or JSON, each key checked; the noise limits `tumblecal noise` judges by."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.calfile import number_field, vector_field
 from tumblecal_cli.io.documents import read_object
 
-#: Keys of a limits file (README "Limits"); a number, or [x, y, z] where marked per axis.
+#: Keys of a limits file (docs/production-test.md); a number, or [x, y, z] where marked per axis.
 LIMIT_KEYS = {
     "offset": "per axis",
     "gain_error": "per axis",
@@ -25,11 +25,15 @@ LIMIT_KEYS = {
     "random_walk": "per axis",
     "offset_drift": "per axis",  # a thermal block's largest offset drift over its range, raw units
     "offset_drift_per_degc": "per axis",  # ... and per °C
+    # `tumblecal align`'s: the RMS difference of two IMUs' corrected readings, their units
+    "imu_consistency": "one",
 }
 
 
 #: The limits only `tumblecal noise` judges.
 NOISE_LIMITS = ("noise_density", "bias_instability", "random_walk")
+#: The limits only `tumblecal align` judges.
+ALIGN_LIMITS = ("imu_consistency",)
 
 
 def load_limits(path: str) -> dict[str, float | FloatArray]:
@@ -42,7 +46,7 @@ def load_limits(path: str) -> dict[str, float | FloatArray]:
                 raise InputError(f"unsupported limits version {value!r} (this tumblecal reads version 1)", file=path)
             continue
         if key == "format":
-            raise InputError(f"a {value} file, not a limits file", file=path, hint="see README: Limits and the verdict")
+            raise InputError(f"a {value} file, not a limits file", file=path, hint="see docs/production-test.md")
         if key not in LIMIT_KEYS:
             raise InputError(f"unknown limit {key!r} (known: {', '.join(LIMIT_KEYS)})", file=path)
         if key == "nominal_offset":  # not a bound: a centre, which may be 0 or negative

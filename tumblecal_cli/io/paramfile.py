@@ -1,10 +1,10 @@
 """Autopilot parameter files (``tumblecal export --format ardupilot | px4``): a calibration's
 offsets and scales as ArduPilot's ``INS_``/``COMPASS_`` parameters in a ``.parm`` file, or PX4's
 ``CAL_`` parameters in a QGroundControl ``.params`` file; a ``thermal`` block as ``INS_TCAL``
-or ``TC_A``/``TC_G`` parameters (README "Parameters for autopilots").
+or ``TC_A``/``TC_G`` parameters (docs/commands/export-import.md).
 
 Each firmware's own correction, which the mapping from ``corrected = M (raw - b)`` follows (the
-sources, file and commit, are in the README):
+sources, file and commit, are in docs/sources.md):
 
 - ArduPilot accelerometer (``_rotate_and_correct_accel``): ``(raw - INS_ACCOFFS) * INS_ACCSCAL``
   per axis; gyroscope (``_rotate_and_correct_gyro``): ``raw - INS_GYROFFS``; compass
@@ -18,7 +18,7 @@ What a firmware cannot hold (a rotation, cross-axis terms, a gyroscope's scale) 
 by the polar decomposition ``M = U P`` (U a rotation, P symmetric positive definite), and its
 size said in a comment and a warning.
 
-Both files are read by loaders that skip a line starting with ``#`` (README); every comment
+Both files are read by loaders that skip a line starting with ``#`` (docs/sources.md); every comment
 line is ASCII and at most 97 characters, as ArduPilot's own defaults-file reader reads lines
 of up to 98 (``AP_Param::read_param_defaults_file``: ``fgets(line, sizeof(line)-1)``).
 """
@@ -90,7 +90,7 @@ class ParamFile:
 
 
 def instance_range(fmt: str, cal: Calibration) -> tuple[int, int]:
-    """The --instance numbers ``fmt`` has for this calibration (README "Parameters for autopilots")."""
+    """The --instance numbers ``fmt`` has for this calibration (docs/commands/export-import.md)."""
     return INSTANCES[fmt, cal.thermal is not None]
 
 
@@ -408,7 +408,7 @@ def _outside(params: list[tuple[str, float]], ranges: dict[str, tuple[float, flo
 
 
 def comments(texts: Iterable[str]) -> list[str]:
-    """``# `` lines every loader skips (README "Parameters for autopilots"): ASCII only (another
+    """``# `` lines every loader skips (docs/commands/export-import.md): ASCII only (another
     character written ``\\uXXXX``), no line breaks, at most 97 characters (a longer text wrapped)."""
     out: list[str] = []
     for text in texts:

@@ -1,11 +1,12 @@
-"""PNG figures for ``solve --plot`` and ``report --plot`` (the optional extra ``tumblecal[plot]``).
+"""PNG figures for ``solve --plot`` of a rotation capture, ``report --plot``, ``thermal --plot`` and
+``noise --plot`` (the optional extra ``tumblecal[plot]``).
 
 matplotlib and numpy are imported inside the functions, so importing this module costs nothing.
 Figures are drawn on a bare ``matplotlib.figure.Figure`` (no pyplot, no global backend state),
 rendered to memory, and only then written with :func:`tumblecal_cli.io.outputs.atomic_output`: bad
 input raises :class:`InputError` before any file is touched. The same call gives the same bytes.
 
-Model (README "Calibration file"): ``corrected = M·(raw − offset)``, ``A = M⁻¹``.
+Model (docs/reference/calibration-file.md): ``corrected = M·(raw − offset)``, ``A = M⁻¹``.
 """
 
 from __future__ import annotations
@@ -70,88 +71,13 @@ class Fitted:
     units: str | None = None
 
 
-def poses_figure(
-    path: str,
-    names: list[str],
-    raw_means: FloatArray,
-    fitted: Fitted,
-    *,
-    nominal_gain: float = 1.0,
-    nominal_offset: FloatArray | None = None,
-    title: str = "",
-) -> None:
-    """Each pose's norm before (``|raw mean − nominal_offset| / nominal_gain``: unsigned counts
-    sit around 32768) and after (``|M·(mean − offset)|``, ``fitted``) calibration against ``reference``, and
-    the residuals ``norm − reference`` as bars (Sports Sensing 2023)."""
-
-    means = _array(raw_means, "raw_means", (-1, 3))
-    b = _array(fitted.offset, "offset", (3,))
-    m = _array(fitted.matrix, "matrix", (3, 3))
-    ref = _number(fitted.reference, "reference")
-    units = fitted.units
-    gain = _number(nominal_gain, "nominal_gain")
-    if gain <= 0:
-        raise InputError(f"nominal_gain must be positive, not {nominal_gain}")
-    n = means.shape[0]
-    if n == 0:
-        raise InputError("no poses to plot")
-    if len(names) != n:
-        raise InputError(f"{len(names)} pose names for {n} pose means")
-
-    centre = np.zeros(3) if nominal_offset is None else _array(nominal_offset, "nominal_offset", (3,))
-    before = np.linalg.norm(means - centre, axis=1) / gain
-    after = np.linalg.norm((means - b) @ m.T, axis=1)
-    rms_before = float(np.sqrt(np.mean((before - ref) ** 2)))
-    rms_after = float(np.sqrt(np.mean((after - ref) ** 2)))
-    x = np.arange(n, dtype=np.float64)
-    suffix = f" ({units})" if units else ""
-
-    fig = _figure(width=min(16.0, max(7.0, 3.0 + 0.22 * n)), height=6.4, title=title)
-    grid = fig.add_gridspec(2, 1, height_ratios=[3, 2])
-    top = fig.add_subplot(grid[0])
-    bottom = fig.add_subplot(grid[1], sharex=top)
-
-    top.axhline(ref, color="black", linestyle="--", linewidth=1, label=f"reference {ref:g}{_unit(units)}")
-    top.plot(x, before, "o", color=_BEFORE, markersize=5, label="before")
-    top.plot(x, after, "o", color=_AFTER, markersize=5, label="after")
-    top.set_ylabel(f"norm{suffix}")
-    top.tick_params(labelbottom=False)
-    top.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
-    top.grid(axis="y", alpha=0.3)
-
-    bottom.axhline(0.0, color="black", linewidth=0.8)
-    bottom.bar(x - 0.2, before - ref, width=0.4, color=_BEFORE_BAR, label=f"before\nRMS {rms_before:.3g}{_unit(units)}")
-    bottom.bar(x + 0.2, after - ref, width=0.4, color=_AFTER, label=f"after\nRMS {rms_after:.3g}{_unit(units)}")
-    bottom.set_ylabel(f"norm − reference{suffix}")
-    bottom.set_xlabel("pose")
-    bottom.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
-    bottom.grid(axis="y", alpha=0.3)
-    bottom.set_xlim(-0.6, n - 0.4)
-    bottom.set_xticks(x, [_short(name) for name in names])
-    longest = max(len(_short(name)) for name in names)
-    if n > 30:
-        bottom.tick_params(axis="x", labelrotation=90, labelsize=7)
-    elif n > 8 or longest > 4:
-        for label in bottom.get_xticklabels():
-            label.set_rotation(45)
-            label.set_horizontalalignment("right")
-            label.set_rotation_mode("anchor")
-    _write(fig, path)
-
-
 def rotation_figure(
-    path: str,
-    raw: FloatArray,
-    offset: FloatArray,
-    matrix: FloatArray,
-    reference: float,
-    *,
-    units: str | None = None,
-    title: str = "",
-    plane: str | None = None,
+    path: str, raw: FloatArray, fitted: Fitted, *, title: str = "", plane: str | None = None, limit: float | None = None
 ) -> None:
     """A turning capture in the xy, xz and yz planes: the raw samples with the fitted ellipse
-    (top), the corrected samples with the circle of radius ``reference`` (bottom).
+    (top), the corrected samples with the circle of radius ``reference`` (middle); and each
+    sample's residual ``|corrected| − reference`` in % of the reference, in the order
+    captured, with ±``limit`` (the residual limit, output units) dashed (bottom).
 
     ``plane`` ("xy" ...): a capture turned in that plane only (2-D min/max) is drawn in that
     plane alone, against the circle of its in-plane radius (the field's part in the plane: the
@@ -166,11 +92,12 @@ def rotation_figure(
 
     samples = _array(raw, "raw samples", (-1, 3))
     count = samples.shape[0]
-    b = _array(offset, "offset", (3,))
-    m = _array(matrix, "matrix", (3, 3))
-    ref = _number(reference, "reference")
+    b = _array(fitted.offset, "offset", (3,))
+    m = _array(fitted.matrix, "matrix", (3, 3))
+    ref = _number(fitted.reference, "reference")
+    units = fitted.units
     if ref <= 0:
-        raise InputError(f"reference must be positive for a rotation figure, not {reference}")
+        raise InputError(f"reference must be positive for a rotation figure, not {fitted.reference}")
     if count == 0:
         raise InputError("no samples to plot")
     try:
@@ -189,8 +116,8 @@ def rotation_figure(
             raise InputError(f"plane must be xy, xz or yz, not {plane!r}")
         pairs = [("xyz".index(plane[0]), "xyz".index(plane[1]))]
         ref = float(np.median(np.linalg.norm(corrected[:, list(pairs[0])], axis=1)))
-    fig = _figure(width=9.0 if plane else 12.0, height=9.0 if plane else 8.0, title=title)
-    grid = fig.add_gridspec(2, len(pairs))
+    fig = _figure(width=9.0 if plane else 12.0, height=11.5 if plane else 10.5, title=title)
+    grid = fig.add_gridspec(3, len(pairs), height_ratios=[1, 1, 0.55])
     for col, (i, j) in enumerate(pairs):
         name = "xyz"[i] + "xyz"[j]
         u = np.zeros((theta.size, 3))
@@ -214,6 +141,7 @@ def rotation_figure(
         ax.plot(ref * np.cos(theta), ref * np.sin(theta), color="black", linewidth=1.5)
         ax.plot(0.0, 0.0, "+", color="black", markersize=10)
         _plane_axes(ax, f"corrected, {name} plane", f"{'xyz'[i]}{suffix}", f"{'xyz'[j]}{suffix}")
+    _turn_residuals(fig.add_subplot(grid[2, :]), corrected, ref, plane, limit)
     shown = f", {samples.shape[0]} of {count}" if samples.shape[0] < count else f", {count}"
     handles = [  # the legend fills columns first: raw and its curves on the first row
         Line2D([], [], linestyle="", marker=".", markersize=8, color=_BEFORE, label=f"raw samples{shown}"),
@@ -239,6 +167,30 @@ def rotation_figure(
     ]
     fig.legend(handles=handles, loc="outside lower center", ncols=2 if plane else 3, fontsize="small", frameon=False)
     _write(fig, path)
+
+
+def _turn_residuals(ax: Axes, corrected: FloatArray, ref: float, plane: str | None, limit: float | None) -> None:
+    """Each sample's ``|corrected| − ref`` in % of ``ref`` (in the plane's part alone for a
+    one-plane capture), with ±``limit`` dashed."""
+    part = corrected if plane is None else corrected[:, ["xyz".index(plane[0]), "xyz".index(plane[1])]]
+    residual = (np.linalg.norm(part, axis=1) - ref) / ref * 100.0
+    ax.axhline(0.0, color="black", linewidth=0.8)
+    ax.plot(residual, ".", color=_AFTER, markersize=3, alpha=0.7)
+    if limit is not None:
+        v = limit / ref * 100.0
+        ax.axhline(v, color=_FIT, linestyle="--", linewidth=1.2, label=f"residual limit ±{v:.3g} %")
+        ax.axhline(-v, color=_FIT, linestyle="--", linewidth=1.2)
+        ax.legend(fontsize="small", loc="upper right")
+        low, high = ax.get_ylim()
+        ax.set_ylim(min(low, -1.08 * v), max(high, 1.08 * v))
+    rms, worst = float(np.sqrt(np.mean(residual**2))), float(np.max(np.abs(residual)))
+    ax.set_title(
+        f"after calibration: each sample's |corrected| − reference (RMS {rms:.3g} %, largest {worst:.3g} %)",
+        fontsize="medium",
+    )
+    ax.set_ylabel("residual (% of reference)")
+    ax.set_xlabel("sample (in the order captured)")
+    ax.grid(axis="y", alpha=0.3)
 
 
 def lot_figure(path: str, histograms: list[Histogram], *, title: str = "") -> None:

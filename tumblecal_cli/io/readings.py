@@ -15,6 +15,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 from numpy.typing import NDArray
 
+from tumblecal_cli.core.running import Summary
 from tumblecal_cli.core.scan import log_index
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import sources
@@ -50,6 +51,14 @@ class Samples:
     #: The capture these readings are (a pose file read whole, or its part from --start to --end):
     #: its rows and clock, for a part of it (a pose file's still run: pipeline.trimming).
     log: Log | None = None
+    #: A long pose file's running sums (io.posefile): what its checks read, not ``values``.
+    summary: Summary | None = None
+
+    @property
+    def readings(self) -> FloatArray | Summary:
+        """What a still pose's statistics and checks are taken from: the running sums of a long
+        pose file, else its readings."""
+        return self.values if self.summary is None else self.summary
 
     @property
     def name(self) -> str:
@@ -449,6 +458,12 @@ def time_scale(layout: Layout, clock: FloatArray, unit: str) -> float:
 #: The most samples a second a sensor's log is read at (as --rate's bound): a faster clock is
 #: a wrong one, and its windows would be more samples than any integer holds.
 FASTEST = 1e9
+
+
+def check_rate(rate: float | None) -> None:
+    """A --rate given is a positive number of Hz up to FASTEST; None is no rate given."""
+    if rate is not None and not 0 < rate <= FASTEST:
+        raise InputError(f"--rate must be a positive number of Hz up to {FASTEST:g}, got {rate:g}")
 
 
 def _step(clock: FloatArray) -> float | None:

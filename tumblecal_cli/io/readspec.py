@@ -21,7 +21,7 @@ from tumblecal_cli.errors import InputError
 
 @dataclass(frozen=True)
 class Dialect:
-    """How a station wrote its file, where the sniffer should not guess (README "CSV captures"):
+    """How a station wrote its file, where the sniffer should not guess (docs/reference/csv.md):
     ``skip_rows`` lines before the header (None: a metadata preamble is found by its field
     count), the ``decimal`` mark (None: a comma when every number of a ``;`` or tab separated
     file has one), and whether an incomplete last line (a logger stopped mid-write) is dropped."""
@@ -43,7 +43,7 @@ TIME_UNITS = ("auto", "s", "ms", "us", "ns")
 
 @dataclass(frozen=True)
 class ReadSpec:
-    """How to read a source's readings (README "CSV captures"): ``sensor`` (accelerometer,
+    """How to read a source's readings (docs/reference/csv.md): ``sensor`` (accelerometer,
     gyroscope, magnetometer) names the triplet found by its column names unless ``columns``
     gives it; ``time_column`` and ``time_unit`` the clock (``rate`` in Hz when the clock is not
     to be used); ``temperature_column`` the temperature (else one of the usual names);

@@ -1,4 +1,4 @@
-"""A capture's layout, decided from its first block (README "CSV captures").
+"""A capture's layout, decided from its first block (docs/reference/csv.md).
 
 ``sniff`` reads the head of a file and decides: UTF-8 BOM, the preamble (blank and ``#``
 lines), the delimiter (comma, semicolon, tab, or runs of whitespace), whether the first line is
@@ -268,7 +268,7 @@ def bare(cell: str) -> str:
 
 
 def skipped(line: str) -> bool:
-    """Blank and ``#`` comment lines are not data, wherever they are (README "CSV captures")."""
+    """Blank and ``#`` comment lines are not data, wherever they are (docs/reference/csv.md)."""
     text = line.strip()
     return not text or text.startswith("#")
 

@@ -162,15 +162,28 @@ def _folder_units(folder: str, *, log: bool, skip: str | None) -> tuple[list[Uni
     return units, notes
 
 
+#: A manifest is read whole, and each unit's pose files are held together while it is solved:
+#: the most of each that a batch takes (README "batch"), so that its memory is bounded.
+MANIFEST_BYTES = 16 << 20
+UNIT_FILES = 1000
+
+
 def _manifest_units(path: str, *, log: bool) -> tuple[list[Unit], list[str]]:
     """A manifest: a header ``serial,...``, then a serial and its files per row. A file is
     relative to the manifest's folder; a column headed by a face (x, +x, xp ...) labels its files."""
     try:
         if path == "-":
-            text = sys.stdin.buffer.read().decode("utf-8-sig")
+            data = sys.stdin.buffer.read(MANIFEST_BYTES + 1)
         else:
-            with open(path, encoding="utf-8-sig", newline="") as f:  # a spreadsheet's byte-order mark
-                text = f.read()
+            with open(path, "rb") as f:
+                data = f.read(MANIFEST_BYTES + 1)
+        if len(data) > MANIFEST_BYTES:
+            raise InputError(
+                f"the manifest is larger than {MANIFEST_BYTES >> 20} MiB: a batch reads it whole",
+                file=path,
+                hint="split the lot into several manifests, each run with its own --out-dir",
+            )
+        text = data.decode("utf-8-sig")  # a spreadsheet's byte-order mark
         first = text.split("\n", 1)[0]
         delimiter = ";" if ";" in first and "," not in first else ","  # a spreadsheet in a comma-decimal locale
         rows = list(csv.reader(io.StringIO(text, newline=""), delimiter=delimiter))
@@ -210,6 +223,15 @@ def _manifest_units(path: str, *, log: bool) -> tuple[list[Unit], list[str]]:
         if alike != serial:
             notes.append(f"{path}: serial {serial!a} on line {n} is written in look-alike characters of {alike}")
         where[alike] = (n, serial)
+        files = sum(1 for cell in row[1:] if cell.strip())
+        if files > UNIT_FILES:
+            raise InputError(
+                f"{files:,} files on the row of {serial!r}: a unit is at most {UNIT_FILES:,} pose files, "
+                "solved together, each held in memory until the unit is",
+                file=path,
+                line=n,
+                hint="many orientations of one unit: one table of orientations (a row each), or one log (--log)",
+            )
         items: list[str] = []
         for k, cell in enumerate(row[1:], 1):
             cell = cell.strip()

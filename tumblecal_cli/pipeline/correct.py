@@ -53,7 +53,7 @@ class Applied:
 
 
 class CorrectKeywords(FileKeywords, total=False):
-    """correct's options beside the capture's shape (README "tumblecal apply")."""
+    """correct's options beside the capture's shape (docs/commands/apply.md)."""
 
     output: str | os.PathLike[str]
     force: bool

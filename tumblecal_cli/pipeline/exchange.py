@@ -22,7 +22,7 @@ if TYPE_CHECKING:
     from tumblecal_cli.io.formats import Peer
 
 
-#: export's formats (README "export").
+#: export's formats (docs/commands/export-import.md).
 FORMATS = ("c-header", "registers", "imucal-json", "ros-yaml", "matlab", "ardupilot", "px4")
 
 
@@ -91,7 +91,7 @@ def _recorded_centre(c: Calibration) -> None:
 
 
 class ExportKeywords(TypedDict, total=False):
-    """export's options (README "export"): the command line's long options in snake case."""
+    """export's options (docs/commands/export-import.md): the command line's long options in snake case."""
 
     prefix: str | None
     lsb: float | None
@@ -105,8 +105,8 @@ class ExportKeywords(TypedDict, total=False):
 
 def export(cal: Calibration | str | os.PathLike[str], fmt: str, **options: Unpack[ExportKeywords]) -> str:
     """The text of a calibration in another format: c-header, registers, imucal-json, ros-yaml,
-    matlab, or ardupilot or px4 parameters (its offsets and scales, or its thermal block) (README
-    "export"); ``instance`` is the firmware's number (ArduPilot from 1, PX4 from 0). What an
+    matlab, or ardupilot or px4 parameters (its offsets and scales, or its thermal block)
+    (docs/commands/export-import.md); ``instance`` is the firmware's number (ArduPilot from 1, PX4 from 0). What an
     autopilot cannot hold is said in the text's comments; :func:`exported` gives it apart too."""
 
     return exported(cal, fmt, **options).text
@@ -218,7 +218,7 @@ def import_peer(
     columns: str | Sequence[str] | None = None,
     serial: str | None = None,
 ) -> Imported:
-    """An imucal JSON or ROS imu_calib YAML file as a tumblecal Calibration (README "import")."""
+    """An imucal JSON or ROS imu_calib YAML file as a tumblecal Calibration (docs/commands/export-import.md)."""
 
     path = path_of(path, "import_peer reads a file of another tool")
     raw = documents.read_bytes(path, "calibration file")
@@ -259,7 +259,7 @@ def import_peer(
 
 
 def _peer_reference(peer: Peer, path: str) -> float:
-    """The reference a peer file implies (README: import)."""
+    """The reference a peer file implies (docs/commands/export-import.md)."""
     if peer.reference is not None:
         return float(peer.reference)
     if peer.sensor == "gyroscope":

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any, TypeAlias
 import numpy as np
 
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import capture, readings, sniff, sources
+from tumblecal_cli.io import capture, posefile, readings, sniff, sources
 from tumblecal_cli.io.outputs import unsafe
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.pipeline.options import path_of
@@ -31,7 +31,7 @@ if TYPE_CHECKING:
 
 #: A pandas DataFrame: pandas ships no types here, so to mypy it is Any (the one place that says so).
 DataFrame: TypeAlias = Any
-#: A JSON object the Python API returns (``to_dict``): read by key, each value what README's format says.
+#: A JSON object the Python API returns (``to_dict``): read by key, each value as the calibration file has it.
 JSONObject: TypeAlias = dict[str, Any]
 
 
@@ -205,7 +205,7 @@ def samples_of(label: str, data: DataFrame, options: SolveOptions) -> Samples:
 def read_pose(path: str, options: SolveOptions) -> Samples:
     """A pose file ('-': stdin) read as solve's options say."""
 
-    return readings.read_samples(path, options.read)
+    return posefile.read(path, options.read)
 
 
 def read_capture(path: str | os.PathLike[str], *, no_header: bool = False) -> DataFrame:

@@ -23,9 +23,9 @@ from tumblecal_cli.core import clock, methods, model, solvers
 from tumblecal_cli.core import segment as seg_core
 from tumblecal_cli.core.segment import Block, Segmentation
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import capture, compressed, logread, readings, sources
+from tumblecal_cli.io import capture, compressed, fitplots, logread, readings, sources
 from tumblecal_cli.io.outputs import WRITE_ERRORS, atomic_output, remove_stale, spreadsheet_safe, unsafe
-from tumblecal_cli.io.readings import Log, Samples
+from tumblecal_cli.io.readings import Log, Samples, check_rate
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.io.sniff import HEAD_BYTES, sniff
 from tumblecal_cli.pipeline.frames import in_memory, written_table
@@ -43,10 +43,9 @@ from tumblecal_cli.pipeline.options import pose_map as parse_pose_map
 if TYPE_CHECKING:
     from tumblecal_cli.pipeline.frames import DataFrame
 
-#: The longest --window, --min-duration or --trim taken, in seconds (116 days: longer than a log) ...
+#: The longest --window, --min-duration or --trim taken, in seconds (116 days: longer than a log):
+#: beyond it a value is a typo, and its samples overflow (the fastest --rate is readings.FASTEST).
 LONGEST = 1e7
-#: ... and the fastest --rate, in Hz: beyond these a value is a typo, and its samples overflow.
-FASTEST = 1e9
 
 
 @dataclass
@@ -93,8 +92,7 @@ def segmented(
         raise InputError(f"--trim must be a number of seconds from 0 to {LONGEST:g}, got {settings.trim:g}")
     if settings.threshold is not None and not 0 <= settings.threshold < math.inf:
         raise InputError(f"--threshold must be a number from 0 up, got {settings.threshold:g}")
-    if rate is not None and not 0 < rate <= FASTEST:
-        raise InputError(f"--rate must be a positive number of Hz up to {FASTEST:g}, got {rate:g}")
+    check_rate(rate)
     size_option(max_spool, "--max-spool")
     with read_twice(log, spec, max_spool) as path:  # a pipe or FIFO is read once: kept for a second read
         streamed = pose_column is None and not whole and sources.reader_for(path) is None
@@ -572,7 +570,7 @@ class Segmented:
 
 
 class SegmentKeywords(ReadKeywords, total=False):
-    """segment's options beside how the log is read (README "tumblecal segment")."""
+    """segment's options beside how the log is read (docs/commands/segment.md)."""
 
     window: float | None
     threshold: float | None
@@ -584,6 +582,7 @@ class SegmentKeywords(ReadKeywords, total=False):
     max_tilt: float
     nominal_offset: str | float | list[float] | None
     max_spool: int | str | None
+    plot: str | None  # segment --plot: a PNG of the log with its blocks (needs tumblecal[plot])
 
 
 def segment(
@@ -638,6 +637,7 @@ def _segment(
         pose_map=options.get("pose_map"),
         settings=settings,
         digest=False,  # the block files are copies; nothing records the log's hash
+        whole=options.get("plot") is not None,  # a figure draws every reading, not the still ones only
         max_spool=options.get("max_spool"),
     ) as (path, data, seg):
         found = Blocks(data, seg)
@@ -645,6 +645,9 @@ def _segment(
         if on_blocks is not None:
             on_blocks(found, files)
         enough_blocks(data, seg, 1)
+        if (plot := options.get("plot")) is not None:  # drawn before any block file is written
+            clock = None if data.clock is None else (data.clock - data.clock[0]) * data.scale
+            fitplots.segment_figure(plot, data.values, clock, seg, files, title=data.layout.name)
         text = io.StringIO()
         writer = csv.writer(text, lineterminator="\n")
         writer.writerow(INDEX_COLUMNS)

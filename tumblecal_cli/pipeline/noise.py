@@ -136,7 +136,7 @@ class Noise:
         }
 
     def to_dict(self) -> JSONObject:
-        """The --json object (README "tumblecal noise")."""
+        """The --json object (docs/commands/noise.md)."""
         low, high = self.curve.interval()
         curve = {"tau": [float(t) for t in self.curve.tau], "terms": [int(t) for t in self.curve.terms]}
         for j, axis in enumerate("xyz"):
@@ -202,7 +202,7 @@ def _finite(v: float) -> float | None:
 
 
 class NoiseKeywords(ReadKeywords, total=False):
-    """noise's options beside how the capture is read (README "tumblecal noise")."""
+    """noise's options beside how the capture is read (docs/commands/noise.md)."""
 
     cal: Calibration | str | os.PathLike[str] | None
     limits: str | os.PathLike[str] | Mapping[str, object] | None
@@ -216,7 +216,7 @@ def noise(
     capture: str | os.PathLike[str] | DataFrame,
     **options: Unpack[NoiseKeywords],
 ) -> Noise:
-    """The Allan deviation of a still capture and its noise figures (README "tumblecal noise").
+    """The Allan deviation of a still capture and its noise figures (docs/commands/noise.md).
     ``capture`` may be its data in memory: a DataFrame (its time column gives the rate), or an
     (n, 3) array with ``rate=`` ((n, 4): t, x, y, z), read as its file would be."""
 

@@ -39,7 +39,9 @@ class LogOptions:
     ``threshold``, ``min_duration``, ``trim``) or taken from a label column (``pose_column``,
     ``pose_map``); a gyroscope's known turns (``turns``, ``turn_angle``) or hand turns
     (``accel_cal``); the most of a log from stdin or a pipe kept for its second read
-    (``max_spool``, a size: bytes or ``"500M"``; None: ``logs.MAX_SPOOL`` or the room in $TMPDIR)."""
+    (``max_spool``, a size: bytes or ``"500M"``; None: ``logs.MAX_SPOOL`` or the room in $TMPDIR);
+    a magnetometer's alignment to an accelerometer calibration's axes (``align_to``,
+    pipeline.alignment)."""
 
     window: float | None = None
     threshold: float | None = None
@@ -51,11 +53,12 @@ class LogOptions:
     turn_angle: float | None = None
     accel_cal: str | None = None
     max_spool: int | str | None = None
+    align_to: str | None = None  # a magnetometer's: the accelerometer calibration whose axes it is rotated onto
 
 
 @dataclass(frozen=True)
 class CheckOptions:
-    """The quality checks a capture must pass (exit 3, README "Quality checks")."""
+    """The quality checks a capture must pass (exit 3, docs/production-test.md)."""
 
     max_noise: float | None = None
     max_tilt: float = 25.0
@@ -91,7 +94,7 @@ class UnitOptions:
 
 @dataclass(frozen=True)
 class SolveOptions:
-    """solve's options (README "solve"), grouped: how the files are ``read``, how a ``log`` is
+    """solve's options (docs/commands/solve.md), grouped: how the files are ``read``, how a ``log`` is
     cut, the ``checks`` (exit 3), the ``limits`` (exit 1) and the ``unit``; the method's own
     options at the top. :meth:`of` takes them as the command line names them (the Python API's
     keywords)."""
@@ -274,7 +277,9 @@ class Settings:
 
 
 #: The options only a continuous log takes (solve --log).
-LOG_ONLY = tuple(f.name for f in fields(LogOptions))
+LOG_ONLY = tuple(f.name for f in fields(LogOptions) if f.name != "align_to")
+#: ... of which these find the still blocks that --align-to aligns on, in a pose file too.
+ALIGN_BLOCKS = ("window", "threshold", "min_duration", "trim")
 #: The choices of the options that take one (the command line's own enums).
 CHOICES = {
     "time_unit": ("auto", "s", "ms", "us", "ns"),
@@ -342,7 +347,12 @@ def settings(options: SolveOptions, *, log: bool) -> Settings:
     the method, --up, the reference, the nominal offset and the limits (``options`` as
     :func:`checked` returns them)."""
     if not log:
-        given = [f"--{name.replace('_', '-')}" for name in LOG_ONLY if getattr(options.log, name) is not None]
+        aligns = options.log.align_to is not None
+        given = [
+            f"--{name.replace('_', '-')}"
+            for name in LOG_ONLY
+            if getattr(options.log, name) is not None and not (aligns and name in ALIGN_BLOCKS)
+        ]
         if given:
             raise InputError(f"{given[0]} is for a continuous log (--log), not --poses files")
     mapping = pose_map(options.log.pose_map)
@@ -521,7 +531,7 @@ def limits(
     --nominal-offset: the centre of the offset limit unless the file names one)."""
 
     bounds: dict[str, object] = dict(limitfile.load_limits(path)) if path else {}
-    for key in limitfile.NOISE_LIMITS:  # a station's one limits file also bounds `tumblecal noise`
+    for key in (*limitfile.NOISE_LIMITS, *limitfile.ALIGN_LIMITS):  # ... also bounds `noise` and `align`
         bounds.pop(key, None)
     if nominal_offset is not None:
         bounds.setdefault("nominal_offset", nominal_offset)

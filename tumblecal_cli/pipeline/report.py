@@ -64,7 +64,7 @@ def find(paths: list[str], skip: str | None = None) -> list[str]:
     calibrations). Sorted, each file once."""
     found: set[str] = set()
     for path in paths:
-        if path == "-":  # '-' means stdin wherever a path is taken (README "CSV captures", "Pipes")
+        if path == "-":  # '-' means stdin wherever a path is taken (docs/reference/csv.md, "Pipes")
             found.add(path)
             continue
         if not os.path.exists(path):

@@ -23,7 +23,7 @@ from tumblecal_cli.core.model import face_of_name
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import calfile, sources
 from tumblecal_cli.io.calfile import Pose
-from tumblecal_cli.pipeline import logs, rotations, tables, trimming, turns
+from tumblecal_cli.pipeline import alignment, logs, rotations, tables, trimming, turns
 from tumblecal_cli.pipeline import options as opts
 from tumblecal_cli.pipeline.exchange import tilt_notes
 from tumblecal_cli.pipeline.frames import in_memory, read_pose, samples_of
@@ -32,6 +32,7 @@ from tumblecal_cli.pipeline.options import SolveOptions, method_options, path_of
 if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Corrected, Finding, Limits, PoseCheck
     from tumblecal_cli.core.model import FloatArray, PoseStats, Solution
+    from tumblecal_cli.core.running import Summary
     from tumblecal_cli.io import calfile
     from tumblecal_cli.io.calfile import Calibration, Pose
     from tumblecal_cli.io.readings import Samples
@@ -96,7 +97,7 @@ def solve(poses: Poses, **options: object) -> Solved:
     ``poses``: the items of ``--poses`` (``FILE`` or ``LABEL=FILE``), or a mapping of labels
     (faces such as ``"+x"``, or ``"X,Y,Z"`` directions) to DataFrames or (n, 3) arrays.
     ``options``: solve's long options in snake case (``reference=``, ``method=``,
-    ``max_noise=``, ``limits=`` for a limits file, ``serial=`` ...; README "Using tumblecal from
+    ``max_noise=``, ``limits=`` for a limits file, ``serial=`` ...; docs/python.md
     Python"). Input errors raise InputError; a rejected capture is ``status`` 3, not an error.
     """
 
@@ -115,8 +116,27 @@ def solve_log(log: str | os.PathLike[str] | DataFrame, **options: object) -> Sol
 
 
 def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.PathLike[str] | None = None) -> Solved:
-    """solve and solve_log, on options already gathered (the command line and batch call this)."""
+    """solve and solve_log, on options already gathered (the command line and batch call this);
+    a magnetometer's with ``align_to`` then rotated onto that accelerometer's axes."""
 
+    accel = options.log.align_to
+    if accel is None:
+        return _run(options, poses=poses, log=log)
+    source = alignment.source_of(options.read.sensor, log if log is not None else poses)
+    solved = _run(options, poses=poses, log=log)
+    if solved.calibration is not None:
+        settings = segment.Settings(
+            options.log.window, options.log.threshold, options.log.min_duration, options.log.trim
+        )
+        if options.checks.max_noise is not None:
+            settings = replace(settings, max_noise=options.checks.max_noise)
+        done = alignment.mag_to_accel(source, accel, solved.calibration, options.read, settings)
+        solved.calibration = alignment.aligned(done)
+        solved.notes.append(alignment.solved_note(done))
+    return solved
+
+
+def _run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.PathLike[str] | None = None) -> Solved:
     options = opts.checked(options)
     files_or_data = None if poses is None else _poses_given(poses, options)
     path = (
@@ -152,7 +172,7 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Path
     name, labels, samples, placed = _read_poses(files_or_data, options, given, read)
     notes = [] if placed.note is None else [placed.note]
     notes[:0] = [note] if note else []
-    chosen = PoseSet(labels, samples, [s.values for s in samples], notes or [], None, placed.by_name, placed.labelled)
+    chosen = PoseSet(labels, samples, [s.readings for s in samples], notes or [], None, placed.by_name, placed.labelled)
     return _solve_trimmed(name, chosen, options, given)
 
 
@@ -435,7 +455,7 @@ def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
         extra={"clock": clock.as_dict(seg.clock)} if seg.clock is not None and seg.clock.bursty else {},
     )
     given = replace(given, centre=seg.centre)
-    whole = [data.values if data.extremes is None else data.extremes]  # the still blocks alone: the extremes
+    whole: list[FloatArray | Summary] = [data.values if data.extremes is None else data.extremes]  # the extremes
     solved = _solve(name, PoseSet(labels, samples, whole, notes or [], segmentation), options, given)
     solved.blocks = blocks
     return solved
@@ -450,7 +470,7 @@ class PoseSet:
 
     labels: list[str | None]
     samples: list[Samples]
-    whole: list[FloatArray]
+    whole: list[FloatArray | Summary]
     notes: list[str] = field(default_factory=list)
     segmentation: calfile.Segmentation | None = None
     by_name: bool = False
@@ -462,10 +482,10 @@ def _solve(name: str, poses: PoseSet, options: SolveOptions, given: Settings) ->
     """Average, solve, check and judge the poses; build the calibration."""
     labels, samples = poses.labels, poses.samples
     for s in samples:
-        model.in_range(s.values, s.name)
+        model.in_range(s.readings, s.name)
     ref = given.reference
     checks = _gate_options(poses, options, given)
-    stats = [model.pose_stats(s.values) for s in samples]
+    stats = [model.pose_stats(s.readings) for s in samples]
     names = [s.name for s in samples]
     one = names[0] if len(names) == 1 else None  # the capture a finding on the whole fit is about
     tilted: list[Finding] = []
@@ -491,7 +511,7 @@ def _solve(name: str, poses: PoseSet, options: SolveOptions, given: Settings) ->
         gate.check_gains(solution.gain, ref, given.limits.nominal_gain)
     limits = given.limits.for_method(solution.method)
     measured = [
-        gate.measure(n, f, s.values, st, checks) for n, f, s, st in zip(names, labels, samples, stats, strict=True)
+        gate.measure(n, f, s.readings, st, checks) for n, f, s, st in zip(names, labels, samples, stats, strict=True)
     ]
     if ref > 0:  # a gyroscope at rest has no direction to judge
         measured = gate.orient(measured, checks.nominal_offset, checks.max_tilt_deg)

@@ -24,7 +24,7 @@ if TYPE_CHECKING:
 SUMMARY = "summary.csv"
 #: Lists in a summary cell (a unit's codes, its input files) are joined with this.
 SEPARATOR = ";"
-#: The columns of summary.csv, in order (README: batch).
+#: The columns of summary.csv, in order (docs/commands/batch.md).
 SUMMARY_COLUMNS = [
     "serial",
     "status",
@@ -53,7 +53,7 @@ SUMMARY_COLUMNS = [
 EARLIER_COLUMNS = SUMMARY_COLUMNS[:-1]
 NUMBERS = {c for c in SUMMARY_COLUMNS if c[-2:] in ("_x", "_y", "_z")}
 VERDICTS = {0: "pass", 1: "fail", 3: "rejected", 2: "error"}
-#: Exit status of the whole batch: the first of these any unit has (README "Exit status").
+#: Exit status of the whole batch: the first of these any unit has (docs/reference/exit-status.md).
 PRECEDENCE = (2, 3, 1)
 
 

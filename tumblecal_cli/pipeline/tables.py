@@ -123,6 +123,14 @@ def split(samples: Samples, options: SolveOptions) -> list[Samples]:
     else:
         numbers = list(range(count))
     return [
-        replace(samples, values=samples.values[k : k + 1], rows=(n, n), duration=None, temperature=None, row=True)
+        replace(
+            samples,
+            values=samples.values[k : k + 1],
+            rows=(n, n),
+            duration=None,
+            temperature=None,
+            row=True,
+            summary=None,  # (a long file's running sums are the whole file's, not its row's)
+        )
         for k, n in enumerate(numbers)
     ]

@@ -64,7 +64,7 @@ class ThermalResult:
 
 
 class ThermalKeywords(TypedDict, total=False):
-    """thermal's options (README "tumblecal thermal"): the command line's long options in snake case."""
+    """thermal's options (docs/commands/thermal.md): the command line's long options in snake case."""
 
     temperature_column: str | None
     reference_temperature: float | None

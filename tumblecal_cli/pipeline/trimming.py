@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from tumblecal_cli.core import gate, model, segment
+from tumblecal_cli.core.running import Summary
 from tumblecal_cli.errors import CaptureRejected
 from tumblecal_cli.io.readings import Log, Samples
 
@@ -59,9 +60,9 @@ def still_runs(poses: list[Samples], options: SolveOptions, given: Settings) -> 
     max_noise = options.checks.max_noise if options.checks.max_noise is not None else 0.02
     out = Trimmed(list(poses))
     for s in poses:
-        model.in_range(s.values, s.name)  # readings no statistic can take: the error _solve gives
+        model.in_range(s.readings, s.name)  # readings no statistic can take: the error _solve gives
     for k, s in enumerate(poses):
-        if not moved(s.values, centre, max_noise):
+        if not moved(s.readings, centre, max_noise):
             continue
         log = s.log if s.log is not None else Log(s.layout, s.values, np.arange(len(s.values)), None, None, s.sha256)
         run = _still_run(log, options, centre, max_noise)
@@ -74,13 +75,17 @@ def still_runs(poses: list[Samples], options: SolveOptions, given: Settings) -> 
     return out if out.notes else None
 
 
-def moved(values: FloatArray, centre: FloatArray, max_noise: float) -> bool:
+def moved(values: FloatArray | Summary, centre: FloatArray, max_noise: float) -> bool:
     """Whether readings vary (spread, or drift between their first and last third) by more than
-    ``max_noise`` times their magnitude about ``centre`` (core.segment's NOISY and DRIFTING)."""
+    ``max_noise`` times their magnitude about ``centre`` (core.segment's NOISY and DRIFTING);
+    a long pose file's by its running sums."""
     st = model.pose_stats(values)
     magnitude = float(np.linalg.norm(st.mean - centre))
-    third = values.shape[0] // 3
-    drift = values[-third:].mean(axis=0) - values[:third].mean(axis=0) if third else np.zeros(3)
+    if isinstance(values, Summary):
+        drift = values.drift()
+    else:
+        third = values.shape[0] // 3
+        drift = values[-third:].mean(axis=0) - values[:third].mean(axis=0) if third else np.zeros(3)
     return not (float(st.std.max()) <= max_noise * magnitude and float(np.abs(drift).max()) <= max_noise * magnitude)
 
 

@@ -15,10 +15,9 @@ import numpy as np
 from tumblecal_cli.core import drift, gate, methods, model, rotation_fit
 from tumblecal_cli.core.model import UNITS_TOLERANCE, FloatArray
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import calfile, readings
+from tumblecal_cli.io import calfile, posefile, readings
 from tumblecal_cli.io.readspec import ReadSpec, column_list
 from tumblecal_cli.pipeline.frames import in_memory, is_data
-from tumblecal_cli.pipeline.logs import FASTEST
 from tumblecal_cli.pipeline.options import (
     FileKeywords,
     LogOptions,
@@ -31,6 +30,7 @@ from tumblecal_cli.pipeline.options import (
 from tumblecal_cli.pipeline.rotations import hand_turns
 
 if TYPE_CHECKING:
+    from tumblecal_cli.core.running import Summary
     from tumblecal_cli.io.calfile import Calibration
     from tumblecal_cli.io.readings import Samples
     from tumblecal_cli.io.readspec import ReadSpec
@@ -93,7 +93,7 @@ class Verified:
 
 
 class VerifyKeywords(FileKeywords, StreamKeywords, total=False):
-    """verify's options beside the captures' shape (README "tumblecal verify")."""
+    """verify's options beside the captures' shape (docs/commands/verify.md)."""
 
     reference: float | None
     max_norm_error: float | None
@@ -171,7 +171,7 @@ def _verify(paths: list[str], cal: Calibration | str | os.PathLike[str], options
     for path in paths:
         s = _read(path, c, spec, result.notes)
         result.notes += s.layout.notes
-        model.in_range(s.values, s.layout.name)
+        model.in_range(s.readings, s.layout.name)
         if s.sha256 in fitted:
             result.notes.append(
                 f"{s.layout.name}: the calibration was fitted on this capture ({fitted[s.sha256]}): "
@@ -192,7 +192,7 @@ def _verify(paths: list[str], cal: Calibration | str | os.PathLike[str], options
     return result
 
 
-def _poses(s: Samples, c: Calibration, rows: bool | None, notes: list[str]) -> list[tuple[str, FloatArray]]:
+def _poses(s: Samples, c: Calibration, rows: bool | None, notes: list[str]) -> list[tuple[str, FloatArray | Summary]]:
     """A capture as the poses it holds: itself, or each of its rows where they are separate
     orientations (a table, one averaged reading each: --rows-are-poses, or recognised as solve
     recognises one when it has no time column), with a note."""
@@ -201,7 +201,7 @@ def _poses(s: Samples, c: Calibration, rows: bool | None, notes: list[str]) -> l
     if rows is None and s.layout.time is None and c.sensor != "gyroscope":
         why = methods.orientation_table(s.values, np.asarray(c.offset, dtype=float))
     if not (rows or why):
-        return [(name, s.values)]
+        return [(name, s.readings)]
     notes.append(
         f"{name}: {why or 'its rows are poses (--rows-are-poses)'}: each of its {len(s.values)} rows is judged "
         "as a capture of its own (--no-rows-are-poses judges the file as one)"
@@ -209,7 +209,7 @@ def _poses(s: Samples, c: Calibration, rows: bool | None, notes: list[str]) -> l
     return [(f"{name} row {k}", s.values[k : k + 1]) for k in range(len(s.values))]
 
 
-def _check(result: Verified, name: str, values: FloatArray, judge: _Judge) -> None:
+def _check(result: Verified, name: str, values: FloatArray | Summary, judge: _Judge) -> None:
     """One capture's norm before and after correction, in ``result``: a row, and a rejection
     (not static) or a failure (past --max-norm-error) where it has one."""
     c, ref = judge.cal, judge.reference
@@ -242,8 +242,7 @@ def _spec(options: VerifyKeywords, c: Calibration) -> ReadSpec:
     """How verify reads its captures: their shape, the calibration's sensor and columns, and the
     part of each (--start/--end; --rate gives its seconds when a capture has no time column)."""
     rate = options.get("rate")
-    if rate is not None and not 0 < rate <= FASTEST:
-        raise InputError(f"--rate must be a positive number of Hz up to {FASTEST:g}, got {rate:g}")
+    readings.check_rate(rate)
     return replace(
         file_spec(options, prefer=c.columns),
         sensor=c.sensor,
@@ -281,7 +280,7 @@ def _read(path: str, c: Calibration, spec: ReadSpec, notes: list[str]) -> Sample
     temperature (core.drift.at_reference), the rows outside the range noted."""
 
     if c.thermal is None:
-        return readings.read_samples(path, spec)
+        return posefile.read(path, spec)
     spec = replace(spec, temperature_column=c.thermal.column)
     log = readings.read_log(path, spec, use_time=False, need_temperature=True)
     temp = log.temperature
@@ -338,8 +337,7 @@ def verify_rotations(
             f"--log with --accel-cal verifies a gyroscope's calibration, not the {c.sensor}'s", file=c.path
         )
 
-    if rate is not None and not 0 < rate <= FASTEST:
-        raise InputError(f"--rate must be a positive number of Hz up to {FASTEST:g}, got {rate:g}")
+    readings.check_rate(rate)
     options = SolveOptions(
         read=ReadSpec(
             sensor="gyroscope",

@@ -1,0 +1,364 @@
+"""tumblecal align: the magnetometer's rotation onto the accelerometer's axes from the constant
+angle between gravity and the field, and the rotation between several IMUs from their still
+blocks (core.align, pipeline.alignment, cli.aligning)."""
+
+from __future__ import annotations
+
+import gzip
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.conftest import assert_one_error, run
+from tests.ulog_writer import write_streams
+from tumblecal_cli.core import align
+from tumblecal_cli.io import calfile
+
+DATA = Path(__file__).parent / "data"
+CK_ACC_LOG = DATA / "logs" / "ckexplorer_acc_log.csv"  # the accelerometer alone, paused in many orientations
+CK_BOTH_LOG = DATA / "logs" / "ckexplorer_acc_mag_log.csv.gz"  # accelerometer and magnetometer, tumbled
+PX4_SMALL = DATA / "px4" / "pyulog_sample_log_small.ulg.gz"  # PX4's sample: three raw sensor_accel
+
+UP = np.array([0.0, 0.0, 1.0])
+DIP = np.radians(60.0)
+FIELD = np.array([np.cos(DIP), 0.0, -np.sin(DIP)])  # north and down
+AXIS = np.array([1.0, 2.0, -1.0]) / np.sqrt(6.0)
+TRUE = align.exp_map(np.radians(3.0) * AXIS)  # v_acc = TRUE v_mag
+
+
+def poses(rng: np.random.Generator, k: int) -> list[np.ndarray]:
+    """``k`` random orientations of the unit (world to sensor: the transposes of random rotations)."""
+    out = []
+    for _ in range(k):
+        q = rng.normal(size=4)
+        w, x, y, z = q / np.linalg.norm(q)
+        out.append(
+            np.array(
+                [
+                    [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                    [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                    [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+                ]
+            ).T
+        )
+    return out
+
+
+def mag_blocks(rng: np.random.Generator, k: int = 12, samples: int = 200) -> tuple[np.ndarray, ...]:
+    """Block means of a calibrated accelerometer (g, 2 mg per sample) and magnetometer (field of
+    1, 0.5 % per sample) over ``samples`` each, the magnetometer turned by TRUE, and their noise."""
+    c = poses(rng, k)
+    g = np.array([m @ UP for m in c])
+    m = np.array([r @ FIELD for r in c]) @ TRUE  # TRUE.T applied to each row
+    sg, sm = 0.002 / np.sqrt(samples), 0.005 / np.sqrt(samples)
+    g = g + rng.normal(size=g.shape) * sg
+    m = m + rng.normal(size=m.shape) * sm
+    return g, m, np.full(k, sg), np.full(k, sm)
+
+
+def error_deg(fitted: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """The rotation vector (degrees) that takes ``truth`` onto ``fitted`` (left perturbation)."""
+    return np.degrees(align.log_map(fitted @ truth.T))
+
+
+def test_a_3_degree_rotation_is_recovered_to_005_degrees() -> None:
+    fit = align.mag_to_accel(*mag_blocks(np.random.default_rng(7)))
+    r = fit.rotation
+    assert np.linalg.norm(error_deg(r.matrix, TRUE)) < 0.05
+    assert r.angle_deg == pytest.approx(3.0, abs=0.05)
+    assert fit.dip_deg == pytest.approx(60.0, abs=0.05)
+    assert r.observable()
+    assert r.sigma_deg.max() < 0.05
+    # the heading error a 3° misalignment causes, removed by the rotation: degrees, not tenths
+    assert 1.0 < np.abs(fit.heading_error).max() < 6.0
+    assert np.std(fit.dip_after) < np.std(fit.dip_before) / 5
+
+
+@pytest.mark.slow
+def test_mag_alignment_uncertainty_holds_in_monte_carlo() -> None:
+    """The stated 1-sigma of each rotation component and of the dip: z-scores within ±3, spread near 1."""
+    rng = np.random.default_rng(11)
+    z, dz = [], []
+    for _ in range(300):
+        fit = align.mag_to_accel(*mag_blocks(rng, k=10, samples=20))
+        z.append(error_deg(fit.rotation.matrix, TRUE) / fit.rotation.sigma_deg)
+        dz.append((fit.dip_deg - 60.0) / fit.dip_sigma_deg)
+    zs, dips = np.array(z), np.array(dz)
+    assert np.abs(zs).max() < 4.5  # 900 draws: ±3 holds for all but a few
+    assert np.mean(np.abs(zs) > 3) < 0.01
+    assert np.all((zs.std(axis=0) > 0.7) & (zs.std(axis=0) < 1.2))
+    assert np.abs(zs.mean(axis=0)).max() < 0.2
+    assert np.mean(np.abs(dips) > 3) < 0.01
+    assert 0.7 < dips.std() < 1.2
+
+
+def test_turning_only_about_the_vertical_leaves_the_rotation_undetermined() -> None:
+    """Turned about gravity alone, the east-west axis stays horizontal: rotation about the
+    sensor's vertical axis changes no dot product, and its 1-sigma says so."""
+    k = 10
+    g, m = [], []
+    for yaw in np.linspace(0, 2 * np.pi, k, endpoint=False):
+        c = align.exp_map(np.array([0.0, 0.0, yaw]))
+        g.append(c @ UP)
+        m.append((c @ FIELD) @ TRUE)
+    rng = np.random.default_rng(3)
+    noisy = np.array(m) + rng.normal(size=(k, 3)) * 1e-4
+    fit = align.mag_to_accel(np.array(g), noisy, np.full(k, 1e-4), np.full(k, 1e-4))
+    assert not fit.rotation.observable()
+
+
+def test_heading_change_of_a_turn_about_the_vertical_is_its_angle() -> None:
+    g = np.array([[0.0, 0.0, 1.0]])
+    m = np.array([[0.5, 0.0, -0.8]])
+    turned = m @ align.exp_map(np.radians([0.0, 0.0, 2.0])).T
+    assert align.heading_change(g, m, turned)[0] == pytest.approx(2.0)
+
+
+def imu_blocks(rng: np.random.Generator, truth: np.ndarray, k: int = 8) -> tuple[np.ndarray, ...]:
+    c = poses(rng, k)
+    ref = np.array([m @ UP for m in c]) * 9.81
+    other = ref @ truth  # truth.T applied to each row: ref = truth other
+    s = 0.01
+    return ref + rng.normal(size=ref.shape) * s, other + rng.normal(size=ref.shape) * s, np.full(k, s * np.sqrt(2))
+
+
+def test_wahba_recovers_a_rotation_within_its_uncertainty() -> None:
+    truth = align.exp_map(np.radians([1.0, -2.0, 0.5]))
+    fit = align.wahba(*imu_blocks(np.random.default_rng(5), truth))
+    assert np.all(np.abs(error_deg(fit.matrix, truth)) < 3 * fit.sigma_deg)
+    assert fit.sigma_deg.max() < 0.2
+
+
+@pytest.mark.slow
+def test_wahba_uncertainty_holds_in_monte_carlo() -> None:
+    truth = align.exp_map(np.radians([1.0, -2.0, 0.5]))
+    rng = np.random.default_rng(9)
+    zs = np.array(
+        [
+            (lambda f: error_deg(f.matrix, truth) / f.sigma_deg)(align.wahba(*imu_blocks(rng, truth, 6)))
+            for _ in range(300)
+        ]
+    )
+    assert np.mean(np.abs(zs) > 3) < 0.01
+    assert np.all((zs.std(axis=0) > 0.7) & (zs.std(axis=0) < 1.2))
+
+
+# --- the magnetometer's alignment from a log ----------------------------------------------------
+
+
+def cal_file(path: Path, sensor: str, columns: list[str]) -> Path:
+    cal = calfile.Calibration(sensor, "ellipsoid", 1.0, columns, np.zeros(3), np.eye(3), np.ones(3))
+    calfile.write(cal, str(path))
+    return path
+
+
+def mag_log(path: Path, rng: np.random.Generator, k: int = 10) -> Path:
+    """A CSV log (100 Hz) of 10 still orientations 2 s each with turns between: accelerometer
+    and magnetometer on each row, the magnetometer turned by TRUE."""
+    rows, t = [], 0.0
+    c = poses(rng, k)
+    for a, b in zip(c, [*c[1:], c[0]], strict=True):
+        for _ in range(200):
+            g, m = a @ UP, (a @ FIELD) @ TRUE
+            rows.append([t, *(g + rng.normal(size=3) * 0.002), *(m + rng.normal(size=3) * 0.005)])
+            t += 0.01
+        for s in np.linspace(0, 1, 60):  # a turn: moving readings
+            v = (1 - s) * (a @ UP) + s * (b @ UP) + rng.normal(size=3) * 0.2
+            f = (1 - s) * (a @ FIELD) + s * (b @ FIELD)
+            rows.append([t, *v, *((f / np.linalg.norm(f)) @ TRUE + rng.normal(size=3) * 0.005)])
+            t += 0.01
+    text = "t,ax,ay,az,mx,my,mz\n" + "\n".join(",".join(f"{v:.6f}" for v in r) for r in rows) + "\n"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.slow
+def test_align_finds_the_magnetometers_rotation_in_a_log(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = mag_log(tmp_path / "both.csv", np.random.default_rng(2))
+    acc = cal_file(tmp_path / "acc.json", "accelerometer", ["ax", "ay", "az"])
+    mag = cal_file(tmp_path / "mag.json", "magnetometer", ["mx", "my", "mz"])
+    out = tmp_path / "align.json"
+    code, stdout, err = run(capsys, "align", "--accel-cal", acc, "--mag-cal", mag, log, "-o", out, "--json")
+    assert code == 0, err
+    doc, summary = json.loads(out.read_text()), json.loads(stdout)
+    assert (summary["status"], summary["angle_deg"]) == ("pass", doc["angle_deg"])
+    assert (doc["format"], doc["kind"]) == ("tumblecal-alignment", "magnetometer-to-accelerometer")
+    assert doc["blocks"] == 10
+    fitted = np.array(doc["rotation"])
+    assert np.linalg.norm(error_deg(fitted, TRUE)) < 0.05
+    assert np.all(np.abs(error_deg(fitted, TRUE)) < 3 * np.array(doc["rotation_sigma_deg"]))
+    assert doc["dip_deg"] == pytest.approx(60.0, abs=3 * doc["dip_sigma_deg"] + 1e-3)
+    assert doc["heading_error_deg"]["max"] > 1.0
+    assert "rotation 2.99" in err or "rotation 3.00" in err, err
+    assert "heading error removed" in err
+
+
+def test_align_of_a_magnetometer_needs_both_calibrations(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    acc = cal_file(tmp_path / "acc.json", "accelerometer", ["ax", "ay", "az"])
+    out = tmp_path / "align.json"
+    result = run(capsys, "align", "--accel-cal", acc, tmp_path / "log.csv", "-o", out)
+    assert_one_error(result, "the magnetometer's alignment takes both --accel-cal and --mag-cal")
+    assert not out.exists()
+
+
+def test_a_calibration_of_the_wrong_sensor_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = mag_log(tmp_path / "both.csv", np.random.default_rng(2), k=4)
+    acc = cal_file(tmp_path / "acc.json", "accelerometer", ["ax", "ay", "az"])
+    code, out, err = run(capsys, "align", "--accel-cal", acc, "--mag-cal", acc, log)
+    assert code == 2
+    assert out == ""
+    assert "--mag-cal takes the magnetometer's calibration, not a accelerometer's" in err
+
+
+def test_too_few_orientations_are_rejected(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = mag_log(tmp_path / "both.csv", np.random.default_rng(2), k=2)
+    acc = cal_file(tmp_path / "acc.json", "accelerometer", ["ax", "ay", "az"])
+    mag = cal_file(tmp_path / "mag.json", "magnetometer", ["mx", "my", "mz"])
+    out = tmp_path / "align.json"
+    code, stdout, err = run(capsys, "align", "--accel-cal", acc, "--mag-cal", mag, log, "-o", out)
+    assert code == 3
+    assert stdout == ""
+    assert not out.exists()
+    assert "still blocks in 2 orientations" in err
+
+
+# --- several IMUs --------------------------------------------------------------------------------
+
+
+def imu_ulog(path: Path, rng: np.random.Generator, truth: np.ndarray, imus: int = 2, k: int = 8) -> Path:
+    """A ULog with ``imus`` sensor_accel instances at 200 Hz (their clocks offset by 1.3 ms), still
+    2 s in each of ``k`` orientations with turns between; instance i > 0 turned by ``truth``."""
+    c = poses(rng, k)
+    values = []
+    for a, b in zip(c, [*c[1:], c[0]], strict=True):
+        values += [a @ UP * 9.81] * 400
+        values += [((1 - s) * (a @ UP) + s * (b @ UP)) * 9.81 for s in np.linspace(0, 1, 100)]
+    v = np.array(values)
+    streams = []
+    for i in range(imus):
+        t = (1_000_000 + 1300 * i + np.arange(len(v)) * 5000).astype(np.int64)
+        mine = v if i == 0 else v @ truth
+        streams.append(("sensor_accel", i, t, mine + rng.normal(size=v.shape) * 0.02))
+    return write_streams(path, streams)
+
+
+def test_align_finds_each_imus_rotation(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    truth = align.exp_map(np.radians([0.5, -1.0, 2.0]))
+    log = imu_ulog(tmp_path / "three.ulg", np.random.default_rng(4), truth, imus=3)
+    limits = tmp_path / "limits.yaml"
+    limits.write_text("imu_consistency: 0.1\n")
+    out = tmp_path / "imus.json"
+    code, stdout, err = run(capsys, "align", log, "--limits", limits, "-o", out, "--json")
+    assert code == 1, err  # turned 2.3°, the readings differ by 0.4 m/s² unrotated, 0.1 allowed
+    doc = json.loads(out.read_text())
+    assert (doc["kind"], doc["reference"], doc["orientations"]) == ("imus", "sensor_accel:0", 8)
+    assert [p["stream"] for p in doc["imus"]] == ["sensor_accel:1", "sensor_accel:2"]
+    for p in doc["imus"]:
+        e = error_deg(np.array(p["rotation"]), truth)
+        assert np.all(np.abs(e) < 3 * np.array(p["rotation_sigma_deg"]))
+        assert p["consistency_aligned"] < 0.01 < 0.3 < p["consistency"]
+    assert doc["verdict"]["pass"] is False
+    assert json.loads(stdout)["status"] == "fail"
+    assert "FAIL: imu_consistency 0.1 m/s^2" in err
+
+
+def test_align_of_one_imu_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = imu_ulog(tmp_path / "one.ulg", np.random.default_rng(4), np.eye(3), imus=1, k=3)
+    out = tmp_path / "imus.json"
+    result = run(capsys, "align", log, "-o", out)
+    assert_one_error(
+        result,
+        f"{log}: one IMU: the log holds 1 accelerometer stream with samples (sensor_accel:0); "
+        "align compares two or three",
+    )
+    assert not out.exists()
+
+
+@pytest.mark.slow
+def test_real_px4_imus_judged_by_pxs_own_limit(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """PX4's sample log: three raw sensor_accel streams at 1 Hz on the ground (one orientation):
+    the rotation about gravity is not determined; uncalibrated, the second differs from the first
+    by 0.36 m/s² RMS, inside PX4's own arming limit (COM_ARM_IMU_ACC, 0.7 m/s² by default) and
+    outside a tighter one."""
+    log = tmp_path / "sample_log_small.ulg"
+    log.write_bytes(gzip.decompress(PX4_SMALL.read_bytes()))
+    for bound, status in ((0.7, 0), (0.2, 1)):
+        limits = tmp_path / "limits.yaml"
+        limits.write_text(f"imu_consistency: {bound}\n")
+        code, out, err = run(capsys, "align", log, "--window", "3", "--min-duration", "4", "--limits", limits, "--json")
+        assert code == status, err
+        doc = json.loads(out)
+        assert (doc["orientations"], doc["units"]) == (1, "m/s^2")
+        assert [p["stream"] for p in doc["imus"]] == ["sensor_accel:1", "sensor_accel:2"]
+        assert [round(p["consistency"], 2) for p in doc["imus"]] == [0.36, 0.08]
+        assert all("rotation" not in p for p in doc["imus"])
+        assert "rotation not determined" in err
+    assert [f["code"] for f in doc["verdict"]["failures"]] == ["limit.imu_consistency.1"]
+
+
+@pytest.mark.slow
+def test_real_ckexplorer_log_has_a_small_rotation(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """ckexplorer's log (a tumble by hand with short pauses): the rotation is below a degree and
+    known to a few tenths, the dip the same in every block to about a degree."""
+    acc, mag = tmp_path / "acc.json", tmp_path / "mag.json"
+    assert run(capsys, "solve", "--log", CK_ACC_LOG, "-o", acc).code == 0
+    solved = run(
+        capsys, "solve", "--sensor", "magnetometer", "--method", "ellipsoid", "--poses", CK_BOTH_LOG, "-o", mag
+    )
+    assert solved.code == 0
+    args = ["--window", "10", "--min-duration", "10", "--max-noise", "0.1", "--json"]
+    code, out, err = run(capsys, "align", "--accel-cal", acc, "--mag-cal", mag, CK_BOTH_LOG, *args)
+    assert code == 0, err
+    doc = json.loads(out)
+    assert doc["blocks"] == 43
+    assert doc["angle_deg"] == pytest.approx(0.42, abs=0.01)
+    assert doc["angle_sigma_deg"] == pytest.approx(0.35, abs=0.01)
+    assert doc["dip_deg"] == pytest.approx(-18.4, abs=0.05)
+    assert doc["dip_spread_deg"]["after"] < 2.0
+
+
+def test_aligned_magnetometer_calibration_reads_in_the_accelerometers_axes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--aligned-mag: the rotation in the matrix, recorded in the file, told by show; apply then
+    gives readings whose angle to gravity is the same in every block."""
+    log = mag_log(tmp_path / "both.csv", np.random.default_rng(2))
+    acc = cal_file(tmp_path / "acc.json", "accelerometer", ["ax", "ay", "az"])
+    mag = cal_file(tmp_path / "mag.json", "magnetometer", ["mx", "my", "mz"])
+    out = tmp_path / "mag-aligned.json"
+    code, _, err = run(capsys, "align", "--accel-cal", acc, "--mag-cal", mag, log, "-o", tmp_path / "a.json",
+                       "--aligned-mag", out)  # fmt: skip
+    assert code == 0, err
+    cal = calfile.load(out)
+    assert np.linalg.norm(error_deg(cal.matrix, TRUE)) < 0.05  # M' = R M, M = I
+    record = cal.fields["alignment"]
+    assert isinstance(record, dict)
+    assert record["to"] == str(acc)
+    code, shown, _ = run(capsys, "show", out)
+    assert code == 0
+    assert "aligned:     rotated 3.0" in shown or "aligned:     rotated 2.99" in shown
+
+
+@pytest.mark.slow
+def test_solve_align_to_rotates_a_magnetometers_matrix(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = mag_log(tmp_path / "both.csv", np.random.default_rng(2), k=24)
+    acc = cal_file(tmp_path / "acc.json", "accelerometer", ["ax", "ay", "az"])
+    plain, turned = tmp_path / "mag.json", tmp_path / "mag-aligned.json"
+    args: list[str | Path] = ["solve", "--sensor", "magnetometer", "--method", "ellipsoid", "--poses", log]
+    assert run(capsys, *args, "-o", plain).code == 0
+    code, _, err = run(capsys, *args, "--align-to", acc, "-o", turned)
+    assert code == 0, err
+    assert "note: aligned to" in err
+    rotation = calfile.load(turned).matrix @ np.linalg.inv(calfile.load(plain).matrix)
+    assert np.linalg.norm(error_deg(rotation, TRUE)) < 0.1
+
+
+def test_solve_align_to_is_for_a_magnetometer(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = mag_log(tmp_path / "both.csv", np.random.default_rng(2), k=3)
+    acc = cal_file(tmp_path / "acc.json", "accelerometer", ["ax", "ay", "az"])
+    out = tmp_path / "cal.json"
+    result = run(capsys, "solve", "--method", "ellipsoid", "--poses", log, "--align-to", acc, "-o", out)
+    assert_one_error(result, "--align-to aligns a magnetometer's axes to an accelerometer's, not a accelerometer's")
+    assert not out.exists()

@@ -1,0 +1,220 @@
+"""The rotation between two sensors' axes from still blocks seen by both. numpy only.
+
+- **Magnetometer to accelerometer.** At rest the accelerometer measures "up" and the
+  magnetometer the Earth's field; the angle between them is 90° plus the dip (inclination) in
+  every orientation. With calibrated unit directions ``g_i`` (accelerometer frame) and ``m_i``
+  (magnetometer frame) the rotation ``R`` (``v_acc = R v_mag``) and ``c = -sin(dip)`` minimise
+  ``Σ w_i (g_i · R m_i - c)²`` (Gauss-Newton on a rotation vector, each residual weighted by
+  the blocks' noise). A small rotation ``δφ`` changes
+  each residual by ``δφ · (R m_i × g_i)``: the normal of the plane of gravity and the field, i.e.
+  the horizontal east-west axis seen from the sensor in block ``i``. All three components of
+  ``R`` are observable when those axes span space: the unit turned about more than the vertical.
+- **Several IMUs.** Two sensors of one kind see the same vector in each still block: the
+  rotation ``R`` (``v_ref = R v_other``) is Wahba's problem, solved by the SVD of
+  ``Σ w_i ref_i other_iᵀ`` (Markley 1988). Its covariance is the inverse of the Fisher matrix
+  ``Σ w_i (|v_i|² I - v_i v_iᵀ)`` (``v_i = R other_i``): rotation about a direction every block
+  shares is not observable.
+
+Every covariance is from the blocks' stated noise, scaled up by the reduced chi-square when
+the residuals are larger than that noise explains (never down).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from tumblecal_cli.core.model import FloatArray
+
+#: Fewer blocks than this (at distinct orientations) leave the rotation and the dip too loose.
+MIN_BLOCKS = 4
+#: A rotation component whose 1-sigma exceeds this many degrees is not observable from the blocks
+#: (they share a direction: the unit turned only about the vertical, or not at all).
+MAX_SIGMA_DEG = 5.0
+
+
+@dataclass(frozen=True)
+class Fitted:
+    """A rotation (``v_ref = matrix · v_other``), its rotation vector (degrees, the axis times
+    the angle) with covariance (degrees²), the angle and its 1-sigma, the reduced chi-square of
+    the fit (1 when the blocks' noise explains the residuals), and the residual per block."""
+
+    matrix: FloatArray  # (3, 3)
+    vector_deg: FloatArray  # (3,)
+    cov_deg2: FloatArray  # (3, 3)
+    angle_deg: float
+    angle_sigma_deg: float
+    chi2: float
+    residuals: FloatArray  # (k,)
+
+    @property
+    def sigma_deg(self) -> FloatArray:
+        """(3,) the 1-sigma of each rotation-vector component."""
+        out: FloatArray = np.sqrt(np.maximum(np.diag(self.cov_deg2), 0.0))
+        return out
+
+    def observable(self) -> bool:
+        """Whether every component is determined to within MAX_SIGMA_DEG."""
+        return bool(np.all(np.isfinite(self.sigma_deg)) and np.all(self.sigma_deg <= MAX_SIGMA_DEG))
+
+
+@dataclass(frozen=True)
+class MagAlignment:
+    """The magnetometer-to-accelerometer rotation, the dip (inclination, degrees, positive down)
+    with its 1-sigma, and per block: the dip before and after alignment and the heading change
+    (degrees) alignment makes, i.e. the heading error it removes."""
+
+    rotation: Fitted
+    dip_deg: float
+    dip_sigma_deg: float
+    dip_before: FloatArray  # (k,)
+    dip_after: FloatArray  # (k,)
+    heading_error: FloatArray  # (k,)
+
+
+def exp_map(phi: FloatArray) -> FloatArray:
+    """The rotation matrix of the rotation vector ``phi`` (radians; Rodrigues' formula)."""
+    angle = float(np.linalg.norm(phi))
+    k = np.array([[0.0, -phi[2], phi[1]], [phi[2], 0.0, -phi[0]], [-phi[1], phi[0], 0.0]])
+    if angle < 1e-12:
+        small: FloatArray = np.eye(3) + k
+        return small
+    out: FloatArray = np.eye(3) + np.sin(angle) / angle * k + (1 - np.cos(angle)) / angle**2 * (k @ k)
+    return out
+
+
+def log_map(matrix: FloatArray) -> FloatArray:
+    """The rotation vector (radians) of a rotation matrix (its angle below 180°)."""
+    cos = np.clip((np.trace(matrix) - 1.0) / 2.0, -1.0, 1.0)
+    angle = float(np.arccos(cos))
+    w = np.array([matrix[2, 1] - matrix[1, 2], matrix[0, 2] - matrix[2, 0], matrix[1, 0] - matrix[0, 1]]) / 2.0
+    if angle < 1e-9:
+        return w
+    out: FloatArray = w * angle / np.sin(angle)
+    return out
+
+
+def unit(v: FloatArray) -> FloatArray:
+    out: FloatArray = v / np.linalg.norm(v, axis=-1, keepdims=True)
+    return out
+
+
+def inverse(information: FloatArray) -> FloatArray:
+    """The covariance of an information (Fisher) matrix: a direction it does not determine (an
+    eigenvalue below 1e-12 of the largest) gets a variance of 1e200, not the 0 a pseudo-inverse
+    gives it."""
+    values, vectors = np.linalg.eigh((information + information.T) / 2.0)
+    floor = 1e-12 * max(float(values.max()), 1e-300)
+    inv = np.where(values > floor, 1.0 / np.where(values > floor, values, 1.0), 1e200)
+    out: FloatArray = (vectors * inv) @ vectors.T
+    return out
+
+
+def _fitted(matrix: FloatArray, cov_rad: FloatArray, chi2: float, residuals: FloatArray) -> Fitted:
+    """A Fitted from a rotation and its small-angle covariance (radians², left perturbation)."""
+    phi = log_map(matrix)
+    angle = float(np.linalg.norm(phi))
+    axis = phi / angle if angle > 1e-12 else np.zeros(3)
+    cov = np.degrees(np.degrees(cov_rad))
+    sigma = float(np.sqrt(max(float(axis @ cov @ axis), 0.0))) if angle > 1e-12 else float(np.sqrt(np.trace(cov)))
+    return Fitted(matrix, np.degrees(phi), cov, float(np.degrees(angle)), sigma, chi2, residuals)
+
+
+def wahba(ref: FloatArray, other: FloatArray, sigma: FloatArray) -> Fitted:
+    """The rotation ``R`` with ``ref_i ≈ R other_i`` (both (k, 3), one row per still block, in the
+    same units), each pair's per-component noise ``sigma`` (k,) (both sensors' together): Wahba's
+    problem by SVD, with the covariance from the Fisher matrix (module docstring)."""
+    w = 1.0 / np.asarray(sigma, dtype=np.float64) ** 2
+    b = (w[:, None, None] * ref[:, :, None] * other[:, None, :]).sum(axis=0)
+    u, _, vt = np.linalg.svd(b)
+    d = np.diag([1.0, 1.0, float(np.linalg.det(u) * np.linalg.det(vt))])
+    r = u @ d @ vt
+    v = other @ r.T
+    diff = ref - v
+    chi2_sum = float((w * (diff**2).sum(axis=1)).sum())
+    dof = max(3 * len(ref) - 3, 1)
+    fisher = (w[:, None, None] * ((v**2).sum(axis=1)[:, None, None] * np.eye(3) - v[:, :, None] * v[:, None, :])).sum(
+        axis=0
+    )
+    chi2 = chi2_sum / dof
+    cov = inverse(fisher) * max(chi2, 1.0)
+    return _fitted(r, cov, chi2, np.linalg.norm(diff, axis=1))
+
+
+def _dip_residuals(g: FloatArray, m: FloatArray, r: FloatArray, c: float) -> FloatArray:
+    out: FloatArray = np.einsum("ij,ij->i", g, m @ r.T) - c
+    return out
+
+
+def _dot_sigma(g: FloatArray, m: FloatArray, r: FloatArray, noise: tuple[FloatArray, FloatArray]) -> FloatArray:
+    """The 1-sigma of ``g_i · R m_i`` from each direction's per-component noise (radians): each
+    unit vector moves perpendicular to itself, so only the other's perpendicular part counts."""
+    rm = m @ r.T
+    dot = np.einsum("ij,ij->i", g, rm)
+    across = np.maximum(1.0 - dot**2, 1e-12)  # |rm - (g·rm) g|², the same from either side
+    out: FloatArray = np.sqrt(across * (noise[0] ** 2 + noise[1] ** 2))
+    return out
+
+
+def mag_to_accel(g: FloatArray, m: FloatArray, g_sigma: FloatArray, m_sigma: FloatArray) -> MagAlignment:
+    """The rotation ``R`` (``v_acc = R v_mag``) and the dip from still blocks: ``g`` (k, 3) the
+    accelerometer's calibrated readings (up, any magnitude), ``m`` (k, 3) the magnetometer's
+    calibrated readings of the same blocks, ``g_sigma`` and ``m_sigma`` (k,) each direction's
+    per-component noise in radians (a block's noise over its magnitude over √samples). Gauss-
+    Newton on ``(δφ, c)`` from ``R = I`` (module docstring)."""
+    g, m = unit(np.asarray(g, dtype=np.float64)), unit(np.asarray(m, dtype=np.float64))
+    r = np.eye(3)
+    c = float(np.mean(np.einsum("ij,ij->i", g, m)))
+    noise = (np.asarray(g_sigma, dtype=np.float64), np.asarray(m_sigma, dtype=np.float64))
+    for _ in range(50):
+        w = 1.0 / _dot_sigma(g, m, r, noise) ** 2
+        res = _dip_residuals(g, m, r, c)
+        jac = np.column_stack([np.cross(m @ r.T, g), -np.ones(len(g))])
+        step = np.linalg.lstsq(jac * np.sqrt(w)[:, None], -res * np.sqrt(w), rcond=None)[0]
+        r, c = exp_map(step[:3]) @ r, c + float(step[3])
+        if np.abs(step).max() < 1e-12:
+            break
+    w = 1.0 / _dot_sigma(g, m, r, noise) ** 2
+    res = _dip_residuals(g, m, r, c)
+    jac = np.column_stack([np.cross(m @ r.T, g), -np.ones(len(g))])
+    chi2 = float((w * res**2).sum()) / max(len(g) - 4, 1)
+    cov = inverse(jac.T @ (w[:, None] * jac)) * max(chi2, 1.0)
+    c = float(np.clip(c, -1.0, 1.0))
+    dip = float(np.degrees(np.arcsin(-c)))
+    dip_sigma = float(np.degrees(np.sqrt(max(cov[3, 3], 0.0)) / max(np.sqrt(1.0 - c**2), 1e-12)))
+    return MagAlignment(
+        rotation=_fitted(r, cov[:3, :3], chi2, np.degrees(np.abs(res))),
+        dip_deg=dip,
+        dip_sigma_deg=dip_sigma,
+        dip_before=dips(g, m),
+        dip_after=dips(g, m @ r.T),
+        heading_error=heading_change(g, m, m @ r.T),
+    )
+
+
+def dips(g: FloatArray, m: FloatArray) -> FloatArray:
+    """Each block's dip (degrees, positive when the field points below the horizontal)."""
+    out: FloatArray = np.degrees(np.arcsin(np.clip(-np.einsum("ij,ij->i", unit(g), unit(m)), -1.0, 1.0)))
+    return out
+
+
+def heading_change(g: FloatArray, before: FloatArray, after: FloatArray) -> FloatArray:
+    """The signed angle (degrees) about the vertical between the horizontal parts of the field
+    ``before`` and ``after`` alignment, per block: how far a tilt-compensated heading moves."""
+    up = unit(g)
+
+    def horizontal(m: FloatArray) -> FloatArray:
+        return unit(m - np.einsum("ij,ij->i", m, up)[:, None] * up)
+
+    h0, h1 = horizontal(before), horizontal(after)
+    sin = np.einsum("ij,ij->i", np.cross(h0, h1), up)
+    out: FloatArray = np.degrees(np.arctan2(sin, np.einsum("ij,ij->i", h0, h1)))
+    return out
+
+
+def consistency(ref: FloatArray, other: FloatArray, matrix: FloatArray | None = None) -> float:
+    """The RMS over blocks of ``|ref_i - R other_i|`` (``R`` the identity when None): how far two
+    sensors' corrected readings differ."""
+    v = other if matrix is None else other @ matrix.T
+    return float(np.sqrt(np.mean(((ref - v) ** 2).sum(axis=1))))
