@@ -1436,7 +1436,7 @@ SOLVE_OPTIONS = [
 
 
 def test_solve_help_lists_the_gate_options(capsys: pytest.CaptureFixture[str]) -> None:
-    r = run(capsys, "solve", "--help")
+    r = run(capsys, "solve", "--help-all")  # --help names them by panel, --help-all describes each
     assert (r.code, r.err) == (0, "")
     listed = set(re.findall(r"^\s+(?:-\w, )?(--[\w-]+)", r.out, flags=re.MULTILINE))
     assert set(SOLVE_OPTIONS) <= listed
@@ -1686,12 +1686,13 @@ def test_check_refuses_a_recorded_nominal_offset_that_is_not_three_numbers(
 
 
 def test_a_six_pose_retry_after_auto_keeps_auto_s_note(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """Files named for faces, two swapped: auto's choice of six-pose-magnitude is said with the rejection."""
+    """Files named for faces, two swapped: auto's choice of six-pose-magnitude is said with the
+    rejection's detail (-v; without it the rejection alone)."""
     folder = tmp_path / "swap"
     folder.mkdir()
     for name, source in {"x": "x", "xn": "y", "y": "xn", "yn": "yn", "z": "z", "zn": "zn"}.items():
         (folder / f"{name}.csv").write_bytes((SAMPLE / f"{source}.csv").read_bytes())
     order = ["zn", "z", "yn", "y", "xn", "x"]
-    r = run(capsys, "solve", "--poses", *(str(folder / f"{n}.csv") for n in order), "-o", tmp_path / "o.json")
+    r = run(capsys, "solve", "--poses", *(str(folder / f"{n}.csv") for n in order), "-o", tmp_path / "o.json", "-v")
     assert r.code == 3, r.err
     assert "auto chose six-pose-magnitude" in r.err

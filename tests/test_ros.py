@@ -142,7 +142,7 @@ def test_segment_finds_the_still_period_of_a_real_bag(tmp_path: Path) -> None:
     for k in kept:
         first, last = (int(r) for r in k[1].split("-"))
         assert 2.5 * 30 <= first < last <= 10.5 * 30
-        assert k[5] == "+y"
+        assert k[6] == "+y"  # block, rows, start, s, length, s, face
     assert int(kept[1][1].split("-")[1]) - int(kept[1][1].split("-")[0]) > 90  # the longer one: over 3 s
     assert sorted(p.name for p in out.iterdir()) == ["block02.csv", "segments.csv", "yp.csv"]
 

@@ -17,7 +17,7 @@ from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Annotated
 
 import typer
-from typer.core import TyperCommand
+from typer.core import TyperCommand, TyperOption
 
 from tumblecal_cli.cli.flags import EXIT_CODES
 from tumblecal_cli.errors import STOPS, Interrupted, PipeClosed, TumblecalError, one_line
@@ -27,7 +27,7 @@ if TYPE_CHECKING:
     from types import FrameType
 
     from typer._click import Command as ClickCommand  # the click that Typer bundles (and builds on)
-    from typer._click import Context, HelpFormatter
+    from typer._click import Context, HelpFormatter, Parameter
     from typer.models import CommandInfo
 
 # The solvers' matrices are 3x3 to 12x12: BLAS threads only cost start-up and spin (see core.model.apply).
@@ -54,19 +54,97 @@ app = typer.Typer(
 _state = {"debug": False}
 
 
+#: Help longer than this many lines of options is cut to the options a user needs first (those in
+#: no panel, and the panels in FIRST_PANELS), described; each other panel lists its options' names.
+LONG_HELP = 60
+
+#: Panels described in full in a short help: a command's own options (batch's).
+FIRST_PANELS = ("Arguments", "Options", "Batch")
+
+
+def _help_all(ctx: Context, param: object, value: bool) -> None:
+    if value and not ctx.resilient_parsing:
+        ctx.meta["help_all"] = True
+        typer.echo(ctx.get_help(), color=ctx.color)
+        ctx.exit()
+
+
 class Command(TyperCommand):
-    """Plain help, with the options grouped under the ``rich_help_panel`` each one names."""
+    """Plain help, with the options grouped under the ``rich_help_panel`` each one names. A long
+    one describes the options a user needs first and names the others by panel; ``--help-all``
+    describes every option."""
+
+    first_panels: tuple[str, ...] = FIRST_PANELS  # described in a short help
+
+    def format_help_text(self, ctx: Context, formatter: HelpFormatter) -> None:
+        """The first line, then the examples (a ``\\b`` paragraph of ``tumblecal`` lines), then the rest."""
+        import inspect
+
+        paragraphs = inspect.cleandoc(self.help or "").partition("\f")[0].split("\n\n")
+        examples = [p for p in paragraphs[1:] if p.startswith("\b") and "tumblecal " in p]
+        if examples:
+            rest = [p for p in paragraphs[1:] if p is not examples[0]]
+            text = "\n\n".join([paragraphs[0], examples[0], *rest])
+            formatter.write_paragraph()
+            with formatter.indentation():
+                formatter.write_text(text)
+            return
+        super().format_help_text(ctx, formatter)
+
+    def get_params(self, ctx: Context) -> list[Parameter]:
+        params = super().get_params(ctx)
+        if not any("--help-all" in getattr(p, "opts", ()) for p in params):
+            params.append(_HELP_ALL)
+        return params
 
     def format_options(self, ctx: Context, formatter: HelpFormatter) -> None:
         sections: dict[str, list[tuple[str, str]]] = {}
+        names: dict[str, list[str]] = {}
         for param in self.get_params(ctx):
             record = param.get_help_record(ctx)
             if record is not None:
                 kind = "Arguments" if param.param_type_name == "argument" else "Options"
-                sections.setdefault(getattr(param, "rich_help_panel", None) or kind, []).append(record)
-        for title, records in sorted(sections.items(), key=lambda kv: kv[0] != "Arguments"):
+                panel = getattr(param, "rich_help_panel", None) or kind
+                sections.setdefault(panel, []).append(record)
+                names.setdefault(panel, []).append(next((w for w in record[0].split() if w.startswith("--")), ""))
+        ordered = sorted(sections.items(), key=lambda kv: kv[0] != "Arguments")
+        lines = sum(len(r[1]) // max(formatter.width - 34, 20) + 1 for _, rs in ordered for r in rs)
+        short = lines > LONG_HELP and not ctx.meta.get("help_all")
+        for title, records in ordered:
+            if short and title not in self.first_panels:
+                continue
             with formatter.section(title):
                 formatter.write_dl(records)
+        if short:
+            _name_panels(formatter, [(t, names[t]) for t, _ in ordered if t not in self.first_panels])
+
+
+def _name_panels(formatter: HelpFormatter, panels: list[tuple[str, list[str]]]) -> None:
+    """Each panel of a short help as its title and its options' names, wrapped between names."""
+    import textwrap
+
+    with formatter.section("More options (--help-all describes them)"):
+        for title, names in panels:
+            formatter.write_text(f"{title}:")
+            text = textwrap.fill(
+                " ".join(names),
+                formatter.width - formatter.current_indent,
+                initial_indent="  ",
+                subsequent_indent="  ",
+                break_on_hyphens=False,
+                break_long_words=False,
+            )
+            formatter.write(textwrap.indent(text, " " * formatter.current_indent) + "\n")
+
+
+_HELP_ALL = TyperOption(
+    param_decls=["--help-all"],
+    is_flag=True,
+    expose_value=False,
+    is_eager=True,
+    callback=_help_all,
+    help="Show every option, described, and exit.",
+)
 
 
 class ManyValuesCommand(Command):

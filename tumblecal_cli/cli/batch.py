@@ -119,17 +119,15 @@ def _batch_signature() -> inspect.Signature:
 def batch(**given: Any) -> None:  # Typer passes each option by name, each of its own type
     """Calibrate many units in one run: one calibration file per unit, and a summary.
 
-    Each unit is solved as 'tumblecal solve' would (every solve option below applies to all of
-    them), its calibration written to DIR/<serial>_<UTC time>.json, and its outcome added to
-    DIR/summary.csv: serial, status, verdict, codes, file, method, offset, gain, their 1-sigma
-    uncertainties, inputs, the message of a unit that failed, and duplicate_of: the other
-    serials whose calibration records the same pose file (by sha256), each also a warning.
-
     \b
       tumblecal batch units/ --out-dir cals/ --limits limits.yaml --jobs 2
       tumblecal batch manifest.csv --out-dir cals/ --reference 9.81
       tumblecal batch logs/ --log --rate 100 --out-dir cals/ --resume
-      tumblecal batch units/ --out-dir /shared/cals --dask-scheduler tcp://scheduler:8786
+      tumblecal batch units/ -d /shared/cals --dask-scheduler tcp://sched:8786
+
+    Each unit is solved as 'tumblecal solve' would (every solve option applies to all of them),
+    its calibration written to DIR/<serial>_<UTC time>.json and its outcome added to
+    DIR/summary.csv (README: batch), with a warning for serials that share a pose file.
     """
 
     from tumblecal_cli.pipeline import batch as batches
@@ -142,7 +140,7 @@ def batch(**given: Any) -> None:  # Typer passes each option by name, each of it
         def start(plan: batches.Plan) -> None:
             if not quiet:
                 for note in plan.notes:
-                    console.print(f"note: {note}", soft_wrap=True, markup=False)
+                    render.tell(console, f"note: {note}")
                 if len(plan.todo) < len(plan.units):
                     done = len(plan.units) - len(plan.todo)
                     console.print(f"resuming: {done} of {len(plan.units)} units already done", soft_wrap=True)
@@ -174,7 +172,7 @@ def _show(result: batches.Batched, console: Console, *, quiet: bool, json_summar
 
     if not quiet:
         for warning in result.warnings:
-            console.print(f"warning: {warning}", style="red", soft_wrap=True, markup=False, highlight=False)
+            render.tell(console, f"warning: {warning}", style="red")
         said = ", ".join(f"{n} {v}" for v, n in result.counts.items() if n)
         console.print(
             f"{len(result.rows)} unit{'s' if len(result.rows) != 1 else ''}: {said} -> {result.summary}",

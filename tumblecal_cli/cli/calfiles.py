@@ -20,6 +20,7 @@ from tumblecal_cli.cli.flags import (
     Quiet,
     RegisterSign,
     SensorKind,
+    Verbose,
 )
 from tumblecal_cli.errors import one_line
 
@@ -80,6 +81,7 @@ def check(
     nominal_gain: NominalGain = None,
     json_summary: JsonSummary = False,
     quiet: Quiet = False,
+    verbose: Verbose = False,
 ) -> None:
     """Judge an existing calibration against limits again (the file is not changed).
 
@@ -96,7 +98,8 @@ def check(
     if json_summary:  # the same summary as solve --json, judged afresh
         render.print_json(render.summary(checked.calibration, checked.status, cal, [], [], checked.notes))
     if not quiet:
-        render.print_summary(checked.calibration, render.make_console(), [], checked.notes, judged=True)
+        console = render.make_console()
+        render.print_summary(checked.calibration, console, [], checked.notes, judged=True, verbose=verbose)
     if checked.status:
         raise typer.Exit(checked.status)
 
@@ -284,7 +287,7 @@ def import_(
     if not quiet:
         console = render.make_console()
         for note in got.notes:
-            console.print(f"note: {note}", soft_wrap=True)
+            render.tell(console, f"note: {note}")
         console.print(
             f"imported {got.format} {got.calibration.sensor} calibration, reference {got.calibration.reference:g}"
             + (f": wrote {output}" if output != "-" else ""),

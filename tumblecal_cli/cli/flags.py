@@ -31,6 +31,9 @@ class TimeUnit(StrEnum):
     ns = "ns"
 
 
+#: The panel of the options that say how to read a file (its columns, header, time, span).
+READ_PANEL = "Reading the files"
+
 Sensor = Annotated[
     SensorKind,
     typer.Option(
@@ -45,17 +48,27 @@ Columns = Annotated[
         "--columns",
         metavar="X,Y,Z",
         help="The sensor columns, X,Y,Z: header names or 0-based indices. Default: detected.",
+        rich_help_panel=READ_PANEL,
     ),
 ]
 
 NoHeader = Annotated[
     bool,
-    typer.Option("--no-header", help="The first line is data. 3 columns are x,y,z; 4 are t,x,y,z."),
+    typer.Option(
+        "--no-header",
+        help="The first line is data. 3 columns are x,y,z; 4 are t,x,y,z.",
+        rich_help_panel=READ_PANEL,
+    ),
 ]
 
 TimeColumn = Annotated[
     str | None,
-    typer.Option("--time-column", metavar="NAME", help="The time column (default: t, time, timestamp, time_s or ts)."),
+    typer.Option(
+        "--time-column",
+        metavar="NAME",
+        help="The time column (default: t, time, timestamp, time_s or ts).",
+        rich_help_panel=READ_PANEL,
+    ),
 ]
 
 TimeUnitOption = Annotated[
@@ -64,6 +77,7 @@ TimeUnitOption = Annotated[
         "--time-unit",
         help="Unit of the time column. auto: from its name (timestamp_ms, t_us), else from its spacing "
         "(a step of 1-1000 is ms, to 1e6 us, to 1e9 ns), with a note.",
+        rich_help_panel=READ_PANEL,
     ),
 ]
 
@@ -81,6 +95,7 @@ SkipRows = Annotated[
         min=0,
         help="Lines before the header to skip. Default: a station's metadata lines (fewer fields than the "
         "header, e.g. Fs,100) are found and skipped, with a note.",
+        rich_help_panel=READ_PANEL,
     ),
 ]
 
@@ -90,6 +105,7 @@ Decimal = Annotated[
         "--decimal",
         help="The numbers' decimal mark. Default: ',' when every number of a ; or tab separated file has one "
         "(European spreadsheet exports), else '.'.",
+        rich_help_panel=READ_PANEL,
     ),
 ]
 
@@ -98,6 +114,7 @@ DropIncomplete = Annotated[
     typer.Option(
         "--drop-incomplete",
         help="Drop a last line cut short (a logger stopped mid-write) with a warning, instead of exit 2.",
+        rich_help_panel=READ_PANEL,
     ),
 ]
 
@@ -112,6 +129,10 @@ Rate = Annotated[
 
 Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing on stderr unless there is an error.")]
 
+Verbose = Annotated[
+    bool, typer.Option("--verbose", "-v", help="Also print the detail: per pose (and per block of a log) its figures.")
+]
+
 StreamOption = Annotated[
     str | None,
     typer.Option(
@@ -121,6 +142,7 @@ StreamOption = Annotated[
         "log, /imu/data_raw in a ROS bag (`tumblecal logs FILE` lists them). A stream that carries several sensors "
         "(sensor_combined, IMU, a bag's Imu topic) gives the one --sensor names. "
         "[default: the log's one raw stream of --sensor]",
+        rich_help_panel=READ_PANEL,
     ),
 ]
 
@@ -131,6 +153,7 @@ AllowCorrected = Annotated[
         help="Read a stream the autopilot has already corrected (PX4's sensor_combined, vehicle_imu; ArduPilot's "
         "IMU, ACC, GYR and MAG unless the log's PARM holds no calibration; a bag's imu/data): refused "
         "without it, as a fit of it calibrates the residual, not the sensor.",
+        rich_help_panel=READ_PANEL,
     ),
 ]
 
@@ -186,6 +209,7 @@ RowsArePoses = Annotated[
         "an unlabelled file with no time column whose rows turn from one to the next by more than 10° is taken "
         "so, with a note. [default: by the rows]",
         show_default=False,
+        rich_help_panel=READ_PANEL,
     ),
 ]
 
@@ -197,6 +221,7 @@ Start = Annotated[
         help="Read from here on: seconds from the capture's first reading (by its time column, or --rate), or "
         "a 0-based data row with an r (1200r: the rows the notes and a calibration's poses give). [default: "
         "the first reading]",
+        rich_help_panel=READ_PANEL,
     ),
 ]
 
@@ -206,6 +231,7 @@ End = Annotated[
         "--end",
         metavar="S|Nr",
         help="Read up to here, this reading included: seconds or a data row, as --start. [default: the last reading]",
+        rich_help_panel=READ_PANEL,
     ),
 ]
 
@@ -293,6 +319,8 @@ NominalGain = Annotated[
 ]
 
 CHECKS_PANEL = "Quality checks (exit 3)"
+
+SOLVER_PANEL = "Solver details"
 
 UNIT_PANEL = "Traceability"
 

@@ -90,6 +90,9 @@ def noise(
     start: Start = None,
     end: End = None,
     quiet: Quiet = False,
+    verbose: Annotated[
+        bool, typer.Option("--verbose", "-v", help="Also print the cluster times each figure was read at.")
+    ] = False,
 ) -> None:
     """Allan deviation of a still capture (overlapping, octave cluster times, with its confidence
     band) and the noise figures read off it (IEEE Std 952): noise density at τ = 1 s, bias
@@ -98,7 +101,7 @@ def noise(
 
     \b
       tumblecal noise still.csv --rate 100
-      tumblecal noise gyro.csv --sensor gyroscope --cal gyro.json --limits limits.yaml --json
+      tumblecal noise gyro.csv --sensor gyroscope --cal gyro.json --limits l.yaml
       tumblecal noise acc.csv --cal acc.json --kalibr imu.yaml --plot adev.png
     """
 
@@ -125,7 +128,7 @@ def noise(
             progress=progress,
             kalibr=kalibr is not None,
         )
-    render.show_noise(done, json_summary=json_summary, quiet=quiet, plot=plot)
+    render.show_noise(done, json_summary=json_summary, shown=render.Shown(quiet, verbose), plot=plot)
     if done.error is not None:
         raise done.error
     if kalibr is not None:

@@ -8,9 +8,8 @@ import json
 import os
 import re
 import sys
-from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from typing import TYPE_CHECKING, TypedDict
+from typing import TYPE_CHECKING, NamedTuple, TypedDict
 
 from tumblecal_cli.errors import PipeClosed, TumblecalError, one_line
 
@@ -21,12 +20,21 @@ if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Finding
     from tumblecal_cli.core.lot import ParameterRow, Report
     from tumblecal_cli.core.model import FloatArray
-    from tumblecal_cli.core.segment import Segmentation
+    from tumblecal_cli.core.segment import Block, Segmentation
     from tumblecal_cli.io.calfile import Calibration
+    from tumblecal_cli.io.calparts import Pose
     from tumblecal_cli.io.readings import Log
     from tumblecal_cli.pipeline.noise import Noise
     from tumblecal_cli.pipeline.summary import Row
     from tumblecal_cli.pipeline.thermal import ThermalResult
+
+
+class Shown(NamedTuple):
+    """How much a command prints for people: nothing but errors (``quiet``), what the user acts
+    on (the default), or that and the detail (``verbose``: per pose, per block)."""
+
+    quiet: bool = False
+    verbose: bool = False
 
 
 def make_console(stderr: bool = True) -> Console:
@@ -166,13 +174,15 @@ def error_dict(err: TumblecalError) -> dict[str, object]:
     return {"code": err.code, "file": err.file, "message": err.message}
 
 
-def print_summary(cal: Calibration, console: Console, warned: list[Finding], notes: list[str], *, judged: bool) -> None:
+def print_summary(
+    cal: Calibration, console: Console, warned: list[Finding], notes: list[str], *, judged: bool, verbose: bool = True
+) -> None:
     """The calibration for people: per axis offset and gain with their uncertainty and tilt
-    sensitivity, per pose its statistics, then warnings, notes and the verdict."""
+    sensitivity (``verbose``: per pose its statistics), then warnings, notes and the verdict."""
     tilt = cal.tilt_sensitivity
-    print_whole(console, _axes_table(cal))
-    if cal.poses:  # an imported calibration has none
-        print_whole(console, _poses_table(cal))
+    print_fitted(console, lambda limit: _axes_table(cal, limit), [one_line(c) for c in cal.columns])
+    if cal.poses and verbose:  # an imported calibration has none
+        print_fitted(console, lambda limit: _poses_table(cal, limit), [_pose_name(cal, p) for p in cal.poses])
     if cal.thermal is not None:
         print_drift(cal, console)
     if cal.current is not None:
@@ -186,19 +196,19 @@ def print_summary(cal: Calibration, console: Console, warned: list[Finding], not
         terms = ", ".join(
             f"{'xyz'[i]}{'xyz'[j]} {cross_term(a, i, j):+.3%}" for i in range(3) for j in range(3) if i != j
         )
-        console.print(f"cross-axis terms (A = M⁻¹, each over its row's gain): {terms}", soft_wrap=True)
+        tell(console, f"cross-axis terms (A = M⁻¹, each over its row's gain): {terms}")
     if cal.coverage is not None:
-        console.print(f"coverage: {cal.coverage:.0%} of the sphere's directions{_gaps(cal)}", soft_wrap=True)
+        tell(console, f"coverage: {cal.coverage:.0%} of the sphere's directions{_gaps(cal)}")
     for line in _place_lines(cal):
-        console.print(line, soft_wrap=True, markup=False)
+        console.print(wrapped(line, console.width, "  "), soft_wrap=True, markup=False)
     if tilt is not None and tilt.tolerance_deg is not None:
-        console.print(f"± tilt: worst-case shift if each pose is {tilt.tolerance_deg:g}° off level", soft_wrap=True)
+        tell(console, f"± tilt: worst-case shift if each pose is {tilt.tolerance_deg:g}° off level")
     if tilt is not None and tilt.gain_tolerance is not None:
-        console.print(_gain_tolerance_line(cal, tilt.gain_tolerance), soft_wrap=True)
+        tell(console, _gain_tolerance_line(cal, tilt.gain_tolerance))
     for w in warned:
-        console.print(f"warning: {w.render()} ({w.code})", style="yellow", soft_wrap=True)
+        tell(console, f"warning: {w.render()} ({w.code})", style="yellow")
     for note in notes:
-        console.print(f"note: {note}", soft_wrap=True)
+        tell(console, f"note: {note}")
     if judged and cal.verdict is not None:
         _print_verdict(console, cal.verdict.passed, cal.verdict.limit_names, cal.verdict.failures)
 
@@ -236,7 +246,7 @@ def _g(v: float | None, digits: int = 6) -> str:
     return "" if v is None else f"{v:.{digits}g}"
 
 
-def _axes_table(cal: Calibration) -> Table:
+def _axes_table(cal: Calibration, limit: int | None = None) -> Table:
     """Per axis: its column, offset and gain, each with its 1-sigma and tilt sensitivity."""
     from rich import box
     from rich.table import Table
@@ -250,54 +260,53 @@ def _axes_table(cal: Calibration) -> Table:
         else {"offset": cal.tilt_sensitivity.offset, "gain": cal.tilt_sensitivity.gain}
     )
     fixed = cal.method in FIXED_GAINS
-    # numbers never wrap or shrink; a long column or file name is what gives way on a narrow terminal
+    # numbers never wrap or shrink; a long column name is what gives way on a narrow terminal (print_fitted)
     axes = Table(title=f"{one_line(cal.method)} calibration", title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
-    for name in ("axis", "column", "offset", "± 1σ", "± tilt", "gain", "± 1σ", "± tilt"):
-        text = name in ("axis", "column")
-        axes.add_column(
-            name,
-            justify="left" if text else "right",
-            no_wrap=not text,
-            min_width=len(name) if text else None,  # the heading whole
-            max_width=14 if text else None,  # ... and a long name folds within it, not widening the table
-            overflow="fold",  # a long column name folds onto a second line rather than losing its end
-        )
+    rows = []
     for i, axis in enumerate("xyz"):
-        cells = [axis, one_line(cal.columns[i])]  # a column named with an ESC or a line break: escaped
+        column = one_line(cal.columns[i])  # a column named with an ESC or a line break: escaped
+        cells = [axis, column if limit is None else middle(column, limit)]
         for name, values in (("offset", cal.offset), ("gain", cal.gain)):
             if name == "gain" and fixed:
                 cells += [_g(float(values[i])), "fixed", ""]
             else:
                 cells += [_g(float(values[i])), _g(_at(se, name, i), 2), _g(_at(tilt, name, i), 2)]
-        axes.add_row(*cells)
+        rows.append(cells)
+    headings = ("axis", "column", "offset", "± 1σ", "± tilt", "gain", "± 1σ", "± tilt")
+    shown = [j for j, name in enumerate(headings) if j < 2 or any(r[j] for r in rows)]  # no empty column
+    for j in shown:
+        axes.add_column(headings[j], justify="left" if j < 2 else "right", no_wrap=True)
+    for r in rows:
+        axes.add_row(*(r[j] for j in shown))
     return axes
 
 
-def _poses_table(cal: Calibration) -> Table:
+def _pose_name(cal: Calibration, p: Pose) -> str:
+    """A pose as the poses table names it: its file (``#N``: a log's block), or a row of a table."""
+    if _one_row(cal, p):  # one row of a table of orientations (the note names its file)
+        return f"row {p.rows[0] + 1}"  # type: ignore[index]
+    return one_line(os.path.basename(p.file or "")) + (f" #{p.block}" if p.block is not None else "")
+
+
+def _one_row(cal: Calibration, p: Pose) -> bool:
+    shared = sum(q.file == p.file for q in cal.poses)
+    return p.block is None and p.rows is not None and p.rows[0] == p.rows[1] and shared > 1
+
+
+def _poses_table(cal: Calibration, limit: int | None = None) -> Table:
     """Per pose: its face, file, samples, angle from its face, mean and standard deviation."""
     from rich import box
     from rich.table import Table
 
     poses = Table(title="poses", title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
     for name in ("pose", "file", "n", "angle", "", "x", "y", "z"):
-        text = name == "file"
-        poses.add_column(
-            name,
-            justify="left" if name in ("pose", "file", "") else "right",
-            no_wrap=not text,
-            min_width=6 if text else None,
-            max_width=14 if text else None,  # a long file name folds, the numbers stay whole
-            overflow="fold",
-        )
-    shared = Counter(p.file for p in cal.poses)
+        poses.add_column(name, justify="left" if name in ("pose", "file", "") else "right", no_wrap=True)
     for p in cal.poses:
-        name = one_line(os.path.basename(p.file or "")) + (f" #{p.block}" if p.block is not None else "")
-        row = p.block is None and p.rows is not None and p.rows[0] == p.rows[1] and shared[p.file] > 1
-        if row:  # one row of a table of orientations (the note names its file): one line, no std
-            name = f"row {p.rows[0] + 1}"  # type: ignore[index]
+        name = _pose_name(cal, p)
+        row = _one_row(cal, p)  # one line, no std
         poses.add_row(
             p.face or "?",
-            name,
+            name if limit is None else middle(name, limit),
             str(p.samples),
             "" if p.angle_deg is None else f"{p.angle_deg:.1f}°",
             "mean",
@@ -313,12 +322,12 @@ def _print_verdict(console: Console, passed: bool, limit_names: Iterable[str], f
     judged_by = ", ".join(k for k in limit_names if k not in ("nominal_gain", "nominal_offset"))
     limits = f"limits: {judged_by}" if judged_by else "no limits judged"
     if passed:
-        console.print(f"verdict: PASS ({limits})", style="bold green", soft_wrap=True)
+        tell(console, f"verdict: PASS ({limits})", style="bold green")
         return
-    console.print(f"verdict: FAIL ({limits})", style="bold red", soft_wrap=True)
+    tell(console, f"verdict: FAIL ({limits})", style="bold red")
     for f in failures:
         where = f"{f.file}: " if f.file else ""
-        console.print(one_line(f"  {f.code}: {where}{f.message}"), style="red", soft_wrap=True)
+        tell(console, one_line(f"  {f.code}: {where}{f.message}"), style="red", indent="    ")
 
 
 def print_whole(console: Console, table: Table) -> None:
@@ -335,37 +344,157 @@ def print_whole(console: Console, table: Table) -> None:
         console.width = width
 
 
+def wrapped(text: str, width: int, indent: str = "  ") -> str:
+    """``text`` wrapped at ``width`` between words, its later lines indented: a note on an
+    80-column terminal, one line in a file or a pipe (width WIDE). A word longer than the width
+    (a path) stays whole."""
+    import textwrap
+
+    if len(text) <= width:
+        return text
+    return textwrap.fill(
+        text, width, subsequent_indent=indent, break_long_words=False, break_on_hyphens=False, drop_whitespace=True
+    )
+
+
+def tell(console: Console, text: str, style: str | None = None, indent: str = "  ") -> None:
+    """A line for people (a note, a warning, the verdict), wrapped at the console's width."""
+    console.print(wrapped(text, console.width, indent), style=style, soft_wrap=True)
+
+
+def middle(name: str, width: int) -> str:
+    """``name`` in at most ``width`` characters, shortened in the middle (``xsens…#1``): its
+    start says what it is, its end which one (a block's number, a file's extension)."""
+    if len(name) <= width:
+        return name
+    if width <= 1:
+        return "…"[:width]
+    tail = (width - 1) // 2
+    return name[: width - 1 - tail] + "…" + name[len(name) - tail :]
+
+
+#: The fewest characters a name is shortened to (``xsens…txt #1``): enough to tell names apart.
+SHORTEST = 12
+
+
+def print_fitted(console: Console, build: Callable[[int | None], Table], names: Sequence[str]) -> None:
+    """A table whose ``names`` (a column of file or column names) give way first on a terminal
+    too narrow for it: ``build(limit)`` makes the table with each name at most ``limit``
+    characters (None: whole), shortened in the middle, never wrapped; the numbers stay whole
+    (print_whole)."""
+    from rich.measure import Measurement
+
+    def natural(table: Table) -> int:  # its width with nothing wrapped or cut
+        return Measurement.get(console, console.options.update_width(WIDE), table).maximum
+
+    table = build(None)
+    longest = max((len(n) for n in names), default=0)
+    if natural(table) > console.width and longest > SHORTEST:
+        table = build(max(SHORTEST, longest - (natural(table) - console.width)))
+    width = console.width
+    console.width = max(width, natural(table))  # what the names cannot give: the terminal wraps it
+    try:
+        console.print(table)
+    finally:
+        console.width = width
+
+
+def iso_time(seconds: float) -> str | None:
+    """A clock that counts from 1970 (years 2001-2286) as ISO 8601 in UTC, to the millisecond;
+    None for any other clock."""
+    from datetime import UTC, datetime
+
+    if not 1e9 <= seconds < 1e10:
+        return None
+    return datetime.fromtimestamp(seconds, UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
 def _at(block: Mapping[str, FloatArray], name: str, i: int) -> float | None:
     values = block.get(name)
     return float(values[i]) if values is not None and values.shape == (3,) else None
 
 
 def print_blocks(
-    log: Log, seg: Segmentation, console: Console, *, used: dict[int, str], everything: bool, notes: bool = False
+    log: Log,
+    seg: Segmentation,
+    console: Console,
+    *,
+    used: dict[int, str],
+    everything: bool,
+    notes: bool = False,
+    table: bool | None = True,
 ) -> None:
     """The blocks for people (the kept ones; ``everything``: the dropped too), how they were
     found, and a hint for each face without a block; ``notes``: first how the log was read
     (solve says that in its summary instead), and hints only for the faces a block was found
-    near (segment cuts what there is: a face never held is no news there)."""
-    from rich import box
-    from rich.table import Table
-
+    near (segment cuts what there is: a face never held is no news there); ``table``: False,
+    one line of counts instead of the table (solve without -v); None, the warnings alone (a
+    rejected solve without -v: the rejection follows)."""
     from tumblecal_cli.core import model as core
     from tumblecal_cli.core import segment
 
     name = log.layout.name
     for note in log.layout.notes if notes else []:
-        console.print(f"note: {note}", soft_wrap=True, markup=False)
+        tell(console, f"note: {note}")
     shown = seg.blocks if everything else seg.kept
-    title = f"still blocks of {os.path.basename(name)}"
+    dropped = len(seg.blocks) - len(seg.kept)
+    if table is None:
+        _block_warnings(seg, console, name)
+        return
+    if not table:
+        why = f" ({seg.dropped_counts()})" if dropped else ""
+        found = f"{len(seg.kept)} of {count(len(seg.blocks), 'still block')} kept{why}; -v lists them"
+        tell(console, f"{os.path.basename(name)}: {found}")
+    elif shown:
+        print_whole(console, _blocks_table(log, seg, shown, used, console.width))
+    if dropped and not everything and table:
+        tell(console, f"{dropped} more dropped ({seg.dropped_counts()}); -v lists them")
+    if seg.threshold is not None and table:
+        if seg.noise_floor is None:
+            how = "given"
+        elif seg.threshold == segment.FLOOR_FACTOR * seg.noise_floor:
+            how = f"{segment.FLOOR_FACTOR:g} x the noise floor {seg.noise_floor:.4g}"
+        else:  # readings that do not vary at all when still (segment.detect)
+            how = f"the noise floor is {seg.noise_floor:.4g}: still means no spread at all"
+        window = f"{seg.window * seg.period:.3g} s" if seg.period else f"{seg.window} samples"
+        tell(
+            console,
+            f"threshold {seg.threshold:.4g} ({how}; rolling std over {window}); "
+            f"{len(seg.blocks)} block{'' if len(seg.blocks) == 1 else 's'} found, {len(seg.kept)} kept",
+        )
+    _block_warnings(seg, console, name)
+    best = seg.best()
+    tell(console, f"faces: {' '.join(f for f in core.FACES if f in best) or 'none'}")
+    faces = [f for f in core.FACES if not notes or any(b.nearest == f for b in seg.blocks)]
+    for hint in segment.missing(seg, faces):
+        tell(console, f"hint: {hint}")
+
+
+def _block_warnings(seg: Segmentation, console: Console, name: str) -> None:
+    for warning in seg.warnings:
+        tell(console, f"warning: {warning}", style="yellow")
+    if seg.gaps:
+        first = f" (the first after data row {seg.gap_rows[0]})" if seg.gap_rows else ""
+        gaps = f"{len(seg.gaps)} gap{'s' if len(seg.gaps) > 1 else ''} in time{first}"
+        tell(console, f"warning: {name}: {gaps}; no block spans a gap", style="yellow")
+
+
+def _blocks_table(log: Log, seg: Segmentation, shown: Sequence[Block], used: dict[int, str], width: int) -> Table:
+    """Per block: its number, rows, start, length, face, angle, spread and what became of it."""
+    from rich import box
+    from rich.table import Table
+
+    starts = [_start(log, seg, b) for b in shown]
+    days = {t[:10] for t in starts if t.endswith("Z")}
+    day = days.pop() if len(days) == 1 and all(t.endswith("Z") for t in starts) else None
+    if day is not None:  # one day's epoch clock: the date once, in the title; each start its time of day
+        starts = [t[11:-1] for t in starts]
+    title = f"still blocks of {os.path.basename(log.layout.name)}" + (f", {day} UTC" if day else "")
+    title = middle(title, width)
     table = Table(title=title, title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False, collapse_padding=True)
     for col in ("block", "rows", "start", "length", "face", "angle", "std", "status"):  # fits 80 columns
         table.add_column(col, justify="left" if col in ("face", "status", "rows") else "right", no_wrap=col != "status")
-    for b in shown:
-        if log.clock is not None:
-            start = f"{float(log.clock[b.first]):.6g}"
-        else:
-            start = "" if seg.period is None else f"{log.reading(b.first) * seg.period:.4g} s"
+    for b, start in zip(shown, starts, strict=True):
         table.add_row(
             str(b.number),
             f"{int(log.rows[b.first])}-{int(log.rows[b.last])}",
@@ -376,39 +505,16 @@ def print_blocks(
             f"{float(b.std.max()):.3g}",
             used.get(b.number, "kept") if b.kept else f"dropped: {b.dropped}",
         )
-    if shown:
-        console.print(table)
-    dropped = len(seg.blocks) - len(seg.kept)
-    if dropped and not everything:
-        console.print(f"{dropped} more dropped ({seg.dropped_counts()}); -v lists them", soft_wrap=True)
-    if seg.threshold is not None:
-        if seg.noise_floor is None:
-            how = "given"
-        elif seg.threshold == segment.FLOOR_FACTOR * seg.noise_floor:
-            how = f"{segment.FLOOR_FACTOR:g} x the noise floor {seg.noise_floor:.4g}"
-        else:  # readings that do not vary at all when still (segment.detect)
-            how = f"the noise floor is {seg.noise_floor:.4g}: still means no spread at all"
-        window = f"{seg.window * seg.period:.3g} s" if seg.period else f"{seg.window} samples"
-        console.print(
-            f"threshold {seg.threshold:.4g} ({how}; rolling std over {window}); "
-            f"{len(seg.blocks)} block{'' if len(seg.blocks) == 1 else 's'} found, {len(seg.kept)} kept",
-            soft_wrap=True,
-        )
-    for warning in seg.warnings:
-        console.print(f"warning: {warning}", style="yellow", soft_wrap=True)
-    if seg.gaps:
-        first = f" (the first after data row {seg.gap_rows[0]})" if seg.gap_rows else ""
-        console.print(
-            f"warning: {name}: {len(seg.gaps)} gap{'s' if len(seg.gaps) > 1 else ''} in time{first}; "
-            "no block spans a gap",
-            style="yellow",
-            soft_wrap=True,
-        )
-    best = seg.best()
-    console.print(f"faces: {' '.join(f for f in core.FACES if f in best) or 'none'}", soft_wrap=True)
-    faces = [f for f in core.FACES if not notes or any(b.nearest == f for b in seg.blocks)]
-    for hint in segment.missing(seg, faces):
-        console.print(f"hint: {hint}", soft_wrap=True)
+    return table
+
+
+def _start(log: Log, seg: Segmentation, b: Block) -> str:
+    """When a block starts: an epoch clock's time in ISO 8601 (UTC), another clock's in seconds,
+    or its reading over the rate (no time column)."""
+    if log.clock is not None:
+        seconds = float(log.clock[b.first]) * log.scale
+        return iso_time(seconds) or f"{seconds:.6g} s"
+    return "" if seg.period is None else f"{log.reading(b.first) * seg.period:.4g} s"
 
 
 def count(n: int, noun: str) -> str:
@@ -506,28 +612,32 @@ def print_verify(
 
     console = make_console()
     units = f" {cal.units}" if cal.units else ""
-    table = Table(
-        title=f"{cal.method} calibration on {len(rows)} capture{'s' if len(rows) > 1 else ''}, "
-        f"reference {ref:g}{units}",
-        title_justify="left",
-        box=box.SIMPLE_HEAD,
-        pad_edge=False,
-    )
-    for name in ("file", "n", "|mean| raw", "error", "|corrected|", "error", ""):
-        table.add_column(name, justify="left" if name in ("file", "") else "right", no_wrap=name != "file")
-    for r in rows:
-        before = "" if r["error_before"] is None else f"{r['error_before']:+.4g}"
-        mark = "FAIL" if r["file"] in failed else ""
-        table.add_row(
-            os.path.basename(str(r["file"])),
-            str(r["samples"]),
-            f"{r['norm_before']:.6g}",
-            before,
-            f"{r['norm_after']:.6g}",
-            f"{r['error_after']:+.4g}",
-            mark,
+    names = [one_line(os.path.basename(str(r["file"]))) for r in rows]
+
+    def build(limit: int | None) -> Table:  # a long file name shortened in the middle (print_fitted)
+        table = Table(
+            title=f"{cal.method} calibration on {len(rows)} capture{'s' if len(rows) > 1 else ''}, "
+            f"reference {ref:g}{units}",
+            title_justify="left",
+            box=box.SIMPLE_HEAD,
+            pad_edge=False,
         )
-    console.print(table)
+        for name in ("file", "n", "|mean| raw", "error", "|corrected|", "error", *([""] if failed else [])):
+            table.add_column(name, justify="left" if name in ("file", "") else "right", no_wrap=True)
+        for r, name in zip(rows, names, strict=True):
+            before = "" if r["error_before"] is None else f"{r['error_before']:+.4g}"
+            table.add_row(
+                name if limit is None else middle(name, limit),
+                str(r["samples"]),
+                f"{r['norm_before']:.6g}",
+                before,
+                f"{r['norm_after']:.6g}",
+                f"{r['error_after']:+.4g}",
+                *(["FAIL" if r["file"] in failed else ""] if failed else []),
+            )
+        return table
+
+    print_fitted(console, build, names)
     judged = f", limit ±{bound:g}" if bound is not None else ""
     verdict = "FAIL" if failed else "PASS" if bound is not None else "not judged"
     if "rms_error_before" in overall:
@@ -662,9 +772,9 @@ def print_thermal(done: ThermalResult, console: Console) -> None:
     )
     print_drift(done.calibration, console)
     for w in done.warnings:
-        console.print(f"warning: {w.render()} ({w.code})", style="yellow", soft_wrap=True)
+        tell(console, f"warning: {w.render()} ({w.code})", style="yellow")
     for note in done.notes:
-        console.print(f"note: {note}", soft_wrap=True)
+        tell(console, f"note: {note}")
 
 
 def print_drift(cal: Calibration, console: Console) -> None:
@@ -713,9 +823,11 @@ def samples_progress(console: Console, *, enabled: bool) -> Iterator[Callable[[i
         yield lambda n: progress.update(task, completed=n)
 
 
-def show_noise(done: Noise, *, json_summary: bool, quiet: bool, plot: str | None) -> None:
+def show_noise(done: Noise, *, json_summary: bool, shown: Shown, plot: str | None) -> None:
     """noise's figures: the --plot and the --json object (not for a rejected capture: it
-    writes nothing), then the table, verdict and notes for people on stderr."""
+    writes nothing), then the table, why a figure is not determined (-v: the cluster times
+    each was read at), verdict and notes for people on stderr."""
+    quiet = shown.quiet
     if plot is not None and done.error is None:
         from tumblecal_cli.core import allan
         from tumblecal_cli.io import plots
@@ -724,7 +836,7 @@ def show_noise(done: Noise, *, json_summary: bool, quiet: bool, plot: str | None
         plots.noise_figure(plot, done.curve, allan.figures(done.curve), done.units, title=done.file)
     if json_summary:
         print_json(done.to_dict())
-    if quiet:
+    if quiet or done.error is not None:  # a rejected capture: its rejection alone, no figures before it
         return
     console = make_console()
     seconds = done.samples / done.rate
@@ -734,20 +846,21 @@ def show_noise(done: Noise, *, json_summary: bool, quiet: bool, plot: str | None
     table, lines = _noise_table(done)
     print_whole(console, table)
     for line in lines:
-        console.print(line, soft_wrap=True)
+        if shown.verbose or "not determined" in line:
+            tell(console, line)
     for note in done.notes:
-        console.print(f"note: {note}", soft_wrap=True)
+        tell(console, f"note: {note}")
     verdict = done.verdict()
-    if verdict is not None and done.error is None:
+    if verdict is not None:
         unjudged: dict[str, list[str]] = {}
         for item in verdict["not_judged"]:  # "random_walk.x"
             name, _, axis = item.partition(".")
             unjudged.setdefault(name, []).append(axis)
         for name, axes in unjudged.items():
-            console.print(
+            tell(
+                console,
                 f"warning: {name} has a limit but is not determined on {', '.join(axes)}: not judged there",
                 style="yellow",
-                soft_wrap=True,
             )
         _print_verdict(console, bool(verdict["pass"]), verdict["limits"], done.failures)
 

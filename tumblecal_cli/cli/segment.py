@@ -9,6 +9,7 @@ import typer
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
 from tumblecal_cli.cli.flags import (
+    LOG_PANEL,
     AllowCorrected,
     Columns,
     Decimal,
@@ -49,7 +50,13 @@ enough); 2 usage or input error (bad file or option, a time column that goes bac
 still block kept. Nothing is written on 2 or 3."""
 
 
-@app.command(cls=Command, epilog=SEGMENT_EXIT)
+class SegmentCommand(Command):
+    """segment's help describes how blocks are found: its job."""
+
+    first_panels = (*Command.first_panels, LOG_PANEL)
+
+
+@app.command(cls=SegmentCommand, epilog=SEGMENT_EXIT)
 def segment(
     log: Annotated[str, typer.Argument(metavar="LOG", help="The continuous log, one CSV ('-' reads stdin).")],
     out_dir: Annotated[
@@ -125,10 +132,9 @@ def segment(
 
     \b
       tumblecal segment session.csv --out-dir poses/
-      tumblecal solve --poses poses/xp.csv poses/xn.csv poses/yp.csv poses/yn.csv poses/zp.csv poses/zn.csv
-      tumblecal segment session.csv --rate 102.4 > segments.csv       # the index only
-      tumblecal segment session.csv --plot blocks.png -d poses/        # and a picture of the blocks
-      tumblecal segment annotated.csv --pose-column part --pose-map x_p=+x,x_a=-x,y_p=+y,y_a=-y,z_p=+z,z_a=-z -d poses/
+      tumblecal solve --poses poses/[xyz][pn].csv -o cal.json
+      tumblecal segment session.csv --rate 102.4 > segments.csv   # the index only
+      tumblecal segment session.csv --plot blocks.png -d poses/    # and a picture
     """
 
     from tumblecal_cli.pipeline import logs
@@ -182,9 +188,9 @@ def _written(done: Segmented, out_dir: str) -> None:
     """What segment --out-dir wrote, and removed."""
     console = render.make_console()
     if done.stale:
-        console.print(
+        render.tell(
+            console,
             f"note: removed {done.stale} staging folder(s) an earlier, interrupted segment run left in {out_dir}",
-            soft_wrap=True,
         )
     gone = f"; removed {done.removed} block files of the earlier segmentation" if done.removed else ""
     kept = len(done.blocks.seg.kept)

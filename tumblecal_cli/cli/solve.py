@@ -13,6 +13,7 @@ from tumblecal_cli.cli.app import ManyValuesCommand, app
 from tumblecal_cli.cli.flags import (
     CHECKS_PANEL,
     EXIT_CODES,
+    SOLVER_PANEL,
     UNIT_PANEL,
     AccelCal,
     AlignTo,
@@ -52,6 +53,7 @@ from tumblecal_cli.cli.flags import (
     Trim,
     TurnAngle,
     Turns,
+    Verbose,
     Window,
 )
 from tumblecal_cli.errors import InputError
@@ -82,9 +84,8 @@ def solve(
             "--log",
             metavar="FILE",
             help="Instead of --poses: one continuous log, cut into still blocks as `tumblecal segment` does. "
-            "Face solvers take the best block of each face (the least tilted of those nearly as long as its "
-            "longest); sphere takes every kept block. auto: six-pose for six faces that agree, else sphere "
-            "for 12+ blocks, else six-pose-magnitude, least-squares (five faces) or three-pose. '-' reads stdin.",
+            "Face solvers take the best block of each face (the least tilted of the longest); sphere takes "
+            "every kept block. '-' reads stdin.",
         ),
     ] = None,
     window: Window = None,
@@ -131,12 +132,10 @@ def solve(
         typer.Option(
             "--method",
             "-m",
-            help="The solver (docs/commands/solve.md). auto: one-pose for 1 file, three-pose for one face per "
-            "axis (+x +y +z, or -z -x +y ...); for the six faces six-pose when opposite faces agree on their axis "
-            "within 1.5° (a fixture), else six-pose-magnitude (placed by hand); least-squares for 4+ labelled, "
-            "sphere for 12+ unlabelled; "
-            "ellipsoid for a magnetometer, gyro-bias for a gyroscope (ferraris-turns with --turns). "
-            "The summary says why.",
+            metavar="NAME",
+            help="The solver: auto (the summary says what it chose and why: docs/commands/solve.md), "
+            "one-pose, one-pose-tilt, three-pose, six-pose, six-pose-diagonal, six-pose-magnitude, least-squares, "
+            "sphere, minmax, ellipsoid, gyro-bias, ferraris-turns, rotations.",
         ),
     ] = MethodName.auto,
     sensor: Sensor = SensorKind.accelerometer,
@@ -148,6 +147,7 @@ def solve(
             "--tilt-compensate",
             help="1-pose: take the attitude from the readings, so fixture tilt leaves the up offset alone "
             "(method one-pose-tilt).",
+            rich_help_panel=SOLVER_PANEL,
         ),
     ] = False,
     bias_spread: Annotated[
@@ -157,18 +157,31 @@ def solve(
             metavar="V",
             help="one-pose-tilt: the spread (1σ) of the horizontal offsets, in the file's units; it bounds "
             "the up offset's error. [default: 0.01 x reference]",
+            rich_help_panel=SOLVER_PANEL,
         ),
     ] = None,
     plane: Annotated[
         PlaneName | None,
-        typer.Option("--plane", help="minmax: the capture turned in one plane only (2-D); that plane's axes."),
+        typer.Option(
+            "--plane",
+            help="minmax: the capture turned in one plane only (2-D); that plane's axes.",
+            rich_help_panel=SOLVER_PANEL,
+        ),
     ] = None,
     units: Annotated[
         str | None,
-        typer.Option("--units", metavar="TEXT", help="Label of the corrected units (default 'g' for reference 1)."),
+        typer.Option(
+            "--units",
+            metavar="TEXT",
+            help="Label of the corrected units (default 'g' for reference 1).",
+            rich_help_panel=SOLVER_PANEL,
+        ),
     ] = None,
     input_units: Annotated[
-        str | None, typer.Option("--input-units", metavar="TEXT", help="Label of the raw units, e.g. counts.")
+        str | None,
+        typer.Option(
+            "--input-units", metavar="TEXT", help="Label of the raw units, e.g. counts.", rich_help_panel=SOLVER_PANEL
+        ),
     ] = None,
     rows_are_poses: RowsArePoses = None,
     location: Location = None,
@@ -186,6 +199,7 @@ def solve(
     end: End = None,
     json_summary: JsonSummary = False,
     quiet: Quiet = False,
+    verbose: Verbose = False,
     plot: Annotated[
         str | None,
         typer.Option(
@@ -320,14 +334,14 @@ def solve(
 ) -> None:
     """Average each pose file, check it, solve for the offsets (and gains), judge the unit.
 
-    Writes the calibration on exit 0 (pass) and 1 (outside its limits), nothing on 2 or 3.
-
     \b
-      tumblecal solve --poses x.csv y.csv z.csv -o cal.json     # 3-pose
-      tumblecal solve --poses z.csv -o cal.yaml                 # 1-pose, +z up
-      tumblecal solve --poses z.csv --up=-x --reference 16384   # counts, -x up
-      tumblecal solve -p x.csv y.csv z.csv -o cal.json --limits limits.yaml --serial A17 --json
-      tumblecal solve --log session.csv --rate 102.4 --reference 9.81 -o cal.json   # one continuous log
+      tumblecal solve --poses x.csv y.csv z.csv -o cal.json   # 3-pose
+      tumblecal solve --poses z.csv --up=-x --reference 16384 # 1-pose, counts
+      tumblecal solve -p x.csv y.csv z.csv -o cal.json --limits limits.yaml
+      tumblecal solve --log session.csv --reference 9.81 -o cal.json
+
+    Writes the calibration on exit 0 (pass) and 1 (outside its limits), nothing on 2 or 3;
+    prints it, the verdict, warnings and notes (-v: each pose and block too).
     """
 
     options = solve_options(**{name: value for name, value in locals().items() if name in OPTION_NAMES})
@@ -345,7 +359,8 @@ def solve(
     if plot is not None:
         _plot_target(plot, output, json_summary, inputs)
     solved = pipeline.run(options, poses=poses, log=log)
-    _show(solved, output=output, json_summary=json_summary, quiet=quiet, plot=plot, plane=plane and plane.value)
+    shown = render.Shown(quiet=quiet, verbose=verbose)
+    _show(solved, output=output, json_summary=json_summary, shown=shown, plot=plot, plane=plane and plane.value)
 
 
 def solve_options(
@@ -470,16 +485,21 @@ def solve_options(
 OPTION_NAMES = tuple(inspect.signature(solve_options).parameters)
 
 
-def _show(solved: Solved, *, output: str, json_summary: bool, quiet: bool, plot: str | None, plane: str | None) -> None:
-    """The blocks of a log, the calibration's summary, the --json summary; the calibration
-    written (exit 0 and 1), or the rejection raised (exit 3)."""
+def _show(
+    solved: Solved, *, output: str, json_summary: bool, shown: render.Shown, plot: str | None, plane: str | None
+) -> None:
+    """The blocks of a log (-v: their table), the calibration's summary, the --json summary;
+    the calibration written (exit 0 and 1), or the rejection raised (exit 3): the rejection
+    alone, with no results before it (-v: the draft's, for inspection)."""
     console = render.make_console()
-    if solved.blocks is not None and not quiet:
-        render.print_blocks(solved.blocks.log, solved.blocks.seg, console, used=solved.blocks.used, everything=False)
+    quiet, verbose = shown.quiet, shown.verbose
     cal, draft = solved.calibration, solved.draft
+    if solved.blocks is not None and not quiet:  # rejected: the log's warnings alone, unless -v
+        blocks, table = solved.blocks, verbose or (False if cal is not None else None)
+        render.print_blocks(blocks.log, blocks.seg, console, used=blocks.used, everything=False, table=table)
     if cal is None:
         assert solved.error is not None
-        if draft is not None and not quiet:
+        if draft is not None and verbose and not quiet:
             render.print_summary(draft, console, solved.warnings, solved.notes, judged=False)
         if json_summary:
             render.print_json(
@@ -494,7 +514,7 @@ def _show(solved: Solved, *, output: str, json_summary: bool, quiet: bool, plot:
         plotting.solve_plot(plot, solved, plane)
     cal.save(output)
     if not quiet:
-        render.print_summary(cal, console, solved.warnings, solved.notes, judged=True)
+        render.print_summary(cal, console, solved.warnings, solved.notes, judged=True, verbose=verbose)
         if output != "-":
             console.print(f"wrote {output}", soft_wrap=True)
     if json_summary:

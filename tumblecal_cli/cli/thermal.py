@@ -115,7 +115,7 @@ def thermal(
 
     \b
       tumblecal thermal +z=up.csv -z=down.csv --cal base.json -o base-thermal.json
-      tumblecal thermal sweep.csv --cal gyro.json --temperature-column die_temp -o gyro-thermal.json
+      tumblecal thermal sweep.csv --cal g.json --temperature-column die -o gt.json
     """
     from tumblecal_cli.errors import InputError
     from tumblecal_cli.io.outputs import check_not_input, check_writable

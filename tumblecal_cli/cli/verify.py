@@ -161,10 +161,10 @@ def verify(
     )
     if json_summary:
         render.print_json(_summary(done, cal, max_norm_error))
-    if not quiet:
+    if not quiet and done.error is None:  # a capture that is not static: its rejection alone
         render.print_verify(done.cal, done.rows, done.overall, done.reference, max_norm_error, done.failed)
         for note in done.notes:
-            render.make_console().print(f"note: {note}", soft_wrap=True, markup=False)
+            render.tell(render.make_console(), f"note: {note}")
     if done.error is not None:
         raise done.error
     if plot is not None:  # exit 0 and 1: the errors are what the figure shows

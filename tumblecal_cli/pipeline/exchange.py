@@ -303,22 +303,63 @@ def _peer_reference(peer: Peer, path: str) -> float:
     )
 
 
+#: Tilt past this many times a parameter's noise (1σ) is worth a note even with no limit near.
+TILT_OVER_NOISE = 10.0
+
+
 def tilt_notes(cal: Calibration) -> list[str]:
-    """A note when fixture tilt, not noise, bounds how well the parameters are known."""
+    """A note when fixture tilt, not noise, bounds how well the parameters are known, said only
+    where that changes a decision: a parameter that the tilt (over 3 times its noise) could move
+    past one of its limits, or that it moves by more than 10 times its noise. A station's every
+    run with a tilt a few times the noise and no limit near is no news."""
     tilt, se = cal.tilt_sensitivity, cal.uncertainty
     if tilt is None or not se:
         return []
     shifts = {"offset": tilt_only(cal), "gain": [float(v) for v in tilt.gain]}
-    dominated = [n for n in ("offset", "gain") if any(t > 3 * u for t, u in zip(shifts[n], se[n], strict=True))]
+    noise = {n: [float(v) for v in se[n]] if n in se else [0.0, 0.0, 0.0] for n in shifts}
+    crossing = _limits_in_reach(cal, shifts)
+    dominated = [
+        n
+        for n in ("offset", "gain")
+        if any(
+            t > 3 * u and (t > TILT_OVER_NOISE * u or (n, i) in crossing)
+            for i, (t, u) in enumerate(zip(shifts[n], noise[n], strict=True))
+        )
+    ]
     if not dominated:
         return []
-    worst = " and ".join(f"the {n}s by up to {max(shifts[n]):.2g} (noise: {max(se[n]):.2g})" for n in dominated)
+    worst = " and ".join(f"the {n}s by up to {max(shifts[n]):.2g} (noise: {max(noise[n]):.2g})" for n in dominated)
+    past = {
+        n: [("xyz"[i]) for i in range(3) if (n, i) in crossing and shifts[n][i] > 3 * noise[n][i]] for n in dominated
+    }
+    across = " and the ".join(f"{', '.join(a)} {n}{'s' if len(a) > 1 else ''}" for n, a in past.items() if a)
+    limit = f", enough to cross the limits of the {across}" if across else ""
     advice = "level the fixture better and state how well with --fixture-tolerance"
     if cal.method in ("one-pose", "three-pose"):
         advice += ", or capture the six faces (six-pose takes offsets and gains from vertical readings only)"
     level = tilt.tolerance_deg  # a file from elsewhere may not say at what tilt
     off = f"{level:g}° off level" if level is not None else "the fixture's tilt"
-    return [f"fixture tilt, not noise, limits this calibration: {off} moves {worst}; " + advice]
+    return [f"fixture tilt, not noise, limits this calibration: {off} moves {worst}{limit}; " + advice]
+
+
+def _limits_in_reach(cal: Calibration, shifts: dict[str, list[float]]) -> set[tuple[str, int]]:
+    """The (parameter, axis) whose limit lies within its tilt shift of its value: fixture tilt
+    alone could take it across (inside or out), so the verdict rests on the fixture."""
+    limits = cal.verdict.limits if cal.verdict is not None else None
+    found: set[tuple[str, int]] = set()
+    if limits is None:
+        return found
+    for i in range(3):
+        if limits.offset is not None:
+            distance = abs(float(cal.offset[i]) - float(limits.nominal_offset[i]))
+            if abs(distance - float(limits.offset[i])) <= shifts["offset"][i]:
+                found.add(("offset", i))
+        if limits.gain_error is not None:
+            nominal = float(limits.nominal_gain[i])
+            error = abs(float(cal.gain[i]) / nominal - 1)
+            if abs(error - float(limits.gain_error[i])) <= shifts["gain"][i] / abs(nominal):
+                found.add(("gain", i))
+    return found
 
 
 def tilt_only(cal: Calibration) -> list[float]:
