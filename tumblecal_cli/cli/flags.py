@@ -170,6 +170,9 @@ def source(stream: str | None, allow_corrected: bool) -> Source:
     return {"stream": stream, "allow_corrected": allow_corrected}
 
 
+#: --location, --gravity and --date: the reference where the unit is (docs/real-world.md)
+PLACE_PANEL = "The reference where you are"
+
 Location = Annotated[
     str | None,
     typer.Option(
@@ -178,6 +181,7 @@ Location = Annotated[
         help="Where the unit was calibrated (degrees north, east; metres above the WGS-84 ellipsoid): the "
         "reference becomes local gravity (WGS-84 normal gravity) in g or m/s^2, or with --date a magnetometer's "
         "Earth field (World Magnetic Model WMM2025) in uT or gauss. Instead of --reference.",
+        rich_help_panel=PLACE_PANEL,
     ),
 ]
 
@@ -188,6 +192,7 @@ Gravity = Annotated[
         metavar="M/S2",
         help="Local gravity as measured, in m/s^2: the reference in the calibration's units (g or m/s^2). "
         "Instead of --reference and --location.",
+        rich_help_panel=PLACE_PANEL,
     ),
 ]
 
@@ -198,6 +203,7 @@ Date = Annotated[
         metavar="YYYY-MM-DD",
         help="With --location, the day a magnetometer was logged: the Earth's field of that day (WMM2025: "
         "2025-01-01 to 2029-12-31).",
+        rich_help_panel=PLACE_PANEL,
     ),
 ]
 

@@ -122,8 +122,8 @@ def solve(
             "--reference",
             metavar="NUMBER",
             help="The stimulus magnitude in the units the corrected data should have: 1 (g), "
-            "9.80665 (m/s^2), 16384 (LSB at +-2 g), the local field for a magnetometer. "
-            "The 1-pose solver has no gains, so there it must be in the file's units. "
+            "9.80665 (m/s^2), 16384 (LSB at +-2 g), a magnetometer's field (or --location). "
+            "1-pose has no gains: there it is in the file's units. "
             "[default: 1, or 0 for a gyroscope]",
         ),
     ] = None,
@@ -205,8 +205,8 @@ def solve(
         typer.Option(
             "--plot",
             metavar="PNG",
-            help="Also draw the poses' norms before and after calibration against the reference, with residual "
-            "bars (a magnetometer: its samples in three planes with the fitted ellipse); needs tumblecal[plot].",
+            help="Also draw the fit: each pose's residual after calibration with the limits, before on its own "
+            "axes (docs/plots.md); needs tumblecal[plot].",
         ),
     ] = None,
     # -- quality checks (exit 3) --
