@@ -62,8 +62,8 @@ FUZZ_SEED ?= 1
 fuzz: $(VENV)/.installed
 	$(BIN)/python tests/fuzz.py --cases $(FUZZ_CASES) --seed $(FUZZ_SEED)
 
-# polars is the baseline `apply` is measured against (the script a user would write instead):
-# installed into the venv for the benchmark only, like pandas it is no dependency of a command
+# polars is the baseline `apply`, `segment` and `solve --log` are measured against (the scripts a user
+# would write instead): installed into the venv for the benchmark only, like pandas it is no dependency of a command
 bench: $(VENV)/.installed
 	$(BIN)/python -m pip install --quiet polars
 	$(BIN)/python tests/bench.py

@@ -14,8 +14,13 @@ five runs each, taking turns; elsewhere the best of a few runs.
     solve, 3 poses      vs  python -c "import pandas, numpy"               (start-up)
     segment, 600k rows  vs  python -c "import pandas; pandas.read_csv(f)"  (target <= 1.5x)
     segment, solve --log, 20M rows (a 5.6 h tumble session)  vs  the same read_csv; peak memory
+    segment, solve --log, 5M and 20M rows of 20 s still and 3 s turning  vs  POLARS_BLOCKS, the
+                           polars script of the still blocks (rolling spread, threshold, runs,
+                           block means; target <= 1.5x its wall time, peak memory <= its own),
+                           five runs each taking turns, the median
     batch, 200 units    vs  a shell loop calling `tumblecal solve` per unit (target: 20x the units/s)
     noise, 10M samples  vs  pandas.read_csv + allantools.oadev per axis (octave taus), the same file
+                           (three runs each taking turns, the median; target <= 0.3x)
     noise peak memory   10M samples / 2.5M samples  (streaming: ~1, not ~4)
     ULog stream, 100 MB vs pyulog.ULog(f, message_name_filter_list=["sensor_accel"]), the same log
                            (sensor_accel and sensor_gyro, two instances each, 1 kHz); peak memory
@@ -25,7 +30,8 @@ five runs each, taking turns; elsewhere the best of a few runs.
     ROS bag stream, 100 MB  vs  rosbags' AnyReader and deserialize of that topic, the same bag (a ROS 1
                            bag, and a ROS 2 bag in MCAP storage: two Imu topics at 1 kHz); peak memory
 
-`python tests/bench.py noise` runs the noise lines alone, `python tests/bench.py ulog` the ULog one,
+`python tests/bench.py pace` runs the lines against POLARS_BLOCKS and the noise lines, `python tests/bench.py noise`
+the noise lines alone, `python tests/bench.py ulog` the ULog one,
 `python tests/bench.py dataflash` the DataFlash one, `python tests/bench.py ros` the ROS ones.
 """
 
@@ -55,6 +61,18 @@ for path in sys.argv[3:]:
     v = [pl.col(n) - b[i] for i, n in enumerate(c)]
     exprs += [(M[r][0] * v[0] + M[r][1] * v[1] + M[r][2] * v[2]).alias(c[r]) for r in range(3)]
 pl.scan_csv(sys.argv[1]).with_columns(exprs).sink_csv(sys.argv[2])
+"""
+
+#: What a user would write instead of `segment` or `solve --log` to find a log's still blocks
+#: (polars, installed by `make bench` only), verbatim: python -c POLARS_BLOCKS log.csv
+POLARS_BLOCKS = """
+import sys, polars as pl
+lf = pl.scan_csv(sys.argv[1]); cols = ["ax", "ay", "az"]
+lf = lf.with_columns([pl.col(c).rolling_std(100, center=True).alias(c + "_s") for c in cols])
+lf = lf.with_columns((pl.max_horizontal([pl.col(c + "_s") for c in cols]) < 0.01).alias("still"))
+lf = lf.with_columns((pl.col("still") != pl.col("still").shift(1)).cum_sum().alias("run"))
+res = (lf.filter(pl.col("still")).group_by("run").agg([pl.col(c).mean() for c in cols] + [pl.len().alias("n")])
+       .filter(pl.col("n") >= 500).collect())
 """
 
 
@@ -203,6 +221,58 @@ def write_tumble(path: Path, rows: int) -> None:
             pcsv.write_csv(table, f, pcsv.WriteOptions(include_header=False))
 
 
+def write_session(path: Path, rows: int, still: float = 20.0, turn: float = 3.0) -> None:
+    """A 1 kHz t,ax,ay,az session in g: ``still`` seconds on a face, ``turn`` seconds turning to
+    the next, the six faces over and over (5M rows: 183 MB; written with pyarrow, a million rows
+    at a time)."""
+    import pyarrow as pa
+    import pyarrow.csv as pcsv
+
+    rng = np.random.default_rng(2)
+    faces = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float)
+    cycle = still + turn
+    with path.open("wb") as f:
+        f.write(b"t,ax,ay,az\n")
+        for start in range(0, rows, 1_000_000):
+            n = min(1_000_000, rows - start)
+            t = np.arange(start, start + n) / 1000.0
+            k = (t // cycle).astype(int)
+            w = np.clip((t % cycle - still) / turn, 0, 1)[:, None]  # 0 while still, 0 -> 1 while turning
+            g = (1 - w) * faces[k % 6] + w * faces[(k + 1) % 6] + np.sin(np.pi * w) * 0.3 * rng.normal(size=(n, 3))
+            xyz = np.round(g + np.array([0.01, -0.02, 0.015]) + rng.normal(0, 0.002, size=(n, 3)), 6)
+            table = pa.table({"t": np.round(t, 3), "ax": xyz[:, 0], "ay": xyz[:, 1], "az": xyz[:, 2]})
+            pcsv.write_csv(table, f, pcsv.WriteOptions(include_header=False))
+
+
+def written_apart(writer: str, path: Path, rows: int) -> None:
+    """``writer`` (a function of this file) writes ``path`` in a process of its own: a child's peak
+    memory (ru_maxrss) starts at the size of the process it was forked from, so the bench keeps
+    small and the peaks measured are the commands' own."""
+    code = f"import sys; sys.path.insert(0, {str(ROOT)!r}); from pathlib import Path; from tests import bench; "
+    subprocess.run([sys.executable, "-c", code + f"bench.{writer}(Path({str(path)!r}), {rows})"], check=True)
+
+
+def bench_pace(folder: Path) -> list[tuple[str, float, float, str]]:
+    """segment and solve --log of 5M- and 20M-row sessions against POLARS_BLOCKS on the same
+    file, taking turns (five runs each, the median), each with both peak memories."""
+    found = []
+    for millions in (5, 20):
+        log = folder / f"pace{millions}M.csv"
+        written_apart("write_session", log, millions * 1_000_000)
+        size = log.stat().st_size / 1e6
+        script = [sys.executable, "-c", POLARS_BLOCKS, str(log)]
+        commands = (
+            ("segment", [*TUMBLECAL, "segment", "-q", str(log)]),
+            ("solve --log", [*TUMBLECAL, "solve", "-q", "--log", str(log), "-o", str(folder / "pace.json")]),
+        )
+        for what, argv in commands:
+            (ours, rss), (base, base_rss) = paired(argv, script)
+            note = f"peak {rss:.0f} MiB, polars {base_rss:.0f} MiB"
+            found.append((f"{what} {millions}M ({size:.0f} MB)", ours, base, note))
+        log.unlink()
+    return found
+
+
 def write_units(folder: Path, units: int) -> None:
     """``units`` folders of x.csv y.csv z.csv, 1000 samples each at 100 Hz, each unit with its own
     offsets and gains (in g), like a production lot."""
@@ -264,11 +334,14 @@ def bench_noise(folder: Path) -> tuple[list[tuple[str, float, float, str]], dict
     rows, memory = [], {}
     for millions in (2.5, 10):
         still = folder / f"still{millions}M.csv"
-        write_still(still, int(millions * 1_000_000))
-        ours, rss = run([*TUMBLECAL, "noise", "-q", "--rate", "200", str(still)], repeat=1 if millions == 10 else 2)
+        written_apart("write_still", still, int(millions * 1_000_000))
+        argv = [*TUMBLECAL, "noise", "-q", "--rate", "200", str(still)]
+        if millions == 10:
+            (ours, rss), (base, base_rss) = paired(argv, [sys.executable, "-c", OADEV, str(still)], repeat=3)
+        else:
+            ours, rss = run(argv, repeat=2)
         memory[millions] = rss
         if millions == 10:
-            base, base_rss = run([sys.executable, "-c", OADEV, str(still)], repeat=1)
             size = still.stat().st_size / 1e6
             note = f"{size:.0f} MB; peak {rss:.0f} MiB, allantools {base_rss:.0f} MiB"
             rows.append(("noise 10M samples", ours, base, note))
@@ -511,8 +584,29 @@ def bench_ros(folder: Path) -> list[tuple[str, float, float, str]]:
     return found
 
 
+def compiled() -> None:
+    """The package's modules compiled to bytecode first, as an install leaves them (where the
+    environment sets PYTHONDONTWRITEBYTECODE each run would compile every module again)."""
+    import compileall
+
+    compileall.compile_dir(str(ROOT / "tumblecal_cli"), quiet=1)
+
+
 def main() -> None:
     rows: list[tuple[str, float, float, str]] = []
+    compiled()
+    if sys.argv[1:] == ["pace"]:  # the lines of the polars script's pace, and noise against allantools
+        load = os.getloadavg()[0]
+        with tempfile.TemporaryDirectory() as tmp:
+            rows = bench_pace(Path(tmp))
+            noise_rows, peak = bench_noise(Path(tmp))
+        machine = f"{platform.node()} ({os.cpu_count()} cores, Python {platform.python_version()})"
+        print(f"tumblecal bench pace, {date.today()}, {machine}, load average {load:.1f}-{os.getloadavg()[0]:.1f}")
+        for what, ours, base, note in rows + noise_rows:
+            print(f"{what:<28} {ours:>9.2f}s {base:>9.2f}s {ours / base:>6.2f}x  {note}")
+        what = "noise peak memory 10M / 2.5M"
+        print(f"{what:<28} {peak[10]:>8.0f}Mi {peak[2.5]:>8.0f}Mi {peak[10] / peak[2.5]:>6.2f}x")
+        return
     if sys.argv[1:] in (["ulog"], ["dataflash"], ["ros"]):
         with tempfile.TemporaryDirectory() as tmp:
             bench = {"ulog": bench_ulog, "dataflash": bench_dataflash, "ros": bench_ros}[sys.argv[1]]
@@ -588,6 +682,7 @@ def main() -> None:
         rows.append(("segment 600k rows (10 min)", ours, base, f"{blocks} blocks written"))
         session.unlink()
         rows += bench_logs(folder)
+        rows += bench_pace(folder)
         units = folder / "units"
         write_units(units, 200)
         loop = (  # what a station script does today: one process per unit
@@ -618,6 +713,7 @@ def main() -> None:
     print("           apply thermal vs apply of the same capture with the calibration without its thermal block")
     print("           solve vs python -c 'import pandas, numpy'")
     print("           segment, solve --log vs python -c 'import pandas; pandas.read_csv(f)' of the same log")
+    print("           segment, solve --log 5M/20M vs the polars script of the still blocks (POLARS_BLOCKS)")
     print("           batch vs a bash loop of 'tumblecal solve' per unit (200 units x 3 poses x 1000 samples)")
     print("           noise vs pandas.read_csv + allantools.oadev of each axis (octave taus), the same file")
     print("           ULog stream vs pyulog.ULog(f, message_name_filter_list=['sensor_accel']) of the same log")

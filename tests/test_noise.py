@@ -86,6 +86,20 @@ def test_streamed_deviation_equals_the_textbook_sum() -> None:
     assert list(curve.m) == [2**k for k in range(14)]  # octaves while a term fits (2m < n + 1)
 
 
+@pytest.mark.slow  # 1.2M samples: the textbook sums take a second
+def test_every_term_kept_across_the_history_moves_of_a_long_capture() -> None:
+    # past 2 x 2**19 samples S's history is moved back to the start of its buffer (twice here), and
+    # blocks over allan.CHUNK rows are cut: every term of every cluster up to 2**18 is still summed
+    y = simulate(1_200_000, 4) + np.array([0.01, -0.02, 1.01])
+    stream = allan.AllanStream()
+    for first in range(0, len(y), 100_003):
+        stream.add(y[first : first + 100_003])
+    curve = stream.result(RATE)
+    exact = curve.m <= allan.EXACT_MAX
+    np.testing.assert_allclose(curve.adev[exact], allan.oadev(y, [int(m) for m in curve.m[exact]]), rtol=1e-9)
+    assert list(curve.terms[exact]) == [len(y) + 1 - 2 * int(m) for m in curve.m[exact]]
+
+
 @pytest.mark.slow  # importing allantools (and scipy) takes most of a second
 def test_deviation_equals_allantools_oadev() -> None:
     allantools = pytest.importorskip("allantools")

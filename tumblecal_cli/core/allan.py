@@ -137,8 +137,11 @@ class AllanStream:
         self.runs = 1  # runs of samples between gaps in time (restart)
         self.exact = [m for m in self.sizes if stride(m, exact_max, window) == 1]
         self.strided = [_Strided(m, stride(m, exact_max, window)) for m in self.sizes if m not in self.exact]
-        self.keep = 2 * max(self.exact)  # history rows the exact sizes need
-        self.buffer = np.zeros((self.keep + CHUNK + 1, 3))
+        self.keep = 2 * max(self.exact)  # history values of S the exact sizes need
+        # S, axis by axis (each axis's values contiguous), with room for as many more as it keeps: the
+        # history is moved back to the start once that room is used, not once a chunk
+        self.buffer = np.zeros((3, self.keep + max(CHUNK, self.keep) + 1))
+        self.scratch = np.empty((3, CHUNK))  # one size's second differences of a chunk
         self.filled = 1  # buffer[0] is S_0 = 0
         self.start = 0  # global index of buffer[0]
         self.n = 0  # samples so far
@@ -155,7 +158,7 @@ class AllanStream:
 
     def restart(self) -> None:
         """The samples fed next follow a gap in time: no cluster spans it (module docstring)."""
-        self.buffer[0] = 0.0  # S starts again (a constant added to S changes no term)
+        self.buffer[:, 0] = 0.0  # S starts again (a constant added to S changes no term)
         self.filled = 1
         self.start = 0
         for s in self.strided:
@@ -168,21 +171,26 @@ class AllanStream:
             return
         if self.offset is None:
             self.offset = y.mean(axis=0)
-        if self.filled + c > self.buffer.shape[0]:  # keep the last `keep` values of S
+        if self.filled + c > self.buffer.shape[1]:  # keep the last `keep` values of S
             drop = self.filled - self.keep
-            self.buffer[: self.keep] = self.buffer[drop : self.filled]
+            self.buffer[:, : self.keep] = self.buffer[:, drop : self.filled]
             self.start += drop
             self.filled = self.keep
         b, p0 = self.buffer, self.filled
-        b[p0 : p0 + c] = b[p0 - 1] + np.cumsum(y - self.offset, axis=0)
+        new = b[:, p0 : p0 + c]
+        np.cumsum((y - self.offset).T, axis=1, out=new)
+        new += b[:, p0 - 1 : p0]  # S_{j} = S_{p0-1} + the running sum since
         self.filled += c
         end = p0 + c
         for k, m in enumerate(self.exact):
-            lo = max(p0, 2 * m)  # S_{j-2m} is held: from global 0, or the `keep` rows kept
+            lo = max(p0, 2 * m)  # S_{j-2m} is held: from global 0, or the `keep` values kept
             if lo >= end:
                 continue
-            d = b[lo:end] - 2.0 * b[lo - m : end - m] + b[lo - 2 * m : end - 2 * m]  # SP 1065 eq. 11
-            self.sums[k] += (d * d).sum(axis=0)
+            d = self.scratch[:, : end - lo]  # S_{j} - 2 S_{j-m} + S_{j-2m}, SP 1065 eq. 11
+            np.multiply(b[:, lo - m : end - m], 2.0, out=d)
+            np.subtract(b[:, lo:end], d, out=d)
+            d += b[:, lo - 2 * m : end - 2 * m]
+            self.sums[k] += np.square(d, out=d).sum(axis=1)  # along each axis's contiguous values
             self.terms[k] += end - lo
         g0 = self.start + p0  # global index of the first new S value
         offset = len(self.exact)
@@ -190,7 +198,7 @@ class AllanStream:
             first = -(-g0 // s.d) * s.d  # the first grid index at or after g0
             if first > self.start + end - 1:
                 continue
-            grid = b[first - self.start : end : s.d]
+            grid = b[:, first - self.start : end : s.d].T
             t = np.concatenate([s.tail, grid])
             w = s.m // s.d
             if t.shape[0] > 2 * w:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import itertools
 import math
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Unpack
 
@@ -24,6 +24,7 @@ from tumblecal_cli.core.clock import Clock
 from tumblecal_cli.core.model import apply
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import calfile, capture, documents, limitfile, readings, sniff, sources
+from tumblecal_cli.io.ahead import ahead
 from tumblecal_cli.io.outputs import atomic_output
 from tumblecal_cli.pipeline.frames import in_memory
 from tumblecal_cli.pipeline.options import ReadKeywords, keywords_known, read_spec
@@ -370,20 +371,31 @@ def _stream(
                 "the sample rate is unknown: the capture has no time column", file=lay.name, hint="give --rate HZ"
             )
         timer = None if rate is not None else _Timer(lay.name, time_unit=time_unit, cap=cap)
-        for first_row, cols in cap.batches(only_sensor=True):
-            values, empty = cap.sensor_values(cols, first_row)
-            bad = ~np.isfinite(values) & ~empty[:, None]
-            if bad.any():
-                i, j = (int(k[0]) for k in np.nonzero(bad))
-                raise cap._locate(first_row + i, j, f"not a finite number: {sniff.quoted(cols[j][i].as_py())}")
-            if empty.any():
-                values = values[~empty]
+        # each block parsed on a thread of its own while the last one is summed (io.ahead)
+        for first_row, values, empty, times in ahead(_parsed(cap, timer is not None)):
             found: NDArray[np.int64] | None = None
-            if timer is not None and values.shape[0]:
+            if timer is not None and times is not None and values.shape[0]:
                 rows = first_row + (np.flatnonzero(~empty) if empty.any() else np.arange(values.shape[0]))
-                found = timer.add(readings.block_times(cap, first_row, cols[3], empty), rows)
+                found = timer.add(times, rows)
             feed.add(values, rate or (timer.hz if timer else None), found)
     return _streamed(stream, feed, lay, rate, timer)
+
+
+def _parsed(
+    cap: capture.Capture, timed: bool
+) -> Iterator[tuple[int, FloatArray, NDArray[np.bool_], FloatArray | None]]:
+    """Each block of a capture as numbers: its first data row, the readings of its rows that
+    have them, which rows have none, and (``timed``) the time of those that do."""
+    for first_row, cols in cap.batches(only_sensor=True):
+        values, empty = cap.sensor_values(cols, first_row)
+        bad = ~np.isfinite(values) & ~empty[:, None]
+        if bad.any():
+            i, j = (int(k[0]) for k in np.nonzero(bad))
+            raise cap._locate(first_row + i, j, f"not a finite number: {sniff.quoted(cols[j][i].as_py())}")
+        if empty.any():
+            values = values[~empty]
+        times = readings.block_times(cap, first_row, cols[3], empty) if timed and values.shape[0] else None
+        yield first_row, values, empty, times
 
 
 @dataclass
