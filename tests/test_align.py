@@ -145,6 +145,50 @@ def test_wahba_uncertainty_holds_in_monte_carlo() -> None:
     assert np.all((zs.std(axis=0) > 0.7) & (zs.std(axis=0) < 1.2))
 
 
+def imu_differences(rng: np.random.Generator, truth: np.ndarray, k: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    """Noiseless block means of two IMUs that differ by ``truth`` and by what their calibrations
+    leave (an offset of 0.1 m/s² and a gain 0.5 % off on one axis)."""
+    ref = np.array([m @ UP for m in poses(rng, k)]) * 9.81
+    other = (ref * np.array([1.0, 1.005, 1.0]) + np.array([0.1, -0.05, 0.02])) @ truth
+    return ref, other
+
+
+def test_consistency_states_its_uncertainty() -> None:
+    ref, other = imu_differences(np.random.default_rng(1), np.eye(3))
+    noise = np.full(len(ref), 0.01)
+    c = align.consistency(ref, other, None, noise)
+    assert c.rms == pytest.approx(np.sqrt(np.mean(((ref - other) ** 2).sum(axis=1))))
+    assert 0.001 < c.sigma < 0.01  # about noise / sqrt(blocks)
+    assert c.noise == pytest.approx(0.01 * np.sqrt(3))
+    assert align.consistency(ref, other).sigma == 0.0  # no noise given: none stated
+
+
+@pytest.mark.slow
+def test_consistency_uncertainty_holds_in_monte_carlo() -> None:
+    """The consistency as read and after the fitted rotation, over 400 noisy draws of the same
+    blocks: (figure - truth) / stated 1-sigma within ±3, spread near 1."""
+    truth = align.exp_map(np.radians([1.0, -2.0, 0.5]))
+    ref, other = imu_differences(np.random.default_rng(8), truth)
+    s = np.full(len(ref), 0.01)
+    as_read = align.consistency(ref, other).rms
+    rotated = align.consistency(ref, other, align.wahba(ref, other, s).matrix).rms  # the noiseless best
+    rng = np.random.default_rng(12)
+    z = []
+    for _ in range(400):
+        r = ref + rng.normal(size=ref.shape) * s[0] / np.sqrt(2)
+        o = other + rng.normal(size=ref.shape) * s[0] / np.sqrt(2)
+        c0 = align.consistency(r, o, None, s)
+        c1 = align.consistency(r, o, align.wahba(r, o, s).matrix, s)
+        z.append([(c0.rms - as_read) / c0.sigma, (c1.rms - rotated) / c1.sigma])
+    zs = np.array(z)
+    assert as_read > 0.3
+    assert 0.05 < rotated < 0.2
+    assert np.abs(zs).max() < 3.5
+    assert np.mean(np.abs(zs) > 3) < 0.01
+    assert np.all((zs.std(axis=0) > 0.7) & (zs.std(axis=0) < 1.3))
+    assert np.abs(zs.mean(axis=0)).max() < 0.5  # the noise's bias up, about noise² / (2 rms): 0.4 sigma here
+
+
 # --- the magnetometer's alignment from a log ----------------------------------------------------
 
 

@@ -24,6 +24,7 @@ from tumblecal_cli.cli.flags import (
 )
 
 if TYPE_CHECKING:
+    from tumblecal_cli.core.align import Consistency
     from tumblecal_cli.pipeline.alignment import ImusAligned, MagAligned
 
 ALIGN_EXIT = """\
@@ -159,13 +160,18 @@ def _imu_lines(done: ImusAligned) -> list[str]:
         turned = (
             "rotation not determined"
             if p.fit is None or p.consistency_aligned is None
-            else f"rotation {p.fit.angle_deg:.3f}° ± {p.fit.angle_sigma_deg:.3f}° ({p.consistency_aligned:.4g}{unit} "
-            "RMS once rotated)"
+            else f"rotation {p.fit.angle_deg:.3f}° ± {p.fit.angle_sigma_deg:.3f}° ({_rms(p.consistency_aligned, unit)} "
+            "once rotated)"
         )
-        lines.append(f"{p.stream}: consistency {p.consistency:.4g}{unit} RMS; {turned}")
+        lines.append(f"{p.stream}: consistency {_rms(p.consistency, unit)}; {turned}")
     if done.limit is not None:
         word = "FAIL" if done.failures else "PASS"
         lines.append(
             f"{word}: imu_consistency {done.limit:g}{unit}" + "".join(f"\n  {f.message}" for f in done.failures)
         )
     return lines
+
+
+def _rms(c: Consistency, unit: str) -> str:
+    """A consistency as people read it: ``0.3606 ± 0.0012 m/s^2 RMS``."""
+    return f"{c.rms:.4g} ± {c.sigma:.2g}{unit} RMS"

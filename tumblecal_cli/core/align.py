@@ -213,8 +213,31 @@ def heading_change(g: FloatArray, before: FloatArray, after: FloatArray) -> Floa
     return out
 
 
-def consistency(ref: FloatArray, other: FloatArray, matrix: FloatArray | None = None) -> float:
-    """The RMS over blocks of ``|ref_i - R other_i|`` (``R`` the identity when None): how far two
-    sensors' corrected readings differ."""
+@dataclass(frozen=True)
+class Consistency:
+    """How far two sensors' corrected readings differ: the RMS over the vectors of
+    ``|ref_i - R other_i|`` and its 1-sigma from the vectors' noise (delta method), and the
+    RMS the noise alone would give (``sqrt(3 mean(s_i²))``): the figure is biased up by about
+    ``noise²/(2 rms)``, negligible while it is well above ``noise``."""
+
+    rms: float
+    sigma: float
+    noise: float
+
+
+def consistency(
+    ref: FloatArray, other: FloatArray, matrix: FloatArray | None = None, noise: FloatArray | None = None
+) -> Consistency:
+    """The RMS over vectors of ``|ref_i - R other_i|`` (``R`` the identity when None), and its
+    1-sigma from ``noise`` (k,), each difference's per-component 1-sigma (both sensors'
+    together; 0 when None). ``C² = mean |d_i|²`` moves by ``2 d_i·δd_i / k``, so
+    ``σ_C = sqrt(Σ s_i² |d_i|²) / (k C)``; with a fitted ``R`` the same holds to first order
+    (the fit minimises the sum, so moving ``R`` does not move it)."""
     v = other if matrix is None else other @ matrix.T
-    return float(np.sqrt(np.mean(((ref - v) ** 2).sum(axis=1))))
+    d2 = ((ref - v) ** 2).sum(axis=1)
+    k = max(len(d2), 1)
+    rms = float(np.sqrt(np.mean(d2))) if len(d2) else 0.0
+    s2 = np.zeros(len(d2)) if noise is None else np.asarray(noise, dtype=np.float64) ** 2
+    floor = float(np.sqrt(3.0 * np.mean(s2))) if len(d2) else 0.0
+    spread = float(np.sqrt((s2 * d2).sum())) / (k * rms) if rms > 0 else floor / np.sqrt(k)
+    return Consistency(rms, max(spread, floor / np.sqrt(6.0 * k)), floor)

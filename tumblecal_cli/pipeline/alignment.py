@@ -94,8 +94,8 @@ class ImuPair:
 
     stream: str
     fit: align.Fitted | None  # None: one orientation, the rotation is not determined
-    consistency: float
-    consistency_aligned: float | None
+    consistency: align.Consistency
+    consistency_aligned: align.Consistency | None
 
 
 @dataclass
@@ -130,8 +130,11 @@ class ImusAligned:
 def _pair_dict(p: ImuPair) -> dict[str, object]:
     out: dict[str, object] = {
         "stream": p.stream,
-        "consistency": p.consistency,
-        "consistency_aligned": p.consistency_aligned,
+        "consistency": p.consistency.rms,
+        "consistency_sigma": p.consistency.sigma,
+        "consistency_noise": p.consistency.noise,
+        "consistency_aligned": None if p.consistency_aligned is None else p.consistency_aligned.rms,
+        "consistency_aligned_sigma": None if p.consistency_aligned is None else p.consistency_aligned.sigma,
     }
     if p.fit is not None:
         out |= {
@@ -364,12 +367,12 @@ def imus(
     failures = [
         Finding(
             f"limit.imu_consistency.{i}",
-            f"{p.stream} differs from {_name(*chosen[0])} by {p.consistency:.4g} RMS, above {bound:g}",
-            p.consistency,
+            f"{p.stream} differs from {_name(*chosen[0])} by {p.consistency.rms:.4g} RMS, above {bound:g}",
+            p.consistency.rms,
             bound,
         )
         for i, p in enumerate(pairs, start=1)
-        if bound is not None and not p.consistency <= bound
+        if bound is not None and not p.consistency.rms <= bound
     ]
     notes = []
     if seen < 2:
@@ -415,13 +418,13 @@ def _rows_in(log: Log, spans: list[tuple[float, float]]) -> list[tuple[int, int]
 
 def _pair(ref: Means, other: Means, stream: str, seen: int) -> ImuPair:
     fit = None
+    noise = np.sqrt(ref.noise**2 + other.noise**2)
     if seen >= 2 and len(ref.values) >= 2:
-        sigma = np.sqrt(ref.noise**2 + other.noise**2)
-        sigma = np.maximum(sigma, 1e-9 * np.linalg.norm(ref.values, axis=1).mean())
+        sigma = np.maximum(noise, 1e-9 * np.linalg.norm(ref.values, axis=1).mean())
         fit = align.wahba(ref.values, other.values, sigma)
         fit = fit if fit.observable() else None
-    aligned = None if fit is None else align.consistency(ref.values, other.values, fit.matrix)
-    return ImuPair(stream, fit, align.consistency(ref.values, other.values), aligned)
+    aligned = None if fit is None else align.consistency(ref.values, other.values, fit.matrix, noise)
+    return ImuPair(stream, fit, align.consistency(ref.values, other.values, None, noise), aligned)
 
 
 def _consistency_limit(path: str | None) -> float | None:
