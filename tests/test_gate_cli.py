@@ -716,7 +716,7 @@ BAD_LIMITS = [
         "limits_unknown_key.yaml",
         "unknown limit 'gain' (known: offset, gain_error, nominal_gain, cross_axis, noise, residual, nominal_offset, "
         "noise_density, bias_instability, random_walk, offset_drift, offset_drift_per_degc, imu_consistency, "
-        "current_interference, dip_angle)",
+        "gyro_consistency, current_interference, dip_angle)",
         id="unknown-key",
     ),
     pytest.param("limits_negative_offset.yaml", "limit 'offset' must be positive, got -0.05", id="negative"),

@@ -29,9 +29,9 @@ if TYPE_CHECKING:
 
 ALIGN_EXIT = """\
 Exit status: 0 aligned (and within the limits); 1 an IMU differs from the first by more than
-the limits file's imu_consistency; 2 usage or input error (one IMU, a calibration of the wrong
-sensor); 3 too few still blocks, or orientations that do not determine the rotation. Nothing
-is written on 2 or 3."""
+the limits file's imu_consistency (gyro_consistency for gyroscopes); 2 usage or input error
+(one IMU, a calibration of the wrong sensor); 3 too few still blocks or turns, or orientations
+(turns) that do not determine the rotation. Nothing is written on 2 or 3."""
 
 
 @app.command(cls=Command, epilog=ALIGN_EXIT)
@@ -101,7 +101,8 @@ def align(
     With --accel-cal and --mag-cal: the magnetometer's axes onto the accelerometer's, from the
     angle between gravity and the field (the same in every orientation), the dip angle, and the
     heading error the rotation removes. Otherwise: each IMU's accelerometer onto the first's,
-    and how far their corrected readings differ (limits file: imu_consistency).
+    and how far their corrected readings differ (limits file: imu_consistency); with --sensor
+    gyroscope the same for gyroscopes, from their rates while the unit turns (gyro_consistency).
 
     \b
       tumblecal align --accel-cal acc.json --mag-cal mag.json session.csv -o align.json --aligned-mag mag-aligned.json
@@ -155,23 +156,29 @@ def _mag_lines(done: MagAligned) -> list[str]:
 def _imu_lines(done: ImusAligned) -> list[str]:
     unit = f" {done.units}" if done.units else ""
     seen = f"{render.count(done.blocks, 'still block')} in {render.count(done.orientations, 'orientation')}"
+    if done.turning is not None:
+        t = done.turning
+        seen = f"{render.count(t.samples, 'turning sample')} (faster than {t.threshold:.3g}{unit}) about {t.axes} axes"
     lines = [f"{done.reference}: the reference, {seen}"]
     for p in done.pairs:
         turned = (
             "rotation not determined"
             if p.fit is None or p.consistency_aligned is None
-            else f"rotation {p.fit.angle_deg:.3f}° ± {p.fit.angle_sigma_deg:.3f}° ({_rms(p.consistency_aligned, unit)} "
-            "once rotated)"
+            else f"rotation {p.fit.angle_deg:.3f}° ± {p.fit.angle_sigma_deg:.3f}°, once rotated "
+            f"{_rms(p.consistency_aligned, unit)}"
         )
         lines.append(f"{p.stream}: consistency {_rms(p.consistency, unit)}; {turned}")
     if done.limit is not None:
         word = "FAIL" if done.failures else "PASS"
         lines.append(
-            f"{word}: imu_consistency {done.limit:g}{unit}" + "".join(f"\n  {f.message}" for f in done.failures)
+            f"{word}: {done.limit_key} {done.limit:g}{unit}" + "".join(f"\n  {f.message}" for f in done.failures)
         )
     return lines
 
 
 def _rms(c: Consistency, unit: str) -> str:
     """A consistency as people read it: ``0.3606 ± 0.0012 m/s^2 RMS``."""
-    return f"{c.rms:.4g} ± {c.sigma:.2g}{unit} RMS"
+    told = f"{c.rms:.4g} ± {c.sigma:.2g}{unit} RMS"
+    if c.rms - c.unbiased <= c.sigma:
+        return told
+    return f"{told} ({c.unbiased:.2g} without the noise's {c.noise:.2g})" if c.unbiased else f"{told} (the noise's)"

@@ -215,12 +215,13 @@ def heading_change(g: FloatArray, before: FloatArray, after: FloatArray) -> Floa
 
 @dataclass(frozen=True)
 class Consistency:
-    """How far two sensors' corrected readings differ: the RMS over the vectors of
-    ``|ref_i - R other_i|`` and its 1-sigma from the vectors' noise (delta method), and the
-    RMS the noise alone would give (``sqrt(3 mean(s_i²))``): the figure is biased up by about
-    ``noise²/(2 rms)``, negligible while it is well above ``noise``."""
+    """How far two sensors' corrected readings differ: ``rms``, the RMS over the vectors of
+    ``|ref_i - R other_i|`` as read; ``unbiased``, the same with the noise's share taken out
+    (what noiseless readings would give); ``sigma``, the 1-sigma of either; ``noise``, the RMS
+    the noise alone would give (``sqrt(3 mean(s_i²))``)."""
 
     rms: float
+    unbiased: float
     sigma: float
     noise: float
 
@@ -228,16 +229,78 @@ class Consistency:
 def consistency(
     ref: FloatArray, other: FloatArray, matrix: FloatArray | None = None, noise: FloatArray | None = None
 ) -> Consistency:
-    """The RMS over vectors of ``|ref_i - R other_i|`` (``R`` the identity when None), and its
-    1-sigma from ``noise`` (k,), each difference's per-component 1-sigma (both sensors'
-    together; 0 when None). ``C² = mean |d_i|²`` moves by ``2 d_i·δd_i / k``, so
-    ``σ_C = sqrt(Σ s_i² |d_i|²) / (k C)``; with a fitted ``R`` the same holds to first order
-    (the fit minimises the sum, so moving ``R`` does not move it)."""
+    """The RMS over vectors of ``|ref_i - R other_i|`` (``R`` the identity when None, else fitted
+    to these vectors), and its uncertainty from ``noise`` (k,), each difference's per-component
+    1-sigma (both sensors' together; 0 when None). With ``d_i = d0_i + e_i``, the mean square
+    ``C² = mean |d_i|²`` is biased up by ``b = (3k - p) mean(s_i²) / k`` (``p`` = 3 when ``R``
+    was fitted, which absorbs three of the noise's degrees of freedom) and varies by
+    ``Σ (4 s_i² |d0_i|² + 6 s_i⁴) / k²``; ``sqrt(C² - b)`` is the unbiased figure, and its
+    1-sigma that variance over ``2 C`` (delta method), or about its fourth root when the figure
+    is within the noise."""
     v = other if matrix is None else other @ matrix.T
     d2 = ((ref - v) ** 2).sum(axis=1)
     k = max(len(d2), 1)
-    rms = float(np.sqrt(np.mean(d2))) if len(d2) else 0.0
     s2 = np.zeros(len(d2)) if noise is None else np.asarray(noise, dtype=np.float64) ** 2
+    mean_square = float(np.mean(d2)) if len(d2) else 0.0
+    bias = (3.0 * k - (0.0 if matrix is None else 3.0)) * float(np.sum(s2)) / k**2
+    unbiased = float(np.sqrt(max(mean_square - bias, 0.0)))
+    true2 = np.maximum(d2 - 3.0 * s2, 0.0)
+    var = float((4.0 * s2 * true2 + 6.0 * s2**2).sum()) / k**2
+    sigma = float(np.sqrt(var)) / (2.0 * max(unbiased, var**0.25 / 2.0)) if var > 0 else 0.0
     floor = float(np.sqrt(3.0 * np.mean(s2))) if len(d2) else 0.0
-    spread = float(np.sqrt((s2 * d2).sum())) / (k * rms) if rms > 0 else floor / np.sqrt(k)
-    return Consistency(rms, max(spread, floor / np.sqrt(6.0 * k)), floor)
+    return Consistency(float(np.sqrt(mean_square)), unbiased, sigma, floor)
+
+
+#: A gyroscope's sample counts as turning when its rate exceeds this many times the
+#: gyroscope's per-component noise at rest.
+TURN_SIGMAS = 10.0
+#: Samples per window when looking for a gyroscope at rest.
+REST_WINDOW = 32
+
+
+@dataclass(frozen=True)
+class Rest:
+    """A gyroscope at rest: its level (the bias, in its readings' units), the per-component
+    1-sigma of one sample, and how many samples it was measured from."""
+
+    level: FloatArray  # (3,)
+    noise: float
+    samples: int
+
+
+def rest(rates: FloatArray, window: int = REST_WINDOW) -> Rest | None:
+    """Where a gyroscope rests, from its rates (n, 3) alone (``window`` samples per window, fewer
+    in a log shorter than four windows): the noise of one sample is first
+    estimated from adjacent samples' differences (robustly: 1.4826 · median |Δ| / √2, which a
+    smooth turn barely moves); windows of ``window`` samples whose spread is within 1.5× that
+    are quiet (at rest, or turning at a steady rate); the level is the median of the quiet
+    windows' means, and the windows whose mean is within 5 standard errors of it are at rest.
+    None when no window is (the gyroscope never rests)."""
+    v = np.asarray(rates, dtype=np.float64)
+    window = max(min(window, len(v) // 4), 2)  # a short log: four windows at least
+    n = len(v) // window * window
+    if n == 0:
+        return None
+    step = 1.4826 * float(np.median(np.abs(np.diff(v, axis=0)))) / np.sqrt(2.0) if len(v) > 1 else 0.0
+    parts = v[:n].reshape(-1, window, 3)
+    means, spreads = parts.mean(axis=1), np.sqrt(parts.var(axis=1).mean(axis=1))
+    quiet = spreads <= 1.5 * max(step, 1e-300)
+    if not quiet.any():
+        return None
+    level = np.median(means[quiet], axis=0)
+    near = quiet & (np.abs(means - level).max(axis=1) <= 5.0 * max(step, 1e-300) / np.sqrt(window))
+    if not near.any():
+        return None
+    still = parts[near].reshape(-1, 3)
+    level = still.mean(axis=0)
+    return Rest(level, float(np.sqrt(np.mean(still.var(axis=0)))), len(still))
+
+
+def turn_axes(rates: FloatArray, noise: float) -> int:
+    """About how many independent axes the turns in ``rates`` (n, 3) went: the directions of
+    the rates' second-moment matrix whose RMS rate exceeds TURN_SIGMAS × ``noise``."""
+    v = np.asarray(rates, dtype=np.float64)
+    if len(v) == 0:
+        return 0
+    values = np.linalg.eigvalsh(v.T @ v / len(v))
+    return int(np.count_nonzero(np.sqrt(np.maximum(values, 0.0)) > TURN_SIGMAS * noise))

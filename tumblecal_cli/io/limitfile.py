@@ -27,6 +27,7 @@ LIMIT_KEYS = {
     "offset_drift_per_degc": "per axis",  # ... and per °C
     # `tumblecal align`'s: the RMS difference of two IMUs' corrected readings, their units
     "imu_consistency": "one",
+    "gyro_consistency": "one",  # ... and of two gyroscopes' rates while the unit turns
     # `tumblecal current`'s: the field's change at the largest current, a share of the reference
     "current_interference": "one",
     "dip_angle": "one",  # degrees: a magnetometer's still blocks' dip angle from the model's (docs/real-world.md)
@@ -36,7 +37,7 @@ LIMIT_KEYS = {
 #: The limits only `tumblecal noise` judges.
 NOISE_LIMITS = ("noise_density", "bias_instability", "random_walk")
 #: The limits only `tumblecal align` judges.
-ALIGN_LIMITS = ("imu_consistency",)
+ALIGN_LIMITS = ("imu_consistency", "gyro_consistency")
 #: The limits only `tumblecal current` judges.
 CURRENT_LIMITS = ("current_interference",)
 

@@ -7,6 +7,8 @@
 - ``imus``: a log with two or three accelerometers (a PX4 ULog's ``sensor_accel`` instances,
   or logs on one clock): the rotation of each onto the first, and how far their corrected
   readings differ, judged by the limits file's ``imu_consistency``.
+- ``gyros``: the same for two or three gyroscopes, from their rates while the unit turns
+  (matched in time), judged by ``gyro_consistency``.
 
 Still blocks are found on the (first) accelerometer by the segment detector, in any
 orientation; each block's mean of every sensor is taken over the same rows (or, for streams of
@@ -110,21 +112,41 @@ class ImusAligned:
     limit: float | None
     failures: list[Finding] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    #: Gyroscopes: the reference's turning samples compared (``blocks`` and ``orientations``
+    #: are then 0) and about how many axes they turned.
+    turning: Turning | None = None
+
+    @property
+    def limit_key(self) -> str:
+        return "imu_consistency" if self.turning is None else "gyro_consistency"
 
     def as_dict(self) -> dict[str, object]:
+        seen: dict[str, object] = {"blocks": self.blocks, "orientations": self.orientations}
+        if self.turning is not None:
+            seen = {"sensor": "gyroscope", "turning_samples": self.turning.samples, "turn_axes": self.turning.axes,
+                    "turn_threshold": self.turning.threshold}  # fmt: skip
         return {
             "kind": "imus",
             "reference": self.reference,
-            "blocks": self.blocks,
-            "orientations": self.orientations,
+            **seen,
             "units": self.units,
             "imus": [_pair_dict(p) for p in self.pairs],
             "verdict": {
                 "pass": not self.failures,
-                "limit": {"imu_consistency": self.limit} if self.limit is not None else {},
+                "limit": {self.limit_key: self.limit} if self.limit is not None else {},
                 "failures": [f.as_dict() for f in self.failures],
             },
         }
+
+
+@dataclass(frozen=True)
+class Turning:
+    """What a gyroscopes' alignment compared: the reference's samples above ``threshold`` (its
+    units: TURN_SIGMAS × its noise at rest) matched in every other, and the axes they turned about."""
+
+    samples: int
+    axes: int
+    threshold: float
 
 
 def _pair_dict(p: ImuPair) -> dict[str, object]:
@@ -132,9 +154,11 @@ def _pair_dict(p: ImuPair) -> dict[str, object]:
         "stream": p.stream,
         "consistency": p.consistency.rms,
         "consistency_sigma": p.consistency.sigma,
+        "consistency_unbiased": p.consistency.unbiased,
         "consistency_noise": p.consistency.noise,
         "consistency_aligned": None if p.consistency_aligned is None else p.consistency_aligned.rms,
         "consistency_aligned_sigma": None if p.consistency_aligned is None else p.consistency_aligned.sigma,
+        "consistency_aligned_unbiased": None if p.consistency_aligned is None else p.consistency_aligned.unbiased,
     }
     if p.fit is not None:
         out |= {
@@ -335,10 +359,10 @@ def imus(
     """Two or three IMUs (``imu_streams``), each corrected by its calibration in ``cals`` (in
     order; none: as read): the rotation of each onto the first from simultaneous still blocks,
     their consistency, and the verdict against ``imu_consistency``."""
-    if spec.sensor != "accelerometer":
+    if spec.sensor not in ("accelerometer", "gyroscope"):
         raise InputError(
-            f"align compares accelerometers from still blocks; a {spec.sensor} reads nothing to align at rest",
-            hint="give --sensor accelerometer (the IMUs' accelerometers share their boards' rotation)",
+            f"align compares accelerometers (still blocks) or gyroscopes (turns), not {spec.sensor}s",
+            hint="give --sensor accelerometer or --sensor gyroscope",
         )
     chosen = imu_streams(logs_given, spec, streams)
     if len(chosen) > 3:
@@ -347,6 +371,8 @@ def imus(
         raise InputError(f"{len(cals)} --cal for {len(chosen)} IMUs: give one per IMU, in their order, or none")
     calibrations: list[Calibration | None] = [_calibration(c, spec.sensor, "--cal") for c in cals]
     calibrations = calibrations or [None] * len(chosen)
+    if spec.sensor == "gyroscope":
+        return gyros(chosen, calibrations, limits)
     read = [readings.read_log(lg, s, use_time=True, name=_name(lg, s)) for lg, s in chosen]
     first = read[0]
     seg = logs.find_blocks(first, spec.rate, None, None, _settings(settings, None))
@@ -362,22 +388,106 @@ def imus(
     means = [block_means(lg.values, _rows_in(lg, spans), cal) for lg, cal in zip(read, calibrations, strict=True)]
     seen = orientations(means[0].values)
     pairs = [_pair(means[0], m, _name(*chosen[i]), seen) for i, m in enumerate(means[1:], start=1)]
-    bound = _consistency_limit(limits)
+    bound = _consistency_limit(limits, "imu_consistency")
     units = calibrations[0].units if calibrations[0] is not None else _units(*chosen[0])
-    failures = [
+    notes = []
+    if seen < 2:
+        notes.append("one orientation: the rotation about gravity is not determined; consistency is judged as read")
+    failures = _failures(pairs, _name(*chosen[0]), bound, "imu_consistency")
+    return ImusAligned(_name(*chosen[0]), pairs, len(kept), seen, units, bound, failures, notes)
+
+
+def _failures(pairs: list[ImuPair], reference: str, bound: float | None, key: str) -> list[Finding]:
+    return [
         Finding(
-            f"limit.imu_consistency.{i}",
-            f"{p.stream} differs from {_name(*chosen[0])} by {p.consistency.rms:.4g} RMS, above {bound:g}",
+            f"limit.{key}.{i}",
+            f"{p.stream} differs from {reference} by {p.consistency.rms:.4g} RMS, above {bound:g}",
             p.consistency.rms,
             bound,
         )
         for i, p in enumerate(pairs, start=1)
         if bound is not None and not p.consistency.rms <= bound
     ]
-    notes = []
-    if seen < 2:
-        notes.append("one orientation: the rotation about gravity is not determined; consistency is judged as read")
-    return ImusAligned(_name(*chosen[0]), pairs, len(kept), seen, units, bound, failures, notes)
+
+
+def gyros(
+    chosen: list[tuple[str, ReadSpec]], calibrations: list[Calibration | None], limits: str | None
+) -> ImusAligned:
+    """Two or three gyroscopes: each corrected by its calibration (else its level at rest
+    subtracted: its bias), matched to the first's samples in time, compared where the first
+    turns faster than TURN_SIGMAS × its noise at rest; the rotation of each onto the first by
+    Wahba's problem over those rate vectors, their consistency (RMS difference of the rates),
+    and the verdict against ``gyro_consistency``."""
+    read = [readings.read_log(lg, s, use_time=True, name=_name(lg, s)) for lg, s in chosen]
+    rates, noise = [], []
+    for lg, cal in zip(read, calibrations, strict=True):
+        values = lg.values if cal is None else (lg.values - cal.offset) @ cal.matrix.T
+        still = align.rest(values)
+        if still is None:
+            raise CaptureRejected(
+                "the gyroscope never rests: its noise (and, without --cal, its bias) is not known",
+                file=lg.layout.name,
+                hint="log a few seconds at rest before or after the turns",
+                code="align.few",
+            )
+        rates.append(values if cal is not None else values - still.level)
+        noise.append(still.noise)
+    threshold = align.TURN_SIGMAS * noise[0]
+    turning = np.linalg.norm(rates[0], axis=1) > threshold
+    pairs, count, axes = [], 0, 0
+    for i in range(1, len(read)):
+        other = _on_clock_of(read[0], read[i], rates[i])
+        keep = turning & np.isfinite(other).all(axis=1)
+        ref_v, other_v = rates[0][keep], other[keep]
+        count, axes = int(keep.sum()), align.turn_axes(ref_v, noise[0])
+        _turned(count, axes, read[0].layout.name, threshold)
+        sigma = np.full(count, float(np.hypot(noise[0], noise[i])))
+        fit = align.wahba(ref_v, other_v, sigma)
+        _observable(fit, read[i].layout.name, "the turns were about one axis")
+        pairs.append(ImuPair(_name(*chosen[i]), fit, align.consistency(ref_v, other_v, None, sigma),
+                             align.consistency(ref_v, other_v, fit.matrix, sigma)))  # fmt: skip
+    bound = _consistency_limit(limits, "gyro_consistency")
+    units = calibrations[0].units if calibrations[0] is not None else _units(*chosen[0])
+    failures = _failures(pairs, _name(*chosen[0]), bound, "gyro_consistency")
+    return ImusAligned(_name(*chosen[0]), pairs, 0, 0, units, bound, failures, turning=Turning(count, axes, threshold))
+
+
+def _turned(count: int, axes: int, name: str, threshold: float) -> None:
+    """Exit 3 unless the gyroscopes turned, about two axes or more."""
+    if count < align.MIN_BLOCKS:
+        raise CaptureRejected(
+            f"{count} samples turning faster than {threshold:.3g} ({align.TURN_SIGMAS:g} x the noise at rest): "
+            "the gyroscopes' rotation needs turns",
+            file=name,
+            hint="turn the unit about two or more of its axes while logging",
+            code="align.few",
+        )
+    if axes < 2:
+        raise CaptureRejected(
+            "the rotation is not determined by these turns: they were about one axis",
+            file=name,
+            hint="turn the unit about two or more of its axes while logging",
+            code="align.unobservable",
+        )
+
+
+def _on_clock_of(ref: Log, other: Log, rates: FloatArray) -> FloatArray:
+    """``rates`` (``other``'s) at each of ``ref``'s readings: interpolated in time on their
+    clocks (NaN outside ``other``'s span or across its gaps), or row by row without clocks."""
+    out = np.full((len(ref.values), 3), np.nan)
+    if ref.clock is None or other.clock is None:
+        n = min(len(out), len(rates))
+        out[:n] = rates[:n]
+        return out
+    t, to = ref.clock * ref.scale, other.clock * other.scale
+    if len(to) < 2:
+        return out
+    for axis in range(3):
+        out[:, axis] = np.interp(t, to, rates[:, axis], left=np.nan, right=np.nan)
+    at = np.clip(np.searchsorted(to, t), 1, len(to) - 1)
+    gap = to[at] - to[at - 1]
+    out[gap > 1.5 * float(np.median(np.diff(to)))] = np.nan
+    return out
 
 
 def _name(log: str, spec: ReadSpec) -> str:
@@ -427,10 +537,10 @@ def _pair(ref: Means, other: Means, stream: str, seen: int) -> ImuPair:
     return ImuPair(stream, fit, align.consistency(ref.values, other.values, None, noise), aligned)
 
 
-def _consistency_limit(path: str | None) -> float | None:
+def _consistency_limit(path: str | None, key: str) -> float | None:
     if path is None:
         return None
-    value = limitfile.load_limits(path).get("imu_consistency")
+    value = limitfile.load_limits(path).get(key)
     return None if value is None else float(np.asarray(value).ravel()[0])
 
 
