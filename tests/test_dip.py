@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from tests.conftest import assert_untouched, assert_usage_error, precious, run, write
-from tumblecal_cli.core import earth
+from tumblecal_cli.core import align, earth
 from tumblecal_cli.core.model import FloatArray
 
 PLACE, DAY = "52.2053,0.1218,16", "2026-11-27"
@@ -229,3 +229,24 @@ def test_check_judges_the_dip_angles_a_file_records_again(capsys: pytest.Capture
     assert run(capsys, *args[:6], plain, *args[7:]).code == 0
     r = run(capsys, "check", plain, "--limits", tmp_path / "loose.yaml")
     assert_usage_error(r, "has no dip angles to judge the dip_angle limit by")
+
+
+def test_the_dip_angles_are_taken_through_the_alignment(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """A magnetometer turned 3° from its accelerometer: each block's dip is off by up to 3°, and
+    with --align-to the dips are taken through the aligned matrix, so their spread shrinks."""
+    data = both_sensors_log(np.random.default_rng(11), mag_noise=0.05)
+    turned = align.exp_map(np.radians(3.0) * np.array([1.0, 2.0, -1.0]) / np.sqrt(6.0))  # v_acc = turned v_mag
+    field = (data[:, 4:] - HARD) @ np.linalg.inv(SOFT).T  # the field in the accelerometer's axes
+    data[:, 4:] = (field @ turned) @ SOFT.T + HARD  # ... read in the magnetometer's
+    log = write_log(tmp_path / "both.csv", data)
+    acc = accel_cal(tmp_path, capsys)
+    args = ("solve", "--sensor", "magnetometer", "--log", log, "--location", PLACE, "--date", DAY, "--accel-cal", acc)
+    plain, aligned = tmp_path / "mag.json", tmp_path / "mag-aligned.json"
+    assert run(capsys, *args, "-o", plain).code == 0
+    r = run(capsys, *args, "--align-to", acc, "-o", aligned)
+    assert r.code == 0, r.err
+    assert "note: aligned to" in r.err
+    before, after = (json.loads(p.read_text())["dip"] for p in (plain, aligned))
+    assert before["spread_deg"] > 1.0
+    assert after["spread_deg"] < before["spread_deg"] / 5
+    assert abs(after["difference_deg"]) < 4 * after["uncertainty_deg"] + 0.02

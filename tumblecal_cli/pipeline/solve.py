@@ -125,16 +125,20 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Path
         return _placed_run(options, poses=poses, log=log)
     source = alignment.source_of(options.read.sensor, log if log is not None else poses)
     solved = _placed_run(options, poses=poses, log=log)
-    if solved.calibration is not None:
-        settings = segment.Settings(
-            options.log.window, options.log.threshold, options.log.min_duration, options.log.trim
-        )
-        if options.checks.max_noise is not None:
-            settings = replace(settings, max_noise=options.checks.max_noise)
-        done = alignment.mag_to_accel(source, accel, solved.calibration, options.read, settings)
-        solved.calibration = alignment.aligned(done)
-        solved.notes.append(alignment.solved_note(done))
+    if solved.calibration is not None and "alignment" not in solved.calibration.fields:  # a log's is aligned already
+        solved.calibration = _aligned(source, accel, solved.calibration, options, solved.notes)
     return solved
+
+
+def _aligned(source: str, accel: str, cal: Calibration, options: SolveOptions, notes: list[str]) -> Calibration:
+    """``cal`` (a magnetometer's) rotated onto the axes of the accelerometer calibration
+    ``accel`` from ``source``'s still blocks (pipeline.alignment), and a note saying so."""
+    settings = segment.Settings(options.log.window, options.log.threshold, options.log.min_duration, options.log.trim)
+    if options.checks.max_noise is not None:
+        settings = replace(settings, max_noise=options.checks.max_noise)
+    done = alignment.mag_to_accel(source, accel, cal, options.read, settings)
+    notes.append(alignment.solved_note(done))
+    return alignment.aligned(done)
 
 
 def _placed_run(
@@ -503,6 +507,8 @@ def _mag_from_log(path: str, options: SolveOptions, given: Settings, source: pla
     solved.blocks = logs.Blocks(found.acc, found.seg)
     solved.blocks.used = {b.number: "used" for b in found.blocks}
     cal = places.stamp(solved.calibration, source)
+    if cal is not None and options.log.align_to is not None:  # aligned first: the dips through the rotation
+        cal = _aligned(path, options.log.align_to, cal, options, solved.notes)
     checked = None if cal is None else maglog.dip_check(found, cal, given.limits)
     if cal is not None and checked is not None:
         part, failures = checked
