@@ -411,6 +411,7 @@ def test_solve_align_to_is_for_a_magnetometer(tmp_path: Path, capsys: pytest.Cap
 # --- several gyroscopes, from turns -------------------------------------------------------------
 
 GYRO_TRUE = align.exp_map(np.radians(3.0) * AXIS)  # v_ref = GYRO_TRUE v_other
+GYRO_BIAS = np.array([0.02, -0.01, 0.015])  # rad/s
 
 
 def turn_rates(rng: np.random.Generator, axes: np.ndarray, rate_hz: float = 200.0) -> np.ndarray:
@@ -424,9 +425,10 @@ def turn_rates(rng: np.random.Generator, axes: np.ndarray, rate_hz: float = 200.
     return np.concatenate(out)
 
 
-def gyro_ulog(path: Path, rng: np.random.Generator, axes: np.ndarray, imus: int = 2) -> Path:
+def gyro_ulog(path: Path, rng: np.random.Generator, axes: np.ndarray, imus: int = 2, gain: float = 1.0) -> Path:
     """A ULog of ``imus`` sensor_gyro instances at 200 Hz (clocks 1.3 ms apart), each with its own
-    bias and 0.005 rad/s of noise per sample; instance i > 0 turned by GYRO_TRUE."""
+    bias (GYRO_BIAS times its number plus one) and 0.005 rad/s of noise per sample; instance i > 0
+    turned by GYRO_TRUE and its gain ``gain``."""
     w = turn_rates(rng, axes)
     t0 = np.arange(len(w)) * 5000
     streams = []
@@ -435,8 +437,8 @@ def gyro_ulog(path: Path, rng: np.random.Generator, axes: np.ndarray, imus: int 
         truth = w if i == 0 else w @ GYRO_TRUE  # the other's reading of the same rate
         if i:  # the same rate at the other's own (later) stamps
             s = (t0 + 1300 * i) / 1e6
-            truth = np.column_stack([np.interp(s, t0 / 1e6, w[:, k]) for k in range(3)]) @ GYRO_TRUE
-        bias = rng.normal(size=3) * 0.02
+            truth = np.column_stack([np.interp(s, t0 / 1e6, w[:, k]) for k in range(3)]) @ GYRO_TRUE * gain
+        bias = GYRO_BIAS * (i + 1)
         streams.append(("sensor_gyro", i, t.astype(np.int64), truth + bias + rng.normal(size=w.shape) * 0.005))
     return write_streams(path, streams)
 
@@ -463,6 +465,26 @@ def test_align_finds_each_gyroscopes_rotation_from_turns(tmp_path: Path, capsys:
     assert [f["code"] for f in doc["verdict"]["failures"]] == ["limit.gyro_consistency.1", "limit.gyro_consistency.2"]
     assert "turning samples (faster than" in err
     assert "FAIL: gyro_consistency 0.05 rad/s" in err
+
+
+def test_each_gyroscopes_calibration_is_applied_first(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The second gyroscope reads 2 % high: as read its rates differ from the first's by more than
+    their noise even once rotated; through its calibration (gain 1.02) only the noise is left."""
+    axes = poses(np.random.default_rng(0), 1)[0]
+    log = gyro_ulog(tmp_path / "gyros.ulg", np.random.default_rng(6), axes, gain=1.02)
+    cals: list[str | Path] = []
+    for i, gain in enumerate((1.0, 1.02)):
+        cal = calfile.Calibration("gyroscope", "turns", 0.0, ["x", "y", "z"], GYRO_BIAS * (i + 1), np.eye(3) / gain,
+                                  np.full(3, gain), units="rad/s")  # fmt: skip
+        calfile.write(cal, str(tmp_path / f"g{i}.json"))
+        cals += ["--cal", tmp_path / f"g{i}.json"]
+    as_read = run(capsys, "align", "--sensor", "gyroscope", log, "--json")
+    calibrated = run(capsys, "align", "--sensor", "gyroscope", log, *cals, "--json")
+    assert (as_read.code, calibrated.code) == (0, 0), calibrated.err
+    before, after = (json.loads(r.out)["imus"][0] for r in (as_read, calibrated))
+    assert before["consistency_aligned"] > 1.5 * before["consistency_noise"]
+    assert after["consistency_aligned"] < 1.1 * after["consistency_noise"]
+    assert after["angle_deg"] == pytest.approx(3.0, abs=3 * after["angle_sigma_deg"])
 
 
 def test_gyroscopes_turned_about_one_axis_are_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -15,6 +15,13 @@
   ``Σ w_i (|v_i|² I - v_i v_iᵀ)`` (``v_i = R other_i``): rotation about a direction every block
   shares is not observable.
 
+- **Several gyroscopes.** At rest a gyroscope reads only its bias; turning, two gyroscopes
+  read the same angular rate: Wahba's problem again, over the rate vectors of the samples where
+  the unit turns (``rest`` finds a gyroscope's bias and noise from its rates alone,
+  ``turn_axes`` whether the turns determine the rotation).
+- **Consistency.** The RMS difference of two sensors' corrected vectors, with its 1-sigma and
+  its noise bias (``consistency``).
+
 Every covariance is from the blocks' stated noise, scaled up by the reduced chi-square when
 the residuals are larger than that noise explains (never down).
 """
