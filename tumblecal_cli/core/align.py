@@ -133,7 +133,7 @@ def wahba(ref: FloatArray, other: FloatArray, sigma: FloatArray) -> Fitted:
     same units), each pair's per-component noise ``sigma`` (k,) (both sensors' together): Wahba's
     problem by SVD, with the covariance from the Fisher matrix (module docstring)."""
     w = 1.0 / np.asarray(sigma, dtype=np.float64) ** 2
-    b = (w[:, None, None] * ref[:, :, None] * other[:, None, :]).sum(axis=0)
+    b = (w[:, None] * ref).T @ other  # Σ w_i ref_i other_iᵀ, without a (k, 3, 3) array: k may be a gyroscope's samples
     u, _, vt = np.linalg.svd(b)
     d = np.diag([1.0, 1.0, float(np.linalg.det(u) * np.linalg.det(vt))])
     r = u @ d @ vt
@@ -141,9 +141,7 @@ def wahba(ref: FloatArray, other: FloatArray, sigma: FloatArray) -> Fitted:
     diff = ref - v
     chi2_sum = float((w * (diff**2).sum(axis=1)).sum())
     dof = max(3 * len(ref) - 3, 1)
-    fisher = (w[:, None, None] * ((v**2).sum(axis=1)[:, None, None] * np.eye(3) - v[:, :, None] * v[:, None, :])).sum(
-        axis=0
-    )
+    fisher = float((w * (v**2).sum(axis=1)).sum()) * np.eye(3) - (w[:, None] * v).T @ v
     chi2 = chi2_sum / dof
     cov = inverse(fisher) * max(chi2, 1.0)
     return _fitted(r, cov, chi2, np.linalg.norm(diff, axis=1))
