@@ -539,3 +539,16 @@ def test_gyro_rotation_uncertainty_holds_in_monte_carlo() -> None:
     assert np.abs(zs.mean(axis=0)).max() < 0.3
     assert np.mean(np.abs(czs) > 3) < 0.01
     assert 0.7 < czs.std() < 1.3
+
+
+def test_a_gyroscope_that_never_rests_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Turning all the time (no second at rest): neither its bias nor its noise is known."""
+    rng = np.random.default_rng(3)
+    t = np.arange(2000) * 5000
+    w = np.column_stack([np.sin(2 * np.pi * t / 1e6 * f) for f in (0.7, 1.1, 1.3)])
+    streams = [("sensor_gyro", i, (1_000_000 + t).astype(np.int64), w + rng.normal(size=w.shape) * 0.005)
+               for i in range(2)]  # fmt: skip
+    log = write_streams(tmp_path / "spinning.ulg", streams)
+    code, stdout, err = run(capsys, "align", "--sensor", "gyroscope", log)
+    assert (code, stdout) == (3, "")
+    assert "the gyroscope never rests" in err
