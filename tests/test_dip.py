@@ -229,3 +229,17 @@ def test_check_judges_the_dip_angles_a_file_records_again(capsys: pytest.Capture
     assert run(capsys, *args[:6], plain, *args[7:]).code == 0
     r = run(capsys, "check", plain, "--limits", tmp_path / "loose.yaml")
     assert_usage_error(r, "has no dip angles to judge the dip_angle limit by")
+
+
+def test_max_noise_judges_the_accelerometers_blocks_of_a_magnetometer_log(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """--max-noise was ignored there (the blocks were judged at 0.02 whatever was given): a real
+    hand-held log, still to 0.05 g, could not be used, and a strict bound kept noisy blocks."""
+    log = write_log(tmp_path / "both.csv", both_sensors_log(np.random.default_rng(11)))  # blocks still to 0.002 g
+    out = tmp_path / "mag.json"
+    strict = run(capsys, "solve", "--sensor", "magnetometer", "--log", log, "-o", out, "--max-noise", "0.001")
+    assert strict.code == 3, strict.err
+    assert "too noisy" in strict.err
+    assert not out.exists()
+    assert run(capsys, "solve", "--sensor", "magnetometer", "--log", log, "-o", out, "--max-noise", "0.01").code == 0

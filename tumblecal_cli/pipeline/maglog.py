@@ -63,7 +63,12 @@ def read(log: str, options: SolveOptions) -> MagLog:
             raise InputError(
                 f"--accel-cal takes an accelerometer's calibration, not a {accel.sensor}'s", file=accel.path
             )
-    settings = replace(block_settings(options, np.zeros(3)), nominal_offset=None if accel is None else accel.offset)
+    settings = replace(
+        block_settings(options, np.zeros(3)),
+        nominal_offset=None if accel is None else accel.offset,
+        # --max-noise, a share of the reference, judges the accelerometer's blocks here (as align's)
+        max_noise=options.checks.max_noise if options.checks.max_noise is not None else 0.02,
+    )
     with logs.segmented(
         log,
         replace(options.read, sensor="accelerometer", columns=None),
