@@ -243,3 +243,19 @@ def test_max_noise_judges_the_accelerometers_blocks_of_a_magnetometer_log(
     assert "too noisy" in strict.err
     assert not out.exists()
     assert run(capsys, "solve", "--sensor", "magnetometer", "--log", log, "-o", out, "--max-noise", "0.01").code == 0
+
+
+def test_a_magnetometer_log_of_separate_streams_says_so(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """A PX4 log keeps sensor_mag apart from sensor_accel: it said 'sensor_mag:0 carries
+    magnetometer, not the accelerometer; give --sensor magnetometer', which had been given."""
+    import gzip
+
+    ulog = tmp_path / "small.ulg"
+    data = Path(__file__).resolve().parent / "data" / "px4" / "pyulog_sample_log_small.ulg.gz"
+    ulog.write_bytes(gzip.decompress(data.read_bytes()))
+    out = tmp_path / "mag.json"
+    r = run(capsys, "solve", "--sensor", "magnetometer", "--log", ulog, "--stream", "sensor_mag:0", "-o", out)
+    assert r.code == 2
+    assert r.err.startswith(f"error: {ulog}: a magnetometer's --log reads both sensors on each row")
+    assert "--poses LOG --stream" in r.err
+    assert not out.exists()
