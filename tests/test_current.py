@@ -339,6 +339,16 @@ def test_a_missing_current_column_is_exit_2(tmp_path: Path, capsys: pytest.Captu
     )
 
 
+def test_a_current_column_that_is_a_sensor_column_names_the_option_given(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """It said '--pose-column names ...', an option current does not have."""
+    raw, current = _runup(52)
+    log = _write(tmp_path / "runup.csv", raw, current)
+    result = _bad(tmp_path, capsys, log, "--current-column", "mx")
+    assert_one_error(result, f"{log}: --current-column names 'mx', one of the magnetometer columns", hint="amperes")
+
+
 def test_a_nan_current_is_exit_2_naming_its_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     raw, current = _runup(53)
     log = _write(tmp_path / "runup.csv", raw, current)
@@ -369,7 +379,7 @@ def test_an_accelerometer_calibration_is_exit_2(tmp_path: Path, capsys: pytest.C
     result = run(capsys, "current", log, "--cal", acc, "--current-column", "curr_a", "-o", tmp_path / "o.json")
     assert_one_error(
         result,
-        f"{acc}: current compensation is a magnetometer's, and this calibration is of a accelerometer",
+        f"{acc}: current compensation is a magnetometer's, and this calibration is of the accelerometer",
         hint="magnetometer",
     )
     assert not (tmp_path / "o.json").exists()

@@ -231,6 +231,36 @@ def test_check_judges_the_dip_angles_a_file_records_again(capsys: pytest.Capture
     assert_usage_error(r, "has no dip angles to judge the dip_angle limit by")
 
 
+def test_max_noise_judges_the_accelerometers_blocks_of_a_magnetometer_log(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """--max-noise was ignored there (the blocks were judged at 0.02 whatever was given): a real
+    hand-held log, still to 0.05 g, could not be used, and a strict bound kept noisy blocks."""
+    log = write_log(tmp_path / "both.csv", both_sensors_log(np.random.default_rng(11)))  # blocks still to 0.002 g
+    out = tmp_path / "mag.json"
+    strict = run(capsys, "solve", "--sensor", "magnetometer", "--log", log, "-o", out, "--max-noise", "0.001")
+    assert strict.code == 3, strict.err
+    assert "too noisy" in strict.err
+    assert not out.exists()
+    assert run(capsys, "solve", "--sensor", "magnetometer", "--log", log, "-o", out, "--max-noise", "0.01").code == 0
+
+
+def test_a_magnetometer_log_of_separate_streams_says_so(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """A PX4 log keeps sensor_mag apart from sensor_accel: it said 'sensor_mag:0 carries
+    magnetometer, not the accelerometer; give --sensor magnetometer', which had been given."""
+    import gzip
+
+    ulog = tmp_path / "small.ulg"
+    data = Path(__file__).resolve().parent / "data" / "px4" / "pyulog_sample_log_small.ulg.gz"
+    ulog.write_bytes(gzip.decompress(data.read_bytes()))
+    out = tmp_path / "mag.json"
+    r = run(capsys, "solve", "--sensor", "magnetometer", "--log", ulog, "--stream", "sensor_mag:0", "-o", out)
+    assert r.code == 2
+    assert r.err.startswith(f"error: {ulog}: a magnetometer's --log reads both sensors on each row")
+    assert "--poses LOG --stream" in r.err
+    assert not out.exists()
+
+
 def test_the_dip_angles_are_taken_through_the_alignment(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """A magnetometer turned 3° from its accelerometer: each block's dip is off by up to 3°, and
     with --align-to the dips are taken through the aligned matrix, so their spread shrinks."""

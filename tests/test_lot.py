@@ -461,6 +461,8 @@ def test_cpk_interval_is_bissells_and_covers_the_true_cpk() -> None:
     assert low == pytest.approx(1.33 - half)
     assert high == pytest.approx(1.33 + half)
     assert lot.cpk_interval(None, 30) == (None, None)
+    assert lot.cpk_interval(21.9, 2) == (None, None)  # it was -8.45 to 52.2: none below 10 units
+    assert lot.cpk_interval(1.33, 10) != (None, None)
     # coverage: lots of 50 units, N(0, 1) against limits ±4 (true Cpk 4/3)
     x = np.random.default_rng(3).standard_normal((2000, 50))
     covered = 0

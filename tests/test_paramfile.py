@@ -614,3 +614,9 @@ def test_the_api_gives_the_text_and_the_notes_apart() -> None:
     assert done.text == exchange.export(cal, "px4", instance=3)
     assert done.notes[0].startswith("warning: scale and cross-axis terms NOT written (PX4 takes")
     assert "CAL_GYRO3_XOFF" in done.text
+
+
+def test_a_zero_is_written_0_never_minus_0() -> None:
+    """A zero offset negated (ArduPilot's offsets are added) was written `-0`."""
+    assert paramfile._value(-0.0, "COMPASS_OFS_X", None) == "0"
+    assert paramfile._value(-1.5, "COMPASS_OFS_X", None) == "-1.5"

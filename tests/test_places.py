@@ -113,6 +113,7 @@ def test_verify_at_a_location_judges_against_local_gravity(capsys: pytest.Captur
         (["--location", "1,2", "--date", "2026-01-01"], ["--date is for a magnetometer"]),
         (["--date", "2026-01-01"], ["--date dates the Earth's field", "--location"]),
         (["--location", "1,2", "--sensor", "gyroscope"], ["not a gyroscope"]),
+        (["--gravity", "9.81", "--sensor", "magnetometer"], ["an accelerometer's reference", "the Earth's field"]),
     ],
 )
 def test_bad_places_are_one_line_exit_2_and_nothing_written(
@@ -147,3 +148,20 @@ def test_the_python_api_takes_the_place_as_the_command_line_does(tmp_path: Path)
     assert done.reference == pytest.approx(9.8 / 9.80665, rel=1e-12)
     again = tumblecal.load(tmp_path / "cal.json")
     assert again.fields["gravity"] == solved.calibration.fields["gravity"]  # read back and kept
+
+
+@pytest.mark.parametrize(
+    "args", [["--location", "91,0"], ["--sensor", "magnetometer", "--location", "1,2", "--date", "1900-01-01"]]
+)
+def test_batch_judges_a_bad_place_once_before_any_unit(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, args: list[str]
+) -> None:
+    """It failed each unit with the same error and wrote the folder and a summary of errors."""
+    src = tmp_path / "units"
+    unit(src, "A1", "good")
+    unit(src, "A2", "good")
+    r = run(capsys, "batch", src, "--out-dir", tmp_path / "cals", *args)
+    assert r.code == 2
+    assert [line for line in r.err.splitlines() if line.startswith("error:")] == [r.err.splitlines()[0]]
+    assert "A1" not in r.err
+    assert not (tmp_path / "cals").exists()

@@ -316,3 +316,12 @@ def test_check_prints_the_poses_only_under_verbose(capsys: pytest.CaptureFixture
     assert "verdict: PASS (limits: offset)" in plain.err
     verbose = run(capsys, "check", cal, "--max-offset", "0.05", "-v")
     assert "poses" in verbose.err.split()
+
+
+def test_every_command_takes_help_all(capsys: pytest.CaptureFixture[str]) -> None:
+    """--help-all on each command (current, added later, had none: exit 2 'No such option')."""
+    names = ["solve", "segment", "batch", "apply", "verify", "noise", "thermal", "current", "align"]
+    for name in [*names, "show", "check", "export", "import", "report", "logs"]:
+        r = run(capsys, name, "--help-all")
+        assert r.code == 0, (name, r.err)
+        assert "Usage: tumblecal" in r.out

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from tumblecal_cli.cli import render
-from tumblecal_cli.cli.app import app
+from tumblecal_cli.cli.app import Command, app
 from tumblecal_cli.cli.flags import AllowCorrected, Columns, JsonSummary, LimitsFile, Quiet, StreamOption, source
 
 if TYPE_CHECKING:
@@ -18,6 +18,7 @@ if TYPE_CHECKING:
 
 
 @app.command(
+    cls=Command,
     epilog="Exit status: 0 written; 1 written, but the field's change at the largest current is above the limits "
     "file's current_interference; 2 usage or input error (not a magnetometer's calibration, no such current "
     "column, a current cell that is not a number); 3 a current that never changes within a log, or too few "

@@ -231,12 +231,18 @@ def cpk(values: Sequence[float] | FloatArray, lower: float | None, upper: float 
     return min(sides)
 
 
+#: The fewest units a Cpk interval is given for (Bissell 1990 is good from about 30, rough below).
+CPK_INTERVAL_MIN = 10
+
+
 def cpk_interval(value: float | None, n: int, z: float = 1.959964) -> tuple[float | None, float | None]:
     """Two-sided confidence interval of Cpk from n values (95 % with the default z): Bissell 1990's
-    normal approximation, Cpk ± z·√(1/(9n) + Cpk²/(2(n − 1))). (None, None) without a Cpk."""
+    normal approximation, Cpk ± z·√(1/(9n) + Cpk²/(2(n − 1))). (None, None) without a Cpk, or
+    from fewer than CPK_INTERVAL_MIN values, where it is wider than anything it could tell (2 units
+    of Cpk 21.9 gave -8.45 to 52.2)."""
     # Source: Bissell 1990, "How reliable is your capability index?", Applied Statistics 39(3),
     # eq. for the standard error of Ĉpk (normal data; good from about n = 30, rough below).
-    if value is None or n < 2:
+    if value is None or n < CPK_INTERVAL_MIN:
         return (None, None)
     half = z * math.sqrt(1.0 / (9.0 * n) + value * value / (2.0 * (n - 1.0)))
     return (value - half, value + half)

@@ -461,7 +461,7 @@ def comments(texts: Iterable[str]) -> list[str]:
 def _value(value: float, name: str, path: str | None) -> str:
     if not math.isfinite(value) or abs(value) > FLOAT32_MAX:
         raise InputError(f"{name} = {value!r} does not fit a float parameter", file=path)
-    return f"{value:.9g}"
+    return f"{value + 0.0:.9g}"  # + 0.0: a -0.0 (a zero offset negated) is written 0
 
 
 # -- thermal drift ------------------------------------------------------------------------------

@@ -32,7 +32,7 @@ from tumblecal_cli.core.model import face_of_name
 from tumblecal_cli.errors import STOPS, InputError, TumblecalError, control_character
 from tumblecal_cli.io import calfile
 from tumblecal_cli.io.outputs import remove_stale
-from tumblecal_cli.pipeline import solve
+from tumblecal_cli.pipeline import places, solve
 from tumblecal_cli.pipeline.cluster import engine
 from tumblecal_cli.pipeline.frames import written_table
 from tumblecal_cli.pipeline.options import SolveOptions, checked, keywords_known, path_of, settings
@@ -568,6 +568,8 @@ def run_batch(
     if out_dir == "-":
         raise InputError("--out-dir takes a folder: the calibrations are files, not a stream on stdout")
     settings(options, log=log)  # a bad option: one error, not one per unit
+    o = options  # ... as a bad --location, --gravity or --date (a log's stream units are known when it is read)
+    places.local_reference(places.Asked(o.read.sensor, o.units, None, o.location, o.gravity, o.date, o.reference))
     calfile.created()  # so is a bad SOURCE_DATE_EPOCH
     units, notes = find_units(source, log=log, out_dir=out_dir)
     if scheduler is not None:  # the workers do not share this working folder

@@ -92,7 +92,7 @@ def current(
     sensor, column = options.get("sensor"), options.get("current_column")
     if base.sensor != "magnetometer" or sensor not in (None, "magnetometer"):
         raise InputError(
-            f"current compensation is a magnetometer's, and this calibration is of a {base.sensor}"
+            f"current compensation is a magnetometer's, and this calibration is of the {base.sensor}"
             + (f" (--sensor {sensor})" if sensor not in (None, base.sensor) else ""),
             file=base.path,
             hint="give the magnetometer's calibration with --cal",
@@ -152,6 +152,12 @@ def _read(path: str, spec: ReadSpec, column: str) -> LogRead:
                 f"{kind}'s current is in a message of its own, on its own clock: current reads CSV logs",
                 file=err.file,
                 hint="write the magnetometer's readings with the current beside each row to a CSV (docs/current.md)",
+            ) from None
+        if err.message.startswith("--pose-column names "):  # the label column's own check: here it is the current's
+            raise InputError(
+                "--current-column" + err.message.removeprefix("--pose-column"),
+                file=err.file,
+                hint="name the column of the motor current in amperes, not one of the sensor's",
             ) from None
         if not err.message.startswith(f"column {column!r} not found"):
             raise

@@ -19,7 +19,7 @@ import numpy as np
 
 from tumblecal_cli.core import earth, gate, solvers
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import calfile, readings
+from tumblecal_cli.io import calfile, readings, sources
 from tumblecal_cli.io.readings import Samples
 from tumblecal_cli.pipeline import logs
 from tumblecal_cli.pipeline.rotations import block_settings
@@ -56,6 +56,13 @@ class MagLog:
 
 def read(log: str, options: SolveOptions) -> MagLog:
     """Segment the log by its accelerometer and read its magnetometer on the same rows."""
+    if options.read.stream is not None or (log != "-" and sources.reader_for(log) is not None):
+        raise InputError(
+            "a magnetometer's --log reads both sensors on each row of one table; this log keeps each "
+            "sensor in a stream of its own, on its own clock",
+            file=log,
+            hint="solve the magnetometer's turning capture with --poses LOG --stream (tumblecal logs LOG lists them)",
+        )
     accel = None
     if options.log.accel_cal is not None:
         accel = calfile.load(options.log.accel_cal)
@@ -63,7 +70,12 @@ def read(log: str, options: SolveOptions) -> MagLog:
             raise InputError(
                 f"--accel-cal takes an accelerometer's calibration, not a {accel.sensor}'s", file=accel.path
             )
-    settings = replace(block_settings(options, np.zeros(3)), nominal_offset=None if accel is None else accel.offset)
+    settings = replace(
+        block_settings(options, np.zeros(3)),
+        nominal_offset=None if accel is None else accel.offset,
+        # --max-noise, a share of the reference, judges the accelerometer's blocks here (as align's)
+        max_noise=options.checks.max_noise if options.checks.max_noise is not None else 0.02,
+    )
     with logs.segmented(
         log,
         replace(options.read, sensor="accelerometer", columns=None),

@@ -132,6 +132,11 @@ def local_reference(asked: Asked) -> tuple[float, str, Source] | None:
         return _gravity(asked)
     if sensor == "magnetometer" and asked.gravity is None:
         return _field(asked)
+    if sensor == "magnetometer":
+        raise InputError(
+            "--gravity is local gravity, an accelerometer's reference: a magnetometer's is the Earth's field",
+            hint="give --location LAT,LON and --date YYYY-MM-DD for the World Magnetic Model's field there",
+        )
     raise InputError(
         f"{given[0]} sets a reference for an accelerometer (gravity) or a magnetometer (the Earth's field), "
         f"not a {sensor}"
