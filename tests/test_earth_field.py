@@ -159,7 +159,7 @@ def test_the_field_in_gauss_when_asked(capsys: pytest.CaptureFixture[str], tmp_p
         (["--location", PLACE], ["give --date"]),
         (["--location", "-91,0", "--date", DAY], ["latitude -91"]),
         (["--location", PLACE, "--date", DAY, "--units", "counts"], ["uT, gauss", "'counts'"]),
-        (["--gravity", "9.81"], ["not a magnetometer"]),
+        (["--gravity", "9.81"], ["an accelerometer's reference", "the Earth's field"]),
     ],
 )
 def test_bad_fields_are_one_line_exit_2_and_nothing_written(
