@@ -253,7 +253,7 @@ def test_a_calibration_of_the_wrong_sensor_is_refused(tmp_path: Path, capsys: py
     code, out, err = run(capsys, "align", "--accel-cal", acc, "--mag-cal", acc, log)
     assert code == 2
     assert out == ""
-    assert "--mag-cal takes the magnetometer's calibration, not a accelerometer's" in err
+    assert "--mag-cal takes the magnetometer's calibration, not the accelerometer's" in err
 
 
 def test_too_few_orientations_are_rejected(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -404,7 +404,7 @@ def test_solve_align_to_is_for_a_magnetometer(tmp_path: Path, capsys: pytest.Cap
     acc = cal_file(tmp_path / "acc.json", "accelerometer", ["ax", "ay", "az"])
     out = tmp_path / "cal.json"
     result = run(capsys, "solve", "--method", "ellipsoid", "--poses", log, "--align-to", acc, "-o", out)
-    assert_one_error(result, "--align-to aligns a magnetometer's axes to an accelerometer's, not a accelerometer's")
+    assert_one_error(result, "--align-to aligns a magnetometer's axes to an accelerometer's, not the accelerometer's")
     assert not out.exists()
 
 
@@ -552,3 +552,44 @@ def test_a_gyroscope_that_never_rests_is_refused(tmp_path: Path, capsys: pytest.
     code, stdout, err = run(capsys, "align", "--sensor", "gyroscope", log)
     assert (code, stdout) == (3, "")
     assert "the gyroscope never rests" in err
+
+
+def test_align_never_writes_onto_an_input_or_one_file_twice(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """-o onto the log (a 921 KB ULog became a 613-byte alignment), onto a calibration, and -o and
+    --aligned-mag onto one file were all exit 0: each is exit 2 before any work, nothing changed."""
+    log = mag_log(tmp_path / "both.csv", np.random.default_rng(2))
+    acc = cal_file(tmp_path / "acc.json", "accelerometer", ["ax", "ay", "az"])
+    mag = cal_file(tmp_path / "mag.json", "magnetometer", ["mx", "my", "mz"])
+    before = {p: p.read_bytes() for p in (log, acc, mag)}
+    out = tmp_path / "out.json"
+    cases: list[tuple[list[str | Path], str]] = [
+        (["-o", log], f"{log}: -o would overwrite the input {log}"),
+        (["-o", acc], f"{acc}: -o would overwrite the input {acc}"),
+        (["--aligned-mag", mag], f"{mag}: --aligned-mag would overwrite the input {mag}"),
+        (["-o", out, "--aligned-mag", out], f"{out}: -o and --aligned-mag would write one file"),
+    ]
+    for extra, message in cases:
+        result = run(capsys, "align", "--accel-cal", acc, "--mag-cal", mag, log, *extra)
+        assert result.code == 2, (extra, result.err)
+        assert result.err.startswith(f"error: {message}")
+        assert {p: p.read_bytes() for p in before} == before
+        assert not out.exists()
+    assert run(capsys, "align", "--accel-cal", acc, "--mag-cal", mag, log, "-o", out, "-q").err == ""
+
+
+def test_solve_align_to_names_its_own_option(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = mag_log(tmp_path / "both.csv", np.random.default_rng(2))
+    mag = cal_file(tmp_path / "mag.json", "magnetometer", ["mx", "my", "mz"])
+    out = tmp_path / "x.json"
+    r = run(
+        capsys, "solve", "--sensor", "magnetometer", "-p", log, "--align-to", mag, "--no-check", "coverage", "-o", out
+    )
+    assert r.code == 2
+    assert "--align-to takes the accelerometer's calibration, not the magnetometer's" in r.err
+
+
+def test_one_stream_given_twice_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """It compared the IMU with itself: exit 0, 'consistency 0'."""
+    log = imu_ulog(tmp_path / "two.ulg", np.random.default_rng(4), np.eye(3), imus=2, k=3)
+    result = run(capsys, "align", log, "--stream", "sensor_accel:0", "--stream", "sensor_accel:0")
+    assert_one_error(result, f"{log}: --stream sensor_accel:0 is given twice: an IMU compared with itself")

@@ -14,6 +14,7 @@ from tumblecal_cli.cli.flags import (
     JsonSummary,
     LimitsFile,
     MinDuration,
+    Quiet,
     Rate,
     Sensor,
     SensorKind,
@@ -95,6 +96,7 @@ def align(
         ),
     ] = None,
     json_summary: JsonSummary = False,
+    quiet: Quiet = False,
 ) -> None:
     """The rotation between two sensors' axes from the still blocks of a log, with its uncertainty.
 
@@ -116,6 +118,7 @@ def align(
     settings = Settings(window, threshold, min_duration, trim, max_noise)
     spec = ReadSpec(sensor=sensor.value, rate=rate, allow_corrected=allow_corrected)
     request = alignment.AlignRequest(logs, spec, settings, accel_cal, mag_cal, stream or [], cal or [], limits_file)
+    alignment.check_outputs(request, output, aligned_mag)
     done = alignment.run(request)
     status = 1 if isinstance(done, alignment.ImusAligned) and done.failures else 0
     if aligned_mag is not None:
@@ -124,7 +127,8 @@ def align(
         alignment.write(done, output or "-")
     if json_summary:
         render.print_json({"status": render.status_word(status), "exit_status": status, **alignment.document(done)})
-    _tell(done)
+    if not quiet:
+        _tell(done)
     if status:
         raise typer.Exit(status)
 

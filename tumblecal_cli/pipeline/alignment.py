@@ -205,7 +205,7 @@ def _settings(settings: segment.Settings, offset: FloatArray | None) -> segment.
 def _calibration(path: str, sensor: str, flag: str) -> Calibration:
     cal = calfile.load(path)
     if cal.sensor != sensor:
-        raise InputError(f"{flag} takes the {sensor}'s calibration, not a {cal.sensor}'s", file=cal.path)
+        raise InputError(f"{flag} takes the {sensor}'s calibration, not the {cal.sensor}'s", file=cal.path)
     return cal
 
 
@@ -216,11 +216,12 @@ def mag_to_accel(
     spec: ReadSpec,
     settings: segment.Settings,
     max_spool: int | str | None = None,
+    accel_flag: str = "--accel-cal",
 ) -> MagAligned:
     """The rotation of the magnetometer's axes onto the accelerometer's from ``log`` (both
     sensors' columns on the same rows), each corrected by its calibration (the magnetometer's
-    a file, or one just solved)."""
-    accel = _calibration(accel_cal, "accelerometer", "--accel-cal")
+    a file, or one just solved); ``accel_flag`` names the option that gave the accelerometer's."""
+    accel = _calibration(accel_cal, "accelerometer", accel_flag)
     mag = _calibration(mag_cal, "magnetometer", "--mag-cal") if isinstance(mag_cal, str) else mag_cal
     acc_spec = replace(spec, sensor="accelerometer", columns=None, prefer=tuple(accel.columns))
     with logs.segmented(
@@ -259,7 +260,7 @@ def source_of(sensor: str, given: object) -> str:
     """The one capture ``solve --align-to`` aligns on: the log, or the one pose file (a
     magnetometer turned through many orientations, the accelerometer's columns beside its own)."""
     if sensor != "magnetometer":
-        raise InputError(f"--align-to aligns a magnetometer's axes to an accelerometer's, not a {sensor}'s")
+        raise InputError(f"--align-to aligns a magnetometer's axes to an accelerometer's, not the {sensor}'s")
     items = [given] if isinstance(given, str | os.PathLike) else given
     if not isinstance(items, list | tuple) or len(items) != 1 or not isinstance(items[0], str | os.PathLike):
         raise InputError(
@@ -323,6 +324,9 @@ def imu_streams(logs_given: list[str], spec: ReadSpec, streams: list[str]) -> li
     raw stream of ``spec.sensor`` with samples in the one log, or each log's one stream."""
     if streams:
         if len(logs_given) == 1:
+            twice = next((s for i, s in enumerate(streams) if s in streams[:i]), None)
+            if twice is not None:
+                raise InputError(f"--stream {twice} is given twice: an IMU compared with itself", file=logs_given[0])
             return [(logs_given[0], replace(spec, stream=s)) for s in streams]
         if len(streams) != len(logs_given):
             raise InputError(f"{len(logs_given)} logs and {len(streams)} --stream: give one --stream per log")
@@ -362,7 +366,8 @@ def imus(
     if spec.sensor not in ("accelerometer", "gyroscope"):
         raise InputError(
             f"align compares accelerometers (still blocks) or gyroscopes (turns), not {spec.sensor}s",
-            hint="give --sensor accelerometer or --sensor gyroscope",
+            hint="give --sensor accelerometer or gyroscope; a magnetometer is aligned to its accelerometer with "
+            "--accel-cal ACC --mag-cal MAG",
         )
     chosen = imu_streams(logs_given, spec, streams)
     if len(chosen) > 3:
@@ -562,6 +567,27 @@ class AlignRequest:
     streams: list[str] = field(default_factory=list)
     cals: list[str] = field(default_factory=list)
     limits: str | None = None
+
+
+def check_outputs(request: AlignRequest, output: str | None, aligned_mag: str | None) -> None:
+    """Before any work: no output names an input (a log, a calibration, the limits file), the two
+    outputs are not one file, and each can be written."""
+    inputs = [*request.logs, *request.cals, *(p for p in (request.accel_cal, request.mag_cal, request.limits) if p)]
+    for path, flag in ((output, "-o"), (aligned_mag, "--aligned-mag")):
+        if path is not None:
+            outputs.check_writable(path, flag)
+            outputs.check_not_input(path, inputs, flag)
+    same = output == aligned_mag or (output is None and aligned_mag == "-")
+    if aligned_mag is not None and same:
+        raise InputError(
+            "-o and --aligned-mag would write one file (or both onto stdout)",
+            file=aligned_mag,
+            hint="give each its own file: the alignment with -o, the magnetometer's calibration with --aligned-mag",
+        )
+    if output is None or aligned_mag is None or output == "-" or not os.path.exists(output):
+        return
+    if os.path.exists(aligned_mag) and os.path.samefile(output, aligned_mag):  # one file, two spellings
+        raise InputError("-o and --aligned-mag name one file", file=aligned_mag, hint="give each its own file")
 
 
 def run(request: AlignRequest) -> MagAligned | ImusAligned:

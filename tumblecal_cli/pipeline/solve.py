@@ -136,7 +136,7 @@ def _aligned(source: str, accel: str, cal: Calibration, options: SolveOptions, n
     settings = segment.Settings(options.log.window, options.log.threshold, options.log.min_duration, options.log.trim)
     if options.checks.max_noise is not None:
         settings = replace(settings, max_noise=options.checks.max_noise)
-    done = alignment.mag_to_accel(source, accel, cal, options.read, settings)
+    done = alignment.mag_to_accel(source, accel, cal, options.read, settings, accel_flag="--align-to")
     notes.append(alignment.solved_note(done))
     return alignment.aligned(done)
 
