@@ -245,6 +245,16 @@ class Capture:
             )
         return values, all_empty
 
+    def finite_values(self, columns: Sequence[pa.Array], first_row: int) -> tuple[FloatArray, BoolArray]:
+        """``sensor_values``, where a cell of ±inf or nan is an error naming its line and column:
+        one would poison a mean (``apply`` passes them through; solve, verify and noise do not)."""
+        values, empty = self.sensor_values(columns, first_row)
+        bad = ~np.isfinite(values) & ~empty[:, None]
+        if bad.any():
+            i, j = (int(k[0]) for k in np.nonzero(bad))
+            raise self._locate(first_row + i, j, f"not a finite number: {quoted(columns[j][i].as_py())}")
+        return values, empty
+
     def temperature_values(self, text: pa.Array, first_row: int, empty: BoolArray) -> FloatArray:
         """The temperature column of a block as floats (°C); a cell that is not a finite number,
         or an empty one, on a row with sensor values (``empty``: rows without), is an error naming

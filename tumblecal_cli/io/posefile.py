@@ -27,7 +27,7 @@ from tumblecal_cli.io.capture import Capture, cast_floats, open_capture, to_floa
 from tumblecal_cli.io.outputs import spool_room
 from tumblecal_cli.io.readings import Log, Samples, read_samples, time_scale
 from tumblecal_cli.io.readspec import ReadSpec
-from tumblecal_cli.io.sniff import TIME_SCALE, FloatArray, Layout, quoted
+from tumblecal_cli.io.sniff import TIME_SCALE, FloatArray, Layout
 
 #: A pose file of more readings than this is summed as it is read (its readings kept on disk).
 SUMMED_ROWS = 1 << 18
@@ -194,11 +194,7 @@ def read(path: str, spec: ReadSpec | None = None) -> Samples:
         got = _Read(lay.name, lay.time is not None, lay.temperature is not None)
         try:
             for first_row, cols in cap.batches(only_sensor=True):
-                values, empty = cap.sensor_values(cols, first_row)
-                bad = ~np.isfinite(values) & ~empty[:, None]
-                if bad.any():  # nan/inf would poison the pose mean (apply passes them through)
-                    i, j = (int(k[0]) for k in np.nonzero(bad))
-                    raise cap._locate(first_row + i, j, f"not a finite number: {quoted(cols[j][i].as_py())}")
+                values, empty = cap.finite_values(cols, first_row)
                 got.add(cap, cols, values, ~empty)
         except BaseException:
             got.close()  # the files of what was kept: an error (or ^C) ends the read

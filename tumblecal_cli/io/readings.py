@@ -175,11 +175,7 @@ def read_log(
         keep, times, temps, labels = [], [], [], []
         floats: list[FloatArray] | None = []  # the time column as numbers, when it is not judged
         for first_row, cols in cap.batches(only_sensor=True):
-            values, empty = cap.sensor_values(cols, first_row)
-            bad = ~np.isfinite(values) & ~empty[:, None]
-            if bad.any():  # nan/inf would poison the pose mean (apply passes them through)
-                i, j = (int(k[0]) for k in np.nonzero(bad))
-                raise cap._locate(first_row + i, j, f"not a finite number: {quoted(cols[j][i].as_py())}")
+            values, empty = cap.finite_values(cols, first_row)
             readings.add(values)
             keep.append(~empty)
             k = 3

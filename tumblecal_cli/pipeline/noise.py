@@ -387,11 +387,7 @@ def _parsed(
     """Each block of a capture as numbers: its first data row, the readings of its rows that
     have them, which rows have none, and (``timed``) the time of those that do."""
     for first_row, cols in cap.batches(only_sensor=True):
-        values, empty = cap.sensor_values(cols, first_row)
-        bad = ~np.isfinite(values) & ~empty[:, None]
-        if bad.any():
-            i, j = (int(k[0]) for k in np.nonzero(bad))
-            raise cap._locate(first_row + i, j, f"not a finite number: {sniff.quoted(cols[j][i].as_py())}")
+        values, empty = cap.finite_values(cols, first_row)
         if empty.any():
             values = values[~empty]
         times = readings.block_times(cap, first_row, cols[3], empty) if timed and values.shape[0] else None
