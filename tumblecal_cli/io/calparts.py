@@ -701,21 +701,9 @@ GAIN_DRIFT_KINDS = ("separate", "folded", "unobserved")
 
 def thermal_from(value: object, path: str | None) -> Thermal:
     """The ``thermal`` block of a file, validated (every problem names the field)."""
-    if not isinstance(value, dict):
-        raise InputError("field 'thermal' must be an object (column, reference_temperature, range, ...)", file=path)
-    for key in THERMAL_KEYS:
-        if key not in value:
-            raise InputError(f"field 'thermal' has no {key!r}", file=path)
-    column = value["column"]
-    if not isinstance(column, str) or not column:
-        raise InputError("field 'thermal.column' must be a column name", file=path)
+    value, column = _per_row_block(value, "thermal", THERMAL_KEYS, path)
     t_ref = checked_number(value["reference_temperature"], "thermal.reference_temperature", path)
-    span = value["range"]
-    if not (isinstance(span, list) and len(span) == 2):
-        raise InputError("field 'thermal.range' must be [lowest, highest] °C", file=path)
-    low, high = (checked_number(v, "thermal.range", path) for v in span)
-    if low >= high:
-        raise InputError(f"field 'thermal.range' [{low:g}, {high:g}] must be [lowest, highest] °C", file=path)
+    low, high = _block_range(value["range"], "thermal", "°C", path)
     order = value["order"]
     if isinstance(order, bool) or order not in (1, 2, 3):
         raise InputError("field 'thermal.order' must be 1, 2 or 3", file=path)
@@ -770,22 +758,34 @@ CURRENT_KEYS = ("column", "per_amp", "range")
 
 def current_from(value: object, path: str | None) -> Current:
     """The ``current`` block of a file, validated (every problem names the field)."""
-    if not isinstance(value, dict):
-        raise InputError("field 'current' must be an object (column, per_amp, range, ...)", file=path)
-    for key in CURRENT_KEYS:
-        if key not in value:
-            raise InputError(f"field 'current' has no {key!r}", file=path)
-    column = value["column"]
-    if not isinstance(column, str) or not column:
-        raise InputError("field 'current.column' must be a column name", file=path)
+    value, column = _per_row_block(value, "current", CURRENT_KEYS, path)
     per_amp = value["per_amp"]
     if not (isinstance(per_amp, list) and len(per_amp) == 3):
         raise InputError("field 'current.per_amp' must be a list of 3 numbers (raw units per ampere)", file=path)
-    span = value["range"]
-    if not (isinstance(span, list) and len(span) == 2):
-        raise InputError("field 'current.range' must be [lowest, highest] amperes", file=path)
-    low, high = (checked_number(v, "current.range", path) for v in span)
-    if low >= high:
-        raise InputError(f"field 'current.range' [{low:g}, {high:g}] must be [lowest, highest] amperes", file=path)
+    low, high = _block_range(value["range"], "current", "amperes", path)
     extra = {k: v for k, v in value.items() if k not in CURRENT_KEYS}
     return Current(column, np.array([checked_number(v, "current.per_amp", path) for v in per_amp]), (low, high), extra)
+
+
+def _per_row_block(value: object, name: str, keys: tuple[str, ...], path: str | None) -> tuple[dict[str, object], str]:
+    """A block that corrects each row at a column's value (``thermal``, ``current``): an object
+    with every one of ``keys``, and the name of its column."""
+    if not isinstance(value, dict):
+        raise InputError(f"field {name!r} must be an object ({', '.join(keys[:3])}, ...)", file=path)
+    for key in keys:
+        if key not in value:
+            raise InputError(f"field {name!r} has no {key!r}", file=path)
+    column = value["column"]
+    if not isinstance(column, str) or not column:
+        raise InputError(f"field '{name}.column' must be a column name", file=path)
+    return value, column
+
+
+def _block_range(span: object, name: str, unit: str, path: str | None) -> tuple[float, float]:
+    """A per-row block's ``range``: [lowest, highest] of its column, in ``unit``."""
+    if not (isinstance(span, list) and len(span) == 2):
+        raise InputError(f"field '{name}.range' must be [lowest, highest] {unit}", file=path)
+    low, high = (checked_number(v, f"{name}.range", path) for v in span)
+    if low >= high:
+        raise InputError(f"field '{name}.range' [{low:g}, {high:g}] must be [lowest, highest] {unit}", file=path)
+    return low, high
