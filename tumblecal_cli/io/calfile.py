@@ -226,30 +226,28 @@ class Calibration:
             return self._at_current(raw, temperature, self.current)
         if self.thermal is None:
             return apply_model(raw, self.offset, self.matrix)
-        if temperature is None:
-            raise InputError(
-                f"this calibration corrects each row at its temperature: give temperature= (n,) °C "
-                f"(its column {self.thermal.column!r})",
-                file=self.path,
-            )
-        temp = np.asarray(temperature, dtype=np.float64).reshape(-1)
-        if temp.shape[0] != raw.shape[0]:
-            raise InputError(f"temperature has {temp.shape[0]} values for {raw.shape[0]} rows", file=self.path)
-
+        temp = self._per_row(raw, temperature, ("temperature", "temperature", "°C"), self.thermal.column)
         fixed, _ = thermal_correct(raw, temp, self.offset, self.matrix, self.thermal.drift())
         return fixed
 
     def _at_current(self, raw: FloatArray, amperes: ArrayLike | None, block: Current) -> FloatArray:
-        if amperes is None:
+        current = self._per_row(raw, amperes, ("motor current", "the current", "amperes"), block.column)
+        return current_correct(raw, current, self.offset, self.matrix, block.per_amp)
+
+    def _per_row(self, raw: FloatArray, given: ArrayLike | None, said: tuple[str, str, str], column: str) -> FloatArray:
+        """The value each row is corrected at (``temperature=``), one per row of ``raw``; ``said``:
+        what it is, how a count of them is named, and its unit."""
+        what, counted, unit = said
+        if given is None:
             raise InputError(
-                f"this calibration corrects each row at its motor current: give temperature= (n,) amperes "
-                f"(its column {block.column!r})",
+                f"this calibration corrects each row at its {what}: give temperature= (n,) {unit} "
+                f"(its column {column!r})",
                 file=self.path,
             )
-        current = np.asarray(amperes, dtype=np.float64).reshape(-1)
-        if current.shape[0] != raw.shape[0]:
-            raise InputError(f"the current has {current.shape[0]} values for {raw.shape[0]} rows", file=self.path)
-        return current_correct(raw, current, self.offset, self.matrix, block.per_amp)
+        values = np.asarray(given, dtype=np.float64).reshape(-1)
+        if values.shape[0] != raw.shape[0]:
+            raise InputError(f"{counted} has {values.shape[0]} values for {raw.shape[0]} rows", file=self.path)
+        return values
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write atomically: JSON, or YAML when ``path`` ends in .yaml/.yml; '-' is stdout."""
