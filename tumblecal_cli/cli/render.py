@@ -497,7 +497,7 @@ def _blocks_table(log: Log, seg: Segmentation, shown: Sequence[Block], used: dic
     for b, start in zip(shown, starts, strict=True):
         table.add_row(
             str(b.number),
-            f"{int(log.rows[b.first])}-{int(log.rows[b.last])}",
+            f"{log.row(b.first)}-{log.row(b.last)}",
             start,
             f"{b.duration:.3g} s" if b.duration is not None else str(b.samples),
             b.face or (f"({b.nearest})" if b.label is None else f"({b.label})"),
@@ -511,8 +511,9 @@ def _blocks_table(log: Log, seg: Segmentation, shown: Sequence[Block], used: dic
 def _start(log: Log, seg: Segmentation, b: Block) -> str:
     """When a block starts: an epoch clock's time in ISO 8601 (UTC), another clock's in seconds,
     or its reading over the rate (no time column)."""
-    if log.clock is not None:
-        seconds = float(log.clock[b.first]) * log.scale
+    time = log.time(b.first)
+    if time is not None:
+        seconds = time * log.scale
         return iso_time(seconds) or f"{seconds:.6g} s"
     return "" if seg.period is None else f"{log.reading(b.first) * seg.period:.4g} s"
 

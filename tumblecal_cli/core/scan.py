@@ -34,7 +34,7 @@ alone, on another thread): only the windows across its start are computed here.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -48,6 +48,7 @@ from tumblecal_cli.core.segment import (
     WINDOW,
     FloatArray,
     IntArray,
+    Measured,
     Segmentation,
     Settings,
     _in_samples,
@@ -56,6 +57,7 @@ from tumblecal_cli.core.segment import (
     smallest,
     window_spread,
 )
+from tumblecal_cli.core.segment import measure as segment_measure
 
 #: A sample is a still candidate when its spread is below this many times the threshold so far.
 BOUND_FACTOR = 4.0
@@ -122,6 +124,11 @@ class Kept:
         return int(self.run_at[k] + index - self.run_first[k])
 
 
+#: What measures a Scan's blocks when it kept no readings: the samples kept (their spreads and
+#: where each run of them is in the log) and each block's first and last position among them.
+Measure = Callable[[Kept, list[tuple[int, int]]], list[Measured]]
+
+
 def log_index(run_first: IntArray, run_at: IntArray, at: IntArray | int) -> IntArray:
     """The log's index of the kept samples at positions ``at``, from where each run of them
     starts in the log (``run_first``) and among those kept (``run_at``)."""
@@ -132,10 +139,12 @@ def log_index(run_first: IntArray, run_at: IntArray, at: IntArray | int) -> IntA
 
 class _Store:
     """Kept samples written end to end into arrays made once for as many as the log can hold
-    (``capacity``: memory is only touched where written), grown if the guess was short."""
+    (``capacity``: memory is only touched where written), grown if the guess was short; their
+    spreads alone unless ``readings``."""
 
-    def __init__(self, capacity: int) -> None:
+    def __init__(self, capacity: int, readings: bool = True) -> None:
         self.capacity = max(1024, capacity)
+        self.readings = readings
         self.axes: FloatArray | None = None
         self.floats: FloatArray | None = None
         self.ints: IntArray | None = None
@@ -145,7 +154,7 @@ class _Store:
 
     def add(self, part: Part, spread: FloatArray) -> None:
         n = len(part)
-        if self.axes is None or self.floats is None or self.ints is None:
+        if self.readings and (self.axes is None or self.floats is None or self.ints is None):
             self.axes = np.empty((3, self.capacity))
             self.floats = np.empty((self.capacity, part.floats.shape[1]))
             self.ints = np.empty((self.capacity, part.ints.shape[1]), dtype=part.ints.dtype)
@@ -156,20 +165,19 @@ class _Store:
         else:
             self.runs.append((part.first, n))
         k = self.size
-        assert self.axes is not None
-        assert self.floats is not None
-        assert self.ints is not None
-        self.axes[:, k : k + n] = part.axes
-        self.floats[k : k + n] = part.floats
-        self.ints[k : k + n] = part.ints
+        if self.axes is not None and self.floats is not None and self.ints is not None:
+            self.axes[:, k : k + n] = part.axes
+            self.floats[k : k + n] = part.floats
+            self.ints[k : k + n] = part.ints
         self.spread[k : k + n] = spread
         self.size += n
 
     def _grow(self, need: int) -> None:
         capacity = max(need, self.capacity * 3 // 2)
-        assert self.axes is not None
-        assert self.floats is not None
-        assert self.ints is not None
+        self.spread = np.concatenate([self.spread[: self.size], np.empty(capacity - self.size)])
+        self.capacity = capacity
+        if self.axes is None or self.floats is None or self.ints is None:
+            return
         axes = np.empty((3, capacity))
         axes[:, : self.size] = self.axes[:, : self.size]
         self.axes = axes
@@ -177,8 +185,6 @@ class _Store:
         self.ints = np.concatenate(
             [self.ints[: self.size], np.empty((capacity - self.size, self.ints.shape[1]), dtype=self.ints.dtype)]
         )
-        self.spread = np.concatenate([self.spread[: self.size], np.empty(capacity - self.size)])
-        self.capacity = capacity
 
     def smallest(self, k: int, bound: float) -> float | None:
         """The ``k``-th smallest spread kept below ``bound`` (``segment.smallest``)."""
@@ -189,18 +195,22 @@ class _Store:
         first = np.array([r[0] for r in self.runs], dtype=np.int64)
         size = np.array([r[1] for r in self.runs], dtype=np.int64)
         at = np.concatenate([[0], np.cumsum(size)[:-1]]).astype(np.int64) if size.size else size
-        if self.axes is None or self.floats is None or self.ints is None:
-            return Kept(template.axes, template.floats, template.ints, np.zeros(0), first, at, size)
+        if self.axes is None or self.floats is None or self.ints is None:  # their spreads alone
+            return Kept(template.axes, template.floats, template.ints, self.spread[:k], first, at, size)
         return Kept(self.axes[:, :k], self.floats[:k], self.ints[:k], self.spread[:k], first, at, size)
 
 
 class Scan:
     """Feed a log's blocks in order (``feed``), then ``finish``."""
 
-    def __init__(self, period: float | None, settings: Settings | None = None, capacity: int = 1 << 16) -> None:
+    def __init__(
+        self, period: float | None, settings: Settings | None = None, capacity: int = 1 << 16, readings: bool = True
+    ) -> None:
         """``period``: seconds per sample from the log's first blocks (the median step there),
         or 1/rate; None when neither is known (the window is then in samples). ``capacity``:
-        how many samples the log may have, about (room for the kept ones is made once)."""
+        how many samples the log may have, about (room for the kept ones is made once).
+        ``readings``: keep the still samples' readings (and what goes with them), not their
+        spreads alone; without them ``finish`` is given what measures the blocks."""
         settings = self.settings = settings or Settings()
         self.period = period
         self.window = _in_samples(settings.window, WINDOW, period, 2)
@@ -216,7 +226,7 @@ class Scan:
         self.held_spread = np.zeros(0)
         self.held_candidate = np.zeros(0, dtype=bool)
         self.before = np.zeros(0, dtype=bool)  # candidate flags of the pad samples decided last
-        self.store = _Store(capacity)
+        self.store = _Store(capacity, readings)
         self.template: Part | None = None
         # a given threshold is the bound, and a little over it: a spread on it must be seen (finish's tie)
         self.bound = np.inf if settings.threshold is None else float(settings.threshold) * (1 + MARGIN)
@@ -350,10 +360,10 @@ class Scan:
         self.held_spread = self.held_spread[ready:].copy()
         self.held_candidate = self.held_candidate[ready:].copy()
 
-    def finish(self) -> tuple[Segmentation, Kept] | None:
+    def finish(self, measure: Measure | None = None) -> tuple[Segmentation, Kept] | None:
         """The segmentation, and the samples kept (each block's ``first``..``last`` are
         positions among them); None when the log must be read whole instead (the module's
-        docstring)."""
+        docstring). ``measure``: each block's statistics, for a Scan that kept no readings."""
         if self.n == 0 or self.template is None:
             return None
         if self.carry is not None and self.finalized < self.n:
@@ -410,7 +420,13 @@ class Scan:
             if period:
                 short = {k: c for k, c in self.steps.items() if 0 <= k <= GAP_FACTOR * period}
                 seg.mean_step = sum(k * c for k, c in short.items()) / sum(short.values())
-        return _judge(seg, kept.values, spans, self.settings), kept
+        if measure is not None:
+            measured = measure(kept, spans)
+        elif self.store.readings:
+            measured = segment_measure(kept.values, spans)
+        else:
+            raise ValueError("a Scan without readings is finished with what measures its blocks")
+        return _judge(seg, measured, spans, self.settings), kept
 
     def _period(self) -> float | bool | None:
         """The median step, as ``detect`` takes it (nearest rank); False when not counted."""

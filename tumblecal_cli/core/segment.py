@@ -369,7 +369,7 @@ def detect(
         [int(g) for g in breaks],
         clock=found,
     )
-    return _judge(seg, values, spans, settings)
+    return _judge(seg, measure(values, spans), spans, settings)
 
 
 def from_labels(
@@ -404,22 +404,41 @@ def from_labels(
         clock=found,
     )
     names = {a: str(text[a]).strip() for a, _ in spans}
-    return _judge(seg, values, spans, settings, {a: mapping.get(names[a]) for a, _ in spans}, names)
+    faces = {a: mapping.get(names[a]) for a, _ in spans}
+    return _judge(seg, measure(values, spans), spans, settings, faces, names)
+
+
+@dataclass(frozen=True)
+class Measured:
+    """A span's statistics, and its drift: the mean of its last third less that of its first."""
+
+    stats: PoseStats
+    drift: FloatArray
+
+
+def measure(values: FloatArray, spans: list[tuple[int, int]]) -> list[Measured]:
+    """Each span's statistics and drift, from the readings (n, 3) it indexes."""
+    axes = values.T  # (3, n): each block's axes contiguous, 3x faster sums (a streamed log's are already)
+    if axes.strides[1] != axes.itemsize:
+        axes = np.ascontiguousarray(axes)
+    found = []
+    for a, b in spans:
+        third = max(1, (b - a + 1) // 3)
+        drift = axes[:, b + 1 - third : b + 1].mean(axis=1) - axes[:, a : a + third].mean(axis=1)
+        found.append(Measured(pose_stats(axes[:, a : b + 1].T), drift))
+    return found
 
 
 def _judge(
     seg: Segmentation,
-    values: FloatArray,
+    measured: list[Measured],
     spans: list[tuple[int, int]],
     settings: Settings,
     faces: Mapping[int, str | None] | None = None,
     names: Mapping[int, str] | None = None,
 ) -> Segmentation:
-    """Measure each block, find the rough centre, then label and keep or drop each one."""
-    axes = values.T  # (3, n): each block's axes contiguous, 3x faster sums (a streamed log's are already)
-    if axes.strides[1] != axes.itemsize:
-        axes = np.ascontiguousarray(axes)
-    stats = [pose_stats(axes[:, a : b + 1].T) for a, b in spans]
+    """Find the rough centre from each block's statistics, then label and keep or drop each one."""
+    stats = [m.stats for m in measured]
     # the centre from the blocks that are poses: a labelled log's rotations (unmapped) average
     # to the centre itself and would pull the estimate there
     posed = [faces is None or faces[a] is not None for a, _ in spans]
@@ -431,12 +450,12 @@ def _judge(
         seg.centre = np.asarray(settings.nominal_offset, dtype=float)
     else:
         seg.centre = rough_centre(means, settings.max_tilt_deg)
-    _label(seg, axes, spans, stats, settings, faces, names)
+    _label(seg, measured, spans, settings, faces, names)
     if settings.nominal_offset is None:  # the midpoint of opposite faces, where both are found
         centre = face_midpoint(seg)
         if not np.array_equal(centre, seg.centre):
             seg.centre, seg.blocks = centre, []
-            _label(seg, axes, spans, stats, settings, faces, names)
+            _label(seg, measured, spans, settings, faces, names)
     return seg
 
 
@@ -456,17 +475,15 @@ def face_midpoint(seg: Segmentation) -> FloatArray:
 
 def _label(
     seg: Segmentation,
-    axes: FloatArray,
+    measured: list[Measured],
     spans: list[tuple[int, int]],
-    stats: list[PoseStats],
     settings: Settings,
     faces: Mapping[int, str | None] | None,
     names: Mapping[int, str] | None,
 ) -> None:
     """Each block measured about ``seg.centre``: its face, or why it is dropped."""
-    for number, ((a, b), st) in enumerate(zip(spans, stats, strict=True), start=1):
-        third = max(1, (b - a + 1) // 3)
-        drift = axes[:, b + 1 - third : b + 1].mean(axis=1) - axes[:, a : a + third].mean(axis=1)
+    for number, ((a, b), m) in enumerate(zip(spans, measured, strict=True), start=1):
+        st, drift = m.stats, m.drift
         nearest, angle, magnitude = _nearest_face(st.mean - seg.centre)
         face = nearest if angle <= settings.max_tilt_deg else None
         dropped = None

@@ -26,15 +26,18 @@ import os
 from collections import deque
 from collections.abc import Generator, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass
 from typing import TypedDict
 
 import numpy as np
 
 from tumblecal_cli.core import model
-from tumblecal_cli.core.scan import Scan
+from tumblecal_cli.core.chunks import CHUNK, Chunks, chunk_sums
+from tumblecal_cli.core.scan import Kept, Scan
 from tumblecal_cli.core.segment import (
     FloatArray,
     IntArray,
+    Measured,
     Segmentation,
     Settings,
     clock_of,
@@ -44,7 +47,7 @@ from tumblecal_cli.core.segment import (
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import capture, readings, rewrite, sniff
 from tumblecal_cli.io.forked import cuts
-from tumblecal_cli.io.readings import Log
+from tumblecal_cli.io.readings import Log, Stretch
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.io.splice import BoolArray, Offsets, Splicer
 
@@ -105,7 +108,8 @@ def _scan(
         if hasher is not None:
             with open(path, "rb") as f:
                 hasher.update(f.read(len(lay.head)))
-        feeder = _Feeder(lay, settings, time_unit, rate, os.path.getsize(path))
+        source = _Source(path, lay, splicer, where)
+        feeder = _Feeder(lay, settings, time_unit, rate, source)
         for block in _blocks(path, lay, splicer, where, hasher, feeder.shared):
             feeder.check(block)
             feeder.add(block)
@@ -115,26 +119,143 @@ def _scan(
         raise
     sha256 = "" if hasher is None else hasher.hexdigest()
     scan = feeder.started()
-    done = scan.finish()
+    done = scan.finish(feeder.measure)
     if done is None:
         return None
     seg, kept = done
     seg.gap_rows = [int(r) for r in scan.before_gaps[:, 0]] if len(scan.before_gaps) else []
-    timed, warm = lay.time is not None, lay.temperature is not None
+    ends = feeder.ends
+    at = np.array(sorted(ends), dtype=np.int64)
+    found = [ends[int(p)] for p in at]
+    narrow = np.int32 if source.size < NARROW else np.int64
+    lines: IntArray = np.array([e.line for e in found], dtype=narrow).reshape(-1, 2)  # type: ignore[assignment]
     log = Log(
         lay,
-        kept.values,
-        kept.ints[:, 0],
-        kept.floats[:, 0] if timed else None,
+        np.array([e.value for e in found]).reshape(-1, 3),
+        np.array([e.row for e in found], dtype=narrow),
+        np.array([e.clock for e in found]) if lay.time is not None else None,
         None,
         sha256,
-        kept.floats[:, 1 if timed else 0] if warm else None,
+        np.array([e.temperature for e in found]) if lay.temperature is not None else None,
         feeder.scale,
-        lines=kept.ints[:, 1:3],
+        lines=lines,
         extremes=feeder.extremes(),
         runs=(kept.run_first, kept.run_at),
+        at=at,
+        reread=source.block,
     )
     return log, seg
+
+
+@dataclass(frozen=True)
+class _End:
+    """A block's first or last reading, kept: its reading, data row, time and temperature cells
+    (NaN where the log has none) and its line's first byte and end."""
+
+    value: FloatArray
+    row: int
+    clock: float
+    temperature: float
+    line: tuple[int, int]
+
+
+@dataclass(frozen=True)
+class _Read:
+    """Readings read again from a stretch of whole lines: each one's line among them (from 0)
+    and its line's first byte and end in the file."""
+
+    values: FloatArray
+    clock: FloatArray | None
+    temperature: FloatArray | None
+    lines: IntArray
+    starts: IntArray
+    stops: IntArray
+
+
+class _Source:
+    """The log's file, read again where the scan kept nothing: the chunks where a block or its
+    third begins or ends, and a block's lines when its readings are asked for. A file that is
+    not the one scanned (its size, time or inode) is not read: the scan steps aside (``_Plain``)."""
+
+    def __init__(self, path: str, lay: sniff.Layout, splicer: Splicer, where: list[int]) -> None:
+        self.path, self.name, self.splicer, self.where = path, lay.name, splicer, where
+        self.timed, self.warm = lay.time is not None, lay.temperature is not None
+        st = os.stat(path)
+        self.size = st.st_size
+        self.stamp = (st.st_size, st.st_mtime_ns, st.st_ino)
+
+    def read(self, ranges: list[tuple[int, int]], counts: IntArray) -> list[_Read]:
+        """The readings of each stretch of lines (its first byte and end), ``counts`` of them."""
+        out: list[_Read] = []
+        with open(self.path, "rb") as f:
+            st = os.fstat(f.fileno())
+            if (st.st_size, st.st_mtime_ns, st.st_ino) != self.stamp:
+                raise _Plain
+            batch: list[tuple[int, int, int | None]] = []
+            size = 0
+            for (start, stop), n in zip(ranges, counts.tolist(), strict=True):
+                batch.append((start, stop, n))
+                size += stop - start
+                if size >= capture.BLOCK_BYTES:  # parsed a block at a time: what it holds at once stays small
+                    out += self._parse(f.fileno(), batch)
+                    batch, size = [], 0
+            if batch:
+                out += self._parse(f.fileno(), batch)
+        return out
+
+    def _parse(self, fd: int, batch: list[tuple[int, int, int | None]]) -> list[_Read]:
+        """Each stretch's readings (as many as its count, when it has one), parsed together."""
+        texts = []
+        for start, stop, _ in batch:
+            text = os.pread(fd, stop - start, start)
+            if len(text) != stop - start:
+                raise _Plain
+            texts.append(text if text.endswith(b"\n") else text + self.splicer.eol)
+        found = self.splicer.read(b"".join(texts))
+        if found is None:
+            raise _Plain
+        parsed, empty, newline = found
+        parsed = parsed[:, self.where]
+        out, line, offset = [], 0, 0
+        for (start, stop, n), text in zip(batch, texts, strict=True):
+            k = text.count(b"\n")
+            keep = np.flatnonzero(~empty[line : line + k])
+            if n is not None and keep.size != n:
+                raise _Plain
+            stops = np.minimum(newline[line : line + k] - offset + 1 + start, stop)
+            starts = np.concatenate([[start], stops[:-1]])
+            cells = parsed[line : line + k][keep]
+            clock = cells[:, 3] if self.timed else None
+            temp = cells[:, 3 + self.timed] if self.warm else None
+            out.append(_Read(cells[:, :3], clock, temp, keep, starts[keep], stops[keep]))
+            line, offset = line + k, offset + len(text)
+        return out
+
+    def block(self, start: int, stop: int, count: int) -> Stretch:
+        """The ``count`` readings of a block's lines (its first byte and end), read in pieces of
+        whole lines."""
+        pieces: list[tuple[int, int]] = []
+        at = start
+        try:
+            with open(self.path, "rb") as f:
+                while at < stop:
+                    end = min(stop, at + capture.BLOCK_BYTES)
+                    if end < stop:
+                        cut = os.pread(f.fileno(), end - at, at).rfind(b"\n")
+                        end = at + cut + 1 if cut >= 0 else stop
+                    pieces.append((at, end))
+                    at = end
+                read = [r for a, b in pieces for r in self._parse(f.fileno(), [(a, b, None)])]
+            if sum(len(r.values) for r in read) != count or os.stat(self.path).st_mtime_ns != self.stamp[1]:
+                raise _Plain
+        except (_Plain, OSError):
+            raise InputError(
+                "the log is not as it was when its blocks were found: changed or gone", file=self.name
+            ) from None
+        values = np.concatenate([r.values for r in read])
+        clock = None if not self.timed else np.concatenate([r.clock for r in read if r.clock is not None])
+        temp = None if not self.warm else np.concatenate([r.temperature for r in read if r.temperature is not None])
+        return Stretch(values, clock, temp)
 
 
 class _Digest:
@@ -186,6 +307,8 @@ class _Block:
         self.finite = bool(np.isfinite(self.values).all())
         self.lo = float(self.values.min()) if self.values.size and self.finite else 0.0
         self.hi = float(self.values.max()) if self.values.size and self.finite else 0.0
+        summed = self.finite and max(-self.lo, self.hi) <= model.MAX_READING  # (else the whole read says why)
+        self.chunks = chunk_sums(self.values) if summed else None  # what a block's statistics are merged from
         self.odd: float | None = None  # a reading that is not a whole number: one in the log is enough
         if self.finite and "odd" not in shared:
             fraction = self.values[self.values != np.round(self.values)]
@@ -200,9 +323,14 @@ class _Feeder:
     """The blocks into a Scan: judged first (what the streaming path does not take), held until
     the first FIRST readings give the time unit and the period."""
 
-    def __init__(self, lay: sniff.Layout, settings: Settings, time_unit: str, rate: float | None, size: int):
-        self.lay, self.settings, self.time_unit, self.rate, self.size = lay, settings, time_unit, rate, size
+    def __init__(self, lay: sniff.Layout, settings: Settings, time_unit: str, rate: float | None, source: _Source):
+        self.lay, self.settings, self.time_unit, self.rate = lay, settings, time_unit, rate
+        self.source, self.size = source, source.size
         self.scan: Scan | None = None
+        self.chunks = Chunks()  # each CHUNK readings' sums, and where their lines are: (first byte, end, row)
+        self.chunk_lines: list[IntArray] = []
+        #: after measure: the first and last reading of each block, by its position among those kept
+        self.ends: dict[int, _End] = {}
         self.first: list[_Block] = []
         self.shared: _Shared = {}
         self.scale, self.zero, self.last_clock = 1.0, 0.0, -np.inf
@@ -252,7 +380,7 @@ class _Feeder:
             if found is not None and found.bursty:
                 raise _Plain  # stamped on arrival: the whole read takes the period from its mean step (core.clock)
         capacity = _capacity(self.first, self.size)
-        scan = self.scan = Scan(sample_period(seconds, self.rate), self.settings, capacity=capacity)
+        scan = self.scan = Scan(sample_period(seconds, self.rate), self.settings, capacity=capacity, readings=False)
         self.shared["window"] = scan.window
         for b in self.first:
             self._feed(scan, b)
@@ -265,7 +393,40 @@ class _Feeder:
         inside = block.inside
         if inside is not None and inside.size + scan.window - 1 != len(block.values):
             inside = None  # computed with another window (before the first blocks gave it)
+        first = scan.n
         scan.feed(block.values, seconds, block.floats, block.ints, inside)
+        if block.chunks is not None and len(block.values):
+            self.chunks.add(first, *block.chunks)
+            m = len(block.values)
+            last = np.minimum(np.arange(CHUNK - 1, m + CHUNK - 1, CHUNK), m - 1)
+            ints = block.ints
+            self.chunk_lines.append(np.column_stack([ints[::CHUNK, 1], ints[last, 2], ints[::CHUNK, 0]]))
+
+    def measure(self, kept: Kept, spans: list[tuple[int, int]]) -> list[Measured]:
+        """Each block's statistics, merged from the chunks' sums and the readings of the chunks
+        where a block or its third begins or ends, read again; and each block's first and last
+        reading (``ends``)."""
+        chunks = self.chunks
+        chunks.done()
+        lines = np.concatenate(self.chunk_lines) if self.chunk_lines else np.zeros((0, 3), dtype=np.int64)
+        positions = np.array(spans, dtype=np.int64).reshape(-1, 2)
+        found = kept.log_index(positions.reshape(-1)).reshape(-1, 2) if positions.size else positions
+        indexes = [(int(a), int(b)) for a, b in found]
+        need = chunks.cut(indexes)
+        read = self.source.read([(int(lines[c, 0]), int(lines[c, 1])) for c in need], chunks.counts[need])
+        stretch = dict(zip(need.tolist(), read, strict=True))
+        measured = chunks.measure(indexes, {c: r.values for c, r in stretch.items()})
+        for p, i in zip(positions.reshape(-1).tolist(), found.reshape(-1).tolist(), strict=True):
+            c = int(chunks.of(i))
+            r, j = stretch[c], i - int(chunks.start[c])
+            self.ends[p] = _End(
+                r.values[j],
+                int(lines[c, 2]) + int(r.lines[j]),
+                np.nan if r.clock is None else float(r.clock[j]),
+                np.nan if r.temperature is None else float(r.temperature[j]),
+                (int(r.starts[j]), int(r.stops[j])),
+            )
+        return measured
 
     def extremes(self) -> FloatArray:
         """What gate.integer_rails judges the whole log's readings by: the lowest, the highest,

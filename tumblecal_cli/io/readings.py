@@ -8,6 +8,7 @@ temperature and a label column; ``read_samples`` is the same for a pose file.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -93,6 +94,36 @@ class Log:
     runs: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
     #: Seconds from the capture's first reading to the first one here (a part read from --start).
     first_s: float = 0.0
+    #: A log read block by block keeps each block's first and last reading only (io.logread):
+    #: ``values``, ``rows``, ``clock``, ``temperature`` and ``lines`` hold those, in order, and
+    #: ``at`` is the position of each among the readings of the still periods (what a block's
+    #: ``first`` and ``last`` index); ``reread`` reads a block's readings again from its lines.
+    at: NDArray[np.int64] | None = None
+    reread: Callable[[int, int, int], Stretch] | None = None
+
+    def _entry(self, position: int) -> int:
+        """Where the reading at ``position`` is in this log's arrays."""
+        if self.at is None:
+            return position
+        k = int(np.searchsorted(self.at, position))
+        if k >= self.at.size or int(self.at[k]) != position:
+            raise IndexError(f"reading {position} of {self.layout.name} is not kept: only each block's first and last")
+        return k
+
+    def row(self, position: int) -> int:
+        """The data row (0-based) of the reading at ``position``."""
+        return int(self.rows[self._entry(position)])
+
+    def time(self, position: int) -> float | None:
+        """The time cell (in its own unit) of the reading at ``position``, if the log has a clock."""
+        return None if self.clock is None else float(self.clock[self._entry(position)])
+
+    def line_span(self, first: int, last: int) -> tuple[int, int] | None:
+        """Where the lines of readings ``first``..``last`` are in the file: the first's first
+        byte and the byte after the last's line end (a log read block by block)."""
+        if self.lines is None:
+            return None
+        return int(self.lines[self._entry(first), 0]), int(self.lines[self._entry(last), 1])
 
     def reading(self, position: int) -> int:
         """The index among the whole log's readings of the reading at ``position`` here (the
@@ -108,19 +139,34 @@ class Log:
 
     def block(self, number: int, first: int, last: int) -> Samples:
         """Readings ``first``..``last`` (inclusive) as a pose."""
-        clock = self.clock
-        times = None if clock is None else (float(clock[first]), float(clock[last]))
-        temp = self.temperature
+        span = self.line_span(first, last)
+        if self.reread is not None and span is not None:
+            found = self.reread(*span, last - first + 1)
+            values, clock, temp = found.values, found.clock, found.temperature
+        else:
+            values, clock, temp = self.values[first : last + 1], self.clock, self.temperature
+            clock = None if clock is None else clock[first : last + 1]
+            temp = None if temp is None else temp[first : last + 1]
+        times = None if clock is None else (float(clock[0]), float(clock[-1]))
         return Samples(
             self.layout,
-            self.values[first : last + 1],
-            (int(self.rows[first]), int(self.rows[last])),
+            values,
+            (self.row(first), self.row(last)),
             self.sha256,
-            None if clock is None else float(clock[last] - clock[first]) * self.scale,
-            None if temp is None else float(temp[first : last + 1].mean()),
+            None if clock is None else float(clock[-1] - clock[0]) * self.scale,
+            None if temp is None else float(temp.mean()),
             block=number,
             times=times,
         )
+
+
+@dataclass(frozen=True)
+class Stretch:
+    """The readings of a stretch of a log's lines, read again (io.logread): a block's."""
+
+    values: FloatArray  # (n, 3)
+    clock: FloatArray | None
+    temperature: FloatArray | None
 
 
 def read_samples(path: str, spec: ReadSpec | None = None) -> Samples:

@@ -394,15 +394,15 @@ def index_rows(log: Log, seg: Segmentation, files: dict[int, str]) -> list[list[
     writes it)."""
     rows = []
     for b in seg.blocks:
-        times = ["", ""] if log.clock is None else [repr(float(log.clock[b.first])), repr(float(log.clock[b.last]))]
+        times = ["", ""] if log.clock is None else [repr(log.time(b.first)), repr(log.time(b.last))]
         rows.append(
             [
                 str(b.number),
                 files.get(b.number, ""),
                 "kept" if b.kept else "dropped",
                 b.dropped or "",
-                str(int(log.rows[b.first])),
-                str(int(log.rows[b.last])),
+                str(log.row(b.first)),
+                str(log.row(b.last)),
                 *times,
                 str(b.samples),
                 "" if b.duration is None else f"{b.duration:.6g}",
@@ -708,14 +708,13 @@ def _write_blocks(log: str, path: str, found: Blocks, files: dict[int, str], ind
         with atomic_output(os.path.join(staging, "segments.csv")) as out:
             out.write(index.encode())
         outputs = [os.path.join(staging, name) for name in names[1:]]
+        lines = [data.line_span(b.first, b.last) for b in kept]
         if data.lines is not None:  # where each block's lines are in the file: copied as they are
-            spans = [(int(data.lines[b.first, 0]), int(data.lines[b.last, 1])) for b in kept]
-            capture.copy_bytes(path, data.layout, spans, outputs)
+            capture.copy_bytes(path, data.layout, [span for span in lines if span is not None], outputs)
         elif sources.reader_for(path) is not None:  # a source beside CSV: each block's readings as a CSV
             _table_blocks(data, [(b.first, b.last) for b in kept], outputs)
         else:
-            spans = [(int(data.rows[b.first]), int(data.rows[b.last])) for b in kept]
-            capture.copy_rows(path, data.layout, spans, outputs)
+            capture.copy_rows(path, data.layout, [(data.row(b.first), data.row(b.last)) for b in kept], outputs)
         # the index first: a run stopped part-way leaves its blocks listed, so the next run
         # into this folder knows them for its own and replaces them
         for name in names:

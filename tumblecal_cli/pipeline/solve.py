@@ -456,12 +456,11 @@ def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
         settings=settings,
         max_spool=options.log.max_spool,
     ) as (_, data, seg):
-        pass  # every block is in memory: the log is not read again
-    blocks = logs.Blocks(data, seg)
-    try:
-        name, labels, samples, notes = logs.log_poses(data, seg, given.method, given.up, options.read.sensor)
-    except CaptureRejected as err:
-        return Solved(3, None, rejections=[], error=err, blocks=blocks)
+        blocks = logs.Blocks(data, seg)
+        try:  # while the log is there: a streamed log's blocks are read again (stdin's, from its copy)
+            name, labels, samples, notes = logs.log_poses(data, seg, given.method, given.up, options.read.sensor)
+        except CaptureRejected as err:
+            return Solved(3, None, rejections=[], error=err, blocks=blocks)
     blocks.used = {
         int(s.block or 0): f"used: {label}" if label else "used" for s, label in zip(samples, labels, strict=True)
     }
