@@ -38,6 +38,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from tumblecal_cli.core import clock
 from tumblecal_cli.core.segment import (
@@ -343,13 +344,7 @@ class Scan:
         first = held[0].first
         flags = np.concatenate([self.before, self.held_candidate])
         pad, at = self.pad, self.before.size  # the first held sample's position in flags
-        # candidates before each position of flags, with pad zeros before and the total repeated after
-        total = np.zeros(flags.size + 2 * pad + 2, dtype=np.int64)
-        np.cumsum(flags, out=total[pad + 1 : pad + 1 + flags.size])
-        total[pad + 1 + flags.size :] = total[pad + flags.size]
-        near = total[at + 2 * pad + 1 : at + ready + 2 * pad + 1] > total[at : at + ready]  # a candidate within pad
-        edges = np.flatnonzero(np.diff(np.concatenate([[False], near, [False]]).astype(np.int8)))
-        for a, b in zip(edges[0::2].tolist(), edges[1::2].tolist(), strict=True):  # runs of kept samples
+        for a, b in _near(flags, pad, at, ready):  # runs of kept samples
             at = a
             for piece in _between(held, first + a, first + b):
                 self.store.add(piece, self.held_spread[at : at + len(piece)])
@@ -490,6 +485,23 @@ class Scan:
                 return None
             spans.append((pa, pb))
         return spans
+
+
+def _near(flags: NDArray[np.bool_], pad: int, at: int, ready: int) -> list[tuple[int, int]]:
+    """The runs (first, end) of positions 0 .. ``ready - 1`` (``flags``'s ``at`` ..) within ``pad``
+    of a True flag: each run of True flags widened by ``pad`` each way, those that meet merged."""
+    if not flags.size:
+        return []
+    bounds = np.concatenate([[0], np.flatnonzero(flags[1:] != flags[:-1]) + 1, [flags.size]])
+    first = 0 if flags[0] else 1  # runs alternate: the first True one
+    lo = np.maximum(bounds[first:-1:2] - pad - at, 0)
+    hi = np.minimum(bounds[first + 1 :: 2] + pad - at, ready)
+    ok = hi > lo
+    lo, hi = lo[ok], hi[ok]
+    if lo.size > 1:  # widened runs that meet are one
+        starts = np.flatnonzero(np.concatenate([[True], lo[1:] > hi[:-1]]))
+        lo, hi = lo[starts], np.maximum.reduceat(hi, starts)
+    return list(zip(lo.tolist(), hi.tolist(), strict=True))
 
 
 def _rank(n: int) -> int:

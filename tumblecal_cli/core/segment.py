@@ -225,13 +225,10 @@ def window_spread(pieces: Sequence[FloatArray], w: int) -> FloatArray:
     n = axes.shape[1]
     m = n - w + 1  # whole windows
     length = PIECE * w
-    if n <= length:  # one stretch: the sums in place
-        var = np.zeros(m)
-        s = np.zeros(n + 1)
-        for axis in axes:
-            axis -= axis[0]
-            var += _window_variance(axis, s, w)
-        return np.sqrt(np.maximum(var, 0.0))
+    if n <= length:  # one stretch: the three axes at once (the windows across a streamed log's blocks: short)
+        var: FloatArray = _window_variance(axes - axes[:, :1], np.zeros((3, n + 1)), w).sum(axis=0)
+        one: FloatArray = np.sqrt(np.maximum(var, 0.0))
+        return one
     step = length - w + 1  # windows per stretch
     k = (n - length) // step + 1  # whole stretches; the windows after them are a shorter one's
     var = np.zeros(k * step)
