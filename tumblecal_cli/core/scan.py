@@ -2,8 +2,9 @@
 
 ``detect`` needs the whole log in memory: 20 million readings are 0.5 GB of floats before
 anything else. ``Scan`` finds the same blocks while the log streams past and keeps only the
-readings of the still periods (and those within a window of one): its memory grows with the
-still blocks, not with the log.
+readings of the still periods (and those within a window of one), or only their spreads (and
+``finish`` is given what measures the blocks: io.logread's sums over chunks): its memory grows
+with the still blocks, not with the log.
 
 The rules are ``detect``'s (its docstring): the spread of the window centred on each sample,
 ``FLOOR_FACTOR`` times its ``FLOOR_PERCENTILE``-th percentile as the threshold, runs below it

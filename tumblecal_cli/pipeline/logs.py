@@ -81,9 +81,10 @@ def segmented(
     read, up to ``max_spool`` bytes: read_twice) and find its blocks: (the path to read it
     again, readings.Log, segment.Segmentation).
 
-    The Log holds the readings of the still periods only (io.logread) unless ``whole`` asks for
-    every one (hand turns integrate what lies between), or the log must be read whole anyway
-    (a label column, or what io.logread does not take)."""
+    The Log holds each still block's first and last reading only, and reads a block's again when
+    asked (io.logread: while the path is there), unless ``whole`` asks for every reading (hand
+    turns integrate what lies between), or the log must be read whole anyway (a label column,
+    or what io.logread does not take)."""
     sensor, rate = spec.sensor, spec.rate
     if sensor != "accelerometer":
         raise InputError(
