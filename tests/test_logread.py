@@ -9,6 +9,7 @@ and the whole path runs, so every error message stays that path's own.
 from __future__ import annotations
 
 import gzip
+import json
 import shutil
 from collections.abc import Callable
 from pathlib import Path
@@ -20,6 +21,7 @@ import pytest
 from tests.conftest import run, write
 from tumblecal_cli.core import scan as scan_core
 from tumblecal_cli.core import segment as sc
+from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import capture, logread, readings
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.pipeline import logs
@@ -462,3 +464,65 @@ def test_a_threshold_of_nothing_is_the_whole_reads_exit_3(
     assert r.code == 3, r.err
     assert "internal error" not in r.err
     assert "nothing to calibrate from: 0 still blocks kept" in r.err
+
+
+def test_a_streamed_log_keeps_each_blocks_ends_and_reads_a_block_again(
+    session: Callable[[int], Path], tmp_path: Path, small_blocks: None
+) -> None:
+    """The streamed Log holds each block's first and last reading only; a block's readings are
+    read again from the file, and a file that changed since is an error naming it."""
+    path = tmp_path / "log.csv"
+    shutil.copy(session(130_000), path)
+    streamed = logread.scan_log(str(path), ReadSpec(), settings=sc.Settings())
+    assert streamed is not None
+    log, seg = streamed
+    assert log.values.shape == (2 * len(seg.blocks), 3)  # not the still readings: their ends
+    first = seg.kept[0]
+    again = log.block(first.number, first.first, first.last)
+    assert len(again.values) == first.samples
+    np.testing.assert_allclose(again.values.mean(axis=0), first.mean, rtol=1e-12)
+    path.write_bytes(path.read_bytes().replace(b"\n", b"\n", 1) + b"1000,0,0,1\n")  # one more line
+    with pytest.raises(InputError, match="not as it was when its blocks were found"):
+        log.block(first.number, first.first, first.last)
+
+
+def test_solve_log_from_stdin_reads_its_blocks_again_from_the_copy(
+    session: Callable[[int], Path], tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """stdin is kept in a temporary file while the log is read: the blocks a solve takes are
+    read again from it before it goes (the same calibration as from the file)."""
+    import io as stdio
+
+    path = session(130_000)
+    r = run(capsys, "solve", "-q", "--log", str(path), "-o", str(tmp_path / "file.json"))
+    assert r.code == 0, r.err
+    stream = stdio.TextIOWrapper(stdio.BytesIO(path.read_bytes()))
+    monkeypatch.setattr("sys.stdin", stream)
+    r = run(capsys, "solve", "-q", "--log", "-", "-o", str(tmp_path / "stdin.json"))
+    assert r.code == 0, r.err
+    a, b = (json.loads((tmp_path / f).read_text()) for f in ("file.json", "stdin.json"))
+    assert a["offset"] == b["offset"]
+    assert a["matrix"] == b["matrix"]
+
+
+@pytest.mark.parametrize("n", [1, 255, 256, 257, 1000, 5000])
+def test_block_statistics_merged_from_chunks_are_numpys(n: int) -> None:
+    """core.chunks: a span's mean, standard deviation and drift from the chunks' sums and the
+    readings of the chunks it cuts equal numpy's on the readings themselves."""
+    from tumblecal_cli.core import chunks as ck
+
+    rng = np.random.default_rng(n)
+    values = rng.normal([1e4, -3.0, 0.5], [2.0, 1e-3, 1e-6], size=(n + 700, 3))  # std down to 2e-6 of the mean
+    table = ck.Chunks()
+    for at in range(0, len(values), 1000):  # fed as blocks of 1000, each cut in chunks of its own
+        table.add(at, *ck.chunk_sums(values[at : at + 1000]))
+    table.done()
+    spans = [(0, n - 1), (300, 300 + n - 1), (len(values) - n, len(values) - 1)]
+    cut = table.cut(spans)
+    readings = {int(c): values[table.start[c] : table.start[c] + table.counts[c]] for c in cut}
+    for (a, b), m in zip(spans, table.measure(spans, readings), strict=True):
+        want = sc.measure(values, [(a, b)])[0]
+        np.testing.assert_allclose(m.stats.mean, want.stats.mean, rtol=1e-14)
+        np.testing.assert_allclose(m.stats.std, want.stats.std, rtol=1e-9, atol=1e-300)
+        np.testing.assert_allclose(m.drift, want.drift, rtol=1e-9, atol=1e-12)
+        assert m.stats.samples == want.stats.samples == b - a + 1

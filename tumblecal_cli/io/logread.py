@@ -191,9 +191,7 @@ class _Source:
         """The readings of each stretch of lines (its first byte and end), ``counts`` of them."""
         out: list[_Read] = []
         with open(self.path, "rb") as f:
-            st = os.fstat(f.fileno())
-            if (st.st_size, st.st_mtime_ns, st.st_ino) != self.stamp:
-                raise _Plain
+            self._same(os.fstat(f.fileno()))
             batch: list[tuple[int, int, int | None]] = []
             size = 0
             for (start, stop), n in zip(ranges, counts.tolist(), strict=True):
@@ -205,6 +203,11 @@ class _Source:
             if batch:
                 out += self._parse(f.fileno(), batch)
         return out
+
+    def _same(self, st: os.stat_result) -> None:
+        """Raise _Plain unless the file is the one scanned."""
+        if (st.st_size, st.st_mtime_ns, st.st_ino) != self.stamp:
+            raise _Plain
 
     def _parse(self, fd: int, batch: list[tuple[int, int, int | None]]) -> list[_Read]:
         """Each stretch's readings (as many as its count, when it has one), parsed together."""
@@ -241,6 +244,7 @@ class _Source:
         at = start
         try:
             with open(self.path, "rb") as f:
+                self._same(os.fstat(f.fileno()))
                 while at < stop:
                     end = min(stop, at + capture.BLOCK_BYTES)
                     if end < stop:
@@ -249,7 +253,8 @@ class _Source:
                     pieces.append((at, end))
                     at = end
                 read = [r for a, b in pieces for r in self._parse(f.fileno(), [(a, b, None)])]
-            if sum(len(r.values) for r in read) != count or os.stat(self.path).st_mtime_ns != self.stamp[1]:
+                self._same(os.fstat(f.fileno()))
+            if sum(len(r.values) for r in read) != count:
                 raise _Plain
         except (_Plain, OSError):
             raise InputError(
