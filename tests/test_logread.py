@@ -1,7 +1,8 @@
 """A log read block by block (io.logread, core.scan) finds what the whole log read at once finds.
 
-The streamed path keeps only the still periods' readings; every block it reports (its rows,
-face, verdict and statistics), the threshold, the period and the gaps must be the whole path's.
+The streamed path keeps only the still periods' spreads and sums over chunks of readings; every
+block it reports (its rows, face, verdict and statistics: the means to 1e-12, merged from those
+sums), the threshold, the period and the gaps must be the whole path's.
 Where it does not take a log (a comment, time going backwards, a label column...) it says so
 and the whole path runs, so every error message stays that path's own.
 """
@@ -10,6 +11,7 @@ from __future__ import annotations
 
 import gzip
 import json
+import os
 import shutil
 from collections.abc import Callable
 from pathlib import Path
@@ -470,7 +472,8 @@ def test_a_streamed_log_keeps_each_blocks_ends_and_reads_a_block_again(
     session: Callable[[int], Path], tmp_path: Path, small_blocks: None
 ) -> None:
     """The streamed Log holds each block's first and last reading only; a block's readings are
-    read again from the file, and a file that changed since is an error naming it."""
+    read again from the file (one still being written, grown: as well), and a file rewritten
+    since is an error naming it."""
     path = tmp_path / "log.csv"
     shutil.copy(session(130_000), path)
     streamed = logread.scan_log(str(path), ReadSpec(), settings=sc.Settings())
@@ -481,9 +484,22 @@ def test_a_streamed_log_keeps_each_blocks_ends_and_reads_a_block_again(
     again = log.block(first.number, first.first, first.last)
     assert len(again.values) == first.samples
     np.testing.assert_allclose(again.values.mean(axis=0), first.mean, rtol=1e-12)
-    path.write_bytes(path.read_bytes().replace(b"\n", b"\n", 1) + b"1000,0,0,1\n")  # one more line
+    original = path.read_bytes()
+    data = bytearray(original)
+    at = data.index(b"\n", len(data) // 2) + 3
+    data[at] = ord("7") if data[at] != ord("7") else ord("8")  # one digit rewritten in place: the same size
+    stamp = path.stat().st_mtime_ns
+    path.write_bytes(bytes(data))
+    os.utime(path, ns=(stamp + 10**9, stamp + 10**9))
     with pytest.raises(InputError, match="not as it was when its blocks were found"):
         log.block(first.number, first.first, first.last)
+    path.write_bytes(original)
+    streamed = logread.scan_log(str(path), ReadSpec(), settings=sc.Settings())
+    assert streamed is not None
+    log = streamed[0]
+    with path.open("ab") as f:  # a log still being written: what was read is there as it was
+        f.write(b"1000,0,0,1\n")
+    assert log.block(first.number, first.first, first.last).values.tolist() == again.values.tolist()
 
 
 def test_solve_log_from_stdin_reads_its_blocks_again_from_the_copy(
@@ -508,19 +524,22 @@ def test_solve_log_from_stdin_reads_its_blocks_again_from_the_copy(
 @pytest.mark.parametrize("n", [1, 255, 256, 257, 1000, 5000])
 def test_block_statistics_merged_from_chunks_are_numpys(n: int) -> None:
     """core.chunks: a span's mean, standard deviation and drift from the chunks' sums and the
-    readings of the chunks it cuts equal numpy's on the readings themselves."""
+    parts of the chunks it cuts equal numpy's on the readings themselves."""
     from tumblecal_cli.core import chunks as ck
 
     rng = np.random.default_rng(n)
-    values = rng.normal([1e4, -3.0, 0.5], [2.0, 1e-3, 1e-6], size=(n + 700, 3))  # std down to 2e-6 of the mean
+    values = rng.normal([1e4, -3.0, 0.5], [2.0, 1e-3, 1e-6], size=(2 * n + 700, 3))  # std down to 2e-6 of the mean
     table = ck.Chunks()
     for at in range(0, len(values), 1000):  # fed as blocks of 1000, each cut in chunks of its own
         table.add(at, *ck.chunk_sums(values[at : at + 1000]))
     table.done()
-    spans = [(0, n - 1), (300, 300 + n - 1), (len(values) - n, len(values) - 1)]
-    cut = table.cut(spans)
-    readings = {int(c): values[table.start[c] : table.start[c] + table.counts[c]] for c in cut}
-    for (a, b), m in zip(spans, table.measure(spans, readings), strict=True):
+    half = len(values) // 2
+    spans = [(a, a + n - 1) for a in (0, 300, 256, half, len(values) - n)]  # on a chunk's edge, inside one
+    parts = {}
+    for c, wanted in table.wanted(spans).items():
+        chunk = values[table.start[c] : table.start[c] + table.counts[c]]
+        parts.update({(c, lo, hi): ck.moments(chunk[lo : hi + 1]) for lo, hi in wanted})
+    for (a, b), m in zip(spans, table.measure(spans, parts), strict=True):
         want = sc.measure(values, [(a, b)])[0]
         np.testing.assert_allclose(m.stats.mean, want.stats.mean, rtol=1e-14)
         np.testing.assert_allclose(m.stats.std, want.stats.std, rtol=1e-9, atol=1e-300)

@@ -2,11 +2,12 @@
 
 ``core.scan`` finds a log's still blocks as it streams past, but where each block begins and
 ends is only known at the end of the log, when its threshold is. Rather than keep every
-reading until then (24 bytes each), the caller keeps the count, sum and co-moment (each axis's
-sum of squares about its own chunk's mean) of each CHUNK readings in turn: a block's mean,
-standard deviation and drift (the mean of its last third less its first's) are then merged
-from the chunks it covers whole (Chan, Golub and LeVeque's pairwise update, as stable as the
-two-pass formula) and from the readings of the few chunks it cuts, which the caller reads again.
+reading until then (24 bytes each, 52 with its time, row and line), the caller keeps the
+count, sum and co-moment (each axis's sum of squares about its own chunk's mean) of each CHUNK
+readings in turn: a block's mean, standard deviation and drift (the mean of its last third
+less its first's) are then merged from the chunks it covers whole (Chan, Golub and LeVeque's
+pairwise update, as stable as the two-pass formula) and from the ``moments`` of the parts of
+the few chunks it cuts (``wanted``), which the caller reads again.
 """
 
 from __future__ import annotations
@@ -19,8 +20,14 @@ from tumblecal_cli.core.model import PoseStats
 from tumblecal_cli.core.segment import FloatArray, IntArray, Measured
 
 #: Readings summed together: a block cuts two chunks and its thirds two more, read again (a
-#: thousand blocks read 1M readings again); the table holds 56 bytes a chunk.
+#: thousand blocks read 1M readings again); the table holds 56 bytes a chunk (the caller's
+#: place of each in the file, 24 more).
 CHUNK = 256
+
+#: A count of readings, their sum (3,) and co-moment (3,: each axis's squares about their mean).
+Moments = tuple[int, FloatArray, FloatArray]
+#: Part of a chunk: the chunk, and the first and last of its readings (positions in it).
+Part = tuple[int, int, int]
 
 
 def chunk_sums(values: FloatArray, size: int = CHUNK) -> tuple[IntArray, FloatArray, FloatArray]:
@@ -81,52 +88,63 @@ class Chunks:
             ranges += [(a, b), (a, a + third - 1), (b + 1 - third, b)]
         return ranges
 
-    def cut(self, spans: Sequence[tuple[int, int]]) -> IntArray:
-        """The chunks whose readings ``measure`` needs for these spans: those where a span or one
-        of its thirds begins or ends."""
-        ends = np.array(self.thirds(spans), dtype=np.int64).reshape(-1)
-        found: IntArray = np.unique(self.of(ends))
+    def _cuts(self, a: int, b: int) -> list[Part]:
+        """The parts of chunks the log's readings ``a``..``b`` begin and end in: one, or the
+        first chunk's from ``a`` and the last one's up to ``b`` (the chunks between are whole)."""
+        ca, cb = int(self.of(a)), int(self.of(b))
+        first = int(self.start[ca])
+        if ca == cb:
+            return [(ca, a - first, b - first)]
+        return [(ca, a - first, int(self.counts[ca]) - 1), (cb, 0, b - int(self.start[cb]))]
+
+    def wanted(self, spans: Sequence[tuple[int, int]]) -> dict[int, list[tuple[int, int]]]:
+        """What ``measure`` needs of the readings, by chunk: the parts (first, last: positions in
+        the chunk) where a span or one of its thirds begins or ends."""
+        found: dict[int, list[tuple[int, int]]] = {}
+        for a, b in self.thirds(spans):
+            for c, lo, hi in self._cuts(a, b):
+                found.setdefault(c, []).append((lo, hi))
         return found
 
-    def measure(self, spans: Sequence[tuple[int, int]], readings: Mapping[int, FloatArray]) -> list[Measured]:
+    def measure(self, spans: Sequence[tuple[int, int]], parts: Mapping[Part, Moments]) -> list[Measured]:
         """Each span's (the log's readings ``a``..``b``) statistics and drift, from the chunks and
-        ``readings``: the readings of each chunk ``cut`` named."""
+        ``parts``: the ``moments`` of each part ``wanted`` named."""
         ranges = self.thirds(spans)
         found = []
         for k in range(0, len(ranges), 3):
-            count, total, m2 = self._part(*ranges[k], readings)
+            count, total, m2 = self._part(*ranges[k], parts)
             mean = total / count
             std = np.sqrt(np.maximum(m2, 0.0) / (count - 1)) if count > 1 else np.zeros(3)
-            first, last = self._part(*ranges[k + 1], readings), self._part(*ranges[k + 2], readings)
+            first, last = self._part(*ranges[k + 1], parts), self._part(*ranges[k + 2], parts)
             found.append(Measured(PoseStats(mean, std, count), last[1] / last[0] - first[1] / first[0]))
         return found
 
-    def _part(self, a: int, b: int, readings: Mapping[int, FloatArray]) -> tuple[int, FloatArray, FloatArray]:
+    def _part(self, a: int, b: int, parts: Mapping[Part, Moments]) -> Moments:
         """The count, sum and co-moment of the log's readings ``a``..``b``."""
-        ca, cb = int(self.of(a)), int(self.of(b))
-        start = int(self.start[ca])
-        head = readings[ca][a - start : (b if ca == cb else start + int(self.counts[ca]) - 1) + 1 - start]
-        parts = [_moments(head)]
-        if cb > ca:
-            inner = slice(ca + 1, cb)
-            counts = self.counts[inner]
-            if counts.size:
-                n = int(counts.sum())
-                total = self.sums[inner].sum(axis=0)
-                means = self.sums[inner] / counts[:, None]
-                m2 = self.m2[inner].sum(axis=0) + (counts[:, None] * np.square(means - total / n)).sum(axis=0)
-                parts.append((n, total, m2))
-            parts.append(_moments(readings[cb][: b - self.start[cb] + 1]))
-        return _merge(parts)
+        cuts = self._cuts(a, b)
+        if len(cuts) == 1:
+            return parts[cuts[0]]
+        inner = slice(cuts[0][0] + 1, cuts[1][0])
+        counts = self.counts[inner]
+        found = [parts[cuts[0]]]
+        if counts.size:
+            n = int(counts.sum())
+            total = self.sums[inner].sum(axis=0)
+            means = self.sums[inner] / counts[:, None]
+            m2 = self.m2[inner].sum(axis=0) + (counts[:, None] * np.square(means - total / n)).sum(axis=0)
+            found.append((n, total, m2))
+        found.append(parts[cuts[1]])
+        return _merge(found)
 
 
-def _moments(values: FloatArray) -> tuple[int, FloatArray, FloatArray]:
+def moments(values: FloatArray) -> Moments:
+    """The count, sum and co-moment (each axis's squares about the mean) of readings (n, 3)."""
     n = len(values)
     total = values.sum(axis=0)
     return n, total, np.square(values - total / n).sum(axis=0)
 
 
-def _merge(parts: list[tuple[int, FloatArray, FloatArray]]) -> tuple[int, FloatArray, FloatArray]:
+def _merge(parts: list[Moments]) -> Moments:
     """Counts, sums and co-moments of consecutive parts as one (each co-moment about its own mean)."""
     if len(parts) == 1:
         return parts[0]

@@ -3,8 +3,8 @@
 ``detect`` needs the whole log in memory: 20 million readings are 0.5 GB of floats before
 anything else. ``Scan`` finds the same blocks while the log streams past and keeps only the
 readings of the still periods (and those within a window of one), or only their spreads (and
-``finish`` is given what measures the blocks: io.logread's sums over chunks): its memory grows
-with the still blocks, not with the log.
+``finish`` is given what measures the blocks: io.logread's sums over chunks, core.chunks, 56
+bytes a chunk of 256 readings): its memory grows with the still blocks, not with the log.
 
 The rules are ``detect``'s (its docstring): the spread of the window centred on each sample,
 ``FLOOR_FACTOR`` times its ``FLOOR_PERCENTILE``-th percentile as the threshold, runs below it
@@ -15,7 +15,7 @@ figures of the whole log are only known at its end, and each is kept exact:
 - the noise floor (a percentile of every sample's spread): a sample is a *candidate* when its
   spread is below the *bound* in force when it is seen, and candidates and their neighbours are
   kept with their spreads. The bound starts infinite and falls to ``BOUND_FACTOR`` times the
-  threshold the log so far gives, each time the log has doubled; every spread below the lowest
+  threshold the log so far gives, each time the log has grown TIGHTEN times; every spread below the lowest
   bound used is among those kept, so the percentile is exact when it is below that bound;
 - the gaps: every step over half a gap of the first blocks' period, judged at the end;
 - whether the clock is bursty (``core.clock``): the time of every WINDOW-th sample.
@@ -61,8 +61,10 @@ from tumblecal_cli.core.segment import (
 )
 from tumblecal_cli.core.segment import measure as segment_measure
 
-#: A sample is a still candidate when its spread is below this many times the threshold so far.
+#: A sample is a still candidate when its spread is below this many times the threshold so far ...
 BOUND_FACTOR = 4.0
+#: ... taken again each time the log has grown this many times (each take reads every spread kept).
+TIGHTEN = 2
 #: A spread this close to the threshold (relative) is on it: still or not by rounding alone, which
 #: the whole read's sums and these do differently, so the log is read whole ...
 TIE = 1e-9
@@ -321,11 +323,11 @@ class Scan:
         self.held += [p for p in done if len(p)]
         self.held_spread = np.concatenate([self.held_spread, spread])
         self.held_candidate = np.concatenate([self.held_candidate, spread < self.bound])
-        if self.settings.threshold is None and self.finalized >= 2 * max(self.tightened, 2 * self.window):
+        if self.settings.threshold is None and self.finalized >= TIGHTEN * max(self.tightened, 2 * self.window):
             self._tighten()
 
     def _tighten(self) -> None:
-        """A lower bound from the threshold of the log so far (each time the log has doubled)."""
+        """A lower bound from the threshold of the log so far (each time the log has grown TIGHTEN times)."""
         self.tightened = self.finalized
         decided = self.finalized - self.held_spread.size
         if decided <= 0:

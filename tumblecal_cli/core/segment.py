@@ -415,7 +415,7 @@ class Measured:
 
 def measure(values: FloatArray, spans: list[tuple[int, int]]) -> list[Measured]:
     """Each span's statistics and drift, from the readings (n, 3) it indexes."""
-    axes = values.T  # (3, n): each block's axes contiguous, 3x faster sums (a streamed log's are already)
+    axes = values.T  # (3, n): each block's axes contiguous, 3x faster sums
     if axes.strides[1] != axes.itemsize:
         axes = np.ascontiguousarray(axes)
     found = []

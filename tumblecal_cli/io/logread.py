@@ -27,7 +27,7 @@ from __future__ import annotations
 import hashlib
 import os
 from collections import deque
-from collections.abc import Generator, Iterator
+from collections.abc import Callable, Generator, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import TypedDict
@@ -35,7 +35,7 @@ from typing import TypedDict
 import numpy as np
 
 from tumblecal_cli.core import model
-from tumblecal_cli.core.chunks import CHUNK, Chunks, chunk_sums
+from tumblecal_cli.core.chunks import CHUNK, Chunks, Moments, Part, chunk_sums, moments
 from tumblecal_cli.core.scan import Kept, Scan
 from tumblecal_cli.core.segment import (
     FloatArray,
@@ -178,7 +178,8 @@ class _Read:
 class _Source:
     """The log's file, read again where the scan kept nothing: the chunks where a block or its
     third begins or ends, and a block's lines when its readings are asked for. A file that is
-    not the one scanned (its size, time or inode) is not read: the scan steps aside (``_Plain``)."""
+    not the one scanned (its inode, or its size and time) is not read: at the end of the scan
+    the whole read takes over (``_Plain``); a block asked for later is an error."""
 
     def __init__(self, path: str, lay: sniff.Layout, splicer: Splicer, where: list[int]) -> None:
         self.path, self.name, self.splicer, self.where = path, lay.name, splicer, where
@@ -187,26 +188,39 @@ class _Source:
         self.size = st.st_size
         self.stamp = (st.st_size, st.st_mtime_ns, st.st_ino)
 
-    def read(self, ranges: list[tuple[int, int]], counts: IntArray) -> list[_Read]:
-        """The readings of each stretch of lines (its first byte and end), ``counts`` of them."""
-        out: list[_Read] = []
-        with open(self.path, "rb") as f:
-            self._same(os.fstat(f.fileno()))
-            batch: list[tuple[int, int, int | None]] = []
-            size = 0
-            for (start, stop), n in zip(ranges, counts.tolist(), strict=True):
-                batch.append((start, stop, n))
-                size += stop - start
-                if size >= capture.BLOCK_BYTES:  # parsed a block at a time: what it holds at once stays small
-                    out += self._parse(f.fileno(), batch)
-                    batch, size = [], 0
-            if batch:
-                out += self._parse(f.fileno(), batch)
-        return out
+    def read(self, ranges: list[tuple[int, int]], counts: IntArray, each: Callable[[int, _Read], None]) -> None:
+        """The readings of each stretch of lines (its first byte and end), ``counts`` of them,
+        given to ``each`` with the stretch's index as they are parsed (a block of them at a
+        time, on a pool of threads): none is held longer."""
+        batches: list[list[tuple[int, int, int | None]]] = [[]]
+        size = 0
+        for (start, stop), n in zip(ranges, counts.tolist(), strict=True):
+            if size >= capture.BLOCK_BYTES:  # parsed a block at a time: what each holds at once stays small
+                batches.append([])
+                size = 0
+            batches[-1].append((start, stop, n))
+            size += stop - start
+        firsts = np.cumsum([0] + [len(b) for b in batches]).tolist()
+
+        def parse(k: int) -> None:
+            for j, r in enumerate(self._parse(fd, batches[k])):
+                each(firsts[k] + j, r)
+
+        try:
+            with open(self.path, "rb") as f:
+                fd = f.fileno()
+                self._same(os.fstat(fd))
+                with ThreadPoolExecutor(max_workers=max(2, os.cpu_count() or 1)) as pool:  # (pyarrow and numpy
+                    list(pool.map(parse, range(len(batches))))  # let go of the GIL)
+                self._same(os.fstat(fd))
+        except OSError:  # gone, or not readable: the whole read says so
+            raise _Plain from None
 
     def _same(self, st: os.stat_result) -> None:
-        """Raise _Plain unless the file is the one scanned."""
-        if (st.st_size, st.st_mtime_ns, st.st_ino) != self.stamp:
+        """Raise _Plain unless the file is the one scanned: the same file, its bytes then there
+        still (a log still being written grows: the blocks found are in what was read)."""
+        size, mtime, inode = self.stamp
+        if st.st_ino != inode or st.st_size < size or (st.st_size == size and st.st_mtime_ns != mtime):
             raise _Plain
 
     def _parse(self, fd: int, batch: list[tuple[int, int, int | None]]) -> list[_Read]:
@@ -411,30 +425,38 @@ class _Feeder:
             self.chunk_lines.append(np.column_stack([ints[::CHUNK, 1], ints[last, 2], ints[::CHUNK, 0]]))
 
     def measure(self, kept: Kept, spans: list[tuple[int, int]]) -> list[Measured]:
-        """Each block's statistics, merged from the chunks' sums and the readings of the chunks
-        where a block or its third begins or ends, read again; and each block's first and last
-        reading (``ends``)."""
+        """Each block's statistics, merged from the chunks' sums and the parts of the chunks
+        where a block or its third begins or ends, read again (each chunk's readings let go as
+        soon as its parts are summed); and each block's first and last reading (``ends``)."""
         chunks = self.chunks
         chunks.done()
         lines = np.concatenate(self.chunk_lines) if self.chunk_lines else np.zeros((0, 3), dtype=np.int64)
-        positions = np.array(spans, dtype=np.int64).reshape(-1, 2)
-        found = kept.log_index(positions.reshape(-1)).reshape(-1, 2) if positions.size else positions
-        indexes = [(int(a), int(b)) for a, b in found]
-        need = chunks.cut(indexes)
-        read = self.source.read([(int(lines[c, 0]), int(lines[c, 1])) for c in need], chunks.counts[need])
-        stretch = dict(zip(need.tolist(), read, strict=True))
-        measured = chunks.measure(indexes, {c: r.values for c, r in stretch.items()})
-        for p, i in zip(positions.reshape(-1).tolist(), found.reshape(-1).tolist(), strict=True):
+        positions = np.array(spans, dtype=np.int64).reshape(-1)
+        found = kept.log_index(positions) if positions.size else positions
+        indexes = [(int(a), int(b)) for a, b in found.reshape(-1, 2)]
+        wanted = chunks.wanted(indexes)
+        ends: dict[int, list[tuple[int, int]]] = {}  # chunk: (its reading, the position of a block's end)
+        for p, i in zip(positions.tolist(), found.tolist(), strict=True):
             c = int(chunks.of(i))
-            r, j = stretch[c], i - int(chunks.start[c])
-            self.ends[p] = _End(
-                r.values[j],
-                int(lines[c, 2]) + int(r.lines[j]),
-                np.nan if r.clock is None else float(r.clock[j]),
-                np.nan if r.temperature is None else float(r.temperature[j]),
-                (int(r.starts[j]), int(r.stops[j])),
-            )
-        return measured
+            ends.setdefault(c, []).append((i - int(chunks.start[c]), p))
+        need = sorted(wanted.keys() | ends.keys())
+        parts: dict[Part, Moments] = {}
+
+        def take(c: int, r: _Read) -> None:  # on a parsing thread: the GIL keeps each entry whole
+            for lo, hi in wanted.get(c, []):
+                parts[(c, lo, hi)] = moments(r.values[lo : hi + 1])
+            for j, p in ends.get(c, []):
+                self.ends[p] = _End(
+                    r.values[j].copy(),
+                    int(lines[c, 2]) + int(r.lines[j]),
+                    np.nan if r.clock is None else float(r.clock[j]),
+                    np.nan if r.temperature is None else float(r.temperature[j]),
+                    (int(r.starts[j]), int(r.stops[j])),
+                )
+
+        stretches = [(int(lines[c, 0]), int(lines[c, 1])) for c in need]
+        self.source.read(stretches, chunks.counts[need], lambda k, r: take(need[k], r))
+        return chunks.measure(indexes, parts)
 
     def extremes(self) -> FloatArray:
         """What gate.integer_rails judges the whole log's readings by: the lowest, the highest,

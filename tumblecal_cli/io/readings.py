@@ -73,7 +73,10 @@ class Samples:
 @dataclass(frozen=True)
 class Log:
     """A whole log in memory: the sensor readings of every non-empty row, with their data row,
-    time (``clock``: the time column in its own unit, ``scale`` seconds each) and label."""
+    time (``clock``: the time column in its own unit, ``scale`` seconds each) and label. A log
+    read block by block (io.logread) holds each still block's first and last reading only
+    (``at``): read a block's position through ``row``, ``time``, ``line_span`` and ``block``,
+    not by indexing the arrays."""
 
     layout: Layout
     values: FloatArray  # (n, 3)
@@ -84,13 +87,13 @@ class Log:
     temperature: FloatArray | None = None
     scale: float = 1.0
     #: Each reading's line in the file: its first byte and the byte after its line end (a log
-    #: read block by block, io.logread: its readings are those of the still periods only; int32
-    #: for a file under 2 GiB, as its rows).
+    #: read block by block, io.logread; int32 for a file under 2 GiB, as its rows).
     lines: NDArray[np.int64] | None = None
     #: ... and then what the whole log's readings are judged by for their integer type
     #: (gate.integer_rails): the lowest, the highest, and one that is not a whole number if any;
     extremes: FloatArray | None = None
-    #: and where each run of the readings kept starts among the whole log's and among these.
+    #: and where each run of the still periods' readings starts among the whole log's and among
+    #: those (the positions a block's ``first`` and ``last`` are).
     runs: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
     #: Seconds from the capture's first reading to the first one here (a part read from --start).
     first_s: float = 0.0
