@@ -52,7 +52,7 @@ from tumblecal_cli.io import capture, readings, rewrite, sniff
 from tumblecal_cli.io.forked import cuts
 from tumblecal_cli.io.readings import Log, Stretch
 from tumblecal_cli.io.readspec import ReadSpec
-from tumblecal_cli.io.splice import BoolArray, Offsets, Splicer
+from tumblecal_cli.io.splice import BoolArray, Splicer
 
 #: Files smaller than this keep their readings' rows and line offsets as int32 (4 bytes, not 8).
 NARROW = 1 << 31
@@ -309,8 +309,17 @@ class _Block:
     and what goes with them, ready for the Scan but for the data rows' offset."""
 
     def __init__(
-        self, parsed: FloatArray, empty: BoolArray, lines: Offsets | IntArray, timed: bool, shared: _Shared
+        self,
+        parsed: FloatArray,
+        empty: BoolArray,
+        newline: IntArray,
+        place: tuple[int, int, int],
+        timed: bool,
+        shared: _Shared,
     ) -> None:
+        """``newline``: each line's line feed in the block; ``place``: the block's first byte and
+        length, and the file's size."""
+        at, self.bytes, size = place
         keep = ~empty if empty.any() else None  # an interleaved logger's rows of another sensor: not readings
         self.lines = int(empty.size)  # lines in the block: all of them data rows (plain lines)
         # a time or temperature cell that is empty or not finite on any row, one without readings
@@ -320,12 +329,15 @@ class _Block:
         self.values: FloatArray = parsed[:, :3]  # a view: the scan copies what it keeps
         self.clock: FloatArray | None = parsed[:, 3] if timed else None
         self.temp: FloatArray | None = parsed[:, 3 + timed] if parsed.shape[1] > 3 + timed else None
-        # data row (from the block's first), its line's first byte and the byte after its line end
-        self.ints: IntArray = np.empty((len(self.values), 3), dtype=lines.dtype)
-        self.ints[:, 0] = np.arange(self.lines) if keep is None else np.flatnonzero(keep)
-        self.ints[:, 1:] = lines if keep is None else lines[keep]
-        extra = [c for c in (self.clock, self.temp) if c is not None]
-        self.floats: FloatArray = np.column_stack(extra) if extra else np.zeros((len(self.values), 0))
+        m = len(self.values)
+        rows = np.arange(self.lines) if keep is None else np.flatnonzero(keep)  # data row, from the block's first
+        self.ints: IntArray = rows[:, None]  # what the Scan carries with each reading: its row (a gap's is said)
+        self.floats: FloatArray = np.empty((m, 0))
+        # each CHUNK readings: the first one's line's first byte, the last one's line end, the first one's row
+        first = rows[::CHUNK]
+        last = rows[np.minimum(np.arange(CHUNK - 1, m + CHUNK - 1, CHUNK), m - 1)]
+        starts = np.where(first > 0, newline[np.maximum(first - 1, 0)] + 1 + at, at)
+        self.chunk_lines: IntArray = np.column_stack([starts, np.minimum(newline[last] + 1 + at, size), first])
         self.finite = bool(np.isfinite(self.values).all())
         self.lo = float(self.values.min()) if self.values.size and self.finite else 0.0
         self.hi = float(self.values.max()) if self.values.size and self.finite else 0.0
@@ -419,10 +431,7 @@ class _Feeder:
         scan.feed(block.values, seconds, block.floats, block.ints, inside)
         if block.chunks is not None and len(block.values):
             self.chunks.add(first, *block.chunks)
-            m = len(block.values)
-            last = np.minimum(np.arange(CHUNK - 1, m + CHUNK - 1, CHUNK), m - 1)
-            ints = block.ints
-            self.chunk_lines.append(np.column_stack([ints[::CHUNK, 1], ints[last, 2], ints[::CHUNK, 0]]))
+            self.chunk_lines.append(block.chunk_lines)
 
     def measure(self, kept: Kept, spans: list[tuple[int, int]]) -> list[Measured]:
         """Each block's statistics, merged from the chunks' sums and the parts of the chunks
@@ -466,7 +475,7 @@ class _Feeder:
 
 def _capacity(first: list[_Block], size: int) -> int:
     """As many readings as the file may hold, by the first blocks' bytes per reading (and a margin)."""
-    read = sum(int(b.ints[-1, 2] - b.ints[0, 1]) for b in first if len(b.ints))
+    read = sum(b.bytes for b in first)
     readings = sum(len(b.values) for b in first)
     return int(1.25 * size * readings / max(read, 1)) + (1 << 16)
 
@@ -499,7 +508,8 @@ def _numbered(job: Future[tuple[_Block, bytes]], row: int, hasher: _Digest | Non
     if hasher is not None:
         hasher.update(text)
     if row:
-        block.ints[:, 0] += row
+        block.ints += row
+        block.chunk_lines[:, 2] += row
     yield block
     return row + block.lines
 
@@ -514,8 +524,5 @@ def _parse(
     if found is None:
         raise _Plain
     parsed, empty, newline = found
-    lines = np.empty((newline.size, 2), dtype=np.int32 if size < NARROW else np.int64)  # the kept ints: half
-    np.minimum(newline + 1 + at, size, out=lines[:, 1])  # a last line without its line end
-    lines[0, 0] = at
-    lines[1:, 0] = lines[:-1, 1]
-    return _Block(parsed[:, where], empty, lines, timed, shared), text
+    columns = parsed if where == list(range(parsed.shape[1])) else parsed[:, where]
+    return _Block(columns, empty, newline, (at, length, size), timed, shared), text
