@@ -274,7 +274,7 @@ class _Source:
             raise InputError(
                 "the log is not as it was when its blocks were found: changed or gone", file=self.name
             ) from None
-        values = np.concatenate([r.values for r in read])
+        values = np.asfortranarray(np.concatenate([r.values for r in read]))  # each axis's own: summed as kept
         clock = None if not self.timed else np.concatenate([r.clock for r in read if r.clock is not None])
         temp = None if not self.warm else np.concatenate([r.temperature for r in read if r.temperature is not None])
         return Stretch(values, clock, temp)
