@@ -580,3 +580,15 @@ def test_solve_log_streamed_is_the_whole_reads_calibration(
     for where, x, y in _floats(a, b):
         close = 1e-12 if where.split("[")[0] in (".offset", ".matrix", ".gain") else 1e-9
         assert x == pytest.approx(y, rel=close, abs=1e-15), (where, x, y)
+
+
+def test_a_log_without_a_still_block_is_streamed_too(tmp_path: Path, small_blocks: None) -> None:
+    """Nothing to read again: the streamed read still finishes (no block), not the whole read."""
+    rng = np.random.default_rng(9)
+    n = 60_000
+    moving = np.array([0.0, 0.0, 1.0]) + rng.normal(0, 0.3, size=(n, 3))
+    path = write(tmp_path / "moving.csv", np.column_stack([np.arange(n) / 1000.0, moving]))
+    streamed, whole = both(path, threshold=0.01)  # every window's spread is about 0.5
+    assert streamed is not None
+    assert len(cast("tuple[readings.Log, sc.Segmentation]", whole)[1].blocks) == 0
+    same(streamed, whole)  # type: ignore[arg-type]

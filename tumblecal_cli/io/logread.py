@@ -192,6 +192,8 @@ class _Source:
         """The readings of each stretch of lines (its first byte and end), ``counts`` of them,
         given to ``each`` with the stretch's index as they are parsed (a block of them at a
         time, on a pool of threads): none is held longer."""
+        if not ranges:
+            return
         batches: list[list[tuple[int, int, int | None]]] = [[]]
         size = 0
         for (start, stop), n in zip(ranges, counts.tolist(), strict=True):
