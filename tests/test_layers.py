@@ -16,9 +16,10 @@ import sys
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from tests.conftest import ROOT, imported
+from tests.conftest import ROOT, imported, write
 
 
 @pytest.mark.slow
@@ -107,6 +108,24 @@ def test_apply_loads_only_what_correcting_needs(tmp_path: Path) -> None:
     watch = ("rich", "tumblecal_cli.core.solvers", "tumblecal_cli.pipeline.batch", "tumblecal_cli.pipeline.solve")
     assert imported(body, watch) == []
     assert (tmp_path / "c.csv").read_bytes().count(b"\n") > 100
+
+
+@pytest.mark.slow
+def test_quiet_solve_and_noise_load_no_rich(tmp_path: Path) -> None:
+    """``-q`` prints nothing for people: a station's ``solve -q`` (poses or a log) and ``noise -q``
+    pay nothing for Rich (15 ms of start-up)."""
+    poses = [str(ROOT / "sample_data" / f"{a}.csv") for a in "xyz"]
+    faces = np.repeat(np.vstack([np.eye(3), -np.eye(3)]), 3000, axis=0)  # six faces, 3 s each at 1 kHz
+    noisy = faces + np.random.default_rng(3).normal(0, 0.002, size=faces.shape)
+    log = str(write(tmp_path / "log.csv", np.column_stack([np.arange(len(faces)) / 1000.0, noisy])))
+    runs = [
+        ["solve", "-q", "--poses", *poses, "-o", str(tmp_path / "a.json")],
+        ["solve", "-q", "--log", log, "-o", str(tmp_path / "b.json")],
+        ["noise", "-q", "--rate", "100", str(ROOT / "sample_data" / "x.csv")],
+    ]
+    for argv in runs:
+        body = f"from tumblecal_cli.cli import main\nassert main({argv!r}) in (0, 1)\n"
+        assert imported(body, ("rich",)) == [], argv
 
 
 # -- the import graph and the size of a command (an AST reading of the package) --------------

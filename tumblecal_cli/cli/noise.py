@@ -108,7 +108,7 @@ def noise(
     from tumblecal_cli.pipeline import noise as pipeline
 
     _targets(plot, kalibr, json_summary, [capture, *(p for p in (cal, limits) if p)])
-    with render.samples_progress(render.make_console(), enabled=not quiet) as progress:
+    with render.samples_progress(enabled=not quiet) as progress:
         done = pipeline.noise(
             capture,
             rate=rate,

@@ -810,10 +810,11 @@ def print_drift(cal: Calibration, console: Console) -> None:
 
 
 @contextlib.contextmanager
-def samples_progress(console: Console, *, enabled: bool) -> Iterator[Callable[[int], None] | None]:
+def samples_progress(*, enabled: bool) -> Iterator[Callable[[int], None] | None]:
     """A count of the samples read so far on stderr when it is a terminal (a long capture takes
-    a while): a callback taking that count, or None."""
-    if not (enabled and console.is_terminal):
+    a while): a callback taking that count, or None (Rich is not imported when not ``enabled``)."""
+    console = make_console() if enabled else None
+    if console is None or not console.is_terminal:
         yield None
         return
     from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn

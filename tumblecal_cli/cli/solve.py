@@ -491,15 +491,15 @@ def _show(
     """The blocks of a log (-v: their table), the calibration's summary, the --json summary;
     the calibration written (exit 0 and 1), or the rejection raised (exit 3): the rejection
     alone, with no results before it (-v: the draft's, for inspection)."""
-    console = render.make_console()
     quiet, verbose = shown.quiet, shown.verbose
+    console = None if quiet else render.make_console()  # (-q: Rich not imported)
     cal, draft = solved.calibration, solved.draft
-    if solved.blocks is not None and not quiet:  # rejected: the log's warnings alone, unless -v
+    if solved.blocks is not None and console is not None:  # rejected: the log's warnings alone, unless -v
         blocks, table = solved.blocks, verbose or (False if cal is not None else None)
         render.print_blocks(blocks.log, blocks.seg, console, used=blocks.used, everything=False, table=table)
     if cal is None:
         assert solved.error is not None
-        if draft is not None and verbose and not quiet:
+        if draft is not None and verbose and console is not None:
             render.print_summary(draft, console, solved.warnings, solved.notes, judged=False)
         if json_summary:
             render.print_json(
@@ -513,7 +513,7 @@ def _show(
 
         plotting.solve_plot(plot, solved, plane)
     cal.save(output)
-    if not quiet:
+    if console is not None:
         render.print_summary(cal, console, solved.warnings, solved.notes, judged=True, verbose=verbose)
         if output != "-":
             console.print(f"wrote {output}", soft_wrap=True)
