@@ -387,43 +387,33 @@ def thermal_column(layout: Layout, cals: Sequence[Calibration]) -> int | None:
             hint="correct the capture with each of them in its own run",
         )
     if amperes:
-        return _current_column(layout, amperes)
-    if not names:
+        layout.temperature, layout.per_row = _per_row_column(layout, amperes, "current"), "current"
+    elif names:
+        layout.temperature = _per_row_column(layout, names, "temperature")
+    else:
         return None
+    return layout.temperature
+
+
+def _per_row_column(layout: Layout, names: set[str], what: str) -> int:
+    """The index of the one ``what`` column (temperature, current: docs/current.md) the
+    calibrations correct each row by, read where apply reads a temperature; an error naming it
+    when they name more than one, or the capture has none."""
     if len(names) > 1:
         raise InputError(
-            f"the calibrations read their temperatures from different columns: {', '.join(sorted(names))}",
+            f"the calibrations read their {what}s from different columns: {', '.join(sorted(names))}",
             file=layout.name,
         )
     (name,) = names
     lower = [n.lower() for n in layout.names]
     if name.lower() not in lower:
+        block = "thermal" if what == "temperature" else what
         raise InputError(
-            f"the capture has no temperature column {name!r}, which the calibration's thermal block corrects with",
+            f"the capture has no {what} column {name!r}, which the calibration's {block} block corrects with",
             file=layout.name,
             hint=f"columns: {', '.join(layout.names)}",
         )
-    layout.temperature = lower.index(name.lower())
-    return layout.temperature
-
-
-def _current_column(layout: Layout, names: set[str]) -> int:
-    """The capture's current column (docs/current.md), read where apply reads a temperature."""
-    if len(names) > 1:
-        raise InputError(
-            f"the calibrations read their currents from different columns: {', '.join(sorted(names))}",
-            file=layout.name,
-        )
-    (name,) = names
-    lower = [n.lower() for n in layout.names]
-    if name.lower() not in lower:
-        raise InputError(
-            f"the capture has no current column {name!r}, which the calibration's current block corrects with",
-            file=layout.name,
-            hint=f"columns: {', '.join(layout.names)}",
-        )
-    layout.temperature, layout.per_row = lower.index(name.lower()), "current"
-    return layout.temperature
+    return lower.index(name.lower())
 
 
 def _at_current(cal: Calibration, raw: FloatArray, amperes: FloatArray) -> FloatArray:
