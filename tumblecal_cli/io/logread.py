@@ -227,7 +227,8 @@ class _Source:
         firsts = np.cumsum([0] + [len(b) for b in batches]).tolist()
 
         def parse(k: int) -> None:
-            for j, r in enumerate(self._parse(fd, batches[k])):
+            texts = [(start, stop, n, _text(fd, start, stop)) for start, stop, n in batches[k]]
+            for j, r in enumerate(self._parse(texts)):
                 each(firsts[k] + j, r)
 
         try:
@@ -247,21 +248,17 @@ class _Source:
         if st.st_ino != inode or st.st_size < size or (st.st_size == size and st.st_mtime_ns != mtime):
             raise _Plain
 
-    def _parse(self, fd: int, batch: list[tuple[int, int, int | None]]) -> list[_Read]:
-        """Each stretch's readings (as many as its count, when it has one), parsed together."""
-        texts = []
-        for start, stop, _ in batch:
-            text = os.pread(fd, stop - start, start)
-            if len(text) != stop - start:
-                raise _Plain
-            texts.append(text if text.endswith(b"\n") else text + self.splicer.eol)
+    def _parse(self, batch: list[tuple[int, int, int | None, bytes]]) -> list[_Read]:
+        """Each stretch's readings (its first byte, end, how many readings it holds when that is
+        known, and its text), parsed together."""
+        texts = [text if text.endswith(b"\n") else text + self.splicer.eol for *_, text in batch]
         found = self.splicer.read(b"".join(texts))
         if found is None:
             raise _Plain
         parsed, empty, newline = found
-        parsed = parsed[:, self.where]
+        parsed = _columns(parsed, self.where)
         out, line, offset = [], 0, 0
-        for (start, stop, n), text in zip(batch, texts, strict=True):
+        for (start, stop, n, _), text in zip(batch, texts, strict=True):
             k = text.count(b"\n")
             keep = np.flatnonzero(~empty[line : line + k])
             if n is not None and keep.size != n:
@@ -278,19 +275,18 @@ class _Source:
     def block(self, start: int, stop: int, count: int) -> Stretch:
         """The ``count`` readings of a block's lines (its first byte and end), read in pieces of
         whole lines."""
-        pieces: list[tuple[int, int]] = []
+        read: list[_Read] = []
         at = start
         try:
             with open(self.path, "rb") as f:
                 self._same(os.fstat(f.fileno()))
                 while at < stop:
-                    end = min(stop, at + capture.BLOCK_BYTES)
-                    if end < stop:
-                        cut = os.pread(f.fileno(), end - at, at).rfind(b"\n")
-                        end = at + cut + 1 if cut >= 0 else stop
-                    pieces.append((at, end))
-                    at = end
-                read = [r for a, b in pieces for r in self._parse(f.fileno(), [(a, b, None)])]
+                    text = _text(f.fileno(), at, min(stop, at + capture.BLOCK_BYTES))
+                    if at + len(text) < stop:  # up to the piece's last line end (a longer line: the rest)
+                        cut = text.rfind(b"\n")
+                        text = text[: cut + 1] if cut >= 0 else text + _text(f.fileno(), at + len(text), stop)
+                    read += self._parse([(at, at + len(text), None, text)])
+                    at += len(text)
                 self._same(os.fstat(f.fileno()))
             if sum(len(r.values) for r in read) != count:
                 raise _Plain
@@ -541,12 +537,22 @@ def _numbered(job: Future[tuple[_Block, bytes]], row: int, hasher: _Digest | Non
 def _parse(
     splicer: Splicer, fd: int, at: int, length: int, where: list[int], size: int, timed: bool, shared: _Shared
 ) -> tuple[_Block, bytes]:
-    text = os.pread(fd, length, at)
-    if len(text) != length:
-        raise _Plain  # the file changed while it was read
+    text = _text(fd, at, at + length)  # (_Plain: the file changed while it was read)
     found = splicer.read(text)
     if found is None:
         raise _Plain
     parsed, empty, newline = found
-    columns = parsed if where == list(range(parsed.shape[1])) else parsed[:, where]
-    return _Block(columns, empty, newline, (at, length, size), timed, shared), text
+    return _Block(_columns(parsed, where), empty, newline, (at, length, size), timed, shared), text
+
+
+def _columns(parsed: FloatArray, where: list[int]) -> FloatArray:
+    """The parsed cells' columns in the order ``where`` gives (no copy when it is theirs)."""
+    return parsed if where == list(range(parsed.shape[1])) else parsed[:, where]
+
+
+def _text(fd: int, start: int, stop: int) -> bytes:
+    """The file's bytes ``start`` .. ``stop - 1``; _Plain when it no longer holds them all."""
+    text = os.pread(fd, stop - start, start)
+    if len(text) != stop - start:
+        raise _Plain
+    return text
