@@ -17,7 +17,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from tumblecal_cli.core.model import PoseStats
-from tumblecal_cli.core.segment import FloatArray, IntArray, Measured
+from tumblecal_cli.core.segment import FloatArray, IntArray, Measured, thirds
 
 #: Readings summed together: a block cuts two chunks and its thirds two more, read again (a
 #: thousand blocks read 1M readings again); the table holds 56 bytes a chunk (the caller's
@@ -81,12 +81,8 @@ class Chunks:
 
     @staticmethod
     def thirds(spans: Sequence[tuple[int, int]]) -> list[tuple[int, int]]:
-        """Each span, its first third and its last third (``segment.measure``'s), in turn."""
-        ranges = []
-        for a, b in spans:
-            third = max(1, (b - a + 1) // 3)
-            ranges += [(a, b), (a, a + third - 1), (b + 1 - third, b)]
-        return ranges
+        """Each span, its first third and its last third (``segment.thirds``), in turn."""
+        return [r for a, b in spans for r in ((a, b), *thirds(a, b))]
 
     def _cuts(self, a: int, b: int) -> list[Part]:
         """The parts of chunks the log's readings ``a``..``b`` begin and end in: one, or the

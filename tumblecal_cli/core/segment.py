@@ -420,10 +420,17 @@ def measure(values: FloatArray, spans: list[tuple[int, int]]) -> list[Measured]:
         axes = np.ascontiguousarray(axes)
     found = []
     for a, b in spans:
-        third = max(1, (b - a + 1) // 3)
-        drift = axes[:, b + 1 - third : b + 1].mean(axis=1) - axes[:, a : a + third].mean(axis=1)
+        (_, first), (last, _) = thirds(a, b)
+        drift = axes[:, last : b + 1].mean(axis=1) - axes[:, a : first + 1].mean(axis=1)
         found.append(Measured(pose_stats(axes[:, a : b + 1].T), drift))
     return found
+
+
+def thirds(a: int, b: int) -> tuple[tuple[int, int], tuple[int, int]]:
+    """The first and last third of the span ``a``..``b`` (first and last index each, inclusive;
+    a reading at least): a block's drift is the mean of its last less that of its first."""
+    third = max(1, (b - a + 1) // 3)
+    return (a, a + third - 1), (b + 1 - third, b)
 
 
 def _judge(
