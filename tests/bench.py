@@ -372,7 +372,7 @@ def bench_logs(folder: Path) -> list[tuple[str, float, float, str]]:
 #: Reading one stream of a ULog, as tumblecal does and as PX4's parser does: python -c X log.ulg
 ULOG_OURS = """
 import sys
-from tumblecal_cli.io import readings
+from tumblecal_cli.io.csv import readings
 from tumblecal_cli.io.readspec import ReadSpec
 log = readings.read_log(sys.argv[1], ReadSpec(stream="sensor_accel:0"))
 assert len(log.values) > 0

@@ -171,15 +171,15 @@ def feed_stdin(monkeypatch: pytest.MonkeyPatch, data: bytes) -> None:
 def small_blocks(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> None:
     """Files read in blocks of the test module's ``BLOCK`` bytes (``capture.BLOCK_BYTES``): a
     small file is many blocks, so the readers cross every kind of seam between two."""
-    from tumblecal_cli.io import capture
+    from tumblecal_cli.io.csv import capture
 
     monkeypatch.setattr(capture, "BLOCK_BYTES", request.module.BLOCK)
 
 
 def spliced_blocks(monkeypatch: pytest.MonkeyPatch) -> list[bool]:
-    """Records, per block, whether apply's fast path (``io.splice``) took it (the general path
+    """Records, per block, whether apply's fast path (``io.rewrite.splice``) took it (the general path
     never asks)."""
-    from tumblecal_cli.io import splice
+    from tumblecal_cli.io.rewrite import splice
 
     taken: list[bool] = []
     block = splice.Splicer.block

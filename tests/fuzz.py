@@ -114,7 +114,7 @@ def seeds(folder: Path) -> dict[str, tuple[bytes, list[list[str]]]]:
     capture = ["apply", "--cal", "{cal}", "{f}", "-o", "{out}"]
     return {
         "pose.csv": ((SAMPLE / "x.csv").read_bytes(), [["solve", "--poses", "{f}", "-o", "{out}"], capture]),
-        # a long pose file, summed as it is read (io.posefile): here past SUMMED_ROWS at 64 rows
+        # a long pose file, summed as it is read (io.csv.posefile): here past SUMMED_ROWS at 64 rows
         LONG_POSE: (
             (SAMPLE / "x.csv").read_bytes(),
             [
@@ -190,8 +190,8 @@ def one(folder: Path, name: str, data: bytes, command: list[str]) -> str | None:
     from unittest import mock
 
     from tumblecal_cli.cli import main
-    from tumblecal_cli.io import capture as reader
-    from tumblecal_cli.io import posefile
+    from tumblecal_cli.io.csv import capture as reader
+    from tumblecal_cli.io.csv import posefile
 
     if name == LONG_POSE:
         with mock.patch.object(posefile, "SUMMED_ROWS", 64), mock.patch.object(reader, "BLOCK_BYTES", 2048):

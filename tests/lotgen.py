@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tumblecal_cli.io import calfile
+from tumblecal_cli.io.calfiles import calfile
 
 FAILING = {"SN0013", "SN0042"}
 OUTLIERS = {"SN0013": "offset.x", "SN0021": "cross.xy"}

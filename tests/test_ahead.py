@@ -1,4 +1,4 @@
-"""io.ahead: an iterator run on a thread of its own, a few items ahead of its consumer."""
+"""io.csv.ahead: an iterator run on a thread of its own, a few items ahead of its consumer."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from collections.abc import Iterator
 import pytest
 
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io.ahead import ahead
+from tumblecal_cli.io.csv.ahead import ahead
 
 
 def test_items_come_in_order_and_an_error_in_its_place() -> None:

@@ -1,6 +1,6 @@
 """tumblecal align: the magnetometer's rotation onto the accelerometer's axes from the constant
 angle between gravity and the field, and the rotation between several IMUs from their still
-blocks (core.align, pipeline.alignment, cli.aligning)."""
+blocks (core.alignment, pipeline.align, cli.aligning)."""
 
 from __future__ import annotations
 
@@ -13,8 +13,8 @@ import pytest
 
 from tests.conftest import assert_one_error, run
 from tests.ulog_writer import write_streams
-from tumblecal_cli.core import align
-from tumblecal_cli.io import calfile
+from tumblecal_cli.core import alignment
+from tumblecal_cli.io.calfiles import calfile
 
 DATA = Path(__file__).parent / "data"
 CK_ACC_LOG = DATA / "logs" / "ckexplorer_acc_log.csv"  # the accelerometer alone, paused in many orientations
@@ -25,7 +25,7 @@ UP = np.array([0.0, 0.0, 1.0])
 DIP = np.radians(60.0)
 FIELD = np.array([np.cos(DIP), 0.0, -np.sin(DIP)])  # north and down
 AXIS = np.array([1.0, 2.0, -1.0]) / np.sqrt(6.0)
-TRUE = align.exp_map(np.radians(3.0) * AXIS)  # v_acc = TRUE v_mag
+TRUE = alignment.exp_map(np.radians(3.0) * AXIS)  # v_acc = TRUE v_mag
 
 
 def poses(rng: np.random.Generator, k: int) -> list[np.ndarray]:
@@ -60,11 +60,11 @@ def mag_blocks(rng: np.random.Generator, k: int = 12, samples: int = 200) -> tup
 
 def error_deg(fitted: np.ndarray, truth: np.ndarray) -> np.ndarray:
     """The rotation vector (degrees) that takes ``truth`` onto ``fitted`` (left perturbation)."""
-    return np.degrees(align.log_map(fitted @ truth.T))
+    return np.degrees(alignment.log_map(fitted @ truth.T))
 
 
 def test_a_3_degree_rotation_is_recovered_to_005_degrees() -> None:
-    fit = align.mag_to_accel(*mag_blocks(np.random.default_rng(7)))
+    fit = alignment.mag_to_accel(*mag_blocks(np.random.default_rng(7)))
     r = fit.rotation
     assert np.linalg.norm(error_deg(r.matrix, TRUE)) < 0.05
     assert r.angle_deg == pytest.approx(3.0, abs=0.05)
@@ -82,7 +82,7 @@ def test_mag_alignment_uncertainty_holds_in_monte_carlo() -> None:
     rng = np.random.default_rng(11)
     z, dz = [], []
     for _ in range(300):
-        fit = align.mag_to_accel(*mag_blocks(rng, k=10, samples=20))
+        fit = alignment.mag_to_accel(*mag_blocks(rng, k=10, samples=20))
         z.append(error_deg(fit.rotation.matrix, TRUE) / fit.rotation.sigma_deg)
         dz.append((fit.dip_deg - 60.0) / fit.dip_sigma_deg)
     zs, dips = np.array(z), np.array(dz)
@@ -100,20 +100,20 @@ def test_turning_only_about_the_vertical_leaves_the_rotation_undetermined() -> N
     k = 10
     g, m = [], []
     for yaw in np.linspace(0, 2 * np.pi, k, endpoint=False):
-        c = align.exp_map(np.array([0.0, 0.0, yaw]))
+        c = alignment.exp_map(np.array([0.0, 0.0, yaw]))
         g.append(c @ UP)
         m.append((c @ FIELD) @ TRUE)
     rng = np.random.default_rng(3)
     noisy = np.array(m) + rng.normal(size=(k, 3)) * 1e-4
-    fit = align.mag_to_accel(np.array(g), noisy, np.full(k, 1e-4), np.full(k, 1e-4))
+    fit = alignment.mag_to_accel(np.array(g), noisy, np.full(k, 1e-4), np.full(k, 1e-4))
     assert not fit.rotation.observable()
 
 
 def test_heading_change_of_a_turn_about_the_vertical_is_its_angle() -> None:
     g = np.array([[0.0, 0.0, 1.0]])
     m = np.array([[0.5, 0.0, -0.8]])
-    turned = m @ align.exp_map(np.radians([0.0, 0.0, 2.0])).T
-    assert align.heading_change(g, m, turned)[0] == pytest.approx(2.0)
+    turned = m @ alignment.exp_map(np.radians([0.0, 0.0, 2.0])).T
+    assert alignment.heading_change(g, m, turned)[0] == pytest.approx(2.0)
 
 
 def imu_blocks(rng: np.random.Generator, truth: np.ndarray, k: int = 8) -> tuple[np.ndarray, ...]:
@@ -125,19 +125,19 @@ def imu_blocks(rng: np.random.Generator, truth: np.ndarray, k: int = 8) -> tuple
 
 
 def test_wahba_recovers_a_rotation_within_its_uncertainty() -> None:
-    truth = align.exp_map(np.radians([1.0, -2.0, 0.5]))
-    fit = align.wahba(*imu_blocks(np.random.default_rng(5), truth))
+    truth = alignment.exp_map(np.radians([1.0, -2.0, 0.5]))
+    fit = alignment.wahba(*imu_blocks(np.random.default_rng(5), truth))
     assert np.all(np.abs(error_deg(fit.matrix, truth)) < 3 * fit.sigma_deg)
     assert fit.sigma_deg.max() < 0.2
 
 
 @pytest.mark.slow
 def test_wahba_uncertainty_holds_in_monte_carlo() -> None:
-    truth = align.exp_map(np.radians([1.0, -2.0, 0.5]))
+    truth = alignment.exp_map(np.radians([1.0, -2.0, 0.5]))
     rng = np.random.default_rng(9)
     zs = np.array(
         [
-            (lambda f: error_deg(f.matrix, truth) / f.sigma_deg)(align.wahba(*imu_blocks(rng, truth, 6)))
+            (lambda f: error_deg(f.matrix, truth) / f.sigma_deg)(alignment.wahba(*imu_blocks(rng, truth, 6)))
             for _ in range(300)
         ]
     )
@@ -156,29 +156,29 @@ def imu_differences(rng: np.random.Generator, truth: np.ndarray, k: int = 8) -> 
 def test_consistency_states_its_uncertainty() -> None:
     ref, other = imu_differences(np.random.default_rng(1), np.eye(3))
     noise = np.full(len(ref), 0.01)
-    c = align.consistency(ref, other, None, noise)
+    c = alignment.consistency(ref, other, None, noise)
     assert c.rms == pytest.approx(np.sqrt(np.mean(((ref - other) ** 2).sum(axis=1))))
     assert 0.001 < c.sigma < 0.01  # about noise / sqrt(blocks)
     assert c.noise == pytest.approx(0.01 * np.sqrt(3))
-    assert align.consistency(ref, other).sigma == 0.0  # no noise given: none stated
+    assert alignment.consistency(ref, other).sigma == 0.0  # no noise given: none stated
 
 
 @pytest.mark.slow
 def test_consistency_uncertainty_holds_in_monte_carlo() -> None:
     """The consistency as read and after the fitted rotation, over 400 noisy draws of the same
     blocks: (figure - truth) / stated 1-sigma within ±3, spread near 1."""
-    truth = align.exp_map(np.radians([1.0, -2.0, 0.5]))
+    truth = alignment.exp_map(np.radians([1.0, -2.0, 0.5]))
     ref, other = imu_differences(np.random.default_rng(8), truth)
     s = np.full(len(ref), 0.01)
-    as_read = align.consistency(ref, other).rms
-    rotated = align.consistency(ref, other, align.wahba(ref, other, s).matrix).rms  # the noiseless best
+    as_read = alignment.consistency(ref, other).rms
+    rotated = alignment.consistency(ref, other, alignment.wahba(ref, other, s).matrix).rms  # the noiseless best
     rng = np.random.default_rng(12)
     z = []
     for _ in range(400):
         r = ref + rng.normal(size=ref.shape) * s[0] / np.sqrt(2)
         o = other + rng.normal(size=ref.shape) * s[0] / np.sqrt(2)
-        c0 = align.consistency(r, o, None, s)
-        c1 = align.consistency(r, o, align.wahba(r, o, s).matrix, s)
+        c0 = alignment.consistency(r, o, None, s)
+        c1 = alignment.consistency(r, o, alignment.wahba(r, o, s).matrix, s)
         z.append([(c0.unbiased - as_read) / c0.sigma, (c1.unbiased - rotated) / c1.sigma])
     zs = np.array(z)
     assert as_read > 0.3
@@ -223,7 +223,7 @@ def test_align_finds_the_magnetometers_rotation_in_a_log(tmp_path: Path, capsys:
     log = mag_log(tmp_path / "both.csv", np.random.default_rng(2))
     acc = cal_file(tmp_path / "acc.json", "accelerometer", ["ax", "ay", "az"])
     mag = cal_file(tmp_path / "mag.json", "magnetometer", ["mx", "my", "mz"])
-    out = tmp_path / "align.json"
+    out = tmp_path / "alignment.json"
     code, stdout, err = run(capsys, "align", "--accel-cal", acc, "--mag-cal", mag, log, "-o", out, "--json")
     assert code == 0, err
     doc, summary = json.loads(out.read_text()), json.loads(stdout)
@@ -241,7 +241,7 @@ def test_align_finds_the_magnetometers_rotation_in_a_log(tmp_path: Path, capsys:
 
 def test_align_of_a_magnetometer_needs_both_calibrations(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     acc = cal_file(tmp_path / "acc.json", "accelerometer", ["ax", "ay", "az"])
-    out = tmp_path / "align.json"
+    out = tmp_path / "alignment.json"
     result = run(capsys, "align", "--accel-cal", acc, tmp_path / "log.csv", "-o", out)
     assert_one_error(result, "the magnetometer's alignment takes both --accel-cal and --mag-cal")
     assert not out.exists()
@@ -260,7 +260,7 @@ def test_too_few_orientations_are_rejected(tmp_path: Path, capsys: pytest.Captur
     log = mag_log(tmp_path / "both.csv", np.random.default_rng(2), k=2)
     acc = cal_file(tmp_path / "acc.json", "accelerometer", ["ax", "ay", "az"])
     mag = cal_file(tmp_path / "mag.json", "magnetometer", ["mx", "my", "mz"])
-    out = tmp_path / "align.json"
+    out = tmp_path / "alignment.json"
     code, stdout, err = run(capsys, "align", "--accel-cal", acc, "--mag-cal", mag, log, "-o", out)
     assert code == 3
     assert stdout == ""
@@ -289,7 +289,7 @@ def imu_ulog(path: Path, rng: np.random.Generator, truth: np.ndarray, imus: int 
 
 
 def test_align_finds_each_imus_rotation(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    truth = align.exp_map(np.radians([0.5, -1.0, 2.0]))
+    truth = alignment.exp_map(np.radians([0.5, -1.0, 2.0]))
     log = imu_ulog(tmp_path / "three.ulg", np.random.default_rng(4), truth, imus=3)
     limits = tmp_path / "limits.yaml"
     limits.write_text("imu_consistency: 0.1\n")
@@ -410,7 +410,7 @@ def test_solve_align_to_is_for_a_magnetometer(tmp_path: Path, capsys: pytest.Cap
 
 # --- several gyroscopes, from turns -------------------------------------------------------------
 
-GYRO_TRUE = align.exp_map(np.radians(3.0) * AXIS)  # v_ref = GYRO_TRUE v_other
+GYRO_TRUE = alignment.exp_map(np.radians(3.0) * AXIS)  # v_ref = GYRO_TRUE v_other
 GYRO_BIAS = np.array([0.02, -0.01, 0.015])  # rad/s
 
 
@@ -489,7 +489,7 @@ def test_each_gyroscopes_calibration_is_applied_first(tmp_path: Path, capsys: py
 
 def test_gyroscopes_turned_about_one_axis_are_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     log = gyro_ulog(tmp_path / "yaw.ulg", np.random.default_rng(6), np.array([[0.0, 0.0, 1.0]] * 3))
-    out = tmp_path / "align.json"
+    out = tmp_path / "alignment.json"
     code, stdout, err = run(capsys, "align", "--sensor", "gyroscope", log, "-o", out)
     assert (code, stdout) == (3, "")
     assert "the rotation is not determined by these turns: they were about one axis" in err
@@ -507,11 +507,11 @@ def test_a_gyroscopes_rest_is_found_from_its_rates() -> None:
     rng = np.random.default_rng(2)
     w = turn_rates(rng, np.eye(3))
     w = w + np.array([0.01, -0.02, 0.03]) + rng.normal(size=w.shape) * 0.005
-    found = align.rest(w)
+    found = alignment.rest(w)
     assert found is not None
     assert found.noise == pytest.approx(0.005, rel=0.1)
     assert np.allclose(found.level, [0.01, -0.02, 0.03], atol=0.001)
-    assert align.turn_axes(w - found.level, found.noise) == 3
+    assert alignment.turn_axes(w - found.level, found.noise) == 3
 
 
 @pytest.mark.slow
@@ -524,14 +524,14 @@ def test_gyro_rotation_uncertainty_holds_in_monte_carlo() -> None:
     s, sigma = 0.005, np.full(len(w), 0.005)
     plain = w @ GYRO_TRUE  # the rotation's test: the rates differ by it and their noise
     bent = plain + np.array([0.0, 0.0, 0.01]) * np.linalg.norm(w, axis=1)[:, None]  # and a little more
-    rotated = align.consistency(w, bent, align.wahba(w, bent, sigma).matrix).rms  # the consistency's truth
+    rotated = alignment.consistency(w, bent, alignment.wahba(w, bent, sigma).matrix).rms  # the consistency's truth
     z, cz = [], []
     for _ in range(300):
         ref = w + rng.normal(size=w.shape) * s / np.sqrt(2)
         noise = rng.normal(size=w.shape) * s / np.sqrt(2)
-        fit = align.wahba(ref, plain + noise, sigma)
+        fit = alignment.wahba(ref, plain + noise, sigma)
         z.append(error_deg(fit.matrix, GYRO_TRUE) / fit.sigma_deg)
-        c = align.consistency(ref, bent + noise, align.wahba(ref, bent + noise, sigma).matrix, sigma)
+        c = alignment.consistency(ref, bent + noise, alignment.wahba(ref, bent + noise, sigma).matrix, sigma)
         cz.append((c.unbiased - rotated) / c.sigma)
     zs, czs = np.array(z), np.array(cz)
     assert np.mean(np.abs(zs) > 3) < 0.01

@@ -24,8 +24,8 @@ import pytest
 from tests.conftest import IMUCAL, SAMPLE, SIX_FACES, run, run_exe, snapshot, tumblecal_exe, unit
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.outputs import unsafe
-from tumblecal_cli.pipeline import batch
-from tumblecal_cli.pipeline import summary as summaries
+from tumblecal_cli.pipeline.batch import summary as summaries
+from tumblecal_cli.pipeline.batch import units as batch
 
 LIMITS = SAMPLE / "limits.yaml"
 SESSION = IMUCAL / "session_every4th.csv"
@@ -173,7 +173,7 @@ def test_batch_internal_error_in_one_unit_is_its_row(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """A bug while solving one unit is that unit's error (status 2), not the batch's end."""
-    from tumblecal_cli.pipeline import solve as pipeline
+    from tumblecal_cli.pipeline.solve import solving as pipeline
 
     solve = pipeline.run
 
@@ -1284,7 +1284,7 @@ def test_batch_stdin_and_stdout_usage_errors(tmp_path: Path, args: list[str], st
 def test_sigterm_while_applying_stops_the_run(monkeypatch: pytest.MonkeyPatch) -> None:
     """apply over many captures: an interrupted file is not a failed one, the run stops."""
     from tumblecal_cli.errors import Interrupted
-    from tumblecal_cli.pipeline import correct
+    from tumblecal_cli.pipeline import apply as correct
 
     def interrupted(*_: Any, **__: Any) -> None:
         raise Interrupted("interrupted (SIGTERM)")

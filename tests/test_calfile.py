@@ -1,4 +1,4 @@
-"""Calibration files (tumblecal_cli/io/calfile.py, docs/reference/calibration-file.md): round trip,
+"""Calibration files (tumblecal_cli/io/calfiles/calfile.py, docs/reference/calibration-file.md): round trip,
 contract, rejects, atomicity."""
 
 from __future__ import annotations
@@ -22,8 +22,8 @@ from hypothesis import strategies as st
 from tumblecal_cli import __version__
 from tumblecal_cli.core.model import Solution
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import calfile
 from tumblecal_cli.io import outputs as files
+from tumblecal_cli.io.calfiles import calfile
 
 POSES = [
     {"pose": "+x", "file": "x.csv", "sha256": "0" * 64, "rows": [2, 2001], "samples": 2000, "mean": [1.01, 0.0, 0.02]},

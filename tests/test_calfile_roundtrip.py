@@ -1,5 +1,5 @@
 """Every calibration file read and written again is the same document: the typed Calibration
-(io.calfile, io.calparts) holds all of it. The files of tests/data and sample_data, those solve
+(io.calfiles.calfile, io.calfiles.calparts) holds all of it. The files of tests/data and sample_data, those solve
 writes for each solver and method, thermal, known and hand turns, a segmented log and import,
 and files another writer (or a hand) left in forms tumblecal does not write."""
 
@@ -15,7 +15,7 @@ import pytest
 
 from tumblecal_cli.cli import main
 from tumblecal_cli.errors import TumblecalError
-from tumblecal_cli.io import calfile, documents
+from tumblecal_cli.io.calfiles import calfile, documents
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLE = ROOT / "sample_data"

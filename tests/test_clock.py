@@ -18,8 +18,9 @@ import pytest
 
 from tests.conftest import run, write
 from tests.conftest import tumblecal as run_cli
-from tumblecal_cli.core import allan, clock, segment
-from tumblecal_cli.io import logread, readspec
+from tumblecal_cli.core import allan, blocks, clock
+from tumblecal_cli.io import readspec
+from tumblecal_cli.io.csv import logread
 from tumblecal_cli.io.outputs import unsafe
 
 DATA = Path(__file__).resolve().parent / "data"
@@ -315,10 +316,10 @@ def test_segment_of_a_bursty_log_measures_durations_in_true_seconds(
 def test_a_bursty_log_is_read_whole_and_its_period_is_the_mean_step(tmp_path: Path) -> None:
     log = tumble_log(tmp_path / "bursty.csv", bursty=True)
     spec = readspec.ReadSpec()
-    assert logread.scan_log(str(log), spec, settings=segment.Settings()) is None  # the streamed read steps aside
+    assert logread.scan_log(str(log), spec, settings=blocks.Settings()) is None  # the streamed read steps aside
     t = np.loadtxt(log, delimiter=",", skiprows=1, usecols=0)
     values = np.loadtxt(log, delimiter=",", skiprows=1, usecols=(1, 2, 3))
-    seg = segment.detect(values, t - t[0])
+    seg = blocks.detect(values, t - t[0])
     assert seg.clock is not None
     assert seg.clock.bursty
     assert seg.period == pytest.approx(1 / TRUE_RATE, rel=1e-3)
@@ -410,7 +411,7 @@ def test_hand_turns_on_a_bursty_clock_integrate_by_the_sample_count(tmp_path: Pa
     """Hand turns between still poses (rotations), stamped on arrival: solved as at the true
     times (before: refused, its repeated stamps taken for a clock coarser than the samples)."""
     from tests.test_rotations import ACC_A, ACC_B, synthetic_log
-    from tumblecal_cli.io.calfile import Calibration
+    from tumblecal_cli.io.calfiles.calfile import Calibration
 
     acc = tmp_path / "acc.json"
     Calibration(

@@ -17,10 +17,11 @@ from numpy.typing import NDArray
 
 from tests.conftest import feed_stdin, write
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import capture, rewrite, sniff
-from tumblecal_cli.io.capture import open_capture
-from tumblecal_cli.io.readings import read_log, read_samples
+from tumblecal_cli.io.csv import capture, sniff
+from tumblecal_cli.io.csv.capture import open_capture
+from tumblecal_cli.io.csv.readings import read_log, read_samples
 from tumblecal_cli.io.readspec import ReadSpec
+from tumblecal_cli.io.rewrite import writer as rewrite
 
 FloatArray = NDArray[np.float64]
 

@@ -16,7 +16,7 @@ import tumblecal_cli as tumblecal
 from tests.conftest import Result, assert_one_error, assert_untouched, precious, run, run_exe
 from tumblecal_cli.core import current_fit
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import calfile
+from tumblecal_cli.io.calfiles import calfile
 
 DATA = Path(__file__).resolve().parent / "data" / "ardupilot"
 #: A compass's truth, in gauss: its offset, its correction M (not symmetric: a small rotation

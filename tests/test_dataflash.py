@@ -1,4 +1,4 @@
-"""ArduPilot DataFlash logs read where a capture is read (io.dataflash and io.dftext through
+"""ArduPilot DataFlash logs read where a capture is read (io.logs.dataflash and io.logs.dftext through
 io.sources): real ArduPilot logs listed and read as ArduPilot's own parser (pymavlink's DFReader)
 reads them, in the binary and the text form; --stream and --allow-corrected; raw or corrected as
 the log's PARM tells; a synthetic six-face session that solves as its CSV does; and the logs that
@@ -22,7 +22,9 @@ from tests.conftest import tumblecal as cli
 from tests.test_sources import tumble
 from tests.test_ulog import thermal_sweeps
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import dataflash, dftext, readings, sources
+from tumblecal_cli.io import sources
+from tumblecal_cli.io.csv import readings
+from tumblecal_cli.io.logs import dataflash, dftext
 from tumblecal_cli.io.readspec import ReadSpec
 
 DATA = ROOT / "tests" / "data" / "ardupilot"
@@ -577,14 +579,14 @@ def test_a_log_with_no_sensor_stream_and_one_with_a_label_column(tmp_path: Path)
 
 
 def test_the_dataflash_reader_is_imported_only_when_a_log_is_read() -> None:
-    watch = ("tumblecal_cli.io.dataflash", "tumblecal_cli.io.dftext")
-    assert imported("import tumblecal_cli.io.sources, tumblecal_cli.io.readings", watch) == []
+    watch = ("tumblecal_cli.io.logs.dataflash", "tumblecal_cli.io.logs.dftext")
+    assert imported("import tumblecal_cli.io.sources, tumblecal_cli.io.csv.readings", watch) == []
     body = "import tumblecal_cli as t, gzip, tempfile\n" + (
         "p = tempfile.mktemp(suffix='.BIN')\n"
         "open(p, 'wb').write(gzip.decompress(open('tests/data/ardupilot/pymavlink_plane.BIN.gz', 'rb').read()))\n"
         "t.streams(p)"
     )
-    assert imported(body, watch) == ["tumblecal_cli.io.dataflash"]
+    assert imported(body, watch) == ["tumblecal_cli.io.logs.dataflash"]
 
 
 # -- the installed command, end to end -------------------------------------------------------

@@ -1,4 +1,4 @@
-"""A magnetometer from a log with both sensors (pipeline.maglog): the still blocks its
+"""A magnetometer from a log with both sensors (pipeline.solve.maglog): the still blocks its
 accelerometer finds, the samples between them where they widen the coverage, and the dip check:
 each block's angle between gravity and the field against the World Magnetic Model's, in the file
 and the summary, judged by the ``dip_angle`` limit (a field bent by steel fails), with an
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from tests.conftest import assert_untouched, assert_usage_error, precious, run, write
-from tumblecal_cli.core import align, earth
+from tumblecal_cli.core import alignment, earth
 from tumblecal_cli.core.model import FloatArray
 
 PLACE, DAY = "52.2053,0.1218,16", "2026-11-27"
@@ -168,7 +168,7 @@ def test_the_dip_angles_uncertainty_holds_its_scatter_monte_carlo(tmp_path: Path
     """The mean dip angle's 1σ (the blocks' spread / √n) against the truth over 40 logs: z-scores
     within ±3, their spread near 1."""
     import tumblecal_cli as tumblecal
-    from tumblecal_cli.io import calfile
+    from tumblecal_cli.io.calfiles import calfile
 
     acc = calfile.Calibration(
         "accelerometer", "three-pose", 1.0, ["ax", "ay", "az"], np.zeros(3), np.eye(3), np.ones(3)
@@ -265,7 +265,7 @@ def test_the_dip_angles_are_taken_through_the_alignment(capsys: pytest.CaptureFi
     """A magnetometer turned 3° from its accelerometer: each block's dip is off by up to 3°, and
     with --align-to the dips are taken through the aligned matrix, so their spread shrinks."""
     data = both_sensors_log(np.random.default_rng(11), mag_noise=0.05)
-    turned = align.exp_map(np.radians(3.0) * np.array([1.0, 2.0, -1.0]) / np.sqrt(6.0))  # v_acc = turned v_mag
+    turned = alignment.exp_map(np.radians(3.0) * np.array([1.0, 2.0, -1.0]) / np.sqrt(6.0))  # v_acc = turned v_mag
     field = (data[:, 4:] - HARD) @ np.linalg.inv(SOFT).T  # the field in the accelerometer's axes
     data[:, 4:] = (field @ turned) @ SOFT.T + HARD  # ... read in the magnetometer's
     log = write_log(tmp_path / "both.csv", data)

@@ -1,4 +1,4 @@
-"""The figures that judge a fit (tumblecal_cli/io/fitplots.py): ``solve --plot`` of static poses,
+"""The figures that judge a fit (tumblecal_cli/io/figures/fitplots.py): ``solve --plot`` of static poses,
 ``verify --plot`` and ``segment --plot``.
 
 Synthetic poses with a known offset and matrix check the numbers each panel shows; the real logs
@@ -23,7 +23,7 @@ from matplotlib.patches import Rectangle
 from tests.conftest import png_size, run
 from tests.test_plots import OFFSET, A, M, directions, xdata, ydata
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import fitplots, plots
+from tumblecal_cli.io.figures import fitplots, plots
 
 FloatArray = np.ndarray
 ROOT = Path(__file__).resolve().parent.parent
@@ -358,13 +358,13 @@ def test_envelope_keeps_a_spike_of_a_long_log() -> None:
 
 def test_segment_figure_of_a_log_without_time(figures: list[Figure]) -> None:
     """No time column and no rate: the x axis counts samples."""
-    from tumblecal_cli.core import segment
+    from tumblecal_cli.core import blocks
 
     rng = np.random.default_rng(8)
     still = [np.asarray(AXIS[f], dtype=np.float64) + rng.normal(0, 0.001, (300, 3)) for f in ("+z", "+x")]
     move = rng.normal(0.0, 0.5, (100, 3))
     data = np.concatenate([still[0], move, still[1]])
-    seg = segment.detect(data, None, None)
+    seg = blocks.detect(data, None, None)
     fitplots.segment_figure("unused.png", data, None, seg, {})
     (fig,) = figures
     top, bottom = fig.axes

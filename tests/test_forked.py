@@ -1,4 +1,4 @@
-"""apply's worker processes (io/forked.py) write what this process's threads write.
+"""apply's worker processes (io/rewrite/forked.py) write what this process's threads write.
 
 Each case of ``test_splice.CASES`` is corrected twice with small blocks (so that a file is
 dozens of them, spread over the workers): into a file, which forks the workers, and into a
@@ -23,8 +23,9 @@ import pytest
 from tests.conftest import POSES_3, write
 from tests.test_splice import CASES, _accel, lines, table
 from tumblecal_cli.errors import InputError, TumblecalError
-from tumblecal_cli.io import forked, rewrite
-from tumblecal_cli.io.capture import open_capture
+from tumblecal_cli.io.csv.capture import open_capture
+from tumblecal_cli.io.rewrite import forked
+from tumblecal_cli.io.rewrite import writer as rewrite
 
 BLOCK = 2048
 

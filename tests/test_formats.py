@@ -1,4 +1,4 @@
-"""tumblecal export / import (tumblecal_cli/io/formats.py): firmware headers that compile and give the
+"""tumblecal export / import (tumblecal_cli/io/export/formats.py): firmware headers that compile and give the
 same correction, register counts that never wrap, and peer formats that round-trip to 1e-12."""
 
 from __future__ import annotations
@@ -20,7 +20,8 @@ from tests.conftest import run
 from tumblecal_cli.core import model as core
 from tumblecal_cli.core.model import FloatArray, Solution
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import calfile, formats
+from tumblecal_cli.io.calfiles import calfile
+from tumblecal_cli.io.export import formats
 from tumblecal_cli.pipeline import report as reports
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -16,17 +16,17 @@ import pytest
 import tumblecal_cli as tumblecal
 from tests import smooth_turns as st
 from tests.conftest import tumblecal as run
-from tumblecal_cli.core import segment, stillness, turn_fit
-from tumblecal_cli.io.calfile import Calibration
-from tumblecal_cli.pipeline import rotations, turns
+from tumblecal_cli.core import blocks, stillness, turn_fit
+from tumblecal_cli.io.calfiles.calfile import Calibration
 from tumblecal_cli.pipeline.options import SolveOptions
+from tumblecal_cli.pipeline.solve import rotations, turns
 
 SESSIONS = 50
 
 
-def _blocks(session: st.Session) -> segment.Segmentation:
+def _blocks(session: st.Session) -> blocks.Segmentation:
     """The accelerometer's still blocks as ``solve --accel-cal`` finds them."""
-    return segment.detect(session.acc, session.t, None, rotations.block_settings(SolveOptions(), st.ACC_B))
+    return blocks.detect(session.acc, session.t, None, rotations.block_settings(SolveOptions(), st.ACC_B))
 
 
 def _hand_bias(session: st.Session) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -40,7 +40,7 @@ def _hand_bias(session: st.Session) -> tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
 def _known_fit(session: st.Session) -> tuple[turn_fit.TurnsFit, np.ndarray]:
-    """The calibration ``solve --turns`` makes of a known-turns session (pipeline.turns._solve),
+    """The calibration ``solve --turns`` makes of a known-turns session (pipeline.solve.turns._solve),
     and what the turning in its still faces adds to the bias."""
     labels = np.array(session.labels)
     found = {label: turns.Section(label, np.flatnonzero(labels == label)) for label in set(session.labels) if label}

@@ -229,13 +229,13 @@ def test_segment_that_fails_while_writing_leaves_the_folder_as_it_was(
     file nor a staging folder (before: segments.csv and the first blocks stayed)."""
     import errno
 
-    from tumblecal_cli.io import capture
+    from tumblecal_cli.io.csv import capture
 
     log = _segment_log(tmp_path)
     out = tmp_path / "poses"
     assert run(capsys, "segment", log, "--out-dir", out).code == 0  # an earlier segmentation
     before = _listing(out)
-    for copier in ("copy_rows", "copy_bytes"):  # a log read whole, or block by block (io.logread)
+    for copier in ("copy_rows", "copy_bytes"):  # a log read whole, or block by block (io.csv.logread)
         real = getattr(capture, copier)
 
         def disk_full_after_two(
@@ -359,7 +359,7 @@ def test_batch_stops_on_a_full_disk_and_leaves_that_unit_to_resume(
     the file), its row is not in summary.csv, and --resume does it (before: recorded as an error
     row, then skipped by --resume as done)."""
     from tumblecal_cli.errors import InputError
-    from tumblecal_cli.io import calfile
+    from tumblecal_cli.io.calfiles import calfile
 
     src = tmp_path / "units"
     for serial in ("A", "B", "C"):
@@ -532,7 +532,7 @@ def test_only_the_pool_folders_of_killed_batches_are_removed(tmp_path: Path) -> 
     never one of a running process, this one's, one without the mark, or a file."""
     import os
 
-    from tumblecal_cli.pipeline.cluster import remove_stale_pools
+    from tumblecal_cli.pipeline.batch.cluster import remove_stale_pools
 
     marks = {
         "pymp-dead0000": 4194305,

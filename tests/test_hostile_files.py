@@ -171,7 +171,7 @@ def test_a_yaml_serial_reads_as_it_looks(
 def test_yaml_numbers_still_read_as_numbers() -> None:
     """What YAML 1.1 reads as a number and looks like one still is one: 1, -0.5, 1.0e-3, 0x10; .inf
     and .nan are refused, as NaN and Infinity are in JSON: no export could write them."""
-    from tumblecal_cli.io import documents
+    from tumblecal_cli.io.calfiles import documents
 
     doc = documents.parse_object(b"a: 1\nb: -0.5\nc: 1.0e-3\nd: 0x10\nf: true\ng: ~\nh: 1_000\n", "x.yaml", "file")
     assert doc == {"a": 1, "b": -0.5, "c": 1e-3, "d": 16, "f": True, "g": None, "h": 1000}
@@ -203,7 +203,7 @@ def test_a_time_column_of_steps_of_1e_300_is_one_error(
 def test_a_segmentation_window_of_more_samples_than_any_log_is_an_input_error() -> None:
     """The same clock reached past the time unit's judgement (which reads the first 100,000
     steps): the window sizing refuses it rather than overflowing."""
-    from tumblecal_cli.core.segment import detect
+    from tumblecal_cli.core.blocks import detect
     from tumblecal_cli.errors import InputError
 
     values = np.tile([0.01, 0.02, 1.0], (50, 1))

@@ -14,8 +14,8 @@ import pytest
 
 import tumblecal_cli as tumblecal
 from tests.conftest import POSES_3, SAMPLE, assert_usage_error, run, tumblecal_exe
-from tumblecal_cli.io import calfile
-from tumblecal_cli.pipeline import correct as correct_module
+from tumblecal_cli.io.calfiles import calfile
+from tumblecal_cli.pipeline import apply as correct_module
 
 OTHER_RUN = b"t,ax,ay,az\n0,1,2,3\n"
 

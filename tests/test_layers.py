@@ -64,7 +64,9 @@ def test_cli_help_does_not_import_the_numeric_stack(body: str) -> None:
 def test_batch_module_is_light() -> None:
     """A batch worker imports what solving takes (numpy, pyarrow: imports at the top of the
     pipeline), never the command line's Typer and Rich, nor pandas; Dask only when asked."""
-    assert imported("import tumblecal_cli.pipeline.batch", ("pandas", "typer", "rich", "distributed", "dask")) == []
+    assert (
+        imported("import tumblecal_cli.pipeline.batch.units", ("pandas", "typer", "rich", "distributed", "dask")) == []
+    )
 
 
 def test_package_root_is_light() -> None:
@@ -105,7 +107,12 @@ def test_apply_loads_only_what_correcting_needs(tmp_path: Path) -> None:
         "assert main(argv) == 0\n"
         "assert built == [1], built\n"
     )
-    watch = ("rich", "tumblecal_cli.core.solvers", "tumblecal_cli.pipeline.batch", "tumblecal_cli.pipeline.solve")
+    watch = (
+        "rich",
+        "tumblecal_cli.core.solvers",
+        "tumblecal_cli.pipeline.batch.units",
+        "tumblecal_cli.pipeline.solve.solving",
+    )
     assert imported(body, watch) == []
     assert (tmp_path / "c.csv").read_bytes().count(b"\n") > 100
 
@@ -319,7 +326,33 @@ def test_imports_at_the_top_of_core_io_and_pipeline() -> None:
 def test_module_names_are_unique_across_core_io_and_pipeline() -> None:
     seen: dict[str, list[str]] = {}
     for layer in LAYERS:
-        for path in (PACKAGE / layer).glob("*.py"):
+        for path in (PACKAGE / layer).rglob("*.py"):
             if path.stem != "__init__":
-                seen.setdefault(path.stem, []).append(layer)
+                seen.setdefault(path.stem, []).append(str(path.parent.relative_to(PACKAGE)))
     assert {name: layers for name, layers in seen.items() if len(layers) > 1} == {}
+
+
+def test_each_package_docstring_names_every_module_in_it() -> None:
+    """Each package of the layers (and its rooms) lists its modules and rooms in its docstring,
+    ``name`` for a module and ``name/`` for a room, and lists nothing that is not there."""
+    wrong = []
+    for init in sorted(PACKAGE.rglob("__init__.py")):
+        if init.parent == PACKAGE:
+            continue
+        doc = ast.get_docstring(_trees()[init]) or ""
+        have = {p.stem for p in init.parent.glob("*.py") if p.stem != "__init__"}
+        have |= {f"{p.name}/" for p in init.parent.iterdir() if (p / "__init__.py").is_file()}
+        named = set(re.findall(r"``([a-z_]+/?)``", doc))
+        where = init.parent.relative_to(PACKAGE)
+        wrong += [f"{where}: {name} not in the docstring" for name in sorted(have - named)]
+        wrong += [f"{where}: {name} named but not there" for name in sorted(named & _listed(doc) - have)]
+    assert wrong == []
+
+
+def _listed(doc: str) -> set[str]:
+    """The names a docstring's list items start with (``- ``a``, ``b``: ...``)."""
+    names: set[str] = set()
+    for line in doc.splitlines():
+        if line.startswith(("- ``", "  ``")):
+            names |= set(re.findall(r"``([a-z_]+/?)``(?=[,:])", line.split(":")[0] + ":"))
+    return names

@@ -1,4 +1,4 @@
-"""A log read block by block (io.logread, core.scan) finds what the whole log read at once finds.
+"""A log read block by block (io.csv.logread, core.scan) finds what the whole log read at once finds.
 
 The streamed path keeps only the still periods' spreads and sums over chunks of readings; every
 block it reports (its rows, face, verdict and statistics: the means to 1e-12, merged from those
@@ -21,12 +21,12 @@ import numpy as np
 import pytest
 
 from tests.conftest import run, write
+from tumblecal_cli.core import blocks as sc
 from tumblecal_cli.core import scan as scan_core
-from tumblecal_cli.core import segment as sc
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import capture, logread, readings
+from tumblecal_cli.io.csv import capture, logread, readings
 from tumblecal_cli.io.readspec import ReadSpec
-from tumblecal_cli.pipeline import logs
+from tumblecal_cli.pipeline import segment as logs
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT / "tests" / "data" / "logs"

@@ -72,11 +72,11 @@ def test_a_rejection_without_a_check_s_finding_is_in_rejections(tmp_path: Path) 
 def test_two_blocks_of_one_face_are_that_face_not_plus_and_minus_y() -> None:
     """PX4's robologs log rests twice on -z, 4 degrees apart: their midpoint as the centre took
     them for -y and +y (12 degrees off), each judged against a remainder of 0.37 m/s^2."""
-    from tumblecal_cli.core import segment
+    from tumblecal_cli.core import blocks
 
     means = np.array([[-0.10, -0.26, -9.76], [-0.25, 0.46, -9.79]])
-    np.testing.assert_array_equal(segment.rough_centre(means, 15.0), np.zeros(3))
+    np.testing.assert_array_equal(blocks.rough_centre(means, 15.0), np.zeros(3))
     six = np.array(
         [[9.8, 0.1, 0.2], [-9.8, 0.1, 0.2], [0.0, 9.9, 0.2], [0.0, -9.7, 0.2], [0, 0.1, 9.9], [0, 0.1, -9.5]]
     )
-    np.testing.assert_allclose(segment.rough_centre(six, 15.0), [0.0, 0.1, 0.2])  # the midpoint, as before
+    np.testing.assert_allclose(blocks.rough_centre(six, 15.0), [0.0, 0.1, 0.2])  # the midpoint, as before

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from tests.conftest import write
 from tumblecal_cli.core import lot
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import calfile, limitfile
+from tumblecal_cli.io.calfiles import calfile, limitfile
 from tumblecal_cli.pipeline import report as reports
 
 Vec = tuple[float, float, float]

@@ -16,7 +16,7 @@ import pytest
 
 from tests.conftest import run
 from tests.lotgen import FAILING, OUTLIERS, write_lot
-from tumblecal_cli.io import lothtml, plots
+from tumblecal_cli.io.figures import lothtml, plots
 from tumblecal_cli.pipeline import report as reports
 
 if TYPE_CHECKING:

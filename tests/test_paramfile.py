@@ -29,8 +29,9 @@ import pytest
 from tests.conftest import POSES_3, ROOT, SAMPLE, assert_usage_error, run, run_exe
 from tests.test_hostile_outputs import HOSTILE
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import calfile, paramfile
-from tumblecal_cli.io.calfile import Calibration, Unit
+from tumblecal_cli.io.calfiles import calfile
+from tumblecal_cli.io.calfiles.calfile import Calibration, Unit
+from tumblecal_cli.io.export import paramfile
 from tumblecal_cli.pipeline import exchange
 
 G = 9.80665

@@ -1,4 +1,4 @@
-"""The PNG figures of ``solve --plot`` and ``report --plot`` (tumblecal_cli/io/plots.py).
+"""The PNG figures of ``solve --plot`` and ``report --plot`` (tumblecal_cli/io/figures/plots.py).
 
 Synthetic data with a known offset and matrix: the figures must be valid PNGs of the size asked
 for, show the numbers they claim to show, be written atomically, and refuse bad input with an
@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 
 from tests.conftest import imported, png_size
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import plots
+from tumblecal_cli.io.figures import plots
 from tumblecal_cli.io.outputs import atomic_output
 
 FloatArray = NDArray[np.float64]
@@ -395,5 +395,5 @@ def test_require_names_the_extra_when_matplotlib_is_missing(monkeypatch: pytest.
 def test_importing_plots_does_not_import_matplotlib() -> None:
     """The --plot check (require) runs before any work: matplotlib is imported when a figure is
     drawn. (numpy is imported at the top, as everywhere in io: every command that plots uses it.)"""
-    body = "import tumblecal_cli.io.plots\ntumblecal_cli.io.plots.require()"
+    body = "import tumblecal_cli.io.figures.plots\ntumblecal_cli.io.figures.plots.require()"
     assert imported(body, ("matplotlib", "PIL")) == []

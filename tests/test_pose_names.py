@@ -16,7 +16,7 @@ import tumblecal_cli as tumblecal
 from tests.conftest import SAMPLE, Result, assert_one_error, assert_untouched, precious, run
 from tumblecal_cli.core.gate import NAMED_HINT
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.pipeline.solve import named_faces
+from tumblecal_cli.pipeline.solve.solving import named_faces
 
 #: The sample unit's six faces: face -> its file in sample_data.
 SAMPLE_FACES = {

@@ -1,4 +1,4 @@
-"""Long pose files summed as they are read (io.posefile, core.running): a pose file of more
+"""Long pose files summed as they are read (io.csv.posefile, core.running): a pose file of more
 than ``posefile.SUMMED_ROWS`` readings is judged by running sums, its readings kept on disk.
 Here that threshold is lowered and files are read in small blocks, so that real files of a few
 hundred rows take the summed path across many blocks: every figure, check and note must be
@@ -22,7 +22,7 @@ import pytest
 from tests.conftest import IMUCAL, SAMPLE, feed_stdin, run, write
 from tumblecal_cli.core import model
 from tumblecal_cli.core.running import Summary
-from tumblecal_cli.io import capture, posefile
+from tumblecal_cli.io.csv import capture, posefile
 
 ROOT = Path(__file__).resolve().parent.parent
 MOTION = ROOT / "tests" / "data" / "ncsu_microstrain_motion"

@@ -1,4 +1,4 @@
-"""ROS bags and MCAP files read where a capture is read (io.ros through io.sources): real robot
+"""ROS bags and MCAP files read where a capture is read (io.logs.ros through io.sources): real robot
 bags listed and read as rosbags' own reader and deserializer read them, --stream and the
 raw-or-corrected rule, a synthetic six-face session in each kind of bag that solves as its CSV
 does, and the bags that are cut, damaged or odd."""
@@ -25,8 +25,10 @@ from tests.ros_writer import Messages
 from tests.test_rotations import ACC_A, ACC_B, synthetic_log
 from tests.test_sources import tumble
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import readings, ros, sources
-from tumblecal_cli.io.calfile import Calibration
+from tumblecal_cli.io import sources
+from tumblecal_cli.io.calfiles.calfile import Calibration
+from tumblecal_cli.io.csv import readings
+from tumblecal_cli.io.logs import ros
 from tumblecal_cli.io.readspec import ReadSpec
 
 DATA = ROOT / "tests" / "data" / "ros"
@@ -575,7 +577,7 @@ def test_a_bag_without_rosbags_installed_is_exit_2_naming_the_extra(monkeypatch:
     brings it, whatever the command."""
     for name in [n for n in sys.modules if n.partition(".")[0] == "rosbags"] + ["rosbags"]:
         monkeypatch.setitem(sys.modules, name, None)  # import rosbags...: ModuleNotFoundError
-    monkeypatch.delitem(sys.modules, "tumblecal_cli.io.ros", raising=False)
+    monkeypatch.delitem(sys.modules, "tumblecal_cli.io.logs.ros", raising=False)
     commands: list[list[str | Path]] = [["logs", TEST1], ["noise", MCAP_BAG], ["solve", "--log", TEST2, "-o", "c.json"]]
     for command in commands:
         code, out, err = cli(*command)
@@ -584,13 +586,13 @@ def test_a_bag_without_rosbags_installed_is_exit_2_naming_the_extra(monkeypatch:
         assert err.splitlines()[0].endswith(
             ": reading a ROS bag or MCAP file needs the rosbags package, which is not installed"
         )
-    assert "tumblecal_cli.io.ros" not in sys.modules
+    assert "tumblecal_cli.io.logs.ros" not in sys.modules
 
 
 @pytest.mark.slow
 def test_rosbags_is_imported_only_when_a_bag_is_read() -> None:
-    watch = ("tumblecal_cli.io.ros", "rosbags")
-    assert imported("import tumblecal_cli.io.sources, tumblecal_cli.io.readings", watch) == []
+    watch = ("tumblecal_cli.io.logs.ros", "rosbags")
+    assert imported("import tumblecal_cli.io.sources, tumblecal_cli.io.csv.readings", watch) == []
     body = "import tumblecal_cli as t\nt.noise('tests/data/xsens_acc_still.txt', rate=100.0)"
     assert imported(body, watch) == []
     assert imported(f"import tumblecal_cli as t\nt.streams({str(TEST2)!r})", watch) == sorted(watch)

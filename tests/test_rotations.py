@@ -15,7 +15,7 @@ import pytest
 from tests.conftest import ROOT, Result
 from tests.conftest import tumblecal as run
 from tumblecal_cli.core import rotation_fit
-from tumblecal_cli.io.calfile import Calibration
+from tumblecal_cli.io.calfiles.calfile import Calibration
 
 A = np.array([[16.4, 0.15, -0.2], [-0.1, 16.9, 0.25], [0.2, -0.12, 15.9]])  # counts per deg/s, ~1° misaligned
 B = np.array([2.0, -4.5, -3.6])
@@ -240,7 +240,7 @@ def test_xsens_hand_turns_fitted_on_one_half_judged_on_the_other(tmp_path: Path)
     """The gyroscope misses gravity after each held-out rotation by 0.57° RMS (measured; 0.88°
     at most), against 4.28° (8.6°) with the best single sensitivity and the same bias."""
     from tumblecal_cli.pipeline.options import SolveOptions
-    from tumblecal_cli.pipeline.rotations import hand_turns
+    from tumblecal_cli.pipeline.solve.rotations import hand_turns
 
     acc, first, second = _xsens_halves(tmp_path)
     out = tmp_path / "gyro.json"

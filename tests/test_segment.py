@@ -1,5 +1,5 @@
-"""Finding the static poses in one continuous log: the detector (tumblecal_cli/core/segment.py), the
-``segment`` command and ``solve --log`` (tumblecal_cli/cli/segment.py, tumblecal_cli/pipeline/logs.py).
+"""Finding the static poses in one continuous log: the detector (tumblecal_cli/core/blocks.py), the
+``segment`` command and ``solve --log`` (tumblecal_cli/cli/blocks.py, tumblecal_cli/pipeline/blocks.py).
 
 Every log is synthetic with a known truth: a sensor with a known offset and gain/cross-axis matrix
 (raw = A · g + b + noise, raw counts near 32768) held still on known faces for a known number of
@@ -27,10 +27,10 @@ import pytest
 
 from tests.conftest import ROOT, Result, assert_untouched, assert_usage_error, feed_stdin, precious, run
 from tests.synth import FloatArray, stimulus
-from tumblecal_cli.core import segment
+from tumblecal_cli.core import blocks
 from tumblecal_cli.core.model import FACES
 from tumblecal_cli.io.outputs import unsafe
-from tumblecal_cli.pipeline.logs import INDEX_COLUMNS
+from tumblecal_cli.pipeline.segment import INDEX_COLUMNS
 
 #: the truth of the synthetic sensor: raw counts = A g + OFFSET + noise, |g| = 1 (an unsigned 16-bit ADC)
 NOMINAL = 32768.0
@@ -148,11 +148,11 @@ def write_log(path: Path, log: SynthLog, **kw: Any) -> Path:
     return path
 
 
-def detect(log: SynthLog, *, with_time: bool = True, **settings: Any) -> segment.Segmentation:
-    return segment.detect(log.raw, log.times if with_time else None, None, segment.Settings(**settings))
+def detect(log: SynthLog, *, with_time: bool = True, **settings: Any) -> blocks.Segmentation:
+    return blocks.detect(log.raw, log.times if with_time else None, None, blocks.Settings(**settings))
 
 
-def assert_found(seg: segment.Segmentation, log: SynthLog, *, coverage: float = 0.8) -> None:
+def assert_found(seg: blocks.Segmentation, log: SynthLog, *, coverage: float = 0.8) -> None:
     """Exactly the held poses: one kept block per still period, inside it, covering most of it, on its face."""
     assert len(seg.blocks) == len(log.still), [(b.first, b.last, b.dropped) for b in seg.blocks]
     for b, (first, last), face in zip(seg.blocks, log.still, log.faces, strict=True):
@@ -208,10 +208,10 @@ def test_threshold_sits_between_noise_and_motion(six_tilted: SynthLog) -> None:
     seg = detect(six_tilted)
     assert seg.noise_floor is not None
     assert seg.threshold is not None
-    assert seg.threshold == pytest.approx(segment.FLOOR_FACTOR * seg.noise_floor)
+    assert seg.threshold == pytest.approx(blocks.FLOOR_FACTOR * seg.noise_floor)
     # the floor is the sensor noise: the rolling std of three axes of pure noise is about sqrt(3) sigma
     assert 0.7 * math.sqrt(3) * NOISE < seg.noise_floor < 1.1 * math.sqrt(3) * NOISE
-    spread = segment.rolling_std(six_tilted.raw, seg.window)
+    spread = blocks.rolling_std(six_tilted.raw, seg.window)
     half = seg.window
     quiet = np.concatenate([spread[a + half : b - half] for a, b in six_tilted.still])
     moving = np.concatenate([spread[b + 1 + half : b + MOVE - half] for _, b in six_tilted.still])
@@ -237,7 +237,7 @@ def test_window_and_min_duration_are_seconds_with_time_and_samples_without(six_t
     assert timed.period == pytest.approx(0.01)
     assert (timed.window, timed.min_samples, timed.trim) == (50, 100, 25)
     assert (untimed.period, untimed.window, untimed.min_samples, untimed.trim) == (None, 25, 50, 12)
-    rate = segment.detect(six_tilted.raw, None, RATE)
+    rate = blocks.detect(six_tilted.raw, None, RATE)
     assert (rate.window, rate.min_samples) == (50, 100)
     assert all(b.duration == pytest.approx(b.samples / RATE) for b in timed.blocks)
     assert all(b.duration is None for b in untimed.blocks)
@@ -251,7 +251,7 @@ def test_window_and_min_duration_are_seconds_with_time_and_samples_without(six_t
 
     # 4.5 s is longer than every hold (4 s); 4.5 samples is shorter than every block
     too_long = detect(six_tilted, min_duration=4.5)
-    assert [b.dropped for b in too_long.blocks] == [segment.SHORT] * 6
+    assert [b.dropped for b in too_long.blocks] == [blocks.SHORT] * 6
     assert too_long.kept == []
     assert_found(detect(six_tilted, with_time=False, min_duration=4.5), six_tilted)
 
@@ -261,7 +261,7 @@ def test_a_gap_in_time_splits_a_still_pose(six_tilted: SynthLog) -> None:
     gap = (first + last) // 2
     times = six_tilted.times.copy()
     times[gap:] += 5.0
-    seg = segment.detect(six_tilted.raw, times)
+    seg = blocks.detect(six_tilted.raw, times)
     assert seg.gaps == [gap]
     for b in seg.blocks:
         assert not b.first < gap <= b.last, (b.first, b.last)
@@ -278,7 +278,7 @@ def test_a_gap_splits_a_still_pose_whatever_the_trim(six_tilted: SynthLog) -> No
     gap = (first + last) // 2
     times = six_tilted.times.copy()
     times[gap:] += 5.0
-    seg = segment.detect(six_tilted.raw, times, None, segment.Settings(trim=0.0))
+    seg = blocks.detect(six_tilted.raw, times, None, blocks.Settings(trim=0.0))
     assert seg.gaps == [gap]
     spans = [(b.first, b.last) for b in seg.blocks]
     for a, b in spans:
@@ -291,11 +291,11 @@ def test_a_short_pose_is_dropped_and_missing_says_min_duration() -> None:
     seg = detect(log, nominal_offset=np.full(3, NOMINAL))
     assert len(seg.blocks) == 6
     short = seg.blocks[-1]
-    assert (short.dropped, short.face) == (segment.SHORT, "-z")
+    assert (short.dropped, short.face) == (blocks.SHORT, "-z")
     assert short.samples < seg.min_samples == 100
     assert [b.dropped for b in seg.blocks[:5]] == [None] * 5
     assert list(seg.best()) == ["+x", "-x", "+y", "-y", "+z"]
-    hints = segment.missing(seg, list(SIX))
+    hints = blocks.missing(seg, list(SIX))
     assert len(hints) == 1
     assert hints[0].startswith("no -z block:")
     assert "below --min-duration 1 s" in hints[0]
@@ -311,7 +311,7 @@ def test_a_pose_beyond_max_tilt_has_no_face_and_missing_says_max_tilt() -> None:
     # its angle from -z in raw counts less the nominal offset: the 40° tilt seen through A and the offset
     seen = A_TRUE @ stimulus(FACES["-z"], 1.0, 40.0) + OFFSET - NOMINAL
     assert tilted.angle_deg == pytest.approx(math.degrees(math.acos(-seen[2] / np.linalg.norm(seen))), abs=0.5)
-    hints = segment.missing(seg, list(SIX))
+    hints = blocks.missing(seg, list(SIX))
     assert len(hints) == 1
     assert hints[0].startswith("no -z block:")
     assert "beyond --max-tilt 25°" in hints[0]
@@ -319,7 +319,7 @@ def test_a_pose_beyond_max_tilt_has_no_face_and_missing_says_max_tilt() -> None:
     # a wider --max-tilt takes it
     wide = detect(log, nominal_offset=np.full(3, NOMINAL), max_tilt_deg=45.0)
     assert wide.blocks[-1].face == "-z"
-    assert segment.missing(wide, list(SIX)) == []
+    assert blocks.missing(wide, list(SIX)) == []
 
 
 @pytest.mark.parametrize("order", ["short-first", "long-first"])
@@ -353,7 +353,7 @@ def test_best_among_equal_lengths_is_the_quieter(order: str) -> None:
     poses = [Pose("+x", noise=noises[0]), Pose("-x"), Pose("+x", noise=noises[1]), *six_poses()[2:]]
     log = synth_log(poses, seed=6)
     mapping = {name: face for face, name in LABEL.items()}
-    seg = segment.from_labels(log.raw, log.labels, mapping, log.times)
+    seg = blocks.from_labels(log.raw, log.labels, mapping, log.times)
     plus_x = [b for b in seg.kept if b.face == "+x"]
     assert [b.samples for b in plus_x] == [HOLD, HOLD]
     quieter = plus_x[0] if order == "quiet-first" else plus_x[1]
@@ -373,21 +373,21 @@ def test_quantised_noise_free_data_still_segments() -> None:
 
 def test_from_labels_drops_unmapped_labels(six_tilted: SynthLog) -> None:
     mapping = {name: face for face, name in LABEL.items()}
-    seg = segment.from_labels(six_tilted.raw, six_tilted.labels, mapping, six_tilted.times)
+    seg = blocks.from_labels(six_tilted.raw, six_tilted.labels, mapping, six_tilted.times)
     assert seg.threshold is None
     rotations = [b for b in seg.blocks if b.label == ROTATION]
     poses = [b for b in seg.blocks if b.label != ROTATION]
     assert len(rotations) == 7
-    assert all(b.dropped == segment.UNMAPPED and b.face is None for b in rotations)
+    assert all(b.dropped == blocks.UNMAPPED and b.face is None for b in rotations)
     assert [(b.first, b.last) for b in poses] == six_tilted.still  # exactly the labelled rows
     assert [b.face for b in poses] == list(SIX)
     assert all(b.kept for b in poses)
     assert list(seg.best()) == list(SIX)
     # a mapping that leaves out -z: its block is dropped too, and missing says how to map it
-    partial = segment.from_labels(six_tilted.raw, six_tilted.labels, {k: v for k, v in mapping.items() if v != "-z"})
+    partial = blocks.from_labels(six_tilted.raw, six_tilted.labels, {k: v for k, v in mapping.items() if v != "-z"})
     assert partial.blocks[-2].label == LABEL["-z"]
-    assert partial.blocks[-2].dropped == segment.UNMAPPED
-    hints = segment.missing(partial, list(SIX))
+    assert partial.blocks[-2].dropped == blocks.UNMAPPED
+    hints = blocks.missing(partial, list(SIX))
     assert len(hints) == 1
     assert "--pose-map LABEL=-z" in hints[0]
 
@@ -594,7 +594,7 @@ def test_segment_pose_column(six_tilted: SynthLog, tmp_path: Path, capsys: pytes
     assert [row["face"] for row in kept] == list(SIX)
     assert [row["label"] for row in kept] == [LABEL[f] for f in SIX]
     assert len(dropped) == 7
-    assert {(row["label"], row["reason"], row["file"]) for row in dropped} == {(ROTATION, segment.UNMAPPED, "")}
+    assert {(row["label"], row["reason"], row["file"]) for row in dropped} == {(ROTATION, blocks.UNMAPPED, "")}
     head, rows = data_lines(src)
     for row in kept:
         assert data_lines(out / row["file"]) == (head, rows[int(row["first_row"]) : int(row["last_row"]) + 1])
@@ -612,7 +612,7 @@ def test_a_pose_map_that_contradicts_the_data_is_caught(
     rows = {row["label"]: row for row in index_of(r.out) if row["label"] in ("x_p", "x_a")}
     for label, face in (("x_p", "-x"), ("x_a", "+x")):
         row = rows[label]
-        assert (row["status"], row["reason"], row["face"]) == ("dropped", segment.MISLABELLED, face)
+        assert (row["status"], row["reason"], row["face"]) == ("dropped", blocks.MISLABELLED, face)
         assert float(row["angle_deg"]) > 150.0  # from the label's face, not the nearest one's few degrees
     hint = (
         "hint: no +x block: label 'x_a' is mapped to +x but its block 4 reads like -x (180° from +x); check --pose-map"
@@ -1008,14 +1008,14 @@ def test_solve_log_three_faces_with_nominal_offset(tmp_path: Path, capsys: pytes
 def _arrays(rng: np.random.Generator) -> Iterator[FloatArray]:
     """Spreads as a log gives them and worse: random, sorted either way, a few values many
     times, one value, and every STRIDE-th the least (the sample that brackets misleads)."""
-    for n in (1, 7, segment.BRACKETED - 1, segment.BRACKETED, 300_000):
+    for n in (1, 7, blocks.BRACKETED - 1, blocks.BRACKETED, 300_000):
         yield rng.random(n)
         yield np.sort(rng.random(n))
         yield np.sort(rng.random(n))[::-1].copy()
         yield rng.integers(0, 5, n).astype(float)
         yield np.full(n, 2.0)
         tricked = rng.random(n)
-        tricked[:: segment.STRIDE] = 0.0
+        tricked[:: blocks.STRIDE] = 0.0
         yield tricked
 
 
@@ -1028,14 +1028,14 @@ def test_smallest_is_the_kth_of_those_under_the_bound_whatever_their_order() -> 
             under = np.sort(values[values < below])
             for k in sorted({0, n // 10, n // 2, n - 1, n, int(rng.integers(0, n))}):
                 want = float(under[k]) if k < under.size else None
-                assert segment.smallest(values, k, below) == want, (n, k, below)
+                assert blocks.smallest(values, k, below) == want, (n, k, below)
     # fewer values under the bound than a bracket spans (no rank of the sample to partition at)
-    few = rng.random(segment.BRACKETED)
-    assert segment.smallest(few, 0, 0.003) == float(np.sort(few[few < 0.003])[0])
+    few = rng.random(blocks.BRACKETED)
+    assert blocks.smallest(few, 0, 0.003) == float(np.sort(few[few < 0.003])[0])
     # the whole read's percentile (and sample_period's median) takes an inf as a partition would
     with_inf = np.r_[rng.random(100_000), np.full(50_000, np.inf)]
-    assert segment._quantile(with_inf, 1.0) == np.inf
-    assert segment._quantile(with_inf, 0.5) == float(np.partition(with_inf, 75_000)[75_000])
+    assert blocks._quantile(with_inf, 1.0) == np.inf
+    assert blocks._quantile(with_inf, 0.5) == float(np.partition(with_inf, 75_000)[75_000])
 
 
 def test_runs_are_the_still_stretches_split_at_the_breaks() -> None:
@@ -1047,7 +1047,7 @@ def test_runs_are_the_still_stretches_split_at_the_breaks() -> None:
         n = values.size
         breaks = np.unique(rng.integers(1, n, 4)) if n > 1 else np.zeros(0, dtype=np.int64)
         for mask in (values < np.median(values), values >= np.median(values), np.zeros(n, bool), np.ones(n, bool)):
-            starts, ends = segment._runs(mask, breaks)
+            starts, ends = blocks._runs(mask, breaks)
             assert starts.shape == ends.shape
             assert np.all(starts <= ends)
             covered = np.cumsum(np.bincount(starts, minlength=n + 1) - np.bincount(ends + 1, minlength=n + 1))[:n]
@@ -1056,7 +1056,7 @@ def test_runs_are_the_still_stretches_split_at_the_breaks() -> None:
             assert np.all((starts == 0) | ~before | np.isin(starts, breaks))  # a run starts after a False or at a break
             assert np.all((ends == n - 1) | ~after | np.isin(ends + 1, breaks))
             assert np.array_equal(covered > 0, mask)
-    assert [x.tolist() for x in segment._runs(np.zeros(0, bool), np.zeros(0, dtype=np.int64))] == [[], []]
+    assert [x.tolist() for x in blocks._runs(np.zeros(0, bool), np.zeros(0, dtype=np.int64))] == [[], []]
 
 
 @pytest.mark.parametrize("ending", ["\r", "mixed"])

@@ -1,4 +1,4 @@
-"""apply's fast path (io/splice.py) writes what the general path writes, byte for byte.
+"""apply's fast path (io/rewrite/splice.py) writes what the general path writes, byte for byte.
 
 Every case corrects one file twice, spliced (``correct_stream``'s default) and with
 ``splice=False`` (pyarrow's reader and writer only), and wants the same bytes out and the
@@ -23,9 +23,11 @@ import pytest
 from tests.conftest import POSES_3, spliced_blocks, write
 from tumblecal_cli.core import model
 from tumblecal_cli.errors import TumblecalError
-from tumblecal_cli.io import capture, rewrite, sniff, splice
-from tumblecal_cli.io.capture import open_capture
+from tumblecal_cli.io.csv import capture, sniff
+from tumblecal_cli.io.csv.capture import open_capture
 from tumblecal_cli.io.readspec import Dialect, ReadSpec
+from tumblecal_cli.io.rewrite import splice
+from tumblecal_cli.io.rewrite import writer as rewrite
 
 RNG = np.random.default_rng(7)
 MATRIX = np.eye(3) + RNG.normal(0, 0.02, (3, 3))
@@ -241,7 +243,7 @@ def test_apply_with_several_calibrations_writes_the_general_paths_bytes(
     import functools
     import json
 
-    from tumblecal_cli.pipeline.correct import correct
+    from tumblecal_cli.pipeline.apply import correct
 
     cal = tmp_path / "acc.json"
     subprocess.run(

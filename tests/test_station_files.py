@@ -14,7 +14,7 @@ import pytest
 import tumblecal_cli as tumblecal
 from tests.conftest import POSES_3, PRECIOUS, SAMPLE, assert_untouched, run, tumblecal_exe, write
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io.readings import read_log, read_samples
+from tumblecal_cli.io.csv.readings import read_log, read_samples
 from tumblecal_cli.io.readspec import Dialect, ReadSpec
 
 DATA = Path(__file__).resolve().parent / "data"

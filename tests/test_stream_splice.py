@@ -14,9 +14,10 @@ import pytest
 from tests.conftest import POSES_3, spliced_blocks
 from tests.test_splice import CASES, _accel, lines, table
 from tumblecal_cli.errors import TumblecalError
-from tumblecal_cli.io import capture, rewrite
-from tumblecal_cli.io.capture import open_capture
+from tumblecal_cli.io.csv import capture
+from tumblecal_cli.io.csv.capture import open_capture
 from tumblecal_cli.io.readspec import Dialect, ReadSpec
+from tumblecal_cli.io.rewrite import writer as rewrite
 
 BLOCK = 4096
 

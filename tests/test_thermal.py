@@ -16,7 +16,7 @@ from tests.conftest import SAMPLE, run
 from tumblecal_cli.core import drift
 from tumblecal_cli.core.model import FACES
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import calfile
+from tumblecal_cli.io.calfiles import calfile
 
 THERMAL = SAMPLE / "thermal"
 FACE_FILES = {"+x": "up_xp", "-x": "down_xn", "+y": "up_yp", "-y": "down_yn", "+z": "up_zp", "-z": "down_zn"}

@@ -1,4 +1,4 @@
-"""PX4 ULog logs read where a capture is read (io.ulog through io.sources): real PX4 logs listed
+"""PX4 ULog logs read where a capture is read (io.logs.ulog through io.sources): real PX4 logs listed
 and read as PX4's own parser (pyulog) reads them, --stream and --allow-corrected, a synthetic
 six-face session that solves as its CSV does, and the logs that are cut, corrupt or odd."""
 
@@ -20,7 +20,9 @@ from tests.conftest import ROOT, imported, run_exe, write
 from tests.conftest import tumblecal as cli
 from tests.test_sources import tumble
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import readings, sources, ulog
+from tumblecal_cli.io import sources
+from tumblecal_cli.io.csv import readings
+from tumblecal_cli.io.logs import ulog
 from tumblecal_cli.io.readspec import ReadSpec
 
 PX4 = ROOT / "tests" / "data" / "px4"
@@ -238,8 +240,8 @@ def test_a_log_whose_reader_needs_an_extra_not_installed_is_exit_2_naming_it(
 
 
 def test_the_ulog_reader_is_imported_only_when_a_log_is_read() -> None:
-    watch = ("tumblecal_cli.io.ulog",)
-    assert imported("import tumblecal_cli.io.sources, tumblecal_cli.io.readings", watch) == []
+    watch = ("tumblecal_cli.io.logs.ulog",)
+    assert imported("import tumblecal_cli.io.sources, tumblecal_cli.io.csv.readings", watch) == []
     body = "import tumblecal_cli as t\nt.noise('tests/data/xsens_acc_still.txt', rate=100.0)"
     assert imported(body, watch) == []
     body = "import tumblecal_cli as t, gzip, tempfile\n" + (

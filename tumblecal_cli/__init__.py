@@ -26,33 +26,33 @@ from tumblecal_cli.errors import CaptureRejected, InputError, TumblecalError
 from tumblecal_cli.version import __version__
 
 if TYPE_CHECKING:
-    from tumblecal_cli.io.calfile import Calibration, load
+    from tumblecal_cli.io.calfiles.calfile import Calibration, load
     from tumblecal_cli.io.sources import streams
-    from tumblecal_cli.pipeline.batch import run_batch
-    from tumblecal_cli.pipeline.correct import correct
+    from tumblecal_cli.pipeline.apply import correct
+    from tumblecal_cli.pipeline.batch.units import run_batch
     from tumblecal_cli.pipeline.current import CurrentResult, current
     from tumblecal_cli.pipeline.exchange import check, export, import_peer
     from tumblecal_cli.pipeline.frames import read_capture
-    from tumblecal_cli.pipeline.logs import segment
     from tumblecal_cli.pipeline.noise import Noise, noise
     from tumblecal_cli.pipeline.options import SolveOptions
     from tumblecal_cli.pipeline.report import report
-    from tumblecal_cli.pipeline.solve import Solved, solve, solve_log
+    from tumblecal_cli.pipeline.segment import segment
+    from tumblecal_cli.pipeline.solve.solving import Solved, solve, solve_log
     from tumblecal_cli.pipeline.thermal import ThermalResult, thermal
     from tumblecal_cli.pipeline.verify import verify, verify_rotations
 
 #: Each public name and the module that holds it.
 _HOMES = {
-    "Calibration": "tumblecal_cli.io.calfile",
-    "load": "tumblecal_cli.io.calfile",
+    "Calibration": "tumblecal_cli.io.calfiles.calfile",
+    "load": "tumblecal_cli.io.calfiles.calfile",
     "streams": "tumblecal_cli.io.sources",
-    "solve": "tumblecal_cli.pipeline.solve",
-    "solve_log": "tumblecal_cli.pipeline.solve",
-    "Solved": "tumblecal_cli.pipeline.solve",
+    "solve": "tumblecal_cli.pipeline.solve.solving",
+    "solve_log": "tumblecal_cli.pipeline.solve.solving",
+    "Solved": "tumblecal_cli.pipeline.solve.solving",
     "SolveOptions": "tumblecal_cli.pipeline.options",
     "read_capture": "tumblecal_cli.pipeline.frames",
-    "correct": "tumblecal_cli.pipeline.correct",
-    "segment": "tumblecal_cli.pipeline.logs",
+    "correct": "tumblecal_cli.pipeline.apply",
+    "segment": "tumblecal_cli.pipeline.segment",
     "verify": "tumblecal_cli.pipeline.verify",
     "verify_rotations": "tumblecal_cli.pipeline.verify",
     "noise": "tumblecal_cli.pipeline.noise",
@@ -61,7 +61,7 @@ _HOMES = {
     "check": "tumblecal_cli.pipeline.exchange",
     "export": "tumblecal_cli.pipeline.exchange",
     "import_peer": "tumblecal_cli.pipeline.exchange",
-    "run_batch": "tumblecal_cli.pipeline.batch",
+    "run_batch": "tumblecal_cli.pipeline.batch.units",
     "thermal": "tumblecal_cli.pipeline.thermal",
     "ThermalResult": "tumblecal_cli.pipeline.thermal",
     "current": "tumblecal_cli.pipeline.current",

@@ -1,5 +1,12 @@
-"""The command line: the Typer app and its error boundary (``app``), one module per command or
-small group of commands, the options they share (``options``) and what people read (``render``).
+"""The command line: one module per command (or small group of commands), each named for it.
+Its modules:
+
+- ``app``: the Typer application and the one error boundary (every error its exit status).
+- ``flags``: the options and choices several commands share, defined once.
+- ``render``: what people read on stderr (Rich tables), and the data commands print on stdout.
+- ``solve``, ``apply``, ``thermal``, ``current``, ``report``, ``verify``, ``segment``, ``noise``,
+  ``logs``, ``align``, ``batch``: the command of that name.
+- ``calfiles``: the commands on calibration files: show, check, export and import.
 
 Each command parses its options, makes one call into ``tumblecal_cli.pipeline`` and renders the
 result; the pipeline is imported inside the commands (batch reads the names of SolveOptions,
@@ -21,8 +28,8 @@ COMMANDS = (
     "verify",
     "segment",
     "noise",
-    "streams",
-    "aligning",
+    "logs",
+    "align",
     "batch",
 )
 for _name in COMMANDS:

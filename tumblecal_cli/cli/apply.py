@@ -97,7 +97,7 @@ def apply(
       tumblecal apply --cal cal.json 'logs/*.csv' --out-dir corrected/
     """
 
-    from tumblecal_cli.pipeline import correct as pipeline
+    from tumblecal_cli.pipeline import apply as pipeline
 
     inputs = pipeline.expand(capture or ["-"])
     shape = file_shape(skip_rows, decimal, drop_incomplete)

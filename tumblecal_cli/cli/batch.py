@@ -18,8 +18,8 @@ if TYPE_CHECKING:
 
     from rich.console import Console
 
-    from tumblecal_cli.pipeline import batch as batches
-    from tumblecal_cli.pipeline import summary as summaries
+    from tumblecal_cli.pipeline.batch import summary as summaries
+    from tumblecal_cli.pipeline.batch import units as batches
 
 BATCH_PANEL = "Batch"
 BATCH_EXIT = """\
@@ -130,7 +130,7 @@ def batch(**given: Any) -> None:  # Typer passes each option by name, each of it
     DIR/summary.csv (README: batch), with a warning for serials that share a pose file.
     """
 
-    from tumblecal_cli.pipeline import batch as batches
+    from tumblecal_cli.pipeline.batch import units as batches
 
     own = {name: given.pop(name) for name in list(given) if name in _BATCH_OWN}
     quiet, console = own["quiet"], render.make_console()
@@ -168,7 +168,7 @@ def batch(**given: Any) -> None:  # Typer passes each option by name, each of it
 
 def _show(result: batches.Batched, console: Console, *, quiet: bool, json_summary: bool) -> None:
     """The batch's counts on stderr, the --json summary on stdout; its status."""
-    from tumblecal_cli.pipeline import summary as summaries
+    from tumblecal_cli.pipeline.batch import summary as summaries
 
     if not quiet:
         for warning in result.warnings:

@@ -41,7 +41,7 @@ def show(
 
     import numpy as np
 
-    from tumblecal_cli.io import calfile
+    from tumblecal_cli.io.calfiles import calfile
     from tumblecal_cli.pipeline.exchange import tilt_notes
 
     c = calfile.load(cal)

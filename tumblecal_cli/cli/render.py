@@ -17,15 +17,15 @@ if TYPE_CHECKING:
     from rich.console import Console
     from rich.table import Table
 
+    from tumblecal_cli.core.blocks import Block, Segmentation
     from tumblecal_cli.core.gate import Finding
     from tumblecal_cli.core.lot import ParameterRow, Report
     from tumblecal_cli.core.model import FloatArray
-    from tumblecal_cli.core.segment import Block, Segmentation
-    from tumblecal_cli.io.calfile import Calibration
-    from tumblecal_cli.io.calparts import Pose
-    from tumblecal_cli.io.readings import Log
+    from tumblecal_cli.io.calfiles.calfile import Calibration
+    from tumblecal_cli.io.calfiles.calparts import Pose
+    from tumblecal_cli.io.csv.readings import Log
+    from tumblecal_cli.pipeline.batch.summary import Row
     from tumblecal_cli.pipeline.noise import Noise
-    from tumblecal_cli.pipeline.summary import Row
     from tumblecal_cli.pipeline.thermal import ThermalResult
 
 
@@ -430,8 +430,8 @@ def print_blocks(
     near (segment cuts what there is: a face never held is no news there); ``table``: False,
     one line of counts instead of the table (solve without -v); None, the warnings alone (a
     rejected solve without -v: the rejection follows)."""
+    from tumblecal_cli.core import blocks
     from tumblecal_cli.core import model as core
-    from tumblecal_cli.core import segment
 
     name = log.layout.name
     for note in log.layout.notes if notes else []:
@@ -452,9 +452,9 @@ def print_blocks(
     if seg.threshold is not None and table:
         if seg.noise_floor is None:
             how = "given"
-        elif seg.threshold == segment.FLOOR_FACTOR * seg.noise_floor:
-            how = f"{segment.FLOOR_FACTOR:g} x the noise floor {seg.noise_floor:.4g}"
-        else:  # readings that do not vary at all when still (segment.detect)
+        elif seg.threshold == blocks.FLOOR_FACTOR * seg.noise_floor:
+            how = f"{blocks.FLOOR_FACTOR:g} x the noise floor {seg.noise_floor:.4g}"
+        else:  # readings that do not vary at all when still (blocks.detect)
             how = f"the noise floor is {seg.noise_floor:.4g}: still means no spread at all"
         window = f"{seg.window * seg.period:.3g} s" if seg.period else f"{seg.window} samples"
         tell(
@@ -466,7 +466,7 @@ def print_blocks(
     best = seg.best()
     tell(console, f"faces: {' '.join(f for f in core.FACES if f in best) or 'none'}")
     faces = [f for f in core.FACES if not notes or any(b.nearest == f for b in seg.blocks)]
-    for hint in segment.missing(seg, faces):
+    for hint in blocks.missing(seg, faces):
         tell(console, f"hint: {hint}")
 
 
@@ -832,7 +832,7 @@ def show_noise(done: Noise, *, json_summary: bool, shown: Shown, plot: str | Non
     quiet = shown.quiet
     if plot is not None and done.error is None:
         from tumblecal_cli.core import allan
-        from tumblecal_cli.io import plots
+        from tumblecal_cli.io.figures import plots
 
         plots.require()
         plots.noise_figure(plot, done.curve, allan.figures(done.curve), done.units, title=done.file)

@@ -132,7 +132,7 @@ def _early_checks(plot: str | None, html: str | None) -> None:
     """Before any work: matplotlib for --plot and --html, and an --html that can be written."""
     if plot is None and html is None:
         return
-    from tumblecal_cli.io import plots
+    from tumblecal_cli.io.figures import plots
 
     plots.require()
     if html is None:
@@ -167,7 +167,7 @@ def _late_checks(plot: str | None, html: str | None, inputs: list[str]) -> None:
 
 def _plot_lot(plot: str, reported: Reported) -> None:
     """report --plot: a histogram per parameter of the lot, with its limits and marked units."""
-    from tumblecal_cli.io import plots
+    from tumblecal_cli.io.figures import plots
     from tumblecal_cli.pipeline import report as pipeline
 
     plots.lot_figure(

@@ -42,7 +42,7 @@ from tumblecal_cli.cli.solve import _plot_target
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-    from tumblecal_cli.pipeline.logs import Blocks, Segmented
+    from tumblecal_cli.pipeline.segment import Blocks, Segmented
 
 SEGMENT_EXIT = """\
 Exit status: 0 blocks found and written (whatever faces they show: solve judges whether they are
@@ -137,7 +137,7 @@ def segment(
       tumblecal segment session.csv --plot blocks.png -d poses/    # and a picture
     """
 
-    from tumblecal_cli.pipeline import logs
+    from tumblecal_cli.pipeline import segment as logs
 
     if plot is not None:
         _plot_target(plot, out_dir or "-", False, [log])

@@ -60,7 +60,7 @@ from tumblecal_cli.errors import InputError
 
 if TYPE_CHECKING:
     from tumblecal_cli.pipeline.options import SolveOptions
-    from tumblecal_cli.pipeline.solve import Solved
+    from tumblecal_cli.pipeline.solve.solving import Solved
 
 
 @app.command(cls=ManyValuesCommand, epilog=EXIT_CODES)
@@ -346,7 +346,7 @@ def solve(
 
     options = solve_options(**{name: value for name, value in locals().items() if name in OPTION_NAMES})
     from tumblecal_cli.io.outputs import check_not_input, check_writable
-    from tumblecal_cli.pipeline import solve as pipeline
+    from tumblecal_cli.pipeline.solve import solving as pipeline
 
     inputs = [*(poses or []), *(p.partition("=")[2] for p in poses or [] if "=" in p), *([log] if log else [])]
     inputs += [limits] if limits else []
@@ -525,7 +525,7 @@ def _show(
 
 def _plot_target(plot: str, output: str, json_summary: bool, inputs: list[str]) -> None:
     """Refuse a --plot path that cannot work, before any work (matplotlib missing is one)."""
-    from tumblecal_cli.io import plots
+    from tumblecal_cli.io.figures import plots
     from tumblecal_cli.io.outputs import check_not_input, check_writable
 
     plots.require()

@@ -9,12 +9,19 @@
   sensor, and the evidence that chooses between six-pose and six-pose-magnitude.
 - ``gate``: the production-test gate: quality checks on each pose (exit 3), limits and the
   verdict (exit 1).
-- ``segment``: the still blocks of a log held in memory (or its pose labels), judged and labelled
-  with the faces they show.
+- ``running``: a long pose's readings as running sums, the statistics every check needs.
+- ``blocks``: the still blocks of a log held in memory (or its pose labels), judged and
+  labelled with the faces they show.
 - ``scan``: the same still-block detection fed a log block by block, keeping only the still
-  periods' readings.
+  periods' spreads.
+- ``chunks``: a long log's readings as sums over chunks, merged into each block's statistics.
+- ``clock``: a log's clock: seconds per sample, gaps, and stamps taken on arrival.
+- ``stillness``: where a gyroscope is still, cut down from the accelerometer's still blocks.
+- ``alignment``: the rotation between two sensors' axes from still blocks seen by both.
+- ``earth``: the Earth's reference fields at a place: normal gravity and the magnetic model.
 - ``drift``: offset and gain drift fitted against temperature, and each row corrected at its
   own temperature.
+- ``current_fit``: a magnetometer's offset per ampere of motor current.
 - ``turn_fit``: a gyroscope's bias, g-sensitivity, scale and misalignment from known turns (the
   Ferraris procedure).
 - ``rotation_fit``: a gyroscope's scale and misalignment from hand turns between still poses,
@@ -22,4 +29,5 @@
 - ``allan``: the Allan deviation of a still capture, computed as it streams, and the noise
   figures read off it.
 - ``lot``: statistics over a production lot of calibrations: which files count, capability and
-  outliers per parameter, and each re-calibrated unit's drift."""
+  outliers per parameter, and each re-calibrated unit's drift.
+- ``outliers``: outlier flags over a lot that hold the lot-wide false-alarm rate."""

@@ -16,8 +16,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from tumblecal_cli.core.blocks import FloatArray, IntArray, Measured, thirds
 from tumblecal_cli.core.model import PoseStats
-from tumblecal_cli.core.segment import FloatArray, IntArray, Measured, thirds
 
 #: Readings summed together: a block cuts two chunks and its thirds two more, read again (a
 #: thousand blocks read 1M readings again); the table holds 56 bytes a chunk (the caller's

@@ -106,7 +106,7 @@ METHODS = (
 )
 
 
-#: Methods that take a gyroscope's turns, not still poses (pipeline.turns, pipeline.rotations).
+#: Methods that take a gyroscope's turns, not still poses (pipeline.solve.turns, pipeline.solve.rotations).
 TURNS = ("ferraris-turns",)
 
 

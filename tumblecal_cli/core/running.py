@@ -2,7 +2,7 @@
 gathered block by block as the capture is read, so that a pose of any length is judged in
 memory that does not grow with it. numpy only.
 
-A :class:`Summary` keeps, for each block of readings read (io.posefile: some 30,000 rows each),
+A :class:`Summary` keeps, for each block of readings read (io.csv.posefile: some 30,000 rows each),
 its count, sum, mean and co-moment, lowest and highest value, largest row peak and whether
 every value is a whole number; the blocks' means and co-moments (each about its own block's
 mean) are merged by the pairwise update formula, as stable as the two-pass formula. The readings

@@ -1,9 +1,9 @@
-"""The still-block detector of ``core.segment.detect``, fed a log block by block (numpy only).
+"""The still-block detector of ``core.blocks.detect``, fed a log block by block (numpy only).
 
 ``detect`` needs the whole log in memory: 20 million readings are 0.5 GB of floats before
 anything else. ``Scan`` finds the same blocks while the log streams past and keeps only the
 readings of the still periods (and those within a window of one), or only their spreads (and
-``finish`` is given what measures the blocks: io.logread's sums over chunks, core.chunks, 56
+``finish`` is given what measures the blocks: io.csv.logread's sums over chunks, core.chunks, 56
 bytes a chunk of 256 readings): its memory grows with the still blocks, not with the log.
 
 The rules are ``detect``'s (its docstring): the spread of the window centred on each sample,
@@ -42,7 +42,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tumblecal_cli.core import clock
-from tumblecal_cli.core.segment import (
+from tumblecal_cli.core.blocks import (
     FLOOR_FACTOR,
     FLOOR_PERCENTILE,
     GAP_FACTOR,
@@ -59,7 +59,7 @@ from tumblecal_cli.core.segment import (
     smallest,
     window_spread,
 )
-from tumblecal_cli.core.segment import measure as segment_measure
+from tumblecal_cli.core.blocks import measure as segment_measure
 
 #: A sample is a still candidate when its spread is below this many times the threshold so far ...
 BOUND_FACTOR = 4.0

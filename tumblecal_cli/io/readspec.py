@@ -4,8 +4,8 @@ the reader, whatever the kind of source.
 ``ReadSpec`` holds what the user says of where the readings are and how the file is written:
 the sensor whose triplet is read, its columns, the time column and its unit (or the rate),
 the temperature column, the file's dialect, and the columns a calibration recorded. Every
-reader takes one (``io.capture.open_capture``, ``io.readings.read_log`` and
-``io.logread.scan_log``); a reader of another kind of source (a binary log) takes the same
+reader takes one (``io.csv.capture.open_capture``, ``io.csv.readings.read_log`` and
+``io.csv.logread.scan_log``); a reader of another kind of source (a binary log) takes the same
 value and ignores what does not apply to it (``no_header``, ``dialect``).
 """
 
@@ -54,7 +54,7 @@ class ReadSpec:
     ``end`` the part of the capture to read (--start/--end: :func:`bound`; None: its first or
     last reading); ``paired`` that the accelerometer and the gyroscope are read as one log's rows
     (the turns pipelines): a log that holds them in separate streams gives the gyroscope stream's
-    samples and its instance's accelerometer resampled onto them (io.ulog)."""
+    samples and its instance's accelerometer resampled onto them (io.logs.ulog)."""
 
     sensor: str = "accelerometer"
     columns: tuple[str, ...] | None = None

@@ -1,7 +1,7 @@
 """Sources of readings beside CSV: where a reader of another kind of file plugs in.
 
-Every command that reads a log or a pose file does it through ``io.readings`` (``read_log``,
-``read_samples``, ``stream``), whatever the file: a CSV capture by ``io.capture``, or a file a
+Every command that reads a log or a pose file does it through ``io.csv.readings`` (``read_log``,
+``read_samples``, ``stream``), whatever the file: a CSV capture by ``io.csv.capture``, or a file a
 registered :class:`Reader` claims (a binary autopilot log, a bag), which hands back its readings
 as a :class:`Table`. A new kind of source is one module with one ``Reader``, appended to
 ``READERS``: the readings module turns its table into the ``Log`` every command takes, judges
@@ -157,10 +157,10 @@ def ros_claim(path: str, head: bytes) -> bool:
 
 #: The readers of sources beside CSV, asked in order; a file none claims is read as CSV.
 READERS: list[Reader] = [
-    Lazy("PX4 ULog", "tumblecal_cli.io.ulog", magic=(b"ULog\x01\x12\x35",)),
-    Lazy("ArduPilot DataFlash log", "tumblecal_cli.io.dataflash", magic=(b"\xa3\x95\x80",)),
-    Lazy("ArduPilot DataFlash text log", "tumblecal_cli.io.dftext", claim=dataflash_text),
-    Lazy("ROS bag or MCAP file", "tumblecal_cli.io.ros", claim=ros_claim, extra="ros", needs=("rosbags",)),
+    Lazy("PX4 ULog", "tumblecal_cli.io.logs.ulog", magic=(b"ULog\x01\x12\x35",)),
+    Lazy("ArduPilot DataFlash log", "tumblecal_cli.io.logs.dataflash", magic=(b"\xa3\x95\x80",)),
+    Lazy("ArduPilot DataFlash text log", "tumblecal_cli.io.logs.dftext", claim=dataflash_text),
+    Lazy("ROS bag or MCAP file", "tumblecal_cli.io.logs.ros", claim=ros_claim, extra="ros", needs=("rosbags",)),
 ]
 #: How much of a file a reader is shown to claim it.
 HEAD = 64

@@ -1,18 +1,16 @@
 """What a user does, composed from io and core: the public Python API (``tumblecal_cli.__all__``)
 that the commands, ``batch`` and the Dask workers call. pandas only inside the functions that take
-or return DataFrames. Its modules:
+or return DataFrames. A command's module is named after the command. Its rooms and modules:
 
-- ``solve``: pose captures (or one continuous log) in, a judged Calibration out.
+- ``solve/``: pose captures, tables or one continuous log in, a judged Calibration out.
+- ``batch/``: the units of a lot, each solved where it runs best, and the summary.
 - ``options``: solve's options (and those the commands share), checked and resolved once.
-- ``logs``: continuous logs: their still blocks found, the poses a solver needs picked (solve
-  --log), and one CSV written per block (segment).
-- ``turns``: a gyroscope calibrated from one labelled log of the Ferraris procedure (solve --turns).
-- ``rotations``: a gyroscope's scale and misalignment from hand turns in a log (solve
-  --accel-cal).
-- ``correct``: apply: captures corrected with one or more calibrations, streamed file to file.
-- ``batch``: batch: the units of a lot, each solved, and the summary.
-- ``cluster``: where many units or captures run: in process, in worker processes, or on a Dask
-  cluster (batch, and apply over many files).
+- ``frames``: the Python API's data in memory: DataFrames and (n, 3) arrays in, DataFrames out.
+- ``places``: where a unit was calibrated: the local gravity and Earth's field, by place and date.
+- ``segment``: continuous logs: their still blocks found and judged, the poses a solver needs
+  picked (solve --log), and one CSV written per block (segment).
+- ``align``: one sensor's axes rotated onto another's from the still blocks they share.
+- ``apply``: captures corrected with one or more calibrations, streamed file to file.
 - ``thermal``: temperature sweeps in, a calibration with a ``thermal`` block out.
 - ``current``: magnetometer logs with a motor-current column in, a calibration with a
   ``current`` block (its offset per ampere) out.
@@ -23,4 +21,4 @@ or return DataFrames. Its modules:
 - ``report``: a lot's calibration files found, read and summarised (``core.lot``).
 - ``exchange``: calibration files after solve: checked again, exported to firmware or another
   tool, imported from one.
-- ``frames``: the Python API's data in memory: DataFrames and (n, 3) arrays in, DataFrames out."""
+- ``plotting``: the figures a command's ``--plot`` draws, from what the pipeline returned."""

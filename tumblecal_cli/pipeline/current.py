@@ -1,8 +1,8 @@
 """current: magnetometer logs with a motor-current column in, a calibration with a ``current``
 block out (docs/current.md).
 
-The steps: read the base calibration (``io.calfile``: a magnetometer's) and each log with its
-current column (``io.readings.read_log``, the column read as text and then as numbers here, so
+The steps: read the base calibration (``io.calfiles.calfile``: a magnetometer's) and each log with its
+current column (``io.csv.readings.read_log``, the column read as text and then as numbers here, so
 that a cell that is not one is named with its line), refuse a current that never changes or too
 few readings (exit 3), fit the offset per ampere (``core.current_fit.fit``: one slope, each log its
 own reading at 0 A), and add the block to the base calibration.
@@ -21,15 +21,16 @@ from tumblecal_cli.core import current_fit as core
 from tumblecal_cli.core import model
 from tumblecal_cli.core.gate import Finding
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import calfile, limitfile, readings
+from tumblecal_cli.io.calfiles import calfile, limitfile
+from tumblecal_cli.io.csv import readings
 from tumblecal_cli.io.readspec import ReadSpec, column_list
 from tumblecal_cli.pipeline.options import keywords_known
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.current_fit import CurrentFit, IntArray
     from tumblecal_cli.core.model import FloatArray
-    from tumblecal_cli.io.calfile import Calibration, Current
-    from tumblecal_cli.io.readings import Log
+    from tumblecal_cli.io.calfiles.calfile import Calibration, Current
+    from tumblecal_cli.io.csv.readings import Log
 
 #: Below this share of the field's variation explained, the fit is said to be doubtful.
 DOUBTFUL = 0.5

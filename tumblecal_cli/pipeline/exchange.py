@@ -14,14 +14,15 @@ import numpy as np
 from tumblecal_cli.core import gate, model, solvers
 from tumblecal_cli.core.gate import FIXED_GAINS
 from tumblecal_cli.errors import InputError, control_character
-from tumblecal_cli.io import calfile, documents, formats, paramfile
+from tumblecal_cli.io.calfiles import calfile, documents
+from tumblecal_cli.io.export import formats, paramfile
 from tumblecal_cli.pipeline.options import Triplet, keywords_known, path_of, triplet, unit_block
 from tumblecal_cli.pipeline.options import limits as parse_limits
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Finding, Limits
-    from tumblecal_cli.io.calfile import Calibration
-    from tumblecal_cli.io.formats import Peer
+    from tumblecal_cli.io.calfiles.calfile import Calibration
+    from tumblecal_cli.io.export.formats import Peer
 
 
 #: export's formats (docs/commands/export-import.md).
@@ -81,7 +82,7 @@ def check(
 
 def _dip_again(c: Calibration, given: Limits) -> list[Finding]:
     """The dip_angle limit judged again on the still blocks' dip angles the file records (its
-    ``dip`` part, pipeline.maglog); a limit with no such part to judge is an input error."""
+    ``dip`` part, pipeline.solve.maglog); a limit with no such part to judge is an input error."""
     if given.dip_angle is None:
         return []
     dip = c.fields.get("dip")

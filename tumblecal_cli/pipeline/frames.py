@@ -18,7 +18,8 @@ from typing import TYPE_CHECKING, Any, TypeAlias
 import numpy as np
 
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import capture, posefile, readings, sniff, sources
+from tumblecal_cli.io import sources
+from tumblecal_cli.io.csv import capture, posefile, readings, sniff
 from tumblecal_cli.io.outputs import unsafe
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.pipeline.options import path_of
@@ -26,7 +27,7 @@ from tumblecal_cli.pipeline.options import path_of
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-    from tumblecal_cli.io.readings import Samples
+    from tumblecal_cli.io.csv.readings import Samples
     from tumblecal_cli.pipeline.options import SolveOptions
 
 #: A pandas DataFrame: pandas ships no types here, so to mypy it is Any (the one place that says so).

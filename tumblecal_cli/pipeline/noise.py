@@ -23,15 +23,17 @@ from tumblecal_cli.core import allan, clock, gate
 from tumblecal_cli.core.clock import Clock
 from tumblecal_cli.core.model import apply
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import calfile, capture, documents, limitfile, readings, sniff, sources
-from tumblecal_cli.io.ahead import ahead
+from tumblecal_cli.io import sources
+from tumblecal_cli.io.calfiles import calfile, documents, limitfile
+from tumblecal_cli.io.csv import capture, readings, sniff
+from tumblecal_cli.io.csv.ahead import ahead
 from tumblecal_cli.io.outputs import atomic_output
 from tumblecal_cli.pipeline.frames import in_memory
 from tumblecal_cli.pipeline.options import ReadKeywords, keywords_known, read_spec
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.model import FloatArray
-    from tumblecal_cli.io.calfile import Calibration
+    from tumblecal_cli.io.calfiles.calfile import Calibration
     from tumblecal_cli.io.readspec import ReadSpec
     from tumblecal_cli.pipeline.frames import DataFrame, JSONObject
 
@@ -371,7 +373,7 @@ def _stream(
                 "the sample rate is unknown: the capture has no time column", file=lay.name, hint="give --rate HZ"
             )
         timer = None if rate is not None else _Timer(lay.name, time_unit=time_unit, cap=cap)
-        # each block parsed on a thread of its own while the last one is summed (io.ahead)
+        # each block parsed on a thread of its own while the last one is summed (io.csv.ahead)
         for first_row, values, empty, times in ahead(_parsed(cap, timer is not None)):
             found: NDArray[np.int64] | None = None
             if timer is not None and times is not None and values.shape[0]:

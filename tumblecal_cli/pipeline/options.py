@@ -20,14 +20,14 @@ from tumblecal_cli.core import gate, model
 from tumblecal_cli.core.methods import METHODS, TURNS
 from tumblecal_cli.core.model import SENSORS
 from tumblecal_cli.errors import InputError, control_character
-from tumblecal_cli.io import limitfile
-from tumblecal_cli.io.calfile import Unit
+from tumblecal_cli.io.calfiles import limitfile
+from tumblecal_cli.io.calfiles.calfile import Unit
 from tumblecal_cli.io.readspec import Dialect, ReadSpec, column_list
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Limits
     from tumblecal_cli.core.model import FloatArray
-    from tumblecal_cli.io.calfile import Unit
+    from tumblecal_cli.io.calfiles.calfile import Unit
 
 #: A number, or three (X,Y,Z): text as the command line gives it, or numbers.
 Triplet = str | float | Sequence[float]
@@ -41,7 +41,7 @@ class LogOptions:
     (``accel_cal``); the most of a log from stdin or a pipe kept for its second read
     (``max_spool``, a size: bytes or ``"500M"``; None: ``outputs.MAX_SPOOL`` or the room in $TMPDIR);
     a magnetometer's alignment to an accelerometer calibration's axes (``align_to``,
-    pipeline.alignment)."""
+    pipeline.align)."""
 
     window: float | None = None
     threshold: float | None = None

@@ -16,10 +16,10 @@ from typing import TYPE_CHECKING
 
 from tumblecal_cli.core import earth
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io.paramfile import ACCEL, MAG
+from tumblecal_cli.io.export.paramfile import ACCEL, MAG
 
 if TYPE_CHECKING:
-    from tumblecal_cli.io.calfile import Calibration
+    from tumblecal_cli.io.calfiles.calfile import Calibration
     from tumblecal_cli.pipeline.options import SolveOptions
 
 #: --gravity's range (m/s^2): the Earth's surface gravity, poles to equator, with room for height.
@@ -245,7 +245,7 @@ def _reference_lines(cal: Calibration) -> list[str]:
 
 
 def _dip_lines(part: object) -> list[str]:
-    """The summary's line of a calibration's ``dip`` part (pipeline.maglog)."""
+    """The summary's line of a calibration's ``dip`` part (pipeline.solve.maglog)."""
     if not isinstance(part, Mapping) or not isinstance(part.get("mean_deg"), float | int):
         return []
     line = (

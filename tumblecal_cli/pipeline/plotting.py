@@ -1,5 +1,5 @@
-"""The ``--plot`` figures of solve and verify, from their results (io.fitplots and
-io.plots draw them, importing matplotlib only then)."""
+"""The ``--plot`` figures of solve and verify, from their results (io.figures.fitplots and
+io.figures.plots draw them, importing matplotlib only then)."""
 
 from __future__ import annotations
 
@@ -10,13 +10,13 @@ import numpy as np
 
 from tumblecal_cli.core import methods
 from tumblecal_cli.core.gate import FIXED_GAINS
-from tumblecal_cli.io import fitplots, plots
+from tumblecal_cli.io.figures import fitplots, plots
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Limits
-    from tumblecal_cli.io.calfile import Calibration
-    from tumblecal_cli.io.calparts import Pose
-    from tumblecal_cli.pipeline.solve import Solved
+    from tumblecal_cli.io.calfiles.calfile import Calibration
+    from tumblecal_cli.io.calfiles.calparts import Pose
+    from tumblecal_cli.pipeline.solve.solving import Solved
     from tumblecal_cli.pipeline.verify import Verified
 
 #: "Before" is the raw reading taken as it is (less a nominal offset) unless its norm is off the

@@ -11,7 +11,8 @@ import numpy as np
 
 from tumblecal_cli.core import gate, lot, outliers
 from tumblecal_cli.errors import InputError, TumblecalError
-from tumblecal_cli.io import calfile, limitfile, lothtml, plots
+from tumblecal_cli.io.calfiles import calfile, limitfile
+from tumblecal_cli.io.figures import lothtml, plots
 from tumblecal_cli.version import __version__
 
 #: Suffixes of calibration files a folder is searched for (case-insensitive, as documents.is_yaml).
@@ -91,7 +92,7 @@ def histograms(reported: Reported) -> list[plots.Histogram]:
 
 
 def write_html(reported: Reported, path: str, *, limits: str | None = None, drift_given: bool = False) -> None:
-    """``report --html``: the lot report as one self-contained page (``io.lothtml``), its figures
+    """``report --html``: the lot report as one self-contained page (``io.figures.lothtml``), its figures
     drawn by matplotlib (the ``[plot]`` extra), each unit linked to its calibration file."""
     panels = plots.lot_panels_svg(histograms(reported)) if reported.result.rows else []
     names = [f"{row.sensor} {row.parameter}" for row in reported.result.rows]

@@ -1,7 +1,7 @@
 """thermal: temperature sweeps in, a calibration with a ``thermal`` block out.
 
-The steps: read the base calibration (``io.calfile``) and each sweep with its temperature column
-(``io.readings.read_log``), refuse a temperature that cannot carry a fit (constant, noise without
+The steps: read the base calibration (``io.calfiles.calfile``) and each sweep with its temperature column
+(``io.csv.readings.read_log``), refuse a temperature that cannot carry a fit (constant, noise without
 a trend, a swing too small for the order: exit 3), fit the drift (``core.drift.fit``), judge the
 sweeps with the quality checks of ``solve`` on their readings with the drift removed
 (``core.gate``: a pose that moved is exit 3), and add the block to the base calibration.
@@ -19,17 +19,19 @@ import numpy as np
 from tumblecal_cli.core import drift, gate, model
 from tumblecal_cli.core.model import direction
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import calfile, plots, readings
+from tumblecal_cli.io.calfiles import calfile
+from tumblecal_cli.io.csv import readings
+from tumblecal_cli.io.figures import plots
 from tumblecal_cli.io.readspec import ReadSpec, column_list
 from tumblecal_cli.pipeline.options import keywords_known
-from tumblecal_cli.pipeline.solve import pose_items
+from tumblecal_cli.pipeline.solve.solving import pose_items
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.drift import Sweep, ThermalFit
     from tumblecal_cli.core.gate import Finding
     from tumblecal_cli.core.model import FloatArray
-    from tumblecal_cli.io.calfile import Calibration, Thermal
-    from tumblecal_cli.io.readings import Log
+    from tumblecal_cli.io.calfiles.calfile import Calibration, Thermal
+    from tumblecal_cli.io.csv.readings import Log
     from tumblecal_cli.io.readspec import ReadSpec
 
 #: The default of --min-swing (°C): the swing order 1 needs.

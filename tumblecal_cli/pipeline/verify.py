@@ -15,7 +15,8 @@ import numpy as np
 from tumblecal_cli.core import drift, gate, methods, model, rotation_fit
 from tumblecal_cli.core.model import UNITS_TOLERANCE, FloatArray
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import calfile, posefile, readings
+from tumblecal_cli.io.calfiles import calfile
+from tumblecal_cli.io.csv import posefile, readings
 from tumblecal_cli.io.readspec import ReadSpec, column_list
 from tumblecal_cli.pipeline import places
 from tumblecal_cli.pipeline.frames import in_memory, is_data
@@ -28,12 +29,12 @@ from tumblecal_cli.pipeline.options import (
     keywords_known,
     path_of,
 )
-from tumblecal_cli.pipeline.rotations import hand_turns
+from tumblecal_cli.pipeline.solve.rotations import hand_turns
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.running import Summary
-    from tumblecal_cli.io.calfile import Calibration
-    from tumblecal_cli.io.readings import Samples
+    from tumblecal_cli.io.calfiles.calfile import Calibration
+    from tumblecal_cli.io.csv.readings import Samples
     from tumblecal_cli.io.readspec import ReadSpec
     from tumblecal_cli.pipeline.frames import DataFrame
 

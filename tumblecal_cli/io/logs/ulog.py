@@ -1,0 +1,572 @@
+"""PX4 ULog (``.ulg``): the IMU topics of a PX4 log as io.sources streams.
+
+The format is PX4's own ("ULog File Format", docs.px4.io/main/en/dev_log/ulog_file_format.html):
+a 16-byte header (magic ``ULog\\x01\\x12\\x35``, version, start time), then messages, each a
+3-byte header (``uint16 msg_size``, ``uint8 msg_type``) and its body, little-endian. ``F``
+defines a topic's fields (``name:type field;...``), ``A`` subscribes a topic instance
+(``multi_id``) under a ``msg_id``, and ``D`` carries one sample of it (``msg_id`` then the
+fields, packed as declared). ``S`` is a sync marker a parser resumes at after a corrupt byte.
+
+Read here (``TOPICS``): ``sensor_accel``, ``sensor_gyro``, ``sensor_mag`` (the drivers' output,
+raw since PX4 1.11), ``sensor_combined`` (accelerometer and gyroscope, corrected) and
+``vehicle_imu`` (delta angle and velocity over ``delta_*_dt``, corrected), each instance a
+stream. Time is ``timestamp_sample`` where the topic has it, else ``timestamp`` (µs since boot;
+``sensor_combined``'s accelerometer adds its ``accelerometer_timestamp_relative``).
+
+The log is walked once (``index``: each wanted message's place, not its bytes: one Python step a
+message), then a stream's fields are gathered a chunk at a time with numpy: the whole log is never
+in memory. What PX4's parser (pyulog) recovers from is skipped with a note: a log cut short, a
+message of a type it does not know, a corrupt stretch up to the next sync marker, a sample whose
+size or clock is wrong. What it cannot (a corrupt header with no sync marker after it, a header
+that is not ULog's) is one InputError naming the file and the byte.
+"""
+
+from __future__ import annotations
+
+import array
+import hashlib
+import os
+import struct
+from dataclasses import dataclass, field, replace
+from typing import BinaryIO
+
+import numpy as np
+
+from tumblecal_cli.errors import InputError
+from tumblecal_cli.io import sources
+from tumblecal_cli.io.logs.fields import NAMES, forward, gather
+from tumblecal_cli.io.readspec import ReadSpec
+from tumblecal_cli.io.sources import Stream, Table
+
+MAGIC = b"ULog\x01\x12\x35"
+SYNC = b"\x2f\x73\x13\x20\x25\x0c\xbb\x12"
+#: The message types of the format; any other is skipped (a newer logger's) or corrupt.
+KNOWN = frozenset(b"BFIMPQARDLCSO")
+#: Bytes read at a time (each read's messages walked, then dropped).
+CHUNK = 1 << 22
+#: A header PX4's parser takes as corrupt: type 0, size 0, or a body over 10000 bytes (pyulog
+#: core.py, _check_packet_corruption).
+BIGGEST = 10_000
+#: A gyroscope's turns read beside its instance's sensor_accel (ReadSpec.paired): the accelerometer's
+#: rate at least this share of the gyroscope's, and the gyroscope's samples in its time span at least
+#: this share (else exit 2).
+PAIR_RATE = 0.25
+PAIR_OVERLAP = 0.5
+
+_TYPES = {
+    "int8_t": "i1",
+    "uint8_t": "u1",
+    "int16_t": "<i2",
+    "uint16_t": "<u2",
+    "int32_t": "<i4",
+    "uint32_t": "<u4",
+    "int64_t": "<i8",
+    "uint64_t": "<u8",
+    "float": "<f4",
+    "double": "<f8",
+    "bool": "u1",
+    "char": "u1",
+}
+
+#: sensor_combined: a relative timestamp that marks its sensor's values invalid (msg/SensorCombined.msg).
+INVALID_RELATIVE = 0x7FFFFFFF
+
+_RAW = (
+    "raw: since PX4 1.11 drivers publish sensor_accel/gyro/mag uncalibrated, and the sensors module "
+    "applies CAL_* to them (src/modules/sensors/vehicle_imu/VehicleIMU.cpp: UpdateAccel/UpdateGyro take "
+    "x, y, z as the raw reading)"
+)
+_OLD = (
+    "corrected: this topic has x_raw, the PX4 1.10 and earlier form, whose drivers applied the CAL_* "
+    "offsets and scales to x, y, z before publishing (src/lib/drivers/accelerometer/PX4Accelerometer.cpp, v1.10)"
+)
+_COMBINED = (
+    "corrected: 'scaled and offset-compensated where possible' (PX4 msg/SensorCombined.msg), published by the "
+    "sensors module after CAL_* are applied"
+)
+_IMU = (
+    "corrected: delta angle/velocity with 'offsets, scale, and board rotation' applied "
+    "(src/modules/sensors/vehicle_imu/VehicleIMU.cpp, Publish)"
+)
+
+
+@dataclass(frozen=True)
+class Part:
+    """One sensor a topic carries: its three fields, its units, the field added to the time
+    (a relative timestamp), the field its values are divided by (an integration time in µs)."""
+
+    sensor: str
+    fields: tuple[str, str, str]
+    units: str
+    relative: str | None = None
+    per: str | None = None
+
+
+def _fields(prefix: str) -> tuple[str, str, str]:
+    return (f"{prefix}[0]", f"{prefix}[1]", f"{prefix}[2]")
+
+
+#: The topics read, and the sensors each carries.
+TOPICS: dict[str, tuple[Part, ...]] = {
+    "sensor_accel": (Part("accelerometer", ("x", "y", "z"), "m/s^2"),),
+    "sensor_gyro": (Part("gyroscope", ("x", "y", "z"), "rad/s"),),
+    "sensor_mag": (Part("magnetometer", ("x", "y", "z"), "gauss"),),
+    "sensor_combined": (
+        Part("accelerometer", _fields("accelerometer_m_s2"), "m/s^2", relative="accelerometer_timestamp_relative"),
+        Part("gyroscope", _fields("gyro_rad"), "rad/s"),
+        Part("magnetometer", _fields("magnetometer_ga"), "gauss", relative="magnetometer_timestamp_relative"),
+    ),
+    "vehicle_imu": (
+        Part("accelerometer", _fields("delta_velocity"), "m/s^2", per="delta_velocity_dt"),
+        Part("gyroscope", _fields("delta_angle"), "rad/s", per="delta_angle_dt"),
+    ),
+}
+
+
+@dataclass
+class Layout:
+    """A topic's flattened fields: each field's (numpy type, byte offset), and the body's size."""
+
+    fields: dict[str, tuple[str, int]]
+    size: int
+
+
+@dataclass
+class Topic:
+    """One subscription of a wanted topic: its name, instance, layout, and where each of its
+    samples' bodies (after the msg_id) starts in the file."""
+
+    name: str
+    instance: int
+    layout: Layout
+    places: array.array[int] = field(default_factory=lambda: array.array("q"))
+
+
+@dataclass
+class Index:
+    """A log walked once: its wanted topics, its sha256, and the notes of what was skipped."""
+
+    topics: list[Topic]
+    sha256: str
+    notes: list[str]
+    size: int
+
+
+class _Walk:
+    """The state of one walk through a log: the formats and subscriptions seen so far, the
+    places of the wanted topics' samples, and what was skipped (for the notes)."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self.formats: dict[str, list[tuple[str, int, str]]] = {}
+        self.wanted: dict[int, tuple[array.array[int], int]] = {}
+        self.topics: dict[int, Topic] = {}
+        self.cuts: list[int] = []  # where appended data starts (the flag bits message)
+        self.unknown: dict[int, int] = {}
+        self.short = 0
+        self.skipped: list[tuple[int, int]] = []  # corrupt stretches: (first byte, bytes skipped)
+        self.resync: tuple[int, int, int] | None = None  # a corrupt header: (byte, type, size)
+        self.zeros = True  # the bytes skipped since then are all zeros
+        self.notes: list[str] = []
+
+    def other(self, kind: int, body: bytes, at: int) -> None:
+        """A message that is not a sample: a format, a subscription or the flag bits taken in."""
+        if kind == 70:  # F
+            self.define(body)
+        elif kind == 65:  # A
+            self.subscribe(body)
+        elif kind == 66:  # B
+            self.flags(body, at)
+
+    def flags(self, body: bytes, at: int) -> None:
+        """The flag bits (the first message): a log with an incompatible flag this reader does
+        not know is refused, as pyulog refuses it; appended data is read from its offsets."""
+        incompat = body[8:16]
+        if len(body) < 40 or at != 16 or incompat[0] & ~1 or any(incompat[1:]):
+            if at == 16 and len(body) >= 16 and (incompat[0] & ~1 or any(incompat[1:])):
+                raise InputError(
+                    "the log sets a ULog flag this reader does not know (an incompatible, newer format)",
+                    file=self.name,
+                    hint="convert it with a current pyulog (ulog2csv) and read the CSV",
+                )
+            return
+        if incompat[0] & 1:
+            self.cuts = sorted(o for o in struct.unpack_from("<3Q", body, 16) if o)
+
+    def define(self, body: bytes) -> None:
+        text = body.decode("utf-8", "replace")
+        name, _, rest = text.partition(":")
+        fields = []
+        for item in rest.split(";"):
+            kind, _, fname = item.strip().partition(" ")
+            if not fname:
+                continue
+            count = 0
+            if "[" in kind:
+                kind, _, n = kind.partition("[")
+                count = int(n.rstrip("]")) if n.rstrip("]").isdigit() else 0
+            fields.append((kind, count, fname))
+        self.formats[name] = fields
+
+    def summarise(self) -> None:
+        """The notes of what the walk skipped."""
+        if self.unknown:
+            kinds = ", ".join(f"{chr(k)!r} x{n}" if 32 < k < 127 else f"{k:#04x} x{n}" for k, n in self.unknown.items())
+            self.notes.append(f"skipped messages of a type this reader does not know ({kinds}): a newer logger's?")
+        if self.skipped:
+            first, length = self.skipped[0]
+            more = f" (and {len(self.skipped) - 1} more)" if len(self.skipped) > 1 else ""
+            self.notes.append(
+                f"skipped a corrupt stretch of {length} bytes at byte {first}{more}, resuming at the next sync marker"
+            )
+        if self.short:
+            self.notes.append(f"skipped {self.short} samples shorter than their topic's format (corrupt)")
+
+    def subscribe(self, body: bytes) -> None:
+        if len(body) < 3:
+            return
+        instance, msg_id = struct.unpack_from("<BH", body)
+        name = body[3:].decode("utf-8", "replace")
+        if name not in TOPICS or name not in self.formats:
+            return
+        try:
+            layout = _flatten(name, self.formats)
+        except (KeyError, ValueError, RecursionError):
+            return  # a topic whose format cannot be laid out is not read (as a topic not logged)
+        topic = Topic(name, instance, layout)
+        self.topics[msg_id] = topic
+        self.wanted[msg_id] = (topic.places, layout.size + 2)
+
+
+def _flatten(name: str, formats: dict[str, list[tuple[str, int, str]]], depth: int = 0) -> Layout:
+    """A topic's fields by their flattened names (``gyro_rad[0]``, ``nested.x``), as pyulog
+    names them, each with its numpy type and offset; nested types laid out in place."""
+    out: dict[str, tuple[str, int]] = {}
+    offset = 0
+    for kind, count, fname in formats[name]:
+        names = [f"{fname}[{i}]" for i in range(count)] if count else [fname]
+        for each in names:
+            if kind in _TYPES:
+                out[each] = (_TYPES[kind], offset)
+                offset += np.dtype(_TYPES[kind]).itemsize
+            else:
+                if depth > 8:
+                    raise ValueError(f"{name}: types nested too deep")
+                inner = _flatten(kind, formats, depth + 1)
+                out.update({f"{each}.{k}": (t, offset + o) for k, (t, o) in inner.fields.items()})
+                offset += inner.size
+    while out and next(reversed(out)).startswith("_padding"):  # trailing padding is not always logged
+        last = next(reversed(out))
+        kind, start = out.pop(last)
+        offset = start
+    return Layout(out, offset)
+
+
+_HEAD = struct.Struct("<HBH")  # a message's size and type, and a data message's msg_id
+_DATA = ord("D")
+#: The walks kept (a command lists a log's streams, then reads one: one walk for both).
+_CACHE: list[tuple[tuple[str, int, int, int], Index]] = []
+
+
+class UlogReader:
+    """io.sources' Reader of PX4 ULog files."""
+
+    def claims(self, path: str, head: bytes) -> bool:
+        return head.startswith(MAGIC)
+
+    def streams(self, path: str) -> list[Stream]:
+        return streams_of(path, index(path))
+
+    def read(self, path: str, spec: ReadSpec, label_column: str | None) -> Table:
+        return read_stream(path, spec, label_column)
+
+
+READER = UlogReader()
+
+
+def index(path: str) -> Index:
+    """``path`` walked once (kept while the file's size and time are the same)."""
+    st = os.stat(path)
+    key = (os.path.realpath(path), st.st_size, st.st_mtime_ns, st.st_ino)
+    for known, found in _CACHE:
+        if known == key:
+            return found
+    found = _walk_file(path)
+    _CACHE[:] = [(key, found)]
+    return found
+
+
+def _walk_file(path: str) -> Index:
+    """Every message of the log stepped over once; the wanted topics' samples placed."""
+    digest = hashlib.sha256()
+    walk = _Walk(path)
+    with open(path, "rb") as f:
+        head = f.read(16)
+        digest.update(head)
+        if len(head) < 16 or not head.startswith(MAGIC):
+            raise InputError("not a PX4 ULog: its first bytes are not ULog's header", file=path)
+        if head[7] > 1:
+            walk.notes.append(f"ULog version {head[7]} (this reader knows version 1): read as version 1")
+        first = f.read(3)  # the flag bits, when there: where appended data starts bounds the reads
+        if len(first) == 3 and first[2] == ord("B"):
+            first += f.read(struct.unpack_from("<H", first)[0])
+            if len(first) >= 43:
+                walk.flags(first[3:], 16)
+        f.seek(16)
+        base = 16
+        for cut in [*walk.cuts, None]:
+            base = _walk_part(walk, f, digest, base, cut)
+            if cut is not None:
+                f.seek(cut)
+                base = cut
+    walk.summarise()
+    topics = sorted(walk.topics.values(), key=lambda t: (t.name, t.instance))
+    return Index(topics, digest.hexdigest(), walk.notes, base)
+
+
+def _walk_part(walk: _Walk, f: BinaryIO, digest: hashlib._Hash, base: int, cut: int | None) -> int:
+    """Walk the log from ``base`` to ``cut`` (None: its end); returns where that is."""
+    carry = b""
+    while True:
+        want = CHUNK if cut is None else min(CHUNK, cut - base - len(carry))
+        block = f.read(want) if want > 0 else b""
+        digest.update(block)
+        if not block:
+            break
+        buf = carry + block if carry else block
+        pos = _step(walk, buf, base)
+        carry, base = buf[pos:], base + pos
+    pos = _step(walk, carry, base)
+    if len(carry) - pos >= 3 and walk.resync is None:  # a last message of fewer body bytes than a msg_id
+        size = struct.unpack_from("<H", carry, pos)[0]
+        pos += 3 + size if pos + 3 + size == len(carry) else 0
+    end = base + len(carry)
+    if walk.resync is not None:
+        if carry[pos:].strip(b"\0"):
+            walk.zeros = False
+        if cut is None:
+            _no_sync(walk, end)
+        walk.resync = None
+    elif len(carry) > pos:
+        what = "the log ends" if cut is None else f"the data before the appended data at byte {cut} ends"
+        walk.notes.append(
+            f"{what} mid-message (its last {len(carry) - pos} bytes, from byte {base + pos}): cut short, as a "
+            "log is when power is lost; read up to there"
+        )
+    return end
+
+
+def _step(walk: _Walk, buf: bytes, base: int) -> int:
+    """Step over the whole messages of ``buf`` (its first byte at ``base`` in the file): a
+    wanted sample's place kept, a definition or subscription taken in, the rest skipped.
+    Returns where the first message not wholly in ``buf`` starts."""
+    unpack, wanted, end = _HEAD.unpack_from, walk.wanted, len(buf)
+    pos = 0
+    if walk.resync is not None:
+        pos = _resync(walk, buf, 0, base)
+        if walk.resync is not None:
+            return pos
+    while pos + 5 <= end:
+        size, kind, mid = unpack(buf, pos)
+        after = pos + 3 + size
+        if kind not in KNOWN and (kind == 0 or size == 0 or size > BIGGEST):  # corrupt: on at the next sync marker
+            walk.resync, walk.zeros = (base + pos, kind, size), True
+            pos = _resync(walk, buf, pos + 1, base)
+            if walk.resync is not None:
+                return pos
+            continue
+        if after > end:
+            break
+        if kind == _DATA:
+            got = wanted.get(mid)
+            if got is not None:
+                if size >= got[1]:
+                    got[0].append(base + pos + 5)
+                else:
+                    walk.short += 1
+        elif kind in KNOWN:
+            walk.other(kind, buf[pos + 3 : after], base + pos)
+        else:
+            walk.unknown[kind] = walk.unknown.get(kind, 0) + 1
+        pos = after
+    return pos
+
+
+def _resync(walk: _Walk, buf: bytes, pos: int, base: int) -> int:
+    """Past the next sync marker in ``buf`` (from ``pos``), the stretch before it noted as skipped;
+    without one, all but the marker's length less one (it may straddle the next read)."""
+    assert walk.resync is not None
+    found = buf.find(SYNC, pos)
+    stop = found if found >= 0 else max(pos, len(buf) - len(SYNC) + 1)
+    if buf[pos:stop].strip(b"\0"):
+        walk.zeros = False
+    if found < 0:
+        return stop
+    start = walk.resync[0]
+    walk.skipped.append((start, base + found + len(SYNC) - start))
+    walk.resync = None
+    return found + len(SYNC)
+
+
+def _no_sync(walk: _Walk, size: int) -> None:
+    """A corrupt message with no sync marker after it: the rest of the log is zeros (space a
+    logger kept and never wrote: a note), or it cannot be read (exit 2)."""
+    assert walk.resync is not None
+    at, kind, length = walk.resync
+    if walk.zeros:
+        walk.notes.append(f"the log ends in {size - at} bytes of zeros (from byte {at}): space never written")
+        return
+    raise InputError(
+        f"a corrupt message at byte {at} (type {kind:#04x}, {length} bytes) and no sync marker after it to "
+        "resume reading from",
+        file=walk.name,
+        hint=f"keep the log up to there (head -c {at}), which reads as a log cut short",
+    )
+
+
+def _parts(topic: Topic) -> list[Part]:
+    """The sensors ``topic`` carries in this log (sensor_combined's magnetometer only in old logs)."""
+    return [p for p in TOPICS[topic.name] if all(f in topic.layout.fields for f in p.fields)]
+
+
+def _clock(topic: Topic) -> str:
+    return "timestamp_sample" if "timestamp_sample" in topic.layout.fields else "timestamp"
+
+
+def _corrected(topic: Topic) -> tuple[bool, str]:
+    """Whether PX4 had corrected the topic's readings, and how that is told (with the source)."""
+    if topic.name in ("sensor_combined", "vehicle_imu"):
+        return True, _COMBINED if topic.name == "sensor_combined" else _IMU
+    if "x_raw" in topic.layout.fields:
+        return True, _OLD
+    return False, _RAW
+
+
+def streams_of(path: str, found: Index) -> list[Stream]:
+    """Each topic instance's sensors: rows, mean rate (from its first and last time), units, and
+    whether PX4 had corrected it."""
+    out = []
+    for topic in found.topics:
+        places = np.frombuffer(topic.places, dtype=np.int64)
+        rate = None
+        if len(places) > 1:
+            ends = gather(path, places[[0, -1]], topic.layout.fields, [_clock(topic)])[_clock(topic)]
+            span = float(ends[1] - ends[0]) * 1e-6
+            rate = (len(places) - 1) / span if span > 0 else None
+        corrected, how = _corrected(topic)
+        for part in _parts(topic):
+            out.append(Stream(topic.name, topic.instance, part.sensor, len(places), rate, part.units, corrected, how))
+    return out
+
+
+def read_stream(path: str, spec: ReadSpec, label_column: str | None) -> Table:
+    """The readings of the stream ``spec`` names (or the log's one stream of ``spec.sensor``);
+    with ``spec.paired`` and a ``sensor_gyro`` stream for the gyroscope, either sensor on the
+    gyroscope's samples (:func:`paired`)."""
+    if label_column is not None:
+        raise InputError(
+            f"a PX4 ULog has no label column ({label_column!r}): its still blocks are found by the detector",
+            file=path,
+            hint="leave --pose-column out",
+        )
+    found = index(path)
+    listed = streams_of(path, found)
+    if spec.paired:
+        gyro = sources.pick(path, listed, replace(spec, sensor="gyroscope"))
+        if gyro.name == "sensor_gyro":
+            return paired(path, found, listed, spec, gyro)
+    return _table(path, found, sources.pick(path, listed, spec), spec.rate is None)
+
+
+def paired(path: str, found: Index, listed: list[Stream], spec: ReadSpec, gyro: Stream) -> Table:
+    """``spec.sensor`` of the turns pipelines' one log of both sensors: ``gyro``'s samples, and
+    ``sensor_accel`` of the same instance resampled onto their timestamps by linear
+    interpolation. Gyroscope samples outside the accelerometer's time span are dropped (a note);
+    an accelerometer under ``PAIR_RATE`` of the gyroscope's rate, or streams that overlap on under
+    ``PAIR_OVERLAP`` of the gyroscope's samples, is exit 2."""
+    key = f"sensor_accel:{gyro.instance}"
+    acc = next((s for s in listed if s.key == key and s.rows > 1), None)
+    if acc is None:
+        raise InputError(
+            f"{gyro.key} has no {key} beside it with samples: the turns take the accelerometer of the "
+            "gyroscope's instance",
+            file=path,
+            hint="--stream sensor_gyro:N picks a gyroscope whose instance has both (tumblecal logs FILE lists them)",
+        )
+    g, a = _table(path, found, gyro, True), _table(path, found, acc, True)
+    assert g.clock is not None
+    assert a.clock is not None
+    if not (acc.rate and gyro.rate and acc.rate >= PAIR_RATE * gyro.rate):
+        raise InputError(
+            f"{acc.key} is logged at {acc.rate or 0:.4g} Hz, under {PAIR_RATE:.0%} of {gyro.key}'s "
+            f"{gyro.rate or 0:.4g} Hz: too slow to put on the gyroscope's samples",
+            file=path,
+            hint="log sensor_accel at the gyroscope's rate (the logger's high-rate IMU profile)",
+        )
+    inside = (g.clock >= a.clock[0]) & (g.clock <= a.clock[-1])
+    if inside.mean() < PAIR_OVERLAP:
+        raise InputError(
+            f"{acc.key} and {gyro.key} overlap on {inside.mean():.0%} of the gyroscope's samples "
+            f"(under {PAIR_OVERLAP:.0%}): they are not one session",
+            file=path,
+            hint="give --stream sensor_gyro:N of an instance whose accelerometer was logged over the same time",
+        )
+    clock = g.clock[inside]
+    notes = [*g.notes, *(n for n in a.notes if n not in g.notes)]
+    if not inside.all():
+        notes.append(f"{path}: {gyro.key}: {int((~inside).sum())} samples outside {acc.key}'s time span dropped")
+    notes.append(
+        f"{path}: the accelerometer is {acc.key} (the instance of {gyro.key}), resampled onto its "
+        f"{len(clock)} timestamps by linear interpolation"
+    )
+    if spec.sensor == "gyroscope":
+        hot = None if g.temperature is None else g.temperature[inside]
+        return replace(g, values=g.values[inside], clock=clock, temperature=hot, notes=tuple(notes))
+    values = np.column_stack([np.interp(clock, a.clock, a.values[:, k]) for k in range(3)])
+    hot = None if a.temperature is None else np.interp(clock, a.clock, a.temperature)
+    return replace(a, values=values, clock=clock, temperature=hot, notes=tuple(notes))
+
+
+def _table(path: str, found: Index, chosen: Stream, check_clock: bool) -> Table:
+    """The readings of the stream ``chosen``; ``check_clock``: samples whose clock goes back dropped."""
+    topic = next(t for t in found.topics if (t.name, t.instance) == (chosen.name, chosen.instance))
+    part = next(p for p in _parts(topic) if p.sensor == chosen.sensor)
+    names = [*part.fields, _clock(topic), *(f for f in (part.relative, part.per) if f)]
+    if "temperature" in topic.layout.fields:
+        names.append("temperature")
+    data = gather(path, np.frombuffer(topic.places, dtype=np.int64), topic.layout.fields, names)
+    values = np.column_stack([data[f] for f in part.fields])
+    clock = data[_clock(topic)]
+    temperature = data.get("temperature")
+    notes = [f"{path}: {note}" for note in found.notes]
+    keep = np.ones(len(values), dtype=bool)
+    if part.relative is not None:  # a sensor's own time: sensor_combined's relative timestamp
+        relative = data[part.relative]
+        keep &= relative != INVALID_RELATIVE
+        clock = clock + np.where(keep, relative, 0)
+    if part.per is not None:  # vehicle_imu: the delta over its integration time (µs) is the mean reading
+        dt = data[part.per]
+        keep &= dt > 0
+        values = values / np.where(keep, dt * 1e-6, 1.0)[:, None]
+    if not keep.all():
+        what = "an invalid relative timestamp" if part.relative else "no integration time"
+        notes.append(f"{path}: {chosen.key}: {int((~keep).sum())} samples with {what} skipped")
+    if check_clock:
+        keep &= forward(path, chosen.key, clock, keep, notes)
+    if not keep.all():
+        values, clock = values[keep], clock[keep]
+        temperature = None if temperature is None else temperature[keep]
+    how = "corrected by PX4" if chosen.corrected else "raw"
+    notes.insert(0, f"{path}: read {chosen.key} ({chosen.sensor}, {len(values)} samples, {chosen.units}, {how})")
+    return Table(
+        NAMES[chosen.sensor],
+        values,
+        clock,
+        "us",
+        temperature,
+        None,
+        found.sha256,
+        tuple(notes),
+        corrected=chosen.corrected,
+        stream=chosen,
+    )

@@ -1,0 +1,9 @@
+"""solve: captures in, a judged Calibration out. Its modules:
+
+- ``solving``: the entry points (``solve``, ``solve_log``, ``run``): poses read, averaged,
+  solved, checked and judged.
+- ``tables``: a table of orientations, one averaged reading a row, split into poses.
+- ``trimming``: pose files with motion solved from their still run.
+- ``maglog``: a magnetometer from a log with both sensors, and its dip check.
+- ``turns``: a gyroscope from one labelled log of the Ferraris procedure (solve --turns).
+- ``rotations``: a gyroscope's scale and misalignment from hand turns (solve --accel-cal)."""
