@@ -46,7 +46,8 @@ import numpy as np
 
 from tumblecal_cli.core import methods, solvers
 from tumblecal_cli.core import model as core
-from tumblecal_cli.core.model import FloatArray, PoseStats, Solution
+from tumblecal_cli.core.arrays import FloatArray
+from tumblecal_cli.core.model import PoseStats, Solution
 
 SIGMA = 0.01  # raw units, 1 sigma per sample
 SAMPLES = 200  # samples per pose

@@ -16,7 +16,7 @@ import pytest
 
 from tests.conftest import assert_untouched, assert_usage_error, precious, run, write
 from tumblecal_cli.core import alignment, earth
-from tumblecal_cli.core.model import FloatArray
+from tumblecal_cli.core.arrays import FloatArray
 
 PLACE, DAY = "52.2053,0.1218,16", "2026-11-27"
 FIELD = earth.magnetic_field(52.2053, 0.1218, 16.0, earth.decimal_year(2026, 11, 27))

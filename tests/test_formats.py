@@ -18,7 +18,8 @@ from hypothesis import strategies as st
 
 from tests.conftest import run
 from tumblecal_cli.core import model as core
-from tumblecal_cli.core.model import FloatArray, Solution
+from tumblecal_cli.core.arrays import FloatArray
+from tumblecal_cli.core.model import Solution
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.calfiles import calfile
 from tumblecal_cli.io.export import formats

@@ -356,3 +356,40 @@ def _listed(doc: str) -> set[str]:
         if line.startswith(("- ``", "  ``")):
             names |= set(re.findall(r"``([a-z_]+/?)``(?=[,:])", line.split(":")[0] + ":"))
     return names
+
+
+# -- names: each module's face, each type's one home (docs/development.md) -------------------
+
+ARRAY_ALIASES = ("FloatArray", "IntArray", "BoolArray")
+
+
+def _imported_from_package(path: Path, node: ast.ImportFrom) -> str | None:
+    """The package module an ``from ... import`` names (a relative import resolved), else None."""
+    if node.level == 0:
+        return node.module if (node.module or "").startswith("tumblecal_cli") else None
+    here = _module_name(path).split(".")
+    base = here if path.stem == "__init__" else here[:-1]
+    base = base[: len(base) - (node.level - 1)]
+    return ".".join([*base, *([node.module] if node.module else [])])
+
+
+def _private(name: str) -> bool:
+    return name.startswith("_") and not name.startswith("__")
+
+
+def test_the_array_aliases_are_defined_once() -> None:
+    """FloatArray, IntArray and BoolArray are assigned in one module (core.arrays); the others import them."""
+    homes: dict[str, list[str]] = {name: [] for name in ARRAY_ALIASES}
+    for path, tree in _trees().items():
+        for node in ast.walk(tree):
+            targets = (
+                node.targets
+                if isinstance(node, ast.Assign)
+                else [node.target]
+                if isinstance(node, ast.AnnAssign)
+                else []
+            )
+            for target in targets:
+                if isinstance(target, ast.Name) and target.id in homes:
+                    homes[target.id].append(_module_name(path))
+    assert homes == {name: ["tumblecal_cli.core.arrays"] for name in ARRAY_ALIASES}

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from tests.conftest import POSES_3, spliced_blocks, write
-from tumblecal_cli.core import model
+from tumblecal_cli.core import arrays, model
 from tumblecal_cli.errors import TumblecalError
 from tumblecal_cli.io.csv import capture, sniff
 from tumblecal_cli.io.csv.capture import open_capture
@@ -46,11 +46,11 @@ def corrected(path: str, *, splice_on: bool, more: int = 0, **options: object) -
     return out.getvalue(), None
 
 
-def _accel(raw: model.FloatArray) -> model.FloatArray:
+def _accel(raw: arrays.FloatArray) -> arrays.FloatArray:
     return model.apply(raw, OFFSET, MATRIX)
 
 
-def _gyro(raw: model.FloatArray) -> model.FloatArray:
+def _gyro(raw: arrays.FloatArray) -> arrays.FloatArray:
     return model.apply(raw, -OFFSET, MATRIX.T)
 
 
@@ -266,7 +266,7 @@ def test_apply_with_several_calibrations_writes_the_general_paths_bytes(
     assert (tmp_path / "fast.csv").read_bytes() == (tmp_path / "general.csv").read_bytes()
 
 
-def _warm(raw: model.FloatArray, temperature: model.FloatArray) -> model.FloatArray:
+def _warm(raw: arrays.FloatArray, temperature: arrays.FloatArray) -> arrays.FloatArray:
     """A correction that depends on each row's temperature, as a thermal block's does."""
     return model.apply(raw, OFFSET, MATRIX) + 1e-4 * (temperature[:, None] - 25.0)
 

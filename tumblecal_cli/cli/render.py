@@ -17,10 +17,10 @@ if TYPE_CHECKING:
     from rich.console import Console
     from rich.table import Table
 
+    from tumblecal_cli.core.arrays import FloatArray
     from tumblecal_cli.core.blocks import Block, Segmentation
     from tumblecal_cli.core.gate import Finding
     from tumblecal_cli.core.lot import ParameterRow, Report
-    from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfiles.calfile import Calibration
     from tumblecal_cli.io.calfiles.calparts import Pose
     from tumblecal_cli.io.csv.readings import Log

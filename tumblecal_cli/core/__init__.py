@@ -1,6 +1,7 @@
 """The numeric core, numpy only: no files, no terminal, no pandas; every formula cites its source
 (docs/sources.md). Its modules:
 
+- ``arrays``: the array types the signatures name (FloatArray, IntArray, BoolArray), defined once.
 - ``model``: faces and pose labels, pose statistics, the measurement model, the 1- and 3-pose
   solvers, tilt sensitivity, and apply (``M (raw - b)``).
 - ``solvers``: the solvers beyond 1- and 3-pose (six-pose, least squares, sphere, tilt-compensated

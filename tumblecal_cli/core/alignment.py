@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tumblecal_cli.core.model import FloatArray
+from tumblecal_cli.core.arrays import FloatArray
 
 #: Fewer blocks than this (at distinct orientations) leave the rotation and the dip too loose.
 MIN_BLOCKS = 4

@@ -66,10 +66,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
+from tumblecal_cli.core.arrays import FloatArray, IntArray
 
 #: Cluster sizes up to this use every overlapping term (equal to the textbook estimator).
 EXACT_MAX = 2**18

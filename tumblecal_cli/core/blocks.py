@@ -25,12 +25,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tumblecal_cli.core import clock
+from tumblecal_cli.core.arrays import FloatArray, IntArray
 from tumblecal_cli.core.clock import Clock
 from tumblecal_cli.core.model import FACES, PoseStats, angle_deg, pose_stats
 from tumblecal_cli.errors import InputError
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 WINDOW = (0.5, 25)  # default rolling window: seconds when the time is known, else samples
 MIN_DURATION = (1.0, 50)  # default shortest block kept, the same way

@@ -16,7 +16,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from tumblecal_cli.core.blocks import FloatArray, IntArray, Measured, thirds
+from tumblecal_cli.core.arrays import FloatArray, IntArray
+from tumblecal_cli.core.blocks import Measured, thirds
 from tumblecal_cli.core.model import PoseStats
 
 #: Readings summed together: a block cuts two chunks and its thirds two more, read again (a

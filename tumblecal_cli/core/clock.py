@@ -39,10 +39,8 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
+from tumblecal_cli.core.arrays import FloatArray, IntArray
 
 #: Steps per window of the local mean step, and the fewest windows that judge a clock bursty.
 WINDOW = 64

@@ -21,12 +21,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
-from tumblecal_cli.core.model import FloatArray
+from tumblecal_cli.core.arrays import FloatArray, IntArray
 from tumblecal_cli.core.model import apply as apply_model
-
-IntArray = NDArray[np.int64]
 
 #: The fewest readings a fit takes (a straight line per axis and its scatter).
 MIN_SAMPLES = 10

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tumblecal_cli.core.model import FloatArray
+from tumblecal_cli.core.arrays import FloatArray
 
 # -- WGS 84 (NIMA TR8350.2, Tables 3.1 and 3.3) ---------------------------------------------------
 

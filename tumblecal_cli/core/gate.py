@@ -18,18 +18,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.drift import Drift, extremes
-from tumblecal_cli.core.model import (
-    FACES,
-    FloatArray,
-    PoseStats,
-    Reach,
-    Solution,
-    angle_deg,
-    chunks,
-    direction,
-    suggest_reference,
-)
+from tumblecal_cli.core.model import FACES, PoseStats, Reach, Solution, angle_deg, chunks, direction, suggest_reference
 from tumblecal_cli.core.running import Summary
 from tumblecal_cli.errors import InputError
 

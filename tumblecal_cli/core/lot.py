@@ -33,7 +33,8 @@ from datetime import UTC, datetime
 
 import numpy as np
 
-from tumblecal_cli.core.model import SENSORS, FloatArray
+from tumblecal_cli.core.arrays import FloatArray
+from tumblecal_cli.core.model import SENSORS
 from tumblecal_cli.core.outliers import OUTLIER_ALPHA, OutlierRule, check_alpha
 from tumblecal_cli.errors import InputError
 

@@ -10,11 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tumblecal_cli.core.model import (
-    FACES,
-    FloatArray,
-    angle_deg,
-)
+from tumblecal_cli.core.arrays import FloatArray
+from tumblecal_cli.core.model import FACES, angle_deg
 from tumblecal_cli.errors import InputError
 
 SIX_FACES = ("+x", "-x", "+y", "-y", "+z", "-z")

@@ -21,12 +21,10 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.running import Summary
 from tumblecal_cli.errors import CaptureRejected, InputError
-
-FloatArray = NDArray[np.float64]
 
 #: Face name -> unit vector of gravity's reaction in the sensor frame ("+x": x points up).
 FACES: dict[str, tuple[float, float, float]] = {

@@ -34,12 +34,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
-from tumblecal_cli.core.model import FloatArray
+from tumblecal_cli.core.arrays import BoolArray, FloatArray
 from tumblecal_cli.errors import InputError
-
-BoolArray = NDArray[np.bool_]
 
 #: The lot-wide false-alarm rate of the outlier flags (``--outlier-alpha``): the chance that a lot
 #: of good units (every figure normal, no unit off) has any unit flagged on any figure. Half of

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tumblecal_cli.core.model import FloatArray
+from tumblecal_cli.core.arrays import FloatArray
 
 #: A rotation whose gravity direction the fit misses by more than this is not a rigid turn of
 #: the unit (it moved during a "still" block, or the log skipped samples).

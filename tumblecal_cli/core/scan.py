@@ -42,14 +42,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tumblecal_cli.core import clock
+from tumblecal_cli.core.arrays import FloatArray, IntArray
 from tumblecal_cli.core.blocks import (
     FLOOR_FACTOR,
     FLOOR_PERCENTILE,
     GAP_FACTOR,
     MIN_DURATION,
     WINDOW,
-    FloatArray,
-    IntArray,
     Measured,
     Segmentation,
     Settings,

@@ -27,11 +27,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.gate import beyond, turn_hint
 from tumblecal_cli.core.methods import SIX_FACES, SIX_POSE, THREE_FACES, face_evidence
 from tumblecal_cli.core.model import (
     FACES,
-    FloatArray,
     PoseStats,
     Reach,
     Solution,

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tumblecal_cli.core.model import FloatArray
+from tumblecal_cli.core.arrays import FloatArray
 
 #: An end of a block is moving while the mean of its first m samples is further than this many
 #: standard errors (of an m-sample mean at rest) from the block's level, on any axis, at any m.

@@ -20,7 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tumblecal_cli.core.model import FloatArray, Solution
+from tumblecal_cli.core.arrays import FloatArray
+from tumblecal_cli.core.model import Solution
 
 #: A turn whose integrated angle is further than this (a fraction of the angle) from the angle
 #: given, at the gain of the other turns, is not the turn it claims to be.

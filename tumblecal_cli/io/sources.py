@@ -19,7 +19,7 @@ from typing import Protocol, cast
 
 import numpy as np
 
-from tumblecal_cli.core.model import FloatArray
+from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.readspec import ReadSpec
 

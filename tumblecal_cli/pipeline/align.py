@@ -33,8 +33,8 @@ from tumblecal_cli.io.csv import readings
 from tumblecal_cli.pipeline import segment as logs
 
 if TYPE_CHECKING:
+    from tumblecal_cli.core.arrays import FloatArray
     from tumblecal_cli.core.blocks import Block
-    from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfiles.calfile import Calibration
     from tumblecal_cli.io.csv.readings import Log
     from tumblecal_cli.io.readspec import ReadSpec

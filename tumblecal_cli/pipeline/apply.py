@@ -33,7 +33,7 @@ from tumblecal_cli.pipeline.frames import is_data
 from tumblecal_cli.pipeline.options import FileKeywords, file_spec, keywords_known, path_of
 
 if TYPE_CHECKING:
-    from tumblecal_cli.core.model import FloatArray
+    from tumblecal_cli.core.arrays import FloatArray
     from tumblecal_cli.io.calfiles.calfile import Calibration
     from tumblecal_cli.io.csv.capture import Capture
     from tumblecal_cli.io.csv.sniff import Layout

@@ -27,8 +27,8 @@ from tumblecal_cli.io.readspec import ReadSpec, column_list
 from tumblecal_cli.pipeline.options import keywords_known
 
 if TYPE_CHECKING:
-    from tumblecal_cli.core.current_fit import CurrentFit, IntArray
-    from tumblecal_cli.core.model import FloatArray
+    from tumblecal_cli.core.arrays import FloatArray, IntArray
+    from tumblecal_cli.core.current_fit import CurrentFit
     from tumblecal_cli.io.calfiles.calfile import Calibration, Current
     from tumblecal_cli.io.csv.readings import Log
 

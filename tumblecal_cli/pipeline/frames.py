@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 
+from tumblecal_cli.core import arrays
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import sources
 from tumblecal_cli.io.csv import capture, posefile, readings, sniff
@@ -119,7 +120,7 @@ def table_of(data: DataFrame, name: str, spec: ReadSpec, label_column: str | Non
             f"empty sensor cell in a row whose other sensor cells are filled ({where}, column {names[j]})", file=name
         )
 
-    def other(j: int | None) -> sniff.FloatArray | None:
+    def other(j: int | None) -> arrays.FloatArray | None:
         return None if j is None else numbers(column(j), names[j], name, index)[kept]
 
     labels = None
@@ -138,10 +139,10 @@ def table_of(data: DataFrame, name: str, spec: ReadSpec, label_column: str | Non
     )
 
 
-def numbers(cells: DataFrame, column: str, name: str, index: DataFrame = None) -> sniff.FloatArray:
+def numbers(cells: DataFrame, column: str, name: str, index: DataFrame = None) -> arrays.FloatArray:
     """A DataFrame's column (or an array's) as float64, NaN where it is empty: a cell that is not a
     number is an InputError naming it, its row (``index``: the DataFrame's) and ``column``."""
-    out: sniff.FloatArray
+    out: arrays.FloatArray
     try:
         if hasattr(cells, "to_numpy"):
             out = np.asarray(cells.to_numpy(dtype=np.float64, na_value=np.nan), dtype=np.float64)

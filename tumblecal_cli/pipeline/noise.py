@@ -32,7 +32,7 @@ from tumblecal_cli.pipeline.frames import in_memory
 from tumblecal_cli.pipeline.options import ReadKeywords, keywords_known, read_spec
 
 if TYPE_CHECKING:
-    from tumblecal_cli.core.model import FloatArray
+    from tumblecal_cli.core.arrays import FloatArray
     from tumblecal_cli.io.calfiles.calfile import Calibration
     from tumblecal_cli.io.readspec import ReadSpec
     from tumblecal_cli.pipeline.frames import DataFrame, JSONObject

@@ -25,8 +25,8 @@ from tumblecal_cli.io.calfiles.calfile import Unit
 from tumblecal_cli.io.readspec import Dialect, ReadSpec, column_list
 
 if TYPE_CHECKING:
+    from tumblecal_cli.core.arrays import FloatArray
     from tumblecal_cli.core.gate import Limits
-    from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfiles.calfile import Unit
 
 #: A number, or three (X,Y,Z): text as the command line gives it, or numbers.

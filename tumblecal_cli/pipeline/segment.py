@@ -19,8 +19,8 @@ from typing import IO, TYPE_CHECKING, Unpack
 
 import numpy as np
 
+from tumblecal_cli.core import arrays, clock, methods, model, solvers
 from tumblecal_cli.core import blocks as seg_core
-from tumblecal_cli.core import clock, methods, model, solvers
 from tumblecal_cli.core.blocks import Block, Segmentation
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import sources
@@ -206,7 +206,7 @@ def review(log: Log, seg: Segmentation, rate: float | None, settings: seg_core.S
 
 def _blocks_of(
     log: Log,
-    seconds: model.FloatArray | None,
+    seconds: arrays.FloatArray | None,
     rate: float | None,
     pose_column: str | None,
     pose_map: Mapping[str, str] | str | None,

@@ -27,9 +27,9 @@ from tumblecal_cli.pipeline.options import keywords_known
 from tumblecal_cli.pipeline.solve.solving import pose_items
 
 if TYPE_CHECKING:
+    from tumblecal_cli.core.arrays import FloatArray
     from tumblecal_cli.core.drift import Sweep, ThermalFit
     from tumblecal_cli.core.gate import Finding
-    from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfiles.calfile import Calibration, Thermal
     from tumblecal_cli.io.csv.readings import Log
     from tumblecal_cli.io.readspec import ReadSpec

@@ -13,7 +13,8 @@ from typing import TYPE_CHECKING, TypedDict, Unpack
 import numpy as np
 
 from tumblecal_cli.core import drift, gate, methods, model, rotation_fit
-from tumblecal_cli.core.model import UNITS_TOLERANCE, FloatArray
+from tumblecal_cli.core.arrays import FloatArray
+from tumblecal_cli.core.model import UNITS_TOLERANCE
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io.calfiles import calfile
 from tumblecal_cli.io.csv import posefile, readings

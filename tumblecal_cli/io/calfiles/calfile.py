@@ -20,9 +20,10 @@ from typing import TYPE_CHECKING, Any, TypeAlias, TypeVar
 import numpy as np
 from numpy.typing import ArrayLike
 
+from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.current_fit import correct as current_correct
 from tumblecal_cli.core.drift import correct as thermal_correct
-from tumblecal_cli.core.model import SENSORS, FloatArray, Solution, parse_label
+from tumblecal_cli.core.model import SENSORS, Solution, parse_label
 from tumblecal_cli.core.model import apply as apply_model
 from tumblecal_cli.errors import InputError, control_character
 from tumblecal_cli.io.calfiles.calparts import (

@@ -17,9 +17,9 @@ from typing import TypeGuard, TypeVar
 
 import numpy as np
 
+from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.drift import Drift
 from tumblecal_cli.core.gate import Finding, Limits
-from tumblecal_cli.core.model import FloatArray
 from tumblecal_cli.errors import InputError, control_character
 
 #: A JSON/YAML object as parsed (the boundary: its values are whatever the file holds).

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from tumblecal_cli.core.model import FloatArray
+from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.calfiles.calfile import number_field, vector_field
 from tumblecal_cli.io.calfiles.documents import read_object

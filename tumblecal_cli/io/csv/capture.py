@@ -35,6 +35,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.csv as pcsv
 
+from tumblecal_cli.core.arrays import BoolArray, FloatArray
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import sources
 from tumblecal_cli.io.csv import compressed
@@ -45,8 +46,6 @@ from tumblecal_cli.io.csv.sniff import (
     TEMPERATURE_NAMES,
     WS_EDGE,
     WS_RUN,
-    BoolArray,
-    FloatArray,
     Layout,
     bare,
     column_index,

@@ -35,16 +35,8 @@ from typing import TypedDict
 import numpy as np
 
 from tumblecal_cli.core import model
-from tumblecal_cli.core.blocks import (
-    FloatArray,
-    IntArray,
-    Measured,
-    Segmentation,
-    Settings,
-    clock_of,
-    sample_period,
-    window_spread,
-)
+from tumblecal_cli.core.arrays import BoolArray, FloatArray, IntArray
+from tumblecal_cli.core.blocks import Measured, Segmentation, Settings, clock_of, sample_period, window_spread
 from tumblecal_cli.core.chunks import CHUNK, Chunks, Moments, Part, chunk_sums, moments
 from tumblecal_cli.core.scan import Kept, Scan
 from tumblecal_cli.errors import InputError
@@ -53,7 +45,7 @@ from tumblecal_cli.io.csv.readings import Log, Stretch
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.io.rewrite import writer as rewrite
 from tumblecal_cli.io.rewrite.forked import cuts
-from tumblecal_cli.io.rewrite.splice import BoolArray, Splicer
+from tumblecal_cli.io.rewrite.splice import Splicer
 
 #: Files smaller than this keep their readings' rows and line offsets as int32 (4 bytes, not 8).
 NARROW = 1 << 31

@@ -20,12 +20,13 @@ import numpy as np
 import pyarrow as pa
 from numpy.typing import NDArray
 
+from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.running import Summary
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import sources
 from tumblecal_cli.io.csv.capture import Capture, cast_floats, open_capture, to_floats
 from tumblecal_cli.io.csv.readings import Log, Samples, read_samples, time_scale
-from tumblecal_cli.io.csv.sniff import TIME_SCALE, FloatArray, Layout
+from tumblecal_cli.io.csv.sniff import TIME_SCALE, Layout
 from tumblecal_cli.io.outputs import spool_room
 from tumblecal_cli.io.readspec import ReadSpec
 

@@ -16,22 +16,13 @@ import pyarrow as pa
 import pyarrow.compute as pc
 from numpy.typing import NDArray
 
+from tumblecal_cli.core.arrays import BoolArray, FloatArray
 from tumblecal_cli.core.running import Summary
 from tumblecal_cli.core.scan import log_index
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import sources
 from tumblecal_cli.io.csv.capture import BLOCK_BYTES, Capture, cast_floats, open_capture, to_floats, unquote
-from tumblecal_cli.io.csv.sniff import (
-    NUMBER,
-    TEMPERATURE_NAMES,
-    TIME_SCALE,
-    UNIT_WORDS,
-    BoolArray,
-    FloatArray,
-    Layout,
-    bare,
-    quoted,
-)
+from tumblecal_cli.io.csv.sniff import NUMBER, TEMPERATURE_NAMES, TIME_SCALE, UNIT_WORDS, Layout, bare, quoted
 from tumblecal_cli.io.readspec import Bound, ReadSpec
 from tumblecal_cli.io.sources import Table
 

@@ -13,9 +13,6 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-import numpy as np
-from numpy.typing import NDArray
-
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.csv import compressed
 from tumblecal_cli.io.readspec import Dialect
@@ -77,12 +74,6 @@ COMMA_NUMBER = re.compile(r"^\s*[+-]?\d*,\d+(?:[eE][+-]?\d+)?\s*$")
 
 
 MAX_PREAMBLE = 20  # metadata lines a station may write before its header
-
-
-FloatArray = NDArray[np.float64]
-
-
-BoolArray = NDArray[np.bool_]
 
 
 @dataclass

@@ -17,7 +17,8 @@ from typing import TypedDict, cast
 
 import numpy as np
 
-from tumblecal_cli.core.model import SENSORS, FloatArray
+from tumblecal_cli.core.arrays import FloatArray
+from tumblecal_cli.core.model import SENSORS
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.calfiles.calfile import (
     FORMAT,

@@ -32,8 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.gate import FIXED_GAINS
-from tumblecal_cli.core.model import FloatArray
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.calfiles.calfile import Calibration
 from tumblecal_cli.io.export.formats import FLOAT32_MAX, _comment, _provenance

@@ -28,9 +28,8 @@ if TYPE_CHECKING:
     from matplotlib.artist import Artist
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
-    from numpy.typing import NDArray
 
-    FloatArray = NDArray[np.float64]
+    from tumblecal_cli.core.arrays import FloatArray
 
 #: Each pose's samples are drawn from at most this many (evenly spaced, so deterministic).
 POSE_POINTS = 2000

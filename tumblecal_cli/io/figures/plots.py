@@ -28,11 +28,9 @@ if TYPE_CHECKING:
     import numpy as np
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
-    from numpy.typing import NDArray
 
     from tumblecal_cli.core.allan import Curve, Figures
-
-    FloatArray = NDArray[np.float64]
+    from tumblecal_cli.core.arrays import FloatArray
 
 #: Rotation captures are drawn from at most this many samples (evenly spaced, so deterministic).
 MAX_POINTS = 5000

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from tumblecal_cli.core.model import FloatArray
+from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.io.logs.dataflash import DataflashReader, Format, Index, Source, named
 from tumblecal_cli.io.logs.fields import CHUNK
 

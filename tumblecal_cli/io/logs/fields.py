@@ -9,12 +9,9 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import NDArray
 
-from tumblecal_cli.core.model import FloatArray
+from tumblecal_cli.core.arrays import BoolArray, FloatArray, IntArray
 from tumblecal_cli.errors import InputError
 
-IntArray = NDArray[np.int64]
-
-BoolArray = NDArray[np.bool_]
 #: Bytes read at a time.
 CHUNK = 1 << 22
 #: A clock that goes back this often is not a stray sample but two sessions (exit 2).

@@ -52,15 +52,13 @@ from rosbags.rosbag1 import Reader as Reader1
 from rosbags.rosbag2 import Reader as Reader2
 from rosbags.rosbag2.storage_mcap import DECOMPRESSORS
 
-from tumblecal_cli.core.model import FloatArray
+from tumblecal_cli.core.arrays import BoolArray, FloatArray, IntArray
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import sources
 from tumblecal_cli.io.logs import fields as logfields
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.io.sources import Stream, Table
 
-IntArray = NDArray[np.int64]
-BoolArray = NDArray[np.bool_]
 IMU = "sensor_msgs/msg/Imu"
 MAG = "sensor_msgs/msg/MagneticField"
 ROS1_MAGIC = b"#ROSBAG V"

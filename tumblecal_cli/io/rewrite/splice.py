@@ -31,12 +31,11 @@ import pyarrow as pa
 import pyarrow.compute as pc
 from numpy.typing import NDArray
 
+from tumblecal_cli.core.arrays import BoolArray, FloatArray, IntArray
+
 if TYPE_CHECKING:
     from _typeshed import ReadableBuffer
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-BoolArray = NDArray[np.bool_]
 Offsets = NDArray[np.int32]  # byte offsets in a block, and pyarrow's string offsets
 #: Where a correction's columns are among the sensor columns: a slice when they are next to each other.
 Columns: TypeAlias = "slice[int, int, None] | list[int]"

@@ -22,10 +22,11 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.csv as pcsv
 
+from tumblecal_cli.core.arrays import BoolArray, FloatArray
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.csv import capture
 from tumblecal_cli.io.csv.capture import Capture, DataStream, Source, note_dropped
-from tumblecal_cli.io.csv.sniff import BoolArray, FloatArray, Layout, skipped
+from tumblecal_cli.io.csv.sniff import Layout, skipped
 from tumblecal_cli.io.rewrite import forked
 from tumblecal_cli.io.rewrite.splice import Correct, Correction, Splicer
 

@@ -54,7 +54,7 @@ if TYPE_CHECKING:
     import signal
     from types import FrameType
 
-    from tumblecal_cli.core.model import FloatArray
+    from tumblecal_cli.core.arrays import FloatArray
     from tumblecal_cli.io.calfiles.calfile import Calibration
     from tumblecal_cli.pipeline.frames import DataFrame
     from tumblecal_cli.pipeline.options import SolveOptions

@@ -27,9 +27,9 @@ from tumblecal_cli.pipeline import segment as logs
 from tumblecal_cli.pipeline.solve.rotations import block_settings
 
 if TYPE_CHECKING:
+    from tumblecal_cli.core.arrays import FloatArray
     from tumblecal_cli.core.blocks import Block, Segmentation
     from tumblecal_cli.core.gate import Finding, Limits
-    from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfiles.calfile import Calibration
     from tumblecal_cli.io.csv.readings import Log
     from tumblecal_cli.pipeline.options import SolveOptions

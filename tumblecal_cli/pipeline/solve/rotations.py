@@ -26,8 +26,8 @@ from tumblecal_cli.pipeline import segment as logs
 from tumblecal_cli.pipeline.solve.turns import Made, Outcome, gyro_calibration, seconds_per_sample
 
 if TYPE_CHECKING:
+    from tumblecal_cli.core.arrays import FloatArray
     from tumblecal_cli.core.blocks import Block, Segmentation
-    from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfiles.calfile import Calibration, Pose
     from tumblecal_cli.io.csv.readings import Log
     from tumblecal_cli.pipeline.options import Settings, SolveOptions

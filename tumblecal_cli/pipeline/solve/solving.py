@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tumblecal_cli.core import blocks, clock, gate, methods, model, solvers
+from tumblecal_cli.core import arrays, blocks, clock, gate, methods, model, solvers
 from tumblecal_cli.core.gate import Finding
 from tumblecal_cli.core.model import face_of_name
 from tumblecal_cli.errors import CaptureRejected, InputError
@@ -34,9 +34,10 @@ from tumblecal_cli.pipeline.options import SolveOptions, method_options, path_of
 from tumblecal_cli.pipeline.solve import maglog, rotations, tables, trimming, turns
 
 if TYPE_CHECKING:
+    from tumblecal_cli.core.arrays import FloatArray
     from tumblecal_cli.core.blocks import Segmentation
     from tumblecal_cli.core.gate import Corrected, Finding, Limits, PoseCheck
-    from tumblecal_cli.core.model import FloatArray, PoseStats, Solution
+    from tumblecal_cli.core.model import PoseStats, Solution
     from tumblecal_cli.core.running import Summary
     from tumblecal_cli.io.calfiles import calfile
     from tumblecal_cli.io.calfiles.calfile import Calibration, Pose
@@ -93,7 +94,7 @@ class Solved:
 
 #: Pose captures: files (one path, or a list of ``FILE`` / ``LABEL=FILE`` items), or data in
 #: memory (a mapping of labels to DataFrames or (n, 3) arrays, a list of them, or one alone).
-Poses = str | os.PathLike[str] | Sequence[object] | Mapping[str, object] | model.FloatArray
+Poses = str | os.PathLike[str] | Sequence[object] | Mapping[str, object] | arrays.FloatArray
 
 
 def solve(poses: Poses, **options: object) -> Solved:

@@ -23,8 +23,8 @@ from tumblecal_cli.errors import CaptureRejected
 from tumblecal_cli.io.csv.readings import Log, Samples
 
 if TYPE_CHECKING:
+    from tumblecal_cli.core.arrays import FloatArray
     from tumblecal_cli.core.blocks import Block
-    from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.pipeline.options import Settings, SolveOptions
 
 #: Two still runs of one file whose directions are further apart than this are two poses, not

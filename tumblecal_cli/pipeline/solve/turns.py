@@ -13,9 +13,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tumblecal_cli.core import blocks, clock, gate, model, stillness, turn_fit
+from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.clock import Clock
 from tumblecal_cli.core.gate import Finding
-from tumblecal_cli.core.model import FloatArray
 from tumblecal_cli.core.solvers import Fit
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io.calfiles import calfile
