@@ -39,8 +39,8 @@ AXIS = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0), "+
 def figures(monkeypatch: pytest.MonkeyPatch) -> list[Figure]:
     """The figures the plot functions would write, kept instead of rendered (fast, inspectable)."""
     kept: list[Figure] = []
-    monkeypatch.setattr(fitplots, "_write", lambda fig, path: kept.append(fig))
-    monkeypatch.setattr(plots, "_write", lambda fig, path: kept.append(fig))
+    monkeypatch.setattr(fitplots, "write_png", lambda fig, path: kept.append(fig))
+    monkeypatch.setattr(plots, "write_png", lambda fig, path: kept.append(fig))
     return kept
 
 

@@ -377,6 +377,68 @@ def _private(name: str) -> bool:
     return name.startswith("_") and not name.startswith("__")
 
 
+def test_no_module_imports_a_private_name_of_another() -> None:
+    """A name another module needs is part of its home's face: public, with a docstring. Neither
+    an import (TYPE_CHECKING ones too) nor an attribute of an imported module (``mod._x``) reaches
+    for an underscored name of another module."""
+    modules = {_module_name(p) for p in _trees()}
+    wrong = []
+    for path, tree in _trees().items():
+        here = _module_name(path)
+        imported_modules: set[str] = set()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and (home := _imported_from_package(path, node)):
+                for alias in node.names:
+                    if f"{home}.{alias.name}" in modules:
+                        imported_modules.add(alias.asname or alias.name)
+                    elif _private(alias.name) and home != here:
+                        wrong.append(f"{path.relative_to(ROOT)}:{node.lineno}: {alias.name} of {home}")
+            elif isinstance(node, ast.Import):
+                imported_modules |= {a.asname for a in node.names if a.asname and a.name.startswith("tumblecal_cli")}
+        for node in ast.walk(tree):
+            if (
+                isinstance(node, ast.Attribute)
+                and _private(node.attr)
+                and isinstance(node.value, ast.Name)
+                and node.value.id in imported_modules
+            ):
+                wrong.append(f"{path.relative_to(ROOT)}:{node.lineno}: {node.value.id}.{node.attr}")
+    assert wrong == []
+
+
+def test_no_module_reads_a_private_attribute_of_another_modules_class() -> None:
+    """``obj._x`` where ``obj`` is not ``self``/``cls``, and no class or function of the module
+    itself names ``_x``, reaches into another module's object: what it needs is a public name."""
+    wrong = []
+    for path, tree in _trees().items():
+        defined = {"_replace", "_asdict", "_fields", "_make"}  # a NamedTuple's public methods
+        outside: set[str] = set()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                outside |= {
+                    (a.asname or a.name).split(".")[0] for a in node.names if not a.name.startswith("tumblecal")
+                }
+            elif isinstance(node, ast.ImportFrom) and not _imported_from_package(path, node):
+                outside |= {a.asname or a.name for a in node.names}  # another library's
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
+                defined.add(node.name)
+            elif isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "self":
+                defined.add(node.attr)
+            elif isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
+                defined.add(node.id)
+            elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
+                defined.add(node.target.id)
+        for node in ast.walk(tree):
+            if (
+                isinstance(node, ast.Attribute)
+                and _private(node.attr)
+                and node.attr not in defined
+                and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls", *outside))
+            ):
+                wrong.append(f"{path.relative_to(ROOT)}:{node.lineno}: {ast.unparse(node)}")
+    assert wrong == []
+
+
 def test_the_array_aliases_are_defined_once() -> None:
     """FloatArray, IntArray and BoolArray are assigned in one module (core.arrays); the others import them."""
     homes: dict[str, list[str]] = {name: [] for name in ARRAY_ALIASES}

@@ -37,7 +37,7 @@ def lot_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture
 def figures(monkeypatch: pytest.MonkeyPatch) -> list[Figure]:
     kept: list[Figure] = []
-    monkeypatch.setattr(plots, "_write", lambda fig, path: kept.append(fig))
+    monkeypatch.setattr(plots, "write_png", lambda fig, path: kept.append(fig))
     return kept
 
 

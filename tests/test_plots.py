@@ -100,7 +100,7 @@ def small_figure(path: str) -> None:
 def figures(monkeypatch: pytest.MonkeyPatch) -> list[Figure]:
     """The figures the plot functions would write, kept instead of rendered (fast, inspectable)."""
     kept: list[Figure] = []
-    monkeypatch.setattr(plots, "_write", lambda fig, path: kept.append(fig))
+    monkeypatch.setattr(plots, "write_png", lambda fig, path: kept.append(fig))
     return kept
 
 

@@ -1047,7 +1047,7 @@ def test_runs_are_the_still_stretches_split_at_the_breaks() -> None:
         n = values.size
         breaks = np.unique(rng.integers(1, n, 4)) if n > 1 else np.zeros(0, dtype=np.int64)
         for mask in (values < np.median(values), values >= np.median(values), np.zeros(n, bool), np.ones(n, bool)):
-            starts, ends = blocks._runs(mask, breaks)
+            starts, ends = blocks.true_runs(mask, breaks)
             assert starts.shape == ends.shape
             assert np.all(starts <= ends)
             covered = np.cumsum(np.bincount(starts, minlength=n + 1) - np.bincount(ends + 1, minlength=n + 1))[:n]
@@ -1056,7 +1056,7 @@ def test_runs_are_the_still_stretches_split_at_the_breaks() -> None:
             assert np.all((starts == 0) | ~before | np.isin(starts, breaks))  # a run starts after a False or at a break
             assert np.all((ends == n - 1) | ~after | np.isin(ends + 1, breaks))
             assert np.array_equal(covered > 0, mask)
-    assert [x.tolist() for x in blocks._runs(np.zeros(0, bool), np.zeros(0, dtype=np.int64))] == [[], []]
+    assert [x.tolist() for x in blocks.true_runs(np.zeros(0, bool), np.zeros(0, dtype=np.int64))] == [[], []]
 
 
 @pytest.mark.parametrize("ending", ["\r", "mixed"])

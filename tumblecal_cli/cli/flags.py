@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import os
 from enum import StrEnum
 from typing import Annotated, TypedDict
 
 import typer
+
+from tumblecal_cli.errors import InputError
 
 EXIT_CODES = """\
 Exit status, the first that applies: 2 usage or input error (bad file, bad option, wrong
@@ -483,3 +486,20 @@ class FileShape(TypedDict):
 def file_shape(skip_rows: int | None, decimal: DecimalMark | None, drop_incomplete: bool) -> FileShape:
     """--skip-rows, --decimal and --drop-incomplete as the pipeline's keyword arguments."""
     return {"skip_rows": skip_rows, "decimal": decimal and decimal.value, "drop_incomplete": drop_incomplete}
+
+
+def check_plot_target(plot: str, output: str, json_summary: bool, inputs: list[str]) -> None:
+    """Refuse a --plot path that cannot work, before any work (matplotlib missing is one): the
+    check of every command that draws (solve, thermal, report, verify, segment, noise)."""
+    from tumblecal_cli.io.figures import plots
+    from tumblecal_cli.io.outputs import check_not_input, check_writable
+
+    plots.require()
+    if plot == "-" and (output == "-" or json_summary):
+        raise InputError("--plot - would share stdout with the data", hint="give --plot FILE.png")
+    if plot != "-" and not plot.lower().endswith(".png"):
+        raise InputError("--plot writes a PNG image: give a file name ending in .png", file=plot)
+    if plot != "-" and output != "-" and os.path.abspath(plot) == os.path.abspath(output):
+        raise InputError("--plot and -o name the same file", file=plot)
+    check_not_input(plot, inputs, "--plot")
+    check_writable(plot, "--plot")

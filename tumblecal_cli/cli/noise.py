@@ -139,11 +139,11 @@ def noise(
 
 def _targets(plot: str | None, kalibr: str | None, json_summary: bool, inputs: list[str]) -> None:
     """Refuse a --plot or --kalibr path that names an input or cannot be written, before any work."""
-    from tumblecal_cli.cli.solve import _plot_target
+    from tumblecal_cli.cli.flags import check_plot_target
     from tumblecal_cli.io.outputs import check_not_input, check_writable
 
     if plot is not None:
-        _plot_target(plot, "-", json_summary, inputs)
+        check_plot_target(plot, "-", json_summary, inputs)
     if kalibr is not None:
         if kalibr == "-":
             raise InputError("--kalibr writes a file: give a path (imu.yaml)")

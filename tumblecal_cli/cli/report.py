@@ -8,8 +8,7 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
-from tumblecal_cli.cli.flags import STATUS_WORDS, Quiet
-from tumblecal_cli.cli.solve import _plot_target
+from tumblecal_cli.cli.flags import STATUS_WORDS, Quiet, check_plot_target
 from tumblecal_cli.errors import InputError
 
 if TYPE_CHECKING:
@@ -158,7 +157,7 @@ def _late_checks(plot: str | None, html: str | None, inputs: list[str]) -> None:
     from tumblecal_cli.io.outputs import check_not_input
 
     if plot is not None:
-        _plot_target(plot, "-", False, inputs)
+        check_plot_target(plot, "-", False, inputs)
     if html is not None:
         check_not_input(html, inputs, "--html")
         if plot is not None and plot == html:

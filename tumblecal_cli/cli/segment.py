@@ -33,11 +33,11 @@ from tumblecal_cli.cli.flags import (
     TimeUnitOption,
     Trim,
     Window,
+    check_plot_target,
     file_shape,
     log_option,
     source,
 )
-from tumblecal_cli.cli.solve import _plot_target
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -140,7 +140,7 @@ def segment(
     from tumblecal_cli.pipeline import segment as logs
 
     if plot is not None:
-        _plot_target(plot, out_dir or "-", False, [log])
+        check_plot_target(plot, out_dir or "-", False, [log])
     done = logs.segment(
         log,
         out_dir=out_dir,

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import inspect
-import os
 from typing import TYPE_CHECKING, Annotated
 
 import typer
@@ -55,6 +54,7 @@ from tumblecal_cli.cli.flags import (
     Turns,
     Verbose,
     Window,
+    check_plot_target,
 )
 from tumblecal_cli.errors import InputError
 
@@ -357,7 +357,7 @@ def solve(
     check_not_input(output, inputs)
     check_writable(output)
     if plot is not None:
-        _plot_target(plot, output, json_summary, inputs)
+        check_plot_target(plot, output, json_summary, inputs)
     solved = pipeline.run(options, poses=poses, log=log)
     shown = render.Shown(quiet=quiet, verbose=verbose)
     _show(solved, output=output, json_summary=json_summary, shown=shown, plot=plot, plane=plane and plane.value)
@@ -521,19 +521,3 @@ def _show(
         render.print_json(render.summary(cal, solved.status, output, [], solved.warnings, solved.notes))
     if solved.status:
         raise typer.Exit(solved.status)
-
-
-def _plot_target(plot: str, output: str, json_summary: bool, inputs: list[str]) -> None:
-    """Refuse a --plot path that cannot work, before any work (matplotlib missing is one)."""
-    from tumblecal_cli.io.figures import plots
-    from tumblecal_cli.io.outputs import check_not_input, check_writable
-
-    plots.require()
-    if plot == "-" and (output == "-" or json_summary):
-        raise InputError("--plot - would share stdout with the data", hint="give --plot FILE.png")
-    if plot != "-" and not plot.lower().endswith(".png"):
-        raise InputError("--plot writes a PNG image: give a file name ending in .png", file=plot)
-    if plot != "-" and output != "-" and os.path.abspath(plot) == os.path.abspath(output):
-        raise InputError("--plot and -o name the same file", file=plot)
-    check_not_input(plot, inputs, "--plot")
-    check_writable(plot, "--plot")

@@ -17,9 +17,9 @@ from tumblecal_cli.cli.flags import (
     Quiet,
     SensorKind,
     StreamOption,
+    check_plot_target,
     source,
 )
-from tumblecal_cli.cli.solve import _plot_target
 
 
 @app.command(
@@ -127,7 +127,7 @@ def thermal(
     check_not_input(output, inputs)
     check_writable(output)
     if plot is not None:
-        _plot_target(plot, output, json_summary, inputs)
+        check_plot_target(plot, output, json_summary, inputs)
     done = pipeline.thermal(
         sweeps,
         cal,

@@ -24,10 +24,10 @@ from tumblecal_cli.cli.flags import (
     Source,
     Start,
     StreamOption,
+    check_plot_target,
     file_shape,
     source,
 )
-from tumblecal_cli.cli.solve import _plot_target
 from tumblecal_cli.errors import InputError
 
 if TYPE_CHECKING:
@@ -137,7 +137,7 @@ def verify(
     if plot is not None:
         if log is not None or accel_cal is not None:
             raise InputError("--plot draws the errors of static captures, not of a --log of hand turns")
-        _plot_target(plot, "-", json_summary, [*(captures_ or []), cal])
+        check_plot_target(plot, "-", json_summary, [*(captures_ or []), cal])
     if log is not None or accel_cal is not None:
         where = (log, accel_cal, rate, columns, captures_, found, (start, end))
         return _rotations(cal, *where, json_summary=json_summary, quiet=quiet)

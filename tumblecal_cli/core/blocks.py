@@ -293,7 +293,7 @@ def smallest(values: FloatArray, k: int, below: float = np.inf) -> float | None:
     return float(np.partition(low, k)[k]) if low.size > k else None
 
 
-def _runs(mask: NDArray[np.bool_], breaks: IntArray) -> tuple[IntArray, IntArray]:
+def true_runs(mask: NDArray[np.bool_], breaks: IntArray) -> tuple[IntArray, IntArray]:
     """First and last index of each run of True in ``mask``, split before each of ``breaks``."""
     if not mask.size:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
@@ -312,7 +312,9 @@ def _runs(mask: NDArray[np.bool_], breaks: IntArray) -> tuple[IntArray, IntArray
 MOST_SAMPLES = 2.0**53
 
 
-def _in_samples(value: float | None, default: tuple[float, int], period: float | None, floor: int) -> int:
+def in_samples(value: float | None, default: tuple[float, int], period: float | None, floor: int) -> int:
+    """A detector setting (seconds when the clock is known, else samples; None: ``default``) as a
+    number of samples, at least ``floor``: the whole read's and the streamed scan's one rule."""
     if value is None:
         value = default[0] if period else default[1]
     samples = value / period if period else value
@@ -331,9 +333,9 @@ def detect(
 ) -> Segmentation:
     """Find, judge and label the still blocks of an (n, 3) log (``times`` in seconds)."""
     found, period, breaks = _timing(times, rate)
-    window = _in_samples(settings.window, WINDOW, period, 2)
-    min_samples = _in_samples(settings.min_duration, MIN_DURATION, period, 1)
-    trim = window // 2 if settings.trim is None else _in_samples(settings.trim, (0.0, 0), period, 0)
+    window = in_samples(settings.window, WINDOW, period, 2)
+    min_samples = in_samples(settings.min_duration, MIN_DURATION, period, 1)
+    trim = window // 2 if settings.trim is None else in_samples(settings.trim, (0.0, 0), period, 0)
     spread = rolling_std(values, window)
     floor = None
     threshold = settings.threshold
@@ -342,7 +344,7 @@ def detect(
         scale = float(np.ptp(values[::16], axis=0).max()) or 1.0  # every 16th: a scale, not an exact range
         # quantised readings of a quiet sensor can have no spread at all: still is then "exactly level"
         threshold = FLOOR_FACTOR * floor if floor > 1e-9 * scale else 1e-6 * scale
-    starts, ends = _runs(spread < threshold, breaks)
+    starts, ends = true_runs(spread < threshold, breaks)
     # the still period reaches half a window past the still centres, less the trim at each end
     reach = window // 2
     # ... and never across a gap: the first and last sample of the stretch between gaps bound it
@@ -364,7 +366,7 @@ def detect(
         [int(g) for g in breaks],
         clock=found,
     )
-    return _judge(seg, measure(values, spans), spans, settings)
+    return judge_blocks(seg, measure(values, spans), spans, settings)
 
 
 def from_labels(
@@ -392,7 +394,7 @@ def from_labels(
         period,
         None,
         None,
-        _in_samples(settings.min_duration, (0.0, 1), period, 1),
+        in_samples(settings.min_duration, (0.0, 1), period, 1),
         0,
         np.zeros(3),
         settings.max_tilt_deg,
@@ -400,7 +402,7 @@ def from_labels(
     )
     names = {a: str(text[a]).strip() for a, _ in spans}
     faces = {a: mapping.get(names[a]) for a, _ in spans}
-    return _judge(seg, measure(values, spans), spans, settings, faces, names)
+    return judge_blocks(seg, measure(values, spans), spans, settings, faces, names)
 
 
 @dataclass(frozen=True)
@@ -431,7 +433,7 @@ def thirds(a: int, b: int) -> tuple[tuple[int, int], tuple[int, int]]:
     return (a, a + third - 1), (b + 1 - third, b)
 
 
-def _judge(
+def judge_blocks(
     seg: Segmentation,
     measured: list[Measured],
     spans: list[tuple[int, int]],

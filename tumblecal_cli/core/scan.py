@@ -52,10 +52,10 @@ from tumblecal_cli.core.blocks import (
     Measured,
     Segmentation,
     Settings,
-    _in_samples,
-    _judge,
-    _runs,
+    in_samples,
+    judge_blocks,
     smallest,
+    true_runs,
     window_spread,
 )
 from tumblecal_cli.core.blocks import measure as segment_measure
@@ -216,9 +216,9 @@ class Scan:
         spreads alone; without them ``finish`` is given what measures the blocks."""
         settings = self.settings = settings or Settings()
         self.period = period
-        self.window = _in_samples(settings.window, WINDOW, period, 2)
-        self.min_samples = _in_samples(settings.min_duration, MIN_DURATION, period, 1)
-        self.trim = self.window // 2 if settings.trim is None else _in_samples(settings.trim, (0.0, 0), period, 0)
+        self.window = in_samples(settings.window, WINDOW, period, 2)
+        self.min_samples = in_samples(settings.min_duration, MIN_DURATION, period, 1)
+        self.trim = self.window // 2 if settings.trim is None else in_samples(settings.trim, (0.0, 0), period, 0)
         self.reach = self.window // 2
         self.pad = max(0, self.reach - self.trim) + 1  # neighbours kept each side of a candidate
         self.n = 0  # samples fed
@@ -423,7 +423,7 @@ class Scan:
             measured = segment_measure(kept.values, spans)
         else:
             raise ValueError("a Scan without readings is finished with what measures its blocks")
-        return _judge(seg, measured, spans, self.settings), kept
+        return judge_blocks(seg, measured, spans, self.settings), kept
 
     def _period(self) -> float | bool | None:
         """The median step, as ``detect`` takes it (nearest rank); False when not counted."""
@@ -448,10 +448,10 @@ class Scan:
         if period is None or self.period is None or not period >= 0.5 * self.period:
             return False
         s = self.settings
-        trim = self.window // 2 if s.trim is None else _in_samples(s.trim, (0.0, 0), period, 0)
+        trim = self.window // 2 if s.trim is None else in_samples(s.trim, (0.0, 0), period, 0)
         return (
-            _in_samples(s.window, WINDOW, period, 2) == self.window
-            and _in_samples(s.min_duration, MIN_DURATION, period, 1) == self.min_samples
+            in_samples(s.window, WINDOW, period, 2) == self.window
+            and in_samples(s.min_duration, MIN_DURATION, period, 1) == self.min_samples
             and trim == self.trim
         )
 
@@ -471,7 +471,7 @@ class Scan:
             at = kept.position(g)
             if at is not None and at > 0 and kept.position(g - 1) == at - 1:
                 split.append(np.array([at]))
-        starts, ends = _runs(kept.spread < threshold, np.unique(np.concatenate(split)).astype(np.int64))
+        starts, ends = true_runs(kept.spread < threshold, np.unique(np.concatenate(split)).astype(np.int64))
         reach, trim, w = self.reach, self.trim, self.window
         first, last = kept.log_index(starts), kept.log_index(ends)
         edges = np.concatenate([[0], breaks, [self.n]])

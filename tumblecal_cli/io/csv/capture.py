@@ -147,6 +147,21 @@ class Capture:
         self._path = path  # None for stdin: no second pass is possible
         self._hasher = hasher
 
+    @property
+    def path(self) -> str | None:
+        """The file's path (a compressed file's too); None for stdin: no second pass is possible."""
+        return self._path
+
+    @property
+    def stream(self) -> Source:
+        """The one-shot stream of the data section: pyarrow's own file reader, or a DataStream."""
+        return self._stream
+
+    @property
+    def hasher(self) -> Hasher:
+        """The sha256 of a stream's bytes as they are read (what ``sha256`` gives for stdin)."""
+        return self._hasher
+
     def sha256(self) -> str:
         """Hash of every byte of the file (for stdin: once the data has been read)."""
         if self._path is None:
@@ -299,7 +314,7 @@ class Capture:
     def _locate(self, row: int, sensor_j: int, what: str, triplet: tuple[int, int, int] | None = None) -> InputError:
         lay = self.layout
         column = lay.names[(triplet or lay.sensor)[sensor_j]]
-        line = self._line_of_row(row)
+        line = self.line_of_row(row)
         if line is None:
             return InputError(f"{what} in column {column!r} (data row {row + 1})", file=lay.name)
         return InputError(what, file=lay.name, line=line, column=column)
@@ -315,7 +330,8 @@ class Capture:
                 if not skipped(text):
                     yield lay.data_line + offset, text
 
-    def _line_of_row(self, row: int) -> int | None:
+    def line_of_row(self, row: int) -> int | None:
+        """The file line of data row ``row`` (from 0), found by reading the file again; None for stdin."""
         if self._path is None:
             return None
         for i, (line, _) in enumerate(self._data_lines()):

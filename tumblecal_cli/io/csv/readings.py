@@ -543,7 +543,7 @@ def _time_numbers(cap: Capture, first_row: int, text: pa.Array) -> FloatArray:
         raise InputError(
             f"time is not a number: {quoted(text[i].as_py())}",
             file=lay.name,
-            line=cap._line_of_row(first_row + i),
+            line=cap.line_of_row(first_row + i),
             column=lay.names[lay.time],
             hint="give the sample rate with --rate HZ instead of the time column (--time-column to pick another)",
         ) from None
@@ -561,7 +561,7 @@ def _times(cap: Capture, times: list[tuple[int, pa.Array]], mask: BoolArray | No
     back = np.flatnonzero(np.diff(t) < 0)
     if back.size:
         k = int(back[0]) + 1
-        line = cap._line_of_row(int(rows[k]))
+        line = cap.line_of_row(int(rows[k]))
         raise InputError(
             f"time goes backwards: {float(t[k])!r} after {float(t[k - 1])!r}",
             file=lay.name,

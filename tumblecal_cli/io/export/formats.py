@@ -78,7 +78,7 @@ def c_header(cal: Calibration, *, prefix: str | None = None) -> str:
     lines = [
         f"/* {_c_comment(cal.sensor)} calibration, written by tumblecal {__version__} from {_c_comment(str(cal.path))}",
         " *",
-        *[f" * {_c_comment(line)}" for line in _provenance(cal)],
+        *[f" * {_c_comment(line)}" for line in provenance(cal)],
         " *",
         " * Model: corrected = M * (raw - offset), axes in the order x, y, z:",
         " *   corrected[i] = M[i][0]*(raw[0] - offset[0]) + M[i][1]*(raw[1] - offset[1])",
@@ -300,7 +300,7 @@ def imucal_json(cal: Calibration) -> str:
         "gyr_unit": units if gyr is ours else "a.u.",
         "from_acc_unit": raw_units if acc is ours else "a.u.",
         "from_gyr_unit": raw_units if gyr is ours else "a.u.",
-        "comment": json.dumps({"about": "; ".join(_provenance(cal)), "tumblecal": record(cal)}),
+        "comment": json.dumps({"about": "; ".join(provenance(cal)), "tumblecal": record(cal)}),
         "K_a": acc["K"].tolist(),
         "R_a": acc["R"].tolist(),
         "b_a": acc["b"].tolist(),
@@ -323,7 +323,7 @@ def ros_yaml(cal: Calibration) -> str:
     bias = cal.matrix @ cal.offset
     lines = [
         "# ROS imu_calib calibration (apply_calib computes SM * raw - bias), written by tumblecal",
-        *[f"# {line}" for line in _provenance(cal)],
+        *[f"# {line}" for line in provenance(cal)],
         f"SM: [{', '.join(repr(float(v)) for v in cal.matrix.ravel())}]",
         f"bias: [{', '.join(repr(float(v)) for v in bias)}]",
         f"tumblecal: {_yaml_flow(record(cal))}",  # JSON is YAML: what import brings back (imu_calib ignores it)
@@ -341,7 +341,7 @@ def matlab(cal: Calibration) -> str:
     lines = [
         "% tumblecal calibration for MATLAB/Octave, in accelcal's convention:",
         "%   C = U*A + b   (U: N-by-3 raw readings, one sample per row; C: corrected)",
-        *[f"% {line}" for line in _provenance(cal)],
+        *[f"% {line}" for line in provenance(cal)],
         "A = [" + ";\n     ".join(" ".join(f"{float(v)!r}" for v in row) for row in a) + "];",
         "b = [" + " ".join(f"{float(v)!r}" for v in b) + "];",
     ]
@@ -573,7 +573,7 @@ def imported(
     return from_dict(doc)
 
 
-def _provenance(cal: Calibration) -> list[str]:
+def provenance(cal: Calibration) -> list[str]:
     """Who, when and how, for a comment in an exported file (one fact per line)."""
     unit = (cal.unit or Unit()).as_dict()
     who = ", ".join(f"{k} {unit[k]}" for k in ("serial", "station", "operator") if unit.get(k)) or "no serial"
@@ -583,13 +583,13 @@ def _provenance(cal: Calibration) -> list[str]:
         judged = f", verdict {'PASS' if verdict.passed else 'FAIL'}"
     units = f"{cal.input_units or 'raw units'} in, {cal.units or 'reference units'} out"
     return [
-        _comment(f"tumblecal {cal.sensor} calibration: {who}"),
-        _comment(f"created {cal.created or 'unknown'}, method {cal.method}{judged}"),
-        _comment(f"{units}, reference {float(cal.reference)!r}; columns {', '.join(cal.columns)}"),
+        safe_comment(f"tumblecal {cal.sensor} calibration: {who}"),
+        safe_comment(f"created {cal.created or 'unknown'}, method {cal.method}{judged}"),
+        safe_comment(f"{units}, reference {float(cal.reference)!r}; columns {', '.join(cal.columns)}"),
     ]
 
 
-def _comment(text: object) -> str:
+def safe_comment(text: object) -> str:
     """Text safe inside a YAML, MATLAB or parameter file's comment: one line. C0 and C1 controls
     and Unicode's line and paragraph separators become spaces (YAML 1.1 breaks a line at NEL,
     U+2028 and U+2029: what followed would be read as data), and so do U+FFFE and U+FFFF (a YAML
@@ -602,7 +602,7 @@ def _c_comment(text: str) -> str:
     character written as ``\\uXXXX`` or ``\\UXXXXXXXX``, a backslash as ``\\\\``), and no ``/*``,
     ``*/`` or ``??`` (a trigraph in C99: ``??/`` is a backslash) left in it: a space goes between
     the two characters. gcc -std=c99 -Wall -Wextra -Werror -pedantic compiles it for any text."""
-    text = _comment(text).replace("\\", "\\\\")
+    text = safe_comment(text).replace("\\", "\\\\")
     text = "".join(
         c if " " <= c <= "~" else f"\\u{ord(c):04x}" if ord(c) < 0x10000 else f"\\U{ord(c):08x}" for c in text
     )

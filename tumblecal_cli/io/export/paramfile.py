@@ -36,7 +36,7 @@ from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.gate import FIXED_GAINS
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.calfiles.calfile import Calibration
-from tumblecal_cli.io.export.formats import FLOAT32_MAX, _comment, _provenance
+from tumblecal_cli.io.export.formats import FLOAT32_MAX, provenance, safe_comment
 from tumblecal_cli.version import __version__
 
 FIRMWARES = ("ardupilot", "px4")
@@ -328,7 +328,7 @@ def _ardupilot(cal: Calibration, n: int) -> ParamFile:
         f"ArduPilot {cal.sensor} calibration of {'compass' if cal.sensor == 'magnetometer' else 'IMU'} {n}, "
         f"written by tumblecal {__version__}{_source(cal)}",
         f"{formula}, in {m.units}",
-        *_provenance(cal),
+        *provenance(cal),
         *_says(m),
         *usage,
         f"axes: the captures' {', '.join(cal.columns)} as ArduPilot's X, Y, Z, after its driver's rotation",
@@ -381,7 +381,7 @@ def _px4(cal: Calibration, n: int) -> ParamFile:
     text = [
         f"PX4 {cal.sensor} calibration of slot {n}, written by tumblecal {__version__}{_source(cal)}",
         f"{formula}, in {m.units}",
-        *_provenance(cal),
+        *provenance(cal),
         *_says(m),
         f"PX4 applies slot {n} to the sensor whose device id {head}ID holds: tumblecal does not know it. If the "
         f"sensor was calibrated in slot {n} before, it is set; else set {head}ID to its device id (the device_id "
@@ -452,7 +452,7 @@ def comments(texts: Iterable[str]) -> list[str]:
     for text in texts:
         plain = "".join(
             c if " " <= c <= "~" else f"\\u{ord(c):04x}" if ord(c) < 0x10000 else f"\\U{ord(c):08x}"
-            for c in _comment(text)
+            for c in safe_comment(text)
         )
         out += [f"# {part}" for part in textwrap.wrap(plain, 95, break_on_hyphens=False)] or ["#"]
     return out

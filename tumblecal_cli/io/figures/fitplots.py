@@ -22,7 +22,17 @@ import numpy as np
 
 from tumblecal_cli.core.blocks import Block, Segmentation, rolling_std
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io.figures.plots import _AFTER, _BEFORE, _FIT, Fitted, _array, _figure, _number, _short, _write
+from tumblecal_cli.io.figures.plots import (
+    AFTER,
+    BEFORE,
+    FIT,
+    Fitted,
+    checked_array,
+    checked_number,
+    new_figure,
+    shortened,
+    write_png,
+)
 
 if TYPE_CHECKING:
     from matplotlib.artist import Artist
@@ -128,19 +138,19 @@ def poses_figure(
     unit sphere coloured by residual (orientation-free solvers: sphere, least squares)."""
     if not poses:
         raise InputError("no poses to plot")
-    b = _array(fitted.offset, "offset", (3,))
-    m = _array(fitted.matrix, "matrix", (3, 3))
-    ref = _number(fitted.reference, "reference")
-    gain = _number(before.gain, "nominal gain")
+    b = checked_array(fitted.offset, "offset", (3,))
+    m = checked_array(fitted.matrix, "matrix", (3, 3))
+    ref = checked_number(fitted.reference, "reference")
+    gain = checked_number(before.gain, "nominal gain")
     if gain <= 0:
         raise InputError(f"nominal gain must be positive, not {before.gain}")
-    means = _array(np.array([p.mean for p in poses]), "pose means", (-1, 3))
+    means = checked_array(np.array([p.mean for p in poses]), "pose means", (-1, 3))
     scale = Scale.of(fitted.units, ref, sensor)
     res = _residuals(poses, b, m, ref)
-    raw = np.linalg.norm(means - _array(before.centre, "nominal offset", (3,)), axis=1) / gain - ref
+    raw = np.linalg.norm(means - checked_array(before.centre, "nominal offset", (3,)), axis=1) / gain - ref
     faced = any(p.face for p in poses) and any(p.angle_deg is not None for p in poses)
     n = len(poses)
-    fig = _figure(width=min(16.0, max(9.0, 4.0 + 0.25 * n)), height=8.0, title=title)
+    fig = new_figure(width=min(16.0, max(9.0, 4.0 + 0.25 * n)), height=8.0, title=title)
     grid = fig.add_gridspec(2, 2, height_ratios=[3, 2.4], width_ratios=[3, 2])
     ticks = [p.name for p in poses]
     exact = bool(np.all(np.abs(res.mean) <= 1e-7 * max(ref, 1.0)))  # as many parameters as readings
@@ -153,7 +163,7 @@ def poses_figure(
     elif right:
         corrected = (means - b) @ m.T
         _sphere_axes(fig, fig.add_subplot(grid[1, 1], projection="3d"), corrected, res.mean * scale.factor, scale)
-    _write(fig, path)
+    write_png(fig, path)
 
 
 def _residuals(poses: list[PoseData], offset: FloatArray, matrix: FloatArray, ref: float) -> _Residuals:
@@ -163,7 +173,7 @@ def _residuals(poses: list[PoseData], offset: FloatArray, matrix: FloatArray, re
         if p.samples is None or len(p.samples) < 2:
             out.spread.append(out.mean[k : k + 1])
             continue
-        samples = _array(p.samples, f"samples of {p.name}", (-1, 3))
+        samples = checked_array(p.samples, f"samples of {p.name}", (-1, 3))
         each = np.linalg.norm((samples - offset) @ matrix.T, axis=1) - ref
         out.sigma[k] = float(np.std(each, ddof=1)) / math.sqrt(each.size)
         if each.size > POSE_POINTS:
@@ -179,7 +189,7 @@ def _ticks(names: list[str]) -> tuple[list[str], str]:
     if all(parts) and len({(p[1], p[2]) for p in parts if p}) == 1:
         head, word = parts[0][1], parts[0][2]  # type: ignore[index]
         return [p[3] for p in parts if p], f"{os.path.basename(head)} {word}" if head else word
-    return [_short(os.path.basename(name), 20) for name in names], ""
+    return [shortened(os.path.basename(name), 20) for name in names], ""
 
 
 def _pose_ticks(ax: Axes, ticks: list[str]) -> None:
@@ -235,7 +245,7 @@ def _after_axes(
         )
         ax.plot([], [], "s", color="#cfe0f1", markeredgecolor="#7aa6d1", label="samples: quartiles, 5–95 %")
     what = "pose mean ± 1σ (noise)" if np.any(res.sigma > 0) else "pose"
-    ax.errorbar(x, res.mean * f, yerr=res.sigma * f, fmt="o", color=_AFTER, ms=5, capsize=3, label=what)
+    ax.errorbar(x, res.mean * f, yerr=res.sigma * f, fmt="o", color=AFTER, ms=5, capsize=3, label=what)
     _limit_lines(ax, limit, f, scale.unit, "residual limit")
     rms = float(np.sqrt(np.mean(res.mean**2))) * f
     worst = float(np.max(np.abs(res.mean))) * f
@@ -254,7 +264,7 @@ def _after_axes(
 def _before_axes(ax: Axes, raw: FloatArray, scale: Scale, label: str, ticks: list[str]) -> None:
     x = np.arange(len(ticks), dtype=np.float64)
     ax.axhline(0.0, color="black", linewidth=0.8)
-    ax.plot(x, raw * scale.factor, "o", color=_BEFORE, ms=5)
+    ax.plot(x, raw * scale.factor, "o", color=BEFORE, ms=5)
     rms = float(np.sqrt(np.mean(raw**2))) * scale.factor
     ax.set_title(f"before calibration: |{label}| − reference (RMS {rms:.3g} {scale.unit})", fontsize="medium")
     ax.set_ylabel(f"residual ({scale.unit})")
@@ -265,12 +275,12 @@ def _before_axes(ax: Axes, raw: FloatArray, scale: Scale, label: str, ticks: lis
 def _tilt_axes(ax: Axes, poses: list[PoseData], bounds: Bounds, ticks: list[str]) -> None:
     x = np.arange(len(ticks), dtype=np.float64)
     angle = np.array([math.nan if p.angle_deg is None else p.angle_deg for p in poses])
-    ax.bar(x, angle, width=0.5, color=_AFTER, alpha=0.8)
+    ax.bar(x, angle, width=0.5, color=AFTER, alpha=0.8)
     top = float(np.nanmax(angle)) if np.isfinite(angle).any() else 1.0
     if bounds.tolerance_deg is not None:
         t = bounds.tolerance_deg
         ax.axhline(
-            t, color=_FIT, linestyle="--", linewidth=1.2, label=f"fixture tolerance {t:g}° (of the tilt sensitivity)"
+            t, color=FIT, linestyle="--", linewidth=1.2, label=f"fixture tolerance {t:g}° (of the tilt sensitivity)"
         )
         top = max(top, t)
     if bounds.max_tilt_deg is not None and bounds.max_tilt_deg <= 3.0 * top:  # else it flattens the bars
@@ -335,14 +345,14 @@ def verify_figure(path: str, rows: list[Checked], limit: float | None, scale: Sc
     below it, the error before on its own axes (where the raw units are the output's)."""
     if not rows:
         raise InputError("no captures to plot")
-    after = _array(np.array([r.error for r in rows]), "norm errors", (-1,)) * scale.factor
-    std = _array(np.array([r.std for r in rows]), "standard deviations", (-1,)) * scale.factor
+    after = checked_array(np.array([r.error for r in rows]), "norm errors", (-1,)) * scale.factor
+    std = checked_array(np.array([r.std for r in rows]), "standard deviations", (-1,)) * scale.factor
     sigma = std / np.sqrt(np.maximum(1, np.array([r.samples for r in rows], dtype=np.float64)))
     failed = np.array([r.failed for r in rows])
     ticks = [r.name for r in rows]
     x = np.arange(len(rows), dtype=np.float64)
     has_before = all(r.before is not None for r in rows)
-    fig = _figure(width=min(16.0, max(8.0, 4.0 + 0.25 * len(rows))), height=7.0 if has_before else 4.8, title=title)
+    fig = new_figure(width=min(16.0, max(8.0, 4.0 + 0.25 * len(rows))), height=7.0 if has_before else 4.8, title=title)
     grid = fig.add_gridspec(2 if has_before else 1, 1, height_ratios=[3, 2] if has_before else [1])
     ax = fig.add_subplot(grid[0])
     ax.axhline(0.0, color="black", linewidth=0.8)
@@ -356,7 +366,7 @@ def verify_figure(path: str, rows: list[Checked], limit: float | None, scale: Sc
             linewidth=6,
             label="±1 std of the samples",
         )
-    for mask, colour, what in ((~failed, _AFTER, "capture mean ± 1σ"), (failed, _FAIL, "outside the limit")):
+    for mask, colour, what in ((~failed, AFTER, "capture mean ± 1σ"), (failed, _FAIL, "outside the limit")):
         if mask.any():
             ax.errorbar(x[mask], after[mask], yerr=sigma[mask], fmt="o", color=colour, ms=5, capsize=3, label=what)
     _limit_lines(ax, limit, scale.factor, scale.unit, "--max-norm-error")
@@ -374,7 +384,7 @@ def verify_figure(path: str, rows: list[Checked], limit: float | None, scale: Sc
     if has_before:
         raw = np.array([r.before for r in rows], dtype=np.float64)
         _before_axes(fig.add_subplot(grid[1]), raw, scale.coarser(raw * scale.factor), "raw mean", ticks)
-    _write(fig, path)
+    write_png(fig, path)
 
 
 def segment_figure(
@@ -389,17 +399,17 @@ def segment_figure(
     """``segment --plot``: the log's three axes against time, each still block shaded and
     labelled with its face (kept: green, with the file it goes to; dropped: grey, with why),
     and below it the rolling standard deviation the blocks were found by, with the threshold."""
-    data = _array(values, "log readings", (-1, 3))
+    data = checked_array(values, "log readings", (-1, 3))
     n = data.shape[0]
     if n == 0:
         raise InputError("no readings to plot")
     if clock is not None:
-        t, xlabel = _array(clock, "log times", (n,)), "time (s)"
+        t, xlabel = checked_array(clock, "log times", (n,)), "time (s)"
     elif seg.period is not None:
         t, xlabel = np.arange(n, dtype=np.float64) * seg.period, "time (s)"
     else:
         t, xlabel = np.arange(n, dtype=np.float64), "sample"
-    fig = _figure(width=14.0, height=7.0, title=title)
+    fig = new_figure(width=14.0, height=7.0, title=title)
     grid = fig.add_gridspec(2, 1, height_ratios=[3, 1])
     top = fig.add_subplot(grid[0])
     bottom = fig.add_subplot(grid[1], sharex=top)
@@ -433,7 +443,7 @@ def segment_figure(
     bottom.set_xlabel(xlabel)
     bottom.grid(alpha=0.3)
     _segment_legend(fig, seg)
-    _write(fig, path)
+    write_png(fig, path)
 
 
 def _segment_legend(fig: Figure, seg: Segmentation) -> None:

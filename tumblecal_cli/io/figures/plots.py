@@ -35,10 +35,11 @@ if TYPE_CHECKING:
 #: Rotation captures are drawn from at most this many samples (evenly spaced, so deterministic).
 MAX_POINTS = 5000
 DPI = 100
-_BEFORE = "#9a9a9a"  # grey: raw, before calibration
+#: The colours every figure (and io.figures.fitplots) draws in: raw readings, corrected ones, a fit.
+BEFORE = "#9a9a9a"  # grey: raw, before calibration
 _BEFORE_BAR = "#cfcfcf"  # light grey bars
-_AFTER = "tab:blue"
-_FIT = "tab:red"
+AFTER = "tab:blue"
+FIT = "tab:red"
 _OUTLINE = "tab:orange"
 
 
@@ -101,11 +102,11 @@ def rotation_figure(
     """
     from matplotlib.lines import Line2D
 
-    samples = _array(raw, "raw samples", (-1, 3))
+    samples = checked_array(raw, "raw samples", (-1, 3))
     count = samples.shape[0]
-    b = _array(fitted.offset, "offset", (3,))
-    m = _array(fitted.matrix, "matrix", (3, 3))
-    ref = _number(fitted.reference, "reference")
+    b = checked_array(fitted.offset, "offset", (3,))
+    m = checked_array(fitted.matrix, "matrix", (3, 3))
+    ref = checked_number(fitted.reference, "reference")
     units = fitted.units
     if ref <= 0:
         raise InputError(f"reference must be positive for a rotation figure, not {fitted.reference}")
@@ -127,7 +128,7 @@ def rotation_figure(
             raise InputError(f"plane must be xy, xz or yz, not {plane!r}")
         pairs = [("xyz".index(plane[0]), "xyz".index(plane[1]))]
         ref = float(np.median(np.linalg.norm(corrected[:, list(pairs[0])], axis=1)))
-    fig = _figure(width=9.0 if plane else 12.0, height=11.5 if plane else 10.5, title=title)
+    fig = new_figure(width=9.0 if plane else 12.0, height=11.5 if plane else 10.5, title=title)
     grid = fig.add_gridspec(3, len(pairs), height_ratios=[1, 1, 0.55])
     for col, (i, j) in enumerate(pairs):
         name = "xyz"[i] + "xyz"[j]
@@ -141,23 +142,23 @@ def rotation_figure(
         )
 
         ax = fig.add_subplot(grid[0, col])
-        ax.plot(samples[:, i], samples[:, j], ".", color=_BEFORE, markersize=2, alpha=0.5)
+        ax.plot(samples[:, i], samples[:, j], ".", color=BEFORE, markersize=2, alpha=0.5)
         ax.plot(outline[:, 0], outline[:, 1], color=_OUTLINE, linewidth=1.2, linestyle=(0, (4, 3)))
-        ax.plot(ellipse[:, i], ellipse[:, j], color=_FIT, linewidth=1.5)
-        ax.plot(b[i], b[j], "+", color=_FIT, markersize=10)
+        ax.plot(ellipse[:, i], ellipse[:, j], color=FIT, linewidth=1.5)
+        ax.plot(b[i], b[j], "+", color=FIT, markersize=10)
         _plane_axes(ax, f"raw, {name} plane", f"raw {'xyz'[i]}", f"raw {'xyz'[j]}")
 
         ax = fig.add_subplot(grid[1, col])
-        ax.plot(corrected[:, i], corrected[:, j], ".", color=_AFTER, markersize=2, alpha=0.5)
+        ax.plot(corrected[:, i], corrected[:, j], ".", color=AFTER, markersize=2, alpha=0.5)
         ax.plot(ref * np.cos(theta), ref * np.sin(theta), color="black", linewidth=1.5)
         ax.plot(0.0, 0.0, "+", color="black", markersize=10)
         _plane_axes(ax, f"corrected, {name} plane", f"{'xyz'[i]}{suffix}", f"{'xyz'[j]}{suffix}")
     _turn_residuals(fig.add_subplot(grid[2, :]), corrected, ref, plane, limit)
     shown = f", {samples.shape[0]} of {count}" if samples.shape[0] < count else f", {count}"
     handles = [  # the legend fills columns first: raw and its curves on the first row
-        Line2D([], [], linestyle="", marker=".", markersize=8, color=_BEFORE, label=f"raw samples{shown}"),
-        Line2D([], [], linestyle="", marker=".", markersize=8, color=_AFTER, label="corrected M·(raw − offset)"),
-        Line2D([], [], color=_FIT, linewidth=1.5, label="fitted ellipse: offset + A·(reference·u), u in the plane"),
+        Line2D([], [], linestyle="", marker=".", markersize=8, color=BEFORE, label=f"raw samples{shown}"),
+        Line2D([], [], linestyle="", marker=".", markersize=8, color=AFTER, label="corrected M·(raw − offset)"),
+        Line2D([], [], color=FIT, linewidth=1.5, label="fitted ellipse: offset + A·(reference·u), u in the plane"),
         Line2D(
             [],
             [],
@@ -174,10 +175,10 @@ def rotation_figure(
             linestyle=(0, (4, 3)),
             label="fitted ellipsoid's outline (under the ellipse when A has no cross terms)",
         ),
-        Line2D([], [], linestyle="", marker="+", markersize=10, color=_FIT, label="offset"),
+        Line2D([], [], linestyle="", marker="+", markersize=10, color=FIT, label="offset"),
     ]
     fig.legend(handles=handles, loc="outside lower center", ncols=2 if plane else 3, fontsize="small", frameon=False)
-    _write(fig, path)
+    write_png(fig, path)
 
 
 def _turn_residuals(ax: Axes, corrected: FloatArray, ref: float, plane: str | None, limit: float | None) -> None:
@@ -186,11 +187,11 @@ def _turn_residuals(ax: Axes, corrected: FloatArray, ref: float, plane: str | No
     part = corrected if plane is None else corrected[:, ["xyz".index(plane[0]), "xyz".index(plane[1])]]
     residual = (np.linalg.norm(part, axis=1) - ref) / ref * 100.0
     ax.axhline(0.0, color="black", linewidth=0.8)
-    ax.plot(residual, ".", color=_AFTER, markersize=3, alpha=0.7)
+    ax.plot(residual, ".", color=AFTER, markersize=3, alpha=0.7)
     if limit is not None:
         v = limit / ref * 100.0
-        ax.axhline(v, color=_FIT, linestyle="--", linewidth=1.2, label=f"residual limit ±{v:.3g} %")
-        ax.axhline(-v, color=_FIT, linestyle="--", linewidth=1.2)
+        ax.axhline(v, color=FIT, linestyle="--", linewidth=1.2, label=f"residual limit ±{v:.3g} %")
+        ax.axhline(-v, color=FIT, linestyle="--", linewidth=1.2)
         ax.legend(fontsize="small", loc="upper right")
         low, high = ax.get_ylim()
         ax.set_ylim(min(low, -1.08 * v), max(high, 1.08 * v))
@@ -214,18 +215,18 @@ def lot_figure(path: str, histograms: list[Histogram], *, title: str = "") -> No
     checked = _checked(histograms)
     ncols = min(4, len(checked))
     nrows = math.ceil(len(checked) / ncols)
-    fig = _figure(width=3.4 * ncols + 0.6, height=2.6 * nrows + 0.8, title=title)
+    fig = new_figure(width=3.4 * ncols + 0.6, height=2.6 * nrows + 0.8, title=title)
     grid = fig.add_gridspec(nrows, ncols)
     for k, (h, values, limits) in enumerate(checked):
         _draw_histogram(fig.add_subplot(grid[k // ncols, k % ncols]), h, values, limits)
     handles = [Line2D([], [], color="black", linewidth=1.5, label="mean")]
     if any(limits for _, _, limits in checked):  # no "limit" entry for a figure without any
-        handles.append(Line2D([], [], color=_FIT, linestyle="--", linewidth=1.5, label="limit"))
+        handles.append(Line2D([], [], color=FIT, linestyle="--", linewidth=1.5, label="limit"))
     for kind, (color, label) in _MARKS.items():
         if any(_colour(m.kind) == kind for h, _, _ in checked for m in h.marks):
             handles.append(Line2D([], [], color=color, marker="v", linestyle="", label=label))
     fig.legend(handles=handles, loc="outside lower center", ncols=len(handles), fontsize="small", frameon=False)
-    _write(fig, path)
+    write_png(fig, path)
 
 
 def lot_panels_svg(histograms: list[Histogram]) -> list[str]:
@@ -235,7 +236,7 @@ def lot_panels_svg(histograms: list[Histogram]) -> list[str]:
 
     out = []
     for k, (h, values, limits) in enumerate(_checked(histograms)):
-        fig = _figure(width=4.2, height=3.0, title="")
+        fig = new_figure(width=4.2, height=3.0, title="")
         _draw_histogram(fig.add_subplot(), h, values, limits)
         buffer = io.StringIO()
         with matplotlib.rc_context({"svg.fonttype": "path", "svg.hashsalt": f"lot-panel-{k}"}):
@@ -248,7 +249,7 @@ def lot_panels_svg(histograms: list[Histogram]) -> list[str]:
     return out
 
 
-_MARKS = {"outside": (_FIT, "outside a limit (fails)"), "outlier": (_OUTLINE, "outlier")}
+_MARKS = {"outside": (FIT, "outside a limit (fails)"), "outlier": (_OUTLINE, "outlier")}
 
 
 def _checked(histograms: list[Histogram]) -> list[tuple[Histogram, FloatArray, list[float]]]:
@@ -256,14 +257,14 @@ def _checked(histograms: list[Histogram]) -> list[tuple[Histogram, FloatArray, l
         raise InputError("no parameters to plot")
     checked = []
     for h in histograms:
-        values = _array(h.values, f"values of {h.name}", (-1,))
+        values = checked_array(h.values, f"values of {h.name}", (-1,))
         if values.size == 0:
             raise InputError(f"no values of {h.name} to plot")
-        limits = [_number(v, f"{h.name} limit") for v in (h.lower, h.upper) if v is not None]
+        limits = [checked_number(v, f"{h.name} limit") for v in (h.lower, h.upper) if v is not None]
         if h.lower is not None and h.upper is not None and h.lower > h.upper:
             raise InputError(f"{h.name}: lower limit {h.lower:g} is above upper limit {h.upper:g}")
         for m in h.marks:
-            _number(m.value, f"{h.name} mark {m.name}")
+            checked_number(m.value, f"{h.name} mark {m.name}")
         checked.append((h, values, limits))
     return checked
 
@@ -282,10 +283,10 @@ def _draw_histogram(ax: Axes, h: Histogram, values: FloatArray, limits: list[flo
         edges = np.array([lo - wide / 40, lo + wide / 40])
         if not near:
             shown += [lo - wide / 2, lo + wide / 2]
-    counts, _, _ = ax.hist(values, bins=[float(e) for e in edges], color=_AFTER, alpha=0.75)
+    counts, _, _ = ax.hist(values, bins=[float(e) for e in edges], color=AFTER, alpha=0.75)
     ax.axvline(float(values.mean()), color="black", linewidth=1.5)
     for limit in near:
-        ax.axvline(limit, color=_FIT, linestyle="--", linewidth=1.5)
+        ax.axvline(limit, color=FIT, linestyle="--", linewidth=1.5)
     left, right = min([float(edges[0]), *shown]), max([float(edges[-1]), *shown])
     pad = 0.06 * (right - left)
     ax.set_xlim(left - pad, right + pad)
@@ -301,7 +302,7 @@ def _draw_histogram(ax: Axes, h: Histogram, values: FloatArray, limits: list[flo
                 xycoords="axes fraction",
                 ha="right" if right_side else "left",
                 fontsize="x-small",
-                color=_FIT,
+                color=FIT,
             )
     _draw_marks(ax, h.marks, top)
     outside = int(np.sum(values < h.lower)) if h.lower is not None else 0
@@ -332,7 +333,7 @@ def _draw_marks(ax: Axes, marks: tuple[Mark, ...], top: float, named: int = 6) -
     for k, m in enumerate(sorted(marks, key=lambda m: m.value)[:named]):
         where = (m.value - left) / (right - left)
         ax.annotate(
-            _short(m.name, 14),
+            shortened(m.name, 14),
             xy=(m.value, top * 1.16),
             xytext=(0, 2 + 7 * (k % 2)),  # alternate heights: neighbours do not overprint
             textcoords="offset points",
@@ -364,19 +365,19 @@ def drift_figure(
 
     if not sweeps:
         raise InputError("no sweeps to plot")
-    fig = _figure(width=12.0, height=6.4, title=title)
+    fig = new_figure(width=12.0, height=6.4, title=title)
     grid = fig.add_gridspec(2, 3, height_ratios=[2, 1])
     colours = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown", "tab:pink", "tab:olive"]
     for j, axis in enumerate("xyz"):
         top = fig.add_subplot(grid[0, j])
         bottom = fig.add_subplot(grid[1, j], sharex=top)
         for k, (label, temp, seen, fitted) in enumerate(sweeps):
-            t = _array(temp, f"temperature of {label}", (-1,))
-            o = _array(seen, f"drift of {label}", (t.size, 3))
-            f = _array(fitted, f"fit of {label}", (t.size, 3))
+            t = checked_array(temp, f"temperature of {label}", (-1,))
+            o = checked_array(seen, f"drift of {label}", (t.size, 3))
+            f = checked_array(fitted, f"fit of {label}", (t.size, 3))
             order = np.argsort(t)
             colour = colours[k % len(colours)]
-            top.plot(t, o[:, j], ".", color=colour, markersize=3, alpha=0.6, label=_short(label))
+            top.plot(t, o[:, j], ".", color=colour, markersize=3, alpha=0.6, label=shortened(label))
             top.plot(t[order], f[order, j], "-", color=colour, linewidth=1.2)
             bottom.plot(t, o[:, j] - f[:, j], ".", color=colour, markersize=3, alpha=0.6)
         top.set_title(f"{axis}: drift against temperature", fontsize="medium")
@@ -390,7 +391,7 @@ def drift_figure(
         bottom.tick_params(labelsize="small")
         if j == 0:
             top.legend(fontsize="x-small", loc="best")
-    _write(fig, path)
+    write_png(fig, path)
 
 
 def _bins(values: FloatArray) -> int:
@@ -404,7 +405,8 @@ def _bins(values: FloatArray) -> int:
     return max(1, min(50, max(sturges, fd)))
 
 
-def _figure(*, width: float, height: float, title: str) -> Figure:
+def new_figure(*, width: float, height: float, title: str) -> Figure:
+    """A figure of ``width`` x ``height`` inches at DPI, its layout constrained, titled."""
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(width, height), dpi=DPI, layout="constrained")
@@ -421,7 +423,7 @@ def _plane_axes(ax: Axes, title: str, xlabel: str, ylabel: str) -> None:
     ax.grid(alpha=0.3)
 
 
-def _write(fig: Figure, path: str) -> None:
+def write_png(fig: Figure, path: str) -> None:
     """Render to memory first, so a failure leaves ``path`` as it was; then write it atomically."""
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=DPI, metadata={"Software": None})
@@ -429,7 +431,7 @@ def _write(fig: Figure, path: str) -> None:
         out.write(buffer.getvalue())
 
 
-def _array(value: object, what: str, shape: tuple[int, ...]) -> FloatArray:
+def checked_array(value: object, what: str, shape: tuple[int, ...]) -> FloatArray:
     """``value`` as a finite float array of ``shape`` (-1: any length); InputError otherwise."""
 
     try:
@@ -445,7 +447,8 @@ def _array(value: object, what: str, shape: tuple[int, ...]) -> FloatArray:
     return array
 
 
-def _number(value: float, what: str) -> float:
+def checked_number(value: float, what: str) -> float:
+    """``value`` as a finite float; InputError naming ``what`` otherwise."""
     try:
         number = float(value)
     except (TypeError, ValueError):
@@ -459,7 +462,7 @@ def _unit(units: str | None) -> str:
     return f" {units}" if units else ""
 
 
-def _short(name: str, keep: int = 24) -> str:
+def shortened(name: str, keep: int = 24) -> str:
     """A long tick label shortened in the middle, so the file name's end stays readable."""
     return name if len(name) <= keep else f"{name[: keep // 2 - 1]}…{name[-(keep // 2) :]}"
 
@@ -470,33 +473,33 @@ def noise_figure(path: str, curve: Curve, figures: list[Figures], units: str | N
     points (N at 1 s, the minimum 0.664 B, K at 3 s). ``curve`` a core.allan.Curve, ``figures``
     its core.allan.Figures per axis, both in the data's units."""
 
-    tau = _array(curve.tau, "cluster times", (-1,))
-    adev = _array(curve.adev, "Allan deviation", (-1, 3))
+    tau = checked_array(curve.tau, "cluster times", (-1,))
+    adev = checked_array(curve.adev, "Allan deviation", (-1, 3))
     low, high = curve.interval()
-    fig = _figure(width=11.0, height=4.2, title=title)
+    fig = new_figure(width=11.0, height=4.2, title=title)
     axes = fig.subplots(1, 3, sharey=True)
     for j, (ax, figs) in enumerate(zip(axes, figures, strict=True)):
         top = np.where(np.isfinite(high[:, j]), high[:, j], np.nan)
-        ax.fill_between(tau, low[:, j], top, color=_AFTER, alpha=0.2, lw=0, label="95 % interval")
-        ax.loglog(tau, adev[:, j], "o-", color=_AFTER, ms=3, lw=1, label="overlapping ADEV")
+        ax.fill_between(tau, low[:, j], top, color=AFTER, alpha=0.2, lw=0, label="95 % interval")
+        ax.loglog(tau, adev[:, j], "o-", color=AFTER, ms=3, lw=1, label="overlapping ADEV")
         marks = []
         n, b, k = figs.noise_density, figs.bias_instability, figs.random_walk
         if n.value is not None and n.tau is not None:
             span = np.geomspace(min(n.tau[0], 1.0), max(n.tau[1], 1.0), 20)
-            ax.loglog(span, n.value / np.sqrt(span), "--", color=_FIT, lw=1, label="−½ slope (noise density)")
+            ax.loglog(span, n.value / np.sqrt(span), "--", color=FIT, lw=1, label="−½ slope (noise density)")
             marks.append((1.0, n.value, "N"))
         if k.value is not None and k.tau is not None:
             span = np.geomspace(min(k.tau[0], 3.0), max(k.tau[1], 3.0), 20)
-            ax.loglog(span, k.value * np.sqrt(span / 3.0), ":", color=_FIT, lw=1.2, label="+½ slope (random walk)")
+            ax.loglog(span, k.value * np.sqrt(span / 3.0), ":", color=FIT, lw=1.2, label="+½ slope (random walk)")
             marks.append((3.0, k.value, "K"))
         if b.value is not None and b.tau is not None:
             ax.axhline(b.value * BIAS_FACTOR, color=_OUTLINE, lw=0.8, label="minimum (0.664 B)")
             marks.append((b.tau[0], b.value * BIAS_FACTOR, "B"))
         for x, y, name in marks:
-            ax.plot([x], [y], "s", color=_FIT, ms=6)
+            ax.plot([x], [y], "s", color=FIT, ms=6)
             ax.annotate(name, (x, y), textcoords="offset points", xytext=(5, 5), fontsize="small")
         _plane_axes(ax, "xyz"[j], "τ (s)", f"σ(τ){_unit(units)}" if j == 0 else "")
         ax.set_aspect("auto")
         ax.grid(alpha=0.3, which="both")
     axes[0].legend(fontsize="x-small", loc="lower left")
-    _write(fig, path)
+    write_png(fig, path)

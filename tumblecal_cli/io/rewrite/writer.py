@@ -159,7 +159,7 @@ def _spliced(
     blocks on worker processes, one per core, that write to ``out`` themselves (``io.rewrite.forked``).
     ``head`` is emptied once something is written."""
 
-    path, start = cap._path, len(cap.layout.head)
+    path, start = cap.path, len(cap.layout.head)
     assert path is not None
     workers = forked.workers_for(path, os.path.getsize(path) - start) if _descriptor(out) else 0
     blocks = forked.cuts(path, start, capture.BLOCK_BYTES) if workers else None
@@ -189,9 +189,9 @@ def splicer_for(
     lay = cap.layout
     if lay.delimiter is None or len(lay.delimiter) != 1 or lay.eol not in ("\n", "\r\n"):
         return None
-    if stream and ((cap._path is not None and lay.compression is None) or not isinstance(cap._stream, DataStream)):
+    if stream and ((cap.path is not None and lay.compression is None) or not isinstance(cap.stream, DataStream)):
         return None
-    if not stream and (cap._path is None or not isinstance(cap._stream, pa.OSFile)):
+    if not stream and (cap.path is None or not isinstance(cap.stream, pa.OSFile)):
         return None
     return Splicer(len(lay.names), lay.delimiter, lay.eol, lay.decimal, corrections, temperature, also)
 
@@ -204,7 +204,7 @@ def _stream_spliced(cap: Capture, splicer: Splicer, convert: Convert, write: Cal
     rows = 0
     workers = max(2, os.cpu_count() or 1)
     pending: deque[tuple[Future[tuple[memoryview, int] | None] | None, bytes]] = deque()
-    blocks = _stream_blocks(cap._stream)
+    blocks = _stream_blocks(cap.stream)
 
     def general(text: bytes, rows: int) -> int:  # the general rules from ``text`` on
         for other, _ in pending:
@@ -295,7 +295,7 @@ class _Rest(Capture):
     """The rest of a stream after ``before`` data rows were spliced: its messages count from the first."""
 
     def __init__(self, cap: Capture, stream: Source, before: int) -> None:
-        super().__init__(cap.layout, stream, cap._path, cap._hasher)  # (a path: a compressed file's)
+        super().__init__(cap.layout, stream, cap.path, cap.hasher)  # (a path: a compressed file's)
         self._before = before
 
     def _locate(self, row: int, sensor_j: int, what: str, triplet: tuple[int, int, int] | None = None) -> InputError:
@@ -322,9 +322,9 @@ def _splice_jobs(
     (``spliced(block, at)``); None when the file is not one to splice (a stream,
     whitespace-separated, CR line ends, a cut last line left out)."""
     splicer = splicer_for(cap, corrections, temperature)
-    if splicer is None or cap._path is None:
+    if splicer is None or cap.path is None:
         return None
-    lay, path = cap.layout, cap._path
+    lay, path = cap.layout, cap.path
 
     def general(source: _Slice) -> list[Item]:
         return [item for first, cols in source.batches() for item in convert(source, first, cols)]
@@ -358,10 +358,10 @@ class _Slice(Capture):
     rules: its errors name the file's lines."""
 
     def __init__(self, cap: Capture, stream: Source, at: int) -> None:
-        super().__init__(cap.layout, stream, cap._path, cap._hasher)
+        super().__init__(cap.layout, stream, cap.path, cap.hasher)
         self._at = at
 
-    def _line_of_row(self, row: int) -> int | None:
+    def line_of_row(self, row: int) -> int | None:
         assert self._path is not None
         lay = self.layout
         with open(self._path, "rb") as f:
