@@ -316,7 +316,7 @@ def test_segment_of_a_bursty_log_measures_durations_in_true_seconds(
 def test_a_bursty_log_is_read_whole_and_its_period_is_the_mean_step(tmp_path: Path) -> None:
     log = tumble_log(tmp_path / "bursty.csv", bursty=True)
     spec = readspec.ReadSpec()
-    assert logread.scan_log(str(log), spec, settings=blocks.Settings()) is None  # the streamed read steps aside
+    assert logread.scan_log(str(log), spec, settings=blocks.DetectorSettings()) is None  # the streamed read steps aside
     t = np.loadtxt(log, delimiter=",", skiprows=1, usecols=0)
     values = np.loadtxt(log, delimiter=",", skiprows=1, usecols=(1, 2, 3))
     seg = blocks.detect(values, t - t[0])

@@ -82,7 +82,7 @@ def six_poses(rng: np.random.Generator, noise: float = 0.002, n: int = 400) -> l
 def test_six_poses_residuals_in_mg_with_spread_uncertainty_limit_and_tilt(figures: list[Figure]) -> None:
     rng = np.random.default_rng(5)
     poses = six_poses(rng)
-    fitted = plots.Fitted(OFFSET, np.diag(1 / np.diag(A)), 1.0, "g")  # gains only: the cross terms are left
+    fitted = plots.PlottedCorrection(OFFSET, np.diag(1 / np.diag(A)), 1.0, "g")  # gains only: the cross terms are left
     bounds = fitplots.Bounds(residual=0.004, tolerance_deg=1.0)
     before = fitplots.Before(np.zeros(3), 1.0, "raw")
     fitplots.poses_figure("unused.png", poses, fitted, bounds, before, title="six")
@@ -123,7 +123,7 @@ def test_sphere_fit_shows_the_calibrated_poses_on_the_unit_sphere(figures: list[
     gain = 2500.0  # unsigned counts around 32768, as the Xsens log
     means = (u @ A.T * gain) + OFFSET * gain + 32768.0 + rng.normal(0.0, 0.5, size=(20, 3))
     poses = [fitplots.PoseData(f"block {k + 1}", m) for k, m in enumerate(means)]
-    fitted = plots.Fitted(OFFSET * gain + 32768.0, M / gain, 1.0, "g")
+    fitted = plots.PlottedCorrection(OFFSET * gain + 32768.0, M / gain, 1.0, "g")
     before = fitplots.Before(OFFSET * gain + 32768.0, gain, "(raw − fitted offset) ÷ mean gain")
     fitplots.poses_figure("unused.png", poses, fitted, fitplots.Bounds(), before)
     (fig,) = figures
@@ -142,7 +142,7 @@ def test_sphere_fit_shows_the_calibrated_poses_on_the_unit_sphere(figures: list[
 
 def test_poses_figure_refuses_bad_input(tmp_path: Path) -> None:
     path = tmp_path / "f.png"
-    fitted = plots.Fitted(OFFSET, M, 1.0)
+    fitted = plots.PlottedCorrection(OFFSET, M, 1.0)
     before = fitplots.Before(np.zeros(3), 1.0, "raw")
     with pytest.raises(InputError, match="no poses to plot"):
         fitplots.poses_figure(str(path), [], fitted, fitplots.Bounds(), before)
@@ -385,11 +385,11 @@ def test_an_exact_fit_says_so_and_a_gyroscope_has_no_sphere(figures: list[Figure
         mean = OFFSET + gains * np.asarray(AXIS[face], dtype=np.float64)  # no cross terms: three poses fit exactly
         samples = mean + rng.normal(0.0, 0.002, (400, 3))
         poses.append(fitplots.PoseData(face, mean, samples - samples.mean(axis=0) + mean, face, 0.5))
-    exact = plots.Fitted(OFFSET, np.diag(1 / gains), 1.0, "g")
+    exact = plots.PlottedCorrection(OFFSET, np.diag(1 / gains), 1.0, "g")
     before = fitplots.Before(np.zeros(3), 1.0, "raw")
     fitplots.poses_figure("unused.png", poses, exact, fitplots.Bounds(), before)
     still = [fitplots.PoseData("still.csv", np.array([3.0, -2.0, 5.0]), rng.normal([3.0, -2.0, 5.0], 0.1, (500, 3)))]
-    gyro = plots.Fitted(np.array([3.0, -2.0, 5.0]), np.eye(3), 0.0, "dps")
+    gyro = plots.PlottedCorrection(np.array([3.0, -2.0, 5.0]), np.eye(3), 0.0, "dps")
     fitplots.poses_figure("unused.png", still, gyro, fitplots.Bounds(), before, sensor="gyroscope")
     three, gyroscope = figures
     assert "0 by construction" in three.axes[0].get_title()

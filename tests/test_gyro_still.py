@@ -47,11 +47,11 @@ def _known_fit(session: st.Session) -> tuple[turn_fit.TurnsFit, np.ndarray]:
     dt = np.full(len(session.t), session.t[1] - session.t[0])
     faces, _, restless = turns.gyro_still([found[label] for _, label in st.FACES], session.gyr, dt, None)
     assert not restless
-    still = turn_fit.Still([session.acc[s.index] for s in faces], [session.gyr[s.index] for s in faces])
+    still = turn_fit.FaceReadings([session.acc[s.index] for s in faces], [session.gyr[s.index] for s in faces])
     given = []
     for label, axis in (("x_rot", np.eye(3)[0]), ("y_rot", np.eye(3)[1]), ("z_rot", np.eye(3)[2])):
         index = found[label].index
-        given.append(turn_fit.Turn(session.acc[index], session.gyr[index], axis, 360.0, dt[index]))
+        given.append(turn_fit.KnownTurn(session.acc[index], session.gyr[index], axis, 360.0, dt[index]))
     index = np.concatenate([s.index for s in faces])
     return turn_fit.ferraris(still, given), st.A @ session.rate[index].mean(axis=0)
 

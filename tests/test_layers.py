@@ -455,3 +455,13 @@ def test_the_array_aliases_are_defined_once() -> None:
                 if isinstance(target, ast.Name) and target.id in homes:
                     homes[target.id].append(_module_name(path))
     assert homes == {name: ["tumblecal_cli.core.arrays"] for name in ARRAY_ALIASES}
+
+
+def test_no_class_name_is_defined_in_two_modules() -> None:
+    """Each class name says what it is across the package, not only inside its module."""
+    seen: dict[str, list[str]] = {}
+    for path, tree in _trees().items():
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ClassDef):
+                seen.setdefault(node.name, []).append(str(path.relative_to(PACKAGE)))
+    assert {name: homes for name, homes in seen.items() if len(set(homes)) > 1} == {}

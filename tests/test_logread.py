@@ -61,7 +61,7 @@ def session(tmp_path_factory: pytest.TempPathFactory) -> Callable[[int], Path]:
 
 def both(path: Path, rate: float | None = None, **settings: object) -> tuple[object, object]:
     """(the streamed log and segmentation or None, the whole log and segmentation)."""
-    s = sc.Settings(**settings)  # type: ignore[arg-type]
+    s = sc.DetectorSettings(**settings)  # type: ignore[arg-type]
     streamed = logread.scan_log(str(path), ReadSpec(rate=rate), settings=s)
     if streamed is not None:
         streamed = (streamed[0], logs.review(streamed[0], streamed[1], rate, s))
@@ -199,7 +199,7 @@ def test_what_the_stream_does_not_take_is_read_whole(
 ) -> None:
     path = tmp_path / "log.csv"
     path.write_text(change(session(30_000).read_text()))  # type: ignore[operator]
-    assert logread.scan_log(str(path), ReadSpec(), settings=sc.Settings()) is None
+    assert logread.scan_log(str(path), ReadSpec(), settings=sc.DetectorSettings()) is None
 
 
 @pytest.mark.slow
@@ -245,7 +245,7 @@ def test_the_scan_keeps_a_bounded_share(tmp_path: Path) -> None:
     moving = rng.normal(0, 0.3, size=(n, 3)) + np.array([0.0, 0.0, 1.0])
     for start in (20_000, 90_000, 160_000):  # three still poses of 20 s: 30 % of the log
         moving[start : start + 20_000] = rng.normal(0, 0.002, size=(20_000, 3)) + np.array([0.0, 0.0, 1.0])
-    scan = scan_core.Scan(0.001, sc.Settings())
+    scan = scan_core.Scan(0.001, sc.DetectorSettings())
     seconds = np.arange(n, dtype=np.float64) * 0.001
     for k in range(0, n, 7_000):
         m = len(moving[k : k + 7_000])
@@ -307,7 +307,7 @@ def test_a_quantised_log_whose_threshold_is_one_of_its_spreads_is_read_whole(tmp
         turn = np.round((1 - w) * faces[k] + w * faces[(k + 1) % 6] + rng.normal(0, 30, (800, 3)))
         parts += [still, turn.astype(int)]
     path = write(tmp_path / "counts.csv", np.vstack(parts), header="x,y,z", fmt="%d")
-    assert logread.scan_log(str(path), ReadSpec(), settings=sc.Settings()) is None
+    assert logread.scan_log(str(path), ReadSpec(), settings=sc.DetectorSettings()) is None
 
 
 def test_a_time_cell_empty_on_another_sensors_row_is_the_whole_reads_business(tmp_path: Path) -> None:
@@ -320,8 +320,8 @@ def test_a_time_cell_empty_on_another_sensors_row_is_the_whole_reads_business(tm
             lines.append(",,,,0.1,0.2,0.3")
     path = tmp_path / "blank_time.csv"
     path.write_text("\n".join(lines) + "\n")
-    assert logread.scan_log(str(path), ReadSpec(), settings=sc.Settings()) is None
-    assert logread.scan_log(str(path), ReadSpec(rate=1000.0), settings=sc.Settings()) is None
+    assert logread.scan_log(str(path), ReadSpec(), settings=sc.DetectorSettings()) is None
+    assert logread.scan_log(str(path), ReadSpec(rate=1000.0), settings=sc.DetectorSettings()) is None
 
 
 def test_rolling_std_keeps_its_digits_on_a_long_log_of_counts() -> None:
@@ -476,7 +476,7 @@ def test_a_streamed_log_keeps_each_blocks_ends_and_reads_a_block_again(
     since is an error naming it."""
     path = tmp_path / "log.csv"
     shutil.copy(session(130_000), path)
-    streamed = logread.scan_log(str(path), ReadSpec(), settings=sc.Settings())
+    streamed = logread.scan_log(str(path), ReadSpec(), settings=sc.DetectorSettings())
     assert streamed is not None
     log, seg = streamed
     assert log.values.shape == (2 * len(seg.blocks), 3)  # not the still readings: their ends
@@ -494,7 +494,7 @@ def test_a_streamed_log_keeps_each_blocks_ends_and_reads_a_block_again(
     with pytest.raises(InputError, match="not as it was when its blocks were found"):
         log.block(first.number, first.first, first.last)
     path.write_bytes(original)
-    streamed = logread.scan_log(str(path), ReadSpec(), settings=sc.Settings())
+    streamed = logread.scan_log(str(path), ReadSpec(), settings=sc.DetectorSettings())
     assert streamed is not None
     log = streamed[0]
     with path.open("ab") as f:  # a log still being written: what was read is there as it was

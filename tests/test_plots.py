@@ -111,7 +111,7 @@ def figures(monkeypatch: pytest.MonkeyPatch) -> list[Figure]:
 def test_rotation_figure_is_a_png_of_the_right_size(tmp_path: Path) -> None:
     path = tmp_path / "rotation.png"
     plots.rotation_figure(
-        str(path), turning(1500, 50.0), plots.Fitted(OFFSET, M, 50.0, units="uT"), title="magnetometer"
+        str(path), turning(1500, 50.0), plots.PlottedCorrection(OFFSET, M, 50.0, units="uT"), title="magnetometer"
     )
     check_png(path, 1200, 1050)
 
@@ -152,7 +152,7 @@ def test_dash_writes_the_png_to_stdout(capsysbinary: pytest.CaptureFixture[bytes
 
 def test_rotation_figure_ellipse_lies_on_a_plane_capture(figures: list[Figure]) -> None:
     raw = turning(20000, 50.0, plane=True)
-    plots.rotation_figure("unused.png", raw, plots.Fitted(OFFSET, M, 50.0, units="uT"))
+    plots.rotation_figure("unused.png", raw, plots.PlottedCorrection(OFFSET, M, 50.0, units="uT"))
     (fig,) = figures
     assert len(fig.axes) == 7  # three planes raw and corrected, and the residuals
     assert all(ax.get_aspect() == 1.0 for ax in fig.axes[:6])
@@ -174,7 +174,9 @@ def test_rotation_figure_of_a_one_plane_capture_draws_that_plane_at_its_own_radi
     heading = np.linspace(0.0, 4 * math.pi, n)
     field = 50.0 * np.stack([0.5 * np.cos(heading), 0.5 * np.sin(heading), np.full(n, math.sqrt(0.75))], axis=1)
     offset = np.array([12.0, -7.0, 0.0])
-    plots.rotation_figure("unused.png", field + offset, plots.Fitted(offset, np.eye(3), 50.0, units="uT"), plane="xy")
+    plots.rotation_figure(
+        "unused.png", field + offset, plots.PlottedCorrection(offset, np.eye(3), 50.0, units="uT"), plane="xy"
+    )
     (fig,) = figures
     assert len(fig.axes) == 3
     raw_axes, corrected_axes, residuals = fig.axes
@@ -193,7 +195,7 @@ def test_rotation_figure_residuals_are_in_percent_with_the_limit(figures: list[F
     raw = turning(3000, 50.0)
     scale = 1.0 + 0.01 * np.sin(np.arange(3000) / 50.0)  # the norm wanders by ±1 %
     corrupted = (raw - OFFSET) * scale[:, None] + OFFSET
-    plots.rotation_figure("unused.png", corrupted, plots.Fitted(OFFSET, M, 50.0, units="uT"), limit=0.75)
+    plots.rotation_figure("unused.png", corrupted, plots.PlottedCorrection(OFFSET, M, 50.0, units="uT"), limit=0.75)
     (fig,) = figures
     residuals = fig.axes[6]
     dots = residuals.get_lines()[1]
@@ -210,7 +212,7 @@ def test_rotation_figure_residuals_are_in_percent_with_the_limit(figures: list[F
 
 @pytest.mark.slow
 def test_rotation_figure_outline_bounds_a_sphere_capture(figures: list[Figure]) -> None:
-    plots.rotation_figure("unused.png", turning(3000, 1.0), plots.Fitted(OFFSET, M, 1.0))
+    plots.rotation_figure("unused.png", turning(3000, 1.0), plots.PlottedCorrection(OFFSET, M, 1.0))
     (fig,) = figures
     for ax in fig.axes[0:6:2]:  # top row: raw
         samples, outline, _ellipse, _offset = ax.get_lines()
@@ -263,22 +265,22 @@ def test_lot_figure_twenty_parameters_in_four_columns(figures: list[Figure]) -> 
 BAD_INPUTS: list[tuple[str, Callable[[str], None], str]] = [
     (
         "rotation-nan",
-        lambda p: plots.rotation_figure(p, np.full((10, 3), np.nan), plots.Fitted(OFFSET, M, 1.0)),
+        lambda p: plots.rotation_figure(p, np.full((10, 3), np.nan), plots.PlottedCorrection(OFFSET, M, 1.0)),
         "raw samples has 30 of 30 values that are not finite",
     ),
     (
         "rotation-singular",
-        lambda p: plots.rotation_figure(p, turning(10, 1.0), plots.Fitted(OFFSET, np.zeros((3, 3)), 1.0)),
+        lambda p: plots.rotation_figure(p, turning(10, 1.0), plots.PlottedCorrection(OFFSET, np.zeros((3, 3)), 1.0)),
         "the calibration matrix is singular",
     ),
     (
         "rotation-reference",
-        lambda p: plots.rotation_figure(p, turning(10, 1.0), plots.Fitted(OFFSET, M, 0.0)),
+        lambda p: plots.rotation_figure(p, turning(10, 1.0), plots.PlottedCorrection(OFFSET, M, 0.0)),
         "reference must be positive",
     ),
     (
         "rotation-empty",
-        lambda p: plots.rotation_figure(p, np.empty((0, 3)), plots.Fitted(OFFSET, M, 1.0)),
+        lambda p: plots.rotation_figure(p, np.empty((0, 3)), plots.PlottedCorrection(OFFSET, M, 1.0)),
         "no samples to plot",
     ),
     ("lot-empty", lambda p: plots.lot_figure(p, []), "no parameters to plot"),

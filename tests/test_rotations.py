@@ -167,8 +167,10 @@ def test_quaternion_integration_is_exact_for_a_constant_rate() -> None:
     np.testing.assert_allclose(rotation_fit.rotate_into(q, np.array([0.0, 0.0, 1.0])), [0.0, 1.0, 0.0], atol=1e-12)
 
 
-def _session_rotations(rng: np.random.Generator, count: int, rate: float) -> tuple[list[rotation_fit.Rotation], Any]:
-    """The rotations of a synthetic session straight into rotation_fit.Rotation (no CSV): true gravity
+def _session_rotations(
+    rng: np.random.Generator, count: int, rate: float
+) -> tuple[list[rotation_fit.RotationReadings], Any]:
+    """The rotations of a synthetic session straight into rotation_fit.RotationReadings (no CSV): true gravity
     directions, the gyroscope as in :func:`synthetic_log`."""
     body, up, rots = np.eye(3), np.array([0.0, 0.0, 1.0]), []
     still = [np.tile(B, (int(2 * rate), 1)) + rng.normal(0, 3.0, (int(2 * rate), 3))]
@@ -180,7 +182,7 @@ def _session_rotations(rng: np.random.Generator, count: int, rate: float) -> tup
         steps = int(rate)
         gyr = np.tile(A @ (np.degrees(angle) * axis) + B, (steps, 1)) + rng.normal(0, 3.0, (steps, 3))
         body = body @ _rotmat(axis, angle)
-        rots.append(rotation_fit.Rotation(gyr, np.full(steps, 1.0 / steps), before, body.T @ up))
+        rots.append(rotation_fit.RotationReadings(gyr, np.full(steps, 1.0 / steps), before, body.T @ up))
         still.append(np.tile(B, (int(2 * rate), 1)) + rng.normal(0, 3.0, (int(2 * rate), 3)))
     return rots, np.concatenate(still).mean(axis=0)
 

@@ -149,7 +149,7 @@ def write_log(path: Path, log: SynthLog, **kw: Any) -> Path:
 
 
 def detect(log: SynthLog, *, with_time: bool = True, **settings: Any) -> blocks.Segmentation:
-    return blocks.detect(log.raw, log.times if with_time else None, None, blocks.Settings(**settings))
+    return blocks.detect(log.raw, log.times if with_time else None, None, blocks.DetectorSettings(**settings))
 
 
 def assert_found(seg: blocks.Segmentation, log: SynthLog, *, coverage: float = 0.8) -> None:
@@ -278,7 +278,7 @@ def test_a_gap_splits_a_still_pose_whatever_the_trim(six_tilted: SynthLog) -> No
     gap = (first + last) // 2
     times = six_tilted.times.copy()
     times[gap:] += 5.0
-    seg = blocks.detect(six_tilted.raw, times, None, blocks.Settings(trim=0.0))
+    seg = blocks.detect(six_tilted.raw, times, None, blocks.DetectorSettings(trim=0.0))
     assert seg.gaps == [gap]
     spans = [(b.first, b.last) for b in seg.blocks]
     for a, b in spans:

@@ -93,9 +93,9 @@ def test_core_with_imucals_angle_is_imucals_matrix(session: Path) -> None:
     def part(label: str, kind: str) -> Any:
         return np.array([[float(r[f"{kind}_{a}"]) for a in "xyz"] for r in rows if r["part"] == label])
 
-    still = turn_fit.Still([part(x, "acc") for x in LABELS], [part(x, "gyr") for x in LABELS])
+    still = turn_fit.FaceReadings([part(x, "acc") for x in LABELS], [part(x, "gyr") for x in LABELS])
     turns = [
-        turn_fit.Turn(
+        turn_fit.KnownTurn(
             part(label, "acc"), part(label, "gyr"), np.eye(3)[k], -360.0, np.full(len(part(label, "gyr")), 1 / 204.8)
         )
         for k, label in enumerate(("x_rot", "y_rot", "z_rot"))
@@ -244,7 +244,7 @@ def test_method_ferraris_turns_without_turns_is_a_usage_error(session: Path) -> 
 
 def synthetic(
     rng: np.random.Generator, rate: float = 200.0, noise: float = 3.0
-) -> tuple[turn_fit.Still, list[turn_fit.Turn]]:
+) -> tuple[turn_fit.FaceReadings, list[turn_fit.KnownTurn]]:
     """A Ferraris session with known A, b, G: 5-s still faces, then 360° about +x, +y, +z in 6 s."""
     still_acc, still_gyr = [], []
     for face in np.vstack([np.eye(3), -np.eye(3)])[[0, 3, 1, 4, 2, 5]]:
@@ -260,8 +260,8 @@ def synthetic(
         up = np.eye(3)[k]
         acc = np.tile(ACC_A @ up + ACC_B, (n, 1)) + rng.normal(0, 2.0, (n, 3))
         gyr = omega @ A.T + B + G @ up + rng.normal(0, noise, (n, 3))
-        turns.append(turn_fit.Turn(acc, gyr, up, 360.0, np.full(n, 1 / rate)))
-    return turn_fit.Still(still_acc, still_gyr), turns
+        turns.append(turn_fit.KnownTurn(acc, gyr, up, 360.0, np.full(n, 1 / rate)))
+    return turn_fit.FaceReadings(still_acc, still_gyr), turns
 
 
 A = np.array([[16.4, 0.15, -0.2], [-0.1, 16.9, 0.25], [0.2, -0.12, 15.9]])  # counts per deg/s, ~1° misaligned

@@ -111,11 +111,11 @@ def align(
       tumblecal align flight.ulg --limits limits.yaml
       tumblecal align flight.ulg --stream sensor_accel:0 --stream sensor_accel:2 --cal a0.json --cal a2.json
     """
-    from tumblecal_cli.core.blocks import Settings
+    from tumblecal_cli.core.blocks import DetectorSettings
     from tumblecal_cli.io.readspec import ReadSpec
     from tumblecal_cli.pipeline import align as alignment
 
-    settings = Settings(window, threshold, min_duration, trim, max_noise)
+    settings = DetectorSettings(window, threshold, min_duration, trim, max_noise)
     spec = ReadSpec(sensor=sensor.value, rate=rate, allow_corrected=allow_corrected)
     request = alignment.AlignRequest(logs, spec, settings, accel_cal, mag_cal, stream or [], cal or [], limits_file)
     alignment.check_outputs(request, output, aligned_mag)

@@ -161,14 +161,14 @@ AllowCorrected = Annotated[
 ]
 
 
-class Source(TypedDict):
+class StreamArguments(TypedDict):
     """The pipeline's keyword arguments for a log's stream (``source``)."""
 
     stream: str | None
     allow_corrected: bool
 
 
-def source(stream: str | None, allow_corrected: bool) -> Source:
+def source(stream: str | None, allow_corrected: bool) -> StreamArguments:
     """--stream and --allow-corrected as the pipeline's keyword arguments."""
     return {"stream": stream, "allow_corrected": allow_corrected}
 

@@ -44,7 +44,7 @@ MISLABELLED = "not its label's face"  # a labelled block whose data points elsew
 
 
 @dataclass(frozen=True)
-class Settings:
+class DetectorSettings:
     """The detector's knobs, as the command line gives them (None: the default)."""
 
     window: float | None = None  # seconds when the time is known, else samples
@@ -329,7 +329,10 @@ def in_samples(value: float | None, default: tuple[float, int], period: float | 
 
 
 def detect(
-    values: FloatArray, times: FloatArray | None = None, rate: float | None = None, settings: Settings = Settings()
+    values: FloatArray,
+    times: FloatArray | None = None,
+    rate: float | None = None,
+    settings: DetectorSettings = DetectorSettings(),
 ) -> Segmentation:
     """Find, judge and label the still blocks of an (n, 3) log (``times`` in seconds)."""
     found, period, breaks = _timing(times, rate)
@@ -375,7 +378,7 @@ def from_labels(
     mapping: Mapping[str, str],
     times: FloatArray | None = None,
     rate: float | None = None,
-    settings: Settings = Settings(),
+    settings: DetectorSettings = DetectorSettings(),
 ) -> Segmentation:
     """Blocks from a label column: each run of one label is a block, its face the label's
     entry in ``mapping`` (labels with none, such as a rotation's, are dropped)."""
@@ -437,7 +440,7 @@ def judge_blocks(
     seg: Segmentation,
     measured: list[Measured],
     spans: list[tuple[int, int]],
-    settings: Settings,
+    settings: DetectorSettings,
     faces: Mapping[int, str | None] | None = None,
     names: Mapping[int, str] | None = None,
 ) -> Segmentation:
@@ -481,7 +484,7 @@ def _label(
     seg: Segmentation,
     measured: list[Measured],
     spans: list[tuple[int, int]],
-    settings: Settings,
+    settings: DetectorSettings,
     faces: Mapping[int, str | None] | None,
     names: Mapping[int, str] | None,
 ) -> None:

@@ -297,7 +297,7 @@ class ParameterRow:
 
 
 @dataclass(frozen=True)
-class Drift:
+class ParameterDrift:
     """How one parameter of a re-calibrated unit moved: latest minus the calibration before it.
     ``limit`` is from ``--max-drift``; for a gain it bounds the relative change
     (``relative`` = change / previous gain), for offsets and cross terms the change itself."""
@@ -345,7 +345,7 @@ def parse_max_drift(text: str | Mapping[str, float] | None) -> dict[str, float]:
     return out
 
 
-def drift(entries: Iterable[Entry], max_drift: dict[str, float]) -> list[Drift]:
+def drift(entries: Iterable[Entry], max_drift: dict[str, float]) -> list[ParameterDrift]:
     """For every (sensor, serial) calibrated at least twice: each parameter both of its last two
     calibrations have, latest minus previous (by ``created``, ties by path). Sorted by serial,
     sensor, then parameter in the report's order."""
@@ -353,7 +353,7 @@ def drift(entries: Iterable[Entry], max_drift: dict[str, float]) -> list[Drift]:
     for e in entries:
         if e.serial is not None:
             history.setdefault((e.sensor, e.serial), []).append(e)
-    out: list[Drift] = []
+    out: list[ParameterDrift] = []
     for (sensor, serial), cals in history.items():
         if len(cals) < 2:
             continue
@@ -368,7 +368,7 @@ def drift(entries: Iterable[Entry], max_drift: dict[str, float]) -> list[Drift]:
             relative = change / before if family == "gain" and before != 0 else None
             measured = abs(relative) if family == "gain" and relative is not None else abs(change)
             out.append(
-                Drift(
+                ParameterDrift(
                     sensor=sensor,
                     serial=serial,
                     previous=previous.path,
@@ -398,7 +398,7 @@ class Report:
     files: int
     units: int
     rows: list[ParameterRow]
-    drift: list[Drift]
+    drift: list[ParameterDrift]
     unreadable: list[tuple[str, str]]
     min_cpk: float | None = None
     duplicates: list[Duplicate] = field(default_factory=list)

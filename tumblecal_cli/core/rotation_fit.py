@@ -27,7 +27,7 @@ MIN_ROTATIONS = 6
 
 
 @dataclass(frozen=True)
-class Rotation:
+class RotationReadings:
     """The raw gyroscope readings between two still blocks, the seconds each stands for, and the
     unit gravity directions (sensor frame) measured in the block before and the block after."""
 
@@ -86,7 +86,7 @@ def rotate_into(q: FloatArray, u: FloatArray) -> FloatArray:
     return out
 
 
-def _residuals(m_flat: FloatArray, rotations: list[Rotation], bias: FloatArray) -> FloatArray:
+def _residuals(m_flat: FloatArray, rotations: list[RotationReadings], bias: FloatArray) -> FloatArray:
     m = m_flat.reshape(3, 3)
     out = []
     for r in rotations:
@@ -95,12 +95,12 @@ def _residuals(m_flat: FloatArray, rotations: list[Rotation], bias: FloatArray) 
     return np.concatenate(out)
 
 
-def _cost(m_flat: FloatArray, rotations: list[Rotation], bias: FloatArray) -> float:
+def _cost(m_flat: FloatArray, rotations: list[RotationReadings], bias: FloatArray) -> float:
     r = _residuals(m_flat, rotations, bias)
     return float(r @ r)
 
 
-def start_scale(rotations: list[Rotation], bias: FloatArray) -> float:
+def start_scale(rotations: list[RotationReadings], bias: FloatArray) -> float:
     """The scalar ``s`` of ``M = s I`` that fits best, on a log grid from 1e-5 to 1e3 then refined:
     the raw units are unknown (counts, mdps, rad/s), and LM needs a start of the right size."""
     grid = np.logspace(-5, 3, 161)
@@ -111,7 +111,7 @@ def start_scale(rotations: list[Rotation], bias: FloatArray) -> float:
     return float(fine[int(np.argmin(costs))])
 
 
-def fit(rotations: list[Rotation], bias: FloatArray) -> RotationsFit:
+def fit(rotations: list[RotationReadings], bias: FloatArray) -> RotationsFit:
     """Levenberg-Marquardt on ``Σ |R(q_k(M))ᵀ u_before - u_after|²`` over the 9 entries of M,
     from :func:`start_scale`, Jacobian by central differences; covariance ``s² (JᵀJ)⁻¹`` with
     ``s²`` the residual variance (the directions' noise is not known per rotation): the squared
@@ -155,7 +155,7 @@ def fit(rotations: list[Rotation], bias: FloatArray) -> RotationsFit:
 
 
 def judged(
-    rotations: list[Rotation], bias: FloatArray, matrix: FloatArray
+    rotations: list[RotationReadings], bias: FloatArray, matrix: FloatArray
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Each rotation under the calibration (bias, M): its angle (degrees), the angle between the
     gravity direction it predicts after it and the one measured (degrees), and its axis."""

@@ -49,9 +49,9 @@ from tumblecal_cli.core.blocks import (
     GAP_FACTOR,
     MIN_DURATION,
     WINDOW,
+    DetectorSettings,
     Measured,
     Segmentation,
-    Settings,
     in_samples,
     judge_blocks,
     smallest,
@@ -80,7 +80,7 @@ PEELS = 4
 
 
 @dataclass
-class Part:
+class ScanPart:
     """Consecutive samples of a log: the index of the first, readings as axes (3, n), and what
     the caller carries with them: floats (n, f) and ints (n, k)."""
 
@@ -92,9 +92,9 @@ class Part:
     def __len__(self) -> int:
         return int(self.axes.shape[1])
 
-    def cut(self, a: int, b: int) -> Part:
+    def cut(self, a: int, b: int) -> ScanPart:
         """Samples ``a``..``b - 1`` of this part (views)."""
-        return Part(self.first + a, self.axes[:, a:b], self.floats[a:b], self.ints[a:b])
+        return ScanPart(self.first + a, self.axes[:, a:b], self.floats[a:b], self.ints[a:b])
 
 
 @dataclass
@@ -155,7 +155,7 @@ class _Store:
         self.runs: list[tuple[int, int]] = []  # (first index, size)
         self.size = 0
 
-    def add(self, part: Part, spread: FloatArray) -> None:
+    def add(self, part: ScanPart, spread: FloatArray) -> None:
         n = len(part)
         if self.readings and (self.axes is None or self.floats is None or self.ints is None):
             self.axes = np.empty((3, self.capacity))
@@ -193,7 +193,7 @@ class _Store:
         """The ``k``-th smallest spread kept below ``bound`` (``segment.smallest``)."""
         return smallest(self.spread[: self.size], k, bound)
 
-    def join(self, template: Part) -> Kept:
+    def join(self, template: ScanPart) -> Kept:
         k = self.size
         first = np.array([r[0] for r in self.runs], dtype=np.int64)
         size = np.array([r[1] for r in self.runs], dtype=np.int64)
@@ -207,14 +207,18 @@ class Scan:
     """Feed a log's blocks in order (``feed``), then ``finish``."""
 
     def __init__(
-        self, period: float | None, settings: Settings | None = None, capacity: int = 1 << 16, readings: bool = True
+        self,
+        period: float | None,
+        settings: DetectorSettings | None = None,
+        capacity: int = 1 << 16,
+        readings: bool = True,
     ) -> None:
         """``period``: seconds per sample from the log's first blocks (the median step there),
         or 1/rate; None when neither is known (the window is then in samples). ``capacity``:
         how many samples the log may have, about (room for the kept ones is made once).
         ``readings``: keep the still samples' readings (and what goes with them), not their
         spreads alone; without them ``finish`` is given what measures the blocks."""
-        settings = self.settings = settings or Settings()
+        settings = self.settings = settings or DetectorSettings()
         self.period = period
         self.window = in_samples(settings.window, WINDOW, period, 2)
         self.min_samples = in_samples(settings.min_duration, MIN_DURATION, period, 1)
@@ -222,15 +226,15 @@ class Scan:
         self.reach = self.window // 2
         self.pad = max(0, self.reach - self.trim) + 1  # neighbours kept each side of a candidate
         self.n = 0  # samples fed
-        self.carry: Part | None = None  # the last window - 1 samples: the windows that go on
+        self.carry: ScanPart | None = None  # the last window - 1 samples: the windows that go on
         self.finalized = 0  # samples whose spread is known
         self.tail_spread = 0.0  # the spread of the last whole window so far
-        self.held: list[Part] = []  # samples with a spread, waiting for their neighbours' verdict
+        self.held: list[ScanPart] = []  # samples with a spread, waiting for their neighbours' verdict
         self.held_spread = np.zeros(0)
         self.held_candidate = np.zeros(0, dtype=bool)
         self.before = np.zeros(0, dtype=bool)  # candidate flags of the pad samples decided last
         self.store = _Store(capacity, readings)
-        self.template: Part | None = None
+        self.template: ScanPart | None = None
         # a given threshold is the bound, and a little over it: a spread on it must be seen (finish's tie)
         self.bound = np.inf if settings.threshold is None else float(settings.threshold) * (1 + MARGIN)
         self.least_bound = self.bound  # the lowest bound any sample was judged by
@@ -265,7 +269,7 @@ class Scan:
         if every.size:
             np.minimum(self.lo, every.min(axis=0), out=self.lo)
             np.maximum(self.hi, every.max(axis=0), out=self.hi)
-        part = Part(self.n, values.T, floats, ints)
+        part = ScanPart(self.n, values.T, floats, ints)
         self.n += m
         if self.template is None:
             self.template = part.cut(0, 0)
@@ -316,7 +320,7 @@ class Scan:
                 found[0] = before_block
             self.gap_ints.append(found)
 
-    def _take(self, done: list[Part], spread: FloatArray) -> None:
+    def _take(self, done: list[ScanPart], spread: FloatArray) -> None:
         """Samples whose spread is now known: candidates are those below the bound in force."""
         self.least_bound = min(self.least_bound, self.bound)
         self.held += [p for p in done if len(p)]
@@ -353,7 +357,7 @@ class Scan:
                 at += len(piece)
         self.before = self.held_candidate[max(0, ready - self.pad) : ready]
         rest = _between(held, first + ready, first + size)
-        self.held = [Part(p.first, p.axes.copy(), p.floats.copy(), p.ints.copy()) for p in rest]  # not the block
+        self.held = [ScanPart(p.first, p.axes.copy(), p.floats.copy(), p.ints.copy()) for p in rest]  # not the block
         self.held_spread = self.held_spread[ready:].copy()
         self.held_candidate = self.held_candidate[ready:].copy()
 
@@ -511,14 +515,14 @@ def _rank(n: int) -> int:
     return min(n - 1, max(0, round(FLOOR_PERCENTILE / 100 * (n - 1))))
 
 
-def _join(parts: Sequence[Part | None]) -> Part:
+def _join(parts: Sequence[ScanPart | None]) -> ScanPart:
     """Consecutive parts as one (a copy, unless there is one)."""
-    found: list[Part] = [p for p in parts if p is not None and len(p)]
+    found: list[ScanPart] = [p for p in parts if p is not None and len(p)]
     if not found:
         return next(p for p in parts if p is not None)
     if len(found) == 1:
         return found[0]
-    return Part(
+    return ScanPart(
         found[0].first,
         np.concatenate([p.axes for p in found], axis=1),
         np.concatenate([p.floats for p in found]),
@@ -526,7 +530,7 @@ def _join(parts: Sequence[Part | None]) -> Part:
     )
 
 
-def _between(parts: Sequence[Part | None], first: int, end: int) -> list[Part]:
+def _between(parts: Sequence[ScanPart | None], first: int, end: int) -> list[ScanPart]:
     """The samples of consecutive ``parts`` whose log index is ``first`` .. ``end - 1`` (views)."""
     out = []
     for p in parts:

@@ -29,7 +29,7 @@ ANGLE_TOLERANCE = 0.25
 
 
 @dataclass(frozen=True)
-class Still:
+class FaceReadings:
     """The readings of the six faces, +x -x +y -y +z -z in that order: (n_i, 3) each."""
 
     acc: list[FloatArray]
@@ -37,7 +37,7 @@ class Still:
 
 
 @dataclass(frozen=True)
-class Turn:
+class KnownTurn:
     """One known turn: its readings, the axis it turns about (unit (3,)), the right-hand angle
     (degrees), and the seconds each sample stands for ((n,): 1/rate, or the time to the next)."""
 
@@ -98,7 +98,7 @@ def plausible_angles(integrated: FloatArray, axes: FloatArray, angles: FloatArra
     return out
 
 
-def ferraris(still: Still, turns: list[Turn]) -> TurnsFit:
+def ferraris(still: FaceReadings, turns: list[KnownTurn]) -> TurnsFit:
     """Bias, g-sensitivity and ``A`` from the six faces and the turns (Ferraris, imucal's order).
 
     - ``b``: the mean of every still sample (imucal ``b_g``; the Earth's rate is ignored).
@@ -150,7 +150,9 @@ def ferraris(still: Still, turns: list[Turn]) -> TurnsFit:
     )
 
 
-def _variance(still: Still, turns: list[Turn], gravity: FloatArray, pinv: FloatArray, noise: FloatArray) -> FloatArray:
+def _variance(
+    still: FaceReadings, turns: list[KnownTurn], gravity: FloatArray, pinv: FloatArray, noise: FloatArray
+) -> FloatArray:
     """The variance of each element of ``A = W Θ⁺`` from white noise ``σ_i`` per axis. Each face
     mean ``m_f`` errs by ``σ/√n_f``; ``b`` is their sample-weighted mean and ``G e_j`` half the
     +j face less the -j face, so ``δW_k = -T_k Σ_f c_kf δm_f + ε_k`` with ``T_k`` the turn's

@@ -200,7 +200,7 @@ def orientations(directions: FloatArray) -> int:
     return len(seen)
 
 
-def _settings(settings: blocks.Settings, offset: FloatArray | None) -> blocks.Settings:
+def _settings(settings: blocks.DetectorSettings, offset: FloatArray | None) -> blocks.DetectorSettings:
     return replace(settings, max_tilt_deg=180.0, nominal_offset=offset)  # any orientation is a still block
 
 
@@ -216,7 +216,7 @@ def mag_to_accel(
     accel_cal: str,
     mag_cal: str | Calibration,
     spec: ReadSpec,
-    settings: blocks.Settings,
+    settings: blocks.DetectorSettings,
     max_spool: int | str | None = None,
     accel_flag: str = "--accel-cal",
 ) -> MagAligned:
@@ -359,7 +359,7 @@ def imus(
     spec: ReadSpec,
     streams: list[str],
     cals: list[str],
-    settings: blocks.Settings,
+    settings: blocks.DetectorSettings,
     limits: str | None = None,
 ) -> ImusAligned:
     """Two or three IMUs (``imu_streams``), each corrected by its calibration in ``cals`` (in
@@ -563,7 +563,7 @@ class AlignRequest:
 
     logs: list[str]
     spec: ReadSpec
-    settings: blocks.Settings
+    settings: blocks.DetectorSettings
     accel_cal: str | None = None
     mag_cal: str | None = None
     streams: list[str] = field(default_factory=list)

@@ -39,7 +39,7 @@ class Place:
 
 
 @dataclass(frozen=True)
-class Source:
+class ReferenceSource:
     """Where a reference came from: its ``key`` in the calibration file (``gravity`` or
     ``earth_field``) and the part itself."""
 
@@ -104,7 +104,7 @@ class Asked:
     reference: float | None = None
 
 
-def resolve(options: SolveOptions, stream_units: str | None) -> tuple[SolveOptions, Source | None]:
+def resolve(options: SolveOptions, stream_units: str | None) -> tuple[SolveOptions, ReferenceSource | None]:
     """solve's reference of --location, --gravity and --date (``stream_units``: the units of a
     log's stream, m/s^2 or gauss), in the calibration's units, and where it came from; the
     options unchanged when none is given."""
@@ -116,7 +116,7 @@ def resolve(options: SolveOptions, stream_units: str | None) -> tuple[SolveOptio
     return replace(options, reference=reference, units=units), source
 
 
-def local_reference(asked: Asked) -> tuple[float, str, Source] | None:
+def local_reference(asked: Asked) -> tuple[float, str, ReferenceSource] | None:
     """The reference, its units and its source of --location, --gravity and --date (None: none given)."""
     given = [f for f, v in (("--location", asked.location), ("--gravity", asked.gravity)) if v is not None]
     sensor = asked.sensor
@@ -143,7 +143,7 @@ def local_reference(asked: Asked) -> tuple[float, str, Source] | None:
     )
 
 
-def _gravity(asked: Asked) -> tuple[float, str, Source]:
+def _gravity(asked: Asked) -> tuple[float, str, ReferenceSource]:
     if asked.date is not None:
         raise InputError("--date is for a magnetometer's Earth field; gravity does not change with the date")
     units = asked.units or ("m/s^2" if asked.stream_units in ACCEL and asked.stream_units != "g" else "g")
@@ -172,10 +172,10 @@ def _gravity(asked: Asked) -> tuple[float, str, Source]:
             "value_m_s2": value,
             "source": "WGS-84 normal gravity, NIMA TR8350.2 Eqs. 4-1 and 4-3",
         }
-    return value / ACCEL[units], units, Source("gravity", part)
+    return value / ACCEL[units], units, ReferenceSource("gravity", part)
 
 
-def _field(asked: Asked) -> tuple[float, str, Source]:
+def _field(asked: Asked) -> tuple[float, str, ReferenceSource]:
     if asked.date is None:
         raise InputError(
             "--location gives a magnetometer the Earth's field of the World Magnetic Model on a date: give --date "
@@ -206,10 +206,10 @@ def _field(asked: Asked) -> tuple[float, str, Source]:
         "down_nT": round(f.down, 1),
         "source": "World Magnetic Model WMM2025 (NOAA NCEI and BGS)",
     }
-    return f.total * 1e-5 / MAG[units], units, Source("earth_field", part)  # nT to gauss, gauss to the units
+    return f.total * 1e-5 / MAG[units], units, ReferenceSource("earth_field", part)  # nT to gauss, gauss to the units
 
 
-def stamp(cal: Calibration | None, source: Source | None) -> Calibration | None:
+def stamp(cal: Calibration | None, source: ReferenceSource | None) -> Calibration | None:
     """``cal`` with where its reference came from, after its ``input_units``."""
     if cal is None or source is None:
         return cal

@@ -35,7 +35,7 @@ def solve_plot(path: str, solved: Solved, plane: str | None = None) -> None:
     limits = solved.limits.for_method(cal.method) if solved.limits is not None else None
     residual = None if limits is None else limits.residual
     if cal.method in methods.ROTATION:
-        fitted = plots.Fitted(cal.offset, cal.matrix, cal.reference, cal.units)
+        fitted = plots.PlottedCorrection(cal.offset, cal.matrix, cal.reference, cal.units)
         plots.rotation_figure(path, np.concatenate(raw), fitted, title=title, plane=plane, limit=residual)
         return
     samples = raw if len(raw) == len(cal.poses) else [None] * len(cal.poses)
@@ -47,7 +47,7 @@ def solve_plot(path: str, solved: Solved, plane: str | None = None) -> None:
     ]
     tilt = cal.tilt_sensitivity
     bounds = fitplots.Bounds(residual, tilt.tolerance_deg if tilt is not None else None)
-    fitted = plots.Fitted(cal.offset, cal.matrix, cal.reference, cal.units)
+    fitted = plots.PlottedCorrection(cal.offset, cal.matrix, cal.reference, cal.units)
     fitplots.poses_figure(path, poses, fitted, bounds, _before(cal, solved.limits), sensor=cal.sensor, title=title)
 
 
@@ -88,7 +88,7 @@ def verify_plot(path: str, done: Verified) -> None:
     """``verify --plot``: each capture's (or row's) norm error after, with --max-norm-error, and
     before on its own axes."""
     rows = [
-        fitplots.Checked(
+        fitplots.VerifiedCapture(
             r["file"], r["error_after"], float(max(r["std"])), r["samples"], r["error_before"], r["file"] in done.failed
         )
         for r in done.rows

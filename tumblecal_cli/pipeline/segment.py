@@ -74,7 +74,7 @@ def segmented(
     *,
     pose_column: str | None,
     pose_map: Mapping[str, str] | str | None,
-    settings: seg_core.Settings,
+    settings: seg_core.DetectorSettings,
     digest: bool = True,
     whole: bool = False,
     max_spool: int | str | None = None,
@@ -150,7 +150,7 @@ def find_blocks(
     rate: float | None,
     pose_column: str | None,
     pose_map: Mapping[str, str] | str | None,
-    settings: seg_core.Settings,
+    settings: seg_core.DetectorSettings,
 ) -> Segmentation:
     """The blocks of a log read in: by the detector, or by its label column."""
     seconds = None if rate else log.seconds()
@@ -166,7 +166,7 @@ def find_blocks(
     return review(log, seg, rate, settings)
 
 
-def review(log: Log, seg: Segmentation, rate: float | None, settings: seg_core.Settings) -> Segmentation:
+def review(log: Log, seg: Segmentation, rate: float | None, settings: seg_core.DetectorSettings) -> Segmentation:
     """Notes on how the log's time was read, and exit 2 for a log whose time scale is wrong
     (hundreds of blocks of one or two samples)."""
     seconds = log.clock is not None and not rate
@@ -210,7 +210,7 @@ def _blocks_of(
     rate: float | None,
     pose_column: str | None,
     pose_map: Mapping[str, str] | str | None,
-    settings: seg_core.Settings,
+    settings: seg_core.DetectorSettings,
 ) -> Segmentation:
     if pose_column is None:
         return seg_core.detect(log.values, seconds, rate, settings)
@@ -618,7 +618,7 @@ def _segment(
             raise InputError(f"{option} must be positive, got {value:g}")
     if out_dir is not None and os.path.exists(out_dir) and not os.path.isdir(out_dir):
         raise InputError("is a file, not a folder: --out-dir takes a folder", file=out_dir)
-    settings = seg_core.Settings(
+    settings = seg_core.DetectorSettings(
         window=options.get("window"),
         threshold=options.get("threshold"),
         min_duration=options.get("min_duration"),

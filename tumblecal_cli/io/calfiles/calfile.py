@@ -38,7 +38,7 @@ from tumblecal_cli.io.calfiles.calparts import (
     Pose,
     Residuals,
     Rotation,
-    Segmentation,
+    SegmentationPart,
     Thermal,
     Tilt,
     Turn,
@@ -84,7 +84,7 @@ __all__ = [  # the parts, for code that names them as calfile's
     "Pose",
     "Residuals",
     "Rotation",
-    "Segmentation",
+    "SegmentationPart",
     "Thermal",
     "Tilt",
     "Turn",
@@ -163,7 +163,7 @@ class Calibration:
     coverage: float | None = None  # 0-1, the share of directions with a sample near them
     coverage_gaps: tuple[Gap, ...] | None = None  # the directions without (a turned capture's)
     residuals: Residuals | None = None
-    segmentation: Segmentation | None = None
+    segmentation: SegmentationPart | None = None
     turns: tuple[Turn, ...] | None = None
     g_sensitivity: GSensitivity | None = None
     rotations: tuple[Rotation, ...] | None = None
@@ -467,7 +467,7 @@ class Made:
     ``segmentation`` of a continuous log, a gyroscope's known ``turns`` and ``g_sensitivity``,
     or its hand ``rotations``."""
 
-    segmentation: Segmentation | None = None
+    segmentation: SegmentationPart | None = None
     turns: Sequence[Turn] | None = None
     g_sensitivity: GSensitivity | None = None
     rotations: Sequence[Rotation] | None = None

@@ -339,7 +339,7 @@ def read_covariance(raw: Doc) -> Covariance | None:
 
 
 @dataclass(frozen=True, eq=False)
-class Segmentation(Part):
+class SegmentationPart(Part):
     """``segmentation``: how the poses were found in a continuous log (docs/reference/calibration-file.md):
     the ``log``, its ``sha256``, the ``source`` of the blocks (``detector`` or ``label column``)
     and, where the detector ran, its settings and counts."""
@@ -387,8 +387,8 @@ class Segmentation(Part):
         return (*keys, *(k for k in self.extra if k not in typed))
 
 
-def read_segmentation(raw: Doc) -> Segmentation:
-    seg = Segmentation(
+def read_segmentation(raw: Doc) -> SegmentationPart:
+    seg = SegmentationPart(
         named(raw.get("log")),
         text(raw.get("sha256")),
         text(raw.get("source")),

@@ -7,7 +7,7 @@ each block until the end): 3.5 GB for 20 million rows. Here a regular file of pl
 temperature cells parsed where they lie, and fed in order to ``core.scan.Scan``, which keeps
 the spreads of the still periods' readings only (8 bytes each); the worker threads sum each
 CHUNK readings (``core.chunks``). At the end each block's statistics are merged from those sums
-and from the few chunks where it or its third begins or ends, read again (``_Source``). What is
+and from the few chunks where it or its third begins or ends, read again (``_ScannedFile``). What is
 returned is a ``readings.Log`` of each block's first and last reading (its row, time and line's
 place in the file, so that ``segment`` copies the blocks' lines as they are); a block's
 readings are read again when they are asked for (``Log.block``), and a file that is not as it
@@ -36,7 +36,7 @@ import numpy as np
 
 from tumblecal_cli.core import model
 from tumblecal_cli.core.arrays import BoolArray, FloatArray, IntArray
-from tumblecal_cli.core.blocks import Measured, Segmentation, Settings, clock_of, sample_period, window_spread
+from tumblecal_cli.core.blocks import DetectorSettings, Measured, Segmentation, clock_of, sample_period, window_spread
 from tumblecal_cli.core.chunks import CHUNK, Chunks, Moments, Part, chunk_sums, moments
 from tumblecal_cli.core.scan import Kept, Scan
 from tumblecal_cli.errors import InputError
@@ -75,7 +75,7 @@ class _Plain(Exception):
 
 
 def scan_log(
-    path: str, spec: ReadSpec, *, settings: Settings, name: str | None = None, digest: bool = True
+    path: str, spec: ReadSpec, *, settings: DetectorSettings, name: str | None = None, digest: bool = True
 ) -> tuple[Log, Segmentation] | None:
     """The log at ``path`` (a regular file) read by ``spec``, and its still blocks found by
     ``core.scan``, or None when it is to be read whole (the module's docstring). With
@@ -103,7 +103,7 @@ def _scan(
     lay: sniff.Layout,
     splicer: Splicer,
     where: list[int],
-    settings: Settings,
+    settings: DetectorSettings,
     time_unit: str,
     rate: float | None,
     digest: bool,
@@ -113,7 +113,7 @@ def _scan(
         if hasher is not None:
             with open(path, "rb") as f:
                 hasher.update(f.read(len(lay.head)))
-        source = _Source(path, lay, splicer, where)
+        source = _ScannedFile(path, lay, splicer, where)
         feeder = _Feeder(lay, settings, time_unit, rate, source)
         for block in _blocks(path, lay, splicer, where, hasher, feeder.shared):
             feeder.check(block)
@@ -178,7 +178,7 @@ class _End:
 
 
 @dataclass(frozen=True)
-class _Read:
+class _ReadAgain:
     """Readings read again from a stretch of whole lines: each one's line among them (from 0)
     and its line's first byte and end in the file."""
 
@@ -190,7 +190,7 @@ class _Read:
     stops: IntArray
 
 
-class _Source:
+class _ScannedFile:
     """The log's file, read again where the scan kept nothing: the chunks where a block or its
     third begins or ends, and a block's lines when its readings are asked for. A file that is
     not the one scanned (its inode, or its size and time) is not read: at the end of the scan
@@ -203,7 +203,7 @@ class _Source:
         self.size = st.st_size
         self.stamp = (st.st_size, st.st_mtime_ns, st.st_ino)
 
-    def read(self, ranges: list[tuple[int, int]], counts: IntArray, each: Callable[[int, _Read], None]) -> None:
+    def read(self, ranges: list[tuple[int, int]], counts: IntArray, each: Callable[[int, _ReadAgain], None]) -> None:
         """The readings of each stretch of lines (its first byte and end), ``counts`` of them,
         given to ``each`` with the stretch's index as they are parsed (a block of them at a
         time, on a pool of threads): none is held longer."""
@@ -241,7 +241,7 @@ class _Source:
         if st.st_ino != inode or st.st_size < size or (st.st_size == size and st.st_mtime_ns != mtime):
             raise _Plain
 
-    def _parse(self, batch: list[tuple[int, int, int | None, bytes]]) -> list[_Read]:
+    def _parse(self, batch: list[tuple[int, int, int | None, bytes]]) -> list[_ReadAgain]:
         """Each stretch's readings (its first byte, end, how many readings it holds when that is
         known, and its text), parsed together."""
         texts = [text if text.endswith(b"\n") else text + self.splicer.eol for *_, text in batch]
@@ -261,14 +261,14 @@ class _Source:
             cells = parsed[line : line + k][keep]
             clock = cells[:, 3] if self.timed else None
             temp = cells[:, 3 + self.timed] if self.warm else None
-            out.append(_Read(cells[:, :3], clock, temp, keep, starts[keep], stops[keep]))
+            out.append(_ReadAgain(cells[:, :3], clock, temp, keep, starts[keep], stops[keep]))
             line, offset = line + k, offset + len(text)
         return out
 
     def block(self, start: int, stop: int, count: int) -> Stretch:
         """The ``count`` readings of a block's lines (its first byte and end), read in pieces of
         whole lines."""
-        read: list[_Read] = []
+        read: list[_ReadAgain] = []
         at = start
         try:
             with open(self.path, "rb") as f:
@@ -370,7 +370,9 @@ class _Feeder:
     """The blocks into a Scan: judged first (what the streaming path does not take), held until
     the first FIRST readings give the time unit and the period."""
 
-    def __init__(self, lay: sniff.Layout, settings: Settings, time_unit: str, rate: float | None, source: _Source):
+    def __init__(
+        self, lay: sniff.Layout, settings: DetectorSettings, time_unit: str, rate: float | None, source: _ScannedFile
+    ):
         self.lay, self.settings, self.time_unit, self.rate = lay, settings, time_unit, rate
         self.source, self.size = source, source.size
         self.scan: Scan | None = None
@@ -464,7 +466,7 @@ class _Feeder:
         need = sorted(wanted.keys() | ends.keys())
         parts: dict[Part, Moments] = {}
 
-        def take(c: int, r: _Read) -> None:  # on a parsing thread: the GIL keeps each entry whole
+        def take(c: int, r: _ReadAgain) -> None:  # on a parsing thread: the GIL keeps each entry whole
             for lo, hi in wanted.get(c, []):
                 parts[(c, lo, hi)] = moments(r.values[lo : hi + 1])
             for j, p in ends.get(c, []):

@@ -26,7 +26,7 @@ from tumblecal_cli.io.figures.plots import (
     AFTER,
     BEFORE,
     FIT,
-    Fitted,
+    PlottedCorrection,
     checked_array,
     checked_number,
     new_figure,
@@ -125,7 +125,7 @@ class _Residuals:
 def poses_figure(
     path: str,
     poses: list[PoseData],
-    fitted: Fitted,
+    fitted: PlottedCorrection,
     bounds: Bounds,
     before: Before,
     *,
@@ -326,7 +326,7 @@ def _sphere_axes(fig: Figure, ax: Axes, corrected: FloatArray, residual: FloatAr
 
 
 @dataclass(frozen=True)
-class Checked:
+class VerifiedCapture:
     """One capture (or row) of verify: its norm error after calibration (output units), its
     largest corrected standard deviation, its samples, its error before (None: the raw units
     are not the output's) and whether it failed --max-norm-error."""
@@ -339,7 +339,9 @@ class Checked:
     failed: bool = False
 
 
-def verify_figure(path: str, rows: list[Checked], limit: float | None, scale: Scale, *, title: str = "") -> None:
+def verify_figure(
+    path: str, rows: list[VerifiedCapture], limit: float | None, scale: Scale, *, title: str = ""
+) -> None:
     """``verify --plot``: each capture's norm error after calibration with 1σ of its mean (dark)
     and ±1 standard deviation of its samples (light), the failing ones red, ±``limit`` dashed;
     below it, the error before on its own axes (where the raw units are the output's)."""

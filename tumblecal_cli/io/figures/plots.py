@@ -73,7 +73,7 @@ class Histogram:
 
 
 @dataclass(frozen=True)
-class Fitted:
+class PlottedCorrection:
     """A calibration's correction as a figure shows it: ``corrected = matrix · (raw − offset)``
     against ``reference``, in ``units``."""
 
@@ -84,7 +84,13 @@ class Fitted:
 
 
 def rotation_figure(
-    path: str, raw: FloatArray, fitted: Fitted, *, title: str = "", plane: str | None = None, limit: float | None = None
+    path: str,
+    raw: FloatArray,
+    fitted: PlottedCorrection,
+    *,
+    title: str = "",
+    plane: str | None = None,
+    limit: float | None = None,
 ) -> None:
     """A turning capture in the xy, xz and yz planes: the raw samples with the fitted ellipse
     (top), the corrected samples with the circle of radius ``reference`` (middle); and each

@@ -88,7 +88,7 @@ _NAME = re.compile(r"[A-Za-z0-9_]{1,4}")
 
 
 @dataclass(frozen=True)
-class Part:
+class DataflashSensor:
     """One sensor a message carries: its three columns and their units."""
 
     sensor: str
@@ -98,14 +98,14 @@ class Part:
 
 #: The messages read, and the sensors each carries (units: LogStructure.h's "o" m/s/s, "E" rad/s,
 #: and "G" gauss with multiplier "C" 1e-3 for MAG).
-PARTS: dict[str, tuple[Part, ...]] = {
+PARTS: dict[str, tuple[DataflashSensor, ...]] = {
     "IMU": (
-        Part("accelerometer", ("AccX", "AccY", "AccZ"), "m/s^2"),
-        Part("gyroscope", ("GyrX", "GyrY", "GyrZ"), "rad/s"),
+        DataflashSensor("accelerometer", ("AccX", "AccY", "AccZ"), "m/s^2"),
+        DataflashSensor("gyroscope", ("GyrX", "GyrY", "GyrZ"), "rad/s"),
     ),
-    "ACC": (Part("accelerometer", ("AccX", "AccY", "AccZ"), "m/s^2"),),
-    "GYR": (Part("gyroscope", ("GyrX", "GyrY", "GyrZ"), "rad/s"),),
-    "MAG": (Part("magnetometer", ("MagX", "MagY", "MagZ"), "mGauss"),),
+    "ACC": (DataflashSensor("accelerometer", ("AccX", "AccY", "AccZ"), "m/s^2"),),
+    "GYR": (DataflashSensor("gyroscope", ("GyrX", "GyrY", "GyrZ"), "rad/s"),),
+    "MAG": (DataflashSensor("magnetometer", ("MagX", "MagY", "MagZ"), "mGauss"),),
 }
 #: Older logs' message names for an instance: IMU2 is IMU:1; ACC1 is ACC:0 (LOG_ACC1_MSG + instance).
 _OLD = re.compile(r"(IMU|MAG)([23])|(ACC|GYR)([123])")
@@ -156,7 +156,7 @@ class Format:
 
 
 @dataclass
-class Source:
+class DataflashStream:
     """The messages of one stream: its name and instance, the message logged (``IMU2``), its
     format, and where each message starts (a binary log's first header byte; a text log's line)."""
 
@@ -168,18 +168,18 @@ class Source:
 
 
 #: How a form of the log gathers columns of a stream's messages (a text log's lines that do not parse: NaN).
-Gather = Callable[[str, Source, list[str]], dict[str, FloatArray]]
-#: How a form of the log is walked into its Index.
-Walker = Callable[[str], "Index"]
+Gather = Callable[[str, DataflashStream, list[str]], dict[str, FloatArray]]
+#: How a form of the log is walked into its DataflashIndex.
+Walker = Callable[[str], "DataflashIndex"]
 
 
 @dataclass
-class Index:
+class DataflashIndex:
     """A log walked once: its streams' messages, the parameters logged (each one's first and last
     value), its sha256, the notes of what was skipped, and how its columns are gathered (None: a
     binary log's, by ``binary_fields``; the text form's parses its lines)."""
 
-    sources: list[Source]
+    sources: list[DataflashStream]
     params: dict[str, tuple[float, float]]
     sha256: str
     notes: list[str]
@@ -187,7 +187,7 @@ class Index:
 
 
 @dataclass
-class _Walk:
+class _BinaryWalk:
     """The state of one walk through a binary log: the formats seen, each type's message length,
     the places of the wanted types, what was skipped, and whether it is looking for the next
     message after bytes that are no message (``lost``: since which byte, and what they began with)."""
@@ -255,10 +255,10 @@ class DataflashReader:
 
 READER = DataflashReader()
 #: The walks kept (a command lists a log's streams, then reads one: one walk for both).
-_CACHE: list[tuple[tuple[str, int, int, int], Index]] = []
+_CACHE: list[tuple[tuple[str, int, int, int], DataflashIndex]] = []
 
 
-def index(path: str, walker: Walker | None = None) -> Index:
+def index(path: str, walker: Walker | None = None) -> DataflashIndex:
     """``path`` walked once (kept while the file's size and time are the same), by ``walker``
     (None: as a binary log)."""
     st = os.stat(path)
@@ -271,10 +271,10 @@ def index(path: str, walker: Walker | None = None) -> Index:
     return found
 
 
-def _walk_file(path: str) -> Index:
+def _walk_file(path: str) -> DataflashIndex:
     """Every message of the log stepped over once; the wanted types' messages placed."""
     digest = hashlib.sha256()
-    walk = _Walk(path)
+    walk = _BinaryWalk(path)
     base, carry = 0, b""
     with open(path, "rb") as f:
         while block := f.read(CHUNK):
@@ -283,10 +283,10 @@ def _walk_file(path: str) -> Index:
             pos = _step(walk, buf, base)
             carry, base = buf[pos:], base + pos
     _end(walk, carry, base)
-    return Index(_sources(path, walk), _params(path, walk), digest.hexdigest(), walk.notes)
+    return DataflashIndex(_sources(path, walk), _params(path, walk), digest.hexdigest(), walk.notes)
 
 
-def _step(walk: _Walk, buf: bytes, base: int) -> int:
+def _step(walk: _BinaryWalk, buf: bytes, base: int) -> int:
     """Step over the whole messages of ``buf`` (its first byte at ``base`` in the file), keeping
     the places of the wanted ones; returns where the first message not wholly in ``buf`` (or the
     bytes where a header may start) begins."""
@@ -312,7 +312,7 @@ def _step(walk: _Walk, buf: bytes, base: int) -> int:
 
 
 def _chain(
-    walk: _Walk, buf: bytes, base: int, at: NDArray[np.int64], ends: NDArray[np.int64], nxt: NDArray[np.int64]
+    walk: _BinaryWalk, buf: bytes, base: int, at: NDArray[np.int64], ends: NDArray[np.int64], nxt: NDArray[np.int64]
 ) -> tuple[list[tuple[int, int]], int]:
     """The messages of ``buf`` one after the other, from where the last buffer's left off, as runs
     of the known headers ``at`` (index ranges): each message's successor is the header where it
@@ -358,12 +358,12 @@ def _what(head: bytes) -> str:
     return "bytes that are no message"
 
 
-def _seen(walk: _Walk, stretch: bytes) -> None:
+def _seen(walk: _BinaryWalk, stretch: bytes) -> None:
     if walk.zeros and stretch.strip(b"\0") and stretch.strip(b"\xff"):
         walk.zeros = False
 
 
-def _found(walk: _Walk, at: int) -> None:
+def _found(walk: _BinaryWalk, at: int) -> None:
     """The next message after bytes that are no message: the stretch noted as skipped."""
     assert walk.lost is not None
     start, what = walk.lost
@@ -371,7 +371,7 @@ def _found(walk: _Walk, at: int) -> None:
     walk.lost = None
 
 
-def _end(walk: _Walk, carry: bytes, base: int) -> None:
+def _end(walk: _BinaryWalk, carry: bytes, base: int) -> None:
     """The log's last bytes (a message cut short, or bytes that are no message); then the notes."""
     if walk.lost is not None:
         _seen(walk, carry)
@@ -400,7 +400,7 @@ def _end(walk: _Walk, carry: bytes, base: int) -> None:
         walk.notes.append(f"an FMT redefines {', '.join(sorted(walk.redefined))}: the first definition read")
 
 
-def _sources(path: str, walk: _Walk) -> list[Source]:
+def _sources(path: str, walk: _BinaryWalk) -> list[DataflashStream]:
     """The streams' messages: each wanted type's places, split by their ``I`` field where the
     format has one."""
     out = []
@@ -424,16 +424,16 @@ def split(
     fmt: Format,
     places: NDArray[np.int64],
     fields: dict[str, tuple[str, int]],
-) -> list[Source]:
+) -> list[DataflashStream]:
     """A type's messages as the streams they are: one per value of the ``I`` field (binary)."""
     name, instance = stream
     if instance is not None or "I" not in fields:
-        return [Source(name, instance or 0, fmt.name, fmt, places)]
+        return [DataflashStream(name, instance or 0, fmt.name, fmt, places)]
     which = gather(path, places, fields, ["I"])["I"].astype(np.int64)
-    return [Source(name, int(k), fmt.name, fmt, places[which == k]) for k in np.unique(which).tolist()]
+    return [DataflashStream(name, int(k), fmt.name, fmt, places[which == k]) for k in np.unique(which).tolist()]
 
 
-def _params(path: str, walk: _Walk) -> dict[str, tuple[float, float]]:
+def _params(path: str, walk: _BinaryWalk) -> dict[str, tuple[float, float]]:
     """Each parameter's first and last value in the log's PARM messages."""
     kinds = [k for k in walk.places if walk.formats[k].name == "PARM"]
     if not kinds:
@@ -519,7 +519,7 @@ def calibration(
     return got, plain and not tcal
 
 
-def _base(found: Index, src: Source) -> int:
+def _base(found: DataflashIndex, src: DataflashStream) -> int:
     """The sensor an ACC or GYR instance is of: with INS_RAW_LOG_OPT bit 3 (pre and post filter)
     instances from the sensor count on are the post-filter copies (AP_InertialSensor_Backend.cpp,
     log_accel_raw: ``instance + _accel_count``)."""
@@ -530,7 +530,7 @@ def _base(found: Index, src: Source) -> int:
     return src.instance - count if count and src.instance >= count else src.instance
 
 
-def _state(found: Index, src: Source, sensor: str) -> tuple[bool, str]:
+def _state(found: DataflashIndex, src: DataflashStream, sensor: str) -> tuple[bool, str]:
     """Whether ArduPilot had corrected ``sensor`` in ``src``, and how that is told."""
     base = _base(found, src)
     _, plain = calibration(found.params, sensor, base)
@@ -543,7 +543,7 @@ def _state(found: Index, src: Source, sensor: str) -> tuple[bool, str]:
     return not plain, f"{how} ({_SOURCE[sensor]})"
 
 
-def _clock(src: Source) -> tuple[str | None, float]:
+def _clock(src: DataflashStream) -> tuple[str | None, float]:
     """The column of a message's time (the sample's own where ACC and GYR log it) and its ticks a second."""
     for name, per_second in (("SampleUS", 1e6), ("TimeUS", 1e6), ("TimeMS", 1e3)):
         if name in src.fmt.columns:
@@ -551,16 +551,16 @@ def _clock(src: Source) -> tuple[str | None, float]:
     return None, 1.0
 
 
-def _temperature(src: Source) -> str | None:
+def _temperature(src: DataflashStream) -> str | None:
     return next((c for c in ("T", "Temp") if c in src.fmt.columns), None)
 
 
-def _fields(path: str, found: Index, src: Source, names: list[str]) -> dict[str, FloatArray]:
+def _fields(path: str, found: DataflashIndex, src: DataflashStream, names: list[str]) -> dict[str, FloatArray]:
     """The columns ``names`` of ``src``'s messages."""
     return (found.fields or binary_fields)(path, src, names)
 
 
-def binary_fields(path: str, src: Source, names: list[str]) -> dict[str, FloatArray]:
+def binary_fields(path: str, src: DataflashStream, names: list[str]) -> dict[str, FloatArray]:
     """The columns ``names`` of a binary log's messages, scaled where the format logs them in
     hundredths or 1e-7."""
     data = gather(path, src.places, src.fmt.fields(), names)
@@ -570,7 +570,7 @@ def binary_fields(path: str, src: Source, names: list[str]) -> dict[str, FloatAr
     return data
 
 
-def streams_of(path: str, found: Index) -> list[Stream]:
+def streams_of(path: str, found: DataflashIndex) -> list[Stream]:
     """Each message instance's sensors: rows, mean rate (from its first and last time), units, and
     whether ArduPilot had corrected it."""
     out = []
@@ -637,7 +637,7 @@ def read_stream(path: str, spec: ReadSpec, label_column: str | None, walker: Wal
     )
 
 
-def _read_note(path: str, found: Index, src: Source, chosen: Stream, rows: int) -> str:
+def _read_note(path: str, found: DataflashIndex, src: DataflashStream, chosen: Stream, rows: int) -> str:
     """Which stream was read, and the calibration in force (from PARM) as the log tells it."""
     how = "corrected by ArduPilot" if chosen.corrected else "raw"
     logged = "" if src.message == src.name else f", logged as {src.message}"
@@ -655,7 +655,9 @@ def _show(value: object) -> str:
     return f"{value:.6g}" if isinstance(value, float) else str(value)
 
 
-def _borrowed(path: str, found: Index, src: Source, clock: FloatArray | None, notes: list[str]) -> FloatArray | None:
+def _borrowed(
+    path: str, found: DataflashIndex, src: DataflashStream, clock: FloatArray | None, notes: list[str]
+) -> FloatArray | None:
     """An ACC or GYR stream's temperature: its IMU's ``T``, interpolated to its times."""
     base = _base(found, src)
     imu = next((s for s in found.sources if (s.name, s.instance) == ("IMU", base)), None)

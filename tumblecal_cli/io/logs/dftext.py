@@ -19,12 +19,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tumblecal_cli.core.arrays import FloatArray
-from tumblecal_cli.io.logs.dataflash import DataflashReader, Format, Index, Source, named
+from tumblecal_cli.io.logs.dataflash import DataflashIndex, DataflashReader, DataflashStream, Format, named
 from tumblecal_cli.io.logs.fields import CHUNK
 
 
 @dataclass
-class _Walk:
+class _TextWalk:
     """The state of one walk through a text log: the formats seen by name, each wanted message's
     line places (and its instance where the format has an ``I`` column), the parameters, and what
     was skipped."""
@@ -93,10 +93,10 @@ class _Walk:
         self.params[key] = (self.params[key][0], value) if key in self.params else (value, value)
 
 
-def walk(path: str) -> Index:
+def walk(path: str) -> DataflashIndex:
     """Every line of the text log read once; the wanted messages' lines placed."""
     digest = hashlib.sha256()
-    state = _Walk()
+    state = _TextWalk()
     base, carry, skip = 0, b"", False
     with open(path, "rb") as f:
         while block := f.read(CHUNK):
@@ -132,12 +132,14 @@ def walk(path: str) -> Index:
     for (message, instance), places in state.places.items():
         stream = named(message)
         assert stream is not None
-        found.append(Source(stream[0], instance, message, state.formats[message], np.asarray(places, dtype=np.int64)))
+        found.append(
+            DataflashStream(stream[0], instance, message, state.formats[message], np.asarray(places, dtype=np.int64))
+        )
     found.sort(key=lambda s: (s.name, s.instance))
-    return Index(found, state.params, digest.hexdigest(), state.notes, fields=fields)
+    return DataflashIndex(found, state.params, digest.hexdigest(), state.notes, fields=fields)
 
 
-def fields(path: str, src: Source, names: list[str]) -> dict[str, FloatArray]:
+def fields(path: str, src: DataflashStream, names: list[str]) -> dict[str, FloatArray]:
     """The columns ``names`` of ``src``'s lines, parsed a chunk of the log at a time; a line whose
     fields do not parse (or are not as many as its format's columns) is NaN in every column."""
     where = [src.fmt.columns.index(n) + 1 for n in names]

@@ -70,7 +70,7 @@ BACK_SHARE = 0.01
 
 
 @dataclass(frozen=True)
-class Part:
+class BagSensor:
     """One sensor a message type carries: the offset of its three float64s after the header."""
 
     sensor: str
@@ -81,9 +81,9 @@ class Part:
 #: The message types read, the sensors each carries, and the bytes after the header (the
 #: fixed block: Imu's orientation, angular velocity and linear acceleration with their
 #: covariances; MagneticField's field and its covariance).
-TYPES: dict[str, tuple[tuple[Part, ...], int]] = {
-    IMU: ((Part("accelerometer", 200, "m/s^2"), Part("gyroscope", 104, "rad/s")), 296),
-    MAG: ((Part("magnetometer", 0, "T"),), 96),
+TYPES: dict[str, tuple[tuple[BagSensor, ...], int]] = {
+    IMU: ((BagSensor("accelerometer", 200, "m/s^2"), BagSensor("gyroscope", 104, "rad/s")), 296),
+    MAG: ((BagSensor("magnetometer", 0, "T"),), 96),
 }
 #: The columns a calibration records for each sensor.
 NAMES = {
@@ -153,7 +153,7 @@ class Topic:
 
 
 @dataclass
-class Index:
+class BagIndex:
     """A bag opened: its kind, the topics of the types read (those decoded so far), the others
     (name, type), the notes of what could not be read, and its sha256 once asked for."""
 
@@ -368,7 +368,7 @@ def _records(buf: bytes | mmap.mmap, at: int, end: int) -> Iterator[tuple[dict[s
 
 
 #: The bag last opened (a command picks a bag's stream, then reads it: one pass for both).
-_CACHE: list[tuple[tuple[object, ...], Index]] = []
+_CACHE: list[tuple[tuple[object, ...], BagIndex]] = []
 
 
 class RosReader:
@@ -388,7 +388,7 @@ class RosReader:
         IMU topic names; its topic decoded now, in the same pass (it is read next)."""
         chosen: list[Stream] = []
 
-        def choose(found: Index) -> list[str]:
+        def choose(found: BagIndex) -> list[str]:
             chosen.append(sources.pick(path, streams_of(found, decoded=False), _asked(path, found, spec)))
             return [chosen[-1].name]
 
@@ -399,7 +399,7 @@ class RosReader:
 READER = RosReader()
 
 
-def index(path: str, choose: Callable[[Index], Collection[str]] = lambda found: ()) -> Index:
+def index(path: str, choose: Callable[[BagIndex], Collection[str]] = lambda found: ()) -> BagIndex:
     """``path`` opened, with the topics ``choose`` names (of its topics) decoded, in one pass
     over the bag; kept while its files' sizes and times are the same, and opened again only
     for topics not decoded yet."""
@@ -458,7 +458,7 @@ def _opened(path: str, kind: str, reader: _Source, notes: list[str]) -> _Source:
     return walked
 
 
-def _summary(kind: str, readers: list[_Source], notes: list[str]) -> Index:
+def _summary(kind: str, readers: list[_Source], notes: list[str]) -> BagIndex:
     """The topics of an opened bag, and the messages each holds (as the bag says)."""
     topics: dict[str, Topic] = {}
     others: dict[str, str] = {}
@@ -469,7 +469,7 @@ def _summary(kind: str, readers: list[_Source], notes: list[str]) -> Index:
                 topic.count += c.msgcount
             else:
                 others.setdefault(c.topic, c.msgtype)
-    return Index(kind, sorted(topics.values(), key=lambda t: t.name), sorted(others.items()), notes)
+    return BagIndex(kind, sorted(topics.values(), key=lambda t: t.name), sorted(others.items()), notes)
 
 
 def _key(path: str) -> tuple[object, ...]:
@@ -679,7 +679,7 @@ def _clock(topic: Topic) -> IntArray:
     return topic.received if len(topic.stamps) and not topic.stamps.any() else topic.stamps
 
 
-def streams_of(found: Index, decoded: bool = True) -> list[Stream]:
+def streams_of(found: BagIndex, decoded: bool = True) -> list[Stream]:
     """Each topic's sensors: rows (those decoded, or with ``decoded`` off as the bag counts them:
     what a stream is picked by, whatever has been decoded so far), mean rate (from its first and
     last time; None for a topic not decoded), units, and whether it was corrected (told by its
@@ -696,7 +696,7 @@ def streams_of(found: Index, decoded: bool = True) -> list[Stream]:
     return out
 
 
-def _listing(found: Index) -> str:
+def _listing(found: BagIndex) -> str:
     """The bag's topics: those read, and the others with their types."""
     read = [t.name for t in found.topics if (len(t.stamps) if t.decoded else t.count)]
     others = [f"{name} ({kind})" for name, kind in found.others]
@@ -707,7 +707,7 @@ def _listing(found: Index) -> str:
     )
 
 
-def _asked(path: str, found: Index, spec: ReadSpec) -> ReadSpec:
+def _asked(path: str, found: BagIndex, spec: ReadSpec) -> ReadSpec:
     """``spec`` with ``--stream`` as the bag names the topic (a leading / added where it has
     none); a topic of another type, or a bag without IMU topics: an InputError naming them."""
     names = {t.name: t for t in found.topics}

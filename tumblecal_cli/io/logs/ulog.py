@@ -91,7 +91,7 @@ _IMU = (
 
 
 @dataclass(frozen=True)
-class Part:
+class UlogSensor:
     """One sensor a topic carries: its three fields, its units, the field added to the time
     (a relative timestamp), the field its values are divided by (an integration time in µs)."""
 
@@ -107,24 +107,26 @@ def _fields(prefix: str) -> tuple[str, str, str]:
 
 
 #: The topics read, and the sensors each carries.
-TOPICS: dict[str, tuple[Part, ...]] = {
-    "sensor_accel": (Part("accelerometer", ("x", "y", "z"), "m/s^2"),),
-    "sensor_gyro": (Part("gyroscope", ("x", "y", "z"), "rad/s"),),
-    "sensor_mag": (Part("magnetometer", ("x", "y", "z"), "gauss"),),
+TOPICS: dict[str, tuple[UlogSensor, ...]] = {
+    "sensor_accel": (UlogSensor("accelerometer", ("x", "y", "z"), "m/s^2"),),
+    "sensor_gyro": (UlogSensor("gyroscope", ("x", "y", "z"), "rad/s"),),
+    "sensor_mag": (UlogSensor("magnetometer", ("x", "y", "z"), "gauss"),),
     "sensor_combined": (
-        Part("accelerometer", _fields("accelerometer_m_s2"), "m/s^2", relative="accelerometer_timestamp_relative"),
-        Part("gyroscope", _fields("gyro_rad"), "rad/s"),
-        Part("magnetometer", _fields("magnetometer_ga"), "gauss", relative="magnetometer_timestamp_relative"),
+        UlogSensor(
+            "accelerometer", _fields("accelerometer_m_s2"), "m/s^2", relative="accelerometer_timestamp_relative"
+        ),
+        UlogSensor("gyroscope", _fields("gyro_rad"), "rad/s"),
+        UlogSensor("magnetometer", _fields("magnetometer_ga"), "gauss", relative="magnetometer_timestamp_relative"),
     ),
     "vehicle_imu": (
-        Part("accelerometer", _fields("delta_velocity"), "m/s^2", per="delta_velocity_dt"),
-        Part("gyroscope", _fields("delta_angle"), "rad/s", per="delta_angle_dt"),
+        UlogSensor("accelerometer", _fields("delta_velocity"), "m/s^2", per="delta_velocity_dt"),
+        UlogSensor("gyroscope", _fields("delta_angle"), "rad/s", per="delta_angle_dt"),
     ),
 }
 
 
 @dataclass
-class Layout:
+class TopicLayout:
     """A topic's flattened fields: each field's (numpy type, byte offset), and the body's size."""
 
     fields: dict[str, tuple[str, int]]
@@ -132,21 +134,21 @@ class Layout:
 
 
 @dataclass
-class Topic:
+class Subscription:
     """One subscription of a wanted topic: its name, instance, layout, and where each of its
     samples' bodies (after the msg_id) starts in the file."""
 
     name: str
     instance: int
-    layout: Layout
+    layout: TopicLayout
     places: array.array[int] = field(default_factory=lambda: array.array("q"))
 
 
 @dataclass
-class Index:
+class UlogIndex:
     """A log walked once: its wanted topics, its sha256, and the notes of what was skipped."""
 
-    topics: list[Topic]
+    topics: list[Subscription]
     sha256: str
     notes: list[str]
     size: int
@@ -160,7 +162,7 @@ class _Walk:
         self.name = name
         self.formats: dict[str, list[tuple[str, int, str]]] = {}
         self.wanted: dict[int, tuple[array.array[int], int]] = {}
-        self.topics: dict[int, Topic] = {}
+        self.topics: dict[int, Subscription] = {}
         self.cuts: list[int] = []  # where appended data starts (the flag bits message)
         self.unknown: dict[int, int] = {}
         self.short = 0
@@ -233,12 +235,12 @@ class _Walk:
             layout = _flatten(name, self.formats)
         except (KeyError, ValueError, RecursionError):
             return  # a topic whose format cannot be laid out is not read (as a topic not logged)
-        topic = Topic(name, instance, layout)
+        topic = Subscription(name, instance, layout)
         self.topics[msg_id] = topic
         self.wanted[msg_id] = (topic.places, layout.size + 2)
 
 
-def _flatten(name: str, formats: dict[str, list[tuple[str, int, str]]], depth: int = 0) -> Layout:
+def _flatten(name: str, formats: dict[str, list[tuple[str, int, str]]], depth: int = 0) -> TopicLayout:
     """A topic's fields by their flattened names (``gyro_rad[0]``, ``nested.x``), as pyulog
     names them, each with its numpy type and offset; nested types laid out in place."""
     out: dict[str, tuple[str, int]] = {}
@@ -259,13 +261,13 @@ def _flatten(name: str, formats: dict[str, list[tuple[str, int, str]]], depth: i
         last = next(reversed(out))
         kind, start = out.pop(last)
         offset = start
-    return Layout(out, offset)
+    return TopicLayout(out, offset)
 
 
 _HEAD = struct.Struct("<HBH")  # a message's size and type, and a data message's msg_id
 _DATA = ord("D")
 #: The walks kept (a command lists a log's streams, then reads one: one walk for both).
-_CACHE: list[tuple[tuple[str, int, int, int], Index]] = []
+_CACHE: list[tuple[tuple[str, int, int, int], UlogIndex]] = []
 
 
 class UlogReader:
@@ -284,7 +286,7 @@ class UlogReader:
 READER = UlogReader()
 
 
-def index(path: str) -> Index:
+def index(path: str) -> UlogIndex:
     """``path`` walked once (kept while the file's size and time are the same)."""
     st = os.stat(path)
     key = (os.path.realpath(path), st.st_size, st.st_mtime_ns, st.st_ino)
@@ -296,7 +298,7 @@ def index(path: str) -> Index:
     return found
 
 
-def _walk_file(path: str) -> Index:
+def _walk_file(path: str) -> UlogIndex:
     """Every message of the log stepped over once; the wanted topics' samples placed."""
     digest = hashlib.sha256()
     walk = _Walk(path)
@@ -321,7 +323,7 @@ def _walk_file(path: str) -> Index:
                 base = cut
     walk.summarise()
     topics = sorted(walk.topics.values(), key=lambda t: (t.name, t.instance))
-    return Index(topics, digest.hexdigest(), walk.notes, base)
+    return UlogIndex(topics, digest.hexdigest(), walk.notes, base)
 
 
 def _walk_part(walk: _Walk, f: BinaryIO, digest: hashlib._Hash, base: int, cut: int | None) -> int:
@@ -424,16 +426,16 @@ def _no_sync(walk: _Walk, size: int) -> None:
     )
 
 
-def _parts(topic: Topic) -> list[Part]:
+def _parts(topic: Subscription) -> list[UlogSensor]:
     """The sensors ``topic`` carries in this log (sensor_combined's magnetometer only in old logs)."""
     return [p for p in TOPICS[topic.name] if all(f in topic.layout.fields for f in p.fields)]
 
 
-def _clock(topic: Topic) -> str:
+def _clock(topic: Subscription) -> str:
     return "timestamp_sample" if "timestamp_sample" in topic.layout.fields else "timestamp"
 
 
-def _corrected(topic: Topic) -> tuple[bool, str]:
+def _corrected(topic: Subscription) -> tuple[bool, str]:
     """Whether PX4 had corrected the topic's readings, and how that is told (with the source)."""
     if topic.name in ("sensor_combined", "vehicle_imu"):
         return True, _COMBINED if topic.name == "sensor_combined" else _IMU
@@ -442,7 +444,7 @@ def _corrected(topic: Topic) -> tuple[bool, str]:
     return False, _RAW
 
 
-def streams_of(path: str, found: Index) -> list[Stream]:
+def streams_of(path: str, found: UlogIndex) -> list[Stream]:
     """Each topic instance's sensors: rows, mean rate (from its first and last time), units, and
     whether PX4 had corrected it."""
     out = []
@@ -478,7 +480,7 @@ def read_stream(path: str, spec: ReadSpec, label_column: str | None) -> Table:
     return _table(path, found, sources.pick(path, listed, spec), spec.rate is None)
 
 
-def paired(path: str, found: Index, listed: list[Stream], spec: ReadSpec, gyro: Stream) -> Table:
+def paired(path: str, found: UlogIndex, listed: list[Stream], spec: ReadSpec, gyro: Stream) -> Table:
     """``spec.sensor`` of the turns pipelines' one log of both sensors: ``gyro``'s samples, and
     ``sensor_accel`` of the same instance resampled onto their timestamps by linear
     interpolation. Gyroscope samples outside the accelerometer's time span are dropped (a note);
@@ -527,7 +529,7 @@ def paired(path: str, found: Index, listed: list[Stream], spec: ReadSpec, gyro: 
     return replace(a, values=values, clock=clock, temperature=hot, notes=tuple(notes))
 
 
-def _table(path: str, found: Index, chosen: Stream, check_clock: bool) -> Table:
+def _table(path: str, found: UlogIndex, chosen: Stream, check_clock: bool) -> Table:
     """The readings of the stream ``chosen``; ``check_clock``: samples whose clock goes back dropped."""
     topic = next(t for t in found.topics if (t.name, t.instance) == (chosen.name, chosen.instance))
     part = next(p for p in _parts(topic) if p.sensor == chosen.sensor)

@@ -157,7 +157,7 @@ def _numbers(raw: Mapping[str, str], name: str) -> Triple:
     return x, y, z
 
 
-class Summary:
+class SummaryFile:
     """summary.csv, appended to as each unit finishes (a crash keeps what was done, for
     --resume), and rewritten sorted by serial at the end."""
 

@@ -40,7 +40,7 @@ from tumblecal_cli.pipeline.batch.summary import (
     SUMMARY,
     VERDICTS,
     Row,
-    Summary,
+    SummaryFile,
     Triple,
     pose_files,
     read_summary,
@@ -68,7 +68,7 @@ STAGING = ".partial.json"
 
 
 @dataclass(frozen=True)
-class Unit:
+class BatchUnit:
     """One unit: its serial and its inputs, each ``FILE`` or ``LABEL=FILE`` as ``--poses`` takes."""
 
     serial: str
@@ -82,7 +82,7 @@ class Unit:
 # -- finding the units -------------------------------------------------------------------------
 
 
-def find_units(source: str, *, log: bool, out_dir: str | None = None) -> tuple[list[Unit], list[str]]:
+def find_units(source: str, *, log: bool, out_dir: str | None = None) -> tuple[list[BatchUnit], list[str]]:
     """The units of a folder (one folder per unit, or with ``log`` one log per unit) or of a
     manifest CSV, sorted by serial; and notes for people about what was left out. ``out_dir``,
     when it is one of the folder's folders, is not a unit."""
@@ -123,8 +123,8 @@ def _face(text: str) -> str | None:
     return face_of_name(text)
 
 
-def _folder_units(folder: str, *, log: bool, skip: str | None) -> tuple[list[Unit], list[str]]:
-    units: list[Unit] = []
+def _folder_units(folder: str, *, log: bool, skip: str | None) -> tuple[list[BatchUnit], list[str]]:
+    units: list[BatchUnit] = []
     notes: list[str] = []
     loose = _data_files(folder)
     for name in sorted(os.listdir(folder)):
@@ -139,19 +139,19 @@ def _folder_units(folder: str, *, log: bool, skip: str | None) -> tuple[list[Uni
         files = _data_files(path)
         if not files:  # the unit's error (run_unit), not a silent gap in the lot
             what = "log" if log else "pose"
-            units.append(Unit(name, (), f"no {what} files ({', '.join(DATA_SUFFIXES)}) in {path}"))
+            units.append(BatchUnit(name, (), f"no {what} files ({', '.join(DATA_SUFFIXES)}) in {path}"))
             continue
         if log:
-            units.append(Unit(name, tuple(files)))  # more than one: the unit's error, not the batch's
+            units.append(BatchUnit(name, tuple(files)))  # more than one: the unit's error, not the batch's
             continue
         faces = [_face_of(f) for f in files]  # all None: unlabelled, in name order
         if any(faces) and not all(faces):  # x.csv y.csv z.csv notes.txt: the poses are the named ones
             stray = [os.path.basename(f) for f, face in zip(files, faces, strict=True) if face is None]
             notes.append(f"{path}: {', '.join(stray)} ignored (not named by a face like the unit's other files)")
             files, faces = [f for f, face in zip(files, faces, strict=True) if face], [f for f in faces if f]
-        units.append(Unit(name, tuple(f"{face}={f}" if face else f for face, f in zip(faces, files, strict=True))))
+        units.append(BatchUnit(name, tuple(f"{face}={f}" if face else f for face, f in zip(faces, files, strict=True))))
     if log:
-        units += [Unit(os.path.splitext(os.path.basename(f))[0], (f,)) for f in loose]
+        units += [BatchUnit(os.path.splitext(os.path.basename(f))[0], (f,)) for f in loose]
         seen: dict[str, int] = {}
         for u in units:
             seen[u.serial] = seen.get(u.serial, 0) + 1
@@ -169,7 +169,7 @@ MANIFEST_BYTES = 16 << 20
 UNIT_FILES = 1000
 
 
-def _manifest_units(path: str, *, log: bool) -> tuple[list[Unit], list[str]]:
+def _manifest_units(path: str, *, log: bool) -> tuple[list[BatchUnit], list[str]]:
     """A manifest: a header ``serial,...``, then a serial and its files per row. A file is
     relative to the manifest's folder; a column headed by a face (x, +x, xp ...) labels its files."""
     try:
@@ -200,7 +200,7 @@ def _manifest_units(path: str, *, log: bool) -> tuple[list[Unit], list[str]]:
         )
     header = [_face(h.strip()) for h in lines[0][1]]
     base = "" if path == "-" else os.path.dirname(path)
-    units: list[Unit] = []
+    units: list[BatchUnit] = []
     where: dict[str, tuple[int, str]] = {}
     notes: list[str] = []
     for n, row in lines[1:]:
@@ -245,7 +245,7 @@ def _manifest_units(path: str, *, log: bool) -> tuple[list[Unit], list[str]]:
                 face = header[k] if k < len(header) and not log else None
                 items.append(f"{face}={_resolve(base, cell)}" if face else _resolve(base, cell))
         problem = None if items else f"no files on its row of the manifest (line {n})"  # that unit's error
-        units.append(Unit(serial, tuple(items), problem))
+        units.append(BatchUnit(serial, tuple(items), problem))
     return units, notes
 
 
@@ -270,7 +270,7 @@ def _resolve(base: str, name: str) -> str:
 
 
 def run_unit(
-    unit: Unit, options: SolveOptions, out_dir: str, log: bool, token: str, epoch: str | None = None
+    unit: BatchUnit, options: SolveOptions, out_dir: str, log: bool, token: str, epoch: str | None = None
 ) -> dict[str, object]:
     """Solve one unit as ``tumblecal solve`` does, into a hidden staging file of this batch
     (``token``); its summary row, as plain data (it crosses from a worker process or a Dask
@@ -287,7 +287,7 @@ def run_unit(
         calfile.CALLER_EPOCH.reset(reset)
 
 
-def _run_unit(unit: Unit, options: SolveOptions, out_dir: str, log: bool, token: str) -> Row:
+def _run_unit(unit: BatchUnit, options: SolveOptions, out_dir: str, log: bool, token: str) -> Row:
 
     staging = os.path.join(out_dir, f".{unit.serial}.{token}{STAGING}")
     row = Row(unit.serial, list(unit.found or unit.inputs))
@@ -452,7 +452,7 @@ def finish(row: Row, out_dir: str) -> Row:
     return row
 
 
-def failed_row(unit: Unit, err: BaseException) -> Row:
+def failed_row(unit: BatchUnit, err: BaseException) -> Row:
     """The row of a unit whose worker failed (a Dask worker lost, tumblecal missing there)."""
     message = f"the worker running it failed: {type(err).__name__}: {err}"
     return _failed(Row(unit.serial, list(unit.found or unit.inputs)), InputError(message))
@@ -511,8 +511,8 @@ def publish(staging: str, out_dir: str, serial: str, created: str) -> str:
 class Plan:
     """What a batch is about to do: its units, those done already (``--resume``), and notes."""
 
-    units: list[Unit]
-    todo: list[Unit]
+    units: list[BatchUnit]
+    todo: list[BatchUnit]
     notes: list[str]
     summary: str
 
@@ -574,7 +574,7 @@ def run_batch(
     calfile.created()  # so is a bad SOURCE_DATE_EPOCH
     units, notes = find_units(source, log=log, out_dir=out_dir)
     if scheduler is not None:  # the workers do not share this working folder
-        units = [Unit(u.serial, tuple(absolute(i) for i in u.inputs), u.problem, u.inputs) for u in units]
+        units = [BatchUnit(u.serial, tuple(absolute(i) for i in u.inputs), u.problem, u.inputs) for u in units]
         out_dir = os.path.abspath(out_dir)
         if options.limits.file:
             options = replace(options, limits=replace(options.limits, file=os.path.abspath(options.limits.file)))
@@ -599,7 +599,7 @@ def run_batch(
     run = engine(jobs, scheduler)  # connects to a cluster: before writing anything
     os.makedirs(out_dir, exist_ok=True)
     token = f"{os.getpid()}-{time.time_ns()}"  # names this batch's staging files
-    summary = Summary(out_dir, rows)
+    summary = SummaryFile(out_dir, rows)
     try:
         epoch = os.environ.get("SOURCE_DATE_EPOCH", "")  # the caller's, wherever the units run
         work = [(u, options, out_dir, log, token, epoch) for u in todo]

@@ -23,7 +23,7 @@ from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io.calfiles import calfile
 from tumblecal_cli.io.csv import readings
 from tumblecal_cli.pipeline import segment as logs
-from tumblecal_cli.pipeline.solve.turns import Made, Outcome, gyro_calibration, seconds_per_sample
+from tumblecal_cli.pipeline.solve.turns import GyroMade, Outcome, gyro_calibration, seconds_per_sample
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.arrays import FloatArray
@@ -48,7 +48,7 @@ class HandTurns:
     acc: Log
     gyr: Log
     kept: list[Block]
-    rotations: list[rotation_fit.Rotation]
+    rotations: list[rotation_fit.RotationReadings]
     still: FloatArray  # (n, 3) the gyroscope's samples in the still blocks
     bias: FloatArray  # (3,) their mean
     names: list[str]
@@ -96,17 +96,19 @@ def hand_turns(log: str, options: SolveOptions) -> HandTurns:
     bias, bias_se = stillness.bias(gyr.values, [(b.first, b.last) for b in kept], seg.window)
     directions = [_direction(accel, acc.values[b.first : b.last + 1].mean(axis=0)) for b in kept]
     rots = [
-        rotation_fit.Rotation(gyr.values[a.last : b.first], dt[a.last : b.first], directions[k], directions[k + 1])
+        rotation_fit.RotationReadings(
+            gyr.values[a.last : b.first], dt[a.last : b.first], directions[k], directions[k + 1]
+        )
         for k, (a, b) in enumerate(itertools.pairwise(kept))
     ]
     names = [f"block {a.number} to {b.number}" for a, b in itertools.pairwise(kept)]
     return HandTurns(acc, gyr, kept, rots, still, bias, names, bias_se, notes)
 
 
-def block_settings(options: SolveOptions, nominal_offset: FloatArray) -> blocks.Settings:
+def block_settings(options: SolveOptions, nominal_offset: FloatArray) -> blocks.DetectorSettings:
     """How the accelerometer's still blocks are found: as ``segment`` finds them (its
     ``--window`` ...), in any orientation, about the accelerometer calibration's offset."""
-    return blocks.Settings(
+    return blocks.DetectorSettings(
         window=options.log.window,
         threshold=options.log.threshold,
         min_duration=options.log.min_duration,
@@ -242,7 +244,7 @@ def _parts(
     gyr: Log,
     kept: list[Block],
     names: list[str],
-) -> tuple[Solution, list[Pose], Made, FloatArray | None]:
+) -> tuple[Solution, list[Pose], GyroMade, FloatArray | None]:
     """The solution (the bias of the still blocks, the fitted matrix), the calibration's poses
     (the still blocks), what it was made of (the hand rotations) and the cross terms' 1-sigma."""
 
@@ -263,8 +265,8 @@ def _parts(
         )
         for b in kept
     ]
-    made = Made(
-        segmentation=calfile.Segmentation(gyr.layout.name, acc.sha256, "detector"),
+    made = GyroMade(
+        segmentation=calfile.SegmentationPart(gyr.layout.name, acc.sha256, "detector"),
         rotations=tuple(
             calfile.Rotation(name, float(angle), float(res))
             for name, angle, res in zip(names, fit.angle_deg, fit.residual_deg, strict=True)

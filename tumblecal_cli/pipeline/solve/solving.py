@@ -138,7 +138,9 @@ def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.Path
 def _aligned(source: str, accel: str, cal: Calibration, options: SolveOptions, notes: list[str]) -> Calibration:
     """``cal`` (a magnetometer's) rotated onto the axes of the accelerometer calibration
     ``accel`` from ``source``'s still blocks (pipeline.align), and a note saying so."""
-    settings = blocks.Settings(options.log.window, options.log.threshold, options.log.min_duration, options.log.trim)
+    settings = blocks.DetectorSettings(
+        options.log.window, options.log.threshold, options.log.min_duration, options.log.trim
+    )
     if options.checks.max_noise is not None:
         settings = replace(settings, max_noise=options.checks.max_noise)
     done = alignment.mag_to_accel(source, accel, cal, options.read, settings, accel_flag="--align-to")
@@ -176,7 +178,7 @@ def _run(
     given_poses: tuple[list[str] | Mapping[str, object] | None, Poses | None],
     path: str | None,
     note: str | None,
-    source: places.Source | None,
+    source: places.ReferenceSource | None,
 ) -> Solved:
     """run, its options resolved: ``given_poses`` the pose files or data (as read, and as given)."""
     files_or_data, poses = given_poses
@@ -263,7 +265,7 @@ def _stream_units(path: str, options: SolveOptions) -> tuple[SolveOptions, str |
     return replace(options, reference=reference, units=units, input_units=options.input_units or stream.units), note
 
 
-def _table_poses(table: tables.Table, options: SolveOptions, given: Settings) -> tuple[str, PoseSet]:
+def _table_poses(table: tables.TablePoses, options: SolveOptions, given: Settings) -> tuple[str, PoseSet]:
     """The method and the poses of a table's rows: labelled as that many unlabelled files are
     (3: +x +y +z, 6: the six faces, in order; else none: sphere for 12 or more)."""
     labels = methods.default_labels(len(table.rows), given.up)
@@ -444,7 +446,7 @@ def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
 
     if given.method != "auto":
         method_options(given.method, given.reference, options.plane, options.bias_spread)
-    settings = blocks.Settings(
+    settings = blocks.DetectorSettings(
         window=options.log.window,
         threshold=options.log.threshold,
         min_duration=options.log.min_duration,
@@ -478,9 +480,9 @@ def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
     return solved
 
 
-def _segmentation(data: Log, seg: Segmentation) -> calfile.Segmentation:
+def _segmentation(data: Log, seg: Segmentation) -> calfile.SegmentationPart:
     """How the poses were found in a continuous log (the file's ``segmentation``)."""
-    return calfile.Segmentation(
+    return calfile.SegmentationPart(
         data.layout.name,
         data.sha256,
         "detector" if seg.threshold is not None else "label column",
@@ -499,7 +501,7 @@ def _segmentation(data: Log, seg: Segmentation) -> calfile.Segmentation:
     )
 
 
-def _mag_from_log(path: str, options: SolveOptions, given: Settings, source: places.Source | None) -> Solved:
+def _mag_from_log(path: str, options: SolveOptions, given: Settings, source: places.ReferenceSource | None) -> Solved:
     """solve --sensor magnetometer --log: the ellipsoid fit to the magnetometer's samples of the
     still blocks its accelerometer finds (pipeline.solve.maglog), and their dip check."""
     found = maglog.read(path, options)
@@ -516,7 +518,7 @@ def _mag_from_log(path: str, options: SolveOptions, given: Settings, source: pla
     checked = None if cal is None else maglog.dip_check(found, cal, given.limits)
     if cal is not None and checked is not None:
         part, failures = checked
-        cal = places.stamp(cal, places.Source("dip", part))
+        cal = places.stamp(cal, places.ReferenceSource("dip", part))
         assert cal is not None
         if failures:
             verdict = cal.verdict or calfile.Verdict(limits=given.limits)
@@ -538,7 +540,7 @@ class PoseSet:
     samples: list[Samples]
     whole: list[FloatArray | Summary]
     notes: list[str] = field(default_factory=list)
-    segmentation: calfile.Segmentation | None = None
+    segmentation: calfile.SegmentationPart | None = None
     by_name: bool = False
     labelled: bool = False
     table: bool = False  # the rows of a table of orientations, one reading each

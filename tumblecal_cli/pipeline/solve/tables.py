@@ -28,14 +28,14 @@ TABLE_METHODS = ("auto", "three-pose", *methods.SIX_POSE, "least-squares", "sphe
 
 
 @dataclass(frozen=True)
-class Table:
+class TablePoses:
     """The rows of the table(s) as poses, and the note that says why they were taken so."""
 
     rows: list[Samples]
     note: str
 
 
-def take(poses: object, options: SolveOptions, given: Settings) -> tuple[Table | None, Samples | None]:
+def take(poses: object, options: SolveOptions, given: Settings) -> tuple[TablePoses | None, Samples | None]:
     """The rows of ``poses`` as poses when they are a table: ``(table, None)``. A single pose file
     read to find out that it is not one comes back as ``(None, samples)`` (stdin is read once);
     ``(None, None)`` when ``poses`` cannot be a table (several, labelled, or --no-rows-are-poses).
@@ -70,7 +70,7 @@ def take(poses: object, options: SolveOptions, given: Settings) -> tuple[Table |
     else:
         count = sum(len(s.values) for s in read)
         note = f"{count} rows taken as {count} poses, one orientation each (--rows-are-poses)"
-    return Table([row for s in read for row in split(s, options)], note), None
+    return TablePoses([row for s in read for row in split(s, options)], note), None
 
 
 def _unlabelled(poses: object) -> list[object] | None:

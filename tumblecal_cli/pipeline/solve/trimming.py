@@ -96,7 +96,7 @@ def _still_run(log: Log, options: SolveOptions, centre: FloatArray, max_noise: f
     seconds = None if rate else log.seconds()
     period = blocks.sample_period(seconds, rate)
     least = options.checks.min_samples
-    settings = blocks.Settings(
+    settings = blocks.DetectorSettings(
         min_duration=least * period if period else least,
         max_noise=max_noise,
         max_tilt_deg=options.checks.max_tilt,

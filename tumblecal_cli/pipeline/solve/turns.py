@@ -24,7 +24,7 @@ from tumblecal_cli.pipeline.options import pose_map
 from tumblecal_cli.pipeline.segment import read_twice
 
 if TYPE_CHECKING:
-    from tumblecal_cli.io.calfiles.calfile import Calibration, GSensitivity, Pose, Rotation, Segmentation, Turn
+    from tumblecal_cli.io.calfiles.calfile import Calibration, GSensitivity, Pose, Rotation, SegmentationPart, Turn
     from tumblecal_cli.io.csv.readings import Log
     from tumblecal_cli.pipeline.options import Settings, SolveOptions
 
@@ -60,11 +60,11 @@ class Outcome:
 
 
 @dataclass(frozen=True)
-class Made:
+class GyroMade:
     """What a gyroscope's calibration from turns was made of, beside its poses: the log's
     ``segmentation``, and its known ``turns`` and ``g_sensitivity`` or its hand ``rotations``."""
 
-    segmentation: Segmentation
+    segmentation: SegmentationPart
     turns: tuple[Turn, ...] | None = None
     g_sensitivity: GSensitivity | None = None
     rotations: tuple[Rotation, ...] | None = None
@@ -241,10 +241,12 @@ def _solve(acc: Log, gyr: Log, options: SolveOptions, given: Settings) -> Outcom
     dt = seconds_per_sample(gyr, options.read.rate, timed)
     still_sections, cut, restless = gyro_still([found[faces[f]] for f in SIX], gyr.values, dt, options.log.window)
     notes += cut
-    still = turn_fit.Still([acc.values[s.index] for s in still_sections], [gyr.values[s.index] for s in still_sections])
+    still = turn_fit.FaceReadings(
+        [acc.values[s.index] for s in still_sections], [gyr.values[s.index] for s in still_sections]
+    )
     angle = float(options.log.turn_angle or 0.0)
     given_turns = [
-        turn_fit.Turn(
+        turn_fit.KnownTurn(
             acc.values[found[label].index], gyr.values[found[label].index], axis, angle, dt[found[label].index]
         )
         for label, axis in zip(turns, axes, strict=True)
@@ -314,7 +316,7 @@ def _face(label: str) -> str | None:
 
 def _moved(
     fit: turn_fit.TurnsFit,
-    still: turn_fit.Still,
+    still: turn_fit.FaceReadings,
     secs: list[Section],
     options: SolveOptions,
     restless: dict[str, Finding],
@@ -367,8 +369,8 @@ def _parts(
     secs: list[Section],
     faces: list[str],
     turns: dict[str, str],
-    given_turns: list[turn_fit.Turn],
-) -> tuple[list[Pose], Made]:
+    given_turns: list[turn_fit.KnownTurn],
+) -> tuple[list[Pose], GyroMade]:
     """The calibration's poses (the still sections) and what it was made of (the known turns,
     the g-sensitivity, the label column that found them)."""
 
@@ -387,8 +389,8 @@ def _parts(
         for face, s in zip(faces, secs, strict=True)
     ]
     found = sections(gyr)
-    made = Made(
-        segmentation=calfile.Segmentation(gyr.layout.name, gyr.sha256, "label column"),
+    made = GyroMade(
+        segmentation=calfile.SegmentationPart(gyr.layout.name, gyr.sha256, "label column"),
         turns=tuple(
             calfile.Turn(
                 label,
@@ -418,7 +420,7 @@ def gyro_calibration(
     poses: list[Pose],
     residual_deg: FloatArray,
     cross_se: FloatArray | None,
-    made: Made,
+    made: GyroMade,
     options: SolveOptions,
     given: Settings,
 ) -> tuple[Calibration, list[Finding]]:
