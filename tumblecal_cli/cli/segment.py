@@ -137,11 +137,11 @@ def segment(
       tumblecal segment session.csv --plot blocks.png -d poses/    # and a picture
     """
 
-    from tumblecal_cli.pipeline import segment as logs
+    from tumblecal_cli.pipeline import segment as segmenting
 
     if plot is not None:
         check_plot_target(plot, out_dir or "-", False, [log])
-    done = logs.segment(
+    done = segmenting.segment(
         log,
         out_dir=out_dir,
         on_blocks=None if quiet else _shower(out_dir is not None, verbose),

@@ -30,7 +30,7 @@ from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import outputs, sources
 from tumblecal_cli.io.calfiles import calfile, limitfile
 from tumblecal_cli.io.csv import readings
-from tumblecal_cli.pipeline import segment as logs
+from tumblecal_cli.pipeline import segment as segmenting
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.arrays import FloatArray
@@ -226,7 +226,7 @@ def mag_to_accel(
     accel = _calibration(accel_cal, "accelerometer", accel_flag)
     mag = _calibration(mag_cal, "magnetometer", "--mag-cal") if isinstance(mag_cal, str) else mag_cal
     acc_spec = replace(spec, sensor="accelerometer", columns=None, prefer=tuple(accel.columns))
-    with logs.segmented(
+    with segmenting.segmented(
         log, acc_spec, pose_column=None, pose_map=None, settings=_settings(settings, accel.offset), whole=True,
         max_spool=max_spool,
     ) as (path, acc, seg):  # fmt: skip
@@ -382,7 +382,7 @@ def imus(
         return gyros(chosen, calibrations, limits)
     read = [readings.read_log(lg, s, use_time=True, name=_name(lg, s)) for lg, s in chosen]
     first = read[0]
-    seg = logs.find_blocks(first, spec.rate, None, None, _settings(settings, None))
+    seg = segmenting.find_blocks(first, spec.rate, None, None, _settings(settings, None))
     kept = sorted(seg.kept, key=lambda b: b.first)
     spans = _time_spans(first, kept)
     if not kept:

@@ -23,7 +23,7 @@ from tumblecal_cli.io import sources
 from tumblecal_cli.io.calfiles import calfile
 from tumblecal_cli.io.csv import readings
 from tumblecal_cli.io.csv.readings import Samples
-from tumblecal_cli.pipeline import segment as logs
+from tumblecal_cli.pipeline import segment as segmenting
 from tumblecal_cli.pipeline.solve.rotations import block_settings
 
 if TYPE_CHECKING:
@@ -78,7 +78,7 @@ def read(log: str, options: SolveOptions) -> MagLog:
         # --max-noise, a share of the reference, judges the accelerometer's blocks here (as align's)
         max_noise=options.checks.max_noise if options.checks.max_noise is not None else 0.02,
     )
-    with logs.segmented(
+    with segmenting.segmented(
         log,
         replace(options.read, sensor="accelerometer", columns=None),
         pose_column=None,
@@ -101,7 +101,7 @@ def read(log: str, options: SolveOptions) -> MagLog:
             file=mag.layout.name,
         )
     kept = sorted(seg.kept, key=lambda b: b.first)
-    logs.enough_blocks(acc, seg, 1)
+    segmenting.enough_blocks(acc, seg, 1)
     samples = [mag.block(b.number, b.first, b.last) for b in kept]
     notes = [f"the magnetometer's samples of the {len(kept)} still blocks the accelerometer found"]
     between = _between(mag, kept)

@@ -22,7 +22,7 @@ from tumblecal_cli.core.model import Solution
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io.calfiles import calfile
 from tumblecal_cli.io.csv import readings
-from tumblecal_cli.pipeline import segment as logs
+from tumblecal_cli.pipeline import segment as segmenting
 from tumblecal_cli.pipeline.solve.turns import GyroMade, Outcome, gyro_calibration, seconds_per_sample
 
 if TYPE_CHECKING:
@@ -65,7 +65,7 @@ def hand_turns(log: str, options: SolveOptions) -> HandTurns:
     if accel.sensor != "accelerometer":
         raise InputError(f"--accel-cal takes an accelerometer's calibration, not a {accel.sensor}'s", file=accel.path)
     settings = block_settings(options, accel.offset)
-    with logs.segmented(
+    with segmenting.segmented(
         log,
         replace(options.read, sensor="accelerometer", columns=None, paired=True),
         pose_column=None,
@@ -156,7 +156,7 @@ def _clock_integrates(seg: Segmentation, kept: list[Block], gyr: Log, rate: floa
 
     if rate is not None:
         return
-    if logs.coarse_clock(seg):
+    if segmenting.coarse_clock(seg):
         raise InputError(
             f"the time column does not advance with the samples ({seg.zero_steps:.0%} of its steps are 0): "
             "the turns cannot be integrated from it",

@@ -27,7 +27,7 @@ from tumblecal_cli.io.calfiles.calfile import Pose
 from tumblecal_cli.pipeline import align as alignment
 from tumblecal_cli.pipeline import options as opts
 from tumblecal_cli.pipeline import places
-from tumblecal_cli.pipeline import segment as logs
+from tumblecal_cli.pipeline import segment as segmenting
 from tumblecal_cli.pipeline.exchange import tilt_notes
 from tumblecal_cli.pipeline.frames import in_memory, read_pose, samples_of
 from tumblecal_cli.pipeline.options import SolveOptions, method_options, path_of, triplet
@@ -455,7 +455,7 @@ def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
         max_tilt_deg=options.checks.max_tilt,
         nominal_offset=given.centre,
     )
-    with logs.segmented(
+    with segmenting.segmented(
         log,
         options.read,
         pose_column=options.log.pose_column,
@@ -463,9 +463,9 @@ def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
         settings=settings,
         max_spool=options.log.max_spool,
     ) as (_, data, seg):
-        found = logs.Blocks(data, seg)
+        found = segmenting.Blocks(data, seg)
         try:  # while the log is there: a streamed log's blocks are read again (stdin's, from its copy)
-            name, labels, samples, notes = logs.log_poses(data, seg, given.method, given.up, options.read.sensor)
+            name, labels, samples, notes = segmenting.log_poses(data, seg, given.method, given.up, options.read.sensor)
         except CaptureRejected as err:
             return Solved(3, None, rejections=[], error=err, blocks=found)
     found.used = {
@@ -510,7 +510,7 @@ def _mag_from_log(path: str, options: SolveOptions, given: Settings, source: pla
     labels: list[str | None] = [None] * len(found.samples)
     poses = PoseSet(labels, found.samples, [found.mag.values], found.notes, _segmentation(found.acc, found.seg))
     solved = _solve(name, poses, options, given)
-    solved.blocks = logs.Blocks(found.acc, found.seg)
+    solved.blocks = segmenting.Blocks(found.acc, found.seg)
     solved.blocks.used = {b.number: "used" for b in found.blocks}
     cal = places.stamp(solved.calibration, source)
     if cal is not None and options.log.align_to is not None:  # aligned first: the dips through the rotation
