@@ -275,8 +275,8 @@ def thermal_corrected(path: str, *, splice_on: bool) -> tuple[bytes, str | None]
     out = io.BytesIO()
     try:
         with open_capture(path) as cap:
-            assert cap.layout.temperature is not None
-            rewrite.correct_stream(cap, out, _warm, temperature=cap.layout.temperature, splice=splice_on)
+            assert cap.layout.per_row_column is not None
+            rewrite.correct_stream(cap, out, _warm, temperature=cap.layout.per_row_column, splice=splice_on)
     except TumblecalError as err:
         return out.getvalue(), str(err)
     return out.getvalue(), None

@@ -389,12 +389,12 @@ def thermal_column(layout: Layout, cals: Sequence[Calibration]) -> int | None:
             hint="correct the capture with each of them in its own run",
         )
     if amperes:
-        layout.temperature, layout.per_row = _per_row_column(layout, amperes, "current"), "current"
+        layout.per_row_column, layout.per_row = _per_row_column(layout, amperes, "current"), "current"
     elif names:
-        layout.temperature = _per_row_column(layout, names, "temperature")
+        layout.per_row_column = _per_row_column(layout, names, "temperature")
     else:
         return None
-    return layout.temperature
+    return layout.per_row_column
 
 
 def _per_row_column(layout: Layout, names: set[str], what: str) -> int:

@@ -98,9 +98,9 @@ def table_of(data: DataFrame, name: str, spec: ReadSpec, label_column: str | Non
     lay = sniff.Layout(name, ",", names, frame, b"", 1, "\n")
     lay.sensor, lay.time = sniff.pick_columns(lay, spec.sensor, spec.columns, spec.prefer, spec.time_column)
     if spec.temperature_column is not None:
-        lay.temperature = sniff.column_index(lay, spec.temperature_column, "--temperature-column")
+        lay.per_row_column = sniff.column_index(lay, spec.temperature_column, "--temperature-column")
     else:
-        lay.temperature = next((j for j, n in enumerate(names) if n.lower() in sniff.TEMPERATURE_NAMES), None)
+        lay.per_row_column = next((j for j, n in enumerate(names) if n.lower() in sniff.TEMPERATURE_NAMES), None)
     if label_column is not None:
         lay.extra = sniff.column_index(lay, label_column, "column")
     sniff.no_column_twice(lay, spec.sensor, spec.columns, spec.prefer, spec.time_column, spec.temperature_column)
@@ -133,7 +133,7 @@ def table_of(data: DataFrame, name: str, spec: ReadSpec, label_column: str | Non
         values,
         clock=other(lay.time),
         time_unit=None if lay.time is None else sniff.unit_of_name(names[lay.time]),
-        temperature=other(lay.temperature),
+        temperature=other(lay.per_row_column),
         labels=labels,
         sha256=hashlib.sha256(np.ascontiguousarray(values).tobytes()).hexdigest(),
     )

@@ -142,7 +142,7 @@ def thermal(
             f"{'that axis' if len(folded) == 1 else 'those axes'} the same way up "
             "(sweep the opposite face too to separate them)"
         )
-    column = read[0].log.layout.names[read[0].log.layout.temperature or 0]
+    column = read[0].log.layout.names[read[0].log.layout.per_row_column or 0]
     block = _block(fitted, column, read, min_swing)
     out = replace(base, thermal=block)
     return ThermalResult(out, fitted, read, warnings, notes)
@@ -245,7 +245,7 @@ def _judge_temperature(read: list[SweepRead], order: int | None, min_swing: floa
     temps = [r.log.temperature for r in read]
     lows = [float(np.nanmin(t)) for t in temps if t is not None]
     highs = [float(np.nanmax(t)) for t in temps if t is not None]
-    name = read[0].log.layout.names[read[0].log.layout.temperature or 0]
+    name = read[0].log.layout.names[read[0].log.layout.per_row_column or 0]
     if max(highs) - min(lows) == 0:
         raise CaptureRejected(
             f"the temperature column {name!r} is constant at {lows[0]:g} °C in every sweep: "

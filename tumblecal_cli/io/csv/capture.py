@@ -183,7 +183,7 @@ class Capture:
         time, temperature and extra columns alone (in that order, each if present)."""
         lay = self.layout
         keys = [str(i) for i in range(len(lay.names))]
-        wanted = list(lay.sensor) + [i for i in (lay.time, lay.temperature, lay.extra) if i is not None]
+        wanted = list(lay.sensor) + [i for i in (lay.time, lay.per_row_column, lay.extra) if i is not None]
         include = [keys[i] for i in wanted] if only_sensor else keys
         read = include if keys[0] in include else [keys[0], *include]  # column 0 tells comments
         bad_rows: list[str] = []
@@ -278,17 +278,17 @@ class Capture:
         odd = ~np.isfinite(values) & ~empty
         if odd.any():  # nan, inf: no temperature to correct the row at
             i = int(np.argmax(odd))
-            where = (self.layout.temperature or 0,) * 3
+            where = (self.layout.per_row_column or 0,) * 3
             cell = quoted(str(text[i].as_py()))
             raise self._locate(first_row + i, 0, f"{self.layout.per_row} is not a finite number: {cell}", where)
         return values
 
     def _temperatures(self, text: pa.Array, first_row: int, empty: BoolArray) -> FloatArray:
         lay = self.layout
-        assert lay.temperature is not None
+        assert lay.per_row_column is not None
         with contextlib.suppress(pa.ArrowInvalid):  # every cell a number (the usual case): one cast
             return to_floats(pc.cast(self.pointed(text), pa.float64()))
-        where = (lay.temperature, lay.temperature, lay.temperature)
+        where = (lay.per_row_column, lay.per_row_column, lay.per_row_column)
         trimmed = pc.utf8_trim_whitespace(unquote(self.pointed(text)))
         blank = to_bools(pc.equal(pc.utf8_length(trimmed), 0))
         missing = blank & ~empty
@@ -396,9 +396,9 @@ def open_capture(
             layout.time_unit = unit_of_name(layout.names[layout.time])
         lower = [n.lower() for n in layout.names]
         if temperature_column is not None:
-            layout.temperature = column_index(layout, temperature_column, "--temperature-column")
+            layout.per_row_column = column_index(layout, temperature_column, "--temperature-column")
         else:
-            layout.temperature = next((i for i, n in enumerate(lower) if n in TEMPERATURE_NAMES), None)
+            layout.per_row_column = next((i for i, n in enumerate(lower) if n in TEMPERATURE_NAMES), None)
         if extra is not None:
             layout.extra = column_index(layout, extra, "column")
         no_column_twice(layout, sensor, columns, prefer, time_column, temperature_column)

@@ -83,7 +83,7 @@ def scan_log(
     time_unit, rate = spec.time_unit, spec.rate
     with capture.open_capture(path, spec, name=name) as cap:
         lay = cap.layout
-        extra = [i for i in (lay.time, lay.temperature) if i is not None]
+        extra = [i for i in (lay.time, lay.per_row_column) if i is not None]
         splicer = rewrite.splicer_for(cap, [(lay.sensor, _same)], also=extra)
         if splicer is None:
             return None
@@ -142,7 +142,7 @@ def _scan(
         np.array([e.clock for e in found]) if lay.time is not None else None,
         None,
         sha256,
-        np.array([e.temperature for e in found]) if lay.temperature is not None else None,
+        np.array([e.temperature for e in found]) if lay.per_row_column is not None else None,
         feeder.scale,
         lines=lines,
         extremes=feeder.extremes(),
@@ -198,7 +198,7 @@ class _ScannedFile:
 
     def __init__(self, path: str, lay: sniff.Layout, splicer: Splicer, where: list[int]) -> None:
         self.path, self.name, self.splicer, self.where = path, lay.name, splicer, where
-        self.timed, self.warm = lay.time is not None, lay.temperature is not None
+        self.timed, self.warm = lay.time is not None, lay.per_row_column is not None
         st = os.stat(path)
         self.size = st.st_size
         self.stamp = (st.st_size, st.st_mtime_ns, st.st_ino)

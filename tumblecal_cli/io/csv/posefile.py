@@ -192,7 +192,7 @@ def read(path: str, spec: ReadSpec | None = None) -> Samples:
         return read_samples(path, spec)
     with open_capture(path, spec) as cap:
         lay = cap.layout
-        got = _Read(lay.name, lay.time is not None, lay.temperature is not None)
+        got = _Read(lay.name, lay.time is not None, lay.per_row_column is not None)
         try:
             for first_row, cols in cap.batches(only_sensor=True):
                 values, empty = cap.finite_values(cols, first_row)

@@ -224,7 +224,7 @@ def read_log(
             elif lay.time is not None and floats is not None:
                 floats = _as_floats(cap, cols[k], floats)
             k += lay.time is not None
-            if lay.temperature is not None:
+            if lay.per_row_column is not None:
                 temps.append(cap.temperature_values(cols[k], first_row, empty) if need_temperature else cols[k])
                 k += 1
             if lay.extra is not None:
@@ -413,7 +413,7 @@ def _corrected(table: Table, name: str) -> InputError:
 
 
 def _require_temperature(lay: Layout) -> None:
-    if lay.temperature is None:
+    if lay.per_row_column is None:
         raise InputError(
             f"no temperature column (looked for {', '.join(TEMPERATURE_NAMES)})",
             file=lay.name,

@@ -89,14 +89,14 @@ class Layout:
     eol: str
     sensor: tuple[int, int, int] = (0, 1, 2)
     time: int | None = None
-    temperature: int | None = None  # (or the column a current block corrects with: see ``per_row``)
+    per_row_column: int | None = None  # the column each row is corrected at: a temperature, or a current (``per_row``)
     extra: int | None = None  # one more column read as text (a log's label column)
     notes: list[str] = field(default_factory=list)  # things a person should be told
     decimal: str = "."  # the decimal mark of the file's numbers ("," in European exports)
     time_unit: str | None = None  # the unit the time column's name gives (timestamp_ms), if any
     incomplete: bytes | None = None  # the last line, when it is cut short and dropped (--drop-incomplete)
     compression: str | None = None  # gzip, bzip2, xz or zstd: the file's data read decompressed (io.csv.compressed)
-    per_row: str = "temperature"  # what the ``temperature`` column holds, as messages name it
+    per_row: str = "temperature"  # what the ``per_row_column`` holds, as messages name it
 
     @property
     def sensor_names(self) -> list[str]:
@@ -332,7 +332,7 @@ def no_column_twice(
     calibration's columns, or a label column (--pose-column) that is any of them: an error
     naming which (the column would be read twice, and corrected as a reading)."""
     names = layout.names
-    if layout.temperature is not None and layout.temperature == layout.time:
+    if layout.per_row_column is not None and layout.per_row_column == layout.time:
         raise InputError(
             f"{'--temperature-column' if temperature_column else 'the temperature column'} names "
             f"{names[layout.time]!r}, the time column",
@@ -341,7 +341,7 @@ def no_column_twice(
         )
     for role, index, option in (
         ("time", layout.time, time_column and "--time-column"),
-        ("temperature", layout.temperature, temperature_column and "--temperature-column"),
+        ("temperature", layout.per_row_column, temperature_column and "--temperature-column"),
     ):
         if index is None or index not in layout.sensor:
             continue
@@ -363,7 +363,7 @@ def no_column_twice(
         raise InputError(message, file=layout.name, hint=f"{hint} (columns: {', '.join(names)})")
     if layout.extra is not None:  # read as labels and as numbers
         taken = {i: f"one of the {sensor} columns" for i in layout.sensor}
-        for role, index in (("time", layout.time), ("temperature", layout.temperature)):
+        for role, index in (("time", layout.time), ("temperature", layout.per_row_column)):
             if index is not None:
                 taken[index] = f"the {role} column"
         if layout.extra in taken:
