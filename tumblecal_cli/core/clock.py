@@ -41,6 +41,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from tumblecal_cli.errors import said
+
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
@@ -186,7 +188,7 @@ def note(clock: Clock, name: str, rate: float | None) -> str | None:
     return (
         f"{name}: the time column's steps are bursty (samples stamped on arrival?): median "
         f"{clock.median * 1e3:.3g} ms ({1.0 / clock.median:.4g} Hz), mean {clock.mean * 1e3:.3g} ms; the rate used is "
-        f"{used}, from the samples over the time they span{_gaps(clock)}; give --rate HZ if it is not"
+        f"{used}, from the samples over the time they span{_gaps(clock)}; {said('clock.bursty')}"
     )
 
 

@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tumblecal_cli.core.running import Summary
-from tumblecal_cli.errors import CaptureRejected, InputError
+from tumblecal_cli.errors import CaptureRejected, InputError, said
 
 FloatArray = NDArray[np.float64]
 
@@ -223,7 +223,7 @@ def solve_three_pose(
     and every 1-sigma, are those of the ``+`` faces.
     """
     if reference <= 0:
-        raise InputError("the 3-pose solver needs a positive --reference (the stimulus magnitude)")
+        raise InputError(said("three.reference"))
     means = np.array([p.mean for p in poses])  # means[k, i]: pose k, axis i
     se = np.array([p.stderr for p in poses])
     offset = np.empty(3)

@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tumblecal_cli.core.model import FloatArray
-from tumblecal_cli.errors import InputError
+from tumblecal_cli.errors import InputError, said
 
 BoolArray = NDArray[np.bool_]
 
@@ -158,7 +158,7 @@ def check_alpha(alpha: float) -> float:
     """``alpha`` as a float in (0, 1); InputError naming --outlier-alpha otherwise."""
     if not (isinstance(alpha, int | float) and math.isfinite(alpha) and 0.0 < alpha < 1.0):
         raise InputError(
-            f"--outlier-alpha must be a probability between 0 and 1 (exclusive), got {alpha}",
+            said("outliers.alpha", alpha=alpha),
             hint=f"it is the chance a lot of good units gets any flag; {OUTLIER_ALPHA} is usual",
         )
     return float(alpha)

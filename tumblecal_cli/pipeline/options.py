@@ -19,7 +19,7 @@ import numpy as np
 from tumblecal_cli.core import gate, model
 from tumblecal_cli.core.methods import METHODS, TURNS
 from tumblecal_cli.core.model import SENSORS
-from tumblecal_cli.errors import InputError, control_character
+from tumblecal_cli.errors import InputError, control_character, said
 from tumblecal_cli.io.calfiles import limitfile
 from tumblecal_cli.io.calfiles.calfile import Unit
 from tumblecal_cli.io.readspec import Dialect, ReadSpec, column_list
@@ -370,7 +370,7 @@ def settings(options: SolveOptions, *, log: bool) -> Settings:
     up_face = face(options.up or "+z", "--up")
     turn_options(options, log=log)
     if method == "gyro-bias" and sensor != "gyroscope":  # one error, not one per unit
-        raise InputError(f"gyro-bias is a gyroscope's zero-rate bias: give --sensor gyroscope (not {sensor})")
+        raise InputError(said("gyro.sensor", sensor=sensor))
     for option, value in (
         ("--max-noise", options.checks.max_noise),
         ("--max-tilt", options.checks.max_tilt),
