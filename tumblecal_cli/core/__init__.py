@@ -1,5 +1,7 @@
 """The numeric core, numpy only: no files, no terminal, no pandas; every formula cites its source
-(docs/sources.md). Its modules:
+(docs/sources.md). It names no command-line flag: the words about the command line in its errors,
+findings and notes are said by a code and its facts (errors.said), worded by pipeline.hints. Its
+modules:
 
 - ``model``: faces and pose labels, pose statistics, the measurement model, the 1- and 3-pose
   solvers, tilt sensitivity, and apply (``M (raw - b)``).
