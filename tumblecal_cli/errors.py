@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import signal
 from collections.abc import Mapping
-from dataclasses import dataclass
+from typing import NamedTuple
 
 #: A fact that words about the command line take: a number or a name.
 Fact = str | int | float
@@ -21,12 +21,12 @@ def use_words(table: Mapping[str, str]) -> None:
     _WORDS.update(table)
 
 
-@dataclass(frozen=True)
-class Said:
+class Said(NamedTuple):
     """Words about the command line (a flag, an option's value) that the core says without
     holding them: a stable ``code`` and the ``facts`` the words take. ``str()`` is the code's row
     of the installed table (pipeline.hints) filled with the facts, so an f-string in the core
-    reads as the message always read. Without a table installed, the code and its facts."""
+    reads as the message always read. Without a table installed, the code and its facts. (A
+    NamedTuple, not a dataclass: ``import tumblecal_cli`` stays as light as ``--help`` needs.)"""
 
     code: str
     facts: tuple[tuple[str, Fact], ...] = ()
