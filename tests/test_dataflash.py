@@ -53,7 +53,8 @@ def read(path: Path | str, stream: str, sensor: str = "accelerometer", allow: bo
 
 def rewrite(path: Path, data: bytes) -> str:
     path.write_bytes(data)
-    dataflash._CACHE.clear()
+    dataflash.READER.forget()
+    dftext.READER.forget()
     return str(path)
 
 
@@ -248,7 +249,7 @@ def test_an_imu_is_raw_where_the_log_s_parm_holds_no_calibration(
     tmp_path: Path, params: dict[str, float], corrected: bool, how: str
 ) -> None:
     path, _, _ = still(tmp_path, 200, params=params)
-    dataflash._CACHE.clear()
+    dataflash.READER.forget()
     stream = next(s for s in tumblecal.streams(str(path)) if s.sensor == "accelerometer")
     assert (stream.key, stream.corrected) == ("IMU:0", corrected)
     assert stream.how.startswith(how)

@@ -42,7 +42,7 @@ EPOCH = 1_700_000_000_000_000_000
 
 @pytest.fixture(autouse=True)
 def _fresh() -> None:
-    ros._CACHE.clear()  # a bag rewritten in place within a test is read again
+    ros.READER.forget()  # a bag rewritten in place within a test is read again
 
 
 def bag(tmp_path: Path, kind: str, topics: dict[str, Messages], name: str = "b", **kwargs: bool) -> str:

@@ -322,7 +322,7 @@ def small(tmp_path: Path, rows: int = 2000, sync_every: int = 0) -> tuple[Path, 
 
 def rewrite(path: Path, data: bytes) -> str:
     path.write_bytes(data)
-    ulog._CACHE.clear()
+    ulog.READER.forget()
     return str(path)
 
 
