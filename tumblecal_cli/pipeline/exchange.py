@@ -13,6 +13,7 @@ import numpy as np
 
 from tumblecal_cli.core import gate, model, solvers
 from tumblecal_cli.core.gate import FIXED_GAINS
+from tumblecal_cli.core.quantities import STANDARD_GRAVITY
 from tumblecal_cli.errors import InputError, control_character
 from tumblecal_cli.io.calfiles import calfile, documents
 from tumblecal_cli.io.export import formats, paramfile
@@ -293,7 +294,7 @@ def _peer_reference(peer: Peer, path: str) -> float:
     if peer.sensor == "gyroscope":
         return 0.0
     if peer.format == "ros-yaml" and peer.sensor == "accelerometer":
-        return 9.80665  # imu_calib's do_calib: reference_acceleration defaults to 9.80665
+        return STANDARD_GRAVITY  # imu_calib's do_calib: reference_acceleration defaults to 9.80665
     by_units = {"g": 1.0, "m/s^2": 9.81, "m/s2": 9.81}  # imucal's Ferraris default expected gravity 9.81
     if peer.units in by_units:
         return by_units[peer.units]
