@@ -14,8 +14,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-#: Standard gravity (m/s^2): what 1 g is, by the third General Conference on Weights and Measures
-#: (1901); PX4's CONSTANTS_ONE_G and ROS imu_calib's default reference_acceleration too.
+#: Standard gravity (m/s^2): what 1 g is, by the third General Conference on Weights and Measures;
+#: PX4's CONSTANTS_ONE_G and ROS imu_calib's default reference_acceleration too.
 STANDARD_GRAVITY = 9.80665
 #: One degree in radians.
 DEGREE = math.pi / 180.0

@@ -38,9 +38,9 @@ from tumblecal_cli.core.quantities import COMMON, QUANTITY, factor
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.calfiles.calfile import Calibration
 from tumblecal_cli.io.export.formats import FLOAT32_MAX, _comment, _provenance
+from tumblecal_cli.io.export.registry import Exported, Exporter, ExportOptions
 from tumblecal_cli.version import __version__
 
-FIRMWARES = ("ardupilot", "px4")
 NAMES = {"ardupilot": "ArduPilot", "px4": "PX4"}
 #: The units each firmware's parameters are in (INS_ACCOFFS "m/s/s", INS_GYROFFS "rad/s",
 #: COMPASS_OFS "mGauss"; PX4's CAL_ACC/GYRO/MAG _XOFF "m/s^2", "rad/s", "gauss"), and the factor
@@ -573,3 +573,20 @@ def _px4_thermal(cal: Calibration, instance: int, lost: list[str]) -> str:
             rows.append((f"X{k}_{j}", value))
     lines += [f"1\t1\t{head}{name}\t{_value(value, 'a thermal coefficient', cal.path)}\t9" for name, value in rows]
     return "\n".join(lines) + "\n"
+
+
+# -- the registry's rows (io.export.registry) ----------------------------------------------------
+
+
+def export_ardupilot(cal: Calibration, options: ExportOptions) -> Exported:
+    written = write(cal, "ardupilot", options.instance)
+    return Exported(written.text, written.notes)
+
+
+def export_px4(cal: Calibration, options: ExportOptions) -> Exported:
+    written = write(cal, "px4", options.instance)
+    return Exported(written.text, written.notes)
+
+
+#: The export formats of this module, by their names in io.export.registry.EXPORTS.
+EXPORTERS: dict[str, Exporter] = {"ardupilot": export_ardupilot, "px4": export_px4}
