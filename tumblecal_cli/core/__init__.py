@@ -21,6 +21,8 @@ modules:
 - ``stillness``: where a gyroscope is still, cut down from the accelerometer's still blocks.
 - ``alignment``: the rotation between two sensors' axes from still blocks seen by both.
 - ``earth``: the Earth's reference fields at a place: normal gravity and the magnetic model.
+- ``quantities``: the unit names tumblecal knows, the quantity each measures and its factor to the
+  quantity's base unit; standard gravity.
 - ``drift``: offset and gain drift fitted against temperature, and each row corrected at its
   own temperature.
 - ``current_fit``: a magnetometer's offset per ampere of motor current.

@@ -30,6 +30,7 @@ from tumblecal_cli.core.model import (
     direction,
     suggest_reference,
 )
+from tumblecal_cli.core.quantities import REFERENCE_UNITS, STANDARD_GRAVITY
 from tumblecal_cli.core.running import Summary
 from tumblecal_cli.errors import InputError, said
 
@@ -738,7 +739,7 @@ def check_gains(gain: FloatArray, reference: float, nominal: FloatArray, *, agai
     nominal_text = ", ".join(f"{n:g}" for n in nominal) if len(set(nominal.tolist())) > 1 else f"{nominal[0]:g}"
     typical = float(gain.mean())
     suggested = suggest_reference(reference * typical / float(nominal.mean()))
-    units = {1.0: "g", 9.80665: "m/s^2", 1000.0: "mg"}.get(suggested)
+    units = REFERENCE_UNITS.get(suggested)
     if abs(typical - 1.0) <= GAIN_UNITS_TOLERANCE:
         hint = said("gains.near_one")
     elif units is not None and suggested != reference:
@@ -752,10 +753,9 @@ def check_gains(gain: FloatArray, reference: float, nominal: FloatArray, *, agai
     )
 
 
-#: Standard gravity in m/s^2: an accelerometer's gains this near it (or its inverse) are the
-#: data's units changed from m/s^2 into g (or back), not the sensor's own.
-STANDARD_GRAVITY = 9.80665
-#: How near: local gravity (9.78 to 9.83 m/s^2) and a sensor's gain error of a few % within it.
+#: How near standard gravity (or its inverse) an accelerometer's gains are when they are the
+#: data's units changed from m/s^2 into g (or back), not the sensor's own: local gravity (9.78
+#: to 9.83 m/s^2) and a sensor's gain error of a few % within it.
 UNITS_NOTE_TOLERANCE = 0.05
 
 

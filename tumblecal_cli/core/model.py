@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from tumblecal_cli.core.quantities import REFERENCE_UNITS
 from tumblecal_cli.core.running import Summary
 from tumblecal_cli.errors import CaptureRejected, InputError, said
 
@@ -324,7 +325,7 @@ def units_mistake(mean: FloatArray, reference: float) -> float | None:
 
 def suggest_reference(magnitude: float) -> float:
     """A conventional reference near ``magnitude``: 1 (g), 9.80665 (m/s^2), 1000 (mg) or 2^k counts."""
-    candidates = [1.0, 9.80665, 1000.0] + [float(2**k) for k in range(4, 17)]
+    candidates = [*REFERENCE_UNITS] + [float(2**k) for k in range(4, 17)]
     best = min(candidates, key=lambda c: abs(math.log(c / magnitude)) if magnitude > 0 else math.inf)
     if magnitude > 0 and abs(best - magnitude) <= 0.1 * best:
         return best

@@ -14,23 +14,22 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
 from typing import TYPE_CHECKING, TypedDict
 
-import numpy as np
-
 from tumblecal_cli.core import gate, model
 from tumblecal_cli.core.methods import METHODS, TURNS
 from tumblecal_cli.core.model import SENSORS
 from tumblecal_cli.errors import InputError, control_character, said
 from tumblecal_cli.io.calfiles import limitfile
 from tumblecal_cli.io.calfiles.calfile import Unit
+from tumblecal_cli.io.calfiles.limitfile import (
+    Triplet as Triplet,  # re-exported: solve, segment and exchange read them here
+)
+from tumblecal_cli.io.calfiles.limitfile import triplet as triplet
 from tumblecal_cli.io.readspec import Dialect, ReadSpec, column_list
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Limits
     from tumblecal_cli.core.model import FloatArray
     from tumblecal_cli.io.calfiles.calfile import Unit
-
-#: A number, or three (X,Y,Z): text as the command line gives it, or numbers.
-Triplet = str | float | Sequence[float]
 
 
 @dataclass(frozen=True)
@@ -507,28 +506,6 @@ def pose_map(value: str | Mapping[str, str] | None, option: str = "--pose-map") 
             raise InputError(f"{option} gives label {label.strip()!r} twice: {out[label.strip()]} and {face}")
         out[label.strip()] = face
     return out
-
-
-def triplet(value: Triplet, option: str) -> FloatArray:
-    """A number or X,Y,Z (text as the command line gives it, a number, or three numbers), as a (3,) array."""
-
-    if isinstance(value, str):
-        text = value
-        try:
-            values = [float(p) for p in value.split(",")]
-        except ValueError:
-            values = []
-    elif isinstance(value, int | float):
-        text, values = repr(value), [float(value)]
-    else:
-        text = ",".join(map(str, value))
-        try:
-            values = [float(v) for v in value]
-        except (TypeError, ValueError):
-            values = []
-    if len(values) not in (1, 3) or not all(np.isfinite(values)):
-        raise InputError(f"{option} takes one number or three (X,Y,Z), got {text!r}")
-    return np.array(values * 3 if len(values) == 1 else values)
 
 
 def limits(

@@ -20,6 +20,7 @@ import numpy as np
 from tumblecal_cli.core import blocks, clock, gate, methods, model, solvers
 from tumblecal_cli.core.gate import Finding
 from tumblecal_cli.core.model import face_of_name
+from tumblecal_cli.core.quantities import REFERENCE_UNITS, STANDARD_GRAVITY
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import sources
 from tumblecal_cli.io.calfiles import calfile
@@ -228,10 +229,6 @@ def _solve_trimmed(name: str, poses: PoseSet, options: SolveOptions, given: Sett
     if trimmed.error is not None:
         return Solved(3, None, error=trimmed.error, notes=trimmed.notes, samples=poses.samples, limits=given.limits)
     return _solve(name, replace(poses, samples=trimmed.samples, notes=[*poses.notes, *trimmed.notes]), options, given)
-
-
-#: Standard gravity (m/s^2): the reference of an accelerometer read in m/s^2 (PX4's CONSTANTS_ONE_G).
-STANDARD_GRAVITY = 9.80665
 
 
 def _first_file(given: list[str] | Mapping[str, object] | None) -> str | None:
@@ -761,7 +758,7 @@ def check_units(
             file=name,
             hint="a pose at rest reads the reference: is the sensor working, and are these its columns?",
         )
-    units = {1.0: "g", 9.80665: "m/s^2", 1000.0: "mg"}.get(suggested, "raw counts")
+    units = REFERENCE_UNITS.get(suggested, "raw counts")
     raise InputError(
         f"the pose reads {magnitude:.4g} in magnitude but --reference is {reference:g}: a units mistake?",
         file=name,
