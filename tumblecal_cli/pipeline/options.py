@@ -154,7 +154,7 @@ class SolveOptions:
 #: The groups of SolveOptions besides ``read`` (a ReadSpec), each a dataclass of flat options.
 GROUPS: dict[str, type] = {"log": LogOptions, "checks": CheckOptions, "limits": LimitOptions, "unit": UnitOptions}
 #: The flat names that are not their field's name: ``limits=`` is the limits group's file.
-RENAMED = {"file": "limits"}
+RENAMED = {("limits", "file"): "limits"}
 #: The options given once per item, repeatable on the command line (a tuple in SolveOptions).
 REPEATABLE = ("meta", "no_check")
 #: Each option's flat name (the command line's long option in snake case) and where SolveOptions
@@ -165,7 +165,7 @@ REPEATABLE = ("meta", "no_check")
 FLAT: dict[str, tuple[str, str]] = {
     **{f.name: ("", f.name) for f in fields(SolveOptions) if f.name != "read" and f.name not in GROUPS},
     **{name: ("dialect" if name in {f.name for f in fields(Dialect)} else "read", name) for name in READ_NAMES},
-    **{RENAMED.get(f.name, f.name): (g, f.name) for g, kind in GROUPS.items() for f in fields(kind)},
+    **{RENAMED.get((g, f.name), f.name): (g, f.name) for g, kind in GROUPS.items() for f in fields(kind)},
 }
 
 
