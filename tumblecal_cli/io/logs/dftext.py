@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tumblecal_cli.core.model import FloatArray
+from tumblecal_cli.io import logs
 from tumblecal_cli.io.logs.dataflash import DataflashReader, Format, Index, Source, named
 from tumblecal_cli.io.logs.fields import CHUNK
 
@@ -163,4 +164,14 @@ def fields(path: str, src: Source, names: list[str]) -> dict[str, FloatArray]:
     return {n: out[:, k] for k, n in enumerate(names)}
 
 
-READER = DataflashReader(walk)
+class DftextReader(DataflashReader):
+    """io.sources' Reader of ArduPilot DataFlash logs in their text form: walked here, listed and
+    read as the binary form is (io.logs.dataflash)."""
+
+    row = logs.DFTEXT
+
+    def walk(self, path: str) -> Index:
+        return walk(path)
+
+
+READER = DftextReader()
