@@ -29,8 +29,9 @@ from tumblecal_cli.io.calfiles import calfile, documents, limitfile
 from tumblecal_cli.io.csv import capture, readings, sniff
 from tumblecal_cli.io.csv.ahead import ahead
 from tumblecal_cli.io.outputs import atomic_output
+from tumblecal_cli.io.readspec import ReadKeywords, read_spec
 from tumblecal_cli.pipeline.frames import in_memory
-from tumblecal_cli.pipeline.options import ReadKeywords, keywords_known, read_spec
+from tumblecal_cli.pipeline.options import keywords_known
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.model import FloatArray

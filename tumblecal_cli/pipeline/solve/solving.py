@@ -13,7 +13,7 @@ import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Unpack
 
 import numpy as np
 
@@ -31,7 +31,7 @@ from tumblecal_cli.pipeline import places
 from tumblecal_cli.pipeline import segment as logs
 from tumblecal_cli.pipeline.exchange import tilt_notes
 from tumblecal_cli.pipeline.frames import in_memory, read_pose, samples_of
-from tumblecal_cli.pipeline.options import SolveOptions, method_options, path_of, triplet
+from tumblecal_cli.pipeline.options import SolveKeywords, SolveOptions, method_options, path_of, triplet
 from tumblecal_cli.pipeline.solve import maglog, rotations, tables, trimming, turns
 
 if TYPE_CHECKING:
@@ -97,7 +97,7 @@ class Solved:
 Poses = str | os.PathLike[str] | Sequence[object] | Mapping[str, object] | model.FloatArray
 
 
-def solve(poses: Poses, **options: object) -> Solved:
+def solve(poses: Poses, **options: Unpack[SolveKeywords]) -> Solved:
     """Solve a calibration from pose captures, as ``tumblecal solve --poses`` does.
 
     ``poses``: the items of ``--poses`` (``FILE`` or ``LABEL=FILE``), or a mapping of labels
@@ -110,7 +110,7 @@ def solve(poses: Poses, **options: object) -> Solved:
     return run(SolveOptions.of(options), poses=poses)
 
 
-def solve_log(log: str | os.PathLike[str] | DataFrame, **options: object) -> Solved:
+def solve_log(log: str | os.PathLike[str] | DataFrame, **options: Unpack[SolveKeywords]) -> Solved:
     """Solve a calibration from one continuous log ('-': stdin), as ``tumblecal solve --log``:
     the still blocks are found (or taken from ``pose_column``), the best of each face used.
     ``log`` may be its data in memory: a DataFrame, or an (n, 3) array (``rate=`` gives its
