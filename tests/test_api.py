@@ -57,7 +57,7 @@ def test_each_solver_through_the_api_is_the_command(
     assert r.code == 0, r.err
     written = json.loads(out.read_text())
     items, options = _api_call(args)
-    solved = tumblecal.solve(items, **options)
+    solved = tumblecal.solve(items, **options)  # type: ignore[arg-type]
     assert solved.status == 0
     assert solved.error is None
     cal = solved.calibration
@@ -107,7 +107,7 @@ def test_input_errors_raise_the_exception_family(tmp_path: Path) -> None:
     with pytest.raises(tumblecal.InputError, match="--reference must be a positive number"):
         tumblecal.solve([str(SAMPLE / "z.csv")], reference=-1.0)
     with pytest.raises(TypeError):
-        tumblecal.solve([str(SAMPLE / "z.csv")], no_such_option=1)
+        tumblecal.solve([str(SAMPLE / "z.csv")], no_such_option=1)  # type: ignore[call-arg]
     assert issubclass(tumblecal.InputError, tumblecal.TumblecalError)
     assert issubclass(tumblecal.CaptureRejected, tumblecal.TumblecalError)
 
@@ -235,7 +235,7 @@ def test_a_rejected_draft_is_never_trusted(tmp_path: Path, capsys: pytest.Captur
 )
 def test_options_given_in_python_are_checked_as_the_parser_checks_them(options: dict[str, object], words: str) -> None:
     with pytest.raises(tumblecal.InputError, match=words):
-        tumblecal.solve([str(SAMPLE / f"{a}.csv") for a in "xyz"], **options)
+        tumblecal.solve([str(SAMPLE / f"{a}.csv") for a in "xyz"], **options)  # type: ignore[arg-type]
 
 
 def test_one_check_name_as_a_string_is_that_check() -> None:

@@ -17,7 +17,7 @@ from pymavlink import DFReader
 
 import tumblecal_cli as tumblecal
 from tests import dataflash_writer as writer
-from tests.conftest import ROOT, imported, run_exe, write
+from tests.conftest import ROOT, run_exe, write
 from tests.conftest import tumblecal as cli
 from tests.test_sources import tumble
 from tests.test_ulog import thermal_sweeps
@@ -53,7 +53,8 @@ def read(path: Path | str, stream: str, sensor: str = "accelerometer", allow: bo
 
 def rewrite(path: Path, data: bytes) -> str:
     path.write_bytes(data)
-    dataflash._CACHE.clear()
+    dataflash.READER.forget()
+    dftext.READER.forget()
     return str(path)
 
 
@@ -248,7 +249,7 @@ def test_an_imu_is_raw_where_the_log_s_parm_holds_no_calibration(
     tmp_path: Path, params: dict[str, float], corrected: bool, how: str
 ) -> None:
     path, _, _ = still(tmp_path, 200, params=params)
-    dataflash._CACHE.clear()
+    dataflash.READER.forget()
     stream = next(s for s in tumblecal.streams(str(path)) if s.sensor == "accelerometer")
     assert (stream.key, stream.corrected) == ("IMU:0", corrected)
     assert stream.how.startswith(how)
@@ -565,28 +566,13 @@ def test_mutated_logs_end_in_a_documented_way(tmp_path: Path, form: str) -> None
             pass
 
 
-def test_a_log_with_no_sensor_stream_and_one_with_a_label_column(tmp_path: Path) -> None:
+def test_a_log_with_no_sensor_stream(tmp_path: Path) -> None:
     bare = write(tmp_path / "bare.bin", writer.header(writer.identity(1)))
     code, out, _ = cli("logs", bare)
     assert (code, out) == (0, "no sensor streams in this log\n")
     code, _, err = cli("solve", "--log", bare, "-o", tmp_path / "c.json")
     assert code == 2
     assert "the log holds no accelerometer stream with samples" in err
-    path, _, _ = still(tmp_path)
-    code, _, err = cli("solve", "--log", path, "--pose-column", "part", "-o", tmp_path / "c.json")
-    assert code == 2
-    assert "an ArduPilot DataFlash log has no label column ('part')" in err
-
-
-def test_the_dataflash_reader_is_imported_only_when_a_log_is_read() -> None:
-    watch = ("tumblecal_cli.io.logs.dataflash", "tumblecal_cli.io.logs.dftext")
-    assert imported("import tumblecal_cli.io.sources, tumblecal_cli.io.csv.readings", watch) == []
-    body = "import tumblecal_cli as t, gzip, tempfile\n" + (
-        "p = tempfile.mktemp(suffix='.BIN')\n"
-        "open(p, 'wb').write(gzip.decompress(open('tests/data/ardupilot/pymavlink_plane.BIN.gz', 'rb').read()))\n"
-        "t.streams(p)"
-    )
-    assert imported(body, watch) == ["tumblecal_cli.io.logs.dataflash"]
 
 
 # -- the installed command, end to end -------------------------------------------------------

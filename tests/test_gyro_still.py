@@ -267,10 +267,10 @@ def test_a_face_the_gyroscope_saw_move_is_refused(tmp_path: Path, hz: float, amp
     session.gyr[face] += shake
     log = session.write(tmp_path / "shaken.csv")
     kwargs = {"sensor": "gyroscope", "pose_column": "part", "pose_map": st.FACE_MAP, "turns": st.TURNS}
-    solved = tumblecal.solve_log(log, turn_angle=360, **kwargs)
+    solved = tumblecal.solve_log(log, turn_angle=360, **kwargs)  # type: ignore[arg-type]
     assert solved.status == 3
     assert str(solved.error).endswith(f"still section y_a moved: its gyroscope {said}")
-    assert tumblecal.solve_log(log, turn_angle=360, no_check="moved", **kwargs).status == 0
+    assert tumblecal.solve_log(log, turn_angle=360, no_check="moved", **kwargs).status == 0  # type: ignore[arg-type]
 
 
 def test_a_block_that_spreads_more_than_the_noise_is_not_still() -> None:

@@ -6,14 +6,21 @@ import inspect
 
 import pytest
 
-from tumblecal_cli.cli.solve import OPTION_NAMES, solve, solve_options
+from tumblecal_cli.cli.solve import CLI_ONLY, solve
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.readspec import Dialect, ReadSpec
 from tumblecal_cli.pipeline.options import FLAT, CheckOptions, LimitOptions, LogOptions, SolveOptions, UnitOptions
 
+OPTION_NAMES = tuple(name for name in inspect.signature(solve).parameters if name not in CLI_ONLY)
+
+
+def solve_options(**given: object) -> SolveOptions:
+    """What the command makes of its parameters: SolveOptions.of, by name."""
+    return SolveOptions.of(given)
+
 
 def test_every_option_of_solve_options_is_a_parameter_of_solve_and_of_the_python_api() -> None:
-    """The command passes its parameters to solve_options by name; the Python API's keywords are FLAT's."""
+    """The command passes its parameters to SolveOptions.of by name; the Python API's keywords are FLAT's."""
     assert set(OPTION_NAMES) <= set(inspect.signature(solve).parameters)
     assert set(OPTION_NAMES) == set(FLAT)
 
@@ -88,3 +95,45 @@ def test_options_from_python_are_judged_as_before_in_the_same_order(given: dict[
 def test_an_unknown_option_names_the_options_class_as_python_did() -> None:
     with pytest.raises(TypeError, match=r"^SolveOptions.__init__\(\) got an unexpected keyword argument 'foo'$"):
         SolveOptions.of({"foo": 1})
+
+
+def test_the_python_api_keywords_are_the_mappers_flat_names() -> None:
+    """SolveKeywords (solve's and solve_log's ``**options``) names every flat option of the one
+    mapper, SolveOptions.of, and no other; its read keywords are a ReadSpec's."""
+    from tumblecal_cli.io.readspec import READ_NAMES, ReadKeywords
+    from tumblecal_cli.pipeline.options import SolveKeywords
+    from tumblecal_cli.pipeline.solve import solving
+
+    assert set(SolveKeywords.__annotations__) == set(FLAT)
+    assert set(ReadKeywords.__annotations__) == set(READ_NAMES) <= set(FLAT)
+    for function in (solving.solve, solving.solve_log):
+        assert inspect.signature(function).parameters["options"].annotation == "Unpack[SolveKeywords]"
+
+
+def test_each_option_of_the_command_is_a_flat_name_or_the_command_lines_own() -> None:
+    """Every ``tumblecal solve`` parameter is a flat option of SolveOptions.of, or one of CLI_ONLY
+    (what to read, where to write, what to print), never both; batch takes the flat ones."""
+    from tumblecal_cli.cli.batch import batch
+
+    parameters = set(inspect.signature(solve).parameters)
+    assert set(CLI_ONLY) <= parameters
+    assert set(CLI_ONLY).isdisjoint(FLAT)
+    assert parameters - set(CLI_ONLY) == set(FLAT)
+    assert set(FLAT) - {"serial"} <= set(inspect.signature(batch).parameters)
+
+
+def test_the_command_lines_defaults_are_the_python_apis() -> None:
+    """Each option left out on the command line maps to what the Python API leaves out: the
+    defaults of SolveOptions (a repeatable option not given, None, is none)."""
+    defaults = {name: p.default for name, p in inspect.signature(solve).parameters.items() if name in FLAT}
+    assert SolveOptions.of(defaults) == SolveOptions()
+    assert SolveOptions.of({"meta": None, "no_check": None}).unit.meta == ()
+
+
+def test_the_read_options_are_one_read_spec() -> None:
+    """solve's read options reach the pipeline as io.readspec.read_spec makes them, for any command."""
+    from tumblecal_cli.io.readspec import ReadKeywords, read_spec
+
+    given: ReadKeywords = {"sensor": "gyroscope", "columns": "gx,gy,gz", "time_unit": "ms", "skip_rows": 1}
+    spec = ReadSpec("gyroscope", ("gx", "gy", "gz"), time_unit="ms", dialect=Dialect(1))
+    assert SolveOptions.of(given).read == read_spec(given) == spec

@@ -186,7 +186,7 @@ def test_python_takes_a_table_in_memory() -> None:
     with pytest.raises(InputError, match="its rows point in different directions"):
         tumblecal.solve(values, rows_are_poses=False)
     with pytest.raises(InputError, match=r"rows_are_poses is True, False or None .*got 'yes'"):
-        tumblecal.solve(values, rows_are_poses="yes")
+        tumblecal.solve(values, rows_are_poses="yes")  # type: ignore[arg-type]
 
 
 @pytest.mark.slow

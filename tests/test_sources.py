@@ -14,11 +14,13 @@ from tests.conftest import ROOT, write
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import sources
 from tumblecal_cli.io.readspec import ReadSpec
-from tumblecal_cli.io.sources import Stream, Table
+from tumblecal_cli.io.sources import Reader, Stream, Table
 
 
-class NpzReader:
+class NpzReader(Reader):
     """A stand-in for a binary log: numpy's .npz with ``t`` (s), ``acc`` (n, 3) and ``temp``."""
+
+    kind = "numpy .npz archive"
 
     def claims(self, path: str, head: bytes) -> bool:
         return path.endswith(".npz") and head.startswith(b"PK")

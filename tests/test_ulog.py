@@ -16,7 +16,7 @@ from pyulog import ULog
 
 import tumblecal_cli as tumblecal
 from tests import ulog_writer
-from tests.conftest import ROOT, imported, run_exe, write
+from tests.conftest import ROOT, run_exe, write
 from tests.conftest import tumblecal as cli
 from tests.test_sources import tumble
 from tumblecal_cli.errors import InputError
@@ -239,19 +239,6 @@ def test_a_log_whose_reader_needs_an_extra_not_installed_is_exit_2_naming_it(
         )
 
 
-def test_the_ulog_reader_is_imported_only_when_a_log_is_read() -> None:
-    watch = ("tumblecal_cli.io.logs.ulog",)
-    assert imported("import tumblecal_cli.io.sources, tumblecal_cli.io.csv.readings", watch) == []
-    body = "import tumblecal_cli as t\nt.noise('tests/data/xsens_acc_still.txt', rate=100.0)"
-    assert imported(body, watch) == []
-    body = "import tumblecal_cli as t, gzip, tempfile\n" + (
-        "p = tempfile.mktemp(suffix='.ulg')\n"
-        "open(p, 'wb').write(gzip.decompress(open('tests/data/px4/robologs_fmu_v5.ulg.gz', 'rb').read()))\n"
-        "t.streams(p)"
-    )
-    assert imported(body, watch) == list(watch)
-
-
 # -- a synthetic session in the real format --------------------------------------------------
 
 
@@ -322,7 +309,7 @@ def small(tmp_path: Path, rows: int = 2000, sync_every: int = 0) -> tuple[Path, 
 
 def rewrite(path: Path, data: bytes) -> str:
     path.write_bytes(data)
-    ulog._CACHE.clear()
+    ulog.READER.forget()
     return str(path)
 
 
@@ -418,13 +405,6 @@ def test_a_log_that_cannot_be_read_is_one_line(tmp_path: Path, data: bytes, mess
         assert (code, out) == (2, "")
         assert err.startswith(f"error: {path}: {message}")
         assert "Traceback" not in err
-
-
-def test_a_ulog_has_no_label_column(tmp_path: Path) -> None:
-    path, _, _ = small(tmp_path)
-    code, _, err = cli("solve", "--log", path, "--pose-column", "part", "-o", tmp_path / "c.json")
-    assert code == 2
-    assert "a PX4 ULog has no label column ('part')" in err
 
 
 # -- the installed command, end to end -------------------------------------------------------

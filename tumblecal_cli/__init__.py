@@ -14,7 +14,9 @@ The Python API (docs/python.md)::
 
 Layers, imports flowing one way: ``cli`` (Typer, Rich) -> ``pipeline`` (what a user does) ->
 ``io`` (files) -> ``core`` (numpy only). The names below are loaded when first used, so
-``import tumblecal_cli`` (and ``tumblecal --help``) imports no numpy.
+``import tumblecal_cli`` (and ``tumblecal --help``) imports no numpy. An error's words about the
+command line (``--reference``) are the same from the Python API: the core says them by a code,
+``err.said``, and ``pipeline.hints`` words each code.
 """
 
 from __future__ import annotations
@@ -22,8 +24,13 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING
 
-from tumblecal_cli.errors import CaptureRejected, InputError, TumblecalError
+from tumblecal_cli.errors import CaptureRejected, InputError, TumblecalError, use_words
+from tumblecal_cli.pipeline.hints import WORDS
 from tumblecal_cli.version import __version__
+
+# The words the core says about the command line (a flag it names by a code): installed first,
+# so whatever is imported after reads them (pipeline.hints).
+use_words(WORDS)
 
 if TYPE_CHECKING:
     from tumblecal_cli.io.calfiles.calfile import Calibration, load

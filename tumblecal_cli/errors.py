@@ -3,6 +3,48 @@
 from __future__ import annotations
 
 import signal
+from collections.abc import Mapping
+from typing import NamedTuple
+
+#: A fact that words about the command line take: a number or a name.
+Fact = str | int | float
+
+#: The words for each code of a Said (a str.format template of its facts), as the edge installs
+#: them (use_words). Empty until then.
+_WORDS: dict[str, str] = {}
+
+
+def use_words(table: Mapping[str, str]) -> None:
+    """Install the edge's words for each code of a Said: pipeline.hints.WORDS, installed by the
+    package's import (tumblecal_cli/__init__), so a Said reads the same wherever it is raised."""
+    _WORDS.clear()
+    _WORDS.update(table)
+
+
+class Said(NamedTuple):
+    """Words about the command line (a flag, an option's value) that the core says without
+    holding them: a stable ``code`` and the ``facts`` the words take. ``str()`` is the code's row
+    of the installed table (pipeline.hints) filled with the facts, so an f-string in the core
+    reads as the message always read. Without a table installed, the code and its facts. (A
+    NamedTuple, not a dataclass: ``import tumblecal_cli`` stays as light as ``--help`` needs.)"""
+
+    code: str
+    facts: tuple[tuple[str, Fact], ...] = ()
+
+    def __str__(self) -> str:
+        template = _WORDS.get(self.code)
+        if template is None:
+            return f"[{self.code}{''.join(f' {k}={v!r}' for k, v in self.facts)}]"
+        return template.format_map(dict(self.facts))
+
+    def fact(self, name: str) -> Fact:
+        """One of the facts, by name."""
+        return dict(self.facts)[name]
+
+
+def said(code: str, **facts: Fact) -> Said:
+    """The words of ``code`` with its facts: ``said("pose.short", least=10)``."""
+    return Said(code, tuple(facts.items()))
 
 
 class TumblecalError(Exception):
@@ -11,7 +53,10 @@ class TumblecalError(Exception):
     ``str(err)`` is the whole one-line message after ``error: ``; ``hint`` is an optional
     line saying what to do about it. ``more`` are further ``error:`` lines when several things
     are wrong at once (three rejected poses); ``code`` is the stable code of a rejection and
-    ``codes`` those of all of them (batch's summary lists them).
+    ``codes`` those of all of them (batch's summary lists them). ``said``: the code and facts of
+    the words about the command line that are the message or the hint (given as a Said: a flag
+    the core names through pipeline.hints), for a caller that would say them its own way; None
+    when there are none.
     """
 
     exit_code = 2
@@ -19,17 +64,18 @@ class TumblecalError(Exception):
 
     def __init__(
         self,
-        message: str,
+        message: str | Said,
         *,
         file: str | None = None,
         line: int | None = None,
         column: int | str | None = None,
-        hint: str | None = None,
+        hint: str | Said | None = None,
         more: tuple[str, ...] = (),
         code: str | None = None,
         codes: tuple[str, ...] = (),
     ) -> None:
-        self.message = message
+        self.said = next((w for w in (message, hint) if isinstance(w, Said)), None)
+        self.message = str(message)
         self.more = more
         if code is not None:
             self.code = code
@@ -37,7 +83,7 @@ class TumblecalError(Exception):
         self.file = file
         self.line = line
         self.column = column
-        self.hint = hint
+        self.hint = None if hint is None else str(hint)
         super().__init__(self.render())
 
     def render(self) -> str:

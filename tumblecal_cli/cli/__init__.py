@@ -9,8 +9,8 @@ Its modules:
 - ``calfiles``: the commands on calibration files: show, check, export and import.
 
 Each command parses its options, makes one call into ``tumblecal_cli.pipeline`` and renders the
-result; the pipeline is imported inside the commands (batch reads the names of SolveOptions,
-whose module imports no numpy), so ``tumblecal --help`` loads no numpy.
+result; the pipeline is imported inside the commands (batch takes solve's parameters, all but
+``solve.CLI_ONLY``, from the command itself), so ``tumblecal --help`` loads no numpy.
 """
 
 import importlib

@@ -11,7 +11,7 @@ import typer
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
 from tumblecal_cli.cli.flags import STATUS_WORDS
-from tumblecal_cli.cli.solve import OPTION_NAMES, solve, solve_options
+from tumblecal_cli.cli.solve import CLI_ONLY, solve
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -109,11 +109,11 @@ def _batch_options(
 
 
 def _batch_signature() -> inspect.Signature:
-    """batch takes its own options and every option of solve (solve_options), but a unit's serial."""
+    """batch takes its own options and every one of solve's flat options (all but its CLI_ONLY),
+    but a unit's serial."""
     own = list(inspect.signature(_batch_options, eval_str=True).parameters.values())
-    shared = OPTION_NAMES
     solves = inspect.signature(solve, eval_str=True).parameters.items()
-    return inspect.Signature(own + [p for n, p in solves if n in shared and n != "serial"])
+    return inspect.Signature(own + [p for n, p in solves if n not in CLI_ONLY and n != "serial"])
 
 
 def batch(**given: Any) -> None:  # Typer passes each option by name, each of its own type
@@ -155,7 +155,7 @@ def batch(**given: Any) -> None:  # Typer passes each option by name, each of it
         result = batches.run_batch(
             own["source"],
             out_dir,
-            solve_options(**given),
+            given,  # solve's flat options: run_batch maps them (SolveOptions.of)
             log=own["log"],
             jobs=own["jobs"],
             resume=own["resume"],

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from enum import StrEnum
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -10,8 +11,6 @@ from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
 from tumblecal_cli.cli.flags import (
     REGISTERS_PANEL,
-    ExportFormat,
-    ImportFormat,
     JsonSummary,
     LimitsFile,
     MaxGainError,
@@ -23,6 +22,16 @@ from tumblecal_cli.cli.flags import (
     Verbose,
 )
 from tumblecal_cli.errors import one_line
+from tumblecal_cli.io.export import registry
+
+if TYPE_CHECKING:  # a name of the registry, to mypy; Typer offers the choices of the enum below
+    ExportChoice = str
+    ImportChoice = str
+else:
+    #: --format's and --from's choices: the registries' names (io.export.registry), read when this
+    #: module is imported (a format registered later is not offered).
+    ExportChoice = StrEnum("ExportChoice", {name: name for name in registry.EXPORTS})
+    ImportChoice = StrEnum("ImportChoice", {name: name for name in registry.IMPORTS})
 
 
 @app.command(
@@ -107,17 +116,7 @@ def check(
 @app.command(cls=Command, epilog="Exit status: 0 written; 2 usage or input error (a value that does not fit is one).")
 def export(
     cal: Annotated[str, typer.Argument(metavar="CAL", help="Calibration file; '-' reads stdin.")],
-    fmt: Annotated[
-        ExportFormat,
-        typer.Option(
-            "--format",
-            "-f",
-            help="c-header: C99/C++ header for firmware; registers: offset (and gain trim) register counts, CSV; "
-            "imucal-json, ros-yaml, matlab: the peer tools' own files; ardupilot, px4: the autopilot's parameters "
-            "(a .parm file of INS_ACC/INS_GYR/COMPASS_, a QGroundControl .params file of CAL_ACC/CAL_GYRO/CAL_MAG; "
-            "a thermal block as INS_TCAL or TC_A/TC_G) (docs/commands/export-import.md).",
-        ),
-    ],
+    fmt: Annotated[ExportChoice, typer.Option("--format", "-f", help=registry.export_help())],
     output: Annotated[
         str, typer.Option("--output", "-o", metavar="FILE", help="Where to write; '-' (the default) is stdout.")
     ] = "-",
@@ -200,7 +199,7 @@ def export(
     check_writable(output)
     done = exchange.exported(
         cal,
-        fmt.value,
+        str(fmt),
         prefix=prefix,
         lsb=lsb,
         bits=bits,
@@ -222,7 +221,7 @@ def import_(
         str, typer.Argument(metavar="FILE", help="An imucal JSON or ROS imu_calib YAML file; '-' reads stdin.")
     ],
     fmt: Annotated[
-        ImportFormat | None,
+        ImportChoice | None,
         typer.Option("--from", help="The file's format. [default: recognised by its keys]"),
     ] = None,
     output: Annotated[
@@ -277,7 +276,7 @@ def import_(
     check_writable(output)
     got = exchange.import_peer(
         peer_file,
-        fmt=fmt.value if fmt is not None else None,
+        fmt=str(fmt) if fmt is not None else None,
         sensor=sensor.value if sensor else None,
         reference=reference,
         columns=columns,

@@ -452,21 +452,6 @@ MaxSpool = Annotated[
 ]
 
 
-class ExportFormat(StrEnum):
-    c_header = "c-header"
-    registers = "registers"
-    imucal_json = "imucal-json"
-    ros_yaml = "ros-yaml"
-    matlab = "matlab"
-    ardupilot = "ardupilot"
-    px4 = "px4"
-
-
-class ImportFormat(StrEnum):
-    imucal_json = "imucal-json"
-    ros_yaml = "ros-yaml"
-
-
 class RegisterSign(StrEnum):
     subtract = "subtract"
     add = "add"

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import inspect
 from typing import TYPE_CHECKING, Annotated
 
 import typer
@@ -59,7 +58,6 @@ from tumblecal_cli.cli.flags import (
 from tumblecal_cli.errors import InputError
 
 if TYPE_CHECKING:
-    from tumblecal_cli.pipeline.options import SolveOptions
     from tumblecal_cli.pipeline.solve.solving import Solved
 
 
@@ -344,9 +342,12 @@ def solve(
     prints it, the verdict, warnings and notes (-v: each pose and block too).
     """
 
-    options = solve_options(**{name: value for name, value in locals().items() if name in OPTION_NAMES})
+    given = {name: value for name, value in locals().items() if name not in CLI_ONLY}  # (locals: the parameters)
     from tumblecal_cli.io.outputs import check_not_input, check_writable
+    from tumblecal_cli.pipeline.options import SolveOptions
     from tumblecal_cli.pipeline.solve import solving as pipeline
+
+    options = SolveOptions.of(given)
 
     inputs = [*(poses or []), *(p.partition("=")[2] for p in poses or [] if "=" in p), *([log] if log else [])]
     inputs += [limits] if limits else []
@@ -363,126 +364,10 @@ def solve(
     _show(solved, output=output, json_summary=json_summary, shown=shown, plot=plot, plane=plane and plane.value)
 
 
-def solve_options(
-    *,
-    method: str,
-    sensor: str,
-    reference: float | None,
-    up: str | None,
-    tilt_compensate: bool,
-    bias_spread: float | None,
-    plane: str | None,
-    units: str | None,
-    input_units: str | None,
-    rows_are_poses: bool | None = None,
-    location: str | None = None,
-    gravity: float | None = None,
-    date: str | None = None,
-    columns: str | None,
-    no_header: bool,
-    time_column: str | None,
-    time_unit: str,
-    rate: float | None,
-    stream: str | None,
-    allow_corrected: bool,
-    skip_rows: int | None,
-    decimal: str | None,
-    drop_incomplete: bool,
-    window: float | None,
-    threshold: float | None,
-    min_duration: float | None,
-    trim: float | None,
-    pose_column: str | None,
-    pose_map: str | None,
-    turns: str | None,
-    turn_angle: float | None,
-    accel_cal: str | None,
-    max_spool: str | None,
-    max_noise: float | None,
-    max_tilt: float,
-    nominal_offset: str | None,
-    full_scale: float | None,
-    min_samples: int,
-    fixture_tolerance: float,
-    gain_tolerance: float,
-    no_checks: bool,
-    no_check: list[CheckName] | None,
-    limits: str | None,
-    max_offset: str | None,
-    max_gain_error: str | None,
-    nominal_gain: str | None,
-    serial: str | None = None,
-    station: str | None,
-    operator: str | None,
-    meta: list[str] | None,
-    start: str | None = None,
-    end: str | None = None,
-    no_trim: bool = False,
-    align_to: str | None = None,
-) -> SolveOptions:
-    """solve's options as the command line parsed them (batch's for every unit), grouped as the
-    pipeline takes them; a choice is its text (a StrEnum's value)."""
-    from tumblecal_cli.io.readspec import Dialect, ReadSpec, column_list
-    from tumblecal_cli.pipeline import options as opts
-
-    return opts.SolveOptions(
-        method=str(method),
-        reference=reference,
-        up=up,
-        tilt_compensate=tilt_compensate,
-        bias_spread=bias_spread,
-        plane=None if plane is None else str(plane),
-        units=units,
-        input_units=input_units,
-        rows_are_poses=rows_are_poses,
-        location=location,
-        gravity=gravity,
-        date=date,
-        read=ReadSpec(
-            sensor=str(sensor),
-            columns=column_list(columns),
-            no_header=no_header,
-            time_column=time_column,
-            time_unit=str(time_unit),
-            rate=rate,
-            dialect=Dialect(skip_rows, None if decimal is None else str(decimal), drop_incomplete),
-            stream=stream,
-            allow_corrected=allow_corrected,
-            start=start,
-            end=end,
-        ),
-        log=opts.LogOptions(
-            window,
-            threshold,
-            min_duration,
-            trim,
-            pose_column,
-            pose_map,
-            turns,
-            turn_angle,
-            accel_cal,
-            max_spool,
-            align_to,
-        ),
-        checks=opts.CheckOptions(
-            max_noise,
-            max_tilt,
-            nominal_offset,
-            full_scale,
-            min_samples,
-            fixture_tolerance,
-            gain_tolerance,
-            no_checks,
-            tuple(str(c) for c in no_check or ()),
-            no_trim,
-        ),
-        limits=opts.LimitOptions(limits, max_offset, max_gain_error, nominal_gain),
-        unit=opts.UnitOptions(serial, station, operator, tuple(meta or ())),
-    )
-
-
-#: The parameters of solve that are its options (the rest say what to read and where to write).
-OPTION_NAMES = tuple(inspect.signature(solve_options).parameters)
+#: The parameters of solve that are the command line's own: what to read, where to write and what
+#: to print. Every other parameter is one of solve's flat options (pipeline.options.FLAT, the
+#: Python API's SolveKeywords), passed to SolveOptions.of by its name; batch takes them too.
+CLI_ONLY = ("poses", "log", "output", "json_summary", "quiet", "verbose", "plot")
 
 
 def _show(

@@ -1,5 +1,7 @@
 """The numeric core, numpy only: no files, no terminal, no pandas; every formula cites its source
-(docs/sources.md). Its modules:
+(docs/sources.md). It names no command-line flag: the words about the command line in its errors,
+findings and notes are said by a code and its facts (errors.said), worded by pipeline.hints. Its
+modules:
 
 - ``arrays``: the array types the signatures name (FloatArray, IntArray, BoolArray), defined once.
 - ``model``: faces and pose labels, pose statistics, the measurement model, the 1- and 3-pose
@@ -20,6 +22,8 @@
 - ``stillness``: where a gyroscope is still, cut down from the accelerometer's still blocks.
 - ``alignment``: the rotation between two sensors' axes from still blocks seen by both.
 - ``earth``: the Earth's reference fields at a place: normal gravity and the magnetic model.
+- ``quantities``: the unit names tumblecal knows, the quantity each measures and its factor to the
+  quantity's base unit; standard gravity.
 - ``drift``: offset and gain drift fitted against temperature, and each row corrected at its
   own temperature.
 - ``current_fit``: a magnetometer's offset per ampere of motor current.

@@ -28,7 +28,7 @@ from tumblecal_cli.core import clock
 from tumblecal_cli.core.arrays import FloatArray, IntArray
 from tumblecal_cli.core.clock import Clock
 from tumblecal_cli.core.model import FACES, PoseStats, angle_deg, pose_stats
-from tumblecal_cli.errors import InputError
+from tumblecal_cli.errors import InputError, said
 
 WINDOW = (0.5, 25)  # default rolling window: seconds when the time is known, else samples
 MIN_DURATION = (1.0, 50)  # default shortest block kept, the same way
@@ -323,7 +323,7 @@ def in_samples(value: float | None, default: tuple[float, int], period: float | 
             f"a sample every {period:.3g} s: {value:g} s would be {samples:.3g} samples (the log's clock is wrong)"
             if period
             else f"a window of {samples:.3g} samples: more than any log holds",
-            hint="give the time column's unit (--time-unit ms, us or ns) or the sample rate (--rate HZ)",
+            hint=said("clock.wrong"),
         )
     return max(floor, round(samples))
 
@@ -569,10 +569,10 @@ def missing(seg: Segmentation, faces: Sequence[str]) -> list[str]:
                 b = wrong[0]
                 hints.append(
                     f"no {face} block: label {b.label!r} is mapped to {face} but its block {b.number} reads like "
-                    f"{b.nearest} ({b.angle_deg:.0f}° from {face}); check --pose-map"
+                    f"{b.nearest} ({b.angle_deg:.0f}° from {face}); {said('blocks.mislabelled')}"
                 )
             else:
-                hints.append(f"no {face} block: no label names {face} (map one with --pose-map LABEL={face})")
+                hints.append(f"no {face} block: no label names {face} ({said('blocks.unnamed', face=face)})")
             continue
         near = [b for b in seg.blocks if b.nearest == face]
         facing = [b for b in near if b.angle_deg <= seg.max_tilt_deg]
@@ -582,18 +582,18 @@ def missing(seg: Segmentation, faces: Sequence[str]) -> list[str]:
                 length, limit = _length(block.samples, seg.period), _length(seg.min_samples, seg.period)
                 hints.append(
                     f"no {face} block: the longest still period facing {face} was {length}, "
-                    f"below --min-duration {limit}"
+                    f"{said('blocks.short', limit=limit)}"
                 )
             else:
                 hints.append(
                     f"no {face} block: the longest still period facing {face} (block {block.number}) was "
-                    f"{block.dropped} (see --max-noise)"
+                    f"{block.dropped} ({said('blocks.noisy')})"
                 )
         elif near:
             block = min(near, key=lambda b: b.angle_deg)
             hints.append(
                 f"no {face} block: the closest still period (block {block.number}) is {block.angle_deg:.0f}° "
-                f"from {face}, beyond --max-tilt {seg.max_tilt_deg:g}°"
+                f"from {face}, {said('blocks.tilted', tilt=seg.max_tilt_deg)}"
             )
         else:
             hints.append(f"no {face} block: no still period faces {face}; rest the unit on that face and hold it still")

@@ -41,6 +41,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from tumblecal_cli.core.arrays import FloatArray, IntArray
+from tumblecal_cli.errors import said
 
 #: Steps per window of the local mean step, and the fewest windows that judge a clock bursty.
 WINDOW = 64
@@ -184,7 +185,7 @@ def note(clock: Clock, name: str, rate: float | None) -> str | None:
     return (
         f"{name}: the time column's steps are bursty (samples stamped on arrival?): median "
         f"{clock.median * 1e3:.3g} ms ({1.0 / clock.median:.4g} Hz), mean {clock.mean * 1e3:.3g} ms; the rate used is "
-        f"{used}, from the samples over the time they span{_gaps(clock)}; give --rate HZ if it is not"
+        f"{used}, from the samples over the time they span{_gaps(clock)}; {said('clock.bursty')}"
     )
 
 

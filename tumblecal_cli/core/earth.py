@@ -43,8 +43,6 @@ GAMMA_POLE = 9.8321849378
 SOMIGLIANA_K = 0.00193185265241
 #: m = omega^2 a^2 b / GM (Table 3.3).
 WGS84_M = 0.00344978650684
-#: Standard gravity (m/s^2): what 1 g is, by the third General Conference on Weights and Measures.
-STANDARD_GRAVITY = 9.80665
 #: The heights a place may be given at (m): below the Dead Sea shore to above any station.
 HEIGHTS = (-1000.0, 20000.0)
 

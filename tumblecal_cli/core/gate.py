@@ -21,8 +21,9 @@ import numpy as np
 from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.drift import Drift, extremes
 from tumblecal_cli.core.model import FACES, PoseStats, Reach, Solution, angle_deg, chunks, direction, suggest_reference
+from tumblecal_cli.core.quantities import REFERENCE_UNITS, STANDARD_GRAVITY
 from tumblecal_cli.core.running import Summary
-from tumblecal_cli.errors import InputError
+from tumblecal_cli.errors import InputError, said
 
 #: The quality checks, by the last part of their code (``pose.<check>``).
 CHECKS = ("short", "saturated", "orientation", "moved", "upside_down")
@@ -201,17 +202,16 @@ Judged = tuple[Finding, bool, bool, str] | None
 
 def _short(p: PoseCheck, declared: list[str | None], solution: Solution, options: Options) -> Judged:
     n, least = p.stats.samples, options.min_samples
-    finding = Finding(
-        "pose.short", f"{_samples(n)}, fewer than --min-samples {least}", n, least, file=p.file, pose=p.face
-    )
-    return finding, n < least, least > 1 and n < least / NARROW, f"only {_samples(n)}, close to --min-samples {least}"
+    fewer, close = said("pose.short", least=least), said("pose.short.close", least=least)
+    finding = Finding("pose.short", f"{_samples(n)}, {fewer}", n, least, file=p.file, pose=p.face)
+    return finding, n < least, least > 1 and n < least / NARROW, f"only {_samples(n)}, {close}"
 
 
 def _saturated(p: PoseCheck, declared: list[str | None], solution: Solution, options: Options) -> Judged:
     if p.peak_fraction is None:
         return None
     level = (
-        f"{CLIP_FRACTION:.0%} of --full-scale {options.full_scale:g}"
+        str(said("pose.saturated.level", fraction=CLIP_FRACTION, full_scale=options.full_scale))
         if options.full_scale
         else "the limit of its integer type"
     )
@@ -226,7 +226,7 @@ def _oriented(p: PoseCheck, declared: list[str | None], solution: Solution, opti
         return None
     tilt = options.max_tilt_deg
     finding = _orientation(p, declared, tilt, by_name=options.faces_by_name, labelled=options.faces_labelled)
-    close = f"{p.angle_deg:.1f}° from {p.face}, close to --max-tilt {tilt:g}°"
+    close = f"{p.angle_deg:.1f}° from {p.face}, {said('pose.orientation.close', tilt=tilt)}"
     return finding, p.angle_deg > tilt, p.angle_deg > NARROW * tilt, close
 
 
@@ -238,7 +238,7 @@ def _moved(p: PoseCheck, declared: list[str | None], solution: Solution, options
     drift = np.abs(solution.matrix) @ np.abs(p.drift)
     worst_std, worst_drift = int(np.argmax(std)), int(np.argmax(drift))
     bound = options.noise_bound
-    rule = f" (--max-noise {options.noise_rule})" if options.noise_rule else " (--max-noise)"
+    rule = f" ({said('pose.moved.rule', rule=options.noise_rule) if options.noise_rule else said('pose.moved')})"
     if drift[worst_drift] > std[worst_std]:
         what = f"drifts by {drift[worst_drift]:.3g} on {AXES[worst_drift]} (first vs last third)"
         value = float(drift[worst_drift])
@@ -320,10 +320,10 @@ def check_coverage(
         axes = sorted({f[1] for f in far})
         what += ", so " + "; ".join(_minmax_shift(reach, axis, within) for axis in axes)
         if max(far.values()) <= ELLIPSOID_REACH_DEG:
-            ways.append(f"drop --method minmax (the ellipsoid fit takes faces up to {ELLIPSOID_REACH_DEG:.0f}° away)")
+            ways.append(str(said("poses.coverage.minmax", reach=ELLIPSOID_REACH_DEG)))
     else:
         what += ": the ellipsoid fit extrapolates there"
-    hint = f"{', '.join(ways)}, or keep this fit with --no-check coverage"
+    hint = f"{', '.join(ways)}, or {said('poses.coverage.keep')}"
     finding = Finding("poses.coverage", what, max(far.values()), within, file=file, hint=hint)
     return ([], [finding]) if "coverage" in skip else ([finding], [])
 
@@ -371,12 +371,13 @@ def _orientation(
             )
             return Finding("pose.upside_down", text, p.angle_deg, max_tilt, hint=hint, **where)
     else:
-        text = f"declared {p.face} but is {p.angle_deg:.1f}° from it (mean {mean}), more than --max-tilt {max_tilt:g}°"
+        more = said("pose.orientation.tilt", tilt=max_tilt)
+        text = f"declared {p.face} but is {p.angle_deg:.1f}° from it (mean {mean}), {more}"
     # No axis near zero: a common offset. Uncentred unsigned counts often still lean towards the
     # declared face (+x reads 49352, 32618, 33018: 43° off), so this is said in either case.
     if float(np.min(np.abs(p.direction))) > 0.3:
-        text += "; raw counts around a common centre need --nominal-offset (e.g. 32768)"
-        hint = "give the raw reading at zero stimulus with --nominal-offset (unsigned 16-bit counts: 32768)"
+        text += f"; {said('pose.orientation.centre')}"
+        hint = str(said("pose.orientation.centre.hint"))
         return Finding("pose.orientation", text, p.angle_deg, max_tilt, hint=hint, **where)
     return Finding("pose.orientation", text, p.angle_deg, max_tilt, **where)
 
@@ -729,30 +730,23 @@ def check_gains(gain: FloatArray, reference: float, nominal: FloatArray, *, agai
     nominal_text = ", ".join(f"{n:g}" for n in nominal) if len(set(nominal.tolist())) > 1 else f"{nominal[0]:g}"
     typical = float(gain.mean())
     suggested = suggest_reference(reference * typical / float(nominal.mean()))
-    units = {1.0: "g", 9.80665: "m/s^2", 1000.0: "mg"}.get(suggested)
+    units = REFERENCE_UNITS.get(suggested)
     if abs(typical - 1.0) <= GAIN_UNITS_TOLERANCE:
-        hint = (
-            "the gains are near 1, as for data in the units of --reference: check --nominal-gain "
-            "(or the limits file's nominal_gain)"
-        )
+        hint = said("gains.near_one")
     elif units is not None and suggested != reference:
-        hint = f"the data looks like {units}: {'solve it again' if again else 'run'} with --reference {suggested:g}"
+        hint = said("gains.units", units=units, verb="solve it again" if again else "run", reference=suggested)
     else:
-        hint = (
-            f"the data looks like raw counts (about {typical:.4g} per unit of --reference): give --nominal-gain "
-            f"{suggest_reference(typical):g} to judge the gains as counts per unit, or --reference "
-            f"{suggest_reference(reference * typical):g} to keep the output in counts"
-        )
+        per_unit, counts = suggest_reference(typical), suggest_reference(reference * typical)
+        hint = said("gains.counts", typical=typical, gain=per_unit, reference=counts)
     raise InputError(
         f"gains {shown} are {float(ratio.mean()) - 1:+.0%} from the nominal gain {nominal_text}: a units mistake?",
         hint=hint,
     )
 
 
-#: Standard gravity in m/s^2: an accelerometer's gains this near it (or its inverse) are the
-#: data's units changed from m/s^2 into g (or back), not the sensor's own.
-STANDARD_GRAVITY = 9.80665
-#: How near: local gravity (9.78 to 9.83 m/s^2) and a sensor's gain error of a few % within it.
+#: How near standard gravity (or its inverse) an accelerometer's gains are when they are the
+#: data's units changed from m/s^2 into g (or back), not the sensor's own: local gravity (9.78
+#: to 9.83 m/s^2) and a sensor's gain error of a few % within it.
 UNITS_NOTE_TOLERANCE = 0.05
 
 
@@ -769,10 +763,10 @@ def units_note(gain: FloatArray, reference: float) -> str | None:
             continue
         if bool((abs(gain / expected - 1.0) <= UNITS_NOTE_TOLERANCE).all()):
             shown = ", ".join(f"{g:.4g}" for g in gain)
-            again = f"--reference {gravity:g} --units m/s^2" if meant == "m/s^2" else "--reference 1"
+            again = said("units.again.si", gravity=gravity) if meant == "m/s^2" else said("units.again.g")
             return (
                 f"the gains ({shown}) are about {expected:.3g}: the data looks like {meant}, corrected into {other} "
-                f"as --reference {reference:g} asks; for corrected data in {meant}, run with {again}"
+                f"{said('units.asked', reference=reference)}; for corrected data in {meant}, run with {again}"
             )
     return None
 

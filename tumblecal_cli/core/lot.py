@@ -36,7 +36,7 @@ import numpy as np
 from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.model import SENSORS
 from tumblecal_cli.core.outliers import OUTLIER_ALPHA, OutlierRule, check_alpha
-from tumblecal_cli.errors import InputError
+from tumblecal_cli.errors import InputError, Said, said
 
 AXES = "xyz"
 OFFSETS = tuple(f"offset.{k}" for k in AXES)
@@ -50,7 +50,7 @@ OUTLIER_Z = 4.0
 #: Families of parameters a drift limit is given for (``--max-drift offset=...,gain=...,cross=...``).
 DRIFT_KEYS = ("offset", "gain", "cross")
 DRIFT_ALIASES = {"cross_axis": "cross"}
-DRIFT_HINT = "--max-drift offset=0.01,gain=0.002 (offset in raw units; gain and cross as fractions)"
+DRIFT_HINT = str(said("drift.hint"))
 #: Columns of ``Report.csv_rows``.
 CSV_HEADER = [
     "sensor",
@@ -325,24 +325,29 @@ def parse_max_drift(text: str | Mapping[str, float] | None) -> dict[str, float]:
     out: dict[str, float] = {}
     items = [item.strip() for item in text.split(",")]
     if not any(items):
-        raise InputError("--max-drift is empty", hint=DRIFT_HINT)
+        raise _drift_error(said("drift.empty"))
     for item in items:
         key, equals, value = (part.strip() for part in item.partition("="))
         if not equals:
-            raise InputError(f"--max-drift {item!r} is not KEY=VALUE", hint=DRIFT_HINT)
+            raise _drift_error(said("drift.item", item=item))
         key = DRIFT_ALIASES.get(key, key)
         if key not in DRIFT_KEYS:
-            raise InputError(f"--max-drift: unknown key {key!r} (known: {', '.join(DRIFT_KEYS)})", hint=DRIFT_HINT)
+            raise _drift_error(said("drift.key", key=key, known=", ".join(DRIFT_KEYS)))
         if key in out:
-            raise InputError(f"--max-drift: {key!r} is given twice", hint=DRIFT_HINT)
+            raise _drift_error(said("drift.twice", key=key))
         try:
             number = float(value)
         except ValueError:
-            raise InputError(f"--max-drift: {key}={value!r} is not a number", hint=DRIFT_HINT) from None
+            raise _drift_error(said("drift.number", key=key, value=value)) from None
         if not (math.isfinite(number) and number > 0):
-            raise InputError(f"--max-drift: {key} must be a positive number, got {value!r}", hint=DRIFT_HINT)
+            raise _drift_error(said("drift.positive", key=key, value=value))
         out[key] = number
     return out
+
+
+def _drift_error(words: Said) -> InputError:
+    """A refused drift limit: its words (pipeline.hints), and the form that works."""
+    return InputError(words, hint=DRIFT_HINT)
 
 
 def drift(entries: Iterable[Entry], max_drift: dict[str, float]) -> list[ParameterDrift]:

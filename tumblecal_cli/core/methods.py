@@ -12,7 +12,7 @@ import numpy as np
 
 from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.model import FACES, angle_deg
-from tumblecal_cli.errors import InputError
+from tumblecal_cli.errors import InputError, said
 
 SIX_FACES = ("+x", "-x", "+y", "-y", "+z", "-z")
 #: The sphere fit needs this many poses: 9 parameters, and some residual to judge the fit by.
@@ -82,7 +82,7 @@ def auto_six(means: FloatArray) -> tuple[str, str]:
         )
     return "six-pose-magnitude", (
         f"auto chose six-pose-magnitude: {ev.disagreeing()}, as hand-placed faces do; six-pose would take that "
-        "tilt for cross-axis terms, the magnitude fit is immune to it (--method six-pose fits them anyway)"
+        f"tilt for cross-axis terms, the magnitude fit is immune to it ({said('auto.magnitude')})"
     )
 
 
@@ -137,17 +137,18 @@ def absent_axes(labels: Sequence[str | None]) -> list[str]:
     return [a for a in "xyz" if not any(label in (f"+{a}", f"-{a}") for label in labels)]
 
 
-def missing_faces_error(labels: Sequence[str | None], what: str = "--poses") -> InputError:
+def missing_faces_error(labels: Sequence[str | None], what: str | None = None) -> InputError:
     """The usage error of faces that leave an axis without a face: its offset or its gain has
-    nothing to come from (``no face on the y axis: add +y or -y``)."""
+    nothing to come from (``no face on the y axis: add +y or -y``). ``what``: the method named
+    at the message's start (None: the poses' option)."""
     absent = absent_axes(labels)
     axes = " and ".join(absent)
     adds = ", and ".join(f"+{a} or -{a}" for a in absent)
     given = " ".join(str(label) for label in labels)
     return InputError(
-        f"{what}: no face on the {axes} ax{'es' if len(absent) > 1 else 'is'}: add {adds} (faces given: {given})",
-        hint="every axis needs a pose with it pointing up or down: one face per axis solves as three-pose "
-        "(e.g. --poses -z=a.csv -x=b.csv +y=c.csv), four or more as least-squares",
+        f"{what or said('poses')}: no face on the {axes} ax{'es' if len(absent) > 1 else 'is'}: add {adds} "
+        f"(faces given: {given})",
+        hint=said("faces.missing"),
     )
 
 
@@ -226,16 +227,16 @@ def pick(method: str, labels: Sequence[str | None], sensor: str) -> tuple[str, l
     if method == "auto":
         method = _auto(labels, sensor)
     if method == "gyro-bias" and sensor != "gyroscope":  # else the accelerometer's columns "moved"
-        raise InputError(f"gyro-bias is a gyroscope's zero-rate bias: give --sensor gyroscope (not {sensor})")
+        raise InputError(said("gyro.sensor", sensor=sensor))
     if method in ("one-pose", "one-pose-tilt"):
         if n != 1:
             raise InputError(f"{method} takes 1 pose file, got {n}")
         if labels[0] is None:
-            raise InputError(f"{method} needs the face pointing up: label the file (+z=z.csv) or give --up")
+            raise InputError(said("up.missing", method=method))
         if labels[0] not in FACES:
             raise InputError(
                 f"{method} takes a pose on a face (the axis up), not the direction {labels[0]}",
-                hint="label it with a face (+z=z.csv) or give the face with --up",
+                hint=said("up.face"),
             )
     elif method == "three-pose":
         three = per_axis(labels)
@@ -243,7 +244,7 @@ def pick(method: str, labels: Sequence[str | None], sensor: str) -> tuple[str, l
             given = " ".join(str(x) for x in labels) if any(labels) else f"{n} unlabelled files"
             raise InputError(
                 f"three-pose takes 3 pose files, one face per axis (+x or -x, +y or -y, +z or -z); got {given}",
-                hint="label each file with the face that was up, e.g. --poses -z=a.csv -x=b.csv +y=c.csv (see --help)",
+                hint=said("three.labels"),
             )
         order = three
     elif method in SIX_POSE:
@@ -252,7 +253,7 @@ def pick(method: str, labels: Sequence[str | None], sensor: str) -> tuple[str, l
             given = " ".join(str(x) for x in labels) if any(labels) else f"{n} unlabelled files"
             raise InputError(
                 f"{method} takes {len(wanted)} pose files, one per face {' '.join(wanted)}; got {given}",
-                hint="label each file with its face, e.g. --poses +x=xp.csv -x=xn.csv ... (see --help)",
+                hint=said("six.labels"),
             )
         order = [list(labels).index(f) for f in wanted]
     elif method == "least-squares":
@@ -260,7 +261,7 @@ def pick(method: str, labels: Sequence[str | None], sensor: str) -> tuple[str, l
             raise InputError(
                 f"least-squares takes {LEAST_SQUARES_MIN_POSES} or more labelled pose files "
                 + (f"(a face or a direction X,Y,Z each), got {n}" if all(labels) else f"got {n} unlabelled"),
-                hint="label each file: --poses +x=a.csv 0.707,0,0.707=b.csv ...",
+                hint=said("least.labels"),
             )
         if all(x in FACES for x in labels) and absent_axes(labels):
             raise missing_faces_error(labels, method)
@@ -295,7 +296,7 @@ def _auto(labels: Sequence[str | None], sensor: str) -> str:
         return "sphere"
     what = f"the labels {' '.join(str(x) for x in labels)}" if all(labels) else f"{n} unlabelled files"
     raise InputError(
-        f"--poses: no solver takes {what}: give 1 (one-pose), 3 (+x +y +z), 6 (+x -x +y -y +z -z), "
+        f"{said('poses')}: no solver takes {what}: give 1 (one-pose), 3 (+x +y +z), 6 (+x -x +y -y +z -z), "
         f"{SPHERE_MIN_POSES}+ unlabelled (sphere) or {LEAST_SQUARES_MIN_POSES}+ labelled (least-squares)",
-        hint="label a file with its face or direction: --poses +x=a.csv -x=b.csv 0.707,0,0.707=c.csv",
+        hint=said("poses.none"),
     )

@@ -23,8 +23,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from tumblecal_cli.core.arrays import FloatArray
+from tumblecal_cli.core.quantities import REFERENCE_UNITS
 from tumblecal_cli.core.running import Summary
-from tumblecal_cli.errors import CaptureRejected, InputError
+from tumblecal_cli.errors import CaptureRejected, InputError, said
 
 #: Face name -> unit vector of gravity's reaction in the sensor frame ("+x": x points up).
 FACES: dict[str, tuple[float, float, float]] = {
@@ -221,7 +222,7 @@ def solve_three_pose(
     and every 1-sigma, are those of the ``+`` faces.
     """
     if reference <= 0:
-        raise InputError("the 3-pose solver needs a positive --reference (the stimulus magnitude)")
+        raise InputError(said("three.reference"))
     means = np.array([p.mean for p in poses])  # means[k, i]: pose k, axis i
     se = np.array([p.stderr for p in poses])
     offset = np.empty(3)
@@ -322,7 +323,7 @@ def units_mistake(mean: FloatArray, reference: float) -> float | None:
 
 def suggest_reference(magnitude: float) -> float:
     """A conventional reference near ``magnitude``: 1 (g), 9.80665 (m/s^2), 1000 (mg) or 2^k counts."""
-    candidates = [1.0, 9.80665, 1000.0] + [float(2**k) for k in range(4, 17)]
+    candidates = [*REFERENCE_UNITS] + [float(2**k) for k in range(4, 17)]
     best = min(candidates, key=lambda c: abs(math.log(c / magnitude)) if magnitude > 0 else math.inf)
     if magnitude > 0 and abs(best - magnitude) <= 0.1 * best:
         return best

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tumblecal_cli.core.arrays import BoolArray, FloatArray
-from tumblecal_cli.errors import InputError
+from tumblecal_cli.errors import InputError, said
 
 #: The lot-wide false-alarm rate of the outlier flags (``--outlier-alpha``): the chance that a lot
 #: of good units (every figure normal, no unit off) has any unit flagged on any figure. Half of
@@ -155,7 +155,7 @@ def check_alpha(alpha: float) -> float:
     """``alpha`` as a float in (0, 1); InputError naming --outlier-alpha otherwise."""
     if not (isinstance(alpha, int | float) and math.isfinite(alpha) and 0.0 < alpha < 1.0):
         raise InputError(
-            f"--outlier-alpha must be a probability between 0 and 1 (exclusive), got {alpha}",
+            said("outliers.alpha", alpha=alpha),
             hint=f"it is the chance a lot of good units gets any flag; {OUTLIER_ALPHA} is usual",
         )
     return float(alpha)

@@ -40,7 +40,7 @@ from tumblecal_cli.core.model import (
     solve_three_pose,
     tilt_sensitivity,
 )
-from tumblecal_cli.errors import CaptureRejected, InputError
+from tumblecal_cli.errors import CaptureRejected, InputError, said
 
 #: A face with no sample within this angle leaves the orientation-free fits undetermined.
 FACE_COVERAGE_DEG = 60.0
@@ -276,7 +276,7 @@ def six_pose(poses: Sequence[PoseStats], reference: float, tolerance_deg: float,
             "the six poses' magnitudes do not determine offsets and gains: "
             + ", ".join(f"{f} {a:.0f}°" for f, a in ev.angles.items())
             + " off their faces",
-            hint="rest the unit flat on each face, or capture 12 or more orientations for --method sphere",
+            hint=said("poses.tilted"),
             code="poses.tilted",
         )
     # a tilted pose reaches the diagonal solver through the cross-axis terms it leaves out; the
@@ -503,7 +503,7 @@ def sphere(points: FloatArray, stderr: FloatArray | None, reference: float, *, w
     """
     ellipsoid = stderr is None
     if reference <= 0:
-        raise InputError(f"the {'ellipsoid' if ellipsoid else 'sphere'} fit needs a positive --reference")
+        raise InputError(said("fit.reference", fit="ellipsoid" if ellipsoid else "sphere"))
     rough = _sphere_precheck(points, what, ellipsoid=ellipsoid)
     fitted = _fit_sphere(points, reference)
     if fitted is None:
@@ -672,7 +672,7 @@ def one_pose_tilt(
     solution = Solution("one-pose-tilt", offset, np.eye(3), offset_se, np.zeros(3))
     note = (
         f"attitude from the readings: {math.degrees(theta):.2f}° off {up}; the {up[1]} offset "
-        f"is bounded by --bias-spread {bias_spread:g} to ±{vertical:.2g}"
+        f"is {said('tilt.bounded', spread=bias_spread)} to ±{vertical:.2g}"
     )
     return Fit(solution=solution, tilt=(tilt_offset, np.zeros(3), np.zeros((3, 3))), notes=(note,))
 
@@ -754,7 +754,7 @@ def _plane_coverage(centred: FloatArray, lo: FloatArray, hi: FloatArray, plane: 
             f"the samples did not turn in the {plane} plane: {flat} spans {min(span[i], span[j]):.3g} "
             f"against {max(span[i], span[j]):.3g} (spans x {span[0]:.3g}, y {span[1]:.3g}, z {span[2]:.3g}); "
             f"it looks like the {turned} plane",
-            hint=f"give --plane {turned}, or turn the unit a full circle in the {plane} plane",
+            hint=said("plane.turned", turned=turned, plane=plane),
             code="poses.coverage",
         )
     angles = np.arctan2(centred[:, j], centred[:, i])

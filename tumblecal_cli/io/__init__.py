@@ -2,7 +2,8 @@
 Its rooms and modules:
 
 - ``readspec``: how to read a source (``ReadSpec``: the sensor, its columns, the clock, the
-  file's dialect), one value from the command line down to every reader.
+  file's dialect), one value from the command line down to every reader, made of the Python
+  API's keywords (``ReadKeywords``) in one place (``read_spec``).
 - ``sources``: where a reader of another kind of file (a binary log) plugs in: the ``Reader``
   contract, the registry of readers, and ``streams``.
 - ``outputs``: atomic writes, '-' for stdout, and the rule that no command writes onto an input.

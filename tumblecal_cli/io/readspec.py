@@ -7,6 +7,11 @@ the temperature column, the file's dialect, and the columns a calibration record
 reader takes one (``io.csv.capture.open_capture``, ``io.csv.readings.read_log`` and
 ``io.csv.logread.scan_log``); a reader of another kind of source (a binary log) takes the same
 value and ignores what does not apply to it (``no_header``, ``dialect``).
+
+The Python API names the same things as the command line's long options in snake case
+(``ReadKeywords``); :func:`read_spec` is the one place a ReadSpec is made of them: solve's
+options (``pipeline.options.SolveOptions.of``, for the command line, batch and the Python API),
+segment's and noise's keywords, and (:func:`file_spec`) verify's and correct's.
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ import math
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TypedDict, cast
 
 from tumblecal_cli.errors import InputError
 
@@ -131,3 +137,67 @@ def column_list(value: str | Sequence[str] | None) -> tuple[str, ...] | None:
     if value is None or value == "":
         return None
     return tuple(value.split(",")) if isinstance(value, str) else tuple(str(c) for c in value)
+
+
+class FileKeywords(TypedDict, total=False):
+    """How the Python API's functions are told a file's shape and its sensor columns: the
+    command line's long options in snake case (verify and correct: the sensor is the
+    calibration's)."""
+
+    columns: str | Sequence[str] | None
+    no_header: bool
+    skip_rows: int | None
+    decimal: str | None
+    drop_incomplete: bool
+
+
+class StreamKeywords(TypedDict, total=False):
+    """Which stream of a log (a PX4 ULog's ``sensor_accel:1``: ``--stream``), and whether one the
+    autopilot already corrected may be read (``--allow-corrected``; io.sources)."""
+
+    stream: str | None
+    allow_corrected: bool
+
+
+class ReadKeywords(FileKeywords, StreamKeywords, total=False):
+    """... and the sensor and the clock: all a ``ReadSpec`` holds (``read_spec`` makes one)."""
+
+    sensor: str
+    time_column: str | None
+    time_unit: str
+    rate: float | None
+    start: str | float | None
+    end: str | float | None
+
+
+#: The keywords of a ReadSpec, in the order the command line lists them.
+READ_NAMES = tuple(ReadKeywords.__annotations__)
+#: ... of which these say the file's shape and its sensor columns alone.
+FILE_NAMES = tuple(FileKeywords.__annotations__)
+
+
+def read_spec(given: ReadKeywords, prefer: Sequence[str] | None = None) -> ReadSpec:
+    """The ReadSpec of a function's keyword options (``prefer``: a calibration's columns); what is
+    not given takes ReadSpec's default. Judged as the fields are: the columns, the dialect, then
+    --start and --end."""
+    return ReadSpec(
+        sensor=given.get("sensor", "accelerometer"),
+        columns=column_list(given.get("columns")),
+        no_header=given.get("no_header", False),
+        time_column=given.get("time_column"),
+        time_unit=given.get("time_unit", "auto"),
+        rate=given.get("rate"),
+        dialect=Dialect(given.get("skip_rows"), given.get("decimal"), given.get("drop_incomplete", False)),
+        prefer=None if prefer is None else tuple(prefer),
+        stream=given.get("stream"),
+        allow_corrected=given.get("allow_corrected", False),
+        start=given.get("start"),
+        end=given.get("end"),
+    )
+
+
+def file_spec(given: FileKeywords, prefer: Sequence[str] | None = None) -> ReadSpec:
+    """:func:`read_spec` of the keywords on a file's shape and its sensor columns alone (the
+    sensor and the clock left at their defaults: a command that reads the sensor a calibration
+    names)."""
+    return read_spec(cast(ReadKeywords, {k: v for k, v in given.items() if k in FILE_NAMES}), prefer)

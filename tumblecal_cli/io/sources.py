@@ -3,9 +3,11 @@
 Every command that reads a log or a pose file does it through ``io.csv.readings`` (``read_log``,
 ``read_samples``, ``stream``), whatever the file: a CSV capture by ``io.csv.capture``, or a file a
 registered :class:`Reader` claims (a binary autopilot log, a bag), which hands back its readings
-as a :class:`Table`. A new kind of source is one module with one ``Reader``, appended to
-``READERS``: the readings module turns its table into the ``Log`` every command takes, judges
-its clock and temperature as it judges a CSV's, and names it in every message.
+as a :class:`Table`. A new kind of log is one module with one ``READER`` (an
+``io.logs.reader.LogReader``) and one row in ``io.logs.FORMATS``: the registry (``READERS``)
+imports that module only when a file it claims is read; the readings module turns its table into
+the ``Log`` every command takes, judges its clock and temperature as it judges a CSV's, and names
+it in every message.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import numpy as np
 
 from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.errors import InputError
+from tumblecal_cli.io.logs import FORMATS, LogFormat
 from tumblecal_cli.io.readspec import ReadSpec
 
 
@@ -81,41 +84,50 @@ class Stream:
 
 
 class Reader(Protocol):
-    """A kind of source: whether it ``claims`` a file (by its name or its first bytes), the
-    ``streams`` it holds, and the readings of the sensor and stream ``spec`` names in it
-    (``spec.stream``; ``label_column``: a text column to read beside them, when the source has
-    one). Errors are InputErrors naming the file."""
+    """A kind of source: its ``kind`` (its name in messages), whether it reads a label column
+    beside the readings (``labels``), whether it ``claims`` a file (by its name or its first
+    bytes), the ``streams`` it holds, the one a spec reads (``pick``: by default
+    :func:`pick` among its streams), and the readings of the sensor and stream ``spec`` names in
+    it (``spec.stream``; ``label_column``: a text column to read beside them, where ``labels``).
+    Errors are InputErrors naming the file. A class that subclasses it inherits ``pick`` and
+    ``labels`` (False); mypy checks every reader registered against it."""
+
+    @property
+    def kind(self) -> str: ...
+
+    @property
+    def labels(self) -> bool:
+        return False
 
     def claims(self, path: str, head: bytes) -> bool: ...
 
     def streams(self, path: str) -> list[Stream]: ...
 
+    def pick(self, path: str, spec: ReadSpec) -> Stream:
+        """The stream of ``path`` that ``spec`` reads (by default :func:`pick` among ``streams``)."""
+        return pick(path, self.streams(path), spec)
+
     def read(self, path: str, spec: ReadSpec, label_column: str | None) -> Table: ...
 
 
 @dataclass(frozen=True)
-class Lazy:
-    """A reader registered by its module's name (``module.READER``), imported only when a file it
-    claims is read: ``tumblecal --help`` and the commands on CSV pay nothing for it. It claims a
-    file by its first bytes (``magic``) or by ``claim`` (a function of the path and those bytes:
-    a bag that is a folder). ``kind`` names the files in messages; ``extra`` is the pip extra that
-    installs the packages in ``needs``: without them, reading such a file is exit 2 saying
-    ``pip install 'tumblecal[extra]'``."""
+class Lazy(LogFormat):
+    """A reader registered by its format's row (io.logs.LogFormat: ``module.READER``), its module
+    imported only when a file it claims is read: ``tumblecal --help`` and the commands on CSV pay
+    nothing for it. A package in ``needs`` not installed: exit 2 naming the extra."""
 
-    kind: str
-    module: str
-    magic: tuple[bytes, ...] = ()
-    claim: Callable[[str, bytes], bool] | None = None
-    extra: str | None = None
-    needs: tuple[str, ...] = ()
+    labels = False  # a log's still blocks are found by the detector: its reader refuses a label column
 
-    def claims(self, path: str, head: bytes) -> bool:
-        if self.claim is not None:
-            return self.claim(path, head)
-        return any(head.startswith(m) for m in self.magic)
+    @classmethod
+    def of(cls, row: LogFormat) -> Lazy:
+        """The registry's entry for ``row``."""
+        return cls(row.kind, row.module, row.magic, row.claim, row.extra, row.needs)
 
     def streams(self, path: str) -> list[Stream]:
         return self.load(path).streams(path)
+
+    def pick(self, path: str, spec: ReadSpec) -> Stream:
+        return self.load(path).pick(path, spec)
 
     def read(self, path: str, spec: ReadSpec, label_column: str | None) -> Table:
         return self.load(path).read(path, spec, label_column)
@@ -136,32 +148,8 @@ class Lazy:
         return cast("Reader", module.READER)
 
 
-def dataflash_text(path: str, head: bytes) -> bool:
-    """An ArduPilot DataFlash log in its text form: its first line an FMT line."""
-    return head.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"FMT,")
-
-
-def ros_claim(path: str, head: bytes) -> bool:
-    """A ROS 1 bag or an MCAP file by its first bytes, a ROS 2 bag's sqlite3 file (``.db3``), or a
-    ROS 2 bag's folder (its metadata.yaml, or the .db3 or .mcap files of a recording cut short)."""
-    if head.startswith((b"#ROSBAG V", b"\x89MCAP0\r\n")):
-        return True
-    if head or not os.path.isdir(path):
-        return head.startswith(b"SQLite format 3\x00") and path.endswith(".db3")
-    try:
-        names = os.listdir(path)
-    except OSError:
-        return False
-    return "metadata.yaml" in names or any(n.endswith((".db3", ".mcap")) for n in names)
-
-
 #: The readers of sources beside CSV, asked in order; a file none claims is read as CSV.
-READERS: list[Reader] = [
-    Lazy("PX4 ULog", "tumblecal_cli.io.logs.ulog", magic=(b"ULog\x01\x12\x35",)),
-    Lazy("ArduPilot DataFlash log", "tumblecal_cli.io.logs.dataflash", magic=(b"\xa3\x95\x80",)),
-    Lazy("ArduPilot DataFlash text log", "tumblecal_cli.io.logs.dftext", claim=dataflash_text),
-    Lazy("ROS bag or MCAP file", "tumblecal_cli.io.logs.ros", claim=ros_claim, extra="ros", needs=("rosbags",)),
-]
+READERS: list[Reader] = [Lazy.of(row) for row in FORMATS]
 #: How much of a file a reader is shown to claim it.
 HEAD = 64
 #: Readings in memory (the Python API's DataFrames and arrays) are a source too: each held here
@@ -171,8 +159,11 @@ HEAD = 64
 MEMORY: dict[str, Callable[[ReadSpec, str | None], Table]] = {}
 
 
-class _InMemory:
+class _InMemory(Reader):
     """The Reader of the names in MEMORY."""
+
+    kind = "readings in memory"
+    labels = True
 
     def claims(self, path: str, head: bytes) -> bool:
         return path in MEMORY
@@ -220,7 +211,7 @@ def _head(path: str) -> bytes:
 
 def kinds() -> str:
     """The kinds of source the readers read, for messages: "PX4 ULog, ..."."""
-    return ", ".join(getattr(r, "kind", type(r).__name__) for r in READERS)
+    return ", ".join(r.kind for r in READERS)
 
 
 def streams(path: str) -> list[Stream]:
@@ -240,13 +231,12 @@ def streams(path: str) -> list[Stream]:
 
 
 def stream_of(path: str, spec: ReadSpec) -> Stream | None:
-    """The stream of ``path`` that ``spec`` reads (None: a CSV capture, or stdin): the reader's own
-    ``pick(path, spec)`` where it has one (to say more of what --stream names), else ``pick``."""
+    """The stream of ``path`` that ``spec`` reads (None: a CSV capture, or stdin): its reader's
+    ``pick`` (a reader may say more of what --stream names)."""
     reader = reader_for(path)
     if reader is None or reader is IN_MEMORY:
         return None
-    own = getattr(reader.load(path) if isinstance(reader, Lazy) else reader, "pick", None)
-    return cast("Stream", own(path, spec)) if own is not None else pick(path, reader.streams(path), spec)
+    return reader.pick(path, spec)
 
 
 def parse_stream(text: str) -> tuple[str, int | None]:

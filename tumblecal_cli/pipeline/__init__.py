@@ -21,4 +21,6 @@ or return DataFrames. A command's module is named after the command. Its rooms a
 - ``report``: a lot's calibration files found, read and summarised (``core.lot``).
 - ``exchange``: calibration files after solve: checked again, exported to firmware or another
   tool, imported from one.
+- ``hints``: the words about the command line (its flags) that the core's errors, findings and
+  notes say by a code: one table, installed by the package's import.
 - ``plotting``: the figures a command's ``--plot`` draws, from what the pipeline returned."""

@@ -27,10 +27,11 @@ from tumblecal_cli.io.calfiles.calfile import Calibration
 from tumblecal_cli.io.csv import capture, sniff
 from tumblecal_cli.io.csv.compressed import writing
 from tumblecal_cli.io.outputs import atomic_output, check_not_input, check_writable
+from tumblecal_cli.io.readspec import FileKeywords, file_spec
 from tumblecal_cli.io.rewrite import writer as rewrite
 from tumblecal_cli.pipeline.batch.cluster import engine
 from tumblecal_cli.pipeline.frames import is_data
-from tumblecal_cli.pipeline.options import FileKeywords, file_spec, keywords_known, path_of
+from tumblecal_cli.pipeline.options import keywords_known, path_of
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.arrays import FloatArray

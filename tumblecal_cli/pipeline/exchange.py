@@ -12,21 +12,17 @@ from typing import TYPE_CHECKING, TypedDict, Unpack
 import numpy as np
 
 from tumblecal_cli.core import gate, model, solvers
-from tumblecal_cli.core.gate import FIXED_GAINS
 from tumblecal_cli.errors import InputError, control_character
 from tumblecal_cli.io.calfiles import calfile, documents
-from tumblecal_cli.io.export import formats, paramfile
-from tumblecal_cli.pipeline.options import Triplet, keywords_known, path_of, triplet, unit_block
+from tumblecal_cli.io.export import formats, registry
+from tumblecal_cli.io.export.registry import Exported, ExportOptions
+from tumblecal_cli.pipeline.options import Triplet, keywords_known, path_of, unit_block
 from tumblecal_cli.pipeline.options import limits as parse_limits
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Finding, Limits
     from tumblecal_cli.io.calfiles.calfile import Calibration
-    from tumblecal_cli.io.export.formats import Peer
-
-
-#: export's formats (docs/commands/export-import.md).
-FORMATS = ("c-header", "registers", "imucal-json", "ros-yaml", "matlab", "ardupilot", "px4")
+    from tumblecal_cli.io.export.registry import ExportFormat, Importer, Peer
 
 
 @dataclass
@@ -135,97 +131,61 @@ def export(cal: Calibration | str | os.PathLike[str], fmt: str, **options: Unpac
     return exported(cal, fmt, **options).text
 
 
-@dataclass(frozen=True)
-class Exported:
-    """An export's text, and its notes for people (a warning starts with ``warning: ``): what an
-    autopilot's parameters cannot hold, a value outside the firmware's range."""
-
-    text: str
-    notes: tuple[str, ...] = ()
-
-
 def exported(cal: Calibration | str | os.PathLike[str], fmt: str, **options: Unpack[ExportKeywords]) -> Exported:
-    """:func:`export`, with the notes the command prints on stderr."""
+    """:func:`export`, with the notes the command prints on stderr: the format's row in
+    io.export.registry says which options it takes and whether it holds a current block."""
 
     keywords_known(options, ExportKeywords, "export")
-    prefix, lsb, bits = options.get("prefix"), options.get("lsb"), options.get("bits", 16)
-    register_sign, gain_step = options.get("register_sign", "subtract"), options.get("gain_step")
-    nominal_gain, force, instance = options.get("nominal_gain"), options.get("force", False), options.get("instance")
-    _export_options(fmt, prefix, lsb, bits, register_sign, gain_step, nominal_gain)
-    if instance is not None and fmt not in paramfile.FIRMWARES:
-        raise InputError("--instance is for --format ardupilot and px4")
+    given = ExportOptions(
+        prefix=options.get("prefix"),
+        lsb=options.get("lsb"),
+        bits=options.get("bits", 16),
+        register_sign=options.get("register_sign", "subtract"),
+        gain_step=options.get("gain_step"),
+        nominal_gain=options.get("nominal_gain"),
+        instance=options.get("instance"),
+    )
+    row = registry.export_format(fmt)
+    _export_options(row, given)
     c = calfile.resolve(cal)
-    if c.failed and not force:
+    if c.failed and not options.get("force", False):
         calfile.refuse_failed(c, "export it", "export")
-    if fmt in paramfile.FIRMWARES:
-        written = paramfile.write(c, fmt, instance)
-        return Exported(written.text, written.notes)
-    if c.current is not None:  # docs/current.md: the firmware parameters hold it, these formats do not
+    notes: tuple[str, ...] = ()
+    if c.current is not None and not row.current:  # docs/current.md: the firmware parameters hold it
         c = replace(c, current=None)
-        note = f"warning: the current block (offset per ampere) is NOT written: --format {fmt} holds none"
-        inner = exported(c, fmt, **options)
-        return replace(inner, notes=(note, *inner.notes))
-    if fmt == "registers":
-        assert lsb is not None
-        return Exported(_registers(c, lsb, bits, register_sign, gain_step, nominal_gain))
-    writers = {
-        "c-header": lambda: formats.c_header(c, prefix=prefix),
-        "imucal-json": lambda: formats.imucal_json(c),
-        "ros-yaml": lambda: formats.ros_yaml(c),
-        "matlab": lambda: formats.matlab(c),
-    }
-    return Exported(writers[fmt]())
+        notes = (f"warning: the current block (offset per ampere) is NOT written: --format {fmt} holds none",)
+    done = row.exporter()(c, given)
+    return Exported(done.text, (*notes, *done.notes))
 
 
-def _export_options(
-    fmt: str,
-    prefix: str | None,
-    lsb: float | None,
-    bits: int,
-    register_sign: str,
-    gain_step: float | None,
-    nominal_gain: str | None,
-) -> None:
-    """export's options that go together, checked before the calibration is read."""
-    if fmt not in FORMATS:
-        raise InputError(f"--format: {fmt!r} is not one of {', '.join(FORMATS)}")
-    if register_sign not in ("subtract", "add"):
-        raise InputError(f"--register-sign: {register_sign!r} is not one of subtract, add")
-    for flag, number in (("--lsb", lsb), ("--gain-step", gain_step)):
+def _export_options(row: ExportFormat, given: ExportOptions) -> None:
+    """export's options that go together, checked before the calibration is read: each option a
+    format does not take (its row) is named with the formats that do."""
+    if given.register_sign not in ("subtract", "add"):
+        raise InputError(f"--register-sign: {given.register_sign!r} is not one of subtract, add")
+    for flag, number in (("--lsb", given.lsb), ("--gain-step", given.gain_step)):
         if number is not None and (isinstance(number, bool) or not isinstance(number, int | float)):
             raise InputError(f"{flag} takes a number, got {number!r}")
-    given = {"--lsb": lsb, "--gain-step": gain_step, "--nominal-gain": nominal_gain}
-    if fmt != "registers":
-        if extra := [flag for flag, value in given.items() if value is not None]:
-            raise InputError(f"{', '.join(extra)} {'is' if len(extra) == 1 else 'are'} for --format registers")
-        if bits != 16 or register_sign != "subtract":
-            raise InputError("--bits and --register-sign are for --format registers")
-    elif lsb is None:
-        raise InputError("--format registers needs --lsb, the raw units of one register count")
-    if fmt != "c-header" and prefix is not None:
-        raise InputError("--prefix is for --format c-header")
-    if nominal_gain is not None and gain_step is None:
+    foreign = [n for n in ("lsb", "gain_step", "nominal_gain") if getattr(given, n) is not None and n not in row.takes]
+    if foreign:
+        extra = ", ".join(_flag(n) for n in foreign)
+        raise InputError(f"{extra} {'is' if len(foreign) == 1 else 'are'} for --format {registry.owners(foreign[0])}")
+    if (given.bits != 16 or given.register_sign != "subtract") and not {"bits", "register_sign"} <= row.takes:
+        raise InputError(f"--bits and --register-sign are for --format {registry.owners('bits')}")
+    for name, why in row.needs:
+        if getattr(given, name) is None:
+            raise InputError(f"--format {row.name} needs {_flag(name)}, {why}")
+    if given.prefix is not None and "prefix" not in row.takes:
+        raise InputError(f"--prefix is for --format {registry.owners('prefix')}")
+    if given.nominal_gain is not None and given.gain_step is None:
         raise InputError("--nominal-gain is the gain trim's aim: it needs --gain-step")
+    if given.instance is not None and "instance" not in row.takes:
+        raise InputError(f"--instance is for --format {registry.owners('instance')}")
 
 
-def _registers(
-    c: Calibration, lsb: float, bits: int, register_sign: str, gain_step: float | None, nominal_gain: str | None
-) -> str:
-    """export --format registers: offset (and gain trim) register counts, CSV."""
-
-    if not (lsb is not None and math.isfinite(lsb) and lsb > 0):
-        raise InputError(f"--lsb must be a positive number, got {lsb}")
-    if gain_step is not None and not (math.isfinite(gain_step) and gain_step > 0):
-        raise InputError(f"--gain-step must be a positive number, got {gain_step}")
-
-    if gain_step is not None and c.method in FIXED_GAINS:
-        raise InputError(f"the {c.method} solver fixes the gains: there is no gain to trim", file=c.path)
-    recorded = c.verdict.limits.nominal_gain if c.verdict and "nominal_gain" in c.verdict.limit_names else None
-    nominal = triplet(nominal_gain or ",".join(map(str, [1, 1, 1] if recorded is None else recorded)), "--nominal-gain")
-    if not (nominal > 0).all():
-        raise InputError(f"--nominal-gain must be positive, got {nominal_gain}")
-    rows = formats.registers(c, lsb=lsb, bits=bits, sign=register_sign, gain_step=gain_step, nominal_gain=nominal)
-    return formats.registers_csv(rows)
+def _flag(option: str) -> str:
+    """An option of ExportOptions as the command line spells it."""
+    return "--" + option.replace("_", "-")
 
 
 @dataclass
@@ -252,29 +212,29 @@ def import_peer(
     raw = documents.read_bytes(path, "calibration file")
     as_yaml = not path.lower().endswith(".json") and raw.lstrip()[:1] != b"{"  # ROS files are YAML, any name
     doc = documents.parse_object(raw, path, "calibration file", as_yaml=as_yaml)
-    found = formats.detect(doc)
+    rows = registry.IMPORTS
+    found = next((row.name for row in rows.values() if row.importer().claims(doc)), None)
     name = fmt if fmt is not None else found
     if name is None or (found is not None and found != name):
-        what = "neither an imucal JSON (cal_type, K_a …) nor a ROS imu_calib YAML (SM, bias)"
+        what = "neither " + " nor ".join(row.described for row in rows.values())
         raise InputError(
             f"{what} file" if found is None else f"the file is {found}, not {name}",
             file=path,
-            hint="tumblecal import reads --from imucal-json or ros-yaml",
+            hint=f"tumblecal import reads --from {' or '.join(rows)}",
         )
-    peer = formats.read_peer(doc, name, path, sensor)
-    ref = reference if reference is not None else _peer_reference(peer, path)
+    if name not in rows:
+        raise InputError(f"--from: {name!r} is not one of {', '.join(rows)}")
+    reader = rows[name].importer()
+    peer = reader.read(doc, path, sensor)
+    ref = reference if reference is not None else _peer_reference(peer, reader, path)
     if not (math.isfinite(ref) and (ref > 0 or (ref == 0 and peer.sensor == "gyroscope"))):
         raise InputError(f"--reference must be a positive number (0 for a gyroscope), got {ref}")
     if columns:
         picked = [c.strip() for c in (columns.split(",") if isinstance(columns, str) else map(str, columns))]
         if len(picked) != 3 or not all(picked) or len({c.lower() for c in picked}) != 3:
             raise InputError(f"--columns takes three different names X,Y,Z, got {columns!r}")
-    elif peer.columns:
-        picked = peer.columns
-    elif name == "ros-yaml":
-        picked = list("xyz")
     else:
-        picked = [f"{'gyr' if peer.sensor == 'gyroscope' else 'acc'}_{a}" for a in "xyz"]
+        picked = peer.columns or reader.columns(peer.sensor)
     if serial is None and peer.serial is not None and control_character(peer.serial):
         raise InputError(f"its serial holds a control character: {peer.serial!r}", file=path, hint="give --serial")
     who = unit_block(
@@ -286,17 +246,16 @@ def import_peer(
     return Imported(cal, name, list(peer.notes))
 
 
-def _peer_reference(peer: Peer, path: str) -> float:
-    """The reference a peer file implies (docs/commands/export-import.md)."""
+def _peer_reference(peer: Peer, reader: Importer, path: str) -> float:
+    """The reference a peer file implies (docs/commands/export-import.md): what a tumblecal export
+    recorded, 0 for a gyroscope, else what its format takes for its units."""
     if peer.reference is not None:
         return float(peer.reference)
     if peer.sensor == "gyroscope":
         return 0.0
-    if peer.format == "ros-yaml" and peer.sensor == "accelerometer":
-        return 9.80665  # imu_calib's do_calib: reference_acceleration defaults to 9.80665
-    by_units = {"g": 1.0, "m/s^2": 9.81, "m/s2": 9.81}  # imucal's Ferraris default expected gravity 9.81
-    if peer.units in by_units:
-        return by_units[peer.units]
+    implied = reader.reference(peer)
+    if implied is not None:
+        return implied
     raise InputError(
         f"cannot tell the reference of output units {peer.units!r}",
         file=path,

@@ -20,6 +20,7 @@ import yaml
 from numpy.typing import NDArray
 
 from tumblecal_cli.core import allan, clock, gate
+from tumblecal_cli.core import quantities as unit_names
 from tumblecal_cli.core.clock import Clock
 from tumblecal_cli.core.model import apply
 from tumblecal_cli.errors import CaptureRejected, InputError
@@ -28,8 +29,9 @@ from tumblecal_cli.io.calfiles import calfile, documents, limitfile
 from tumblecal_cli.io.csv import capture, readings, sniff
 from tumblecal_cli.io.csv.ahead import ahead
 from tumblecal_cli.io.outputs import atomic_output
+from tumblecal_cli.io.readspec import ReadKeywords, read_spec
 from tumblecal_cli.pipeline.frames import in_memory
-from tumblecal_cli.pipeline.options import ReadKeywords, keywords_known, read_spec
+from tumblecal_cli.pipeline.options import keywords_known
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.arrays import FloatArray
@@ -37,19 +39,8 @@ if TYPE_CHECKING:
     from tumblecal_cli.io.readspec import ReadSpec
     from tumblecal_cli.pipeline.frames import DataFrame, JSONObject
 
-#: Units a calibration may name, and what one of them is in SI (m/s^2 or rad/s).
-TO_SI = {
-    "accelerometer": {"g": 9.80665, "mg": 9.80665e-3, "m/s^2": 1.0, "m/s²": 1.0, "m/s2": 1.0, "ms^-2": 1.0},
-    "gyroscope": {
-        "rad/s": 1.0,
-        "deg/s": math.pi / 180.0,
-        "°/s": math.pi / 180.0,
-        "dps": math.pi / 180.0,
-        "degree/s": math.pi / 180.0,
-        "degrees/s": math.pi / 180.0,
-        "mdps": math.pi / 180.0e3,
-    },
-}
+#: The sensors noise has figures for in datasheet and SI units (core.quantities converts them).
+FIGURED = ("accelerometer", "gyroscope")
 #: The units each choice of --units reports the three figures in (noise density, bias
 #: instability, random walk); "{u}" is the data's own unit.
 UNIT_NAMES = {
@@ -71,21 +62,28 @@ def unit_key(units: str | None) -> str:
     return "" if units is None else units.strip().lower().replace(" ", "")
 
 
+def to_si(sensor: str, units: str | None) -> float | None:
+    """What one of a calibration's ``units`` is in SI (m/s^2, rad/s), matched without regard to
+    case or spaces; None: units noise does not know, or a sensor it has no figures for."""
+    return unit_names.factor(sensor, unit_key(units)) if sensor in FIGURED else None
+
+
 def factors(sensor: str, units: str | None, choice: str) -> tuple[float, float, float]:
     """What the figures in the data's units are multiplied by to read in ``choice``'s units."""
     if choice == "native":
         return (1.0, 1.0, 1.0)
-    si = TO_SI.get(sensor, {}).get(unit_key(units))
+    si = to_si(sensor, units)
     if si is None:
         raise InputError(
             f"--units {choice} needs a calibration in known {sensor} units, "
-            f"not {units!r}" + ("" if sensor in TO_SI else f" (a {sensor} has none)"),
-            hint=f"calibrations in {', '.join(TO_SI.get(sensor, {'m/s^2': 1.0}))}; or --units native",
+            f"not {units!r}" + ("" if sensor in FIGURED else f" (a {sensor} has none)"),
+            hint=f"calibrations in {', '.join(unit_names.names(sensor) if sensor in FIGURED else ['m/s^2'])}; "
+            "or --units native",
         )
     if choice == "si":
         return (si, si, si)
     if sensor == "accelerometer":  # µg: per g, a millionth
-        f = si / 9.80665 * 1e6
+        f = si / unit_names.STANDARD_GRAVITY * 1e6
         return (f, f, f)
     deg = si * 180.0 / math.pi  # °/s; sqrt(h) = 60 sqrt(s): °/s/√Hz = °/√s = 60 °/√h
     return (deg * 60.0, deg * 3600.0, deg * 3600.0 * 60.0)
@@ -248,7 +246,7 @@ def _noise(path: str, options: NoiseKeywords) -> Noise:
         raise InputError(f"--units must be one of {', '.join(UNIT_CHOICES)}, got {units!r}")
     if units in ("datasheet", "si") and c is None:
         raise InputError(f"--units {units} needs --cal: raw readings have no known units")
-    known = kind in TO_SI and unit_key(data_units) in TO_SI[kind]
+    known = to_si(kind, data_units) is not None
     choice = units or ("datasheet" if known else "native")
     scale = factors(kind, data_units, choice)
     if kalibr:  # refused before the capture is read

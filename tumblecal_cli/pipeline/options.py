@@ -1,6 +1,8 @@
 """The options of solve and the commands that share them, checked and resolved once.
 
-``SolveOptions`` is solve's keyword options (the command line's long options in snake case);
+``SolveOptions`` is solve's options, grouped; ``SolveOptions.of`` is the one mapper from their
+flat values (the command line's long options in snake case: ``FLAT``, and ``SolveKeywords`` for
+the Python API) that the command line, batch and ``solve``/``solve_log`` all go through.
 :func:`settings` turns them into what the pipeline needs, or raises the one InputError a bad
 option deserves before any file is read (batch checks them once, before any unit).
 """
@@ -12,25 +14,24 @@ import os
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
-from typing import TYPE_CHECKING, TypedDict
-
-import numpy as np
+from typing import TYPE_CHECKING, cast
 
 from tumblecal_cli.core import gate, model
 from tumblecal_cli.core.methods import METHODS, TURNS
 from tumblecal_cli.core.model import SENSORS
-from tumblecal_cli.errors import InputError, control_character
+from tumblecal_cli.errors import InputError, control_character, said
 from tumblecal_cli.io.calfiles import limitfile
 from tumblecal_cli.io.calfiles.calfile import Unit
-from tumblecal_cli.io.readspec import Dialect, ReadSpec, column_list
+from tumblecal_cli.io.calfiles.limitfile import (
+    Triplet as Triplet,  # re-exported: solve, segment and exchange read them here
+)
+from tumblecal_cli.io.calfiles.limitfile import triplet as triplet
+from tumblecal_cli.io.readspec import READ_NAMES, Dialect, ReadKeywords, ReadSpec, read_spec
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.arrays import FloatArray
     from tumblecal_cli.core.gate import Limits
     from tumblecal_cli.io.calfiles.calfile import Unit
-
-#: A number, or three (X,Y,Z): text as the command line gives it, or numbers.
-Triplet = str | float | Sequence[float]
 
 
 @dataclass(frozen=True)
@@ -96,8 +97,8 @@ class UnitOptions:
 class SolveOptions:
     """solve's options (docs/commands/solve.md), grouped: how the files are ``read``, how a ``log`` is
     cut, the ``checks`` (exit 3), the ``limits`` (exit 1) and the ``unit``; the method's own
-    options at the top. :meth:`of` takes them as the command line names them (the Python API's
-    keywords)."""
+    options at the top. :meth:`of` makes them of the flat values the command line, batch and
+    the Python API give (``SolveKeywords``)."""
 
     method: str = "auto"
     reference: float | None = None
@@ -119,24 +120,24 @@ class SolveOptions:
 
     @classmethod
     def of(cls, given: Mapping[str, object]) -> SolveOptions:
-        """The options named as the command line names them (``reference=``, ``max_noise=``,
-        ``limits=`` for a limits file, ``serial=`` ...; an enum is its value). A name it does
-        not know is a TypeError, as for a function's keyword."""
-        groups: dict[str, dict[str, object]] = {g: {} for g in ("", "read", "dialect", *GROUPS)}
+        """The one mapper from solve's flat option values to SolveOptions: the options named as
+        the command line names them (``reference=``, ``max_noise=``, ``limits=`` for a limits
+        file, ``serial=`` ...; ``SolveKeywords``), what is not given left at its default. An enum
+        is its value; a repeatable option (``meta``, ``no_check``) takes a list, and None for
+        none (the command line's when it is not given). A name it does not know is a TypeError,
+        as for a function's keyword."""
         for name in given:
             if name not in FLAT:
                 raise TypeError(f"SolveOptions.__init__() got an unexpected keyword argument {name!r}")
         choices_and_numbers(given)  # before a Dialect judges --skip-rows and --decimal, as checked() does
+        groups: dict[str, dict[str, object]] = {g: {} for g in ("", "read", *GROUPS)}
         for name, value in given.items():
             value = getattr(value, "value", value)
-            if name in ("meta", "no_check") and isinstance(value, list | tuple):  # each an enum's or text
-                value = [getattr(v, "value", v) for v in value]
-            if name == "columns":
-                value = column_list(value)  # type: ignore[arg-type]
+            if name in REPEATABLE and (value is None or isinstance(value, list | tuple)):  # each an enum's or text
+                value = tuple(getattr(v, "value", v) for v in value or ())
             group, key = FLAT[name]
-            groups[group][key] = value
-        dialect = Dialect(**groups.pop("dialect"))  # type: ignore[arg-type]
-        read = replace(ReadSpec(), dialect=dialect, **groups.pop("read"))  # type: ignore[arg-type]
+            groups["read" if group == "dialect" else group][key] = value
+        read = read_spec(cast(ReadKeywords, groups.pop("read")))
         parts = {g: kind(**groups.pop(g)) for g, kind in GROUPS.items()}
         return cls(**groups.pop(""), read=read, **parts)  # type: ignore[arg-type]
 
@@ -149,82 +150,74 @@ class SolveOptions:
         return out
 
 
+#: The groups of SolveOptions besides ``read`` (a ReadSpec), each a dataclass of flat options.
 GROUPS: dict[str, type] = {"log": LogOptions, "checks": CheckOptions, "limits": LimitOptions, "unit": UnitOptions}
-#: Each option's name on the command line (snake case) and where SolveOptions keeps it: its
-#: group ("" the top) and its field there.
+#: The flat names that are not their field's name: ``limits=`` is the limits group's file.
+RENAMED = {("limits", "file"): "limits"}
+#: The options given once per item, repeatable on the command line (a tuple in SolveOptions).
+REPEATABLE = ("meta", "no_check")
+#: Each option's flat name (the command line's long option in snake case) and where SolveOptions
+#: keeps it: its group ("" the top; "read" and "dialect" the ReadSpec's) and its field there. A
+#: field added to SolveOptions or one of its groups (or a keyword to io.readspec.ReadKeywords) is
+#: an option here; SolveKeywords names it for the Python API (tests/test_options.py holds the two
+#: and the command's parameters to each other).
 FLAT: dict[str, tuple[str, str]] = {
-    **{f: ("", f) for f in ("method", "reference", "up", "tilt_compensate", "bias_spread", "plane", "units")},
-    "input_units": ("", "input_units"),
-    "rows_are_poses": ("", "rows_are_poses"),
-    **{f: ("", f) for f in ("location", "gravity", "date")},
-    **{f: ("read", f) for f in ("sensor", "columns", "no_header", "time_column", "time_unit", "rate")},
-    **{f: ("read", f) for f in ("stream", "allow_corrected")},
-    **{f: ("read", f) for f in ("start", "end")},
-    **{f: ("dialect", f) for f in ("skip_rows", "decimal", "drop_incomplete")},
-    **{f.name: ("log", f.name) for f in fields(LogOptions)},
-    **{f.name: ("checks", f.name) for f in fields(CheckOptions)},
-    "limits": ("limits", "file"),
-    **{f: ("limits", f) for f in ("max_offset", "max_gain_error", "nominal_gain")},
-    **{f.name: ("unit", f.name) for f in fields(UnitOptions)},
+    **{f.name: ("", f.name) for f in fields(SolveOptions) if f.name != "read" and f.name not in GROUPS},
+    **{name: ("dialect" if name in {f.name for f in fields(Dialect)} else "read", name) for name in READ_NAMES},
+    **{RENAMED.get((g, f.name), f.name): (g, f.name) for g, kind in GROUPS.items() for f in fields(kind)},
 }
 
 
-class FileKeywords(TypedDict, total=False):
-    """How the Python API's functions are told a file's shape and its sensor columns: the
-    command line's long options in snake case (verify and correct: the sensor is the
-    calibration's)."""
+class SolveKeywords(ReadKeywords, total=False):
+    """solve's and solve_log's keyword options (and run_batch's ``options``): the command line's
+    long options in snake case, each a flat name of :data:`FLAT` (how the file is read:
+    ``ReadKeywords``)."""
 
-    columns: str | Sequence[str] | None
-    no_header: bool
-    skip_rows: int | None
-    decimal: str | None
-    drop_incomplete: bool
-
-
-class StreamKeywords(TypedDict, total=False):
-    """Which stream of a log (a PX4 ULog's ``sensor_accel:1``: ``--stream``), and whether one the
-    autopilot already corrected may be read (``--allow-corrected``; io.sources)."""
-
-    stream: str | None
-    allow_corrected: bool
-
-
-class ReadKeywords(FileKeywords, StreamKeywords, total=False):
-    """... and the sensor and the clock: all a ``ReadSpec`` holds (``read_spec`` makes one)."""
-
-    sensor: str
-    time_column: str | None
-    time_unit: str
-    rate: float | None
-    start: str | float | None
-    end: str | float | None
-
-
-def file_spec(given: FileKeywords, prefer: Sequence[str] | None = None) -> ReadSpec:
-    """The ReadSpec of a function's keyword options on a file's shape and its sensor columns
-    (``prefer``: a calibration's columns); the sensor and the clock are left at their defaults."""
-
-    return ReadSpec(
-        columns=column_list(given.get("columns")),
-        no_header=given.get("no_header", False),
-        dialect=Dialect(given.get("skip_rows"), given.get("decimal"), given.get("drop_incomplete", False)),
-        prefer=None if prefer is None else tuple(prefer),
-    )
-
-
-def read_spec(given: ReadKeywords, prefer: Sequence[str] | None = None) -> ReadSpec:
-    """The ReadSpec of a function's keyword options: the file's shape, the sensor and the clock."""
-    return replace(
-        file_spec(given, prefer),
-        sensor=given.get("sensor", "accelerometer"),
-        time_column=given.get("time_column"),
-        time_unit=given.get("time_unit", "auto"),
-        rate=given.get("rate"),
-        stream=given.get("stream"),
-        allow_corrected=given.get("allow_corrected", False),
-        start=given.get("start"),
-        end=given.get("end"),
-    )
+    method: str
+    reference: float | None
+    up: str | None
+    tilt_compensate: bool
+    bias_spread: float | None
+    plane: str | None
+    units: str | None
+    input_units: str | None
+    rows_are_poses: bool | None
+    location: str | None
+    gravity: float | None
+    date: str | None
+    # how a continuous log is cut (LogOptions)
+    window: float | None
+    threshold: float | None
+    min_duration: float | None
+    trim: float | None
+    pose_column: str | None
+    pose_map: str | Mapping[str, str] | None
+    turns: str | Mapping[str, str] | None
+    turn_angle: float | None
+    accel_cal: str | os.PathLike[str] | None
+    max_spool: int | str | None
+    align_to: str | None
+    # the quality checks (CheckOptions)
+    max_noise: float | None
+    max_tilt: float
+    nominal_offset: Triplet | None
+    full_scale: float | None
+    min_samples: int
+    fixture_tolerance: float
+    gain_tolerance: float
+    no_checks: bool
+    no_check: str | Sequence[str] | None
+    no_trim: bool
+    # the limits (LimitOptions; ``limits`` its file)
+    limits: str | None
+    max_offset: Triplet | None
+    max_gain_error: Triplet | None
+    nominal_gain: Triplet | None
+    # the unit (UnitOptions)
+    serial: str | None
+    station: str | None
+    operator: str | None
+    meta: str | Sequence[str] | Mapping[str, str] | None
 
 
 #: The units a size may be given in (--max-spool 500M): powers of 1024.
@@ -370,7 +363,7 @@ def settings(options: SolveOptions, *, log: bool) -> Settings:
     up_face = face(options.up or "+z", "--up")
     turn_options(options, log=log)
     if method == "gyro-bias" and sensor != "gyroscope":  # one error, not one per unit
-        raise InputError(f"gyro-bias is a gyroscope's zero-rate bias: give --sensor gyroscope (not {sensor})")
+        raise InputError(said("gyro.sensor", sensor=sensor))
     for option, value in (
         ("--max-noise", options.checks.max_noise),
         ("--max-tilt", options.checks.max_tilt),
@@ -507,28 +500,6 @@ def pose_map(value: str | Mapping[str, str] | None, option: str = "--pose-map") 
             raise InputError(f"{option} gives label {label.strip()!r} twice: {out[label.strip()]} and {face}")
         out[label.strip()] = face
     return out
-
-
-def triplet(value: Triplet, option: str) -> FloatArray:
-    """A number or X,Y,Z (text as the command line gives it, a number, or three numbers), as a (3,) array."""
-
-    if isinstance(value, str):
-        text = value
-        try:
-            values = [float(p) for p in value.split(",")]
-        except ValueError:
-            values = []
-    elif isinstance(value, int | float):
-        text, values = repr(value), [float(value)]
-    else:
-        text = ",".join(map(str, value))
-        try:
-            values = [float(v) for v in value]
-        except (TypeError, ValueError):
-            values = []
-    if len(values) not in (1, 3) or not all(np.isfinite(values)):
-        raise InputError(f"{option} takes one number or three (X,Y,Z), got {text!r}")
-    return np.array(values * 3 if len(values) == 1 else values)
 
 
 def limits(

@@ -15,8 +15,8 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 from tumblecal_cli.core import earth
+from tumblecal_cli.core.quantities import factor
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io.export.paramfile import ACCEL, MAG
 
 if TYPE_CHECKING:
     from tumblecal_cli.io.calfiles.calfile import Calibration
@@ -146,8 +146,10 @@ def local_reference(asked: Asked) -> tuple[float, str, ReferenceSource] | None:
 def _gravity(asked: Asked) -> tuple[float, str, ReferenceSource]:
     if asked.date is not None:
         raise InputError("--date is for a magnetometer's Earth field; gravity does not change with the date")
-    units = asked.units or ("m/s^2" if asked.stream_units in ACCEL and asked.stream_units != "g" else "g")
-    if units not in ACCEL:
+    stream = asked.stream_units or ""
+    units = asked.units or ("m/s^2" if factor("accelerometer", stream) is not None and stream != "g" else "g")
+    scale = factor("accelerometer", units)  # m/s^2 per one of the units
+    if scale is None:
         raise InputError(
             f"local gravity is in g or m/s^2, and the calibration's units are {units!r}",
             hint="give --units g (or m/s^2), or leave --location out and give --reference in your units",
@@ -172,7 +174,7 @@ def _gravity(asked: Asked) -> tuple[float, str, ReferenceSource]:
             "value_m_s2": value,
             "source": "WGS-84 normal gravity, NIMA TR8350.2 Eqs. 4-1 and 4-3",
         }
-    return value / ACCEL[units], units, ReferenceSource("gravity", part)
+    return value / scale, units, ReferenceSource("gravity", part)
 
 
 def _field(asked: Asked) -> tuple[float, str, ReferenceSource]:
@@ -185,8 +187,10 @@ def _field(asked: Asked) -> tuple[float, str, ReferenceSource]:
     assert asked.location is not None
     place = location(asked.location)
     year = decimal_date(asked.date)
-    units = asked.units or (asked.stream_units if asked.stream_units in MAG else DEFAULT_FIELD_UNITS)
-    if units not in MAG:
+    stream = asked.stream_units or ""
+    units = asked.units or (stream if factor("magnetometer", stream) is not None else DEFAULT_FIELD_UNITS)
+    scale = factor("magnetometer", units)  # gauss per one of the units
+    if scale is None:
         raise InputError(
             f"the Earth's field is in uT, gauss, mG or nT, and the calibration's units are {units!r}",
             hint="give --units uT (or gauss), or leave --location out and give --reference in your units",
@@ -206,7 +210,7 @@ def _field(asked: Asked) -> tuple[float, str, ReferenceSource]:
         "down_nT": round(f.down, 1),
         "source": "World Magnetic Model WMM2025 (NOAA NCEI and BGS)",
     }
-    return f.total * 1e-5 / MAG[units], units, ReferenceSource("earth_field", part)  # nT to gauss, gauss to the units
+    return f.total * 1e-5 / scale, units, ReferenceSource("earth_field", part)  # nT to gauss, gauss to the units
 
 
 def stamp(cal: Calibration | None, source: ReferenceSource | None) -> Calibration | None:

@@ -37,13 +37,11 @@ from tumblecal_cli.io.outputs import (
     spreadsheet_safe,
     unsafe,
 )
-from tumblecal_cli.io.readspec import ReadSpec
+from tumblecal_cli.io.readspec import ReadKeywords, ReadSpec, read_spec
 from tumblecal_cli.pipeline.frames import in_memory, written_table
 from tumblecal_cli.pipeline.options import (
-    ReadKeywords,
     keywords_known,
     path_of,
-    read_spec,
     size_option,
     size_text,
     triplet,

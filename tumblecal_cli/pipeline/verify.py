@@ -18,18 +18,10 @@ from tumblecal_cli.core.model import UNITS_TOLERANCE
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io.calfiles import calfile
 from tumblecal_cli.io.csv import posefile, readings
-from tumblecal_cli.io.readspec import ReadSpec, column_list
+from tumblecal_cli.io.readspec import FileKeywords, ReadSpec, StreamKeywords, column_list, file_spec
 from tumblecal_cli.pipeline import places
 from tumblecal_cli.pipeline.frames import in_memory, is_data
-from tumblecal_cli.pipeline.options import (
-    FileKeywords,
-    LogOptions,
-    SolveOptions,
-    StreamKeywords,
-    file_spec,
-    keywords_known,
-    path_of,
-)
+from tumblecal_cli.pipeline.options import LogOptions, SolveOptions, keywords_known, path_of
 from tumblecal_cli.pipeline.solve.rotations import hand_turns
 
 if TYPE_CHECKING:

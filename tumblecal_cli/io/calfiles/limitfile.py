@@ -1,7 +1,10 @@
 """Limits files (docs/production-test.md): the bounds a unit is judged by, read from
-YAML or JSON, each key checked; the noise limits `tumblecal noise` judges by."""
+YAML or JSON, each key checked; the noise limits `tumblecal noise` judges by; and a bound given
+on the command line, one number or X,Y,Z (``triplet``)."""
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -32,6 +35,31 @@ LIMIT_KEYS = {
     "current_interference": "one",
     "dip_angle": "one",  # degrees: a magnetometer's still blocks' dip angle from the model's (docs/real-world.md)
 }
+
+#: A bound as the command line or the Python API gives it: text (one number or X,Y,Z), a number, or three.
+Triplet = str | float | Sequence[float]
+
+
+def triplet(value: Triplet, option: str) -> FloatArray:
+    """A number or X,Y,Z (text as the command line gives it, a number, or three numbers), as a (3,) array."""
+
+    if isinstance(value, str):
+        text = value
+        try:
+            values = [float(p) for p in value.split(",")]
+        except ValueError:
+            values = []
+    elif isinstance(value, int | float):
+        text, values = repr(value), [float(value)]
+    else:
+        text = ",".join(map(str, value))
+        try:
+            values = [float(v) for v in value]
+        except (TypeError, ValueError):
+            values = []
+    if len(values) not in (1, 3) or not all(np.isfinite(values)):
+        raise InputError(f"{option} takes one number or three (X,Y,Z), got {text!r}")
+    return np.array(values * 3 if len(values) == 1 else values)
 
 
 #: The limits only `tumblecal noise` judges.

@@ -12,13 +12,15 @@ import json
 import math
 import re
 from collections.abc import Mapping
-from dataclasses import dataclass, field
-from typing import TypedDict, cast
+from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
 from tumblecal_cli.core.arrays import FloatArray
+from tumblecal_cli.core.gate import FIXED_GAINS
 from tumblecal_cli.core.model import SENSORS
+from tumblecal_cli.core.quantities import STANDARD_GRAVITY
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.calfiles.calfile import (
     FORMAT,
@@ -31,10 +33,10 @@ from tumblecal_cli.io.calfiles.calfile import (
     is_number,
 )
 from tumblecal_cli.io.calfiles.documents import parse_object
+from tumblecal_cli.io.calfiles.limitfile import triplet
+from tumblecal_cli.io.export.registry import Exported, Exporter, ExportOptions, Importer, Peer, Record
 from tumblecal_cli.version import __version__
 
-EXPORTS = ("c-header", "registers", "imucal-json", "ros-yaml", "matlab", "ardupilot", "px4")
-IMPORTS = ("imucal-json", "ros-yaml")
 #: imucal's calibration file format (imucal/calibration_info.py, _CAL_FORMAT_VERSION); its
 #: loader also reads files without the key as the legacy 1.0 layout, which has the same fields.
 IMUCAL_FORMAT_VERSION = "2.0.0"
@@ -250,6 +252,27 @@ OFFSET_HINT = "check --lsb (raw units per register count) against the calibratio
 GAIN_HINT = "check --gain-step (what one count adds to the factor) and --nominal-gain, or --bits"
 
 
+def export_registers(cal: Calibration, options: ExportOptions) -> Exported:
+    """export --format registers: offset (and gain trim) register counts, CSV."""
+    lsb, gain_step, nominal_gain = options.lsb, options.gain_step, options.nominal_gain
+    if not (lsb is not None and math.isfinite(lsb) and lsb > 0):
+        raise InputError(f"--lsb must be a positive number, got {lsb}")
+    if gain_step is not None and not (math.isfinite(gain_step) and gain_step > 0):
+        raise InputError(f"--gain-step must be a positive number, got {gain_step}")
+
+    if gain_step is not None and cal.method in FIXED_GAINS:
+        raise InputError(f"the {cal.method} solver fixes the gains: there is no gain to trim", file=cal.path)
+    verdict = cal.verdict
+    recorded = verdict.limits.nominal_gain if verdict and "nominal_gain" in verdict.limit_names else None
+    nominal = triplet(nominal_gain or ",".join(map(str, [1, 1, 1] if recorded is None else recorded)), "--nominal-gain")
+    if not (nominal > 0).all():
+        raise InputError(f"--nominal-gain must be positive, got {nominal_gain}")
+    rows = registers(
+        cal, lsb=lsb, bits=options.bits, sign=options.register_sign, gain_step=gain_step, nominal_gain=nominal
+    )
+    return Exported(registers_csv(rows))
+
+
 def registers_csv(rows: list[Register]) -> str:
     lines = ["register,count,hex,value,target,error"]
     lines += [f"{r.name},{r.count},{r.hex},{r.value:.12g},{r.target!r},{r.error:.12g}" for r in rows]
@@ -351,48 +374,6 @@ def matlab(cal: Calibration) -> str:
 # -- import -------------------------------------------------------------------------------
 
 
-class Record(TypedDict, total=False):
-    """What a tumblecal export records of its calibration (``record``), as ``recorded`` reads it back."""
-
-    sensor: str
-    serial: str
-    station: str
-    operator: str
-    created: str
-    method: str
-    input_units: str
-    units: str
-    reference: float
-    columns: list[str]
-
-
-@dataclass(frozen=True)
-class Peer:
-    """A calibration read from another tool's file, in tumblecal's terms; what a tumblecal export
-    recorded in its comment (sensor, serial, units, reference, columns) where there is one."""
-
-    format: str
-    sensor: str
-    offset: FloatArray
-    matrix: FloatArray
-    units: str | None
-    input_units: str | None
-    reference: float | None
-    columns: list[str] | None
-    serial: str | None
-    notes: tuple[str, ...]
-    was: Record = field(default_factory=Record)  # what a tumblecal export recorded (see record())
-
-
-def detect(doc: Mapping[str, object]) -> str | None:
-    """Which peer format a parsed file is, from its keys."""
-    if "cal_type" in doc and "K_a" in doc:
-        return "imucal-json"
-    if "SM" in doc and "bias" in doc:
-        return "ros-yaml"
-    return None
-
-
 #: The fields of the record an export carries in a data field (docs/commands/export-import.md), and their types.
 RECORD_FIELDS: dict[str, tuple[type, ...]] = {
     "sensor": (str,),
@@ -452,11 +433,20 @@ def recorded(value: object, path: str, where: str) -> Record:
     return cast(Record, out)  # each field checked against RECORD_FIELDS above
 
 
-def read_peer(doc: Mapping[str, object], fmt: str, path: str, sensor: str | None) -> Peer:
-    """The calibration in a parsed imucal or ROS imu_calib file; what a tumblecal export recorded
-    comes from its data field (ROS: ``tumblecal``; imucal: the JSON in ``comment``), never from
-    comment text. ``sensor`` None: the recorded one, else an accelerometer."""
-    if fmt == "ros-yaml":
+#: The reference of a peer file's output units when nothing else says it: 1 for g, and imucal's
+#: Ferraris default expected gravity, 9.81, for m/s^2.
+REFERENCE_BY_UNITS = {"g": 1.0, "m/s^2": 9.81, "m/s2": 9.81}
+
+
+class RosYaml:
+    """ROS imu_calib's calibration file read back (``tumblecal import --from ros-yaml``); what a
+    tumblecal export recorded comes from its data field ``tumblecal``, never from comment text."""
+
+    def claims(self, doc: Mapping[str, object]) -> bool:
+        return "SM" in doc and "bias" in doc
+
+    def read(self, doc: Mapping[str, object], path: str, sensor: str | None) -> Peer:
+        """``sensor`` None: the recorded one, else an accelerometer."""
         sm = _array(doc.get("SM"), "SM", 9, path).reshape(3, 3)
         bias = _array(doc.get("bias"), "bias", 3, path)
         invertible(sm, path, "SM")
@@ -465,7 +455,36 @@ def read_peer(doc: Mapping[str, object], fmt: str, path: str, sensor: str | None
         offset = np.asarray(np.linalg.solve(sm, bias), dtype=np.float64)
         # imu_calib calibrates accelerometers, in sensor_msgs/Imu's m/s^2; other sensors' units are unknown
         accel = (sensor or was.get("sensor") or "accelerometer") == "accelerometer"
-        return _peer(fmt, sensor, was, offset, sm, "m/s^2" if accel else None, None, ())
+        return _peer("ros-yaml", sensor, was, offset, sm, "m/s^2" if accel else None, None, ())
+
+    def columns(self, sensor: str) -> list[str]:
+        return list("xyz")
+
+    def reference(self, peer: Peer) -> float | None:
+        if peer.sensor == "accelerometer":
+            return STANDARD_GRAVITY  # imu_calib's do_calib: reference_acceleration defaults to 9.80665
+        return REFERENCE_BY_UNITS.get(peer.units or "")
+
+
+class ImucalJson:
+    """imucal's calibration file read back (``tumblecal import --from imucal-json``); what a
+    tumblecal export recorded comes from the JSON in its ``comment``."""
+
+    def claims(self, doc: Mapping[str, object]) -> bool:
+        return "cal_type" in doc and "K_a" in doc
+
+    def read(self, doc: Mapping[str, object], path: str, sensor: str | None) -> Peer:
+        """``sensor`` None: the recorded one, else an accelerometer."""
+        return _read_imucal(doc, path, sensor)
+
+    def columns(self, sensor: str) -> list[str]:
+        return [f"{'gyr' if sensor == 'gyroscope' else 'acc'}_{a}" for a in "xyz"]
+
+    def reference(self, peer: Peer) -> float | None:
+        return REFERENCE_BY_UNITS.get(peer.units or "")
+
+
+def _read_imucal(doc: Mapping[str, object], path: str, sensor: str | None) -> Peer:
     if doc.get("cal_type") not in ("Ferraris", "TurntableFerraris"):
         raise InputError(
             f"imucal calibration type {doc.get('cal_type')!r} is not one tumblecal reads (Ferraris, TurntableFerraris)",
@@ -493,7 +512,7 @@ def read_peer(doc: Mapping[str, object], fmt: str, path: str, sensor: str | None
     if was.get("sensor") != sensor:  # the record describes the other slot
         was = Record()
     raw_units = None if raw_units == "a.u." else _text(raw_units)
-    return _peer(fmt, sensor, was, b, matrix, _text(units), raw_units, notes)
+    return _peer("imucal-json", sensor, was, b, matrix, _text(units), raw_units, notes)
 
 
 def _comment_record(comment: object, path: str) -> object:
@@ -636,3 +655,34 @@ def _array(value: object, name: str, size: int, path: str) -> FloatArray:
 
 def _text(value: object) -> str | None:
     return value if isinstance(value, str) else None
+
+
+# -- the registry's rows (io.export.registry) ----------------------------------------------
+
+
+def export_c_header(cal: Calibration, options: ExportOptions) -> Exported:
+    return Exported(c_header(cal, prefix=options.prefix))
+
+
+def export_imucal_json(cal: Calibration, options: ExportOptions) -> Exported:
+    return Exported(imucal_json(cal))
+
+
+def export_ros_yaml(cal: Calibration, options: ExportOptions) -> Exported:
+    return Exported(ros_yaml(cal))
+
+
+def export_matlab(cal: Calibration, options: ExportOptions) -> Exported:
+    return Exported(matlab(cal))
+
+
+#: The export formats of this module, by their names in io.export.registry.EXPORTS.
+EXPORTERS: dict[str, Exporter] = {
+    "c-header": export_c_header,
+    "registers": export_registers,
+    "imucal-json": export_imucal_json,
+    "ros-yaml": export_ros_yaml,
+    "matlab": export_matlab,
+}
+#: The import formats of this module, by their names in io.export.registry.IMPORTS.
+IMPORTERS: dict[str, Importer] = {"imucal-json": ImucalJson(), "ros-yaml": RosYaml()}

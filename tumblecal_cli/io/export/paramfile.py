@@ -34,29 +34,17 @@ import numpy as np
 
 from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.gate import FIXED_GAINS
+from tumblecal_cli.core.quantities import COMMON, QUANTITY, factor
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.calfiles.calfile import Calibration
 from tumblecal_cli.io.export.formats import FLOAT32_MAX, provenance, safe_comment
+from tumblecal_cli.io.export.registry import Exported, Exporter, ExportOptions
 from tumblecal_cli.version import __version__
 
-FIRMWARES = ("ardupilot", "px4")
 NAMES = {"ardupilot": "ArduPilot", "px4": "PX4"}
-G = 9.80665
-DEG = math.pi / 180
-#: A calibration's units and the factor to m/s^2, rad/s, gauss.
-ACCEL = {"g": G, "m/s^2": 1.0, "m/s2": 1.0, "m/s²": 1.0}
-GYRO = {"rad/s": 1.0, "deg/s": DEG, "dps": DEG, "°/s": DEG}
-MAG = {
-    **dict.fromkeys(("gauss", "Gauss", "G", "Gs"), 1.0),
-    **dict.fromkeys(("mG", "mGauss", "mgauss", "milligauss"), 1e-3),
-    **dict.fromkeys(("uT", "µT", "μT", "microtesla"), 1e-2),
-    "nT": 1e-5,
-    "mT": 10.0,
-    "T": 1e4,
-}
 #: The units each firmware's parameters are in (INS_ACCOFFS "m/s/s", INS_GYROFFS "rad/s",
 #: COMPASS_OFS "mGauss"; PX4's CAL_ACC/GYRO/MAG _XOFF "m/s^2", "rad/s", "gauss"), and the factor
-#: from the table's base units (m/s^2, rad/s, gauss) to them.
+#: from the base units of core.quantities (m/s^2, rad/s, gauss) to them.
 FIRMWARE_UNITS = {
     ("ardupilot", "accelerometer"): ("m/s^2", 1.0),
     ("ardupilot", "gyroscope"): ("rad/s", 1.0),
@@ -65,7 +53,6 @@ FIRMWARE_UNITS = {
     ("px4", "gyroscope"): ("rad/s", 1.0),
     ("px4", "magnetometer"): ("gauss", 1.0),
 }
-TABLES = {"accelerometer": ACCEL, "gyroscope": GYRO, "magnetometer": MAG}
 #: --instance: the firmware's numbering (ArduPilot's IMU and compass 1-3, PX4's CAL_ slots 0-3
 #: (MAX_SENSOR_COUNT 4), its TC_ slots 0-2).
 INSTANCES = {("ardupilot", False): (1, 3), ("ardupilot", True): (1, 3), ("px4", False): (0, 3), ("px4", True): (0, 2)}
@@ -217,49 +204,55 @@ def _lost(sensor: str, fmt: str, loss: Loss, at: tuple[str, float]) -> str:
     return f"{' and '.join(parts)} NOT written ({NAMES[fmt]} has one scale per axis)"
 
 
-def _corrected_units(cal: Calibration, fmt: str, solve: str) -> str:
-    """The calibration's corrected units, one the firmware's units convert from, else an
-    InputError saying to ``solve`` (the calibration, or its base) with --units naming them."""
-    units = (cal.units or "").strip()
-    if units not in TABLES[cal.sensor]:
+def _corrected_units(cal: Calibration, fmt: str, solve: str) -> float:
+    """One of the calibration's corrected units in the base unit of what it measures (core.quantities:
+    m/s^2, rad/s, gauss), else an InputError saying to ``solve`` (the calibration, or its base)
+    with --units naming them."""
+    found = factor(cal.sensor, (cal.units or "").strip())
+    if found is None:
         raise InputError(
             f"--format {fmt} writes {FIRMWARE_UNITS[fmt, cal.sensor][0]}: the calibration's corrected units are "
-            f"{cal.units!r}, not one of {', '.join(TABLES[cal.sensor])}",
+            f"{cal.units!r}, not one of {_common(cal.sensor)}",
             file=cal.path,
             hint=f"{solve} with --units naming them (and --reference in them)",
         )
-    return units
+    return found
+
+
+def _common(sensor: str) -> str:
+    """The unit names a message lists for ``sensor`` (core.quantities.COMMON; every other name is taken too)."""
+    return ", ".join(COMMON[QUANTITY[sensor]])
 
 
 def _factors(cal: Calibration, fmt: str) -> tuple[float, float, list[str]]:
     """k_in and k_out, the factors from the calibration's raw and corrected units to the
     firmware's; a note when the raw units are not recorded and taken as the corrected ones."""
-    units, scale = FIRMWARE_UNITS[fmt, cal.sensor]
-    table = TABLES[cal.sensor]
+    firmware, scale = FIRMWARE_UNITS[fmt, cal.sensor]
     out = _corrected_units(cal, fmt, "solve")
-    raw = (cal.input_units or "").strip()
+    named, raw = (cal.units or "").strip(), (cal.input_units or "").strip()
     if raw:
-        if raw not in table:
+        k_raw = factor(cal.sensor, raw)
+        if k_raw is None:
             raise InputError(
-                f"--format {fmt}: {NAMES[fmt]} corrects readings in {units}, and the calibration's raw units "
-                f"are {cal.input_units!r}, not one of {', '.join(table)}",
+                f"--format {fmt}: {NAMES[fmt]} corrects readings in {firmware}, and the calibration's raw units "
+                f"are {cal.input_units!r}, not one of {_common(cal.sensor)}",
                 file=cal.path,
                 hint="calibrate from readings in the firmware's units (its own log), or solve with --input-units "
                 "naming them",
             )
-        return table[raw] * scale, table[out] * scale, []
+        return k_raw * scale, out * scale, []
     gains = [float(g) for g in cal.gain]
     if cal.method in FIXED_GAINS or all(abs(g - 1.0) < 0.2 for g in gains):
         return (
-            table[out] * scale,
-            table[out] * scale,
-            [f"raw units not recorded: taken as {out}, as the gains near 1 say"],
+            out * scale,
+            out * scale,
+            [f"raw units not recorded: taken as {named}, as the gains near 1 say"],
         )
     raise InputError(
         f"--format {fmt}: the calibration does not say its raw units, and its gains "
-        f"({', '.join(f'{g:.4g}' for g in gains)}) say they are not its corrected {out}",
+        f"({', '.join(f'{g:.4g}' for g in gains)}) say they are not its corrected {named}",
         file=cal.path,
-        hint=f"{NAMES[fmt]} corrects readings in {units}: solve with --input-units naming the raw units",
+        hint=f"{NAMES[fmt]} corrects readings in {firmware}: solve with --input-units naming the raw units",
     )
 
 
@@ -475,9 +468,8 @@ def firmware_drift(cal: Calibration, fmt: str) -> tuple[FloatArray, str]:
     if cal.sensor == "magnetometer":
         raise InputError(f"--format {fmt} takes an accelerometer's or a gyroscope's thermal block", file=cal.path)
     name, _ = FIRMWARE_UNITS[fmt, cal.sensor]
-    factors = TABLES[cal.sensor]
-    units = _corrected_units(cal, fmt, "solve the base calibration")
-    coeffs: FloatArray = factors[units] * (cal.matrix @ np.asarray(cal.thermal.offset, dtype=np.float64))
+    k_out = _corrected_units(cal, fmt, "solve the base calibration")
+    coeffs: FloatArray = k_out * (cal.matrix @ np.asarray(cal.thermal.offset, dtype=np.float64))
     return coeffs, name
 
 
@@ -581,3 +573,20 @@ def _px4_thermal(cal: Calibration, instance: int, lost: list[str]) -> str:
             rows.append((f"X{k}_{j}", value))
     lines += [f"1\t1\t{head}{name}\t{_value(value, 'a thermal coefficient', cal.path)}\t9" for name, value in rows]
     return "\n".join(lines) + "\n"
+
+
+# -- the registry's rows (io.export.registry) ----------------------------------------------------
+
+
+def export_ardupilot(cal: Calibration, options: ExportOptions) -> Exported:
+    written = write(cal, "ardupilot", options.instance)
+    return Exported(written.text, written.notes)
+
+
+def export_px4(cal: Calibration, options: ExportOptions) -> Exported:
+    written = write(cal, "px4", options.instance)
+    return Exported(written.text, written.notes)
+
+
+#: The export formats of this module, by their names in io.export.registry.EXPORTS.
+EXPORTERS: dict[str, Exporter] = {"ardupilot": export_ardupilot, "px4": export_px4}

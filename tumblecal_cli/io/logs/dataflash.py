@@ -31,7 +31,6 @@ DFReader does, garbage, zeros or erased flash at the end, a lone sample whose cl
 from __future__ import annotations
 
 import hashlib
-import os
 import re
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -40,9 +39,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tumblecal_cli.core.arrays import FloatArray
-from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import sources
+from tumblecal_cli.io import logs, sources
 from tumblecal_cli.io.logs.fields import CHUNK, NAMES, forward, gather
+from tumblecal_cli.io.logs.reader import LogReader
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.io.sources import Stream, Table
 
@@ -169,8 +168,6 @@ class DataflashStream:
 
 #: How a form of the log gathers columns of a stream's messages (a text log's lines that do not parse: NaN).
 Gather = Callable[[str, DataflashStream, list[str]], dict[str, FloatArray]]
-#: How a form of the log is walked into its DataflashIndex.
-Walker = Callable[[str], "DataflashIndex"]
 
 
 @dataclass
@@ -236,39 +233,25 @@ def fmt_body(body: bytes) -> Format | None:
     return Format(kind, name, length, chars, tuple(columns.split(",")) if columns else ())
 
 
-class DataflashReader:
-    """io.sources' Reader of ArduPilot DataFlash logs: binary here; io.logs.dftext's reads the text form
-    with its own ``walker``."""
+class DataflashReader(LogReader[DataflashIndex]):
+    """io.sources' Reader of ArduPilot DataFlash binary logs (io.logs.dftext's, a subclass, reads
+    the text form: its own row and walk, the same streams and readings)."""
 
-    def __init__(self, walker: Walker | None = None) -> None:
-        self.walker = walker
+    row = logs.DATAFLASH
+    called = "an ArduPilot DataFlash log"
+    corrected_as = "corrected by ArduPilot"
 
-    def claims(self, path: str, head: bytes) -> bool:
-        return head.startswith(MAGIC) if self.walker is None else sources.dataflash_text(path, head)
+    def walk(self, path: str) -> DataflashIndex:
+        return _walk_file(path)
 
     def streams(self, path: str) -> list[Stream]:
-        return streams_of(path, index(path, self.walker))
+        return streams_of(path, self.index(path))
 
-    def read(self, path: str, spec: ReadSpec, label_column: str | None) -> Table:
-        return read_stream(path, spec, label_column, self.walker)
+    def table(self, path: str, spec: ReadSpec) -> Table:
+        return read_stream(self, path, spec)
 
 
 READER = DataflashReader()
-#: The walks kept (a command lists a log's streams, then reads one: one walk for both).
-_CACHE: list[tuple[tuple[str, int, int, int], DataflashIndex]] = []
-
-
-def index(path: str, walker: Walker | None = None) -> DataflashIndex:
-    """``path`` walked once (kept while the file's size and time are the same), by ``walker``
-    (None: as a binary log)."""
-    st = os.stat(path)
-    key = (os.path.realpath(path), st.st_size, st.st_mtime_ns, st.st_ino)
-    for known, found in _CACHE:
-        if known == key:
-            return found
-    found = (walker or _walk_file)(path)
-    _CACHE[:] = [(key, found)]
-    return found
 
 
 def _walk_file(path: str) -> DataflashIndex:
@@ -590,16 +573,10 @@ def streams_of(path: str, found: DataflashIndex) -> list[Stream]:
     return out
 
 
-def read_stream(path: str, spec: ReadSpec, label_column: str | None, walker: Walker | None = None) -> Table:
-    """The readings of the stream ``spec`` names (or the log's one stream of ``spec.sensor``)."""
-    if label_column is not None:
-        raise InputError(
-            f"an ArduPilot DataFlash log has no label column ({label_column!r}): its still blocks are found by the "
-            "detector",
-            file=path,
-            hint="leave --pose-column out",
-        )
-    found = index(path, walker)
+def read_stream(reader: DataflashReader, path: str, spec: ReadSpec) -> Table:
+    """The readings of the stream ``spec`` names (or the log's one stream of ``spec.sensor``), of
+    the log ``reader`` walks (the binary or the text form)."""
+    found = reader.index(path)
     chosen = sources.pick(path, streams_of(path, found), spec)
     src = next(s for s in found.sources if (s.name, s.instance) == (chosen.name, chosen.instance))
     part = next(p for p in PARTS[src.name] if p.sensor == chosen.sensor)
@@ -621,7 +598,7 @@ def read_stream(path: str, spec: ReadSpec, label_column: str | None, walker: Wal
     if not keep.all():
         values, clock = values[keep], None if clock is None else clock[keep]
         temperature = None if temperature is None else temperature[keep]
-    notes[:0] = [_read_note(path, found, src, chosen, len(values))]
+    notes[:0] = [_read_note(reader, path, found, src, chosen, len(values))]
     unit = "ms" if clock_name == "TimeMS" else "us"
     return Table(
         NAMES[chosen.sensor],
@@ -637,11 +614,12 @@ def read_stream(path: str, spec: ReadSpec, label_column: str | None, walker: Wal
     )
 
 
-def _read_note(path: str, found: DataflashIndex, src: DataflashStream, chosen: Stream, rows: int) -> str:
+def _read_note(
+    reader: DataflashReader, path: str, found: DataflashIndex, src: DataflashStream, chosen: Stream, rows: int
+) -> str:
     """Which stream was read, and the calibration in force (from PARM) as the log tells it."""
-    how = "corrected by ArduPilot" if chosen.corrected else "raw"
     logged = "" if src.message == src.name else f", logged as {src.message}"
-    note = f"{path}: read {chosen.key} ({chosen.sensor}, {rows} samples, {chosen.units}, {how}{logged})"
+    note = reader.read_note(path, chosen, rows, logged)
     got, _ = calibration(found.params, chosen.sensor, _base(found, src))
     if got:
         shown = ", ".join(f"{k} {_show(v)}" for k, v in got.items())

@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tumblecal_cli.core.arrays import FloatArray
+from tumblecal_cli.io import logs
 from tumblecal_cli.io.logs.dataflash import DataflashIndex, DataflashReader, DataflashStream, Format, named
 from tumblecal_cli.io.logs.fields import CHUNK
 
@@ -165,4 +166,14 @@ def fields(path: str, src: DataflashStream, names: list[str]) -> dict[str, Float
     return {n: out[:, k] for k, n in enumerate(names)}
 
 
-READER = DataflashReader(walk)
+class DftextReader(DataflashReader):
+    """io.sources' Reader of ArduPilot DataFlash logs in their text form: walked here, listed and
+    read as the binary form is (io.logs.dataflash)."""
+
+    row = logs.DFTEXT
+
+    def walk(self, path: str) -> DataflashIndex:
+        return walk(path)
+
+
+READER = DftextReader()

@@ -54,8 +54,9 @@ from rosbags.rosbag2.storage_mcap import DECOMPRESSORS
 
 from tumblecal_cli.core.arrays import BoolArray, FloatArray, IntArray
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import sources
+from tumblecal_cli.io import logs, sources
 from tumblecal_cli.io.logs import fields as logfields
+from tumblecal_cli.io.logs.reader import LogReader, file_key
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.io.sources import Stream, Table
 
@@ -367,21 +368,22 @@ def _records(buf: bytes | mmap.mmap, at: int, end: int) -> Iterator[tuple[dict[s
         at = body + 4 + size
 
 
-#: The bag last opened (a command picks a bag's stream, then reads it: one pass for both).
-_CACHE: list[tuple[tuple[object, ...], BagIndex]] = []
+class RosReader(LogReader[BagIndex]):
+    """io.sources' Reader of ROS 1 and ROS 2 bags and MCAP files: the bag opened once for the
+    topics a command reads (``index``), decoded only as far as they are asked for."""
 
+    row = logs.ROS
+    called = "a ROS bag"
+    corrected_as = "corrected, by its name"
 
-class RosReader:
-    """io.sources' Reader of ROS 1 and ROS 2 bags and MCAP files."""
-
-    def claims(self, path: str, head: bytes) -> bool:
-        return sources.ros_claim(path, head)
+    def walk(self, path: str) -> BagIndex:
+        return _open_bag(path, None, lambda found: ())
 
     def streams(self, path: str) -> list[Stream]:
-        return streams_of(index(path, lambda found: [t.name for t in found.topics]))
+        return streams_of(self.index(path, lambda found: [t.name for t in found.topics]))
 
-    def read(self, path: str, spec: ReadSpec, label_column: str | None) -> Table:
-        return read_stream(path, spec, label_column)
+    def table(self, path: str, spec: ReadSpec) -> Table:
+        return read_stream(path, spec)
 
     def pick(self, path: str, spec: ReadSpec) -> Stream:
         """The stream ``spec`` reads (io.sources.stream_of), saying what a --stream that names no
@@ -392,21 +394,32 @@ class RosReader:
             chosen.append(sources.pick(path, streams_of(found, decoded=False), _asked(path, found, spec)))
             return [chosen[-1].name]
 
-        index(path, choose)
+        self.index(path, choose)
         return chosen[-1]
+
+    def index(self, path: str, choose: Callable[[BagIndex], Collection[str]] = lambda found: ()) -> BagIndex:
+        """``path`` opened, with the topics ``choose`` names (of its topics) decoded, in one pass
+        over the bag; kept while its files' sizes and times are the same, and opened again only
+        for topics not decoded yet."""
+        key = file_key(path)
+        found = self.kept(key)
+        if found is None or not all(found.topic(n).decoded for n in choose(found)):
+            found = _open_bag(path, found, choose)
+            self.keep(key, found)
+        return found
 
 
 READER = RosReader()
 
 
 def index(path: str, choose: Callable[[BagIndex], Collection[str]] = lambda found: ()) -> BagIndex:
-    """``path`` opened, with the topics ``choose`` names (of its topics) decoded, in one pass
-    over the bag; kept while its files' sizes and times are the same, and opened again only
-    for topics not decoded yet."""
-    key = _key(path)
-    found = next((f for k, f in _CACHE if k == key), None)
-    if found is not None and all(found.topic(n).decoded for n in choose(found)):
-        return found
+    """``path`` opened by the reader (:meth:`RosReader.index`), its topics ``choose`` names decoded."""
+    return READER.index(path, choose)
+
+
+def _open_bag(path: str, found: BagIndex | None, choose: Callable[[BagIndex], Collection[str]]) -> BagIndex:
+    """The bag ``path`` opened (``found``: what an earlier pass read of it), and the topics ``choose``
+    names that are not decoded yet decoded, in one pass."""
     kind = _kind(path)
     notes = [] if found is None else found.notes
     with contextlib.ExitStack() as stack:
@@ -421,7 +434,6 @@ def index(path: str, choose: Callable[[BagIndex], Collection[str]] = lambda foun
                 _gather(path, kind, reader.messages(wanted), [found.topic(n) for n in sorted(names)], notes)
         for name in names:
             found.topic(name).decoded = True
-    _CACHE[:] = [(key, found)]
     return found
 
 
@@ -470,15 +482,6 @@ def _summary(kind: str, readers: list[_Source], notes: list[str]) -> BagIndex:
             else:
                 others.setdefault(c.topic, c.msgtype)
     return BagIndex(kind, sorted(topics.values(), key=lambda t: t.name), sorted(others.items()), notes)
-
-
-def _key(path: str) -> tuple[object, ...]:
-    names = sorted(os.listdir(path)) if os.path.isdir(path) else [""]
-    stats = [os.stat(os.path.join(path, n)) if n else os.stat(path) for n in names]
-    return (
-        os.path.realpath(path),
-        *((n, s.st_size, s.st_mtime_ns, s.st_ino) for n, s in zip(names, stats, strict=True)),
-    )
 
 
 def _kind(path: str) -> str:
@@ -727,16 +730,10 @@ def _asked(path: str, found: BagIndex, spec: ReadSpec) -> ReadSpec:
     return spec
 
 
-def read_stream(path: str, spec: ReadSpec, label_column: str | None) -> Table:
+def read_stream(path: str, spec: ReadSpec) -> Table:
     """The readings of the topic ``spec`` names (or the bag's one topic of ``spec.sensor``)."""
-    if label_column is not None:
-        raise InputError(
-            f"a ROS bag has no label column ({label_column!r}): its still blocks are found by the detector",
-            file=path,
-            hint="leave --pose-column out",
-        )
     chosen = READER.pick(path, spec)
-    found = index(path)
+    found = READER.index(path)
     topic = found.topic(chosen.name)
     if not len(topic.stamps):
         why = f"of the layout of {topic.msgtype} (a type of the same name defined otherwise?)" if topic.odd else ""
@@ -768,14 +765,10 @@ def read_stream(path: str, spec: ReadSpec, label_column: str | None) -> Table:
             f"{path}: {topic.name} read as raw: its name does not say whether a filter or a calibration had "
             "corrected it (imu/data_raw is raw, imu/data corrected); if one had, --stream a raw topic"
         )
-    how = "corrected, by its name" if chosen.corrected else "raw"
     stamps = "record times" if by_record else "header stamps"
     first = int(clock[0]) if len(clock) else 0
-    notes.insert(
-        0,
-        f"{path}: read {topic.name} ({chosen.sensor}, {len(values)} samples, {chosen.units}, {how}; time in s from "
-        f"its first {stamps[:-1]}, {first // 1_000_000_000}.{first % 1_000_000_000:09d} s)",
-    )
+    since = f"; time in s from its first {stamps[:-1]}, {first // 1_000_000_000}.{first % 1_000_000_000:09d} s"
+    notes.insert(0, READER.read_note(path, chosen, len(values), since))
     return Table(
         NAMES[chosen.sensor],
         np.ascontiguousarray(values),

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import array
 import hashlib
-import os
 import struct
 from dataclasses import dataclass, field, replace
 from typing import BinaryIO
@@ -33,12 +32,13 @@ from typing import BinaryIO
 import numpy as np
 
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.io import sources
+from tumblecal_cli.io import logs, sources
 from tumblecal_cli.io.logs.fields import NAMES, forward, gather
+from tumblecal_cli.io.logs.reader import LogReader
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.io.sources import Stream, Table
 
-MAGIC = b"ULog\x01\x12\x35"
+MAGIC = logs.ULOG.magic[0]
 SYNC = b"\x2f\x73\x13\x20\x25\x0c\xbb\x12"
 #: The message types of the format; any other is skipped (a newer logger's) or corrupt.
 KNOWN = frozenset(b"BFIMPQARDLCSO")
@@ -266,36 +266,26 @@ def _flatten(name: str, formats: dict[str, list[tuple[str, int, str]]], depth: i
 
 _HEAD = struct.Struct("<HBH")  # a message's size and type, and a data message's msg_id
 _DATA = ord("D")
-#: The walks kept (a command lists a log's streams, then reads one: one walk for both).
-_CACHE: list[tuple[tuple[str, int, int, int], UlogIndex]] = []
 
 
-class UlogReader:
+class UlogReader(LogReader[UlogIndex]):
     """io.sources' Reader of PX4 ULog files."""
 
-    def claims(self, path: str, head: bytes) -> bool:
-        return head.startswith(MAGIC)
+    row = logs.ULOG
+    called = "a PX4 ULog"
+    corrected_as = "corrected by PX4"
+
+    def walk(self, path: str) -> UlogIndex:
+        return _walk_file(path)
 
     def streams(self, path: str) -> list[Stream]:
-        return streams_of(path, index(path))
+        return streams_of(path, self.index(path))
 
-    def read(self, path: str, spec: ReadSpec, label_column: str | None) -> Table:
-        return read_stream(path, spec, label_column)
+    def table(self, path: str, spec: ReadSpec) -> Table:
+        return read_stream(path, spec)
 
 
 READER = UlogReader()
-
-
-def index(path: str) -> UlogIndex:
-    """``path`` walked once (kept while the file's size and time are the same)."""
-    st = os.stat(path)
-    key = (os.path.realpath(path), st.st_size, st.st_mtime_ns, st.st_ino)
-    for known, found in _CACHE:
-        if known == key:
-            return found
-    found = _walk_file(path)
-    _CACHE[:] = [(key, found)]
-    return found
 
 
 def _walk_file(path: str) -> UlogIndex:
@@ -461,17 +451,11 @@ def streams_of(path: str, found: UlogIndex) -> list[Stream]:
     return out
 
 
-def read_stream(path: str, spec: ReadSpec, label_column: str | None) -> Table:
+def read_stream(path: str, spec: ReadSpec) -> Table:
     """The readings of the stream ``spec`` names (or the log's one stream of ``spec.sensor``);
     with ``spec.paired`` and a ``sensor_gyro`` stream for the gyroscope, either sensor on the
     gyroscope's samples (:func:`paired`)."""
-    if label_column is not None:
-        raise InputError(
-            f"a PX4 ULog has no label column ({label_column!r}): its still blocks are found by the detector",
-            file=path,
-            hint="leave --pose-column out",
-        )
-    found = index(path)
+    found = READER.index(path)
     listed = streams_of(path, found)
     if spec.paired:
         gyro = sources.pick(path, listed, replace(spec, sensor="gyroscope"))
@@ -558,8 +542,7 @@ def _table(path: str, found: UlogIndex, chosen: Stream, check_clock: bool) -> Ta
     if not keep.all():
         values, clock = values[keep], clock[keep]
         temperature = None if temperature is None else temperature[keep]
-    how = "corrected by PX4" if chosen.corrected else "raw"
-    notes.insert(0, f"{path}: read {chosen.key} ({chosen.sensor}, {len(values)} samples, {chosen.units}, {how})")
+    notes.insert(0, READER.read_note(path, chosen, len(values)))
     return Table(
         NAMES[chosen.sensor],
         values,

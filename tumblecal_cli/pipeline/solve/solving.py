@@ -13,13 +13,14 @@ import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Unpack
 
 import numpy as np
 
 from tumblecal_cli.core import arrays, blocks, clock, gate, methods, model, solvers
 from tumblecal_cli.core.gate import Finding
 from tumblecal_cli.core.model import face_of_name
+from tumblecal_cli.core.quantities import REFERENCE_UNITS, STANDARD_GRAVITY
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import sources
 from tumblecal_cli.io.calfiles import calfile
@@ -30,7 +31,7 @@ from tumblecal_cli.pipeline import places
 from tumblecal_cli.pipeline import segment as segmenting
 from tumblecal_cli.pipeline.exchange import tilt_notes
 from tumblecal_cli.pipeline.frames import in_memory, read_pose, samples_of
-from tumblecal_cli.pipeline.options import SolveOptions, method_options, path_of, triplet
+from tumblecal_cli.pipeline.options import SolveKeywords, SolveOptions, method_options, path_of, triplet
 from tumblecal_cli.pipeline.solve import maglog, rotations, tables, trimming, turns
 
 if TYPE_CHECKING:
@@ -97,7 +98,7 @@ class Solved:
 Poses = str | os.PathLike[str] | Sequence[object] | Mapping[str, object] | arrays.FloatArray
 
 
-def solve(poses: Poses, **options: object) -> Solved:
+def solve(poses: Poses, **options: Unpack[SolveKeywords]) -> Solved:
     """Solve a calibration from pose captures, as ``tumblecal solve --poses`` does.
 
     ``poses``: the items of ``--poses`` (``FILE`` or ``LABEL=FILE``), or a mapping of labels
@@ -110,7 +111,7 @@ def solve(poses: Poses, **options: object) -> Solved:
     return run(SolveOptions.of(options), poses=poses)
 
 
-def solve_log(log: str | os.PathLike[str] | DataFrame, **options: object) -> Solved:
+def solve_log(log: str | os.PathLike[str] | DataFrame, **options: Unpack[SolveKeywords]) -> Solved:
     """Solve a calibration from one continuous log ('-': stdin), as ``tumblecal solve --log``:
     the still blocks are found (or taken from ``pose_column``), the best of each face used.
     ``log`` may be its data in memory: a DataFrame, or an (n, 3) array (``rate=`` gives its
@@ -231,10 +232,6 @@ def _solve_trimmed(name: str, poses: PoseSet, options: SolveOptions, given: Sett
     if trimmed.error is not None:
         return Solved(3, None, error=trimmed.error, notes=trimmed.notes, samples=poses.samples, limits=given.limits)
     return _solve(name, replace(poses, samples=trimmed.samples, notes=[*poses.notes, *trimmed.notes]), options, given)
-
-
-#: Standard gravity (m/s^2): the reference of an accelerometer read in m/s^2 (PX4's CONSTANTS_ONE_G).
-STANDARD_GRAVITY = 9.80665
 
 
 def _first_file(given: list[str] | Mapping[str, object] | None) -> str | None:
@@ -764,7 +761,7 @@ def check_units(
             file=name,
             hint="a pose at rest reads the reference: is the sensor working, and are these its columns?",
         )
-    units = {1.0: "g", 9.80665: "m/s^2", 1000.0: "mg"}.get(suggested, "raw counts")
+    units = REFERENCE_UNITS.get(suggested, "raw counts")
     raise InputError(
         f"the pose reads {magnitude:.4g} in magnitude but --reference is {reference:g}: a units mistake?",
         file=name,
