@@ -11,8 +11,7 @@ from typing import TYPE_CHECKING, TypedDict, Unpack
 
 import numpy as np
 
-from tumblecal_cli.core import gate, model, solvers
-from tumblecal_cli.core.gate import FIXED_GAINS
+from tumblecal_cli.core import catalog, gate, model, solvers
 from tumblecal_cli.errors import InputError, control_character
 from tumblecal_cli.io.calfiles import calfile, documents
 from tumblecal_cli.io.export import formats, paramfile
@@ -218,7 +217,7 @@ def _registers(
     if gain_step is not None and not (math.isfinite(gain_step) and gain_step > 0):
         raise InputError(f"--gain-step must be a positive number, got {gain_step}")
 
-    if gain_step is not None and c.method in FIXED_GAINS:
+    if gain_step is not None and catalog.fixes_gains(c.method):
         raise InputError(f"the {c.method} solver fixes the gains: there is no gain to trim", file=c.path)
     recorded = c.verdict.limits.nominal_gain if c.verdict and "nominal_gain" in c.verdict.limit_names else None
     nominal = triplet(nominal_gain or ",".join(map(str, [1, 1, 1] if recorded is None else recorded)), "--nominal-gain")
