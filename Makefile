@@ -62,11 +62,12 @@ FUZZ_SEED ?= 1
 fuzz: $(VENV)/.installed
 	$(BIN)/python tests/fuzz.py --cases $(FUZZ_CASES) --seed $(FUZZ_SEED)
 
+# `make bench AGAINST=REV`: each command of this tree against git revision REV's, in turns (a change's cost)
 # polars is the baseline `apply`, `segment` and `solve --log` are measured against (the scripts a user
 # would write instead): installed into the venv for the benchmark only, like pandas it is no dependency of a command
 bench: $(VENV)/.installed
 	$(BIN)/python -m pip install --quiet polars
-	$(BIN)/python tests/bench.py
+	$(BIN)/python tests/bench.py $(if $(AGAINST),against $(AGAINST))
 
 # each solver's RMS error over 1000 synthetic captures against its Cramér–Rao bound (docs/accuracy.md)
 montecarlo: $(VENV)/.installed

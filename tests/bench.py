@@ -30,6 +30,8 @@ five runs each, taking turns; elsewhere the best of a few runs.
     ROS bag stream, 100 MB  vs  rosbags' AnyReader and deserialize of that topic, the same bag (a ROS 1
                            bag, and a ROS 2 bag in MCAP storage: two Imu topics at 1 kHz); peak memory
 
+`python tests/bench.py against REV` (`make bench AGAINST=REV`) times every command of this tree
+against the same command of git revision REV, in turns: whether a change made anything slower.
 `python tests/bench.py pace` runs the lines against POLARS_BLOCKS and the noise lines, `python tests/bench.py noise`
 the noise lines alone, `python tests/bench.py ulog` the ULog one,
 `python tests/bench.py dataflash` the DataFlash one, `python tests/bench.py ros` the ROS ones.
@@ -584,6 +586,76 @@ def bench_ros(folder: Path) -> list[tuple[str, float, float, str]]:
     return found
 
 
+def bench_against(rev: str, folder: Path) -> list[tuple[str, float, float, str]]:
+    """``make bench AGAINST=REV``: each command of this tree and of ``rev`` (its ``tumblecal_cli``
+    taken out of git into ``folder``) taking turns, five runs each, the median wall time of each:
+    the figure that says whether a change made a command slower. Both run with the same Python
+    and libraries; only the package differs (PYTHONPATH)."""
+    import shutil
+    import statistics
+
+    base_root = folder / "against"
+    base_root.mkdir()
+    archive = subprocess.run(["git", "archive", rev, "tumblecal_cli"], cwd=ROOT, capture_output=True, check=True)
+    subprocess.run(["tar", "-x", "-C", str(base_root)], input=archive.stdout, check=True)
+    import compileall
+
+    compileall.compile_dir(str(base_root / "tumblecal_cli"), quiet=1)
+    cal, log, session, still, units = (folder / n for n in ("cal.json", "1M.csv", "s.csv", "still.csv", "units"))
+    poses = [str(ROOT / "sample_data" / f"{a}.csv") for a in "xyz"]
+    subprocess.run([*TUMBLECAL, "solve", "-q", "--poses", *poses, "-o", str(cal)], check=True)
+    write_log(log, 1_000_000)
+    write_tumble(session, 600_000)
+    write_still(still, 1_000_000)
+    write_units(units, 20)
+    out = folder / "out"
+    commands = {
+        "--help": ["--help"],
+        "solve --help": ["solve", "--help"],
+        "solve 3 poses": ["solve", "--poses", *poses, "-o", str(out / "c.json")],
+        "solve -q 3 poses": ["solve", "-q", "--poses", *poses, "-o", str(out / "c.json")],
+        "apply 1M rows": ["apply", "-q", "--cal", str(cal), str(log), "-o", str(out / "o.csv")],
+        "segment 600k rows": ["segment", "-q", str(session), "-d", str(out / "poses")],
+        "solve --log 600k rows": ["solve", "-q", "--log", str(session), "-o", str(out / "l.json")],
+        "noise 1M samples": ["noise", "-q", "--rate", "200", str(still)],
+        "show": ["show", str(cal)],
+        "check": ["check", str(cal), "--max-offset", "0.1"],
+        "export c-header": ["export", "--format", "c-header", str(cal), "-o", str(out / "c.h")],
+        "verify": ["verify", "--cal", str(cal), *poses],
+        "batch 20 units": ["batch", "-q", str(units), "-d", str(out / "cals")],
+    }
+
+    def once(argv: list[str], pythonpath: Path) -> float:
+        shutil.rmtree(out, ignore_errors=True)
+        out.mkdir()
+        env = {**os.environ, "PYTHONPATH": str(pythonpath)}
+        start = time.perf_counter()
+        done = subprocess.run([*TUMBLECAL, *argv], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        if done.returncode not in (0, 1):
+            raise SystemExit(f"bench: tumblecal {' '.join(argv)} failed: {done.stderr.decode()}")
+        return time.perf_counter() - start
+
+    rows = []
+    for what, argv in commands.items():
+        ours, base = [], []
+        for _ in range(5):
+            ours.append(once(argv, ROOT))
+            base.append(once(argv, base_root))
+        rows.append((what, statistics.median(ours), statistics.median(base), f"vs {rev}"))
+    return rows
+
+
+def print_against(rev: str) -> None:
+    """The lines of ``bench_against``: each command's median wall time here and at ``rev``."""
+    load = os.getloadavg()[0]
+    with tempfile.TemporaryDirectory() as tmp:
+        rows = bench_against(rev, Path(tmp))
+    print(f"tumblecal bench against {rev}, {date.today()}, load average {load:.1f}-{os.getloadavg()[0]:.1f}")
+    print(f"{'what':<28} {'this tree':>10} {rev[:10]:>10} {'ratio':>7}")
+    for what, ours, base, _ in rows:
+        print(f"{what:<28} {ours:>9.3f}s {base:>9.3f}s {ours / base:>6.2f}x")
+
+
 def compiled() -> None:
     """The package's modules compiled to bytecode first, as an install leaves them (where the
     environment sets PYTHONDONTWRITEBYTECODE each run would compile every module again)."""
@@ -613,6 +685,9 @@ def main() -> None:
             rows = bench(Path(tmp))
         for what, ours, base, note in rows:
             print(f"{what:<28} {ours:>9.2f}s {base:>9.2f}s {ours / base:>6.2f}x  {note}")
+        return
+    if sys.argv[1:2] == ["against"]:  # make bench AGAINST=REV: every command, this tree and REV in turns
+        print_against(sys.argv[2])
         return
     if sys.argv[1:] == ["noise"]:
         with tempfile.TemporaryDirectory() as tmp:

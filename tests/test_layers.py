@@ -28,7 +28,7 @@ def test_core_imports_numpy_only() -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("module", ["gate", "solvers", "segment"])
+@pytest.mark.parametrize("module", ["gate", "solvers", "blocks"])
 def test_core_layer_imports_numpy_only(module: str) -> None:
     assert (
         imported(f"import tumblecal_cli.core.{module}", ("pandas", "pyarrow", "typer", "click", "rich", "yaml")) == []
