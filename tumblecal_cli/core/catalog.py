@@ -390,7 +390,7 @@ register(
         at_rest=False,
         not_applying=(),
         source="Tedaldi et al. 2014, sect. III-C (imu_tk's gyroscope step)",
-        help="one log, still poses joined by hand turns, and the accelerometer calibrated: full M, bias from the still blocks",
+        help="one log, still poses joined by hand turns, the accelerometer calibrated: M, bias from the still blocks",
         solver="tumblecal_cli.core.rotation_fit:fit",
     )
 )
