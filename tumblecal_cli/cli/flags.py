@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import os
 from enum import StrEnum
-from typing import Annotated, TypedDict
+from typing import TYPE_CHECKING, Annotated, TypedDict
 
 import typer
 
+from tumblecal_cli.core import catalog
 from tumblecal_cli.errors import InputError
 
 EXIT_CODES = """\
@@ -245,21 +246,24 @@ End = Annotated[
 ]
 
 
-class MethodName(StrEnum):
-    auto = "auto"
-    one_pose = "one-pose"
-    one_pose_tilt = "one-pose-tilt"
-    three_pose = "three-pose"
-    six_pose = "six-pose"
-    six_pose_diagonal = "six-pose-diagonal"
-    six_pose_magnitude = "six-pose-magnitude"
-    least_squares = "least-squares"
-    sphere = "sphere"
-    minmax = "minmax"
-    ellipsoid = "ellipsoid"
-    gyro_bias = "gyro-bias"
-    ferraris_turns = "ferraris-turns"
-    rotations = "rotations"
+if TYPE_CHECKING:  # the one member the code names; the others are the catalog's
+
+    class MethodName(StrEnum):
+        auto = "auto"
+
+else:
+    #: The ``--method`` choices: auto, then every solver of core.catalog in its order (a row
+    #: registered before the command line is imported is offered too).
+    MethodName = StrEnum("MethodName", {name: name for name in ("auto", *catalog.names())})
+
+
+def method_help() -> str:
+    """``--method``'s help: auto, then the catalog's solvers by name."""
+    return (
+        "The solver: auto (the summary says what it chose and why: docs/commands/solve.md), "
+        + ", ".join(catalog.names())
+        + "."
+    )
 
 
 class PlaneName(StrEnum):

@@ -251,7 +251,7 @@ def _axes_table(cal: Calibration, limit: int | None = None) -> Table:
     from rich import box
     from rich.table import Table
 
-    from tumblecal_cli.core.gate import FIXED_GAINS
+    from tumblecal_cli.core import catalog
 
     se = cal.uncertainty
     tilt = (
@@ -259,7 +259,7 @@ def _axes_table(cal: Calibration, limit: int | None = None) -> Table:
         if cal.tilt_sensitivity is None
         else {"offset": cal.tilt_sensitivity.offset, "gain": cal.tilt_sensitivity.gain}
     )
-    fixed = cal.method in FIXED_GAINS
+    fixed = catalog.fixes_gains(cal.method)
     # numbers never wrap or shrink; a long column name is what gives way on a narrow terminal (print_fitted)
     axes = Table(title=f"{one_line(cal.method)} calibration", title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
     rows = []

@@ -54,6 +54,7 @@ from tumblecal_cli.cli.flags import (
     Verbose,
     Window,
     check_plot_target,
+    method_help,
 )
 from tumblecal_cli.errors import InputError
 
@@ -127,14 +128,7 @@ def solve(
     ] = None,
     method: Annotated[
         MethodName,
-        typer.Option(
-            "--method",
-            "-m",
-            metavar="NAME",
-            help="The solver: auto (the summary says what it chose and why: docs/commands/solve.md), "
-            "one-pose, one-pose-tilt, three-pose, six-pose, six-pose-diagonal, six-pose-magnitude, least-squares, "
-            "sphere, minmax, ellipsoid, gyro-bias, ferraris-turns, rotations.",
-        ),
+        typer.Option("--method", "-m", metavar="NAME", help=method_help()),
     ] = MethodName.auto,
     sensor: Sensor = SensorKind.accelerometer,
     stream: StreamOption = None,

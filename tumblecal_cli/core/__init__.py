@@ -8,8 +8,12 @@ modules:
   solvers, tilt sensitivity, and apply (``M (raw - b)``).
 - ``solvers``: the solvers beyond 1- and 3-pose (six-pose, least squares, sphere, tilt-compensated
   1-pose, magnetometer min/max and ellipsoid, gyroscope bias).
-- ``methods``: which solver: the methods there are, ``auto`` resolved from the labels and the
-  sensor, and the evidence that chooses between six-pose and six-pose-magnitude.
+- ``catalog``: the solvers there are, one row each: what it takes and fits, the limits that do
+  not apply to it, its source, its function (numpy-free: the command line's ``--method``).
+- ``fits``: each catalog row's function (one input in, a fit out) and the dispatch through the
+  rows.
+- ``methods``: which solver: ``auto`` resolved from the labels and the sensor, each method's
+  labels checked, and the evidence that chooses between six-pose and six-pose-magnitude.
 - ``gate``: the production-test gate: quality checks on each pose (exit 3), limits and the
   verdict (exit 1).
 - ``running``: a long pose's readings as running sums, the statistics every check needs.

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from tumblecal_cli.core import catalog
 from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.drift import Drift, extremes
 from tumblecal_cli.core.model import FACES, PoseStats, Reach, Solution, angle_deg, chunks, direction, suggest_reference
@@ -46,20 +47,6 @@ NAMED_HINT = (
     "capture each pose with the face its file's name gives pointing up (xp.csv: +x), or label the files (+x=FILE)"
 )
 LABELLED_HINT = "label each file with the face that pointed up while it was captured (+x=FILE: its x axis up)"
-#: Methods whose gains are fixed at 1 (no gain limit applies).
-FIXED_GAINS = ("one-pose", "one-pose-tilt", "minmax", "gyro-bias")
-#: Methods fitted to captures turned through many orientations: a pose is meant to move.
-ROTATION = ("minmax", "ellipsoid")
-#: Why a limit does not apply to a method: {limit: (methods, the reason)}.
-NOT_APPLYING = {
-    "gain_error": (FIXED_GAINS, "fixes the gains at 1"),
-    "cross_axis": (
-        (*FIXED_GAINS, "three-pose", "six-pose-diagonal", "six-pose-magnitude"),
-        "estimates no cross-axis terms",
-    ),
-    "noise": (ROTATION, "fits a capture turned through many orientations (its spread is the turning)"),
-    "residual": (("minmax",), "has no fitted model to measure residuals against"),
-}
 AXES = "xyz"
 
 
@@ -231,7 +218,7 @@ def _oriented(p: PoseCheck, declared: list[str | None], solution: Solution, opti
 
 
 def _moved(p: PoseCheck, declared: list[str | None], solution: Solution, options: Options) -> Judged:
-    if options.noise_bound is None or solution.method in ROTATION:
+    if options.noise_bound is None or catalog.turned(solution.method):
         return None
     # standard deviation and drift in output units, through the solved matrix
     std = output_std(solution.matrix, p.stats.std)
@@ -252,7 +239,7 @@ def _moved(p: PoseCheck, declared: list[str | None], solution: Solution, options
 
 
 def _upside_down(p: PoseCheck, declared: list[str | None], solution: Solution, options: Options) -> Judged:
-    if solution.method in FIXED_GAINS or p.face not in FACES:
+    if catalog.fixes_gains(solution.method) or p.face not in FACES:
         return None
     assert p.face is not None
     axis = "xyz".index(p.face[1])
@@ -469,21 +456,17 @@ class Limits:
     dip_angle: float | None = None  # degrees: bound on each still block's dip angle from the model's (or their mean)
 
     def for_method(self, method: str) -> Limits:
-        """The limits that apply to a method (NOT_APPLYING: no gain limit where the gains are
-        fixed, no cross-axis limit where there are no cross-axis terms ...)."""
+        """The limits that apply to a method (its catalog row's ``not_applying``: no gain limit
+        where the gains are fixed, no cross-axis limit where there are no cross-axis terms ...)."""
         dropped: dict[str, None] = dict.fromkeys(self.not_applying(method))
         return replace(self, **dropped)  # type: ignore[arg-type]  # each a field that may be None
 
     def not_applying(self, method: str) -> dict[str, str]:
         """The limits given that do not apply to ``method``, each with the reason."""
-        return {
-            name: why
-            for name, (methods, why) in NOT_APPLYING.items()
-            if method in methods and getattr(self, name) is not None
-        }
+        return {name: why for name, why in catalog.not_applying(method).items() if getattr(self, name) is not None}
 
     def not_applying_notes(self, method: str) -> list[str]:
-        """A note for each limit given that does not apply to ``method`` (NOT_APPLYING)."""
+        """A note for each limit given that does not apply to ``method`` (:meth:`not_applying`)."""
         return [
             f"the {method} solver {why}, so the {name.replace('_', '-')} limit does not apply"
             for name, why in self.not_applying(method).items()
@@ -493,7 +476,7 @@ class Limits:
         """Whether any bound is set (a nominal gain alone judges nothing)."""
         return any(
             getattr(self, name) is not None
-            for name in ("offset", "gain_error", "offset_drift", "offset_drift_per_degc", "dip_angle", *NOT_APPLYING)
+            for name in ("offset", "gain_error", "offset_drift", "offset_drift_per_degc", "dip_angle", *catalog.LIMITS)
         )
 
     def as_dict(self) -> dict[str, object]:
@@ -557,7 +540,7 @@ def verdict(
 ) -> list[Finding]:
     """Every limit the unit is outside of (empty: pass). ``poses`` are (file, face, corrected).
 
-    A capture turned through many orientations (ROTATION) has no pose to read against the
+    A capture turned through many orientations (catalog.turned) has no pose to read against the
     reference: its residual limit judges ``fit_residual``, the fit's largest residual over
     the samples, instead. ``drift``: a thermal block's largest offset drift over its range and
     largest drift per °C, per axis (core.drift.extremes), judged by the offset_drift limits."""
@@ -576,7 +559,7 @@ def verdict(
                     float(limits.offset[i]),
                 )
             )
-    if limits.gain_error is not None and method not in FIXED_GAINS:
+    if limits.gain_error is not None and not catalog.fixes_gains(method):
         for i, axis in enumerate(AXES):
             error = gain[i] / limits.nominal_gain[i] - 1.0
             if not abs(error) <= limits.gain_error[i]:
@@ -602,7 +585,7 @@ def verdict(
                             limits.cross_axis,
                         )
                     )
-    if method in ROTATION:
+    if catalog.turned(method):
         if limits.residual is not None and fit_residual is not None and not abs(fit_residual) <= limits.residual:
             failures.append(
                 Finding(
@@ -707,8 +690,6 @@ def cross_term(a: FloatArray, i: int, j: int) -> float:
 
 # -- gains in other units, and judging a calibration again --------------------------------------
 
-#: Solvers that estimate gains, each judged by check_gains.
-GAIN_SOLVERS = ("three-pose", "six-pose", "six-pose-diagonal", "six-pose-magnitude", "least-squares", "sphere")
 #: Gains this far from nominal are not a sensor's error but a units mistake (exit 2, not exit 1).
 GAIN_UNITS_TOLERANCE = 0.25
 
@@ -804,7 +785,7 @@ def judge_again(cal: Calibrated, given: Limits, not_applying: str) -> list[Findi
     apply to its method). The errors name no file: the caller knows it."""
     bounds = given.for_method(cal.method)
     judged_gain = bounds.gain_error is not None or given.nominal_gain_given
-    if cal.method in GAIN_SOLVERS and cal.reference > 0 and judged_gain:
+    if catalog.judges_gains(cal.method) and cal.reference > 0 and judged_gain:
         check_gains(cal.gain, cal.reference, given.nominal_gain, again=True)
     if not bounds.judges():
         raise InputError(f"no limits to judge against: {not_applying}")
@@ -819,7 +800,7 @@ def judge_again(cal: Calibrated, given: Limits, not_applying: str) -> list[Findi
             raise InputError(f"field 'poses[{k}]' must be an object with pose, mean, std and samples")
         fixed = corrected(p.mean, p.std, p.face, cal.offset, cal.matrix, cal.reference)
         poses.append((p.name, p.face, fixed))
-    if cal.method in ROTATION and bounds.residual is not None and cal.fit_residual is None:
+    if catalog.turned(cal.method) and bounds.residual is not None and cal.fit_residual is None:
         raise InputError(
             "has no fit residuals to judge the residual limit by",
             hint="judge it without the residual limit, or solve the capture again",

@@ -18,7 +18,7 @@ The parameters, from the model ``corrected = M·(raw − offset)`` with ``A = M�
 
 - ``offset.x offset.y offset.z``: the offset, raw units;
 - ``gain.x gain.y gain.z``: ``diag(A)``, except for methods whose gains are fixed
-  (``gate.FIXED_GAINS``: one-pose, minmax, ...), which have none;
+  (``catalog.fixes_gains``: one-pose, minmax, ...), which have none;
 - ``cross.xy cross.xz cross.yx cross.yz cross.zx cross.zy``: ``A[i, j] / A[i, i]``, only when M
   has a non-zero off-diagonal term (as ``gate.verdict`` judges them).
 """

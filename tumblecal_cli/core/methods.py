@@ -1,6 +1,7 @@
-"""Which solver: the methods there are, ``auto`` resolved from the labels and the sensor
-(:func:`pick`), the labels of unlabelled pose files, and the evidence that chooses between
-six-pose and six-pose-magnitude for six faces (:func:`auto_six`). numpy only."""
+"""Which solver: ``auto`` resolved from the labels and the sensor, and each method's labels
+checked by its family in core.catalog (:func:`pick`); the labels of unlabelled pose files, and
+the evidence that chooses between six-pose and six-pose-magnitude for six faces
+(:func:`auto_six`). The methods there are: core.catalog. numpy only."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tumblecal_cli.core import catalog
 from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.model import FACES, angle_deg
 from tumblecal_cli.errors import InputError, said
@@ -84,38 +86,6 @@ def auto_six(means: FloatArray) -> tuple[str, str]:
         f"auto chose six-pose-magnitude: {ev.disagreeing()}, as hand-placed faces do; six-pose would take that "
         f"tilt for cross-axis terms, the magnitude fit is immune to it ({said('auto.magnitude')})"
     )
-
-
-METHODS = (
-    "one-pose",
-    "one-pose-tilt",
-    "three-pose",
-    "six-pose",
-    "six-pose-diagonal",
-    "six-pose-magnitude",
-    "least-squares",
-    "sphere",
-    "minmax",
-    "ellipsoid",
-    "gyro-bias",
-    "ferraris-turns",
-    "rotations",
-)
-
-
-#: Methods that take a gyroscope's turns, not still poses (pipeline.solve.turns, pipeline.solve.rotations).
-TURNS = ("ferraris-turns",)
-
-
-SIX_POSE = ("six-pose", "six-pose-diagonal", "six-pose-magnitude")
-
-
-#: Methods fitted to captures rotated through many orientations (not static poses).
-ROTATION = ("minmax", "ellipsoid")
-
-
-#: Methods that do not use the pose labels (the orientation is unknown or irrelevant).
-ORIENTATION_FREE = ("sphere", "minmax", "ellipsoid", "gyro-bias")
 
 
 THREE_FACES = ("+x", "+y", "+z")
@@ -219,8 +189,10 @@ def default_labels(count: int, up: str) -> list[str | None]:
 def pick(method: str, labels: Sequence[str | None], sensor: str) -> tuple[str, list[int]]:
     """The method to run (``auto`` resolved) and the order of the poses it takes them in.
 
-    Too few files, or labels a method cannot use, is a usage error (exit 2); the data's own
-    shortcomings (directions that do not span) are judged by the solver (exit 3).
+    The labels are checked by the method's family (core.catalog: a new six-pose variant is
+    checked as six-pose is). Too few files, or labels a method cannot use, is a usage error
+    (exit 2); the data's own shortcomings (directions that do not span) are judged by the
+    solver (exit 3).
     """
     n = len(labels)
     order = list(range(n))
@@ -228,7 +200,8 @@ def pick(method: str, labels: Sequence[str | None], sensor: str) -> tuple[str, l
         method = _auto(labels, sensor)
     if method == "gyro-bias" and sensor != "gyroscope":  # else the accelerometer's columns "moved"
         raise InputError(said("gyro.sensor", sensor=sensor))
-    if method in ("one-pose", "one-pose-tilt"):
+    family = catalog.family(method)
+    if family == "one-pose":
         if n != 1:
             raise InputError(f"{method} takes 1 pose file, got {n}")
         if labels[0] is None:
@@ -238,16 +211,16 @@ def pick(method: str, labels: Sequence[str | None], sensor: str) -> tuple[str, l
                 f"{method} takes a pose on a face (the axis up), not the direction {labels[0]}",
                 hint=said("up.face"),
             )
-    elif method == "three-pose":
+    elif family == "three-pose":
         three = per_axis(labels)
         if three is None:
             given = " ".join(str(x) for x in labels) if any(labels) else f"{n} unlabelled files"
             raise InputError(
-                f"three-pose takes 3 pose files, one face per axis (+x or -x, +y or -y, +z or -z); got {given}",
+                f"{method} takes 3 pose files, one face per axis (+x or -x, +y or -y, +z or -z); got {given}",
                 hint=said("three.labels"),
             )
         order = three
-    elif method in SIX_POSE:
+    elif family == "six-pose":
         wanted = SIX_FACES
         if sorted(str(x) for x in labels) != sorted(wanted):
             given = " ".join(str(x) for x in labels) if any(labels) else f"{n} unlabelled files"
@@ -256,18 +229,18 @@ def pick(method: str, labels: Sequence[str | None], sensor: str) -> tuple[str, l
                 hint=said("six.labels"),
             )
         order = [list(labels).index(f) for f in wanted]
-    elif method == "least-squares":
+    elif family == "least-squares":
         if n < LEAST_SQUARES_MIN_POSES or any(x is None for x in labels):
             raise InputError(
-                f"least-squares takes {LEAST_SQUARES_MIN_POSES} or more labelled pose files "
+                f"{method} takes {LEAST_SQUARES_MIN_POSES} or more labelled pose files "
                 + (f"(a face or a direction X,Y,Z each), got {n}" if all(labels) else f"got {n} unlabelled"),
                 hint=said("least.labels"),
             )
         if all(x in FACES for x in labels) and absent_axes(labels):
             raise missing_faces_error(labels, method)
-    elif method == "sphere" and n < SPHERE_MIN_POSES:
+    elif family == "sphere" and n < SPHERE_MIN_POSES:
         raise InputError(
-            f"sphere takes {SPHERE_MIN_POSES} or more static pose files (9 parameters, and a residual "
+            f"{method} takes {SPHERE_MIN_POSES} or more static pose files (9 parameters, and a residual "
             f"to judge the fit by), got {n}",
             hint="capture more orientations, or label the poses for the face solvers",
         )

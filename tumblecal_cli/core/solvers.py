@@ -29,16 +29,12 @@ import numpy as np
 
 from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.gate import beyond, turn_hint
-from tumblecal_cli.core.methods import SIX_FACES, SIX_POSE, THREE_FACES, face_evidence
+from tumblecal_cli.core.methods import SIX_FACES, face_evidence
 from tumblecal_cli.core.model import (
     FACES,
     PoseStats,
     Reach,
     Solution,
-    direction,
-    solve_one_pose,
-    solve_three_pose,
-    tilt_sensitivity,
 )
 from tumblecal_cli.errors import CaptureRejected, InputError, said
 
@@ -203,7 +199,7 @@ def _propagate(
     )
     return Fit(
         solution=solution,
-        residuals=_norm_residuals(means, b, solution.matrix, reference),
+        residuals=norm_residuals(means, b, solution.matrix, reference),
         covariance=cov,
         cross_se=a_sd - np.diag(np.diag(a_sd)),
         tilt=tilt,
@@ -246,7 +242,7 @@ def _inverse(a: FloatArray, poses: Sequence[PoseStats]) -> FloatArray:
     return inverse
 
 
-def _norm_residuals(raw: FloatArray, b: FloatArray, matrix: FloatArray, reference: float) -> FloatArray:
+def norm_residuals(raw: FloatArray, b: FloatArray, matrix: FloatArray, reference: float) -> FloatArray:
     """The test of a model in Sports Sensing 2023: ``|M (raw - b)| - reference`` for each pose (or sample)."""
     result: FloatArray = np.linalg.norm((raw - b) @ matrix.T, axis=1) - reference
     return result
@@ -517,7 +513,7 @@ def sphere(points: FloatArray, stderr: FloatArray | None, reference: float, *, w
     directions = (points - b) @ (symmetric if ellipsoid else m).T  # in the corrected frame
     directions /= np.linalg.norm(directions, axis=1)[:, None]
     _refuse_poor_coverage(directions, what)
-    residuals = _norm_residuals(points, b, m, reference)
+    residuals = norm_residuals(points, b, m, reference)
     dof = len(points) - 9
     if stderr is None or not (stderr > 0).all():  # noise unknown (samples, one-row poses): the fit's own
         noise = np.full(len(points), float(residuals @ residuals) / max(dof, 1))
@@ -788,58 +784,3 @@ def gyro_bias(poses: Sequence[PoseStats]) -> Fit:
     var = sum((p.samples**2) * p.stderr**2 for p in poses) / n.sum() ** 2
     solution = Solution("gyro-bias", offset, np.eye(3), np.sqrt(var), np.zeros(3))
     return Fit(solution=solution)
-
-
-@dataclass(frozen=True)
-class SolverSettings:
-    """What a solver is told beside its poses: the ``reference`` magnitude, the fixture's tilt
-    tolerance (degrees) the tilt sensitivity is stated for, a 1-pose tilt fit's prior on the
-    horizontal offsets (``bias_spread``, raw units), minmax's ``plane``, and the 1-pose methods'
-    stated bound on the up axis's unknown gain error (``gain_tolerance``)."""
-
-    reference: float
-    tolerance_deg: float
-    bias_spread: float
-    plane: str | None = None
-    gain_tolerance: float = 0.0
-
-
-def run(
-    method: str,
-    stats: Sequence[PoseStats],
-    values: Sequence[FloatArray],
-    labels: Sequence[str | None],
-    settings: SolverSettings,
-    names: Sequence[str],
-) -> Fit:
-    """Run ``method`` (resolved by :func:`pick`, poses in its order) on the poses."""
-    reference, tolerance_deg, bias_spread = settings.reference, settings.tolerance_deg, settings.bias_spread
-    plane, gain_tolerance = settings.plane, settings.gain_tolerance
-    if method == "one-pose":
-        face = str(labels[0])
-        one = solve_one_pose(stats[0], face, reference)
-        offset_tilt, gain_tilt = tilt_sensitivity(method, one.gain, reference, [face], tolerance_deg)
-        offset_tilt = offset_tilt + np.abs(np.asarray(FACES[face])) * gain_error_bound(reference, gain_tolerance)
-        return Fit(solution=one, tilt=(offset_tilt, gain_tilt, np.zeros((3, 3))))
-    if method == "one-pose-tilt":
-        return one_pose_tilt(stats[0], str(labels[0]), reference, tolerance_deg, bias_spread, gain_tolerance)
-    if method == "three-pose":
-        faces = [str(x) for x in labels] if all(x in FACES for x in labels) else list(THREE_FACES)
-        three = solve_three_pose(stats, reference, names=names, faces=faces)
-        offset_tilt, gain_tilt = tilt_sensitivity(method, three.gain, reference, faces, tolerance_deg)
-        residuals = _norm_residuals(np.array([p.mean for p in stats]), three.offset, three.matrix, reference)
-        return Fit(solution=three, residuals=residuals, tilt=(offset_tilt, gain_tilt, np.zeros((3, 3))))
-    if method in SIX_POSE:
-        return six_pose(stats, reference, tolerance_deg, method)
-    if method == "least-squares":
-        directions = np.array([direction(str(x)) for x in labels])
-        return least_squares(stats, directions, reference, tolerance_deg, names)
-    if method == "sphere":
-        return sphere(np.array([p.mean for p in stats]), np.array([p.stderr for p in stats]), reference)
-    if method == "ellipsoid":
-        return sphere(np.concatenate(list(values)), None, reference, what="samples")
-    if method == "minmax":
-        return minmax(np.concatenate(list(values)), plane)
-    if method == "gyro-bias":
-        return gyro_bias(stats)
-    raise ValueError(f"unknown method {method!r}")

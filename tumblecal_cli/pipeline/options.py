@@ -16,8 +16,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
 from typing import TYPE_CHECKING, cast
 
-from tumblecal_cli.core import gate, model
-from tumblecal_cli.core.methods import METHODS, TURNS
+from tumblecal_cli.core import catalog, gate, model
 from tumblecal_cli.core.model import SENSORS
 from tumblecal_cli.errors import InputError, control_character, said
 from tumblecal_cli.io.calfiles import limitfile
@@ -305,7 +304,7 @@ NUMBERS = (
 def choices_and_numbers(given: Mapping[str, object]) -> None:
     """Each choice one of its own, each number a number, among the options ``given`` by the
     command line's names (the checks the parser makes)."""
-    for name, allowed in {"method": ("auto", *METHODS), "sensor": SENSORS, **CHOICES}.items():
+    for name, allowed in {"method": ("auto", *catalog.names()), "sensor": SENSORS, **CHOICES}.items():
         value = given.get(name)
         if value is not None and value not in allowed:
             raise InputError(f"--{name.replace('_', '-')}: {value!r} is not one of {', '.join(allowed)}")
@@ -425,7 +424,7 @@ def turn_options(options: SolveOptions, *, log: bool) -> None:
                 "--accel-cal: the hand turns of one continuous --log, its still blocks found (no --pose-column)"
             )
         return
-    if options.log.turns is None and options.method not in TURNS:
+    if options.log.turns is None and catalog.family(options.method) != "turns":
         if options.log.turn_angle is not None:
             raise InputError("--turn-angle is the angle of the --turns sections: give --turns too")
         return
@@ -434,7 +433,7 @@ def turn_options(options: SolveOptions, *, log: bool) -> None:
             f"{options.method} takes the turns of a labelled log: give --turns LABEL=AXIS,... and --turn-angle",
             hint="e.g. --turns x_rot=+x,y_rot=+y,z_rot=+z --turn-angle 360",
         )
-    if options.method not in ("auto", *TURNS):
+    if options.method != "auto" and catalog.family(options.method) != "turns":
         raise InputError(f"--turns is for the ferraris-turns method, not {options.method}")
     if options.read.sensor != "gyroscope":
         raise InputError(f"--turns calibrates a gyroscope: give --sensor gyroscope (not {options.read.sensor})")
@@ -456,7 +455,7 @@ def turn_options(options: SolveOptions, *, log: bool) -> None:
 
 def method_options(name: str, ref: float, plane: str | None, bias_spread: float | None) -> None:
     """The options that only some methods take, once the method is known."""
-    if ref == 0 and name not in ("one-pose", "minmax", "gyro-bias"):
+    if ref == 0 and not catalog.at_rest(name):
         raise InputError(
             f"--reference 0 (a gyroscope at rest) gives {name} no stimulus to fit gains or directions to",
             hint="use --method gyro-bias for the zero-rate bias, or give the turning rate with --reference",

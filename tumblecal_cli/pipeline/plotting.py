@@ -8,8 +8,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tumblecal_cli.core import methods
-from tumblecal_cli.core.gate import FIXED_GAINS
+from tumblecal_cli.core import catalog
 from tumblecal_cli.io.figures import fitplots, plots
 
 if TYPE_CHECKING:
@@ -34,7 +33,7 @@ def solve_plot(path: str, solved: Solved, plane: str | None = None) -> None:
     title = f"{cal.sensor}, {cal.method}" + (f", {cal.serial}" if cal.serial else "")
     limits = solved.limits.for_method(cal.method) if solved.limits is not None else None
     residual = None if limits is None else limits.residual
-    if cal.method in methods.ROTATION:
+    if catalog.turned(cal.method):
         fitted = plots.PlottedCorrection(cal.offset, cal.matrix, cal.reference, cal.units)
         plots.rotation_figure(path, np.concatenate(raw), fitted, title=title, plane=plane, limit=residual)
         return
@@ -71,7 +70,7 @@ def _before(cal: Calibration, limits: Limits | None) -> fitplots.Before:
         assert limits is not None
         gain = float(np.mean(limits.nominal_gain))
     else:
-        gain = 1.0 if cal.method in FIXED_GAINS else float(np.mean(cal.gain))
+        gain = 1.0 if catalog.fixes_gains(cal.method) else float(np.mean(cal.gain))
     scaled = "" if gain == 1.0 else (" ÷ nominal gain" if given else " ÷ mean gain")
     centre = np.zeros(3) if limits is None else np.asarray(limits.nominal_offset, dtype=np.float64)
     if np.any(centre):

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tumblecal_cli.core import gate, lot, outliers
+from tumblecal_cli.core import catalog, lot, outliers
 from tumblecal_cli.errors import InputError, TumblecalError
 from tumblecal_cli.io.calfiles import calfile, limitfile
 from tumblecal_cli.io.figures import lothtml, plots
@@ -186,7 +186,7 @@ def entry(cal: calfile.Calibration) -> lot.Entry:
     """The parameters of one loaded calibration."""
     values = {name: float(v) for name, v in zip(lot.OFFSETS, cal.offset, strict=True)}
     a = np.linalg.inv(cal.matrix)  # load() has refused a singular M
-    if cal.method not in gate.FIXED_GAINS:
+    if not catalog.fixes_gains(cal.method):
         values.update({name: float(g) for name, g in zip(lot.GAINS, np.diag(a), strict=True)})
     if np.count_nonzero(cal.matrix - np.diag(np.diag(cal.matrix))):  # as gate.verdict: M has cross terms
         for i, row in enumerate(lot.AXES):

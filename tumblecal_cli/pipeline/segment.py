@@ -19,7 +19,7 @@ from typing import IO, TYPE_CHECKING, Unpack
 
 import numpy as np
 
-from tumblecal_cli.core import arrays, clock, methods, model, solvers
+from tumblecal_cli.core import arrays, catalog, clock, methods, model, solvers
 from tumblecal_cli.core import blocks as seg_core
 from tumblecal_cli.core.blocks import Block, Segmentation
 from tumblecal_cli.errors import CaptureRejected, InputError
@@ -273,7 +273,7 @@ def log_poses(
     ``auto`` with 12 or more kept blocks fits the sphere unless the six faces are there and
     agree (methods.auto_six): fewer faces, or faces placed by hand, and a face solver would take
     the tilt for cross-axis terms (seen on real logs: worse than no calibration)."""
-    enough_blocks(log, seg, 1 if method in ("one-pose", "one-pose-tilt") else 2)
+    enough_blocks(log, seg, 1 if catalog.family(method) == "one-pose" else 2)
     best, kept = seg.best(), seg.kept
     notes: list[str] = []
     labels: list[str | None]
@@ -296,7 +296,7 @@ def log_poses(
                 "takes each block as exactly on its face (--method six-pose-magnitude fits the six face blocks)"
             )
             method = "sphere"
-    if method in methods.ORIENTATION_FREE:
+    if catalog.orientation_free(method):
         chosen_blocks, labels = kept, [None] * len(kept)
     else:
         wanted = _wanted(method, up, best)
@@ -318,11 +318,12 @@ def _wanted(method: str, up: str, best: Mapping[str, Block]) -> list[str]:
     """The faces a face solver takes from a log (auto: six, five or one per axis)."""
     if method == "auto":
         return list(methods.SIX_FACES if len(best) == 6 else best if len(best) == 5 else _per_axis(best))
-    if method in ("one-pose", "one-pose-tilt"):
+    family = catalog.family(method)
+    if family == "one-pose":
         return [up]
-    if method == "three-pose":
+    if family == "three-pose":
         return _per_axis(best)
-    if method in methods.SIX_POSE:
+    if family == "six-pose":
         return list(methods.SIX_FACES)
     return list(best)
 

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, TypedDict, Unpack
 
 import numpy as np
 
-from tumblecal_cli.core import drift, gate, methods, model, rotation_fit
+from tumblecal_cli.core import catalog, drift, gate, methods, model, rotation_fit
 from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.model import UNITS_TOLERANCE
 from tumblecal_cli.errors import CaptureRejected, InputError
@@ -164,7 +164,7 @@ def _verify(paths: list[str], cal: Calibration | str | os.PathLike[str], options
     # labels, or gains within 20 % of 1 (data already in g, m/s^2 ...: counts are far from it)
     gains = [float(g) for g in c.gain]
     same_units = (
-        c.method in gate.FIXED_GAINS
+        catalog.fixes_gains(c.method)
         or (c.input_units is not None and c.input_units == c.units)
         or (len(gains) == 3 and all(abs(g - 1.0) < 0.2 for g in gains))
     )

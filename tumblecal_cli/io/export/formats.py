@@ -17,8 +17,8 @@ from typing import cast
 
 import numpy as np
 
+from tumblecal_cli.core import catalog
 from tumblecal_cli.core.arrays import FloatArray
-from tumblecal_cli.core.gate import FIXED_GAINS
 from tumblecal_cli.core.model import SENSORS
 from tumblecal_cli.core.quantities import STANDARD_GRAVITY
 from tumblecal_cli.errors import InputError
@@ -260,7 +260,7 @@ def export_registers(cal: Calibration, options: ExportOptions) -> Exported:
     if gain_step is not None and not (math.isfinite(gain_step) and gain_step > 0):
         raise InputError(f"--gain-step must be a positive number, got {gain_step}")
 
-    if gain_step is not None and cal.method in FIXED_GAINS:
+    if gain_step is not None and catalog.fixes_gains(cal.method):
         raise InputError(f"the {cal.method} solver fixes the gains: there is no gain to trim", file=cal.path)
     verdict = cal.verdict
     recorded = verdict.limits.nominal_gain if verdict and "nominal_gain" in verdict.limit_names else None

@@ -32,8 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tumblecal_cli.core import catalog
 from tumblecal_cli.core.arrays import FloatArray
-from tumblecal_cli.core.gate import FIXED_GAINS
 from tumblecal_cli.core.quantities import COMMON, QUANTITY, factor
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.calfiles.calfile import Calibration
@@ -242,7 +242,7 @@ def _factors(cal: Calibration, fmt: str) -> tuple[float, float, list[str]]:
             )
         return k_raw * scale, out * scale, []
     gains = [float(g) for g in cal.gain]
-    if cal.method in FIXED_GAINS or all(abs(g - 1.0) < 0.2 for g in gains):
+    if catalog.fixes_gains(cal.method) or all(abs(g - 1.0) < 0.2 for g in gains):
         return (
             out * scale,
             out * scale,

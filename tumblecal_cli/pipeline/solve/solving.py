@@ -1,7 +1,7 @@
 """solve: pose captures (or one continuous log) in, a judged Calibration out.
 
 The steps, each a module of its own: read the poses (``io.csv.readings``, or ``pipeline.segment`` for a
-log), average them (``core.model.pose_stats``), solve (``core.solvers``), check the captures
+log), average them (``core.model.pose_stats``), solve (``core.fits``, through core.catalog), check the captures
 (``core.gate.check``, exit 3), judge the unit against its limits (``core.gate.verdict``, exit 1),
 and build the calibration (``io.calfiles.calfile.build``). Nothing here prints or writes a file: the
 command line renders a :class:`Solved`, and ``Solved.calibration.save`` writes it.
@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Unpack
 
 import numpy as np
 
-from tumblecal_cli.core import arrays, blocks, clock, gate, methods, model, solvers
+from tumblecal_cli.core import arrays, blocks, catalog, clock, fits, gate, methods, model
 from tumblecal_cli.core.gate import Finding
 from tumblecal_cli.core.model import face_of_name
 from tumblecal_cli.core.quantities import REFERENCE_UNITS, STANDARD_GRAVITY
@@ -273,7 +273,7 @@ def _table_poses(table: tables.TablePoses, options: SolveOptions, given: Setting
         raise InputError(err.message, file=err.file, hint=f"{why}; {err.hint}" if err.hint else why) from None
     method_options(name, given.reference, options.plane, options.bias_spread)
     rows = [table.rows[k] for k in order]
-    labels = [None if name in methods.ORIENTATION_FREE else labels[k] for k in order]
+    labels = [None if catalog.orientation_free(name) else labels[k] for k in order]
     return name, PoseSet(labels, rows, [s.values for s in rows], [table.note], table=True)
 
 
@@ -332,12 +332,12 @@ def _read_poses(
         named = ", ".join(f"{os.path.basename(str(f))} {label}" for label, f in items)
         hint = f"the files' names gave the faces ({named})" + (f"; {err.hint}" if err.hint else "")
         raise InputError(err.message, file=err.file, hint=hint) from None
-    if name in methods.ORIENTATION_FREE:  # the faces are not used: neither a note nor a clash
+    if catalog.orientation_free(name):  # the faces are not used: neither a note nor a clash
         placed = Placed(placed.items, labelled=placed.labelled)
     elif placed.clash is not None:
         raise placed.clash
     items = [items[k] for k in order]
-    labels = [None if name in methods.ORIENTATION_FREE else label for label, _ in items]
+    labels = [None if catalog.orientation_free(name) else label for label, _ in items]
     method_options(name, given.reference, options.plane, options.bias_spread)
 
     if in_memory:
@@ -557,22 +557,22 @@ def _solve(name: str, poses: PoseSet, options: SolveOptions, given: Settings) ->
     log_notes = list(poses.notes)  # how the blocks of a log were chosen, or the files labelled
     if name == "six-pose" and ref > 0:
         name, tilted = _six_faces(name, given.method == "auto", stats, names, log_notes)
-    if name in ONE_POSE:
+    if catalog.family(name) == "one-pose":
         check_units(names[0], stats[0].mean - checks.nominal_offset, ref, samples[0].values, checks.nominal_offset)
     try:
-        told = solvers.SolverSettings(
+        told = fits.SolverSettings(
             reference=ref,
             tolerance_deg=options.checks.fixture_tolerance,
             bias_spread=options.bias_spread if options.bias_spread is not None else 0.01 * ref,
             plane=options.plane,
             gain_tolerance=options.checks.gain_tolerance,
         )
-        fit = solvers.run(name, stats, [s.values for s in samples], labels, told, names)
+        fit = fits.run(name, stats, [s.values for s in samples], labels, told, names)
     except CaptureRejected as err:
         return _rejected_fit(err, name, replace(poses, notes=log_notes), options, given)  # with auto's note
     solution = fit.solution
     judged = given.limits.gain_error is not None or given.limits.nominal_gain_given
-    if ref > 0 and solution.method in gate.GAIN_SOLVERS and judged:
+    if ref > 0 and catalog.judges_gains(solution.method) and judged:
         gate.check_gains(solution.gain, ref, given.limits.nominal_gain)
     limits = given.limits.for_method(solution.method)
     measured = [
@@ -599,7 +599,7 @@ def _solve(name: str, poses: PoseSet, options: SolveOptions, given: Settings) ->
         options.units,
         options.input_units,
         tolerance_deg=options.checks.fixture_tolerance,
-        gain_tolerance=options.checks.gain_tolerance if solution.method in ONE_POSE else None,
+        gain_tolerance=options.checks.gain_tolerance if catalog.family(solution.method) == "one-pose" else None,
     )
     cal = calfile.build(
         solution,
@@ -663,7 +663,7 @@ def _rejected_fit(err: CaptureRejected, name: str, poses: PoseSet, options: Solv
 
 def _mirrored(solution: Solution, checks: gate.Options) -> list[Finding]:
     """With the upside-down check off, a negative gain is still said (a warning per axis)."""
-    if "upside_down" not in checks.skip or solution.method in gate.FIXED_GAINS:
+    if "upside_down" not in checks.skip or catalog.fixes_gains(solution.method):
         return []
     return [
         gate.Finding(
@@ -723,10 +723,6 @@ def _six_faces(
             methods.CONSISTENT_DEG,
         )
     ]
-
-
-#: The solvers without gains whose up-axis offset absorbs that axis's gain error (--gain-tolerance).
-ONE_POSE = ("one-pose", "one-pose-tilt")
 
 
 #: A mean shorter than this share of its rows' magnitude is a mean over different orientations.
@@ -797,7 +793,7 @@ def _units_notes(solution: Solution, options: SolveOptions, reference: float) ->
     """An accelerometer's gains that change its data's units from m/s^2 into g (or back) without
     a word of units from the user (--units, --input-units): one note (gate.units_note). Judged
     gains that are a units mistake are an error instead (gate.check_gains)."""
-    if options.read.sensor != "accelerometer" or solution.method not in gate.GAIN_SOLVERS:
+    if options.read.sensor != "accelerometer" or not catalog.judges_gains(solution.method):
         return []
     if options.units is not None or options.input_units is not None:
         return []

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tumblecal_cli.core import methods, model
+from tumblecal_cli.core import catalog, methods, model
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.csv import readings
 from tumblecal_cli.pipeline.frames import read_pose, samples_of
@@ -23,8 +23,18 @@ if TYPE_CHECKING:
     from tumblecal_cli.io.csv.readings import Samples
     from tumblecal_cli.pipeline.options import Settings, SolveOptions
 
-#: The methods a table's rows can be given to: those that take several poses.
-TABLE_METHODS = ("auto", "three-pose", *methods.SIX_POSE, "least-squares", "sphere")
+
+def table_methods() -> tuple[str, ...]:
+    """The methods a table's rows can be given to: an accelerometer's that take several poses'
+    means (core.catalog), and auto."""
+    return (
+        "auto",
+        *(
+            m.name
+            for m in catalog.rows()
+            if m.takes == "means" and "accelerometer" in m.sensors and m.family != "one-pose"
+        ),
+    )
 
 
 @dataclass(frozen=True)
@@ -53,7 +63,7 @@ def take(poses: object, options: SolveOptions, given: Settings) -> tuple[TablePo
             "--rows-are-poses takes unlabelled captures: each row is a pose of unknown orientation",
             hint="give the table's file without a label or --up (FILE, not +z=FILE)",
         )
-    if forced is None and (options.read.sensor != "accelerometer" or given.method not in TABLE_METHODS):
+    if forced is None and (options.read.sensor != "accelerometer" or given.method not in table_methods()):
         return None, None
     read = [_read(item, options) for item in items]
     if forced is None:

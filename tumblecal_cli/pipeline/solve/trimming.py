@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tumblecal_cli.core import blocks, gate, model
+from tumblecal_cli.core import blocks, catalog, model
 from tumblecal_cli.core.running import Summary
 from tumblecal_cli.errors import CaptureRejected
 from tumblecal_cli.io.csv.readings import Log, Samples
@@ -47,7 +47,7 @@ def applies(method: str, options: SolveOptions, given: Settings) -> bool:
     moved check does not judge the poses (turned captures, a gyroscope at rest, the check off)."""
     checks = options.checks
     off = checks.no_checks or "moved" in checks.no_check
-    return not (checks.no_trim or off or method in gate.ROTATION or given.reference <= 0)
+    return not (checks.no_trim or off or catalog.turned(method) or given.reference <= 0)
 
 
 def still_runs(poses: list[Samples], options: SolveOptions, given: Settings) -> Trimmed | None:

@@ -1,0 +1,140 @@
+"""Each catalog row's function (core.catalog) for the methods that take means or samples: one
+:class:`SolverInput` in, a :class:`~tumblecal_cli.core.solvers.Fit` out, each a thin call of its
+solver in core.solvers (or core.model for 1- and 3-pose); and :func:`run`, the dispatch through
+the row. numpy only."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import cast
+
+import numpy as np
+
+from tumblecal_cli.core import catalog
+from tumblecal_cli.core.arrays import FloatArray
+from tumblecal_cli.core.methods import THREE_FACES
+from tumblecal_cli.core.model import FACES, PoseStats, direction, solve_one_pose, solve_three_pose, tilt_sensitivity
+from tumblecal_cli.core.solvers import (
+    Fit,
+    gain_error_bound,
+    gyro_bias,
+    least_squares,
+    minmax,
+    norm_residuals,
+    one_pose_tilt,
+    six_pose,
+    sphere,
+)
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """What a solver is told beside its poses: the ``reference`` magnitude, the fixture's tilt
+    tolerance (degrees) the tilt sensitivity is stated for, a 1-pose tilt fit's prior on the
+    horizontal offsets (``bias_spread``, raw units), minmax's ``plane``, and the 1-pose methods'
+    stated bound on the up axis's unknown gain error (``gain_tolerance``)."""
+
+    reference: float
+    tolerance_deg: float
+    bias_spread: float
+    plane: str | None = None
+    gain_tolerance: float = 0.0
+
+
+@dataclass(frozen=True)
+class SolverInput:
+    """What every solver of the catalog (core.catalog) is given: the ``method`` run (a function
+    may serve several rows), and the poses in the order ``methods.pick`` put them: each pose's
+    statistics (``stats``), its readings (``values``, (n, 3) each), its label (a face, a
+    direction ``X,Y,Z``, or None for an orientation-free method), its file's name (``names``);
+    and the ``settings``."""
+
+    method: str
+    stats: Sequence[PoseStats]
+    values: Sequence[FloatArray]
+    labels: Sequence[str | None]
+    names: Sequence[str]
+    settings: SolverSettings
+
+
+#: A catalog row's function for a method that takes means or samples.
+Solver = Callable[[SolverInput], Fit]
+
+
+def fit_one_pose(given: SolverInput) -> Fit:
+    """one-pose: core.model.solve_one_pose, its tilt bound widened by the up axis's gain tolerance."""
+    s = given.settings
+    face = str(given.labels[0])
+    one = solve_one_pose(given.stats[0], face, s.reference)
+    offset_tilt, gain_tilt = tilt_sensitivity("one-pose", one.gain, s.reference, [face], s.tolerance_deg)
+    offset_tilt = offset_tilt + np.abs(np.asarray(FACES[face])) * gain_error_bound(s.reference, s.gain_tolerance)
+    return Fit(solution=one, tilt=(offset_tilt, gain_tilt, np.zeros((3, 3))))
+
+
+def fit_one_pose_tilt(given: SolverInput) -> Fit:
+    """one-pose-tilt: :func:`one_pose_tilt`."""
+    s = given.settings
+    return one_pose_tilt(
+        given.stats[0], str(given.labels[0]), s.reference, s.tolerance_deg, s.bias_spread, s.gain_tolerance
+    )
+
+
+def fit_three_pose(given: SolverInput) -> Fit:
+    """three-pose: core.model.solve_three_pose, with its tilt bound and norm residuals."""
+    s, stats, labels = given.settings, given.stats, given.labels
+    faces = [str(x) for x in labels] if all(x in FACES for x in labels) else list(THREE_FACES)
+    three = solve_three_pose(stats, s.reference, names=given.names, faces=faces)
+    offset_tilt, gain_tilt = tilt_sensitivity("three-pose", three.gain, s.reference, faces, s.tolerance_deg)
+    residuals = norm_residuals(np.array([p.mean for p in stats]), three.offset, three.matrix, s.reference)
+    return Fit(solution=three, residuals=residuals, tilt=(offset_tilt, gain_tilt, np.zeros((3, 3))))
+
+
+def fit_six_pose(given: SolverInput) -> Fit:
+    """six-pose, six-pose-diagonal and six-pose-magnitude: :func:`six_pose`, the variant run."""
+    return six_pose(given.stats, given.settings.reference, given.settings.tolerance_deg, given.method)
+
+
+def fit_least_squares(given: SolverInput) -> Fit:
+    """least-squares: :func:`least_squares` on the labels' directions."""
+    directions = np.array([direction(str(x)) for x in given.labels])
+    return least_squares(given.stats, directions, given.settings.reference, given.settings.tolerance_deg, given.names)
+
+
+def fit_sphere(given: SolverInput) -> Fit:
+    """sphere: :func:`sphere` on the pose means."""
+    stats = given.stats
+    return sphere(np.array([p.mean for p in stats]), np.array([p.stderr for p in stats]), given.settings.reference)
+
+
+def fit_ellipsoid(given: SolverInput) -> Fit:
+    """ellipsoid: :func:`sphere` on every sample."""
+    return sphere(np.concatenate(list(given.values)), None, given.settings.reference, what="samples")
+
+
+def fit_minmax(given: SolverInput) -> Fit:
+    """minmax: :func:`minmax` on every sample."""
+    return minmax(np.concatenate(list(given.values)), given.settings.plane)
+
+
+def fit_gyro_bias(given: SolverInput) -> Fit:
+    """gyro-bias: :func:`gyro_bias`."""
+    return gyro_bias(given.stats)
+
+
+def run(
+    method: str,
+    stats: Sequence[PoseStats],
+    values: Sequence[FloatArray],
+    labels: Sequence[str | None],
+    settings: SolverSettings,
+    names: Sequence[str],
+) -> Fit:
+    """Run ``method`` (resolved by :func:`pick`, poses in its order) on the poses: the function
+    of its catalog row. The methods that take turns are run by their own readers
+    (pipeline.solve.turns, pipeline.solve.rotations)."""
+    row = catalog.find(method)
+    if row is None or row.takes == "turns":
+        raise ValueError(f"unknown method {method!r}")
+    fn = cast(Solver, catalog.solver(method))
+    return fn(SolverInput(method, stats, values, labels, names, settings))
