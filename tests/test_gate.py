@@ -917,3 +917,15 @@ def test_verdict_findings_as_dict() -> None:
         else:
             assert "file" not in d
             assert "pose" not in d
+
+
+def test_every_check_of_the_catalog_has_its_judge_and_its_choice() -> None:
+    """core.catalog lists the quality checks once: the gate judges each pose under each of them
+    (and under no other), and ``--no-check`` offers each by its name."""
+    from tumblecal_cli.cli.flags import CheckName
+    from tumblecal_cli.core import catalog
+    from tumblecal_cli.pipeline.options import CHECK_NAMES
+
+    assert tuple(gate.JUDGES) == catalog.CHECKS == gate.CHECKS
+    assert tuple(c.value for c in CheckName) == catalog.check_names() == CHECK_NAMES
+    assert set(catalog.check_names()) == {c.replace("_", "-") for c in (*catalog.CHECKS, *catalog.FIT_CHECKS)}

@@ -272,13 +272,14 @@ class PlaneName(StrEnum):
     yz = "yz"
 
 
-class CheckName(StrEnum):
-    moved = "moved"
-    orientation = "orientation"
-    saturated = "saturated"
-    short = "short"
-    upside_down = "upside-down"
-    coverage = "coverage"
+if TYPE_CHECKING:  # the checks are core.catalog's
+
+    class CheckName(StrEnum):
+        coverage = "coverage"
+
+else:
+    #: The ``--no-check`` choices: every quality check of core.catalog.
+    CheckName = StrEnum("CheckName", {name.replace("-", "_"): name for name in catalog.check_names()})
 
 
 JsonSummary = Annotated[

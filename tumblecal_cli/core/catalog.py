@@ -1,5 +1,6 @@
 """The solvers there are, one row each (:class:`Method`): what a method takes, what it fits,
-the limits that do not apply to it and why, its source, and the function that solves it.
+the limits that do not apply to it and why, its source, and the function that solves it; and the
+quality checks there are (:data:`CHECKS`, :data:`FIT_CHECKS`), which ``--no-check`` names.
 
 Everything that asks about a method asks here: ``core.fits.run`` dispatches through the
 row, ``core.methods.pick`` checks the labels by its family, the gate reads which limits apply,
@@ -40,6 +41,19 @@ TURNED_NOISE = NotApplying("noise", "fits a capture turned through many orientat
 NO_MODEL = NotApplying("residual", "has no fitted model to measure residuals against")
 #: The limits a method may declare not applying, in the order their notes are said.
 LIMITS = ("gain_error", "cross_axis", "noise", "residual")
+
+#: The quality checks of each pose (exit 3), in the order the gate judges them (a pose is
+#: rejected for the first that fails), each by the last part of its code (``pose.<check>``):
+#: core.gate.JUDGES holds the function that judges a pose under each.
+CHECKS = ("short", "saturated", "orientation", "moved", "upside_down")
+#: The checks of a whole fit, not of each pose (``--no-check`` names them too).
+FIT_CHECKS = ("coverage",)
+
+
+def check_names() -> tuple[str, ...]:
+    """The checks as ``--no-check`` names them (``upside-down``): each pose's in alphabetical
+    order, then the fit's."""
+    return (*sorted(name.replace("_", "-") for name in CHECKS), *FIT_CHECKS)
 
 
 @dataclass(frozen=True)

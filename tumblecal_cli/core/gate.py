@@ -26,10 +26,8 @@ from tumblecal_cli.core.quantities import REFERENCE_UNITS, STANDARD_GRAVITY
 from tumblecal_cli.core.running import Summary
 from tumblecal_cli.errors import InputError, said
 
-#: The quality checks, by the last part of their code (``pose.<check>``).
-CHECKS = ("short", "saturated", "orientation", "moved", "upside_down")
-#: The checks of a whole fit, not of each pose (``--no-check`` names them too).
-FIT_CHECKS = ("coverage",)
+#: The quality checks there are (core.catalog): each pose's, judged in this order, and the fit's.
+CHECKS, FIT_CHECKS = catalog.CHECKS, catalog.FIT_CHECKS
 #: The coverage check: a capture turned through many orientations must come within this angle
 #: of every face. Past 45° (where solvers.coverage stops counting a face as covered) the ellipsoid
 #: fit extrapolates: in a 50 µT field disturbed by 1 µT that changes within a second, its
@@ -171,7 +169,7 @@ def check(poses: Sequence[PoseCheck], solution: Solution, options: Options) -> t
         for p in poses:
             if any(r.file == p.file for r in rejected):
                 continue  # one reason per pose: the first, in the order of CHECKS
-            judged = _JUDGES[check_name](p, declared, solution, options)
+            judged = JUDGES[check_name](p, declared, solution, options)
             if judged is None:
                 continue
             finding, fails, narrow, close = judged
@@ -262,8 +260,8 @@ def _upside_down(p: PoseCheck, declared: list[str | None], solution: Solution, o
     return finding, True, False, ""
 
 
-#: Each check of CHECKS and how it judges one pose.
-_JUDGES = {
+#: Each check of CHECKS and how it judges one pose (tests/test_gate.py holds the two to each other).
+JUDGES = {
     "short": _short,
     "saturated": _saturated,
     "orientation": _oriented,

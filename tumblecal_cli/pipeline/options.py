@@ -282,7 +282,7 @@ CHOICES = {
     "decimal": (".", ","),
     "plane": ("xy", "xz", "yz"),
 }
-CHECK_NAMES = ("moved", "orientation", "saturated", "short", "upside-down", "coverage")
+CHECK_NAMES = catalog.check_names()
 NUMBERS = (
     "reference",
     "gravity",
