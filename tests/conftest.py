@@ -177,9 +177,9 @@ def small_blocks(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch
 
 
 def spliced_blocks(monkeypatch: pytest.MonkeyPatch) -> list[bool]:
-    """Records, per block, whether apply's fast path (``io.rewrite.splice``) took it (the general path
+    """Records, per block, whether apply's fast path (``io.csv.splice``) took it (the general path
     never asks)."""
-    from tumblecal_cli.io.rewrite import splice
+    from tumblecal_cli.io.csv import splice
 
     taken: list[bool] = []
     block = splice.Splicer.block

@@ -23,6 +23,7 @@ import pytest
 from tests.conftest import POSES_3, write
 from tests.test_splice import CASES, _accel, lines, table
 from tumblecal_cli.errors import InputError, TumblecalError
+from tumblecal_cli.io.csv import splice
 from tumblecal_cli.io.csv.capture import open_capture
 from tumblecal_cli.io.rewrite import forked
 from tumblecal_cli.io.rewrite import writer as rewrite
@@ -106,7 +107,7 @@ def test_a_plain_file_is_spread_over_the_workers(tmp_path: Path, worker_counts: 
     assert error is None
     assert worker_counts == [3]
     assert out == corrected(path, io.BytesIO())[0]
-    assert len(forked.cuts(str(path), 11, BLOCK) or []) > 30
+    assert len(splice.cuts(str(path), 11, BLOCK) or []) > 30
 
 
 def test_an_error_in_a_late_block_names_its_line_after_the_blocks_before_it(
@@ -130,7 +131,7 @@ def test_an_error_in_a_late_block_names_its_line_after_the_blocks_before_it(
 def test_a_line_longer_than_the_window_keeps_the_work_here(tmp_path: Path, worker_counts: list[int]) -> None:
     text = "t,ax,ay,az,note\n" + "\n".join(f"{ln},{'n' * 3000}" for ln in lines(table(20))) + "\n"
     path = write(tmp_path / "c.csv", text)
-    assert forked.cuts(str(path), 16, BLOCK) is None
+    assert splice.cuts(str(path), 16, BLOCK) is None
     (to_file, error), (to_memory, same_error) = corrected(path, None), corrected(path, io.BytesIO())
     assert error == same_error
     assert error is not None
@@ -155,7 +156,7 @@ def test_the_cuts_are_a_readers_blocks(tmp_path: Path) -> None:
             expected.append((at, len(block)))
             at += len(block)
     expected.append((at, len(carry)))
-    assert forked.cuts(str(path), 11, 4096) == expected
+    assert splice.cuts(str(path), 11, 4096) == expected
 
 
 def test_a_worker_that_dies_is_an_error_not_a_hang(tmp_path: Path, worker_counts: list[int]) -> None:
@@ -166,7 +167,7 @@ def test_a_worker_that_dies_is_an_error_not_a_hang(tmp_path: Path, worker_counts
             os.kill(os.getpid(), signal.SIGKILL)
         return [block], block.count(b"\n")
 
-    blocks = forked.cuts(str(path), 11, BLOCK)
+    blocks = splice.cuts(str(path), 11, BLOCK)
     assert blocks is not None
     with open(tmp_path / "out", "wb") as out, pytest.raises(RuntimeError, match="ended without its block"):
         forked.pipeline(str(path), blocks, render, out, b"t,ax,ay,az\n", 2, written=lambda: None)
@@ -181,7 +182,7 @@ def test_a_workers_error_comes_back_as_it_was(tmp_path: Path, worker_counts: lis
             raise InputError("bad cell", file="c.csv", line=7, hint="fix it")
         return [block], block.count(b"\n")
 
-    blocks = forked.cuts(str(path), 11, BLOCK)
+    blocks = splice.cuts(str(path), 11, BLOCK)
     assert blocks is not None
     with open(tmp_path / "out", "wb") as out, pytest.raises(InputError) as caught:
         forked.pipeline(str(path), blocks, render, out, b"t,ax,ay,az\n", 2, written=lambda: None)

@@ -18,9 +18,9 @@ import tumblecal_cli as tumblecal
 from tests.conftest import IMUCAL, POSES_3, SAMPLE, feed_stdin, run
 from tumblecal_cli.io.csv.capture import open_capture
 from tumblecal_cli.io.csv.readings import read_log
+from tumblecal_cli.io.csv.splice import Splicer
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.io.rewrite import writer as rewrite
-from tumblecal_cli.io.rewrite.splice import Splicer
 
 #: The fields of a calibration that depend on the file, not on its numbers.
 FILE_FIELDS = ("file", "sha256", "created")
@@ -164,7 +164,7 @@ BLOCK = 1 << 14
 @pytest.mark.usefixtures("small_blocks")
 def test_both_of_apply_s_paths_write_the_same_bytes(spliced: bool, tmp_path: Path) -> None:
     """A file of several blocks, every cell quoted, a quoted empty row among them: the splicing
-    path (io.rewrite.splice) and the general one (pyarrow's reader and writer) agree byte for byte."""
+    path (io.csv.splice) and the general one (pyarrow's reader and writer) agree byte for byte."""
     rng = np.random.default_rng(5)
     rows = [
         f'"{k * 0.005:.3f}","{a:.6f}","{b:.6f}","{c:.6f}"\n' for k, (a, b, c) in enumerate(rng.normal(0, 1, (6000, 3)))

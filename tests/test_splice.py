@@ -1,4 +1,4 @@
-"""apply's fast path (io/rewrite/splice.py) writes what the general path writes, byte for byte.
+"""apply's fast path (io/csv/splice.py) writes what the general path writes, byte for byte.
 
 Every case corrects one file twice, spliced (``correct_stream``'s default) and with
 ``splice=False`` (pyarrow's reader and writer only), and wants the same bytes out and the
@@ -23,10 +23,9 @@ import pytest
 from tests.conftest import POSES_3, spliced_blocks, write
 from tumblecal_cli.core import arrays, model
 from tumblecal_cli.errors import TumblecalError
-from tumblecal_cli.io.csv import capture, sniff
+from tumblecal_cli.io.csv import capture, sniff, splice
 from tumblecal_cli.io.csv.capture import open_capture
 from tumblecal_cli.io.readspec import Dialect, ReadSpec
-from tumblecal_cli.io.rewrite import splice
 from tumblecal_cli.io.rewrite import writer as rewrite
 
 RNG = np.random.default_rng(7)

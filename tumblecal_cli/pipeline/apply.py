@@ -38,8 +38,8 @@ if TYPE_CHECKING:
     from tumblecal_cli.io.calfiles.calfile import Calibration
     from tumblecal_cli.io.csv.capture import Capture
     from tumblecal_cli.io.csv.sniff import Layout
+    from tumblecal_cli.io.csv.splice import Correct
     from tumblecal_cli.io.readspec import ReadSpec
-    from tumblecal_cli.io.rewrite.splice import Correct
     from tumblecal_cli.pipeline.frames import DataFrame
 
 

@@ -10,4 +10,7 @@
 - ``posefile``: a pose file judged by running sums, in memory that does not grow with it.
 - ``logread``: a long log read block by block into the streaming still-block detector
   (``core.scan``), for segment and solve --log.
+- ``splice``: a plain file's blocks of whole lines, found by reading their ends only (``cuts``),
+  and their sensor cells parsed, or replaced in the block's own bytes, without the other cells
+  (apply's fast path, and the log reader's).
 - ``ahead``: a stream's next blocks worked on a thread of their own while its last is used."""

@@ -3,7 +3,7 @@ solve --log on logs of any length.
 
 ``readings.read_log`` holds a whole log in memory (its readings, rows, clock and the text of
 each block until the end): 3.5 GB for 20 million rows. Here a regular file of plain lines
-(``io.rewrite.splice``'s rules) is read in blocks on a pool of threads, each block's sensor, time and
+(``io.csv.splice``'s rules) is read in blocks on a pool of threads, each block's sensor, time and
 temperature cells parsed where they lie, and fed in order to ``core.scan.Scan``, which keeps
 the spreads of the still periods' readings only (8 bytes each); the worker threads sum each
 CHUNK readings (``core.chunks``). At the end each block's statistics are merged from those sums
@@ -42,10 +42,8 @@ from tumblecal_cli.core.scan import Kept, Scan
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.csv import capture, readings, sniff
 from tumblecal_cli.io.csv.readings import Log, Stretch
+from tumblecal_cli.io.csv.splice import Splicer, cuts, splicer_for
 from tumblecal_cli.io.readspec import ReadSpec
-from tumblecal_cli.io.rewrite import writer as rewrite
-from tumblecal_cli.io.rewrite.forked import cuts
-from tumblecal_cli.io.rewrite.splice import Splicer
 
 #: Files smaller than this keep their readings' rows and line offsets as int32 (4 bytes, not 8).
 NARROW = 1 << 31
@@ -84,7 +82,7 @@ def scan_log(
     with capture.open_capture(path, spec, name=name) as cap:
         lay = cap.layout
         extra = [i for i in (lay.time, lay.per_row_column) if i is not None]
-        splicer = rewrite.splicer_for(cap, [(lay.sensor, _same)], also=extra)
+        splicer = splicer_for(cap, [(lay.sensor, _same)], also=extra)
         if splicer is None:
             return None
         where = [splicer.parsed.index(i) for i in (*lay.sensor, *extra)]

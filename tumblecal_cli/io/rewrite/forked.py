@@ -1,6 +1,6 @@
 """apply's blocks corrected by forked worker processes, one per core, each writing its own.
 
-A big regular file's blocks are corrected by ``io.rewrite.splice``, and threads do not share that
+A big regular file's blocks are corrected by ``io.csv.splice``, and threads do not share that
 work out: orjson, which spells the corrected floats, holds the GIL for a third of it, and a
 thread waiting for the GIL holds back the others (measured on 2 cores: two threads 1.25x
 faster than one, not 2x). Processes share nothing. So:
@@ -43,8 +43,6 @@ if TYPE_CHECKING:
 MIN_BYTES = 16 << 20
 #: Most worker processes, whatever the number of cores.
 MAX_WORKERS = 8
-#: A block is cut at the last line end in this much before its end: a longer line, no workers.
-WINDOW = 64 << 10
 
 _REPORT = struct.Struct("<qqq")  # failed (0/1), rows, bytes of the pickled error that follow
 
@@ -61,32 +59,6 @@ def workers_for(path: str | None, size: int) -> int:
         return 0
     cores = len(os.sched_getaffinity(0))
     return min(cores, MAX_WORKERS) if cores > 1 else 0
-
-
-def cuts(path: str, start: int, block: int) -> list[tuple[int, int]] | None:
-    """The file's bytes from ``start`` as the blocks a reader of ``block`` bytes at a time
-    makes of them (each read's whole lines, the part line carried into the next): (offset,
-    length) each. It reads only the ``WINDOW`` at each end of a read; None when either holds no
-    line end (a line too long to find the cuts from there)."""
-    window = min(WINDOW, block // 2)
-    blocks = []
-    with open(path, "rb") as f:
-        fd = f.fileno()
-        size = os.fstat(fd).st_size
-        at = start
-        for read in range(start, size, block):
-            end = min(read + block, size)
-            if os.pread(fd, window, read).find(b"\n") < 0:
-                return None
-            tail = os.pread(fd, window, max(read, end - window))
-            cut = max(read, end - window) + tail.rfind(b"\n") + 1
-            if cut <= max(read, end - window):
-                return None
-            blocks.append((at, cut - at))
-            at = cut
-        if at < size:  # the last line, without its line end
-            blocks.append((at, size - at))
-    return blocks
 
 
 class Parts(io.RawIOBase):

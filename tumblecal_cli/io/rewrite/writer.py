@@ -1,7 +1,7 @@
 """apply's streaming writer: a capture written again with its sensor columns corrected.
 
 ``correct_stream`` skips the general reader for a regular file's blocks of plain lines: it
-replaces the sensor cells' text in the block's own bytes (``io.rewrite.splice``, in worker processes
+replaces the sensor cells' text in the block's own bytes (``io.csv.splice``, in worker processes
 by ``io.rewrite.forked`` for a large file) and hands any other block to pyarrow's reader and writer
 (``io.csv.capture``), which write the same bytes.
 """
@@ -25,10 +25,10 @@ import pyarrow.csv as pcsv
 from tumblecal_cli.core.arrays import BoolArray, FloatArray
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.csv import capture
-from tumblecal_cli.io.csv.capture import Capture, DataStream, Source, note_dropped
+from tumblecal_cli.io.csv.capture import Capture, Source, note_dropped
 from tumblecal_cli.io.csv.sniff import Layout, skipped
+from tumblecal_cli.io.csv.splice import Correct, Correction, Splicer, cuts, splicer_for
 from tumblecal_cli.io.rewrite import forked
-from tumblecal_cli.io.rewrite.splice import Correct, Correction, Splicer
 
 if TYPE_CHECKING:
     from _typeshed import WriteableBuffer
@@ -64,7 +64,7 @@ def correct_stream(
     the line ending; a whitespace-separated file is written with single spaces. Rows whose
     sensor cells are all empty stay empty. Returns the number of data rows written.
 
-    A file's blocks of plain lines are spliced (``io.rewrite.splice``: the sensor cells' text replaced
+    A file's blocks of plain lines are spliced (``io.csv.splice``: the sensor cells' text replaced
     in the block's own bytes); the rest, and every file read as a stream, go through pyarrow's
     reader and writer. Both write the same bytes; ``splice=False`` takes the general path only.
     """
@@ -162,7 +162,7 @@ def _spliced(
     path, start = cap.path, len(cap.layout.head)
     assert path is not None
     workers = forked.workers_for(path, os.path.getsize(path) - start) if _descriptor(out) else 0
-    blocks = forked.cuts(path, start, capture.BLOCK_BYTES) if workers else None
+    blocks = cuts(path, start, capture.BLOCK_BYTES) if workers else None
     if not blocks:
         return _pipeline(jobs, write)
 
@@ -171,29 +171,6 @@ def _spliced(
         return sink.parts, emit(spliced(block, at), sink)
 
     return forked.pipeline(path, blocks, render, out, head[0], workers, written=head.pop)
-
-
-def splicer_for(
-    cap: Capture,
-    corrections: Sequence[Correction],
-    temperature: int | None = None,
-    also: Sequence[int] = (),
-    *,
-    stream: bool = False,
-) -> Splicer | None:
-    """An ``io.rewrite.splice.Splicer`` for ``cap`` (its arguments), when its lines can be spliced: a
-    one-character delimiter, LF or CRLF line ends, and read as a regular file by pyarrow (or,
-    with ``stream``, as a stream: stdin, a pipe, a compressed file's data); else None
-    (whitespace-separated, CR line ends, a cut last line left out: the general rules)."""
-
-    lay = cap.layout
-    if lay.delimiter is None or len(lay.delimiter) != 1 or lay.eol not in ("\n", "\r\n"):
-        return None
-    if stream and ((cap.path is not None and lay.compression is None) or not isinstance(cap.stream, DataStream)):
-        return None
-    if not stream and (cap.path is None or not isinstance(cap.stream, pa.OSFile)):
-        return None
-    return Splicer(len(lay.names), lay.delimiter, lay.eol, lay.decimal, corrections, temperature, also)
 
 
 def _stream_spliced(cap: Capture, splicer: Splicer, convert: Convert, write: Callable[[list[Item]], int]) -> int:
@@ -318,7 +295,7 @@ def _splice_jobs(
     temperature: int | None = None,
 ) -> tuple[Iterator[Job], Callable[[bytes, int], list[Item]]] | None:
     """The jobs that correct a regular file block by block, spliced where its lines are plain
-    (``io.rewrite.splice``), else by the general rules, and the function of a block's job
+    (``io.csv.splice``), else by the general rules, and the function of a block's job
     (``spliced(block, at)``); None when the file is not one to splice (a stream,
     whitespace-separated, CR line ends, a cut last line left out)."""
     splicer = splicer_for(cap, corrections, temperature)

@@ -23,6 +23,7 @@ process against pyarrow on a sample, else pyarrow writes all).
 from __future__ import annotations
 
 import functools
+import os
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, TypeAlias
 
@@ -32,6 +33,7 @@ import pyarrow.compute as pc
 from numpy.typing import NDArray
 
 from tumblecal_cli.core.arrays import BoolArray, FloatArray, IntArray
+from tumblecal_cli.io.csv.capture import Capture, DataStream
 
 if TYPE_CHECKING:
     from _typeshed import ReadableBuffer
@@ -397,3 +399,56 @@ def _orjson_agrees() -> bool:
     ours = orjson.dumps(sample, option=orjson.OPT_SERIALIZE_NUMPY)[1:-1].split(b",")
     theirs = pc.cast(_arrow_floats(sample, np.zeros(sample.size, dtype=bool)), pa.string()).to_pylist()
     return bool([t.decode() for t in ours] == theirs)
+
+
+#: A block is cut at the last line end in this much before its end: a longer line, no workers.
+WINDOW = 64 << 10
+
+
+def cuts(path: str, start: int, block: int) -> list[tuple[int, int]] | None:
+    """The file's bytes from ``start`` as the blocks a reader of ``block`` bytes at a time
+    makes of them (each read's whole lines, the part line carried into the next): (offset,
+    length) each. It reads only the ``WINDOW`` at each end of a read; None when either holds no
+    line end (a line too long to find the cuts from there)."""
+    window = min(WINDOW, block // 2)
+    blocks = []
+    with open(path, "rb") as f:
+        fd = f.fileno()
+        size = os.fstat(fd).st_size
+        at = start
+        for read in range(start, size, block):
+            end = min(read + block, size)
+            if os.pread(fd, window, read).find(b"\n") < 0:
+                return None
+            tail = os.pread(fd, window, max(read, end - window))
+            cut = max(read, end - window) + tail.rfind(b"\n") + 1
+            if cut <= max(read, end - window):
+                return None
+            blocks.append((at, cut - at))
+            at = cut
+        if at < size:  # the last line, without its line end
+            blocks.append((at, size - at))
+    return blocks
+
+
+def splicer_for(
+    cap: Capture,
+    corrections: Sequence[Correction],
+    temperature: int | None = None,
+    also: Sequence[int] = (),
+    *,
+    stream: bool = False,
+) -> Splicer | None:
+    """An ``io.csv.splice.Splicer`` for ``cap`` (its arguments), when its lines can be spliced: a
+    one-character delimiter, LF or CRLF line ends, and read as a regular file by pyarrow (or,
+    with ``stream``, as a stream: stdin, a pipe, a compressed file's data); else None
+    (whitespace-separated, CR line ends, a cut last line left out: the general rules)."""
+
+    lay = cap.layout
+    if lay.delimiter is None or len(lay.delimiter) != 1 or lay.eol not in ("\n", "\r\n"):
+        return None
+    if stream and ((cap.path is not None and lay.compression is None) or not isinstance(cap.stream, DataStream)):
+        return None
+    if not stream and (cap.path is None or not isinstance(cap.stream, pa.OSFile)):
+        return None
+    return Splicer(len(lay.names), lay.delimiter, lay.eol, lay.decimal, corrections, temperature, also)
