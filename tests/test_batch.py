@@ -175,14 +175,14 @@ def test_batch_internal_error_in_one_unit_is_its_row(
     """A bug while solving one unit is that unit's error (status 2), not the batch's end."""
     from tumblecal_cli.pipeline.solve import solving as pipeline
 
-    solve = pipeline.run
+    solve = pipeline.calibrate
 
     def flaky(options: Any, **kwargs: Any) -> Any:
         if options.unit.serial == "B":
             raise RuntimeError("boom")
         return solve(options, **kwargs)
 
-    monkeypatch.setattr(pipeline, "run", flaky)
+    monkeypatch.setattr(pipeline, "calibrate", flaky)
     src = units(tmp_path / "units", {"A": "good", "B": "good", "C": "good"})
     r = run(capsys, "batch", src, "--out-dir", tmp_path / "out")
     assert r.code == 2, r.err

@@ -57,7 +57,7 @@ def test_the_method_choices_are_the_catalogs_names() -> None:
 def test_every_row_is_complete(row: catalog.Method) -> None:
     function = catalog.solver(row.name)
     assert callable(function)
-    if row.takes != "turns":  # fits.run calls it with one SolverInput
+    if row.takes != "turns":  # fits.fit calls it with one SolverInput
         assert len(inspect.signature(function).parameters) == 1
     assert row.source.strip()
     assert row.help.strip()

@@ -353,7 +353,7 @@ def solve(
     check_writable(output)
     if plot is not None:
         check_plot_target(plot, output, json_summary, inputs)
-    solved = pipeline.run(options, poses=poses, log=log)
+    solved = pipeline.calibrate(options, poses=poses, log=log)
     shown = render.Shown(quiet=quiet, verbose=verbose)
     _show(solved, output=output, json_summary=json_summary, shown=shown, plot=plot, plane=plane and plane.value)
 

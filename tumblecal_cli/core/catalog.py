@@ -2,7 +2,7 @@
 the limits that do not apply to it and why, its source, and the function that solves it; and the
 quality checks there are (:data:`CHECKS`, :data:`FIT_CHECKS`), which ``--no-check`` names.
 
-Everything that asks about a method asks here: ``core.fits.run`` dispatches through the
+Everything that asks about a method asks here: ``core.fits.fit`` dispatches through the
 row, ``core.methods.pick`` checks the labels by its family, the gate reads which limits apply,
 solve, segment and the exporters read its flags, and the command line's ``--method`` choices
 and help are its names in order. A new solver is one row (:func:`register`) and its function.

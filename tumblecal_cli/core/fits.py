@@ -1,6 +1,6 @@
 """Each catalog row's function (core.catalog) for the methods that take means or samples: one
 :class:`SolverInput` in, a :class:`~tumblecal_cli.core.solvers.Fit` out, each a thin call of its
-solver in core.solvers (or core.model for 1- and 3-pose); and :func:`run`, the dispatch through
+solver in core.solvers (or core.model for 1- and 3-pose); and :func:`fit`, the dispatch through
 the row. numpy only."""
 
 from __future__ import annotations
@@ -122,7 +122,7 @@ def fit_gyro_bias(given: SolverInput) -> Fit:
     return gyro_bias(given.stats)
 
 
-def run(
+def fit(
     method: str,
     stats: Sequence[PoseStats],
     values: Sequence[FloatArray],

@@ -1,7 +1,7 @@
 """``tumblecal batch``: the units and the summary.
 
 A unit is a serial number and its inputs (pose files, or one log). Each unit is solved by the
-pipeline's ``solve.run``, in this process, in ``--jobs`` worker processes, or on a Dask
+pipeline's ``solve.calibrate``, in this process, in ``--jobs`` worker processes, or on a Dask
 cluster (``pipeline.batch.cluster``); its calibration is published as ``<serial>_<UTC time>.json``
 next to the others (never replacing a file, so a unit's history stays), and it becomes one row of
 ``summary.csv``. A unit that fails becomes a row with its exit status and message; it never stops the batch.
@@ -298,7 +298,7 @@ def _run_unit(unit: BatchUnit, options: SolveOptions, out_dir: str, log: bool, t
         return _failed(row, InputError(f"--log takes one log per unit; {unit.serial} has {len(unit.inputs)} files"))
     try:
         mine = replace(options, unit=replace(options.unit, serial=unit.serial))
-        solved = solve.run(mine, log=unit.inputs[0]) if log else solve.run(mine, poses=list(unit.inputs))
+        solved = solve.calibrate(mine, log=unit.inputs[0]) if log else solve.calibrate(mine, poses=list(unit.inputs))
         if solved.error is not None:
             raise solved.error
         assert solved.calibration is not None

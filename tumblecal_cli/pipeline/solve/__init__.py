@@ -1,6 +1,6 @@
 """solve: captures in, a judged Calibration out. Its modules:
 
-- ``solving``: the entry points (``solve``, ``solve_log``, ``run``): poses read, averaged,
+- ``solving``: the entry points (``solve``, ``solve_log``, ``calibrate``): poses read, averaged,
   solved, checked and judged.
 - ``tables``: a table of orientations, one averaged reading a row, split into poses.
 - ``trimming``: pose files with motion solved from their still run.

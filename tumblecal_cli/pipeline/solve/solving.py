@@ -108,7 +108,7 @@ def solve(poses: Poses, **options: Unpack[SolveKeywords]) -> Solved:
     Python"). Input errors raise InputError; a rejected capture is ``status`` 3, not an error.
     """
 
-    return run(SolveOptions.of(options), poses=poses)
+    return calibrate(SolveOptions.of(options), poses=poses)
 
 
 def solve_log(log: str | os.PathLike[str] | DataFrame, **options: Unpack[SolveKeywords]) -> Solved:
@@ -119,18 +119,20 @@ def solve_log(log: str | os.PathLike[str] | DataFrame, **options: Unpack[SolveKe
 
     told = SolveOptions.of(options)
     with in_memory(log, "solve_log takes a log: a file, a DataFrame or an (n, 3) array") as path:
-        return run(told, log=path)
+        return calibrate(told, log=path)
 
 
-def run(options: SolveOptions, *, poses: Poses | None = None, log: str | os.PathLike[str] | None = None) -> Solved:
+def calibrate(
+    options: SolveOptions, *, poses: Poses | None = None, log: str | os.PathLike[str] | None = None
+) -> Solved:
     """solve and solve_log, on options already gathered (the command line and batch call this);
     a magnetometer's with ``align_to`` then rotated onto that accelerometer's axes."""
 
     accel = options.log.align_to
     if accel is None:
-        return _placed_run(options, poses=poses, log=log)
+        return _at_place(options, poses=poses, log=log)
     source = alignment.source_of(options.read.sensor, log if log is not None else poses)
-    solved = _placed_run(options, poses=poses, log=log)
+    solved = _at_place(options, poses=poses, log=log)
     if solved.calibration is not None and "alignment" not in solved.calibration.fields:  # a log's is aligned already
         solved.calibration = _aligned(source, accel, solved.calibration, options, solved.notes)
     return solved
@@ -149,10 +151,10 @@ def _aligned(source: str, accel: str, cal: Calibration, options: SolveOptions, n
     return alignment.aligned(done)
 
 
-def _placed_run(
+def _at_place(
     options: SolveOptions, *, poses: Poses | None = None, log: str | os.PathLike[str] | None = None
 ) -> Solved:
-    """run before any alignment: the reference of --location, --gravity and --date resolved
+    """calibrate before any alignment: the reference of --location, --gravity and --date resolved
     (pipeline.places), the solve, and where the reference came from written beside it."""
     options = opts.checked(options)
     files_or_data = None if poses is None else _poses_given(poses, options)
@@ -169,19 +171,19 @@ def _placed_run(
     if first is not None:  # pose files of a log's stream read in its units as a log is
         options, note = _stream_units(first, options)
     options, source = places.resolve(options, options.input_units)
-    solved = _run(options, (files_or_data, poses), path, note, source)
+    solved = _from_inputs(options, (files_or_data, poses), path, note, source)
     solved.calibration, solved.draft = places.stamp(solved.calibration, source), places.stamp(solved.draft, source)
     return solved
 
 
-def _run(
+def _from_inputs(
     options: SolveOptions,
     given_poses: tuple[list[str] | Mapping[str, object] | None, Poses | None],
     path: str | None,
     note: str | None,
     source: places.ReferenceSource | None,
 ) -> Solved:
-    """run, its options resolved: ``given_poses`` the pose files or data (as read, and as given)."""
+    """calibrate, its options resolved: ``given_poses`` the pose files or data (as read, and as given)."""
     files_or_data, poses = given_poses
     given = opts.settings(options, log=path is not None)
     if path is not None and options.read.sensor == "magnetometer":
@@ -204,21 +206,21 @@ def _run(
     assert files_or_data is not None
     table, read = tables.take(poses, options, given)
     if table is not None:
-        return _solve(*_table_poses(table, options, given), options, given)
+        return _fit_poses(*_table_poses(table, options, given), options, given)
     name, labels, samples, placed = _read_poses(files_or_data, options, given, read)
     notes = [] if placed.note is None else [placed.note]
     notes[:0] = [note] if note else []
     chosen = PoseSet(labels, samples, [s.readings for s in samples], notes or [], None, placed.by_name, placed.labelled)
-    return _solve_trimmed(name, chosen, options, given)
+    return _fit_or_trim(name, chosen, options, given)
 
 
-def _solve_trimmed(name: str, poses: PoseSet, options: SolveOptions, given: Settings) -> Solved:
+def _fit_or_trim(name: str, poses: PoseSet, options: SolveOptions, given: Settings) -> Solved:
     """_solve; and when the files as a whole are rejected (exit 3, or exit 2 from a check that
-    reads their means, such as one-pose's units) and some moved, _solve again on the still run
+    reads their means, such as one-pose's units) and some moved, _fit_poses again on the still run
     of each that moved (pipeline.solve.trimming), with a note naming its rows: a file that passes
     whole is solved as it always was."""
     try:
-        solved, failed = _solve(name, poses, options, given), None
+        solved, failed = _fit_poses(name, poses, options, given), None
     except InputError as err:  # a units "mistake" may be the mean of a pose and its handling
         solved, failed = None, err
     trimmed = None
@@ -231,7 +233,9 @@ def _solve_trimmed(name: str, poses: PoseSet, options: SolveOptions, given: Sett
         return solved
     if trimmed.error is not None:
         return Solved(3, None, error=trimmed.error, notes=trimmed.notes, samples=poses.samples, limits=given.limits)
-    return _solve(name, replace(poses, samples=trimmed.samples, notes=[*poses.notes, *trimmed.notes]), options, given)
+    return _fit_poses(
+        name, replace(poses, samples=trimmed.samples, notes=[*poses.notes, *trimmed.notes]), options, given
+    )
 
 
 def _first_file(given: list[str] | Mapping[str, object] | None) -> str | None:
@@ -472,7 +476,7 @@ def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
     segmentation = _segmentation(data, seg)
     given = replace(given, centre=seg.centre)
     whole: list[FloatArray | Summary] = [data.values if data.extremes is None else data.extremes]  # the extremes
-    solved = _solve(name, PoseSet(labels, samples, whole, notes or [], segmentation), options, given)
+    solved = _fit_poses(name, PoseSet(labels, samples, whole, notes or [], segmentation), options, given)
     solved.blocks = found
     return solved
 
@@ -506,7 +510,7 @@ def _mag_from_log(path: str, options: SolveOptions, given: Settings, source: pla
     method_options(name, given.reference, options.plane, options.bias_spread)
     labels: list[str | None] = [None] * len(found.samples)
     poses = PoseSet(labels, found.samples, [found.mag.values], found.notes, _segmentation(found.acc, found.seg))
-    solved = _solve(name, poses, options, given)
+    solved = _fit_poses(name, poses, options, given)
     solved.blocks = segmenting.Blocks(found.acc, found.seg)
     solved.blocks.used = {b.number: "used" for b in found.blocks}
     cal = places.stamp(solved.calibration, source)
@@ -543,7 +547,7 @@ class PoseSet:
     table: bool = False  # the rows of a table of orientations, one reading each
 
 
-def _solve(name: str, poses: PoseSet, options: SolveOptions, given: Settings) -> Solved:
+def _fit_poses(name: str, poses: PoseSet, options: SolveOptions, given: Settings) -> Solved:
     """Average, solve, check and judge the poses; build the calibration."""
     labels, samples = poses.labels, poses.samples
     for s in samples:
@@ -567,7 +571,7 @@ def _solve(name: str, poses: PoseSet, options: SolveOptions, given: Settings) ->
             plane=options.plane,
             gain_tolerance=options.checks.gain_tolerance,
         )
-        fit = fits.run(name, stats, [s.values for s in samples], labels, told, names)
+        fit = fits.fit(name, stats, [s.values for s in samples], labels, told, names)
     except CaptureRejected as err:
         return _rejected_fit(err, name, replace(poses, notes=log_notes), options, given)  # with auto's note
     solution = fit.solution
@@ -651,7 +655,7 @@ def _rejected_fit(err: CaptureRejected, name: str, poses: PoseSet, options: Solv
     60°, so the checks of the six-pose fit say which file and face, when they can; else the
     solver's own rejection, with a hint."""
     if err.code == "poses.tilted" and given.reference > 0:
-        again = _solve("six-pose", poses, options, replace(given, method="six-pose"))
+        again = _fit_poses("six-pose", poses, options, replace(given, method="six-pose"))
         if again.status == 3 and {f.code for f in again.rejections} & {"pose.orientation", "pose.upside_down"}:
             return again
     if poses.by_name and err.code == "pose.upside_down":  # a three-pose gain of zero: not the files' order
