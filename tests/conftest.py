@@ -319,3 +319,19 @@ def unnamed(files: Sequence[str | Path], folder: Path) -> list[Path]:
         out.append(folder / f"pose{k}.csv")
         shutil.copy(f, out[-1])
     return out
+
+
+def with_registered(setup: str, *args: str | Path, columns: str | None = "100") -> subprocess.CompletedProcess[str]:
+    """``tumblecal ARGS`` in a fresh Python that runs ``setup`` first (a stand-in's registration:
+    tests/standin_*.py), then the console script's own entry point: a registration made in the
+    test process is not seen by a new one. ``columns``: the terminal's width (None: not set)."""
+    code = f"import sys; sys.argv[0] = 'tumblecal'; {setup}; from tumblecal_cli.cli.app import main_exit; main_exit()"
+    return subprocess.run(
+        [sys.executable, "-c", code, *map(str, args)],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        env={**os.environ, "NO_COLOR": "1", **({"COLUMNS": columns} if columns else {})},
+        timeout=120,
+        check=False,
+    )

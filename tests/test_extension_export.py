@@ -4,21 +4,18 @@
 
 from __future__ import annotations
 
-import os
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 import typer
 
-from tests.conftest import POSES_3, ROOT, run
+from tests.conftest import POSES_3, run, with_registered
 from tumblecal_cli.cli.app import app
 from tumblecal_cli.io.calfiles import calfile
 from tumblecal_cli.io.export import registry
 
 #: The command line with the stand-in registered first (tests/standin_export.py says why).
-WITH_STANDIN = "import tests.standin_export; from tumblecal_cli.cli.app import main_exit; main_exit()"
 
 
 def choices(command: str, option: str) -> list[str]:
@@ -52,16 +49,8 @@ def test_a_name_is_registered_once() -> None:
 
 
 def with_standin(*args: str | Path) -> subprocess.CompletedProcess[str]:
-    """``tumblecal ARGS`` in a fresh Python that registered the stand-in first."""
-    return subprocess.run(
-        [sys.executable, "-c", WITH_STANDIN, *map(str, args)],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        env={**os.environ, "NO_COLOR": "1", "COLUMNS": "100"},
-        timeout=60,
-        check=False,
-    )
+    """``tumblecal ARGS`` with the stand-in export registered, in a new process."""
+    return with_registered("import tests.standin_export", *args)
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,6 @@ the calibration its readings give as a CSV."""
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -16,7 +15,7 @@ import pytest
 
 import tumblecal_cli as tumblecal
 from tests import standin_reader
-from tests.conftest import ROOT, write
+from tests.conftest import ROOT, with_registered, write
 from tests.reader_contract import ReaderContract, Sample
 from tests.test_sources import tumble
 from tumblecal_cli.io import sources
@@ -39,16 +38,8 @@ class TestStandinReader(ReaderContract):
 
 
 def run(*args: str | Path) -> subprocess.CompletedProcess[str]:
-    """The command line with the stand-in registered (standin_reader.RUN), in a new process."""
-    return subprocess.run(
-        [sys.executable, "-c", standin_reader.RUN, *map(str, args)],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        env={**os.environ, "NO_COLOR": "1"},
-        timeout=120,
-        check=False,
-    )
+    """``tumblecal ARGS`` with the stand-in reader registered, in a new process."""
+    return with_registered("import tests.standin_reader as s; s.register()", *args, columns=None)
 
 
 def test_the_command_line_lists_segments_and_solves_a_stand_in_log(tmp_path: Path) -> None:

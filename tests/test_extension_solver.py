@@ -7,15 +7,13 @@ from __future__ import annotations
 
 import inspect
 import json
-import os
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from tests.conftest import ROOT, tumblecal, write
+from tests.conftest import tumblecal, with_registered, write
 from tests.synth import pose_samples
 from tumblecal_cli.core import catalog
 from tumblecal_cli.core.model import FACES
@@ -24,22 +22,13 @@ from tumblecal_cli.pipeline import options
 
 #: The console script's entry point, with the stand-in's row registered before the command line
 #: is imported (tests/standin_solver.py).
-STANDIN = "import tests.standin_solver; from tumblecal_cli.cli.app import main_exit; main_exit()"
 OFFSET = np.array([0.031, -0.022, 0.047])
 GAIN = np.array([1.021, 0.984, 1.008])
 
 
 def standin_cli(*args: str | Path) -> subprocess.CompletedProcess[str]:
-    """``tumblecal ARGS`` with the stand-in solver registered, in a subprocess."""
-    return subprocess.run(
-        [sys.executable, "-c", STANDIN, *map(str, args)],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        env={**os.environ, "NO_COLOR": "1", "COLUMNS": "100"},
-        timeout=60,
-        check=False,
-    )
+    """``tumblecal ARGS`` with the stand-in solver registered, in a new process."""
+    return with_registered("import tests.standin_solver", *args)
 
 
 def test_the_method_choices_are_the_catalogs_names() -> None:
