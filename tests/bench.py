@@ -31,7 +31,8 @@ five runs each, taking turns; elsewhere the best of a few runs.
                            bag, and a ROS 2 bag in MCAP storage: two Imu topics at 1 kHz); peak memory
 
 `python tests/bench.py against REV` (`make bench AGAINST=REV`) times every command of this tree
-against the same command of git revision REV, in turns: whether a change made anything slower.
+against the same command of git revision REV, in turns (nine runs each, the medians): whether a
+change made anything slower.
 `python tests/bench.py pace` runs the lines against POLARS_BLOCKS and the noise lines, `python tests/bench.py noise`
 the noise lines alone, `python tests/bench.py ulog` the ULog one,
 `python tests/bench.py dataflash` the DataFlash one, `python tests/bench.py ros` the ROS ones.
@@ -588,7 +589,7 @@ def bench_ros(folder: Path) -> list[tuple[str, float, float, str]]:
 
 def bench_against(rev: str, folder: Path) -> list[tuple[str, float, float, str]]:
     """``make bench AGAINST=REV``: each command of this tree and of ``rev`` (its ``tumblecal_cli``
-    taken out of git into ``folder``) taking turns, five runs each, the median wall time of each:
+    taken out of git into ``folder``) taking turns, nine runs each, the median wall time of each:
     the figure that says whether a change made a command slower. Both run with the same Python
     and libraries; only the package differs (PYTHONPATH)."""
     import shutil
@@ -638,7 +639,7 @@ def bench_against(rev: str, folder: Path) -> list[tuple[str, float, float, str]]
     rows = []
     for what, argv in commands.items():
         ours, base = [], []
-        for _ in range(5):
+        for _ in range(9):
             ours.append(once(argv, ROOT))
             base.append(once(argv, base_root))
         rows.append((what, statistics.median(ours), statistics.median(base), f"vs {rev}"))
