@@ -8,8 +8,8 @@ tests/test_extension_reader.py runs it through the contract every reader keeps
 (tests/reader_contract.py) and through the command line in a subprocess. A registration made in
 a test process is not seen by a new process, so there the command runs as the console script
 does, with this module imported first: ``python -c "import tests.standin_reader as s;
-s.register(); from tumblecal_cli.cli.app import main_exit; main_exit()" ARGS`` (:data:`RUN`),
-from the repository's root: the same entry point and code path as ``tumblecal ARGS``.
+s.register(); from tumblecal_cli.cli.app import main_exit; main_exit()" ARGS``
+(tests/conftest.with_registered), from the repository's root: the same entry point and code path as ``tumblecal ARGS``.
 """
 
 from __future__ import annotations
@@ -32,16 +32,11 @@ from tumblecal_cli.io.sources import Stream, Table
 MAGIC = b"STANDIN1"
 #: The stand-in's row: its kind, the module holding its READER, its first bytes.
 ROW = LogFormat("stand-in log", "tests.standin_reader", magic=(MAGIC,))
-#: The command line with the stand-in registered, as ``python -c`` runs it (then the arguments).
-RUN = (
-    "import sys; sys.argv[0] = 'tumblecal'; import tests.standin_reader as s; s.register(); "
-    "from tumblecal_cli.cli.app import main_exit; main_exit()"
-)
 
 
 def register() -> None:
     """The one place the stand-in is registered: its row in io.sources' registry, after io.logs' own."""
-    sources.READERS.append(sources.Lazy.of(ROW))
+    sources.register(ROW)
 
 
 def write(path: Path, t: FloatArray, xyz: FloatArray) -> Path:

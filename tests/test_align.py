@@ -1,6 +1,6 @@
 """tumblecal align: the magnetometer's rotation onto the accelerometer's axes from the constant
 angle between gravity and the field, and the rotation between several IMUs from their still
-blocks (core.alignment, pipeline.align, cli.aligning)."""
+blocks (core.alignment, pipeline.align, cli.align)."""
 
 from __future__ import annotations
 

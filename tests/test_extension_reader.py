@@ -19,6 +19,7 @@ from tests.conftest import ROOT, with_registered, write
 from tests.reader_contract import ReaderContract, Sample
 from tests.test_sources import tumble
 from tumblecal_cli.io import sources
+from tumblecal_cli.io.logs import LogFormat
 
 
 @pytest.fixture
@@ -76,3 +77,10 @@ def test_without_its_registration_the_stand_in_is_no_log(tmp_path: Path) -> None
     )
     assert done.returncode == 2
     assert "not a log of a kind tumblecal reads by streams" in done.stderr
+
+
+def test_a_kind_of_log_is_registered_once(registered: None) -> None:
+    with pytest.raises(ValueError, match="registered already"):
+        standin_reader.register()
+    with pytest.raises(ValueError, match="registered already"):
+        sources.register(LogFormat("PX4 ULog", "tests.standin_reader", magic=(b"X",)))

@@ -30,7 +30,7 @@ def _blocks(session: st.Session) -> blocks.Segmentation:
 
 
 def _hand_bias(session: st.Session) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The bias and its 1-sigma as ``solve --accel-cal`` finds them (pipeline.rotations.hand_turns),
+    """The bias and its 1-sigma as ``solve --accel-cal`` finds them (pipeline.solve.rotations.hand_turns),
     and what the turning in its blocks adds to it."""
     seg = _blocks(session)
     kept, _ = rotations.gyro_still(seg, session.acc, session.gyr)

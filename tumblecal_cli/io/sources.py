@@ -150,6 +150,16 @@ class Lazy(LogFormat):
 
 #: The readers of sources beside CSV, asked in order; a file none claims is read as CSV.
 READERS: list[Reader] = [Lazy.of(row) for row in FORMATS]
+
+
+def register(row: LogFormat) -> None:
+    """Add a kind of log outside io.logs (a plugin, a test's stand-in), asked after those there:
+    its module is imported when a file it claims is read. A kind registered already is refused."""
+    if any(r.kind == row.kind for r in READERS):
+        raise ValueError(f"a reader of {row.kind!r} is registered already")
+    READERS.append(Lazy.of(row))
+
+
 #: How much of a file a reader is shown to claim it.
 HEAD = 64
 #: Readings in memory (the Python API's DataFrames and arrays) are a source too: each held here

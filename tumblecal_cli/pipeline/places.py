@@ -147,7 +147,7 @@ def _gravity(asked: Asked) -> tuple[float, str, ReferenceSource]:
     if asked.date is not None:
         raise InputError("--date is for a magnetometer's Earth field; gravity does not change with the date")
     stream = asked.stream_units or ""
-    units = asked.units or ("m/s^2" if factor("accelerometer", stream) is not None and stream != "g" else "g")
+    units = asked.units or ("m/s^2" if factor("accelerometer", stream) == 1.0 else "g")  # a log's stream in m/s^2
     scale = factor("accelerometer", units)  # m/s^2 per one of the units
     if scale is None:
         raise InputError(

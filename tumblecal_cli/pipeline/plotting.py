@@ -25,8 +25,8 @@ RAW_IS_OFF = 0.5
 
 
 def solve_plot(path: str, solved: Solved, plane: str | None = None) -> None:
-    """``solve --plot``: a rotation capture in its planes (io.plots.rotation_figure), or the
-    static poses' residuals before and after (io.fitplots.poses_figure)."""
+    """``solve --plot``: a rotation capture in its planes (io.figures.plots.rotation_figure), or the
+    static poses' residuals before and after (io.figures.fitplots.poses_figure)."""
     cal = solved.calibration
     assert cal is not None
     raw = [s.values for s in solved.samples]

@@ -330,7 +330,7 @@ def verify_rotations(
     **source: Unpack[StreamKeywords],
 ) -> VerifiedRotations:
     """A gyroscope calibration judged on a log it was not fitted on: the rotations between its
-    still blocks (pipeline.rotations.hand_turns, gravity from ``accel_cal``). "Before" is the
+    still blocks (pipeline.solve.rotations.hand_turns, gravity from ``accel_cal``). "Before" is the
     calibration's bias and its mean gain alone (no per-axis scale, no cross-axis terms): what a
     datasheet sensitivity gives; "after" is its full matrix."""
 

@@ -215,7 +215,7 @@ def _from_inputs(
 
 
 def _fit_or_trim(name: str, poses: PoseSet, options: SolveOptions, given: Settings) -> Solved:
-    """_solve; and when the files as a whole are rejected (exit 3, or exit 2 from a check that
+    """_fit_poses; and when the files as a whole are rejected (exit 3, or exit 2 from a check that
     reads their means, such as one-pose's units) and some moved, _fit_poses again on the still run
     of each that moved (pipeline.solve.trimming), with a note naming its rows: a file that passes
     whole is solved as it always was."""

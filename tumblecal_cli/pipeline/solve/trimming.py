@@ -60,7 +60,7 @@ def still_runs(poses: list[Samples], options: SolveOptions, given: Settings) -> 
     max_noise = options.checks.max_noise if options.checks.max_noise is not None else 0.02
     out = Trimmed(list(poses))
     for s in poses:
-        model.in_range(s.readings, s.name)  # readings no statistic can take: the error _solve gives
+        model.in_range(s.readings, s.name)  # readings no statistic can take: the error _fit_poses gives
     for k, s in enumerate(poses):
         if not moved(s.readings, centre, max_noise):
             continue
