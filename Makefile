@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 TC := $(BIN)/tumblecal
 
-.PHONY: demo test check fuzz bench montecarlo docs transcripts clean browser
+.PHONY: demo test check fuzz bench same montecarlo docs transcripts clean browser
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -68,6 +68,12 @@ fuzz: $(VENV)/.installed
 bench: $(VENV)/.installed
 	$(BIN)/python -m pip install --quiet polars
 	$(BIN)/python tests/bench.py $(if $(AGAINST),against $(AGAINST))
+
+# `make same AGAINST=REV`: every command of tests/same.py on the real captures, with this tree and with git
+# revision REV's package, their exit codes, stderr, stdout and written files compared (a refactor changed no output)
+same: $(VENV)/.installed
+	$(if $(AGAINST),,$(error make same: give the revision to compare with as AGAINST=REV; e.g. make same AGAINST=HEAD))
+	$(BIN)/python tests/same.py $(AGAINST)
 
 # each solver's RMS error over 1000 synthetic captures against its Cramér–Rao bound (docs/accuracy.md)
 montecarlo: $(VENV)/.installed
