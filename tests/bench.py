@@ -629,13 +629,23 @@ def bench_against(rev: str, folder: Path) -> list[tuple[str, float, float, str]]
     def once(argv: list[str], pythonpath: Path) -> float:
         shutil.rmtree(out, ignore_errors=True)
         out.mkdir()
-        env = {**os.environ, "PYTHONPATH": str(pythonpath)}
+        env = {**os.environ, "PYTHONPATH": str(pythonpath), "PYTHONSAFEPATH": "1"}  # not the working folder's
         start = time.perf_counter()
         done = subprocess.run([*TUMBLECAL, *argv], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         if done.returncode not in (0, 1):
             raise SystemExit(f"bench: tumblecal {' '.join(argv)} failed: {done.stderr.decode()}")
         return time.perf_counter() - start
 
+    for tree in (ROOT, base_root):  # each run imports its own tree's package, not the working folder's
+        where = subprocess.run(
+            [sys.executable, "-c", "import tumblecal_cli; print(tumblecal_cli.__file__)"],
+            env={**os.environ, "PYTHONPATH": str(tree), "PYTHONSAFEPATH": "1"},
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout
+        if not Path(where.strip()).is_relative_to(tree):
+            raise SystemExit(f"bench: the package of {tree} is not the one imported ({where.strip()})")
     rows = []
     for what, argv in commands.items():
         ours, base = [], []
