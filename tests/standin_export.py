@@ -14,7 +14,8 @@ process itself never imports this module: its command line was built without the
 from __future__ import annotations
 
 from tumblecal_cli.io.calfiles.calfile import Calibration
-from tumblecal_cli.io.export.registry import Exported, Exporter, ExportFormat, ExportOptions, register_export
+from tumblecal_cli.io.export.contract import Exported, Exporter, ExportOptions
+from tumblecal_cli.io.export.registry import ExportFormat, register_export
 
 
 def export_standin(cal: Calibration, options: ExportOptions) -> Exported:

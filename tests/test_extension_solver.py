@@ -66,7 +66,7 @@ def test_a_name_is_registered_once() -> None:
     assert six is not None
     for taken in ("six-pose", "auto"):
         with pytest.raises(ValueError, match="registered already"):
-            catalog.register(catalog.Method(**{**six.__dict__, "name": taken}))
+            catalog.register(six._replace(name=taken))
     assert catalog.names().count("six-pose") == 1
 
 

@@ -7,15 +7,14 @@ row, ``core.methods.pick`` checks the labels by its family, the gate reads which
 solve, segment and the exporters read its flags, and the command line's ``--method`` choices
 and help are its names in order. A new solver is one row (:func:`register`) and its function.
 
-No numpy here, so that ``tumblecal --help`` builds its ``--method`` choices without importing
-it: a row names its function as ``"module:function"``, imported when first asked for
-(:func:`solver`)."""
+No numpy here (and no dataclasses: the rows are NamedTuples), so that ``tumblecal --help`` builds
+its ``--method`` choices without importing them: a row names its function as
+``"module:function"``, imported when first asked for (:func:`solver`)."""
 
 from __future__ import annotations
 
 import importlib
-from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, NamedTuple
 
 #: What a solver takes: each pose's mean (and spread), every sample of a capture turned through
 #: many orientations, or a gyroscope's turns in a log (fitted by pipeline.solve.turns and
@@ -25,8 +24,7 @@ TAKES = ("means", "samples", "turns")
 SENSORS = ("accelerometer", "magnetometer", "gyroscope")
 
 
-@dataclass(frozen=True)
-class NotApplying:
+class NotApplying(NamedTuple):
     """A limit that does not apply to a method (its ``limit``, as named in a limits file with
     ``_`` for ``-``), and ``why``, said in the note ``the minmax solver <why>, so the residual
     limit does not apply``."""
@@ -56,8 +54,7 @@ def check_names() -> tuple[str, ...]:
     return (*sorted(name.replace("_", "-") for name in CHECKS), *FIT_CHECKS)
 
 
-@dataclass(frozen=True)
-class Method:
+class Method(NamedTuple):
     """One solver, as everything outside it needs to know it.
 
     - ``name``: the ``--method`` and the calibration file's ``method``.

@@ -15,14 +15,15 @@ from tumblecal_cli.core import gate, model, solvers
 from tumblecal_cli.errors import InputError, control_character
 from tumblecal_cli.io.calfiles import calfile, documents
 from tumblecal_cli.io.export import formats, registry
-from tumblecal_cli.io.export.registry import Exported, ExportOptions
+from tumblecal_cli.io.export.contract import Exported, ExportOptions
 from tumblecal_cli.pipeline.options import Triplet, keywords_known, path_of, unit_block
 from tumblecal_cli.pipeline.options import limits as parse_limits
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Finding, Limits
     from tumblecal_cli.io.calfiles.calfile import Calibration
-    from tumblecal_cli.io.export.registry import ExportFormat, Importer, Peer
+    from tumblecal_cli.io.export.contract import Importer, Peer
+    from tumblecal_cli.io.export.registry import ExportFormat
 
 
 @dataclass

@@ -34,7 +34,7 @@ from tumblecal_cli.io.calfiles.calfile import (
 )
 from tumblecal_cli.io.calfiles.documents import parse_object
 from tumblecal_cli.io.calfiles.limitfile import triplet
-from tumblecal_cli.io.export.registry import Exported, Exporter, ExportOptions, Importer, Peer, Record
+from tumblecal_cli.io.export.contract import Exported, Exporter, ExportOptions, Importer, Peer, Record
 from tumblecal_cli.version import __version__
 
 #: imucal's calibration file format (imucal/calibration_info.py, _CAL_FORMAT_VERSION); its

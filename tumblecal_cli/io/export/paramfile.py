@@ -37,8 +37,8 @@ from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.quantities import COMMON, QUANTITY, factor
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.calfiles.calfile import Calibration
+from tumblecal_cli.io.export.contract import Exported, Exporter, ExportOptions
 from tumblecal_cli.io.export.formats import FLOAT32_MAX, provenance, safe_comment
-from tumblecal_cli.io.export.registry import Exported, Exporter, ExportOptions
 from tumblecal_cli.version import __version__
 
 NAMES = {"ardupilot": "ArduPilot", "px4": "PX4"}

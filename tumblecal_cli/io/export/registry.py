@@ -1,11 +1,12 @@
-"""Where an export or import format plugs in: the ``Exporter`` and ``Importer`` contracts and
-one registry of each, in the order ``--help`` lists them.
+"""Where an export or import format plugs in: one registry of each, in the order ``--help`` lists
+them (the ``Exporter`` and ``Importer`` contracts a format keeps are io.export.contract's).
 
 A row says what the command line needs to know (the name, its words in ``--help``, which of
 export's options it takes) and the module that implements it; the module is imported only when
 the format is used, so ``tumblecal --help`` reads the registry without numpy. The module holds
 ``EXPORTERS`` (or ``IMPORTERS``): the format's name to its implementation, typed by the contract
-below so that mypy checks it. A format added anywhere (a test's stand-in among them) is one
+so that mypy checks it. The rows are NamedTuples, not dataclasses: ``tumblecal --help`` reads them
+and imports no dataclasses module for them. A format added anywhere (a test's stand-in among them) is one
 ``register_export`` or ``register_import`` call before the command line is built
 (docs/development.md, "Extension points").
 """
@@ -14,94 +15,15 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Mapping
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Protocol, TypedDict
+from typing import TYPE_CHECKING, NamedTuple
 
 from tumblecal_cli.errors import InputError
 
 if TYPE_CHECKING:
-    from tumblecal_cli.core.arrays import FloatArray
-    from tumblecal_cli.io.calfiles.calfile import Calibration
+    from tumblecal_cli.io.export.contract import Exporter, Importer
 
 
-@dataclass(frozen=True)
-class ExportOptions:
-    """export's options beyond the calibration, the output and --force, as the command line or
-    ``tumblecal.export`` gives them (each checked against the format's row before it is used)."""
-
-    prefix: str | None = None
-    lsb: float | None = None
-    bits: int = 16
-    register_sign: str = "subtract"
-    gain_step: float | None = None
-    nominal_gain: str | None = None
-    instance: int | None = None
-
-
-@dataclass(frozen=True)
-class Exported:
-    """An export's text, and its notes for people (a warning starts with ``warning: ``): what an
-    autopilot's parameters cannot hold, a value outside the firmware's range."""
-
-    text: str
-    notes: tuple[str, ...] = ()
-
-
-class Exporter(Protocol):
-    """A format's writer: the text of a calibration (validated, its verdict passed or --force)
-    with the options its row takes, and notes for people; an InputError for what it cannot write."""
-
-    def __call__(self, cal: Calibration, options: ExportOptions, /) -> Exported: ...
-
-
-class Record(TypedDict, total=False):
-    """What a tumblecal export records of its calibration (``record``), as ``recorded`` reads it back."""
-
-    sensor: str
-    serial: str
-    station: str
-    operator: str
-    created: str
-    method: str
-    input_units: str
-    units: str
-    reference: float
-    columns: list[str]
-
-
-@dataclass(frozen=True)
-class Peer:
-    """A calibration read from another tool's file, in tumblecal's terms; what a tumblecal export
-    recorded in its comment (sensor, serial, units, reference, columns) where there is one."""
-
-    format: str
-    sensor: str
-    offset: FloatArray
-    matrix: FloatArray
-    units: str | None
-    input_units: str | None
-    reference: float | None
-    columns: list[str] | None
-    serial: str | None
-    notes: tuple[str, ...]
-    was: Record = field(default_factory=Record)  # what a tumblecal export recorded (see record())
-
-
-class Importer(Protocol):
-    """A peer format's reader: whether a parsed file is in it (by its keys), the calibration in
-    it, and what tumblecal takes when the file does not say (the columns, the reference)."""
-
-    def claims(self, doc: Mapping[str, object]) -> bool: ...
-
-    def read(self, doc: Mapping[str, object], path: str, sensor: str | None) -> Peer: ...
-
-    def columns(self, sensor: str) -> list[str]: ...
-
-    def reference(self, peer: Peer) -> float | None: ...
-
-
-@dataclass(frozen=True)
-class ExportFormat:
+class ExportFormat(NamedTuple):
     """One export format: its ``name`` (``--format``), its words in ``--help`` (rows in a run with the
     same words are listed together), the ``module`` whose ``EXPORTERS`` holds it, the options of
     ``ExportOptions`` it ``takes``, those it ``needs`` with why, and whether it writes a calibration's
@@ -120,8 +42,7 @@ class ExportFormat:
         return found[self.name]
 
 
-@dataclass(frozen=True)
-class ImportFormat:
+class ImportFormat(NamedTuple):
     """One import format: its ``name`` (``--from``), the file as an error names it (``described``),
     and the ``module`` whose ``IMPORTERS`` holds it."""
 
