@@ -1176,7 +1176,8 @@ def test_a_formula_in_a_logs_label_column_is_text_in_segments_csv(
 #: The time of the lot the tamperings start from (SOURCE_DATE_EPOCH), as a calibration's name has it.
 EPOCH, STAMP = "1700000000", "20231114T221320Z"
 #: The summary's columns by name (the rows below: header, A good, B good, C rejected).
-COLUMN = {"serial": 0, "status": 1, "verdict": 2, "codes": 3, "file": 4, "method": 5}
+COLUMN = {"serial": 0, "status": 1, "verdict": 2, "codes": 3, "file": 4, "method": 5, "offset_x": 6, "offset_y": 7}
+COLUMN |= {"gain_z": 11, "gain_se_y": 16}
 
 
 def cells(*edits: tuple[int, str, str]) -> Callable[[list[list[str]], Path], None]:
@@ -1283,6 +1284,10 @@ TAMPERED: dict[str, tuple[Callable[[list[list[str]], Path], None], str, int, int
         4,
         4,
     ),
+    "offset-nan": (cells((1, "offset_x", "nan")), "offset_x 'nan' is not a finite number, as a batch writes", 2, 7),
+    "gain-inf": (cells((2, "gain_z", "inf")), "gain_z 'inf' is not a finite number, as a batch writes", 3, 12),
+    "offset-text": (cells((1, "offset_y", "0x1p3")), "offset_y '0x1p3' is not a number", 2, 8),
+    "gain-se-negative": (cells((2, "gain_se_y", "-0.001")), "gain_se_y '-0.001' is a negative 1-sigma", 3, 17),
     "serial-twice": (a_row_twice, "serial A is also on line 2", 5, 1),
     "serial-a-path": (cells((3, "serial", "../C")), "serial '../C' cannot name a unit", 4, 1),
 }

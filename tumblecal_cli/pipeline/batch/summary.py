@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import io
+import math
 import os
 import re
 import stat
@@ -322,6 +323,28 @@ def _untrusted_cells(cells: Mapping[str, str]) -> tuple[str, str] | None:
     code = next((c for c in cells["codes"].split(SEPARATOR) if c and not CODE.fullmatch(c)), None)
     if code is not None:
         return "codes", f"code {code!r} is not one tumblecal writes"
+    return _untrusted_number(cells)
+
+
+#: The number columns of a row: a calibration's offsets and gains, and their 1-sigma (0 or more).
+NUMBER_COLUMNS = tuple(f"{name}_{axis}" for name in ("offset", "gain", "offset_se", "gain_se") for axis in "xyz")
+
+
+def _untrusted_number(cells: Mapping[str, str]) -> tuple[str, str] | None:
+    """The first number cell a batch cannot have written, and why: a batch writes a finite number
+    (a 1-sigma of 0 or more) or nothing, never nan, inf or text (a row edited by hand)."""
+    for column in NUMBER_COLUMNS:
+        text = cells[column]
+        if not text:
+            continue
+        try:
+            value = float(text)
+        except ValueError:
+            return column, f"{column} {text!r} is not a number"
+        if not math.isfinite(value):
+            return column, f"{column} {text!r} is not a finite number, as a batch writes"
+        if column.endswith(("_se_x", "_se_y", "_se_z")) and value < 0:
+            return column, f"{column} {text!r} is a negative 1-sigma"
     return None
 
 
