@@ -1542,6 +1542,18 @@ def test_reference_must_be_a_positive_number(
     assert_untouched(out)
 
 
+@pytest.mark.parametrize("reference", ["1e-320", "5e-324"])
+def test_reference_too_small_to_divide_by(reference: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A subnormal --reference made every gain overflow (a numpy warning, then an internal error): exit 2."""
+    out = precious(tmp_path / "cal.json")
+    r = solve(capsys, "-p", *POSES_3, f"--reference={reference}", "-o", out)
+    assert_one_error(
+        r, f"--reference {float(reference):g} is too small to divide by (the smallest is 2.23e-308)", hint="16384"
+    )
+    assert "Warning" not in r.err
+    assert_untouched(out)
+
+
 @pytest.mark.parametrize("reference", ["2048", "1"])
 def test_a_gyroscope_reference_other_than_0_is_refused(
     reference: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
 from typing import TYPE_CHECKING, cast
@@ -375,6 +376,11 @@ def settings(options: SolveOptions, *, log: bool) -> Settings:
         raise InputError(
             f"--reference must be a positive number, got {ref:g}",
             hint="the stimulus magnitude: 1 (g), 9.80665 (m/s^2), 16384 (counts); 0 only for --sensor gyroscope",
+        )
+    if 0 < ref < sys.float_info.min:  # subnormal: the gains (readings / reference) overflow
+        raise InputError(
+            f"--reference {ref:g} is too small to divide by (the smallest is {sys.float_info.min:.3g})",
+            hint="the stimulus magnitude in the corrected output's units: 1 (g), 9.80665 (m/s^2), 16384 (counts)",
         )
     if sensor == "gyroscope" and ref != 0:  # at rest it reads no rate, and turns give their own angles
         raise InputError(
