@@ -569,7 +569,8 @@ def test_solve_log_streamed_is_the_whole_reads_calibration(
     """The calibration the same to 1e-12 either way, and every other number of its file to 1e-9:
     the two reads sum a block's readings in another order (a block's axes apart when streamed),
     which moves a figure found by cancellation (the tilt sensitivities: 6e-11) more than it
-    moves the readings' means (1e-16 of their scale)."""
+    moves the readings' means (1e-16 of their scale). ``created`` pinned: two runs may straddle a second."""
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1767225600")
     path = session(130_000)
     r = run(capsys, "solve", "-q", "--log", str(path), "-o", str(tmp_path / "streamed.json"))
     assert r.code == 0, r.err
