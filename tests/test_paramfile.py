@@ -32,6 +32,7 @@ from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.calfiles import calfile
 from tumblecal_cli.io.calfiles.calfile import Calibration, Unit
 from tumblecal_cli.io.export import paramfile
+from tumblecal_cli.io.export.contract import Exported
 from tumblecal_cli.pipeline import exchange
 
 G = 9.80665
@@ -253,7 +254,7 @@ def raw_readings(cal: Calibration, n: int = 500, seed: int = 3) -> np.ndarray:
     return raw
 
 
-def through_firmware(cal: Calibration, fmt: str, instance: int) -> tuple[np.ndarray, np.ndarray, paramfile.ParamFile]:
+def through_firmware(cal: Calibration, fmt: str, instance: int) -> tuple[np.ndarray, np.ndarray, Exported]:
     """(what the firmware makes of raw readings with the exported parameters, in the
     calibration's units; what Calibration.apply makes of them; the file)."""
     written = paramfile.write(cal, fmt, instance)

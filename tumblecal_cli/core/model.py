@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tumblecal_cli.core import catalog
 from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.quantities import REFERENCE_UNITS
 from tumblecal_cli.core.running import Summary
@@ -40,7 +41,7 @@ FACES: dict[str, tuple[float, float, float]] = {
 FACE_ALIASES = {f"{axis}{s}": f"{sign}{axis}" for axis in "xyz" for s, sign in (("p", "+"), ("n", "-"))}
 
 #: The sensors tumblecal calibrates, in the order reports list them.
-SENSORS = ("accelerometer", "magnetometer", "gyroscope")
+SENSORS = catalog.SENSORS  # the sensors there are (core.catalog: numpy-free, for the command line)
 
 #: A 1-pose magnitude further than this fraction from ``reference`` is a units mistake.
 UNITS_TOLERANCE = 0.25

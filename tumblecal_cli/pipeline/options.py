@@ -15,7 +15,7 @@ import re
 import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
-from typing import TYPE_CHECKING, cast
+from typing import TYPE_CHECKING, TypedDict, cast
 
 from tumblecal_cli.core import catalog, gate, model
 from tumblecal_cli.core.model import SENSORS
@@ -168,7 +168,18 @@ FLAT: dict[str, tuple[str, str]] = {
 }
 
 
-class SolveKeywords(ReadKeywords, total=False):
+class CutKeywords(TypedDict, total=False):
+    """How a continuous log is cut into still blocks (LogOptions), as solve and segment take it."""
+
+    window: float | None
+    threshold: float | None
+    min_duration: float | None
+    trim: float | None
+    pose_column: str | None
+    pose_map: str | Mapping[str, str] | None
+
+
+class SolveKeywords(ReadKeywords, CutKeywords, total=False):
     """solve's and solve_log's keyword options (and run_batch's ``options``): the command line's
     long options in snake case, each a flat name of :data:`FLAT` (how the file is read:
     ``ReadKeywords``)."""
@@ -185,13 +196,7 @@ class SolveKeywords(ReadKeywords, total=False):
     location: str | None
     gravity: float | None
     date: str | None
-    # how a continuous log is cut (LogOptions)
-    window: float | None
-    threshold: float | None
-    min_duration: float | None
-    trim: float | None
-    pose_column: str | None
-    pose_map: str | Mapping[str, str] | None
+    # how a continuous log is cut (LogOptions): CutKeywords, and
     turns: str | Mapping[str, str] | None
     turn_angle: float | None
     accel_cal: str | os.PathLike[str] | None

@@ -40,6 +40,7 @@ from tumblecal_cli.io.outputs import (
 from tumblecal_cli.io.readspec import ReadKeywords, ReadSpec, read_spec
 from tumblecal_cli.pipeline.frames import in_memory, written_table
 from tumblecal_cli.pipeline.options import (
+    CutKeywords,
     keywords_known,
     path_of,
     size_option,
@@ -565,15 +566,9 @@ class Segmented:
         return written_table(self.index)
 
 
-class SegmentKeywords(ReadKeywords, total=False):
-    """segment's options beside how the log is read (docs/commands/segment.md)."""
+class SegmentKeywords(ReadKeywords, CutKeywords, total=False):
+    """segment's options beside how the log is read and cut (docs/commands/segment.md)."""
 
-    window: float | None
-    threshold: float | None
-    min_duration: float | None
-    trim: float | None
-    pose_column: str | None
-    pose_map: str | Mapping[str, str] | None
     max_noise: float
     max_tilt: float
     nominal_offset: str | float | list[float] | None

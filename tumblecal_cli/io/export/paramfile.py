@@ -67,21 +67,12 @@ ARDUPILOT_SCALE = 1.0e6
 COMPASS_OFFS_MAX = 1800.0
 
 
-@dataclass(frozen=True)
-class ParamFile:
-    """A parameter file's text, and what people should hear of it on stderr: warnings (what the
-    firmware cannot hold, a value outside its range) start with ``warning: ``."""
-
-    text: str
-    notes: tuple[str, ...]
-
-
 def instance_range(fmt: str, cal: Calibration) -> tuple[int, int]:
     """The --instance numbers ``fmt`` has for this calibration (docs/commands/export-import.md)."""
     return INSTANCES[fmt, cal.thermal is not None]
 
 
-def write(cal: Calibration, fmt: str, instance: int | None) -> ParamFile:
+def write(cal: Calibration, fmt: str, instance: int | None) -> Exported:
     """The parameter file of ``cal`` for ``fmt`` (ardupilot, px4): its thermal block's drift
     where it has one, else its offsets and scales; ``instance`` None is the firmware's first."""
     low, high = instance_range(fmt, cal)
@@ -259,7 +250,7 @@ def _factors(cal: Calibration, fmt: str) -> tuple[float, float, list[str]]:
 # -- ArduPilot ----------------------------------------------------------------------------------
 
 
-def _ardupilot(cal: Calibration, n: int) -> ParamFile:
+def _ardupilot(cal: Calibration, n: int) -> Exported:
     """INS_ACC<n>OFFS/SCAL, INS_GYR<n>OFFS or COMPASS_OFS<n>/DIA<n>/ODI<n>/SCALE<n> as NAME,VALUE."""
     m = mapped(cal, "ardupilot")
     s = "" if n == 1 else str(n)
@@ -328,13 +319,13 @@ def _ardupilot(cal: Calibration, n: int) -> ParamFile:
     ]
     lines = comments(head + [x.removeprefix("warning: ") for x in notes if x not in m.notes])
     lines += [f"{name},{_value(value, name, cal.path)}" for name, value in params]
-    return ParamFile("\n".join(lines) + "\n", _with_loss(m, notes))
+    return Exported("\n".join(lines) + "\n", _with_loss(m, notes))
 
 
 # -- PX4 ----------------------------------------------------------------------------------------
 
 
-def _px4(cal: Calibration, n: int) -> ParamFile:
+def _px4(cal: Calibration, n: int) -> Exported:
     """CAL_ACC<n>_xOFF/xSCALE, CAL_GYRO<n>_xOFF or CAL_MAG<n>_xOFF/xSCALE/xODIAG in
     QGroundControl's parameter-file layout."""
     m = mapped(cal, "px4")
@@ -387,7 +378,7 @@ def _px4(cal: Calibration, n: int) -> ParamFile:
     lines += [f"1\t1\t{name}\t{_value(value, name, cal.path)}\t9" for name, value in params]
     if cal.current is not None:  # int32 (type 6): 2, the current of battery instance 0
         lines.append("1\t1\tCAL_MAG_COMP_TYP\t2\t6")
-    return ParamFile("\n".join(lines) + "\n", _with_loss(m, notes))
+    return Exported("\n".join(lines) + "\n", _with_loss(m, notes))
 
 
 # -- current compensation (docs/current.md) ---------------------------------------------------
@@ -497,10 +488,10 @@ def _gain_note(cal: Calibration) -> list[str]:
     return [f"gain drift NOT written (the firmware has no temperature-dependent scale): largest {figures}"]
 
 
-def _thermal(cal: Calibration, fmt: str, n: int) -> ParamFile:
+def _thermal(cal: Calibration, fmt: str, n: int) -> Exported:
     lost = _gain_note(cal)
     text = _ardupilot_thermal(cal, n, lost) if fmt == "ardupilot" else _px4_thermal(cal, n, lost)
-    return ParamFile(text, tuple(f"warning: {line}" for line in lost))
+    return Exported(text, tuple(f"warning: {line}" for line in lost))
 
 
 def _ardupilot_thermal(cal: Calibration, instance: int, lost: list[str]) -> str:
@@ -579,13 +570,11 @@ def _px4_thermal(cal: Calibration, instance: int, lost: list[str]) -> str:
 
 
 def export_ardupilot(cal: Calibration, options: ExportOptions) -> Exported:
-    written = write(cal, "ardupilot", options.instance)
-    return Exported(written.text, written.notes)
+    return write(cal, "ardupilot", options.instance)
 
 
 def export_px4(cal: Calibration, options: ExportOptions) -> Exported:
-    written = write(cal, "px4", options.instance)
-    return Exported(written.text, written.notes)
+    return write(cal, "px4", options.instance)
 
 
 #: The export formats of this module, by their names in io.export.registry.EXPORTS.
