@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
+import re
 import signal
-from collections.abc import Mapping
+import warnings
+from collections.abc import Iterator, Mapping
 from typing import NamedTuple
 
 #: A fact that words about the command line take: a number or a name.
@@ -141,3 +144,26 @@ def control_character(text: str) -> str | None:
 def one_line(text: str) -> str:
     """``text`` as one line: a file or column name holding a line break (or a NUL) shown escaped."""
     return text.translate(_BREAKS)
+
+
+#: numpy's floating-point warnings (np.errstate's "warn"): a figure went inf or NaN on the way.
+_FLOATING = r"(overflow|invalid value|divide by zero|underflow) encountered"
+
+
+@contextlib.contextmanager
+def numbers_checked() -> Iterator[None]:
+    """numpy's floating-point warnings raised as an InputError: a figure that went inf or NaN
+    leaves neither a warning on stderr nor a non-finite number with exit 0. Code that means to
+    pass NaN through says so with ``np.errstate(invalid="ignore")``, which issues no warning."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("error", message=_FLOATING, category=RuntimeWarning)
+        try:
+            yield
+        except RuntimeWarning as err:
+            if re.match(_FLOATING, str(err)) is None:
+                raise
+            raise InputError(
+                f"a figure came out non-finite ({err}): a number in the inputs or the options is too large "
+                "or too small to compute with",
+                hint="look for an extreme value in the calibration (tumblecal show CAL), the capture or the options",
+            ) from err

@@ -20,7 +20,7 @@ import typer
 from typer.core import TyperCommand, TyperOption
 
 from tumblecal_cli.cli.flags import EXIT_CODES
-from tumblecal_cli.errors import STOPS, Interrupted, PipeClosed, TumblecalError, one_line
+from tumblecal_cli.errors import STOPS, Interrupted, PipeClosed, TumblecalError, numbers_checked, one_line
 from tumblecal_cli.version import __version__
 
 if TYPE_CHECKING:
@@ -273,7 +273,7 @@ def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else list(argv)
     render.json_printed(reset=True)
     try:
-        with _term_as_interrupt():  # a station's or scheduler's kill: outputs cleaned up as for Ctrl-C
+        with _term_as_interrupt(), numbers_checked():  # a kill cleans up as Ctrl-C; numpy's warnings as ours
             named = args[0] if args and not args[0].startswith("-") else None
             result = _command(named).main(args=argv, prog_name="tumblecal", standalone_mode=False)
         sys.stdout.flush()  # a reader that stopped early (`| head`) is found here, not at exit

@@ -11,6 +11,7 @@ import shlex
 import shutil
 import stat
 import sys
+import time
 from collections.abc import Iterable, Iterator
 from typing import IO
 
@@ -199,7 +200,38 @@ def _stream_for(path: str) -> contextlib.AbstractContextManager[IO[bytes]] | Non
         return None
     if stat.S_ISDIR(mode):
         raise InputError("is a folder: an output is a file name", file=path)
+    if stat.S_ISFIFO(mode):
+        return _fifo(path)
     return None if stat.S_ISREG(mode) else _opened(path, "wb")
+
+
+#: How long an output that is a named pipe waits for a reader (open(2) would block for ever, and
+#: a station script could not tell a hung run from a slow one).
+FIFO_WAIT = 30.0
+
+
+@contextlib.contextmanager
+def _fifo(path: str) -> Iterator[IO[bytes]]:
+    """A named pipe opened for writing once a reader has it open, waiting at most FIFO_WAIT
+    seconds (a non-blocking open fails with ENXIO until then); then written as a blocking stream."""
+    deadline = time.monotonic() + FIFO_WAIT
+    while True:
+        try:
+            fd = os.open(path, os.O_WRONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+            break
+        except OSError as err:
+            if err.errno != errno.ENXIO:
+                raise InputError(f"cannot write: {err.strerror}", file=path) from None
+            if time.monotonic() >= deadline:
+                raise InputError(
+                    f"a named pipe with no reader after {FIFO_WAIT:g} s: nothing would take the output",
+                    file=path,
+                    hint="start its reader first (or write to a file)",
+                ) from None
+            time.sleep(0.05)
+    os.set_blocking(fd, True)
+    with _stream_errors(path), os.fdopen(fd, "wb") as stream:
+        yield stream
 
 
 @contextlib.contextmanager
@@ -281,25 +313,59 @@ _SWEPT: set[str] = set()
 TEMPORARY = re.compile(r"\..+\.(\d+)-[A-Za-z0-9_]{8}\.tmp")
 
 
+#: A temporary file or staging folder this much older than now is a dead writer's whatever its pid
+#: says (a writer in another PID namespace, a container's, whose pid is a live process here).
+STALE_AGE = 24 * 3600.0
+#: An entry last written this long before its pid's process started is not that process's (the
+#: margin: a network file system's clock, which stamps the time, may run behind this machine's).
+SKEW = 600.0
+
+
 def remove_stale(folder: str, pattern: re.Pattern[str] = TEMPORARY) -> list[str]:
     """Remove what a killed tumblecal left in ``folder``: only entries whose whole name matches
     ``pattern`` (tumblecal's own naming, its first group the writer's pid: temporary files of
-    atomic outputs by default, a batch's or a segment run's staging) and whose process is gone on
-    this machine; never anybody else's, never a running process's. The names removed."""
+    atomic outputs by default, a batch's or a segment run's staging), and of those only a dead
+    writer's: its process gone on this machine, or the entry older than the process that now has
+    its pid (a pid taken again, or another PID namespace's), or not written for STALE_AGE. Never
+    anybody else's, never a running writer's. The names removed."""
     removed = []
     with contextlib.suppress(OSError):
         for entry in os.listdir(folder):
             found = pattern.fullmatch(entry)
-            if found is None or int(found.group(1)) == os.getpid() or alive(int(found.group(1))):
+            if found is None or int(found.group(1)) == os.getpid():
                 continue
             path = os.path.join(folder, entry)
             with contextlib.suppress(OSError):
+                if not _dead_writer(int(found.group(1)), os.lstat(path).st_mtime):
+                    continue
                 if os.path.isdir(path) and not os.path.islink(path):
                     shutil.rmtree(path)
                 else:
                     os.unlink(path)
                 removed.append(entry)
     return removed
+
+
+def _dead_writer(pid: int, written: float) -> bool:
+    """Whether the writer whose pid an entry carries, last written at ``written`` (its mtime, which
+    is no earlier than when it was made), is gone: no such process, one started after the entry
+    was last written (so not its writer), or an entry left unwritten for STALE_AGE."""
+    if not alive(pid) or time.time() - written > STALE_AGE:
+        return True
+    started = started_at(pid)
+    return started is not None and written < started - SKEW
+
+
+def started_at(pid: int) -> float | None:
+    """When process ``pid`` started (seconds since the epoch), from /proc; None where unknown."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            fields = f.read().rpartition(b")")[2].split()  # after the command's name, which may hold spaces
+        with open("/proc/stat", "rb") as f:
+            boot = next(int(ln.split()[1]) for ln in f if ln.startswith(b"btime "))
+        return boot + int(fields[19]) / os.sysconf("SC_CLK_TCK")  # field 22 of stat(5): start time in ticks
+    except (OSError, ValueError, IndexError, StopIteration):
+        return None
 
 
 def alive(pid: int) -> bool:

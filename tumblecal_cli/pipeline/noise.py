@@ -263,6 +263,7 @@ def _noise(path: str, options: NoiseKeywords) -> Noise:
         allan.Figures(*(getattr(f, n).scaled(s) for n, s in zip(allan.NAMES, scale, strict=True)))
         for f in allan.figures(curve)
     ]
+    _all_finite(name, curve, axes)
     result = Noise(0, name, kind, hz, curve.samples, data_units, choice, figure_units, curve, axes, bounds)  # type: ignore[arg-type]
     result.notes, result.clock = notes, loaded.clock
     result.rejected = [f"{name}: {m.message()}" for m in watch.verdict()]
@@ -275,6 +276,22 @@ def _noise(path: str, options: NoiseKeywords) -> Noise:
             result.short = err
     result.status = 3 if result.error else 1 if result.failures else 0
     return result
+
+
+def _all_finite(name: str, curve: allan.Curve, axes: list[allan.Figures]) -> None:
+    """Every figure a number: readings near the bound tumblecal computes with (a calibration's
+    offset of 1e150) make sums of squares overflow, and inf or NaN would leave with exit 0."""
+    for axis, figs in zip("xyz", axes, strict=True):
+        for what, f in zip(allan.NAMES, (figs.noise_density, figs.bias_instability, figs.random_walk), strict=True):
+            if any(v is not None and not math.isfinite(v) for v in (f.value, f.uncertainty)):
+                raise InputError(
+                    f"the {what.replace('_', ' ')} of {axis} came out {f.value}: the readings are too large to "
+                    "compute an Allan deviation with",
+                    file=name,
+                    hint="check --cal is this sensor's, and the capture's units",
+                )
+    if not np.isfinite(curve.adev).all():
+        raise InputError("the Allan deviation came out non-finite: the readings are too large", file=name)
 
 
 def _stream_units(path: str, spec: ReadSpec) -> str | None:

@@ -270,8 +270,10 @@ def _units(name: str, c: Calibration, raw: float, norm: float, ref: float) -> No
         hint = f"the calibration's poses read about {typical:.4g} in raw magnitude, this capture {raw:.4g}: {hint}"
     if c.sensor == "magnetometer":
         hint += "; where the field differs from the calibration's, give it with --reference"
+    off = norm / ref - 1
+    away = f"{off:+.0%} from" if abs(off) < 100 else f"{norm / ref:.3g} times"  # not 150 digits of %
     raise InputError(
-        f"corrected magnitude {norm:.4g} is {norm / ref - 1:+.0%} from the reference {ref:g}: a units mistake, "
+        f"corrected magnitude {norm:.4g} is {away} the reference {ref:g}: a units mistake, "
         "or another sensor's calibration?",
         file=name,
         hint=hint,

@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike
 from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.current_fit import correct as current_correct
 from tumblecal_cli.core.drift import correct as thermal_correct
-from tumblecal_cli.core.model import SENSORS, Solution, parse_label
+from tumblecal_cli.core.model import MAX_READING, SENSORS, Solution, parse_label
 from tumblecal_cli.core.model import apply as apply_model
 from tumblecal_cli.errors import InputError, control_character
 from tumblecal_cli.io.calfiles.calparts import (
@@ -653,7 +653,7 @@ def validate(doc: Doc, path: str) -> Calibration:
         raise InputError(f"field 'columns' must name three different columns, got {', '.join(columns)}", file=path)
     vector_field(doc["gain"], "gain", path)  # required by the contract, so validated like offset
     _optional_fields(doc, path)
-    vector_field(doc["offset"], "offset", path)
+    offset_field(doc["offset"], "offset", path)
     invertible(_matrix(doc["matrix"], "matrix", path), path)
     return from_dict(doc, path)
 
@@ -769,6 +769,20 @@ def vector_field(value: object, name: str, path: str | None) -> FloatArray:
     if not (isinstance(value, list) and len(value) == 3):
         raise InputError(f"field {name!r} must be a list of 3 numbers", file=path)
     return np.array([number_field(v, name, path) for v in value])
+
+
+def offset_field(value: object, name: str, path: str) -> FloatArray:
+    """An offset is a reading (core.model.MAX_READING bounds both): past it, the corrected
+    readings' squares overflow and every figure made from them comes out inf or NaN."""
+    offset = vector_field(value, name, path)
+    largest = float(np.abs(offset).max())
+    if largest > MAX_READING:
+        raise InputError(
+            f"field {name!r} has an entry of {largest:.3g}: beyond any reading tumblecal computes with "
+            f"(|reading| <= {MAX_READING:g})",
+            file=path,
+        )
+    return offset
 
 
 def invertible(matrix: FloatArray, path: str, name: str = "matrix") -> FloatArray:

@@ -141,11 +141,14 @@ class DataStream(io.RawIOBase):
 class Capture:
     """An opened capture: its layout and a one-shot stream of its data section."""
 
-    def __init__(self, layout: Layout, stream: Source, path: str | None, hasher: Hasher) -> None:
+    def __init__(
+        self, layout: Layout, stream: Source, path: str | None, hasher: Hasher, stamp: Stamp | None = None
+    ) -> None:
         self.layout = layout
         self._stream = stream  # pyarrow's own file reader, or a DataStream
         self._path = path  # None for stdin: no second pass is possible
         self._hasher = hasher
+        self._stamp = stamp  # the file as it was opened (a regular file's), for unchanged()
 
     @property
     def path(self) -> str | None:
@@ -168,6 +171,27 @@ class Capture:
             return str(self._hasher.hexdigest())
         with open(self._path, "rb") as f:
             return hashlib.file_digest(f, "sha256").hexdigest()
+
+    def unchanged(self) -> None:
+        """Raise an InputError if the file is not the one opened: another file now (its inode),
+        shorter, or of the same size written since (its time). Rows read from a file truncated
+        or rewritten while it was read are not the file's, and an output made of them would be
+        short with nothing said; a file that grew (a logger still writing) was read as it was."""
+        if self._stamp is None or self._path is None:
+            return
+        try:
+            now = _stamp(os.stat(self._path))
+        except OSError:
+            now = None
+        was = self._stamp
+        if now is None or now[:2] != was[:2] or now[2] < was[2] or (now[2] == was[2] and now[3] != was[3]):
+            size = "gone" if now is None else f"{now[2]:,} bytes"
+            raise InputError(
+                f"the file changed while it was read ({was[2]:,} bytes when opened, now {size}): what was read "
+                "is not the file",
+                file=self.layout.name,
+                hint="correct it once it is written whole (copy it aside first if a logger still writes it)",
+            )
 
     def close(self) -> None:
         self._stream.close()
@@ -389,6 +413,7 @@ def open_capture(
             hint=f"--stream picks a stream of a log ({sources.kinds()}); --columns and --sensor pick a CSV's",
         )
     f, first, hasher, kind, regular = _opened(path, name)
+    stamp = _stamp(os.stat(path)) if regular else None  # (a compressed file's f is its decompressor)
     try:
         layout, consumed = sniff(name, first, at_eof=len(first) < HEAD_BYTES, no_header=spec.no_header, dialect=dialect)
         layout.sensor, layout.time = pick_columns(layout, sensor, columns, prefer, time_column)
@@ -421,7 +446,15 @@ def open_capture(
         owns = path != "-" or kind is not None
         stream = DataStream(first[consumed:], f, read, squeeze=squeeze, owns=owns, drop_last=drop)
     layout.compression = kind
-    return Capture(layout, stream, path if regular else None, hasher)  # a pipe is read once
+    return Capture(layout, stream, path if regular else None, hasher, stamp)  # a pipe is read once
+
+
+#: A file as opened: (device, inode, size, modification time in ns).
+Stamp: TypeAlias = tuple[int, int, int, int]
+
+
+def _stamp(st: os.stat_result) -> Stamp:
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
 
 
 class _Unhashed:

@@ -104,6 +104,7 @@ def correct_stream(
             rows = _stream_spliced(cap, splicer, convert, write)
         else:
             rows = _pipeline((functools.partial(convert, cap, first, cols) for first, cols in cap.batches()), write)
+        cap.unchanged()  # truncated while read: a short output with exit 0 otherwise
     except InputError:
         if not head:  # rows are out (to stdout, which cannot take them back): say it is not all
             out.write(INCOMPLETE)
