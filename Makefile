@@ -60,7 +60,7 @@ check: $(VENV)/.installed
 FUZZ_CASES ?= 3000
 FUZZ_SEED ?= 1
 fuzz: $(VENV)/.installed
-	$(BIN)/python tests/fuzz.py --cases $(FUZZ_CASES) --seed $(FUZZ_SEED)
+	$(BIN)/python tests/fuzz.py --cases $(FUZZ_CASES) --seed $(FUZZ_SEED) $(if $(FUZZ_ONLY),--only $(FUZZ_ONLY))
 
 # `make bench AGAINST=REV`: each command of this tree against git revision REV's, in turns (a change's cost)
 # polars is the baseline `apply`, `segment` and `solve --log` are measured against (the scripts a user

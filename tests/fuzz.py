@@ -4,12 +4,18 @@ Each case takes one of the project's own good files (a pose capture, a calibrati
 in YAML, a limits file, a peer's calibration), mutates it with a seeded random generator (bytes
 flipped, inserted or cut, lines duplicated or dropped, cells replaced by huge, empty, non-finite
 or non-UTF-8 text, control characters, the file truncated), and runs the commands that read that
-kind of file in-process. It passes when every run ends in a documented exit status (0, 1, 2, 3)
+kind of file in-process. The binary logs (ULog, DataFlash binary and text, ROS 1 bags with lz4 and
+bz2 chunks, MCAP with zstd chunks) and compressed CSV are mutated by their framing as well
+(tests/fuzz_binary.py: declared counts, lengths and offsets, definitions given twice, compression
+claims, chunks that inflate to gigabytes). Every case runs in a worker process under an
+address-space limit (``LIMIT``, 3 GiB) and a time limit (``TIMEOUT``): a reader that allocates
+what a file declares, or inflates without a bound, is a failure, not a machine that swaps. It
+passes when every run ends in a documented exit status (0, 1, 2, 3)
 with no internal error, no traceback, every error on one line, and an existing output either left
 byte for byte (exit 2 or 3) or replaced whole. A failing case is written to ``fuzz-failures/``
 with the command that broke, for a test of its own.
 
-    python tests/fuzz.py [--cases 3000] [--seed 1]
+    python tests/fuzz.py [--cases 3000] [--seed 1] [--only log.ulg]
 """
 
 from __future__ import annotations
@@ -17,8 +23,13 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
+import json
+import os
 import random
+import resource
+import select
 import shutil
+import subprocess
 import sys
 import tempfile
 import time
@@ -27,6 +38,13 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLE = ROOT / "sample_data"
+sys.path.insert(0, str(ROOT))  # (run as a script: the tests' writers are imported as tests.*)
+#: Each case's worker: its address space (bytes) and the seconds a case may take.
+LIMIT = 3 << 30
+TIMEOUT = 60.0
+#: A case whose worker's peak resident memory passes this read more than a small log holds (the
+#: worker is then started afresh, as the peak only grows).
+CEILING = 1 << 30
 
 #: Cells worth trying in a CSV or a JSON/YAML number's place.
 NASTY = [
@@ -141,6 +159,7 @@ def seeds(folder: Path) -> dict[str, tuple[bytes, list[list[str]]]]:
         "limits.yaml": ((SAMPLE / "limits.yaml").read_bytes(), [["check", "{cal}", "--limits", "{f}"]]),
         "ros.yaml": ((folder / "ros.yaml").read_bytes(), [["import", "{f}", "-o", "{out}"]]),
         "log.csv": (_tumble_log(), [["segment", "{f}"], ["solve", "--log", "{f}", "-o", "{out}"]]),
+        **{name: (data, LOG_COMMANDS) for name, data in _binary_seeds(folder).items()},
         "cals/summary.csv": (
             _summary(folder),
             [["batch", str(folder / "units"), "-d", str(folder / "cals"), "--resume"]],
@@ -181,6 +200,51 @@ def _tumble_log() -> bytes:
     return ("t,x,y,z\n" + "\n".join(lines) + "\n").encode()
 
 
+#: What reads a log of any format.
+LOG_COMMANDS = [
+    ["logs", "{f}"],
+    ["segment", "{f}"],
+    ["solve", "--log", "{f}", "-o", "{out}"],
+    ["noise", "{f}"],
+]
+
+
+def _binary_seeds(folder: Path) -> dict[str, bytes]:
+    """A good log of each binary format (and the tumble log compressed), by its file name."""
+    from tests import fuzz_binary
+
+    ulog = fuzz_binary.ulog_seed()
+    binary, text = fuzz_binary.dataflash_seed(folder)
+    return {
+        "log.ulg": ulog,
+        "log.bin": binary,
+        "log.log": text,
+        **fuzz_binary.ros_seeds(folder),
+        **fuzz_binary.compressed_seeds(_tumble_log()),
+    }
+
+
+def mutated(name: str, data: bytes, rng: random.Random) -> bytes:
+    """``data`` of kind ``name`` mutated: a binary kind by its framing four times in five, else (and
+    every text kind) by the byte and line edits of :func:`mutate`."""
+    from tests import fuzz_binary
+
+    framed = {
+        ".ulg": fuzz_binary.ulog_mutate,
+        ".bin": fuzz_binary.dataflash_mutate,
+        ".log": fuzz_binary.dataflash_text_mutate,
+        ".bag": fuzz_binary.bag_mutate,
+        ".mcap": fuzz_binary.mcap_mutate,
+        ".gz": fuzz_binary.compressed_mutate,
+        ".bz2": fuzz_binary.compressed_mutate,
+        ".xz": fuzz_binary.compressed_mutate,
+        ".zst": fuzz_binary.compressed_mutate,
+    }.get(Path(name).suffix)
+    if framed is not None and rng.random() < 0.8:
+        return framed(data, rng)
+    return mutate(data, rng)
+
+
 #: The kind whose pose files are read as long ones: summed in blocks of a few rows.
 LONG_POSE = "long_pose.csv"
 
@@ -218,7 +282,7 @@ def _one(folder: Path, name: str, data: bytes, command: list[str], main: Callabl
     text = err.getvalue()
     if code not in (0, 1, 2, 3):
         return f"exit {code}"
-    if "internal error" in text or "Traceback" in text:
+    if "internal error" in text or "Traceback" in text or "MemoryError" in text:
         return text.strip().splitlines()[0]
     errors = [line for line in text.splitlines() if line.startswith("error:")]
     # a batch's status is its units' (a rejected unit kept from the summary is 3): its own error
@@ -234,30 +298,113 @@ def _one(folder: Path, name: str, data: bytes, command: list[str], main: Callabl
     return None
 
 
+class Worker:
+    """A process that runs cases (``fuzz.py --worker FOLDER``) under the address-space limit, one
+    at a time: a case is a line on its stdin, its verdict a line on file descriptor 3. One that
+    dies or takes over TIMEOUT is the case's failure, and is started again."""
+
+    def __init__(self, folder: Path) -> None:
+        self.folder = folder
+        self.proc: subprocess.Popen[bytes] | None = None
+
+    def _start(self) -> None:
+        read, write = os.pipe()
+        self.proc = subprocess.Popen(
+            [sys.executable, __file__, "--worker", str(self.folder)],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            pass_fds=(write,),
+            preexec_fn=_limited,
+            env={**os.environ, "TUMBLECAL_FUZZ_FD": str(write), "PYTHONPATH": str(ROOT)},
+        )
+        os.close(write)
+        self.replies = os.fdopen(read, "rb")
+
+    def run(self, name: str, data: bytes, command: list[str]) -> str | None:
+        if self.proc is None or self.proc.poll() is not None:
+            self._start()
+        assert self.proc is not None
+        assert self.proc.stdin is not None
+        case = self.folder / "case.bin"
+        case.write_bytes(data)
+        self.proc.stdin.write(json.dumps({"name": name, "command": command}).encode() + b"\n")
+        self.proc.stdin.flush()
+        began = time.monotonic()
+        ready, _, _ = select.select([self.replies], [], [], TIMEOUT)
+        line = self.replies.readline() if ready else b""
+        if line:
+            reply = json.loads(line)
+            wrong: str | None = reply["wrong"]
+            if wrong is None and reply["rss"] > CEILING:
+                self.stop()
+                wrong = f"peak memory {reply['rss'] >> 20} MiB, over {CEILING >> 20} MiB"
+            return wrong
+        took = time.monotonic() - began
+        self.stop()
+        if not ready:
+            return f"took over {TIMEOUT:g} s (killed)"
+        return (
+            f"the worker died after {took:.1f} s (exit {self.proc.returncode}: out of memory under {LIMIT >> 30} GiB?)"
+        )
+
+    def stop(self) -> None:
+        if self.proc is not None:
+            self.proc.kill()
+            self.proc.wait()
+            self.replies.close()
+            self.proc = None
+
+
+def _limited() -> None:
+    resource.setrlimit(resource.RLIMIT_AS, (LIMIT, LIMIT))
+
+
+def worker(folder: Path) -> int:
+    """The worker's loop: each case line run in-process, its verdict written back."""
+    out = os.fdopen(int(os.environ["TUMBLECAL_FUZZ_FD"]), "w")
+    for line in sys.stdin:
+        case = json.loads(line)
+        data = (folder / "case.bin").read_bytes()
+        wrong = one(folder, case["name"], data, case["command"])
+        rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # (KiB on Linux)
+        out.write(json.dumps({"wrong": wrong, "rss": rss}) + "\n")
+        out.flush()
+    return 0
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", type=int, default=3000)
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--only", action="append", help="only the kinds named (log.ulg, pose.csv, ...)")
+    parser.add_argument("--worker", type=Path, help=argparse.SUPPRESS)
     given = parser.parse_args()
+    if given.worker is not None:
+        return worker(given.worker)
     rng = random.Random(given.seed)
     failures = 0
     started = time.monotonic()
     with tempfile.TemporaryDirectory(prefix="tumblecal-fuzz-") as tmp:
         folder = Path(tmp)
         kinds = seeds(folder)
-        names = sorted(kinds)
-        for case in range(given.cases):
-            name = names[case % len(names)]
-            good, commands = kinds[name]
-            data = mutate(good, rng)
-            command = rng.choice(commands)
-            wrong = one(folder, name, data, command)
-            if wrong is not None:
-                failures += 1
-                keep = ROOT / "fuzz-failures"
-                keep.mkdir(exist_ok=True)
-                (keep / f"case{case:05d}-{name.replace('/', '-')}").write_bytes(data)
-                print(f"case {case} ({name}, {' '.join(command)}): {wrong}")
+        names = sorted(n for n in kinds if not given.only or n in given.only)
+        runner = Worker(folder)
+        try:
+            for case in range(given.cases):
+                name = names[case % len(names)]
+                good, commands = kinds[name]
+                data = mutated(name, good, rng)
+                command = rng.choice(commands)
+                wrong = runner.run(name, data, command)
+                if wrong is not None:
+                    failures += 1
+                    keep = ROOT / "fuzz-failures"
+                    keep.mkdir(exist_ok=True)
+                    (keep / f"case{case:05d}-{name.replace('/', '-')}").write_bytes(data)
+                    print(f"case {case} ({name}, {' '.join(command)}): {wrong}", flush=True)
+        finally:
+            runner.stop()
     took = time.monotonic() - started
     print(f"{given.cases} cases, seed {given.seed}: {failures} failed, {took:.0f} s")
     shutil.rmtree(ROOT / "fuzz-failures", ignore_errors=True) if not failures else None
