@@ -25,12 +25,15 @@ def rows(out: str) -> dict[str, dict[str, str]]:
 
 
 def test_report_csv_on_stdout_table_on_stderr(capsys: pytest.CaptureFixture[str]) -> None:
-    # 30 units are too few to judge outliers at the default --outlier-alpha (docs/lot-report.md)
+    # 30 units are judged at the default --outlier-alpha, the power said (docs/lot-report.md)
     code, out, err = run(capsys, "report", str(LOT), "--limits", str(LIMITS))
-    assert code == 1, err  # SN0013 is outside the limits
-    assert rows(out)["offset.x"]["outliers"] == ""
-    assert rows(out)["offset.x"]["outlier_rule"] == "not judged: 30 units < 36"
-    assert "outliers: not judged (30 units; 36 needed to catch 6σ 95% of the time)" in err
+    assert code == 1, err  # SN0013 is outside the limits, and an outlier
+    assert rows(out)["offset.x"]["outliers"] == "SN0013=7.4"
+    assert rows(out)["offset.x"]["outlier_rule"] == "|t|>5 (alpha 0.005 over 180)"
+    assert (
+        "outliers: |t| > 5 vs the other units (false alarms 0.005 per lot, 180 unit-figures; a unit 6σ off, "
+        "in a lot this size, caught 91% of the time)"
+    ) in err
     code, out, err = run(capsys, "report", str(LOT), "--limits", str(LIMITS), "--outlier-alpha", "0.05")
     table = rows(out)
     assert code == 1, err  # SN0013 is an outlier

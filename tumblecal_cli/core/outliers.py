@@ -14,9 +14,11 @@ good units. The rule here bounds the chance that a lot of good units has ANY fla
    residual, whose reference distribution is right at every lot size, not only asymptotically.
 3. **Threshold**: Šidák over every judgement made in the report (N = Σ units over figures), each
    at two-sided ``p = 1 − (1 − alpha)^(1/N)``, the t quantile for its degrees of freedom.
-4. No flags in a figure of fewer units than ``OutlierRule.min_units``: the smallest lot in which a
-   unit ``DETECT_SIGMA`` off is flagged with probability ``DETECT_POWER`` (noncentral t). Below it
-   the test is valid but too weak to promise what a reader expects of it.
+4. Every figure of ``MIN_UNITS`` (8) units or more is judged: the false-alarm rate holds at every
+   size, and what a small lot cannot promise is its power, which the report states (the chance a
+   unit ``DETECT_SIGMA`` off is flagged at the lot's size, noncentral t: 83 % at 30 units of 12
+   figures). Waiting for 95 % power (``smallest_lot``: 46 units of 12 figures) left a 6σ unit in a
+   lot of 30 unnamed.
 
 Verified by simulation in tests/test_lot_outliers.py (1,000 lots per size, 8 to 200 units).
 
@@ -43,13 +45,12 @@ from tumblecal_cli.errors import InputError, said
 #: 1 %, so that "at most 1 % of good lots flagged" holds with room in any sample of 1,000 lots
 #: (at a rate of exactly 1 %, one sample in three would count more than 10).
 OUTLIER_ALPHA = 0.005
-#: A lot is judged for outliers only when it is big enough that a unit this many σ off one figure
-#: is flagged with probability ``DETECT_POWER`` (``OutlierRule.min_units``): below that, a flag
-#: would be a lottery, and its absence would falsely reassure. ``smallest_lot``: 36 units for 6
-#: figures, 46 for 12 (default alpha).
+#: The report states its power against a unit this many σ off one figure at the lot's size;
+#: ``smallest_lot`` is the size at which that power reaches ``DETECT_POWER`` (36 units for 6
+#: figures, 46 for 12, default alpha).
 DETECT_SIGMA = 6.0
 DETECT_POWER = 0.95
-#: Never fewer units than this, whatever the power.
+#: A figure of fewer units than this is not judged (its t has under 6 degrees of freedom).
 MIN_UNITS = 8
 #: A unit whose robust z (median, consistent MAD) is beyond this is set aside from the centre and
 #: spread the other units are judged by.
@@ -139,15 +140,15 @@ def t_quantile(p: float, df: float) -> float:
 
 @functools.lru_cache(maxsize=64)
 def smallest_lot(figures: int, alpha: float = OUTLIER_ALPHA) -> int:
-    """The fewest units a lot of ``figures`` figures per unit needs for its outliers to be judged
-    (n ≥ ``OutlierRule(alpha, figures·n).min_units``; more figures, more judgements, more units:
-    the condition holds from some n on, found by bisection)."""
+    """The fewest units a lot of ``figures`` figures per unit needs to catch a unit DETECT_SIGMA
+    off DETECT_POWER of the time (n ≥ ``OutlierRule(alpha, figures·n).detect_units``; more
+    figures, more judgements, more units: the condition holds from some n on, found by bisection)."""
     low, high = MIN_UNITS, MIN_UNITS
-    while high < OutlierRule(alpha, figures * high).min_units:
+    while high < OutlierRule(alpha, figures * high).detect_units:
         low, high = high + 1, high * 2
     while low < high:
         middle = (low + high) // 2
-        low, high = (middle + 1, high) if middle < OutlierRule(alpha, figures * middle).min_units else (low, middle)
+        low, high = (middle + 1, high) if middle < OutlierRule(alpha, figures * middle).detect_units else (low, middle)
     return high
 
 
@@ -169,8 +170,13 @@ class OutlierRule:  # (frozen, with a cached_property: min_units is worked out o
     alpha: float = OUTLIER_ALPHA
     tests: int = 1
 
-    @functools.cached_property
+    @property
     def min_units(self) -> int:
+        """The fewest units of a figure that is judged."""
+        return MIN_UNITS
+
+    @functools.cached_property
+    def detect_units(self) -> int:
         """The smallest figure size (≥ ``MIN_UNITS``) whose power against a unit ``DETECT_SIGMA``
         off is at least ``DETECT_POWER`` (power rises with n)."""
         low, high = MIN_UNITS, MIN_UNITS
@@ -232,28 +238,25 @@ class OutlierRule:  # (frozen, with a cached_property: min_units is worked out o
         """The |t| limit of a figure of n units none of which is set aside (None: not judged)."""
         return self.limit(n - 2.0) if n >= self.min_units else None
 
-    def needed(self, units: int) -> int:
-        """The fewest units a lot with as many figures as this one (tests / units) needs to be
-        judged: ``smallest_lot`` (``min_units`` is for this lot's own number of judgements)."""
-        return smallest_lot(max(1, round(self.tests / max(units, 1))), self.alpha)
-
     def cell(self, n: int, limit: float | None) -> str:
         """The rule a figure of n units was judged by, for a CSV cell (no commas)."""
         if limit is None:
-            return f"not judged: {n} units < {self.needed(n)}"
+            return f"not judged: {n} units < {MIN_UNITS}"
         return f"|t|>{limit:.3g} (alpha {self.alpha:g} over {self.tests})"
 
     def describe(self, units: int | None = None) -> str:
         """The rule in one sentence, for people; ``units``: the largest figure's size, to say when
-        the lot is too small to be judged."""
-        if units is not None and units < self.min_units:
-            return (
-                f"outliers: not judged ({units} units; {self.needed(units)} needed to catch "
-                f"{DETECT_SIGMA:g}σ {DETECT_POWER:.0%} of the time)"
-            )
+        the lot is too small to be judged, and how likely a unit DETECT_SIGMA off is caught."""
+        if units is not None and units < MIN_UNITS:
+            return f"outliers: not judged ({units} units; {MIN_UNITS} needed)"
         limit = f" > {self.limit(units - 2.0):.3g}" if units is not None else ""
         per_lot = f"false alarms {self.alpha:g} per lot, {self.tests} unit-figures"
-        return f"outliers: |t|{limit} vs the other units ({per_lot})"
+        caught = (
+            f"; a unit {DETECT_SIGMA:g}σ off, in a lot this size, caught {_share(self.power(units))} of the time"
+            if units
+            else ""
+        )
+        return f"outliers: |t|{limit} vs the other units ({per_lot}{caught})"
 
     def as_dict(self) -> dict[str, object]:
         return {
@@ -262,5 +265,11 @@ class OutlierRule:  # (frozen, with a cached_property: min_units is worked out o
             "tests": self.tests,
             "per_test": self.per_test,
             "screen_z": SCREEN_Z,
-            "min_units": self.min_units,  # at this lot's number of judgements
+            "min_units": MIN_UNITS,
+            "detect_sigma": DETECT_SIGMA,
         }
+
+
+def _share(p: float) -> str:
+    """A probability as people read it: 83%, or over 99% (never a rounded 100%)."""
+    return "over 99%" if p >= 0.995 else f"{p:.0%}"
