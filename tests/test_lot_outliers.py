@@ -130,6 +130,6 @@ def test_a_unit_6_sigma_off_in_a_lot_of_30_is_named(tmp_path: Path, capsys: pyte
     others = [json.loads(p.read_text())["offset"][1] for p in sorted(tmp_path.glob("*.json")) if p != unit]
     doc["offset"][1] = float(np.mean(others) + 6.0 * np.std(others, ddof=1))
     unit.write_text(json.dumps(doc))
-    code, out, err = run(capsys, "report", str(tmp_path))
+    code, _out, err = run(capsys, "report", str(tmp_path))
     assert code == 1, err
     assert any(line.startswith("outlier: SN0005: offset.y ") for line in err.splitlines()), err
