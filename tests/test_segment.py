@@ -164,7 +164,7 @@ def assert_found(seg: blocks.Segmentation, log: SynthLog, *, coverage: float = 0
 
 def index_of(text: str) -> list[dict[str, str]]:
     """segments.csv's rows, each cell as it was before a leading ' kept a spreadsheet from taking
-    it for a formula (a face +x is written '+x)."""
+    it for a formula (a label =x; a face +x is written as it is)."""
     reader = csv.DictReader(io.StringIO(text))
     assert reader.fieldnames == INDEX_COLUMNS
     return [{column: unsafe(cell) for column, cell in row.items()} for row in reader]
@@ -1124,3 +1124,19 @@ def test_a_pose_column_that_is_a_sensor_or_the_time_column(
         r = run(capsys, *command, "--pose-column", column)
         assert r.code == 2
         assert r.err.splitlines()[0] == f"error: {log}: --pose-column names '{column}', {role}"
+
+
+def test_index_writes_faces_as_they_are_not_as_formulas(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """segments.csv wrote its face column as '+z: the formula escaping meant for text from the
+    inputs, applied to tumblecal's own vocabulary, which a script reading the index then compared
+    wrongly. A face is written as it is; a label that would start a formula is still escaped."""
+    from tumblecal_cli.io.outputs import spreadsheet_safe
+
+    assert [spreadsheet_safe(c) for c in ("+z", "-x", "+zz", "=x", "+x=x.csv", "'+z")] == [
+        "+z", "-x", "'+zz", "'=x", "'+x=x.csv", "''+z",
+    ]  # fmt: skip
+    r = run(capsys, "segment", ROOT / "sample_data" / "imucal" / "session_every4th.csv", "--rate", "25.6")
+    assert r.code == 0, r.err
+    faces = {row["face"] for row in csv.DictReader(io.StringIO(r.out))}
+    assert faces - {""}, faces
+    assert faces <= {"", "+x", "-x", "+y", "-y", "+z", "-z"}, faces

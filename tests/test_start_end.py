@@ -168,7 +168,7 @@ def test_segment_start_end(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -
     src = _session(tmp_path)
     whole = run(capsys, "segment", src, "--nominal-offset", "0")
     assert whole.code == 0, whole.err
-    assert [ln.split(",")[16] for ln in whole.out.splitlines()[1:]] == ["'+z", "'+x", "'-y"]
+    assert [ln.split(",")[16] for ln in whole.out.splitlines()[1:]] == ["+z", "+x", "-y"]
     r = run(capsys, "segment", src, "--nominal-offset", "0", "--start", "4", "--end", "899r", "-d", tmp_path / "out")
     assert r.code == 0, r.err
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["segments.csv", "xp.csv"]

@@ -27,6 +27,9 @@ WRITE_ERRORS = (errno.ENOSPC, errno.EFBIG, errno.EDQUOT)
 FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r", "\uff1d", "\uff0b", "\uff0d", "\uff20")
 #: A number as tumblecal writes one (-0.01, 1e-05, -inf): a spreadsheet's number, not a formula.
 _NUMBER = re.compile(r"[+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|inf|nan)")
+#: tumblecal's own words that start with a sign: a face (+z, -x). Written as they are: no input's
+#: text, so nothing to inject, and a script reading an index compares them as they are printed.
+_OWN = re.compile(r"[+-][xyz]")
 
 
 #: The most a run keeps in $TMPDIR to read again (a log from stdin or a pipe, unless --max-spool
@@ -50,8 +53,8 @@ def spreadsheet_safe(cell: str) -> str:
     """A CSV cell a spreadsheet shows as text: one that would start a formula gets a leading
     ``'`` (OWASP's advice); numbers, negative ones included, are left as they are. A cell that
     already starts with ``'`` before such a start gets one more, so that :func:`unsafe` gives
-    back exactly the cell it was."""
-    if not cell.lstrip("'").startswith(FORMULA_STARTS) or _NUMBER.fullmatch(cell):
+    back exactly the cell it was. A face (+z, -x) is tumblecal's own word, written as it is."""
+    if not cell.lstrip("'").startswith(FORMULA_STARTS) or _NUMBER.fullmatch(cell) or _OWN.fullmatch(cell):
         return cell
     return "'" + cell
 
