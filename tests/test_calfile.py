@@ -168,13 +168,14 @@ def test_written_json_keeps_vectors_on_one_line(tmp_path: Path) -> None:
     ("sensor", "reference", "units"),
     [
         ("accelerometer", 1.0, "g"),
-        ("accelerometer", 9.80665, None),
+        ("accelerometer", 9.80665, "m/s^2"),
+        ("accelerometer", 1000.0, "mg"),
         ("accelerometer", 16384.0, None),
         ("magnetometer", 1.0, None),
         ("gyroscope", 0.0, None),
     ],
 )
-def test_units_default_to_g_only_for_an_accelerometer_with_reference_1(
+def test_units_default_only_for_an_accelerometer_with_a_conventional_reference(
     sensor: str, reference: float, units: str | None
 ) -> None:
     assert document(sensor=sensor, reference=reference)["units"] == units

@@ -416,7 +416,7 @@ def test_what_cannot_be_exported_is_exit_2_with_one_line(tmp_path: Path, capsys:
     doc = calfile.load(cal).to_dict() | {"units": None, "input_units": None, "sensor": "magnetometer"}
     calfile.write(doc, str(tmp_path / "mag.json"))
     r = run(capsys, "export", tmp_path / "mag.json", "--format", "px4")
-    assert_usage_error(r, "writes gauss: the calibration's corrected units are None")
+    assert_usage_error(r, "writes gauss: the calibration's corrected units are not recorded")
     mirror = calibration("accelerometer", ("g", "g"), [0, 0, 0], np.diag([1.0, -1.0, 1.0]))
     with pytest.raises(InputError, match=r"mirrors the axes \(det M <= 0\)"):
         paramfile.write(mirror, "px4", 0)

@@ -109,3 +109,105 @@ def test_judged_gains_in_other_units_are_still_an_error(
         r, r.err.splitlines()[0].removeprefix("error: "), hint="the data looks like m/s^2: run with --reference 9.80665"
     )
     assert "a units mistake?" in r.err
+
+
+# -- units that do not fit the sensor, a reference that is not a unit at rest (issue 42, item 7) --
+
+MAG = Path(__file__).resolve().parent / "data" / "ckexplorer_mag" / "mag_every10.csv"
+
+
+@pytest.mark.parametrize(
+    ("sensor", "flag", "units", "error"),
+    [
+        ("accelerometer", "--units", "uT", "--units uT is a unit of magnetic field, and an accelerometer measures "),
+        ("accelerometer", "--input-units", "deg/s", "--input-units deg/s is a unit of angular rate, and an "),
+        ("magnetometer", "--units", "g", "--units g is a unit of acceleration, and a magnetometer measures magnetic"),
+    ],
+)
+def test_units_of_another_quantity_are_refused(
+    sensor: str, flag: str, units: str, error: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`--units uT` on an accelerometer was written into its calibration, and export then
+    converted "microtesla" into m/s^2."""
+    poses = [str(MAG)] if sensor == "magnetometer" else POSES_3
+    r = run(capsys, "solve", "--sensor", sensor, "--poses", *poses, flag, units, "-o", tmp_path / "c.json")
+    assert r.code == 2
+    assert r.err.splitlines()[0].startswith(f"error: {error}")
+    assert not (tmp_path / "c.json").exists()
+
+
+@pytest.mark.parametrize(
+    ("units", "reference", "note"),
+    [
+        ("uT", "1", "--reference 1 uT is not a field the Earth has (22–67 uT): is --reference in --units?"),
+        ("uT", "46", None),
+        ("gauss", "0.46", None),
+        ("nT", "46", "--reference 46 nT is not a field the Earth has (2.2e+04–6.7e+04 nT): is --reference in --units?"),
+    ],
+)
+def test_magnetometer_reference_that_no_earth_field_is_gets_a_note(
+    units: str, reference: str, note: str | None, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`--units uT --reference 1`: a field of 1 µT, taken without a word (the Earth's is 22–67 µT)."""
+    args: list[str | Path] = [
+        "solve",
+        "--sensor",
+        "magnetometer",
+        "--poses",
+        MAG,
+        "--units",
+        units,
+        "--reference",
+        reference,
+    ]
+    r = run(capsys, *args, "-o", tmp_path / "m.json")
+    assert r.code == 0, r.err
+    said = [ln for ln in r.err.splitlines() if "is not a field the Earth has" in ln]
+    assert said == (
+        [] if note is None else [f"note: {note} (a lab's coils may make it; --location gives the local field)"]
+    )
+
+
+def test_accelerometer_reference_that_is_not_gravity_in_its_units_gets_a_note(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    r = run(capsys, "solve", "--poses", *POSES_3, "--units", "m/s^2", "-o", tmp_path / "c.json")
+    assert r.code == 0, r.err
+    assert "note: --reference 1 m/s^2 is not gravity (9.807 m/s^2): is --reference in --units?" in r.err.splitlines()
+    r = run(capsys, "solve", "--poses", *POSES_3, "--units", "mg", "--reference", "1000", "-o", tmp_path / "c.json")
+    assert "is not gravity" not in r.err
+
+
+def test_export_of_a_calibration_solved_with_reference_9_80665_knows_its_units(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`solve --reference 9.80665` without --units, then `export --format px4`: "the calibration's
+    corrected units are None" (a Python word; an accelerometer at 9.80665 is in m/s^2). A
+    conventional reference records its units (1: g, 9.80665: m/s^2, 1000: mg)."""
+    poses = []
+    for name in POSES_3:
+        lines = Path(name).read_text().splitlines()
+        rows = [
+            ",".join([c[0], *(f"{9.80665 * float(v):.6f}" for v in c[1:])]) for c in (ln.split(",") for ln in lines[1:])
+        ]
+        poses.append(tmp_path / Path(name).name)
+        poses[-1].write_text("\n".join([lines[0], *rows]) + "\n")
+    r = run(capsys, "solve", "--poses", *poses, "--reference", "9.80665", "-o", tmp_path / "c.json", "-q")
+    assert r.code == 0, r.err
+    assert json.loads((tmp_path / "c.json").read_text())["units"] == "m/s^2"
+    r = run(capsys, "export", tmp_path / "c.json", "--format", "px4")
+    assert r.code == 0, r.err
+    assert "# corrected = (raw - CAL_ACC0_xOFF) * CAL_ACC0_xSCALE per axis, in m/s^2" in r.out
+
+
+def test_solve_json_carries_the_residual_and_the_coverage(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`solve --json` had neither the residual nor the coverage of a fit over samples (only the
+    calibration file did)."""
+    r = run(capsys, "solve", "--sensor", "magnetometer", "--poses", MAG, "-o", tmp_path / "m.json", "--json", "-q")
+    assert r.code == 0, r.err
+    doc, cal = json.loads(r.out), json.loads((tmp_path / "m.json").read_text())
+    assert doc["residuals"] == cal["residuals"]
+    assert set(doc["residuals"]) >= {"rms", "max", "count"}
+    assert doc["coverage"] == cal["coverage"] == 1.0
+    r = run(capsys, "solve", "--poses", *POSES_3, "-o", tmp_path / "c.json", "--json", "-q")
+    assert json.loads(r.out)["coverage"] is None  # three poses: no directions to cover

@@ -161,7 +161,8 @@ def summary(
     }
     keys = ("sensor", "method", "reference", "units", "columns", "offset", "matrix", "gain", "uncertainty")
     placed = [k for k in ("gravity", "earth_field", "dip") if k in doc]  # pipeline.places
-    return head | {k: doc.get(k) for k in (*keys, *placed, "tilt_sensitivity", "poses", "unit")}
+    fitted = ("residuals", "coverage", "coverage_gaps")  # how well the fit fits (null: a solver of poses)
+    return head | {k: doc.get(k) for k in (*keys, *placed, "tilt_sensitivity", *fitted, "poses", "unit")}
 
 
 def rejected_head(err: TumblecalError) -> dict[str, object]:

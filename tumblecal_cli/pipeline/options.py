@@ -17,7 +17,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
 from typing import TYPE_CHECKING, TypedDict, cast
 
-from tumblecal_cli.core import catalog, gate, model
+from tumblecal_cli.core import catalog, gate, model, quantities
 from tumblecal_cli.core.model import SENSORS
 from tumblecal_cli.errors import InputError, control_character, said
 from tumblecal_cli.io.calfiles import limitfile
@@ -387,6 +387,15 @@ def settings(options: SolveOptions, *, log: bool) -> Settings:
             f"--reference {ref:g} is too small to divide by (the smallest is {sys.float_info.min:.3g})",
             hint="the stimulus magnitude in the corrected output's units: 1 (g), 9.80665 (m/s^2), 16384 (counts)",
         )
+    for flag, named in (("--units", options.units), ("--input-units", options.input_units)):
+        measure = None if named is None else quantities.UNITS.get(named.strip())
+        if measure is not None and measure.quantity != quantities.QUANTITY[sensor]:
+            raise InputError(
+                f"{flag} {named} is a unit of {measure.quantity}, and {_a(sensor)} measures "
+                f"{quantities.QUANTITY[sensor]}",
+                hint=f"{_a(sensor)}'s units: {', '.join(quantities.COMMON[quantities.QUANTITY[sensor]])}"
+                + ("" if sensor == "magnetometer" else f"; or --sensor {_sensor_of(measure.quantity)}"),
+            )
     if sensor == "gyroscope" and ref != 0:  # at rest it reads no rate, and turns give their own angles
         raise InputError(
             f"--reference is a gyroscope's reading at rest, which is 0, got {ref:g}",
@@ -403,6 +412,14 @@ def settings(options: SolveOptions, *, log: bool) -> Settings:
         nominal_offset=centre,
     )
     return Settings(chosen, up_face, ref, centre, bounds, who, mapping)
+
+
+def _a(sensor: str) -> str:
+    return f"{'an' if sensor[0] in 'aeiou' else 'a'} {sensor}"
+
+
+def _sensor_of(quantity: str) -> str:
+    return next(k for k, v in quantities.QUANTITY.items() if v == quantity)
 
 
 def turn_options(options: SolveOptions, *, log: bool) -> None:

@@ -25,6 +25,7 @@ from tumblecal_cli.core.current_fit import correct as current_correct
 from tumblecal_cli.core.drift import correct as thermal_correct
 from tumblecal_cli.core.model import MAX_READING, SENSORS, Solution, parse_label
 from tumblecal_cli.core.model import apply as apply_model
+from tumblecal_cli.core.quantities import REFERENCE_UNITS
 from tumblecal_cli.errors import InputError, control_character
 from tumblecal_cli.io.calfiles.calparts import (
     GAIN_DRIFT_KINDS,
@@ -492,8 +493,8 @@ def build(
     tolerance_deg, gain_tolerance = basis.tolerance_deg, basis.gain_tolerance
     made = made or Made()
     segmentation, turns, g_sensitivity, rotations = made.segmentation, made.turns, made.g_sensitivity, made.rotations
-    if units is None and sensor == "accelerometer" and reference == 1.0:
-        units = "g"
+    if units is None and sensor == "accelerometer":  # 1: g, 9.80665: m/s^2, 1000: mg (export needs them)
+        units = REFERENCE_UNITS.get(reference)
     kept: dict[str, object] = {}  # a unit given as an object, if its values are not text
     uncertainty = {"offset": solution.offset_se, "gain": solution.gain_se}
     tilt = covariance = residuals = None

@@ -203,7 +203,7 @@ def _corrected_units(cal: Calibration, fmt: str, solve: str) -> float:
     if found is None:
         raise InputError(
             f"--format {fmt} writes {FIRMWARE_UNITS[fmt, cal.sensor][0]}: the calibration's corrected units are "
-            f"{cal.units!r}, not one of {_common(cal.sensor)}",
+            + ("not recorded" if cal.units is None else f"{cal.units!r}, not one of {_common(cal.sensor)}"),
             file=cal.path,
             hint=f"{solve} with --units naming them (and --reference in them)",
         )

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Unpack
 
 import numpy as np
 
-from tumblecal_cli.core import arrays, blocks, catalog, clock, fits, gate, methods, model
+from tumblecal_cli.core import arrays, blocks, catalog, clock, fits, gate, methods, model, quantities
 from tumblecal_cli.core.gate import Finding
 from tumblecal_cli.core.model import face_of_name
 from tumblecal_cli.core.quantities import REFERENCE_UNITS, STANDARD_GRAVITY
@@ -619,6 +619,7 @@ def _fit_poses(name: str, poses: PoseSet, options: SolveOptions, given: Settings
     said += _solve_notes(stats, names, given.limits, solution.method, table=poses.table) + _units_notes(
         solution, options, ref
     )
+    said += reference_notes(options.read.sensor, options.units, ref)
     solved = Solved(0, cal, cal, [], failures, warned, said, samples=samples, limits=given.limits)
     if rejected:
         _reject(solved, rejected, limits)
@@ -803,6 +804,32 @@ def _units_notes(solution: Solution, options: SolveOptions, reference: float) ->
         return []
     note = gate.units_note(solution.gain, reference)
     return [] if note is None else [note]
+
+
+#: The Earth's field at its surface, weakest to strongest (WMM: about 22,000 to 67,000 nT), in gauss.
+EARTH_FIELD = (0.22, 0.67)
+
+
+def reference_notes(sensor: str, units: str | None, reference: float) -> list[str]:
+    """A note when --units name a unit and --reference is not what a unit at rest reads in it:
+    gravity (within 10 %), or a field the Earth has. --units uT with --reference 1 was taken as a
+    1 µT field without a word. (A centrifuge or a lab's coils: then the note is to be ignored.)"""
+    factor = None if units is None else quantities.factor(sensor, units.strip())
+    if factor is None or reference <= 0:
+        return []
+    value = reference * factor  # in the quantity's base unit: m/s^2, gauss
+    if sensor == "accelerometer" and abs(value / STANDARD_GRAVITY - 1) > 0.1:
+        return [
+            f"--reference {reference:g} {units} is not gravity ({STANDARD_GRAVITY / factor:.4g} {units}): "
+            "is --reference in --units?"
+        ]
+    low, high = EARTH_FIELD
+    if sensor == "magnetometer" and not low <= value <= high:
+        return [
+            f"--reference {reference:g} {units} is not a field the Earth has ({low / factor:.3g}–{high / factor:.3g} "
+            f"{units}): is --reference in --units? (a lab's coils may make it; --location gives the local field)"
+        ]
+    return []
 
 
 def _solve_notes(
