@@ -52,7 +52,8 @@ REJECTION_HINTS = {
     "pose.short": "log the pose for longer, or lower --min-samples (1 for loggers that store one averaged row)",
     "pose.saturated": "the pose reaches the sensor's limits: use a wider range, or give the real one with --full-scale",
     "pose.orientation": "capture the pose again on its declared face, or raise --max-tilt for a tilted fixture",
-    "pose.moved": "hold the unit still and capture the pose again, or raise --max-noise",
+    "pose.moved": "hold the unit still and capture the pose again, or raise --max-noise; a capture turned through "
+    "orientations on purpose is a log: solve --log FILE finds its still stretches",
     "pose.upside_down": "give the files in the order +x +y +z, each with that axis pointing up",
 }
 
