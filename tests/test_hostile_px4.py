@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests import ulog_writer
+from tests import dataflash_writer, ulog_writer
 from tests.conftest import Result, assert_one_error
 from tests.conftest import tumblecal as cli
 
@@ -266,3 +266,128 @@ def test_a_msg_id_subscribed_twice_is_refused(tmp_path: Path) -> None:
         f"{path}: msg_id 10 is subscribed twice (the 'A' messages at bytes {first} and {second}, 'sensor_accel' "
         "and 'sensor_gyro'): whose samples are whose cannot be told",
     )
+
+
+# -- ArduPilot DataFlash ------------------------------------------------------------------------
+
+
+def _still(rows: int = 400) -> tuple[np.ndarray, np.ndarray]:
+    return np.arange(rows, dtype=np.int64) * 2000 + 1_000_000, np.tile([0.0, 0.0, G], (rows, 1))
+
+
+def dataflash(path: Path, **params: float) -> Path:
+    """A binary log of 400 still IMU and ACC messages, after the default calibration and ``params``."""
+    t, acc = _still()
+    imu = dataflash_writer.imu(t, acc, np.full(len(t), 25.0))
+    raw = dataflash_writer.records("ACC", len(t), TimeUS=t, SampleUS=t, AccX=acc[:, 0], AccY=acc[:, 1], AccZ=acc[:, 2])
+    given = {**dataflash_writer.identity(1), **params}
+    path.write_bytes(dataflash_writer.header(given, int(t[0]) - 1000) + dataflash_writer.frames([imu, raw]))
+    return path
+
+
+def _lines(path: Path) -> list[str]:
+    return path.read_text().splitlines()
+
+
+@pytest.mark.parametrize(("column", "k"), [("Type", 1), ("Length", 2)])
+def test_a_text_fmt_number_of_5000_digits_is_one_error_naming_the_line(tmp_path: Path, column: str, k: int) -> None:
+    """Before: 'internal error: ValueError: Exceeds the limit (4300 digits) for integer string
+    conversion' from logs and every read."""
+    text = dataflash_writer.text_of(dataflash(tmp_path / "log.bin"), tmp_path / "log.log")
+    lines = _lines(text)
+    n = next(i for i, ln in enumerate(lines) if ln.startswith("FMT, 130, "))
+    parts = lines[n].split(", ")
+    parts[k] = "9" * 5000
+    lines[n] = ", ".join(parts)
+    text.write_text("\n".join(lines) + "\n")
+    least = 0 if column == "Type" else 3
+    expected = (
+        f"{text}: the FMT line of 'IMU' gives its {column} as '999999999999'... (5000 characters): not a DataFlash "
+        f"message's (a byte, {least} to 255) (line {n + 1})"
+    )
+    assert_one_error(cli("logs", text), expected)
+    assert_one_error(cli("noise", text), expected)
+
+
+def test_a_text_fmt_number_out_of_a_byte_is_one_error(tmp_path: Path) -> None:
+    text = dataflash_writer.text_of(dataflash(tmp_path / "log.bin"), tmp_path / "log.log")
+    lines = [ln.replace("FMT, 130, 54, IMU,", "FMT, 130, 2, IMU,") for ln in _lines(text)]
+    text.write_text("\n".join(lines) + "\n")
+    n = next(i for i, ln in enumerate(lines) if ln.startswith("FMT, 130, 2, IMU,")) + 1
+    assert_one_error(
+        cli("noise", text),
+        f"{text}: the FMT line of 'IMU' gives its Length as '2': not a DataFlash message's (a byte, 3 to 255) "
+        f"(line {n})",
+    )
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), 2.5, -8.0])
+def test_an_ins_raw_log_opt_that_is_no_bit_mask_is_one_error(tmp_path: Path, value: float) -> None:
+    """Before: int() of the parameter: 'internal error: ValueError: cannot convert float NaN to
+    integer' (OverflowError for inf) from every command that read the log; 2.5 read as 2 and -8
+    as the post-filter bit set."""
+    path = dataflash(tmp_path / "opt.bin", INS_RAW_LOG_OPT=value)
+    data = path.read_bytes()
+    at = data.index(b"INS_RAW_LOG_OPT") - 3 - 8  # the PARM's header and TimeUS before its Name
+    expected = (
+        f"{path}: the PARM message at byte {at} gives INS_RAW_LOG_OPT as {value:.6g}: not a bit mask (a whole "
+        "number from 0), so which ACC and GYR instances are post-filter copies cannot be told"
+    )
+    assert_one_error(cli("noise", path, "--stream", "ACC:0"), expected)
+    assert_one_error(cli("logs", path), expected)  # the listing says which ACC is which filter's
+
+
+def test_an_ins_raw_log_opt_of_nan_in_a_text_log_names_its_line(tmp_path: Path) -> None:
+    text = dataflash_writer.text_of(dataflash(tmp_path / "opt.bin", INS_RAW_LOG_OPT=float("nan")), tmp_path / "o.log")
+    n = next(i for i, ln in enumerate(_lines(text)) if "INS_RAW_LOG_OPT" in ln) + 1
+    assert_one_error(
+        cli("noise", text, "--stream", "ACC:0"),
+        f"{text}: the PARM gives INS_RAW_LOG_OPT as nan: not a bit mask (a whole number from 0), so which ACC and "
+        f"GYR instances are post-filter copies cannot be told (line {n})",
+    )
+
+
+IMU_FLOAT_I = "QfffffffIIfBBHH"  # IMU with its instance logged as a float
+
+
+@pytest.mark.parametrize("instance", [float("nan"), 1e30, 0.5, -1.0, 256.0])
+def test_an_instance_field_that_is_no_instance_is_one_error(tmp_path: Path, instance: float) -> None:
+    """Before: NaN and 1e30 were 'a figure came out non-finite (invalid value encountered in
+    cast)', naming no file; 0.5 read as IMU:0, -1 as IMU:-1 and 256 as IMU:256."""
+    t, acc = _still(50)
+    columns = dataflash_writer.TYPES["IMU"][2]
+    length = 3 + struct.calcsize("<" + IMU_FLOAT_I)
+    fmt = dataflash_writer.message("FMT", 130, length, b"IMU", IMU_FLOAT_I.encode(), columns.encode())
+    head = dataflash_writer.fmt("FMT") + fmt
+    rows = [
+        dataflash_writer.HEAD
+        + bytes([130])
+        + struct.pack("<" + IMU_FLOAT_I, int(ts), 0.0 if k else instance, 0, 0, 0, *a, 0, 0, 25.0, 1, 1, 1000, 1000)
+        for k, (ts, a) in enumerate(zip(t, acc, strict=True))
+    ]
+    path = tmp_path / "instance.bin"
+    path.write_bytes(head + b"".join(rows))
+    assert_one_error(
+        cli("logs", path),
+        f"{path}: IMU's field 'I' (its instance) is {instance:.6g} in the message at byte {len(head)}: not an "
+        "instance (a whole number, 0 to 255)",
+    )
+
+
+@pytest.mark.parametrize("instance", ["1_0", "-1", "+1"])
+def test_a_text_instance_not_in_ascii_digits_is_a_line_that_does_not_parse(tmp_path: Path, instance: str) -> None:
+    """Before: int() read '1_0' as instance 10, '+1' as 1 and '-1' as -1: streams the log does
+    not hold."""
+    text = dataflash_writer.text_of(dataflash(tmp_path / "log.bin"), tmp_path / "log.log")
+    lines = _lines(text)
+    first = next(i for i, ln in enumerate(lines) if ln.startswith("IMU, "))
+    parts = lines[first].split(", ")
+    parts[2] = instance  # IMU, TimeUS, I, ...
+    lines[first] = ", ".join(parts)
+    text.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    r = cli("logs", "--json", text)
+    assert r.code == 0, r.err
+    assert '"IMU:0"' in r.out
+    assert [k for k in ("IMU:10", "IMU:1", "IMU:-1") if f'"{k}"' in r.out] == []
+    noise = cli("noise", text, "--stream", "IMU:0")
+    assert "skipped 1 lines whose fields do not parse" in noise.err
