@@ -26,6 +26,10 @@ chunk at a time, so the whole log is never in memory. What ArduPilot's parsers r
 skipped with a note: a log cut short mid-message, bytes that are no message (a corrupt stretch,
 a message of a type no ``FMT`` defines) up to the next header of a known type, as pymavlink's
 DFReader does, garbage, zeros or erased flash at the end, a lone sample whose clock goes back.
+What a length or count declares is bounded by its field (an FMT's Length is a byte, its format 16
+characters of at most 64 bytes each), so nothing is allocated past what the file holds. A field
+this reader takes as a whole number, an ``I`` (instance) or ``INS_RAW_LOG_OPT`` (a bit mask),
+that is not one is an InputError naming the byte (the text form's: the line) and the field.
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tumblecal_cli.core.arrays import FloatArray
+from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import logs, sources
 from tumblecal_cli.io.logs.fields import CHUNK, NAMES, forward, gather
 from tumblecal_cli.io.logs.reader import LogReader
@@ -84,6 +89,11 @@ TYPES = {
 }
 SCALES = {"c": 0.01, "C": 0.01, "e": 0.01, "E": 0.01, "L": 1e-7}
 _NAME = re.compile(r"[A-Za-z0-9_]{1,4}")
+#: The most an instance (``I``) is: LogStructure.h logs it as a byte (``B``).
+MOST_INSTANCE = 255
+#: INS_RAW_LOG_OPT is a bit mask of a few bits (AP_InertialSensor's RAW_LOGGING_OPTION): a
+#: whole number from 0, under this.
+MOST_OPTION = 1 << 24
 
 
 @dataclass(frozen=True)
@@ -173,14 +183,16 @@ Gather = Callable[[str, DataflashStream, list[str]], dict[str, FloatArray]]
 @dataclass
 class DataflashIndex:
     """A log walked once: its streams' messages, the parameters logged (each one's first and last
-    value), its sha256, the notes of what was skipped, and how its columns are gathered (None: a
-    binary log's, by ``binary_fields``; the text form's parses its lines)."""
+    value), its sha256, the notes of what was skipped, how its columns are gathered (None: a
+    binary log's, by ``binary_fields``; the text form's parses its lines), and where each
+    parameter's last value is (a binary log's byte, a text log's line: what a message names)."""
 
     sources: list[DataflashStream]
     params: dict[str, tuple[float, float]]
     sha256: str
     notes: list[str]
     fields: Gather | None = None
+    param_at: dict[str, int] = field(default_factory=dict)
 
 
 @dataclass
@@ -266,7 +278,9 @@ def _walk_file(path: str) -> DataflashIndex:
             pos = _step(walk, buf, base)
             carry, base = buf[pos:], base + pos
     _end(walk, carry, base)
-    return DataflashIndex(_sources(path, walk), _params(path, walk), digest.hexdigest(), walk.notes)
+    where: dict[str, int] = {}
+    params = _params(path, walk, where)
+    return DataflashIndex(_sources(path, walk), params, digest.hexdigest(), walk.notes, param_at=where)
 
 
 def _step(walk: _BinaryWalk, buf: bytes, base: int) -> int:
@@ -408,16 +422,26 @@ def split(
     places: NDArray[np.int64],
     fields: dict[str, tuple[str, int]],
 ) -> list[DataflashStream]:
-    """A type's messages as the streams they are: one per value of the ``I`` field (binary)."""
+    """A type's messages as the streams they are: one per value of the ``I`` field (binary); an
+    ``I`` that is no instance (a float's NaN, a fraction, past 255) is exit 2 naming its message."""
     name, instance = stream
     if instance is not None or "I" not in fields:
         return [DataflashStream(name, instance or 0, fmt.name, fmt, places)]
-    which = gather(path, places, fields, ["I"])["I"].astype(np.int64)
+    got = gather(path, places, fields, ["I"])["I"]
+    wrong = np.flatnonzero(~((got >= 0) & (got <= MOST_INSTANCE) & (got == np.round(got))))
+    if wrong.size:
+        raise InputError(
+            f"{fmt.name}'s field 'I' (its instance) is {got[wrong[0]]:.6g} in the message at byte "
+            f"{int(places[wrong[0]])}: not an instance (a whole number, 0 to {MOST_INSTANCE})",
+            file=path,
+        )
+    which = got.astype(np.int64)
     return [DataflashStream(name, int(k), fmt.name, fmt, places[which == k]) for k in np.unique(which).tolist()]
 
 
-def _params(path: str, walk: _BinaryWalk) -> dict[str, tuple[float, float]]:
-    """Each parameter's first and last value in the log's PARM messages."""
+def _params(path: str, walk: _BinaryWalk, where: dict[str, int]) -> dict[str, tuple[float, float]]:
+    """Each parameter's first and last value in the log's PARM messages (``where``: the byte of
+    each one's last)."""
     kinds = [k for k in walk.places if walk.formats[k].name == "PARM"]
     if not kinds:
         return {}
@@ -434,6 +458,7 @@ def _params(path: str, walk: _BinaryWalk) -> dict[str, tuple[float, float]]:
             f.seek(place + offset)
             key = f.read(16).split(b"\0", 1)[0].decode("ascii", "replace")
             out[key] = (out[key][0], value) if key in out else (value, value)
+            where[key] = place
     return out
 
 
@@ -502,20 +527,32 @@ def calibration(
     return got, plain and not tcal
 
 
-def _base(found: DataflashIndex, src: DataflashStream) -> int:
+def _base(path: str, found: DataflashIndex, src: DataflashStream) -> int:
     """The sensor an ACC or GYR instance is of: with INS_RAW_LOG_OPT bit 3 (pre and post filter)
     instances from the sensor count on are the post-filter copies (AP_InertialSensor_Backend.cpp,
     log_accel_raw: ``instance + _accel_count``)."""
-    option = int(found.params.get("INS_RAW_LOG_OPT", (0.0, 0.0))[1])
-    if src.name not in ("ACC", "GYR") or not option & 8:
+    if src.name not in ("ACC", "GYR"):
+        return src.instance
+    value = found.params.get("INS_RAW_LOG_OPT", (0.0, 0.0))[1]
+    if not (0 <= value < MOST_OPTION and value == int(value)):  # NaN fails the first
+        at = found.param_at.get("INS_RAW_LOG_OPT")
+        text = found.fields is not None  # the text form names a line, the binary a byte
+        raise InputError(
+            f"the PARM{'' if text or at is None else f' message at byte {at}'} gives INS_RAW_LOG_OPT as "
+            f"{value:.6g}: not a bit mask (a whole number from 0), so which ACC and GYR instances are "
+            "post-filter copies cannot be told",
+            file=path,
+            line=at if text else None,
+        )
+    if not int(value) & 8:
         return src.instance
     count = len([s for s in found.sources if s.name == src.name]) // 2
     return src.instance - count if count and src.instance >= count else src.instance
 
 
-def _state(found: DataflashIndex, src: DataflashStream, sensor: str) -> tuple[bool, str]:
+def _state(path: str, found: DataflashIndex, src: DataflashStream, sensor: str) -> tuple[bool, str]:
     """Whether ArduPilot had corrected ``sensor`` in ``src``, and how that is told."""
-    base = _base(found, src)
+    base = _base(path, found, src)
     _, plain = calibration(found.params, sensor, base)
     if plain:
         how = _RAW[sensor]
@@ -566,7 +603,7 @@ def streams_of(path: str, found: DataflashIndex) -> list[Stream]:
             rate = (len(src.places) - 1) / span if span > 0 else None
         for part in PARTS[src.name]:
             if all(c in src.fmt.columns for c in part.columns):
-                corrected, how = _state(found, src, part.sensor)
+                corrected, how = _state(path, found, src, part.sensor)
                 out.append(
                     Stream(src.name, src.instance, part.sensor, len(src.places), rate, part.units, corrected, how)
                 )
@@ -620,7 +657,7 @@ def _read_note(
     """Which stream was read, and the calibration in force (from PARM) as the log tells it."""
     logged = "" if src.message == src.name else f", logged as {src.message}"
     note = reader.read_note(path, chosen, rows, logged)
-    got, _ = calibration(found.params, chosen.sensor, _base(found, src))
+    got, _ = calibration(found.params, chosen.sensor, _base(path, found, src))
     if got:
         shown = ", ".join(f"{k} {_show(v)}" for k, v in got.items())
         note += f"; in force (PARM): {shown}"
@@ -637,7 +674,7 @@ def _borrowed(
     path: str, found: DataflashIndex, src: DataflashStream, clock: FloatArray | None, notes: list[str]
 ) -> FloatArray | None:
     """An ACC or GYR stream's temperature: its IMU's ``T``, interpolated to its times."""
-    base = _base(found, src)
+    base = _base(path, found, src)
     imu = next((s for s in found.sources if (s.name, s.instance) == ("IMU", base)), None)
     if src.name not in ("ACC", "GYR") or clock is None or imu is None or len(imu.places) < 2:
         return None

@@ -24,6 +24,27 @@ NAMES = {
 }
 
 
+#: Past this many digits a count, a length or an id is reported as written, not read as a number.
+DIGITS = 18
+
+
+def ascii_int(text: str) -> int | None:
+    """``text`` as a whole number when it is one written in ASCII digits, else None; past ``DIGITS``
+    digits, ``10**DIGITS`` (more than any count, length or id of a log). Not int(): str.isdigit
+    takes '²' (which int() refuses) and int() takes '٣' for 3, ' 3', '+3' and '3_0', and it
+    refuses a number of over 4300 digits with a ValueError."""
+    if not (text.isascii() and text.isdigit()):
+        return None
+    digits = text.lstrip("0") or "0"
+    return int(digits) if len(digits) <= DIGITS else 10**DIGITS
+
+
+def shown(text: str) -> str:
+    """``text`` as a message quotes it: repr'd, and cut to its first characters when long (a
+    number of 5000 digits)."""
+    return repr(text) if len(text) <= 24 else f"{text[:12]!r}... ({len(text)} characters)"
+
+
 def gather(
     path: str, places: NDArray[np.int64], fields: Mapping[str, tuple[str, int]], names: list[str]
 ) -> dict[str, FloatArray]:

@@ -17,14 +17,20 @@ The log is walked once (``index``: each wanted message's place, not its bytes: o
 message), then a stream's fields are gathered a chunk at a time with numpy: the whole log is never
 in memory. What PX4's parser (pyulog) recovers from is skipped with a note: a log cut short, a
 message of a type it does not know, a corrupt stretch up to the next sync marker, a sample whose
-size or clock is wrong. What it cannot (a corrupt header with no sync marker after it, a header
-that is not ULog's) is one InputError naming the file and the byte.
+size or clock is wrong, an appended-data offset past the log's end. What it cannot (a corrupt
+header with no sync marker after it, a header that is not ULog's) is one InputError naming the
+file and the byte; so is a wanted topic's format that cannot be what its samples hold (an array
+count that is no number or more than a message can hold, two formats of the topic that differ,
+two subscriptions of one instance or one msg_id), and a field this reader needs that the format
+lacks (when that sensor is read). Nothing is allocated by a declared count before it is checked
+against the 65535 bytes a message holds.
 """
 
 from __future__ import annotations
 
 import array
 import hashlib
+import os
 import struct
 from dataclasses import dataclass, field, replace
 from typing import BinaryIO
@@ -33,7 +39,7 @@ import numpy as np
 
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import logs, sources
-from tumblecal_cli.io.logs.fields import NAMES, forward, gather
+from tumblecal_cli.io.logs.fields import NAMES, ascii_int, forward, gather, shown
 from tumblecal_cli.io.logs.reader import LogReader
 from tumblecal_cli.io.readspec import ReadSpec
 from tumblecal_cli.io.sources import Stream, Table
@@ -47,6 +53,9 @@ CHUNK = 1 << 22
 #: A header PX4's parser takes as corrupt: type 0, size 0, or a body over 10000 bytes (pyulog
 #: core.py, _check_packet_corruption).
 BIGGEST = 10_000
+#: The most bytes a topic's fields can take: a message's size is a uint16, and a data message's
+#: body starts with its two-byte msg_id. A format that lays out more cannot be logged.
+MOST = 0xFFFF - 2
 #: A gyroscope's turns read beside its instance's sensor_accel (ReadSpec.paired): the accelerometer's
 #: rate at least this share of the gyroscope's, and the gyroscope's samples in its time span at least
 #: this share (else exit 2).
@@ -126,6 +135,17 @@ TOPICS: dict[str, tuple[UlogSensor, ...]] = {
 
 
 @dataclass
+class TopicFormat:
+    """One 'F' message: its fields (type, array count: 0 for one value, name), the byte it is at,
+    what is wrong with it (None: nothing), and where a second 'F' of its name that differs is."""
+
+    fields: list[tuple[str, int, str]]
+    at: int
+    wrong: str | None = None
+    again: int | None = None
+
+
+@dataclass
 class TopicLayout:
     """A topic's flattened fields: each field's (numpy type, byte offset), and the body's size."""
 
@@ -142,6 +162,7 @@ class Subscription:
     instance: int
     layout: TopicLayout
     places: array.array[int] = field(default_factory=lambda: array.array("q"))
+    at: int = 0  # the byte of the topic's format (its 'F' message)
 
 
 @dataclass
@@ -158,12 +179,14 @@ class _Walk:
     """The state of one walk through a log: the formats and subscriptions seen so far, the
     places of the wanted topics' samples, and what was skipped (for the notes)."""
 
-    def __init__(self, name: str) -> None:
+    def __init__(self, name: str, size: int) -> None:
         self.name = name
-        self.formats: dict[str, list[tuple[str, int, str]]] = {}
+        self.size = size  # the file's bytes (the appended-data offsets must be inside them)
+        self.formats: dict[str, TopicFormat] = {}
         self.wanted: dict[int, tuple[array.array[int], int]] = {}
         self.topics: dict[int, Subscription] = {}
-        self.cuts: list[int] = []  # where appended data starts (the flag bits message)
+        self.ids: dict[int, tuple[int, str]] = {}  # each msg_id subscribed: (the byte of its 'A', its topic)
+        self.cuts: list[int] | None = None  # where appended data starts (the flag bits message): None, not read yet
         self.unknown: dict[int, int] = {}
         self.short = 0
         self.skipped: list[tuple[int, int]] = []  # corrupt stretches: (first byte, bytes skipped)
@@ -174,15 +197,20 @@ class _Walk:
     def other(self, kind: int, body: bytes, at: int) -> None:
         """A message that is not a sample: a format, a subscription or the flag bits taken in."""
         if kind == 70:  # F
-            self.define(body)
+            self.define(body, at)
         elif kind == 65:  # A
-            self.subscribe(body)
+            self.subscribe(body, at)
         elif kind == 66:  # B
             self.flags(body, at)
 
     def flags(self, body: bytes, at: int) -> None:
         """The flag bits (the first message): a log with an incompatible flag this reader does
-        not know is refused, as pyulog refuses it; appended data is read from its offsets."""
+        not know is refused, as pyulog refuses it; appended data is read from its offsets, each
+        checked to be in the file (after the flag bits; one past its end noted, as there is no
+        data there, and the log read to its end as pyulog does)."""
+        if self.cuts is not None:
+            return
+        self.cuts = []
         incompat = body[8:16]
         if len(body) < 40 or at != 16 or incompat[0] & ~1 or any(incompat[1:]):
             if at == 16 and len(body) >= 16 and (incompat[0] & ~1 or any(incompat[1:])):
@@ -192,13 +220,32 @@ class _Walk:
                     hint="convert it with a current pyulog (ulog2csv) and read the CSV",
                 )
             return
-        if incompat[0] & 1:
-            self.cuts = sorted(o for o in struct.unpack_from("<3Q", body, 16) if o)
+        if not incompat[0] & 1:
+            return
+        start = at + 3 + len(body)  # where the messages after the flag bits start
+        for k, offset in enumerate(struct.unpack_from("<3Q", body, 16)):
+            where = f"the flag bits' appended-data offset {k + 1} (the field at byte {at + 3 + 16 + 8 * k})"
+            if not offset:
+                continue
+            if offset < start:
+                raise InputError(
+                    f"{where} is {offset}, before the log's messages start (byte {start}): a corrupt flag bits message",
+                    file=self.name,
+                )
+            if offset > self.size:
+                self.notes.append(f"{where} is {offset}, past the log's end ({self.size} bytes): read to its end")
+                continue
+            self.cuts.append(offset)
+        self.cuts.sort()
 
-    def define(self, body: bytes) -> None:
+    def define(self, body: bytes, at: int) -> None:
+        """A format taken in: its fields, with what is wrong with it kept (an array count that is
+        no number, or more than a message holds) for when a wanted topic is laid out by it; a
+        second format of a name kept as the byte that it is at, when it differs from the first."""
         text = body.decode("utf-8", "replace")
         name, _, rest = text.partition(":")
         fields = []
+        wrong = None
         for item in rest.split(";"):
             kind, _, fname = item.strip().partition(" ")
             if not fname:
@@ -206,9 +253,19 @@ class _Walk:
             count = 0
             if "[" in kind:
                 kind, _, n = kind.partition("[")
-                count = int(n.rstrip("]")) if n.rstrip("]").isdigit() else 0
+                n = n.removesuffix("]")
+                number = ascii_int(n)
+                if number is None or number > MOST:
+                    what = "not a number (ASCII digits)" if number is None else f"more than a message holds ({MOST})"
+                    wrong = wrong or f"field {fname!r} has the array count {shown(n)}: {what}"
+                    number = 0
+                count = number
             fields.append((kind, count, fname))
-        self.formats[name] = fields
+        known = self.formats.get(name)
+        if known is None:
+            self.formats[name] = TopicFormat(fields, at, wrong)
+        elif known.fields != fields and known.again is None:
+            known.again = at
 
     def summarise(self) -> None:
         """The notes of what the walk skipped."""
@@ -224,39 +281,101 @@ class _Walk:
         if self.short:
             self.notes.append(f"skipped {self.short} samples shorter than their topic's format (corrupt)")
 
-    def subscribe(self, body: bytes) -> None:
+    def subscribe(self, body: bytes, at: int) -> None:
+        """A subscription taken in: a wanted topic's laid out by its format. A msg_id subscribed
+        twice, or a wanted topic's instance subscribed twice, is refused where a wanted topic
+        is one of them (whose samples are whose cannot be told)."""
         if len(body) < 3:
             return
         instance, msg_id = struct.unpack_from("<BH", body)
         name = body[3:].decode("utf-8", "replace")
+        first = self.ids.setdefault(msg_id, (at, name))
+        if first[0] != at and (name in TOPICS or first[1] in TOPICS):
+            raise InputError(
+                f"msg_id {msg_id} is subscribed twice (the 'A' messages at bytes {first[0]} and {at}, "
+                f"{first[1]!r} and {name!r}): whose samples are whose cannot be told",
+                file=self.name,
+            )
         if name not in TOPICS or name not in self.formats:
             return
+        same = next((t for t in self.topics.values() if (t.name, t.instance) == (name, instance)), None)
+        if same is not None:
+            raise InputError(
+                f"{name}:{instance} is subscribed twice (the 'A' message at byte {at}, msg_id {msg_id}, after "
+                f"the one of msg_id {next(k for k, t in self.topics.items() if t is same)}): which is the stream "
+                "cannot be told",
+                file=self.name,
+            )
         try:
-            layout = _flatten(name, self.formats)
+            layout = _flatten(name, self.formats, self.name)
         except (KeyError, ValueError, RecursionError):
             return  # a topic whose format cannot be laid out is not read (as a topic not logged)
-        topic = Subscription(name, instance, layout)
+        topic = Subscription(name, instance, layout, at=self.formats[name].at)
         self.topics[msg_id] = topic
         self.wanted[msg_id] = (topic.places, layout.size + 2)
 
+    def recheck(self) -> None:
+        """The wanted topics laid out again once the whole log is walked: a format that a later
+        'F' of its name contradicts is refused (a subscription laid out before it came)."""
+        for topic in self.topics.values():
+            _flatten(topic.name, self.formats, self.name)
 
-def _flatten(name: str, formats: dict[str, list[tuple[str, int, str]]], depth: int = 0) -> TopicLayout:
+
+def _flatten(
+    name: str,
+    formats: dict[str, TopicFormat],
+    path: str,
+    depth: int = 0,
+    done: dict[str, TopicLayout] | None = None,
+) -> TopicLayout:
     """A topic's fields by their flattened names (``gyro_rad[0]``, ``nested.x``), as pyulog
-    names them, each with its numpy type and offset; nested types laid out in place."""
+    names them, each with its numpy type and offset; nested types laid out in place, each type
+    once (``done``). Each field's bytes are added up before its names are made, so a count
+    that would lay out more than a message holds is refused, not allocated (as is a format
+    whose count is no number, or that a second 'F' of its name contradicts): an InputError
+    naming the 'F' message. A type no format defines is a KeyError, nested too deep a
+    ValueError (the topic is then not read)."""
+    fmt = formats[name]
+    where = f"the format of {name} (the 'F' message at byte {fmt.at})"
+    if fmt.wrong is not None:
+        raise InputError(f"{where}: {fmt.wrong}", file=path)
+    if fmt.again is not None:
+        raise InputError(
+            f"{where} and a second one of {name}, at byte {fmt.again}, differ: which one its samples follow "
+            "cannot be told",
+            file=path,
+        )
+    done = {} if done is None else done
     out: dict[str, tuple[str, int]] = {}
     offset = 0
-    for kind, count, fname in formats[name]:
+    for kind, count, fname in fmt.fields:
+        inner = None
+        if kind in _TYPES:
+            width = np.dtype(_TYPES[kind]).itemsize
+        else:
+            if depth > 8:
+                raise ValueError(f"{name}: types nested too deep")
+            if kind not in done:
+                done[kind] = _flatten(kind, formats, path, depth + 1, done)
+            inner = done[kind]
+            width = inner.size
+        if offset + max(count, 1) * width > MOST:
+            raise InputError(
+                f"{where}: field {fname!r} ({kind}{f'[{count}]' if count else ''}) ends at byte "
+                f"{offset + max(count, 1) * width} of a sample, more than a message holds ({MOST} after its "
+                "msg_id): no sample of it can be logged",
+                file=path,
+            )
+        if inner is not None and not inner.fields:  # a type of no fields (only padding): its bytes only
+            offset += max(count, 1) * width
+            continue
         names = [f"{fname}[{i}]" for i in range(count)] if count else [fname]
         for each in names:
-            if kind in _TYPES:
+            if inner is None:
                 out[each] = (_TYPES[kind], offset)
-                offset += np.dtype(_TYPES[kind]).itemsize
             else:
-                if depth > 8:
-                    raise ValueError(f"{name}: types nested too deep")
-                inner = _flatten(kind, formats, depth + 1)
                 out.update({f"{each}.{k}": (t, offset + o) for k, (t, o) in inner.fields.items()})
-                offset += inner.size
+            offset += width
     while out and next(reversed(out)).startswith("_padding"):  # trailing padding is not always logged
         last = next(reversed(out))
         kind, start = out.pop(last)
@@ -291,8 +410,8 @@ READER = UlogReader()
 def _walk_file(path: str) -> UlogIndex:
     """Every message of the log stepped over once; the wanted topics' samples placed."""
     digest = hashlib.sha256()
-    walk = _Walk(path)
     with open(path, "rb") as f:
+        walk = _Walk(path, os.fstat(f.fileno()).st_size)
         head = f.read(16)
         digest.update(head)
         if len(head) < 16 or not head.startswith(MAGIC):
@@ -306,11 +425,12 @@ def _walk_file(path: str) -> UlogIndex:
                 walk.flags(first[3:], 16)
         f.seek(16)
         base = 16
-        for cut in [*walk.cuts, None]:
+        for cut in [*(walk.cuts or []), None]:
             base = _walk_part(walk, f, digest, base, cut)
             if cut is not None:
                 f.seek(cut)
                 base = cut
+    walk.recheck()
     walk.summarise()
     topics = sorted(walk.topics.values(), key=lambda t: (t.name, t.instance))
     return UlogIndex(topics, digest.hexdigest(), walk.notes, base)
@@ -425,6 +545,30 @@ def _clock(topic: Subscription) -> str:
     return "timestamp_sample" if "timestamp_sample" in topic.layout.fields else "timestamp"
 
 
+#: What each field read beside a sensor's three is, for the message of a format that lacks it.
+_NEEDED = {
+    "timestamp": "the samples' time (the format has neither timestamp_sample nor timestamp)",
+    "accelerometer_timestamp_relative": "the accelerometer's time after timestamp",
+    "magnetometer_timestamp_relative": "the magnetometer's time after timestamp",
+    "delta_velocity_dt": "the time the delta velocity is over",
+    "delta_angle_dt": "the time the delta angle is over",
+}
+
+
+def _needed(path: str, topic: Subscription, part: UlogSensor) -> list[str]:
+    """The fields read for ``part`` of ``topic`` beside its three (its clock, a relative
+    timestamp, an integration time); one its format lacks is exit 2 naming it and the format."""
+    names = [_clock(topic), *(f for f in (part.relative, part.per) if f)]
+    for name in names:
+        if name not in topic.layout.fields:
+            raise InputError(
+                f"{topic.name}:{topic.instance}: the format of {topic.name} (the 'F' message at byte {topic.at}) "
+                f"has no field {name!r}, {_NEEDED[name]}: its {part.sensor} cannot be read",
+                file=path,
+            )
+    return names
+
+
 def _corrected(topic: Subscription) -> tuple[bool, str]:
     """Whether PX4 had corrected the topic's readings, and how that is told (with the source)."""
     if topic.name in ("sensor_combined", "vehicle_imu"):
@@ -441,7 +585,7 @@ def streams_of(path: str, found: UlogIndex) -> list[Stream]:
     for topic in found.topics:
         places = np.frombuffer(topic.places, dtype=np.int64)
         rate = None
-        if len(places) > 1:
+        if len(places) > 1 and _clock(topic) in topic.layout.fields:
             ends = gather(path, places[[0, -1]], topic.layout.fields, [_clock(topic)])[_clock(topic)]
             span = float(ends[1] - ends[0]) * 1e-6
             rate = (len(places) - 1) / span if span > 0 else None
@@ -517,7 +661,7 @@ def _table(path: str, found: UlogIndex, chosen: Stream, check_clock: bool) -> Ta
     """The readings of the stream ``chosen``; ``check_clock``: samples whose clock goes back dropped."""
     topic = next(t for t in found.topics if (t.name, t.instance) == (chosen.name, chosen.instance))
     part = next(p for p in _parts(topic) if p.sensor == chosen.sensor)
-    names = [*part.fields, _clock(topic), *(f for f in (part.relative, part.per) if f)]
+    names = [*part.fields, *_needed(path, topic, part)]
     if "temperature" in topic.layout.fields:
         names.append("temperature")
     data = gather(path, np.frombuffer(topic.places, dtype=np.int64), topic.layout.fields, names)
