@@ -269,3 +269,14 @@ def test_stale_temporary_file_of_a_writer_in_another_pid_namespace_is_swept_by_a
         sleeper.close()
     assert r.code == 0, r.err
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([live.name, "cal.json"])
+
+
+@pytest.mark.parametrize("kind", ["step", "drift", "moving"])
+def test_a_move_over_readings_that_otherwise_never_change_is_said_not_divided_by_zero(kind: str) -> None:
+    """noise of a mutated DataFlash log: "internal error: ZeroDivisionError" in the moved
+    check's message, whose bound (the spread of the block means) was 0."""
+    from tumblecal_cli.core.allan import Moved
+
+    text = Moved("x", kind, 0.5, 0.0, 7).message()
+    assert " is 0 (not a still capture)" in text
+    assert "times" not in text

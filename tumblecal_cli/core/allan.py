@@ -484,18 +484,24 @@ class Moved:
         if self.kind == "step":
             return (
                 f"block means jump by {self.value:.3g} on {self.axis} near sample {self.at_sample}, "
-                f"{self.value / self.bound * STEP_FACTOR:.0f} times the spread of its block means "
-                "(not a still capture)"
+                f"{self._times(STEP_FACTOR, 'the spread of its block means')} (not a still capture)"
             )
         if self.kind == "moving":
             return (
                 f"block means jump by {self.value:.3g} (rms) on {self.axis} from one block to the next, "
-                f"{self.value / self.bound * MOTION_FACTOR:.1f} times the noise within a block (not a still capture)"
+                f"{self._times(MOTION_FACTOR, 'the noise within a block', '.1f')} (not a still capture)"
             )
         return (
-            f"drifts {self.value:.3g} on {self.axis} from start to end, {self.value / self.bound * DRIFT_FACTOR:.0f} "
-            "times what its own random walk reaches (not a still capture)"
+            f"drifts {self.value:.3g} on {self.axis} from start to end, "
+            f"{self._times(DRIFT_FACTOR, 'what its own random walk reaches')} (not a still capture)"
         )
+
+    def _times(self, factor: float, measure: str, digits: str = ".0f") -> str:
+        """How many times ``measure`` the value is; over a measure of 0 (readings that otherwise
+        never change: a quantised or stuck sensor's), that the measure is 0."""
+        if self.bound == 0:
+            return f"where {measure} is 0"
+        return f"{self.value / self.bound * factor:{digits}} times {measure}"
 
 
 class StepWatch:
