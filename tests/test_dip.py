@@ -138,8 +138,10 @@ def test_the_dip_check_in_the_file_the_summary_and_the_json(capsys: pytest.Captu
     assert abs(dip["difference_deg"]) < 4 * dip["uncertainty_deg"] + 0.02
     assert dip["spread_deg"] < 0.5
     assert json.loads(r.out)["dip"] == dip
-    assert f"dip angle (gravity to field): {dip['mean_deg']:.2f}°" in r.err
-    assert "dip angle" in run(capsys, "show", out).out
+    said = "inclination: the field's angle below the horizontal, + down"
+    assert f"dip {90 - dip['mean_deg']:.2f}° ± {dip['uncertainty_deg']}° ({said}) over" in r.err  # one convention
+    assert "dip" in run(capsys, "show", out).out
+    assert "below the horizontal" in run(capsys, "show", out).out
 
 
 def test_a_field_bent_by_steel_fails_the_dip_angle_limit(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:

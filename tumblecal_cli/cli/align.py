@@ -23,6 +23,7 @@ from tumblecal_cli.cli.flags import (
     Window,
     log_option,
 )
+from tumblecal_cli.core.quantities import DIP_SAID
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.alignment import Consistency
@@ -151,14 +152,14 @@ def _mag_lines(done: MagAligned) -> list[str]:
     return [
         f"{done.log}: magnetometer to accelerometer, {done.blocks} still blocks in {done.orientations} orientations",
         f"rotation {r.angle_deg:.3f}° ± {r.angle_sigma_deg:.3f}° (rotation vector [{vec}]°; chi2 {r.chi2:.3g})",
-        f"dip {fit.dip_deg:.3f}° ± {fit.dip_sigma_deg:.3f}°; spread over the blocks {np.std(fit.dip_before):.3f}° "
-        f"before, {np.std(fit.dip_after):.3f}° after",
+        f"dip {fit.dip_deg:.3f}° ± {fit.dip_sigma_deg:.3f}° ({DIP_SAID}); spread over the blocks "
+        f"{np.std(fit.dip_before):.3f}° before, {np.std(fit.dip_after):.3f}° after",
         f"heading error removed: RMS {rms:.3f}°, largest {np.abs(fit.heading_error).max():.3f}°",
     ]
 
 
 def _imu_lines(done: ImusAligned) -> list[str]:
-    unit = f" {done.units}" if done.units else ""
+    unit = f" {done.units}" if done.units else " (readings' units)"
     seen = f"{render.count(done.blocks, 'still block')} in {render.count(done.orientations, 'orientation')}"
     if done.turning is not None:
         t = done.turning

@@ -11,6 +11,7 @@ import sys
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, NamedTuple, TypedDict
 
+from tumblecal_cli.core.quantities import DIP_SAID
 from tumblecal_cli.errors import PipeClosed, TumblecalError, one_line
 
 if TYPE_CHECKING:
@@ -109,7 +110,7 @@ def alignment_line(record: Mapping[str, object]) -> str:
 
     return (
         f"rotated {number('angle_deg'):.3f}° ± {number('angle_sigma_deg'):.3f}° onto the axes of {record.get('to')}; "
-        f"dip {number('dip_deg'):.2f}° ± {number('dip_sigma_deg'):.2f}°; heading error removed up to "
+        f"dip {number('dip_deg'):.2f}° ± {number('dip_sigma_deg'):.2f}° ({DIP_SAID}); heading error removed up to "
         f"{number('heading_error_deg'):.2f}°"
     )
 

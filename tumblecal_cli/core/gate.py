@@ -631,12 +631,13 @@ def dip_failures(limits: Limits, angles: FloatArray, model: float | None) -> lis
     away = float(angles[k] - centre)
     if abs(away) <= limits.dip_angle:
         return []
-    against = f"the model's {model:.2f}°" if model is not None else f"their mean {centre:.2f}°"
+    # said as the inclination (quantities.DIP_SAID), the one convention printed: 90° less the angle
+    against = f"the model's {90.0 - model:.2f}°" if model is not None else f"their mean {90.0 - centre:.2f}°"
     return [
         Finding(
             "limit.dip_angle",
-            f"the dip angle of still block {k + 1} of {len(angles)} is {angles[k]:.2f}°, {away:+.2f}° from {against}, "
-            f"outside ±{limits.dip_angle:g}°",
+            f"the dip of still block {k + 1} of {len(angles)} is {90.0 - angles[k]:.2f}°, {-away:+.2f}° from "
+            f"{against}, outside ±{limits.dip_angle:g}°",
             away,
             limits.dip_angle,
             hint="calibrate away from steel, motors and cables, or check the accelerometer calibration",

@@ -79,6 +79,10 @@ COMMON = {
     ANGULAR_RATE: ("rad/s", "deg/s", "dps", "°/s"),
     MAGNETIC_FIELD: tuple(name for name, m in UNITS.items() if m.quantity == MAGNETIC_FIELD),
 }
+#: The one dip convention tumblecal prints, said beside it: the WMM's inclination (the files'
+#: ``dip`` part records the angle from gravity to the field, 90° less this).
+DIP_SAID = "inclination: the field's angle below the horizontal, + down"
+
 #: The units a conventional reference (core.model.suggest_reference) is the stimulus of: 1 g,
 #: standard gravity in m/s^2, 1000 mg.
 REFERENCE_UNITS = {1.0: "g", STANDARD_GRAVITY: "m/s^2", 1000.0: "mg"}

@@ -26,6 +26,7 @@ import numpy as np
 
 from tumblecal_cli.core import alignment, blocks
 from tumblecal_cli.core.gate import Finding
+from tumblecal_cli.core.quantities import DIP_SAID
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io import outputs, sources
 from tumblecal_cli.io.calfiles import calfile, limitfile
@@ -277,7 +278,8 @@ def solved_note(done: MagAligned) -> str:
     r, fit = done.fit.rotation, done.fit
     return (
         f"aligned to {done.accel_cal} from {done.blocks} still blocks: rotated {r.angle_deg:.3f}° ± "
-        f"{r.angle_sigma_deg:.3f}°, dip {fit.dip_deg:.2f}° ± {fit.dip_sigma_deg:.2f}°, heading error removed up to "
+        f"{r.angle_sigma_deg:.3f}°, dip {fit.dip_deg:.2f}° ± {fit.dip_sigma_deg:.2f}° ({DIP_SAID}), heading error "
+        "removed up to "
         f"{float(np.abs(fit.heading_error).max()):.2f}°"
     )
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 from tumblecal_cli.core import earth
-from tumblecal_cli.core.quantities import factor
+from tumblecal_cli.core.quantities import DIP_SAID, factor
 from tumblecal_cli.errors import InputError
 
 if TYPE_CHECKING:
@@ -252,11 +252,11 @@ def _dip_lines(part: object) -> list[str]:
     """The summary's line of a calibration's ``dip`` part (pipeline.solve.maglog)."""
     if not isinstance(part, Mapping) or not isinstance(part.get("mean_deg"), float | int):
         return []
-    line = (
-        f"dip angle (gravity to field): {part['mean_deg']:.2f}° ± {part.get('uncertainty_deg')}° over "
+    line = (  # the file keeps the angle from gravity to the field; people read the inclination
+        f"dip {90.0 - part['mean_deg']:.2f}° ± {part.get('uncertainty_deg')}° ({DIP_SAID}) over "
         f"{part.get('blocks')} still blocks, spread {part.get('spread_deg')}°"
     )
     model, difference = part.get("model_deg"), part.get("difference_deg")
     if isinstance(model, float | int) and isinstance(difference, float | int):
-        line += f"; the model's {model:.2f}° ({difference:+.2f}°)"
+        line += f"; the model's {90.0 - model:.2f}° ({-difference:+.2f}°)"
     return [line]
