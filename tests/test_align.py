@@ -593,3 +593,19 @@ def test_one_stream_given_twice_is_refused(tmp_path: Path, capsys: pytest.Captur
     log = imu_ulog(tmp_path / "two.ulg", np.random.default_rng(4), np.eye(3), imus=2, k=3)
     result = run(capsys, "align", log, "--stream", "sensor_accel:0", "--stream", "sensor_accel:0")
     assert_one_error(result, f"{log}: --stream sensor_accel:0 is given twice: an IMU compared with itself")
+
+
+def test_align_consistency_names_its_units_when_the_log_has_none() -> None:
+    """align printed "consistency 0.36 ± 0.025 RMS" for a log whose units are not known: a number
+    without a unit. It says "(readings' units)" then; a log's own units as they are."""
+    from types import SimpleNamespace
+
+    from tumblecal_cli.cli.align import _imu_lines
+    from tumblecal_cli.core.alignment import Consistency
+
+    c = Consistency(rms=0.3606, sigma=0.025, unbiased=0.3606, noise=0.0)
+    pair = SimpleNamespace(stream="b", fit=None, consistency=c, consistency_aligned=None)
+    done = SimpleNamespace(units=None, blocks=9, orientations=8, turning=None, reference="a", pairs=[pair], limit=None)
+    assert _imu_lines(done)[1] == "b: consistency 0.3606 ± 0.025 (readings' units) RMS; rotation not determined"  # type: ignore[arg-type]
+    done.units = "m/s^2"
+    assert _imu_lines(done)[1] == "b: consistency 0.3606 ± 0.025 m/s^2 RMS; rotation not determined"  # type: ignore[arg-type]
