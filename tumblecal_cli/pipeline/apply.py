@@ -370,11 +370,82 @@ def _stream(
             fixes.append(partial(_ignore_temperature, partial(_correct, x)))
         else:
             fixes.append(partial(_correct, x))
+    watches = [Magnitudes(x.reference) if x.sensor in WATCHED and x.reference > 0 else None for x in cals]
+    fixes = [f if w is None else w.watching(f) for f, w in zip(fixes, watches, strict=True)]
     pairs = [(t, f) for (t, _), f in zip(more, fixes[1:], strict=True)]
     rows = rewrite.correct_stream(cap, out, fixes[0], more=pairs, temperature=temperature)
     if sum(clamped):
         note(_clamped_warning(cap.layout, [x for x in cals if x.thermal is not None], sum(clamped)))
+    for x, w in zip(cals, watches, strict=True):
+        said = None if w is None else w.changed(cap.layout.name, x)
+        if said is not None:
+            note(said)
     return rows
+
+
+#: The sensors whose corrected magnitude is the reference in any orientation: apply watches it.
+WATCHED = ("accelerometer", "magnetometer")
+#: A capture whose median corrected magnitude is further than this from the reference is said.
+CHANGED = 0.10
+
+
+class Magnitudes:
+    """The median |corrected| / reference of a capture as it is corrected: a histogram of the
+    ratio (log-spaced bins of 0.5 %, 1e-3 to 1e3), in memory shared with apply's forked workers
+    (an anonymous shared mapping made before they fork), one row per process so that no two add
+    into one row at once. Bounded memory whatever the capture's length."""
+
+    BINS = 2764  # ln(1e6) / ln(1.005)
+    ROWS = 64
+
+    def __init__(self, reference: float) -> None:
+        import mmap
+
+        self.reference = reference
+        self._map = mmap.mmap(-1, self.ROWS * self.BINS * 8)
+        self.counts = np.frombuffer(self._map, dtype=np.int64).reshape(self.ROWS, self.BINS)
+
+    def watching(self, fn: Correct) -> Correct:
+        def watched(*args: FloatArray) -> FloatArray:
+            fixed = fn(*args)
+            self.add(fixed)
+            return fixed
+
+        return watched
+
+    def add(self, fixed: FloatArray) -> None:
+        with np.errstate(invalid="ignore", divide="ignore"):  # empty rows (NaN), a zero reading
+            ratio = np.log(np.sqrt(np.einsum("ij,ij->i", fixed, fixed)) / self.reference)
+        at = np.floor((ratio - np.log(1e-3)) / np.log(1.005))
+        at = at[np.isfinite(at)].astype(np.int64).clip(0, self.BINS - 1)
+        self.counts[os.getpid() % self.ROWS] += np.bincount(at, minlength=self.BINS)
+
+    def median(self) -> float | None:
+        """The median ratio (to the bin's centre, 0.25 %), None when no row was corrected."""
+        total = self.counts.sum(axis=0)
+        n = int(total.sum())
+        if n == 0:
+            return None
+        k = int(np.searchsorted(np.cumsum(total), (n + 1) / 2))
+        return float(1e-3 * 1.005 ** (k + 0.5))
+
+    def changed(self, name: str, cal: Calibration) -> str | None:
+        """A warning when the median is further than CHANGED from 1: a magnetometer's field or hard
+        iron, or an accelerometer (its units, its unit), is not what the calibration was made for
+        (a corrected median |B| of 458 µT against a 46 µT reference was written with exit 0)."""
+        ratio = self.median()
+        if ratio is None or abs(ratio - 1.0) <= CHANGED:
+            return None
+        units = f" {cal.units}" if cal.units else ""
+        what = (
+            "the field or the hard iron changed"
+            if cal.sensor == "magnetometer"
+            else "the sensor, its mounting or its units are not the calibration's"
+        )
+        return (
+            f"warning: {name}: the corrected {cal.sensor} reads {ratio * cal.reference:.4g}{units} in median "
+            f"magnitude, {ratio - 1:+.0%} from the calibration's {cal.reference:g}{units}: {what}: recalibrate"
+        )
 
 
 def thermal_column(layout: Layout, cals: Sequence[Calibration]) -> int | None:
