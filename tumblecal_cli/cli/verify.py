@@ -123,7 +123,8 @@ def verify(
 ) -> None:
     """Check a calibration on static captures it was not fitted on: the norm of each mean, before
     and after correction, against the reference (the test of a calibration model in Sports
-    Sensing 2023).
+    Sensing 2023). A magnetometer's turning capture is judged sample by sample: the RMS and
+    largest |corrected| - reference, and the directions it reaches.
 
     \b
       tumblecal verify --cal cal.json check1.csv check2.csv check3.csv

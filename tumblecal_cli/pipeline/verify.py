@@ -4,15 +4,16 @@ calibration model in Sports Sensing 2023: the norm of each corrected mean agains
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, TypedDict, Unpack
+from typing import TYPE_CHECKING, NotRequired, TypedDict, Unpack
 
 import numpy as np
 
-from tumblecal_cli.core import catalog, drift, gate, methods, model, rotation_fit
+from tumblecal_cli.core import catalog, drift, gate, methods, model, rotation_fit, solvers
 from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.model import UNITS_TOLERANCE
 from tumblecal_cli.errors import CaptureRejected, InputError
@@ -44,6 +45,9 @@ class CaptureRow(TypedDict):
     norm_after: float
     error_after: float
     std: list[float]
+    turning: NotRequired[bool]  # a turning capture (a magnetometer's): error_after is the samples' RMS
+    max_error: NotRequired[float]  # ... and this their largest |error|
+    coverage: NotRequired[float]  # ... and this the share of the sphere's directions they reach
 
 
 class RotationRow(TypedDict):
@@ -180,12 +184,13 @@ def _verify(paths: list[str], cal: Calibration | str | os.PathLike[str], options
                 f"{s.layout.name}: the calibration was fitted on this capture ({fitted[s.sha256]}): "
                 "it reads the reference by construction, a self-check rather than a verification"
             )
+        reload = functools.partial(_readings, path, spec)
         for name, values in _poses(s, c, options.get("rows_are_poses"), result.notes):
-            _check(result, name, values, judge)
+            _check(result, name, values, judge, reload)
     errors = [r["error_after"] for r in result.rows]
     result.overall = {
         "rms_error": float((sum(e * e for e in errors) / len(errors)) ** 0.5),
-        "max_error": float(max(abs(e) for e in errors)),
+        "max_error": float(max(r.get("max_error", abs(r["error_after"])) for r in result.rows)),
     }
     if same_units:
         raw_errors = [e for r in result.rows if (e := r["error_before"]) is not None]  # each, with same_units
@@ -212,9 +217,13 @@ def _poses(s: Samples, c: Calibration, rows: bool | None, notes: list[str]) -> l
     return [(f"{name} row {k}", s.values[k : k + 1]) for k in range(len(s.values))]
 
 
-def _check(result: Verified, name: str, values: FloatArray | Summary, judge: _Judge) -> None:
+def _check(
+    result: Verified, name: str, values: FloatArray | Summary, judge: _Judge, reload: Callable[[], FloatArray]
+) -> None:
     """One capture's norm before and after correction, in ``result``: a row, and a rejection
-    (not static) or a failure (past --max-norm-error) where it has one."""
+    (not static) or a failure (past --max-norm-error) where it has one. A magnetometer's capture
+    that is not static is judged as a turning one (:func:`_turning`; ``reload``: its readings,
+    where ``values`` holds only their sums)."""
     c, ref = judge.cal, judge.reference
     st = model.pose_stats(values)
     before = float((st.mean**2).sum() ** 0.5)
@@ -229,6 +238,9 @@ def _check(result: Verified, name: str, values: FloatArray | Summary, judge: _Ju
         "error_after": fixed.norm_error,
         "std": [float(v) for v in std],
     }
+    if judge.max_noise > 0 and ref > 0 and float(std.max()) > judge.max_noise * ref and c.sensor in TURNED:
+        _turning(result, name, values if isinstance(values, np.ndarray) else reload(), judge)
+        return
     result.rows.append(row)
     if judge.max_noise > 0 and ref > 0 and float(std.max()) > judge.max_noise * ref:
         result.rejected.append(
@@ -239,6 +251,53 @@ def _check(result: Verified, name: str, values: FloatArray | Summary, judge: _Ju
     _units(name, c, before, fixed.norm_error + ref, ref)  # a static capture: its magnitude judged
     if judge.max_norm_error is not None and not abs(row["error_after"]) <= judge.max_norm_error:
         result.failed.append(row["file"])
+
+
+#: The sensors whose calibration a turning capture checks: |corrected| is the reference in every
+#: orientation, still or not (an accelerometer's turned readings hold the motion's acceleration).
+TURNED = ("magnetometer",)
+
+
+def _turning(result: Verified, name: str, values: FloatArray, judge: _Judge) -> None:
+    """A turning capture of a magnetometer: each sample's |corrected| − reference (their RMS is
+    the row's error, judged by --max-norm-error; their largest, its ``max_error``) and the share
+    of the sphere's directions its corrected samples reach (``coverage``): a calibration that fits
+    in every direction the capture turned through. ``verify`` of a turning recording refused it
+    as "not a static capture"."""
+    c, ref = judge.cal, judge.reference
+    finite = values[np.isfinite(values).all(axis=1)]
+    fixed = model.apply(finite, c.offset, c.matrix)
+    size = np.linalg.norm(fixed, axis=1)
+    errors = size - ref
+    rms, largest = float(np.sqrt(np.mean(errors**2))), float(np.abs(errors).max())
+    reached = solvers.coverage(fixed / size[:, None])
+    raw = float(np.median(np.linalg.norm(finite, axis=1)))
+    row: CaptureRow = {
+        "file": name,
+        "samples": len(finite),
+        "norm_before": raw,
+        "error_before": raw - ref if judge.same_units else None,
+        "norm_after": float(np.median(size)),
+        "error_after": rms,
+        "std": [float(v) for v in fixed.std(axis=0)],
+        "turning": True,
+        "max_error": largest,
+        "coverage": reached,
+    }
+    result.rows.append(row)
+    result.notes.append(
+        f"{name}: a turning capture: |corrected| - reference RMS {rms:.3g}, largest {largest:.3g} over "
+        f"{len(finite)} samples; they reach {reached:.0%} of the sphere's directions"
+        + ("" if reached >= 0.5 else " (turn it through more of them to judge the calibration everywhere)")
+    )
+    _units(name, c, raw, float(np.median(size)), ref)
+    if judge.max_norm_error is not None and not rms <= judge.max_norm_error:
+        result.failed.append(name)
+
+
+def _readings(path: str, spec: ReadSpec) -> FloatArray:
+    """A capture's every reading, read again (a long pose file is summed as it is read)."""
+    return readings.read_log(path, spec, use_time=False).values
 
 
 def _spec(options: VerifyKeywords, c: Calibration) -> ReadSpec:
