@@ -28,6 +28,7 @@ from tumblecal_cli.io.csv import capture, compressed, logread, readings
 from tumblecal_cli.io.csv.readings import Log, Samples, check_rate
 from tumblecal_cli.io.csv.sniff import HEAD_BYTES, sniff
 from tumblecal_cli.io.figures import fitplots
+from tumblecal_cli.io.logs import ROS as ROS_LOGS
 from tumblecal_cli.io.outputs import (
     MAX_SPOOL,
     WRITE_ERRORS,
@@ -439,10 +440,12 @@ def read_twice(log: str, spec: ReadSpec | None = None, max_spool: int | str | No
     The copy checks what it copies as it goes: its first block as the CSV reader would with
     ``spec`` (a first line over 1 MB, binary data: refused at once, not copied to the end of an
     endless stream), and its size, up to ``max_spool`` bytes (a size: 500M, 4G; None: MAX_SPOOL,
-    or the room in $TMPDIR less a margin if that is less). Beyond it: exit 2."""
+    or the room in $TMPDIR less a margin if that is less). Beyond it: exit 2. A ROS bag's chunks
+    inflate up to the same ``max_spool`` (io.logs.ros.bounded) as it is read inside."""
     limit = size_option(max_spool, "--max-spool")
     if log != "-" and (capture.is_regular(log) or os.path.isdir(log)):  # a folder: a ROS 2 bag's (io.sources)
-        yield log
+        with _inflating(log, limit):
+            yield log
         return
     folder = tempfile.gettempdir()
     remove_stale(folder, SPOOL)  # the copies of runs killed with -9
@@ -468,6 +471,19 @@ def read_twice(log: str, spec: ReadSpec | None = None, max_spool: int | str | No
     finally:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
+
+
+def _inflating(log: str, limit: int | None) -> contextlib.AbstractContextManager[None]:
+    """A ROS bag's reading with what its chunks inflate bounded by ``limit`` (--max-spool) too;
+    any other log's (and a bag's without --max-spool, bounded by its default) as it is."""
+    reader = sources.reader_for(log) if limit is not None else None
+    if reader is None or reader.kind != ROS_LOGS.kind:
+        return contextlib.nullcontext()
+    try:
+        from tumblecal_cli.io.logs import ros
+    except ImportError:  # without rosbags the bag is exit 2 naming the extra, when it is read
+        return contextlib.nullcontext()
+    return ros.bounded(limit)
 
 
 def _spool(source: IO[bytes], out: IO[bytes], log: str, spec: ReadSpec, limit: int | None) -> None:
