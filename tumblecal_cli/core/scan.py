@@ -369,9 +369,11 @@ def _sort(runs: Runs, size: int, low: float, high: float, out: FloatArray | None
     written = 0
     for a in range(0, exact.size, SLICE):
         values = exact[a : a + SLICE]
-        index = np.arange(a, a + values.size)
-        run = np.searchsorted(offset, index, side="right") - 1
-        at = firsts[run] + (index - offset[run])  # each spread's position
+        b = a + values.size
+        r0, r1 = np.searchsorted(offset, [a, b - 1], side="right") - 1  # the runs the slice is in
+        ends = np.minimum(offset[r0 : r1 + 1] + lengths[r0 : r1 + 1], b)
+        run = np.repeat(np.arange(r0, r1 + 1), np.maximum(ends - np.maximum(offset[r0 : r1 + 1], a), 0))
+        at = firsts[run] + (np.arange(a, b) - offset[run])  # each spread's position
         sort = np.full(values.size, EXACT, dtype=np.int8)
         sort[values < low] = BELOW
         sort[values >= high] = ABOVE
