@@ -160,8 +160,9 @@ def _peak(*args: str | Path) -> int:
 @pytest.mark.slow
 @pytest.mark.skipif(sys.platform != "linux", reason="ru_maxrss is in KiB on Linux")
 def test_segment_memory_is_flat_in_the_logs_length(tmp_path: Path) -> None:
-    """A still pose at 1 kHz: 6M rows took 1.4 times the memory of 1M (217 MiB, 155), and grew
-    by 8 bytes and more a row; now within 1.3 times (by hand: 175 MiB and 152, 5M rows 176)."""
+    """A still pose at 1 kHz: 6M rows took 1.34 times the memory of 1M (206 MiB, 153; 30M rows
+    504), 8 bytes and more a row; now within 1.3 times (by hand: 180 MiB and 156; 30M rows 192,
+    what grows being the chunks' sums and the clock's every 64th time, under a byte a row)."""
     small = _still_pose(tmp_path / "small.csv", 1_000_000)
     large = _still_pose(tmp_path / "large.csv", 6_000_000)
     base = _peak("segment", small, "-d", tmp_path / "small")
