@@ -2,9 +2,10 @@
 
 ``detect`` needs the whole log in memory: 20 million readings are 0.5 GB of floats before
 anything else. ``Scan`` finds the same blocks while the log streams past and keeps only the
-readings of the still periods (and those within a window of one), or only their spreads (and
+readings of the still periods (and those within a window of one), or only where they are (and
 ``finish`` is given what measures the blocks: io.csv.logread's sums over chunks, core.chunks, 56
-bytes a chunk of 256 readings): its memory grows with the still blocks, not with the log.
+bytes a chunk of 256 readings): its memory does not grow with the still readings (a few bytes a
+run of them, and bands of spreads of a fixed size), nor with the log.
 
 The rules are ``detect``'s (its docstring): the spread of the window centred on each sample,
 ``FLOOR_FACTOR`` times its ``FLOOR_PERCENTILE``-th percentile as the threshold, runs below it
@@ -14,20 +15,29 @@ figures of the whole log are only known at its end, and each is kept exact:
 - the sample period (the median time step): a count of each distinct step;
 - the noise floor (a percentile of every sample's spread): a sample is a *candidate* when its
   spread is below the *bound* in force when it is seen, and candidates and their neighbours are
-  kept with their spreads. The bound starts infinite and falls to ``BOUND_FACTOR`` times the
-  threshold the log so far gives, each time the log has grown TIGHTEN times; every spread below the lowest
-  bound used is among those kept, so the percentile is exact when it is below that bound;
+  kept. The bound starts infinite and falls to ``BOUND_FACTOR`` times the threshold the log so
+  far gives, each time the log has grown TIGHTEN times; every spread below the lowest bound
+  used is a kept sample's. Those spreads are counted in a band about the percentile so far
+  (``_Floor``): all of them until FLOOR_SPREADS are, then those below the band counted, those
+  in it kept (FLOOR_KEEP each side of the percentile, narrowed again each time it holds
+  FLOOR_SPREADS), those above it let go; the percentile is exact when it is below the lowest
+  bound and in the band at the end;
+- which kept samples are below the threshold: their spreads, exact until EXACT_SPREADS are,
+  then runs of them below the threshold so far (SPREAD_MARGIN of it; a run keeps its highest
+  spread), above it (its lowest), or near it, each one exact (``_Spreads``);
 - the gaps: every step over half a gap of the first blocks' period, judged at the end;
 - whether the clock is bursty (``core.clock``): the time of every WINDOW-th sample.
 
 ``finish`` returns None when the log broke an assumption: its threshold came out above a bound
-used earlier, its period differs from the first blocks' enough to change the window, its
-steps are too many kinds to count, its clock is bursty (the whole read takes its period from
-the mean step and its gaps by its pauses), or a spread lies on the threshold (within ``TIE``, or
-``ROUNDING`` times (range / threshold)^2 where that is more: a quantised log's spreads take a
-few exact values, and one can be the threshold itself; a quiet log's spreads are summed from
-other stretches here than in the whole read; either way rounding alone would say which side).
-The caller then reads the log whole and calls ``detect``.
+used earlier, its noise floor left the band (a log whose noise grows or falls over hours: a
+percentile far from the one of its first hour), a run taken as below or above the threshold so
+far has a spread within the tie of the end's (below), its period differs from the first blocks'
+enough to change the window, its steps are too many kinds to count, its clock is bursty (the
+whole read takes its period from the mean step and its gaps by its pauses), or a spread lies on
+the threshold (within ``TIE``, or ``ROUNDING`` times (range / threshold)^2 where that is more: a
+quantised log's spreads take a few exact values, and one can be the threshold itself; a quiet
+log's spreads are summed from other stretches here than in the whole read; either way rounding
+alone would say which side). The caller then reads the log whole and calls ``detect``.
 
 A block's spreads may come computed (``feed(..., inside=)``, ``window_spread`` of the block
 alone, on another thread): only the windows across its start are computed here.
@@ -55,7 +65,6 @@ from tumblecal_cli.core.blocks import (
     in_samples,
     judge_blocks,
     smallest,
-    true_runs,
     window_spread,
 )
 from tumblecal_cli.core.blocks import measure as segment_measure
@@ -104,7 +113,6 @@ class Kept:
     axes: FloatArray  # (3, n)
     floats: FloatArray
     ints: IntArray
-    spread: FloatArray
     run_first: IntArray  # each run's first sample: its index in the log ...
     run_at: IntArray  # ... and its position here
     run_size: IntArray
@@ -127,8 +135,8 @@ class Kept:
         return int(self.run_at[k] + index - self.run_first[k])
 
 
-#: What measures a Scan's blocks when it kept no readings: the samples kept (their spreads and
-#: where each run of them is in the log) and each block's first and last position among them.
+#: What measures a Scan's blocks when it kept no readings: the samples kept (where each run of
+#: them is in the log) and each block's first and last position among them.
 Measure = Callable[[Kept, list[tuple[int, int]]], list[Measured]]
 
 
@@ -142,8 +150,8 @@ def log_index(run_first: IntArray, run_at: IntArray, at: IntArray | int) -> IntA
 
 class _Store:
     """Kept samples written end to end into arrays made once for as many as the log can hold
-    (``capacity``: memory is only touched where written), grown if the guess was short; their
-    spreads alone unless ``readings``."""
+    (``capacity``: memory is only touched where written), grown if the guess was short: where
+    each run of them is in the log, and their readings if ``readings``."""
 
     def __init__(self, capacity: int, readings: bool = True) -> None:
         self.capacity = max(1024, capacity)
@@ -151,17 +159,16 @@ class _Store:
         self.axes: FloatArray | None = None
         self.floats: FloatArray | None = None
         self.ints: IntArray | None = None
-        self.spread = np.empty(self.capacity)
         self.runs: list[tuple[int, int]] = []  # (first index, size)
         self.size = 0
 
-    def add(self, part: ScanPart, spread: FloatArray) -> None:
+    def add(self, part: ScanPart) -> None:
         n = len(part)
         if self.readings and (self.axes is None or self.floats is None or self.ints is None):
             self.axes = np.empty((3, self.capacity))
             self.floats = np.empty((self.capacity, part.floats.shape[1]))
             self.ints = np.empty((self.capacity, part.ints.shape[1]), dtype=part.ints.dtype)
-        if self.size + n > self.capacity:
+        if self.readings and self.size + n > self.capacity:
             self._grow(self.size + n)
         if self.runs and self.runs[-1][0] + self.runs[-1][1] == part.first:
             self.runs[-1] = (self.runs[-1][0], self.runs[-1][1] + n)
@@ -172,12 +179,10 @@ class _Store:
             self.axes[:, k : k + n] = part.axes
             self.floats[k : k + n] = part.floats
             self.ints[k : k + n] = part.ints
-        self.spread[k : k + n] = spread
         self.size += n
 
     def _grow(self, need: int) -> None:
         capacity = max(need, self.capacity * 3 // 2)
-        self.spread = np.concatenate([self.spread[: self.size], np.empty(capacity - self.size)])
         self.capacity = capacity
         if self.axes is None or self.floats is None or self.ints is None:
             return
@@ -189,18 +194,215 @@ class _Store:
             [self.ints[: self.size], np.empty((capacity - self.size, self.ints.shape[1]), dtype=self.ints.dtype)]
         )
 
-    def smallest(self, k: int, bound: float) -> float | None:
-        """The ``k``-th smallest spread kept below ``bound`` (``segment.smallest``)."""
-        return smallest(self.spread[: self.size], k, bound)
-
     def join(self, template: ScanPart) -> Kept:
         k = self.size
         first = np.array([r[0] for r in self.runs], dtype=np.int64)
         size = np.array([r[1] for r in self.runs], dtype=np.int64)
         at = np.concatenate([[0], np.cumsum(size)[:-1]]).astype(np.int64) if size.size else size
-        if self.axes is None or self.floats is None or self.ints is None:  # their spreads alone
-            return Kept(template.axes, template.floats, template.ints, self.spread[:k], first, at, size)
-        return Kept(self.axes[:, :k], self.floats[:k], self.ints[:k], self.spread[:k], first, at, size)
+        if self.axes is None or self.floats is None or self.ints is None:  # no readings
+            return Kept(template.axes, template.floats, template.ints, first, at, size)
+        return Kept(self.axes[:, :k], self.floats[:k], self.ints[:k], first, at, size)
+
+
+class _Floor:
+    """The spreads the noise floor is the percentile of, in a band ``lo`` .. ``hi`` about it:
+    those below it counted (``under``), those in it kept, those over it let go. The band is
+    everything at first, and is narrowed about the percentile so far (FLOOR_KEEP spreads each
+    side of it) whenever FLOOR_SPREADS are kept: a percentile the band no longer holds is not
+    known. A spread that comes many times (a quantised log's take a few values) is counted,
+    not kept (``heavy``)."""
+
+    def __init__(self, size: int) -> None:
+        self.size = size
+        self.lo, self.hi = -np.inf, np.inf
+        self.under = 0
+        self.kept = np.empty(0)  # ``taken`` spreads, as they came (made once: memory is touched where written)
+        self.taken = 0
+        self.heavy: dict[float, int] = {}
+        self.due = size  # narrowed when this many are kept
+
+    def add(self, spread: FloatArray, below: float, rank: int) -> None:
+        """Spreads of the samples kept (those under ``below`` count); ``rank``: the percentile's
+        rank so far, which a narrowed band is about."""
+        if self.taken + spread.size > self.due:  # (before these are judged by the band)
+            self._narrow(below, rank)
+            self.due = max(self.size, 2 * self.taken)
+        found = spread[spread < min(below, self.hi)]
+        if self.lo > -np.inf:
+            low = found < self.lo
+            if low.any():
+                self.under += int(np.count_nonzero(low))
+                found = found[~low]
+        for value in self.heavy:
+            same = found == value
+            if same.any():
+                self.heavy[value] += int(np.count_nonzero(same))
+                found = found[~same]
+        n = found.size
+        if self.taken + n > self.kept.size:  # (more than ``size``: a band that could not be narrowed)
+            room = np.empty(max(self.taken + n, self.kept.size * 3 // 2, self.size + (1 << 18)))
+            room[: self.taken] = self.kept[: self.taken]
+            self.kept = room
+        self.kept[self.taken : self.taken + n] = found
+        self.taken += n
+
+    def _narrow(self, below: float, rank: int) -> None:
+        """The band about the spread of ``rank`` (FLOOR_KEEP each side), those under ``below``."""
+        kept = self.kept[: self.taken]
+        low, lo = self.smallest(rank - FLOOR_KEEP, below) if rank - FLOOR_KEEP >= self.under else (False, None)
+        high, hi = self.smallest(rank + FLOOR_KEEP, below)
+        if low and lo is not None and lo > self.lo:
+            self.under += int(np.count_nonzero(kept < lo)) + sum(c for v, c in self.heavy.items() if v < lo)
+            self.lo = lo
+        if high and hi is not None and hi < self.hi:
+            self.hi = hi
+        inside = (kept >= self.lo) & (kept < min(below, self.hi))
+        found = kept[inside]
+        self.heavy = {v: c for v, c in self.heavy.items() if self.lo <= v < min(below, self.hi)}
+        if found.size > self.size // 2:  # spreads that come many times: counted, not kept
+            values, counts = np.unique(found, return_counts=True)
+            many = counts > self.size // 64
+            for v, c in zip(values[many].tolist(), counts[many].tolist(), strict=True):
+                self.heavy[v] = self.heavy.get(v, 0) + c
+            if many.any():
+                found = found[~np.isin(found, values[many])]
+        self.taken = found.size
+        self.kept[: self.taken] = found
+
+    def smallest(self, k: int, below: float) -> tuple[bool, float | None]:
+        """Whether the ``k``-th smallest spread under ``below`` is known, and it (None: there
+        are no more than ``k``), as ``blocks.smallest`` finds it among them all."""
+        if self.lo > -np.inf and not self.lo < below:
+            return False, None  # those counted under the band may be over ``below``
+        at = k - self.under
+        if at < 0:
+            return False, None
+        kept = self.kept[: self.taken]
+        before = 0  # the heavy spreads below the one looked at
+        for value in sorted(v for v in self.heavy if v < below):
+            rank = int(np.count_nonzero(kept < value)) + before
+            if at < rank:
+                break
+            if at < rank + self.heavy[value]:
+                return True, value
+            before += self.heavy[value]
+        found = smallest(kept, at - before, below)
+        if found is None and self.hi < below:
+            return False, None  # the k-th is over the band
+        return True, found
+
+
+#: The noise floor's band holds up to this many spreads before it is narrowed ...
+FLOOR_SPREADS = 1 << 21
+#: ... to this many each side of the percentile so far.
+FLOOR_KEEP = FLOOR_SPREADS // 4
+#: The spreads of the samples kept are kept exact up to this many, then only those near the
+#: threshold so far are (SPREAD_MARGIN of it each way): the others are below it or above.
+EXACT_SPREADS = 1 << 19
+#: ... and nearer still (down to MIN_MARGIN) while more than half of EXACT_SPREADS are that near.
+SPREAD_MARGIN, MIN_MARGIN = 0.5, 1e-3
+BELOW, EXACT, ABOVE = 0, 1, 2
+
+
+class _Spreads:
+    """The spread of each sample kept, by its position among them, as far as the end needs it:
+    runs of positions whose spreads are all below the threshold so far (BELOW: the run's
+    highest is kept), all above it (ABOVE: its lowest), or near it (EXACT: each one kept)."""
+
+    def __init__(self) -> None:
+        self.start = np.zeros(0, dtype=np.int64)  # each run's first position, its kind (BELOW,
+        self.kind = np.zeros(0, dtype=np.int8)  # EXACT or ABOVE) and for BELOW its highest
+        self.edge = np.zeros(0)  # spread, for ABOVE its lowest
+        self.fresh: list[int] = []  # the first position of each run added since (EXACT)
+        self.exact = np.empty(EXACT_SPREADS + SLICE)  # the EXACT runs' spreads, in order (made once) ...
+        self.held = 0  # ... this many
+        self.size = 0
+        self.due = EXACT_SPREADS  # sorted when this many are exact
+
+    def add(self, spread: FloatArray) -> None:
+        n = spread.size
+        if self.held + n > self.exact.size:
+            grown = np.empty(max(self.held + n, self.exact.size * 3 // 2))
+            grown[: self.held] = self.exact[: self.held]
+            self.exact = grown
+        self.exact[self.held : self.held + n] = spread
+        self.fresh.append(self.size)
+        self.size += n
+        self.held += n
+
+    def runs(self) -> Runs:
+        """Every run, those added since too."""
+        exact = self.exact[: self.held]
+        if not self.fresh:
+            return self.start, self.kind, self.edge, exact
+        return (
+            np.concatenate([self.start, np.array(self.fresh, dtype=np.int64)]),
+            np.concatenate([self.kind, np.full(len(self.fresh), EXACT, dtype=np.int8)]),
+            np.concatenate([self.edge, np.full(len(self.fresh), np.nan)]),
+            exact,
+        )
+
+    def sort(self, low: float, high: float) -> None:
+        """The exact spreads under ``low`` made BELOW, those ``high`` or over ABOVE."""
+        self.start, self.kind, self.edge, exact = _sort(self.runs(), self.size, low, high, self.exact)
+        self.fresh, self.held = [], exact.size
+
+
+#: Runs of positions: each one's first, kind and edge, and the EXACT ones' spreads (_Spreads).
+Runs = tuple[IntArray, NDArray[np.int8], FloatArray, FloatArray]
+#: _sort takes the exact spreads this many at a time (what it makes for each stays small).
+SLICE = 1 << 16
+
+
+def _sort(runs: Runs, size: int, low: float, high: float, out: FloatArray | None = None) -> Runs:
+    """``runs`` (up to position ``size``) with their exact spreads under ``low`` made BELOW and
+    those ``high`` or over ABOVE; runs that meet, of a kind, are one. The spreads still exact
+    are written to the start of ``out`` if given (the array ``runs``'s are in: each after it is read)."""
+    start, kind, edge, exact = runs
+    if not start.size:
+        return runs
+    inside = kind == EXACT
+    lengths = np.diff(np.append(start, size))[inside]
+    offset = np.cumsum(lengths) - lengths  # each EXACT run's first spread in ``exact``
+    firsts = start[inside]
+    starts, kinds, edges, kept = [start[~inside]], [kind[~inside]], [edge[~inside]], []
+    written = 0
+    for a in range(0, exact.size, SLICE):
+        values = exact[a : a + SLICE]
+        b = a + values.size
+        r0, r1 = np.searchsorted(offset, [a, b - 1], side="right") - 1  # the runs the slice is in
+        ends = np.minimum(offset[r0 : r1 + 1] + lengths[r0 : r1 + 1], b)
+        run = np.repeat(np.arange(r0, r1 + 1), np.maximum(ends - np.maximum(offset[r0 : r1 + 1], a), 0))
+        at = firsts[run] + (np.arange(a, b) - offset[run])  # each spread's position
+        sort = np.full(values.size, EXACT, dtype=np.int8)
+        sort[values < low] = BELOW
+        sort[values >= high] = ABOVE
+        first = np.flatnonzero(np.concatenate([[True], (sort[1:] != sort[:-1]) | (at[1:] != at[:-1] + 1)]))
+        starts.append(at[first])
+        kinds.append(sort[first])
+        edges.append(_edges(values, first, sort[first]))
+        near = values[sort == EXACT]
+        if out is None:
+            kept.append(near)
+        else:
+            out[written : written + near.size] = near
+            written += near.size
+    start, kind, edge = np.concatenate(starts), np.concatenate(kinds), np.concatenate(edges)
+    order = np.argsort(start, kind="stable")
+    start, kind, edge = start[order], kind[order], edge[order]
+    first = np.flatnonzero(np.concatenate([[True], kind[1:] != kind[:-1]]))
+    exact = np.concatenate([np.zeros(0), *kept]) if out is None else out[:written]
+    return start[first], kind[first], _edges(edge, first, kind[first]), exact
+
+
+def _edges(values: FloatArray, first: IntArray, kind: NDArray[np.int8]) -> FloatArray:
+    """Of each run of ``values`` (from each of ``first``), the highest for BELOW, the lowest for
+    ABOVE, NaN for EXACT."""
+    if not first.size:
+        return np.zeros(0)
+    found = np.where(kind == BELOW, np.fmax.reduceat(values, first), np.fmin.reduceat(values, first))
+    found[kind == EXACT] = np.nan
+    return found
 
 
 class Scan:
@@ -216,8 +418,8 @@ class Scan:
         """``period``: seconds per sample from the log's first blocks (the median step there),
         or 1/rate; None when neither is known (the window is then in samples). ``capacity``:
         how many samples the log may have, about (room for the kept ones is made once).
-        ``readings``: keep the still samples' readings (and what goes with them), not their
-        spreads alone; without them ``finish`` is given what measures the blocks."""
+        ``readings``: keep the still samples' readings (and what goes with them), not only
+        where they are; without them ``finish`` is given what measures the blocks."""
         settings = self.settings = settings or DetectorSettings()
         self.period = period
         self.window = in_samples(settings.window, WINDOW, period, 2)
@@ -234,6 +436,10 @@ class Scan:
         self.held_candidate = np.zeros(0, dtype=bool)
         self.before = np.zeros(0, dtype=bool)  # candidate flags of the pad samples decided last
         self.store = _Store(capacity, readings)
+        self.spreads = _Spreads()  # the kept samples' spreads, as far as the end needs them
+        self.floor = _Floor(FLOOR_SPREADS) if settings.threshold is None else None
+        self.margin = SPREAD_MARGIN  # how near the threshold so far a spread is kept exact (relative)
+        self.estimate: float | None = None  # the noise floor so far, when last known
         self.template: ScanPart | None = None
         # a given threshold is the bound, and a little over it: a spread on it must be seen (finish's tie)
         self.bound = np.inf if settings.threshold is None else float(settings.threshold) * (1 + MARGIN)
@@ -335,8 +541,9 @@ class Scan:
         decided = self.finalized - self.held_spread.size
         if decided <= 0:
             return
-        floor = self.store.smallest(_rank(decided), self.least_bound)
-        if floor is not None:
+        known, floor = self._floor(_rank(decided))
+        if known and floor is not None:
+            self.estimate = floor
             quantised = 1e-6 * (float((self.hi - self.lo).max()) or 1.0)  # finish's threshold for no spread
             self.bound = min(self.bound, BOUND_FACTOR * max(FLOOR_FACTOR * floor, quantised))
 
@@ -353,13 +560,51 @@ class Scan:
         for a, b in _near(flags, pad, at, ready):  # runs of kept samples
             at = a
             for piece in _between(held, first + a, first + b):
-                self.store.add(piece, self.held_spread[at : at + len(piece)])
+                self.store.add(piece)
+                spread = self.held_spread[at : at + len(piece)]
+                self.spreads.add(spread)
+                if self.floor is not None:
+                    self.floor.add(spread, self.least_bound, _rank(self.finalized))
                 at += len(piece)
+        if self.spreads.held > self.spreads.due:
+            self._sort_spreads()
         self.before = self.held_candidate[max(0, ready - self.pad) : ready]
         rest = _between(held, first + ready, first + size)
         self.held = [ScanPart(p.first, p.axes.copy(), p.floats.copy(), p.ints.copy()) for p in rest]  # not the block
         self.held_spread = self.held_spread[ready:].copy()
         self.held_candidate = self.held_candidate[ready:].copy()
+
+    def _floor(self, rank: int) -> tuple[bool, float | None]:
+        """Whether the ``rank``-th smallest spread under the lowest bound is known, and it."""
+        if self.floor is None:
+            return False, None
+        return self.floor.smallest(rank, self.least_bound)
+
+    def _threshold(self, floor: float) -> float:
+        """The threshold a noise floor gives, by the readings' range so far (``finish``'s rule)."""
+        scale = float((self.hi - self.lo).max()) or 1.0
+        return FLOOR_FACTOR * floor if floor > 1e-9 * scale else 1e-6 * scale
+
+    def _sort_spreads(self) -> None:
+        """Keep exact only the spreads near the threshold so far (``margin`` of it each way):
+        below or above it the others (each bound checked at the end); nearer while more than
+        half of EXACT_SPREADS are that near."""
+        threshold = self.settings.threshold
+        if threshold is None and self.estimate is not None:
+            threshold = self._threshold(self.estimate)
+        spreads = self.spreads
+        if threshold is None or not threshold > 0:
+            spreads.due = 2 * spreads.held
+            return
+        span = float((self.hi - self.lo).max())
+        tie = min(1.0, max(TIE, ROUNDING * (span / threshold) ** 2))  # finish's, by the range so far
+        while True:
+            margin = max(self.margin, 2 * tie)
+            spreads.sort(threshold * max(0.1, 1 - margin), min(self.least_bound, threshold * (1 + margin)))
+            if spreads.held <= EXACT_SPREADS // 2 or self.margin <= MIN_MARGIN:
+                break
+            self.margin = max(MIN_MARGIN, self.margin / 4)
+        spreads.due = max(EXACT_SPREADS, 2 * spreads.held)
 
     def finish(self, measure: Measure | None = None) -> tuple[Segmentation, Kept] | None:
         """The segmentation, and the samples kept (each block's ``first``..``last`` are
@@ -385,9 +630,9 @@ class Scan:
         threshold = self.settings.threshold
         span = float((self.hi - self.lo).max())  # the readings' range
         if threshold is None:
-            floor = self.store.smallest(_rank(self.n), self.least_bound)
+            _, floor = self._floor(_rank(self.n))
             if floor is None:
-                return None
+                return None  # (or not known: the band about the floor so far no longer holds it)
             scale = span or 1.0
             # quantised readings of a quiet sensor can have no spread at all: still is then "exactly level"
             threshold = FLOOR_FACTOR * floor if floor > 1e-9 * scale else 1e-6 * scale
@@ -395,13 +640,12 @@ class Scan:
         tie = max(TIE, ROUNDING * ratio * ratio) if ratio < 1e100 else np.inf  # (--threshold 0: no tie holds)
         if not threshold * (1 + tie) <= self.least_bound:
             return None  # a spread on the threshold could have been let go
-        kept = self.store.join(self.template)
-        on = kept.spread >= threshold * (1 - tie)
-        on &= kept.spread <= threshold * (1 + tie)
-        if on.any():
+        still = self._still(threshold, tie)
+        if still is None:
             return None  # a spread on the threshold (a quantised log's, a quiet one's): either side by rounding
+        kept = self.store.join(self.template)
         breaks = self._gaps(period)
-        spans = self._spans(kept, breaks, threshold)
+        spans = self._spans(kept, breaks, *still)
         if spans is None:
             return None
         seg = Segmentation(
@@ -428,6 +672,26 @@ class Scan:
         else:
             raise ValueError("a Scan without readings is finished with what measures its blocks")
         return judge_blocks(seg, measured, spans, self.settings), kept
+
+    def _still(self, threshold: float, tie: float) -> tuple[IntArray, IntArray] | None:
+        """The runs (first, last: positions) of kept samples whose spread is below ``threshold``;
+        None if one lies on it (within ``tie``), or may: one taken as below or above the
+        threshold so far (``_sort_spreads``) by a bound that is not outside this tie."""
+        spreads = self.spreads
+        runs = spreads.runs()
+        _, kind, edge, exact = runs
+        on = exact >= threshold * (1 - tie)
+        on &= exact <= threshold * (1 + tie)
+        if on.any():
+            return None
+        if not (edge[kind == BELOW] < threshold * (1 - tie)).all():
+            return None
+        if not (edge[kind == ABOVE] > threshold * (1 + tie)).all():
+            return None
+        start, kind, _, _ = _sort(runs, spreads.size, threshold, threshold)  # every one below it or not
+        below = np.flatnonzero(kind == BELOW)
+        last = np.append(start[1:], spreads.size) - 1
+        return start[below], last[below]
 
     def _period(self) -> float | bool | None:
         """The median step, as ``detect`` takes it (nearest rank); False when not counted."""
@@ -467,15 +731,16 @@ class Scan:
         self.before_gaps = np.concatenate(self.gap_ints)[steps > GAP_FACTOR * period]
         return at[steps > GAP_FACTOR * period].astype(np.int64)
 
-    def _spans(self, kept: Kept, breaks: IntArray, threshold: float) -> list[tuple[int, int]] | None:
-        """``detect``'s spans, as positions among the kept samples; None if one reaches past
-        what was kept (it cannot, by the pad: a check)."""
+    def _spans(self, kept: Kept, breaks: IntArray, starts: IntArray, ends: IntArray) -> list[tuple[int, int]] | None:
+        """``detect``'s spans, as positions among the kept samples, from the runs of them below
+        the threshold (``starts``, ``ends``: positions); None if one reaches past what was kept
+        (it cannot, by the pad: a check)."""
         split = [kept.run_at[1:]]  # samples not kept between two runs: never still
         for g in breaks.tolist():  # a gap between two kept samples of one run
             at = kept.position(g)
             if at is not None and at > 0 and kept.position(g - 1) == at - 1:
                 split.append(np.array([at]))
-        starts, ends = true_runs(kept.spread < threshold, np.unique(np.concatenate(split)).astype(np.int64))
+        starts, ends = _split(starts, ends, np.unique(np.concatenate(split)).astype(np.int64))
         reach, trim, w = self.reach, self.trim, self.window
         first, last = kept.log_index(starts), kept.log_index(ends)
         edges = np.concatenate([[0], breaks, [self.n]])
@@ -491,6 +756,19 @@ class Scan:
                 return None
             spans.append((pa, pb))
         return spans
+
+
+def _split(starts: IntArray, ends: IntArray, breaks: IntArray) -> tuple[IntArray, IntArray]:
+    """Runs (first, last) split before each of ``breaks`` inside one (``true_runs``'s rule)."""
+    if not starts.size or not breaks.size:
+        return starts.astype(np.int64), ends.astype(np.int64)
+    k = np.searchsorted(starts, breaks, side="right") - 1
+    inside = k >= 0
+    inside[inside] = (breaks[inside] > starts[k[inside]]) & (breaks[inside] <= ends[k[inside]])
+    cut = breaks[inside]
+    return np.sort(np.concatenate([starts, cut])).astype(np.int64), np.sort(np.concatenate([ends, cut - 1])).astype(
+        np.int64
+    )
 
 
 def _near(flags: NDArray[np.bool_], pad: int, at: int, ready: int) -> list[tuple[int, int]]:

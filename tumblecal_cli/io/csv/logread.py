@@ -5,9 +5,10 @@ solve --log on logs of any length.
 each block until the end): 3.5 GB for 20 million rows. Here a regular file of plain lines
 (``io.csv.splice``'s rules) is read in blocks on a pool of threads, each block's sensor, time and
 temperature cells parsed where they lie, and fed in order to ``core.scan.Scan``, which keeps
-the spreads of the still periods' readings only (8 bytes each); the worker threads sum each
-CHUNK readings (``core.chunks``). At the end each block's statistics are merged from those sums
-and from the few chunks where it or its third begins or ends, read again (``_ScannedFile``). What is
+where the still periods are and bands of spreads of a fixed size (neither their readings nor a
+spread each); the worker threads sum each CHUNK readings (``core.chunks``). At the end each
+block's statistics are merged from those sums and from the few chunks where it or its third
+begins or ends, read again (``_ScannedFile``). What is
 returned is a ``readings.Log`` of each block's first and last reading (its row, time and line's
 place in the file, so that ``segment`` copies the blocks' lines as they are); a block's
 readings are read again when they are asked for (``Log.block``), and a file that is not as it
