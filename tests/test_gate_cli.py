@@ -792,6 +792,7 @@ SUMMARY_KEYS = [
     "residuals",
     "coverage",
     "coverage_gaps",
+    "outliers",
     "poses",
     "unit",
 ]
@@ -1300,7 +1301,7 @@ def test_check_json(unit_cal: Path, capsys: pytest.CaptureFixture[str]) -> None:
     # the same summary as solve --json: parameters, uncertainties and per-pose diagnostics too
     for key in ("sensor", "method", "reference", "units", "columns", "offset", "matrix", "gain", "uncertainty"):
         assert summary.pop(key) == doc[key], key
-    for key in ("tilt_sensitivity", "residuals", "coverage", "coverage_gaps", "poses", "unit"):
+    for key in ("tilt_sensitivity", "residuals", "coverage", "coverage_gaps", "outliers", "poses", "unit"):
         assert summary.pop(key) == doc.get(key), key
     assert summary == {
         "status": "fail",

@@ -162,7 +162,7 @@ def summary(
     }
     keys = ("sensor", "method", "reference", "units", "columns", "offset", "matrix", "gain", "uncertainty")
     placed = [k for k in ("gravity", "earth_field", "dip") if k in doc]  # pipeline.places
-    fitted = ("residuals", "coverage", "coverage_gaps")  # how well the fit fits (null: a solver of poses)
+    fitted = ("residuals", "coverage", "coverage_gaps", "outliers")  # how well the fit fits (null: not judged)
     return head | {k: doc.get(k) for k in (*keys, *placed, "tilt_sensitivity", *fitted, "poses", "unit")}
 
 

@@ -142,6 +142,15 @@ def solve(
             rich_help_panel=SOLVER_PANEL,
         ),
     ] = False,
+    no_robust: Annotated[
+        bool,
+        typer.Option(
+            "--no-robust",
+            help="ellipsoid, minmax: fit every sample by plain least squares (by default samples far off "
+            "the fit, glitches and disturbed stretches, are left out and named).",
+            rich_help_panel=SOLVER_PANEL,
+        ),
+    ] = False,
     bias_spread: Annotated[
         float | None,
         typer.Option(

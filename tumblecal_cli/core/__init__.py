@@ -12,6 +12,8 @@ modules:
   not apply to it, its source, its function (numpy-free: the command line's ``--method``).
 - ``fits``: each catalog row's function (one input in, a fit out) and the dispatch through the
   rows.
+- ``robust``: the trimmed refit that keeps outliers (glitch rows, disturbed stretches) out of a
+  fit over samples, and the stretches it left out.
 - ``methods``: which solver: ``auto`` resolved from the labels and the sensor, each method's
   labels checked, and the evidence that chooses between six-pose and six-pose-magnitude.
 - ``gate``: the production-test gate: quality checks on each pose (exit 3), limits and the

@@ -6,12 +6,12 @@ the row. numpy only."""
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import cast
 
 import numpy as np
 
-from tumblecal_cli.core import catalog
+from tumblecal_cli.core import catalog, robust
 from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.methods import THREE_FACES
 from tumblecal_cli.core.model import FACES, PoseStats, direction, solve_one_pose, solve_three_pose, tilt_sensitivity
@@ -23,6 +23,7 @@ from tumblecal_cli.core.solvers import (
     minmax,
     norm_residuals,
     one_pose_tilt,
+    rough_ellipsoid,
     six_pose,
     sphere,
 )
@@ -40,6 +41,7 @@ class SolverSettings:
     bias_spread: float
     plane: str | None = None
     gain_tolerance: float = 0.0
+    robust: bool = True  # a fit over samples trims its outliers (core.robust); False: plain least squares
 
 
 @dataclass(frozen=True)
@@ -108,13 +110,67 @@ def fit_sphere(given: SolverInput) -> Fit:
 
 
 def fit_ellipsoid(given: SolverInput) -> Fit:
-    """ellipsoid: :func:`sphere` on every sample."""
-    return sphere(np.concatenate(list(given.values)), None, given.settings.reference, what="samples")
+    """ellipsoid: :func:`sphere` on every sample, outliers trimmed (core.robust) unless
+    ``settings.robust`` is False."""
+    ref = given.settings.reference
+    return _trimmed(
+        given,
+        lambda points: sphere(points, None, ref, what="samples"),
+        lambda points: rough_ellipsoid(points, ref),
+    )
 
 
 def fit_minmax(given: SolverInput) -> Fit:
-    """minmax: :func:`minmax` on every sample."""
-    return minmax(np.concatenate(list(given.values)), given.settings.plane)
+    """minmax: :func:`minmax` on every sample, outliers trimmed as the ellipsoid's."""
+    plane = given.settings.plane
+
+    def midpoint(points: FloatArray) -> tuple[FloatArray, FloatArray]:
+        offset = 0.5 * (points.min(axis=0) + points.max(axis=0))
+        if plane is not None:  # the third axis keeps offset 0, as minmax's
+            offset[[i for i in range(3) if "xyz"[i] not in plane]] = 0.0
+        return offset, np.eye(3)
+
+    return _trimmed(given, lambda points: minmax(points, plane), midpoint)
+
+
+def _trimmed(
+    given: SolverInput,
+    solve: Callable[[FloatArray], Fit],
+    rough: Callable[[FloatArray], tuple[FloatArray, FloatArray]],
+) -> Fit:
+    """``solve`` on the samples of every pose that core.robust's trimmed refit keeps (its rounds
+    fitted by ``rough``, an offset and M without the solver's checks, which outliers still in the
+    samples could trip): the Fit with the samples left out said (``outliers``), its residuals
+    those of the samples kept, its checks (coverage) judged on them."""
+    points = np.concatenate(list(given.values))
+    ref = given.settings.reference
+    if not given.settings.robust or not ref > 0:
+        return solve(points)
+    minmax_like = given.method == "minmax"
+
+    def residuals(fitted: tuple[FloatArray, FloatArray], at: FloatArray) -> FloatArray:
+        offset, matrix = fitted
+        if minmax_like:  # hard iron only, in raw units: against the samples' median radius
+            return _radius_residuals(at, offset, given.settings.plane, ref)
+        return norm_residuals(at, offset, matrix, ref)
+
+    done = robust.trimmed(points, ref, rough, residuals)
+    if done.left_out == 0:
+        return solve(points)
+    fitted = solve(points[done.kept])
+    outliers = robust.Outliers(done.left_out, len(points), done.stretches, done.bound, done.scale)
+    return replace(fitted, outliers=outliers)
+
+
+def _radius_residuals(at: FloatArray, offset: FloatArray, plane: str | None, ref: float) -> FloatArray:
+    """min/max's residuals: each sample's distance from the centre (in its plane, for a 2-D
+    min/max) less their median, scaled so that the median radius reads ``ref`` (min/max has no
+    gains: its corrected readings keep the raw units)."""
+    axes = [i for i in range(3) if plane is None or "xyz"[i] in plane]
+    distance = np.linalg.norm((at - offset)[:, axes], axis=1)
+    radius = float(np.nanmedian(distance)) if len(distance) else 0.0
+    out: FloatArray = (distance - radius) * (ref / radius) if radius > 0 else distance * 0.0
+    return out
 
 
 def fit_gyro_bias(given: SolverInput) -> Fit:

@@ -36,6 +36,7 @@ from tumblecal_cli.core.model import (
     Reach,
     Solution,
 )
+from tumblecal_cli.core.robust import Outliers
 from tumblecal_cli.errors import CaptureRejected, InputError, said
 
 #: A face with no sample within this angle leaves the orientation-free fits undetermined.
@@ -63,6 +64,7 @@ class Fit:
     tilt: tuple[FloatArray, FloatArray, FloatArray] | None = None  # offset, gain, cross-axis shifts
     notes: tuple[str, ...] = ()
     reach: Reach | None = None  # a turned capture's (ellipsoid, 3-D min/max): how near it comes to each direction
+    outliers: Outliers | None = None  # the samples a robust fit left out (core.robust); None: none
 
 
 # -- six-pose -------------------------------------------------------------------------------
@@ -360,6 +362,18 @@ def _sphere_residuals(theta: FloatArray, points: FloatArray, reference: float) -
     rows, cols = np.triu_indices(3)
     jac = np.column_stack([-(u @ m), u[:, rows] * d[:, cols]])  # d/db = -M^T u; d/dM_ij = u_i d_j
     return norm - reference, jac
+
+
+def rough_ellipsoid(points: FloatArray, reference: float) -> tuple[FloatArray, FloatArray]:
+    """The ellipsoid's offset and M without its checks (core.robust's rounds of trimming, whose
+    samples may still hold the outliers that would make a check refuse): the fit, or where it
+    finds none, the least-squares sphere's centre and scale."""
+    fitted = _fit_sphere(points, reference) if len(points) >= 12 else None
+    if fitted is not None:
+        return fitted[0][:3], _upper(fitted[0])
+    centre = sphere_centre(points)
+    radius = float(np.median(np.linalg.norm(points - centre, axis=1)))
+    return centre, np.eye(3) * (reference / radius if radius > 0 else 1.0)
 
 
 def _fit_sphere(points: FloatArray, reference: float) -> tuple[FloatArray, FloatArray] | None:

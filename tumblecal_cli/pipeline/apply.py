@@ -10,6 +10,7 @@ import contextlib
 import csv
 import glob
 import io
+import mmap
 import os
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
@@ -399,8 +400,6 @@ class Magnitudes:
     ROWS = 64
 
     def __init__(self, reference: float) -> None:
-        import mmap
-
         self.reference = reference
         self._map = mmap.mmap(-1, self.ROWS * self.BINS * 8)
         self.counts = np.frombuffer(self._map, dtype=np.int64).reshape(self.ROWS, self.BINS)

@@ -109,6 +109,7 @@ class SolveOptions:
     units: str | None = None
     input_units: str | None = None
     rows_are_poses: bool | None = None  # each row of the capture a pose (None: when it looks so)
+    no_robust: bool = False  # a fit over samples keeps its outliers (plain least squares)
     location: str | None = None  # LAT,LON[,HEIGHT_M]: the reference from the place (pipeline.places)
     gravity: float | None = None  # local gravity in m/s^2, given
     date: str | None = None  # YYYY-MM-DD: a magnetometer's Earth field on that day
@@ -193,6 +194,7 @@ class SolveKeywords(ReadKeywords, CutKeywords, total=False):
     units: str | None
     input_units: str | None
     rows_are_poses: bool | None
+    no_robust: bool
     location: str | None
     gravity: float | None
     date: str | None

@@ -36,6 +36,7 @@ from tumblecal_cli.io.calfiles.calparts import (
     Doc,
     Gap,
     GSensitivity,
+    LeftOut,
     Pose,
     Residuals,
     Rotation,
@@ -53,6 +54,7 @@ from tumblecal_cli.io.calfiles.calparts import (
     read_covariance,
     read_g_sensitivity,
     read_gap,
+    read_left_out,
     read_list,
     read_pose,
     read_residuals,
@@ -127,7 +129,17 @@ ORDER = (
 )
 #: The parts some methods add (docs/reference/calibration-file.md), in the order they follow ``poses``
 #: when given to a calibration that was read without them.
-PARTS = ("turns", "g_sensitivity", "rotations", "covariance", "coverage", "coverage_gaps", "residuals", "segmentation")
+PARTS = (
+    "turns",
+    "g_sensitivity",
+    "rotations",
+    "covariance",
+    "coverage",
+    "coverage_gaps",
+    "residuals",
+    "outliers",
+    "segmentation",
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -164,6 +176,7 @@ class Calibration:
     coverage: float | None = None  # 0-1, the share of directions with a sample near them
     coverage_gaps: tuple[Gap, ...] | None = None  # the directions without (a turned capture's)
     residuals: Residuals | None = None
+    outliers: LeftOut | None = None  # the samples a robust fit left out (core.robust)
     segmentation: SegmentationPart | None = None
     turns: tuple[Turn, ...] | None = None
     g_sensitivity: GSensitivity | None = None
@@ -289,6 +302,7 @@ class Calibration:
             "coverage": self.coverage,
             "coverage_gaps": each(self.coverage_gaps),
             "residuals": None if self.residuals is None else self.residuals.as_dict(),
+            "outliers": None if self.outliers is None else self.outliers.as_dict(),
             "segmentation": None if self.segmentation is None else self.segmentation.as_dict(),
         }
 
@@ -403,6 +417,7 @@ def from_dict(doc: Doc, path: str | None = None) -> Calibration:
         coverage=number(coverage),
         coverage_gaps=part("coverage_gaps", lambda v: read_list(v, read_gap)),
         residuals=part("residuals", _object(read_residuals)),
+        outliers=part("outliers", _object(read_left_out)),
         segmentation=part("segmentation", _object(read_segmentation)),
         turns=part("turns", lambda v: read_list(v, read_turn)),
         g_sensitivity=part("g_sensitivity", _object(read_g_sensitivity)),
@@ -483,6 +498,7 @@ def build(
     unit: Unit | Doc | None = None,
     verdict: Verdict | None = None,
     made: Made | None = None,
+    outliers: LeftOut | None = None,
 ) -> Calibration:
     """The calibration of a solution, fields in the order of docs/reference/calibration-file.md
     (format version 1); ``fit`` adds what the solver measured beyond the parameters (tilt sensitivity,
@@ -513,7 +529,13 @@ def build(
         if fit.residuals is not None and len(fit.residuals):
             r = fit.residuals
             residuals = Residuals(float(np.abs(r).max()), float(np.sqrt(np.mean(r**2))), len(r))
-    given = (("covariance", covariance), ("coverage", coverage), ("coverage_gaps", gaps), ("residuals", residuals))
+    given = (
+        ("covariance", covariance),
+        ("coverage", coverage),
+        ("coverage_gaps", gaps),
+        ("residuals", residuals),
+        ("outliers", outliers),
+    )
     measured = [k for k, v in given if v is not None]
     turned = [
         k for k, v in (("turns", turns), ("g_sensitivity", g_sensitivity), ("rotations", rotations)) if v is not None
@@ -542,6 +564,7 @@ def build(
         coverage=coverage,
         coverage_gaps=gaps,
         residuals=residuals,
+        outliers=outliers,
         segmentation=segmentation,
         turns=None if turns is None else tuple(turns),
         g_sensitivity=g_sensitivity,

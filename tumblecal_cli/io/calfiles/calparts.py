@@ -301,6 +301,57 @@ def read_residuals(raw: Doc) -> Residuals:
 
 
 @dataclass(frozen=True)
+class LeftOutStretch(Part):
+    """``outliers.stretches[]``: consecutive samples a robust fit left out: their ``file``, its data
+    ``rows`` (0-based, first and last; None where the rows are not known: then ``samples``, the
+    sample indices), and ``worst``, their largest |residual| as a share of the reference."""
+
+    file: str | None
+    rows: tuple[int, int] | None
+    samples: tuple[int, int] | None
+    worst: float | None
+
+    def typed(self) -> dict[str, object]:
+        rows, samples = (None if v is None else list(v) for v in (self.rows, self.samples))
+        return {"file": self.file, "rows": rows, "samples": samples, "worst": self.worst}
+
+
+def _pair(value: object) -> tuple[int, int] | None:
+    if isinstance(value, list) and len(value) == 2 and all(whole(v) is not None for v in value):
+        return (int(value[0]), int(value[1]))
+    return None
+
+
+def read_left_out_stretch(raw: Doc) -> LeftOutStretch:
+    rows, samples = _pair(raw.get("rows")), _pair(raw.get("samples"))
+    return as_read(LeftOutStretch(text(raw.get("file")), rows, samples, number(raw.get("worst"))), raw)
+
+
+@dataclass(frozen=True, eq=False)
+class LeftOut(Part):
+    """``outliers``: what a fit over samples left out (core.robust): ``count`` of the ``of``
+    samples, each beyond ``bound`` (|residual|, output units), in ``stretches``."""
+
+    count: int | None
+    of: int | None
+    bound: float | None
+    stretches: tuple[LeftOutStretch, ...] = ()
+
+    def typed(self) -> dict[str, object]:
+        return {
+            "count": self.count,
+            "of": self.of,
+            "bound": self.bound,
+            "stretches": [s.as_dict() for s in self.stretches],
+        }
+
+
+def read_left_out(raw: Doc) -> LeftOut:
+    stretches = read_list(raw.get("stretches"), read_left_out_stretch) or ()
+    return as_read(LeftOut(whole(raw.get("count")), whole(raw.get("of")), number(raw.get("bound")), stretches), raw)
+
+
+@dataclass(frozen=True)
 class Gap(Part):
     """``coverage_gaps[]``: a direction of ``coverage`` (``+z``, ``+x+z``, ``-x+y+z``) with no
     sample within 45°, and the angle to its nearest sample."""

@@ -2,6 +2,8 @@
 
 - ``solving``: the entry points (``solve``, ``solve_log``, ``calibrate``): poses read, averaged,
   solved, checked and judged.
+- ``fitnotes``: what solve says of a fit beyond its parameters: the samples a robust fit left
+  out, a fit that holds the motion's acceleration, a reference that does not fit its units.
 - ``tables``: a table of orientations, one averaged reading a row, split into poses.
 - ``trimming``: pose files with motion solved from their still run.
 - ``maglog``: a magnetometer from a log with both sensors, and its dip check.

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Unpack
 
 import numpy as np
 
-from tumblecal_cli.core import arrays, blocks, catalog, clock, fits, gate, methods, model, quantities
+from tumblecal_cli.core import arrays, blocks, catalog, clock, fits, gate, methods, model
 from tumblecal_cli.core.gate import Finding
 from tumblecal_cli.core.model import face_of_name
 from tumblecal_cli.core.quantities import REFERENCE_UNITS, STANDARD_GRAVITY
@@ -33,6 +33,7 @@ from tumblecal_cli.pipeline.exchange import tilt_notes
 from tumblecal_cli.pipeline.frames import in_memory, read_pose, samples_of
 from tumblecal_cli.pipeline.options import SolveKeywords, SolveOptions, method_options, path_of, triplet
 from tumblecal_cli.pipeline.solve import maglog, rotations, tables, trimming, turns
+from tumblecal_cli.pipeline.solve.fitnotes import left_out, motion_notes, outlier_notes, reference_notes
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.arrays import FloatArray
@@ -40,7 +41,6 @@ if TYPE_CHECKING:
     from tumblecal_cli.core.gate import Corrected, Finding, Limits, PoseCheck
     from tumblecal_cli.core.model import PoseStats, Solution
     from tumblecal_cli.core.running import Summary
-    from tumblecal_cli.core.solvers import Fit
     from tumblecal_cli.io.calfiles import calfile
     from tumblecal_cli.io.calfiles.calfile import Calibration, Pose
     from tumblecal_cli.io.csv.readings import Log, Samples
@@ -572,6 +572,7 @@ def _fit_poses(name: str, poses: PoseSet, options: SolveOptions, given: Settings
             bias_spread=options.bias_spread if options.bias_spread is not None else 0.01 * ref,
             plane=options.plane,
             gain_tolerance=options.checks.gain_tolerance,
+            robust=not options.no_robust,
         )
         fit = fits.fit(name, stats, [s.values for s in samples], labels, told, names)
     except CaptureRejected as err:
@@ -615,9 +616,10 @@ def _fit_poses(name: str, poses: PoseSet, options: SolveOptions, given: Settings
         unit=given.unit,
         verdict=calfile.Verdict(not failures, tuple(failures), limits),
         made=calfile.Made(poses.segmentation),
+        outliers=left_out(fit, samples, ref),
     )
     read = list(dict.fromkeys(n for s in samples for n in s.layout.notes))  # how the files were read
-    said = read + log_notes + tilt_notes(cal) + list(fit.notes)
+    said = read + log_notes + tilt_notes(cal) + list(fit.notes) + outlier_notes(cal.outliers, cal.units)
     said += _solve_notes(stats, names, given.limits, solution.method, table=poses.table) + _units_notes(
         solution, options, ref
     )
@@ -807,54 +809,6 @@ def _units_notes(solution: Solution, options: SolveOptions, reference: float) ->
         return []
     note = gate.units_note(solution.gain, reference)
     return [] if note is None else [note]
-
-
-#: An accelerometer's fit over its samples whose residual RMS is over this share of the reference
-#: was not still: its readings hold the motion's own acceleration.
-MOTION_SHARE = 0.01
-
-
-def motion_notes(sensor: str, fit: Fit, poses: int, reference: float) -> list[str]:
-    """A note when an accelerometer's sphere or ellipsoid over samples (more residuals than poses)
-    fits them worse than MOTION_SHARE of the reference: a capture turned while it logs reads the
-    motion's acceleration as well as gravity, and no calibration takes that out (a continuous
-    tumble forced through --method ellipsoid: residual 0.34 m/s^2, and not a word)."""
-    if sensor != "accelerometer" or fit.residuals is None or len(fit.residuals) <= poses or not reference > 0:
-        return []
-    rms = float(np.sqrt(np.mean(fit.residuals**2)))
-    if rms <= MOTION_SHARE * reference:
-        return []
-    return [
-        f"the fit's residual RMS is {rms:.3g} ({rms / reference:.1%} of the reference): an accelerometer turned while "
-        "it logs reads the motion's own acceleration beside gravity, which no calibration removes; calibrate from "
-        "still orientations (solve --log FILE finds them in one log)"
-    ]
-
-
-#: The Earth's field at its surface, weakest to strongest (WMM: about 22,000 to 67,000 nT), in gauss.
-EARTH_FIELD = (0.22, 0.67)
-
-
-def reference_notes(sensor: str, units: str | None, reference: float) -> list[str]:
-    """A note when --units name a unit and --reference is not what a unit at rest reads in it:
-    gravity (within 10 %), or a field the Earth has. --units uT with --reference 1 was taken as a
-    1 µT field without a word. (A centrifuge or a lab's coils: then the note is to be ignored.)"""
-    factor = None if units is None else quantities.factor(sensor, units.strip())
-    if factor is None or reference <= 0:
-        return []
-    value = reference * factor  # in the quantity's base unit: m/s^2, gauss
-    if sensor == "accelerometer" and abs(value / STANDARD_GRAVITY - 1) > 0.1:
-        return [
-            f"--reference {reference:g} {units} is not gravity ({STANDARD_GRAVITY / factor:.4g} {units}): "
-            "is --reference in --units?"
-        ]
-    low, high = EARTH_FIELD
-    if sensor == "magnetometer" and not low <= value <= high:
-        return [
-            f"--reference {reference:g} {units} is not a field the Earth has ({low / factor:.3g}–{high / factor:.3g} "
-            f"{units}): is --reference in --units? (a lab's coils may make it; --location gives the local field)"
-        ]
-    return []
 
 
 def _solve_notes(
