@@ -23,7 +23,7 @@ from tumblecal_cli.core import arrays, catalog, clock, methods, model, solvers
 from tumblecal_cli.core import blocks as seg_core
 from tumblecal_cli.core.blocks import Block, Segmentation
 from tumblecal_cli.errors import CaptureRejected, InputError
-from tumblecal_cli.io import sources
+from tumblecal_cli.io import logs, sources
 from tumblecal_cli.io.csv import capture, compressed, logread, readings
 from tumblecal_cli.io.csv.readings import Log, Samples, check_rate
 from tumblecal_cli.io.csv.sniff import HEAD_BYTES, sniff
@@ -479,11 +479,7 @@ def _inflating(log: str, limit: int | None) -> contextlib.AbstractContextManager
     reader = sources.reader_for(log) if limit is not None else None
     if reader is None or reader.kind != ROS_LOGS.kind:
         return contextlib.nullcontext()
-    try:
-        from tumblecal_cli.io.logs import ros
-    except ImportError:  # without rosbags the bag is exit 2 naming the extra, when it is read
-        return contextlib.nullcontext()
-    return ros.bounded(limit)
+    return logs.inflating_at_most(limit)
 
 
 def _spool(source: IO[bytes], out: IO[bytes], log: str, spec: ReadSpec, limit: int | None) -> None:

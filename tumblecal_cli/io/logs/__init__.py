@@ -8,6 +8,11 @@
 - ``dataflash``: ArduPilot DataFlash binary logs (``.bin``).
 - ``dftext``: ArduPilot DataFlash logs in their text form (``.log``).
 - ``ros``: ROS 1 bags, ROS 2 bags and MCAP files (the optional extra ``tumblecal[ros]``).
+- ``bagfile``: a bag's and an MCAP file's bytes read without trusting them: chunks inflated
+  within their declared sizes and --max-spool, and the walks of a recording cut short.
+
+Here too, the bound on what one pass over a log may inflate (``inflating_at_most``: --max-spool,
+which ``ros``'s chunks are held to), set by the pipeline without importing a reader.
 
 Here, each format as the registry knows it before its module is imported (``FORMATS``): its
 kind, its module, and how it claims a file (its first bytes, or a function of the path and
@@ -17,9 +22,30 @@ those bytes, beside the format's row). This module imports nothing but the stand
 
 from __future__ import annotations
 
+import contextlib
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextvars import ContextVar
 from dataclasses import dataclass
+
+#: What ``inflating_at_most`` gives: the most one pass over a log's file inflates (None: MAX_SPOOL).
+_INFLATE: ContextVar[int | None] = ContextVar("tumblecal_inflate_limit", default=None)
+
+
+@contextlib.contextmanager
+def inflating_at_most(limit: int | None) -> Iterator[None]:
+    """Logs read inside inflate at most ``limit`` bytes a pass over a file (--max-spool, as
+    read_twice is given it; None: io.outputs.MAX_SPOOL)."""
+    token = _INFLATE.set(limit)
+    try:
+        yield
+    finally:
+        _INFLATE.reset(token)
+
+
+def inflate_limit() -> int | None:
+    """The bound ``inflating_at_most`` set (None: none given)."""
+    return _INFLATE.get()
 
 
 @dataclass(frozen=True)
