@@ -46,9 +46,9 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass
-from importlib import resources
 
 import numpy as np
 
@@ -200,7 +200,8 @@ def _coefficients(file: str) -> tuple[float, FloatArray, FloatArray, FloatArray,
     [n, m] to the file's degree N, of a coefficient file (the WMM.COF format: a line of epoch,
     model and release date; then n, m, g, h, g-dot, h-dot; closed by lines of 9s). Read once,
     when a field of the model is first asked for."""
-    text = resources.files(__package__).joinpath("wmm", file).read_text(encoding="ascii")
+    with open(os.path.join(os.path.dirname(__file__), "wmm", file), encoding="ascii") as f:  # os: no import cost
+        text = f.read()
     head, _, body = text.partition("\n")
     rows = np.array(body[: body.index("\n9999")].split(), dtype=float).reshape(-1, 6)
     n, m = rows[:, 0].astype(int), rows[:, 1].astype(int)
