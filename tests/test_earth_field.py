@@ -151,7 +151,7 @@ def test_the_field_in_gauss_when_asked(capsys: pytest.CaptureFixture[str], tmp_p
     [
         (
             ["--location", PLACE, "--date", "1900-01-01"],
-            ["--date 1900-01-01 is outside", "WMM2025", "2025-01-01 to 2029-12-31"],
+            ["--date 1900-01-01 is outside", "WMM2010", "WMM2025", "2010-01-01 to 2029-12-31"],
         ),
         (["--location", PLACE, "--date", "2030-01-01"], ["--date 2030-01-01 is outside"]),
         (["--location", PLACE, "--date", "2026-02-30"], ["--date takes YYYY-MM-DD", "'2026-02-30'"]),

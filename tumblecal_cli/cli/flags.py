@@ -184,7 +184,7 @@ Location = Annotated[
         metavar="LAT,LON[,HEIGHT_M]",
         help="Where the unit was calibrated (degrees north, east; metres above the WGS-84 ellipsoid): the "
         "reference becomes local gravity (WGS-84 normal gravity) in g or m/s^2, or with --date a magnetometer's "
-        "Earth field (World Magnetic Model WMM2025) in uT or gauss. Instead of --reference.",
+        "Earth field (the World Magnetic Model of that date) in uT or gauss. Instead of --reference.",
         rich_help_panel=PLACE_PANEL,
     ),
 ]
@@ -205,8 +205,25 @@ Date = Annotated[
     typer.Option(
         "--date",
         metavar="YYYY-MM-DD",
-        help="With --location, the day a magnetometer was logged: the Earth's field of that day (WMM2025: "
-        "2025-01-01 to 2029-12-31).",
+        help="With --location, the day a magnetometer was logged: the Earth's field of that day, of the World "
+        "Magnetic Model release that holds then (WMM2010, WMM2015v2, WMM2020, WMM2025: 2010-01-01 to 2029-12-31).",
+        rich_help_panel=PLACE_PANEL,
+    ),
+]
+
+
+class FieldModelName(StrEnum):
+    wmm = "wmm"
+    wmmhr = "wmmhr"
+
+
+FieldModel = Annotated[
+    FieldModelName | None,
+    typer.Option(
+        "--field-model",
+        help="With --location and --date, the magnetic model: wmm (the World Magnetic Model, degree 12, the "
+        "release of the date) or wmmhr (its high-resolution model WMMHR2025, degree 133: 2025-01-01 to "
+        "2029-12-31). [default: wmm]",
         rich_help_panel=PLACE_PANEL,
     ),
 ]

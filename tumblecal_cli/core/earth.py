@@ -1,5 +1,6 @@
 """The Earth's reference fields at a place: WGS-84 normal gravity and the World Magnetic Model.
-numpy only (README "Sources": NIMA TR8350.2, the WMM2025 technical report).
+numpy only (README "Sources": NIMA TR8350.2, the WMM2010, WMM2015v2, WMM2020 and WMM2025
+reports, WMMHR2025).
 
 Normal gravity (NIMA TR8350.2, 3rd edition, ch. 4): Somigliana's closed formula on the
 ellipsoid (Eq. 4-1) ::
@@ -11,18 +12,42 @@ k, e^2, m), and above the ellipsoid its second-order height correction (Eq. 4-3)
 
     gamma_h = gamma (1 - 2/a (1 + f + m - 2 f sin^2 phi) h + 3 h^2 / a^2)
 
-The World Magnetic Model (WMM2025 report, sect. 1.2, Eqs. 7-19): the geodetic place becomes
-geocentric spherical coordinates (Eqs. 7-8), the Gauss coefficients move linearly with the time
-from the epoch (Eq. 9), the field is the gradient of the spherical-harmonic potential to degree
-12 with Schmidt semi-normalised associated Legendre functions (Eqs. 10-12), turned into the
-ellipsoidal frame (Eq. 17), and its intensity, inclination and declination follow (Eq. 19).
-The coefficients are the published WMM.COF of WMM2025 (NOAA NCEI and the British Geological
-Survey; a work of the US government, in the public domain), below as published.
+The World Magnetic Model (WMM2025 report, sect. 1.2, Eqs. 7-19; every release is evaluated the
+same way): the geodetic place becomes geocentric spherical coordinates (Eqs. 7-8), the Gauss
+coefficients move linearly with the time from the epoch (Eq. 9), the field is the gradient of the
+spherical-harmonic potential to the degree of the coefficient file (12; 133 for WMMHR2025) with
+Schmidt semi-normalised associated Legendre functions (Eqs. 10-12), turned into the ellipsoidal
+frame (Eq. 17), and its intensity, inclination and declination follow (Eq. 19).
+
+The coefficient files, in ``wmm/`` beside this module, are the published ``WMM.COF`` (and
+``WMMHR.COF``) of each release by NOAA (NGDC, since 2015 NCEI) and the British Geological Survey,
+works of the US government in the public domain, copied unchanged from the copies that pygeomag
+1.1.0 (MIT) ships (``pygeomag/wmm/``; WMM_2025.COF is byte for byte the file this module embedded
+before). A date chooses the release (``field_model``; ``--field-model wmm``):
+
+- WMM2010 (file dated 11/20/2009, WMM2010 report) for 2010.0-2015.0;
+- WMM2015v2 (09/18/2018, WMM2015v2 report) for 2015.0-2020.0: the out-of-cycle release that
+  superseded WMM2015 (12/15/2014) over the whole span, as NOAA advised, so WMM2015 is not kept;
+- WMM2020 (12/10/2019, WMM2020 report) for 2020.0-2025.0;
+- WMM2025 (11/13/2024, WMM2025 report) for 2025.0-2030.0.
+
+``--field-model wmmhr`` takes WMMHR2025 instead (11/13/2024, degree 133, 2025.0-2030.0), the
+high-resolution model released with WMM2025, which adds the larger crustal features.
+
+Each release's own error estimate (1 sigma over its span; ``MagneticModel.error``) is its error
+model's total intensity and inclination, as NOAA's software of the release states it (its
+``WMM_UNCERTAINTY_F`` and ``_I``): WMM2025 138 nT, 0.20 deg (WMM2025 report, Table 4); WMM2020
+145 nT, 0.21 deg; WMMHR2025 134 nT, 0.19 deg; WMM2015v2 152 nT, 0.22 deg, the error model of
+WMM2015's software (the WMM2015v2 report reassessed the uncertainties, not read here). For
+WMM2010 no error model was found in the sources read, and none is given (None).
 """
 
 from __future__ import annotations
 
+import functools
 import math
+import os
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,15 +85,67 @@ def normal_gravity(latitude: float, height: float = 0.0) -> float:
 
 # -- the World Magnetic Model (WMM2025 report) ----------------------------------------------------
 
-#: The geomagnetic reference radius (m), WMM2025 report sect. 1.2.
+#: The geomagnetic reference radius (m), WMM2025 report sect. 1.2 (the same in every release).
 WMM_RADIUS = 6371200.0
-#: The model's span in decimal years: its epoch and the end of its validity.
-WMM_SPAN = (2025.0, 2030.0)
-#: The model's name as its coefficient file names it.
-WMM_NAME = "WMM-2025"
-#: The model's own estimate of its error (1 sigma) over its span, WMM2025 report sect. 4 (Table 4):
+#: WMM2025's own estimate of its error (1 sigma) over its span, WMM2025 report sect. 4 (Table 4):
 #: total intensity (nT) and inclination (degrees).
 WMM_ERROR = {"total_intensity_nT": 138.0, "inclination_deg": 0.20}
+
+
+@dataclass(frozen=True)
+class MagneticModel:
+    """One release of the World Magnetic Model: its ``name`` (as the calibration file records
+    it), its coefficient ``file`` in ``wmm/`` beside this module, its ``span`` in decimal years
+    (its epoch and the end of its validity), its own ``error`` estimate (1 sigma over its span:
+    total intensity nT, inclination degrees; None where none is known here) and the ``source``
+    the calibration file names."""
+
+    name: str
+    file: str
+    span: tuple[float, float]
+    error: Mapping[str, float] | None
+    source: str
+
+    @property
+    def degree(self) -> int:
+        """The degree of its spherical-harmonic expansion (12; WMMHR2025 133), of its file."""
+        return int(_coefficients(self.file)[1].shape[0]) - 1
+
+
+#: The releases (the module docstring says where each comes from and why it holds when).
+WMM2010 = MagneticModel(
+    "WMM2010", "WMM_2010.COF", (2010.0, 2015.0), None, "World Magnetic Model WMM2010 (NOAA NGDC and BGS)"
+)
+WMM2015V2 = MagneticModel(
+    "WMM2015v2",
+    "WMM_2015v2.COF",
+    (2015.0, 2020.0),
+    {"total_intensity_nT": 152.0, "inclination_deg": 0.22},
+    "World Magnetic Model WMM2015v2 (NOAA NCEI and BGS)",
+)
+WMM2020 = MagneticModel(
+    "WMM2020",
+    "WMM_2020.COF",
+    (2020.0, 2025.0),
+    {"total_intensity_nT": 145.0, "inclination_deg": 0.21},
+    "World Magnetic Model WMM2020 (NOAA NCEI and BGS)",
+)
+WMM2025 = MagneticModel(
+    "WMM2025", "WMM_2025.COF", (2025.0, 2030.0), WMM_ERROR, "World Magnetic Model WMM2025 (NOAA NCEI and BGS)"
+)
+WMMHR2025 = MagneticModel(
+    "WMMHR2025",
+    "WMMHR_2025.COF",
+    (2025.0, 2030.0),
+    {"total_intensity_nT": 134.0, "inclination_deg": 0.19},
+    "World Magnetic Model High Resolution WMMHR2025 (NOAA NCEI and BGS)",
+)
+#: The field models a date chooses a release of (``--field-model``): the World Magnetic Model,
+#: one release after another, and its high-resolution model.
+FIELD_MODELS: dict[str, tuple[MagneticModel, ...]] = {
+    "wmm": (WMM2010, WMM2015V2, WMM2020, WMM2025),
+    "wmmhr": (WMMHR2025,),
+}
 
 
 @dataclass(frozen=True)
@@ -94,36 +171,77 @@ class Field:
         return 90.0 - self.inclination
 
 
-def _coefficients() -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """g, h, their secular variation (nT, nT/year), each (13, 13) indexed [n, m], of WMM_COF."""
-    g, h, gdot, hdot = (np.zeros((13, 13)) for _ in range(4))
-    for line in WMM_COF.splitlines()[1:]:
-        parts = line.split()
-        if len(parts) != 6:
-            break  # the closing line of 9s
-        n, m = int(parts[0]), int(parts[1])
-        g[n, m], h[n, m], gdot[n, m], hdot[n, m] = (float(p) for p in parts[2:])
-    return g, h, gdot, hdot
+def field_span(family: str = "wmm") -> tuple[float, float]:
+    """The span (decimal years) that the releases of ``family`` (FIELD_MODELS) hold together."""
+    models = FIELD_MODELS[family]
+    return models[0].span[0], models[-1].span[1]
 
 
-def _legendre(x: float, s: float) -> tuple[FloatArray, FloatArray]:
-    """Schmidt semi-normalised associated Legendre functions P[n, m] of x = cos(theta) to degree
-    12 and their derivatives dP/dtheta (s = sin(theta); WMM2025 report Eqs. 12-13, by the standard
-    recursions in n and on the diagonal; differentiated term by term so the poles need no division)."""
-    p, dp = np.zeros((13, 13)), np.zeros((13, 13))
+def field_model(year: float, family: str = "wmm") -> MagneticModel:
+    """The release of ``family`` (FIELD_MODELS: ``wmm``, ``wmmhr``) that holds at ``year``
+    (decimal): each from its epoch until the next one's, the last to the end of its span.
+    ValueError outside them all, naming their span."""
+    if family not in FIELD_MODELS:
+        raise ValueError(f"the field models are {', '.join(FIELD_MODELS)}, not {family!r}")
+    models = FIELD_MODELS[family]
+    for model in models:
+        if model.span[0] <= year < model.span[1]:
+            return model
+    first, last = field_span(family)
+    if year == last:
+        return models[-1]
+    names = ", ".join(m.name for m in models)
+    raise ValueError(f"the field model {family} ({names}) holds from {first:g} to {last:g}, not {year:.3f}")
+
+
+@functools.cache
+def _coefficients(file: str) -> tuple[float, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The epoch and g, h, their secular variation (nT, nT/year), each (N + 1, N + 1) indexed
+    [n, m] to the file's degree N, of a coefficient file (the WMM.COF format: a line of epoch,
+    model and release date; then n, m, g, h, g-dot, h-dot; closed by lines of 9s). Read once,
+    when a field of the model is first asked for."""
+    with open(os.path.join(os.path.dirname(__file__), "wmm", file), encoding="ascii") as f:  # os: no import cost
+        text = f.read()
+    head, _, body = text.partition("\n")
+    rows = np.array(body[: body.index("\n9999")].split(), dtype=float).reshape(-1, 6)
+    n, m = rows[:, 0].astype(int), rows[:, 1].astype(int)
+    size = int(n.max()) + 1
+    g, h, gdot, hdot = (np.zeros((size, size)) for _ in range(4))
+    for table, column in zip((g, h, gdot, hdot), range(2, 6), strict=True):
+        table[n, m] = rows[:, column]
+    return float(head.split()[0]), g, h, gdot, hdot
+
+
+@functools.cache
+def _recursion(degree: int) -> tuple[tuple[FloatArray, FloatArray], ...]:
+    """For each n to ``degree``, the factors sqrt((n - 1 + m)(n - 1 - m)) and sqrt((n + m)(n - m))
+    of the recursion in n, m = 0 .. n - 1."""
+    out = []
+    for n in range(degree + 1):
+        m = np.arange(n)
+        out.append((np.sqrt((n - 1 + m) * (n - 1 - m)) if n > 1 else np.zeros(n), np.sqrt((n + m) * (n - m))))
+    return tuple(out)
+
+
+def _legendre(x: float, s: float, degree: int) -> tuple[FloatArray, FloatArray]:
+    """Schmidt semi-normalised associated Legendre functions P[n, m] of x = cos(theta) to
+    ``degree`` and their derivatives dP/dtheta (s = sin(theta); WMM2025 report Eqs. 12-13), by
+    the standard recursions: on the diagonal, then in n for each m, which stays stable to high
+    degree (the functions are bounded by 1); differentiated term by term so the poles need no
+    division. Near a pole the high orders underflow to 0, as their terms are below any precision."""
+    p, dp = np.zeros((degree + 1, degree + 1)), np.zeros((degree + 1, degree + 1))
     p[0, 0] = 1.0
-    for n in range(1, 13):
+    factors = _recursion(degree)
+    for n in range(1, degree + 1):
         if n == 1:
             p[1, 1], dp[1, 1] = s, x
         else:
             c = math.sqrt((2 * n - 1) / (2 * n))
             p[n, n] = c * s * p[n - 1, n - 1]
             dp[n, n] = c * (x * p[n - 1, n - 1] + s * dp[n - 1, n - 1])
-        for m in range(n):
-            k = math.sqrt((n - 1 + m) * (n - 1 - m)) if n > 1 else 0.0
-            d = math.sqrt((n + m) * (n - m))
-            p[n, m] = ((2 * n - 1) * x * p[n - 1, m] - k * p[n - 2, m]) / d
-            dp[n, m] = ((2 * n - 1) * (x * dp[n - 1, m] - s * p[n - 1, m]) - k * dp[n - 2, m]) / d
+        k, d = factors[n]
+        p[n, :n] = ((2 * n - 1) * x * p[n - 1, :n] - k * p[n - 2, :n]) / d
+        dp[n, :n] = ((2 * n - 1) * (x * dp[n - 1, :n] - s * p[n - 1, :n]) - k * dp[n - 2, :n]) / d
     return p, dp
 
 
@@ -139,12 +257,17 @@ def _days(year: int, month: int, day: int) -> int:
     return 365 * y + y // 4 - y // 100 + y // 400 + (153 * (m - 3) + 2) // 5 + day - 307
 
 
-def magnetic_field(latitude: float, longitude: float, height: float, year: float) -> Field:
-    """The WMM2025 main field at geodetic ``latitude``, ``longitude`` (degrees), ``height`` (m
-    above the WGS-84 ellipsoid) and ``year`` (decimal). ValueError outside the model's span."""
+def magnetic_field(
+    latitude: float, longitude: float, height: float, year: float, model: MagneticModel | None = None
+) -> Field:
+    """The main field of the World Magnetic Model at geodetic ``latitude``, ``longitude``
+    (degrees), ``height`` (m above the WGS-84 ellipsoid) and ``year`` (decimal): of ``model``,
+    else of the release that holds then (field_model). ValueError outside the model's span."""
 
-    if not WMM_SPAN[0] <= year <= WMM_SPAN[1]:
-        raise ValueError(f"WMM2025 holds from {WMM_SPAN[0]:g} to {WMM_SPAN[1]:g}, not {year:.3f}")
+    if model is None:
+        model = field_model(year)
+    elif not model.span[0] <= year <= model.span[1]:
+        raise ValueError(f"{model.name} holds from {model.span[0]:g} to {model.span[1]:g}, not {year:.3f}")
     phi, lam = math.radians(latitude), math.radians(longitude)
     # Eqs. 7-8: geodetic to geocentric spherical
     n_radius = WGS84_A / math.sqrt(1 - WGS84_E2 * math.sin(phi) ** 2)
@@ -153,12 +276,13 @@ def magnetic_field(latitude: float, longitude: float, height: float, year: float
     r = math.hypot(p_axis, z_axis)
     phi_c = math.atan2(z_axis, p_axis)
     sin_c, cos_c = z_axis / r, p_axis / r  # cos(theta), sin(theta) of the colatitude, to full precision
-    g0, h0, gdot, hdot = _COEFFICIENTS
-    dt = year - WMM_SPAN[0]
+    epoch, g0, h0, gdot, hdot = _coefficients(model.file)
+    dt = year - epoch
     g, h = g0 + dt * gdot, h0 + dt * hdot  # Eq. 9
-    p, dp = _legendre(sin_c, cos_c)
-    n = np.arange(13)[:, None]
-    m = np.arange(13)[None, :]
+    degree = g.shape[0] - 1
+    p, dp = _legendre(sin_c, cos_c, degree)
+    n = np.arange(degree + 1)[:, None]
+    m = np.arange(degree + 1)[None, :]
     scale = (WMM_RADIUS / r) ** (n + 2)
     cos_m, sin_m = np.cos(m * lam), np.sin(m * lam)
     along = g * cos_m + h * sin_m
@@ -210,104 +334,3 @@ def dip(up: FloatArray, field: FloatArray) -> Dip:
     n = len(angles)
     spread = float(np.std(angles, ddof=1)) if n > 1 else 0.0
     return Dip(angles, float(np.mean(angles)), spread, spread / math.sqrt(n) if n > 1 else math.nan)
-
-
-#: WMM.COF of WMM2025 as published by NOAA NCEI (public domain): epoch, model, release date; then
-#: n, m, g, h (nT), g-dot, h-dot (nT/year); closed by two lines of 9s.
-WMM_COF = """\
-    2025.0            WMM-2025     11/13/2024
-  1  0  -29351.8       0.0       12.0        0.0
-  1  1   -1410.8    4545.4        9.7      -21.5
-  2  0   -2556.6       0.0      -11.6        0.0
-  2  1    2951.1   -3133.6       -5.2      -27.7
-  2  2    1649.3    -815.1       -8.0      -12.1
-  3  0    1361.0       0.0       -1.3        0.0
-  3  1   -2404.1     -56.6       -4.2        4.0
-  3  2    1243.8     237.5        0.4       -0.3
-  3  3     453.6    -549.5      -15.6       -4.1
-  4  0     895.0       0.0       -1.6        0.0
-  4  1     799.5     278.6       -2.4       -1.1
-  4  2      55.7    -133.9       -6.0        4.1
-  4  3    -281.1     212.0        5.6        1.6
-  4  4      12.1    -375.6       -7.0       -4.4
-  5  0    -233.2       0.0        0.6        0.0
-  5  1     368.9      45.4        1.4       -0.5
-  5  2     187.2     220.2        0.0        2.2
-  5  3    -138.7    -122.9        0.6        0.4
-  5  4    -142.0      43.0        2.2        1.7
-  5  5      20.9     106.1        0.9        1.9
-  6  0      64.4       0.0       -0.2        0.0
-  6  1      63.8     -18.4       -0.4        0.3
-  6  2      76.9      16.8        0.9       -1.6
-  6  3    -115.7      48.8        1.2       -0.4
-  6  4     -40.9     -59.8       -0.9        0.9
-  6  5      14.9      10.9        0.3        0.7
-  6  6     -60.7      72.7        0.9        0.9
-  7  0      79.5       0.0       -0.0        0.0
-  7  1     -77.0     -48.9       -0.1        0.6
-  7  2      -8.8     -14.4       -0.1        0.5
-  7  3      59.3      -1.0        0.5       -0.8
-  7  4      15.8      23.4       -0.1        0.0
-  7  5       2.5      -7.4       -0.8       -1.0
-  7  6     -11.1     -25.1       -0.8        0.6
-  7  7      14.2      -2.3        0.8       -0.2
-  8  0      23.2       0.0       -0.1        0.0
-  8  1      10.8       7.1        0.2       -0.2
-  8  2     -17.5     -12.6        0.0        0.5
-  8  3       2.0      11.4        0.5       -0.4
-  8  4     -21.7      -9.7       -0.1        0.4
-  8  5      16.9      12.7        0.3       -0.5
-  8  6      15.0       0.7        0.2       -0.6
-  8  7     -16.8      -5.2       -0.0        0.3
-  8  8       0.9       3.9        0.2        0.2
-  9  0       4.6       0.0       -0.0        0.0
-  9  1       7.8     -24.8       -0.1       -0.3
-  9  2       3.0      12.2        0.1        0.3
-  9  3      -0.2       8.3        0.3       -0.3
-  9  4      -2.5      -3.3       -0.3        0.3
-  9  5     -13.1      -5.2        0.0        0.2
-  9  6       2.4       7.2        0.3       -0.1
-  9  7       8.6      -0.6       -0.1       -0.2
-  9  8      -8.7       0.8        0.1        0.4
-  9  9     -12.9      10.0       -0.1        0.1
- 10  0      -1.3       0.0        0.1        0.0
- 10  1      -6.4       3.3        0.0        0.0
- 10  2       0.2       0.0        0.1       -0.0
- 10  3       2.0       2.4        0.1       -0.2
- 10  4      -1.0       5.3       -0.0        0.1
- 10  5      -0.6      -9.1       -0.3       -0.1
- 10  6      -0.9       0.4        0.0        0.1
- 10  7       1.5      -4.2       -0.1        0.0
- 10  8       0.9      -3.8       -0.1       -0.1
- 10  9      -2.7       0.9       -0.0        0.2
- 10 10      -3.9      -9.1       -0.0       -0.0
- 11  0       2.9       0.0        0.0        0.0
- 11  1      -1.5       0.0       -0.0       -0.0
- 11  2      -2.5       2.9        0.0        0.1
- 11  3       2.4      -0.6        0.0       -0.0
- 11  4      -0.6       0.2        0.0        0.1
- 11  5      -0.1       0.5       -0.1       -0.0
- 11  6      -0.6      -0.3        0.0       -0.0
- 11  7      -0.1      -1.2       -0.0        0.1
- 11  8       1.1      -1.7       -0.1       -0.0
- 11  9      -1.0      -2.9       -0.1        0.0
- 11 10      -0.2      -1.8       -0.1        0.0
- 11 11       2.6      -2.3       -0.1        0.0
- 12  0      -2.0       0.0        0.0        0.0
- 12  1      -0.2      -1.3        0.0       -0.0
- 12  2       0.3       0.7       -0.0        0.0
- 12  3       1.2       1.0       -0.0       -0.1
- 12  4      -1.3      -1.4       -0.0        0.1
- 12  5       0.6      -0.0       -0.0       -0.0
- 12  6       0.6       0.6        0.1       -0.0
- 12  7       0.5      -0.1       -0.0       -0.0
- 12  8      -0.1       0.8        0.0        0.0
- 12  9      -0.4       0.1        0.0       -0.0
- 12 10      -0.2      -1.0       -0.1       -0.0
- 12 11      -1.3       0.1       -0.0        0.0
- 12 12      -0.7       0.2       -0.1       -0.1
-999999999999999999999999999999999999999999999999
-999999999999999999999999999999999999999999999999
-"""
-
-_COEFFICIENTS = _coefficients()

@@ -113,6 +113,7 @@ class SolveOptions:
     location: str | None = None  # LAT,LON[,HEIGHT_M]: the reference from the place (pipeline.places)
     gravity: float | None = None  # local gravity in m/s^2, given
     date: str | None = None  # YYYY-MM-DD: a magnetometer's Earth field on that day
+    field_model: str | None = None  # that field's model: wmm (None) or wmmhr (core.earth.FIELD_MODELS)
     read: ReadSpec = field(default_factory=ReadSpec)
     log: LogOptions = field(default_factory=LogOptions)
     checks: CheckOptions = field(default_factory=CheckOptions)
@@ -198,6 +199,7 @@ class SolveKeywords(ReadKeywords, CutKeywords, total=False):
     location: str | None
     gravity: float | None
     date: str | None
+    field_model: str | None
     # how a continuous log is cut (LogOptions): CutKeywords, and
     turns: str | Mapping[str, str] | None
     turn_angle: float | None
@@ -289,6 +291,7 @@ CHOICES = {
     "time_unit": ("auto", "s", "ms", "us", "ns"),
     "decimal": (".", ","),
     "plane": ("xy", "xz", "yz"),
+    "field_model": ("wmm", "wmmhr"),
 }
 CHECK_NAMES = catalog.check_names()
 NUMBERS = (

@@ -1,8 +1,9 @@
 """The reference of a calibration from where (and when) it was made: an accelerometer's local
 gravity (``--location LAT,LON[,HEIGHT_M]`` or ``--gravity VALUE``: WGS-84 normal gravity,
 core.earth) and a magnetometer's Earth field (``--location`` and ``--date YYYY-MM-DD``: the World
-Magnetic Model). The magnitude becomes ``reference`` in the calibration's units, and where it
-came from is written beside it (``gravity``, ``earth_field``; README "docs/real-world.md").
+Magnetic Model release of that date, or with ``--field-model wmmhr`` its high-resolution model).
+The magnitude becomes ``reference`` in the calibration's units, and where it came from is written
+beside it (``gravity``, ``earth_field``; README "docs/real-world.md").
 """
 
 from __future__ import annotations
@@ -70,8 +71,13 @@ def location(text: str) -> Place:
     return Place(lat, lon, height)
 
 
-def decimal_date(text: str) -> float:
-    """``--date YYYY-MM-DD`` as a decimal year, within the World Magnetic Model's span."""
+#: How the messages name each field model of --field-model (core.earth.FIELD_MODELS).
+FIELD_MODEL_NAMES = {"wmm": "the World Magnetic Model", "wmmhr": "the high-resolution World Magnetic Model"}
+
+
+def decimal_date(text: str, family: str = "wmm") -> float:
+    """``--date YYYY-MM-DD`` as a decimal year, within the span of the field model ``family``'s
+    releases (core.earth.FIELD_MODELS: ``wmm`` from 2010, ``wmmhr`` from 2025)."""
     found = re.fullmatch(r"\s*(\d{4})-(\d{2})-(\d{2})\s*", text)
     try:
         day = datetime.date(*(int(g) for g in found.groups())) if found else None
@@ -80,12 +86,14 @@ def decimal_date(text: str) -> float:
     if day is None:
         raise InputError(f"--date takes YYYY-MM-DD, got {text!r}", hint="e.g. --date 2026-11-27")
     year = earth.decimal_year(day.year, day.month, day.day)
-    first, last = earth.WMM_SPAN
+    first, last = earth.field_span(family)
     if not first <= year < last:
+        names = ", ".join(m.name for m in earth.FIELD_MODELS[family])
         raise InputError(
-            f"--date {text.strip()} is outside the World Magnetic Model WMM2025, which holds from "
+            f"--date {text.strip()} is outside {FIELD_MODEL_NAMES[family]} ({names}), which holds from "
             f"{first:.0f}-01-01 to {last - 1:.0f}-12-31",
-            hint="give the date the log was recorded, within the model's span",
+            hint="give the date the log was recorded, within the model's span"
+            + ("; before 2025, leave --field-model out (the WMM of the date)" if family != "wmm" else ""),
         )
     return year
 
@@ -102,6 +110,7 @@ class Asked:
     gravity: float | None = None
     date: str | None = None
     reference: float | None = None
+    field_model: str | None = None  # --field-model: wmm (None) or wmmhr
 
 
 def resolve(options: SolveOptions, stream_units: str | None) -> tuple[SolveOptions, ReferenceSource | None]:
@@ -109,7 +118,8 @@ def resolve(options: SolveOptions, stream_units: str | None) -> tuple[SolveOptio
     log's stream, m/s^2 or gauss), in the calibration's units, and where it came from; the
     options unchanged when none is given."""
     o = options
-    found = local_reference(Asked(o.read.sensor, o.units, stream_units, o.location, o.gravity, o.date, o.reference))
+    asked = Asked(o.read.sensor, o.units, stream_units, o.location, o.gravity, o.date, o.reference, o.field_model)
+    found = local_reference(asked)
     if found is None:
         return options, None
     reference, units, source = found
@@ -123,6 +133,10 @@ def local_reference(asked: Asked) -> tuple[float, str, ReferenceSource] | None:
     if not given:
         if asked.date is not None:
             raise InputError("--date dates the Earth's field at a --location: give --location LAT,LON too")
+        if asked.field_model is not None:
+            raise InputError(
+                "--field-model chooses the model of the Earth's field at a --location: give --location LAT,LON too"
+            )
         return None
     if asked.reference is not None:
         raise InputError(f"{given[0]} sets the reference: give it or --reference, not both")
@@ -146,6 +160,8 @@ def local_reference(asked: Asked) -> tuple[float, str, ReferenceSource] | None:
 def _gravity(asked: Asked) -> tuple[float, str, ReferenceSource]:
     if asked.date is not None:
         raise InputError("--date is for a magnetometer's Earth field; gravity does not change with the date")
+    if asked.field_model is not None:
+        raise InputError("--field-model is for a magnetometer's Earth field; local gravity is WGS-84 normal gravity")
     stream = asked.stream_units or ""
     units = asked.units or ("m/s^2" if factor("accelerometer", stream) == 1.0 else "g")  # a log's stream in m/s^2
     scale = factor("accelerometer", units)  # m/s^2 per one of the units
@@ -186,7 +202,11 @@ def _field(asked: Asked) -> tuple[float, str, ReferenceSource]:
         )
     assert asked.location is not None
     place = location(asked.location)
-    year = decimal_date(asked.date)
+    family = asked.field_model or "wmm"
+    if family not in earth.FIELD_MODELS:
+        raise InputError(f"--field-model is {' or '.join(earth.FIELD_MODELS)}, got {family!r}")
+    year = decimal_date(asked.date, family)
+    model = earth.field_model(year, family)
     stream = asked.stream_units or ""
     units = asked.units or (stream if factor("magnetometer", stream) is not None else DEFAULT_FIELD_UNITS)
     scale = factor("magnetometer", units)  # gauss per one of the units
@@ -195,20 +215,20 @@ def _field(asked: Asked) -> tuple[float, str, ReferenceSource]:
             f"the Earth's field is in uT, gauss, mG or nT, and the calibration's units are {units!r}",
             hint="give --units uT (or gauss), or leave --location out and give --reference in your units",
         )
-    f = earth.magnetic_field(place.latitude, place.longitude, place.height, year)
+    f = earth.magnetic_field(place.latitude, place.longitude, place.height, year, model)
     part: dict[str, object] = {
         "latitude": place.latitude,
         "longitude": place.longitude,
         "height_m": place.height,
         "date": asked.date.strip(),
-        "model": "WMM2025",
+        "model": model.name,
         "total_nT": round(f.total, 1),
         "inclination_deg": round(f.inclination, 4),
         "declination_deg": round(f.declination, 4),
         "north_nT": round(f.north, 1),
         "east_nT": round(f.east, 1),
         "down_nT": round(f.down, 1),
-        "source": "World Magnetic Model WMM2025 (NOAA NCEI and BGS)",
+        "source": model.source,
     }
     return f.total * 1e-5 / scale, units, ReferenceSource("earth_field", part)  # nT to gauss, gauss to the units
 
