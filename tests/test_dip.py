@@ -282,3 +282,14 @@ def test_the_dip_angles_are_taken_through_the_alignment(capsys: pytest.CaptureFi
     assert before["spread_deg"] > 1.0
     assert after["spread_deg"] < before["spread_deg"] / 5
     assert abs(after["difference_deg"]) < 4 * after["uncertainty_deg"] + 0.02
+
+
+def test_the_dip_parts_model_uncertainty_is_its_releases_own() -> None:
+    """The dip part recorded WMM2025's 0.20° whichever release gave the field."""
+    from tumblecal_cli.core import earth
+    from tumblecal_cli.pipeline.solve.maglog import _inclination_error
+
+    assert _inclination_error({"model": "WMM2020"}) == 0.21
+    assert _inclination_error({"model": "WMM2025"}) == 0.20
+    assert _inclination_error({"model": "WMM2010"}) is None
+    assert earth.release_named("nonsense") is None

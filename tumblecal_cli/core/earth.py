@@ -148,6 +148,11 @@ FIELD_MODELS: dict[str, tuple[MagneticModel, ...]] = {
 }
 
 
+def release_named(name: object) -> MagneticModel | None:
+    """The release a calibration file's ``earth_field.model`` names (None: none of these)."""
+    return next((m for family in FIELD_MODELS.values() for m in family if m.name == name), None)
+
+
 @dataclass(frozen=True)
 class Field:
     """The main field at a place and time: ``north``, ``east``, ``down`` (X, Y, Z, nT, in the

@@ -155,9 +155,16 @@ def dip_check(found: MagLog, cal: Calibration, limits: Limits) -> tuple[dict[str
         "spread_deg": round(d.spread, 4),
         "uncertainty_deg": round(d.uncertainty, 4),
         "model_deg": None if model is None else round(model, 4),
-        "model_uncertainty_deg": None if model is None else earth.WMM_ERROR["inclination_deg"],
+        "model_uncertainty_deg": None if model is None else _inclination_error(model_field),
         "difference_deg": None if model is None else round(d.mean - model, 4),
         "angles_deg": [round(float(a), 3) for a in d.angles],
         "accelerometer": accel.path,
     }
     return part, gate.dip_failures(limits, d.angles, model)
+
+
+def _inclination_error(part: object) -> float | None:
+    """The inclination error (1 sigma, degrees) of the release that gave the calibration's
+    ``earth_field`` (each release's own: 0.20° for WMM2025, 0.21° for WMM2020 ...; None unknown)."""
+    release = earth.release_named(part.get("model")) if isinstance(part, dict) else None
+    return None if release is None or release.error is None else release.error["inclination_deg"]
