@@ -27,6 +27,7 @@ from tumblecal_cli.core.solvers import (
     six_pose,
     sphere,
 )
+from tumblecal_cli.errors import CaptureRejected
 
 
 @dataclass(frozen=True)
@@ -154,7 +155,17 @@ def _trimmed(
             return _radius_residuals(at, offset, given.settings.plane, ref)
         return norm_residuals(at, offset, matrix, ref)
 
-    done = robust.trimmed(points, ref, rough, residuals)
+    kept = robust.screen(points)
+    if kept.all():  # nothing screened out: the plain fit, kept when it leaves nothing out (one fit)
+        try:
+            plain = solve(points)
+        except CaptureRejected:  # (its checks tripped by outliers still in: the rounds below)
+            plain = None
+        if plain is not None:
+            first = (plain.solution.offset, plain.solution.matrix)
+            if robust.bounds(residuals(first, points), kept, ref)[0].all():
+                return plain
+    done = robust.trimmed(points, ref, rough, residuals, kept)
     if done.left_out == 0:
         return solve(points)
     fitted = solve(points[done.kept])

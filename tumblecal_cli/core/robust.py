@@ -107,24 +107,32 @@ def screen(points: FloatArray) -> BoolArray:
     return ok if ok.sum() >= 0.5 * finite.sum() else finite
 
 
+def bounds(res: FloatArray, kept: BoolArray, reference: float) -> tuple[BoolArray, float, float]:
+    """Rule 3 on residuals ``res``: the samples within the bound (its spread taken over ``kept``),
+    the bound, and that spread."""
+    inside = res[kept & np.isfinite(res)]
+    scale = MAD_NORMAL * float(np.median(np.abs(inside - np.median(inside)))) if len(inside) else np.inf
+    bound = max(K_SIGMA * scale, FLOOR * reference)
+    with np.errstate(invalid="ignore"):
+        within: BoolArray = np.asarray(np.isfinite(res) & (np.abs(res) <= bound))
+    return within, float(bound), float(scale)
+
+
 def trimmed(
     points: FloatArray,
     reference: float,
     fit: Callable[[FloatArray], F],
     residuals: Callable[[F, FloatArray], FloatArray],
+    kept: BoolArray | None = None,
 ) -> TrimmedFit[F]:
     """``fit`` on the samples a trimmed refit keeps (module docstring): ``fit(kept_points)`` makes a
-    fit, ``residuals(fit, points)`` every sample's |M (raw - b)| - reference under it."""
-    kept = screen(points)
+    fit, ``residuals(fit, points)`` every sample's |M (raw - b)| - reference under it; ``kept``
+    the samples to start from (default: :func:`screen`'s)."""
+    kept = screen(points) if kept is None else kept
     result = fit(points[kept])
     bound = scale = np.inf
     for _ in range(ROUNDS):
-        res = residuals(result, points)
-        inside = res[kept]
-        scale = MAD_NORMAL * float(np.median(np.abs(inside - np.median(inside))))
-        bound = max(K_SIGMA * scale, FLOOR * reference)
-        with np.errstate(invalid="ignore"):
-            now = np.isfinite(res) & (np.abs(res) <= bound)
+        now, bound, scale = bounds(residuals(result, points), kept, reference)
         if np.array_equal(now, kept):
             break
         kept = now
