@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tumblecal_cli.core import alignment, blocks
+from tumblecal_cli.core import alignment, blocks, methods
 from tumblecal_cli.core.gate import Finding
 from tumblecal_cli.core.quantities import DIP_SAID
 from tumblecal_cli.errors import CaptureRejected, InputError
@@ -227,6 +227,9 @@ def mag_to_accel(
     accel = _calibration(accel_cal, "accelerometer", accel_flag)
     mag = _calibration(mag_cal, "magnetometer", "--mag-cal") if isinstance(mag_cal, str) else mag_cal
     acc_spec = replace(spec, sensor="accelerometer", columns=None, prefer=tuple(accel.columns))
+    table = _table(log, acc_spec, replace(spec, sensor="magnetometer", columns=None, prefer=tuple(mag.columns)), accel)
+    if table is not None:
+        return _table_aligned(table, accel, mag, accel_cal)
     with segmenting.segmented(
         log, acc_spec, pose_column=None, pose_map=None, settings=_settings(settings, accel.offset), whole=True,
         max_spool=max_spool,
@@ -257,6 +260,57 @@ def mag_to_accel(
     _observable(fit.rotation, name, "the field's east-west direction did not turn through three axes")
     notes = [f"still blocks dropped: {seg.dropped_counts()}"] if seg.dropped_counts() else []
     return MagAligned(name, acc.sha256, fit, len(kept), seen, notes, mag, accel_cal)
+
+
+#: A direction's noise for the rows of a table (one averaged reading each, their own noise not
+#: known): small, so that the fit's chi2 scales its covariance to the rows' scatter about it.
+TABLE_SIGMA = 1e-6
+
+
+def _table(log: str, acc_spec: ReadSpec, mag_spec: ReadSpec, accel: Calibration) -> tuple[Log, Log] | None:
+    """Both sensors' readings of ``log`` when it is a table of orientations (no time column, its
+    rows pointing different ways, as solve recognises one: methods.orientation_table), else None.
+    A pipe is not looked into (it is read once, as a log)."""
+    if log == "-" or not os.path.isfile(log):
+        return None
+    acc = readings.read_log(log, acc_spec, use_time=False)
+    if acc.layout.time is not None or methods.orientation_table(acc.values, accel.offset) is None:
+        return None
+    return acc, readings.read_log(log, mag_spec, use_time=False)
+
+
+def _table_aligned(table: tuple[Log, Log], accel: Calibration, mag: Calibration, accel_cal: str) -> MagAligned:
+    """The rotation from a table of orientations: each row a still block, its direction's noise
+    unknown (TABLE_SIGMA: the uncertainties come from the rows' scatter about the fit)."""
+    acc, mlog = table
+    name = acc.layout.name
+    if acc.layout.sensor_names == mlog.layout.sensor_names:
+        raise InputError(
+            "the accelerometer and the magnetometer are not read from their own columns of the same rows",
+            file=name,
+            hint="name each sensor's columns in its calibration (columns), or give --columns",
+        )
+    spans = [(k, k) for k in range(len(acc.values))]
+    g, m = block_means(acc.values, spans, accel), block_means(mlog.values, spans, mag)
+    seen = orientations(g.values)
+    if len(spans) < alignment.MIN_BLOCKS or seen < 3:
+        raise CaptureRejected(
+            f"{len(spans)} rows in {seen} orientations; the alignment needs {alignment.MIN_BLOCKS} or more in 3 or "
+            "more orientations",
+            file=name,
+            hint="add shots turned about each of the unit's axes",
+            code="alignment.few",
+        )
+    sigma = np.full(len(spans), TABLE_SIGMA)
+    fit = alignment.mag_to_accel(g.values, m.values, sigma, sigma)
+    sigma *= np.sqrt(max(fit.rotation.chi2, 1e-30))  # the rows' scatter: the noise that makes chi2 1
+    fit = alignment.mag_to_accel(g.values, m.values, sigma, sigma)
+    _observable(fit.rotation, name, "the field's east-west direction did not turn through three axes")
+    notes = [
+        f"{name}: a table of {len(spans)} orientations, one averaged reading a row: each row a still block, the "
+        "uncertainties from the rows' scatter about the fit"
+    ]
+    return MagAligned(name, acc.sha256, fit, len(spans), seen, notes, mag, accel_cal)
 
 
 def source_of(sensor: str, given: object) -> str:

@@ -1,0 +1,67 @@
+"""align takes a table of orientations as solve does (issue "Real recordings, round 3", item 3):
+a cave-survey instrument's 24 calibration shots, one averaged reading a row (furbrain's SAP5,
+tests/data/furbrain_sap, Unlicense), were refused "0 still blocks in 0 orientations … hold the
+unit still (1 s or more)"."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.conftest import run
+
+SAP = Path(__file__).resolve().parent / "data" / "furbrain_sap"
+SHOTS = SAP / "sap5_ab_shots.csv"
+
+
+def _device_dip_spread() -> float:
+    """The spread of the dip over the 24 shots through the instrument's own calibration
+    (M (raw + o), its first 12 numbers; SOURCE.md)."""
+    with SHOTS.open(newline="") as f:
+        rows = list(csv.DictReader(f))
+    conf = json.loads((SAP / "sap5_ab_device_cal.json").read_text())["conf"]["calib"]
+
+    def calibrated(keys: tuple[str, str, str], part: str) -> np.ndarray:
+        v = np.array([[float(r[k]) for k in keys] for r in rows])
+        m, o = np.array(conf[part][:9]).reshape(3, 3), np.array(conf[part][9:12])
+        out = (v + o) @ m.T
+        return out / np.linalg.norm(out, axis=1)[:, None]
+
+    g, f = calibrated(("ax", "ay", "az"), "accel"), calibrated(("mx", "my", "mz"), "mag")
+    return float(np.std(np.degrees(np.arcsin(np.einsum("ij,ij->i", g, f)))))
+
+
+def test_align_of_a_table_of_shots_is_at_or_below_the_devices_own_dip_spread(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    acc, mag, out = tmp_path / "acc.json", tmp_path / "mag.json", tmp_path / "aligned.json"
+    assert run(capsys, "solve", "--poses", SHOTS, "--columns", "ax,ay,az", "-o", acc, "-q").code == 0
+    args = ["solve", "--sensor", "magnetometer", "--poses", SHOTS, "--columns", "mx,my,mz", "-o", mag, "-q"]
+    assert run(capsys, *args).code == 0
+    r = run(capsys, "align", "--accel-cal", acc, "--mag-cal", mag, SHOTS, "-o", out, "--json")
+    assert r.code == 0, r.err
+    assert f"{SHOTS}: a table of 24 orientations, one averaged reading a row" in r.err
+    assert "1 s or more" not in r.err
+    assert json.loads(out.read_text())["blocks"] == 24
+    line = next(ln for ln in r.err.splitlines() if "spread over the blocks" in ln)
+    spread = float(line.split("before, ")[1].split("°")[0])
+    assert spread <= _device_dip_spread(), (spread, _device_dip_spread())  # 0.316° against the device's 0.344°
+    assert "chi2 1)" in r.err  # the uncertainty from the rows' scatter about the fit
+
+
+def test_a_table_too_few_shots_for_the_alignment_says_what_to_add(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    acc, mag = tmp_path / "acc.json", tmp_path / "mag.json"
+    assert run(capsys, "solve", "--poses", SHOTS, "--columns", "ax,ay,az", "-o", acc, "-q").code == 0
+    args = ["solve", "--sensor", "magnetometer", "--poses", SHOTS, "--columns", "mx,my,mz", "-o", mag, "-q"]
+    assert run(capsys, *args).code == 0
+    few = tmp_path / "few.csv"
+    few.write_text("\n".join(SHOTS.read_text().splitlines()[:4]) + "\n")
+    r = run(capsys, "align", "--accel-cal", acc, "--mag-cal", mag, few)
+    assert r.code in (2, 3), r.err
+    assert "1 s or more" not in r.err
