@@ -65,3 +65,13 @@ def test_a_table_too_few_shots_for_the_alignment_says_what_to_add(
     r = run(capsys, "align", "--accel-cal", acc, "--mag-cal", mag, few)
     assert r.code in (2, 3), r.err
     assert "1 s or more" not in r.err
+
+
+def test_solve_align_to_takes_the_table_too(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    acc = tmp_path / "acc.json"
+    assert run(capsys, "solve", "--poses", SHOTS, "--columns", "ax,ay,az", "-o", acc, "-q").code == 0
+    args = ["solve", "--sensor", "magnetometer", "--poses", SHOTS, "--columns", "mx,my,mz", "--align-to", acc]
+    r = run(capsys, *args, "-o", tmp_path / "mag.json")
+    assert r.code == 0, r.err
+    assert f"note: aligned to {acc} from 24 still blocks: rotated 2.19" in r.err
+    assert "alignment" in json.loads((tmp_path / "mag.json").read_text())
