@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from tests.conftest import run
+from tumblecal_cli.core.arrays import FloatArray
 
 SAP = Path(__file__).resolve().parent / "data" / "furbrain_sap"
 SHOTS = SAP / "sap5_ab_shots.csv"
@@ -21,18 +22,19 @@ SHOTS = SAP / "sap5_ab_shots.csv"
 def _device_dip_spread() -> float:
     """The spread of the dip over the 24 shots through the instrument's own calibration
     (M (raw + o), its first 12 numbers; SOURCE.md)."""
-    with SHOTS.open(newline="") as f:
-        rows = list(csv.DictReader(f))
+    with SHOTS.open(newline="") as shots:
+        rows = list(csv.DictReader(shots))
     conf = json.loads((SAP / "sap5_ab_device_cal.json").read_text())["conf"]["calib"]
 
-    def calibrated(keys: tuple[str, str, str], part: str) -> np.ndarray:
+    def calibrated(keys: tuple[str, str, str], part: str) -> FloatArray:
         v = np.array([[float(r[k]) for k in keys] for r in rows])
         m, o = np.array(conf[part][:9]).reshape(3, 3), np.array(conf[part][9:12])
-        out = (v + o) @ m.T
-        return out / np.linalg.norm(out, axis=1)[:, None]
+        out: FloatArray = (v + o) @ m.T
+        unit: FloatArray = out / np.linalg.norm(out, axis=1)[:, None]
+        return unit
 
-    g, f = calibrated(("ax", "ay", "az"), "accel"), calibrated(("mx", "my", "mz"), "mag")
-    return float(np.std(np.degrees(np.arcsin(np.einsum("ij,ij->i", g, f)))))
+    g, field = calibrated(("ax", "ay", "az"), "accel"), calibrated(("mx", "my", "mz"), "mag")
+    return float(np.std(np.degrees(np.arcsin(np.einsum("ij,ij->i", g, field)))))
 
 
 def test_align_of_a_table_of_shots_is_at_or_below_the_devices_own_dip_spread(
@@ -40,7 +42,18 @@ def test_align_of_a_table_of_shots_is_at_or_below_the_devices_own_dip_spread(
 ) -> None:
     acc, mag, out = tmp_path / "acc.json", tmp_path / "mag.json", tmp_path / "aligned.json"
     assert run(capsys, "solve", "--poses", SHOTS, "--columns", "ax,ay,az", "-o", acc, "-q").code == 0
-    args = ["solve", "--sensor", "magnetometer", "--poses", SHOTS, "--columns", "mx,my,mz", "-o", mag, "-q"]
+    args: list[str | Path] = [
+        "solve",
+        "--sensor",
+        "magnetometer",
+        "--poses",
+        SHOTS,
+        "--columns",
+        "mx,my,mz",
+        "-o",
+        mag,
+        "-q",
+    ]
     assert run(capsys, *args).code == 0
     r = run(capsys, "align", "--accel-cal", acc, "--mag-cal", mag, SHOTS, "-o", out, "--json")
     assert r.code == 0, r.err
@@ -58,7 +71,18 @@ def test_a_table_too_few_shots_for_the_alignment_says_what_to_add(
 ) -> None:
     acc, mag = tmp_path / "acc.json", tmp_path / "mag.json"
     assert run(capsys, "solve", "--poses", SHOTS, "--columns", "ax,ay,az", "-o", acc, "-q").code == 0
-    args = ["solve", "--sensor", "magnetometer", "--poses", SHOTS, "--columns", "mx,my,mz", "-o", mag, "-q"]
+    args: list[str | Path] = [
+        "solve",
+        "--sensor",
+        "magnetometer",
+        "--poses",
+        SHOTS,
+        "--columns",
+        "mx,my,mz",
+        "-o",
+        mag,
+        "-q",
+    ]
     assert run(capsys, *args).code == 0
     few = tmp_path / "few.csv"
     few.write_text("\n".join(SHOTS.read_text().splitlines()[:4]) + "\n")
@@ -70,7 +94,17 @@ def test_a_table_too_few_shots_for_the_alignment_says_what_to_add(
 def test_solve_align_to_takes_the_table_too(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     acc = tmp_path / "acc.json"
     assert run(capsys, "solve", "--poses", SHOTS, "--columns", "ax,ay,az", "-o", acc, "-q").code == 0
-    args = ["solve", "--sensor", "magnetometer", "--poses", SHOTS, "--columns", "mx,my,mz", "--align-to", acc]
+    args: list[str | Path] = [
+        "solve",
+        "--sensor",
+        "magnetometer",
+        "--poses",
+        SHOTS,
+        "--columns",
+        "mx,my,mz",
+        "--align-to",
+        acc,
+    ]
     r = run(capsys, *args, "-o", tmp_path / "mag.json")
     assert r.code == 0, r.err
     assert f"note: aligned to {acc} from 24 still blocks: rotated 2.19" in r.err
