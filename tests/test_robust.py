@@ -194,3 +194,21 @@ def test_robust_fit_stays_within_its_stated_uncertainty_of_the_truth(share: floa
     assert 0.8 <= float(np.sqrt(np.mean(z**2))) <= 1.25, float(np.sqrt(np.mean(z**2)))
     if share:
         assert float(np.sqrt(np.mean(np.array(plain_z) ** 2))) > 3.0
+
+
+def test_a_capture_too_poorly_spread_once_its_glitches_are_out_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Coverage is judged on the samples kept: a capture that never turned its +z up is refused
+    for that, saying the outliers were left out first, not for a direction the glitches made."""
+    head, v = _real()
+    centre = np.median(v, axis=0)
+    low = v[v[:, 2] < centre[2]]  # one hemisphere of the field only
+    low[10], low[20] = [3.1, 2.9, -3.0], [-2.9, -3.2, 3.3]
+    capture = _write(tmp_path / "half.csv", head, low)
+    r = run(capsys, "solve", "--sensor", "magnetometer", "--poses", capture, "-o", tmp_path / "h.json")
+    assert r.code == 3, r.err
+    first = r.err.splitlines()[0]
+    assert "do not cover enough directions" in first
+    assert f"(judged on the {len(low) - 2:,} samples kept: 2 outliers left out)" in first
+    assert not (tmp_path / "h.json").exists()

@@ -168,7 +168,15 @@ def _trimmed(
     done = robust.trimmed(points, ref, rough, residuals, kept)
     if done.left_out == 0:
         return solve(points)
-    fitted = solve(points[done.kept])
+    try:
+        fitted = solve(points[done.kept])
+    except CaptureRejected as err:  # the good part alone too poorly spread: said so, not blamed on a glitch
+        raise CaptureRejected(
+            f"{err.message} (judged on the {done.kept.sum():,} samples kept: {done.left_out:,} outliers left out)",
+            file=err.file,
+            hint=err.hint,
+            code=err.code,
+        ) from err
     outliers = robust.Outliers(done.left_out, len(points), done.stretches, done.bound, done.scale)
     return replace(fitted, outliers=outliers)
 
