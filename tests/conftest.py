@@ -193,6 +193,70 @@ def spliced_blocks(monkeypatch: pytest.MonkeyPatch) -> list[bool]:
     return taken
 
 
+# -- a run's memory: its peak, or a bound on its address space --------------------------------
+
+#: Runs the command given after it and prints its peak resident memory (KiB on Linux): a fresh
+#: process each time, so the children's peak is that command's alone.
+PEAK = (
+    "import resource, subprocess, sys; "
+    "done = subprocess.run(sys.argv[1:], capture_output=True, check=False); "
+    "print(done.returncode, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)"
+)
+#: The address space a command run by :func:`limited` may take (make fuzz's too): a reader that
+#: allocates by a declared count is stopped well before the machine is.
+LIMIT = 3 << 30
+
+
+def peak_rss(*args: str | Path) -> int:
+    """Peak resident bytes of ``tumblecal ARGS`` in a fresh process (which must exit 0)."""
+    command = [sys.executable, "-c", PEAK, sys.executable, "-m", "tumblecal_cli", *map(str, args)]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=900, check=True)
+    code, peak = done.stdout.split()
+    assert code == "0", done.stdout
+    return int(peak) * 1024
+
+
+def limited(*args: str | Path, timeout: float = 60) -> Result:
+    """``tumblecal ARGS`` in a subprocess whose address space is ``LIMIT`` (from the project's
+    root), stopped after ``timeout`` seconds."""
+    import resource
+
+    def cap() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (LIMIT, LIMIT))
+
+    done = subprocess.run(
+        [sys.executable, "-m", "tumblecal_cli", *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        preexec_fn=cap,
+        cwd=ROOT,
+        env={**os.environ, "NO_COLOR": "1"},
+        check=False,
+    )
+    return Result(done.returncode, done.stdout, done.stderr)
+
+
+def still_pose(path: Path, rows: int) -> Path:
+    """A still +z pose at 1 kHz: t,ax,ay,az, noise 2 mg, written by pyarrow (millions of rows
+    in seconds)."""
+    import pyarrow as pa
+    import pyarrow.csv as pcsv
+
+    rng = np.random.default_rng(5)
+    path.write_text("t,ax,ay,az\n")
+    with path.open("ab") as f:
+        for start in range(0, rows, 1_000_000):
+            k = min(1_000_000, rows - start)
+            v = 0.02 + 0.002 * rng.standard_normal((k, 3))
+            v[:, 2] += 1.0
+            cols = [pa.array(np.arange(start, start + k) / 1000.0)]
+            cols += [pa.array(np.round(v[:, j], 6)).cast(pa.decimal128(9, 6), safe=False) for j in range(3)]
+            table = pa.table(cols, names=["t", "ax", "ay", "az"])
+            pcsv.write_csv(table, f, pcsv.WriteOptions(include_header=False, quoting_style="none"))
+    return path
+
+
 # -- checking a run -------------------------------------------------------------------------
 
 

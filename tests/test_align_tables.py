@@ -37,24 +37,22 @@ def _device_dip_spread() -> float:
     return float(np.std(np.degrees(np.arcsin(np.einsum("ij,ij->i", g, field)))))
 
 
+@pytest.fixture
+def cals(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> tuple[Path, Path]:
+    """The accelerometer's and the magnetometer's calibrations, each solved from the same table."""
+    acc, mag = tmp_path / "acc.json", tmp_path / "mag.json"
+    for sensor, columns, out in (("accelerometer", "ax,ay,az", acc), ("magnetometer", "mx,my,mz", mag)):
+        assert (
+            run(capsys, "solve", "--sensor", sensor, "--poses", SHOTS, "--columns", columns, "-o", out, "-q").code == 0
+        )
+    return acc, mag
+
+
 def test_align_of_a_table_of_shots_is_at_or_below_the_devices_own_dip_spread(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    cals: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    acc, mag, out = tmp_path / "acc.json", tmp_path / "mag.json", tmp_path / "aligned.json"
-    assert run(capsys, "solve", "--poses", SHOTS, "--columns", "ax,ay,az", "-o", acc, "-q").code == 0
-    args: list[str | Path] = [
-        "solve",
-        "--sensor",
-        "magnetometer",
-        "--poses",
-        SHOTS,
-        "--columns",
-        "mx,my,mz",
-        "-o",
-        mag,
-        "-q",
-    ]
-    assert run(capsys, *args).code == 0
+    acc, mag = cals
+    out = tmp_path / "aligned.json"
     r = run(capsys, "align", "--accel-cal", acc, "--mag-cal", mag, SHOTS, "-o", out, "--json")
     assert r.code == 0, r.err
     assert f"{SHOTS}: a table of 24 orientations, one averaged reading a row" in r.err
@@ -67,23 +65,9 @@ def test_align_of_a_table_of_shots_is_at_or_below_the_devices_own_dip_spread(
 
 
 def test_a_table_too_few_shots_for_the_alignment_says_what_to_add(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    cals: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    acc, mag = tmp_path / "acc.json", tmp_path / "mag.json"
-    assert run(capsys, "solve", "--poses", SHOTS, "--columns", "ax,ay,az", "-o", acc, "-q").code == 0
-    args: list[str | Path] = [
-        "solve",
-        "--sensor",
-        "magnetometer",
-        "--poses",
-        SHOTS,
-        "--columns",
-        "mx,my,mz",
-        "-o",
-        mag,
-        "-q",
-    ]
-    assert run(capsys, *args).code == 0
+    acc, mag = cals
     few = tmp_path / "few.csv"
     few.write_text("\n".join(SHOTS.read_text().splitlines()[:4]) + "\n")
     r = run(capsys, "align", "--accel-cal", acc, "--mag-cal", mag, few)
@@ -91,9 +75,10 @@ def test_a_table_too_few_shots_for_the_alignment_says_what_to_add(
     assert "1 s or more" not in r.err
 
 
-def test_solve_align_to_takes_the_table_too(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    acc = tmp_path / "acc.json"
-    assert run(capsys, "solve", "--poses", SHOTS, "--columns", "ax,ay,az", "-o", acc, "-q").code == 0
+def test_solve_align_to_takes_the_table_too(
+    cals: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    acc, _ = cals
     args: list[str | Path] = [
         "solve",
         "--sensor",

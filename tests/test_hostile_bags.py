@@ -11,9 +11,7 @@ repeated; none is ever inflated here."""
 from __future__ import annotations
 
 import bz2
-import resource
 import struct
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -23,7 +21,7 @@ import numpy as np
 import pytest
 
 from tests import ros_writer
-from tests.conftest import ROOT
+from tests.conftest import limited
 from tests.ros_writer import Messages
 
 if sys.version_info >= (3, 14):
@@ -33,31 +31,18 @@ else:
 
 pytestmark = pytest.mark.slow
 
-#: The address space a command may take (the same as make fuzz's), and the seconds it may run.
-LIMIT = 3 << 30
+#: Seconds a command may run (under conftest.LIMIT of address space, as make fuzz's).
 TIMEOUT = 60
 GIB4 = 4 << 30
 G = 9.80665
 
 
-def _limited() -> None:
-    resource.setrlimit(resource.RLIMIT_AS, (LIMIT, LIMIT))
-
-
 def tumblecal(*args: str | Path) -> tuple[int, str, str, float]:
-    """``tumblecal ARGS`` in a subprocess under LIMIT and TIMEOUT: exit status, stdout, stderr,
-    and the seconds it took."""
+    """``tumblecal ARGS`` in a subprocess under conftest.LIMIT and TIMEOUT: exit status, stdout,
+    stderr, and the seconds it took."""
     start = time.monotonic()
-    done = subprocess.run(
-        [sys.executable, "-m", "tumblecal_cli", *map(str, args)],
-        capture_output=True,
-        text=True,
-        timeout=TIMEOUT,
-        preexec_fn=_limited,
-        cwd=ROOT,
-        check=False,
-    )
-    return done.returncode, done.stdout, done.stderr, time.monotonic() - start
+    done = limited(*args, timeout=TIMEOUT)
+    return done.code, done.out, done.err, time.monotonic() - start
 
 
 def assert_error(result: tuple[int, str, str, float], expected: str) -> None:

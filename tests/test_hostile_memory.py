@@ -3,22 +3,13 @@ it pins, and failed on the main branch before its fix."""
 
 from __future__ import annotations
 
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from tests.conftest import assert_one_error, run
-
-#: Runs the command given after it and prints its peak resident memory (KiB on Linux): a fresh
-#: process each time, so the children's peak is that command's alone.
-PEAK = (
-    "import resource, subprocess, sys; "
-    "done = subprocess.run(sys.argv[1:], capture_output=True, check=False); "
-    "print(done.returncode, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)"
-)
+from tests.conftest import assert_one_error, peak_rss, run, still_pose
 
 
 def _pose_file(path: Path, rows: int) -> Path:
@@ -33,15 +24,6 @@ def _pose_file(path: Path, rows: int) -> Path:
     return path
 
 
-def _solve_peak(pose: Path, out: Path) -> int:
-    """Peak resident bytes of ``tumblecal solve --poses POSE`` (which must succeed)."""
-    command = [sys.executable, "-c", PEAK, sys.executable, "-m", "tumblecal_cli", "solve", "--poses", str(pose)]
-    done = subprocess.run([*command, "-o", str(out)], capture_output=True, text=True, timeout=600, check=True)
-    code, peak = done.stdout.split()
-    assert code == "0"
-    return int(peak) * 1024
-
-
 @pytest.mark.slow
 @pytest.mark.skipif(sys.platform != "linux", reason="ru_maxrss is in KiB on Linux")
 def test_solve_memory_grows_by_no_more_than_the_readings_with_the_capture(tmp_path: Path) -> None:
@@ -52,39 +34,10 @@ def test_solve_memory_grows_by_no_more_than_the_readings_with_the_capture(tmp_pa
     and since a pose file past 262,144 readings is summed as it is read, about none
     (test_pose_file_memory_is_flat_in_rows)."""
     small, large = 100_000, 2_100_000
-    low = _solve_peak(_pose_file(tmp_path / "small.csv", small), tmp_path / "small.json")
-    high = _solve_peak(_pose_file(tmp_path / "large.csv", large), tmp_path / "large.json")
+    low = peak_rss("solve", "--poses", _pose_file(tmp_path / "small.csv", small), "-o", tmp_path / "small.json")
+    high = peak_rss("solve", "--poses", _pose_file(tmp_path / "large.csv", large), "-o", tmp_path / "large.json")
     per_row = (high - low) / (large - small)
     assert per_row < 65, f"{per_row:.1f} bytes of memory a row"
-
-
-def _still_pose(path: Path, rows: int) -> Path:
-    """A still +z pose at 1 kHz: t,ax,ay,az, noise 2 mg, written by pyarrow (millions of rows
-    in seconds)."""
-    import pyarrow as pa
-    import pyarrow.csv as pcsv
-
-    rng = np.random.default_rng(5)
-    path.write_text("t,ax,ay,az\n")
-    with path.open("ab") as f:
-        for start in range(0, rows, 1_000_000):
-            k = min(1_000_000, rows - start)
-            v = 0.02 + 0.002 * rng.standard_normal((k, 3))
-            v[:, 2] += 1.0
-            cols = [pa.array(np.arange(start, start + k) / 1000.0)]
-            cols += [pa.array(np.round(v[:, j], 6)).cast(pa.decimal128(9, 6), safe=False) for j in range(3)]
-            table = pa.table(cols, names=["t", "ax", "ay", "az"])
-            pcsv.write_csv(table, f, pcsv.WriteOptions(include_header=False, quoting_style="none"))
-    return path
-
-
-def _peak(*args: str | Path) -> int:
-    """Peak resident bytes of ``tumblecal ARGS`` (which must exit 0)."""
-    command = [sys.executable, "-c", PEAK, sys.executable, "-m", "tumblecal_cli", *map(str, args)]
-    done = subprocess.run(command, capture_output=True, text=True, timeout=900, check=True)
-    code, peak = done.stdout.split()
-    assert code == "0"
-    return int(peak) * 1024
 
 
 @pytest.mark.slow
@@ -94,11 +47,11 @@ def test_pose_file_memory_is_flat_in_rows(tmp_path: Path) -> None:
     rows, 1.08 GiB at 10M. A pose is judged by running sums (core.running) and its readings kept
     on disk: a pose file of 8M rows takes no more than 1.3 times the memory of one of 1M (by
     hand, three poses of 20M rows: 1.04-1.12 times three of 1M for solve, 0.98 for verify)."""
-    small = _still_pose(tmp_path / "small.csv", 1_000_000)
-    large = _still_pose(tmp_path / "large.csv", 8_000_000)
-    base = _peak("solve", "--poses", small, "-o", tmp_path / "small.json")
-    solved = _peak("solve", "--poses", large, "-o", tmp_path / "large.json")
-    verified = _peak("verify", "-c", tmp_path / "small.json", large)
+    small = still_pose(tmp_path / "small.csv", 1_000_000)
+    large = still_pose(tmp_path / "large.csv", 8_000_000)
+    base = peak_rss("solve", "--poses", small, "-o", tmp_path / "small.json")
+    solved = peak_rss("solve", "--poses", large, "-o", tmp_path / "large.json")
+    verified = peak_rss("verify", "-c", tmp_path / "small.json", large)
     assert solved <= 1.3 * base, f"solve: {solved / 2**20:.0f} MiB at 8M rows, {base / 2**20:.0f} MiB at 1M"
     assert verified <= 1.3 * base, f"verify: {verified / 2**20:.0f} MiB at 8M rows, {base / 2**20:.0f} MiB at 1M"
 

@@ -6,10 +6,7 @@ failed before its fix."""
 
 from __future__ import annotations
 
-import os
-import resource
 import struct
-import subprocess
 import sys
 from pathlib import Path
 
@@ -17,13 +14,10 @@ import numpy as np
 import pytest
 
 from tests import dataflash_writer, ulog_writer
-from tests.conftest import Result, assert_one_error
+from tests.conftest import assert_one_error, limited
 from tests.conftest import tumblecal as cli
 
 G = 9.80665
-#: The address space a subprocess is given: a reader that allocates by a declared count is
-#: stopped well before the machine is.
-LIMIT = 3 << 30
 ACCEL = ulog_writer.FORMATS["sensor_accel"]
 #: The byte the first 'F' message is at in :func:`ulog`'s logs (header 16, flag bits 43).
 FIRST_FORMAT = 59
@@ -49,24 +43,6 @@ def ulog(
     body = ulog_writer.samples(10, "sensor_accel", t, xyz, np.full(len(t), 25.0))
     path.write_bytes(head + formats + subscribed + b"".join(body))
     return path
-
-
-def limited(*args: str | Path, timeout: float = 60) -> Result:
-    """``tumblecal ARGS`` in a subprocess whose address space is ``LIMIT``."""
-
-    def cap() -> None:
-        resource.setrlimit(resource.RLIMIT_AS, (LIMIT, LIMIT))
-
-    done = subprocess.run(
-        [sys.executable, "-m", "tumblecal_cli", *map(str, args)],
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        preexec_fn=cap,
-        env={**os.environ, "NO_COLOR": "1"},
-        check=False,
-    )
-    return Result(done.returncode, done.stdout, done.stderr)
 
 
 # -- PX4 ULog: declared counts ------------------------------------------------------------------

@@ -16,8 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.conftest import write
-from tests.test_hostile_memory import PEAK, _still_pose
+from tests.conftest import peak_rss, still_pose, write
 from tests.test_logread import both, same, tumble
 from tumblecal_cli.core import blocks as sc
 from tumblecal_cli.core import scan as scan_core
@@ -146,27 +145,16 @@ def test_a_log_read_in_blocks_in_narrow_bands_is_the_whole_read(
         same(streamed, whole)  # type: ignore[arg-type]
 
 
-def _peak(*args: str | Path) -> int:
-    """Peak resident bytes of ``tumblecal ARGS`` (which must exit 0) and what it printed."""
-    import subprocess
-
-    command = [sys.executable, "-c", PEAK, sys.executable, "-m", "tumblecal_cli", *map(str, args)]
-    done = subprocess.run(command, capture_output=True, text=True, timeout=900, check=True)
-    code, peak = done.stdout.split()
-    assert code == "0"
-    return int(peak) * 1024
-
-
 @pytest.mark.slow
 @pytest.mark.skipif(sys.platform != "linux", reason="ru_maxrss is in KiB on Linux")
 def test_segment_memory_is_flat_in_the_logs_length(tmp_path: Path) -> None:
     """A still pose at 1 kHz: 6M rows took 1.34 times the memory of 1M (206 MiB, 153; 30M rows
     504), 8 bytes and more a row; now within 1.3 times (by hand: 180 MiB and 156; 30M rows 192,
     what grows being the chunks' sums and the clock's every 64th time, under a byte a row)."""
-    small = _still_pose(tmp_path / "small.csv", 1_000_000)
-    large = _still_pose(tmp_path / "large.csv", 6_000_000)
-    base = _peak("segment", small, "-d", tmp_path / "small")
-    grown = _peak("segment", large, "-d", tmp_path / "large")
+    small = still_pose(tmp_path / "small.csv", 1_000_000)
+    large = still_pose(tmp_path / "large.csv", 6_000_000)
+    base = peak_rss("segment", small, "-d", tmp_path / "small")
+    grown = peak_rss("segment", large, "-d", tmp_path / "large")
     assert grown <= 1.3 * base, f"segment: {grown / 2**20:.0f} MiB at 6M rows, {base / 2**20:.0f} MiB at 1M"
     for side, rows in (("small", 1_000_000), ("large", 6_000_000)):
         index = (tmp_path / side / "segments.csv").read_text().splitlines()
