@@ -21,6 +21,7 @@ from tumblecal_cli.core.solvers import (
     gyro_bias,
     least_squares,
     minmax,
+    minmax_offset,
     norm_residuals,
     one_pose_tilt,
     rough_ellipsoid,
@@ -126,10 +127,7 @@ def fit_minmax(given: SolverInput) -> Fit:
     plane = given.settings.plane
 
     def midpoint(points: FloatArray) -> tuple[FloatArray, FloatArray]:
-        offset = 0.5 * (points.min(axis=0) + points.max(axis=0))
-        if plane is not None:  # the third axis keeps offset 0, as minmax's
-            offset[[i for i in range(3) if "xyz"[i] not in plane]] = 0.0
-        return offset, np.eye(3)
+        return minmax_offset(points, plane), np.eye(3)
 
     return _trimmed(given, lambda points: minmax(points, plane), midpoint)
 

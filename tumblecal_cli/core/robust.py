@@ -35,6 +35,7 @@ from typing import Generic, TypeVar
 import numpy as np
 
 from tumblecal_cli.core.arrays import BoolArray, FloatArray
+from tumblecal_cli.core.outliers import MAD_NORMAL
 
 #: A sample further than this many times the median distance from the samples' median (or nearer
 #: than its reciprocal) is screened out before any fit: not a reading of this field.
@@ -45,8 +46,6 @@ K_SIGMA = 6.0
 FLOOR = 0.05
 #: Refits at most.
 ROUNDS = 8
-#: 1 / Φ⁻¹(3/4): the MAD as a consistent sigma for normal data.
-MAD_NORMAL = 1.482602218505602
 
 F = TypeVar("F")
 

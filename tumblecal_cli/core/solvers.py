@@ -694,6 +694,15 @@ def one_pose_tilt(
 PLANE_SPAN = 0.5
 
 
+def minmax_offset(samples: FloatArray, plane: str | None) -> FloatArray:
+    """min/max's hard iron, ``(max + min) / 2`` per axis (Okasho n.d.); in 2-D (``plane``) the
+    third axis's 0, not determined."""
+    offset: FloatArray = 0.5 * (samples.min(axis=0) + samples.max(axis=0))
+    if plane is not None:
+        offset[["xyz"[i] not in plane for i in range(3)]] = 0.0
+    return offset
+
+
 def minmax(samples: FloatArray, plane: str | None = None) -> Fit:
     """Hard iron from the extremes (Okasho n.d.): ``offset = (max + min) / 2`` per axis.
 
@@ -705,7 +714,7 @@ def minmax(samples: FloatArray, plane: str | None = None) -> Fit:
     they miss put in the offsets (:func:`minmax_bias`), for the coverage check (core.gate).
     """
     lo, hi = samples.min(axis=0), samples.max(axis=0)
-    offset = 0.5 * (lo + hi)  # Okasho n.d.: (max + min) / 2
+    offset = minmax_offset(samples, None)  # Okasho n.d.: (max + min) / 2
     noise = np.diff(samples, axis=0).std(axis=0) / math.sqrt(2.0) if len(samples) > 2 else np.zeros(3)
     offset_se = noise / math.sqrt(2.0)
     axes = [i for i in range(3) if plane is None or "xyz"[i] in plane]

@@ -180,11 +180,11 @@ class Capture:
         if self._stamp is None or self._path is None:
             return
         try:
-            now = _stamp(os.stat(self._path))
+            now: Stamp | None = stamp(os.stat(self._path))
         except OSError:
             now = None
         was = self._stamp
-        if now is None or now[:2] != was[:2] or now[2] < was[2] or (now[2] == was[2] and now[3] != was[3]):
+        if changed(was, now):
             size = "gone" if now is None else f"{now[2]:,} bytes"
             raise InputError(
                 f"the file changed while it was read ({was[2]:,} bytes when opened, now {size}): what was read "
@@ -413,7 +413,7 @@ def open_capture(
             hint=f"--stream picks a stream of a log ({sources.kinds()}); --columns and --sensor pick a CSV's",
         )
     f, first, hasher, kind, regular = _opened(path, name)
-    stamp = _stamp(os.stat(path)) if regular else None  # (a compressed file's f is its decompressor)
+    opened = stamp(os.stat(path)) if regular else None  # (a compressed file's f is its decompressor)
     try:
         layout, consumed = sniff(name, first, at_eof=len(first) < HEAD_BYTES, no_header=spec.no_header, dialect=dialect)
         layout.sensor, layout.time = pick_columns(layout, sensor, columns, prefer, time_column)
@@ -446,15 +446,24 @@ def open_capture(
         owns = path != "-" or kind is not None
         stream = DataStream(first[consumed:], f, read, squeeze=squeeze, owns=owns, drop_last=drop)
     layout.compression = kind
-    return Capture(layout, stream, path if regular else None, hasher, stamp)  # a pipe is read once
+    return Capture(layout, stream, path if regular else None, hasher, opened)  # a pipe is read once
 
 
 #: A file as opened: (device, inode, size, modification time in ns).
 Stamp: TypeAlias = tuple[int, int, int, int]
 
 
-def _stamp(st: os.stat_result) -> Stamp:
+def stamp(st: os.stat_result) -> Stamp:
     return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+
+
+def changed(was: Stamp, now: Stamp | None) -> bool:
+    """Whether a file stamped ``was`` is another now (gone, another inode), shorter, or of the
+    same size written since: what was read of it is not the file. A file that only grew (a log
+    still being written) has not changed: what was read is still in it."""
+    if now is None or now[:2] != was[:2]:
+        return True
+    return now[2] < was[2] or (now[2] == was[2] and now[3] != was[3])
 
 
 class _Unhashed:

@@ -200,7 +200,7 @@ class _ScannedFile:
         self.timed, self.warm = lay.time is not None, lay.per_row_column is not None
         st = os.stat(path)
         self.size = st.st_size
-        self.stamp = (st.st_size, st.st_mtime_ns, st.st_ino)
+        self.stamp = capture.stamp(st)
 
     def read(self, ranges: list[tuple[int, int]], counts: IntArray, each: Callable[[int, _ReadAgain], None]) -> None:
         """The readings of each stretch of lines (its first byte and end), ``counts`` of them,
@@ -236,8 +236,7 @@ class _ScannedFile:
     def _same(self, st: os.stat_result) -> None:
         """Raise _Plain unless the file is the one scanned: the same file, its bytes then there
         still (a log still being written grows: the blocks found are in what was read)."""
-        size, mtime, inode = self.stamp
-        if st.st_ino != inode or st.st_size < size or (st.st_size == size and st.st_mtime_ns != mtime):
+        if capture.changed(self.stamp, capture.stamp(st)):
             raise _Plain
 
     def _parse(self, batch: list[tuple[int, int, int | None, bytes]]) -> list[_ReadAgain]:
