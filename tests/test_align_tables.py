@@ -94,3 +94,21 @@ def test_solve_align_to_takes_the_table_too(
     assert r.code == 0, r.err
     assert f"note: aligned to {acc} from 24 still blocks: rotated 2.19" in r.err
     assert "alignment" in json.loads((tmp_path / "mag.json").read_text())
+
+
+def test_the_dip_check_takes_a_table_each_row_a_block(
+    cals: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """solve --log TABLE --accel-cal ACC refused "0 still blocks kept … hold each pose longer";
+    each row is a still block now, and aligned the dip spread is at or below the device's own."""
+    acc, _ = cals
+    out = tmp_path / "mag.json"
+    given: list[str | Path] = ["--sensor", "magnetometer", "--log", SHOTS, "--columns", "mx,my,mz", "--accel-cal", acc]
+    r = run(capsys, "solve", *given, "--align-to", acc, "-o", out)
+    assert r.code == 0, r.err
+    assert f"{SHOTS}: a table of 24 orientations, one averaged reading a row: each row a still block" in r.err
+    assert "hint:" not in r.err
+    assert "longer" not in r.err
+    dip = json.loads(out.read_text())["dip"]
+    assert dip["blocks"] == 24
+    assert dip["spread_deg"] <= _device_dip_spread()

@@ -26,7 +26,7 @@ from tumblecal_cli.cli.flags import (
 from tumblecal_cli.core.quantities import DIP_SAID
 
 if TYPE_CHECKING:
-    from tumblecal_cli.core.alignment import Consistency
+    from tumblecal_cli.core.alignment import Consistency, Fitted
     from tumblecal_cli.pipeline.align import ImusAligned, MagAligned
 
 ALIGN_EXIT = """\
@@ -151,11 +151,17 @@ def _mag_lines(done: MagAligned) -> list[str]:
     rms = float(np.sqrt(np.mean(fit.heading_error**2)))
     return [
         f"{done.log}: magnetometer to accelerometer, {done.blocks} still blocks in {done.orientations} orientations",
-        f"rotation {r.angle_deg:.3f}° ± {r.angle_sigma_deg:.3f}° (rotation vector [{vec}]°; chi2 {r.chi2:.3g})",
+        f"{_axes_said(r)}rotation {r.angle_deg:.3f}° ± {r.angle_sigma_deg:.3f}° (rotation vector [{vec}]°; chi2 "
+        f"{r.chi2:.3g})",
         f"dip {fit.dip_deg:.3f}° ± {fit.dip_sigma_deg:.3f}° ({DIP_SAID}); spread over the blocks "
         f"{np.std(fit.dip_before):.3f}° before, {np.std(fit.dip_after):.3f}° after",
         f"heading error removed: RMS {rms:.3f}°, largest {np.abs(fit.heading_error).max():.3f}°",
     ]
+
+
+def _axes_said(r: Fitted) -> str:
+    """A rotation near a signed permutation, as people read it: ``axes -y,-x,-z, then``."""
+    return "" if r.axes is None else f"axes {r.axes.text} (the other's in the first's), then a "
 
 
 def _imu_lines(done: ImusAligned) -> list[str]:
@@ -169,7 +175,7 @@ def _imu_lines(done: ImusAligned) -> list[str]:
         turned = (
             "rotation not determined"
             if p.fit is None or p.consistency_aligned is None
-            else f"rotation {p.fit.angle_deg:.3f}° ± {p.fit.angle_sigma_deg:.3f}°, once rotated "
+            else f"{_axes_said(p.fit)}rotation {p.fit.angle_deg:.3f}° ± {p.fit.angle_sigma_deg:.3f}°, once rotated "
             f"{_rms(p.consistency_aligned, unit)}"
         )
         lines.append(f"{p.stream}: consistency {_rms(p.consistency, unit)}; {turned}")

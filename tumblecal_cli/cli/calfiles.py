@@ -63,6 +63,7 @@ def show(
         ("file", cal),
         ("sensor", f"{c.sensor}, {c.method}, reference {c.reference:g} {c.units or ''}".rstrip()),
         ("input units", c.input_units),
+        ("axes", None if c.axes is None else f"{c.axes.text} (the body's x, y, z; corrected into them)"),
         ("unit", ", ".join(f"{k} {v}" for k, v in unit.as_dict().items() if k != "meta" and v)),
         ("meta", ", ".join(f"{k}={v}" for k, v in unit.meta.items())),
         ("created", f"{c.created or ''} by {c.tool or '?'}"),

@@ -56,6 +56,18 @@ Columns = Annotated[
     ),
 ]
 
+AxesOption = Annotated[
+    str | None,
+    typer.Option(
+        "--axes",
+        metavar="A,B,C",
+        help="The body's x, y and z as signed sensor axes, in turn: -y,-x,+z says the body's x is the sensor's "
+        "-y (a board's or a driver's table). Faces are named in the body's axes; the offsets stay in the "
+        "sensor's, the calibration corrects into the body's (docs/reference/calibration-file.md).",
+        rich_help_panel=READ_PANEL,
+    ),
+]
+
 NoHeader = Annotated[
     bool,
     typer.Option(

@@ -160,7 +160,8 @@ def summary(
         "warnings": [f.as_dict() for f in warned],
         "notes": notes,
     }
-    keys = ("sensor", "method", "reference", "units", "columns", "offset", "matrix", "gain", "uncertainty")
+    axes = ("axes",) if doc.get("axes") else ()  # --axes: the body's axes in the sensor's
+    keys = ("sensor", "method", "reference", "units", "columns", *axes, "offset", "matrix", "gain", "uncertainty")
     placed = [k for k in ("gravity", "earth_field", "dip") if k in doc]  # pipeline.places
     fitted = ("residuals", "coverage", "coverage_gaps", "outliers")  # how well the fit fits (null: not judged)
     return head | {k: doc.get(k) for k in (*keys, *placed, "tilt_sensitivity", *fitted, "poses", "unit")}
@@ -183,18 +184,20 @@ def print_summary(
     sensitivity (``verbose``: per pose its statistics), then warnings, notes and the verdict."""
     tilt = cal.tilt_sensitivity
     print_fitted(console, lambda limit: _axes_table(cal, limit), [one_line(c) for c in cal.columns])
+    if cal.axes is not None:
+        console.print(f"axes {cal.axes.text}: offsets and gains in the sensor's axes, corrected into the body's")
     if cal.poses and verbose:  # an imported calibration has none
         print_fitted(console, lambda limit: _poses_table(cal, limit), [_pose_name(cal, p) for p in cal.poses])
     if cal.thermal is not None:
         print_drift(cal, console)
     if cal.current is not None:
         console.print(current_line(cal), soft_wrap=True)
-    if any(cal.matrix[i][j] for i in range(3) for j in range(3) if i != j):
+    if any(cal.sensor_matrix[i][j] for i in range(3) for j in range(3) if i != j):
         import numpy as np
 
         from tumblecal_cli.core.gate import cross_term
 
-        a = np.asarray(np.linalg.inv(cal.matrix), dtype=np.float64)
+        a = np.asarray(np.linalg.inv(cal.sensor_matrix), dtype=np.float64)
         terms = ", ".join(
             f"{'xyz'[i]}{'xyz'[j]} {cross_term(a, i, j):+.3%}" for i in range(3) for j in range(3) if i != j
         )

@@ -27,6 +27,7 @@ modules:
 - ``clock``: a log's clock: seconds per sample, gaps, and stamps taken on arrival.
 - ``stillness``: where a gyroscope is still, cut down from the accelerometer's still blocks.
 - ``alignment``: the rotation between two sensors' axes from still blocks seen by both.
+- ``axes``: a sensor's axes stated in the body's (``--axes -y,-x,+z``): a signed permutation.
 - ``earth``: the Earth's reference fields at a place: normal gravity and the magnetic model.
 - ``quantities``: the unit names tumblecal knows, the quantity each measures and its factor to the
   quantity's base unit; standard gravity.

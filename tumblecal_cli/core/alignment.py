@@ -28,11 +28,13 @@ the residuals are larger than that noise explains (never down).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from tumblecal_cli.core import axes as signed
 from tumblecal_cli.core.arrays import FloatArray
+from tumblecal_cli.core.axes import Axes
 
 #: Fewer blocks than this (at distinct orientations) leave the rotation and the dip too loose.
 MIN_BLOCKS = 4
@@ -45,7 +47,11 @@ MAX_SIGMA_DEG = 5.0
 class Fitted:
     """A rotation (``v_ref = matrix · v_other``), its rotation vector (degrees, the axis times
     the angle) with covariance (degrees²), the angle and its 1-sigma, the reduced chi-square of
-    the fit (1 when the blocks' noise explains the residuals), and the residual per block."""
+    the fit (1 when the blocks' noise explains the residuals), and the residual per block.
+
+    ``axes``: the signed permutation (core.axes) the matrix is within signed.NEAR_DEG of, when it
+    is not the identity, or when the matrix mirrors (det −1, which no rotation is); the rotation
+    vector and angle are then those of the rest, ``axes.matrixᵀ · matrix``."""
 
     matrix: FloatArray  # (3, 3)
     vector_deg: FloatArray  # (3,)
@@ -54,6 +60,7 @@ class Fitted:
     angle_sigma_deg: float
     chi2: float
     residuals: FloatArray  # (k,)
+    axes: Axes | None = None
 
     @property
     def sigma_deg(self) -> FloatArray:
@@ -64,6 +71,14 @@ class Fitted:
     def observable(self) -> bool:
         """Whether every component is determined to within MAX_SIGMA_DEG."""
         return bool(np.all(np.isfinite(self.sigma_deg)) and np.all(self.sigma_deg <= MAX_SIGMA_DEG))
+
+    def loosest(self) -> tuple[FloatArray, float]:
+        """The axis (unit, in the reference sensor's axes) the rotation is least determined about,
+        and its 1-sigma (degrees): the covariance's largest eigenvector (``vector_deg`` is in the
+        reference's axes, the residual rotation's covariance turned back by ``axes``)."""
+        cov = self.cov_deg2 if self.axes is None else self.axes.matrix @ self.cov_deg2 @ self.axes.matrix.T
+        values, vectors = np.linalg.eigh((cov + cov.T) / 2.0)
+        return vectors[:, -1], float(np.sqrt(max(float(values[-1]), 0.0)))
 
 
 @dataclass(frozen=True)
@@ -119,7 +134,20 @@ def inverse(information: FloatArray) -> FloatArray:
 
 
 def _fitted(matrix: FloatArray, cov_rad: FloatArray, chi2: float, residuals: FloatArray) -> Fitted:
-    """A Fitted from a rotation and its small-angle covariance (radians², left perturbation)."""
+    """A Fitted from a rotation and its small-angle covariance (radians², left perturbation):
+    near a signed permutation P (or mirroring), the rest ``Pᵀ R`` (whose left perturbation is
+    ``Pᵀ δφ``: its covariance ``Pᵀ C P``) is what the vector and the angle describe."""
+    nearest, apart = signed.nearest(matrix)
+    axes = None
+    if nearest.mirrors or (not nearest.identity and apart <= signed.NEAR_DEG):
+        axes = nearest
+        matrix_rest = nearest.matrix.T @ matrix
+        cov_rad = nearest.matrix.T @ cov_rad @ nearest.matrix
+        return replace(_fitted_rotation(matrix_rest, cov_rad, chi2, residuals), matrix=matrix, axes=axes)
+    return _fitted_rotation(matrix, cov_rad, chi2, residuals)
+
+
+def _fitted_rotation(matrix: FloatArray, cov_rad: FloatArray, chi2: float, residuals: FloatArray) -> Fitted:
     phi = log_map(matrix)
     angle = float(np.linalg.norm(phi))
     axis = phi / angle if angle > 1e-12 else np.zeros(3)
@@ -162,16 +190,13 @@ def _dot_sigma(g: FloatArray, m: FloatArray, r: FloatArray, noise: tuple[FloatAr
     return out
 
 
-def mag_to_accel(g: FloatArray, m: FloatArray, g_sigma: FloatArray, m_sigma: FloatArray) -> MagAlignment:
-    """The rotation ``R`` (``v_acc = R v_mag``) and the dip from still blocks: ``g`` (k, 3) the
-    accelerometer's calibrated readings (up, any magnitude), ``m`` (k, 3) the magnetometer's
-    calibrated readings of the same blocks, ``g_sigma`` and ``m_sigma`` (k,) each direction's
-    per-component noise in radians (a block's noise over its magnitude over √samples). Gauss-
-    Newton on ``(δφ, c)`` from ``R = I`` (module docstring)."""
-    g, m = unit(np.asarray(g, dtype=np.float64)), unit(np.asarray(m, dtype=np.float64))
-    r = np.eye(3)
-    c = float(np.mean(np.einsum("ij,ij->i", g, m)))
-    noise = (np.asarray(g_sigma, dtype=np.float64), np.asarray(m_sigma, dtype=np.float64))
+def _gauss_newton(
+    g: FloatArray, m: FloatArray, noise: tuple[FloatArray, FloatArray], start: FloatArray
+) -> tuple[FloatArray, float, FloatArray, FloatArray]:
+    """``(R, c)`` from ``R = start`` (an orthogonal matrix: R keeps its handedness), and the final
+    weights and residuals."""
+    r = start
+    c = float(np.mean(np.einsum("ij,ij->i", g, m @ r.T)))
     for _ in range(50):
         w = 1.0 / _dot_sigma(g, m, r, noise) ** 2
         res = _dip_residuals(g, m, r, c)
@@ -181,7 +206,22 @@ def mag_to_accel(g: FloatArray, m: FloatArray, g_sigma: FloatArray, m_sigma: Flo
         if np.abs(step).max() < 1e-12:
             break
     w = 1.0 / _dot_sigma(g, m, r, noise) ** 2
-    res = _dip_residuals(g, m, r, c)
+    return r, c, w, _dip_residuals(g, m, r, c)
+
+
+def mag_to_accel(g: FloatArray, m: FloatArray, g_sigma: FloatArray, m_sigma: FloatArray) -> MagAlignment:
+    """The rotation ``R`` (``v_acc = R v_mag``) and the dip from still blocks: ``g`` (k, 3) the
+    accelerometer's calibrated readings (up, any magnitude), ``m`` (k, 3) the magnetometer's
+    calibrated readings of the same blocks, ``g_sigma`` and ``m_sigma`` (k,) each direction's
+    per-component noise in radians (a block's noise over its magnitude over √samples). Gauss-
+    Newton on ``(δφ, c)`` from each of the 24 signed permutations that are rotations (core.axes),
+    the best fit kept: a rotation of any size. A mirror is not tried: ``-R`` fits as well as ``R``
+    with the dip's sign turned, so the blocks cannot tell a mirrored magnetometer from a field
+    pointing the other way (module docstring)."""
+    g, m = unit(np.asarray(g, dtype=np.float64)), unit(np.asarray(m, dtype=np.float64))
+    noise = (np.asarray(g_sigma, dtype=np.float64), np.asarray(m_sigma, dtype=np.float64))
+    starts = [_gauss_newton(g, m, noise, a.matrix) for a in signed.every(mirrored=False)]
+    r, c, w, res = min(starts, key=lambda found: float((found[2] * found[3] ** 2).sum()))
     jac = np.column_stack([np.cross(m @ r.T, g), -np.ones(len(g))])
     chi2 = float((w * res**2).sum()) / max(len(g) - 4, 1)
     cov = inverse(jac.T @ (w[:, None] * jac)) * max(chi2, 1.0)

@@ -524,6 +524,17 @@ def _label(
         )
 
 
+def table_rows(values: FloatArray, centre: FloatArray) -> Segmentation:
+    """A table of orientations (one averaged reading a row, methods.orientation_table) as still
+    blocks of one row each: nothing dropped, no spread known (0), no clock."""
+    zero = np.zeros(values.shape[1])
+    rows = []
+    for k, mean in enumerate(values):
+        nearest, angle, _ = _nearest_face(mean - centre)
+        rows.append(Block(k + 1, k, k, mean.copy(), zero.copy(), zero.copy(), None, nearest, angle, None))
+    return Segmentation(rows, 1, None, None, None, 1, 0, np.asarray(centre, dtype=np.float64))
+
+
 def rough_centre(means: FloatArray, max_tilt_deg: float) -> FloatArray:
     """The reading at zero stimulus, roughly, from the block means alone: of the per-axis
     midpoint (right when opposite faces are there, and for turns through all orientations), the

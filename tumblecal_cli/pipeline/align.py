@@ -24,7 +24,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tumblecal_cli.core import alignment, blocks, methods
+from tumblecal_cli.core import alignment, blocks, methods, model
+from tumblecal_cli.core import axes as sensor_axes
 from tumblecal_cli.core.gate import Finding
 from tumblecal_cli.core.quantities import DIP_SAID
 from tumblecal_cli.errors import CaptureRejected, InputError
@@ -78,6 +79,7 @@ class MagAligned:
             "rotation": [[float(v) for v in row] for row in r.matrix],
             "rotation_vector_deg": [float(v) for v in r.vector_deg],
             "rotation_sigma_deg": [float(v) for v in r.sigma_deg],
+            **({} if r.axes is None else {"axes": r.axes.text, "mag_axes": self.mag and _mag_axes(r, self.mag)}),
             "angle_deg": r.angle_deg,
             "angle_sigma_deg": r.angle_sigma_deg,
             "chi2": r.chi2,
@@ -168,6 +170,7 @@ def _pair_dict(p: ImuPair) -> dict[str, object]:
             "rotation": [[float(v) for v in row] for row in p.fit.matrix],
             "rotation_vector_deg": [float(v) for v in p.fit.vector_deg],
             "rotation_sigma_deg": [float(v) for v in p.fit.sigma_deg],
+            **({} if p.fit.axes is None else {"axes": p.fit.axes.text}),
             "angle_deg": p.fit.angle_deg,
             "angle_sigma_deg": p.fit.angle_sigma_deg,
             "chi2": p.fit.chi2,
@@ -257,9 +260,9 @@ def mag_to_accel(
             code="alignment.few",
         )
     fit = alignment.mag_to_accel(g.values, m.values, g.direction_sigma, m.direction_sigma)
-    _observable(fit.rotation, name, "the field's east-west direction did not turn through three axes")
+    _observable(fit.rotation, name, "blocks")
     notes = [f"still blocks dropped: {seg.dropped_counts()}"] if seg.dropped_counts() else []
-    return MagAligned(name, acc.sha256, fit, len(kept), seen, notes, mag, accel_cal)
+    return MagAligned(name, acc.sha256, fit, len(kept), seen, [*_axes_notes(fit.rotation, mag), *notes], mag, accel_cal)
 
 
 #: A direction's noise for the rows of a table (one averaged reading each, their own noise not
@@ -305,10 +308,11 @@ def _table_aligned(table: tuple[Log, Log], accel: Calibration, mag: Calibration,
     fit = alignment.mag_to_accel(g.values, m.values, sigma, sigma)
     sigma *= np.sqrt(max(fit.rotation.chi2, 1e-30))  # the rows' scatter: the noise that makes chi2 1
     fit = alignment.mag_to_accel(g.values, m.values, sigma, sigma)
-    _observable(fit.rotation, name, "the field's east-west direction did not turn through three axes")
+    _observable(fit.rotation, name, "rows")
     notes = [
+        *_axes_notes(fit.rotation, mag),
         f"{name}: a table of {len(spans)} orientations, one averaged reading a row: each row a still block, the "
-        "uncertainties from the rows' scatter about the fit"
+        "uncertainties from the rows' scatter about the fit",
     ]
     return MagAligned(name, acc.sha256, fit, len(spans), seen, notes, mag, accel_cal)
 
@@ -345,11 +349,14 @@ def aligned(done: MagAligned) -> Calibration:
     assert mag is not None
     r = done.fit.rotation
     matrix = r.matrix @ mag.matrix
+    told = _mag_axes(r, mag)
+    axes = mag.axes if r.axes is None else None if told is None else sensor_axes.parse(told)
     record = {
         "to": done.accel_cal,
         "log": done.log,
         "sha256": done.sha256,
         "rotation": [[float(v) for v in row] for row in r.matrix],
+        **({} if r.axes is None else {"axes": r.axes.text}),
         "angle_deg": r.angle_deg,
         "angle_sigma_deg": r.angle_sigma_deg,
         "dip_deg": done.fit.dip_deg,
@@ -357,22 +364,53 @@ def aligned(done: MagAligned) -> Calibration:
         "heading_error_deg": float(np.abs(done.fit.heading_error).max()),
     }
     order = mag.order if "alignment" in mag.order else (*mag.order, "alignment")
+    sensor = matrix if axes is None else axes.matrix.T @ matrix
     return replace(
         mag,
         matrix=matrix,
-        gain=np.diag(np.linalg.inv(matrix)).copy(),
+        axes=axes,
+        gain=np.diag(np.linalg.inv(sensor)).copy(),
         fields={**mag.fields, "alignment": record},
         order=order,
     )
 
 
-def _observable(fit: alignment.Fitted, name: str, why: str) -> None:
+def _mag_axes(r: alignment.Fitted, mag: Calibration) -> str | None:
+    """The --axes that would state the magnetometer's axes in the accelerometer's, solved again:
+    the signed permutation nearest ``R P`` (P its own --axes), when the rotation is near one."""
+    if r.axes is None:
+        return None
+    before = np.eye(3) if mag.axes is None else mag.axes.matrix
+    found, _ = sensor_axes.nearest(r.matrix @ before)
+    return None if found.identity else found.text
+
+
+def _axes_notes(r: alignment.Fitted, mag: Calibration) -> list[str]:
+    """What a rotation near a signed permutation means: the axes differ, and the --axes that says so."""
+    if r.axes is None:
+        return []
+    turned = sensor_axes.angle_between(np.eye(3), r.axes.matrix)
+    told = _mag_axes(r, mag)
+    fix = f"solve the magnetometer with --axes {told}, or " if told else ""
+    return [
+        f"the magnetometer's axes are the accelerometer's {r.axes.text} (turned {turned:.0f}°) and a rotation of "
+        f"{r.angle_deg:.3f}° more: {fix}write it aligned with --aligned-mag"
+    ]
+
+
+def _observable(fit: alignment.Fitted, name: str, what: str) -> None:
+    """A rotation that the blocks (or a table's rows) do not determine is refused, naming the axis
+    it is loosest about, in the accelerometer's axes."""
     if not fit.observable():
-        worst = float(fit.sigma_deg.max()) if np.all(np.isfinite(fit.sigma_deg)) else float("inf")
+        axis, worst = fit.loosest()
+        said = model.parse_label(",".join(f"{v:.3f}" for v in axis))
+        near = next((f for f in model.FACES if model.angle_deg(axis, f) < 20 or model.angle_deg(-axis, f) < 20), None)
+        about = f"{near.lstrip('+-')}" if near else said
         raise CaptureRejected(
-            f"the rotation is not determined by these blocks (1-sigma up to {worst:.3g}°): {why}",
+            f"the rotation about the accelerometer's {about} axis is not determined by these {what} (1-sigma "
+            f"{worst:.3g}°): the unit never turned that axis away from the plane of gravity and the field",
             file=name,
-            hint="hold the unit still in orientations turned about each of its axes",
+            hint=f"hold the unit still in more orientations, its {about} axis tilted towards east or west",
             code="alignment.unobservable",
         )
 

@@ -62,7 +62,7 @@ def check(
         c.method,
         c.reference,
         c.offset,
-        c.matrix,
+        c.sensor_matrix,  # judged in the sensor's axes, as solve judged it (its poses are the sensor's)
         c.gain,
         [gate.Recorded(p.name, p.face, p.mean, p.std) for p in c.poses] if c.poses else None,
         None if c.residuals is None else c.residuals.max,

@@ -17,7 +17,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
 from typing import TYPE_CHECKING, TypedDict, cast
 
-from tumblecal_cli.core import catalog, gate, model, quantities
+from tumblecal_cli.core import axes, catalog, gate, model, quantities
 from tumblecal_cli.core.model import SENSORS
 from tumblecal_cli.errors import InputError, control_character, said
 from tumblecal_cli.io.calfiles import limitfile
@@ -30,6 +30,7 @@ from tumblecal_cli.io.readspec import READ_NAMES, Dialect, ReadKeywords, ReadSpe
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.arrays import FloatArray
+    from tumblecal_cli.core.axes import Axes
     from tumblecal_cli.core.gate import Limits
     from tumblecal_cli.io.calfiles.calfile import Unit
 
@@ -110,6 +111,7 @@ class SolveOptions:
     input_units: str | None = None
     rows_are_poses: bool | None = None  # each row of the capture a pose (None: when it looks so)
     no_robust: bool = False  # a fit over samples keeps its outliers (plain least squares)
+    axes: str | None = None  # the body's axes in the sensor's (-y,-x,+z): core.axes, folded into the matrix
     location: str | None = None  # LAT,LON[,HEIGHT_M]: the reference from the place (pipeline.places)
     gravity: float | None = None  # local gravity in m/s^2, given
     date: str | None = None  # YYYY-MM-DD: a magnetometer's Earth field on that day
@@ -196,6 +198,7 @@ class SolveKeywords(ReadKeywords, CutKeywords, total=False):
     input_units: str | None
     rows_are_poses: bool | None
     no_robust: bool
+    axes: str | None
     location: str | None
     gravity: float | None
     date: str | None
@@ -347,7 +350,22 @@ def checked(options: SolveOptions) -> SolveOptions:
         if name not in CHECK_NAMES:
             raise InputError(f"--no-check: {name!r} is not one of {', '.join(CHECK_NAMES)}")
     meta = [options.unit.meta] if isinstance(options.unit.meta, str) else options.unit.meta
+    axes_given(options.axes)
     return replace(options, checks=replace(checks, no_check=tuple(no_check)), unit=replace(options.unit, meta=meta))
+
+
+def axes_given(text: object, flag: str = "--axes") -> Axes | None:
+    """``--axes`` (the body's x, y and z as signed sensor axes: ``-y,-x,+z``) as core.axes.Axes;
+    None when not given or the identity (+x,+y,+z states nothing)."""
+    if text is None:
+        return None
+    if not isinstance(text, str):
+        raise InputError(f"{flag} takes text such as -y,-x,+z, not a {type(text).__name__}")
+    try:
+        found = axes.parse(text)
+    except ValueError as err:
+        raise InputError(f"{flag} {text!r}: {err}") from None
+    return None if found.identity else found
 
 
 def settings(options: SolveOptions, *, log: bool) -> Settings:

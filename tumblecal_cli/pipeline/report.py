@@ -185,10 +185,10 @@ def find(paths: list[str], skip: str | None = None) -> list[str]:
 def entry(cal: calfile.Calibration) -> lot.Entry:
     """The parameters of one loaded calibration."""
     values = {name: float(v) for name, v in zip(lot.OFFSETS, cal.offset, strict=True)}
-    a = np.linalg.inv(cal.matrix)  # load() has refused a singular M
+    a = np.linalg.inv(cal.sensor_matrix)  # load() has refused a singular M; the sensor's axes (--axes aside)
     if not catalog.fixes_gains(cal.method):
         values.update({name: float(g) for name, g in zip(lot.GAINS, np.diag(a), strict=True)})
-    if np.count_nonzero(cal.matrix - np.diag(np.diag(cal.matrix))):  # as gate.verdict: M has cross terms
+    if np.count_nonzero(cal.sensor_matrix - np.diag(np.diag(cal.sensor_matrix))):  # as gate.verdict: M has cross terms
         for i, row in enumerate(lot.AXES):
             for j, col in enumerate(lot.AXES):
                 if i != j and a[i, i]:  # (A[i, i] 0: a matrix that maps another axis onto this one, no term)

@@ -20,7 +20,9 @@ from typing import TYPE_CHECKING, Any, TypeAlias, TypeVar
 import numpy as np
 from numpy.typing import ArrayLike
 
+from tumblecal_cli.core import axes as sensor_axes
 from tumblecal_cli.core.arrays import FloatArray
+from tumblecal_cli.core.axes import Axes
 from tumblecal_cli.core.current_fit import correct as current_correct
 from tumblecal_cli.core.drift import correct as thermal_correct
 from tumblecal_cli.core.model import MAX_READING, SENSORS, Solution, parse_label
@@ -147,11 +149,13 @@ class Calibration:
     """A sensor's calibration: ``corrected = matrix @ (raw - offset)``.
 
     ``offset`` (3,) is in raw units, ``matrix`` (3, 3) is M = inv(A), ``gain`` (3,) the diagonal
-    of A; ``uncertainty`` holds the 1-sigma of ``offset`` and ``gain`` (and ``cross_axis`` where
-    solved). The other parts are typed (``io.calfiles.calparts``), None (or empty) where the file has
-    none. ``fields`` holds what is not typed: the fields of other writers, and a field whose
-    value is of another kind than tumblecal writes, each as written and kept in its place
-    (``order``, the file's order of its fields) when the file is written again.
+    of A; with ``axes`` (the body's axes in the sensor's, core.axes) ``matrix`` is P M, correcting
+    into the body's axes, and ``offset``, ``gain`` and A stay the sensor's (``sensor_matrix``: M);
+    ``uncertainty`` holds the 1-sigma of ``offset`` and ``gain`` (and ``cross_axis`` where solved).
+    The other parts are typed (``io.calfiles.calparts``), None (or empty) where the file has none.
+    ``fields`` holds what is not typed: the fields of other writers, and a field whose value is of
+    another kind than tumblecal writes, each as written and kept in its place (``order``, the
+    file's order of its fields) when the file is written again.
     """
 
     sensor: str
@@ -163,6 +167,7 @@ class Calibration:
     gain: FloatArray
     units: str | None = None
     input_units: str | None = None
+    axes: Axes | None = None
     uncertainty: Mapping[str, FloatArray] = field(default_factory=dict)
     tilt_sensitivity: Tilt | None = None
     thermal: Thermal | None = None
@@ -197,6 +202,19 @@ class Calibration:
     def failed(self) -> bool:
         """Whether the calibration carries a failing verdict."""
         return self.verdict is not None and not self.verdict.passed
+
+    @property
+    def sensor_matrix(self) -> FloatArray:
+        """M in the sensor's own axes: ``matrix`` without the axes folded into it (Pᵀ matrix)."""
+        return self.matrix if self.axes is None else self.axes.matrix.T @ self.matrix
+
+    def in_axes(self, axes: Axes | None) -> Calibration:
+        """The same calibration correcting into ``axes`` (None: the sensor's own): its offset,
+        gain and sensor_matrix unchanged, ``matrix`` P M."""
+        if axes is not None and axes.identity:
+            axes = None
+        matrix = self.sensor_matrix if axes is None else axes.matrix @ self.sensor_matrix
+        return replace(self, matrix=matrix, axes=axes)
 
     @property
     def serial(self) -> str | None:
@@ -283,6 +301,7 @@ class Calibration:
             "units": self.units,
             "input_units": self.input_units,
             "columns": list(self.columns),
+            "axes": None if self.axes is None else self.axes.text,
             "offset": floats(self.offset),
             "matrix": rows_of(self.matrix),
             "gain": floats(self.gain),
@@ -318,6 +337,8 @@ class Calibration:
         for key in ("unit", "verdict"):  # given since the file was read (a verdict judged afresh)
             if key not in doc and typed[key] is not None:
                 doc[key] = typed[key]
+        if "axes" not in doc and self.axes is not None:
+            doc = _insert(doc, "offset", {"axes": self.axes.text}, after=False)
         for block in ("thermal", "current"):  # added to a file that had none: before poses
             if block not in doc and typed[block] is not None:
                 doc = _insert(doc, "poses", {block: typed[block]}, after=False)
@@ -371,7 +392,7 @@ Part = TypeVar("Part")
 def from_dict(doc: Doc, path: str | None = None) -> Calibration:
     """A Calibration from a document that :func:`validate` has accepted. A field whose typed
     form would not write it as it was (another writer's form) is kept in ``fields``."""
-    kept = {k: v for k, v in doc.items() if k not in ORDER and k not in PARTS}
+    kept = {k: v for k, v in doc.items() if k not in ORDER and k not in PARTS and k != "axes"}
 
     def part(key: str, reader: Callable[[object], Part | None]) -> Part | None:
         """The field ``key`` read typed; as written in ``kept`` when it is of another kind."""
@@ -404,6 +425,7 @@ def from_dict(doc: Doc, path: str | None = None) -> Calibration:
         gain=np.array(doc["gain"], dtype=np.float64),
         units=text(doc.get("units")),
         input_units=text(doc.get("input_units")),
+        axes=None if doc.get("axes") is None else sensor_axes.parse(str(doc["axes"])),
         uncertainty={str(k): np.array(v, dtype=np.float64) for k, v in uncertainty.items() if v is not None},
         tilt_sensitivity=part("tilt_sensitivity", _object(read_tilt)),
         thermal=None if doc.get("thermal") is None else thermal_from(doc["thermal"], path),
@@ -712,9 +734,13 @@ def _optional_fields(doc: Doc, path: str) -> None:
     reference = number_field(doc["reference"], "reference", path)
     if reference < 0 or (reference == 0 and doc["sensor"] != "gyroscope"):
         raise InputError(f"field 'reference' must be positive (0 only for a gyroscope), got {reference:g}", file=path)
-    for name in ("units", "input_units"):
+    for name in ("units", "input_units", "axes"):
         if doc.get(name) is not None and not isinstance(doc[name], str):
             raise InputError(f"field {name!r} must be a string or null", file=path)
+    try:
+        sensor_axes.parse(str(doc["axes"])) if doc.get("axes") is not None else None
+    except ValueError as err:
+        raise InputError(f"field 'axes' {doc['axes']!r}: {err}", file=path) from None
     for block in ("uncertainty", "tilt_sensitivity"):
         value = doc.get(block)
         if value is None:

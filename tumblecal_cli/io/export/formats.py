@@ -224,7 +224,7 @@ def registers(
         out.append(Register(f"offset_{axis}", count, _hex(count, bits), removed, float(b), float(b - removed)))
     if gain_step is not None:
         nominal = np.ones(3) if nominal_gain is None else nominal_gain
-        gain = np.diag(a_matrix(cal))
+        gain = np.diag(np.linalg.inv(cal.sensor_matrix))  # the sensor's own axes, as its registers
         for axis, g, n in zip("xyz", gain, nominal, strict=True):
             want = float(n / g)
             if not 0.5 <= want <= 2:  # a trim corrects a few percent: anything else is a units mistake

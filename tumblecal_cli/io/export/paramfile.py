@@ -34,6 +34,7 @@ import numpy as np
 
 from tumblecal_cli.core import catalog
 from tumblecal_cli.core.arrays import FloatArray
+from tumblecal_cli.core.axes import Axes
 from tumblecal_cli.core.quantities import COMMON, QUANTITY, factor
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.calfiles.calfile import Calibration
@@ -116,7 +117,8 @@ def mapped(cal: Calibration, fmt: str) -> Mapped:
     k_in, k_out, notes = _factors(cal, fmt)
     units, _ = FIRMWARE_UNITS[fmt, cal.sensor]
     raw, out = (cal.input_units or cal.units or "").strip(), (cal.units or "").strip()
-    matrix = (k_out / k_in) * cal.matrix
+    offset, in_axes = _firmware_axes(cal, fmt)
+    matrix = (k_out / k_in) * in_axes
     if not np.isfinite(matrix).all() or np.linalg.det(matrix) <= 0:
         raise InputError(
             "its matrix mirrors the axes (det M <= 0): no positive scale or symmetric matrix the firmware "
@@ -140,7 +142,48 @@ def mapped(cal: Calibration, fmt: str) -> Mapped:
     reference = float(cal.reference) * k_out
     sizes = Loss(total, length, angle(rotation))
     lost = _lost(cal.sensor, fmt, sizes, (units, reference)) if total > NEGLIGIBLE else None
-    return Mapped(k_in * cal.offset, held, units, reference, lost, tuple(notes), conversion)
+    return Mapped(k_in * offset, held, units, reference, lost, tuple(notes), conversion)
+
+
+#: The autopilots' sensor rotations (MAVLink's MAV_SENSOR_ORIENTATION, which ArduPilot's
+#: COMPASS_ORIENT and PX4's CAL_*_ROT number alike) that turn by right angles: value, roll,
+#: pitch, yaw (degrees); ``v_body = Rz(yaw) Ry(pitch) Rx(roll) v_sensor``.
+ROTATIONS = (
+    (0, 0, 0, 0), (2, 0, 0, 90), (4, 0, 0, 180), (6, 0, 0, 270), (8, 180, 0, 0), (10, 180, 0, 90),
+    (12, 0, 180, 0), (14, 180, 0, 270), (16, 90, 0, 0), (18, 90, 0, 90), (20, 270, 0, 0), (22, 270, 0, 90),
+    (24, 0, 90, 0), (25, 0, 270, 0), (26, 0, 180, 90), (27, 0, 180, 270), (28, 90, 90, 0), (29, 180, 90, 0),
+    (30, 270, 90, 0), (31, 90, 180, 0), (32, 270, 180, 0), (33, 90, 270, 0), (34, 180, 270, 0),
+    (35, 270, 270, 0), (36, 90, 180, 90), (37, 90, 0, 270),
+)  # fmt: skip
+
+
+def rotation_value(axes: Axes) -> int | None:
+    """The MAV_SENSOR_ORIENTATION value that states ``axes`` (None: a mirror, which none does)."""
+    for value, roll, pitch, yaw in ROTATIONS:
+        r, p, y = (math.radians(a) for a in (roll, pitch, yaw))
+        rx = np.array([[1, 0, 0], [0, math.cos(r), -math.sin(r)], [0, math.sin(r), math.cos(r)]])
+        ry = np.array([[math.cos(p), 0, math.sin(p)], [0, 1, 0], [-math.sin(p), 0, math.cos(p)]])
+        rz = np.array([[math.cos(y), -math.sin(y), 0], [math.sin(y), math.cos(y), 0], [0, 0, 1]])
+        if np.allclose(rz @ ry @ rx, axes.matrix, atol=1e-9):
+            return value
+    return None
+
+
+def _firmware_axes(cal: Calibration, fmt: str) -> tuple[FloatArray, FloatArray]:
+    """The offset and M in the axes the firmware corrects in: PX4 corrects in the sensor's and
+    rotates after (CAL_*_ROT), ArduPilot rotates first (COMPASS_ORIENT) and corrects in the body's."""
+    if cal.axes is None:
+        return cal.offset, cal.matrix
+    if rotation_value(cal.axes) is None:
+        raise InputError(
+            f"its axes {cal.axes.text} mirror the sensor's (a left-handed sensor): no {fmt} rotation does that",
+            file=cal.path,
+            hint="check the signs of --axes, or export it as a matrix (c-header)",
+        )
+    if fmt == "px4":
+        return cal.offset, cal.sensor_matrix
+    p = cal.axes.matrix
+    return p @ cal.offset, cal.matrix @ p.T
 
 
 def polar(matrix: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -316,10 +359,28 @@ def _ardupilot(cal: Calibration, n: int) -> Exported:
         *_says(m),
         *usage,
         f"axes: the captures' {', '.join(cal.columns)} as ArduPilot's X, Y, Z, after its driver's rotation",
+        *_ardupilot_axes(cal, s),
     ]
     lines = comments(head + [x.removeprefix("warning: ") for x in notes if x not in m.notes])
     lines += [f"{name},{_value(value, name, cal.path)}" for name, value in params]
+    if cal.axes is not None and cal.sensor == "magnetometer":
+        lines.append(f"COMPASS_ORIENT{s},{rotation_value(cal.axes)}")
     return Exported("\n".join(lines) + "\n", _with_loss(m, notes))
+
+
+def _ardupilot_axes(cal: Calibration, s: str) -> list[str]:
+    """What a calibration's --axes become in ArduPilot's file."""
+    if cal.axes is None:
+        return []
+    if cal.sensor == "magnetometer":
+        return [
+            f"the calibration's axes {cal.axes.text} are COMPASS_ORIENT{s} {rotation_value(cal.axes)}, applied before "
+            "the offsets: COMPASS_OFS and DIA/ODI are in the body's axes"
+        ]
+    return [
+        f"the calibration's axes {cal.axes.text}: the offsets and scales are in the body's axes; ArduPilot has no "
+        "orientation parameter of its own for one IMU (its driver rotates it, AHRS_ORIENTATION the whole board)"
+    ]
 
 
 # -- PX4 ----------------------------------------------------------------------------------------
@@ -333,6 +394,7 @@ def _px4(cal: Calibration, n: int) -> Exported:
     head = f"CAL_{kind}{n}_"
     notes = list(m.notes)
     params = [(f"{head}{a}OFF", float(v)) for a, v in zip("XYZ", m.offset, strict=True)]
+    rotated = None if cal.axes is None else rotation_value(cal.axes)
     if cal.sensor == "accelerometer":
         formula = f"corrected = (raw - {head}xOFF) * {head}xSCALE per axis"
         params += [(f"{head}{a}SCALE", float(v)) for a, v in zip("XYZ", np.diag(m.held), strict=True)]
@@ -371,13 +433,16 @@ def _px4(cal: Calibration, n: int) -> Exported:
         f"sensor was calibrated in slot {n} before, it is set; else set {head}ID to its device id (the device_id "
         "of its sensor_ topic in a log)",
         "reboot after loading: PX4 takes a changed vector only if it moves by more than 0.01",
-        f"axes: the captures' {', '.join(cal.columns)} as PX4's X, Y, Z, before CAL_{kind}{n}_ROT/SENS_BOARD_ROT",
+        f"axes: the captures' {', '.join(cal.columns)} as PX4's X, Y, Z, before CAL_{kind}{n}_ROT/SENS_BOARD_ROT"
+        + ("" if cal.axes is None else f"; CAL_{kind}{n}_ROT {rotated} is the calibration's axes {cal.axes.text}"),
     ]
     lines = comments(text + [x.removeprefix("warning: ") for x in notes if x not in m.notes])
     lines.append("# Vehicle-Id\tComponent-Id\tName\tValue\tType")
     lines += [f"1\t1\t{name}\t{_value(value, name, cal.path)}\t9" for name, value in params]
     if cal.current is not None:  # int32 (type 6): 2, the current of battery instance 0
         lines.append("1\t1\tCAL_MAG_COMP_TYP\t2\t6")
+    if rotated is not None:  # --axes: the sensor's rotation, int32
+        lines.append(f"1\t1\t{head}ROT\t{rotated}\t6")
     return Exported("\n".join(lines) + "\n", _with_loss(m, notes))
 
 

@@ -12,12 +12,13 @@ judges against the World Magnetic Model's (``--location`` and ``--date``).
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tumblecal_cli.core import earth, gate, solvers
+from tumblecal_cli.core import blocks, earth, gate, methods, solvers
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import sources
 from tumblecal_cli.io.calfiles import calfile
@@ -54,6 +55,7 @@ class MagLog:
     seg: Segmentation
     notes: list[str]
     accel: Calibration | None = None
+    table: bool = False  # a table of orientations: each row a still block (no spread of its own)
 
 
 def read(log: str, options: SolveOptions) -> MagLog:
@@ -78,16 +80,20 @@ def read(log: str, options: SolveOptions) -> MagLog:
         # --max-noise, a share of the reference, judges the accelerometer's blocks here (as align's)
         max_noise=options.checks.max_noise if options.checks.max_noise is not None else 0.02,
     )
-    with segmenting.segmented(
-        log,
-        replace(options.read, sensor="accelerometer", columns=None),
-        pose_column=None,
-        pose_map=None,
-        settings=settings,
-        whole=True,  # the samples between the still blocks may widen the magnetometer's coverage
-        max_spool=options.log.max_spool,
-    ) as (path, acc, seg):
-        mag = readings.read_log(path, options.read, use_time=options.read.rate is None, name=acc.layout.name)
+    table = _table(log, options, accel)
+    if table is not None:
+        acc, mag, seg = table
+    else:
+        with segmenting.segmented(
+            log,
+            replace(options.read, sensor="accelerometer", columns=None),
+            pose_column=None,
+            pose_map=None,
+            settings=settings,
+            whole=True,  # the samples between the still blocks may widen the magnetometer's coverage
+            max_spool=options.log.max_spool,
+        ) as (path, acc, seg):
+            mag = readings.read_log(path, options.read, use_time=options.read.rate is None, name=acc.layout.name)
     if acc.layout.sensor_names == mag.layout.sensor_names:
         raise InputError(
             f"the accelerometer and the magnetometer would both be read from columns "
@@ -104,6 +110,10 @@ def read(log: str, options: SolveOptions) -> MagLog:
     segmenting.enough_blocks(acc, seg, 1)
     samples = [mag.block(b.number, b.first, b.last) for b in kept]
     notes = [f"the magnetometer's samples of the {len(kept)} still blocks the accelerometer found"]
+    if table is not None:
+        notes = [f"{acc.layout.name}: a table of {len(kept)} orientations, one averaged reading a row: each row a "
+                 "still block"]  # fmt: skip
+        return MagLog(samples, acc, mag, kept, seg, notes, accel, table=True)
     between = _between(mag, kept)
     if between is not None:
         still, every = _coverage(np.concatenate([s.values for s in samples])), _coverage(mag.values)
@@ -114,6 +124,22 @@ def read(log: str, options: SolveOptions) -> MagLog:
                 f"{still:.0%} to {every:.0%}"
             )
     return MagLog(samples, acc, mag, kept, seg, notes, accel)
+
+
+def _table(log: str, options: SolveOptions, accel: Calibration | None) -> tuple[Log, Log, Segmentation] | None:
+    """Both sensors' readings of ``log`` and a block a row when it is a table of orientations (no
+    time column, its rows pointing different ways: methods.orientation_table; or --rows-are-poses),
+    else None. A pipe is not looked into (it is read once, as a log)."""
+    if log == "-" or not os.path.isfile(log) or options.rows_are_poses is False:
+        return None
+    acc = readings.read_log(log, replace(options.read, sensor="accelerometer", columns=None), use_time=False)
+    centre = np.zeros(3) if accel is None else accel.offset
+    if acc.layout.time is not None and options.rows_are_poses is not True:
+        return None
+    if options.rows_are_poses is not True and methods.orientation_table(acc.values, centre) is None:
+        return None
+    mag = readings.read_log(log, options.read, use_time=False, name=acc.layout.name)
+    return acc, mag, blocks.table_rows(acc.values, centre)
 
 
 def _between(mag: Log, kept: list[Block]) -> Samples | None:

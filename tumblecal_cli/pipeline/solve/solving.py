@@ -132,12 +132,33 @@ def calibrate(
 
     accel = options.log.align_to
     if accel is None:
-        return _at_place(options, poses=poses, log=log)
+        return _in_axes(_at_place(options, poses=poses, log=log), options)
     source = alignment.source_of(options.read.sensor, log if log is not None else poses)
-    solved = _at_place(options, poses=poses, log=log)
+    solved = _in_axes(_at_place(options, poses=poses, log=log), options)
     if solved.calibration is not None and "alignment" not in solved.calibration.fields:  # a log's is aligned already
         solved.calibration = _aligned(source, accel, solved.calibration, options, solved.notes)
     return solved
+
+
+def _in_axes(solved: Solved, options: SolveOptions) -> Solved:
+    """The calibration (and the draft) correcting into the body's axes of --axes (core.axes):
+    solved in the sensor's, P folded into the matrix, the offsets left in the sensor's axes."""
+    axes = opts.axes_given(options.axes)
+    if axes is not None:
+        solved.calibration = None if solved.calibration is None else solved.calibration.in_axes(axes)
+        solved.draft = None if solved.draft is None else solved.draft.in_axes(axes)
+    return solved
+
+
+def _sensor_labels(labels: list[str | None], options: SolveOptions) -> tuple[list[str | None], str | None]:
+    """The pose labels told in the body's axes (file names, LABEL=FILE, a table's order) as the
+    sensor's directions they are, with --axes, and the note that says so."""
+    axes = opts.axes_given(options.axes)
+    if axes is None or not any(labels):
+        return labels, None
+    out = [None if label is None else axes.sensor_label(label) for label in labels]
+    told = ", ".join(f"{a} as {b}" for a, b in zip(labels, out, strict=True) if a is not None and a != b)
+    return out, f"--axes {axes.text}: the faces told in the body's axes, solved in the sensor's ({told})"
 
 
 def _aligned(source: str, accel: str, cal: Calibration, options: SolveOptions, notes: list[str]) -> Calibration:
@@ -210,7 +231,7 @@ def _from_inputs(
     if table is not None:
         return _fit_poses(*_table_poses(table, options, given), options, given)
     name, labels, samples, placed = _read_poses(files_or_data, options, given, read)
-    notes = [] if placed.note is None else [placed.note]
+    notes = [n for n in (placed.note, placed.axes_note) if n is not None]
     notes[:0] = [note] if note else []
     chosen = PoseSet(labels, samples, [s.readings for s in samples], notes or [], None, placed.by_name, placed.labelled)
     return _fit_or_trim(name, chosen, options, given)
@@ -271,7 +292,7 @@ def _stream_units(path: str, options: SolveOptions) -> tuple[SolveOptions, str |
 def _table_poses(table: tables.TablePoses, options: SolveOptions, given: Settings) -> tuple[str, PoseSet]:
     """The method and the poses of a table's rows: labelled as that many unlabelled files are
     (3: +x +y +z, 6: the six faces, in order; else none: sphere for 12 or more)."""
-    labels = methods.default_labels(len(table.rows), given.up)
+    labels, told = _sensor_labels(list(methods.default_labels(len(table.rows), given.up)), options)
     try:
         name, order = methods.pick(given.method, labels, options.read.sensor)
     except InputError as err:
@@ -280,7 +301,8 @@ def _table_poses(table: tables.TablePoses, options: SolveOptions, given: Setting
     method_options(name, given.reference, options.plane, options.bias_spread)
     rows = [table.rows[k] for k in order]
     labels = [None if catalog.orientation_free(name) else labels[k] for k in order]
-    return name, PoseSet(labels, rows, [s.values for s in rows], [table.note], table=True)
+    notes = [table.note, *([told] if told and not catalog.orientation_free(name) else [])]
+    return name, PoseSet(labels, rows, [s.values for s in rows], notes, table=True)
 
 
 def _poses_given(poses: object, options: SolveOptions) -> list[str] | Mapping[str, object]:
@@ -330,6 +352,8 @@ def _read_poses(
         items = list(placed.items)
     if not in_memory and sum(f == "-" for _, f in items) > 1:
         raise InputError("only one pose can be read from stdin ('-')")
+    relabelled, axes_note = _sensor_labels([label for label, _ in items], options)
+    items = [(label, data) for label, (_, data) in zip(relabelled, items, strict=True)]
     try:
         name, order = methods.pick(given.method, [label for label, _ in items], options.read.sensor)
     except InputError as err:
@@ -342,6 +366,8 @@ def _read_poses(
         placed = Placed(placed.items, labelled=placed.labelled)
     elif placed.clash is not None:
         raise placed.clash
+    else:
+        placed = replace(placed, axes_note=axes_note)
     items = [items[k] for k in order]
     labels = [None if catalog.orientation_free(name) else label for label, _ in items]
     method_options(name, given.reference, options.plane, options.bias_spread)
@@ -369,6 +395,7 @@ class Placed:
     note: str | None = None  # said when the faces came from the files' names, not their places
     clash: InputError | None = None  # a name that says another face than its file's place gives
     labelled: bool = False  # every item came with its face (+x=FILE)
+    axes_note: str | None = None  # --axes: the faces as the sensor's
 
     @property
     def by_name(self) -> bool:
@@ -511,10 +538,12 @@ def _mag_from_log(path: str, options: SolveOptions, given: Settings, source: pla
     name, _ = methods.pick(given.method, [None] * len(found.samples), "magnetometer")
     method_options(name, given.reference, options.plane, options.bias_spread)
     labels: list[str | None] = [None] * len(found.samples)
-    poses = PoseSet(labels, found.samples, [found.mag.values], found.notes, _segmentation(found.acc, found.seg))
+    segmentation = None if found.table else _segmentation(found.acc, found.seg)
+    poses = PoseSet(labels, found.samples, [found.mag.values], found.notes, segmentation, table=found.table)
     solved = _fit_poses(name, poses, options, given)
-    solved.blocks = segmenting.Blocks(found.acc, found.seg)
-    solved.blocks.used = {b.number: "used" for b in found.blocks}
+    if not found.table:  # a table's rows are not a log's blocks to list
+        solved.blocks = segmenting.Blocks(found.acc, found.seg)
+        solved.blocks.used = {b.number: "used" for b in found.blocks}
     cal = places.stamp(solved.calibration, source)
     if cal is not None and options.log.align_to is not None:  # aligned first: the dips through the rotation
         cal = _aligned(path, options.log.align_to, cal, options, solved.notes)
