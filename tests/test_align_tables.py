@@ -109,6 +109,9 @@ def test_the_dip_check_takes_a_table_each_row_a_block(
     assert f"{SHOTS}: a table of 24 orientations, one averaged reading a row: each row a still block" in r.err
     assert "hint:" not in r.err
     assert "longer" not in r.err
-    dip = json.loads(out.read_text())["dip"]
+    assert "so the uncertainty comes from the fit's residuals instead" in r.err  # the rows' scatter, not 0
+    doc = json.loads(out.read_text())
+    assert min(doc["uncertainty"]["offset"]) > 0
+    dip = doc["dip"]
     assert dip["blocks"] == 24
     assert dip["spread_deg"] <= _device_dip_spread()

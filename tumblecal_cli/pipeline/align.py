@@ -334,8 +334,9 @@ def source_of(sensor: str, given: object) -> str:
 def solved_note(done: MagAligned) -> str:
     """What solve --align-to tells people."""
     r, fit = done.fit.rotation, done.fit
+    turned = "" if r.axes is None else f"axes {r.axes.text} and "
     return (
-        f"aligned to {done.accel_cal} from {done.blocks} still blocks: rotated {r.angle_deg:.3f}° ± "
+        f"aligned to {done.accel_cal} from {done.blocks} still blocks: {turned}rotated {r.angle_deg:.3f}° ± "
         f"{r.angle_sigma_deg:.3f}°, dip {fit.dip_deg:.2f}° ± {fit.dip_sigma_deg:.2f}° ({DIP_SAID}), heading error "
         "removed up to "
         f"{float(np.abs(fit.heading_error).max()):.2f}°"

@@ -846,7 +846,9 @@ def _solve_notes(
     """What a person should know about how far the result can be trusted."""
     few = [(os.path.basename(name), st.samples) for name, st in zip(names, stats, strict=True) if st.samples < 3]
     effect = (
-        "the uncertainty comes from the fit's residuals instead" if method == "sphere" else "its uncertainty reads 0"
+        "the uncertainty comes from the fit's residuals instead"
+        if method in ("sphere", "ellipsoid")  # (their covariance takes the residuals' variance where noise is unknown)
+        else "its uncertainty reads 0"
     )
     if table:  # every pose one reading: said once
         effect = effect.replace("its uncertainty", "the uncertainty")
