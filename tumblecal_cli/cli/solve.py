@@ -100,6 +100,18 @@ def solve(
     accel_cal: AccelCal = None,
     max_spool: MaxSpool = None,
     align_to: AlignTo = None,
+    spin: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--spin",
+            metavar="RATE=FILE",
+            help="A gyroscope spun at a known rate (repeatable): 45rpm=a.csv, 33.333rpm=b.csv, 270deg/s=c.csv, "
+            "0=rest.csv; a minus sign for the other direction; +z@45rpm=FILE: that axis up, the platter "
+            "counter-clockwise seen from above (fixes the signs and the misalignment). Solves offset, gains "
+            "and cross-axis terms from the files' steady runs (docs/recipes/gyroscope.md).",
+            rich_help_panel=SOLVER_PANEL,
+        ),
+    ] = None,
     output: Annotated[
         str,
         typer.Option(

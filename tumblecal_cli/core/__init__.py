@@ -38,6 +38,8 @@ modules:
   Ferraris procedure).
 - ``rotation_fit``: a gyroscope's scale and misalignment from hand turns between still poses,
   gravity the reference.
+- ``spin``: a gyroscope's offset, gains and cross-axis terms from steady runs at known rates (a
+  rate table, a record player), and its scale factors by rate.
 - ``allan``: the Allan deviation of a still capture, computed as it streams, and the noise
   figures read off it.
 - ``lot``: statistics over a production lot of calibrations: which files count, capability and

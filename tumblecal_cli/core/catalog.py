@@ -391,6 +391,22 @@ register(
 )
 register(
     Method(
+        "known-rates",
+        "rates",
+        ("gyroscope",),
+        "turns",
+        fits_gains=True,
+        uses_faces=False,
+        turned=False,
+        at_rest=False,
+        not_applying=(),
+        source="IEEE Std 952-1997 and 1431-2004 (the rate transfer test); the magnitude fit as the ellipsoid's",
+        help="files spun at known rates (a rate table, a record player): bias, gains, cross-axis terms",
+        solver="tumblecal_cli.core.spin:fit_rates",
+    )
+)
+register(
+    Method(
         "rotations",
         "rotations",
         ("gyroscope",),

@@ -112,6 +112,7 @@ class SolveOptions:
     rows_are_poses: bool | None = None  # each row of the capture a pose (None: when it looks so)
     no_robust: bool = False  # a fit over samples keeps its outliers (plain least squares)
     axes: str | None = None  # the body's axes in the sensor's (-y,-x,+z): core.axes, folded into the matrix
+    spin: tuple[str, ...] = ()  # a gyroscope's RATE=FILE items (pipeline.solve.spins)
     location: str | None = None  # LAT,LON[,HEIGHT_M]: the reference from the place (pipeline.places)
     gravity: float | None = None  # local gravity in m/s^2, given
     date: str | None = None  # YYYY-MM-DD: a magnetometer's Earth field on that day
@@ -159,7 +160,7 @@ GROUPS: dict[str, type] = {"log": LogOptions, "checks": CheckOptions, "limits": 
 #: The flat names that are not their field's name: ``limits=`` is the limits group's file.
 RENAMED = {("limits", "file"): "limits"}
 #: The options given once per item, repeatable on the command line (a tuple in SolveOptions).
-REPEATABLE = ("meta", "no_check")
+REPEATABLE = ("meta", "no_check", "spin")
 #: Each option's flat name (the command line's long option in snake case) and where SolveOptions
 #: keeps it: its group ("" the top; "read" and "dialect" the ReadSpec's) and its field there. A
 #: field added to SolveOptions or one of its groups (or a keyword to io.readspec.ReadKeywords) is
@@ -199,6 +200,7 @@ class SolveKeywords(ReadKeywords, CutKeywords, total=False):
     rows_are_poses: bool | None
     no_robust: bool
     axes: str | None
+    spin: str | Sequence[str] | None
     location: str | None
     gravity: float | None
     date: str | None
@@ -422,7 +424,8 @@ def settings(options: SolveOptions, *, log: bool) -> Settings:
     if sensor == "gyroscope" and ref != 0:  # at rest it reads no rate, and turns give their own angles
         raise InputError(
             f"--reference is a gyroscope's reading at rest, which is 0, got {ref:g}",
-            hint="leave --reference out for --sensor gyroscope (its gains come from turns: --turns or --accel-cal)",
+            hint="leave --reference out for --sensor gyroscope: its gains come from known rates (--spin 45rpm=FILE) "
+            "or turns (--turns, --accel-cal)",
         )
     centre = (
         None if options.checks.nominal_offset is None else triplet(options.checks.nominal_offset, "--nominal-offset")
@@ -509,7 +512,8 @@ def method_options(name: str, ref: float, plane: str | None, bias_spread: float 
     if ref == 0 and not catalog.at_rest(name):
         raise InputError(
             f"--reference 0 (a gyroscope at rest) gives {name} no stimulus to fit gains or directions to",
-            hint="use --method gyro-bias for the zero-rate bias, or give the turning rate with --reference",
+            hint="use --method gyro-bias for the zero-rate bias, or give the files' rates with --spin RATE=FILE "
+            "(45rpm=a.csv)",
         )
     for flag, given, wanted in (("--plane", plane, "minmax"), ("--bias-spread", bias_spread, "one-pose-tilt")):
         if given is not None and name != wanted:

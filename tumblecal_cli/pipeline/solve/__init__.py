@@ -8,4 +8,6 @@
 - ``trimming``: pose files with motion solved from their still run.
 - ``maglog``: a magnetometer from a log with both sensors, and its dip check.
 - ``turns``: a gyroscope from one labelled log of the Ferraris procedure (solve --turns).
-- ``rotations``: a gyroscope's scale and misalignment from hand turns (solve --accel-cal)."""
+- ``rotations``: a gyroscope's scale and misalignment from hand turns (solve --accel-cal).
+- ``spins``: a gyroscope spun at known rates (solve --spin RATE=FILE): its files' steady runs
+  fitted, what was left out named by rows."""

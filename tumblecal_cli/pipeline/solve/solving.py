@@ -32,7 +32,7 @@ from tumblecal_cli.pipeline import segment as segmenting
 from tumblecal_cli.pipeline.exchange import tilt_notes
 from tumblecal_cli.pipeline.frames import in_memory, read_pose, samples_of
 from tumblecal_cli.pipeline.options import SolveKeywords, SolveOptions, method_options, path_of, triplet
-from tumblecal_cli.pipeline.solve import maglog, rotations, tables, trimming, turns
+from tumblecal_cli.pipeline.solve import maglog, rotations, spins, tables, trimming, turns
 from tumblecal_cli.pipeline.solve.fitnotes import left_out, motion_notes, outlier_notes, reference_notes
 
 if TYPE_CHECKING:
@@ -100,11 +100,12 @@ class Solved:
 Poses = str | os.PathLike[str] | Sequence[object] | Mapping[str, object] | arrays.FloatArray
 
 
-def solve(poses: Poses, **options: Unpack[SolveKeywords]) -> Solved:
+def solve(poses: Poses | None = None, **options: Unpack[SolveKeywords]) -> Solved:
     """Solve a calibration from pose captures, as ``tumblecal solve --poses`` does.
 
     ``poses``: the items of ``--poses`` (``FILE`` or ``LABEL=FILE``), or a mapping of labels
-    (faces such as ``"+x"``, or ``"X,Y,Z"`` directions) to DataFrames or (n, 3) arrays.
+    (faces such as ``"+x"``, or ``"X,Y,Z"`` directions) to DataFrames or (n, 3) arrays; None with
+    ``spin=`` (a gyroscope's ``RATE=FILE`` items, pipeline.solve.spins).
     ``options``: solve's long options in snake case (``reference=``, ``method=``,
     ``max_noise=``, ``limits=`` for a limits file, ``serial=`` ...; docs/python.md
     Python"). Input errors raise InputError; a rejected capture is ``status`` 3, not an error.
@@ -180,6 +181,12 @@ def _at_place(
     """calibrate before any alignment: the reference of --location, --gravity and --date resolved
     (pipeline.places), the solve, and where the reference came from written beside it."""
     options = opts.checked(options)
+    if options.spin:  # a gyroscope at known rates: its files are the --spin items (pipeline.solve.spins)
+        if poses is not None or log is not None:
+            raise InputError("--spin gives the gyroscope's files: not --poses or --log beside it")
+        out = spins.solve_spins(options, opts.settings(options, log=False))
+        return Solved(out.status, out.calibration, out.draft, out.rejections, out.failures, error=out.error,
+                      notes=out.notes)  # fmt: skip
     files_or_data = None if poses is None else _poses_given(poses, options)
     path = (
         None if log is None else path_of(log, "solve_log takes a log file (data in memory: solve it as {label: data})")

@@ -1,0 +1,232 @@
+"""A gyroscope on a turntable or rate table (issue "A gyroscope from known rates"): solve --spin
+RATE=FILE fits offset, gains and cross-axis terms to the files' steady runs (core.spin,
+pipeline.solve.spins); the platter's spin-up, the handling between orientations and runs at
+another rate are left out and named by rows; the stated uncertainty covers the error."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import tumblecal_cli as tumblecal
+from tests.conftest import assert_one_error, run
+from tumblecal_cli.core import model, spin
+from tumblecal_cli.core.arrays import FloatArray
+
+RPM = 2 * math.pi / 60
+HZ = 50
+
+
+def _turned(rng: np.random.Generator) -> FloatArray:
+    """A random direction: the platter's axis seen from the sensor in one placement."""
+    v = rng.normal(size=3)
+    out: FloatArray = v / np.linalg.norm(v)
+    return out
+
+
+def _readings(
+    rng: np.random.Generator, a: FloatArray, b: FloatArray, placements: list[tuple[FloatArray, float]], hold: int = 20
+) -> FloatArray:
+    """A gyroscope (raw = A w + b + noise) through placements: 2 s of handling, 1 s of spin-up,
+    ``hold`` s at the rate (the platter's speed off by a random 0.1 % each time)."""
+    rows = []
+    for axis, rate in placements:
+        rows += [a @ (rng.normal(size=3) * 1.5) + b for _ in range(2 * HZ)]
+        rows += [a @ (axis * rate * i / HZ) + b for i in range(HZ)]
+        wow = 1 + rng.normal() * 0.001
+        rows += [a @ (axis * rate * wow) + b for _ in range(hold * HZ)]
+    v = np.array(rows)
+    out: FloatArray = v + rng.normal(size=v.shape) * 0.01
+    return out
+
+
+def _truth(rng: np.random.Generator, *, symmetric: bool) -> tuple[FloatArray, FloatArray]:
+    """A true A (raw per rad/s, cross-axis terms of about 1 %) and bias (rad/s)."""
+    s = rng.normal(size=(3, 3)) * 0.01
+    m = np.eye(3) + ((s + s.T) / 2 if symmetric else s) + np.diag(rng.normal(size=3) * 0.02)
+    a: FloatArray = np.asarray(np.linalg.inv(m), dtype=np.float64)
+    return a, rng.normal(size=3) * 0.03
+
+
+def _session(rng: np.random.Generator, *, labelled: bool) -> tuple[spin.RateFit, FloatArray, FloatArray]:
+    """One turntable session at 33⅓ and 45 rpm and at rest, fitted from its steady runs."""
+    a, b = _truth(rng, symmetric=not labelled)
+    runs = []
+    for rate in (45 * RPM, 100 / 3 * RPM):
+        files = (
+            [(f, [(model.direction(f), rate)]) for f in ("+x", "-x", "+y", "-y", "+z", "-z")]
+            if labelled
+            else [(None, [(_turned(rng), rate) for _ in range(6)])]
+        )
+        for face, placements in files:
+            for r in spin.steady_runs(_readings(rng, a, b, placements), 25, 50):
+                if abs(np.linalg.norm(r.mean) / rate - 1) < 0.1:
+                    runs.append(spin.SpinRun(r.mean, r.stderr, rate, None if face is None else model.direction(face)))
+    for r in spin.steady_runs(_readings(rng, a, b, [(np.array([0.0, 0.0, 1.0]), 0.0)]), 25, 50):
+        runs.append(spin.SpinRun(r.mean, r.stderr, 0.0))
+    return spin.fit_rates(runs), a, b
+
+
+def test_one_session_recovers_bias_and_gains_within_their_uncertainty() -> None:
+    fit, a, b = _session(np.random.default_rng(3), labelled=False)
+    assert np.all(np.abs(fit.offset - b) < 4 * fit.offset_se)
+    gains = np.diag(np.linalg.inv(fit.matrix))
+    assert np.all(np.abs(gains - np.diag(a)) < 4 * fit.gain_se)
+    assert fit.gain_se.max() < 0.003
+    assert fit.kept.all()
+    assert not fit.full
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("labelled", [False, True])
+def test_stated_uncertainty_covers_the_error_over_100_sessions(labelled: bool) -> None:
+    """The bias, the gains and (labelled) the cross-axis terms, each group's z-scores: RMS 0.8-1.25,
+    and beyond ±3 no more often than the Student distribution of a spread estimated from a dozen
+    runs allows (3 %)."""
+    rng = np.random.default_rng(5)
+    groups: dict[str, list[FloatArray]] = {"bias": [], "gains": [], "cross": []}
+    for _ in range(100):
+        fit, a, b = _session(rng, labelled=labelled)
+        groups["bias"].append((fit.offset - b) / fit.offset_se)
+        groups["gains"].append((np.diag(np.linalg.inv(fit.matrix)) - np.diag(a)) / fit.gain_se)
+        if labelled:
+            off = ~np.eye(3, dtype=bool)
+            groups["cross"].append((np.linalg.inv(fit.matrix) - a)[off] / fit.cross_se[off])
+    for name, found in groups.items():
+        if not found:
+            continue
+        z = np.array(found)
+        assert 0.8 < float(np.sqrt(np.mean(z**2))) < 1.25, (name, np.sqrt(np.mean(z**2, axis=0)))
+        assert float(np.mean(np.abs(z) > 3)) < 0.03, name
+
+
+def _write(path: Path, values: FloatArray) -> Path:
+    t = np.arange(len(values)) / HZ
+    lines = "".join(f"{ti:.3f},{x:.6f},{y:.6f},{z:.6f}\n" for ti, (x, y, z) in zip(t, values, strict=True))
+    path.write_text("t,gx,gy,gz\n" + lines)
+    return path
+
+
+@pytest.fixture
+def platter(tmp_path: Path) -> tuple[list[str], FloatArray, FloatArray]:
+    """--spin items of a session written as files: 45 and 33⅓ rpm (six unknown placements each)
+    and rest; the 45 rpm file also holds one placement run at 33⅓ rpm (the platter left at the
+    other speed), which is left out."""
+    rng = np.random.default_rng(11)
+    a, b = _truth(rng, symmetric=True)
+    fast = [(_turned(rng), 45 * RPM) for _ in range(6)] + [(_turned(rng), 100 / 3 * RPM)]
+    slow = [(_turned(rng), 100 / 3 * RPM) for _ in range(6)]
+    rest = [(np.array([0.0, 0.0, 1.0]), 0.0)]
+    files = [
+        f"45rpm={_write(tmp_path / '45rpm.csv', _readings(rng, a, b, fast))}",
+        f"33.333rpm={_write(tmp_path / '33rpm.csv', _readings(rng, a, b, slow))}",
+        f"0={_write(tmp_path / 'rest.csv', _readings(rng, a, b, rest))}",
+    ]
+    return files, a, b
+
+
+def test_solve_spin_from_the_command_line_names_what_it_left_out(
+    platter: tuple[list[str], FloatArray, FloatArray], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    items, a, b = platter
+    out = tmp_path / "gyr.json"
+    r = run(capsys, "solve", "--sensor", "gyroscope", *[x for i in items for x in ("--spin", i)], "-o", out, "--json")
+    assert r.code == 0, r.err
+    summary = json.loads(r.out)
+    doc = json.loads(out.read_text())
+    assert doc["method"] == "known-rates"
+    assert doc["units"] == "rad/s"
+    sigma = np.array(doc["uncertainty"]["offset"])
+    assert np.all(np.abs(np.array(doc["offset"]) - b) < 4 * sigma)
+    assert np.all(np.abs(np.array(doc["gain"]) - np.diag(a)) < 4 * np.array(doc["uncertainty"]["gain"]))
+    assert "45rpm.csv at 45rpm (4.712 rad/s): 6 steady runs used; " in r.err  # the 33⅓ rpm placement is not
+    assert "rows left out (rows 0–149, 1150–1299, " in r.err  # 2 s of handling and 1 s of spin-up at 50 Hz
+    assert "rest.csv at 0 (0 rad/s): 1 steady run used; 100 rows left out (rows 0–99: handling, turning)" in r.err
+    left = summary["outliers"]
+    assert left["count"] > 0
+    assert {s["file"] for s in left["stretches"]} == {str(tmp_path / n) for n in ("45rpm.csv", "33rpm.csv", "rest.csv")}
+    assert all(s["rows"] is not None for s in left["stretches"])
+    assert {p["label"] for p in doc["poses"]} == {"45rpm", "33.333rpm", "0"}
+
+
+def test_the_python_api_takes_spin(platter: tuple[list[str], FloatArray, FloatArray]) -> None:
+    items, _, b = platter
+    done = tumblecal.solve(sensor="gyroscope", spin=items)
+    assert done.status == 0
+    assert done.calibration is not None
+    assert np.allclose(done.calibration.offset, b, atol=0.002)
+
+
+def test_labelled_faces_recover_the_full_matrix(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rng = np.random.default_rng(21)
+    a, b = _truth(rng, symmetric=False)
+    items = []
+    for face in ("+x", "-x", "+y", "-y", "+z", "-z"):
+        for text, rate in (("45rpm", 45 * RPM), ("-33.333rpm", -100 / 3 * RPM)):
+            path = _write(tmp_path / f"{face}{text}.csv", _readings(rng, a, b, [(model.direction(face), rate)]))
+            items += ["--spin", f"{face}@{text}={path}"]
+    out = tmp_path / "gyr.json"
+    r = run(capsys, "solve", "--sensor", "gyroscope", *items, "-o", out)
+    assert r.code == 0, r.err
+    doc = json.loads(out.read_text())
+    fitted = np.linalg.inv(np.array(doc["matrix"]))
+    cross = np.array(doc["uncertainty"]["cross_axis"])
+    off = ~np.eye(3, dtype=bool)
+    assert np.all(np.abs(fitted - a)[off] < 4 * cross[off])  # the misalignment, which the magnitude cannot see
+    assert "full M (faces labelled)" in r.err
+    factors = doc["scale_factors"]["axes"]
+    assert [f["axis"] for f in factors] == ["x", "y", "z"]
+    for f, truth in zip(factors, np.diag(a), strict=True):
+        assert f["least_squares"] == pytest.approx(truth, rel=3e-3)
+        assert f["asymmetry_ppm"] is not None
+    assert "scale factor x (raw per rad/s): " in r.err
+
+
+@pytest.mark.parametrize(
+    ("item", "expected"),
+    [
+        ("45=a.csv", "--spin '45=a.csv': the rate has no unit: give RATE=FILE, the rate with its unit: 45rpm=a.csv, "
+         "270deg/s=b.csv, 0=rest.csv, +z@45rpm=c.csv"),
+        ("45furlongs=a.csv", "--spin '45furlongs=a.csv': 'furlongs' is not a unit of angular rate (rpm, rad/s, deg/s)"),
+        ("90000rpm=a.csv", "--spin '90000rpm=a.csv': 90000 rpm is no rate table's or platter's (at most 1910 rpm)"),
+        ("45rpm", "--spin '45rpm': give RATE=FILE, the rate with its unit: 45rpm=a.csv, 270deg/s=b.csv, 0=rest.csv, "
+         "+z@45rpm=c.csv"),
+    ],
+)  # fmt: skip
+def test_a_bad_rate_is_one_line_and_nothing_written(
+    item: str, expected: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "gyr.json"
+    r = run(capsys, "solve", "--sensor", "gyroscope", "--spin", item, "-o", out)
+    assert_one_error(r, expected)
+    assert not out.exists()
+
+
+def test_a_file_that_does_not_spin_and_a_spin_for_an_accelerometer_are_refused(
+    platter: tuple[list[str], FloatArray, FloatArray], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    items, _, _ = platter
+    rest = items[2].partition("=")[2]
+    out = tmp_path / "gyr.json"
+    r = run(capsys, "solve", "--sensor", "gyroscope", "--spin", f"45rpm={rest}", "--spin", items[1], "-o", out)
+    assert r.code == 3
+    assert f"error: {rest}: 45rpm (4.712 rad/s): no steady stretch at that rate; its steady stretches turn at" in r.err
+    assert not out.exists()
+    r = run(capsys, "solve", "--spin", items[0], "-o", out)
+    assert_one_error(
+        r,
+        "--spin spins a gyroscope at known rates, not the accelerometer's",
+        hint="give --sensor gyroscope (and the gyroscope's columns)",
+    )
+    assert not out.exists()
+
+
+def test_a_gyroscopes_reference_hint_points_to_spin(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The hints went in a circle: "give the turning rate with --reference" / "leave --reference out"."""
+    r = run(capsys, "solve", "--sensor", "gyroscope", "--reference", "4.7", "--poses", tmp_path / "x.csv")
+    assert r.code == 2
+    assert "--spin 45rpm=FILE" in r.err
