@@ -623,7 +623,7 @@ def print_verify(
     def build(limit: int | None) -> Table:  # a long file name shortened in the middle (print_fitted)
         table = Table(
             title=f"{cal.method} calibration on {len(rows)} capture{'s' if len(rows) > 1 else ''}, "
-            f"reference {ref:g}{units}",
+            + ("each against its rate" if rows and "rate" in rows[0] else f"reference {ref:g}{units}"),
             title_justify="left",
             box=box.SIMPLE_HEAD,
             pad_edge=False,

@@ -136,8 +136,8 @@ def solve(
             metavar="NUMBER",
             help="The stimulus magnitude in the units the corrected data should have: 1 (g), "
             "9.80665 (m/s^2), 16384 (LSB at +-2 g), a magnetometer's field (or --location). "
-            "1-pose has no gains: there it is in the file's units. "
-            "[default: 1, or 0 for a gyroscope]",
+            "1-pose has no gains: there it is in the file's units. A gyroscope's is 0 (at rest): give the "
+            "rates it turned at with --spin RATE=FILE. [default: 1, or 0 for a gyroscope]",
         ),
     ] = None,
     method: Annotated[

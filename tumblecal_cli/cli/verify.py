@@ -86,6 +86,16 @@ def verify(
         str | None,
         typer.Option("--accel-cal", metavar="FILE", help="With --log: the accelerometer calibration (gravity)."),
     ] = None,
+    spin: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--spin",
+            metavar="RATE=FILE",
+            help="Instead of captures: a gyroscope calibration judged on files spun at known rates (45rpm=a.csv, "
+            "repeatable, as solve takes them): |corrected| - rate over each file's steady runs (RMS, largest), "
+            "exit 1 over --max-norm-error.",
+        ),
+    ] = None,
     rate: Annotated[
         float | None,
         typer.Option(
@@ -135,10 +145,7 @@ def verify(
     from tumblecal_cli.pipeline import verify as pipeline
 
     found = source(stream, allow_corrected)
-    if plot is not None:
-        if log is not None or accel_cal is not None:
-            raise InputError("--plot draws the errors of static captures, not of a --log of hand turns")
-        check_plot_target(plot, "-", json_summary, [*(captures_ or []), cal])
+    _check_plot(plot, log is not None or accel_cal is not None, json_summary, [*(captures_ or []), cal])
     if log is not None or accel_cal is not None:
         where = (log, accel_cal, rate, columns, captures_, found, (start, end))
         return _rotations(cal, *where, json_summary=json_summary, quiet=quiet)
@@ -159,6 +166,7 @@ def verify(
         end=end,
         rate=rate,
         rows_are_poses=rows_are_poses,
+        spin=spin,
     )
     if json_summary:
         render.print_json(_summary(done, cal, max_norm_error))
@@ -172,6 +180,14 @@ def verify(
         _plot_verify(plot, done, quiet=quiet)
     if done.status:
         raise typer.Exit(done.status)
+
+
+def _check_plot(plot: str | None, turns: bool, json_summary: bool, inputs: list[str]) -> None:
+    """--plot's target judged before any work (a --log of hand turns has no norm errors to draw)."""
+    if plot is not None:
+        if turns:
+            raise InputError("--plot draws the errors of static captures, not of a --log of hand turns")
+        check_plot_target(plot, "-", json_summary, inputs)
 
 
 def _plot_verify(plot: str, done: Verified, *, quiet: bool) -> None:

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, NotRequired, TypedDict, Unpack
 
 import numpy as np
 
-from tumblecal_cli.core import catalog, drift, gate, methods, model, rotation_fit, solvers
+from tumblecal_cli.core import catalog, drift, gate, methods, model, quantities, rotation_fit, solvers
 from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.model import UNITS_TOLERANCE
 from tumblecal_cli.errors import CaptureRejected, InputError
@@ -23,6 +23,7 @@ from tumblecal_cli.io.readspec import FileKeywords, ReadSpec, StreamKeywords, co
 from tumblecal_cli.pipeline import places
 from tumblecal_cli.pipeline.frames import in_memory, is_data
 from tumblecal_cli.pipeline.options import LogOptions, SolveOptions, keywords_known, path_of
+from tumblecal_cli.pipeline.solve import spins
 from tumblecal_cli.pipeline.solve.rotations import hand_turns
 
 if TYPE_CHECKING:
@@ -48,6 +49,7 @@ class CaptureRow(TypedDict):
     turning: NotRequired[bool]  # a turning capture (a magnetometer's): error_after is the samples' RMS
     max_error: NotRequired[float]  # ... and this their largest |error|
     coverage: NotRequired[float]  # ... and this the share of the sphere's directions they reach
+    rate: NotRequired[float]  # verify --spin: the rate the file turned at (the calibration's units)
 
 
 class RotationRow(TypedDict):
@@ -104,6 +106,7 @@ class VerifyKeywords(FileKeywords, StreamKeywords, total=False):
     end: str | float | None
     rate: float | None
     rows_are_poses: bool | None
+    spin: Sequence[str] | None  # a gyroscope's RATE=FILE items (pipeline.solve.spins)
 
 
 @dataclass(frozen=True)
@@ -146,6 +149,8 @@ def _verify(paths: list[str], cal: Calibration | str | os.PathLike[str], options
     """verify on the captures' paths (or the names their data in memory is held under)."""
     reference, max_norm_error = options.get("reference"), options.get("max_norm_error")
     max_noise = options.get("max_noise", 0.02)
+    if options.get("spin"):
+        return spun(calfile.resolve(cal), list(options.get("spin") or []), paths, options)
     if not paths:
         raise InputError("verify needs one static capture or more")
     if sum(f == "-" for f in paths) + (cal == "-") > 1:
@@ -293,6 +298,53 @@ def _turning(result: Verified, name: str, values: FloatArray, judge: _Judge) -> 
     _units(name, c, raw, float(np.median(size)), ref)
     if judge.max_norm_error is not None and not rms <= judge.max_norm_error:
         result.failed.append(name)
+
+
+def spun(c: Calibration, items: list[str], paths: list[str], options: VerifyKeywords) -> Verified:
+    """verify --spin: a gyroscope's calibration on files spun at known rates: over each file's
+    steady runs at its rate (pipeline.solve.spins), |corrected| − |rate| sample by sample (RMS:
+    the row's error, judged by --max-norm-error; the largest: ``max_error``)."""
+    if c.sensor != "gyroscope":
+        raise InputError(f"--spin checks a gyroscope's calibration, not the {c.sensor}'s", file=c.path)
+    if paths:
+        raise InputError("--spin gives the files to check: not captures beside it")
+    units = (c.units or "rad/s").strip()
+    per = quantities.UNITS[units].factor if units in quantities.UNITS else 1.0
+    given = [spins.parse(item) for item in items]
+    slowest = min((abs(g.rate) for g in given if g.rate), default=1.0) / per
+    limit = options.get("max_norm_error")
+    result = Verified(0, c, 0.0, limit, [], {})
+    for g in given:
+        f = spins.read(g, _spec(options, c), c)
+        used, said, _ = spins.runs_at_rate(f, g.rate / per, 1.0, slowest, units)
+        corrected = np.concatenate([f.log.values[r.first : r.last + 1] for r in used])
+        size = np.linalg.norm(corrected, axis=1)
+        errors = size - abs(g.rate / per)
+        rms, largest = float(np.sqrt(np.mean(errors**2))), float(np.abs(errors).max())
+        raw = readings.read_log(g.file, replace(_spec(options, c), sensor="gyroscope"), use_time=False)
+        row: CaptureRow = {
+            "file": f.log.layout.name,
+            "samples": len(corrected),
+            "norm_before": float(np.median(np.linalg.norm(raw.values[np.isfinite(raw.values).all(axis=1)], axis=1))),
+            "error_before": None,
+            "norm_after": float(np.median(size)),
+            "error_after": rms,
+            "std": [float(v) for v in corrected.std(axis=0)],
+            "turning": True,
+            "max_error": largest,
+            "rate": g.rate / per,
+        }
+        result.rows.append(row)
+        result.notes.append(f"{said}: |corrected| − rate RMS {rms:.3g}, largest {largest:.3g} {units}")
+        if limit is not None and not rms <= limit:
+            result.failed.append(f.log.layout.name)
+    errors_after = [r["error_after"] for r in result.rows]
+    result.overall = {
+        "rms_error": float(np.sqrt(np.mean(np.square(errors_after)))),
+        "max_error": float(max(r.get("max_error", 0.0) for r in result.rows)),
+    }
+    result.status = 1 if result.failed else 0
+    return result
 
 
 def _readings(path: str, spec: ReadSpec) -> FloatArray:

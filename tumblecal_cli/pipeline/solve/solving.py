@@ -249,6 +249,10 @@ def _fit_or_trim(name: str, poses: PoseSet, options: SolveOptions, given: Settin
     reads their means, such as one-pose's units) and some moved, _fit_poses again on the still run
     of each that moved (pipeline.solve.trimming), with a note naming its rows: a file that passes
     whole is solved as it always was."""
+    if name == "gyro-bias" and not options.checks.no_trim:  # the bias from each file's still run
+        rests = trimming.gyro_rests(poses.samples, options)
+        if rests is not None:
+            poses = replace(poses, samples=rests.samples, notes=[*poses.notes, *rests.notes])
     try:
         solved, failed = _fit_poses(name, poses, options, given), None
     except InputError as err:  # a units "mistake" may be the mean of a pose and its handling

@@ -32,6 +32,7 @@ from tumblecal_cli.pipeline.solve.turns import Outcome
 if TYPE_CHECKING:
     from tumblecal_cli.io.calfiles.calfile import Calibration
     from tumblecal_cli.io.csv.readings import Log
+    from tumblecal_cli.io.readspec import ReadSpec
     from tumblecal_cli.pipeline.options import Settings, SolveOptions
 
 #: RATE of --spin: an optional face and @, a signed number, its unit (none for 0).
@@ -109,13 +110,13 @@ def solve_spins(options: SolveOptions, given: Settings) -> Outcome:
     spins = [parse(item) for item in options.spin]
     if not any(s.rate for s in spins):
         raise InputError("--spin gives no turning rate: only rest (0=FILE) gives no gains", hint="add 45rpm=FILE ...")
-    files = [_read(s, options) for s in spins]
+    files = [read(s, options.read) for s in spins]
     out_units, gain, units_note = _units(files, options)
     scale = quantities.UNITS[out_units].factor if out_units in quantities.UNITS else 1.0
     slowest = min(abs(s.rate) for s in spins if s.rate) / scale
     chosen, notes, left = [], [units_note] if units_note else [], []
     for f in files:
-        used, said, out = _runs_at_rate(f, f.given.rate / scale, gain, slowest, out_units)
+        used, said, out = runs_at_rate(f, f.given.rate / scale, gain, slowest, out_units)
         chosen += [(f, r) for r in used]
         notes.append(said)
         left += out
@@ -141,17 +142,20 @@ def solve_spins(options: SolveOptions, given: Settings) -> Outcome:
     return _outcome(fit, runs, chosen, (left, trimmed), notes, options, given, out_units)
 
 
-def _read(s: Spin, options: SolveOptions) -> SpinFile:
+def read(s: Spin, spec: ReadSpec, cal: Calibration | None = None) -> SpinFile:
+    """A --spin file's readings (corrected by ``cal`` when given: verify's) and their steady runs."""
     if not os.path.exists(s.file) and s.file != "-":
         raise InputError(f"--spin {s.text}={s.file}: no such file")
-    log = readings.read_log(s.file, replace(options.read, sensor="gyroscope"), use_time=options.read.rate is None)
+    log = readings.read_log(s.file, replace(spec, sensor="gyroscope"), use_time=spec.rate is None)
     model.in_range(log.values, log.layout.name)
     finite = np.isfinite(log.values).all(axis=1)
     if not finite.all():
         log = replace(log, values=log.values[finite], rows=log.rows[finite])
+    if cal is not None:
+        log = replace(log, values=cal.apply(log.values))
     window = WINDOW_SAMPLES
-    seconds = None if options.read.rate else log.seconds()
-    period = 1.0 / options.read.rate if options.read.rate else None
+    seconds = None if spec.rate else log.seconds()
+    period = 1.0 / spec.rate if spec.rate else None
     if period is None and seconds is not None and len(seconds) > 1:
         steps = np.diff(seconds)
         period = float(np.median(steps[steps > 0])) if (steps > 0).any() else None
@@ -200,7 +204,7 @@ def _spans(f: SpinFile, used: list[spin.Run]) -> list[tuple[int, int]]:
     return [(int(a), int(b) - 1) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
-def _runs_at_rate(
+def runs_at_rate(
     f: SpinFile, rate: float, gain: float, slowest: float, units: str
 ) -> tuple[list[spin.Run], str, list[tuple[SpinFile, int, int]]]:
     """The runs of ``f`` at its stated rate, what to say of them, and the stretches left out."""

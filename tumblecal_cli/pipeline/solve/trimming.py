@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tumblecal_cli.core import blocks, catalog, model
+from tumblecal_cli.core import blocks, catalog, model, spin
 from tumblecal_cli.core.running import Summary
 from tumblecal_cli.errors import CaptureRejected
 from tumblecal_cli.io.csv.readings import Log, Samples
@@ -72,6 +72,39 @@ def still_runs(poses: list[Samples], options: SolveOptions, given: Settings) -> 
             continue
         out.samples[k] = replace_run(s, log, run, options.read.rate)
         out.notes.append(_note(s, log, run, options.read.rate))
+    return out if out.notes else None
+
+
+#: Samples per window of the gyroscope's own still-run detector when a file has no clock.
+GYRO_WINDOW = 25
+
+
+def gyro_rests(poses: list[Samples], options: SolveOptions) -> Trimmed | None:
+    """gyro-bias: each file replaced by the gyroscope's still run, where the file holds more (the
+    unit picked up, put down, turned): the longest stretch whose windows spread no more than
+    the quietest ones do (core.spin.steady_runs, on the gyroscope's own readings), with a note
+    naming its rows. A file still throughout is kept whole (None: none was cut)."""
+    out = Trimmed(list(poses))
+    rate = options.read.rate
+    for k, s in enumerate(poses):
+        if isinstance(s.readings, Summary) or len(s.values) < 4 * GYRO_WINDOW:
+            continue  # a long file's running sums, or too short to cut
+        log = s.log if s.log is not None else Log(s.layout, s.values, np.arange(len(s.values)), None, None, s.sha256)
+        period = blocks.sample_period(None if rate else log.seconds(), rate)
+        window = max(round(0.5 / period), 4) if period else GYRO_WINDOW
+        runs = spin.steady_runs(log.values, window, max(2 * window, options.checks.min_samples))
+        if not runs:
+            continue
+        run = max(runs, key=lambda r: (r.samples, -r.first))
+        if run.first < window and run.last >= len(log.values) - window:
+            continue  # still throughout (the ends' part windows aside)
+        cut = blocks.Block(0, run.first, run.last, run.mean, np.zeros(3), np.zeros(3), None, "+z", 0.0, None)
+        out.samples[k] = replace_run(s, log, cut, rate)
+        out.notes.append(
+            f"{s.layout.name}: the gyroscope turned or was handled in it; its bias is its still run, "
+            f"{_where(log, cut, rate)} ({run.samples:,} of {len(log.values):,} readings); --no-trim takes the whole "
+            "file"
+        )
     return out if out.notes else None
 
 
