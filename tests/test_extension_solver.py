@@ -92,7 +92,7 @@ def _six_faces(folder: Path) -> list[str]:
 def test_a_standin_solver_registered_in_one_place_runs_end_to_end(tmp_path: Path) -> None:
     shown = standin_cli("solve", "--help")
     assert shown.returncode == 0, shown.stderr
-    assert "ferraris-turns, rotations, standin." in " ".join(shown.stdout.split())
+    assert "ferraris-turns, known-rates, rotations, standin." in " ".join(shown.stdout.split())
 
     cal = tmp_path / "unit.json"
     solved = standin_cli("solve", "--poses", *_six_faces(tmp_path), "--method", "standin", "-o", cal)

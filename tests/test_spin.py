@@ -5,68 +5,41 @@ another rate are left out and named by rows; the stated uncertainty covers the e
 
 from __future__ import annotations
 
+import importlib.util
 import json
-import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 import tumblecal_cli as tumblecal
-from tests.conftest import assert_one_error, run
+from tests.conftest import ROOT, assert_one_error, run
 from tumblecal_cli.core import model, spin
 from tumblecal_cli.core.arrays import FloatArray
 
-RPM = 2 * math.pi / 60
-HZ = 50
-
-
-def _turned(rng: np.random.Generator) -> FloatArray:
-    """A random direction: the platter's axis seen from the sensor in one placement."""
-    v = rng.normal(size=3)
-    out: FloatArray = v / np.linalg.norm(v)
-    return out
-
-
-def _readings(
-    rng: np.random.Generator, a: FloatArray, b: FloatArray, placements: list[tuple[FloatArray, float]], hold: int = 20
-) -> FloatArray:
-    """A gyroscope (raw = A w + b + noise) through placements: 2 s of handling, 1 s of spin-up,
-    ``hold`` s at the rate (the platter's speed off by a random 0.1 % each time)."""
-    rows = []
-    for axis, rate in placements:
-        rows += [a @ (rng.normal(size=3) * 1.5) + b for _ in range(2 * HZ)]
-        rows += [a @ (axis * rate * i / HZ) + b for i in range(HZ)]
-        wow = 1 + rng.normal() * 0.001
-        rows += [a @ (axis * rate * wow) + b for _ in range(hold * HZ)]
-    v = np.array(rows)
-    out: FloatArray = v + rng.normal(size=v.shape) * 0.01
-    return out
-
-
-def _truth(rng: np.random.Generator, *, symmetric: bool) -> tuple[FloatArray, FloatArray]:
-    """A true A (raw per rad/s, cross-axis terms of about 1 %) and bias (rad/s)."""
-    s = rng.normal(size=(3, 3)) * 0.01
-    m = np.eye(3) + ((s + s.T) / 2 if symmetric else s) + np.diag(rng.normal(size=3) * 0.02)
-    a: FloatArray = np.asarray(np.linalg.inv(m), dtype=np.float64)
-    return a, rng.normal(size=3) * 0.03
+TURNTABLE = importlib.util.spec_from_file_location("make_turntable", ROOT / "sample_data" / "make_turntable.py")
+assert TURNTABLE is not None
+assert TURNTABLE.loader is not None
+platters = importlib.util.module_from_spec(TURNTABLE)
+TURNTABLE.loader.exec_module(platters)
+RPM, readings, truth, turned, write = platters.RPM, platters.readings, platters.truth, platters.turned, platters.write
 
 
 def _session(rng: np.random.Generator, *, labelled: bool) -> tuple[spin.RateFit, FloatArray, FloatArray]:
     """One turntable session at 33⅓ and 45 rpm and at rest, fitted from its steady runs."""
-    a, b = _truth(rng, symmetric=not labelled)
+    a, b = truth(rng, symmetric=not labelled)
     runs = []
     for rate in (45 * RPM, 100 / 3 * RPM):
         files = (
             [(f, [(model.direction(f), rate)]) for f in ("+x", "-x", "+y", "-y", "+z", "-z")]
             if labelled
-            else [(None, [(_turned(rng), rate) for _ in range(6)])]
+            else [(None, [(turned(rng), rate) for _ in range(6)])]
         )
         for face, placements in files:
-            for r in spin.steady_runs(_readings(rng, a, b, placements), 25, 50):
+            for r in spin.steady_runs(readings(rng, a, b, placements), 25, 50):
                 if abs(np.linalg.norm(r.mean) / rate - 1) < 0.1:
                     runs.append(spin.SpinRun(r.mean, r.stderr, rate, None if face is None else model.direction(face)))
-    for r in spin.steady_runs(_readings(rng, a, b, [(np.array([0.0, 0.0, 1.0]), 0.0)]), 25, 50):
+    for r in spin.steady_runs(readings(rng, a, b, [(np.array([0.0, 0.0, 1.0]), 0.0)]), 25, 50):
         runs.append(spin.SpinRun(r.mean, r.stderr, 0.0))
     return spin.fit_rates(runs), a, b
 
@@ -104,29 +77,22 @@ def test_stated_uncertainty_covers_the_error_over_100_sessions(labelled: bool) -
         assert float(np.mean(np.abs(z) > 3)) < 0.03, name
 
 
-def _write(path: Path, values: FloatArray) -> Path:
-    t = np.arange(len(values)) / HZ
-    lines = "".join(f"{ti:.3f},{x:.6f},{y:.6f},{z:.6f}\n" for ti, (x, y, z) in zip(t, values, strict=True))
-    path.write_text("t,gx,gy,gz\n" + lines)
-    return path
-
-
 @pytest.fixture
 def platter(tmp_path: Path) -> tuple[list[str], FloatArray, FloatArray]:
     """--spin items of a session written as files: 45 and 33⅓ rpm (six unknown placements each)
     and rest; the 45 rpm file also holds one placement run at 33⅓ rpm (the platter left at the
     other speed), which is left out."""
     rng = np.random.default_rng(11)
-    a, b = _truth(rng, symmetric=True)
-    fast = [(_turned(rng), 45 * RPM) for _ in range(6)] + [(_turned(rng), 100 / 3 * RPM)]
-    slow = [(_turned(rng), 100 / 3 * RPM) for _ in range(6)]
+    a, b = truth(rng, symmetric=True)
+    fast = [(turned(rng), 45 * RPM) for _ in range(6)] + [(turned(rng), 100 / 3 * RPM)]
+    slow = [(turned(rng), 100 / 3 * RPM) for _ in range(6)]
     rest = [(np.array([0.0, 0.0, 1.0]), 0.0)]
-    held = [(_turned(rng), 45 * RPM) for _ in range(3)]
+    held = [(turned(rng), 45 * RPM) for _ in range(3)]
     files = [
-        f"45rpm={_write(tmp_path / '45rpm.csv', _readings(rng, a, b, fast))}",
-        f"33.333rpm={_write(tmp_path / '33rpm.csv', _readings(rng, a, b, slow))}",
-        f"0={_write(tmp_path / 'rest.csv', _readings(rng, a, b, rest))}",
-        f"45rpm={_write(tmp_path / 'held-out.csv', _readings(rng, a, b, held))}",
+        f"45rpm={write(tmp_path / '45rpm.csv', readings(rng, a, b, fast))}",
+        f"33.333rpm={write(tmp_path / '33rpm.csv', readings(rng, a, b, slow))}",
+        f"0={write(tmp_path / 'rest.csv', readings(rng, a, b, rest))}",
+        f"45rpm={write(tmp_path / 'held-out.csv', readings(rng, a, b, held))}",
     ]
     return files, a, b
 
@@ -167,11 +133,11 @@ def test_the_python_api_takes_spin(platter: tuple[list[str], FloatArray, FloatAr
 
 def test_labelled_faces_recover_the_full_matrix(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     rng = np.random.default_rng(21)
-    a, b = _truth(rng, symmetric=False)
+    a, b = truth(rng, symmetric=False)
     items = []
     for face in ("+x", "-x", "+y", "-y", "+z", "-z"):
         for text, rate in (("45rpm", 45 * RPM), ("-33.333rpm", -100 / 3 * RPM)):
-            path = _write(tmp_path / f"{face}{text}.csv", _readings(rng, a, b, [(model.direction(face), rate)]))
+            path = write(tmp_path / f"{face}{text}.csv", readings(rng, a, b, [(model.direction(face), rate)]))
             items += ["--spin", f"{face}@{text}={path}"]
     out = tmp_path / "gyr.json"
     r = run(capsys, "solve", "--sensor", "gyroscope", *items, "-o", out)
@@ -184,10 +150,12 @@ def test_labelled_faces_recover_the_full_matrix(tmp_path: Path, capsys: pytest.C
     assert "full M (faces labelled)" in r.err
     factors = doc["scale_factors"]["axes"]
     assert [f["axis"] for f in factors] == ["x", "y", "z"]
-    for f, truth in zip(factors, np.diag(a), strict=True):
-        assert f["least_squares"] == pytest.approx(truth, rel=3e-3)
+    for f, gain in zip(factors, np.diag(a), strict=True):
+        assert f["least_squares"] == pytest.approx(gain, rel=3e-3)
         assert f["asymmetry_ppm"] is not None
     assert "scale factor x (raw per rad/s): " in r.err
+    summary = run(capsys, "solve", "--sensor", "gyroscope", *items, "-o", tmp_path / "again.json", "--json")
+    assert json.loads(summary.out)["scale_factors"] == doc["scale_factors"]
 
 
 @pytest.mark.parametrize(
@@ -197,6 +165,8 @@ def test_labelled_faces_recover_the_full_matrix(tmp_path: Path, capsys: pytest.C
          "270deg/s=b.csv, 0=rest.csv, +z@45rpm=c.csv"),
         ("45furlongs=a.csv", "--spin '45furlongs=a.csv': 'furlongs' is not a unit of angular rate (rpm, rad/s, deg/s)"),
         ("90000rpm=a.csv", "--spin '90000rpm=a.csv': 90000 rpm is no rate table's or platter's (at most 1910 rpm)"),
+        ("-45rpm=a.csv", "--spin '-45rpm=a.csv': a minus sign turns a labelled face the other way "
+         "(+z@-45rpm=a.csv); without a face the fit sees only the rate's size"),
         ("45rpm", "--spin '45rpm': give RATE=FILE, the rate with its unit: 45rpm=a.csv, 270deg/s=b.csv, 0=rest.csv, "
          "+z@45rpm=c.csv"),
     ],
@@ -206,7 +176,8 @@ def test_a_bad_rate_is_one_line_and_nothing_written(
 ) -> None:
     out = tmp_path / "gyr.json"
     r = run(capsys, "solve", "--sensor", "gyroscope", "--spin", item, "-o", out)
-    assert_one_error(r, expected)
+    hint = "give the rate without its sign, or the face that pointed up" if item.startswith("-") else None
+    assert_one_error(r, expected, hint=hint)
     assert not out.exists()
 
 
@@ -240,8 +211,8 @@ def test_gyro_bias_takes_the_still_run_not_the_handling(tmp_path: Path, capsys: 
     """gyro-bias averaged the handling at a file's start in (3.4 sigma off on a real file); the
     bias is the still run's now, its rows named, and a file still throughout is solved whole."""
     rng = np.random.default_rng(8)
-    a, b = _truth(rng, symmetric=True)
-    handled = _write(tmp_path / "rest.csv", _readings(rng, a, b, [(np.array([0.0, 0.0, 1.0]), 0.0)]))
+    a, b = truth(rng, symmetric=True)
+    handled = write(tmp_path / "rest.csv", readings(rng, a, b, [(np.array([0.0, 0.0, 1.0]), 0.0)]))
     out = tmp_path / "bias.json"
     r = run(capsys, "solve", "--sensor", "gyroscope", "--method", "gyro-bias", "--poses", handled, "-o", out)
     assert r.code == 0, r.err
@@ -255,7 +226,7 @@ def test_gyro_bias_takes_the_still_run_not_the_handling(tmp_path: Path, capsys: 
     whole = json.loads((tmp_path / "whole.json").read_text())
     stated = np.array(doc["uncertainty"]["offset"])
     assert np.any(np.abs(np.array(whole["offset"]) - b) > 4 * stated)  # the bug: the handling moves the mean
-    still = _write(tmp_path / "still.csv", a @ np.zeros(3) + b + rng.normal(size=(1000, 3)) * 0.01)
+    still = write(tmp_path / "still.csv", a @ np.zeros(3) + b + rng.normal(size=(1000, 3)) * 0.01)
     r = run(capsys, "solve", "--sensor", "gyroscope", "--method", "gyro-bias", "--poses", still, "-o", out)
     assert r.code == 0
     assert "still run" not in r.err

@@ -162,7 +162,7 @@ def summary(
     }
     axes = ("axes",) if doc.get("axes") else ()  # --axes: the body's axes in the sensor's
     keys = ("sensor", "method", "reference", "units", "columns", *axes, "offset", "matrix", "gain", "uncertainty")
-    placed = [k for k in ("gravity", "earth_field", "dip") if k in doc]  # pipeline.places
+    placed = [k for k in ("gravity", "earth_field", "dip", "scale_factors") if k in doc]  # places; --spin's factors
     fitted = ("residuals", "coverage", "coverage_gaps", "outliers")  # how well the fit fits (null: not judged)
     return head | {k: doc.get(k) for k in (*keys, *placed, "tilt_sensitivity", *fitted, "poses", "unit")}
 

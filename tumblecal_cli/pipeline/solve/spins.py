@@ -3,7 +3,7 @@ record player at 33⅓ and 45 rpm), its offset, gains and cross-axis terms fitte
 steady runs (core.spin).
 
 ``RATE`` has its unit (``45rpm``, ``33.333rpm``, ``270deg/s``, ``4.712rad/s``; ``0`` for rest;
-a minus sign for the other direction); ``+z@45rpm=FILE`` says that axis pointed up, the platter
+a minus sign for the other direction, with a face); ``+z@45rpm=FILE`` says that axis pointed up, the platter
 turning counter-clockwise seen from above, which fixes the signs and the misalignment the
 magnitude alone cannot. Each file's steady runs at its stated rate are used; the platter's
 spin-up and spin-down, the handling between orientations and the runs at another rate are left
@@ -86,6 +86,12 @@ def parse(item: str) -> Spin:
             f"--spin {item!r}: {abs(value):g} {unit} is no rate table's or platter's (at most {MAX_RATE / RPM:.0f} rpm)"
         )
     face = found.group("face")
+    if rate < 0 and face is None:
+        raise InputError(
+            f"--spin {item!r}: a minus sign turns a labelled face the other way (+z@{rate_text.strip()}={path}); "
+            "without a face the fit sees only the rate's size",
+            hint="give the rate without its sign, or the face that pointed up",
+        )
     return Spin(rate_text.strip(), rate, None if face is None else face.lower(), path)
 
 
