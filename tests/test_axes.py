@@ -247,3 +247,29 @@ def test_a_rotation_of_any_size_is_found_and_an_unturned_axis_is_named() -> None
     assert not loose.rotation.observable()
     assert abs(axis[2]) > 0.99
     assert sigma > 5
+
+
+def test_apply_corrects_into_the_axes_of_the_calibration_or_of_axes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    plain = _solved(capsys, tmp_path / "mag.json", "magnetometer", None)
+    stated = _solved(capsys, tmp_path / "mag-axes.json", "magnetometer", "-y,-x,-z")
+    given: list[str | Path] = ["--columns", "mx,my,mz", SHOTS, "-o", "-", "-q"]
+    by_file = run(capsys, "apply", "--cal", stated, *given)
+    by_flag = run(capsys, "apply", "--cal", plain, "--axes", "-y,-x,-z", *given)
+    as_read = run(capsys, "apply", "--cal", plain, *given)
+    assert by_file.code == by_flag.code == as_read.code == 0
+
+    def fields(out: str) -> FloatArray:
+        return np.array([[float(v) for v in line.split(",")[2:5]] for line in out.splitlines()[1:]])
+
+    assert np.allclose(fields(by_file.out), fields(by_flag.out), atol=0.05)  # one calibration, the same axes
+    assert np.allclose(fields(by_flag.out), fields(as_read.out) @ sensor_axes.parse("-y,-x,-z").matrix.T)
+    out = tmp_path / "twice.csv"
+    r = run(capsys, "apply", "--cal", stated, "--axes", "+x,+y,-z", "--columns", "mx,my,mz", SHOTS, "-o", out)
+    assert_one_error(
+        r,
+        f"{stated}: corrects into its own axes -y,-x,-z already: --axes +x,+y,-z would turn them again",
+        hint="leave --axes out (the calibration's axes apply), or solve again with the axes wanted",
+    )
+    assert not out.exists()

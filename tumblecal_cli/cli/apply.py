@@ -10,7 +10,7 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app, report
-from tumblecal_cli.cli.flags import Columns, Decimal, DropIncomplete, NoHeader, Quiet, SkipRows, file_shape
+from tumblecal_cli.cli.flags import AxesOption, Columns, Decimal, DropIncomplete, NoHeader, Quiet, SkipRows, file_shape
 from tumblecal_cli.errors import InputError
 
 
@@ -49,6 +49,7 @@ def apply(
         ),
     ] = "-",
     columns: Columns = None,
+    axes: AxesOption = None,
     no_header: NoHeader = False,
     skip_rows: SkipRows = None,
     decimal: Decimal = None,
@@ -111,7 +112,15 @@ def apply(
                 else "--dask-scheduler corrects captures into --out-dir DIR"
             )
         done = pipeline.correct_many(
-            inputs, cal, out_dir, columns=columns, no_header=no_header, force=force, scheduler=dask_scheduler, **shape
+            inputs,
+            cal,
+            out_dir,
+            columns=columns,
+            no_header=no_header,
+            force=force,
+            scheduler=dask_scheduler,
+            **shape,
+            axes=axes,
         )
         _show_many(done, len(set(inputs)), out_dir, quiet=quiet)
         return
@@ -123,6 +132,7 @@ def apply(
         no_header=no_header,
         force=force,
         **shape,
+        axes=axes,
         on_note=None if quiet else lambda note: render.say(render.note_line(note)),
     )
     if not quiet:

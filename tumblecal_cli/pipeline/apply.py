@@ -32,7 +32,7 @@ from tumblecal_cli.io.readspec import FileKeywords, file_spec
 from tumblecal_cli.io.rewrite import writer as rewrite
 from tumblecal_cli.pipeline.batch.cluster import engine
 from tumblecal_cli.pipeline.frames import is_data
-from tumblecal_cli.pipeline.options import keywords_known, path_of
+from tumblecal_cli.pipeline.options import axes_given, keywords_known, path_of
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.arrays import FloatArray
@@ -63,6 +63,7 @@ class CorrectKeywords(FileKeywords, total=False):
     force: bool
     exclusive: bool
     on_note: Callable[[str], None] | None
+    axes: str | None  # the body's axes in the sensor's (--axes): a calibration without its own corrects into them
 
 
 def correct(
@@ -91,7 +92,7 @@ def correct(
     output = os.fspath(output)
     check_not_input(output, [capture, *(p for p in paths if isinstance(p, str))])
     check_writable(output)
-    cals = [calfile.resolve(path) for path in paths]
+    cals = [in_axes(calfile.resolve(path), options.get("axes")) for path in paths]
     claims_once(cals)
     notes: list[str] = []
 
@@ -155,7 +156,7 @@ def _correct_data(data: DataFrame, cal: object, options: CorrectKeywords) -> App
     """correct on data in memory: its corrected copy in ``Applied.data`` (a DataFrame's other
     columns, index and dtypes untouched: Calibration.apply, each calibration its own columns),
     written as a CSV to ``output`` too when one is named (atomically; compressed by its name)."""
-    cals = [calfile.resolve(path) for path in _calibrations(cal)]
+    cals = [in_axes(calfile.resolve(path), options.get("axes")) for path in _calibrations(cal)]
     claims_once(cals)
     notes: list[str] = []
     on_note = options.get("on_note")
@@ -220,6 +221,22 @@ class ManyKeywords(FileKeywords, total=False):
     """correct_many's options beside the captures' shape."""
 
     force: bool
+    axes: str | None
+
+
+def in_axes(cal: Calibration, text: str | None) -> Calibration:
+    """``cal`` correcting into the body's axes of --axes (core.axes), when it states none of its
+    own; one that does is refused (its axes are the sensor's mounting, given once)."""
+    axes = axes_given(text)
+    if axes is None:
+        return cal
+    if cal.axes is not None and cal.axes != axes:
+        raise InputError(
+            f"corrects into its own axes {cal.axes.text} already: --axes {axes.text} would turn them again",
+            file=cal.path,
+            hint="leave --axes out (the calibration's axes apply), or solve again with the axes wanted",
+        )
+    return cal.in_axes(axes)
 
 
 def correct_many(
