@@ -260,4 +260,6 @@ def test_solve_help_for_a_gyroscope_points_to_spin(capsys: pytest.CaptureFixture
     r = run(capsys, "solve", "--help")
     assert r.code == 0
     flat = " ".join(r.out.split())
-    assert "--spin RATE=FILE" in flat
+    assert "a gyroscope 0: its rates by --spin" in flat  # where --reference sent it in a circle
+    full = run(capsys, "solve", "--help-all")
+    assert "--spin RATE=FILE" in full.out

@@ -61,9 +61,8 @@ AxesOption = Annotated[
     typer.Option(
         "--axes",
         metavar="A,B,C",
-        help="The body's x, y and z as signed sensor axes, in turn: -y,-x,+z says the body's x is the sensor's "
-        "-y (a board's or a driver's table). Faces are named in the body's axes; the offsets stay in the "
-        "sensor's, the calibration corrects into the body's (docs/reference/calibration-file.md).",
+        help="The body's x, y, z as signed sensor axes (-y,-x,+z): faces and corrected readings are the body's, "
+        "offsets the sensor's.",
         rich_help_panel=READ_PANEL,
     ),
 ]
@@ -315,8 +314,8 @@ JsonSummary = Annotated[
     bool,
     typer.Option(
         "--json",
-        help="Print a machine-readable summary on stdout: status, verdict or rejections with their codes, "
-        "parameters, uncertainties, per-pose diagnostics.",
+        help="Print a machine-readable summary on stdout: status, verdict or rejections (with codes), "
+        "parameters, uncertainties.",
     ),
 ]
 

@@ -105,10 +105,8 @@ def solve(
         typer.Option(
             "--spin",
             metavar="RATE=FILE",
-            help="A gyroscope spun at a known rate (repeatable): 45rpm=a.csv, 33.333rpm=b.csv, 270deg/s=c.csv, "
-            "0=rest.csv; a minus sign for the other direction; +z@45rpm=FILE: that axis up, the platter "
-            "counter-clockwise seen from above (fixes the signs and the misalignment). Solves offset, gains "
-            "and cross-axis terms from the files' steady runs (docs/recipes/gyroscope.md).",
+            help="A gyroscope spun at a known rate, repeatable: 45rpm=a.csv, 270deg/s=b.csv, 0=rest.csv; "
+            "+z@45rpm=FILE: that face up (docs/recipes/gyroscope.md).",
             rich_help_panel=SOLVER_PANEL,
         ),
     ] = None,
@@ -136,8 +134,7 @@ def solve(
             metavar="NUMBER",
             help="The stimulus magnitude in the units the corrected data should have: 1 (g), "
             "9.80665 (m/s^2), 16384 (LSB at +-2 g), a magnetometer's field (or --location). "
-            "1-pose has no gains: there it is in the file's units. A gyroscope's is 0 (at rest): give the "
-            "rates it turned at with --spin RATE=FILE. [default: 1, or 0 for a gyroscope]",
+            "1-pose's is in the file's units. [default: 1; a gyroscope 0: its rates by --spin]",
         ),
     ] = None,
     method: Annotated[
@@ -222,8 +219,8 @@ def solve(
         typer.Option(
             "--plot",
             metavar="PNG",
-            help="Also draw the fit: each pose's residual after calibration with the limits, before on its own "
-            "axes (docs/plots.md); needs tumblecal[plot].",
+            help="Also draw the fit: each pose's residual after calibration with the limits, and before "
+            "(docs/plots.md; tumblecal[plot]).",
         ),
     ] = None,
     # -- quality checks (exit 3) --
