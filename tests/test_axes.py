@@ -164,7 +164,8 @@ def test_align_finds_the_180_degree_turn_between_the_sap6_sensors_and_names_its_
     out, aligned = tmp_path / "align.json", tmp_path / "mag-aligned.json"
     r = run(capsys, "align", "--accel-cal", acc, "--mag-cal", mag, SHOTS, "-o", out, "--aligned-mag", aligned)
     assert r.code == 0, r.err
-    assert "axes -y,-x,-z (the other's in the first's), then a rotation" in r.err
+    assert "axes -y,-x,-z (the first's x, y, z as the other's), then a rotation" in r.err
+    assert "the accelerometer's x, y, z are the magnetometer's -y,-x,-z (a turn of 180°)" in r.err
     assert "solve the magnetometer with --axes -y,-x,-z" in r.err
     doc = json.loads(out.read_text())
     assert doc["axes"] == "-y,-x,-z"
@@ -273,3 +274,14 @@ def test_apply_corrects_into_the_axes_of_the_calibration_or_of_axes(
         hint="leave --axes out (the calibration's axes apply), or solve again with the axes wanted",
     )
     assert not out.exists()
+
+
+def test_apply_refuses_the_identity_over_a_calibrations_own_axes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--axes +x,+y,+z states nothing of its own, but over a calibration with axes it said nothing
+    and was ignored: it is refused as another --axes is."""
+    stated = _solved(capsys, tmp_path / "mag-axes.json", "magnetometer", "-y,-x,-z")
+    r = run(capsys, "apply", "--cal", stated, "--axes", "+x,+y,+z", "--columns", "mx,my,mz", SHOTS, "-o", "-")
+    assert r.code == 2
+    assert "--axes +x,+y,+z would turn them again" in r.err

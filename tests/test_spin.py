@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -263,3 +265,144 @@ def test_solve_help_for_a_gyroscope_points_to_spin(capsys: pytest.CaptureFixture
     assert "a gyroscope 0: its rates by --spin" in flat  # where --reference sent it in a circle
     full = run(capsys, "solve", "--help-all")
     assert "--spin RATE=FILE" in full.out
+
+
+def _session_files(tmp_path: Path, rng: np.random.Generator, scale: float = 1.0) -> tuple[list[str], FloatArray]:
+    """--spin items of a session (45 and 33⅓ rpm, six placements each, and rest), its readings
+    multiplied by ``scale`` (57.3: deg/s; 7506: counts at 131 LSB per deg/s); and the true A."""
+    a, b = truth(rng, symmetric=True)
+    items = []
+    for name, rate, n in (("45rpm", 45 * RPM, 6), ("33.333rpm", 100 / 3 * RPM, 6), ("0", 0.0, 1)):
+        placements = [(turned(rng), rate) for _ in range(n)]
+        path = write(tmp_path / f"s{name.replace('.', '_')}.csv", readings(rng, a, b, placements, hold=10) * scale)
+        items += ["--spin", f"{name}={path}"]
+    return items, a * scale
+
+
+def test_what_a_stress_run_found_in_solve_spin(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rng = np.random.default_rng(31)
+    items, _ = _session_files(tmp_path, rng)
+    rest = items[-1].partition("=")[2]
+    before = Path(rest).read_bytes()
+    r = run(capsys, "solve", "--sensor", "gyroscope", *items, "-o", rest)  # -o naming an input
+    assert r.code == 2
+    assert "overwrite" in r.err
+    assert Path(rest).read_bytes() == before
+    r = run(capsys, "solve", "--sensor", "gyroscope", *items, "--json")  # two documents on stdout
+    assert_one_error(r, "--json prints the summary on stdout, so the calibration needs -o FILE", json_out=True)
+    twice = [*items, "--spin", items[1]]
+    r = run(capsys, "solve", "--sensor", "gyroscope", *twice, "-o", tmp_path / "twice.json")
+    assert r.code == 2
+    assert "--spin gives this file twice" in r.err  # its runs would count twice: false precision
+
+
+def test_counts_and_units_are_judged_from_the_readings(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rng = np.random.default_rng(32)
+    lsb = 131 * 180 / math.pi  # 131 LSB per deg/s, per rad/s
+    items, a = _session_files(tmp_path, rng, lsb)
+    out = tmp_path / "counts.json"
+    r = run(capsys, "solve", "--sensor", "gyroscope", *items, "--units", "deg/s", "-o", out)
+    assert r.code == 0, r.err  # refused "the runs do not determine the gains" (gain_se against M)
+    doc = json.loads(out.read_text())
+    assert np.allclose(doc["gain"], np.diag(a) / (180 / math.pi), rtol=0.005)  # raw per deg/s
+    assert doc["units"] == "deg/s"
+    items, _ = _session_files(tmp_path, rng, 180 / math.pi)  # readings in deg/s
+    r = run(capsys, "solve", "--sensor", "gyroscope", *items, "--input-units", "rad/s", "-o", out)
+    assert r.code == 2
+    assert "times what --input-units rad/s says" in r.err
+    r = run(capsys, "solve", "--sensor", "gyroscope", *items, "--units", "rad/s", "-o", out)
+    assert r.code == 0, r.err  # --units names the corrected units: deg/s readings corrected into rad/s
+    assert np.allclose(json.loads(out.read_text())["gain"], 180 / math.pi, rtol=0.05)
+
+
+def _placed(tmp_path: Path, name: str, a: FloatArray, b: FloatArray, placements: list[tuple[FloatArray, float]]) -> str:
+    seed = sum(ord(c) for c in name)  # files of their own noise (the same bytes are one file given twice)
+    return str(write(tmp_path / name, readings(np.random.default_rng(seed), a, b, placements, hold=10)))
+
+
+def test_runs_that_cannot_fit_are_exit_3_and_a_platter_off_its_rate_is_said(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    rng = np.random.default_rng(33)
+    a, b = truth(rng, symmetric=True)
+    up = np.array([0.0, 0.0, 1.0])
+    rest = f"0={_placed(tmp_path, 'rest.csv', a, b, [(up, 0.0)])}"
+    same = [f"45rpm={_placed(tmp_path, 'same45.csv', a, b, [(up, 45 * RPM)] * 6)}", rest]
+    r = run(capsys, "solve", "--sensor", "gyroscope", *[x for i in same for x in ("--spin", i)], "-o", tmp_path / "s")
+    assert r.code == 3, r.err  # was an internal error
+    assert "internal error" not in r.err
+    wrong = [f"+x@45rpm={_placed(tmp_path, f'z{k}.csv', a, b, [(up, 45 * RPM)])}" for k in range(3)]
+    right = [f"{f}@45rpm={_placed(tmp_path, f'f{f}.csv', a, b, [(model.direction(f), 45 * RPM)])}"
+             for f in ("-x", "+y", "-y", "-z")]  # fmt: skip
+    r = run(capsys, "solve", "--sensor", "gyroscope", *[x for i in [*wrong, *right, rest] for x in ("--spin", i)],
+            "-o", tmp_path / "w.json")  # fmt: skip
+    assert r.code == 3
+    assert "internal error" not in r.err
+    fast = [(turned(rng), 45 * RPM * 1.03) for _ in range(6)]  # the whole file 3 % fast
+    slow = [(turned(rng), 100 / 3 * RPM) for _ in range(6)]
+    items = [
+        f"45rpm={_placed(tmp_path, 'fast.csv', a, b, fast)}",
+        f"33.333rpm={_placed(tmp_path, 'slow.csv', a, b, slow)}",
+    ]
+    r = run(capsys, "solve", "--sensor", "gyroscope", *[x for i in [*items, rest] for x in ("--spin", i)],
+            "-o", tmp_path / "f.json")  # fmt: skip
+    assert f"warning: {tmp_path / 'fast.csv'}'s runs read +" in r.err
+    odd = [(turned(rng), 45 * RPM) for _ in range(6)] + [(turned(rng), 45 * RPM * 1.03)]  # one placement 3 % off
+    items = [f"45rpm={_placed(tmp_path, 'odd.csv', a, b, odd)}", items[1]]
+    r = run(capsys, "solve", "--sensor", "gyroscope", *[x for i in [*items, rest] for x in ("--spin", i)],
+            "-o", tmp_path / "o.json")  # fmt: skip
+    assert r.code == 0, r.err
+    assert re.search(r"odd\.csv rows \d+–\d+: off the fit by", r.err)  # the 3 % placement, left out
+
+
+def test_labelled_faces_with_axes_are_the_bodys(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """+x@45rpm with --axes +y,+z,+x: the body's +x is the sensor's +y; the fit took the label as
+    the sensor's, and the matrix came out turned the wrong way."""
+    rng = np.random.default_rng(34)
+    a, b = truth(rng, symmetric=False)
+    axes = "+y,+z,+x"
+    p = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])  # body = P sensor
+    items = []
+    for face in ("+x", "-x", "+y", "-y", "+z", "-z"):
+        sensor_up = p.T @ model.direction(face)
+        items += ["--spin", f"{face}@45rpm={_placed(tmp_path, f'b{face}.csv', a, b, [(sensor_up, 45 * RPM)])}"]
+    out = tmp_path / "body.json"
+    r = run(capsys, "solve", "--sensor", "gyroscope", *items, "--axes", axes, "-o", out)
+    assert r.code == 0, r.err
+    doc = json.loads(out.read_text())
+    assert np.allclose(doc["gain"], np.diag(a), rtol=0.01)  # the sensor's gains
+    body = np.array(doc["matrix"]) @ (a @ (p.T @ np.array([0.0, 45 * RPM, 0.0])))  # a turn about the body's y
+    assert np.allclose(body, [0.0, 45 * RPM, 0.0], atol=0.02)
+
+
+def test_gyro_bias_of_a_file_that_turns_steadily_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rng = np.random.default_rng(35)
+    a, b = truth(rng, symmetric=True)
+    spun = _placed(tmp_path, "spun.csv", a, b, [(turned(rng), 45 * RPM) for _ in range(3)])
+    out = tmp_path / "bias.json"
+    r = run(capsys, "solve", "--sensor", "gyroscope", "--method", "gyro-bias", "--poses", spun, "-o", out)
+    assert r.code == 3  # it took a spinning stretch as the bias: 4.7 rad/s, PASS
+    assert "the gyroscope reads 3 different steady rates in it" in r.err
+    assert not out.exists()
+
+
+def test_verify_of_a_labelled_face_judges_the_rates_direction(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """verify --spin +x@45rpm=FILE of a file turned about +z passed: only the magnitude was judged."""
+    rng = np.random.default_rng(36)
+    a, b = truth(rng, symmetric=False)
+    items = []
+    for face in ("+x", "-x", "+y", "-y", "+z", "-z"):
+        items += [
+            "--spin",
+            f"{face}@45rpm={_placed(tmp_path, f'l{face}.csv', a, b, [(model.direction(face), 45 * RPM)])}",
+        ]
+    cal = tmp_path / "gyr.json"
+    assert run(capsys, "solve", "--sensor", "gyroscope", *items, "-o", cal).code == 0
+    z_file = items[-3].partition("=")[2]  # turned about +z
+    right = run(capsys, "verify", "--cal", cal, "--spin", f"+z@45rpm={z_file}", "--max-norm-error", "0.05")
+    assert right.code == 0, right.err
+    wrong = run(capsys, "verify", "--cal", cal, "--spin", f"+x@45rpm={z_file}", "--max-norm-error", "0.05")
+    assert wrong.code == 1
+    assert "|corrected − rate along +x|" in wrong.err

@@ -161,7 +161,7 @@ def _mag_lines(done: MagAligned) -> list[str]:
 
 def _axes_said(r: Fitted) -> str:
     """A rotation near a signed permutation, as people read it: ``axes -y,-x,-z, then``."""
-    return "" if r.axes is None else f"axes {r.axes.text} (the other's in the first's), then a "
+    return "" if r.axes is None else f"axes {r.axes.text} (the first's x, y, z as the other's), then a "
 
 
 def _imu_lines(done: ImusAligned) -> list[str]:

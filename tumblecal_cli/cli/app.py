@@ -62,6 +62,10 @@ LONG_HELP = 60
 FIRST_PANELS = ("Arguments", "Options", "Batch")
 
 
+#: What an internal error says to do: --debug is the tool's option, before the command.
+DEBUG_HINT = "run it again as tumblecal --debug COMMAND ... for the traceback"
+
+
 def _help_all(ctx: Context, param: object, value: bool) -> None:
     if value and not ctx.resilient_parsing:
         ctx.meta["help_all"] = True
@@ -316,10 +320,9 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as err:  # a bug: one line unless --debug
         if _state["debug"]:
             raise
-        report(f"internal error: {type(err).__name__}: {err}", "run with --debug for the traceback")
-        json_error(
-            args, 2, _fields(f"internal error: {type(err).__name__}: {err}", "run with --debug for the traceback")
-        )
+        said = f"internal error: {type(err).__name__}: {err}"
+        report(said, DEBUG_HINT)
+        json_error(args, 2, _fields(said, DEBUG_HINT))
         return 2
     finally:
         _state["debug"] = False

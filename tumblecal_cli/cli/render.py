@@ -213,7 +213,7 @@ def print_summary(
     for w in warned:
         tell(console, f"warning: {w.render()} ({w.code})", style="yellow")
     for note in notes:
-        tell(console, f"note: {note}")
+        tell(console, note_line(note))
     if judged and cal.verdict is not None:
         _print_verdict(console, cal.verdict.passed, cal.verdict.limit_names, cal.verdict.failures)
 

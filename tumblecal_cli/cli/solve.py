@@ -365,11 +365,8 @@ def solve(
 
     options = SolveOptions.of(given)
 
-    inputs = [*(poses or []), *(p.partition("=")[2] for p in poses or [] if "=" in p), *([log] if log else [])]
-    inputs += [limits] if limits else []
-    inputs += [accel_cal] if accel_cal else []
-    inputs += [align_to] if align_to else []
-    if json_summary and output == "-" and (poses or log):
+    inputs = _inputs(poses, [log, limits, accel_cal, align_to], spin)
+    if json_summary and output == "-" and (poses or log or spin):
         raise InputError("--json prints the summary on stdout, so the calibration needs -o FILE")
     check_not_input(output, inputs)
     check_writable(output)
@@ -378,6 +375,13 @@ def solve(
     solved = pipeline.calibrate(options, poses=poses, log=log)
     shown = render.Shown(quiet=quiet, verbose=verbose)
     _show(solved, output=output, json_summary=json_summary, shown=shown, plot=plot, plane=plane and plane.value)
+
+
+def _inputs(poses: list[str] | None, files: list[str | None], spin: list[str] | None) -> list[str]:
+    """Every file solve reads, which -o must not name: the pose files (of ``LABEL=FILE`` too), the
+    log, limits and calibrations given, and the --spin items' files."""
+    given = [*(poses or []), *(p.partition("=")[2] for p in poses or [] if "=" in p)]
+    return given + [f for f in files if f] + [item.partition("=")[2] for item in spin or []]
 
 
 #: The parameters of solve that are the command line's own: what to read, where to write and what

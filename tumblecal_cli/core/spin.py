@@ -19,7 +19,8 @@ player at 33⅓ and 45 rpm. numpy only.
   advance: it is the residuals' own, so the covariance holds it (Gauss-Newton, the weights of
   the spinning runs the inverse of their residual variance, iterated).
 - **Outliers**: a run off the fit (the unit slipped, the platter at another speed) is left out
-  by core.robust's trimmed refit, the same rule as a magnetometer's samples.
+  by core.robust's trimmed refit, the same rule as a magnetometer's samples, its floor 1 % of the
+  largest rate.
 - **Scale factors** (:func:`scale_factors`, IEEE Std 952-1997 and 1431-2004, the rate transfer
   test): for each axis, its scale factor at each rate (the runs whose spin axis lies within
   AXIS_DEG of it), the least-squares scale factor through all of them, the non-linearity (the
@@ -38,6 +39,7 @@ from numpy.typing import NDArray
 from tumblecal_cli.core import robust
 from tumblecal_cli.core.alignment import inverse
 from tumblecal_cli.core.arrays import BoolArray, FloatArray
+from tumblecal_cli.errors import CaptureRejected
 
 #: A window is steady when its spread is within this many times the noise floor ...
 STEADY_SIGMAS = 4.0
@@ -45,6 +47,8 @@ STEADY_SIGMAS = 4.0
 STEADY_SHARE = 0.01
 #: A run's magnitude this close to its stated rate (as a share, after the rough gain) is at it.
 AT_RATE = 0.1
+#: The largest rate over this is the reference of core.robust's floor (its 5 % of it: 1 % of the rate).
+FLOOR_SHARE = 5.0
 #: A run whose spin axis is within this of a sensor axis gives that axis's scale factor.
 AXIS_DEG = 10.0
 
@@ -230,8 +234,14 @@ def _start(runs: list[SpinRun], full: bool) -> FloatArray:
     return np.concatenate([b, (np.eye(3) * k).ravel() if full else [k, k, k, 0.0, 0.0, 0.0]])
 
 
-def fit_rates(runs: list[SpinRun]) -> RateFit:
-    """The offset and M of ``runs`` (module docstring), runs off the fit left out by core.robust."""
+def fit_rates(given: list[SpinRun]) -> RateFit:
+    """The offset and M of ``runs`` (module docstring), runs off the fit left out by core.robust.
+    The readings are fitted divided by their rough gain (raw per output unit, from the spinning
+    runs' magnitudes), so that the offset's and M's columns of the Jacobian are of one size
+    whatever the raw units (counts: thousands a rad/s), and scaled back after."""
+    spinning = [abs(r.rate) / max(float(np.linalg.norm(r.mean)), 1e-300) for r in given if r.rate != 0]
+    unit = 1.0 / float(np.median(spinning)) if spinning else 1.0  # raw per output unit, roughly
+    runs = [SpinRun(r.mean / unit, r.stderr / unit, r.rate, r.face) for r in given]
     full = any(r.face is not None for r in runs)
     largest = max(abs(r.rate) for r in runs)
     index = np.arange(len(runs), dtype=np.float64)[:, None]
@@ -239,6 +249,12 @@ def fit_rates(runs: list[SpinRun]) -> RateFit:
 
     def fit(kept: FloatArray) -> tuple[FloatArray, FloatArray, float]:
         chosen = [runs[int(k)] for k in kept[:, 3]]
+        if sum(_sizes(chosen)) < (12 if full else 9) + 1:
+            raise CaptureRejected(
+                f"{len(chosen)} of {len(runs)} runs agree with one calibration, too few to fit: the others lie off "
+                "every fit (a rate or a face that is not the run's?)",
+                code="spin.runs",
+            )
         return _solve(chosen, full, _start(chosen, full))
 
     def residuals(found: tuple[FloatArray, FloatArray, float], at: FloatArray) -> FloatArray:
@@ -247,15 +263,17 @@ def fit_rates(runs: list[SpinRun]) -> RateFit:
         edges = np.cumsum([0, *sizes])
         return np.array([np.linalg.norm(raw[a:b]) for a, b in itertools.pairwise(edges)])
 
-    done = robust.trimmed(points, largest, fit, residuals, np.ones(len(runs), dtype=bool))
+    # the floor a run must be off by to be left out: robust.FLOOR of a fifth of the largest rate, 1 %
+    # of it (a platter's speed varies by tenths of a percent; a run 3 % off is at another speed)
+    done = robust.trimmed(points, largest / FLOOR_SHARE, fit, residuals, np.ones(len(runs), dtype=bool))
     theta, cov_theta, scatter = done.fit
     b, m = _params_to_matrix(theta, full)
-    cov = _covariance_of_a(theta, cov_theta, full)
+    cov = _covariance_of_a(theta, cov_theta, full) * unit**2  # b and A scale with the readings
     sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     a_sd = sd[3:].reshape(3, 3)
     return RateFit(
-        offset=b,
-        matrix=m,
+        offset=b * unit,
+        matrix=m / unit,
         offset_se=sd[:3],
         gain_se=np.diag(a_sd).copy(),
         cross_se=a_sd * (1 - np.eye(3)),

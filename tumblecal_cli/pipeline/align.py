@@ -394,8 +394,8 @@ def _axes_notes(r: alignment.Fitted, mag: Calibration) -> list[str]:
     told = _mag_axes(r, mag)
     fix = f"solve the magnetometer with --axes {told}, or " if told else ""
     return [
-        f"the magnetometer's axes are the accelerometer's {r.axes.text} (turned {turned:.0f}°) and a rotation of "
-        f"{r.angle_deg:.3f}° more: {fix}write it aligned with --aligned-mag"
+        f"the accelerometer's x, y, z are the magnetometer's {r.axes.text} (a turn of {turned:.0f}°) and a rotation "
+        f"of {r.angle_deg:.3f}° more: {fix}write it aligned with --aligned-mag"
     ]
 
 

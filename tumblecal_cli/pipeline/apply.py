@@ -227,16 +227,16 @@ class ManyKeywords(FileKeywords, total=False):
 def in_axes(cal: Calibration, text: str | None) -> Calibration:
     """``cal`` correcting into the body's axes of --axes (core.axes), when it states none of its
     own; one that does is refused (its axes are the sensor's mounting, given once)."""
-    axes = axes_given(text)
-    if axes is None:
+    if text is None:
         return cal
+    axes = axes_given(text)
     if cal.axes is not None and cal.axes != axes:
         raise InputError(
-            f"corrects into its own axes {cal.axes.text} already: --axes {axes.text} would turn them again",
+            f"corrects into its own axes {cal.axes.text} already: --axes {text} would turn them again",
             file=cal.path,
             hint="leave --axes out (the calibration's axes apply), or solve again with the axes wanted",
         )
-    return cal.in_axes(axes)
+    return cal if axes is None else cal.in_axes(axes)
 
 
 def correct_many(

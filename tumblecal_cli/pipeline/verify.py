@@ -302,8 +302,9 @@ def _turning(result: Verified, name: str, values: FloatArray, judge: _Judge) -> 
 
 def spun(c: Calibration, items: list[str], paths: list[str], options: VerifyKeywords) -> Verified:
     """verify --spin: a gyroscope's calibration on files spun at known rates: over each file's
-    steady runs at its rate (pipeline.solve.spins), |corrected| − |rate| sample by sample (RMS:
-    the row's error, judged by --max-norm-error; the largest: ``max_error``)."""
+    steady runs at its rate (pipeline.solve.spins), |corrected| − |rate| sample by sample, or with
+    a face (``+z@45rpm``) |corrected − rate · face| (RMS: the row's error, judged by
+    --max-norm-error; the largest: ``max_error``)."""
     if c.sensor != "gyroscope":
         raise InputError(f"--spin checks a gyroscope's calibration, not the {c.sensor}'s", file=c.path)
     if paths:
@@ -320,6 +321,8 @@ def spun(c: Calibration, items: list[str], paths: list[str], options: VerifyKeyw
         corrected = np.concatenate([f.log.values[r.first : r.last + 1] for r in used])
         size = np.linalg.norm(corrected, axis=1)
         errors = size - abs(g.rate / per)
+        if g.face is not None:  # a labelled face: the rate's direction is known, the vector is judged
+            errors = np.linalg.norm(corrected - g.rate / per * model.direction(g.face), axis=1)
         rms, largest = float(np.sqrt(np.mean(errors**2))), float(np.abs(errors).max())
         raw = readings.read_log(g.file, replace(_spec(options, c), sensor="gyroscope"), use_time=False)
         row: CaptureRow = {
@@ -335,7 +338,8 @@ def spun(c: Calibration, items: list[str], paths: list[str], options: VerifyKeyw
             "rate": g.rate / per,
         }
         result.rows.append(row)
-        result.notes.append(f"{said}: |corrected| − rate RMS {rms:.3g}, largest {largest:.3g} {units}")
+        judged = "|corrected| − rate" if g.face is None else f"|corrected − rate along {g.face}|"
+        result.notes.append(f"{said}: {judged} RMS {rms:.3g}, largest {largest:.3g} {units}")
         if limit is not None and not rms <= limit:
             result.failed.append(f.log.layout.name)
     errors_after = [r["error_after"] for r in result.rows]

@@ -171,7 +171,9 @@ def rotation_value(axes: Axes) -> int | None:
 
 def _firmware_axes(cal: Calibration, fmt: str) -> tuple[FloatArray, FloatArray]:
     """The offset and M in the axes the firmware corrects in: PX4 corrects in the sensor's and
-    rotates after (CAL_*_ROT), ArduPilot rotates first (COMPASS_ORIENT) and corrects in the body's."""
+    rotates after (CAL_*_ROT); ArduPilot rotates a compass first (COMPASS_ORIENT) and corrects it
+    in the body's, and corrects an IMU in its driver's axes before the board's rotation
+    (AP_InertialSensor_Backend::_rotate_and_correct_accel): the sensor's."""
     if cal.axes is None:
         return cal.offset, cal.matrix
     if rotation_value(cal.axes) is None:
@@ -180,7 +182,7 @@ def _firmware_axes(cal: Calibration, fmt: str) -> tuple[FloatArray, FloatArray]:
             file=cal.path,
             hint="check the signs of --axes, or export it as a matrix (c-header)",
         )
-    if fmt == "px4":
+    if fmt == "px4" or cal.sensor != "magnetometer":
         return cal.offset, cal.sensor_matrix
     p = cal.axes.matrix
     return p @ cal.offset, cal.matrix @ p.T
@@ -375,11 +377,12 @@ def _ardupilot_axes(cal: Calibration, s: str) -> list[str]:
     if cal.sensor == "magnetometer":
         return [
             f"the calibration's axes {cal.axes.text} are COMPASS_ORIENT{s} {rotation_value(cal.axes)}, applied before "
-            "the offsets: COMPASS_OFS and DIA/ODI are in the body's axes"
+            "the offsets: COMPASS_OFS and DIA/ODI are in the body's axes; ArduPilot applies COMPASS_ORIENT to an "
+            "external compass (COMPASS_EXTERNAL 1), an internal one turns with AHRS_ORIENTATION"
         ]
     return [
-        f"the calibration's axes {cal.axes.text}: the offsets and scales are in the body's axes; ArduPilot has no "
-        "orientation parameter of its own for one IMU (its driver rotates it, AHRS_ORIENTATION the whole board)"
+        f"the calibration's axes {cal.axes.text}: ArduPilot corrects an IMU in its driver's axes, so the offsets and "
+        "scales are the sensor's; its rotation into the body's is the board's (AHRS_ORIENTATION), not written"
     ]
 
 
@@ -434,7 +437,12 @@ def _px4(cal: Calibration, n: int) -> Exported:
         "of its sensor_ topic in a log)",
         "reboot after loading: PX4 takes a changed vector only if it moves by more than 0.01",
         f"axes: the captures' {', '.join(cal.columns)} as PX4's X, Y, Z, before CAL_{kind}{n}_ROT/SENS_BOARD_ROT"
-        + ("" if cal.axes is None else f"; CAL_{kind}{n}_ROT {rotated} is the calibration's axes {cal.axes.text}"),
+        + (
+            ""
+            if cal.axes is None
+            else f"; CAL_{kind}{n}_ROT {rotated} is the calibration's axes {cal.axes.text} (PX4 "
+            "applies it to an external sensor; an internal one's is -1, turned by SENS_BOARD_ROT)"
+        ),
     ]
     lines = comments(text + [x.removeprefix("warning: ") for x in notes if x not in m.notes])
     lines.append("# Vehicle-Id\tComponent-Id\tName\tValue\tType")

@@ -251,6 +251,8 @@ def _fit_or_trim(name: str, poses: PoseSet, options: SolveOptions, given: Settin
     whole is solved as it always was."""
     if name == "gyro-bias" and not options.checks.no_trim:  # the bias from each file's still run
         rests = trimming.gyro_rests(poses.samples, options)
+        if rests is not None and rests.error is not None:
+            return Solved(3, None, error=rests.error, notes=rests.notes, samples=poses.samples, limits=given.limits)
         if rests is not None:
             poses = replace(poses, samples=rests.samples, notes=[*poses.notes, *rests.notes])
     try:

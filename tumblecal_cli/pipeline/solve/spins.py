@@ -27,9 +27,12 @@ from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io.calfiles import calfile
 from tumblecal_cli.io.calfiles.calparts import LeftOut, LeftOutStretch, Pose
 from tumblecal_cli.io.csv import readings
+from tumblecal_cli.pipeline.options import axes_given
 from tumblecal_cli.pipeline.solve.turns import Outcome
 
 if TYPE_CHECKING:
+    from tumblecal_cli.core.arrays import FloatArray
+    from tumblecal_cli.core.axes import Axes
     from tumblecal_cli.io.calfiles.calfile import Calibration
     from tumblecal_cli.io.csv.readings import Log
     from tumblecal_cli.io.readspec import ReadSpec
@@ -49,6 +52,12 @@ WINDOW_S, MIN_RUN_S = 0.5, 1.0
 WINDOW_SAMPLES = 25
 #: Fewest runs in different orientations the magnitude fit (orientation unknown) is made from.
 MIN_RUNS = 7
+#: Readings whose magnitude at the stated rates is within this share of a unit are in it.
+UNITS_SLACK = 0.25
+#: A labelled run further off its fit than this share of its rate turned about another axis.
+MISPLACED = 0.2
+#: The runs' scatter about the fit beyond this share of the largest rate is warned of.
+SCATTER_SHARE = 0.005
 
 
 @dataclass(frozen=True)
@@ -117,35 +126,102 @@ def solve_spins(options: SolveOptions, given: Settings) -> Outcome:
     if not any(s.rate for s in spins):
         raise InputError("--spin gives no turning rate: only rest (0=FILE) gives no gains", hint="add 45rpm=FILE ...")
     files = [read(s, options.read) for s in spins]
-    out_units, gain, units_note = _units(files, options)
-    scale = quantities.UNITS[out_units].factor if out_units in quantities.UNITS else 1.0
+    _once(files)
+    units = _units(files, options)
+    scale = quantities.UNITS[units.out].factor
     slowest = min(abs(s.rate) for s in spins if s.rate) / scale
-    chosen, notes, left = [], [units_note] if units_note else [], []
+    chosen, notes, left = [], [units.note] if units.note else [], []
     for f in files:
-        used, said, out = runs_at_rate(f, f.given.rate / scale, gain, slowest, out_units)
+        used, said, out = runs_at_rate(f, f.given.rate / scale, units.gain, slowest, units.out)
         chosen += [(f, r) for r in used]
         notes.append(said)
         left += out
-    runs = [
-        spin.SpinRun(
-            r.mean, r.stderr, f.given.rate / scale, None if f.given.face is None else model.direction(f.given.face)
-        )
-        for f, r in chosen
-    ]
+    axes = axes_given(options.axes)  # a labelled face is the body's: the sensor's direction along it is fitted
+    runs = [spin.SpinRun(r.mean, r.stderr, f.given.rate / scale, _face(f.given.face, axes)) for f, r in chosen]
     _enough(runs, files)
-    fit = spin.fit_rates(runs)
-    if not np.all(np.isfinite(fit.gain_se)) or float(fit.gain_se.max()) > 0.1 * abs(float(np.diag(fit.matrix).max())):
-        raise _rejected(
-            "the runs do not determine the gains: their spin axes do not point along the sensor's three axes",
-            files[0].log.layout.name,
-            "place the unit in more orientations on the platter (each axis up and tilted), or label the faces",
-        )
+    try:
+        fit = spin.fit_rates(runs)
+    except CaptureRejected as err:  # most runs off any one fit: named on the first file, as the others
+        raise _rejected(err.message, files[0].log.layout.name, "check each file's rate and face") from None
+    _determined(fit, runs, chosen)
     trimmed = [(f, r) for (f, r), keep in zip(chosen, fit.kept, strict=True) if not keep]
     notes += [
-        f"{f.log.layout.name} rows {_row(f, r.first)}–{_row(f, r.last)}: off the fit by {res:.3g} {out_units}, left out"
+        f"{f.log.layout.name} rows {_row(f, r.first)}–{_row(f, r.last)}: off the fit by {res:.3g} {units.out}, left out"
         for (f, r), res in zip(trimmed, fit.residuals[~fit.kept], strict=True)
     ]
-    return _outcome(fit, runs, chosen, (left, trimmed), notes, options, given, out_units)
+    notes += _off_rate(fit, runs, chosen)
+    return _outcome(fit, runs, chosen, (left, trimmed), notes, options, given, units)
+
+
+def _off_rate(fit: spin.RateFit, runs: list[spin.SpinRun], chosen: list[tuple[SpinFile, spin.Run]]) -> list[str]:
+    """A warning when one file's runs read, as calibrated, a rate off the others' by more than
+    SCATTER_SHARE (its platter at another speed than stated: a gain the fit cannot tell from it),
+    or when the runs scatter about the fit by more than that (the unit loose on the platter)."""
+    ratio: dict[str, list[float]] = {}
+    for (f, _), r in zip(chosen, runs, strict=True):
+        if r.rate:
+            read = float(np.linalg.norm(fit.matrix @ (r.mean - fit.offset)))
+            ratio.setdefault(f.log.layout.name, []).append(read / abs(r.rate) - 1.0)
+    means = {name: float(np.mean(v)) for name, v in ratio.items()}
+    out = []
+    if len(means) > 1:
+        middle = float(np.median(list(means.values())))
+        name, off = max(((n, m - middle) for n, m in means.items()), key=lambda p: abs(p[1]))
+        if abs(off) > SCATTER_SHARE:
+            out.append(
+                f"warning: {name}'s runs read {off:+.2%} off the other files' as calibrated: is its rate the one "
+                "stated? (a platter's speed varies by a few tenths of a percent; a gain cannot be told from it)"
+            )
+    largest = max(abs(r.rate) for r in runs)
+    if not out and fit.scatter > SCATTER_SHARE * largest:
+        out.append(
+            f"warning: the runs scatter about the fit by {fit.scatter / largest:.2%} of the largest rate, where a "
+            "platter's speed varies by a few tenths of a percent: the unit loose on the platter?"
+        )
+    return out
+
+
+def _face(face: str | None, axes: Axes | None) -> FloatArray | None:
+    """A --spin face (the body's, with --axes) as the unit vector of the sensor's direction up."""
+    if face is None:
+        return None
+    up = model.direction(face)
+    return up if axes is None else axes.matrix.T @ up
+
+
+def _once(files: list[SpinFile]) -> None:
+    """A file given twice (by name, or the same bytes) would count its runs twice: false precision."""
+    seen: dict[str, str] = {}
+    for f in files:
+        key = f.log.sha256 or f.given.file
+        if key in seen:
+            raise InputError(
+                f"--spin gives this file twice ({seen[key]} and {f.given.text}={f.given.file}): its runs would count "
+                "twice",
+                file=f.log.layout.name,
+                hint="give each file once",
+            )
+        seen[key] = f"{f.given.text}={f.given.file}"
+
+
+def _determined(fit: spin.RateFit, runs: list[spin.SpinRun], chosen: list[tuple[SpinFile, spin.Run]]) -> None:
+    """A fit the runs do not determine (their spin axes in too few directions), or a labelled run its
+    fit cannot place near its face (the label wrong): exit 3, naming it."""
+    gains = np.abs(np.diag(np.linalg.inv(fit.matrix))) if np.all(np.isfinite(fit.matrix)) else np.zeros(3)
+    if not (np.all(np.isfinite(fit.gain_se)) and np.all(gains > 0)) or float((fit.gain_se / gains).max()) > 0.1:
+        raise _rejected(
+            "the runs do not determine the gains: their spin axes do not point along the sensor's three axes",
+            chosen[0][0].log.layout.name,
+            "place the unit in more orientations on the platter (each axis up and tilted), or label the faces",
+        )
+    for (f, r), run, res in zip(chosen, runs, fit.residuals, strict=True):
+        if run.face is not None and run.rate and res > MISPLACED * abs(run.rate):
+            raise _rejected(
+                f"rows {_row(f, r.first)}–{_row(f, r.last)} turn about another axis than {f.given.face} says "
+                f"(off the fit by {res / abs(run.rate):.0%} of the rate)",
+                f.log.layout.name,
+                "check the face that pointed up (+z@45rpm: +z up, the platter counter-clockwise seen from above)",
+            )
 
 
 def read(s: Spin, spec: ReadSpec, cal: Calibration | None = None) -> SpinFile:
@@ -170,10 +246,22 @@ def read(s: Spin, spec: ReadSpec, cal: Calibration | None = None) -> SpinFile:
     return SpinFile(s, log, spin.steady_runs(log.values, window, 2 * window))
 
 
-def _units(files: list[SpinFile], options: SolveOptions) -> tuple[str, float, str | None]:
-    """The corrected units, the readings' rough gain (raw per corrected unit), and a note when the
-    units were judged from the readings."""
-    named = options.units or options.input_units
+@dataclass(frozen=True)
+class Units:
+    """The corrected units, the readings' gain in them (raw per corrected unit: a rough one when
+    the raw units are not known), the raw units (None: counts, or not known) and a note when they
+    were judged from the readings."""
+
+    out: str
+    gain: float
+    raw: str | None
+    note: str | None
+
+
+def _units(files: list[SpinFile], options: SolveOptions) -> Units:
+    """The units (:class:`Units`): --units names the corrected ones (else the readings'), the
+    readings' are --input-units' (checked against their magnitude at the stated rates: a units
+    mistake is exit 2) or judged from that magnitude (rad/s, deg/s, or counts of their own)."""
     magnitudes, rates = [], []
     for f in files:
         if f.given.rate and f.runs:
@@ -183,18 +271,46 @@ def _units(files: list[SpinFile], options: SolveOptions) -> tuple[str, float, st
             magnitudes.append(float(np.average(m[keep], weights=n[keep])))
             rates.append(abs(f.given.rate))
     ratio = float(np.median(np.array(magnitudes) / np.array(rates))) if magnitudes else 1.0  # raw per rad/s
-    if named is not None:
-        if quantities.UNITS.get(named.strip()) is None or quantities.UNITS[named.strip()].quantity != "angular rate":
+    for flag, named in (("--units", options.units), ("--input-units", options.input_units)):
+        if named is not None and flag == "--units" and _rate_unit(named) is None:
             raise InputError(f"--units {named}: --spin corrects into a unit of angular rate: rad/s or deg/s")
-        out = named.strip()
-        raw = options.input_units.strip() if options.input_units else out
-        if raw in quantities.UNITS:
-            return out, quantities.UNITS[out].factor / quantities.UNITS[raw].factor, None
-        return out, ratio * quantities.UNITS[out].factor, None
-    for out, per in (("rad/s", 1.0), ("deg/s", quantities.UNITS["deg/s"].factor)):
-        if abs(ratio * per - 1.0) < 0.25:
-            return out, 1.0, f"the readings are taken as {out}, the units their magnitude at the stated rates says"
-    return "rad/s", ratio, f"the readings are in units of their own ({ratio:.4g} a rad/s): corrected into rad/s"
+    raw, note = _raw_unit(options.input_units, ratio, files)
+    out = (options.units or raw or "rad/s").strip()
+    per = quantities.UNITS[out].factor
+    gain = per / quantities.UNITS[raw].factor if raw is not None else ratio * per
+    if raw is None and options.input_units is None:
+        note = f"the readings are in units of their own ({ratio:.4g} a rad/s): corrected into {out}"
+    return Units(out, gain, raw, note)
+
+
+def _rate_unit(name: str) -> str | None:
+    measure = quantities.UNITS.get(name.strip())
+    return name.strip() if measure is not None and measure.quantity == quantities.ANGULAR_RATE else None
+
+
+def _raw_unit(given: str | None, ratio: float, files: list[SpinFile]) -> tuple[str | None, str | None]:
+    """The readings' unit and a note: --input-units' when it is a unit of angular rate (its
+    magnitude at the stated rates within 25 % of it, else exit 2), None for counts or another
+    name; without it, rad/s or deg/s when the magnitude says one of them."""
+    if given is not None:
+        unit = _rate_unit(given)
+        if unit is None:
+            return None, None
+        expected = 1.0 / quantities.UNITS[unit].factor  # raw per rad/s
+        if abs(ratio / expected - 1.0) > UNITS_SLACK:
+            spun = next(f for f in files if f.given.rate and f.runs)
+            raise InputError(
+                f"its readings at {spun.given.text} are {ratio * abs(spun.given.rate):.4g} a reading, "
+                f"{ratio / expected:.3g} times what --input-units {given} says",
+                file=spun.log.layout.name,
+                hint="check --input-units (rad/s, deg/s; counts for raw counts), or leave it out to judge it by the "
+                "readings",
+            )
+        return unit, None
+    for unit in ("rad/s", "deg/s"):
+        if abs(ratio * quantities.UNITS[unit].factor - 1.0) < UNITS_SLACK:
+            return unit, f"the readings are taken as {unit}, the units their magnitude at the stated rates says"
+    return None, None
 
 
 def _row(f: SpinFile, k: int) -> int:
@@ -266,15 +382,15 @@ def _outcome(
     notes: list[str],
     options: SolveOptions,
     given: Settings,
-    units: str,
+    said: Units,
 ) -> Outcome:
     """The calibration of the fit, judged by the limits; its poses the runs used."""
     solution = model.Solution("known-rates", fit.offset, fit.matrix, fit.offset_se, fit.gain_se)
     limits = given.limits.for_method(solution.method)
     failures: list[Finding] = gate.verdict(solution.method, solution.offset, solution.matrix, [], limits)
     poses = [_pose(f, r, kept) for (f, r), kept in zip(chosen, fit.kept, strict=True) if kept]
-    first = chosen[0][0].log
-    basis = calfile.Basis("gyroscope", 0.0, first.layout.sensor_names, units, options.input_units)
+    first, units = chosen[0][0].log, said.out
+    basis = calfile.Basis("gyroscope", 0.0, first.layout.sensor_names, units, options.input_units or said.raw)
     residuals = fit.residuals[fit.kept]
     cal = calfile.build(
         solution,

@@ -77,6 +77,9 @@ def still_runs(poses: list[Samples], options: SolveOptions, given: Settings) -> 
 
 #: Samples per window of the gyroscope's own still-run detector when a file has no clock.
 GYRO_WINDOW = 25
+#: Two steady runs of a gyroscope's file further apart than this many standard errors of a window's
+#: mean read two rates: it turned steadily between them (a bias drifts by far less).
+LEVELS_SIGMAS = 20.0
 
 
 def gyro_rests(poses: list[Samples], options: SolveOptions) -> Trimmed | None:
@@ -96,6 +99,12 @@ def gyro_rests(poses: list[Samples], options: SolveOptions) -> Trimmed | None:
         if not runs:
             continue
         run = max(runs, key=lambda r: (r.samples, -r.first))
+        noise = run.stderr * math.sqrt(run.samples)  # one reading's spread, from the longest run
+        apart = [
+            r for r in runs if float(np.linalg.norm(r.mean - run.mean)) > LEVELS_SIGMAS * noise / math.sqrt(window)
+        ]
+        if apart:
+            return Trimmed(out.samples, out.notes, _turning(s, log, [run, *apart], rate))
         if run.first < window and run.last >= len(log.values) - window:
             continue  # still throughout (the ends' part windows aside)
         cut = blocks.Block(0, run.first, run.last, run.mean, np.zeros(3), np.zeros(3), None, "+z", 0.0, None)
@@ -106,6 +115,23 @@ def gyro_rests(poses: list[Samples], options: SolveOptions) -> Trimmed | None:
             "file"
         )
     return out if out.notes else None
+
+
+def _turning(s: Samples, log: Log, runs: list[spin.Run], rate: float | None) -> CaptureRejected:
+    """A gyroscope's file with steady stretches at different rates: it turned steadily (a turntable,
+    a placement on it), so no one of them is its bias."""
+    shown = sorted(runs, key=lambda r: r.first)[:3]
+    told = ", ".join(
+        f"rows {int(log.rows[r.first])}-{int(log.rows[r.last])} at {float(np.linalg.norm(r.mean)):.4g}" for r in shown
+    )
+    return CaptureRejected(
+        f"the gyroscope reads {len(runs)} different steady rates in it ({told}{' …' if len(runs) > 3 else ''}): "
+        "it turned at a steady rate, not only rested",
+        file=s.layout.name,
+        hint="gyro-bias takes still captures: give the still rows (--start and --end); a turntable's files take "
+        "--spin RATE=FILE",
+        code="pose.turned",
+    )
 
 
 def moved(values: FloatArray | Summary, centre: FloatArray, max_noise: float) -> bool:
