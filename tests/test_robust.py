@@ -212,3 +212,39 @@ def test_a_capture_too_poorly_spread_once_its_glitches_are_out_says_so(
     assert "do not cover enough directions" in first
     assert f"(judged on the {len(low) - 2:,} samples kept: 2 outliers left out)" in first
     assert not (tmp_path / "h.json").exists()
+
+
+def _directions_session(disturbed: float) -> dict[str, np.ndarray]:
+    """Eight labelled poses (the six faces and two diagonals) of a known accelerometer, the last
+    read ``disturbed`` times as far from its offset (a pose held in a disturbed field, or pushed)."""
+    rng = np.random.default_rng(3)
+    a = np.array([[1.01, 0.005, 0.0], [0.0, 0.99, 0.004], [0.003, 0.0, 1.02]])
+    b = np.array([0.02, -0.01, 0.03])
+    dirs = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1), (0.707, 0.707, 0), (0, 0.707, 0.707)]
+    out = {}
+    for k, d in enumerate(dirs):
+        v = np.array(d, dtype=float) / np.linalg.norm(d)
+        out[",".join(f"{x:.6g}" for x in v)] = (
+            a @ (v * (disturbed if k == 7 else 1.0)) + b + rng.normal(size=(300, 3)) * 0.002
+        )
+    return out
+
+
+def test_a_least_squares_pose_off_the_fit_of_the_others_is_left_out_and_named() -> None:
+    """Issue "Real recordings, round 3", item 1: least-squares over more poses than its 12
+    parameters need. One pose 15 % off bent the offsets by up to 8.7 mg (its residual spread over
+    every pose); left out by its deleted residual, the fit is the others' (within 0.1 mg)."""
+    truth_b = np.array([0.02, -0.01, 0.03])
+    robust_fit = tumblecal.solve(_directions_session(1.15), method="least-squares")
+    plain_fit = tumblecal.solve(_directions_session(1.15), method="least-squares", no_robust=True)
+    clean = tumblecal.solve(_directions_session(1.0), method="least-squares")
+    assert robust_fit.calibration is not None and plain_fit.calibration is not None  # noqa: PT018
+    assert np.abs(robust_fit.calibration.offset - truth_b).max() < 2e-4
+    assert np.abs(plain_fit.calibration.offset - truth_b).max() > 5e-3
+    left = robust_fit.calibration.outliers
+    assert left is not None
+    assert left.count == 300
+    assert [s.file for s in left.stretches] == ["<0,0.707107,0.707107>"]
+    assert any("outliers: 300 of 2,400 samples left out" in n for n in robust_fit.notes)
+    assert clean.calibration is not None
+    assert clean.calibration.outliers is None  # a clean session: the plain fit

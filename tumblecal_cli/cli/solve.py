@@ -157,8 +157,8 @@ def solve(
         bool,
         typer.Option(
             "--no-robust",
-            help="ellipsoid, minmax: fit every sample by plain least squares (by default samples far off "
-            "the fit, glitches and disturbed stretches, are left out and named).",
+            help="ellipsoid, minmax, least-squares, known-rates: fit everything by plain least squares (by "
+            "default samples, poses or runs far off the fit are left out and named).",
             rich_help_panel=SOLVER_PANEL,
         ),
     ] = False,

@@ -17,6 +17,7 @@ from tumblecal_cli.core.methods import THREE_FACES
 from tumblecal_cli.core.model import FACES, PoseStats, direction, solve_one_pose, solve_three_pose, tilt_sensitivity
 from tumblecal_cli.core.solvers import (
     Fit,
+    design_rank,
     gain_error_bound,
     gyro_bias,
     least_squares,
@@ -99,10 +100,59 @@ def fit_six_pose(given: SolverInput) -> Fit:
     return six_pose(given.stats, given.settings.reference, given.settings.tolerance_deg, given.method)
 
 
+#: Fewest poses a least-squares fit judges its poses by leaving one out (12 parameters: five left
+#: give a residual to judge by).
+ROBUST_POSES = 6
+#: A pose left out of a least-squares fit is this many times further off the fit of the others than
+#: the worst of them is (and beyond core.robust.FLOOR of the reference).
+DELETED_FACTOR = 6.0
+
+
 def fit_least_squares(given: SolverInput) -> Fit:
-    """least-squares: :func:`least_squares` on the labels' directions."""
+    """least-squares: :func:`least_squares` on the labels' directions. With ROBUST_POSES or more
+    (unless ``settings.robust`` is False) the pose worst off the fit of the others (its deleted
+    residual: the length of ``M (mean - b) - reference · direction`` under that fit) is left out
+    when it is beyond core.robust.FLOOR of the reference and DELETED_FACTOR times the worst
+    residual of the others' own fit, and named; then the next. A 12-parameter fit spreads a pose
+    made in a disturbed field over every pose's residual (a bound over the whole fit's residuals,
+    or over every pose's deleted residual, missed one 15 % off among eight); the others' fit
+    without it does not. None left out: the plain fit."""
+    s = given.settings
     directions = np.array([direction(str(x)) for x in given.labels])
-    return least_squares(given.stats, directions, given.settings.reference, given.settings.tolerance_deg, given.names)
+
+    def solve(chosen: list[int]) -> Fit:
+        names = [given.names[i] for i in chosen]
+        return least_squares([given.stats[i] for i in chosen], directions[chosen], s.reference, s.tolerance_deg, names)
+
+    def off(fit: Fit, k: int) -> float:
+        m, b = fit.solution.matrix, fit.solution.offset
+        return float(np.linalg.norm(m @ (given.stats[k].mean - b) - s.reference * directions[k]))
+
+    kept = list(range(len(given.stats)))
+    plain = solve(kept)
+    out: list[tuple[int, float, float]] = []  # (pose, its deleted residual, the bound it was beyond)
+    while s.robust and s.reference > 0 and len(kept) >= ROBUST_POSES:
+        fits = {
+            k: solve([i for i in kept if i != k])
+            for k in kept
+            if design_rank(directions[[i for i in kept if i != k]]) >= 4
+        }
+        if not fits:
+            break
+        worst = max(fits, key=lambda k: off(fits[k], k))
+        others = max(off(fits[worst], i) for i in kept if i != worst)
+        bound = max(robust.FLOOR * s.reference, DELETED_FACTOR * others)
+        if off(fits[worst], worst) <= bound:
+            break
+        out.append((worst, off(fits[worst], worst), bound))
+        kept.remove(worst)
+    if not out:
+        return plain
+    sizes = [len(v) for v in given.values]
+    starts = np.cumsum([0, *sizes])
+    runs = tuple(robust.LeftOutRun(int(starts[k]), int(starts[k + 1]) - 1, worst / s.reference) for k, worst, _ in out)
+    left = robust.Outliers(sum(sizes[k] for k, _, _ in out), int(starts[-1]), runs, min(b for _, _, b in out), 0.0)
+    return replace(solve(kept), outliers=left)
 
 
 def fit_sphere(given: SolverInput) -> Fit:

@@ -234,8 +234,9 @@ def _start(runs: list[SpinRun], full: bool) -> FloatArray:
     return np.concatenate([b, (np.eye(3) * k).ravel() if full else [k, k, k, 0.0, 0.0, 0.0]])
 
 
-def fit_rates(given: list[SpinRun]) -> RateFit:
-    """The offset and M of ``runs`` (module docstring), runs off the fit left out by core.robust.
+def fit_rates(given: list[SpinRun], *, trim: bool = True) -> RateFit:
+    """The offset and M of ``runs`` (module docstring), runs off the fit left out by core.robust
+    (``trim`` False: every run kept).
     The readings are fitted divided by their rough gain (raw per output unit, from the spinning
     runs' magnitudes), so that the offset's and M's columns of the Jacobian are of one size
     whatever the raw units (counts: thousands a rad/s), and scaled back after."""
@@ -265,7 +266,11 @@ def fit_rates(given: list[SpinRun]) -> RateFit:
 
     # the floor a run must be off by to be left out: robust.FLOOR of a fifth of the largest rate, 1 %
     # of it (a platter's speed varies by tenths of a percent; a run 3 % off is at another speed)
-    done = robust.trimmed(points, largest / FLOOR_SHARE, fit, residuals, np.ones(len(runs), dtype=bool))
+    every = np.ones(len(runs), dtype=bool)
+    if trim:
+        done = robust.trimmed(points, largest / FLOOR_SHARE, fit, residuals, every)
+    else:  # every run kept: plain least squares
+        done = robust.TrimmedFit(fit(points), every, (), float("inf"), float("nan"))
     theta, cov_theta, scatter = done.fit
     b, m = _params_to_matrix(theta, full)
     cov = _covariance_of_a(theta, cov_theta, full) * unit**2  # b and A scale with the readings

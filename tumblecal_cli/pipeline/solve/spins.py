@@ -140,7 +140,7 @@ def solve_spins(options: SolveOptions, given: Settings) -> Outcome:
     runs = [spin.SpinRun(r.mean, r.stderr, f.given.rate / scale, _face(f.given.face, axes)) for f, r in chosen]
     _enough(runs, files)
     try:
-        fit = spin.fit_rates(runs)
+        fit = spin.fit_rates(runs, trim=not options.no_robust)
     except CaptureRejected as err:  # most runs off any one fit: named on the first file, as the others
         raise _rejected(err.message, files[0].log.layout.name, "check each file's rate and face") from None
     _determined(fit, runs, chosen)
