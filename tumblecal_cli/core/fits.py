@@ -12,7 +12,7 @@ from typing import cast
 import numpy as np
 
 from tumblecal_cli.core import catalog, robust
-from tumblecal_cli.core.arrays import FloatArray
+from tumblecal_cli.core.arrays import BoolArray, FloatArray
 from tumblecal_cli.core.methods import THREE_FACES
 from tumblecal_cli.core.model import FACES, PoseStats, direction, solve_one_pose, solve_three_pose, tilt_sensitivity
 from tumblecal_cli.core.solvers import (
@@ -109,14 +109,9 @@ DELETED_FACTOR = 6.0
 
 
 def fit_least_squares(given: SolverInput) -> Fit:
-    """least-squares: :func:`least_squares` on the labels' directions. With ROBUST_POSES or more
-    (unless ``settings.robust`` is False) the pose worst off the fit of the others (its deleted
-    residual: the length of ``M (mean - b) - reference · direction`` under that fit) is left out
-    when it is beyond core.robust.FLOOR of the reference and DELETED_FACTOR times the worst
-    residual of the others' own fit, and named; then the next. A 12-parameter fit spreads a pose
-    made in a disturbed field over every pose's residual (a bound over the whole fit's residuals,
-    or over every pose's deleted residual, missed one 15 % off among eight); the others' fit
-    without it does not. None left out: the plain fit."""
+    """least-squares: :func:`least_squares` on the labels' directions; with ROBUST_POSES or more
+    (unless ``settings.robust`` is False) a pose far off the fit of the others is left out and
+    named (:func:`_deleted`)."""
     s = given.settings
     directions = np.array([direction(str(x)) for x in given.labels])
 
@@ -128,37 +123,88 @@ def fit_least_squares(given: SolverInput) -> Fit:
         m, b = fit.solution.matrix, fit.solution.offset
         return float(np.linalg.norm(m @ (given.stats[k].mean - b) - s.reference * directions[k]))
 
+    least = ROBUST_POSES if s.robust and s.reference > 0 else len(given.stats) + 1
+    return _deleted(given, solve, off, least, lambda chosen: design_rank(directions[chosen]) >= 4)
+
+
+def _deleted(
+    given: SolverInput,
+    solve: Callable[[list[int]], Fit],
+    off: Callable[[Fit, int], float],
+    least: int,
+    enough: Callable[[list[int]], bool],
+) -> Fit:
+    """A fit over pose means that leaves out the pose worst off the fit of the others (its deleted
+    residual, ``off``) while it is beyond core.robust.FLOOR of the reference and DELETED_FACTOR
+    times the worst residual of the others' own fit, ``least`` poses or more left (``enough``: the
+    poses the fit can do without). A fit over many parameters spreads a pose made in a disturbed
+    field over every pose's residual (a bound over the whole fit's residuals, or over every pose's
+    deleted residual, missed one 15 % off among eight); the others' fit without it does not. None
+    left out: the plain fit, each pose's outliers named in the Fit (stretches of its samples)."""
     kept = list(range(len(given.stats)))
     plain = solve(kept)
     out: list[tuple[int, float, float]] = []  # (pose, its deleted residual, the bound it was beyond)
-    while s.robust and s.reference > 0 and len(kept) >= ROBUST_POSES:
-        fits = {
-            k: solve([i for i in kept if i != k])
-            for k in kept
-            if design_rank(directions[[i for i in kept if i != k]]) >= 4
-        }
+    while len(kept) >= least:
+        fits = {}
+        for k in kept:
+            others = [i for i in kept if i != k]
+            if enough(others):
+                try:
+                    fits[k] = solve(others)
+                except CaptureRejected:  # the others alone too poorly spread: this pose is needed
+                    continue
         if not fits:
             break
         worst = max(fits, key=lambda k: off(fits[k], k))
-        others = max(off(fits[worst], i) for i in kept if i != worst)
-        bound = max(robust.FLOOR * s.reference, DELETED_FACTOR * others)
+        others_worst = max(off(fits[worst], i) for i in kept if i != worst)
+        bound = max(robust.FLOOR * given.settings.reference, DELETED_FACTOR * others_worst)
         if off(fits[worst], worst) <= bound:
             break
         out.append((worst, off(fits[worst], worst), bound))
         kept.remove(worst)
     if not out:
         return plain
-    sizes = [len(v) for v in given.values]
-    starts = np.cumsum([0, *sizes])
-    runs = tuple(robust.LeftOutRun(int(starts[k]), int(starts[k + 1]) - 1, worst / s.reference) for k, worst, _ in out)
-    left = robust.Outliers(sum(sizes[k] for k, _, _ in out), int(starts[-1]), runs, min(b for _, _, b in out), 0.0)
-    return replace(solve(kept), outliers=left)
+    left = np.zeros(len(given.stats), dtype=bool)
+    left[[k for k, _, _ in out]] = True
+    runs = tuple(robust.LeftOutRun(k, k, worst / given.settings.reference) for k, worst, _ in out)
+    return replace(solve(kept), outliers=_pose_outliers(given, left, runs, min(b for _, _, b in out), 0.0))
 
 
 def fit_sphere(given: SolverInput) -> Fit:
-    """sphere: :func:`sphere` on the pose means."""
-    stats = given.stats
-    return sphere(np.array([p.mean for p in stats]), np.array([p.stderr for p in stats]), given.settings.reference)
+    """sphere: :func:`sphere` on the pose means; with SPHERE_POSES to LEAVE_ONE_OUT poses (unless
+    ``settings.robust`` is False) a pose far off the fit of the others is left out and named, as
+    least-squares' are (:func:`_deleted`)."""
+    stats, ref = given.stats, given.settings.reference
+    means, errors = np.array([p.mean for p in stats]), np.array([p.stderr for p in stats])
+
+    def solve(chosen: list[int]) -> Fit:
+        return sphere(means[chosen], errors[chosen], ref)
+
+    def off(fit: Fit, k: int) -> float:
+        return float(abs(norm_residuals(means[k : k + 1], fit.solution.offset, fit.solution.matrix, ref)[0]))
+
+    robustly = given.settings.robust and ref > 0 and SPHERE_POSES < len(stats) <= LEAVE_ONE_OUT
+    return _deleted(given, solve, off, SPHERE_POSES + 1 if robustly else len(stats) + 1, lambda _: True)
+
+
+#: Fewest poses a sphere fit is made from without one left out (its 9 parameters, and 3 to spare),
+#: and the most it judges by leaving each out in turn (a log's thousands of blocks: a fit each).
+SPHERE_POSES, LEAVE_ONE_OUT = 12, 60
+
+
+def _pose_outliers(
+    given: SolverInput, out: BoolArray, runs: tuple[robust.LeftOutRun, ...], bound: float, scale: float
+) -> robust.Outliers:
+    """Poses a fit over pose means left out (``out``), as stretches of their samples in turn (as
+    the pipeline names a turned capture's: each file and its rows), each with its run's worst."""
+    sizes = [len(v) for v in given.values]
+    starts = np.cumsum([0, *sizes])
+    worst = {k: run.worst for run in runs for k in range(run.first, run.last + 1)}
+    stretches = tuple(
+        robust.LeftOutRun(int(starts[k]), int(starts[k + 1]) - 1, worst.get(int(k), float("nan")))
+        for k in np.flatnonzero(out)
+    )
+    return robust.Outliers(int(sum(sizes[k] for k in np.flatnonzero(out))), int(starts[-1]), stretches, bound, scale)
 
 
 def fit_ellipsoid(given: SolverInput) -> Fit:
