@@ -143,6 +143,9 @@ def _deleted(
     left out: the plain fit, each pose's outliers named in the Fit (stretches of its samples)."""
     kept = list(range(len(given.stats)))
     plain = solve(kept)
+    floor = robust.FLOOR * given.settings.reference
+    if len(kept) < least or max(off(plain, k) for k in kept) < floor / LEVERAGE:
+        return plain  # no pose near the floor: none can be off the others' fit by it (one fit, not one a pose)
     out: list[tuple[int, float, float]] = []  # (pose, its deleted residual, the bound it was beyond)
     while len(kept) >= least:
         fits = {}
@@ -157,7 +160,7 @@ def _deleted(
             break
         worst = max(fits, key=lambda k: off(fits[k], k))
         others_worst = max(off(fits[worst], i) for i in kept if i != worst)
-        bound = max(robust.FLOOR * given.settings.reference, DELETED_FACTOR * others_worst)
+        bound = max(floor, DELETED_FACTOR * others_worst)
         if off(fits[worst], worst) <= bound:
             break
         out.append((worst, off(fits[worst], worst), bound))
@@ -187,6 +190,9 @@ def fit_sphere(given: SolverInput) -> Fit:
     return _deleted(given, solve, off, SPHERE_POSES + 1 if robustly else len(stats) + 1, lambda _: True)
 
 
+#: A pose's deleted residual is its residual over 1 - its leverage: within this many times it for
+#: a leverage up to 0.9, so a fit whose poses all lie within the floor over it leaves none out.
+LEVERAGE = 10.0
 #: Fewest poses a sphere fit is made from without one left out (its 9 parameters, and 3 to spare),
 #: and the most it judges by leaving each out in turn (a log's thousands of blocks: a fit each).
 SPHERE_POSES, LEAVE_ONE_OUT = 12, 60
