@@ -1,0 +1,126 @@
+"""A calibration recorded in the same run that writes its file (``--record DB``): both or neither.
+
+The order (``recorded``): the record is inserted inside a write transaction; the file is then
+published atomically (io.outputs); then the transaction commits. A record that cannot be
+inserted leaves no file (the file is not written yet); a file that cannot be written rolls the
+record back; a commit that fails puts the output back as it was (the file it replaced, kept by a
+hard link until the commit, or no file). A kill at any point leaves the database whole (SQLite's
+journal) and holds the record only once its commit is done. An output that is not a file
+(stdout, a device) cannot be taken back, so there the record commits before it is written.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import secrets
+from collections.abc import Iterator
+from datetime import UTC, datetime
+
+from tumblecal_cli.errors import InputError
+from tumblecal_cli.io.calfiles import calfile
+from tumblecal_cli.pipeline.records import columns
+from tumblecal_cli.pipeline.records.store import Store, open_store, shown
+
+#: The environment variable that gives ``--record`` its default (a station script's database).
+RECORD_ENV = "TUMBLECAL_RECORD"
+
+
+def now() -> str:
+    """The time a record is written, UTC to the microsecond."""
+    return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+
+
+def _is_file(output: str) -> bool:
+    return output != "-" and (not os.path.exists(output) or os.path.isfile(output))
+
+
+def _keep(output: str) -> str | None:
+    """A hard link to the file ``output`` replaces, named as io.outputs names its temporary
+    files (a killed run's is swept by the next), or None when there is none to keep."""
+    if not os.path.isfile(output):
+        return None
+    target = os.path.realpath(output)
+    folder, name = os.path.split(target)
+    kept = os.path.join(folder, f".{name[:100]}.{os.getpid()}-{secrets.token_hex(4)}.tmp")
+    try:
+        os.link(target, kept)
+    except OSError:  # no hard links here: a commit failure then leaves the new file (said in the error)
+        return None
+    return kept
+
+
+def _undo(output: str, kept: str | None) -> None:
+    target = os.path.realpath(output)
+    with contextlib.suppress(OSError):
+        if kept is not None:
+            os.replace(kept, target)
+        else:
+            os.unlink(target)
+
+
+@contextlib.contextmanager
+def recorded(db: str, cal: calfile.Calibration, output: str, origin: columns.Origin) -> Iterator[None]:
+    """The block publishes ``output``; ``cal`` is recorded in ``db`` with it, both or neither."""
+    row = columns.row_of(cal, origin, now())
+    store = open_store(db, write=True)
+    try:
+        store.begin()
+        store.insert(row, columns.tool())
+        if not _is_file(output):
+            store.commit()
+            yield
+            return
+        kept = _keep(output)
+        try:
+            yield
+        except BaseException:
+            store.rollback()
+            if kept is not None:
+                with contextlib.suppress(OSError):
+                    os.unlink(kept)
+            raise
+        _commit(store, output, kept)
+    except BaseException:
+        store.rollback()
+        raise
+    finally:
+        store.close()
+
+
+def _commit(store: Store, output: str, kept: str | None) -> None:
+    try:
+        store.commit()
+    except InputError:
+        _undo(output, kept)
+        raise
+    if kept is not None:
+        with contextlib.suppress(OSError):
+            os.unlink(kept)
+
+
+def check(db: str) -> None:
+    """Refuse, before any work, a database that cannot be recorded into: an existing one opened
+    for writing (ours, its schema, writable), a new one's folder there. Nothing is made."""
+    if os.path.exists(db):
+        open_store(db, write=True).close()
+        return
+    folder = os.path.dirname(os.path.abspath(db))
+    if not os.path.isdir(folder) or not os.access(folder, os.W_OK):
+        raise InputError("cannot record: the database's folder does not exist or is not writable", file=shown(db))
+
+
+def record(db: str, cal: calfile.Calibration, origin: columns.Origin) -> bool:
+    """``cal`` recorded on its own (no file with it): whether it was new."""
+    row = columns.row_of(cal, origin, now())
+    store = open_store(db, write=True)
+    try:
+        store.begin()
+        added = store.insert(row, columns.tool())
+        store.commit()
+    except BaseException:
+        store.rollback()
+        raise
+    finally:
+        store.close()
+    return added
