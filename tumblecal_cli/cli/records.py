@@ -83,7 +83,7 @@ def import_(
 
     A batch folder (one holding summary.csv) gives its files its name as their lot.
     """
-    from tumblecal_cli.pipeline.records.history import import_files
+    from tumblecal_cli.pipeline.records.importing import import_files
 
     done = import_files(db, paths, lot)
     for path, why in done.unreadable:

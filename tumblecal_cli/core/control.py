@@ -55,6 +55,10 @@ TREND_ALPHA = 0.05
 D2 = 1.128
 #: The EWMA's weight of each new unit (small: a slow drift, the fixture's, is what it is for).
 EWMA_LAMBDA = 0.05
+#: The EWMA is judged at ``p`` times this: its points are correlated (over about (2 − λ) / λ = 39
+#: units), so fewer than every point are independent judgements; 4, not 39, so that the run's
+#: false-alarm rate holds with the baseline's own errors (tests/test_control.py simulates it).
+EWMA_SPAN = 4.0
 #: A baseline of fewer units gives no chart (its σ would have under 3 degrees of freedom).
 MIN_BASELINE = 6
 #: The baseline's size when none is given: the first this many units of each series.
@@ -108,12 +112,12 @@ def limits(points: int, baseline: int, alpha: float = TREND_ALPHA) -> ControlLim
     p = alpha / (len(RULES) * max(points, 1))
     df = max(0.62 * (baseline - 1), 2.0)
     l1 = t_quantile(p, df)
-    l2 = t_quantile(min(2.0 * math.sqrt(p / 6.0), 0.999), df)
-    l3 = t_quantile(min(2.0 * (p / 10.0) ** 0.25, 0.999), df)
+    off = 1.0 / math.sqrt(baseline)  # the baseline centre's standard error, in σ: a window rule's limit moves by it
+    l2 = t_quantile(min(2.0 * math.sqrt(p / 6.0), 0.999), df) + off
+    l3 = t_quantile(min(2.0 * (p / 10.0) ** 0.25, 0.999), df) + off
     side = _normal_cdf(2.0 / math.sqrt(baseline))
     run = max(8, math.ceil(math.log(p / 2.0) / math.log(side)))
-    correlated = (2.0 - EWMA_LAMBDA) / EWMA_LAMBDA
-    le = t_quantile(min(p * correlated, 0.999), df)
+    le = t_quantile(min(p * EWMA_SPAN, 0.999), df)
     return ControlLimits(l1=l1, l2=l2, l3=l3, run=run, le=le, p=p, points=points, df=df)
 
 

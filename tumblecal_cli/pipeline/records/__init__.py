@@ -7,7 +7,7 @@ time (docs/records.md). ImportDone only by a run that records or reads records: 
 - ``store``: the database: its versioned schema, opened and refused safely, written in
   transactions with parameters only.
 - ``recording``: ``--record``: the record and the output file published together, both or neither.
-- ``history``: a unit's records, newest first, with what changed between them; files and batch
-  folders imported.
+- ``history``: a unit's records, newest first, with what changed between them.
+- ``importing``: existing calibration files and batch folders taken in, each once.
 - ``trend``: each station's parameters charted over time (``core.control``), the alarms named.
 """

@@ -16,37 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from tumblecal_cli.io.calfiles import calfile
+from tumblecal_cli.pipeline.records.store import AXES, GAINS, OFFSETS, RecordRow
 from tumblecal_cli.version import __version__
-
-AXES = "xyz"
-OFFSETS = tuple(f"offset_{k}" for k in AXES)
-GAINS = tuple(f"gain_{k}" for k in AXES)
-CROSS = tuple(f"cross_{i}{j}" for i in AXES for j in AXES if i != j)
-#: Every charted parameter, in the order of trend's and history's rows.
-PARAMETERS = (*OFFSETS, *GAINS, *CROSS, "residual")
-#: The stated 1σ columns, and the parameter each belongs to.
-SIGMAS = {f"{name}_sd": name for name in (*OFFSETS, *GAINS)}
-#: The text columns people filter on, in the table's order.
-TEXT = ("kind", "serial", "station", "operator", "lot", "created", "recorded", "sensor", "method", "verdict")
-#: What a record is of: a calibration (solve, batch, thermal, import) or a re-test (verify).
-KINDS = ("calibration", "verification")
-
-
-@dataclass(frozen=True)
-class RecordRow:
-    """One record: its ``key`` (the content's sha256), the text columns (``TEXT``), ``status``
-    (the command's exit status, 0 or 1), the numbers (``PARAMETERS``, ``SIGMAS``, reference and
-    coverage), where it came from (``command``, ``source``: an imported file), the inputs'
-    (name, sha256) and the whole ``document`` (the calibration file's JSON)."""
-
-    key: str
-    text: Mapping[str, str | None]
-    status: int | None
-    numbers: Mapping[str, float | None]
-    command: str
-    source: str | None
-    inputs: tuple[tuple[str, str], ...]
-    document: str
 
 
 def content_key(doc: Mapping[str, object], kind: str) -> str:

@@ -102,7 +102,7 @@ def _commit(store: Store, output: str, kept: str | None) -> None:
 def check(db: str) -> None:
     """Refuse, before any work, a database that cannot be recorded into: an existing one opened
     for writing (ours, its schema, writable), a new one's folder there. Nothing is made."""
-    if os.path.exists(db):
+    if os.path.exists(db) or "://" in db:
         open_store(db, write=True).close()
         return
     folder = os.path.dirname(os.path.abspath(db))

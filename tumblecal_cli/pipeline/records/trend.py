@@ -11,8 +11,7 @@ import numpy as np
 from tumblecal_cli.core import control
 from tumblecal_cli.core.arrays import BoolArray, FloatArray
 from tumblecal_cli.errors import InputError
-from tumblecal_cli.pipeline.records import columns
-from tumblecal_cli.pipeline.records.store import opened
+from tumblecal_cli.pipeline.records.store import PARAMETERS, opened
 
 #: What an alarm on a parameter's family usually means: a shift or drift, and one unit far off.
 MEANINGS = {
@@ -146,7 +145,7 @@ def _read(db: str, station: str | None, since: str | None) -> list[_Series]:
     if since is not None:
         where.append("created >= ?")
         values.append(since)
-    names = ", ".join(columns.PARAMETERS)
+    names = ", ".join(PARAMETERS)
     sql = (
         f"SELECT coalesce(station, ''), sensor, serial, coalesce(created, ''), {names} FROM records "
         f"WHERE {' AND '.join(where)} ORDER BY station, sensor, created, id"
@@ -159,7 +158,7 @@ def _read(db: str, station: str | None, since: str | None) -> list[_Series]:
         if i == len(rows) or rows[i][:2] != rows[start][:2]:
             block = rows[start:i]
             numbers = np.array([r[4:] for r in block], dtype=np.float64)  # (None: NaN)
-            values_of = {p: numbers[:, k] for k, p in enumerate(columns.PARAMETERS)}
+            values_of = {p: numbers[:, k] for k, p in enumerate(PARAMETERS)}
             out.append(_Series(block[0][0], block[0][1], [r[2] for r in block], [r[3] for r in block], values_of))
             start = i
     return out
