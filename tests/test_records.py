@@ -293,10 +293,10 @@ def test_a_kill_in_the_middle_of_recording_leaves_the_database_whole(tmp_path: P
             [sys.executable, "-c", WRITER, db, out, f"K{round_}", "100000", template], stdout=subprocess.PIPE, cwd=ROOT
         )
         assert writer.stdout is not None
-        writer.stdout.readline()  # recording under way
+        first = writer.stdout.readline().decode().split()  # recording under way
         time.sleep(0.05 + 0.1 * round_)
         os.kill(writer.pid, signal.SIGKILL)
-        done = writer.communicate()[0].decode().split()
+        done = first + writer.communicate()[0].decode().split()
         assert _integrity(db) == "ok"
         with sqlite3.connect(db) as con:
             kept = {r[0] for r in con.execute("SELECT serial FROM records WHERE station = ?", (f"K{round_}",))}
