@@ -19,8 +19,8 @@ and a line has dozens of stations and parameters. Here the rules keep their shap
 limits widen with the number of points judged, so that a whole trend run over stable stations
 raises an alarm with probability at most ``TREND_ALPHA``:
 
-- the run is ``points`` judgements (every judged unit of every series) by each of the 5 rules,
-  each at the level ``p = TREND_ALPHA / (5 · points)`` (Bonferroni);
+- the run is ``points`` judgements (every judged unit of every series) by each of the 6 rules,
+  each at the level ``p = TREND_ALPHA / (6 · points)`` (Bonferroni);
 - rule 1's limit ``L1``: ``P(|z| > L1) = p``; rule 2's ``L2``: 2 of 3 beyond it on one side at
   ``≈ 6 q²`` (``q`` the one-sided tail), ``6 q² = p``; rule 3's ``L3``: ``10 q⁴ = p``; rule 4's
   run: ``R`` in a row on one side, ``2 · s^R = p``, where ``s`` is the chance of one side with the
@@ -33,6 +33,8 @@ raises an alarm with probability at most ``TREND_ALPHA``:
 The widened limits are stated in the output (``ControlLimits``). What that costs is the time to see a
 small shift: an honest chart of many series cannot tell a third of a σ from noise within a
 hundred units (tests/test_control.py measures the delay).
+
+- the drift rule (``drifting``): a slope since some earlier unit, judged at rule 1's limit.
 
 **Stations compared.** For each sensor and parameter, each station's mean over its judged units
 against the mean of the other stations': Welch's t, ``(m − m_rest) / √(s²/n + s_rest²/n_rest)``,
@@ -59,12 +61,21 @@ EWMA_LAMBDA = 0.05
 #: units), so fewer than every point are independent judgements; 4, not 39, so that the run's
 #: false-alarm rate holds with the baseline's own errors (tests/test_control.py simulates it).
 EWMA_SPAN = 4.0
+#: The drift rule fits a slope starting at most this many starts per series (evenly spaced,
+#: every DRIFT_STEP units at the least), each over at most DRIFT_SPAN units after it.
+DRIFT_STARTS = 60
+DRIFT_STEP = 10
+DRIFT_SPAN = 400
+#: A slope is judged over DRIFT_MIN units or more, each z clipped at ±DRIFT_CLIP: one unit far off
+#: is rule 1's, not a drift.
+DRIFT_MIN = 25
+DRIFT_CLIP = 4.0
 #: A baseline of fewer units gives no chart (its σ would have under 3 degrees of freedom).
 MIN_BASELINE = 6
 #: The baseline's size when none is given: the first this many units of each series.
 BASELINE_UNITS = 100
 #: The rules, in the order they are checked and named.
-RULES = ("beyond-limit", "2-of-3", "4-of-5", "run", "ewma")
+RULES = ("beyond-limit", "2-of-3", "4-of-5", "run", "ewma", "drift")
 #: What each rule says of a series, for people.
 RULE_WORDS = {
     "beyond-limit": "one point beyond {l1:.2f}σ",
@@ -72,6 +83,7 @@ RULE_WORDS = {
     "4-of-5": "4 of 5 in a row beyond {l3:.2f}σ on one side",
     "run": "{run} in a row on one side of the centre",
     "ewma": "the EWMA (λ {lam:g}) beyond {le:.2f}σ of its own",
+    "drift": "a slope since one unit, beyond {l1:.2f} of its standard errors",
     "station": "this station's mean differs from the other stations' by {z:.1f} of its standard errors",
 }
 
@@ -217,11 +229,45 @@ def fired(c: Chart, lim: ControlLimits) -> dict[str, int]:
         rules[name] = (up & (z > limit)) | (down & (z < -limit))  # the point that makes the count
     rules["run"] = _runs(np.sign(z)) >= lim.run
     rules["ewma"] = np.abs(c.ewma) > lim.le * c.ewma_sigma
+    rules["drift"] = drifting(c.z * math.sqrt(1.0 + 1.0 / c.baseline), c.judged, lim.l1)
     out: dict[str, int] = {}
     for name in RULES:
         where = np.flatnonzero(rules[name] & c.judged)
         if where.size:
             out[name] = int(where[0])
+    return out
+
+
+def drifting(z: FloatArray, judged: BoolArray, limit: float) -> BoolArray:
+    """The units where a slope that starts at an earlier judged unit τ is beyond ``limit`` of its
+    standard errors: the hinge regression ``z_t = a + b·max(0, t − τ)`` over every unit up to
+    this one, ``a`` free (so the baseline's centre error does not count; the units before τ give
+    the level), its t for ``b`` (Draper and Smith 1998, Applied Regression Analysis, §1.4)
+    ``Σ (h − h̄) z / √Σ (h − h̄)²`` with z in σ. Each start τ on a grid of at most DRIFT_STARTS,
+    each over DRIFT_SPAN units: a drift the EWMA would take too long to see, seen once the slope
+    it has had is clear of the noise. Over DRIFT_MIN units at the least, z clipped at DRIFT_CLIP."""
+    out = np.zeros(z.size, dtype=bool)
+    judged_at = np.flatnonzero(judged)
+    if judged_at.size < 2:
+        return out
+    first, size = int(judged_at[0]), z.size
+    z = np.clip(z, -DRIFT_CLIP, DRIFT_CLIP)
+    t = np.arange(size, dtype=np.float64)
+    tz = np.concatenate([[0.0], np.cumsum(t * z)])  # tz[k], zs[k]: sums over the units before k
+    zs = np.concatenate([[0.0], np.cumsum(z)])
+    step = max(DRIFT_STEP, (size - first) // DRIFT_STARTS)
+    starts = np.arange(first - 1, size - 1, step)
+    m = np.arange(DRIFT_MIN, DRIFT_SPAN + 1, dtype=np.float64)[None, :]
+    end = starts[:, None] + m.astype(np.int64)  # the last unit, inclusive
+    inside = end < size
+    end = np.minimum(end, size - 1)
+    tau = starts[:, None]
+    hz = (tz[end + 1] - tz[tau + 1]) - tau * (zs[end + 1] - zs[tau + 1])  # Σ h z, h = t − τ after τ
+    h1, h2, count = m * (m + 1) / 2, m * (m + 1) * (2 * m + 1) / 6, end + 1.0
+    spread = np.where(inside, h2 - h1 * h1 / count, 1.0)  # (past the series' end: no slope, masked)
+    stat = np.abs(hz - h1 * zs[end + 1] / count) / np.sqrt(np.maximum(spread, 1e-300))
+    hit = inside & (stat > limit)
+    out[np.unique(end[hit])] = True
     return out
 
 
