@@ -359,3 +359,36 @@ def test_recording_adds_at_most_20_ms_to_a_solve(tmp_path: Path) -> None:
             if k:  # the first makes the database
                 times[recorded] = min(times.get(recorded, float("inf")), took)
     assert times[True] - times[False] < 0.020, times
+
+
+def test_verify_records_a_retest_and_thermal_its_calibration(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    db, cal = tmp_path / "r.db", tmp_path / "cal.json"
+    assert run(capsys, *SOLVE, "--serial", "SN5", "--station", "S2", "-o", cal, "--record", db).code == 0
+    assert run(capsys, "verify", "-q", "--cal", cal, POSES_3[0], "--record", db, "--lot", "L2").code == 0
+    found = json.loads(run(capsys, "records", "history", "SN5", "--db", db, "--json").out)
+    assert [(r["kind"], r["verdict"], r["lot"]) for r in found] == [
+        ("verification", "pass", "L2"),
+        ("calibration", "pass", None),
+    ]
+    assert found[0]["changes"] == []  # a re-test judges the same calibration
+    thermal = ROOT / "sample_data" / "thermal"
+    sweeps = [
+        str(thermal / f"sweep_{d}_{f}.csv")
+        for f in ("xp", "xn", "yp", "yn", "zp", "zn")
+        for d in ("up", "down")
+        if (thermal / f"sweep_{d}_{f}.csv").exists()
+    ]
+    base = tmp_path / "base.json"
+    faces = [str(thermal / f"{f}.csv") for f in ("xp", "xn", "yp", "yn", "zp", "zn")]
+    assert run(capsys, "solve", "-q", "--poses", *faces, "--serial", "TH1", "-o", base).code == 0
+    out = tmp_path / "th.json"
+    assert run(capsys, "thermal", "-q", *sweeps, "--cal", base, "-o", out, "--record", db).code == 0
+    with sqlite3.connect(db) as con:
+        assert con.execute("SELECT serial, command FROM records WHERE command = 'thermal'").fetchall() == [
+            ("TH1", "thermal")
+        ]
+    with sqlite3.connect(db) as con:
+        doc = json.loads(con.execute("SELECT document FROM records WHERE command = 'thermal'").fetchone()[0])
+    assert doc == json.loads(out.read_text())

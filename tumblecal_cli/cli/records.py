@@ -41,6 +41,19 @@ class Saver:
         with recording.recorded(self.record, cal, output, origin):
             cal.save(output)
 
+    def retest(self, cal: Calibration, status: int, figures: dict[str, object]) -> None:
+        """A re-test (verify) recorded: the calibration judged, its ``figures`` and outcome."""
+        if self.record is None:
+            return
+        from tumblecal_cli.io.calfiles.calfile import created
+        from tumblecal_cli.pipeline.records import columns, recording
+
+        when = created()  # (as a calibration's created is written: records sort by it)
+        origin = columns.Origin(
+            kind="verification", lot=self.lot, command=self.command, status=status, created=when, verification=figures
+        )
+        recording.record(self.record, cal, origin)
+
 
 RECORDS_EXIT = "Exit status: 0 done; 2 usage or input error (the database missing, not ours, newer, read-only)."
 TREND_EXIT = (

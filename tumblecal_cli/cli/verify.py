@@ -17,8 +17,10 @@ from tumblecal_cli.cli.flags import (
     End,
     Gravity,
     Location,
+    LotName,
     NoHeader,
     Quiet,
+    RecordDb,
     RowsArePoses,
     SkipRows,
     Start,
@@ -28,6 +30,7 @@ from tumblecal_cli.cli.flags import (
     file_shape,
     source,
 )
+from tumblecal_cli.cli.records import Saver
 from tumblecal_cli.errors import InputError
 
 if TYPE_CHECKING:
@@ -120,6 +123,8 @@ def verify(
         ),
     ] = None,
     quiet: Quiet = False,
+    lot: LotName = None,
+    record: RecordDb = None,
 ) -> None:
     """Check a calibration on static captures it was not fitted on: the norm of each mean, before
     and after correction, against the reference (the test of a calibration model in Sports
@@ -142,6 +147,7 @@ def verify(
     if log is not None or accel_cal is not None:
         where = (log, accel_cal, rate, columns, captures_, found, (start, end))
         return _rotations(cal, *where, json_summary=json_summary, quiet=quiet)
+    save = Saver(record, lot, "verify")  # (--record: a re-test of the unit, checked before any work)
     done = pipeline.verify(
         captures_ or [],
         cal,
@@ -160,6 +166,8 @@ def verify(
         rate=rate,
         rows_are_poses=rows_are_poses,
     )
+    if done.error is None:  # recorded before anything is printed: a failed record is the one error
+        save.retest(done.cal, done.status, dict(_summary(done, cal, max_norm_error)))
     if json_summary:
         render.print_json(_summary(done, cal, max_norm_error))
     if not quiet and done.error is None:  # a capture that is not static: its rejection alone

@@ -59,20 +59,26 @@ class Origin:
     command: str = "solve"
     status: int | None = None
     source: str | None = None
+    created: str | None = None  # a re-test's own time (a calibration's is its file's ``created``)
+    verification: Mapping[str, object] | None = None  # a re-test's figures, kept in its document
 
 
 def row_of(cal: calfile.Calibration, origin: Origin, recorded: str) -> RecordRow:
     """The record of ``cal`` (a calibration, or a re-test's judged calibration)."""
     doc = cal.to_dict()
+    if origin.verification is not None:
+        doc["verification"] = dict(origin.verification)
     unit = cal.unit or calfile.Unit()
     verdict = None if cal.verdict is None else ("pass" if cal.verdict.passed else "fail")
+    if origin.kind == "verification":
+        verdict = "fail" if origin.status else "pass"
     text = {
         "kind": origin.kind,
         "serial": unit.serial,
         "station": unit.station,
         "operator": unit.operator,
         "lot": origin.lot,
-        "created": cal.created,
+        "created": origin.created or cal.created,
         "recorded": recorded,
         "sensor": cal.sensor,
         "method": cal.method,
