@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import math
-import sqlite3
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +15,7 @@ from tests.conftest import assert_one_error, run
 from tumblecal_cli.core import control
 from tumblecal_cli.pipeline.records import store
 from tumblecal_cli.pipeline.records import trend as watching
-from tumblecal_cli.pipeline.records.store import PARAMETERS
+from tumblecal_cli.pipeline.records.store import PARAMETERS, connected
 
 #: Each parameter's centre and spread on the simulated line (offsets in g, gains, cross terms, residual).
 CENTRES = np.array([0.02, -0.03, 0.05, 1.01, 0.99, 1.0, *[0.0] * 6, 0.001])
@@ -32,7 +31,7 @@ def line(db: Path, values: dict[str, np.ndarray]) -> None:
         for k, row in enumerate(table.tolist()):
             created = f"2026-01-01T00:00:00Z+{k:06d}"
             rows.append((f"{station}-{k}", f"{station}-SN{k:04d}", station, created, *row))
-    with sqlite3.connect(db) as con:
+    with connected(db) as con:
         con.executemany(
             "INSERT INTO records (key, kind, serial, station, created, sensor, method, command, tool, document, "
             f"{', '.join(PARAMETERS)}) VALUES (?, 'calibration', ?, ?, ?, 'accelerometer', 'six-pose', 'solve', 't', "

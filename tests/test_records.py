@@ -8,7 +8,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import sqlite3
 import subprocess
 import sys
 import textwrap
@@ -18,20 +17,20 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.conftest import POSES_3, PRECIOUS, ROOT, assert_one_error, imported, run, run_exe
+from tests.conftest import POSES_3, PRECIOUS, ROOT, assert_one_error, imported, run, run_exe, unit
 from tumblecal_cli.pipeline.records import store
-from tumblecal_cli.pipeline.records.store import PARAMETERS
+from tumblecal_cli.pipeline.records.store import PARAMETERS, connected
 
 SOLVE = ["solve", "-q", "--poses", *POSES_3]
 
 
 def _count(db: Path, where: str = "1") -> int:
-    with sqlite3.connect(db) as con:
+    with connected(db) as con:
         return int(con.execute(f"SELECT count(*) FROM records WHERE {where}").fetchone()[0])
 
 
 def _integrity(db: Path) -> str:
-    with sqlite3.connect(db) as con:
+    with connected(db) as con:
         return str(con.execute("PRAGMA integrity_check").fetchone()[0])
 
 
@@ -54,7 +53,7 @@ def test_solve_records_with_its_file_and_a_retry_adds_nothing(
     ]
     assert run(capsys, *args, "--record", db).code == 0
     assert run(capsys, *args, "--record", db).code == 0  # a station script's retry
-    with sqlite3.connect(db) as con:
+    with connected(db) as con:
         rows = con.execute(
             "SELECT serial, station, operator, lot, verdict, sensor, method, document FROM records"
         ).fetchall()
@@ -77,7 +76,7 @@ def test_the_environment_gives_the_database(capsys: pytest.CaptureFixture[str], 
 def _refusing(db: Path) -> None:
     """A database whose every insert fails (a trigger), as a full disk or a lost server would."""
     run_exe([*SOLVE, "--serial", "first", "-o", db.with_suffix(".json"), "--record", db])
-    with sqlite3.connect(db) as con:
+    with connected(db) as con:
         con.execute("CREATE TRIGGER no BEFORE INSERT ON records BEGIN SELECT RAISE(ABORT, 'disk is full'); END")
 
 
@@ -103,11 +102,11 @@ def test_a_failed_record_leaves_an_existing_output_as_it_was(
 
 def test_refusals_name_the_database(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     other, text, newer = tmp_path / "other.db", tmp_path / "text.db", tmp_path / "newer.db"
-    with sqlite3.connect(other) as con:
+    with connected(other) as con:
         con.execute("CREATE TABLE t (x)")
     text.write_text("serial,station\n")
     run(capsys, *SOLVE, "-o", tmp_path / "a.json", "--record", newer)
-    with sqlite3.connect(newer) as con:
+    with connected(newer) as con:
         con.execute("UPDATE tumblecal_meta SET value = '9' WHERE name = 'schema'")
     before = newer.read_bytes()
     out = tmp_path / "b.json"
@@ -149,7 +148,7 @@ def test_a_read_only_database_is_refused(capsys: pytest.CaptureFixture[str], tmp
 def test_an_injection_like_serial_is_stored_as_text(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     db, serial = tmp_path / "r.db", "x'); DROP TABLE records;--"
     assert run(capsys, *SOLVE, "--serial", serial, "-o", tmp_path / "a.json", "--record", db).code == 0
-    with sqlite3.connect(db) as con:
+    with connected(db) as con:
         assert con.execute("SELECT serial FROM records").fetchall() == [(serial,)]
     result = run(capsys, "records", "history", serial, "--db", db, "--json")
     assert result.code == 0
@@ -204,7 +203,7 @@ def test_import_takes_files_and_batch_folders_once(capsys: pytest.CaptureFixture
     again = run(capsys, "records", "import", lot / "U0.json", lot / "U1.json", "--db", db)
     assert again.code == 0
     assert "0 records added, 2 there already" in again.err
-    with sqlite3.connect(db) as con:
+    with connected(db) as con:
         assert con.execute("SELECT DISTINCT lot, command FROM records").fetchall() == [("L7", "import")]
 
 
@@ -212,7 +211,7 @@ def test_migrate_makes_and_reports_the_schema(capsys: pytest.CaptureFixture[str]
     db = tmp_path / "m.db"
     assert run(capsys, "records", "migrate", "--db", db).err == f"{db}: schema 0 -> 1\n"
     assert run(capsys, "records", "migrate", "--db", db).err == f"{db}: schema 1, up to date\n"
-    with sqlite3.connect(db) as con:
+    with connected(db) as con:
         assert con.execute("PRAGMA application_id").fetchone()[0] == store.APPLICATION_ID
 
 
@@ -274,7 +273,7 @@ def test_eight_processes_record_at_once_each_record_once(tmp_path: Path) -> None
     printed = [w.communicate(timeout=300)[0].decode().split() for w in writers]
     assert [w.returncode for w in writers] == [0] * 8
     assert sum(len(p) for p in printed) == 1000
-    with sqlite3.connect(db) as con:
+    with connected(db) as con:
         serials = [r[0] for r in con.execute("SELECT serial FROM records")]
     assert len(serials) == 1000
     assert set(serials) == {s for p in printed for s in p}
@@ -298,7 +297,7 @@ def test_a_kill_in_the_middle_of_recording_leaves_the_database_whole(tmp_path: P
         os.kill(writer.pid, signal.SIGKILL)
         done = first + writer.communicate()[0].decode().split()
         assert _integrity(db) == "ok"
-        with sqlite3.connect(db) as con:
+        with connected(db) as con:
             kept = {r[0] for r in con.execute("SELECT serial FROM records WHERE station = ?", (f"K{round_}",))}
         # every record reported done is there; at most the one being committed when killed besides
         assert set(done) <= kept
@@ -314,7 +313,7 @@ def _fill(db: Path, count: int, stations: int = 20) -> None:
     marks = ", ".join("?" for _ in PARAMETERS)
     rng = np.random.default_rng(5)
     values = rng.normal(0.0, 1.0, size=(count, len(PARAMETERS)))
-    with sqlite3.connect(db) as con:
+    with connected(db) as con:
         con.executemany(
             "INSERT INTO records (key, kind, serial, station, created, sensor, method, command, tool, document, "
             f"{params}) VALUES (?, 'calibration', ?, ?, ?, 'accelerometer', 'six-pose', 'solve', 't', '{{}}', {marks})",
@@ -385,10 +384,36 @@ def test_verify_records_a_retest_and_thermal_its_calibration(
     assert run(capsys, "solve", "-q", "--poses", *faces, "--serial", "TH1", "-o", base).code == 0
     out = tmp_path / "th.json"
     assert run(capsys, "thermal", "-q", *sweeps, "--cal", base, "-o", out, "--record", db).code == 0
-    with sqlite3.connect(db) as con:
+    with connected(db) as con:
         assert con.execute("SELECT serial, command FROM records WHERE command = 'thermal'").fetchall() == [
             ("TH1", "thermal")
         ]
-    with sqlite3.connect(db) as con:
+    with connected(db) as con:
         doc = json.loads(con.execute("SELECT document FROM records WHERE command = 'thermal'").fetchone()[0])
     assert doc == json.loads(out.read_text())
+
+
+def test_batch_records_each_unit_published_its_lot_the_folder(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    units = tmp_path / "units"
+    for serial, kind in (("B1", "good"), ("B2", "good"), ("B3", "rejected")):
+        unit(units, serial, kind)
+    db, out = tmp_path / "r.db", tmp_path / "L9"
+    result = run(capsys, "batch", units, "--out-dir", out, "--record", db, "-q")
+    assert result.code == 3, result.err
+    with connected(db) as con:
+        rows = con.execute("SELECT serial, lot, command, status FROM records ORDER BY serial").fetchall()
+    assert rows == [("B1", "L9", "batch", 0), ("B2", "L9", "batch", 0)]
+    assert sorted(p.name.split("_")[0] for p in out.glob("*.json")) == ["B1", "B2"]
+
+
+def test_batch_stops_when_a_record_cannot_be_written(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    units = tmp_path / "units"
+    unit(units, "C1", "good")
+    db, out = tmp_path / "r.db", tmp_path / "out"
+    _refusing(db)
+    result = run(capsys, "batch", units, "--out-dir", out, "--record", db, "-q")
+    assert result.code == 2
+    assert f"{db}: cannot read or write it: disk is full" in result.err
+    assert not list(out.glob("C1_*.json"))

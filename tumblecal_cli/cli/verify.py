@@ -166,10 +166,7 @@ def verify(
         rate=rate,
         rows_are_poses=rows_are_poses,
     )
-    if done.error is None:  # recorded before anything is printed: a failed record is the one error
-        save.retest(done.cal, done.status, dict(_summary(done, cal, max_norm_error)))
-    if json_summary:
-        render.print_json(_summary(done, cal, max_norm_error))
+    _recorded(done, _summary(done, cal, max_norm_error), save, json_summary=json_summary)
     if not quiet and done.error is None:  # a capture that is not static: its rejection alone
         render.print_verify(done.cal, done.rows, done.overall, done.reference, max_norm_error, done.failed)
         for note in done.notes:
@@ -180,6 +177,15 @@ def verify(
         _plot_verify(plot, done, quiet=quiet)
     if done.status:
         raise typer.Exit(done.status)
+
+
+def _recorded(done: Verified, summary: JSONObject, save: Saver, *, json_summary: bool) -> None:
+    """--record: the re-test recorded before anything is printed (a failed record is the one
+    error); --json: the summary."""
+    if done.error is None:
+        save.retest(done.cal, done.status, dict(summary))
+    if json_summary:
+        render.print_json(summary)
 
 
 def _plot_verify(plot: str, done: Verified, *, quiet: bool) -> None:

@@ -14,7 +14,8 @@ from __future__ import annotations
 import contextlib
 import os
 import secrets
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager as ContextManager
 from datetime import UTC, datetime
 
 from tumblecal_cli.errors import InputError
@@ -97,6 +98,41 @@ def _commit(store: Store, output: str, kept: str | None) -> None:
     if kept is not None:
         with contextlib.suppress(OSError):
             os.unlink(kept)
+
+
+@contextlib.contextmanager
+def publishing(db: str, cal: calfile.Calibration, origin: columns.Origin) -> Iterator[list[str]]:
+    """``cal`` recorded around a block that publishes new files (never replacing one: batch's),
+    adding each to the list it is given: both or neither (a failed commit removes them)."""
+    row = columns.row_of(cal, origin, now())
+    store = open_store(db, write=True)
+    published: list[str] = []
+    try:
+        store.begin()
+        store.insert(row, columns.tool())
+        yield published
+        try:
+            store.commit()
+        except InputError:
+            for path in published:
+                with contextlib.suppress(OSError):
+                    os.unlink(path)
+            raise
+    except BaseException:
+        store.rollback()
+        raise
+    finally:
+        store.close()
+
+
+def keeper(db: str, lot: str | None, command: str = "batch") -> Callable[[str, int], ContextManager[list[str]]]:
+    """batch's ``keep`` (pipeline.batch.units.Keeper): each staged calibration recorded as it is
+    published."""
+
+    def keep(staging: str, status: int) -> ContextManager[list[str]]:
+        return publishing(db, calfile.load(staging), columns.Origin(lot=lot, command=command, status=status))
+
+    return keep
 
 
 def check(db: str) -> None:

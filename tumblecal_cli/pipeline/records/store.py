@@ -260,6 +260,18 @@ def open_store(target: str, *, write: bool) -> Store:
 
 
 @contextlib.contextmanager
+def connected(path: str | os.PathLike[str]) -> Iterator[sqlite3.Connection]:
+    """A plain ``sqlite3`` connection to a records file (for a look with SQL: tests, scripts),
+    committed at the end of the block and closed (``with sqlite3.connect(...)`` leaves it open)."""
+    connection = sqlite3.connect(path)
+    try:
+        with connection:
+            yield connection
+    finally:
+        connection.close()
+
+
+@contextlib.contextmanager
 def opened(target: str, *, write: bool) -> Iterator[Store]:
     """``open_store`` as a block that closes it."""
     store = open_store(target, write=write)
