@@ -195,7 +195,7 @@ def test_trend_text_json_and_status(capsys: pytest.CaptureFixture[str], tmp_path
     assert doc["limits"]["beyond_limit_sigma"] > 3
     quiet = run(capsys, "records", "trend", "--db", db, "--station", "S02")
     assert quiet.code == 0
-    assert "1 stations, 13 series, 300 units: 0 alarms" in quiet.out
+    assert "1 station, 13 series, 300 units: 0 alarms" in quiet.out
     later = run(capsys, "records", "trend", "--db", db, "--since", "2026-01-01T00:00:00Z+000260")
     assert "baseline" in later.out
 

@@ -194,7 +194,8 @@ def print_trend(t: Trended) -> None:
             f"judged, each rule at {lim.p:.2g} (a run of stable stations alarms at most 5 % of the time)"
         )
     count = f"{len(t.alarms)} alarm{'s' if len(t.alarms) != 1 else ''}"
-    print(f"{len(t.stations)} stations, {t.series} series, {t.units} units: {count}")
+    stations = f"{len(t.stations)} station{'s' if len(t.stations) != 1 else ''}"
+    print(f"{stations}, {t.series} series, {t.units} units: {count}")
     for a in t.alarms:
         print(
             f"alarm: station {one_line(a.station)}, {a.sensor} {a.parameter}, rule {a.rule} ({a.words}): "

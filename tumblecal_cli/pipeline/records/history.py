@@ -5,8 +5,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from tumblecal_cli.pipeline.records.store import PARAMETERS, SIGMAS, opened
+
+if TYPE_CHECKING:
+    from pandas import DataFrame
 
 _SHOWN = ("id", "kind", "serial", "station", "operator", "lot", "created", "recorded", "sensor", "method", "verdict")
 _NUMBERED = (*PARAMETERS, *SIGMAS)
@@ -50,6 +54,15 @@ def _changes(new: dict[str, float | None], old: dict[str, float | None]) -> tupl
         spread = math.hypot(sa, sb) if sa is not None and sb is not None else 0.0
         out.append(Change(name, a - b, (a - b) / spread if spread > 0 else None))
     return tuple(out)
+
+
+def history_table(db: str, serial: str) -> DataFrame:
+    """:func:`history` as a pandas DataFrame: one row per record, newest first, its text columns
+    and each parameter (the changes are in :func:`history`)."""
+    import pandas as pd
+
+    rows = [{**r.facts, **{p: r.numbers.get(p) for p in PARAMETERS}} for r in history(db, serial)]
+    return pd.DataFrame(rows, columns=[*_SHOWN, *PARAMETERS])
 
 
 def history(db: str, serial: str) -> list[UnitRecord]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -12,6 +13,9 @@ from tumblecal_cli.core import control
 from tumblecal_cli.core.arrays import BoolArray, FloatArray
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.pipeline.records.store import PARAMETERS, opened
+
+if TYPE_CHECKING:
+    from pandas import DataFrame
 
 #: What an alarm on a parameter's family usually means: a shift or drift, and one unit far off.
 MEANINGS = {
@@ -38,6 +42,10 @@ def meaning(parameter: str, rule: str) -> str:
     if rule == "station":
         return _STATION_MEANING
     return MEANINGS[(family(parameter), "point" if rule in _POINT_RULES else "drift")]
+
+
+#: The keys of an alarm's JSON, and the columns of ``Trended.table``.
+ALARM_COLUMNS = ("station", "sensor", "parameter", "rule", "first_serial", "first_created", "what", "meaning")
 
 
 @dataclass(frozen=True)
@@ -77,6 +85,12 @@ class Trended:
     units: int
     stations: tuple[str, ...]
     alarms: list[Alarm] = field(default_factory=list)
+
+    def table(self) -> DataFrame:
+        """The alarms as a pandas DataFrame, one row each (the Python API)."""
+        import pandas as pd
+
+        return pd.DataFrame([a.as_dict() for a in self.alarms], columns=list(ALARM_COLUMNS))
 
     def as_dict(self) -> dict[str, object]:
         return {
@@ -147,7 +161,7 @@ def _read(db: str, station: str | None, since: str | None) -> list[_Series]:
         values.append(since)
     names = ", ".join(PARAMETERS)
     sql = (
-        f"SELECT coalesce(station, ''), sensor, serial, coalesce(created, ''), {names} FROM records "
+        f"SELECT coalesce(station, '(no station)'), sensor, serial, coalesce(created, ''), {names} FROM records "
         f"WHERE {' AND '.join(where)} ORDER BY station, sensor, created, id"
     )
     with opened(db, write=False) as store:
