@@ -363,8 +363,9 @@ RecordDb = Annotated[
         metavar="DB",
         envvar="TUMBLECAL_RECORD",
         show_envvar=False,
-        help="Also record the result in the records database DB (a SQLite file, made if new), in the same "
-        "run: if it cannot be recorded, exit 2 and no file is written. [env: TUMBLECAL_RECORD]",
+        help="Also record the result in the records database DB (a SQLite file, made if new, or a "
+        "postgresql:// URL), in the same run: if it cannot be recorded, exit 2 and no file is written. "
+        "[env: TUMBLECAL_RECORD]",
         rich_help_panel=UNIT_PANEL,
     ),
 ]

@@ -73,7 +73,11 @@ app.add_typer(records_app, name="records")
 Db = Annotated[
     str,
     typer.Option(
-        "--db", metavar="DB", envvar="TUMBLECAL_RECORD", show_envvar=False, help="The records database (a SQLite file)."
+        "--db",
+        metavar="DB",
+        envvar="TUMBLECAL_RECORD",
+        show_envvar=False,
+        help="The records database: a SQLite file, or a postgresql:// URL. [env: TUMBLECAL_RECORD]",
     ),
 ]
 JsonOut = Annotated[bool, typer.Option("--json", help="Print JSON on stdout instead of text.")]
@@ -97,12 +101,13 @@ def import_(
     A batch folder (one holding summary.csv) gives its files its name as their lot.
     """
     from tumblecal_cli.pipeline.records.importing import import_files
+    from tumblecal_cli.pipeline.records.store import shown
 
     done = import_files(db, paths, lot)
     for path, why in done.unreadable:
         print(f"warning: {one_line(path)}: skipped: {one_line(why)}", file=sys.stderr)
     if not quiet:
-        print(f"{done.added} records added, {done.known} there already ({one_line(db)})", file=sys.stderr)
+        print(f"{done.added} records added, {done.known} there already ({one_line(shown(db))})", file=sys.stderr)
     if done.unreadable:
         raise typer.Exit(2)
 
@@ -214,4 +219,4 @@ def migrate(db: Db) -> None:
 
     before, after = store.migrate(db)
     words = f"schema {after}, up to date" if before == after else f"schema {before} -> {after}"
-    print(f"{one_line(db)}: {words}", file=sys.stderr)
+    print(f"{one_line(store.shown(db))}: {words}", file=sys.stderr)

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 from tumblecal_cli.pipeline.records.store import PARAMETERS, SIGMAS, opened
 
 if TYPE_CHECKING:
-    from pandas import DataFrame
+    from tumblecal_cli.pipeline.frames import DataFrame
 
 _SHOWN = ("id", "kind", "serial", "station", "operator", "lot", "created", "recorded", "sensor", "method", "verdict")
 _NUMBERED = (*PARAMETERS, *SIGMAS)

@@ -15,7 +15,7 @@ from tumblecal_cli.errors import InputError
 from tumblecal_cli.pipeline.records.store import PARAMETERS, opened
 
 if TYPE_CHECKING:
-    from pandas import DataFrame
+    from tumblecal_cli.pipeline.frames import DataFrame
 
 #: What an alarm on a parameter's family usually means: a shift or drift, and one unit far off.
 MEANINGS = {
