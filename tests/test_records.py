@@ -417,3 +417,21 @@ def test_batch_stops_when_a_record_cannot_be_written(capsys: pytest.CaptureFixtu
     assert result.code == 2
     assert f"{db}: cannot read or write it: disk is full" in result.err
     assert not list(out.glob("C1_*.json"))
+
+
+def test_report_judges_a_lot_from_its_records_as_from_its_files(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    db, lot, limits = tmp_path / "r.db", ROOT / "sample_data" / "lot", ROOT / "sample_data" / "limits.yaml"
+    assert run(capsys, "records", "import", lot, "--db", db, "--lot", "L1", "-q").code == 0
+    from_records = run(capsys, "report", "--db", db, "--lot", "L1", "--limits", limits, "--json")
+    from_files = run(capsys, "report", lot, "--limits", limits, "--json")
+    assert from_records.code == from_files.code == 1
+    ours, theirs = json.loads(from_records.out), json.loads(from_files.out)
+    assert [r["parameter"] for r in ours["parameters"]] == [r["parameter"] for r in theirs["parameters"]]
+    for a, b in zip(ours["parameters"], theirs["parameters"], strict=True):
+        assert a["count"] == b["count"]
+        assert a["mean"] == pytest.approx(b["mean"], rel=1e-12, abs=1e-15)
+        assert a["outliers"] == b["outliers"]
+    assert_one_error(run(capsys, "report", "--db", db, "--lot", "L2"), f"{db}: no records of lot 'L2'")
+    assert_one_error(run(capsys, "report", "--db", db), "--db DB and --lot L go together, in place of CALS...")

@@ -3,16 +3,17 @@
 
 from __future__ import annotations
 
+import json
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from tumblecal_cli.errors import TumblecalError
+from tumblecal_cli.errors import InputError, TumblecalError
 from tumblecal_cli.io.calfiles import calfile
 from tumblecal_cli.pipeline import report
 from tumblecal_cli.pipeline.records import columns
 from tumblecal_cli.pipeline.records.recording import now
-from tumblecal_cli.pipeline.records.store import opened
+from tumblecal_cli.pipeline.records.store import opened, shown
 
 
 @dataclass(frozen=True)
@@ -59,3 +60,24 @@ def import_files(db: str, paths: Sequence[str], lot: str | None = None) -> Impor
             store.rollback()
             raise
     return ImportDone(added, len(rows) - added, tuple(unreadable))
+
+
+def report_lot(db: str, lot: str, judged: report.Judged) -> report.Reported:
+    """``report --db DB --lot L``: the lot judged from its records (each calibration recorded
+    with that lot; its re-tests left out), as ``report`` judges the files of a lot."""
+    judged.check()
+    with opened(db, write=False) as store:
+        rows = store.execute(
+            "SELECT id, document FROM records WHERE lot = ? AND kind = 'calibration' ORDER BY id", (lot,)
+        ).fetchall()
+    if not rows:
+        raise InputError(f"no records of lot {lot!r}", file=shown(db))
+    entries, unreadable, names = [], [], []
+    for record, document in rows:
+        name = f"{shown(db)}#{record}"
+        names.append(name)
+        try:
+            entries.append(report.entry(calfile.validate(json.loads(document), name)))
+        except (TumblecalError, ValueError) as err:
+            unreadable.append((name, err.message if isinstance(err, TumblecalError) else f"not JSON ({err})"))
+    return judged.report(entries, unreadable, names)
