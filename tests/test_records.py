@@ -336,7 +336,7 @@ def test_history_and_trend_on_100000_records_are_quick(tmp_path: Path) -> None:
     _fill(db, 100_000)
     for args, most in ((["history", "SN42"], 0.3), (["trend"], 2.0)):
         best = float("inf")
-        for _ in range(2):
+        for _ in range(5):  # the best of 5: the machine is shared
             start = time.perf_counter()
             done = run_exe(["records", *args, "--db", db, "--json"])
             best = min(best, time.perf_counter() - start)
@@ -348,7 +348,7 @@ def test_history_and_trend_on_100000_records_are_quick(tmp_path: Path) -> None:
 def test_recording_adds_at_most_20_ms_to_a_solve(tmp_path: Path) -> None:
     db = tmp_path / "r.db"
     times: dict[bool, float] = {}
-    for k in range(7):
+    for k in range(13):  # the best of 12 each, interleaved: the machine is shared
         for recorded in (False, True):
             extra = ["--record", str(db)] if recorded else []
             start = time.perf_counter()
