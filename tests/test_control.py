@@ -212,3 +212,45 @@ def test_trend_baseline_by_units_and_by_dates(capsys: pytest.CaptureFixture[str]
         run(capsys, "records", "trend", "--db", db, "--baseline", "soon"),
         "--baseline 'soon': give N (the first N units) or FIRST..LAST (dates, 2026-01-05..2026-02-01)",
     )
+
+
+def _alarmed_line(db: Path) -> None:
+    values = stable(np.random.default_rng(5), stations=3, units=300)
+    values["S01"][250, 0] += 12 * SPREADS[0]
+    values['<b>"S9"</b>'] = values.pop("S01")  # a station's name cannot put markup in the page
+    line(db, values)
+
+
+def test_trend_html_is_one_page_with_a_chart_per_alarmed_series(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    db, page = tmp_path / "t.db", tmp_path / "trend.html"
+    _alarmed_line(db)
+    result = run(capsys, "records", "trend", "--db", db, "--html", page)
+    assert result.code == 1
+    text = page.read_text(encoding="utf-8")
+    assert text.count("<svg") == 1
+    assert "<script" not in text
+    assert "Content-Security-Policy" in text
+    assert "<b>" not in text
+    assert "<td>&lt;b&gt;&quot;S9&quot;&lt;/b&gt;</td>" in text
+    assert "&lt;b&gt;&quot;S9&quot;&lt;/b&gt;-SN0250" in text
+    assert "one unit&#x27;s offset far off" in text
+    missing = tmp_path / "none.html"
+    assert run(capsys, "records", "trend", "--db", tmp_path / "no.db", "--html", missing).code == 2
+    assert not missing.exists()
+
+
+@pytest.mark.slow
+def test_trend_html_in_a_headless_browser(tmp_path: Path) -> None:
+    from tests.test_lot_html import browse, chromium
+
+    browser = chromium()
+    db, page = tmp_path / "t.db", tmp_path / "trend.html"
+    _alarmed_line(db)
+    watching.write_html(watching.trend(str(db)), str(page), ["baseline"])
+    done = browse(browser, tmp_path, "--enable-logging=stderr", "--v=0", "--dump-dom", page.as_uri())
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert [ln for ln in done.stderr.splitlines() if "CONSOLE" in ln or "Refused" in ln] == []
+    assert done.stdout.count("<polyline") == 1
+    assert "-SN0250" in done.stdout

@@ -167,6 +167,14 @@ def trend(
         ),
     ] = None,
     json_out: JsonOut = False,
+    html: Annotated[
+        str | None,
+        typer.Option(
+            "--html",
+            metavar="FILE.html",
+            help="Also write one self-contained page: the alarms and a control chart (SVG) of each series with one.",
+        ),
+    ] = None,
 ) -> None:
     """Watch each station over time: control charts of every offset, gain, cross-axis term and the
     residual, the Western Electric rules and an EWMA, and the stations compared.
@@ -178,34 +186,41 @@ def trend(
     The rules' limits widen with the units judged, so that stable stations raise an alarm in at
     most 5 % of runs; the limits used are printed.
     """
+    from tumblecal_cli.io.outputs import check_writable
     from tumblecal_cli.pipeline.records import trend as watching
 
+    if html is not None:
+        check_writable(html, "--html")
     trended = watching.trend(db, station, since, watching.parse_baseline(baseline))
+    if html is not None:
+        watching.write_html(trended, html, trend_lines(trended, alarms=False))
     if json_out:
         print(json.dumps(trended.as_dict(), indent=2))
     else:
-        print_trend(trended)
+        print("\n".join(trend_lines(trended)))
     if trended.alarms:
         raise typer.Exit(1)
 
 
-def print_trend(t: Trended) -> None:
+def trend_lines(t: Trended, alarms: bool = True) -> list[str]:
+    """What trend prints: the baseline, the limits, the counts, each alarm (``alarms``)."""
     lim = t.limits
-    print(f"baseline: {t.baseline}")
+    lines = [f"baseline: {t.baseline}"]
     if lim is not None:
-        print(
+        lines.append(
             f"limits: one beyond {lim.l1:.2f}σ, 2 of 3 beyond {lim.l2:.2f}σ, 4 of 5 beyond {lim.l3:.2f}σ, "
             f"{lim.run} in a row, EWMA (λ {lim.lam:g}) beyond {lim.le:.2f}σ of its own: {lim.points} units "
             f"judged, each rule at {lim.p:.2g} (a run of stable stations alarms at most 5 % of the time)"
         )
     count = f"{len(t.alarms)} alarm{'s' if len(t.alarms) != 1 else ''}"
     stations = f"{len(t.stations)} station{'s' if len(t.stations) != 1 else ''}"
-    print(f"{stations}, {t.series} series, {t.units} units: {count}")
-    for a in t.alarms:
-        print(
+    lines.append(f"{stations}, {t.series} series, {t.units} units: {count}")
+    for a in t.alarms if alarms else []:
+        lines.append(
             f"alarm: station {one_line(a.station)}, {a.sensor} {a.parameter}, rule {a.rule} ({a.words}): "
             f"first at serial {one_line(str(a.serial))} ({a.created}): {a.meaning}"
         )
+    return lines
 
 
 @records_app.command("migrate", cls=Command, epilog=RECORDS_EXIT)

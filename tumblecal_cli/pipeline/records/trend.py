@@ -3,7 +3,9 @@
 
 from __future__ import annotations
 
+import math
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -12,6 +14,8 @@ import numpy as np
 from tumblecal_cli.core import control
 from tumblecal_cli.core.arrays import BoolArray, FloatArray
 from tumblecal_cli.errors import InputError
+from tumblecal_cli.io.figures import trendhtml
+from tumblecal_cli.io.outputs import atomic_output
 from tumblecal_cli.pipeline.records.store import PARAMETERS, opened
 
 if TYPE_CHECKING:
@@ -85,6 +89,7 @@ class Trended:
     units: int
     stations: tuple[str, ...]
     alarms: list[Alarm] = field(default_factory=list)
+    charts: tuple[trendhtml.SeriesChart, ...] = ()  # each series with an alarm, as --html draws it
 
     def table(self) -> DataFrame:
         """The alarms as a pandas DataFrame, one row each (the Python API)."""
@@ -198,10 +203,28 @@ def trend(db: str, station: str | None = None, since: str | None = None, baselin
     if not charts:
         return Trended(base.stated(), None, 0, units, stations)
     lim = {n: control.limits(points, n) for n in {c.baseline for _, _, c, _ in charts}}
-    alarms = [a for s, p, c, _ in charts for a in _alarms(s, p, c, lim[c.baseline])]
+    alarms: list[Alarm] = []
+    drawn: list[trendhtml.SeriesChart] = []
+    for s, p, c, values in charts:
+        found = control.fired(c, lim[c.baseline])
+        alarms += _alarms(s, p, found, lim[c.baseline])
+        if found:
+            drawn.append(_drawn(s, p, c, values, found, lim[c.baseline]))
     alarms += _compared(charts)
     shown = lim[min(lim)]
-    return Trended(base.stated(), shown, len(charts), units, stations, alarms)
+    return Trended(base.stated(), shown, len(charts), units, stations, alarms, tuple(drawn))
+
+
+def write_html(trended: Trended, path: str, stated: Sequence[str]) -> None:
+    """``records trend --html``: the page (``io.figures.trendhtml``) written atomically; ``stated``
+    the lines the text output starts with (baseline, limits, counts)."""
+    rows = [
+        (a.station, f"{a.sensor} {a.parameter}", a.rule, str(a.serial), str(a.created), a.meaning)
+        for a in trended.alarms
+    ]
+    text = trendhtml.page("tumblecal records trend", stated, rows, trended.charts).encode()
+    with atomic_output(path) as out:
+        out.write(text)
 
 
 def _words(rule: str, lim: control.ControlLimits, **facts: float) -> str:
@@ -210,9 +233,19 @@ def _words(rule: str, lim: control.ControlLimits, **facts: float) -> str:
     )
 
 
-def _alarms(s: _Series, parameter: str, c: control.Chart, lim: control.ControlLimits) -> list[Alarm]:
+def _drawn(
+    s: _Series, parameter: str, c: control.Chart, values: FloatArray, found: dict[str, int], lim: control.ControlLimits
+) -> trendhtml.SeriesChart:
+    """An alarmed series as the page draws it: rule 1's limit either side of the centre."""
+    limit = lim.l1 * c.sigma * math.sqrt(1.0 + 1.0 / c.baseline)
+    last = int(np.flatnonzero(~c.judged)[-1]) + 1 if (~c.judged).any() else 0
+    title = f"station {s.station}, {s.sensor} {parameter}"
+    return trendhtml.SeriesChart(title, values.tolist(), c.centre, limit, last, tuple(found.items()))
+
+
+def _alarms(s: _Series, parameter: str, found: dict[str, int], lim: control.ControlLimits) -> list[Alarm]:
     out = []
-    for rule, at in control.fired(c, lim).items():
+    for rule, at in found.items():
         out.append(
             Alarm(
                 s.station,
