@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.conftest import assert_one_error, run
+from tests.conftest import PNG_SIGNATURE, assert_one_error, run
 from tumblecal_cli.core import control
 from tumblecal_cli.pipeline.records import store
 from tumblecal_cli.pipeline.records import trend as watching
@@ -254,3 +254,16 @@ def test_trend_html_in_a_headless_browser(tmp_path: Path) -> None:
     assert [ln for ln in done.stderr.splitlines() if "CONSOLE" in ln or "Refused" in ln] == []
     assert done.stdout.count("<polyline") == 1
     assert "-SN0250" in done.stdout
+
+
+@pytest.mark.slow
+def test_trend_plot_draws_each_alarmed_series(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib")
+    db, png = tmp_path / "t.db", tmp_path / "trend.png"
+    _alarmed_line(db)
+    assert run(capsys, "records", "trend", "--db", db, "--plot", png).code == 1
+    assert png.read_bytes().startswith(PNG_SIGNATURE)
+    same = tmp_path / "same.png"
+    result = run(capsys, "records", "trend", "--db", db, "--plot", same, "--html", same)
+    assert_one_error(result, f"{same}: --plot and --html name the same file")
+    assert not same.exists()

@@ -175,6 +175,12 @@ def trend(
             help="Also write one self-contained page: the alarms and a control chart (SVG) of each series with one.",
         ),
     ] = None,
+    plot: Annotated[
+        str | None,
+        typer.Option(
+            "--plot", metavar="PNG", help="Also draw the control chart of each series with an alarm (needs [plot])."
+        ),
+    ] = None,
 ) -> None:
     """Watch each station over time: control charts of every offset, gain, cross-axis term and the
     residual, the Western Electric rules and an EWMA, and the stations compared.
@@ -186,20 +192,38 @@ def trend(
     The rules' limits widen with the units judged, so that stable stations raise an alarm in at
     most 5 % of runs; the limits used are printed.
     """
-    from tumblecal_cli.io.outputs import check_writable
     from tumblecal_cli.pipeline.records import trend as watching
 
-    if html is not None:
-        check_writable(html, "--html")
+    _outputs_checked(html, plot)
     trended = watching.trend(db, station, since, watching.parse_baseline(baseline))
     if html is not None:
         watching.write_html(trended, html, trend_lines(trended, alarms=False))
+    if plot is not None:
+        from tumblecal_cli.io.figures import plots
+
+        count = len(trended.alarms)
+        plots.trend_figure(plot, trended.charts, title=f"{count} alarm{'s' if count != 1 else ''}: {trended.baseline}")
     if json_out:
         print(json.dumps(trended.as_dict(), indent=2))
     else:
         print("\n".join(trend_lines(trended)))
     if trended.alarms:
         raise typer.Exit(1)
+
+
+def _outputs_checked(html: str | None, plot: str | None) -> None:
+    """--html and --plot: each a file that can be written, matplotlib there for --plot, before any work."""
+    from tumblecal_cli.io.outputs import check_writable
+
+    if html is not None:
+        check_writable(html, "--html")
+    if plot is not None:
+        from tumblecal_cli.io.figures import plots
+
+        plots.require()
+        check_writable(plot, "--plot")
+        if plot == html:
+            raise InputError("--plot and --html name the same file", file=plot)
 
 
 def trend_lines(t: Trended, alarms: bool = True) -> list[str]:
