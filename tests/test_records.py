@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from tests.conftest import POSES_3, PRECIOUS, ROOT, assert_one_error, imported, run, run_exe, unit
+from tumblecal_cli.errors import InputError
 from tumblecal_cli.pipeline.records import store
 from tumblecal_cli.pipeline.records.store import PARAMETERS, connected
 
@@ -435,3 +436,24 @@ def test_report_judges_a_lot_from_its_records_as_from_its_files(
         assert a["outliers"] == b["outliers"]
     assert_one_error(run(capsys, "report", "--db", db, "--lot", "L2"), f"{db}: no records of lot 'L2'")
     assert_one_error(run(capsys, "report", "--db", db), "--db DB and --lot L go together, in place of CALS...")
+
+
+def test_a_commit_that_fails_puts_the_output_back(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    db, old, new = tmp_path / "r.db", tmp_path / "old.json", tmp_path / "new.json"
+    store.migrate(str(db))
+    old.write_bytes(PRECIOUS)
+
+    def fails(self: store.Store) -> None:
+        raise InputError("cannot read or write it: disk I/O error", file=self.target)
+
+    monkeypatch.setattr(store.Store, "commit", fails)
+    for out in (old, new):
+        result = run(capsys, *SOLVE, "--serial", "SN4", "-o", out, "--record", db)
+        assert_one_error(result, f"{db}: cannot read or write it: disk I/O error")
+    assert old.read_bytes() == PRECIOUS  # the file it replaced, back
+    assert not new.exists()  # no file where there was none
+    assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
+    monkeypatch.undo()
+    assert _count(db) == 0

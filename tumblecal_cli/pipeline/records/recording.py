@@ -46,17 +46,19 @@ def _keep(output: str) -> str | None:
     kept = os.path.join(folder, f".{name[:100]}.{os.getpid()}-{secrets.token_hex(4)}.tmp")
     try:
         os.link(target, kept)
-    except OSError:  # no hard links here: a commit failure then leaves the new file (said in the error)
+    except OSError:  # no hard links here: a commit that fails then leaves the new file in its place
         return None
     return kept
 
 
-def _undo(output: str, kept: str | None) -> None:
+def _undo(output: str, kept: str | None, existed: bool) -> None:
+    """The output as it was before the block: the file kept put back, or the new one removed
+    (never a file that was there and could not be kept: the new one stays in its place)."""
     target = os.path.realpath(output)
     with contextlib.suppress(OSError):
         if kept is not None:
             os.replace(kept, target)
-        else:
+        elif not existed:
             os.unlink(target)
 
 
@@ -72,7 +74,7 @@ def recorded(db: str, cal: calfile.Calibration, output: str, origin: columns.Ori
             store.commit()
             yield
             return
-        kept = _keep(output)
+        existed, kept = os.path.lexists(output), _keep(output)
         try:
             yield
         except BaseException:
@@ -81,7 +83,7 @@ def recorded(db: str, cal: calfile.Calibration, output: str, origin: columns.Ori
                 with contextlib.suppress(OSError):
                     os.unlink(kept)
             raise
-        _commit(store, output, kept)
+        _commit(store, output, kept, existed)
     except BaseException:
         store.rollback()
         raise
@@ -89,11 +91,11 @@ def recorded(db: str, cal: calfile.Calibration, output: str, origin: columns.Ori
         store.close()
 
 
-def _commit(store: Store, output: str, kept: str | None) -> None:
+def _commit(store: Store, output: str, kept: str | None, existed: bool) -> None:
     try:
         store.commit()
     except InputError:
-        _undo(output, kept)
+        _undo(output, kept, existed)
         raise
     if kept is not None:
         with contextlib.suppress(OSError):
