@@ -200,6 +200,10 @@ def _connect(target: str, write: bool) -> sqlite3.Connection:
     try:
         connection = sqlite3.connect(uri, uri=True, timeout=BUSY_MS / 1000, isolation_level=None)
         connection.execute(f"PRAGMA busy_timeout = {BUSY_MS}")
+        # a commit is in the WAL, whole, when it returns (a kill loses nothing committed), and on
+        # the disk by the next checkpoint: as durable as the calibration file it goes with, which
+        # is renamed into place unsynced; FULL would sync the WAL at every commit (5-10 ms here)
+        connection.execute("PRAGMA synchronous = NORMAL")
     except sqlite3.Error as err:
         raise _failed(target, "open it", err) from None
     return connection
