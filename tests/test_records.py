@@ -5,6 +5,7 @@ and speed on 100,000 records."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -12,6 +13,7 @@ import subprocess
 import sys
 import textwrap
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -474,3 +476,41 @@ def test_a_commit_that_fails_puts_the_output_back(
     assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
     monkeypatch.undo()
     assert _count(db) == 0
+
+
+@pytest.fixture
+def small_disk(tmp_path: Path) -> Iterator[Path]:
+    """A file system of 1 MiB of its own (tmpfs), unmounted at the end; skipped where this
+    process may not mount one (not root, or a container without the right)."""
+    folder = tmp_path / "disk"
+    folder.mkdir()
+    done = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(folder)], capture_output=True, check=False
+    )
+    if done.returncode != 0:
+        pytest.skip("cannot mount a small tmpfs here (needs root): the full-disk test needs a disk to fill")
+    try:
+        yield folder
+    finally:
+        subprocess.run(["umount", str(folder)], check=False)
+
+
+def test_a_full_disk_is_exit_2_and_leaves_the_database_as_it_was(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, small_disk: Path
+) -> None:
+    db = small_disk / "r.db"
+    assert run(capsys, *SOLVE, "--serial", "F1", "-o", tmp_path / "a.json", "--record", db).code == 0
+    with open(small_disk / "filler", "wb", buffering=0) as filler, contextlib.suppress(OSError):
+        while True:  # the rest of the disk taken
+            filler.write(b"\0" * 4096)
+    before = db.read_bytes()
+    out = tmp_path / "b.json"
+    result = run(capsys, *SOLVE, "--serial", "F2", "-o", out, "--record", db)
+    assert result.code == 2
+    assert result.err.startswith(f"error: {db}: cannot ")
+    assert len(result.err.splitlines()) == 1
+    assert not out.exists()
+    (small_disk / "filler").unlink()
+    assert db.read_bytes() == before
+    assert _integrity(db) == "ok"
+    assert _count(db) == 1
