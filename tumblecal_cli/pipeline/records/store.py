@@ -199,12 +199,16 @@ def _connect(target: str, write: bool) -> sqlite3.Connection:
     uri = f"file:{urllib.parse.quote(path)}?mode={'rwc' if write else 'ro'}"
     try:
         connection = sqlite3.connect(uri, uri=True, timeout=BUSY_MS / 1000, isolation_level=None)
+    except sqlite3.Error as err:
+        raise _failed(target, "open it", err) from None
+    try:
         connection.execute(f"PRAGMA busy_timeout = {BUSY_MS}")
         # a commit is in the WAL, whole, when it returns (a kill loses nothing committed), and on
         # the disk by the next checkpoint: as durable as the calibration file it goes with, which
         # is renamed into place unsynced; FULL would sync the WAL at every commit (5-10 ms here)
         connection.execute("PRAGMA synchronous = NORMAL")
     except sqlite3.Error as err:
+        connection.close()  # (a full disk: its -shm file not made; nothing held open)
         raise _failed(target, "open it", err) from None
     return connection
 
