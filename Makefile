@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 TC := $(BIN)/tumblecal
 
-.PHONY: demo test check fuzz bench same montecarlo docs transcripts clean browser
+.PHONY: demo test check fuzz bench same montecarlo docs transcripts clean browser postgres
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -43,7 +43,16 @@ browser:
 	    { apt-get update -q >/dev/null 2>&1 && DEBIAN_FRONTEND=noninteractive apt-get install -y -q chromium >/dev/null 2>&1; }; } || \
 	  echo "chromium not installed: the browser test of report --html will be skipped"; }
 
-test: $(VENV)/.installed browser
+# Debian's postgresql package, for the records tests on a real server (tests/test_records_postgres.py
+# starts its own, on a Unix socket in a temporary folder); skipped with a reason where it cannot be installed
+postgres:
+	@command -v initdb >/dev/null 2>&1 || ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || \
+	{ command -v apt-get >/dev/null 2>&1 && [ "$$(id -u)" = 0 ] && \
+	  { DEBIAN_FRONTEND=noninteractive apt-get install -y -q postgresql >/dev/null 2>&1 || \
+	    { apt-get update -q >/dev/null 2>&1 && DEBIAN_FRONTEND=noninteractive apt-get install -y -q postgresql >/dev/null 2>&1; }; } || \
+	  echo "postgresql not installed: the records tests on a PostgreSQL server will be skipped"; }
+
+test: $(VENV)/.installed browser postgres
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy

@@ -261,8 +261,8 @@ def test_pandas_only_inside_the_pipeline_functions() -> None:
 LAYERS = ("core", "io", "pipeline")
 #: Imported where they are used, never at a module's top: optional extras and the heavy
 #: libraries only some calls need (pandas: the DataFrame interface; PyYAML: YAML files; orjson:
-#: guarded, apply's fast writer; ctypes: glibc's malloc tuning).
-LAZY = ("pandas", "matplotlib", "dask", "distributed", "yaml", "orjson", "ctypes")
+#: guarded, apply's fast writer; ctypes: glibc's malloc tuning; psycopg: records on a PostgreSQL server).
+LAZY = ("pandas", "matplotlib", "dask", "distributed", "yaml", "orjson", "ctypes", "psycopg")
 
 
 def _functions() -> list[tuple[Path, ast.FunctionDef | ast.AsyncFunctionDef]]:

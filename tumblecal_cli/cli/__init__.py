@@ -7,6 +7,8 @@ Its modules:
 - ``solve``, ``apply``, ``thermal``, ``current``, ``report``, ``verify``, ``segment``, ``noise``,
   ``logs``, ``align``, ``batch``: the command of that name.
 - ``calfiles``: the commands on calibration files: show, check, export and import.
+- ``records``: the records database's commands (import, history, trend, migrate), and how
+  ``--record`` saves a calibration with its record.
 
 Each command parses its options, makes one call into ``tumblecal_cli.pipeline`` and renders the
 result; the pipeline is imported inside the commands (batch takes solve's parameters, all but
@@ -31,6 +33,7 @@ COMMANDS = (
     "logs",
     "align",
     "batch",
+    "records",
 )
 for _name in COMMANDS:
     importlib.import_module(f"tumblecal_cli.cli.{_name}")

@@ -10,7 +10,7 @@ import typer
 
 from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
-from tumblecal_cli.cli.flags import STATUS_WORDS
+from tumblecal_cli.cli.flags import STATUS_WORDS, LotName, RecordDb
 from tumblecal_cli.cli.solve import CLI_ONLY, solve
 
 if TYPE_CHECKING:
@@ -98,6 +98,8 @@ def _batch_options(
             rich_help_panel=BATCH_PANEL,
         ),
     ] = False,
+    record: RecordDb = None,
+    lot: LotName = None,
     quiet: Annotated[
         bool,
         typer.Option(
@@ -162,8 +164,22 @@ def batch(**given: Any) -> None:  # Typer passes each option by name, each of it
             scheduler=own["dask_scheduler"],
             on_start=start,
             on_unit=unit,
+            keep=keeper(own["record"], own["lot"], out_dir),
         )
     _show(result, console, quiet=quiet, json_summary=own["json_summary"])
+
+
+def keeper(record: str | None, lot: str | None, out_dir: str) -> batches.Keeper | None:
+    """--record: each unit's calibration recorded as it is published, its lot --lot or the
+    output folder's name; the database checked first, before any unit runs."""
+    if not record:
+        return None
+    import os
+
+    from tumblecal_cli.pipeline.records import recording
+
+    recording.check(record)
+    return recording.keeper(record, lot or os.path.basename(os.path.abspath(out_dir)))
 
 
 def _show(result: batches.Batched, console: Console, *, quiet: bool, json_summary: bool) -> None:

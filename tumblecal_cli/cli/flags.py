@@ -366,6 +366,28 @@ SOLVER_PANEL = "Solver details"
 
 UNIT_PANEL = "Traceability"
 
+#: The records database a run also records into (docs/records.md); TUMBLECAL_RECORD gives its default.
+RecordDb = Annotated[
+    str | None,
+    typer.Option(
+        "--record",
+        metavar="DB",
+        envvar="TUMBLECAL_RECORD",
+        show_envvar=False,
+        help="Also record the result in the records database DB (a SQLite file, made if new, or a "
+        "postgresql:// URL), in the same run: if it cannot be recorded, exit 2 and no file is written. "
+        "[env: TUMBLECAL_RECORD]",
+        rich_help_panel=UNIT_PANEL,
+    ),
+]
+
+LotName = Annotated[
+    str | None,
+    typer.Option(
+        "--lot", metavar="TEXT", help="The production lot, as --record records it.", rich_help_panel=UNIT_PANEL
+    ),
+]
+
 LOG_PANEL = "Finding the still blocks of a log (segment, solve --log)"
 
 

@@ -12,7 +12,7 @@ from tumblecal_cli.cli.flags import STATUS_WORDS, Quiet, check_plot_target
 from tumblecal_cli.errors import InputError
 
 if TYPE_CHECKING:
-    from tumblecal_cli.pipeline.report import Reported
+    from tumblecal_cli.pipeline.report import Judged, Reported
 
 REPORT_EXIT = """\
 Exit status: 0 the lot is in order; 1 it needs attention (a unit outside --limits, an
@@ -23,12 +23,12 @@ the rest: the report is still printed)."""
 @app.command(cls=Command, epilog=REPORT_EXIT)
 def report(
     paths: Annotated[
-        list[str],
+        list[str] | None,
         typer.Argument(
             metavar="CALS...",
             help="Calibration files, or folders searched for *.json and *.yaml (hidden ones skipped).",
         ),
-    ],
+    ] = None,
     limits_file: Annotated[
         str | None,
         typer.Option(
@@ -80,6 +80,11 @@ def report(
         ),
     ] = None,
     quiet: Quiet = False,
+    db: Annotated[
+        str | None,
+        typer.Option("--db", metavar="DB", help="Judge a lot from a records database instead (with --lot)."),
+    ] = None,
+    lot_name: Annotated[str | None, typer.Option("--lot", metavar="L", help="The lot, with --db.")] = None,
 ) -> None:
     """Statistics of a production lot: per parameter count, mean, std, min/max, Cpk, outliers, drift.
 
@@ -94,14 +99,14 @@ def report(
       tumblecal report lot1/ lot2/ --max-drift offset=0.01,gain=0.002 --json
       tumblecal report cals/ --limits limits.yaml --plot lot.png
       tumblecal report cals/ --limits limits.yaml --html lot.html
+      tumblecal report --db records.db --lot L7 --limits limits.yaml
     """
 
     from tumblecal_cli.pipeline import report as pipeline
 
     _early_checks(plot, html)
-    reported = pipeline.report(
-        paths, limits=limits_file, max_drift=max_drift, min_cpk=min_cpk, outlier_alpha=outlier_alpha
-    )
+    judged = pipeline.Judged(limits_file, max_drift, min_cpk, outlier_alpha)
+    reported = _reported(paths or [], db, lot_name, judged, html)
     result = reported.result
     _late_checks(plot, html, [*reported.files, *([limits_file] if limits_file else [])])
     if json_out:
@@ -125,6 +130,26 @@ def report(
         )
     if result.needs_attention:
         raise typer.Exit(1)
+
+
+def _reported(paths: list[str], db: str | None, lot: str | None, judged: Judged, html: str | None) -> Reported:
+    """The files' report, or (--db, --lot) the records'."""
+    from tumblecal_cli.pipeline import report as pipeline
+
+    if db is None and lot is None:
+        if not paths:
+            raise InputError("report takes calibration files or folders (CALS...), or --db DB --lot L")
+        j = judged
+        return pipeline.report(
+            paths, limits=j.limits, max_drift=j.max_drift, min_cpk=j.min_cpk, outlier_alpha=j.outlier_alpha
+        )
+    if db is None or lot is None or paths:
+        raise InputError("--db DB and --lot L go together, in place of CALS...")
+    if html is not None:
+        raise InputError("--html links each unit's calibration file: give the files, not --db")
+    from tumblecal_cli.pipeline.records.importing import report_lot
+
+    return report_lot(db, lot, judged)
 
 
 def _early_checks(plot: str | None, html: str | None) -> None:

@@ -28,6 +28,7 @@ from tumblecal_cli.cli.flags import (
     JsonSummary,
     LimitsFile,
     Location,
+    LotName,
     MaxGainError,
     MaxOffset,
     MaxSpool,
@@ -40,6 +41,7 @@ from tumblecal_cli.cli.flags import (
     PoseMap,
     Quiet,
     Rate,
+    RecordDb,
     RowsArePoses,
     Sensor,
     SensorKind,
@@ -58,6 +60,7 @@ from tumblecal_cli.cli.flags import (
     check_plot_target,
     method_help,
 )
+from tumblecal_cli.cli.records import Saver
 from tumblecal_cli.errors import InputError
 
 if TYPE_CHECKING:
@@ -345,6 +348,8 @@ def solve(
             "--meta", metavar="KEY=VALUE", help="More about the unit (repeatable).", rich_help_panel=UNIT_PANEL
         ),
     ] = None,
+    lot: LotName = None,
+    record: RecordDb = None,
 ) -> None:
     """Average each pose file, check it, solve for the offsets (and gains), judge the unit.
 
@@ -372,9 +377,12 @@ def solve(
     check_writable(output)
     if plot is not None:
         check_plot_target(plot, output, json_summary, inputs)
+    save = Saver(record, lot, "solve")  # (--record: the database checked before any work)
     solved = pipeline.calibrate(options, poses=poses, log=log)
     shown = render.Shown(quiet=quiet, verbose=verbose)
-    _show(solved, output=output, json_summary=json_summary, shown=shown, plot=plot, plane=plane and plane.value)
+    _show(
+        solved, output=output, json_summary=json_summary, shown=shown, plot=plot, plane=plane and plane.value, save=save
+    )
 
 
 def _inputs(poses: list[str] | None, files: list[str | None], spin: list[str] | None) -> list[str]:
@@ -387,11 +395,18 @@ def _inputs(poses: list[str] | None, files: list[str | None], spin: list[str] | 
 #: The parameters of solve that are the command line's own: what to read, where to write and what
 #: to print. Every other parameter is one of solve's flat options (pipeline.options.FLAT, the
 #: Python API's SolveKeywords), passed to SolveOptions.of by its name; batch takes them too.
-CLI_ONLY = ("poses", "log", "output", "json_summary", "quiet", "verbose", "plot")
+CLI_ONLY = ("poses", "log", "output", "json_summary", "quiet", "verbose", "plot", "lot", "record")
 
 
 def _show(
-    solved: Solved, *, output: str, json_summary: bool, shown: render.Shown, plot: str | None, plane: str | None
+    solved: Solved,
+    *,
+    output: str,
+    json_summary: bool,
+    shown: render.Shown,
+    plot: str | None,
+    plane: str | None,
+    save: Saver | None = None,
 ) -> None:
     """The blocks of a log (-v: their table), the calibration's summary, the --json summary;
     the calibration written (exit 0 and 1), or the rejection raised (exit 3): the rejection
@@ -417,7 +432,10 @@ def _show(
         from tumblecal_cli.pipeline import plotting
 
         plotting.solve_plot(plot, solved, plane)
-    cal.save(output)
+    if save is None:
+        cal.save(output)
+    else:
+        save(cal, output, solved.status)
     if console is not None:
         render.print_summary(cal, console, solved.warnings, solved.notes, judged=True, verbose=verbose)
         if output != "-":

@@ -14,12 +14,15 @@ from tumblecal_cli.cli.flags import (
     AllowCorrected,
     Columns,
     JsonSummary,
+    LotName,
     Quiet,
+    RecordDb,
     SensorKind,
     StreamOption,
     check_plot_target,
     source,
 )
+from tumblecal_cli.cli.records import Saver
 
 
 @app.command(
@@ -109,6 +112,8 @@ def thermal(
     ] = None,
     json_summary: JsonSummary = False,
     quiet: Quiet = False,
+    lot: LotName = None,
+    record: RecordDb = None,
 ) -> None:
     """Fit each axis's offset and gain drift against temperature from still sweeps, and add it to a
     calibration: apply then corrects each row at its own temperature.
@@ -128,6 +133,7 @@ def thermal(
     check_writable(output)
     if plot is not None:
         check_plot_target(plot, output, json_summary, inputs)
+    save = Saver(record, lot, "thermal")
     done = pipeline.thermal(
         sweeps,
         cal,
@@ -142,7 +148,7 @@ def thermal(
     )
     if plot is not None:  # drawn before the calibration is written: a failure leaves nothing behind
         pipeline.plot(done, plot)
-    done.calibration.save(output)
+    save(done.calibration, output, 0)
     if json_summary:
         render.print_json({"status": "pass", "exit_status": 0, **render.thermal_doc(done)})
     if not quiet:

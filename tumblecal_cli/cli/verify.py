@@ -17,8 +17,10 @@ from tumblecal_cli.cli.flags import (
     End,
     Gravity,
     Location,
+    LotName,
     NoHeader,
     Quiet,
+    RecordDb,
     RowsArePoses,
     SkipRows,
     Start,
@@ -28,6 +30,7 @@ from tumblecal_cli.cli.flags import (
     file_shape,
     source,
 )
+from tumblecal_cli.cli.records import Saver
 from tumblecal_cli.errors import InputError
 
 if TYPE_CHECKING:
@@ -130,6 +133,8 @@ def verify(
         ),
     ] = None,
     quiet: Quiet = False,
+    lot: LotName = None,
+    record: RecordDb = None,
 ) -> None:
     """Check a calibration on static captures it was not fitted on: the norm of each mean, before
     and after correction, against the reference (the test of a calibration model in Sports
@@ -149,6 +154,7 @@ def verify(
     if log is not None or accel_cal is not None:
         where = (log, accel_cal, rate, columns, captures_, found, (start, end))
         return _rotations(cal, *where, json_summary=json_summary, quiet=quiet)
+    save = Saver(record, lot, "verify")  # (--record: a re-test of the unit, checked before any work)
     done = pipeline.verify(
         captures_ or [],
         cal,
@@ -168,8 +174,7 @@ def verify(
         rows_are_poses=rows_are_poses,
         spin=spin,
     )
-    if json_summary:
-        render.print_json(_summary(done, cal, max_norm_error))
+    _recorded(done, _summary(done, cal, max_norm_error), save, json_summary=json_summary)
     if not quiet and done.error is None:  # a capture that is not static: its rejection alone
         render.print_verify(done.cal, done.rows, done.overall, done.reference, max_norm_error, done.failed)
         for note in done.notes:
@@ -188,6 +193,15 @@ def _check_plot(plot: str | None, turns: bool, json_summary: bool, inputs: list[
         if turns:
             raise InputError("--plot draws the errors of static captures, not of a --log of hand turns")
         check_plot_target(plot, "-", json_summary, inputs)
+
+
+def _recorded(done: Verified, summary: JSONObject, save: Saver, *, json_summary: bool) -> None:
+    """--record: the re-test recorded before anything is printed (a failed record is the one
+    error); --json: the summary."""
+    if done.error is None:
+        save.retest(done.cal, done.status, dict(summary))
+    if json_summary:
+        render.print_json(summary)
 
 
 def _plot_verify(plot: str, done: Verified, *, quiet: bool) -> None:

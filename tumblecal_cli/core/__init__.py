@@ -44,4 +44,6 @@ modules:
   figures read off it.
 - ``lot``: statistics over a production lot of calibrations: which files count, capability and
   outliers per parameter, and each re-calibrated unit's drift.
-- ``outliers``: outlier flags over a lot that hold the lot-wide false-alarm rate."""
+- ``outliers``: outlier flags over a lot that hold the lot-wide false-alarm rate.
+- ``control``: control charts of a station's calibrations over time (individuals, EWMA, the
+  Western Electric rules with limits that hold a run's false-alarm rate), stations compared."""

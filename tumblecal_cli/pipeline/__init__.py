@@ -4,6 +4,7 @@ or return DataFrames. A command's module is named after the command. Its rooms a
 
 - ``solve/``: pose captures, tables or one continuous log in, a judged Calibration out.
 - ``batch/``: the units of a lot, each solved where it runs best, and the summary.
+- ``records/``: calibrations kept in a database, each unit's history, each station's trend.
 - ``options``: solve's options (and those the commands share), checked and resolved once.
 - ``frames``: the Python API's data in memory: DataFrames and (n, 3) arrays in, DataFrames out.
 - ``places``: where a unit was calibrated: the local gravity and Earth's field, by place and date.

@@ -46,22 +46,41 @@ def report(
     *.json and *.yaml): per parameter count, mean, std, min/max, Cpk against ``limits`` (a limits
     file), outliers at the lot-wide false-alarm rate ``outlier_alpha`` (``core.outliers``), and
     drift beyond ``max_drift`` (``offset=0.01,gain=0.002``)."""
-    outliers.check_alpha(outlier_alpha)
-    if min_cpk is not None and not (np.isfinite(min_cpk) and min_cpk > 0):
-        raise InputError(f"--min-cpk must be a positive number, got {min_cpk}")
-    if min_cpk is not None and limits is None:
-        raise InputError("--min-cpk needs --limits: Cpk is measured against the limits")
-    drift_limits = lot.parse_max_drift(max_drift)
-    bounds = limitfile.load_limits(limits) if limits else {}
+    judged = Judged(limits, max_drift, min_cpk, outlier_alpha)
+    judged.check()
     if not isinstance(paths, str | os.PathLike | Sequence):
         raise InputError(f"report takes calibration files (one, or a list), not a {type(paths).__name__}")
     given = [paths] if isinstance(paths, str | os.PathLike) else list(paths)
     found = find([os.fspath(p) for p in given], skip=limits)
     entries, unreadable = _load(found)
-    result = lot.summarise(
-        entries, unreadable, bounds, max_drift=drift_limits, min_cpk=min_cpk, outlier_alpha=outlier_alpha
-    )
-    return Reported(result, entries, bounds, found)
+    return judged.report(entries, unreadable, found)
+
+
+@dataclass(frozen=True)
+class Judged:
+    """How a lot is judged (``report``'s options): checked before any work, then applied to the
+    entries of the files (or of the records, ``records``' ``report_lot``)."""
+
+    limits: str | None = None
+    max_drift: str | Mapping[str, float] | None = None
+    min_cpk: float | None = None
+    outlier_alpha: float = outliers.OUTLIER_ALPHA
+
+    def check(self) -> None:
+        outliers.check_alpha(self.outlier_alpha)
+        if self.min_cpk is not None and not (np.isfinite(self.min_cpk) and self.min_cpk > 0):
+            raise InputError(f"--min-cpk must be a positive number, got {self.min_cpk}")
+        if self.min_cpk is not None and self.limits is None:
+            raise InputError("--min-cpk needs --limits: Cpk is measured against the limits")
+        lot.parse_max_drift(self.max_drift)
+
+    def report(self, entries: list[lot.Entry], unreadable: list[tuple[str, str]], found: list[str]) -> Reported:
+        drift_limits = lot.parse_max_drift(self.max_drift)
+        bounds = limitfile.load_limits(self.limits) if self.limits else {}
+        result = lot.summarise(
+            entries, unreadable, bounds, max_drift=drift_limits, min_cpk=self.min_cpk, outlier_alpha=self.outlier_alpha
+        )
+        return Reported(result, entries, bounds, found)
 
 
 def unit_name(e: lot.Entry) -> str:

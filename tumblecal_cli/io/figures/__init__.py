@@ -5,4 +5,6 @@ functions). Its modules:
   figure is drawn and written.
 - ``fitplots``: PNG figures that judge a fit: ``solve --plot``, ``verify --plot`` and
   ``segment --plot``.
-- ``lothtml``: ``report --html``, the lot report as one self-contained HTML page."""
+- ``lothtml``: ``report --html``, the lot report as one self-contained HTML page.
+- ``trendhtml``: ``records trend --html``, the stations' alarms and their control charts (SVG) as
+  one self-contained page."""

@@ -1,5 +1,5 @@
-"""PNG figures for ``solve --plot`` of a rotation capture, ``report --plot``, ``thermal --plot`` and
-``noise --plot`` (the optional extra ``tumblecal[plot]``).
+"""PNG figures for ``solve --plot`` of a rotation capture, ``report --plot``, ``thermal --plot``,
+``noise --plot`` and ``records trend --plot`` (the optional extra ``tumblecal[plot]``).
 
 matplotlib and numpy are imported inside the functions, so importing this module costs nothing.
 Figures are drawn on a bare ``matplotlib.figure.Figure`` (no pyplot, no global backend state),
@@ -15,6 +15,7 @@ import importlib.util
 import io
 import math
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -31,6 +32,7 @@ if TYPE_CHECKING:
 
     from tumblecal_cli.core.allan import Curve, Figures
     from tumblecal_cli.core.arrays import FloatArray
+    from tumblecal_cli.io.figures.trendhtml import SeriesChart
 
 #: Rotation captures are drawn from at most this many samples (evenly spaced, so deterministic).
 MAX_POINTS = 5000
@@ -508,4 +510,33 @@ def noise_figure(path: str, curve: Curve, figures: list[Figures], units: str | N
         ax.set_aspect("auto")
         ax.grid(alpha=0.3, which="both")
     axes[0].legend(fontsize="x-small", loc="lower left")
+    write_png(fig, path)
+
+
+def trend_figure(path: str, charts: Sequence[SeriesChart], *, title: str = "") -> None:
+    """``records trend --plot``: each alarmed series's control chart (≤ 2 columns, the first 12):
+    its values in time order, the baseline shaded, the centre and rule 1's limits dashed, the
+    units where a rule fired marked and named. No alarm: one panel that says so."""
+    shown = list(charts[:12])
+    ncols = 2 if len(shown) > 1 else 1
+    nrows = max(1, math.ceil(len(shown) / ncols))
+    fig = new_figure(width=6.0 * ncols + 0.4, height=2.6 * nrows + 0.6, title=title)
+    if not shown:
+        ax = fig.add_subplot(1, 1, 1)
+        ax.text(0.5, 0.5, "no alarm", ha="center", va="center", transform=ax.transAxes)
+        ax.set_axis_off()
+    for k, chart in enumerate(shown):
+        ax = fig.add_subplot(nrows, ncols, k + 1)
+        values = np.asarray(chart.values, dtype=np.float64)
+        ax.axvspan(0, max(chart.baseline - 1, 0), color="#eef3f8", label="baseline")
+        ax.plot(np.arange(values.size), values, color=AFTER, linewidth=0.8)
+        ax.axhline(chart.centre, color="black", linewidth=1.0)
+        for level in (chart.centre - chart.limit, chart.centre + chart.limit):
+            ax.axhline(level, color=FIT, linestyle="--", linewidth=1.0)
+        for rule, at in chart.marks:
+            ax.plot([at], [values[at]], marker="o", color=FIT)
+            ax.annotate(rule, (at, values[at]), textcoords="offset points", xytext=(4, 4), fontsize="x-small")
+        ax.set_title(shortened(chart.title, 60), fontsize="small")
+        ax.set_xlabel("unit")
+        ax.grid(alpha=0.3)
     write_png(fig, path)

@@ -24,6 +24,7 @@ import time
 import unicodedata
 from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, TypeAlias, TypedDict, Unpack
 
@@ -440,12 +441,21 @@ def _put_back(handlers: list[tuple[signal.Signals, Handler]]) -> None:
             _put_back(handlers[1:])
 
 
-def finish(row: Row, out_dir: str) -> Row:
-    """Publish a row's staged calibration under its name; the row with ``file`` set."""
+#: Keeps each calibration a batch publishes elsewhere as well (``--record``): given the staged
+#: file and the unit's status, a block around its publishing, to which the published file is
+#: added; an error in it (the record refused) leaves the unit unpublished.
+Keeper = Callable[[str, int], AbstractContextManager[list[str]]]
+
+
+def finish(row: Row, out_dir: str, keep: Keeper | None = None) -> Row:
+    """Publish a row's staged calibration under its name (with ``keep``: inside its block); the
+    row with ``file`` set."""
     staging, row.staging = row.staging, None
     if staging is not None:
         try:
-            row.file = publish(staging, out_dir, row.serial, row.created or "")
+            with contextlib.nullcontext([]) if keep is None else keep(staging, row.status) as published:
+                row.file = publish(staging, out_dir, row.serial, row.created or "")
+                published.append(os.path.join(out_dir, row.file))
         finally:
             with contextlib.suppress(OSError):
                 os.unlink(staging)
@@ -537,7 +547,7 @@ class Batched:
 class BatchKeywords(TypedDict, total=False):
     """How a batch runs: each unit a ``log`` (else pose files), ``jobs`` processes at a time or
     on the Dask cluster at ``scheduler``, ``resume`` an earlier run; ``on_start`` sees the plan,
-    ``on_unit`` each unit's row."""
+    ``on_unit`` each unit's row, ``keep`` each calibration as it is published (``Keeper``)."""
 
     log: bool
     jobs: int
@@ -545,6 +555,7 @@ class BatchKeywords(TypedDict, total=False):
     scheduler: str | None
     on_start: Callable[[Plan], None] | None
     on_unit: Callable[[Row], None] | None
+    keep: Keeper | None
 
 
 def run_batch(
@@ -608,7 +619,7 @@ def run_batch(
                 if isinstance(outcome, BaseException):
                     row = failed_row(unit, outcome)
                 else:
-                    row = finish(Row.received(outcome), out_dir)
+                    row = finish(Row.received(outcome), out_dir, how.get("keep"))
                 if row.unwritten:  # the disk refused: stop here, and leave the unit to --resume
                     raise InputError(
                         f"{row.serial}: {row.message}; {len(summary.rows) - len(done)} of {len(todo)} units done",
