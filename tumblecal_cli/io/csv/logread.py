@@ -26,6 +26,7 @@ logs is therefore the general path's own.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import os
 from collections import deque
 from collections.abc import Callable, Generator, Iterator
@@ -38,7 +39,7 @@ import numpy as np
 from tumblecal_cli.core import model
 from tumblecal_cli.core.arrays import BoolArray, FloatArray, IntArray
 from tumblecal_cli.core.blocks import DetectorSettings, Measured, Segmentation, clock_of, sample_period, window_spread
-from tumblecal_cli.core.chunks import CHUNK, Chunks, Moments, Part, chunk_sums, moments
+from tumblecal_cli.core.chunks import CHUNK, Chunks, chunk_sums
 from tumblecal_cli.core.scan import Kept, Scan
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.csv import capture, readings, sniff
@@ -189,6 +190,59 @@ class _ReadAgain:
     stops: IntArray
 
 
+class _Chunked:
+    """Readings read again from stretches of whole lines (a log's chunks), parsed together: each
+    stretch's first reading among them, and for each reading its line among its stretch's."""
+
+    def __init__(
+        self,
+        cells: FloatArray,
+        timed: bool,
+        warm: bool,
+        first: IntArray,
+        line: IntArray,
+        text: tuple[IntArray, IntArray, IntArray],
+        ranges: IntArray,
+    ) -> None:
+        self.values: FloatArray = cells[:, :3]
+        self.clock: FloatArray | None = cells[:, 3] if timed else None
+        self.temperature: FloatArray | None = cells[:, 3 + timed] if warm else None
+        self.first, self.line, self.ranges = first, line, ranges
+        self._newline, self._offsets, self._line_of = text
+        self.skip = np.zeros(len(first), dtype=np.int64)  # each stretch's readings before those parsed
+
+    def moments(self, stretch: IntArray, lo: IntArray, hi: IntArray) -> tuple[IntArray, FloatArray, FloatArray]:
+        """The count, sum and co-moment (``core.chunks.moments``) of the readings ``lo``..``hi``
+        of each ``stretch`` (positions in it, at most CHUNK of them), all at once: each sum taken
+        down the readings in order, as numpy sums them along the first axis, so the same digits."""
+        n = hi - lo + 1
+        if not n.size:
+            return n, np.zeros((0, 3)), np.zeros((0, 3))
+        lo = lo - self.skip[stretch]
+        at = np.minimum(self.first[stretch, None] + lo[:, None] + np.arange(int(n.max())), len(self.values) - 1)
+        taken = self.values[at]  # (parts, width, 3)
+        rows, last = np.arange(n.size), n - 1
+        total = np.cumsum(taken, axis=1)[rows, last]
+        m2 = np.cumsum(np.square(taken - (total / n[:, None])[:, None, :]), axis=1)[rows, last]
+        return n, total, m2
+
+    def end(self, stretch: int, j: int, row: int) -> _End:
+        """The ``j``-th reading of ``stretch``, whose first reading is the log's data row ``row``."""
+        r = int(self.first[stretch]) + j - int(self.skip[stretch])
+        line = int(self.line[r])
+        start, stop = (int(v) for v in self.ranges[stretch])
+        base = start - int(self._offsets[stretch])  # a byte of the text is this far from the file's
+        at = int(self._line_of[stretch]) + line
+        begins = start if not line else int(self._newline[at - 1]) + 1 + base
+        return _End(
+            self.values[r].copy(),
+            row + line + int(self.skip[stretch]),
+            np.nan if self.clock is None else float(self.clock[r]),
+            np.nan if self.temperature is None else float(self.temperature[r]),
+            (begins, min(int(self._newline[at]) + 1 + base, stop)),
+        )
+
+
 class _ScannedFile:
     """The log's file, read again where the scan kept nothing: the chunks where a block or its
     third begins or ends, and a block's lines when its readings are asked for. A file that is
@@ -202,36 +256,67 @@ class _ScannedFile:
         self.size = st.st_size
         self.stamp = capture.stamp(st)
 
-    def read(self, ranges: list[tuple[int, int]], counts: IntArray, each: Callable[[int, _ReadAgain], None]) -> None:
-        """The readings of each stretch of lines (its first byte and end), ``counts`` of them,
-        given to ``each`` with the stretch's index as they are parsed (a block of them at a
-        time, on a pool of threads): none is held longer."""
-        if not ranges:
+    def read(
+        self, ranges: IntArray, counts: IntArray, wanted: IntArray, each: Callable[[int, int, _Chunked], None]
+    ) -> None:
+        """The readings of each stretch of lines (``ranges``: its first byte and end), ``counts``
+        of them, given to ``each`` a batch of stretches at a time (the first of them and the one
+        after) as they are parsed, on a pool of threads: none is held longer. Of a stretch with a
+        reading on every line only the lines of the readings ``wanted`` (its first and last) are
+        parsed: ``_Chunked.skip`` says how many lines before them were left."""
+        if not len(ranges):
             return
-        batches: list[list[tuple[int, int, int | None]]] = [[]]
-        size = 0
-        for (start, stop), n in zip(ranges, counts.tolist(), strict=True):
-            if size >= capture.BLOCK_BYTES:  # parsed a block at a time: what each holds at once stays small
-                batches.append([])
-                size = 0
-            batches[-1].append((start, stop, n))
-            size += stop - start
-        firsts = np.cumsum([0] + [len(b) for b in batches]).tolist()
+        sizes = np.cumsum(ranges[:, 1] - ranges[:, 0])
+        cut = np.searchsorted(sizes, np.arange(capture.BLOCK_BYTES, int(sizes[-1]), capture.BLOCK_BYTES), side="right")
+        edges = np.unique(np.concatenate([[0], cut + 1, [len(ranges)]]).clip(0, len(ranges))).tolist()
+        batches = [(a, b) for a, b in itertools.pairwise(edges) if b > a]
 
-        def parse(k: int) -> None:
-            texts = [(start, stop, n, _text(fd, start, stop)) for start, stop, n in batches[k]]
-            for j, r in enumerate(self._parse(texts)):
-                each(firsts[k] + j, r)
+        def parse(k: tuple[int, int]) -> None:
+            a, b = k
+            texts, places, skip, held = [], ranges[a:b].copy(), np.zeros(b - a, dtype=np.int64), counts[a:b].copy()
+            for i, (start, stop) in enumerate(places.tolist()):
+                text = _text(fd, start, stop)
+                lo, hi = (int(v) for v in wanted[a + i])
+                if lo or hi < held[i] - 1:
+                    ends = np.flatnonzero(np.frombuffer(text, dtype=np.uint8) == 10)
+                    if ends.size + (not text.endswith(b"\n")) == held[i]:  # a reading on every line
+                        cut = (int(ends[lo - 1]) + 1 if lo else 0, int(ends[hi]) + 1 if hi < ends.size else len(text))
+                        text, skip[i], held[i] = text[cut[0] : cut[1]], lo, hi - lo + 1
+                        places[i] = start + cut[0], start + cut[1]
+                texts.append(text)
+            got = self._chunked(texts, places, held)
+            got.skip = skip
+            each(a, b, got)
 
         try:
             with open(self.path, "rb") as f:
                 fd = f.fileno()
                 self._same(os.fstat(fd))
                 with ThreadPoolExecutor(max_workers=max(2, os.cpu_count() or 1)) as pool:  # (pyarrow and numpy
-                    list(pool.map(parse, range(len(batches))))  # let go of the GIL)
+                    list(pool.map(parse, batches))  # let go of the GIL)
                 self._same(os.fstat(fd))
         except OSError:  # gone, or not readable: the whole read says so
             raise _Plain from None
+
+    def _chunked(self, texts: list[bytes], ranges: IntArray, counts: IntArray) -> _Chunked:
+        """The readings of stretches of lines (their texts, first bytes and ends, and how many
+        readings each holds), parsed together."""
+        texts = [text if text.endswith(b"\n") else text + self.splicer.eol for text in texts]
+        found = self.splicer.read(b"".join(texts))
+        if found is None:
+            raise _Plain
+        parsed, empty, newline = found
+        offsets = np.cumsum([0] + [len(t) for t in texts])
+        line_of = np.searchsorted(newline, offsets[:-1])  # each stretch's first line
+        keep = np.flatnonzero(~empty)
+        stretch = np.searchsorted(offsets, newline[keep], side="right") - 1  # each reading's stretch
+        if not np.array_equal(np.bincount(stretch, minlength=len(texts)), counts):
+            raise _Plain
+        cells = _columns(parsed, self.where)[keep]
+        first = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+        return _Chunked(
+            cells, self.timed, self.warm, first, keep - line_of[stretch], (newline, offsets, line_of), ranges
+        )
 
     def _same(self, st: os.stat_result) -> None:
         """Raise _Plain unless the file is the one scanned: the same file, its bytes then there
@@ -448,37 +533,45 @@ class _Feeder:
 
     def measure(self, kept: Kept, spans: list[tuple[int, int]]) -> list[Measured]:
         """Each block's statistics, merged from the chunks' sums and the parts of the chunks
-        where a block or its third begins or ends, read again (each chunk's readings let go as
-        soon as its parts are summed); and each block's first and last reading (``ends``)."""
+        where a block or its third begins or ends, read again (each batch of chunks' readings
+        let go as soon as its parts are summed); and each block's first and last reading (``ends``)."""
         chunks = self.chunks
         chunks.done()
         lines = np.concatenate(self.chunk_lines) if self.chunk_lines else np.zeros((0, 3), dtype=np.int64)
         positions = np.array(spans, dtype=np.int64).reshape(-1)
         found = kept.log_index(positions) if positions.size else positions
-        indexes = [(int(a), int(b)) for a, b in found.reshape(-1, 2)]
-        wanted = chunks.wanted(indexes)
-        ends: dict[int, list[tuple[int, int]]] = {}  # chunk: (its reading, the position of a block's end)
-        for p, i in zip(positions.tolist(), found.tolist(), strict=True):
-            c = int(chunks.of(i))
-            ends.setdefault(c, []).append((i - int(chunks.start[c]), p))
-        need = sorted(wanted.keys() | ends.keys())
-        parts: dict[Part, Moments] = {}
+        plan = chunks.plan([(int(a), int(b)) for a, b in found.reshape(-1, 2)])
+        at = chunks.of(found) if found.size else found  # each block end's chunk
+        need = np.union1d(plan.parts[:, 0], at).astype(np.int64)
+        part_of = np.searchsorted(need, plan.parts[:, 0])  # each part's stretch among those read
+        end_of = np.searchsorted(need, at)
+        order = np.argsort(part_of, kind="stable")
+        bounds = np.searchsorted(part_of[order], np.arange(len(need) + 1))
+        count = np.zeros(len(plan.parts), dtype=np.int64)
+        total, m2 = np.zeros((len(plan.parts), 3)), np.zeros((len(plan.parts), 3))
+        ends = [
+            (int(s), int(i - chunks.start[c]), int(lines[c, 2]), p)
+            for s, i, c, p in zip(end_of, found, at, positions.tolist(), strict=True)
+        ]
+        ends.sort()
+        end_stretch = np.array([e[0] for e in ends], dtype=np.int64)
 
-        def take(c: int, r: _ReadAgain) -> None:  # on a parsing thread: the GIL keeps each entry whole
-            for lo, hi in wanted.get(c, []):
-                parts[(c, lo, hi)] = moments(r.values[lo : hi + 1])
-            for j, p in ends.get(c, []):
-                self.ends[p] = _End(
-                    r.values[j].copy(),
-                    int(lines[c, 2]) + int(r.lines[j]),
-                    np.nan if r.clock is None else float(r.clock[j]),
-                    np.nan if r.temperature is None else float(r.temperature[j]),
-                    (int(r.starts[j]), int(r.stops[j])),
-                )
+        def take(a: int, b: int, got: _Chunked) -> None:  # on a parsing thread: each writes its own parts
+            mine = order[bounds[a] : bounds[b]]
+            c, t, q = got.moments(part_of[mine] - a, plan.parts[mine, 1], plan.parts[mine, 2])
+            count[mine], total[mine], m2[mine] = c, t, q
+            for e in range(*np.searchsorted(end_stretch, [a, b]).tolist()):
+                s, j, row, p = ends[e]
+                self.ends[p] = got.end(s - a, j, row)
 
-        stretches = [(int(lines[c, 0]), int(lines[c, 1])) for c in need]
-        self.source.read(stretches, chunks.counts[need], lambda k, r: take(need[k], r))
-        return chunks.measure(indexes, parts)
+        wanted = np.column_stack([np.full(len(need), CHUNK), np.zeros(len(need), dtype=np.int64)])
+        np.minimum.at(wanted[:, 0], part_of, plan.parts[:, 1])  # the first and last reading wanted of each
+        np.maximum.at(wanted[:, 1], part_of, plan.parts[:, 2])
+        j = (found - chunks.start[at]).astype(np.int64)
+        np.minimum.at(wanted[:, 0], end_of, j)
+        np.maximum.at(wanted[:, 1], end_of, j)
+        self.source.read(lines[need, :2], chunks.counts[need], wanted, take)
+        return chunks.measured(plan, count, total, m2)
 
     def extremes(self) -> FloatArray:
         """What gate.integer_rails judges the whole log's readings by: the lowest, the highest,
