@@ -85,3 +85,28 @@ def test_distinct_directions_as_the_loop_over_pairs(n: int) -> None:
             if not any(float(v @ k) >= cos for k in kept):
                 kept.append(v)
         assert solvers.distinct_directions(d) == len(kept)
+
+
+def test_interleaved_rows_and_no_last_line_end_read_again_as_kept(
+    turned: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Rows of another sensor between the readings (a chunk's lines not all readings: read
+    whole) and a last line without its line end: the parts read again are those kept."""
+    lines = turned.read_text().splitlines()
+    mixed = [lines[0] + ",gx,gy,gz"]
+    for k, line in enumerate(lines[1:]):
+        mixed.append(line + ",,,")
+        if k % 7 == 3:  # a gyroscope's row at the same time
+            mixed.append(line.split(",")[0] + ",,,,0.1,0.2,0.3")
+    path = tmp_path / "mixed.csv"
+    path.write_text("\n".join(mixed))  # no line end after the last
+    kept_log, kept = _scan(path)
+    monkeypatch.setattr(logread, "KEPT", 0)
+    again_log, again = _scan(path)
+    assert len(kept.blocks) == len(again.blocks) >= 70
+    for x, y in zip(kept.blocks, again.blocks, strict=True):
+        assert (x.first, x.last) == (y.first, y.last)
+        for a, b in ((x.mean, y.mean), (x.std, y.std), (x.drift, y.drift)):
+            assert np.array_equal(a, b)
+    for field in ("values", "rows", "clock", "lines"):
+        assert np.array_equal(getattr(kept_log, field), getattr(again_log, field)), field

@@ -305,17 +305,27 @@ class _ScannedFile:
 
         def parse(k: tuple[int, int]) -> None:
             a, b = k
-            texts, places, skip, held = [], ranges[a:b].copy(), np.zeros(b - a, dtype=np.int64), counts[a:b].copy()
-            for i, (start, stop) in enumerate(places.tolist()):
-                text = _text(fd, start, stop)
-                lo, hi = (int(v) for v in wanted[a + i])
-                if lo or hi < held[i] - 1:
-                    ends = np.flatnonzero(np.frombuffer(text, dtype=np.uint8) == 10)
-                    if ends.size + (not text.endswith(b"\n")) == held[i]:  # a reading on every line
-                        cut = (int(ends[lo - 1]) + 1 if lo else 0, int(ends[hi]) + 1 if hi < ends.size else len(text))
-                        text, skip[i], held[i] = text[cut[0] : cut[1]], lo, hi - lo + 1
-                        places[i] = start + cut[0], start + cut[1]
-                texts.append(text)
+            texts: list[bytes] = []
+            places, skip, held = ranges[a:b].copy(), np.zeros(b - a, dtype=np.int64), counts[a:b].copy()
+            for g, h in _near(ranges[a:b]):  # stretches close together: one read, their line ends found at once
+                base = int(places[g, 0])
+                text = _text(fd, base, int(places[h - 1, 1]))
+                ends = np.flatnonzero(np.frombuffer(text, dtype=np.uint8) == 10) + base
+                part = places[g:h]
+                if not len(ends):  # one line, the file's last, without a line end: read whole
+                    texts.append(text)
+                    continue
+                first, past = np.searchsorted(ends, part[:, 0]), np.searchsorted(ends, part[:, 1])
+                closed = (past > first) & (ends[np.maximum(past - 1, 0)] == part[:, 1] - 1)  # its last line ended
+                lo, hi = wanted[a + g : a + h, 0], wanted[a + g : a + h, 1]
+                trim = ((lo > 0) | (hi < held[g:h] - 1)) & (past - first + ~closed == held[g:h])  # a reading a line
+                begin = np.where(trim & (lo > 0), ends[np.clip(first + lo - 1, 0, len(ends) - 1)] + 1, part[:, 0])
+                at = first + hi
+                end = np.where(trim & (at < past), ends[np.minimum(at, len(ends) - 1)] + 1, part[:, 1])
+                begin, end = np.where(trim, begin, part[:, 0]), np.where(trim, end, part[:, 1])
+                skip[g:h], held[g:h] = np.where(trim, lo, 0), np.where(trim, hi - lo + 1, held[g:h])
+                places[g:h, 0], places[g:h, 1] = begin, end
+                texts += [text[x - base : y - base] for x, y in zip(begin.tolist(), end.tolist(), strict=True)]
             got = self._chunked(texts, places, held)
             got.skip = skip
             each(a, b, got)
@@ -718,6 +728,19 @@ def _parse(
 def _columns(parsed: FloatArray, where: list[int]) -> FloatArray:
     """The parsed cells' columns in the order ``where`` gives (no copy when it is theirs)."""
     return parsed if where == list(range(parsed.shape[1])) else parsed[:, where]
+
+
+#: Stretches of a file read again that lie closer together than this are read in one piece.
+NEAR = 64 << 10
+
+
+def _near(ranges: IntArray) -> list[tuple[int, int]]:
+    """The runs of ``ranges`` (first byte, end; in order) each less than NEAR past the last."""
+    if not len(ranges):
+        return []
+    apart = np.flatnonzero(ranges[1:, 0] - ranges[:-1, 1] >= NEAR) + 1
+    edges = [0, *apart.tolist(), len(ranges)]
+    return list(itertools.pairwise(edges))
 
 
 def _text(fd: int, start: int, stop: int) -> bytes:
