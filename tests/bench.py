@@ -20,7 +20,7 @@ five runs each, taking turns; elsewhere the best of a few runs.
                            block means; target <= 1.5x its wall time, peak memory <= its own),
                            five runs each taking turns, the median; segment -d vs segment (<= 1.5x)
     batch, 200 units    vs  a shell loop calling `tumblecal solve` per unit (target: 20x the units/s)
-    noise, 10M samples  vs  pandas.read_csv + allantools.oadev per axis (octave taus), the same file
+    noise, 4M and 10M samples  vs  pandas.read_csv + allantools.oadev per axis (octave taus), the same file
                            (three runs each taking turns, the median; target <= 0.3x)
     noise peak memory   10M samples / 2.5M samples  (streaming: ~1, not ~4)
     ULog stream, 100 MB vs pyulog.ULog(f, message_name_filter_list=["sensor_accel"]), the same log
@@ -370,22 +370,21 @@ for c in "xyz":
 
 
 def bench_noise(folder: Path) -> tuple[list[tuple[str, float, float, str]], dict[float, float]]:
-    """noise on 10M samples against allantools' oadev (read with pandas) in the same run, and
-    noise's peak memory at 2.5M and 10M samples."""
+    """noise on 4M and 10M samples against allantools' oadev (read with pandas) in the same run,
+    and noise's peak memory at 2.5M and 10M samples."""
     rows, memory = [], {}
-    for millions in (2.5, 10):
+    for millions in (2.5, 4, 10):
         still = folder / f"still{millions}M.csv"
         written_apart("write_still", still, int(millions * 1_000_000))
         argv = [*TUMBLECAL, "noise", "-q", "--rate", "200", str(still)]
-        if millions == 10:
+        if millions in (4, 10):
             (ours, rss), (base, base_rss) = paired(argv, [sys.executable, "-c", OADEV, str(still)], repeat=3)
+            size = still.stat().st_size / 1e6
+            note = f"{size:.0f} MB; peak {rss:.0f} MiB, allantools {base_rss:.0f} MiB"
+            rows.append((f"noise {millions}M samples", ours, base, note))
         else:
             ours, rss = run(argv, repeat=2)
         memory[millions] = rss
-        if millions == 10:
-            size = still.stat().st_size / 1e6
-            note = f"{size:.0f} MB; peak {rss:.0f} MiB, allantools {base_rss:.0f} MiB"
-            rows.append(("noise 10M samples", ours, base, note))
         still.unlink()
     return rows, memory
 
@@ -705,6 +704,15 @@ def print_against(rev: str) -> None:
         print(f"{what:<28} {ours:>9.3f}s {base:>9.3f}s {ours / base:>6.2f}x")
 
 
+def cpu_model() -> str:
+    """The processor's name, where the system says it (Linux)."""
+    try:
+        lines = Path("/proc/cpuinfo").read_text().splitlines()
+    except OSError:
+        return platform.processor() or "processor unknown"
+    return next((line.split(":", 1)[1].strip() for line in lines if line.startswith("model name")), "processor unknown")
+
+
 def compiled() -> None:
     """The package's modules compiled to bytecode first, as an install leaves them (where the
     environment sets PYTHONDONTWRITEBYTECODE each run would compile every module again)."""
@@ -721,7 +729,7 @@ def main() -> None:
         with tempfile.TemporaryDirectory() as tmp:
             rows = bench_pace(Path(tmp))
             noise_rows, peak = bench_noise(Path(tmp))
-        machine = f"{platform.node()} ({os.cpu_count()} cores, Python {platform.python_version()})"
+        machine = f"{platform.node()} ({os.cpu_count()} cores, {cpu_model()}, Python {platform.python_version()})"
         print(f"tumblecal bench pace, {date.today()}, {machine}, load average {load:.1f}-{os.getloadavg()[0]:.1f}")
         for what, ours, base, note in rows + noise_rows:
             print(f"{what:<28} {ours:>9.2f}s {base:>9.2f}s {ours / base:>6.2f}x  {note}")
