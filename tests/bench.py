@@ -306,7 +306,9 @@ def bench_pace(folder: Path) -> list[tuple[str, float, float, str]]:
                 note = f"peak {rss:.0f} MiB, polars {base_rss:.0f} MiB"
                 found.append((f"{what} {shape} {millions}M ({size:.0f} MB)", ours, base, note))
             blocks = folder / "pace-blocks"
-            (ours, rss), (base, _) = paired([*segment, "-d", str(blocks)], segment, repeat=3, fresh=(blocks, blocks))
+            (ours, rss), (base, _) = paired(
+                [*segment, "-d", str(blocks)], segment, repeat=3, fresh=(blocks, folder / "no-such-file")
+            )
             written = len(list(blocks.glob("*.csv"))) - 1
             note = f"vs segment; {written} blocks, peak {rss:.0f} MiB"
             found.append((f"segment -d {shape} {millions}M", ours, base, note))

@@ -827,6 +827,12 @@ def _matrix(value: object, name: str, path: str) -> FloatArray:
 
 def _json(value: object, depth: int) -> str:
     """JSON with two-space indent, lists of plain values on one line (vectors, matrix rows)."""
+    if type(value) is float and "n" not in (text := float.__repr__(value)):  # (nan, inf: json's NaN, Infinity)
+        return text
+    if isinstance(value, list) and value and all(type(v) is float for v in value):  # a vector: most of a file
+        text = ", ".join(map(float.__repr__, value))
+        if "n" not in text:
+            return f"[{text}]"
     pad, inner = "  " * depth, "  " * (depth + 1)
     if isinstance(value, dict) and value:
         items = [f"{inner}{_key(k)}: {_json(v, depth + 1)}" for k, v in value.items()]
