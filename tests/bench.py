@@ -14,12 +14,13 @@ five runs each, taking turns; elsewhere the best of a few runs.
     solve, 3 poses      vs  python -c "import pandas, numpy"               (start-up)
     segment, 600k rows  vs  python -c "import pandas; pandas.read_csv(f)"  (target <= 1.5x)
     segment, solve --log, 20M rows (a 5.6 h tumble session)  vs  the same read_csv; peak memory
-    segment, solve --log, 5M and 20M rows of 20 s still and 3 s turning  vs  POLARS_BLOCKS, the
+    segment, solve --log, 5M and 20M rows of 20 s still and 3 s turning, on a few faces (1 kHz)
+                           and in thousands of random orientations (100 Hz)  vs  POLARS_BLOCKS, the
                            polars script of the still blocks (rolling spread, threshold, runs,
                            block means; target <= 1.5x its wall time, peak memory <= its own),
-                           five runs each taking turns, the median
+                           five runs each taking turns, the median; segment -d vs segment (<= 1.5x)
     batch, 200 units    vs  a shell loop calling `tumblecal solve` per unit (target: 20x the units/s)
-    noise, 10M samples  vs  pandas.read_csv + allantools.oadev per axis (octave taus), the same file
+    noise, 4M and 10M samples  vs  pandas.read_csv + allantools.oadev per axis (octave taus), the same file
                            (three runs each taking turns, the median; target <= 0.3x)
     noise peak memory   10M samples / 2.5M samples  (streaming: ~1, not ~4)
     ULog stream, 100 MB vs pyulog.ULog(f, message_name_filter_list=["sensor_accel"]), the same log
@@ -247,6 +248,34 @@ def write_session(path: Path, rows: int, still: float = 20.0, turn: float = 3.0)
             pcsv.write_csv(table, f, pcsv.WriteOptions(include_header=False))
 
 
+def write_orientations(path: Path, rows: int, still: float = 20.0, turn: float = 3.0) -> None:
+    """A 100 Hz t,ax,ay,az log in g turned by hand through many orientations: ``still`` seconds
+    at rest in a random direction (uniform on the sphere), ``turn`` seconds turning to the next
+    (5M rows: 2,174 still blocks, 186 MB; written with pyarrow, a million rows at a time)."""
+    import pyarrow as pa
+    import pyarrow.csv as pcsv
+
+    rng = np.random.default_rng(4)
+    cycle, rate = still + turn, 100.0
+    count = int(rows / rate // cycle) + 2
+    ups = rng.normal(size=(count, 3))
+    ups /= np.linalg.norm(ups, axis=1)[:, None]
+    with path.open("wb") as f:
+        f.write(b"t,ax,ay,az\n")
+        for start in range(0, rows, 1_000_000):
+            n = min(1_000_000, rows - start)
+            t = np.arange(start, start + n) / rate
+            k = (t // cycle).astype(int)
+            w = np.clip((t % cycle - still) / turn, 0, 1)[:, None]  # 0 while still, 0 -> 1 while turning
+            g = (1 - w) * ups[k] + w * ups[k + 1]
+            g /= np.maximum(np.linalg.norm(g, axis=1), 1e-9)[:, None]
+            g += np.sin(np.pi * w) * 0.3 * rng.normal(size=(n, 3))
+            gain = np.array([1.02, 0.98, 1.01])
+            xyz = np.round(gain * g + np.array([0.01, -0.02, 0.015]) + rng.normal(0, 0.002, size=(n, 3)), 6)
+            table = pa.table({"t": np.round(t, 2), "ax": xyz[:, 0], "ay": xyz[:, 1], "az": xyz[:, 2]})
+            pcsv.write_csv(table, f, pcsv.WriteOptions(include_header=False))
+
+
 def written_apart(writer: str, path: Path, rows: int) -> None:
     """``writer`` (a function of this file) writes ``path`` in a process of its own: a child's peak
     memory (ru_maxrss) starts at the size of the process it was forked from, so the bench keeps
@@ -256,23 +285,34 @@ def written_apart(writer: str, path: Path, rows: int) -> None:
 
 
 def bench_pace(folder: Path) -> list[tuple[str, float, float, str]]:
-    """segment and solve --log of 5M- and 20M-row sessions against POLARS_BLOCKS on the same
-    file, taking turns (five runs each, the median), each with both peak memories."""
+    """segment and solve --log of 5M- and 20M-row logs of both shapes (a few faces: write_session;
+    thousands of orientations: write_orientations) against POLARS_BLOCKS on the same file, taking
+    turns (five runs each, the median), each with both peak memories; and segment -d (every
+    block written) against segment alone."""
     found = []
     for millions in (5, 20):
-        log = folder / f"pace{millions}M.csv"
-        written_apart("write_session", log, millions * 1_000_000)
-        size = log.stat().st_size / 1e6
-        script = [sys.executable, "-c", POLARS_BLOCKS, str(log)]
-        commands = (
-            ("segment", [*TUMBLECAL, "segment", "-q", str(log)]),
-            ("solve --log", [*TUMBLECAL, "solve", "-q", "--log", str(log), "-o", str(folder / "pace.json")]),
-        )
-        for what, argv in commands:
-            (ours, rss), (base, base_rss) = paired(argv, script)
-            note = f"peak {rss:.0f} MiB, polars {base_rss:.0f} MiB"
-            found.append((f"{what} {millions}M ({size:.0f} MB)", ours, base, note))
-        log.unlink()
+        for shape, writer in (("faces", "write_session"), ("orient.", "write_orientations")):
+            log = folder / f"pace{millions}M.csv"
+            written_apart(writer, log, millions * 1_000_000)
+            size = log.stat().st_size / 1e6
+            script = [sys.executable, "-c", POLARS_BLOCKS, str(log)]
+            segment = [*TUMBLECAL, "segment", "-q", str(log)]
+            commands = (
+                ("segment", segment),
+                ("solve --log", [*TUMBLECAL, "solve", "-q", "--log", str(log), "-o", str(folder / "pace.json")]),
+            )
+            for what, argv in commands:
+                (ours, rss), (base, base_rss) = paired(argv, script)
+                note = f"peak {rss:.0f} MiB, polars {base_rss:.0f} MiB"
+                found.append((f"{what} {shape} {millions}M ({size:.0f} MB)", ours, base, note))
+            blocks = folder / "pace-blocks"
+            (ours, rss), (base, _) = paired(
+                [*segment, "-d", str(blocks)], segment, repeat=3, fresh=(blocks, folder / "no-such-file")
+            )
+            written = len(list(blocks.glob("*.csv"))) - 1
+            note = f"vs segment; {written} blocks, peak {rss:.0f} MiB"
+            found.append((f"segment -d {shape} {millions}M", ours, base, note))
+            log.unlink()
     return found
 
 
@@ -332,22 +372,21 @@ for c in "xyz":
 
 
 def bench_noise(folder: Path) -> tuple[list[tuple[str, float, float, str]], dict[float, float]]:
-    """noise on 10M samples against allantools' oadev (read with pandas) in the same run, and
-    noise's peak memory at 2.5M and 10M samples."""
+    """noise on 4M and 10M samples against allantools' oadev (read with pandas) in the same run,
+    and noise's peak memory at 2.5M and 10M samples."""
     rows, memory = [], {}
-    for millions in (2.5, 10):
+    for millions in (2.5, 4, 10):
         still = folder / f"still{millions}M.csv"
         written_apart("write_still", still, int(millions * 1_000_000))
         argv = [*TUMBLECAL, "noise", "-q", "--rate", "200", str(still)]
-        if millions == 10:
+        if millions in (4, 10):
             (ours, rss), (base, base_rss) = paired(argv, [sys.executable, "-c", OADEV, str(still)], repeat=3)
+            size = still.stat().st_size / 1e6
+            note = f"{size:.0f} MB; peak {rss:.0f} MiB, allantools {base_rss:.0f} MiB"
+            rows.append((f"noise {millions}M samples", ours, base, note))
         else:
             ours, rss = run(argv, repeat=2)
         memory[millions] = rss
-        if millions == 10:
-            size = still.stat().st_size / 1e6
-            note = f"{size:.0f} MB; peak {rss:.0f} MiB, allantools {base_rss:.0f} MiB"
-            rows.append(("noise 10M samples", ours, base, note))
         still.unlink()
     return rows, memory
 
@@ -667,6 +706,15 @@ def print_against(rev: str) -> None:
         print(f"{what:<28} {ours:>9.3f}s {base:>9.3f}s {ours / base:>6.2f}x")
 
 
+def cpu_model() -> str:
+    """The processor's name, where the system says it (Linux)."""
+    try:
+        lines = Path("/proc/cpuinfo").read_text().splitlines()
+    except OSError:
+        return platform.processor() or "processor unknown"
+    return next((line.split(":", 1)[1].strip() for line in lines if line.startswith("model name")), "processor unknown")
+
+
 def compiled() -> None:
     """The package's modules compiled to bytecode first, as an install leaves them (where the
     environment sets PYTHONDONTWRITEBYTECODE each run would compile every module again)."""
@@ -698,7 +746,7 @@ def main() -> None:
         with tempfile.TemporaryDirectory() as tmp:
             rows = bench_pace(Path(tmp))
             noise_rows, peak = bench_noise(Path(tmp))
-        machine = f"{platform.node()} ({os.cpu_count()} cores, Python {platform.python_version()})"
+        machine = f"{platform.node()} ({os.cpu_count()} cores, {cpu_model()}, Python {platform.python_version()})"
         print(f"tumblecal bench pace, {date.today()}, {machine}, load average {load:.1f}-{os.getloadavg()[0]:.1f}")
         for what, ours, base, note in rows + noise_rows:
             print(f"{what:<28} {ours:>9.2f}s {base:>9.2f}s {ours / base:>6.2f}x  {note}")

@@ -489,9 +489,10 @@ def _label(
     names: Mapping[int, str] | None,
 ) -> None:
     """Each block measured about ``seg.centre``: its face, or why it is dropped."""
-    for number, ((a, b), m) in enumerate(zip(spans, measured, strict=True), start=1):
+    nearest_faces = _nearest_faces(np.array([m.stats.mean for m in measured]).reshape(-1, 3) - seg.centre)
+    for number, ((a, b), m, found) in enumerate(zip(spans, measured, nearest_faces, strict=True), start=1):
         st, drift = m.stats, m.drift
-        nearest, angle, magnitude = _nearest_face(st.mean - seg.centre)
+        nearest, angle, magnitude = found
         face = nearest if angle <= settings.max_tilt_deg else None
         dropped = None
         if faces is not None:  # a labelled log: the label says the face, and the angle is from it
@@ -548,7 +549,7 @@ def rough_centre(means: FloatArray, max_tilt_deg: float) -> FloatArray:
         norms = np.linalg.norm(means - centre, axis=1)
         if float(norms.min()) <= 0.1 * float(norms.max()):
             continue  # a block at the centre itself: no direction to judge
-        tilts = [_nearest_face(m - centre)[1] for m in means]
+        tilts = [t for _, t, _ in _nearest_faces(means - centre)]
         labelled, tilt = sum(t <= max_tilt_deg for t in tilts), float(sum(tilts))
         # as many labelled: the centre that puts them nearer their faces (two blocks of one face
         # 4 degrees apart have their midpoint between them, which tilts each 12 degrees onto +-y)
@@ -557,14 +558,22 @@ def rough_centre(means: FloatArray, max_tilt_deg: float) -> FloatArray:
     return candidates[0] if best is None else best[2]
 
 
-def _nearest_face(v: FloatArray) -> tuple[str, float, float]:
-    """The face nearest the direction of ``v``, the angle to it in degrees, and |v|."""
-    norm = float(np.linalg.norm(v))
-    if norm == 0.0:
-        return "+z", 90.0, 0.0
-    axis = int(np.argmax(np.abs(v)))
-    face = ("+" if v[axis] > 0 else "-") + "xyz"[axis]
-    return face, math.degrees(math.acos(min(1.0, abs(float(v[axis])) / norm))), norm
+def _nearest_faces(v: FloatArray) -> list[tuple[str, float, float]]:
+    """For each row of ``v`` (n, 3): the face nearest its direction, the angle to it in degrees,
+    and |v| (as np.linalg.norm takes it: the same digits), every row's norm in one call."""
+    if not len(v):
+        return []
+    norms = np.sqrt(np.matmul(v[:, None, :], v[:, :, None])[:, 0, 0]).tolist()
+    axes = np.argmax(np.abs(v), axis=1)
+    along = v[np.arange(len(v)), axes].tolist()
+    found = []
+    for norm, axis, x in zip(norms, axes.tolist(), along, strict=True):
+        if norm == 0.0:
+            found.append(("+z", 90.0, 0.0))
+        else:
+            face = ("+" if x > 0 else "-") + "xyz"[axis]
+            found.append((face, math.degrees(math.acos(min(1.0, abs(x) / norm))), norm))
+    return found
 
 
 def missing(seg: Segmentation, faces: Sequence[str]) -> list[str]:

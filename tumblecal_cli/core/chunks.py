@@ -13,6 +13,7 @@ the few chunks it cuts (``wanted``), which the caller reads again.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -24,6 +25,9 @@ from tumblecal_cli.core.model import PoseStats
 #: thousand blocks read 1M readings again); the table holds 56 bytes a chunk (the caller's
 #: place of each in the file, 24 more).
 CHUNK = 256
+#: A span covering up to this many whole chunks between its cuts is merged with the others at once
+#: (longer ones one by one: few, as a log holds few of them).
+SHORT = 64
 
 #: A count of readings, their sum (3,) and co-moment (3,: each axis's squares about their mean).
 Moments = tuple[int, FloatArray, FloatArray]
@@ -98,40 +102,87 @@ class Chunks:
         """What ``measure`` needs of the readings, by chunk: the parts (first, last: positions in
         the chunk) where a span or one of its thirds begins or ends."""
         found: dict[int, list[tuple[int, int]]] = {}
-        for a, b in self.thirds(spans):
-            for c, lo, hi in self._cuts(a, b):
-                found.setdefault(c, []).append((lo, hi))
+        for c, lo, hi in self.plan(spans).parts.tolist():
+            found.setdefault(c, []).append((lo, hi))
         return found
+
+    def plan(self, spans: Sequence[tuple[int, int]]) -> Cuts:
+        """The parts of chunks each span and its thirds begin and end in (``_cuts``, every range
+        at once), each part once."""
+        ranges = np.array(self.thirds(spans), dtype=np.int64).reshape(-1, 2)
+        a, b = ranges[:, 0], ranges[:, 1]
+        ca, cb = self.of(a), self.of(b)
+        one = ca == cb
+        first = np.column_stack([ca, a - self.start[ca], np.where(one, b - self.start[ca], self.counts[ca] - 1)])
+        two = np.flatnonzero(~one)
+        last = np.column_stack([cb[two], np.zeros(two.size, dtype=np.int64), b[two] - self.start[cb[two]]])
+        parts, which = np.unique(np.concatenate([first, last]).reshape(-1, 3), axis=0, return_inverse=True)
+        which = which.reshape(-1)
+        return Cuts(ca, cb, parts, which[: len(a)], which[len(a) :], two)
 
     def measure(self, spans: Sequence[tuple[int, int]], parts: Mapping[Part, Moments]) -> list[Measured]:
         """Each span's (the log's readings ``a``..``b``) statistics and drift, from the chunks and
         ``parts``: the ``moments`` of each part ``wanted`` named."""
-        ranges = self.thirds(spans)
-        found = []
-        for k in range(0, len(ranges), 3):
-            count, total, m2 = self._part(*ranges[k], parts)
-            mean = total / count
-            std = np.sqrt(np.maximum(m2, 0.0) / (count - 1)) if count > 1 else np.zeros(3)
-            first, last = self._part(*ranges[k + 1], parts), self._part(*ranges[k + 2], parts)
-            found.append(Measured(PoseStats(mean, std, count), last[1] / last[0] - first[1] / first[0]))
-        return found
+        plan = self.plan(spans)
+        found = [parts[(c, lo, hi)] for c, lo, hi in plan.parts.tolist()]
+        return self.measured(
+            plan,
+            np.array([p[0] for p in found], dtype=np.int64),
+            np.array([p[1] for p in found], dtype=np.float64).reshape(-1, 3),
+            np.array([p[2] for p in found], dtype=np.float64).reshape(-1, 3),
+        )
 
-    def _part(self, a: int, b: int, parts: Mapping[Part, Moments]) -> Moments:
-        """The count, sum and co-moment of the log's readings ``a``..``b``."""
-        cuts = self._cuts(a, b)
-        if len(cuts) == 1:
-            return parts[cuts[0]]
-        inner = slice(cuts[0][0] + 1, cuts[1][0])
-        counts = self.counts[inner]
-        found = [parts[cuts[0]]]
-        if counts.size:
-            n = int(counts.sum())
-            total = self.sums[inner].sum(axis=0)
-            means = self.sums[inner] / counts[:, None]
-            m2 = self.m2[inner].sum(axis=0) + (counts[:, None] * np.square(means - total / n)).sum(axis=0)
-            found.append((n, total, m2))
-        found.append(parts[cuts[1]])
-        return _merge(found)
+    def measured(self, plan: Cuts, count: IntArray, total: FloatArray, m2: FloatArray) -> list[Measured]:
+        """Each span's statistics and drift from the count, sum and co-moment of each of
+        ``plan.parts`` and the chunks between them: every span at once, with the arithmetic of
+        merging one span's parts (``_merged``) in the same order, so the same digits."""
+        if not plan.first.size:
+            return []
+        last = count[plan.last], total[plan.last], m2[plan.last]
+        count, total, m2 = count[plan.first], total[plan.first], m2[plan.first]
+        two = plan.two
+        if two.size:
+            inner = self._inner(plan.ca[two] + 1, plan.cb[two])
+            count[two], total[two], m2[two] = _merged((count[two], total[two], m2[two]), inner, last)
+        n = count[0::3]
+        mean = total[0::3] / n[:, None]
+        many = n > 1
+        std = np.zeros_like(mean)
+        std[many] = np.sqrt(np.maximum(m2[0::3][many], 0.0) / (n[many] - 1)[:, None])
+        drift = total[2::3] / count[2::3, None] - total[1::3] / count[1::3, None]
+        return [Measured(PoseStats(mean[k], std[k], int(n[k])), drift[k]) for k in range(len(n))]
+
+    def _inner(self, lo: IntArray, hi: IntArray) -> tuple[IntArray, FloatArray, FloatArray]:
+        """The chunks ``lo`` .. ``hi - 1`` of each range merged (count 0 where there are none):
+        each sum taken down the chunks in order, as numpy sums them along the first axis."""
+        length = hi - lo
+        k = len(lo)
+        count = np.zeros(k, dtype=np.int64)
+        total, m2 = np.zeros((k, 3)), np.zeros((k, 3))
+        short = np.flatnonzero((length > 0) & (length <= SHORT))
+        if short.size:
+            width = int(length[short].max())
+            at = np.minimum(lo[short, None] + np.arange(width), len(self.counts) - 1)  # (m, width)
+            last = length[short] - 1
+            rows = np.arange(short.size)
+            counts = self.counts[at]
+            n = np.cumsum(counts, axis=1)[rows, last]
+            sums = self.sums[at]
+            summed = np.cumsum(sums, axis=1)[rows, last]
+            means = sums / counts[:, :, None]
+            spread = counts[:, :, None] * np.square(means - (summed / n[:, None])[:, None, :])
+            own = np.cumsum(self.m2[at], axis=1)[rows, last]
+            count[short], total[short] = n, summed
+            m2[short] = own + np.cumsum(spread, axis=1)[rows, last]
+        for j in np.flatnonzero(length > SHORT):  # a long block: its chunks summed as one
+            inner = slice(int(lo[j]), int(hi[j]))
+            counts_j = self.counts[inner]
+            n_j = int(counts_j.sum())
+            total_j = self.sums[inner].sum(axis=0)
+            means_j = self.sums[inner] / counts_j[:, None]
+            m2[j] = self.m2[inner].sum(axis=0) + (counts_j[:, None] * np.square(means_j - total_j / n_j)).sum(axis=0)
+            count[j], total[j] = n_j, total_j
+        return count, total, m2
 
 
 def moments(values: FloatArray) -> Moments:
@@ -141,12 +192,40 @@ def moments(values: FloatArray) -> Moments:
     return n, total, np.square(values - total / n).sum(axis=0)
 
 
-def _merge(parts: list[Moments]) -> Moments:
-    """Counts, sums and co-moments of consecutive parts as one (each co-moment about its own mean)."""
-    if len(parts) == 1:
-        return parts[0]
-    n = sum(p[0] for p in parts)
-    total = np.sum([p[1] for p in parts], axis=0)
-    mean = total / n
-    m2 = np.sum([p[2] + p[0] * np.square(p[1] / p[0] - mean) for p in parts], axis=0)
-    return n, total, m2
+@dataclass(frozen=True)
+class Cuts:
+    """Where each range (a span, its first third, its last third, in turn) begins and ends: its
+    first chunk ``ca`` and last ``cb``; the parts of chunks the ranges cut (chunk, first, last:
+    positions in the chunk), each once; each range's ``first`` part (its only one when it lies
+    in one chunk) and, for the ranges ``two`` that span chunks, their ``last`` part."""
+
+    ca: IntArray
+    cb: IntArray
+    parts: IntArray
+    first: IntArray
+    last: IntArray
+    two: IntArray
+
+
+def _merged(
+    first: tuple[IntArray, FloatArray, FloatArray],
+    inner: tuple[IntArray, FloatArray, FloatArray],
+    last: tuple[IntArray, FloatArray, FloatArray],
+) -> tuple[IntArray, FloatArray, FloatArray]:
+    """Each range's first part, its inner chunks (where it has any: a count above 0) and its last
+    part merged as one, every range at once: the sums in order (first, inner, last), each
+    co-moment about its own mean moved to the merged one (Chan, Golub and LeVeque)."""
+    n = first[0] + inner[0] + last[0]
+    some = inner[0] > 0
+    total = first[1] + np.where(some[:, None], inner[1], 0.0)
+    total = np.where(some[:, None], total, first[1]) + last[1]
+    mean = total / n[:, None]
+
+    def term(p: tuple[IntArray, FloatArray, FloatArray]) -> FloatArray:
+        c = np.maximum(p[0], 1)[:, None]
+        found: FloatArray = p[2] + c * np.square(p[1] / c - mean)
+        return found
+
+    m2 = term(first) + np.where(some[:, None], term(inner), 0.0)
+    m2 = np.where(some[:, None], m2, term(first)) + term(last)
+    return n, total, np.asarray(m2, dtype=np.float64)

@@ -19,7 +19,7 @@ from typing import IO, TYPE_CHECKING, Unpack
 
 import numpy as np
 
-from tumblecal_cli.core import arrays, catalog, clock, methods, model, solvers
+from tumblecal_cli.core import arrays, catalog, clock, gate, methods, model, solvers
 from tumblecal_cli.core import blocks as seg_core
 from tumblecal_cli.core.blocks import Block, Segmentation
 from tumblecal_cli.errors import CaptureRejected, InputError
@@ -266,7 +266,7 @@ def enough_blocks(log: Log, seg: Segmentation, need: int) -> None:
 
 
 def log_poses(
-    log: Log, seg: Segmentation, method: str, up: str, sensor: str
+    log: Log, seg: Segmentation, method: str, up: str, sensor: str, full_scale: float | None = None
 ) -> tuple[str, list[str | None], list[Samples], list[str]]:
     """The method and the poses a log gives it: the best block of each face a face solver
     needs (Segmentation.best: the least tilted), or every kept block for an orientation-free
@@ -312,8 +312,30 @@ def log_poses(
                     f"into its parameters (six-pose-magnitude is immune to it){sphere}"
                 )
     name, order = methods.pick(method, labels, sensor)
-    samples = [log.block(b.number, b.first, b.last) for b in chosen_blocks]
+    samples = block_poses(log, chosen_blocks, name, full_scale)
     return name, [labels[k] for k in order], [samples[k] for k in order], notes
+
+
+#: The readings of a log's blocks a solve reads again and holds at once (8 bytes a value): a
+#: solver of means given more blocks than these takes each one's statistics from the scan.
+BLOCK_BYTES = 32 << 20
+
+
+def block_poses(log: Log, chosen: list[Block], method: str, full_scale: float | None = None) -> list[Samples]:
+    """The poses of a log's ``chosen`` blocks: their readings read again (``Log.block``), or,
+    where a log read block by block gives a solver of means more readings than BLOCK_BYTES
+    (thousands of orientations), each block's statistics as the scan measured them
+    (``Log.summarised``: the same to 1e-15), unless the readings are whole numbers (integer rails
+    judged), the log has a temperature column, or a full scale is given (clipping judged on
+    each block's own peak)."""
+    row = catalog.find(method)
+    many = 24 * sum(b.samples for b in chosen) > BLOCK_BYTES
+    rails = log.extremes is None or gate.integer_rails([log.extremes]) is not None
+    if not many or log.reread is None or row is None or row.takes != "means" or rails:
+        return [log.block(b.number, b.first, b.last) for b in chosen]
+    if log.temperature is not None or full_scale is not None:
+        return [log.block(b.number, b.first, b.last) for b in chosen]
+    return [log.summarised(b) for b in chosen]
 
 
 def _wanted(method: str, up: str, best: Mapping[str, Block]) -> list[str]:

@@ -853,13 +853,45 @@ def _matrix(value: object, name: str, path: str) -> FloatArray:
 
 def _json(value: object, depth: int) -> str:
     """JSON with two-space indent, lists of plain values on one line (vectors, matrix rows)."""
+    if type(value) is float and "n" not in (text := float.__repr__(value)):  # (nan, inf: json's NaN, Infinity)
+        return text
+    if isinstance(value, list) and value and all(type(v) is float for v in value):  # a vector: most of a file
+        text = ", ".join(map(float.__repr__, value))
+        if "n" not in text:
+            return f"[{text}]"
     pad, inner = "  " * depth, "  " * (depth + 1)
     if isinstance(value, dict) and value:
-        items = [f"{inner}{json.dumps(k)}: {_json(v, depth + 1)}" for k, v in value.items()]
+        items = [f"{inner}{_key(k)}: {_json(v, depth + 1)}" for k, v in value.items()]
         return "{\n" + ",\n".join(items) + f"\n{pad}}}"
     if isinstance(value, list) and value and not all(isinstance(v, int | float | str | None) for v in value):
         return "[\n" + ",\n".join(inner + _json(v, depth + 1) for v in value) + f"\n{pad}]"
+    plain = _plain(value) if not isinstance(value, list) else [_plain(v) for v in value]
+    if isinstance(plain, str):
+        return plain
+    if isinstance(plain, list) and None not in plain:
+        return "[" + ", ".join(plain) + "]"  # type: ignore[arg-type]
     return json.dumps(value, ensure_ascii=False, separators=(", ", ": "))
+
+
+_KEYS: dict[object, str] = {}
+
+
+def _key(k: object) -> str:
+    """json.dumps of a key, each once (a file of thousands of poses names the same keys again)."""
+    found = _KEYS.get(k)
+    if found is None:
+        found = _KEYS[k] = json.dumps(k)
+    return found
+
+
+def _plain(v: object) -> str | None:
+    """json.dumps of None, a bool, an int or a float (float.__repr__, as json's), without its
+    call; None for anything else."""
+    if v is None or isinstance(v, bool):
+        return {None: "null", True: "true", False: "false"}[v]
+    if isinstance(v, float):
+        return float.__repr__(v) if v - v == 0 else "NaN" if v != v else "Infinity" if v > 0 else "-Infinity"
+    return int.__repr__(v) if isinstance(v, int) else None
 
 
 def refuse_failed(cal: Calibration, doing: str, command: str) -> None:

@@ -26,6 +26,7 @@ logs is therefore the general path's own.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import os
 from collections import deque
 from collections.abc import Callable, Generator, Iterator
@@ -34,11 +35,12 @@ from dataclasses import dataclass
 from typing import TypedDict
 
 import numpy as np
+from numpy.typing import NDArray
 
 from tumblecal_cli.core import model
 from tumblecal_cli.core.arrays import BoolArray, FloatArray, IntArray
 from tumblecal_cli.core.blocks import DetectorSettings, Measured, Segmentation, clock_of, sample_period, window_spread
-from tumblecal_cli.core.chunks import CHUNK, Chunks, Moments, Part, chunk_sums, moments
+from tumblecal_cli.core.chunks import CHUNK, Chunks, Cuts, chunk_sums
 from tumblecal_cli.core.scan import Kept, Scan
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.csv import capture, readings, sniff
@@ -57,6 +59,11 @@ FIRST = 100_001
 #: A 20M-row log, in one process: 1 MiB blocks 3.55-3.75 s and 346-352 MiB, 2 MiB 2.84-3.05 s and
 #: 373-375 MiB, 3 MiB 2.70-2.75 s and 387-391 MiB, 4 MiB 2.77-2.80 s and 440-447 MiB.
 SCALE = 2
+#: The bytes of readings held until the end of the log (``coded``, 12 a reading: a 5M-row log's),
+#: where the parts of the chunks a block cuts are measured without reading them again: a log
+#: whose readings take more (by its first blocks' bytes a reading) holds none, and its memory
+#: stays what it is at any length.
+KEPT = 64 << 20
 #: Blocks parsed ahead of the one the scan takes, beyond one a thread (and blocks the digest's
 #: thread may be behind): each one's text and cells are held meanwhile.
 AHEAD = 1
@@ -67,6 +74,8 @@ class _Shared(TypedDict, total=False):
 
     window: int  # the Scan's window, once known: the threads compute a block's spreads
     odd: float  # a reading that is not a whole number, once one is found
+    digits: int  # the decimals the last block's readings were kept in (``coded``) ...
+    full: bool  # ... and whether the readings kept have filled KEPT: the threads code no more
 
 
 class _Plain(Exception):
@@ -189,6 +198,83 @@ class _ReadAgain:
     stops: IntArray
 
 
+def part_moments(values: FloatArray, starts: IntArray, n: IntArray) -> tuple[IntArray, FloatArray, FloatArray]:
+    """The count, sum and co-moment (``core.chunks.moments``) of the ``n`` readings of ``values``
+    from each of ``starts`` (at most CHUNK of them), all at once: each sum taken down the readings
+    in order, as numpy sums them along the first axis, so the same digits."""
+    if not n.size:
+        return n, np.zeros((0, 3)), np.zeros((0, 3))
+    at = np.minimum(starts[:, None] + np.arange(int(n.max())), len(values) - 1)
+    taken = values[at]  # (parts, width, 3)
+    rows, last = np.arange(n.size), n - 1
+    total = np.cumsum(taken, axis=1)[rows, last]
+    m2 = np.cumsum(np.square(taken - (total / n[:, None])[:, None, :]), axis=1)[rows, last]
+    return n, total, m2
+
+
+def coded(values: FloatArray, digits: int | None) -> tuple[NDArray[np.int32], int] | None:
+    """``values`` as whole numbers of 10**-d (int32: 12 bytes a reading, not 24), with ``d``, the
+    fewest decimals (``digits`` tried first) that give every value back bit for bit (``decoded``:
+    a number of d decimals parsed is the double nearest it, and so is k / 10**d, IEEE's division
+    being correctly rounded); None when no d up to 9 does."""
+    for d in ([digits] if digits is not None else []) + list(range(10)):
+        scale = 10.0**d
+        k = np.rint(values * scale)
+        if float(np.abs(k).max(initial=0.0)) < 2**31 and np.array_equal(k / scale, values):
+            return k.astype(np.int32), d
+    return None
+
+
+def decoded(k: NDArray[np.int32], d: int) -> FloatArray:
+    """The readings ``coded`` kept, as they were parsed."""
+    values: FloatArray = k / 10.0**d
+    return values
+
+
+class _Chunked:
+    """Readings read again from stretches of whole lines (a log's chunks), parsed together: each
+    stretch's first reading among them, and for each reading its line among its stretch's."""
+
+    def __init__(
+        self,
+        cells: FloatArray,
+        timed: bool,
+        warm: bool,
+        first: IntArray,
+        line: IntArray,
+        text: tuple[IntArray, IntArray, IntArray],
+        ranges: IntArray,
+    ) -> None:
+        self.values: FloatArray = cells[:, :3]
+        self.clock: FloatArray | None = cells[:, 3] if timed else None
+        self.temperature: FloatArray | None = cells[:, 3 + timed] if warm else None
+        self.first, self.line, self.ranges = first, line, ranges
+        self._newline, self._offsets, self._line_of = text
+        self.skip = np.zeros(len(first), dtype=np.int64)  # each stretch's readings before those parsed
+
+    def moments(self, stretch: IntArray, lo: IntArray, hi: IntArray) -> tuple[IntArray, FloatArray, FloatArray]:
+        """The count, sum and co-moment (``core.chunks.moments``) of the readings ``lo``..``hi``
+        of each ``stretch`` (positions in it, at most CHUNK of them), all at once: each sum taken
+        down the readings in order, as numpy sums them along the first axis, so the same digits."""
+        return part_moments(self.values, self.first[stretch] + lo - self.skip[stretch], hi - lo + 1)
+
+    def end(self, stretch: int, j: int, row: int) -> _End:
+        """The ``j``-th reading of ``stretch``, whose first reading is the log's data row ``row``."""
+        r = int(self.first[stretch]) + j - int(self.skip[stretch])
+        line = int(self.line[r])
+        start, stop = (int(v) for v in self.ranges[stretch])
+        base = start - int(self._offsets[stretch])  # a byte of the text is this far from the file's
+        at = int(self._line_of[stretch]) + line
+        begins = start if not line else int(self._newline[at - 1]) + 1 + base
+        return _End(
+            self.values[r].copy(),
+            row + line + int(self.skip[stretch]),
+            np.nan if self.clock is None else float(self.clock[r]),
+            np.nan if self.temperature is None else float(self.temperature[r]),
+            (begins, min(int(self._newline[at]) + 1 + base, stop)),
+        )
+
+
 class _ScannedFile:
     """The log's file, read again where the scan kept nothing: the chunks where a block or its
     third begins or ends, and a block's lines when its readings are asked for. A file that is
@@ -202,36 +288,77 @@ class _ScannedFile:
         self.size = st.st_size
         self.stamp = capture.stamp(st)
 
-    def read(self, ranges: list[tuple[int, int]], counts: IntArray, each: Callable[[int, _ReadAgain], None]) -> None:
-        """The readings of each stretch of lines (its first byte and end), ``counts`` of them,
-        given to ``each`` with the stretch's index as they are parsed (a block of them at a
-        time, on a pool of threads): none is held longer."""
-        if not ranges:
+    def read(
+        self, ranges: IntArray, counts: IntArray, wanted: IntArray, each: Callable[[int, int, _Chunked], None]
+    ) -> None:
+        """The readings of each stretch of lines (``ranges``: its first byte and end), ``counts``
+        of them, given to ``each`` a batch of stretches at a time (the first of them and the one
+        after) as they are parsed, on a pool of threads: none is held longer. Of a stretch with a
+        reading on every line only the lines of the readings ``wanted`` (its first and last) are
+        parsed: ``_Chunked.skip`` says how many lines before them were left."""
+        if not len(ranges):
             return
-        batches: list[list[tuple[int, int, int | None]]] = [[]]
-        size = 0
-        for (start, stop), n in zip(ranges, counts.tolist(), strict=True):
-            if size >= capture.BLOCK_BYTES:  # parsed a block at a time: what each holds at once stays small
-                batches.append([])
-                size = 0
-            batches[-1].append((start, stop, n))
-            size += stop - start
-        firsts = np.cumsum([0] + [len(b) for b in batches]).tolist()
+        sizes = np.cumsum(ranges[:, 1] - ranges[:, 0])
+        cut = np.searchsorted(sizes, np.arange(capture.BLOCK_BYTES, int(sizes[-1]), capture.BLOCK_BYTES), side="right")
+        edges = np.unique(np.concatenate([[0], cut + 1, [len(ranges)]]).clip(0, len(ranges))).tolist()
+        batches = [(a, b) for a, b in itertools.pairwise(edges) if b > a]
 
-        def parse(k: int) -> None:
-            texts = [(start, stop, n, _text(fd, start, stop)) for start, stop, n in batches[k]]
-            for j, r in enumerate(self._parse(texts)):
-                each(firsts[k] + j, r)
+        def parse(k: tuple[int, int]) -> None:
+            a, b = k
+            texts: list[bytes] = []
+            places, skip, held = ranges[a:b].copy(), np.zeros(b - a, dtype=np.int64), counts[a:b].copy()
+            for g, h in _near(ranges[a:b]):  # stretches close together: one read, their line ends found at once
+                base = int(places[g, 0])
+                text = _text(fd, base, int(places[h - 1, 1]))
+                ends = np.flatnonzero(np.frombuffer(text, dtype=np.uint8) == 10) + base
+                part = places[g:h]
+                if not len(ends):  # one line, the file's last, without a line end: read whole
+                    texts.append(text)
+                    continue
+                first, past = np.searchsorted(ends, part[:, 0]), np.searchsorted(ends, part[:, 1])
+                closed = (past > first) & (ends[np.maximum(past - 1, 0)] == part[:, 1] - 1)  # its last line ended
+                lo, hi = wanted[a + g : a + h, 0], wanted[a + g : a + h, 1]
+                trim = ((lo > 0) | (hi < held[g:h] - 1)) & (past - first + ~closed == held[g:h])  # a reading a line
+                begin = np.where(trim & (lo > 0), ends[np.clip(first + lo - 1, 0, len(ends) - 1)] + 1, part[:, 0])
+                at = first + hi
+                end = np.where(trim & (at < past), ends[np.minimum(at, len(ends) - 1)] + 1, part[:, 1])
+                begin, end = np.where(trim, begin, part[:, 0]), np.where(trim, end, part[:, 1])
+                skip[g:h], held[g:h] = np.where(trim, lo, 0), np.where(trim, hi - lo + 1, held[g:h])
+                places[g:h, 0], places[g:h, 1] = begin, end
+                texts += [text[x - base : y - base] for x, y in zip(begin.tolist(), end.tolist(), strict=True)]
+            got = self._chunked(texts, places, held)
+            got.skip = skip
+            each(a, b, got)
 
         try:
             with open(self.path, "rb") as f:
                 fd = f.fileno()
                 self._same(os.fstat(fd))
                 with ThreadPoolExecutor(max_workers=max(2, os.cpu_count() or 1)) as pool:  # (pyarrow and numpy
-                    list(pool.map(parse, range(len(batches))))  # let go of the GIL)
+                    list(pool.map(parse, batches))  # let go of the GIL)
                 self._same(os.fstat(fd))
         except OSError:  # gone, or not readable: the whole read says so
             raise _Plain from None
+
+    def _chunked(self, texts: list[bytes], ranges: IntArray, counts: IntArray) -> _Chunked:
+        """The readings of stretches of lines (their texts, first bytes and ends, and how many
+        readings each holds), parsed together."""
+        texts = [text if text.endswith(b"\n") else text + self.splicer.eol for text in texts]
+        found = self.splicer.read(b"".join(texts))
+        if found is None:
+            raise _Plain
+        parsed, empty, newline = found
+        offsets = np.cumsum([0] + [len(t) for t in texts])
+        line_of = np.searchsorted(newline, offsets[:-1])  # each stretch's first line
+        keep = np.flatnonzero(~empty)
+        stretch = np.searchsorted(offsets, newline[keep], side="right") - 1  # each reading's stretch
+        if not np.array_equal(np.bincount(stretch, minlength=len(texts)), counts):
+            raise _Plain
+        cells = _columns(parsed, self.where)[keep]
+        first = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+        return _Chunked(
+            cells, self.timed, self.warm, first, keep - line_of[stretch], (newline, offsets, line_of), ranges
+        )
 
     def _same(self, st: os.stat_result) -> None:
         """Raise _Plain unless the file is the one scanned: the same file, its bytes then there
@@ -354,6 +481,9 @@ class _Block:
         self.hi = float(self.values.max()) if self.values.size and self.finite else 0.0
         summed = self.finite and max(-self.lo, self.hi) <= model.MAX_READING  # (else the whole read says why)
         self.chunks = chunk_sums(self.values) if summed else None  # what a block's statistics are merged from
+        self.coded = coded(self.values, shared.get("digits")) if summed and not shared.get("full") else None
+        if self.coded is not None:
+            shared["digits"] = self.coded[1]
         self.odd: float | None = None  # a reading that is not a whole number: one in the log is enough
         if self.finite and "odd" not in shared:
             fraction = self.values[self.values != np.round(self.values)]
@@ -376,6 +506,9 @@ class _Feeder:
         self.scan: Scan | None = None
         self.chunks = Chunks()  # each CHUNK readings' sums, and where their lines are: (first byte, end, row)
         self.chunk_lines: list[IntArray] = []
+        #: the readings of the first blocks (until KEPT): each one's first reading in the log, coded
+        self.kept: list[tuple[int, NDArray[np.int32], int]] = []
+        self.kept_bytes = 0
         #: after measure: the first and last reading of each block, by its position among those kept
         self.ends: dict[int, _End] = {}
         self.first: list[_Block] = []
@@ -427,6 +560,9 @@ class _Feeder:
             if found is not None and found.bursty:
                 raise _Plain  # stamped on arrival: the whole read takes the period from its mean step (core.clock)
         capacity = _capacity(self.first, self.size)
+        read, count = sum(b.bytes for b in self.first), sum(len(b.values) for b in self.first)
+        if 12 * self.size * count > KEPT * max(read, 1):  # not the whole log's readings: none kept
+            self.shared["full"] = True
         scan = self.scan = Scan(sample_period(seconds, self.rate), self.settings, capacity=capacity, readings=False)
         self.shared["window"] = scan.window
         for b in self.first:
@@ -445,40 +581,91 @@ class _Feeder:
         if block.chunks is not None and len(block.values):
             self.chunks.add(first, *block.chunks)
             self.chunk_lines.append(block.chunk_lines)
+        if block.coded is not None and not self.shared.get("full") and self.kept_bytes + block.coded[0].nbytes <= KEPT:
+            self.kept.append((first, *block.coded))
+            self.kept_bytes += block.coded[0].nbytes
+        elif block.coded is not None:
+            self.shared["full"] = True
 
     def measure(self, kept: Kept, spans: list[tuple[int, int]]) -> list[Measured]:
         """Each block's statistics, merged from the chunks' sums and the parts of the chunks
-        where a block or its third begins or ends, read again (each chunk's readings let go as
-        soon as its parts are summed); and each block's first and last reading (``ends``)."""
+        where a block or its third begins or ends: from the readings kept (``coded``), or read
+        again (each batch of chunks' readings let go as soon as its parts are summed); and each
+        block's first and last reading (``ends``), its line read again."""
         chunks = self.chunks
         chunks.done()
         lines = np.concatenate(self.chunk_lines) if self.chunk_lines else np.zeros((0, 3), dtype=np.int64)
         positions = np.array(spans, dtype=np.int64).reshape(-1)
         found = kept.log_index(positions) if positions.size else positions
-        indexes = [(int(a), int(b)) for a, b in found.reshape(-1, 2)]
-        wanted = chunks.wanted(indexes)
-        ends: dict[int, list[tuple[int, int]]] = {}  # chunk: (its reading, the position of a block's end)
-        for p, i in zip(positions.tolist(), found.tolist(), strict=True):
-            c = int(chunks.of(i))
-            ends.setdefault(c, []).append((i - int(chunks.start[c]), p))
-        need = sorted(wanted.keys() | ends.keys())
-        parts: dict[Part, Moments] = {}
+        plan = chunks.plan([(int(a), int(b)) for a, b in found.reshape(-1, 2)])
+        count = np.zeros(len(plan.parts), dtype=np.int64)
+        total, m2 = np.zeros((len(plan.parts), 3)), np.zeros((len(plan.parts), 3))
+        held = self._held(plan.parts)
+        for k in np.unique(held[held >= 0]).tolist():  # the parts of the readings kept
+            first, values, d = self.kept[k]
+            mine = np.flatnonzero(held == k)
+            c = plan.parts[mine]
+            count[mine], total[mine], m2[mine] = part_moments(
+                decoded(values, d), chunks.start[c[:, 0]] + c[:, 1] - first, c[:, 2] - c[:, 1] + 1
+            )
+        self._read_again(plan, np.flatnonzero(held < 0), found, positions, (count, total, m2), lines)
+        return chunks.measured(plan, count, total, m2)
 
-        def take(c: int, r: _ReadAgain) -> None:  # on a parsing thread: the GIL keeps each entry whole
-            for lo, hi in wanted.get(c, []):
-                parts[(c, lo, hi)] = moments(r.values[lo : hi + 1])
-            for j, p in ends.get(c, []):
-                self.ends[p] = _End(
-                    r.values[j].copy(),
-                    int(lines[c, 2]) + int(r.lines[j]),
-                    np.nan if r.clock is None else float(r.clock[j]),
-                    np.nan if r.temperature is None else float(r.temperature[j]),
-                    (int(r.starts[j]), int(r.stops[j])),
-                )
+    def _held(self, parts: IntArray) -> IntArray:
+        """Which of the readings kept each part's chunk is in (-1: none: it is read again)."""
+        chunks = self.chunks
+        if not self.kept:
+            return np.full(len(parts), -1, dtype=np.int64)
+        starts = chunks.start[parts[:, 0]]
+        firsts = np.array([f for f, _, _ in self.kept], dtype=np.int64)
+        k = np.searchsorted(firsts, starts, side="right") - 1
+        sizes = np.array([len(v) for _, v, _ in self.kept], dtype=np.int64)
+        inside = (k >= 0) & (starts + chunks.counts[parts[:, 0]] <= firsts[k] + sizes[k])
+        return np.where(inside, k, -1)
 
-        stretches = [(int(lines[c, 0]), int(lines[c, 1])) for c in need]
-        self.source.read(stretches, chunks.counts[need], lambda k, r: take(need[k], r))
-        return chunks.measure(indexes, parts)
+    def _read_again(
+        self,
+        plan: Cuts,
+        again: IntArray,
+        found: IntArray,
+        positions: IntArray,
+        into: tuple[IntArray, FloatArray, FloatArray],
+        lines: IntArray,
+    ) -> None:
+        """The parts ``again`` measured from their chunks read again, and each block's first and
+        last reading (its line, time and temperature) from its own."""
+        chunks = self.chunks
+        count, total, m2 = into
+        at = chunks.of(found) if found.size else found  # each block end's chunk
+        need = np.union1d(plan.parts[again, 0], at).astype(np.int64)
+        part_of = np.searchsorted(need, plan.parts[again, 0])  # each part's stretch among those read
+        end_of = np.searchsorted(need, at)
+        order = again[np.argsort(part_of, kind="stable")]
+        bounds = np.searchsorted(np.sort(part_of), np.arange(len(need) + 1))
+        stretch_of = np.zeros(len(plan.parts), dtype=np.int64)
+        stretch_of[again] = part_of
+        ends = [
+            (int(s), int(i - chunks.start[c]), int(lines[c, 2]), p)
+            for s, i, c, p in zip(end_of, found, at, positions.tolist(), strict=True)
+        ]
+        ends.sort()
+        end_stretch = np.array([e[0] for e in ends], dtype=np.int64)
+
+        def take(a: int, b: int, got: _Chunked) -> None:  # on a parsing thread: each writes its own parts
+            mine = order[bounds[a] : bounds[b]]
+            c, t, q = got.moments(stretch_of[mine] - a, plan.parts[mine, 1], plan.parts[mine, 2])
+            count[mine], total[mine], m2[mine] = c, t, q
+            for e in range(*np.searchsorted(end_stretch, [a, b]).tolist()):
+                s, j, row, p = ends[e]
+                self.ends[p] = got.end(s - a, j, row)
+
+        wanted = np.column_stack([np.full(len(need), CHUNK), np.zeros(len(need), dtype=np.int64)])
+        np.minimum.at(wanted[:, 0], part_of, plan.parts[again, 1])  # the first and last reading wanted of each
+        np.maximum.at(wanted[:, 1], part_of, plan.parts[again, 2])
+        j = (found - chunks.start[at]).astype(np.int64)
+        np.minimum.at(wanted[:, 0], end_of, j)
+        np.maximum.at(wanted[:, 1], end_of, j)
+        self.source.read(lines[need, :2], chunks.counts[need], wanted, take)
 
     def extremes(self) -> FloatArray:
         """What gate.integer_rails judges the whole log's readings by: the lowest, the highest,
@@ -541,6 +728,19 @@ def _parse(
 def _columns(parsed: FloatArray, where: list[int]) -> FloatArray:
     """The parsed cells' columns in the order ``where`` gives (no copy when it is theirs)."""
     return parsed if where == list(range(parsed.shape[1])) else parsed[:, where]
+
+
+#: Stretches of a file read again that lie closer together than this are read in one piece.
+NEAR = 64 << 10
+
+
+def _near(ranges: IntArray) -> list[tuple[int, int]]:
+    """The runs of ``ranges`` (first byte, end; in order) each less than NEAR past the last."""
+    if not len(ranges):
+        return []
+    apart = np.flatnonzero(ranges[1:, 0] - ranges[:-1, 1] >= NEAR) + 1
+    edges = [0, *apart.tolist(), len(ranges)]
+    return list(itertools.pairwise(edges))
 
 
 def _text(fd: int, start: int, stop: int) -> bytes:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pyarrow as pa
@@ -17,6 +17,7 @@ import pyarrow.compute as pc
 from numpy.typing import NDArray
 
 from tumblecal_cli.core.arrays import BoolArray, FloatArray
+from tumblecal_cli.core.blocks import Block
 from tumblecal_cli.core.running import Summary
 from tumblecal_cli.core.scan import log_index
 from tumblecal_cli.errors import InputError
@@ -152,6 +153,61 @@ class Log:
             block=number,
             times=times,
         )
+
+    def summarised(self, block: Block) -> Samples:
+        """A block of a log read block by block as a pose, from the statistics the scan found
+        (its count, mean, spread and drift): none of its readings read again. For a solver of
+        means, on readings that are not whole numbers (no integer rails to judge), judged
+        without a full scale: those ask for the readings (``block``)."""
+        first, last = block.first, block.last
+        clock = (
+            None
+            if self.clock is None
+            else (float(self.clock[self._entry(first)]), float(self.clock[self._entry(last)]))
+        )
+        n = block.samples
+        lo, hi = (0.0, 0.0) if self.extremes is None else (float(self.extremes[0, 0]), float(self.extremes[1, 0]))
+        summary = BlockSummary(
+            values=np.empty((0, 3)),
+            ends=[n],
+            sums=[block.mean * n],
+            lows=[lo],
+            highs=[hi],
+            peaks=[max(-lo, hi)],
+            whole=False,
+            count=n,
+            mean=block.mean,
+            spread=block.std,
+            change=block.drift,
+        )
+        return Samples(
+            self.layout,
+            np.empty((0, 3)),
+            (self.row(first), self.row(last)),
+            self.sha256,
+            None if clock is None else (clock[1] - clock[0]) * self.scale,
+            None,
+            block=block.number,
+            times=clock,
+            summary=summary,
+        )
+
+
+@dataclass
+class BlockSummary(Summary):
+    """A log's still block as the scan measured it (io.csv.logread): its count, sum, spread
+    (``spread``: each axis's standard deviation) and drift (``change``); the log's lowest and
+    highest reading stand for the block's (judged only where no integer rails or full scale are)."""
+
+    spread: FloatArray = field(default_factory=lambda: np.zeros(3))
+    change: FloatArray = field(default_factory=lambda: np.zeros(3))
+
+    @property
+    def std(self) -> FloatArray:
+        return self.spread
+
+    def drift(self) -> FloatArray:
+        return self.change
 
 
 @dataclass(frozen=True)

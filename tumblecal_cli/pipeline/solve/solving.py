@@ -508,7 +508,9 @@ def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
     ) as (_, data, seg):
         found = segmenting.Blocks(data, seg)
         try:  # while the log is there: a streamed log's blocks are read again (stdin's, from its copy)
-            name, labels, samples, notes = segmenting.log_poses(data, seg, given.method, given.up, options.read.sensor)
+            name, labels, samples, notes = segmenting.log_poses(
+                data, seg, given.method, given.up, options.read.sensor, options.checks.full_scale
+            )
         except CaptureRejected as err:
             return Solved(3, None, rejections=[], error=err, blocks=found)
     found.used = {
