@@ -530,8 +530,7 @@ def table_rows(values: FloatArray, centre: FloatArray) -> Segmentation:
     blocks of one row each: nothing dropped, no spread known (0), no clock."""
     zero = np.zeros(values.shape[1])
     rows = []
-    for k, mean in enumerate(values):
-        nearest, angle, _ = _nearest_face(mean - centre)
+    for k, (mean, (nearest, angle, _)) in enumerate(zip(values, _nearest_faces(values - centre), strict=True)):
         rows.append(Block(k + 1, k, k, mean.copy(), zero.copy(), zero.copy(), None, nearest, angle, None))
     return Segmentation(rows, 1, None, None, None, 1, 0, np.asarray(centre, dtype=np.float64))
 

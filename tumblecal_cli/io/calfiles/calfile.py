@@ -20,7 +20,6 @@ from typing import TYPE_CHECKING, Any, TypeAlias, TypeVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from tumblecal_cli.core import axes as sensor_axes
 from tumblecal_cli.core.arrays import FloatArray
 from tumblecal_cli.core.axes import Axes
 from tumblecal_cli.core.current_fit import correct as current_correct
@@ -48,6 +47,7 @@ from tumblecal_cli.io.calfiles.calparts import (
     Turn,
     Unit,
     Verdict,
+    axes_of,
     current_from,
     floats,
     is_number,
@@ -209,12 +209,9 @@ class Calibration:
         return self.matrix if self.axes is None else self.axes.matrix.T @ self.matrix
 
     def in_axes(self, axes: Axes | None) -> Calibration:
-        """The same calibration correcting into ``axes`` (None: the sensor's own): its offset,
-        gain and sensor_matrix unchanged, ``matrix`` P M."""
-        if axes is not None and axes.identity:
-            axes = None
-        matrix = self.sensor_matrix if axes is None else axes.matrix @ self.sensor_matrix
-        return replace(self, matrix=matrix, axes=axes)
+        """The same calibration correcting into ``axes`` (None or the identity: the sensor's own)."""
+        axes = None if axes is None or axes.identity else axes
+        return replace(self, matrix=self.sensor_matrix if axes is None else axes.matrix @ self.sensor_matrix, axes=axes)
 
     @property
     def serial(self) -> str | None:
@@ -425,7 +422,7 @@ def from_dict(doc: Doc, path: str | None = None) -> Calibration:
         gain=np.array(doc["gain"], dtype=np.float64),
         units=text(doc.get("units")),
         input_units=text(doc.get("input_units")),
-        axes=None if doc.get("axes") is None else sensor_axes.parse(str(doc["axes"])),
+        axes=axes_of(doc.get("axes"), path),
         uncertainty={str(k): np.array(v, dtype=np.float64) for k, v in uncertainty.items() if v is not None},
         tilt_sensitivity=part("tilt_sensitivity", _object(read_tilt)),
         thermal=None if doc.get("thermal") is None else thermal_from(doc["thermal"], path),
@@ -737,10 +734,7 @@ def _optional_fields(doc: Doc, path: str) -> None:
     for name in ("units", "input_units", "axes"):
         if doc.get(name) is not None and not isinstance(doc[name], str):
             raise InputError(f"field {name!r} must be a string or null", file=path)
-    try:
-        sensor_axes.parse(str(doc["axes"])) if doc.get("axes") is not None else None
-    except ValueError as err:
-        raise InputError(f"field 'axes' {doc['axes']!r}: {err}", file=path) from None
+    axes_of(doc.get("axes"), path)
     for block in ("uncertainty", "tilt_sensitivity"):
         value = doc.get(block)
         if value is None:

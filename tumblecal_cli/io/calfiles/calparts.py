@@ -18,6 +18,8 @@ from typing import TypeGuard, TypeVar
 import numpy as np
 
 from tumblecal_cli.core.arrays import FloatArray
+from tumblecal_cli.core.axes import Axes
+from tumblecal_cli.core.axes import parse as parse_axes
 from tumblecal_cli.core.drift import Drift
 from tumblecal_cli.core.gate import Finding, Limits
 from tumblecal_cli.errors import InputError, control_character
@@ -267,6 +269,17 @@ class Tilt(Part):
             "gain_tolerance": self.gain_tolerance,
         }
         return optional(doc, "cross_axis", "gain_tolerance")
+
+
+def axes_of(value: object, path: str | None) -> Axes | None:
+    """A file's ``axes`` (the body's axes in the sensor's, core.axes): None where there is none; a
+    value that is not three signed axes is an InputError naming the field."""
+    if value is None:
+        return None
+    try:
+        return parse_axes(str(value))
+    except ValueError as err:
+        raise InputError(f"field 'axes' {value!r}: {err}", file=path) from None
 
 
 def read_tilt(raw: Doc) -> Tilt:
