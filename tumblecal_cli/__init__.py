@@ -42,6 +42,8 @@ if TYPE_CHECKING:
     from tumblecal_cli.pipeline.frames import read_capture
     from tumblecal_cli.pipeline.noise import Noise, noise
     from tumblecal_cli.pipeline.options import SolveOptions
+    from tumblecal_cli.pipeline.records.history import history_table
+    from tumblecal_cli.pipeline.records.trend import Trended, trend
     from tumblecal_cli.pipeline.report import report
     from tumblecal_cli.pipeline.segment import segment
     from tumblecal_cli.pipeline.solve.solving import Solved, solve, solve_log
@@ -73,6 +75,9 @@ _HOMES = {
     "ThermalResult": "tumblecal_cli.pipeline.thermal",
     "current": "tumblecal_cli.pipeline.current",
     "CurrentResult": "tumblecal_cli.pipeline.current",
+    "history_table": "tumblecal_cli.pipeline.records.history",
+    "trend": "tumblecal_cli.pipeline.records.trend",
+    "Trended": "tumblecal_cli.pipeline.records.trend",
 }
 
 __all__ = [
@@ -84,12 +89,14 @@ __all__ = [
     "SolveOptions",
     "Solved",
     "ThermalResult",
+    "Trended",
     "TumblecalError",
     "__version__",
     "check",
     "correct",
     "current",
     "export",
+    "history_table",
     "import_peer",
     "load",
     "noise",
@@ -101,6 +108,7 @@ __all__ = [
     "solve_log",
     "streams",
     "thermal",
+    "trend",
     "verify",
     "verify_rotations",
 ]
