@@ -335,19 +335,21 @@ def _fill(db: Path, count: int, stations: int = 20) -> None:
 
 @pytest.mark.slow
 def test_history_and_trend_on_100000_records_are_quick(tmp_path: Path) -> None:
+    """history of one serial under 0.3 s and trend under 2 s on 100,000 records, the best of 5: in
+    CPU time always, in wall time too where the machine is quiet enough to tell (a shared one
+    stretched a 1.1 s trend to 2.2 s once)."""
     db = tmp_path / "big.db"
     _fill(db, 100_000)
     for args, most in ((["history", "SN42"], 0.3), (["trend"], 2.0)):
-        best = float("inf")
-        for _ in range(5):  # the best of 5: the machine is shared
-            start = time.perf_counter()
-            done = run_exe(["records", *args, "--db", db, "--json"])
-            best = min(best, time.perf_counter() - start)
-            assert done.returncode in (0, 1), done.stderr
-        assert best < most, (args, best)
+        wall = cpu = float("inf")
+        for _ in range(5):
+            took, used = _costs([sys.executable, "-m", "tumblecal_cli", "records", *args, "--db", str(db), "--json"])
+            wall, cpu = min(wall, took), min(cpu, used)
+        assert cpu < most, (args, cpu)
+        if os.getloadavg()[0] < 1.5:
+            assert wall < most, (args, wall)
 
 
-@pytest.mark.slow
 def _costs(argv: list[str]) -> tuple[float, float]:
     """A run of ``argv`` as the console script runs: its wall time and its CPU time (user and
     system, from the kernel's accounting of the child), in seconds."""
@@ -355,7 +357,7 @@ def _costs(argv: list[str]) -> tuple[float, float]:
     with subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=ROOT) as proc:
         _, status, usage = os.wait4(proc.pid, 0)
         proc.returncode = os.waitstatus_to_exitcode(status)  # (reaped here: Popen must not wait again)
-    assert status == 0, argv
+    assert proc.returncode in (0, 1), argv  # (trend exits 1 on an alarm)
     return time.perf_counter() - start, usage.ru_utime + usage.ru_stime
 
 
