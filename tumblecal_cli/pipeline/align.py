@@ -230,14 +230,14 @@ def mag_to_accel(
     accel = _calibration(accel_cal, "accelerometer", accel_flag)
     mag = _calibration(mag_cal, "magnetometer", "--mag-cal") if isinstance(mag_cal, str) else mag_cal
     acc_spec = replace(spec, sensor="accelerometer", columns=None, prefer=tuple(accel.columns))
-    table = _table(log, acc_spec, replace(spec, sensor="magnetometer", columns=None, prefer=tuple(mag.columns)), accel)
+    mag_spec = replace(spec, sensor="magnetometer", columns=None, prefer=tuple(mag.columns))
+    table = table_of(log, acc_spec, mag_spec, accel.offset)
     if table is not None:
         return _table_aligned(table, accel, mag, accel_cal)
     with segmenting.segmented(
         log, acc_spec, pose_column=None, pose_map=None, settings=_settings(settings, accel.offset), whole=True,
         max_spool=max_spool,
     ) as (path, acc, seg):  # fmt: skip
-        mag_spec = replace(spec, sensor="magnetometer", columns=None, prefer=tuple(mag.columns))
         mlog = readings.read_log(path, mag_spec, use_time=spec.rate is None, name=acc.layout.name)
     name = acc.layout.name
     if acc.layout.sensor_names == mlog.layout.sensor_names or not np.array_equal(acc.rows, mlog.rows):
@@ -270,16 +270,22 @@ def mag_to_accel(
 TABLE_SIGMA = 1e-6
 
 
-def _table(log: str, acc_spec: ReadSpec, mag_spec: ReadSpec, accel: Calibration) -> tuple[Log, Log] | None:
+def table_of(
+    log: str, acc_spec: ReadSpec, mag_spec: ReadSpec, centre: FloatArray, rows_are_poses: bool | None = None
+) -> tuple[Log, Log] | None:
     """Both sensors' readings of ``log`` when it is a table of orientations (no time column, its
-    rows pointing different ways, as solve recognises one: methods.orientation_table), else None.
-    A pipe is not looked into (it is read once, as a log)."""
-    if log == "-" or not os.path.isfile(log):
+    rows pointing different ways about ``centre``, as solve recognises one:
+    methods.orientation_table; ``rows_are_poses`` True or False: --rows-are-poses said so), else
+    None. A pipe is not looked into (it is read once, as a log). align and the dip check
+    (pipeline.solve.maglog) take a table so."""
+    if log == "-" or not os.path.isfile(log) or rows_are_poses is False:
         return None
     acc = readings.read_log(log, acc_spec, use_time=False)
-    if acc.layout.time is not None or methods.orientation_table(acc.values, accel.offset) is None:
+    if rows_are_poses is not True and (
+        acc.layout.time is not None or methods.orientation_table(acc.values, centre) is None
+    ):
         return None
-    return acc, readings.read_log(log, mag_spec, use_time=False)
+    return acc, readings.read_log(log, mag_spec, use_time=False, name=acc.layout.name)
 
 
 def _table_aligned(table: tuple[Log, Log], accel: Calibration, mag: Calibration, accel_cal: str) -> MagAligned:

@@ -324,11 +324,10 @@ def spun(c: Calibration, items: list[str], paths: list[str], options: VerifyKeyw
         if g.face is not None:  # a labelled face: the rate's direction is known, the vector is judged
             errors = np.linalg.norm(corrected - g.rate / per * model.direction(g.face), axis=1)
         rms, largest = float(np.sqrt(np.mean(errors**2))), float(np.abs(errors).max())
-        raw = readings.read_log(g.file, replace(_spec(options, c), sensor="gyroscope"), use_time=False)
         row: CaptureRow = {
             "file": f.log.layout.name,
             "samples": len(corrected),
-            "norm_before": float(np.median(np.linalg.norm(raw.values[np.isfinite(raw.values).all(axis=1)], axis=1))),
+            "norm_before": f.raw_median,
             "error_before": None,
             "norm_after": float(np.median(size)),
             "error_after": rms,

@@ -12,18 +12,18 @@ judges against the World Magnetic Model's (``--location`` and ``--date``).
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tumblecal_cli.core import blocks, earth, gate, methods, solvers
+from tumblecal_cli.core import blocks, earth, gate, solvers
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io import sources
 from tumblecal_cli.io.calfiles import calfile
 from tumblecal_cli.io.csv import readings
 from tumblecal_cli.io.csv.readings import Samples
+from tumblecal_cli.pipeline import align as alignment
 from tumblecal_cli.pipeline import segment as segmenting
 from tumblecal_cli.pipeline.solve.rotations import block_settings
 
@@ -80,9 +80,12 @@ def read(log: str, options: SolveOptions) -> MagLog:
         # --max-noise, a share of the reference, judges the accelerometer's blocks here (as align's)
         max_noise=options.checks.max_noise if options.checks.max_noise is not None else 0.02,
     )
-    table = _table(log, options, accel)
+    centre = np.zeros(3) if accel is None else accel.offset
+    acc_spec = replace(options.read, sensor="accelerometer", columns=None)
+    table = alignment.table_of(log, acc_spec, options.read, centre, options.rows_are_poses)
     if table is not None:
-        acc, mag, seg = table
+        acc, mag = table
+        seg = blocks.table_rows(acc.values, centre)
     else:
         with segmenting.segmented(
             log,
@@ -124,22 +127,6 @@ def read(log: str, options: SolveOptions) -> MagLog:
                 f"{still:.0%} to {every:.0%}"
             )
     return MagLog(samples, acc, mag, kept, seg, notes, accel)
-
-
-def _table(log: str, options: SolveOptions, accel: Calibration | None) -> tuple[Log, Log, Segmentation] | None:
-    """Both sensors' readings of ``log`` and a block a row when it is a table of orientations (no
-    time column, its rows pointing different ways: methods.orientation_table; or --rows-are-poses),
-    else None. A pipe is not looked into (it is read once, as a log)."""
-    if log == "-" or not os.path.isfile(log) or options.rows_are_poses is False:
-        return None
-    acc = readings.read_log(log, replace(options.read, sensor="accelerometer", columns=None), use_time=False)
-    centre = np.zeros(3) if accel is None else accel.offset
-    if acc.layout.time is not None and options.rows_are_poses is not True:
-        return None
-    if options.rows_are_poses is not True and methods.orientation_table(acc.values, centre) is None:
-        return None
-    mag = readings.read_log(log, options.read, use_time=False, name=acc.layout.name)
-    return acc, mag, blocks.table_rows(acc.values, centre)
 
 
 def _between(mag: Log, kept: list[Block]) -> Samples | None:

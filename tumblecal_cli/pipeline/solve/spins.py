@@ -106,11 +106,13 @@ def parse(item: str) -> Spin:
 
 @dataclass(frozen=True)
 class SpinFile:
-    """A --spin file read: its Spin, its readings, and its steady runs."""
+    """A --spin file read: its Spin, its readings (corrected, for verify), their steady runs, and
+    the median magnitude of its readings as read (raw units)."""
 
     given: Spin
     log: Log
     runs: list[spin.Run]
+    raw_median: float
 
 
 def solve_spins(options: SolveOptions, given: Settings) -> Outcome:
@@ -233,6 +235,7 @@ def read(s: Spin, spec: ReadSpec, cal: Calibration | None = None) -> SpinFile:
     finite = np.isfinite(log.values).all(axis=1)
     if not finite.all():
         log = replace(log, values=log.values[finite], rows=log.rows[finite])
+    raw_median = float(np.median(np.linalg.norm(log.values, axis=1))) if len(log.values) else math.nan
     if cal is not None:
         log = replace(log, values=cal.apply(log.values))
     window = WINDOW_SAMPLES
@@ -243,7 +246,7 @@ def read(s: Spin, spec: ReadSpec, cal: Calibration | None = None) -> SpinFile:
         period = float(np.median(steps[steps > 0])) if (steps > 0).any() else None
     if period:
         window = max(round(WINDOW_S / period), 4)
-    return SpinFile(s, log, spin.steady_runs(log.values, window, 2 * window))
+    return SpinFile(s, log, spin.steady_runs(log.values, window, 2 * window), raw_median)
 
 
 @dataclass(frozen=True)
@@ -271,9 +274,8 @@ def _units(files: list[SpinFile], options: SolveOptions) -> Units:
             magnitudes.append(float(np.average(m[keep], weights=n[keep])))
             rates.append(abs(f.given.rate))
     ratio = float(np.median(np.array(magnitudes) / np.array(rates))) if magnitudes else 1.0  # raw per rad/s
-    for flag, named in (("--units", options.units), ("--input-units", options.input_units)):
-        if named is not None and flag == "--units" and _rate_unit(named) is None:
-            raise InputError(f"--units {named}: --spin corrects into a unit of angular rate: rad/s or deg/s")
+    if options.units is not None and _rate_unit(options.units) is None:
+        raise InputError(f"--units {options.units}: --spin corrects into a unit of angular rate: rad/s or deg/s")
     raw, note = _raw_unit(options.input_units, ratio, files)
     out = (options.units or raw or "rad/s").strip()
     per = quantities.UNITS[out].factor
