@@ -44,12 +44,13 @@ against the mean of the other stations': Welch's t, ``(m − m_rest) / √(s²/n
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from tumblecal_cli.core.arrays import BoolArray, FloatArray
-from tumblecal_cli.core.outliers import t_quantile
+from tumblecal_cli.core.outliers import t_quantile, t_tail
 
 #: The chance that a trend run over stable stations (every series in control) raises any alarm.
 TREND_ALPHA = 0.05
@@ -162,23 +163,35 @@ def chart(values: FloatArray, baseline: BoolArray) -> Chart | None:
     """The chart of ``values`` (in time order) with its baseline the units ``baseline`` marks;
     judged: the units after the last baseline unit. None when the baseline is too short or has
     no scatter (a parameter a method fixes)."""
-    base = values[baseline]
-    n = int(base.size)
+    return charts(values[None, :], baseline)[0]
+
+
+def charts(values: FloatArray, baseline: BoolArray) -> list[Chart | None]:
+    """``chart`` of each row of ``values`` (series of one station's units: the same times, the
+    same baseline), computed together."""
+    base = values[:, baseline]
+    n = int(base.shape[1])
     if n < MIN_BASELINE:
-        return None
-    sigma = float(np.mean(moving_range(base))) / D2
-    centre = float(np.mean(base))
-    if not (sigma > 1e-12 * max(abs(centre), 1e-300)) or not math.isfinite(sigma):
-        return None
-    z = (values - centre) / (sigma * math.sqrt(1.0 + 1.0 / n))
-    raw = (values - centre) / sigma
+        return [None] * values.shape[0]
+    sigma = np.mean(moving_range(base), axis=1) / D2
+    centre = np.mean(base, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):  # (a row without scatter: None below)
+        z = (values - centre[:, None]) / (sigma[:, None] * math.sqrt(1.0 + 1.0 / n))
+        raw = (values - centre[:, None]) / sigma[:, None]
     lam = EWMA_LAMBDA
     ewma = ewma_of(raw, lam)
-    steps = np.arange(1, values.size + 1, dtype=np.float64)
+    steps = np.arange(1, values.shape[1] + 1, dtype=np.float64)
     ewma_sigma = np.sqrt(lam / (2.0 - lam) * (1.0 - (1.0 - lam) ** (2.0 * steps)) + 1.0 / n)
     last = int(np.flatnonzero(baseline)[-1])
-    judged = np.arange(values.size) > last
-    return Chart(centre, sigma, n, z, ewma, ewma_sigma, judged)
+    judged = np.arange(values.shape[1]) > last
+    out: list[Chart | None] = []
+    for k in range(values.shape[0]):
+        sd, mid = float(sigma[k]), float(centre[k])
+        if not (sd > 1e-12 * max(abs(mid), 1e-300)) or not math.isfinite(sd):
+            out.append(None)
+        else:
+            out.append(Chart(mid, sd, n, z[k], ewma[k], ewma_sigma, judged))
+    return out
 
 
 #: The EWMA is summed in chunks of this many units ((1 − λ)^−k stays well inside a float's range).
@@ -187,54 +200,68 @@ _CHUNK = 1000
 
 def ewma_of(values: FloatArray, lam: float) -> FloatArray:
     """``e_t = λ x_t + (1 − λ) e_{t−1}``, ``e_0`` = 0 before the first unit (Eq. 9.22), as sums:
-    ``e_t = (1 − λ)^t (e_start + λ Σ x_k (1 − λ)^−k)`` over each chunk, carried across chunks."""
+    ``e_t = (1 − λ)^t (e_start + λ Σ x_k (1 − λ)^−k)`` over each chunk, carried across chunks;
+    along the last axis (each row of a 2-D ``values`` its own series)."""
     out = np.empty_like(values)
-    level = 0.0
+    level = np.zeros(values.shape[:-1])
     keep = 1.0 - lam
-    for start in range(0, values.size, _CHUNK):
-        x = values[start : start + _CHUNK]
-        k = np.arange(1, x.size + 1, dtype=np.float64)
+    size = values.shape[-1]
+    for start in range(0, size, _CHUNK):
+        x = values[..., start : start + _CHUNK]
+        k = np.arange(1, x.shape[-1] + 1, dtype=np.float64)
         decay = keep**k
-        out[start : start + x.size] = decay * (level + lam * np.cumsum(x / decay))
-        level = float(out[start + x.size - 1])
+        out[..., start : start + x.shape[-1]] = decay * (level[..., None] + lam * np.cumsum(x / decay, axis=-1))
+        level = out[..., start + x.shape[-1] - 1]
     return out
 
 
 def _windows(hits: BoolArray, width: int) -> FloatArray:
-    """How many of the last ``width`` units (this one included) are hits, at each unit."""
-    counts = np.cumsum(hits.astype(np.int64))
-    shifted = np.concatenate([np.zeros(width, dtype=np.int64), counts[:-width]]) if counts.size > width else None
-    if shifted is None:
-        shifted = np.zeros_like(counts)
-    return (counts - shifted[: counts.size]).astype(np.float64)
+    """How many of the last ``width`` units (this one included) are hits, at each unit (along
+    the last axis)."""
+    counts = np.cumsum(hits, axis=-1, dtype=np.int64)
+    out = counts.copy()
+    out[..., width:] -= counts[..., :-width]
+    return out.astype(np.float64)
 
 
 def _runs(side: FloatArray) -> FloatArray:
-    """The length of the run of one sign ending at each unit (0 where the sign is 0)."""
-    if side.size == 0:
-        return np.zeros(0)
-    starts = np.concatenate([[True], side[1:] != side[:-1]])
-    first = np.maximum.accumulate(np.where(starts, np.arange(side.size), 0))
-    return np.where(side != 0, np.arange(side.size) - first + 1, 0).astype(np.float64)
+    """The length of the run of one sign ending at each unit (0 where the sign is 0), along the
+    last axis."""
+    size = side.shape[-1]
+    if size == 0:
+        return np.zeros(side.shape)
+    starts = np.ones(side.shape, dtype=bool)
+    starts[..., 1:] = side[..., 1:] != side[..., :-1]
+    at = np.arange(size)
+    first = np.maximum.accumulate(np.where(starts, at, 0), axis=-1)
+    return np.where(side != 0, at - first + 1, 0).astype(np.float64)
 
 
 def fired(c: Chart, lim: ControlLimits) -> dict[str, int]:
     """Each rule that fires on the chart's judged units, and the first unit (an index into the
     series) where it does."""
-    z = c.z
+    return fired_together([c], lim)[0]
+
+
+def fired_together(cs: Sequence[Chart], lim: ControlLimits) -> list[dict[str, int]]:
+    """``fired`` of each chart of ``cs``: one station's series (the same units, the same baseline
+    and judged units, so the same EWMA σ), judged together."""
+    z = np.stack([c.z for c in cs])
+    judged = cs[0].judged
     rules: dict[str, BoolArray] = {"beyond-limit": np.abs(z) > lim.l1}
     for name, limit, width, need in (("2-of-3", lim.l2, 3, 2), ("4-of-5", lim.l3, 5, 4)):
         up = _windows(z > limit, width) >= need
         down = _windows(z < -limit, width) >= need
         rules[name] = (up & (z > limit)) | (down & (z < -limit))  # the point that makes the count
     rules["run"] = _runs(np.sign(z)) >= lim.run
-    rules["ewma"] = np.abs(c.ewma) > lim.le * c.ewma_sigma
-    rules["drift"] = drifting(c.z * math.sqrt(1.0 + 1.0 / c.baseline), c.judged, lim.l1)
-    out: dict[str, int] = {}
+    rules["ewma"] = np.abs(np.stack([c.ewma for c in cs])) > lim.le * cs[0].ewma_sigma
+    rules["drift"] = drifting(z * math.sqrt(1.0 + 1.0 / cs[0].baseline), judged, lim.l1)
+    out: list[dict[str, int]] = [{} for _ in cs]
     for name in RULES:
-        where = np.flatnonzero(rules[name] & c.judged)
-        if where.size:
-            out[name] = int(where[0])
+        hits = rules[name] & judged
+        first = np.argmax(hits, axis=-1)
+        for k in np.flatnonzero(hits.any(axis=-1)):
+            out[k][name] = int(first[k])
     return out
 
 
@@ -245,16 +272,18 @@ def drifting(z: FloatArray, judged: BoolArray, limit: float) -> BoolArray:
     the level), its t for ``b`` (Draper and Smith 1998, Applied Regression Analysis, §1.4)
     ``Σ (h − h̄) z / √Σ (h − h̄)²`` with z in σ. Each start τ on a grid of at most DRIFT_STARTS,
     each over DRIFT_SPAN units: a drift the EWMA would take too long to see, seen once the slope
-    it has had is clear of the noise. Over DRIFT_MIN units at the least, z clipped at DRIFT_CLIP."""
-    out = np.zeros(z.size, dtype=bool)
+    it has had is clear of the noise. Over DRIFT_MIN units at the least, z clipped at DRIFT_CLIP.
+    Along the last axis: each row of a 2-D ``z`` its own series, ``judged`` theirs."""
+    out = np.zeros(z.shape, dtype=bool)
     judged_at = np.flatnonzero(judged)
     if judged_at.size < 2:
         return out
-    first, size = int(judged_at[0]), z.size
+    first, size = int(judged_at[0]), z.shape[-1]
     z = np.clip(z, -DRIFT_CLIP, DRIFT_CLIP)
     t = np.arange(size, dtype=np.float64)
-    tz = np.concatenate([[0.0], np.cumsum(t * z)])  # tz[k], zs[k]: sums over the units before k
-    zs = np.concatenate([[0.0], np.cumsum(z)])
+    lead = np.zeros((*z.shape[:-1], 1))
+    tz = np.concatenate([lead, np.cumsum(t * z, axis=-1)], axis=-1)  # tz[k], zs[k]: sums over the units before k
+    zs = np.concatenate([lead, np.cumsum(z, axis=-1)], axis=-1)
     step = max(DRIFT_STEP, (size - first) // DRIFT_STARTS)
     starts = np.arange(first - 1, size - 1, step)
     m = np.arange(DRIFT_MIN, DRIFT_SPAN + 1, dtype=np.float64)[None, :]
@@ -262,29 +291,38 @@ def drifting(z: FloatArray, judged: BoolArray, limit: float) -> BoolArray:
     inside = end < size
     end = np.minimum(end, size - 1)
     tau = starts[:, None]
-    hz = (tz[end + 1] - tz[tau + 1]) - tau * (zs[end + 1] - zs[tau + 1])  # Σ h z, h = t − τ after τ
+    # Σ h z (h = t − τ after τ) less h̄ Σ z, over the units up to ``end``: tz[end+1] − tz[τ+1] −
+    # τ (zs[end+1] − zs[τ+1]) − (Σh / count) zs[end+1]; its square against limit² Σ (h − h̄)²
     h1, h2, count = m * (m + 1) / 2, m * (m + 1) * (2 * m + 1) / 6, end + 1.0
-    spread = np.where(inside, h2 - h1 * h1 / count, 1.0)  # (past the series' end: no slope, masked)
-    stat = np.abs(hz - h1 * zs[end + 1] / count) / np.sqrt(np.maximum(spread, 1e-300))
-    hit = inside & (stat > limit)
-    out[np.unique(end[hit])] = True
+    spread = h2 - h1 * h1 / count
+    beyond = np.where(inside, limit * limit * spread, np.inf)  # (past the series' end: no slope)
+    lead = tau * zs[..., tau + 1] - tz[..., tau + 1]
+    slope = tz[..., end + 1] - (tau + h1 / count) * zs[..., end + 1] + lead
+    where = np.nonzero(slope * slope > beyond)
+    out[(*where[:-2], end[where[-2], where[-1]])] = True
     return out
 
 
 @dataclass(frozen=True)
 class Compared:
-    """One station's mean against the other stations' on one parameter: Welch's ``t``, the
-    ``limit`` it is judged by, and whether it is beyond."""
+    """One station's mean against the other stations' on one parameter: Welch's ``t`` with ``df``
+    degrees of freedom, judged at the two-sided level ``p``; whether it is ``beyond``, and the
+    ``limit`` that is (its quantile, found only where asked: a bisection per station)."""
 
     station: str
     mean: float
     rest: float
     t: float
-    limit: float
+    df: float
+    p: float
 
     @property
     def beyond(self) -> bool:
-        return abs(self.t) > self.limit
+        return t_tail(abs(self.t), self.df) < self.p
+
+    @property
+    def limit(self) -> float:
+        return t_quantile(self.p, self.df)
 
 
 def compare(groups: dict[str, FloatArray], comparisons: int, alpha: float = TREND_ALPHA) -> list[Compared]:
@@ -293,16 +331,23 @@ def compare(groups: dict[str, FloatArray], comparisons: int, alpha: float = TREN
     if len(groups) < 2:
         return []
     p = 1.0 - (1.0 - alpha) ** (1.0 / max(comparisons, 1))
+    # each station's count and sums about the grand mean; the rest's are the totals less its own
+    # (centred first, so the variances lose no digits to the values' size)
+    grand = float(np.mean(np.concatenate(list(groups.values()))))
+    n = np.array([v.size for v in groups.values()], dtype=np.float64)
+    s1 = np.array([np.sum(v - grand) for v in groups.values()])
+    s2 = np.array([np.sum((v - grand) ** 2) for v in groups.values()])
+    k, r1, r2 = n.sum() - n, s1.sum() - s1, s2.sum() - s2
     out = []
-    for station, values in groups.items():
-        rest = np.concatenate([v for s, v in groups.items() if s != station])
-        n, k = values.size, rest.size
-        if n < MIN_BASELINE or k < MIN_BASELINE:
+    for i, station in enumerate(groups):
+        if n[i] < MIN_BASELINE or k[i] < MIN_BASELINE:
             continue
-        v1, v2 = float(np.var(values, ddof=1)) / n, float(np.var(rest, ddof=1)) / k
+        mine, rest = s1[i] / n[i], r1[i] / k[i]
+        v1 = max(s2[i] - s1[i] * mine, 0.0) / (n[i] - 1) / n[i]
+        v2 = max(r2[i] - r1[i] * rest, 0.0) / (k[i] - 1) / k[i]
         if not v1 + v2 > 0:
             continue
-        t = (float(np.mean(values)) - float(np.mean(rest))) / math.sqrt(v1 + v2)
-        df = (v1 + v2) ** 2 / (v1 * v1 / max(n - 1, 1) + v2 * v2 / max(k - 1, 1))  # Welch–Satterthwaite
-        out.append(Compared(station, float(np.mean(values)), float(np.mean(rest)), t, t_quantile(p, max(df, 1.0))))
+        t = float((mine - rest) / math.sqrt(v1 + v2))
+        df = (v1 + v2) ** 2 / (v1 * v1 / (n[i] - 1) + v2 * v2 / (k[i] - 1))  # Welch–Satterthwaite
+        out.append(Compared(station, grand + float(mine), grand + float(rest), t, max(float(df), 1.0), p))
     return out

@@ -155,6 +155,15 @@ class Store:
     def commit(self) -> None:
         self.execute("COMMIT")
 
+    @contextlib.contextmanager
+    def snapshot(self) -> Iterator[None]:
+        """A read transaction: every statement in the block sees the same records."""
+        self.execute("BEGIN" if self.dialect == "sqlite" else "BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY")
+        try:
+            yield
+        finally:
+            self.rollback()  # (nothing written: ending it is all)
+
     def rollback(self) -> None:
         with contextlib.suppress(*self.errors):
             self.connection.execute("ROLLBACK")

@@ -6,17 +6,18 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from itertools import chain, groupby
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from tumblecal_cli.core import control
-from tumblecal_cli.core.arrays import BoolArray, FloatArray
+from tumblecal_cli.core.arrays import BoolArray, FloatArray, IntArray
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.figures import trendhtml
 from tumblecal_cli.io.outputs import atomic_output
-from tumblecal_cli.pipeline.records.store import PARAMETERS, opened
+from tumblecal_cli.pipeline.records.store import PARAMETERS, Store, opened
 
 if TYPE_CHECKING:
     from tumblecal_cli.pipeline.frames import DataFrame
@@ -121,13 +122,6 @@ class Baseline:
             return f"the units created {self.period[0]} to {self.period[1]} of each station"
         return f"the first {self.units} units of each station"
 
-    def mask(self, created: list[str]) -> BoolArray:
-        if self.period is None:
-            return np.arange(len(created)) < self.units
-        first, last = self.period
-        end = last + "\uffff"  # a date takes in that whole day
-        return np.array([first <= c <= end for c in created], dtype=bool)
-
 
 def parse_baseline(text: str | None) -> Baseline:
     """``--baseline``: N (the first N units) or FIRST..LAST (dates)."""
@@ -149,14 +143,20 @@ def parse_baseline(text: str | None) -> Baseline:
 
 @dataclass
 class _Series:
+    """One station's records of one sensor in time order: their ids, the baseline's units, and
+    each parameter's values (None where a record has none of it)."""
+
     station: str
     sensor: str
-    serials: list[str | None]
-    created: list[str]
-    values: dict[str, FloatArray]
+    ids: IntArray
+    baseline: BoolArray
+    values: dict[str, FloatArray | None]
 
 
-def _read(db: str, station: str | None, since: str | None) -> list[_Series]:
+def _read(store: Store, station: str | None, since: str | None, base: Baseline) -> list[_Series]:
+    """The records, each station and sensor's in time order, as numbers: the database sorts and
+    groups them and a row is its id and numbers only (its text, the serial and time, is read for
+    the units an alarm names): no text is made per record, and no sort in Python."""
     where, values = ["kind = 'calibration'"], []
     if station is not None:
         where.append("station = ?")
@@ -164,56 +164,85 @@ def _read(db: str, station: str | None, since: str | None) -> list[_Series]:
     if since is not None:
         where.append("created >= ?")
         values.append(since)
-    names = ", ".join(PARAMETERS)
-    sql = (
-        f"SELECT coalesce(station, '(no station)'), sensor, serial, coalesce(created, ''), id, {names} "
-        f"FROM records WHERE {' AND '.join(where)}"
-    )
-    with opened(db, write=False) as store:
-        rows = store.execute(sql, values).fetchall()
-    # sorted here, not by the database: an ORDER BY walks the index and reads each row where it
-    # lies (4 times the time on 100,000 records)
-    rows.sort(key=lambda r: (r[0], r[1], r[3], r[4]))
+    text = ' COLLATE "C"' if store.dialect == "postgresql" else ""  # (code point order, as SQLite's)
+    key = f"coalesce(station, '(no station)'){text}, sensor{text}"
+    created = f"coalesce(created, ''){text}"
+    missing = ", ".join(f"count(*) - count({p})" for p in PARAMETERS)
+    flag, flagged = "0", []
+    if base.period is not None:  # (a date takes in that whole day)
+        flag = f"CASE WHEN {created} >= ? AND substr({created}, 1, {len(base.period[1])}) <= ? THEN 1 ELSE 0 END"
+        flagged = list(base.period)
+    numbers = ", ".join(f"coalesce({p}, 0.0)" for p in PARAMETERS)
+    condition = " AND ".join(where)
+    with store.snapshot():  # (both queries see the same records)
+        groups = store.execute(
+            f"SELECT {key}, count(*), {missing} FROM records WHERE {condition} GROUP BY {key} ORDER BY {key}", values
+        ).fetchall()
+        total, width = sum(g[2] for g in groups), len(PARAMETERS) + 2
+        rows = store.execute(
+            f"SELECT id, {flag}, {numbers} FROM records WHERE {condition} ORDER BY {key}, {created}, id",
+            [*flagged, *values],
+        )
+        table = np.fromiter(chain.from_iterable(rows), np.float64, total * width).reshape(total, width)
     out: list[_Series] = []
     start = 0
-    for i in range(1, len(rows) + 1):
-        if i == len(rows) or rows[i][:2] != rows[start][:2]:
-            block = rows[start:i]
-            numbers = np.array([r[5:] for r in block], dtype=np.float64)  # (None: NaN)
-            values_of = {p: numbers[:, k] for k, p in enumerate(PARAMETERS)}
-            out.append(_Series(block[0][0], block[0][1], [r[2] for r in block], [r[3] for r in block], values_of))
-            start = i
+    for name, sensor, count, *nulls in groups:
+        part = table[start : start + count]
+        start += count
+        mask = part[:, 1] > 0 if base.period is not None else np.arange(count) < base.units
+        of = {p: (part[:, 2 + k] if not nulls[k] else None) for k, p in enumerate(PARAMETERS)}
+        out.append(_Series(name, sensor, part[:, 0].astype(np.int64), mask, of))
     return out
+
+
+def _who(store: Store, ids: set[int]) -> dict[int, tuple[str | None, str | None]]:
+    """The serial and time of each record of ``ids``."""
+    out: dict[int, tuple[str | None, str | None]] = {}
+    listed = sorted(ids)
+    for start in range(0, len(listed), 500):
+        part = listed[start : start + 500]
+        marks = ", ".join("?" for _ in part)
+        rows = store.execute(f"SELECT id, serial, created FROM records WHERE id IN ({marks})", part).fetchall()
+        out.update({int(r[0]): (r[1], r[2]) for r in rows})
+    return out
+
+
+_Charted = tuple[_Series, str, control.Chart, FloatArray]
 
 
 def trend(db: str, station: str | None = None, since: str | None = None, baseline: Baseline | None = None) -> Trended:
     """Every station's (or ``station``'s) records since ``since`` charted, and the alarms."""
     base = baseline or Baseline()
-    series = _read(db, station, since)
-    charts: list[tuple[_Series, str, control.Chart, FloatArray]] = []
-    for s in series:
-        mask = base.mask(s.created)
-        for parameter, values in s.values.items():
-            finite = np.isfinite(values)
-            if not finite.all():
+    with opened(db, write=False) as store:
+        series = _read(store, station, since, base)
+        charts: list[_Charted] = []
+        for s in series:
+            kept = {p: v for p, v in s.values.items() if v is not None and np.isfinite(v).all()}
+            if not s.baseline.any() or not kept:
                 continue
-            c = control.chart(values, mask) if mask.any() else None
-            if c is not None:
-                charts.append((s, parameter, c, values))
-    points = sum(int(c.judged.sum()) for _, _, c, _ in charts)
-    units = sum(len(s.created) for s in series)
-    stations = tuple(sorted({s.station for s in series}))
-    if not charts:
-        return Trended(base.stated(), None, 0, units, stations)
-    lim = {n: control.limits(points, n) for n in {c.baseline for _, _, c, _ in charts}}
+            drawn_on = control.charts(np.stack(list(kept.values())), s.baseline)
+            charts += [(s, p, c, v) for (p, v), c in zip(kept.items(), drawn_on, strict=True) if c is not None]
+        units = sum(s.ids.size for s in series)
+        stations = tuple(sorted({s.station for s in series}))
+        if not charts:
+            return Trended(base.stated(), None, 0, units, stations)
+        points = sum(int(c.judged.sum()) for _, _, c, _ in charts)
+        lim = {n: control.limits(points, n) for n in {c.baseline for _, _, c, _ in charts}}
+        found: list[tuple[_Charted, dict[str, int]]] = []
+        for _, group in groupby(charts, key=lambda chart: id(chart[0])):  # (a station's series judged together)
+            together = list(group)
+            at = lim[together[0][2].baseline]
+            found += zip(together, control.fired_together([g[2] for g in together], at), strict=True)
+        compared = _compared(charts)
+        who = _who(store, {int(ch[0].ids[i]) for ch, f in found for i in f.values()} | {i for _, i in compared})
     alarms: list[Alarm] = []
     drawn: list[trendhtml.SeriesChart] = []
-    for s, p, c, values in charts:
-        found = control.fired(c, lim[c.baseline])
-        alarms += _alarms(s, p, found, lim[c.baseline])
-        if found:
-            drawn.append(_drawn(s, p, c, values, found, lim[c.baseline]))
-    alarms += _compared(charts)
+    for (s, p, c, values), fired in found:
+        at = lim[c.baseline]
+        alarms += _alarms(s, p, fired, at, who)
+        if fired:
+            drawn.append(_drawn(s, p, c, values, fired, at))
+    alarms += [replace(a, serial=who[i][0], created=who[i][1]) for a, i in compared]
     shown = lim[min(lim)]
     return Trended(base.stated(), shown, len(charts), units, stations, alarms, tuple(drawn))
 
@@ -246,49 +275,38 @@ def _drawn(
     return trendhtml.SeriesChart(title, values.tolist(), c.centre, limit, last, tuple(found.items()))
 
 
-def _alarms(s: _Series, parameter: str, found: dict[str, int], lim: control.ControlLimits) -> list[Alarm]:
+def _alarms(
+    s: _Series,
+    parameter: str,
+    found: dict[str, int],
+    lim: control.ControlLimits,
+    who: dict[int, tuple[str | None, str | None]],
+) -> list[Alarm]:
     out = []
     for rule, at in found.items():
+        serial, created = who[int(s.ids[at])]
         out.append(
-            Alarm(
-                s.station,
-                s.sensor,
-                parameter,
-                rule,
-                s.serials[at],
-                s.created[at],
-                _words(rule, lim),
-                meaning(parameter, rule),
-            )
+            Alarm(s.station, s.sensor, parameter, rule, serial, created, _words(rule, lim), meaning(parameter, rule))
         )
     return out
 
 
-def _compared(charts: list[tuple[_Series, str, control.Chart, FloatArray]]) -> list[Alarm]:
+def _compared(charts: list[_Charted]) -> list[tuple[Alarm, int]]:
+    """Each station beyond the others on a parameter: its alarm (without its first unit's serial
+    and time) and that unit's record id."""
     groups: dict[tuple[str, str], dict[str, FloatArray]] = {}
-    firsts: dict[tuple[str, str, str], tuple[str | None, str | None]] = {}
+    firsts: dict[tuple[str, str, str], int] = {}
     for s, parameter, c, values in charts:
         if c.judged.any():
             groups.setdefault((s.sensor, parameter), {})[s.station] = values[c.judged]
-            at = int(np.flatnonzero(c.judged)[0])
-            firsts[(s.station, s.sensor, parameter)] = (s.serials[at], s.created[at])
+            firsts[(s.station, s.sensor, parameter)] = int(s.ids[int(np.flatnonzero(c.judged)[0])])
     comparisons = sum(len(g) for g in groups.values() if len(g) > 1)
     out = []
     for (sensor, parameter), by_station in groups.items():
         for found in control.compare(by_station, comparisons):
             if found.beyond:
-                serial, created = firsts[(found.station, sensor, parameter)]
                 words = control.RULE_WORDS["station"].format(z=abs(found.t))
-                out.append(
-                    Alarm(
-                        found.station,
-                        sensor,
-                        parameter,
-                        "station",
-                        serial,
-                        created,
-                        words,
-                        meaning(parameter, "station"),
-                    )
-                )
+                said = meaning(parameter, "station")
+                alarm = Alarm(found.station, sensor, parameter, "station", None, None, words, said)
+                out.append((alarm, firsts[(found.station, sensor, parameter)]))
     return out
