@@ -67,7 +67,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from tumblecal_cli.core.arrays import FloatArray, IntArray
+from tumblecal_cli.core.arrays import FloatArray, IntArray, median
 
 #: Cluster sizes up to this use every overlapping term (equal to the textbook estimator).
 EXACT_MAX = 2**18
@@ -188,7 +188,7 @@ class AllanStream:
             np.multiply(b[:, lo - m : end - m], 2.0, out=d)
             np.subtract(b[:, lo:end], d, out=d)
             d += b[:, lo - 2 * m : end - 2 * m]
-            self.sums[k] += np.square(d, out=d).sum(axis=1)  # along each axis's contiguous values
+            self.sums[k] += np.einsum("ij,ij->i", d, d)  # along each axis's contiguous values (one pass)
             self.terms[k] += end - lo
         g0 = self.start + p0  # global index of the first new S value
         offset = len(self.exact)
@@ -605,8 +605,8 @@ class StepWatch:
         mean = self.sum / m
         centred = np.maximum(self.sum2 / m - mean * mean, 0.0)
         jumps = np.sqrt(self.sum2 / m)
-        noise = np.median(np.array(self.within), axis=0)  # a quantised quiet axis: 0, not judged so
-        typical = np.median(np.abs(np.concatenate(self.jumps)), axis=0)
+        noise = median(np.array(self.within), axis=0)  # a quantised quiet axis: 0, not judged so
+        typical = median(np.abs(np.concatenate(self.jumps)), axis=0)
         for j, axis in enumerate(AXES):  # a step says where; a drift, how far; else moving throughout
             bound = STEP_FACTOR * math.sqrt(rest[j])
             if self.largest[j] > bound:

@@ -16,10 +16,9 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Unpack
 
 import numpy as np
-import yaml
 from numpy.typing import NDArray
 
-from tumblecal_cli.core import allan, clock, gate
+from tumblecal_cli.core import allan, arrays, clock, gate
 from tumblecal_cli.core import quantities as unit_names
 from tumblecal_cli.core.clock import Clock
 from tumblecal_cli.core.model import apply
@@ -469,7 +468,7 @@ class _Timer:
             if self.scale is None:  # the unit, by the first block's steps (a note when it is not named)
                 assert self.cap is not None
                 self.scale = readings.time_scale(self.cap.layout, joined, self.time_unit)
-            median = float(np.median(raw)) * self.scale  # the median step, as the rate always was
+            median = float(arrays.median(raw)) * self.scale  # the median step, as the rate always was
             if not median > 0:
                 raise InputError("the time column does not advance", file=self.name, hint="give --rate HZ")
             self.clock, at = clock.judge(raw * self.scale, median)
@@ -559,6 +558,8 @@ def write_kalibr(path: str, result: Noise) -> dict[str, float]:
         f"({result.samples} samples at {result.rate:g} Hz)\n"
         "# accelerometer: m/s^2/sqrt(Hz) and m/s^3/sqrt(Hz); gyroscope: rad/s/sqrt(Hz) and rad/s^2/sqrt(Hz)\n"
     )
+    import yaml  # (--kalibr alone)
+
     with atomic_output(path) as out:
         out.write((head + yaml.safe_dump(doc, sort_keys=False)).encode())
     return model
