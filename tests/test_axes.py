@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import tumblecal_cli as tumblecal
-from tests.conftest import assert_one_error, run
+from tests.conftest import ROOT, assert_one_error, run
 from tests.test_align import FIELD, UP, poses
 from tumblecal_cli.core import alignment
 from tumblecal_cli.core import axes as sensor_axes
@@ -285,3 +285,134 @@ def test_apply_refuses_the_identity_over_a_calibrations_own_axes(
     r = run(capsys, "apply", "--cal", stated, "--axes", "+x,+y,+z", "--columns", "mx,my,mz", SHOTS, "-o", "-")
     assert r.code == 2
     assert "--axes +x,+y,+z would turn them again" in r.err
+
+
+# -- --axes on segment, solve --log with a label column, noise and thermal ------------------------
+
+AXES = "-y,-x,+z"
+SAMPLE = ROOT / "sample_data"
+
+
+def _as_mounted(source: Path, target: Path, columns: tuple[str, str, str]) -> None:
+    """``source``'s readings of ``columns`` as a sensor mounted with AXES reads them (its other
+    columns as they are): the sensor's ``P^T v`` of each body reading v."""
+    p = sensor_axes.parse(AXES).matrix
+    with source.open(newline="") as f:
+        rows = list(csv.reader(f))
+    where = [rows[0].index(c) for c in columns]
+    for row in rows[1:]:
+        body = np.array([float(row[j]) for j in where])
+        for j, v in zip(where, p.T @ body, strict=True):
+            row[j] = repr(float(v))
+    with target.open("w", newline="") as f:
+        csv.writer(f, lineterminator="\n").writerows(rows)
+
+
+def _index(folder: Path) -> list[tuple[str, str, str]]:
+    with (folder / "segments.csv").open(newline="") as f:
+        return [(r["file"], r["face"].lstrip("'"), r["nearest_face"].lstrip("'")) for r in csv.DictReader(f)]
+
+
+def test_segment_with_axes_names_the_bodys_faces_and_solve_reads_them_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A log of a sensor mounted -y,-x,+z: segment --axes cuts the blocks of the log as read
+    without the turn, named by the same faces; solve --poses --axes of them corrects its readings
+    into the body's axes as the unturned log's calibration corrects its own."""
+    log = SAMPLE / "imucal" / "session_every4th.csv"
+    mounted = tmp_path / "mounted.csv"
+    _as_mounted(log, mounted, ("acc_x", "acc_y", "acc_z"))
+    assert run(capsys, "segment", log, "--rate", "25.6", "-d", tmp_path / "plain", "-q").code == 0
+    r = run(capsys, "segment", mounted, "--rate", "25.6", "--axes", AXES, "-d", tmp_path / "turned")
+    assert r.code == 0, r.err
+    assert f"--axes {AXES}: the faces are the body's" in r.err
+    assert _index(tmp_path / "turned") == _index(tmp_path / "plain")
+    faces = [f"{a}{s}.csv" for a in "xyz" for s in "pn"]
+    cals = {}
+    for name, extra in (("plain", []), ("turned", ["--axes", AXES])):
+        out = tmp_path / f"{name}.json"
+        assert run(capsys, "solve", "-q", "--poses", *(tmp_path / name / f for f in faces), *extra, "-o", out).code == 0
+        cals[name] = calfile.load(out)
+    assert cals["turned"].axes == sensor_axes.parse(AXES)
+    raw = np.loadtxt(log, delimiter=",", skiprows=1, usecols=(4, 5, 6))[:400]
+    seen = np.loadtxt(mounted, delimiter=",", skiprows=1, usecols=(4, 5, 6))[:400]
+    np.testing.assert_allclose(cals["turned"].apply(seen), cals["plain"].apply(raw), atol=1e-9)
+
+
+def test_solve_log_with_a_label_column_and_axes_takes_the_labels_as_the_bodys(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import gzip
+
+    session = tmp_path / "session.csv"
+    packed = ROOT / "tests" / "data" / "logs" / "imucal_annotated_session.csv.gz"
+    session.write_bytes(gzip.decompress(packed.read_bytes()))
+    mounted = tmp_path / "mounted.csv"
+    _as_mounted(session, mounted, ("acc_x", "acc_y", "acc_z"))
+    labelled = ["--rate", "204.8", "--pose-column", "part", "--pose-map", "x_p=+x,x_a=-x,y_p=+y,y_a=-y,z_p=+z,z_a=-z"]
+    plain, turned = tmp_path / "plain.json", tmp_path / "turned.json"
+    assert run(capsys, "solve", "-q", "--log", session, *labelled, "-o", plain).code == 0
+    r = run(capsys, "solve", "-q", "--log", mounted, *labelled, "--axes", AXES, "-o", turned)
+    assert r.code == 0, r.err
+    a, b = calfile.load(plain), calfile.load(turned)
+    p = sensor_axes.parse(AXES).matrix
+    np.testing.assert_allclose(b.offset, p.T @ a.offset, atol=1e-9)  # the sensor's own axes
+    np.testing.assert_allclose(b.matrix, a.matrix @ p, atol=1e-9)  # into the body's: M_body P^T^-1
+    # without --axes the labels are taken as the sensor's faces, which the turned readings do not show
+    assert run(capsys, "solve", "-q", "--log", mounted, *labelled, "-o", tmp_path / "no.json").code == 3
+
+
+def test_noise_with_axes_gives_the_bodys_figures_and_refuses_to_turn_a_calibrations_axes_again(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    still = tmp_path / "still.csv"
+    rng = np.random.default_rng(8)
+    x = rng.normal(0.0, [0.001, 0.004, 0.009], size=(20_000, 3))
+    still.write_text("x,y,z\n" + "".join(f"{a:.6f},{b:.6f},{c:.6f}\n" for a, b, c in x))
+
+    def density(*extra: str | Path) -> list[float]:
+        r = run(capsys, "noise", still, "--rate", "100", "--json", *extra)
+        assert r.code == 0, r.err
+        assert ("x, y and z are the body's axes" in r.err) == ("--axes" in extra)
+        return [json.loads(r.out)["axes"][a]["noise_density"]["value"] for a in "xyz"]
+
+    plain, turned = density(), density("--axes", AXES)
+    assert turned == [plain[1], plain[0], plain[2]]  # body x is the sensor's -y: its noise
+    cal = tmp_path / "cal.json"
+    calfile.Calibration("accelerometer", "six-pose", 1.0, ["x", "y", "z"], np.zeros(3), np.eye(3), np.ones(3)).in_axes(
+        sensor_axes.parse(AXES)
+    ).save(cal)
+    assert density("--cal", cal) == turned  # a calibration's own axes turn them the same
+    refused = run(capsys, "noise", still, "--rate", "100", "--cal", cal, "--axes", "+z,+x,+y")
+    assert_one_error(
+        refused,
+        f"{cal}: corrects into its own axes -y,-x,+z already: --axes +z,+x,+y would turn them again",
+        hint="leave --axes out (the calibration's axes apply), or solve again with the axes wanted",
+    )
+
+
+def test_thermal_of_a_calibration_into_the_bodys_axes_takes_the_bodys_faces(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The same sweeps told by the body's faces against a calibration solved with --axes: the same
+    drift (in the sensor's axes, as its offsets), the sweeps recorded by the faces told."""
+    s = SAMPLE / "thermal"
+    sensor_faces = {"xp": "+x", "xn": "-x", "yp": "+y", "yn": "-y", "zp": "+z", "zn": "-z"}
+    turn = sensor_axes.parse(AXES)
+    body = {n: turn.body_label(f) for n, f in sensor_faces.items()}  # the sensor's +x is the body's -y
+    sweeps = {"xp": "sweep_up_xp", "xn": "sweep_down_xn", "yp": "sweep_up_yp", "yn": "sweep_down_yn"}
+    sweeps |= {"zp": "sweep_up_zp", "zn": "sweep_down_zn"}
+    base, base_turned = tmp_path / "base.json", tmp_path / "base-turned.json"
+    assert run(capsys, "solve", "-q", "--poses", *(s / f"{n}.csv" for n in sensor_faces), "-o", base).code == 0
+    told = [f"{body[n]}={s / (n + '.csv')}" for n in sensor_faces]
+    assert run(capsys, "solve", "-q", "--poses", *told, "--axes", AXES, "-o", base_turned).code == 0
+    warm, warm_turned = tmp_path / "warm.json", tmp_path / "warm-turned.json"
+    plain_items = [f"{sensor_faces[n]}={s / (sweeps[n] + '.csv')}" for n in sweeps]
+    body_items = [f"{body[n]}={s / (sweeps[n] + '.csv')}" for n in sweeps]
+    assert run(capsys, "thermal", "-q", *plain_items, "--cal", base, "-o", warm).code == 0
+    r = run(capsys, "thermal", "-q", *body_items, "--cal", base_turned, "-o", warm_turned)
+    assert r.code == 0, r.err
+    a, b = json.loads(warm.read_text())["thermal"], json.loads(warm_turned.read_text())["thermal"]
+    assert {k: v for k, v in a.items() if k != "sweeps"} == {k: v for k, v in b.items() if k != "sweeps"}
+    assert [w["pose"] for w in b["sweeps"]] == [body[n] for n in sweeps]
+    assert json.loads(warm_turned.read_text())["axes"] == AXES

@@ -11,6 +11,7 @@ from tumblecal_cli.cli import render
 from tumblecal_cli.cli.app import Command, app
 from tumblecal_cli.cli.flags import (
     AllowCorrected,
+    AxesOption,
     Columns,
     Decimal,
     DropIncomplete,
@@ -81,6 +82,7 @@ def noise(
         typer.Option("--kalibr", metavar="YAML", help="Write (or update) Kalibr's imu.yaml noise model, in SI."),
     ] = None,
     columns: Columns = None,
+    axes: AxesOption = None,
     no_header: NoHeader = False,
     time_column: TimeColumn = None,
     time_unit: TimeUnitOption = TimeUnit.auto,
@@ -118,6 +120,7 @@ def noise(
             units=units and units.value,
             per_octave=taus,
             columns=columns,
+            axes=axes,
             no_header=no_header,
             time_column=time_column,
             time_unit=time_unit.value,

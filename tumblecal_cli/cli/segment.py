@@ -11,6 +11,7 @@ from tumblecal_cli.cli.app import Command, app
 from tumblecal_cli.cli.flags import (
     LOG_PANEL,
     AllowCorrected,
+    AxesOption,
     Columns,
     Decimal,
     DropIncomplete,
@@ -74,6 +75,7 @@ def segment(
     stream: StreamOption = None,
     allow_corrected: AllowCorrected = False,
     columns: Columns = None,
+    axes: AxesOption = None,
     no_header: NoHeader = False,
     time_column: TimeColumn = None,
     time_unit: TimeUnitOption = TimeUnit.auto,
@@ -148,6 +150,7 @@ def segment(
         plot=plot,
         sensor=sensor.value,
         columns=columns,
+        axes=axes,
         no_header=no_header,
         time_column=time_column,
         time_unit=time_unit.value,

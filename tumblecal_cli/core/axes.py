@@ -65,6 +65,12 @@ class Axes:
         d = self.matrix.T @ direction(label)
         return parse_label(",".join(f"{v:.12g}" for v in d))
 
+    def body_label(self, label: str) -> str:
+        """A pose label of the sensor's axes (``-y``) as the body's direction it is (``+x`` with
+        -y,-x,+z): ``sensor_label``'s inverse."""
+        d = self.matrix @ direction(label)
+        return parse_label(",".join(f"{v:.12g}" for v in d))
+
     def then(self, other: Axes) -> Axes:
         """These axes followed by ``other``'s (``P_other P_self``)."""
         return of_matrix(other.matrix @ self.matrix)

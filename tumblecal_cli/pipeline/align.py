@@ -235,8 +235,7 @@ def mag_to_accel(
     if table is not None:
         return _table_aligned(table, accel, mag, accel_cal)
     with segmenting.segmented(
-        log, acc_spec, pose_column=None, pose_map=None, settings=_settings(settings, accel.offset), whole=True,
-        max_spool=max_spool,
+        log, acc_spec, settings=_settings(settings, accel.offset), whole=True, max_spool=max_spool,
     ) as (path, acc, seg):  # fmt: skip
         mlog = readings.read_log(path, mag_spec, use_time=spec.rate is None, name=acc.layout.name)
     name = acc.layout.name

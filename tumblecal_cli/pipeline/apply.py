@@ -32,7 +32,7 @@ from tumblecal_cli.io.readspec import FileKeywords, file_spec
 from tumblecal_cli.io.rewrite import writer as rewrite
 from tumblecal_cli.pipeline.batch.cluster import engine
 from tumblecal_cli.pipeline.frames import is_data
-from tumblecal_cli.pipeline.options import axes_given, keywords_known, path_of
+from tumblecal_cli.pipeline.options import in_axes, keywords_known, path_of
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.arrays import FloatArray
@@ -222,21 +222,6 @@ class ManyKeywords(FileKeywords, total=False):
 
     force: bool
     axes: str | None
-
-
-def in_axes(cal: Calibration, text: str | None) -> Calibration:
-    """``cal`` correcting into the body's axes of --axes (core.axes), when it states none of its
-    own; one that does is refused (its axes are the sensor's mounting, given once)."""
-    if text is None:
-        return cal
-    axes = axes_given(text)
-    if cal.axes is not None and cal.axes != axes:
-        raise InputError(
-            f"corrects into its own axes {cal.axes.text} already: --axes {text} would turn them again",
-            file=cal.path,
-            hint="leave --axes out (the calibration's axes apply), or solve again with the axes wanted",
-        )
-    return cal if axes is None else cal.in_axes(axes)
 
 
 def correct_many(

@@ -30,10 +30,11 @@ from tumblecal_cli.io.csv.ahead import ahead
 from tumblecal_cli.io.outputs import atomic_output
 from tumblecal_cli.io.readspec import ReadKeywords, read_spec
 from tumblecal_cli.pipeline.frames import in_memory
-from tumblecal_cli.pipeline.options import keywords_known
+from tumblecal_cli.pipeline.options import axes_given, in_axes, keywords_known
 
 if TYPE_CHECKING:
     from tumblecal_cli.core.arrays import FloatArray
+    from tumblecal_cli.core.axes import Axes
     from tumblecal_cli.io.calfiles.calfile import Calibration
     from tumblecal_cli.io.readspec import ReadSpec
     from tumblecal_cli.pipeline.frames import DataFrame, JSONObject
@@ -210,6 +211,7 @@ class NoiseKeywords(ReadKeywords, total=False):
     per_octave: int
     progress: Callable[[int], None] | None
     kalibr: bool
+    axes: str | None  # --axes: the figures in the body's axes (core.axes)
 
 
 def noise(
@@ -238,7 +240,8 @@ def _noise(path: str, options: NoiseKeywords) -> Noise:
         raise InputError(f"--rate must be a positive number of Hz, got {rate:g}")
     if not 1 <= per_octave <= 64:
         raise InputError(f"--taus must be 1 to 64 points per octave, got {per_octave}")
-    c = calfile.resolve(cal) if cal is not None else None
+    given = axes_given(options.get("axes"))
+    c = in_axes(calfile.resolve(cal), options.get("axes")) if cal is not None else None
     kind = c.sensor if c is not None else options.get("sensor", "accelerometer")
     data_units = c.units if c is not None else _stream_units(path, replace(read_spec(options), sensor=kind))
     if units is not None and units not in UNIT_CHOICES:
@@ -252,8 +255,11 @@ def _noise(path: str, options: NoiseKeywords) -> Noise:
         _kalibr_units(kind, c, data_units)
     bounds = _limits(options.get("limits"))
     spec = replace(read_spec(options, prefer=None if c is None else c.columns), sensor=kind)
-    loaded = _stream(path, c, spec, allan.AllanStream(per_octave), options.get("progress"))
+    turn = given if c is None else None  # (a calibration's correction turns them itself)
+    loaded = _stream(path, _Feed(c, allan.AllanStream(per_octave), options.get("progress"), turn), spec)
     curve, watch, name, notes, hz = loaded.curve, loaded.watch, loaded.name, loaded.notes, loaded.hz
+    if given is not None:
+        notes.append(f"--axes {given.text}: x, y and z are the body's axes")
     if curve.samples < 2:
         raise InputError(f"{curve.samples} sample: an Allan deviation needs many", file=name)
     names = UNIT_NAMES.get(choice) or UNIT_NAMES[(choice, kind)]
@@ -354,18 +360,12 @@ def judge(
     return failures, not_judged
 
 
-def _stream(
-    path: str,
-    cal: Calibration | None,
-    spec: ReadSpec,
-    stream: allan.AllanStream,
-    progress: Callable[[int], None] | None,
-) -> _Streamed:
-    """Read the capture block by block into the Allan stream and the step watch, its clock
-    judged as it goes (``_Timer``; a source beside CSV, io.sources: read whole, then fed the
-    same way)."""
+def _stream(path: str, feed: _Feed, spec: ReadSpec) -> _Streamed:
+    """Read the capture block by block into ``feed`` (the Allan stream and the step watch), its
+    clock judged as it goes (``_Timer``; a source beside CSV, io.sources: read whole, then fed
+    the same way)."""
     rate, time_unit = spec.rate, spec.time_unit
-    feed = _Feed(cal, stream, progress)
+    stream = feed.stream
     if sources.reader_for(path) is not None or spec.span() != (None, None):  # (--start/--end: readings.in_span)
         log = readings.read_log(path, spec, use_time=rate is None)
         lay = log.layout
@@ -506,17 +506,21 @@ class _Timer:
 @dataclass
 class _Feed:
     """Readings into the Allan stream and the step watch (made once the rate is known: about a
-    second of samples a step), corrected by ``cal`` first when one is given; a gap in time
-    starts a new run of the stream (no cluster spans it)."""
+    second of samples a step), corrected by ``cal`` first when one is given, or turned into the
+    body's axes by ``turn`` (--axes without a calibration); a gap in time starts a new run of
+    the stream (no cluster spans it)."""
 
     cal: Calibration | None
     stream: allan.AllanStream
     progress: Callable[[int], None] | None
+    turn: Axes | None = None
     watch: allan.StepWatch | None = None
 
     def add(self, values: FloatArray, hz: float | None, gaps: NDArray[np.int64] | None = None) -> None:
         if self.cal is not None:
             values = apply(values, self.cal.offset, self.cal.matrix)
+        elif self.turn is not None:
+            values = values[:, list(self.turn.source)] * np.asarray(self.turn.sign, dtype=np.float64)
         if self.watch is None and hz is not None:
             self.watch = allan.StepWatch(max(16, 2 ** round(math.log2(max(hz, 1.0)))))  # about a second
         cuts = [0, *(int(g) for g in gaps), values.shape[0]] if gaps is not None and gaps.size else None

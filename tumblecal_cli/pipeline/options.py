@@ -32,7 +32,7 @@ if TYPE_CHECKING:
     from tumblecal_cli.core.arrays import FloatArray
     from tumblecal_cli.core.axes import Axes
     from tumblecal_cli.core.gate import Limits
-    from tumblecal_cli.io.calfiles.calfile import Unit
+    from tumblecal_cli.io.calfiles.calfile import Calibration, Unit
 
 
 @dataclass(frozen=True)
@@ -368,6 +368,21 @@ def axes_given(text: object, flag: str = "--axes") -> Axes | None:
     except ValueError as err:
         raise InputError(f"{flag} {text!r}: {err}") from None
     return None if found.identity else found
+
+
+def in_axes(cal: Calibration, text: str | None) -> Calibration:
+    """``cal`` correcting into the body's axes of --axes (core.axes), when it states none of its
+    own; one that does is refused (its axes are the sensor's mounting, given once)."""
+    if text is None:
+        return cal
+    axes = axes_given(text)
+    if cal.axes is not None and cal.axes != axes:
+        raise InputError(
+            f"corrects into its own axes {cal.axes.text} already: --axes {text} would turn them again",
+            file=cal.path,
+            hint="leave --axes out (the calibration's axes apply), or solve again with the axes wanted",
+        )
+    return cal if axes is None else cal.in_axes(axes)
 
 
 def settings(options: SolveOptions, *, log: bool) -> Settings:

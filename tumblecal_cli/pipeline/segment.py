@@ -14,7 +14,7 @@ import shutil
 import sys
 import tempfile
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import IO, TYPE_CHECKING, Unpack
 
 import numpy as np
@@ -42,6 +42,7 @@ from tumblecal_cli.io.readspec import ReadKeywords, ReadSpec, read_spec
 from tumblecal_cli.pipeline.frames import in_memory, written_table
 from tumblecal_cli.pipeline.options import (
     CutKeywords,
+    axes_given,
     keywords_known,
     path_of,
     size_option,
@@ -51,6 +52,7 @@ from tumblecal_cli.pipeline.options import (
 from tumblecal_cli.pipeline.options import pose_map as parse_pose_map
 
 if TYPE_CHECKING:
+    from tumblecal_cli.core.axes import Axes
     from tumblecal_cli.pipeline.frames import DataFrame
 
 #: The longest --window, --min-duration or --trim taken, in seconds (116 days: longer than a log):
@@ -67,14 +69,23 @@ class Blocks:
     used: dict[int, str] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class PoseLabels:
+    """A log's label column (--pose-column), what its labels name (--pose-map), and the axes
+    those faces are told in (--axes: the body's; None: the sensor's)."""
+
+    column: str | None = None
+    mapping: Mapping[str, str] | str | None = None
+    axes: Axes | None = None
+
+
 @contextlib.contextmanager
 def segmented(
     log: str,
     spec: ReadSpec,
     *,
-    pose_column: str | None,
-    pose_map: Mapping[str, str] | str | None,
     settings: seg_core.DetectorSettings,
+    labels: PoseLabels | None = None,
     digest: bool = True,
     whole: bool = False,
     max_spool: int | str | None = None,
@@ -86,7 +97,10 @@ def segmented(
     The Log holds each still block's first and last reading only, and reads a block's again when
     asked (io.csv.logread: while the path is there), unless ``whole`` asks for every reading (hand
     turns integrate what lies between), or the log must be read whole anyway (a label column,
-    or what io.csv.logread does not take)."""
+    or what io.csv.logread does not take). ``labels``: a label column's (with --axes its faces
+    are the body's, found as the sensor's directions along them; the blocks' stay the sensor's)."""
+    labels = labels or PoseLabels()
+    pose_column, pose_map = labels.column, labels.mapping
     sensor, rate = spec.sensor, spec.rate
     if sensor != "accelerometer":
         raise InputError(
@@ -124,7 +138,7 @@ def segmented(
             digest=digest,
         )
         model.in_range(data.values, data.layout.name)
-        yield path, data, find_blocks(data, rate, pose_column, pose_map, settings)
+        yield path, data, find_blocks(data, rate, pose_column, pose_map, settings, labels.axes)
 
 
 #: A clock with more time steps of 0 than this share, and steps shorter on average than the
@@ -151,10 +165,12 @@ def find_blocks(
     pose_column: str | None,
     pose_map: Mapping[str, str] | str | None,
     settings: seg_core.DetectorSettings,
+    axes: Axes | None = None,
 ) -> Segmentation:
-    """The blocks of a log read in: by the detector, or by its label column."""
+    """The blocks of a log read in: by the detector, or by its label column (its faces the
+    body's with ``axes``)."""
     seconds = None if rate else log.seconds()
-    seg = _blocks_of(log, seconds, rate, pose_column, pose_map, settings)
+    seg = _blocks_of(log, seconds, rate, pose_column, pose_map, settings, axes)
     seg.gap_rows = [int(log.rows[g - 1]) for g in seg.gaps]
     if seconds is not None and seconds.size > 1:
         steps = np.diff(seconds)
@@ -211,6 +227,7 @@ def _blocks_of(
     pose_column: str | None,
     pose_map: Mapping[str, str] | str | None,
     settings: seg_core.DetectorSettings,
+    axes: Axes | None,
 ) -> Segmentation:
     if pose_column is None:
         return seg_core.detect(log.values, seconds, rate, settings)
@@ -235,6 +252,8 @@ def _blocks_of(
             file=log.layout.name,
             hint="say which is which with --pose-map, e.g. x_p=+x,x_a=-x,y_p=+y,y_a=-y,z_p=+z,z_a=-z",
         )
+    if axes is not None:  # the labels name the body's faces: the sensor's directions along them
+        mapping = {label: axes.sensor_label(face) for label, face in mapping.items()}
     seg = seg_core.from_labels(log.values, log.labels or [], mapping, seconds, rate, settings)
     if absent:
         seg.warnings.append(absent)
@@ -379,6 +398,22 @@ def _face_blocks(log: Log, seg: Segmentation, method: str, wanted: list[str], be
             code="log.faces",
         )
     return [best[f] for f in wanted]
+
+
+def body_faces(log: Log, seg: Segmentation, axes: Axes | None) -> Segmentation:
+    """``seg`` with its blocks' faces named in the body's axes (--axes): the files and the
+    index name them so, for ``solve --poses ... --axes``; the readings, and the blocks' means in
+    the index, stay the sensor's."""
+    if axes is None:
+        return seg
+    said = f"--axes {axes.text}: the faces are the body's (the readings and block means the sensor's)"
+    if said not in log.layout.notes:
+        log.layout.notes.append(said)
+    blocks = [
+        replace(b, nearest=axes.body_label(b.nearest), face=None if b.face is None else axes.body_label(b.face))
+        for b in seg.blocks
+    ]
+    return replace(seg, blocks=blocks)
 
 
 def block_files(seg: Segmentation) -> dict[int, str]:
@@ -608,6 +643,7 @@ class SegmentKeywords(ReadKeywords, CutKeywords, total=False):
     nominal_offset: str | float | list[float] | None
     max_spool: int | str | None
     plot: str | None  # segment --plot: a PNG of the log with its blocks (needs tumblecal[plot])
+    axes: str | None  # --axes: the faces named in the body's axes (core.axes)
 
 
 def segment(
@@ -646,6 +682,7 @@ def _segment(
             raise InputError(f"{option} must be positive, got {value:g}")
     if out_dir is not None and os.path.exists(out_dir) and not os.path.isdir(out_dir):
         raise InputError("is a file, not a folder: --out-dir takes a folder", file=out_dir)
+    axes = axes_given(options.get("axes"))
     settings = seg_core.DetectorSettings(
         window=options.get("window"),
         threshold=options.get("threshold"),
@@ -658,13 +695,13 @@ def _segment(
     with segmented(
         log,
         read_spec(options),
-        pose_column=options.get("pose_column"),
-        pose_map=options.get("pose_map"),
+        labels=PoseLabels(options.get("pose_column"), options.get("pose_map"), axes),
         settings=settings,
         digest=False,  # the block files are copies; nothing records the log's hash
         whole=options.get("plot") is not None,  # a figure draws every reading, not the still ones only
         max_spool=options.get("max_spool"),
     ) as (path, data, seg):
+        seg = body_faces(data, seg, axes)
         found = Blocks(data, seg)
         files = block_files(seg)
         if on_blocks is not None:

@@ -44,12 +44,14 @@ NOISE_SHARE = 0.5
 
 @dataclass
 class SweepRead:
-    """One sweep as read: its item's face, file, the log, and its trend range (°C)."""
+    """One sweep as read: its item's face (the sensor's direction up), file, the log, its trend
+    range (°C), and its face as told (the body's, for a calibration into --axes)."""
 
     face: str | None
     file: str
     log: Log
     trend: tuple[float, float]
+    told: str | None = None
 
 
 @dataclass
@@ -159,7 +161,7 @@ def plot(done: ThermalResult, path: str) -> None:
     for r in done.sweeps:
         sweep = drift.Sweep(r.log.values, _finite(r), None if r.face is None else _up(r.face))
         temp, seen, fitted = drift.observed(sweep, model, gain_scale)
-        label = f"{r.face} {os.path.basename(r.file)}" if r.face else os.path.basename(r.file)
+        label = f"{r.told} {os.path.basename(r.file)}" if r.face else os.path.basename(r.file)
         data.append((label, temp, seen, fitted))
     title = f"{cal.sensor} temperature drift, order {model.order}" + (f", {cal.serial}" if cal.serial else "")
     plots.drift_figure(path, data, units=cal.input_units, title=title)
@@ -202,7 +204,10 @@ def _read(items: Sequence[str | os.PathLike[str]], base: Calibration, spec: Read
     gyro = base.sensor == "gyroscope"
     placed = pose_items(texts, "+z")
     out = []
-    for face, path in placed.items:
+    for told, path in placed.items:
+        # a calibration into the body's axes (--axes): its sweeps' faces are the body's, fitted
+        # (as its drift is) as the sensor's directions along them
+        face = told if base.axes is None or told is None else base.axes.sensor_label(told)
         log = readings.read_log(path, spec, use_time=False, need_temperature=True)
         temp = log.temperature
         assert temp is not None
@@ -217,7 +222,7 @@ def _read(items: Sequence[str | os.PathLike[str]], base: Calibration, spec: Read
                 file=log.layout.name,
                 hint="is --temperature-column the temperature, in °C?",
             )
-        out.append(SweepRead(None if gyro else face, log.layout.name, log, drift.trend_range(finite)))
+        out.append(SweepRead(None if gyro else face, log.layout.name, log, drift.trend_range(finite), told))
     return out
 
 
@@ -299,7 +304,7 @@ def _checks(
         poses.append(gate.measure(r.file, r.face, flat, model.pose_stats(flat), options))
     if not gyro:
         poses = gate.orient(poses, base.offset, max_tilt)
-    solution = model.Solution(base.method, base.offset, base.matrix, np.zeros(3), np.zeros(3))
+    solution = model.Solution(base.method, base.offset, base.sensor_matrix, np.zeros(3), np.zeros(3))
     rejected, warned = gate.check(poses, solution, options)
     if rejected:
         first = rejected[0]
@@ -329,7 +334,7 @@ def _block(fitted: ThermalFit, column: str, read: list[SweepRead], min_swing: fl
         "residual_rms": [float(v) for v in fitted.residual_rms],
         "sweeps": [
             {
-                "pose": r.face,
+                "pose": r.told if r.face else None,
                 "file": r.file,
                 "sha256": r.log.sha256,
                 "samples": len(r.log.values),

@@ -90,8 +90,6 @@ def read(log: str, options: SolveOptions) -> MagLog:
         with segmenting.segmented(
             log,
             replace(options.read, sensor="accelerometer", columns=None),
-            pose_column=None,
-            pose_map=None,
             settings=settings,
             whole=True,  # the samples between the still blocks may widen the magnetometer's coverage
             max_spool=options.log.max_spool,

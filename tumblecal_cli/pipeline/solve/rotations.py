@@ -68,8 +68,6 @@ def hand_turns(log: str, options: SolveOptions) -> HandTurns:
     with segmenting.segmented(
         log,
         replace(options.read, sensor="accelerometer", columns=None, paired=True),
-        pose_column=None,
-        pose_map=None,
         settings=settings,
         whole=True,  # the turns between the still blocks are integrated
         max_spool=options.log.max_spool,

@@ -501,8 +501,11 @@ def _from_log(log: str, options: SolveOptions, given: Settings) -> Solved:
     with segmenting.segmented(
         log,
         options.read,
-        pose_column=options.log.pose_column,
-        pose_map=given.pose_map if options.log.pose_map is not None else None,
+        labels=segmenting.PoseLabels(  # (with --axes, a label column's faces are the body's)
+            options.log.pose_column,
+            given.pose_map if options.log.pose_map is not None else None,
+            opts.axes_given(options.axes),
+        ),
         settings=settings,
         max_spool=options.log.max_spool,
     ) as (_, data, seg):
