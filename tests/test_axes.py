@@ -289,7 +289,7 @@ def test_apply_refuses_the_identity_over_a_calibrations_own_axes(
 
 # -- --axes on segment, solve --log with a label column, noise and thermal ------------------------
 
-AXES = "-y,-x,+z"
+AXES = "+y,-z,-x"  # (not its own inverse: a mapping taken the wrong way round fails)
 SAMPLE = ROOT / "sample_data"
 
 
@@ -316,7 +316,7 @@ def _index(folder: Path) -> list[tuple[str, str, str]]:
 def test_segment_with_axes_names_the_bodys_faces_and_solve_reads_them_so(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """A log of a sensor mounted -y,-x,+z: segment --axes cuts the blocks of the log as read
+    """A log of a sensor mounted +y,-z,-x: segment --axes cuts the blocks of the log as read
     without the turn, named by the same faces; solve --poses --axes of them corrects its readings
     into the body's axes as the unturned log's calibration corrects its own."""
     log = SAMPLE / "imucal" / "session_every4th.csv"
@@ -360,6 +360,15 @@ def test_solve_log_with_a_label_column_and_axes_takes_the_labels_as_the_bodys(
     np.testing.assert_allclose(b.matrix, a.matrix @ p, atol=1e-9)  # into the body's: M_body P^T^-1
     # without --axes the labels are taken as the sensor's faces, which the turned readings do not show
     assert run(capsys, "solve", "-q", "--log", mounted, *labelled, "-o", tmp_path / "no.json").code == 3
+    # a gyroscope from known turns: the turns' axes are the body's too
+    both = tmp_path / "both.csv"
+    _as_mounted(mounted, both, ("gyr_x", "gyr_y", "gyr_z"))
+    turns = ["--sensor", "gyroscope", *labelled, "--turns", "x_rot=+x,y_rot=+y,z_rot=+z", "--turn-angle", "360"]
+    gyro, gyro_turned = tmp_path / "gyro.json", tmp_path / "gyro-turned.json"
+    assert run(capsys, "solve", "-q", "--log", session, *turns, "-o", gyro).code == 0
+    r = run(capsys, "solve", "-q", "--log", both, *turns, "--axes", AXES, "-o", gyro_turned)
+    assert r.code == 0, r.err
+    np.testing.assert_allclose(calfile.load(gyro_turned).matrix, calfile.load(gyro).matrix @ p, atol=1e-9)
 
 
 def test_noise_with_axes_gives_the_bodys_figures_and_refuses_to_turn_a_calibrations_axes_again(
@@ -377,7 +386,7 @@ def test_noise_with_axes_gives_the_bodys_figures_and_refuses_to_turn_a_calibrati
         return [json.loads(r.out)["axes"][a]["noise_density"]["value"] for a in "xyz"]
 
     plain, turned = density(), density("--axes", AXES)
-    assert turned == [plain[1], plain[0], plain[2]]  # body x is the sensor's -y: its noise
+    assert turned == [plain[1], plain[2], plain[0]]  # the body's x is the sensor's +y: its noise
     cal = tmp_path / "cal.json"
     calfile.Calibration("accelerometer", "six-pose", 1.0, ["x", "y", "z"], np.zeros(3), np.eye(3), np.ones(3)).in_axes(
         sensor_axes.parse(AXES)
@@ -386,7 +395,7 @@ def test_noise_with_axes_gives_the_bodys_figures_and_refuses_to_turn_a_calibrati
     refused = run(capsys, "noise", still, "--rate", "100", "--cal", cal, "--axes", "+z,+x,+y")
     assert_one_error(
         refused,
-        f"{cal}: corrects into its own axes -y,-x,+z already: --axes +z,+x,+y would turn them again",
+        f"{cal}: corrects into its own axes {AXES} already: --axes +z,+x,+y would turn them again",
         hint="leave --axes out (the calibration's axes apply), or solve again with the axes wanted",
     )
 
@@ -399,7 +408,7 @@ def test_thermal_of_a_calibration_into_the_bodys_axes_takes_the_bodys_faces(
     s = SAMPLE / "thermal"
     sensor_faces = {"xp": "+x", "xn": "-x", "yp": "+y", "yn": "-y", "zp": "+z", "zn": "-z"}
     turn = sensor_axes.parse(AXES)
-    body = {n: turn.body_label(f) for n, f in sensor_faces.items()}  # the sensor's +x is the body's -y
+    body = {n: turn.body_label(f) for n, f in sensor_faces.items()}  # the sensor's +x is the body's -z
     sweeps = {"xp": "sweep_up_xp", "xn": "sweep_down_xn", "yp": "sweep_up_yp", "yn": "sweep_down_yn"}
     sweeps |= {"zp": "sweep_up_zp", "zn": "sweep_down_zn"}
     base, base_turned = tmp_path / "base.json", tmp_path / "base-turned.json"

@@ -517,3 +517,34 @@ def test_a_full_disk_is_exit_2_and_leaves_the_database_as_it_was(
     assert db.read_bytes() == before
     assert _integrity(db) == "ok"
     assert _count(db) == 1
+
+
+def test_trend_names_a_unit_without_a_time_with_an_empty_time(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Records imported from files without ``created``: an alarm's first unit among them has the
+    time "" in the JSON (as its place in the order), never null or the text None."""
+    db = tmp_path / "n.db"
+    store.migrate(str(db))
+    params, marks = ", ".join(PARAMETERS), ", ".join("?" for _ in PARAMETERS)
+    rng = np.random.default_rng(3)
+    rows = []
+    for station, untimed in (("A", False), ("B", False), ("N", True)):
+        for j in range(300):
+            shift = 3.0 if untimed and j >= 100 else 0.0  # station N off the others after its baseline
+            created = None if untimed else f"2026-01-01T{j:05d}"
+            rows.append(
+                (f"k{station}{j}", f"SN{station}{j}", station, created, *(rng.normal(0, 1, len(PARAMETERS)) + shift))
+            )
+    with connected(db) as con:
+        con.executemany(
+            "INSERT INTO records (key, kind, serial, station, created, sensor, method, command, tool, document, "
+            f"{params}) VALUES (?, 'calibration', ?, ?, ?, 'accelerometer', 'six-pose', 'solve', 't', '{{}}', {marks})",
+            [(k, s, st, c, *map(float, v)) for k, s, st, c, *v in rows],
+        )
+    r = run(capsys, "records", "trend", "--db", db, "--json")
+    assert r.code == 1, r.err
+    alarms = [a for a in json.loads(r.out)["alarms"] if a["station"] == "N"]
+    assert alarms
+    assert {a["first_created"] for a in alarms} == {""}
+    assert all(a["first_serial"].startswith("SNN") for a in alarms)

@@ -202,7 +202,9 @@ def _who(store: Store, ids: set[int]) -> dict[int, tuple[str | None, str | None]
     for start in range(0, len(listed), 500):
         part = listed[start : start + 500]
         marks = ", ".join("?" for _ in part)
-        rows = store.execute(f"SELECT id, serial, created FROM records WHERE id IN ({marks})", part).fetchall()
+        rows = store.execute(
+            f"SELECT id, serial, coalesce(created, '') FROM records WHERE id IN ({marks})", part
+        ).fetchall()
         out.update({int(r[0]): (r[1], r[2]) for r in rows})
     return out
 

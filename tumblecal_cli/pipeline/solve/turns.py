@@ -20,7 +20,7 @@ from tumblecal_cli.core.solvers import Fit
 from tumblecal_cli.errors import CaptureRejected, InputError
 from tumblecal_cli.io.calfiles import calfile
 from tumblecal_cli.io.csv import readings
-from tumblecal_cli.pipeline.options import pose_map
+from tumblecal_cli.pipeline.options import axes_given, pose_map
 from tumblecal_cli.pipeline.segment import read_twice
 
 if TYPE_CHECKING:
@@ -193,6 +193,9 @@ def _solve(acc: Log, gyr: Log, options: SolveOptions, given: Settings) -> Outcom
         face = _face(label)
         if face is not None and face not in faces:
             faces[face] = label
+    told = axes_given(options.axes)  # (--axes: the faces and turn axes named are the body's)
+    if told is not None:
+        faces = {told.sensor_label(face): label for face, label in faces.items()}
     missing = [f for f in SIX if f not in faces]
     if missing:
         return Outcome(
@@ -212,6 +215,8 @@ def _solve(acc: Log, gyr: Log, options: SolveOptions, given: Settings) -> Outcom
             ),
         )
     wanted = pose_map(options.log.turns, "--turns")
+    if told is not None:
+        wanted = {label: told.sensor_label(axis) for label, axis in wanted.items()}
     notes = [f"--turns names {label!r}, not a label of the log: left out" for label in wanted if label not in found]
     turns = {label: axis for label, axis in wanted.items() if label in found}
     axes = np.array([model.FACES[a] for a in turns.values()], dtype=np.float64).reshape(-1, 3)
