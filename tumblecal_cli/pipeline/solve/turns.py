@@ -24,6 +24,9 @@ from tumblecal_cli.pipeline.options import axes_given, pose_map
 from tumblecal_cli.pipeline.segment import read_twice
 
 if TYPE_CHECKING:
+    from collections.abc import Mapping
+
+    from tumblecal_cli.core.axes import Axes
     from tumblecal_cli.io.calfiles.calfile import Calibration, GSensitivity, Pose, Rotation, SegmentationPart, Turn
     from tumblecal_cli.io.csv.readings import Log
     from tumblecal_cli.pipeline.options import Settings, SolveOptions
@@ -184,18 +187,23 @@ def _rejected(findings: list[Finding], name: str) -> CaptureRejected:
     )
 
 
-def _solve(acc: Log, gyr: Log, options: SolveOptions, given: Settings) -> Outcome:
-    name = gyr.layout.name
-    found = sections(gyr)
-    faces = {face: label for label, face in given.pose_map.items() if label in found}
-    shown = ", ".join(found) or "none"
-    for label in found:  # labels that are faces (+x, xp) need no --pose-map entry
+def _faces(found: dict[str, Section], mapped: Mapping[str, str], told: Axes | None) -> dict[str, str]:
+    """Each face's label among the log's sections: --pose-map's, and labels that are faces (+x,
+    xp) without an entry; with --axes they name the body's faces, keyed here by the sensor's."""
+    faces = {face: label for label, face in mapped.items() if label in found}
+    for label in found:
         face = _face(label)
         if face is not None and face not in faces:
             faces[face] = label
+    return faces if told is None else {told.sensor_label(face): label for face, label in faces.items()}
+
+
+def _solve(acc: Log, gyr: Log, options: SolveOptions, given: Settings) -> Outcome:
+    name = gyr.layout.name
+    found = sections(gyr)
     told = axes_given(options.axes)  # (--axes: the faces and turn axes named are the body's)
-    if told is not None:
-        faces = {told.sensor_label(face): label for face, label in faces.items()}
+    faces = _faces(found, given.pose_map, told)
+    shown = ", ".join(found) or "none"
     missing = [f for f in SIX if f not in faces]
     if missing:
         return Outcome(
