@@ -257,9 +257,10 @@ def _command(name: str | None = None) -> ClickCommand:
     ``tumblecal apply ...`` needs, parsed and reported exactly as by the whole group."""
     if name is not None:
         one = [c for c in app.registered_commands if _name(c) == name]
-        if one:
+        group = [g for g in app.registered_groups if g.name == name]  # (``records``: its commands alone)
+        if one or group:
             alone = copy.copy(app)
-            alone.registered_commands = one
+            alone.registered_commands, alone.registered_groups = one, group
             return typer.main.get_command(alone)
     return typer.main.get_command(app)
 
