@@ -188,7 +188,7 @@ class AllanStream:
             np.multiply(b[:, lo - m : end - m], 2.0, out=d)
             np.subtract(b[:, lo:end], d, out=d)
             d += b[:, lo - 2 * m : end - 2 * m]
-            self.sums[k] += np.einsum("ij,ij->i", d, d)  # along each axis's contiguous values (one pass)
+            self.sums[k] += np.square(d, out=d).sum(axis=1)  # along each axis's contiguous values
             self.terms[k] += end - lo
         g0 = self.start + p0  # global index of the first new S value
         offset = len(self.exact)
