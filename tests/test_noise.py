@@ -448,3 +448,36 @@ def test_noise_never_writes_onto_its_input(flag: str, tmp_path: Path, capsys: py
     assert code == 2, err
     assert "would overwrite the input" in err
     assert capture.read_text() == text
+
+
+def test_a_plain_capture_read_where_its_cells_lie_gives_what_the_general_reader_gives(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A regular file of plain lines is parsed in place (pipeline.noise._spliced): the same curve
+    and figures as the general reader's, to the last digit; a comment line half-way sends it
+    back to the general reader, with nothing of its start counted twice."""
+    from tumblecal_cli.pipeline import noise as noise_pipeline
+
+    y = simulate(300_000, 11)
+    plain = capture(tmp_path / "plain.csv", y)
+    lines = plain.read_text().splitlines(keepends=True)
+    noted = tmp_path / "noted.csv"
+    noted.write_text("".join([*lines[:200_000], "# the unit was bumped here\n", *lines[200_000:]]))
+
+    def figures(path: Path) -> dict[str, Any]:
+        r = run(capsys, "noise", path, "--json")
+        assert r.code == 0, r.err
+        doc: dict[str, Any] = json.loads(r.out)
+        return {k: doc[k] for k in ("adev", "axes", "samples", "clock")}
+
+    taken: list[Path] = []
+    spliced = noise_pipeline._spliced
+    monkeypatch.setattr(noise_pipeline, "_spliced", lambda path, *a: taken.append(path) or spliced(path, *a))
+    fast, again = figures(plain), figures(noted)
+    monkeypatch.setattr(noise_pipeline, "_spliced", lambda *a: None)
+    general = figures(plain)
+    assert taken == [str(plain), str(noted)]  # (both tried: the noted one fell back)
+    assert fast == general
+    assert again["samples"] == general["samples"] == 300_000
+    for a in "xyz":
+        np.testing.assert_allclose(again["adev"][a], general["adev"][a], rtol=1e-12)

@@ -130,6 +130,7 @@ class AllanStream:
     def __init__(
         self, per_octave: int = 1, *, exact_max: int = EXACT_MAX, window: int = WINDOW, largest: int = 2**40
     ) -> None:
+        self.made = (per_octave, exact_max, window, largest)  # (``fresh``)
         self.sizes = cluster_sizes(per_octave, largest, exact_max, window)
         self.strides = np.array([stride(m, exact_max, window) for m in self.sizes], dtype=np.int64)
         self.runs = 1  # runs of samples between gaps in time (restart)
@@ -148,6 +149,11 @@ class AllanStream:
         self.terms = np.zeros(len(self.sizes), dtype=np.int64)
         for s in self.strided:
             s.tail = np.zeros((1, 3))  # S_0, on every grid
+
+    def fresh(self) -> AllanStream:
+        """A stream of the same cluster sizes with nothing fed yet."""
+        per_octave, exact_max, window, largest = self.made
+        return AllanStream(per_octave, exact_max=exact_max, window=window, largest=largest)
 
     def add(self, samples: FloatArray) -> None:
         """Feed the next samples, (b, 3), in order."""

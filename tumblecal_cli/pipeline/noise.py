@@ -8,6 +8,7 @@ memory does not grow with its length, so a day at 200 Hz (17M rows) runs in a fe
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import math
 import os
@@ -27,6 +28,7 @@ from tumblecal_cli.io import sources
 from tumblecal_cli.io.calfiles import calfile, documents, limitfile
 from tumblecal_cli.io.csv import capture, readings, sniff
 from tumblecal_cli.io.csv.ahead import ahead
+from tumblecal_cli.io.csv.splice import Splicer, cuts, splicer_for
 from tumblecal_cli.io.outputs import atomic_output
 from tumblecal_cli.io.readspec import ReadKeywords, read_spec
 from tumblecal_cli.pipeline.frames import in_memory
@@ -363,8 +365,8 @@ def judge(
 def _stream(path: str, feed: _Feed, spec: ReadSpec) -> _Streamed:
     """Read the capture block by block into ``feed`` (the Allan stream and the step watch), its
     clock judged as it goes (``_Timer``; a source beside CSV, io.sources: read whole, then fed
-    the same way)."""
-    rate, time_unit = spec.rate, spec.time_unit
+    the same way). A regular file of plain lines is parsed where its cells lie (``_spliced``)."""
+    rate = spec.rate
     stream = feed.stream
     if sources.reader_for(path) is not None or spec.span() != (None, None):  # (--start/--end: readings.in_span)
         log = readings.read_log(path, spec, use_time=rate is None)
@@ -386,15 +388,72 @@ def _stream(path: str, feed: _Feed, spec: ReadSpec) -> _Streamed:
             raise InputError(
                 "the sample rate is unknown: the capture has no time column", file=lay.name, hint="give --rate HZ"
             )
-        timer = None if rate is not None else _Timer(lay.name, time_unit=time_unit, cap=cap)
-        # each block parsed on a thread of its own while the last one is summed (io.csv.ahead)
-        for first_row, values, empty, times in ahead(_parsed(cap, timer is not None)):
-            found: NDArray[np.int64] | None = None
-            if timer is not None and times is not None and values.shape[0]:
-                rows = first_row + (np.flatnonzero(~empty) if empty.any() else np.arange(values.shape[0]))
-                found = timer.add(times, rows)
-            feed.add(values, rate or (timer.hz if timer else None), found)
-    return _streamed(stream, feed, lay, rate, timer)
+        plain = _spliced(path, cap, rate is None)
+        if plain is not None:
+            with contextlib.suppress(_NotPlain):
+                return _fed(cap, plain, feed, spec)
+            feed = feed.again()  # (what the splice path fed is dropped: the general rules read it all)
+        return _fed(cap, _parsed(cap, rate is None), feed, spec)
+
+
+def _fed(cap: capture.Capture, blocks: Iterator[_Parsed], feed: _Feed, spec: ReadSpec) -> _Streamed:
+    """The blocks of a CSV capture into ``feed``, each parsed on a thread of its own while the
+    last one is summed (io.csv.ahead), the time column judged by a ``_Timer`` without --rate."""
+    rate, lay = spec.rate, cap.layout
+    timer = None if rate is not None else _Timer(lay.name, time_unit=spec.time_unit, cap=cap)
+    for first_row, values, empty, times in ahead(blocks):
+        found: NDArray[np.int64] | None = None
+        if timer is not None and times is not None and values.shape[0]:
+            rows = first_row + (np.flatnonzero(~empty) if empty.any() else np.arange(values.shape[0]))
+            found = timer.add(times, rows)
+        feed.add(values, rate or (timer.hz if timer else None), found)
+    return _streamed(feed.stream, feed, lay, rate, timer)
+
+
+#: One block of a capture as numbers: its first data row, the readings of its rows that have
+#: them, which rows have none, and the time of those that do (None: not read).
+_Parsed = tuple[int, "FloatArray", NDArray[np.bool_], "FloatArray | None"]
+
+
+class _NotPlain(Exception):
+    """A block the splice path does not take: the capture is read again by the general rules,
+    which name what is wrong with it, if anything."""
+
+
+def _spliced(path: str, cap: capture.Capture, timed: bool) -> Iterator[_Parsed] | None:
+    """The blocks of a regular file of plain lines (io.csv.splice's rules), each one's cells
+    parsed where they lie: what ``_parsed`` gives, in half its time (4M rows: 0.34 s of CPU
+    against 0.68 s). None when its lines cannot be spliced; a block that is not plain, or holds
+    a reading or time that is not a finite number, raises _NotPlain as it is reached."""
+    lay = cap.layout
+    extra = [lay.time] if timed and lay.time is not None else []
+    splicer = splicer_for(cap, [(lay.sensor, _unchanged)], also=extra)
+    blocks = None if splicer is None else cuts(path, len(lay.head), capture.BLOCK_BYTES)  # (the general reader's)
+    if splicer is None or blocks is None:
+        return None
+    where = [splicer.parsed.index(i) for i in (*lay.sensor, *extra)]
+    return _plain_blocks(path, splicer, where, blocks)
+
+
+def _plain_blocks(path: str, splicer: Splicer, where: list[int], blocks: list[tuple[int, int]]) -> Iterator[_Parsed]:
+    row = 0
+    with open(path, "rb") as f:
+        for at, length in blocks:
+            text = os.pread(f.fileno(), length, at)
+            found = splicer.read(text) if len(text) == length else None  # (a file cut short meanwhile)
+            if found is None:
+                raise _NotPlain
+            parsed, empty, _ = found
+            kept = parsed[~empty] if empty.any() else parsed
+            if not np.isfinite(kept).all():
+                raise _NotPlain
+            values = np.ascontiguousarray(kept[:, where[:3]])  # (row by row, as _parsed's: the same sums)
+            yield row, values, empty, kept[:, where[3]] if len(where) > 3 else None
+            row += len(empty)
+
+
+def _unchanged(values: FloatArray) -> FloatArray:
+    return values
 
 
 def _parsed(
@@ -515,6 +574,10 @@ class _Feed:
     progress: Callable[[int], None] | None
     turn: Axes | None = None
     watch: allan.StepWatch | None = None
+
+    def again(self) -> _Feed:
+        """This feed as it was before anything was added."""
+        return _Feed(self.cal, self.stream.fresh(), self.progress, self.turn)
 
     def add(self, values: FloatArray, hz: float | None, gaps: NDArray[np.int64] | None = None) -> None:
         if self.cal is not None:
