@@ -470,9 +470,14 @@ def test_a_plain_capture_read_where_its_cells_lie_gives_what_the_general_reader_
         doc: dict[str, Any] = json.loads(r.out)
         return {k: doc[k] for k in ("adev", "axes", "samples", "clock")}
 
-    taken: list[Path] = []
+    taken: list[str] = []
     spliced = noise_pipeline._spliced
-    monkeypatch.setattr(noise_pipeline, "_spliced", lambda path, *a: taken.append(path) or spliced(path, *a))
+
+    def spy(path: str, *rest: Any) -> Any:
+        taken.append(path)
+        return spliced(path, *rest)
+
+    monkeypatch.setattr(noise_pipeline, "_spliced", spy)
     fast, again = figures(plain), figures(noted)
     monkeypatch.setattr(noise_pipeline, "_spliced", lambda *a: None)
     general = figures(plain)
