@@ -425,3 +425,9 @@ def test_thermal_of_a_calibration_into_the_bodys_axes_takes_the_bodys_faces(
     assert {k: v for k, v in a.items() if k != "sweeps"} == {k: v for k, v in b.items() if k != "sweeps"}
     assert [w["pose"] for w in b["sweeps"]] == [body[n] for n in sweeps]
     assert json.loads(warm_turned.read_text())["axes"] == AXES
+    # two sweeps told the wrong way round: refused, named by the faces as told (the body's)
+    swapped = [f"{body['yp' if n == 'xp' else 'xp' if n == 'yp' else n]}={s / (sweeps[n] + '.csv')}" for n in sweeps]
+    r = run(capsys, "thermal", "-q", *swapped, "--cal", base_turned, "-o", tmp_path / "no.json")
+    assert r.code == 3
+    assert f"sweep_up_xp.csv: declared {body['yp']} but reads like {body['xp']} (mean " in r.err
+    assert not (tmp_path / "no.json").exists()

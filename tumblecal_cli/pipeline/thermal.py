@@ -298,13 +298,19 @@ def _checks(
         skip=frozenset({"saturated", "upside_down"}),
     )
     gain_scale = np.zeros(3) if gyro else np.abs(base.gain) * base.reference
+    # a calibration into the body's axes (--axes) is checked in them, as its sweeps' faces were
+    # told: P (raw - b) against the face, corrected by M P^T (its matrix is P M)
+    turn = None if base.axes is None else base.axes.matrix
+    offset = base.offset if turn is None else turn @ base.offset
     poses = []
     for r, s in zip(read, sweeps, strict=True):
         flat = drift.detrended(s, fitted.drift, gain_scale)
-        poses.append(gate.measure(r.file, r.face, flat, model.pose_stats(flat), options))
+        flat = flat if turn is None else flat @ turn.T
+        poses.append(gate.measure(r.file, r.told, flat, model.pose_stats(flat), options))
     if not gyro:
-        poses = gate.orient(poses, base.offset, max_tilt)
-    solution = model.Solution(base.method, base.offset, base.sensor_matrix, np.zeros(3), np.zeros(3))
+        poses = gate.orient(poses, offset, max_tilt)
+    matrix = base.sensor_matrix if turn is None else base.matrix @ turn.T
+    solution = model.Solution(base.method, offset, matrix, np.zeros(3), np.zeros(3))
     rejected, warned = gate.check(poses, solution, options)
     if rejected:
         first = rejected[0]
