@@ -8,6 +8,7 @@ from __future__ import annotations
 import gzip
 import json
 import math
+import os
 from pathlib import Path
 from typing import Any
 
@@ -453,36 +454,46 @@ def test_noise_never_writes_onto_its_input(flag: str, tmp_path: Path, capsys: py
 def test_a_plain_capture_read_where_its_cells_lie_gives_what_the_general_reader_gives(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """A regular file of plain lines is parsed in place (pipeline.noise._spliced): the same curve
-    and figures as the general reader's, to the last digit; a comment line half-way sends it
-    back to the general reader, with nothing of its start counted twice."""
+    """A regular file of plain lines is parsed in place (pipeline.noise._spliced): the same
+    output, every digit and every word, as the general reader's, on a plain capture and on the
+    shapes that send it back to the general reader or past it (a comment half-way, CR LF line
+    ends, no line end after the last line, a row without readings whose time is empty)."""
     from tumblecal_cli.pipeline import noise as noise_pipeline
 
     y = simulate(300_000, 11)
     plain = capture(tmp_path / "plain.csv", y)
-    lines = plain.read_text().splitlines(keepends=True)
-    noted = tmp_path / "noted.csv"
-    noted.write_text("".join([*lines[:200_000], "# the unit was bumped here\n", *lines[200_000:]]))
+    text = plain.read_text()
+    lines = text.splitlines(keepends=True)
+    shapes = {
+        "plain": text,
+        "noted": "".join([*lines[:200_000], "# the unit was bumped here\n", *lines[200_000:]]),
+        "crlf": text.replace("\n", "\r\n"),
+        "unended": text[:-1],
+        "untimed-row": "".join([*lines[:150_000], ",,,\n", *lines[150_001:]]),
+    }
+    files = {name: tmp_path / f"{name}.csv" for name in shapes}
+    for name, body in shapes.items():
+        files[name].write_bytes(body.encode())
 
-    def figures(path: Path) -> dict[str, Any]:
+    def said(path: Path) -> tuple[int, str, str]:
         r = run(capsys, "noise", path, "--json")
-        assert r.code == 0, r.err
-        doc: dict[str, Any] = json.loads(r.out)
-        return {k: doc[k] for k in ("adev", "axes", "samples", "clock")}
+        return r.code, r.out, r.err
 
     taken: list[str] = []
     spliced = noise_pipeline._spliced
 
     def spy(path: str, *rest: Any) -> Any:
-        taken.append(path)
-        return spliced(path, *rest)
+        found = spliced(path, *rest)
+        if found is not None:
+            taken.append(os.path.basename(path))
+        return found
 
     monkeypatch.setattr(noise_pipeline, "_spliced", spy)
-    fast, again = figures(plain), figures(noted)
+    fast = {name: said(path) for name, path in files.items()}
     monkeypatch.setattr(noise_pipeline, "_spliced", lambda *a: None)
-    general = figures(plain)
-    assert taken == [str(plain), str(noted)]  # (both tried: the noted one fell back)
+    general = {name: said(path) for name, path in files.items()}
+    assert taken == ["plain.csv", "noted.csv", "untimed-row.csv"]  # (the noted one and the last fall back)
     assert fast == general
-    assert again["samples"] == general["samples"] == 300_000
-    for a in "xyz":
-        np.testing.assert_allclose(again["adev"][a], general["adev"][a], rtol=1e-12)
+    assert fast["plain"][0] == 0
+    assert json.loads(fast["plain"][1])["samples"] == 300_000
+    assert fast["untimed-row"][0] == 2  # an empty time cell, on a row without readings too

@@ -306,7 +306,7 @@ def _checks(
     for r, s in zip(read, sweeps, strict=True):
         flat = drift.detrended(s, fitted.drift, gain_scale)
         flat = flat if turn is None else flat @ turn.T
-        poses.append(gate.measure(r.file, r.told, flat, model.pose_stats(flat), options))
+        poses.append(gate.measure(r.file, r.told if r.face else None, flat, model.pose_stats(flat), options))
     if not gyro:
         poses = gate.orient(poses, offset, max_tilt)
     matrix = base.sensor_matrix if turn is None else base.matrix @ turn.T
