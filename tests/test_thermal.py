@@ -485,6 +485,22 @@ def test_the_api_fits_a_gyroscopes_bias_drift_from_captures_in_any_pose(tmp_path
     assert np.all(np.abs(block.offset[:, 0] - drift1) < 4 * se[:, 0])
     assert np.all(np.abs(block.offset[:, 1] - drift2) < 4 * se[:, 1])
     assert "GYR1_X" in tumblecal.export(done.calibration, "ardupilot")
+    # a gyroscope's sweeps labelled anyway: in any pose, so no pose is said of them anywhere
+    from tests.conftest import tumblecal as tumblecal_cli_run
+
+    base_file, moved = tmp_path / "gyro.json", tmp_path / "moved.csv"
+    base.save(base_file)
+    head, *rows = Path(files[1]).read_text().splitlines()
+    jumped = [
+        ",".join([t, *(f"{float(v) + 3.0:.5f}" for v in rest)]) for t, *rest in (r.split(",") for r in rows[1500:])
+    ]
+    moved.write_text("\n".join([head, *rows[:1500], *jumped]) + "\n")  # the unit moved half-way: a warning
+    r = tumblecal_cli_run("thermal", f"+x={files[0]}", f"-z={moved}", "--cal", base_file, "--json",
+                          "--reference-temperature", "20", "--max-noise", "1.6", "-o", tmp_path / "g.json")  # fmt: skip
+    assert r.code in (0, 1), r.err
+    warned = json.loads(r.out)["warnings"]
+    assert [(w["code"], w["pose"]) for w in warned] == [("pose.moved", None)]
+    assert [w["pose"] for w in json.loads((tmp_path / "g.json").read_text())["thermal"]["sweeps"]] == [None, None]
 
 
 @pytest.mark.slow
