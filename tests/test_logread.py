@@ -66,7 +66,7 @@ def both(path: Path, rate: float | None = None, **settings: object) -> tuple[obj
     if streamed is not None:
         streamed = (streamed[0], logs.review(streamed[0], streamed[1], rate, s))
     whole = readings.read_log(str(path), use_time=rate is None)
-    return streamed, (whole, logs.find_blocks(whole, rate, None, None, s))
+    return streamed, (whole, logs.find_blocks(whole, rate, None, s))
 
 
 def same(streamed: tuple[readings.Log, sc.Segmentation], whole: tuple[readings.Log, sc.Segmentation]) -> None:

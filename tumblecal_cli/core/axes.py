@@ -65,6 +65,12 @@ class Axes:
         d = self.matrix.T @ direction(label)
         return parse_label(",".join(f"{v:.12g}" for v in d))
 
+    def body(self, values: FloatArray) -> FloatArray:
+        """Readings (n, 3) of the sensor's axes as the body's (``v Pᵀ``, by their columns: the
+        same digits)."""
+        out: FloatArray = values[:, list(self.source)] * np.asarray(self.sign, dtype=np.float64)
+        return out
+
     def body_label(self, label: str) -> str:
         """A pose label of the sensor's axes (``-y``) as the body's direction it is (``+x`` with
         -y,-x,+z): ``sensor_label``'s inverse."""

@@ -482,7 +482,7 @@ def imus(
         return gyros(chosen, calibrations, limits)
     read = [readings.read_log(lg, s, use_time=True, name=_name(lg, s)) for lg, s in chosen]
     first = read[0]
-    seg = segmenting.find_blocks(first, spec.rate, None, None, _settings(settings, None))
+    seg = segmenting.find_blocks(first, spec.rate, None, _settings(settings, None))
     kept = sorted(seg.kept, key=lambda b: b.first)
     spans = _time_spans(first, kept)
     if not kept:

@@ -28,7 +28,7 @@ from tumblecal_cli.io import sources
 from tumblecal_cli.io.calfiles import calfile, documents, limitfile
 from tumblecal_cli.io.csv import capture, readings, sniff
 from tumblecal_cli.io.csv.ahead import ahead
-from tumblecal_cli.io.csv.splice import Splicer, cuts, splicer_for
+from tumblecal_cli.io.csv.splice import Splicer, cuts, reader_for
 from tumblecal_cli.io.outputs import atomic_output
 from tumblecal_cli.io.readspec import ReadKeywords, read_spec
 from tumblecal_cli.pipeline.frames import in_memory
@@ -431,7 +431,7 @@ def _spliced(path: str, cap: capture.Capture, timed: bool) -> Iterator[_Parsed] 
     reading or a time that is not a finite number, raises _NotPlain as it is reached."""
     lay = cap.layout
     extra = [lay.time] if timed and lay.time is not None else []
-    splicer = splicer_for(cap, [(lay.sensor, _unchanged)], also=extra)  # (a regular file's)
+    splicer = reader_for(cap, also=extra)  # (a regular file's)
     if splicer is None or lay.eol != "\n" or not _ends_a_line(path):
         return None
     blocks = cuts(path, len(lay.head), capture.BLOCK_BYTES)  # (the general reader's)
@@ -464,10 +464,6 @@ def _ends_a_line(path: str) -> bool:
     with open(path, "rb") as f:
         size = os.fstat(f.fileno()).st_size
         return size > 0 and os.pread(f.fileno(), 1, size - 1) == b"\n"
-
-
-def _unchanged(values: FloatArray) -> FloatArray:
-    return values
 
 
 def _parsed(
@@ -597,7 +593,7 @@ class _Feed:
         if self.cal is not None:
             values = apply(values, self.cal.offset, self.cal.matrix)
         elif self.turn is not None:
-            values = values[:, list(self.turn.source)] * np.asarray(self.turn.sign, dtype=np.float64)
+            values = self.turn.body(values)
         if self.watch is None and hz is not None:
             self.watch = allan.StepWatch(max(16, 2 ** round(math.log2(max(hz, 1.0)))))  # about a second
         cuts = [0, *(int(g) for g in gaps), values.shape[0]] if gaps is not None and gaps.size else None

@@ -138,7 +138,7 @@ def segmented(
             digest=digest,
         )
         model.in_range(data.values, data.layout.name)
-        yield path, data, find_blocks(data, rate, pose_column, pose_map, settings, labels.axes)
+        yield path, data, find_blocks(data, rate, labels, settings)
 
 
 #: A clock with more time steps of 0 than this share, and steps shorter on average than the
@@ -160,17 +160,11 @@ MAX_TINY_BLOCKS = 50
 
 
 def find_blocks(
-    log: Log,
-    rate: float | None,
-    pose_column: str | None,
-    pose_map: Mapping[str, str] | str | None,
-    settings: seg_core.DetectorSettings,
-    axes: Axes | None = None,
+    log: Log, rate: float | None, labels: PoseLabels | None, settings: seg_core.DetectorSettings
 ) -> Segmentation:
-    """The blocks of a log read in: by the detector, or by its label column (its faces the
-    body's with ``axes``)."""
+    """The blocks of a log read in: by the detector, or by its label column (``labels``)."""
     seconds = None if rate else log.seconds()
-    seg = _blocks_of(log, seconds, rate, pose_column, pose_map, settings, axes)
+    seg = _blocks_of(log, seconds, rate, labels or PoseLabels(), settings)
     seg.gap_rows = [int(log.rows[g - 1]) for g in seg.gaps]
     if seconds is not None and seconds.size > 1:
         steps = np.diff(seconds)
@@ -224,14 +218,13 @@ def _blocks_of(
     log: Log,
     seconds: arrays.FloatArray | None,
     rate: float | None,
-    pose_column: str | None,
-    pose_map: Mapping[str, str] | str | None,
+    told: PoseLabels,
     settings: seg_core.DetectorSettings,
-    axes: Axes | None,
 ) -> Segmentation:
+    pose_column, axes = told.column, told.axes
     if pose_column is None:
         return seg_core.detect(log.values, seconds, rate, settings)
-    mapping = parse_pose_map(pose_map)
+    mapping = parse_pose_map(told.mapping)
     labels = sorted(set(log.labels or []) - {""})
     unknown = [label for label in mapping if label not in labels]
     shown = ", ".join(labels[:12]) + (" ..." if len(labels) > 12 else "")

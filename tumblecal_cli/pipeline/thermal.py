@@ -300,16 +300,16 @@ def _checks(
     gain_scale = np.zeros(3) if gyro else np.abs(base.gain) * base.reference
     # a calibration into the body's axes (--axes) is checked in them, as its sweeps' faces were
     # told: P (raw - b) against the face, corrected by M P^T (its matrix is P M)
-    turn = None if base.axes is None else base.axes.matrix
-    offset = base.offset if turn is None else turn @ base.offset
+    turn = base.axes
+    offset = base.offset if turn is None else turn.matrix @ base.offset
     poses = []
     for r, s in zip(read, sweeps, strict=True):
         flat = drift.detrended(s, fitted.drift, gain_scale)
-        flat = flat if turn is None else flat @ turn.T
+        flat = flat if turn is None else turn.body(flat)
         poses.append(gate.measure(r.file, r.told if r.face else None, flat, model.pose_stats(flat), options))
     if not gyro:
         poses = gate.orient(poses, offset, max_tilt)
-    matrix = base.sensor_matrix if turn is None else base.matrix @ turn.T
+    matrix = base.matrix if turn is None else base.matrix @ turn.matrix.T
     solution = model.Solution(base.method, offset, matrix, np.zeros(3), np.zeros(3))
     rejected, warned = gate.check(poses, solution, options)
     if rejected:

@@ -45,7 +45,7 @@ from tumblecal_cli.core.scan import Kept, Scan
 from tumblecal_cli.errors import InputError
 from tumblecal_cli.io.csv import capture, readings, sniff
 from tumblecal_cli.io.csv.readings import Log, Stretch
-from tumblecal_cli.io.csv.splice import Splicer, cuts, splicer_for
+from tumblecal_cli.io.csv.splice import Splicer, cuts, reader_for
 from tumblecal_cli.io.readspec import ReadSpec
 
 #: Files smaller than this keep their readings' rows and line offsets as int32 (4 bytes, not 8).
@@ -92,7 +92,7 @@ def scan_log(
     with capture.open_capture(path, spec, name=name) as cap:
         lay = cap.layout
         extra = [i for i in (lay.time, lay.per_row_column) if i is not None]
-        splicer = splicer_for(cap, [(lay.sensor, _same)], also=extra)
+        splicer = reader_for(cap, also=extra)
         if splicer is None:
             return None
         where = [splicer.parsed.index(i) for i in (*lay.sensor, *extra)]
@@ -100,10 +100,6 @@ def scan_log(
             return _scan(path, lay, splicer, where, settings, time_unit, rate, digest)
         except _Plain:  # the layout and its notes go with it: the whole read opens the log again
             return None
-
-
-def _same(values: FloatArray) -> FloatArray:
-    return values
 
 
 def _scan(

@@ -452,3 +452,13 @@ def splicer_for(
     if not stream and (cap.path is None or not isinstance(cap.stream, pa.OSFile)):
         return None
     return Splicer(len(lay.names), lay.delimiter, lay.eol, lay.decimal, corrections, temperature, also)
+
+
+def reader_for(cap: Capture, also: Sequence[int] = ()) -> Splicer | None:
+    """``splicer_for`` a reader of ``cap`` (the log reader's, noise's): its sensor's cells, and
+    those of ``also``, parsed where they lie, none rewritten."""
+    return splicer_for(cap, [(cap.layout.sensor, _unchanged)], also=also)
+
+
+def _unchanged(values: FloatArray) -> FloatArray:
+    return values
